@@ -1,0 +1,1 @@
+"""ldaspark: Lagrange-d'Alembert SPARK integrators for nonholonomic Lagrangian systems (Jay)."""

@@ -1,0 +1,37 @@
+"""Exception hierarchy. Every error the library raises on purpose derives from LdasparkError,
+so the CLI can print one line and exit 2 without a traceback."""
+
+
+class LdasparkError(Exception):
+    """Base class of all ldaspark errors."""
+
+
+class TableauError(LdasparkError):
+    """Malformed or unusable tableau (shapes, non-numeric entries, NaN, singular omega)."""
+
+
+class SystemDefinitionError(LdasparkError):
+    """Ill-posed system definition (dimensions, symbols)."""
+
+
+class InconsistentInitialDataError(LdasparkError):
+    """Initial data violate k(t0, q0, v0) = 0 beyond tolerance."""
+
+
+class SingularSaddleError(LdasparkError):
+    """The saddle matrix (4) [[L_vv, K^T], [K, 0]] is singular (or numerically so)."""
+
+
+class NewtonError(LdasparkError):
+    """Newton iteration for the stage equations did not converge."""
+
+    def __init__(self, message, step=None, time=None, residual=None, iterations=None):
+        super().__init__(message)
+        self.step = step
+        self.time = time
+        self.residual = residual
+        self.iterations = iterations
+
+
+class InputError(LdasparkError):
+    """Bad user input: NaN/inf, zero step, unknown scene or method, bad file."""

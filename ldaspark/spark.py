@@ -1,0 +1,314 @@
+"""The SPARK step (21a-f) and the integration loop.
+
+One step from consistent (t0, q0, v0) with step h solves, for the unknowns
+V_1..V_s (n each), Lambda_1..Lambda_s (m each, Lambda_j = h Psi_j) and v1 (n):
+
+    Q_i  = q0 + h sum_j a_ij V_j                                          (21a)
+    0    = P_i - p0 - h sum_j a^_ij F_j + sum_j a~_ij K_j^T Lambda_j      (21b), i = 1..s
+    q1   = q0 + h sum_j b_j V_j                                           (21c)
+    0    = p1 - p0 - h sum_j b^_j F_j + sum_j b~_j K_j^T Lambda_j         (21d)
+    0    = sum_j omega_ij k(T_j, Q_j, V_j),  i = 1..s-1                   (21e)
+    0    = k(t1, q1, v1)                                                  (21f)
+
+with P_i = grad_v L(T_i, Q_i, V_i), F_i = grad_q L(T_i, Q_i, V_i), K_i = k_v(T_i, Q_i, V_i),
+p_j = grad_v L(t_j, q_j, v_j). Momenta are never inverted explicitly: (21b) and (21d) are solved
+for V_i and v1 directly, so general (non-quadratic) L is allowed. The multipliers are scaled
+(Lambda = h Psi) so that every block of the Newton matrix is O(1) as h -> 0.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .backend import Backend, SingularMatrixError
+from .errors import InputError, NewtonError
+from .system import LagrangianSystem
+from .tableau import SparkTableau
+
+
+@dataclass
+class StepResult:
+    t1: object
+    q1: np.ndarray
+    v1: np.ndarray
+    V: np.ndarray          # (s, n) stage velocities
+    Q: np.ndarray          # (s, n) stage positions
+    Psi: np.ndarray        # (s, m) stage multipliers
+    iterations: int
+    residual: float        # inf-norm of the residual at the last evaluation
+    x: np.ndarray          # packed unknowns (warm start of the next step)
+
+
+@dataclass
+class Stats:
+    steps: int = 0
+    newton_iterations: int = 0
+    nfev: int = 0          # stage-function evaluations (one per stage point)
+    njev: int = 0          # Jacobian assemblies
+    nlu: int = 0           # LU factorisations
+    max_residual: float = 0.0
+    iterations_per_step: list = field(default_factory=list)
+
+    def as_dict(self):
+        d = dict(self.__dict__)
+        d.pop("iterations_per_step")
+        d["mean_iterations"] = self.newton_iterations / max(self.steps, 1)
+        return d
+
+
+class SparkMethod:
+    """A SPARK method (21) applied to one system at one precision.
+
+    Parameters
+    ----------
+    system : LagrangianSystem
+    tableau : SparkTableau
+    dps : None for float64, else mpmath digits.
+    tol : Newton increment tolerance (relative); default 10 * unit round-off.
+    newton : "full" (Jacobian every iteration) or "simplified" (one Jacobian per step).
+    max_iter : Newton iteration cap before NewtonError.
+    """
+
+    def __init__(self, system: LagrangianSystem, tableau: SparkTableau, dps: int | None = None,
+                 tol: float | None = None, newton: str = "full", max_iter: int = 50):
+        if newton not in ("full", "simplified"):
+            raise InputError(f"newton must be 'full' or 'simplified', got {newton!r}")
+        self.system = system
+        self.tableau = tableau
+        self.backend = Backend(dps)
+        self.dps = dps
+        self.tol = tol if tol is not None else 10 * self.backend.eps
+        self.newton = newton
+        self.max_iter = max_iter
+        self.tab = tableau.arrays(dps)
+        self.stats = Stats()
+        s, n, m = tableau.s, system.n, system.m
+        self.s, self.n, self.m = s, n, m
+        # unknown layout: V (s*n) | Lambda (s*m) | v1 (n); residual rows: (21b) s*n | (21d) n | (21e) (s-1)*m | (21f) m
+        self.size = s * n + s * m + n
+
+    # --- packing ---------------------------------------------------------------------------
+    def unpack(self, x):
+        s, n, m = self.s, self.n, self.m
+        V = x[:s * n].reshape(s, n)
+        Lam = x[s * n:s * n + s * m].reshape(s, m)
+        v1 = x[s * n + s * m:]
+        return V, Lam, v1
+
+    def pack(self, V, Lam, v1):
+        return np.concatenate([np.asarray(V).reshape(-1), np.asarray(Lam).reshape(-1), np.asarray(v1)])
+
+    # --- residual and Jacobian ---------------------------------------------------------------
+    def residual(self, t0, q0, p0, h, x, jacobian=True):
+        """Residual of (21b, d, e, f) at packed unknowns x, and its Jacobian if asked."""
+        sysm, tab, bk = self.system, self.tab, self.backend
+        s, n, m = self.s, self.n, self.m
+        V, Lam, v1 = self.unpack(x)
+        T = [t0 + tab.c[i] * h for i in range(s)]
+        Q = q0 + h * tab.A.dot(V)
+        q1 = q0 + h * tab.b.dot(V)
+        t1 = t0 + h
+        st = [sysm.stage(bk, T[i], Q[i], V[i], Lam[i], jacobian) for i in range(s)]
+        fin = sysm.stage(bk, t1, q1, v1, bk.zeros(m), jacobian)
+        self.stats.nfev += s + 1
+        F = np.array([e.L_q for e in st])
+        Rl = np.array([e.R_lam for e in st])
+        Kst = np.array([e.k for e in st])
+        G = bk.zeros(self.size)
+        r_b = np.array([e.L_v for e in st]) - p0 - h * tab.A_hat.dot(F) - tab.A_tilde.dot(Rl)
+        r_d = fin.L_v - p0 - h * tab.b_hat.dot(F) - tab.b_tilde.dot(Rl)
+        r_e = tab.omega.dot(Kst) if s > 1 else bk.zeros((0, m))
+        G[:s * n] = r_b.reshape(-1)
+        G[s * n:s * n + n] = r_d
+        G[s * n + n:s * n + n + (s - 1) * m] = r_e.reshape(-1)
+        G[s * n + n + (s - 1) * m:] = fin.k
+        if not jacobian:
+            return G, None, (T, Q, q1)
+        self.stats.njev += 1
+        J = self._jacobian(h, st, fin)
+        return G, J, (T, Q, q1)
+
+    def _jacobian(self, h, st, fin):
+        tab, bk = self.tab, self.backend
+        s, n, m = self.s, self.n, self.m
+        A, Ah, At, b, bh, bt = tab.A, tab.A_hat, tab.A_tilde, tab.b, tab.b_hat, tab.b_tilde
+        Lvv = np.array([e.L_vv for e in st]); Lvq = np.array([e.L_vq for e in st])
+        Lqv = np.array([e.L_qv for e in st]); Lqq = np.array([e.L_qq for e in st])
+        kq = np.array([e.k_q for e in st]); kv = np.array([e.k_v for e in st])
+        Rq = np.array([e.R_q for e in st]); Rv = np.array([e.R_v for e in st])
+        eye_s = np.eye(s, dtype=object if bk.is_mp else float)
+        # d X_j / d V_k = delta_jk X_v(j) + h a_jk X_q(j) for every stage quantity X
+        dF = np.einsum("jk,jab->jkab", eye_s, Lqv) + h * np.einsum("jk,jab->jkab", A, Lqq)
+        dR = np.einsum("jk,jab->jkab", eye_s, Rv) + h * np.einsum("jk,jab->jkab", A, Rq)
+        dP = np.einsum("ik,iab->ikab", eye_s, Lvv) + h * np.einsum("ik,iab->ikab", A, Lvq)
+        dk = np.einsum("jk,jab->jkab", eye_s, kv) + h * np.einsum("jk,jab->jkab", A, kq)
+        KT = np.transpose(kv, (0, 2, 1))                                 # (s, n, m)
+        N = self.size
+        J = bk.zeros((N, N))
+        r_d, r_e, r_f = s * n, s * n + n, s * n + n + (s - 1) * m
+        c_lam, c_v1 = s * n, s * n + s * m
+        # (21b) rows
+        JbV = dP - h * np.einsum("ij,jkab->ikab", Ah, dF) - np.einsum("ij,jkab->ikab", At, dR)
+        J[:r_d, :c_lam] = JbV.transpose(0, 2, 1, 3).reshape(s * n, s * n)
+        JbL = np.einsum("ik,kam->ikam", At, KT)
+        J[:r_d, c_lam:c_v1] = JbL.transpose(0, 2, 1, 3).reshape(s * n, s * m)
+        # (21d) rows
+        JdV = h * np.einsum("k,ab->kab", b, fin.L_vq) - h * np.einsum("j,jkab->kab", bh, dF) \
+            - np.einsum("j,jkab->kab", bt, dR)
+        J[r_d:r_e, :c_lam] = JdV.transpose(1, 0, 2).reshape(n, s * n)
+        J[r_d:r_e, c_lam:c_v1] = np.einsum("k,kam->akm", bt, KT).reshape(n, s * m)
+        J[r_d:r_e, c_v1:] = fin.L_vv
+        # (21e) rows
+        if s > 1:
+            JeV = np.einsum("lj,jkab->lkab", tab.omega, dk)
+            J[r_e:r_f, :c_lam] = JeV.transpose(0, 2, 1, 3).reshape((s - 1) * m, s * n)
+        # (21f) rows
+        J[r_f:, :c_lam] = (h * np.einsum("k,ab->akb", b, fin.k_q)).reshape(m, s * n)
+        J[r_f:, c_v1:] = fin.k_v
+        return J
+
+    # --- one step ----------------------------------------------------------------------------
+    def initial_guess(self, v0):
+        V = np.array([v0] * self.s)
+        return self.pack(V, self.backend.zeros((self.s, self.m)), v0)
+
+    def step(self, t0, q0, v0, h, x0=None, step_index=0) -> StepResult:
+        """One step of (21); x0 is the packed starting guess (default V_i = v1 = v0, Psi = 0)."""
+        bk = self.backend
+        with bk.context():
+            p0 = self.system.momentum(bk, t0, q0, v0)
+            x = (self.initial_guess(v0) if x0 is None else x0).copy()
+            tol_abs = self.tol * (1 + bk.norm_inf(x))
+            fac = None
+            prev = None
+            res = float("inf")
+            for it in range(1, self.max_iter + 1):
+                need_j = fac is None or self.newton == "full"
+                G, J, _ = self.residual(t0, q0, p0, h, x, jacobian=need_j)
+                res = bk.norm_inf(G)
+                if not math.isfinite(res):
+                    break
+                if need_j:
+                    try:
+                        fac = bk.factor(J)
+                    except SingularMatrixError as exc:
+                        raise NewtonError(
+                            f"step {step_index} at t = {float(t0):.6g}: {exc} (iteration {it}, residual {res:.3e})",
+                            step=step_index, time=float(t0), residual=res, iterations=it) from None
+                    self.stats.nlu += 1
+                dx = bk.solve_factored(fac, -G)
+                x = x + dx
+                dn = bk.norm_inf(dx)
+                if not math.isfinite(dn):
+                    res = float("nan")
+                    break
+                if dn <= tol_abs:
+                    return self._finish(t0, q0, h, x, it, res, step_index)
+                # round-off floor: increments stopped shrinking at the noise level
+                if prev is not None and dn >= 0.5 * prev and dn <= 1e3 * tol_abs:
+                    return self._finish(t0, q0, h, x, it, res, step_index)
+                prev = dn
+            raise NewtonError(
+                f"Newton did not converge at step {step_index}, t = {float(t0):.6g}, h = {float(h):.3g}: "
+                f"residual {res:.3e} after {it} iterations", step=step_index, time=float(t0),
+                residual=res, iterations=it)
+
+    def _finish(self, t0, q0, h, x, it, res, step_index):
+        tab = self.tab
+        V, Lam, v1 = self.unpack(x)
+        q1 = q0 + h * tab.b.dot(V)
+        Q = q0 + h * tab.A.dot(V)
+        st = self.stats
+        st.steps += 1
+        st.newton_iterations += it
+        st.iterations_per_step.append(it)
+        st.max_residual = max(st.max_residual, res)
+        return StepResult(t0 + h, q1, v1.copy(), V.copy(), Q, Lam / h, it, res, x)
+
+
+@dataclass
+class Solution:
+    """Result of ``integrate``: t (N+1), q, v (N+1, n), psi (N, s, m), energy (N+1),
+    constraint (N+1, m) = k(t_n, q_n, v_n), and solver statistics."""
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    psi: np.ndarray
+    energy: np.ndarray
+    constraint: np.ndarray
+    stats: dict
+    dps: int | None
+    method: str
+    system: str
+
+
+def n_steps_for(t0, t_end, h) -> int:
+    if h == 0 or not math.isfinite(float(h)):
+        raise InputError(f"step size h must be finite and nonzero, got {h}")
+    span = float(t_end) - float(t0)
+    N = int(round(span / float(h)))
+    if N <= 0:
+        raise InputError(f"t_end = {t_end} is not reached from t0 = {t0} with h = {h}")
+    if abs(N * float(h) - span) > 1e-9 * max(1.0, abs(span)):
+        raise InputError(f"(t_end - t0) = {span} is not an integer multiple of h = {h}")
+    return N
+
+
+def integrate(system: LagrangianSystem, tableau: SparkTableau, t0, q0, v0, h, t_end=None,
+              n_steps=None, dps=None, project=False, tol=None, newton="full", progress=None,
+              check_initial=True) -> Solution:
+    """Integrate (1) with the SPARK method (21) at constant step h from consistent data.
+
+    Exactly one of ``t_end`` / ``n_steps``. With ``dps`` the computation runs in mpmath at
+    that precision (inputs may be strings or sympy numbers to carry full precision).
+    Raises InconsistentInitialDataError (unless ``project``), SingularSaddleError, NewtonError.
+    """
+    method = SparkMethod(system, tableau, dps=dps, tol=tol, newton=newton)
+    bk = method.backend
+    with bk.context():
+        h_ = bk.scalar(h)
+        t0_ = bk.scalar(t0)
+        if n_steps is None:
+            if t_end is None:
+                raise InputError("give t_end or n_steps")
+            n_steps = n_steps_for(t0, t_end, h)
+        if n_steps <= 0:
+            raise InputError(f"n_steps must be positive, got {n_steps}")
+        q = bk.array(q0)
+        v = bk.array(v0)
+        if len(q) != system.n or len(v) != system.n:
+            raise InputError(f"initial data have dimensions q: {len(q)}, v: {len(v)}; the system has n = {system.n}")
+        if not (bk.isfinite(q) and bk.isfinite(v)) or not math.isfinite(float(h_)):
+            raise InputError("initial data or step size contain NaN or infinity")
+        if check_initial:
+            system.check_saddle(bk, t0_, q, v)
+            if project:
+                v = system.project_velocity(bk, t0_, q, v)
+            system.check_consistent(bk, t0_, q, v, tol=None if tol is None else 10 * tol)
+        N = n_steps
+        ts = [t0_ + i * h_ for i in range(N + 1)]
+        Qs, Vs, Ps = [q], [v], []
+        x = None
+        v_prev = None
+        for i in range(N):
+            if x is not None and v_prev is not None:
+                # predictor: previous stage solution shifted by the last velocity increment
+                Vp, Lp, v1p = method.unpack(x)
+                x = method.pack(Vp + (v - v_prev), Lp, v1p + (v - v_prev))
+            r = method.step(ts[i], q, v, h_, x0=x, step_index=i)
+            v_prev = v
+            q, v, x = r.q1, r.v1, r.x
+            Qs.append(q)
+            Vs.append(v)
+            Ps.append(r.Psi)
+            if progress is not None:
+                progress(i + 1, N)
+        E = [system.energy(bk, ts[i], Qs[i], Vs[i]) for i in range(N + 1)]
+        K = [system.constraint(bk, ts[i], Qs[i], Vs[i]) for i in range(N + 1)]
+    dt = object if bk.is_mp else float
+    return Solution(np.array(ts, dtype=dt), np.array(Qs, dtype=dt), np.array(Vs, dtype=dt),
+                    np.array(Ps, dtype=dt), np.array(E, dtype=dt), np.array(K, dtype=dt),
+                    method.stats.as_dict(), dps, tableau.name, system.name)

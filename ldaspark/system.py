@@ -1,0 +1,230 @@
+"""Lagrangian systems with nonholonomic constraints (1): L(t, q, v) and k(t, q, v).
+
+A scene states L and k as sympy expressions (or the mechanical form M, U, K, b); everything
+else is derived here: grad_q L, grad_v L, the Hessians, K = k_v (1d), k_q, k_t, the energy (8)
+and the saddle matrix (4). Derived expressions are compiled with ``sympy.lambdify`` once per
+number type ("math" for float64, "mpmath" for arbitrary precision).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mpmath
+import numpy as np
+import sympy
+
+from .backend import Backend
+from .errors import InconsistentInitialDataError, SingularSaddleError, SystemDefinitionError
+
+
+@dataclass
+class StageEval:
+    """Values at one point (T, Q, V, Lambda), with Lambda = h Psi the scaled multiplier.
+
+    R_lam = -K^T Lambda is h R of (21); its partials R_q, R_v enter the Newton matrix."""
+
+    L_v: np.ndarray
+    L_q: np.ndarray
+    k: np.ndarray
+    R_lam: np.ndarray
+    L_vv: np.ndarray | None = None
+    L_vq: np.ndarray | None = None
+    L_qv: np.ndarray | None = None
+    L_qq: np.ndarray | None = None
+    k_q: np.ndarray | None = None
+    k_v: np.ndarray | None = None
+    R_q: np.ndarray | None = None
+    R_v: np.ndarray | None = None
+
+
+class LagrangianSystem:
+    """A Lagrangian system with ideal nonholonomic constraints (1a-d).
+
+    Parameters
+    ----------
+    L : sympy expression in t, q, v.
+    k : list of m sympy expressions (the constraints 0 = k(t, q, v)).
+    q, v : lists of n sympy symbols; t : the time symbol (optional when L, k are autonomous).
+    mechanical : optional dict with sympy M, U, K, b when the system is of the form
+        L = 1/2 v^T M v - U(q), k = K(q) v + b(q); the fast path uses it.
+    """
+
+    def __init__(self, L, k, q, v, t=None, name: str = "system", mechanical: dict | None = None):
+        self.name = name
+        self.q = list(q)
+        self.v = list(v)
+        self.t = t if t is not None else sympy.Symbol("t")
+        self.n = len(self.q)
+        if len(self.v) != self.n:
+            raise SystemDefinitionError(f"q has {self.n} symbols but v has {len(self.v)}")
+        self.L = sympy.sympify(L)
+        self.k = sympy.Matrix([sympy.sympify(e) for e in (k if isinstance(k, (list, tuple)) else [k])])
+        self.m = self.k.rows
+        if self.m >= self.n:
+            raise SystemDefinitionError(f"need m < n constraints, got m = {self.m}, n = {self.n}")
+        allowed = set(self.q) | set(self.v) | {self.t}
+        extra = (self.L.free_symbols | self.k.free_symbols) - allowed
+        if extra:
+            raise SystemDefinitionError(
+                f"L or k contain symbols other than t, q, v: {sorted(map(str, extra))}; substitute parameters first")
+        self.mechanical = mechanical
+        self.lam = sympy.symbols(f"lam0:{self.m}")
+        self._derive()
+        self._compiled = {}
+
+    @classmethod
+    def mechanical_form(cls, M, U, K, b=None, q=None, v=None, name="system"):
+        """L = 1/2 v^T M v - U(q), k = K(q) v + b(q) (section 7); M, K sympy matrices."""
+        M = sympy.Matrix(M)
+        K = sympy.Matrix(K)
+        n = M.rows
+        q = q or list(sympy.symbols(f"q0:{n}"))
+        v = v or list(sympy.symbols(f"v0:{n}"))
+        b = sympy.zeros(K.rows, 1) if b is None else sympy.Matrix(b)
+        vv = sympy.Matrix(v)
+        L = (vv.T * M * vv)[0, 0] / 2 - sympy.sympify(U)
+        k = list(K * vv + b)
+        return cls(L, k, q, v, name=name, mechanical={"M": M, "U": sympy.sympify(U), "K": K, "b": b})
+
+    # --- symbolic derivation ----------------------------------------------------------------
+    def _derive(self):
+        q, v, t = self.q, self.v, self.t
+        L = self.L
+        self.L_q = sympy.Matrix([sympy.diff(L, x) for x in q])
+        self.L_v = sympy.Matrix([sympy.diff(L, x) for x in v])
+        self.L_vv = self.L_v.jacobian(v)
+        self.L_vq = self.L_v.jacobian(q)          # d(grad_v L)/dq
+        self.L_qq = self.L_q.jacobian(q)
+        self.L_vt = self.L_v.diff(t)
+        self.L_t = sympy.diff(L, t)
+        self.k_q = self.k.jacobian(q)
+        self.k_v = self.k.jacobian(v)             # K of (1d)
+        self.k_t = self.k.diff(t)
+        lam = sympy.Matrix(self.lam)
+        self.R_lam = -self.k_v.T * lam            # h R_i = -K_i^T (h Psi_i)
+        self.R_q = self.R_lam.jacobian(q)
+        self.R_v = self.R_lam.jacobian(v)
+        self.energy_expr = (self.L_v.T * sympy.Matrix(v))[0, 0] - L  # (8)
+
+    def _fn(self, key, exprs, backend: Backend, with_lam=False):
+        ck = (key, backend.lambdify_module)
+        if ck not in self._compiled:
+            args = [self.t] + self.q + self.v + (list(self.lam) if with_lam else [])
+            lists = [e.tolist() if isinstance(e, sympy.MatrixBase) else e for e in exprs]
+            self._compiled[ck] = sympy.lambdify(args, lists, modules=backend.lambdify_module, cse=True)
+        return self._compiled[ck]
+
+    # --- numeric evaluation -------------------------------------------------------------------
+    def stage(self, backend: Backend, t, q, v, lam, jacobians: bool = True) -> StageEval:
+        """Evaluate L_v, L_q, k, -K^T lam (and their partials) at one point."""
+        args = (t, *q, *v, *lam)
+        if jacobians:
+            f = self._fn("stage_jac", [self.L_v, self.L_q, self.k, self.R_lam, self.L_vv, self.L_vq,
+                                        self.L_qq, self.k_q, self.k_v, self.R_q, self.R_v], backend, True)
+            out = [_arr(x, backend) for x in f(*args)]
+            Lv, Lq, k, R, Lvv, Lvq, Lqq, kq, kv, Rq, Rv = out
+            return StageEval(Lv[:, 0], Lq[:, 0], k[:, 0], R[:, 0], Lvv, Lvq, Lvq.T, Lqq,
+                             kq.reshape(self.m, self.n), kv.reshape(self.m, self.n), Rq, Rv)
+        f = self._fn("stage_val", [self.L_v, self.L_q, self.k, self.R_lam], backend, True)
+        Lv, Lq, k, R = (_arr(x, backend)[:, 0] for x in f(*args))
+        return StageEval(Lv, Lq, k, R)
+
+    def momentum(self, backend, t, q, v):
+        return _arr(self._fn("p", [self.L_v], backend)(t, *q, *v)[0], backend)[:, 0]
+
+    def constraint(self, backend, t, q, v):
+        """k(t, q, v), shape (m,)."""
+        return _arr(self._fn("k", [self.k], backend)(t, *q, *v)[0], backend)[:, 0]
+
+    def energy(self, backend, t, q, v):
+        """E = L_v v - L (8)."""
+        return self._fn("E", [self.energy_expr], backend)(t, *q, *v)[0]
+
+    def saddle_matrix(self, backend, t, q, v):
+        """[[L_vv, K^T], [K, 0]] of (4)."""
+        Lvv, kv = (_arr(x, backend) for x in self._fn("saddle", [self.L_vv, self.k_v], backend)(t, *q, *v))
+        kv = kv.reshape(self.m, self.n)
+        S = backend.zeros((self.n + self.m, self.n + self.m))
+        S[:self.n, :self.n] = Lvv
+        S[:self.n, self.n:] = kv.T
+        S[self.n:, :self.n] = kv
+        return S
+
+    def check_saddle(self, backend, t, q, v, rcond: float | None = None):
+        """Raise SingularSaddleError when (4) fails (numerically) at (t, q, v).
+
+        Returns the reciprocal condition number sigma_min / sigma_max."""
+        with backend.context():
+            S = self.saddle_matrix(backend, t, q, v)
+            sv = backend.singular_values(S)
+            kv = S[self.n:, :self.n]
+            ksv = backend.singular_values(kv)
+        smax = float(sv[0])
+        r = float(sv[-1]) / smax if smax > 0 else 0.0
+        tol = rcond if rcond is not None else 1e3 * backend.eps
+        krank_ok = float(ksv[-1]) > tol * max(float(ksv[0]), 1e-300)
+        if not krank_ok:
+            raise SingularSaddleError(
+                f"constraint Jacobian K = k_v is rank deficient at t = {float(t):g} "
+                f"(sigma_min/sigma_max = {float(ksv[-1]) / max(float(ksv[0]), 1e-300):.2e}); assumption (4) fails")
+        if r <= tol:
+            raise SingularSaddleError(
+                f"saddle matrix (4) [[L_vv, K^T], [K, 0]] is singular at t = {float(t):g} "
+                f"(reciprocal condition {r:.2e} <= {tol:.1e})")
+        return r
+
+    def check_consistent(self, backend, t, q, v, tol=None):
+        """Raise InconsistentInitialDataError unless |k(t, q, v)| <= tol (1 + |v|)."""
+        with backend.context():
+            res = backend.norm_inf(self.constraint(backend, t, q, v))
+            scale = 1 + backend.norm_inf(backend.array(v))
+        tol = tol if tol is not None else 1e3 * backend.eps
+        if not np.isfinite(res) or res > tol * scale:
+            raise InconsistentInitialDataError(
+                f"initial data are inconsistent: |k(t0, q0, v0)| = {res:.3e} > {tol * scale:.1e} "
+                "(pass project=True / --project to project v0 onto k = 0)")
+        return res
+
+    def project_velocity(self, backend, t, q, v, maxiter=50):
+        """Closest v (in the L_vv metric) with k(t, q, v) = 0, by Newton on the KKT system."""
+        with backend.context():
+            v = backend.array(v).copy()
+            v_ref = v.copy()
+            mu = backend.zeros(self.m)
+            for _ in range(maxiter):
+                S = self.saddle_matrix(backend, t, q, v)
+                Lvv = S[:self.n, :self.n]
+                kv = S[self.n:, :self.n]
+                r1 = Lvv.dot(v - v_ref) + kv.T.dot(mu)
+                r2 = self.constraint(backend, t, q, v)
+                dx = backend.solve(S, -np.concatenate([r1, r2]))
+                v = v + dx[:self.n]
+                mu = mu + dx[self.n:]
+                if backend.norm_inf(dx) <= 10 * backend.eps * (1 + backend.norm_inf(v)):
+                    return v
+        raise InconsistentInitialDataError("projection of v0 onto k = 0 did not converge")
+
+    def ode_rhs(self, backend, t, q, v):
+        """Underlying ODE (3a-b): returns (dv/dt, psi) from the saddle system (4)."""
+        f = self._fn("ode", [self.L_vv, self.k_v, self.L_vt, self.L_vq, self.L_q, self.k_t, self.k_q], backend)
+        Lvv, kv, Lvt, Lvq, Lq, kt, kq = (_arr(x, backend) for x in f(t, *q, *v))
+        kv = kv.reshape(self.m, self.n)
+        kq = kq.reshape(self.m, self.n)
+        v = np.asarray(v)
+        S = backend.zeros((self.n + self.m, self.n + self.m))
+        S[:self.n, :self.n] = Lvv
+        S[:self.n, self.n:] = kv.T
+        S[self.n:, :self.n] = kv
+        rhs = np.concatenate([-Lvt[:, 0] - Lvq.dot(v) + Lq[:, 0], -kt[:, 0] - kq.dot(v)])
+        sol = backend.solve(S, rhs)
+        return sol[:self.n], sol[self.n:]
+
+
+def _arr(x, backend):
+    a = np.array(x, dtype=object if backend.is_mp else float)
+    if backend.is_mp:
+        flat = a.reshape(-1)
+        for i, e in enumerate(flat):
+            if not isinstance(e, mpmath.mpf):
+                flat[i] = mpmath.mpf(e)
+    return a
