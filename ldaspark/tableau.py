@@ -375,7 +375,23 @@ def _mp_family(kind):
     return builder
 
 
-def _exact_family(kind, s):
+def lobatto_coefficients(s: int) -> dict:
+    """Exact Lobatto coefficients for s stages: c, b and the matrices IIIA (C(s)), IIIB (D(s)),
+    IIIC (a_i1 = b_1, C(s-1)), IIIC* (a_is = 0, C(s-1)) and IIID = (IIIC + IIIC*)/2, as sympy
+    Matrices."""
+    if s < 2:
+        raise TableauError(f"Lobatto coefficients need s >= 2, got {s}")
+    F, c, b = _exact_nodes_weights("lobatto", s)
+    C = _exact_collocation(F, c, s - 1, fixed=(0, b[0]))
+    Cs = _exact_collocation(F, c, s - 1, fixed=(s - 1, F(0)))
+    half = F(sympy.Rational(1, 2))
+    D = [[(C[i][j] + Cs[i][j]) * half for j in range(s)] for i in range(s)]
+    return {"c": F.to_sympy([[e] for e in c]), "b": F.to_sympy([[e] for e in b]),
+            "IIIA": F.to_sympy(_exact_collocation(F, c, s)), "IIIB": F.to_sympy(_exact_iiib(F, c, b)),
+            "IIIC": F.to_sympy(C), "IIIC_star": F.to_sympy(Cs), "IIID": F.to_sympy(D)}
+
+
+def _exact_nodes_weights(kind, s):
     x = sympy.Symbol("x")
     if kind == "gauss":
         nodes = _exact_roots(sympy.legendre(s, 2 * x - 1), x)
@@ -384,7 +400,11 @@ def _exact_family(kind, s):
         nodes = [sympy.Integer(0)] + inner + [sympy.Integer(1)]
     F = _Field(nodes)
     c = [F(r) for r in nodes]
-    b = _exact_weights(F, c)
+    return F, c, _exact_weights(F, c)
+
+
+def _exact_family(kind, s):
+    F, c, b = _exact_nodes_weights(kind, s)
     A = _exact_collocation(F, c, s)
     if kind == "gauss":
         Ah = At = A

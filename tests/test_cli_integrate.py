@@ -1,0 +1,73 @@
+"""The `ldaspark integrate` and `ldaspark methods` contracts."""
+import json
+
+import mpmath
+import pytest
+
+from ldaspark.cli import main
+
+
+def test_integrate_json_contract(tmp_path):
+    out = tmp_path / "o.json"
+    assert main(["integrate", "skate", "gauss-2", "--h", "0.1", "--t-end", "1", "--out", str(out)]) == 0
+    d = json.loads(out.read_text())
+    for key in ("t", "q", "v", "energy", "constraint", "scene", "method", "h", "dps"):
+        assert key in d
+    assert len(d["t"]) == 11 and len(d["q"]) == 11 and len(d["q"][0]) == 3
+    assert len(d["constraint"]) == 11 and len(d["constraint"][0]) == 1
+    assert d["dps"] is None and isinstance(d["t"][1], float)
+    assert max(abs(r[0]) for r in d["constraint"]) < 1e-14
+
+
+def test_integrate_dps_strings_carry_precision(tmp_path):
+    out = tmp_path / "o.json"
+    assert main(["integrate", "skate", "gauss-2", "--h", "0.1", "--t-end", "0.3", "--dps", "40", "--out", str(out)]) == 0
+    d = json.loads(out.read_text())
+    assert isinstance(d["q"][-1][0], str) and len(d["q"][-1][0].lstrip("-0.")) >= 35
+    with mpmath.workdps(40):
+        assert abs(mpmath.mpf(d["constraint"][-1][0])) < mpmath.mpf(10) ** -38
+
+
+def test_integrate_mp_particles_ic_and_custom(tmp_path):
+    out = tmp_path / "o.json"
+    assert main(["integrate", "mp-particles", "lobatto-iiia-iiib-2", "--h", "0.05", "--t-end", "0.2",
+                 "--ic", "3", "--out", str(out)]) == 0
+    tab = tmp_path / "t.json"
+    tab.write_text(json.dumps({"c": ["1/2"], "A": [["1/2"]], "A_hat": [["1/2"]], "A_tilde": [["1/2"]],
+                               "b": [1], "b_hat": [1], "b_tilde": [1]}))
+    assert main(["integrate", "particle", "custom", "--tableau", str(tab), "--h", "0.1", "--t-end", "0.5",
+                 "--out", str(out)]) == 0
+
+
+@pytest.mark.parametrize("argv", [
+    ["integrate", "nope", "gauss-2", "--h", "0.1", "--t-end", "1", "--out", "x.json"],
+    ["integrate", "skate", "gauss-0", "--h", "0.1", "--t-end", "1", "--out", "x.json"],
+    ["integrate", "skate", "custom", "--h", "0.1", "--t-end", "1", "--out", "x.json"],
+    ["integrate", "skate", "gauss-2", "--h", "abc", "--t-end", "1", "--out", "x.json"],
+    ["integrate", "skate", "gauss-2", "--h", "0", "--t-end", "1", "--out", "x.json"],
+    ["integrate", "skate", "gauss-2", "--h", "0.1", "--t-end", "1"],
+])
+def test_integrate_user_errors_exit_2_one_line(argv, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) if "--out" not in argv else _noraise():
+        rc = main(argv)
+        assert rc == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "Traceback" not in err[0]
+    assert not (tmp_path / "x.json").exists()
+
+
+class _noraise:
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *a):
+        return False
+
+
+def test_methods_lists_22_23(capsys):
+    assert main(["methods", "--max-s", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "gauss-2" in out and "euler-i" in out
+    line = [l for l in out.splitlines() if l.startswith("euler-i ")][0]
+    assert line.split()[-2:] == ["yes", "no"]

@@ -1,0 +1,171 @@
+"""Tableau families against the paper's printed tableaux (7.1-7.6), known Lobatto
+coefficients, simplifying assumptions at 50 digits up to s = 10, and the JSON format."""
+import json
+
+import mpmath
+import pytest
+import sympy
+from sympy import Rational as R, sqrt
+
+from ldaspark.errors import TableauError
+from ldaspark.tableau import (euler_i, euler_ii, from_json_dict, gauss, get_method, load_tableau,
+                              lobatto_coefficients, lobatto_iiia_iiib, lobatto_iiia_iiib_iiid)
+
+
+def same(M, rows):
+    M2 = sympy.Matrix(rows)
+    return M.shape == M2.shape and all(sympy.simplify(a - b) == 0 for a, b in zip(M, M2))
+
+
+def test_euler_i_7_1():
+    t = euler_i()
+    assert same(t.exact["c"], [[0]]) and same(t.exact["A"], [[0]])
+    assert same(t.exact["A_hat"], [[1]]) and same(t.exact["A_tilde"], [[1]]) and same(t.exact["b"], [[1]])
+
+
+def test_euler_ii_7_2():
+    t = euler_ii()
+    assert same(t.exact["c"], [[1]]) and same(t.exact["A"], [[1]])
+    assert same(t.exact["A_hat"], [[0]]) and same(t.exact["A_tilde"], [[0]])
+
+
+def test_gauss_1_midpoint_7_3():
+    t = gauss(1, exact=True)
+    for k in ("c", "A", "A_hat", "A_tilde"):
+        assert same(t.exact[k], [[R(1, 2)]])
+    assert same(t.exact["b"], [[1]])
+
+
+def test_gauss_2_7_4():
+    t = gauss(2, exact=True)
+    r = sqrt(3) / 6
+    A = [[R(1, 4), R(1, 4) - r], [R(1, 4) + r, R(1, 4)]]
+    assert same(t.exact["c"], [[R(1, 2) - r], [R(1, 2) + r]])
+    for k in ("A", "A_hat", "A_tilde"):
+        assert same(t.exact[k], A)
+    assert same(t.exact["b"], [[R(1, 2)], [R(1, 2)]])
+    assert same(t.exact["omega"], [[R(1, 2), R(1, 2)]])  # (21e): 0 = K1/2 + K2/2
+
+
+def test_lobatto_iiia_iiib_2_7_5():
+    t = lobatto_iiia_iiib(2, exact=True)
+    assert same(t.exact["A"], [[0, 0], [R(1, 2), R(1, 2)]])
+    assert same(t.exact["A_hat"], [[R(1, 2), 0], [R(1, 2), 0]])
+    assert same(t.exact["A_tilde"], t.exact["A_hat"].tolist())
+
+
+def test_lobatto_iiia_iiib_iiid_2_7_6():
+    t = lobatto_iiia_iiib_iiid(2, exact=True)
+    assert same(t.exact["A_tilde"], [[R(1, 4), R(-1, 4)], [R(3, 4), R(1, 4)]])
+    assert same(t.exact["A_hat"], [[R(1, 2), 0], [R(1, 2), 0]])
+
+
+def test_lobatto_3_stage_known_coefficients():
+    d = lobatto_coefficients(3)
+    assert same(d["c"], [[0], [R(1, 2)], [1]])
+    assert same(d["b"], [[R(1, 6)], [R(2, 3)], [R(1, 6)]])
+    assert same(d["IIIA"], [[0, 0, 0], [R(5, 24), R(1, 3), R(-1, 24)], [R(1, 6), R(2, 3), R(1, 6)]])
+    assert same(d["IIIB"], [[R(1, 6), R(-1, 6), 0], [R(1, 6), R(1, 3), 0], [R(1, 6), R(5, 6), 0]])
+    assert same(d["IIIC"], [[R(1, 6), R(-1, 3), R(1, 6)], [R(1, 6), R(5, 12), R(-1, 12)], [R(1, 6), R(2, 3), R(1, 6)]])
+    assert same(d["IIIC_star"], [[0, 0, 0], [R(1, 4), R(1, 4), 0], [0, 1, 0]])
+    assert same(d["IIID"], [[R(1, 12), R(-1, 6), R(1, 12)], [R(5, 24), R(1, 3), R(-1, 24)], [R(1, 12), R(5, 6), R(1, 12)]])
+    t = lobatto_iiia_iiib_iiid(3, exact=True)
+    assert same(t.exact["A_tilde"], d["IIID"].tolist())
+
+
+def test_gauss_3_known_coefficients():
+    t = gauss(3, exact=True)
+    r = sqrt(15)
+    A = [[R(5, 36), R(2, 9) - r / 15, R(5, 36) - r / 30],
+         [R(5, 36) + r / 24, R(2, 9), R(5, 36) - r / 24],
+         [R(5, 36) + r / 30, R(2, 9) + r / 15, R(5, 36)]]
+    assert same(t.exact["A"], A)
+    assert same(t.exact["b"], [[R(5, 18)], [R(4, 9)], [R(5, 18)]])
+
+
+def _B_C_D_residuals(tab, dps, orders):
+    """max residuals of B(pB), C(pC) for A, D(pD) for A_hat (IIIB) at dps digits."""
+    pB, pC, pD = orders
+    with mpmath.workdps(dps):
+        a = tab.arrays(dps)
+        s = tab.s
+        c, b, A, Ah = a.c, a.b, a.A, a.A_hat
+        rB = max(abs(sum(b[i] * c[i] ** (k - 1) for i in range(s)) - mpmath.mpf(1) / k) for k in range(1, pB + 1))
+        rC = max(abs(sum(A[i, j] * c[j] ** (k - 1) for j in range(s)) - c[i] ** k / k)
+                 for i in range(s) for k in range(1, pC + 1))
+        rD = max((abs(sum(b[i] * c[i] ** (k - 1) * Ah[i, j] for i in range(s)) - b[j] * (1 - c[j] ** k) / k)
+                  for j in range(s) for k in range(1, pD + 1)), default=0)
+        return float(rB), float(rC), float(rD)
+
+
+@pytest.mark.parametrize("s", range(1, 11))
+def test_gauss_B_C_at_50_digits(s):
+    rB, rC, _ = _B_C_D_residuals(gauss(s), 50, (2 * s, s, 0))
+    assert rB < 1e-48 and rC < 1e-48
+
+
+@pytest.mark.parametrize("s", range(2, 11))
+def test_lobatto_B_C_D_at_50_digits(s):
+    rB, rC, rD = _B_C_D_residuals(lobatto_iiia_iiib(s), 50, (2 * s - 2, s, s))
+    assert rB < 1e-48 and rC < 1e-48 and rD < 1e-48
+
+
+def test_B_C_check_has_teeth():
+    bad = gauss(3).with_entry("A", 0, 1, 1e-30)
+    _, rC, _ = _B_C_D_residuals(bad, 50, (6, 3, 0))
+    assert rC > 1e-31
+
+
+@pytest.mark.parametrize("s", [2, 3, 4, 5])
+def test_exact_and_numeric_builders_agree(s):
+    for fam in (gauss, lobatto_iiia_iiib_iiid):
+        if fam is lobatto_iiia_iiib_iiid and s < 2:
+            continue
+        ex, nu = fam(s, exact=True).arrays(40), fam(s).arrays(40)
+        with mpmath.workdps(40):
+            for k in ("c", "A", "A_hat", "A_tilde", "b", "omega"):
+                diff = max((abs(x - y) for x, y in zip(getattr(ex, k).reshape(-1), getattr(nu, k).reshape(-1))), default=0)
+                assert diff < 1e-38, (fam.__name__, s, k)
+
+
+def test_float64_arrays_row_sums():
+    a = lobatto_iiia_iiib_iiid(10).arrays(None)
+    for M in (a.A, a.A_hat, a.A_tilde):
+        assert abs(M.sum(axis=1) - a.c).max() < 1e-13
+
+
+def test_json_roundtrip_exact(tmp_path):
+    t = gauss(2, exact=True)
+    p = tmp_path / "g2.json"
+    t.save(p)
+    d = json.loads(p.read_text())
+    assert d["A"][0][1] in ("1/4 - sqrt(3)/6", "-sqrt(3)/6 + 1/4")
+    t2 = load_tableau(p)
+    assert t2.is_exact
+    assert same(t2.exact["A"], t.exact["A"].tolist())
+
+
+def test_json_float_entries_not_exact():
+    t = from_json_dict({"c": [0.5], "A": [[0.5]], "A_hat": [[0.5]], "A_tilde": [[0.5]], "b": [1.0],
+                        "b_hat": [1], "b_tilde": ["1"]})
+    assert not t.is_exact and t.source_digits == 15
+
+
+@pytest.mark.parametrize("bad, msg", [
+    ({"c": [0.5], "A": [[0.5, 1]], "A_hat": [[0.5]], "A_tilde": [[0.5]], "b": [1], "b_hat": [1], "b_tilde": [1]}, "A must be"),
+    ({"c": [0.5], "A": [["x"]], "A_hat": [[0.5]], "A_tilde": [[0.5]], "b": [1], "b_hat": [1], "b_tilde": [1]}, "not a number"),
+    ({"c": [0.5], "A": [[float("nan")]], "A_hat": [[0.5]], "A_tilde": [[0.5]], "b": [1], "b_hat": [1], "b_tilde": [1]}, "not finite"),
+    ({"c": [0.5], "A": [[0.5]]}, "missing"),
+    ({"c": [0, 1], "A": [[0, 0], [0.5, 0.5]], "A_hat": [[0.5, 0], [0.5, 0]], "A_tilde": [[0.5, 0], [0.5, 0]],
+      "b": [0.5, 0.5], "b_hat": [0.5, 0.5], "b_tilde": [0.5, 0.5], "omega": [[0, 0]]}, "omega is singular"),
+])
+def test_json_malformed(bad, msg):
+    with pytest.raises(TableauError, match=msg):
+        from_json_dict(bad)
+
+
+def test_unknown_method_name():
+    with pytest.raises(TableauError):
+        get_method("gauss-x")
+    with pytest.raises(TableauError):
+        get_method("lobatto-iiia-iiib-1")
