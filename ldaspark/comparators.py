@@ -1,0 +1,394 @@
+"""Comparator methods of sections 7.3-7.5 and 8.4 (not Lagrange-d'Alembert SPARK methods
+themselves, or other implementations of one), behind one entry point
+``integrate_comparator(name, system, t0, q0, v0, h, n_steps, dps=None)`` returning a
+``ldaspark.spark.Solution``.
+
+Names (shared contract between engineers):
+
+* ``gauss-irk-S``: the "standard" s-stage Gauss IRK for the index-2 DAE, imposing
+  k(T_i, Q_i, V_i) = 0 at every stage instead of (21e-f) (7.3-7.4). Order 1 (s = 1),
+  2 (s = 2) and k(t1, q1, v1) != 0.
+* ``lobatto-iiia-iiib-2-leapfrog``: the step-by-step form after (25) for constant h
+  (mechanical systems), grad U evaluated once per step.
+* ``lobatto-iiia-iiib-2-modified``: 2-stage Lobatto IIIA-B SPARK with (21e)
+  0 = (K_1 + K_2)/2 replaced by 0 = k(t0 + h/2, q0 + h/2 V_1, V_1) (8.4); a Newton solve
+  of the full SPARK system (any system).
+* ``lobatto-iiia-iiib-2-modified-leapfrog``: the same method in its semi-implicit
+  step-by-step form (mechanical systems), grad U once per step.
+* ``mp-lobatto-iiib-a-2``: McLachlan-Perlmutter's 2-stage Lobatto IIIB-A LDA method (26)
+  (mechanical systems), grad U once per step.
+* ``euler-i-ii-composition``, ``euler-ii-i-composition``: "symplectic" Euler SPARK I then II
+  (resp. II then I), each with step h/2 (7.5: neither equals Lobatto IIIA-B).
+
+Mechanical systems are L = 1/2 v^T M v - U(q), k = K(q) v + b(q) with constant M; the parts
+are taken from ``system.mechanical`` or derived from L and k (``mechanical_parts``).
+Every Solution's ``stats`` carries ``n_grad_U`` (evaluations of grad U, or of grad_q L for the
+SPARK-based comparators, one per stage point per Newton iteration).
+"""
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+import sympy
+
+from .backend import Backend, SingularMatrixError
+from .errors import InputError, NewtonError
+from .spark import Solution, SparkMethod
+from .system import LagrangianSystem, _arr
+from .tableau import euler_i, euler_ii, gauss, lobatto_iiia_iiib
+
+FIXED_NAMES = ("lobatto-iiia-iiib-2-leapfrog", "lobatto-iiia-iiib-2-modified",
+               "lobatto-iiia-iiib-2-modified-leapfrog", "mp-lobatto-iiib-a-2",
+               "euler-i-ii-composition", "euler-ii-i-composition")
+
+
+def comparator_names(max_s: int = 4) -> list[str]:
+    return [f"gauss-irk-{s}" for s in range(1, max_s + 1)] + list(FIXED_NAMES)
+
+
+def is_comparator(name: str) -> bool:
+    return name in FIXED_NAMES or re.fullmatch(r"gauss-irk-[1-9][0-9]*", name) is not None
+
+
+# --- mechanical form ------------------------------------------------------------------------
+class MechanicalParts:
+    """Numeric M, grad U(q), K(q), b(q) and d(K(q) v + b(q))/dq of a mechanical system, with
+    evaluation counters (``n_grad_U``)."""
+
+    def __init__(self, system: LagrangianSystem, backend: Backend):
+        mech = system.mechanical or derive_mechanical(system)
+        q, v = system.q, system.v
+        M = sympy.Matrix(mech["M"])
+        if M.free_symbols:
+            raise InputError(f"{system.name}: the semi-implicit comparators need a constant mass matrix M")
+        K = sympy.Matrix(mech["K"])
+        b = sympy.Matrix(mech["b"]).reshape(K.rows, 1)
+        U = sympy.sympify(mech["U"])
+        gU = sympy.Matrix([sympy.diff(U, x) for x in q])
+        kq = (K * sympy.Matrix(v) + b).jacobian(q)
+        mod = backend.lambdify_module
+        self.bk = backend
+        self.n, self.m = system.n, K.rows
+        with backend.context():
+            self.M = backend.array([[M[i, j] for j in range(self.n)] for i in range(self.n)])
+        self._gU = sympy.lambdify(q, gU.tolist(), modules=mod, cse=True)
+        self._K = sympy.lambdify(q, [K.tolist(), b.tolist()], modules=mod, cse=True)
+        self._kq = sympy.lambdify(list(q) + list(v), kq.tolist(), modules=mod, cse=True)
+        self.n_grad_U = 0
+
+    def grad_U(self, q):
+        self.n_grad_U += 1
+        return _arr(self._gU(*q), self.bk)[:, 0]
+
+    def K_b(self, q):
+        K, b = self._K(*q)
+        return _arr(K, self.bk).reshape(self.m, self.n), _arr(b, self.bk)[:, 0]
+
+    def k_q(self, q, v):
+        return _arr(self._kq(*q, *v), self.bk).reshape(self.m, self.n)
+
+
+def derive_mechanical(system: LagrangianSystem) -> dict:
+    """M, U, K, b with L = 1/2 v^T M v - U(q) and k = K(q) v + b(q), or InputError."""
+    v = sympy.Matrix(system.v)
+    zero_v = {x: 0 for x in system.v}
+    M = system.L_vv
+    U = -system.L.subs(zero_v)
+    K = system.k_v
+    b = system.k.subs(zero_v)
+    ok = (not (M.free_symbols & (set(system.q) | set(system.v) | {system.t}))
+          and sympy.simplify(system.L - ((v.T * M * v)[0, 0] / 2 - U)) == 0
+          and not (U.free_symbols & (set(system.v) | {system.t}))
+          and not (K.free_symbols & (set(system.v) | {system.t}))
+          and not (b.free_symbols & {system.t})
+          and sympy.simplify(system.k - (K * v + b)) == sympy.zeros(system.m, 1))
+    if not ok:
+        raise InputError(f"{system.name} is not of the mechanical form L = v^T M v/2 - U(q), "
+                         "k = K(q) v + b(q) with constant M needed by this comparator")
+    return {"M": M, "U": U, "K": K, "b": b}
+
+
+# --- a small Newton solver for the semi-implicit forms --------------------------------------
+def _newton(fun, x0, bk: Backend, tol, max_iter, step_index, t):
+    """Newton on fun(x) -> (G, J); same stopping rule as SparkMethod.step."""
+    x = x0.copy()
+    tol_abs = tol * (1 + bk.norm_inf(x))
+    prev = None
+    res = float("inf")
+    for it in range(1, max_iter + 1):
+        G, J = fun(x)
+        res = bk.norm_inf(G)
+        if not math.isfinite(res):
+            break
+        try:
+            dx = bk.solve(J, -G)
+        except SingularMatrixError as exc:
+            raise NewtonError(f"step {step_index} at t = {float(t):.6g}: {exc}", step=step_index,
+                              time=float(t), residual=res, iterations=it) from None
+        x = x + dx
+        dn = bk.norm_inf(dx)
+        if not math.isfinite(dn):
+            break
+        if dn <= tol_abs or (prev is not None and dn >= 0.5 * prev and dn <= 1e3 * tol_abs):
+            return x, it
+        prev = dn
+    raise NewtonError(f"Newton did not converge at step {step_index}, t = {float(t):.6g}: residual {res:.3e}",
+                      step=step_index, time=float(t), residual=res, iterations=max_iter)
+
+
+def _saddle(bk, M, KT, Cv):
+    n, m = KT.shape
+    J = bk.zeros((n + m, n + m))
+    J[:n, :n] = M
+    J[:n, n:] = KT
+    J[n:, :n] = Cv
+    return J
+
+
+# --- SPARK variants with other constraint rows ----------------------------------------------
+class GaussIRK(SparkMethod):
+    """Standard s-stage Gauss IRK for the index-2 DAE: (21a-d) with 0 = k(T_i, Q_i, V_i),
+    i = 1..s, replacing (21e-f) (7.3-7.4). v1 is still defined by (21d)."""
+
+    def residual(self, t0, q0, p0, h, x, jacobian=True):
+        G, J, (T, Q, q1) = super().residual(t0, q0, p0, h, x, jacobian)
+        s, n, m, bk = self.s, self.n, self.m, self.backend
+        V, _, _ = self.unpack(x)
+        r0 = s * n + n                    # first row of (21e-f), s*m rows in all
+        for i in range(s):
+            e = self.system.stage(bk, T[i], Q[i], V[i], bk.zeros(m), jacobian)
+            G[r0 + i * m:r0 + (i + 1) * m] = e.k
+            if jacobian:
+                J[r0 + i * m:r0 + (i + 1) * m, :] = 0
+                for j in range(s):
+                    blk = h * self.tab.A[i, j] * e.k_q
+                    if i == j:
+                        blk = blk + e.k_v
+                    J[r0 + i * m:r0 + (i + 1) * m, j * n:(j + 1) * n] = blk
+        self.stats.nfev += s
+        return G, J, (T, Q, q1)
+
+
+class ModifiedLobatto2(SparkMethod):
+    """2-stage Lobatto IIIA-B SPARK with (21e) replaced by 0 = k(t0 + h/2, q0 + h/2 V_1, V_1)
+    (section 8.4); (21f) kept."""
+
+    def __init__(self, system, dps=None, tol=None, max_iter=50):
+        super().__init__(system, lobatto_iiia_iiib(2), dps=dps, tol=tol, max_iter=max_iter)
+
+    def residual(self, t0, q0, p0, h, x, jacobian=True):
+        G, J, (T, Q, q1) = super().residual(t0, q0, p0, h, x, jacobian)
+        n, m, bk = self.n, self.m, self.backend
+        V, _, _ = self.unpack(x)
+        half = h / 2
+        e = self.system.stage(bk, t0 + half, q0 + half * V[0], V[0], bk.zeros(m), jacobian)
+        r0 = 2 * n + n
+        G[r0:r0 + m] = e.k
+        if jacobian:
+            J[r0:r0 + m, :] = 0
+            J[r0:r0 + m, :n] = e.k_v + half * e.k_q
+        self.stats.nfev += 1
+        return G, J, (T, Q, q1)
+
+
+# --- drivers ------------------------------------------------------------------------------
+def _finish_solution(system, bk, ts, Qs, Vs, Ps, stats, dps, name):
+    with bk.context():
+        E = [system.energy(bk, ts[i], Qs[i], Vs[i]) for i in range(len(ts))]
+        K = [system.constraint(bk, ts[i], Qs[i], Vs[i]) for i in range(len(ts))]
+    dt = object if bk.is_mp else float
+    return Solution(np.array(ts, dtype=dt), np.array(Qs, dtype=dt), np.array(Vs, dtype=dt),
+                    np.array(Ps, dtype=dt), np.array(E, dtype=dt), np.array(K, dtype=dt),
+                    stats, dps, name, system.name)
+
+
+def _spark_variant_loop(method_objs, system, t0, q0, v0, h, n_steps, name, progress):
+    """Run one or more SparkMethod objects in sequence per step (compositions use two, each
+    with its own fraction of h)."""
+    bk = method_objs[0][0].backend
+    with bk.context():
+        h_ = bk.scalar(h)
+        t = bk.scalar(t0)
+        q, v = bk.array(q0), bk.array(v0)
+        ts, Qs, Vs, Ps = [t], [q], [v], []
+        guesses = [None] * len(method_objs)
+        for k in range(n_steps):
+            psi = []
+            tk = t
+            for idx, (meth, frac) in enumerate(method_objs):
+                hh = h_ * frac
+                r = meth.step(tk, q, v, hh, x0=guesses[idx], step_index=k)
+                guesses[idx] = r.x
+                q, v, tk = r.q1, r.v1, tk + hh
+                psi.extend(list(r.Psi))
+            t = bk.scalar(t0) + (k + 1) * h_
+            ts.append(t)
+            Qs.append(q)
+            Vs.append(v)
+            Ps.append(psi)
+            if progress is not None:
+                progress(k + 1, n_steps)
+    st = {"steps": n_steps, "newton_iterations": 0, "nfev": 0, "njev": 0, "nlu": 0}
+    for meth, _ in method_objs:
+        d = meth.stats.as_dict()
+        for key in ("newton_iterations", "nfev", "njev", "nlu"):
+            st[key] += d[key]
+    st["n_grad_U"] = st["nfev"]          # every stage evaluation evaluates grad_q L
+    st["mean_iterations"] = st["newton_iterations"] / max(n_steps, 1)
+    return _finish_solution(system, bk, ts, Qs, Vs, Ps, st, method_objs[0][0].dps, name)
+
+
+def _leapfrog(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, constraint, name, progress):
+    """Step-by-step form after (25) for constant h, with the half-step constraint either
+    (K(q_k) v + b(q_k) + K(q_{k+1}) v + b(q_{k+1}))/2 = 0 ("mean", Lobatto IIIA-B) or
+    k(q_k + h/2 v, v) = 0 ("midpoint", the modified method of 8.4):
+
+        M v_{k+1/2} = M v_{k-1/2} - h (grad U(q_k) + K(q_k)^T Psi~_k),  q_{k+1} = q_k + h v_{k+1/2},
+
+    started with M v_{1/2} = M v_0 - h/2 (grad U(q_0) + K(q_0)^T Psi_{1,0}). The outputs
+    v_k (not needed by the recursion) come from the linear system
+    M v_k + K(q_k)^T (h/2 Psi_{2,k-1}) = M v_{k-1/2} - h/2 grad U(q_k), K(q_k) v_k = -b(q_k)
+    (the paper prints v_{k+1/2} on its right-hand side; the SPARK step gives v_{k-1/2}).
+    grad U(q_k) is evaluated once per step and shared by both uses."""
+    bk = Backend(dps)
+    mp = MechanicalParts(system, bk)
+    n, m = mp.n, mp.m
+    tol = tol if tol is not None else 10 * bk.eps
+    iters = 0
+    with bk.context():
+        h_ = bk.scalar(h)
+        half = h_ / 2
+        t0_ = bk.scalar(t0)
+        q = bk.array(q0)
+        v = bk.array(v0)
+        ts, Qs, Vs, Ps = [t0_], [q], [v], []
+        M = mp.M
+        g = mp.grad_U(q)
+        w = None                 # v_{k-1/2}
+        psi2_prev = bk.zeros(m)  # Psi_{2,k-1}
+        x = np.concatenate([v, bk.zeros(m)])
+        for k in range(n_steps):
+            Kk, bk_k = mp.K_b(q)
+            rhs = M.dot(v) - half * g if k == 0 else M.dot(w) - h_ * g
+
+            def fun(z, q=q, Kk=Kk, bk_k=bk_k, rhs=rhs):
+                vh, lam = z[:n], z[n:]
+                r1 = M.dot(vh) + Kk.T.dot(lam) - rhs
+                if constraint == "mean":
+                    q1 = q + h_ * vh
+                    K1, b1 = mp.K_b(q1)
+                    r2 = (Kk.dot(vh) + bk_k + K1.dot(vh) + b1) / 2
+                    Cv = (Kk + K1 + h_ * mp.k_q(q1, vh)) / 2
+                else:
+                    qm = q + half * vh
+                    Km, bm = mp.K_b(qm)
+                    r2 = Km.dot(vh) + bm
+                    Cv = Km + half * mp.k_q(qm, vh)
+                return np.concatenate([r1, r2]), _saddle(bk, M, Kk.T, Cv)
+
+            x, it = _newton(fun, x, bk, tol, max_iter, k, ts[-1])
+            iters += it
+            w, lam = x[:n], x[n:]
+            q = q + h_ * w
+            # output v_{k+1} and Psi_{2,k} from the (otherwise unneeded) linear system
+            g = mp.grad_U(q)
+            K1, b1 = mp.K_b(q)
+            sol = bk.solve(_saddle(bk, M, K1.T, K1), np.concatenate([M.dot(w) - half * g, -b1]))
+            v, mu = sol[:n], sol[n:]
+            psi2 = mu / half
+            psi1 = lam / half - psi2_prev
+            psi2_prev = psi2
+            ts.append(t0_ + (k + 1) * h_)
+            Qs.append(q)
+            Vs.append(v)
+            Ps.append([psi1, psi2])
+            if progress is not None:
+                progress(k + 1, n_steps)
+    st = {"steps": n_steps, "newton_iterations": iters, "n_grad_U": mp.n_grad_U,
+          "mean_iterations": iters / max(n_steps, 1)}
+    return _finish_solution(system, bk, ts, Qs, Vs, Ps, st, dps, name)
+
+
+def _mp_iiib_a(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, name, progress):
+    """McLachlan-Perlmutter's 2-stage Lobatto IIIB-A LDA method (26a-d):
+    Q_1 = q0 + h/2 v0, M v1 = M v0 - h (grad U(Q_1) + K(Q_1)^T Psi_1),
+    q1 = q0 + h/2 (v0 + v1), 0 = K(q1) v1 + b(q1). One grad U per step."""
+    bk = Backend(dps)
+    mp = MechanicalParts(system, bk)
+    n, m = mp.n, mp.m
+    tol = tol if tol is not None else 10 * bk.eps
+    iters = 0
+    with bk.context():
+        h_ = bk.scalar(h)
+        half = h_ / 2
+        t0_ = bk.scalar(t0)
+        q, v = bk.array(q0), bk.array(v0)
+        ts, Qs, Vs, Ps = [t0_], [q], [v], []
+        M = mp.M
+        x = np.concatenate([v, bk.zeros(m)])
+        for k in range(n_steps):
+            Q1 = q + half * v                                   # (26a)
+            g = mp.grad_U(Q1)
+            KQ, _ = mp.K_b(Q1)
+            rhs = M.dot(v) - h_ * g
+
+            def fun(z, q=q, v=v, KQ=KQ, rhs=rhs):
+                v1, lam = z[:n], z[n:]
+                r1 = M.dot(v1) + KQ.T.dot(lam) - rhs            # (26b), lam = h Psi_1
+                q1 = q + half * (v + v1)                        # (26c)
+                K1, b1 = mp.K_b(q1)
+                r2 = K1.dot(v1) + b1                            # (26d)
+                return np.concatenate([r1, r2]), _saddle(bk, M, KQ.T, K1 + half * mp.k_q(q1, v1))
+
+            x, it = _newton(fun, x, bk, tol, max_iter, k, ts[-1])
+            iters += it
+            v1, lam = x[:n], x[n:]
+            q = q + half * (v + v1)
+            v = v1
+            ts.append(t0_ + (k + 1) * h_)
+            Qs.append(q)
+            Vs.append(v)
+            Ps.append([lam / h_])
+            if progress is not None:
+                progress(k + 1, n_steps)
+    st = {"steps": n_steps, "newton_iterations": iters, "n_grad_U": mp.n_grad_U,
+          "mean_iterations": iters / max(n_steps, 1)}
+    return _finish_solution(system, bk, ts, Qs, Vs, Ps, st, dps, name)
+
+
+def integrate_comparator(name: str, system: LagrangianSystem, t0, q0, v0, h, n_steps: int,
+                         dps: int | None = None, tol=None, max_iter: int = 50,
+                         progress=None) -> Solution:
+    """Integrate with comparator ``name`` (see module docstring) at constant step h.
+
+    Initial data must be consistent (k(t0, q0, v0) = 0). With ``dps`` the computation runs in
+    mpmath (pass h as a string or mpf to keep full precision)."""
+    if not isinstance(n_steps, int) or n_steps <= 0:
+        raise InputError(f"n_steps must be a positive integer, got {n_steps!r}")
+    bk = Backend(dps)
+    with bk.context():
+        system.check_consistent(bk, bk.scalar(t0), bk.array(q0), bk.array(v0),
+                                tol=None if tol is None else 10 * tol)
+    mt = re.fullmatch(r"gauss-irk-([1-9][0-9]*)", name)
+    if mt:
+        meth = GaussIRK(system, gauss(int(mt.group(1))), dps=dps, tol=tol, max_iter=max_iter)
+        return _spark_variant_loop([(meth, 1)], system, t0, q0, v0, h, n_steps, name, progress)
+    if name == "lobatto-iiia-iiib-2-modified":
+        meth = ModifiedLobatto2(system, dps=dps, tol=tol, max_iter=max_iter)
+        return _spark_variant_loop([(meth, 1)], system, t0, q0, v0, h, n_steps, name, progress)
+    if name in ("euler-i-ii-composition", "euler-ii-i-composition"):
+        first, second = (euler_i(), euler_ii()) if name == "euler-i-ii-composition" else (euler_ii(), euler_i())
+        with bk.context():
+            frac = bk.scalar(1) / 2
+        objs = [(SparkMethod(system, first, dps=dps, tol=tol, max_iter=max_iter), frac),
+                (SparkMethod(system, second, dps=dps, tol=tol, max_iter=max_iter), frac)]
+        return _spark_variant_loop(objs, system, t0, q0, v0, h, n_steps, name, progress)
+    if name == "lobatto-iiia-iiib-2-leapfrog":
+        return _leapfrog(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, "mean", name, progress)
+    if name == "lobatto-iiia-iiib-2-modified-leapfrog":
+        return _leapfrog(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, "midpoint", name, progress)
+    if name == "mp-lobatto-iiib-a-2":
+        return _mp_iiib_a(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, name, progress)
+    raise InputError(f"unknown comparator {name!r}; choose from gauss-irk-S, {', '.join(FIXED_NAMES)}")
