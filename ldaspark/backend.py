@@ -80,14 +80,11 @@ class Backend:
 
     # --- linear algebra --------------------------------------------------------------------
     def factor(self, J):
-        """LU factorisation of J, reusable by ``solve`` (simplified Newton)."""
+        """LU factorisation of J with partial pivoting, reusable by ``solve_factored``
+        (simplified Newton). The mpmath branch works on plain lists of mpf: mpmath.matrix
+        indexing costs more than the arithmetic at these sizes."""
         if self.is_mp:
-            M = mpmath.matrix(J.tolist())
-            try:
-                LU, p = mpmath.mp.LU_decomp(M)
-            except ZeroDivisionError:
-                raise SingularMatrixError("Newton matrix is numerically singular") from None
-            return ("mp", LU, p)
+            return ("mp",) + _mp_lu(J)
         if not np.all(np.isfinite(J)):
             raise SingularMatrixError("Newton matrix has non-finite entries")
         lu, piv = scipy.linalg.lu_factor(J, check_finite=False)
@@ -99,11 +96,7 @@ class Backend:
 
     def solve_factored(self, fac, r) -> np.ndarray:
         if fac[0] == "mp":
-            _, LU, p = fac
-            b = mpmath.matrix(list(r))
-            b = mpmath.mp.L_solve(LU, b, p)
-            x = mpmath.mp.U_solve(LU, b)
-            return np.array([x[i] for i in range(x.rows)], dtype=object)
+            return _mp_lu_solve(fac[1], fac[2], r)
         return scipy.linalg.lu_solve(fac[1:], r, check_finite=False)
 
     def solve(self, J, r) -> np.ndarray:
@@ -118,3 +111,53 @@ class Backend:
 
     def to_str(self, x) -> str:
         return mpmath.nstr(x, self.dps, strip_zeros=False) if self.is_mp else repr(float(x))
+
+
+def _mp_lu(J):
+    """Doolittle LU with partial pivoting on lists of mpf; singular when a pivot falls below
+    the working precision relative to the largest entry."""
+    n = J.shape[0]
+    a = [list(row) for row in J.tolist()]
+    perm = list(range(n))
+    scale = max((abs(x) for row in a for x in row), default=mpmath.mpf(0))
+    tiny = scale * mpmath.mpf(2) ** (-mpmath.mp.prec + 4)
+    if not scale or not mpmath.isfinite(scale):
+        raise SingularMatrixError("Newton matrix is zero or has non-finite entries")
+    for k in range(n):
+        p = max(range(k, n), key=lambda i: abs(a[i][k]))
+        if abs(a[p][k]) <= tiny:
+            raise SingularMatrixError(f"Newton matrix is numerically singular (pivot {mpmath.nstr(abs(a[p][k]), 3)} "
+                                      f"at column {k})")
+        if p != k:
+            a[k], a[p] = a[p], a[k]
+            perm[k], perm[p] = perm[p], perm[k]
+        piv = a[k][k]
+        rowk = a[k]
+        for i in range(k + 1, n):
+            rowi = a[i]
+            f = rowi[k] / piv
+            if f:
+                rowi[k] = f
+                for j in range(k + 1, n):
+                    rowi[j] -= f * rowk[j]
+            else:
+                rowi[k] = f
+    return a, perm
+
+
+def _mp_lu_solve(a, perm, r):
+    n = len(a)
+    y = [r[perm[i]] for i in range(n)]
+    for i in range(n):
+        row = a[i]
+        acc = y[i]
+        for j in range(i):
+            acc -= row[j] * y[j]
+        y[i] = acc
+    for i in range(n - 1, -1, -1):
+        row = a[i]
+        acc = y[i]
+        for j in range(i + 1, n):
+            acc -= row[j] * y[j]
+        y[i] = acc / row[i]
+    return np.array(y, dtype=object)

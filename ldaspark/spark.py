@@ -107,8 +107,8 @@ class SparkMethod:
         s, n, m = self.s, self.n, self.m
         V, Lam, v1 = self.unpack(x)
         T = [t0 + tab.c[i] * h for i in range(s)]
-        Q = q0 + h * tab.A.dot(V)
-        q1 = q0 + h * tab.b.dot(V)
+        Q = q0 + tab.A.dot(V) * h
+        q1 = q0 + tab.b.dot(V) * h
         t1 = t0 + h
         st = [sysm.stage(bk, T[i], Q[i], V[i], Lam[i], jacobian) for i in range(s)]
         fin = sysm.stage(bk, t1, q1, v1, bk.zeros(m), jacobian)
@@ -117,8 +117,8 @@ class SparkMethod:
         Rl = np.array([e.R_lam for e in st])
         Kst = np.array([e.k for e in st])
         G = bk.zeros(self.size)
-        r_b = np.array([e.L_v for e in st]) - p0 - h * tab.A_hat.dot(F) - tab.A_tilde.dot(Rl)
-        r_d = fin.L_v - p0 - h * tab.b_hat.dot(F) - tab.b_tilde.dot(Rl)
+        r_b = np.array([e.L_v for e in st]) - p0 - tab.A_hat.dot(F) * h - tab.A_tilde.dot(Rl)
+        r_d = fin.L_v - p0 - tab.b_hat.dot(F) * h - tab.b_tilde.dot(Rl)
         r_e = tab.omega.dot(Kst) if s > 1 else bk.zeros((0, m))
         G[:s * n] = r_b.reshape(-1)
         G[s * n:s * n + n] = r_d
@@ -140,22 +140,22 @@ class SparkMethod:
         Rq = np.array([e.R_q for e in st]); Rv = np.array([e.R_v for e in st])
         eye_s = np.eye(s, dtype=object if bk.is_mp else float)
         # d X_j / d V_k = delta_jk X_v(j) + h a_jk X_q(j) for every stage quantity X
-        dF = np.einsum("jk,jab->jkab", eye_s, Lqv) + h * np.einsum("jk,jab->jkab", A, Lqq)
-        dR = np.einsum("jk,jab->jkab", eye_s, Rv) + h * np.einsum("jk,jab->jkab", A, Rq)
-        dP = np.einsum("ik,iab->ikab", eye_s, Lvv) + h * np.einsum("ik,iab->ikab", A, Lvq)
-        dk = np.einsum("jk,jab->jkab", eye_s, kv) + h * np.einsum("jk,jab->jkab", A, kq)
+        dF = np.einsum("jk,jab->jkab", eye_s, Lqv) + np.einsum("jk,jab->jkab", A, Lqq) * h
+        dR = np.einsum("jk,jab->jkab", eye_s, Rv) + np.einsum("jk,jab->jkab", A, Rq) * h
+        dP = np.einsum("ik,iab->ikab", eye_s, Lvv) + np.einsum("ik,iab->ikab", A, Lvq) * h
+        dk = np.einsum("jk,jab->jkab", eye_s, kv) + np.einsum("jk,jab->jkab", A, kq) * h
         KT = np.transpose(kv, (0, 2, 1))                                 # (s, n, m)
         N = self.size
         J = bk.zeros((N, N))
         r_d, r_e, r_f = s * n, s * n + n, s * n + n + (s - 1) * m
         c_lam, c_v1 = s * n, s * n + s * m
         # (21b) rows
-        JbV = dP - h * np.einsum("ij,jkab->ikab", Ah, dF) - np.einsum("ij,jkab->ikab", At, dR)
+        JbV = dP - np.einsum("ij,jkab->ikab", Ah, dF) * h - np.einsum("ij,jkab->ikab", At, dR)
         J[:r_d, :c_lam] = JbV.transpose(0, 2, 1, 3).reshape(s * n, s * n)
         JbL = np.einsum("ik,kam->ikam", At, KT)
         J[:r_d, c_lam:c_v1] = JbL.transpose(0, 2, 1, 3).reshape(s * n, s * m)
         # (21d) rows
-        JdV = h * np.einsum("k,ab->kab", b, fin.L_vq) - h * np.einsum("j,jkab->kab", bh, dF) \
+        JdV = np.einsum("k,ab->kab", b, fin.L_vq) * h - np.einsum("j,jkab->kab", bh, dF) * h \
             - np.einsum("j,jkab->kab", bt, dR)
         J[r_d:r_e, :c_lam] = JdV.transpose(1, 0, 2).reshape(n, s * n)
         J[r_d:r_e, c_lam:c_v1] = np.einsum("k,kam->akm", bt, KT).reshape(n, s * m)
@@ -165,7 +165,7 @@ class SparkMethod:
             JeV = np.einsum("lj,jkab->lkab", tab.omega, dk)
             J[r_e:r_f, :c_lam] = JeV.transpose(0, 2, 1, 3).reshape((s - 1) * m, s * n)
         # (21f) rows
-        J[r_f:, :c_lam] = (h * np.einsum("k,ab->akb", b, fin.k_q)).reshape(m, s * n)
+        J[r_f:, :c_lam] = (np.einsum("k,ab->akb", b, fin.k_q) * h).reshape(m, s * n)
         J[r_f:, c_v1:] = fin.k_v
         return J
 
@@ -218,8 +218,8 @@ class SparkMethod:
     def _finish(self, t0, q0, h, x, it, res, step_index):
         tab = self.tab
         V, Lam, v1 = self.unpack(x)
-        q1 = q0 + h * tab.b.dot(V)
-        Q = q0 + h * tab.A.dot(V)
+        q1 = q0 + tab.b.dot(V) * h
+        Q = q0 + tab.A.dot(V) * h
         st = self.stats
         st.steps += 1
         st.newton_iterations += it
