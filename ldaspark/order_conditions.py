@@ -1,0 +1,427 @@
+"""Classical order conditions of the coefficient matrices of a SPARK method (21).
+
+* Rooted trees (one colour) and bi-coloured trees (two colours: the pair (A, A_hat) acting on
+  q' = v and p' = F) are generated programmatically up to order 8, with their density gamma(t).
+* The elementary weight Phi(t) of an RK method (A, b), or of a partitioned pair
+  ((A, b), (A_hat, b_hat)), is evaluated recursively; the order condition is
+  Phi(t) = 1 / gamma(t) (Butcher; Hairer-Norsett-Wanner II.2, III.2 for the pair).
+* Simplifying assumptions B(p), C(q), D(r), and the stability function
+  R(z) = 1 + z b^T (I - z A)^{-1} 1 = det(I - z(A - 1 b^T)) / det(I - z A) with R(inf).
+
+All of it runs on one small arithmetic interface (``Arith``) so the same code gives exact
+answers in an algebraic number field (``SparkTableau.field_entries()``: == is decidable) and
+tolerance-based answers with mpmath for tableaux known only numerically.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import mpmath
+
+MAX_ORDER = 8
+
+
+# --- trees ---------------------------------------------------------------------------------
+# A coloured rooted tree is (colour, children) with children a sorted tuple of trees, so that
+# equal trees have equal representations. Plain rooted trees are the one-colour case.
+
+@lru_cache(maxsize=None)
+def trees(order: int, colours: int = 1) -> tuple:
+    """All (coloured) rooted trees with ``order`` vertices, each once, in canonical form.
+
+    Counts (checked in tests): 1, 1, 2, 4, 9, 20, 48, 115 for one colour; 2, 4, 14, 52, 214,
+    916, 4116, 18996 for two colours (OEIS A000081, A038055)."""
+    if order < 1:
+        return ()
+    out = []
+    for forest in _forests(order - 1, colours):
+        for col in range(colours):
+            out.append((col, forest))
+    return tuple(out)
+
+
+@lru_cache(maxsize=None)
+def _forests(total: int, colours: int) -> tuple:
+    """Multisets of trees with ``total`` vertices in all, as sorted tuples."""
+    if total == 0:
+        return ((),)
+    pool = [t for n in range(1, total + 1) for t in trees(n, colours)]
+    sizes = {t: tree_order(t) for t in pool}
+    res = []
+
+    def rec(remaining, max_idx, acc):
+        if remaining == 0:
+            res.append(tuple(sorted(acc)))
+            return
+        for i in range(max_idx, -1, -1):
+            t = pool[i]
+            if sizes[t] <= remaining:
+                acc.append(t)
+                rec(remaining - sizes[t], i, acc)
+                acc.pop()
+
+    rec(total, len(pool) - 1, [])
+    return tuple(res)
+
+
+@lru_cache(maxsize=None)
+def tree_order(t) -> int:
+    return 1 + sum(tree_order(u) for u in t[1])
+
+
+@lru_cache(maxsize=None)
+def density(t) -> int:
+    """gamma(t) = |t| * prod gamma(children); the order condition is Phi(t) = 1/gamma(t)."""
+    g = tree_order(t)
+    for u in t[1]:
+        g *= density(u)
+    return g
+
+
+def tree_str(t, names=("", "")) -> str:
+    """Bracket notation: a leaf is 'o' (or the colour name), [u v] a root with children u, v."""
+    col, ch = t
+    root = names[col] if names[col] else "o"
+    if not ch:
+        return root
+    return root + "[" + " ".join(tree_str(u, names) for u in ch) + "]"
+
+
+# --- arithmetic ----------------------------------------------------------------------------
+@dataclass
+class Arith:
+    """Numbers of one kind: exact elements of an algebraic number field K, or mpf.
+
+    ``tol`` is the absolute tolerance for zero tests in the numeric case (None when exact)."""
+
+    kind: str                 # "exact" or "mp"
+    K: object = None
+    dps: int = 30
+    tol: float | None = None
+    _q: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def exact(self) -> bool:
+        return self.kind == "exact"
+
+    def num(self, p: int, q: int = 1):
+        """The rational number p/q in this arithmetic."""
+        key = (p, q)
+        if key not in self._q:
+            if self.exact:
+                from sympy import Rational
+                self._q[key] = self.K.from_sympy(Rational(p, q))
+            else:
+                with mpmath.workdps(self.dps):
+                    self._q[key] = mpmath.mpf(p) / q
+        return self._q[key]
+
+    def is_zero(self, x) -> bool:
+        if self.exact:
+            return x == self.K.zero
+        return abs(x) <= self.tol
+
+    def to_float(self, x) -> float:
+        if self.exact:
+            from sympy import N
+            return float(N(self.K.to_sympy(x), 20))
+        return float(x)
+
+    def to_str(self, x) -> str:
+        if self.exact:
+            from sympy import nsimplify, sstr
+            e = self.K.to_sympy(x)
+            try:
+                e = nsimplify(e) if not e.is_rational else e
+            except Exception:  # nsimplify gives up on some algebraic numbers
+                pass
+            return sstr(e)
+        return mpmath.nstr(x, 17)
+
+    def context(self):
+        import contextlib
+        return mpmath.workdps(self.dps) if not self.exact else contextlib.nullcontext()
+
+
+def exact_arith(tab) -> tuple[Arith, dict]:
+    """Arithmetic and entries for an exact tableau (field elements; vectors flat)."""
+    K, ent = tab.field_entries()
+    if not K.is_Field:  # integer tableaux come back over ZZ; order conditions need 1/gamma
+        F = K.get_field()
+        conv = lambda v: [conv(x) for x in v] if isinstance(v, list) else F.convert_from(v, K)
+        ent = {k: conv(v) for k, v in ent.items()}
+        K = F
+    return Arith("exact", K=K), ent
+
+
+def mp_arith(tab, dps: int) -> tuple[Arith, dict]:
+    """Arithmetic and mpf entries at ``dps`` digits. The zero tolerance follows the precision
+    of the entries: 10^(3 - digits), digits = min(dps, source digits of the input)."""
+    ent = tab.mp_entries(dps)
+    s = tab.s
+    ent = dict(ent)
+    for k in ("c", "b", "b_hat", "b_tilde"):
+        v = ent[k]
+        ent[k] = [x[0] if isinstance(x, list) else x for x in v]
+    digits = min(dps, tab.source_digits or dps)
+    tol = 10.0 ** (3 - digits) * max(1, s)
+    return Arith("mp", dps=dps, tol=tol), ent
+
+
+def arith_for(tab, dps: int = 30) -> tuple[Arith, dict]:
+    """Exact arithmetic when the tableau is exact, else mpmath at ``dps``."""
+    return exact_arith(tab) if tab.is_exact else mp_arith(tab, dps)
+
+
+# --- linear algebra on lists --------------------------------------------------------------
+def _matvec(ar, M, x):
+    s = len(x)
+    z = ar.num(0)
+    out = []
+    for i in range(s):
+        acc = z
+        row = M[i]
+        for j in range(s):
+            acc = acc + row[j] * x[j]
+        out.append(acc)
+    return out
+
+
+def _dot(ar, u, v):
+    acc = ar.num(0)
+    for a, b in zip(u, v):
+        acc = acc + a * b
+    return acc
+
+
+# --- order conditions ----------------------------------------------------------------------
+@dataclass
+class OrderResult:
+    """Order of an RK method or partitioned pair from the tree conditions.
+
+    ``order`` is the largest p <= max_order with every condition of order <= p satisfied;
+    ``failing`` names the worst tree of order p+1 (None when order == max_order);
+    ``counts`` the number of trees checked per order."""
+
+    order: int
+    max_order: int
+    failing: str | None = None
+    residual: float = 0.0
+    counts: dict = field(default_factory=dict)
+
+    @property
+    def complete(self) -> bool:
+        return self.order >= self.max_order
+
+
+def _order_from_trees(ar, mats, weights, colours, max_order, names):
+    """Check Phi(t) = 1/gamma(t) for coloured trees order by order, stopping at the first
+    order with a violated condition. mats[col] and weights[col] are the coefficients used
+    for a vertex of that colour."""
+    s = len(weights[0])
+    stage = {}   # tree -> stage vector g(t): product over children u of (A^{col u} g(u))
+    lifted = {}  # tree -> A^{col t} g(t)
+    one = [ar.num(1)] * s
+    counts = {}
+    with ar.context():
+        for p in range(1, max_order + 1):
+            worst, worst_t = None, None
+            ts = trees(p, colours)
+            counts[p] = len(ts)
+            for t in ts:
+                col, ch = t
+                g = one
+                for u in ch:
+                    hu = lifted[u]
+                    g = [a * b for a, b in zip(g, hu)]
+                stage[t] = g
+                if p < max_order:
+                    lifted[t] = _matvec(ar, mats[col], g)
+                r = _dot(ar, weights[col], g) - ar.num(1, density(t))
+                if not ar.is_zero(r):
+                    mag = ar.to_float(r)
+                    if worst is None or abs(mag) > abs(worst):
+                        worst, worst_t = mag, t
+            if worst_t is not None:
+                return OrderResult(p - 1, max_order, tree_str(worst_t, names), abs(worst), counts)
+    return OrderResult(max_order, max_order, None, 0.0, counts)
+
+
+def rk_order(ar, A, b, max_order: int = MAX_ORDER) -> OrderResult:
+    """Classical order of the RK method (A, b) from the rooted-tree conditions."""
+    return _order_from_trees(ar, [A], [b], 1, max_order, ("", ""))
+
+
+def pair_order(ar, A, b, A_hat, b_hat, max_order: int | None = None) -> OrderResult:
+    """Order of the partitioned RK pair: (A, b) for q' = v, (A_hat, b_hat) for p' = F
+    (bi-coloured trees: 'q' vertices use A, 'p' vertices use A_hat). When both tableaux are
+    identical the pair conditions reduce to the one-colour ones (a P-series of one method),
+    which we use then: it is the same set of equations and 40x fewer trees."""
+    return additive_order(ar, [(A, b), (A_hat, b_hat)], max_order, ["q", "p"])
+
+
+def _same(ar, A1, b1, A2, b2) -> bool:
+    return all(ar.is_zero(x - y) for x, y in zip(b1, b2)) and all(
+        ar.is_zero(x - y) for r1, r2 in zip(A1, A2) for x, y in zip(r1, r2))
+
+
+def additive_order(ar, parts, max_order: int | None = None, names=None) -> OrderResult:
+    """Order of an additive partitioned RK method with coefficient sets ``parts`` =
+    [(A_1, b_1), ..., (A_k, b_k)] (one per vector-field part; N-trees with k colours).
+    Parts with identical coefficients are merged into one colour first: the conditions of
+    the merged system are exactly the conditions with fewer colours. ``max_order`` defaults
+    to 8 for one or two colours and 6 for three (62625 three-coloured trees at order 7)."""
+    uniq, labels = [], []
+    names = names or [str(i) for i in range(len(parts))]
+    for (A, b), nm in zip(parts, names):
+        for k, (A2, b2) in enumerate(uniq):
+            if _same(ar, A, b, A2, b2):
+                labels[k] += "=" + nm
+                break
+        else:
+            uniq.append((A, b))
+            labels.append(nm)
+    if max_order is None:
+        max_order = MAX_ORDER if len(uniq) <= 2 else 6
+    if len(uniq) == 1:
+        return rk_order(ar, uniq[0][0], uniq[0][1], max_order)
+    return _order_from_trees(ar, [A for A, _ in uniq], [b for _, b in uniq], len(uniq), max_order,
+                             tuple(labels))
+
+
+def spark_ode_order(ar, e, max_order: int | None = None) -> OrderResult:
+    """Order of (A; A_hat, A_tilde) applied to the forced ODE (6) q' = v, p' = F + R with the
+    multiplier treated as a given smooth function of t: 3-coloured trees ('q' vertices use
+    (A, b), 'F' vertices (A_hat, b_hat), 'R' vertices (A_tilde, b_tilde)). Identical parts merge
+    (Gauss: one colour, Lobatto IIIA-B: two); three colours are capped at order 6."""
+    return additive_order(ar, [(e["A"], e["b"]), (e["A_hat"], e["b_hat"]), (e["A_tilde"], e["b_tilde"])],
+                          max_order, ["q", "F", "R"])
+
+
+# --- simplifying assumptions ---------------------------------------------------------------
+def _worst(ar, residuals):
+    bad = [(abs(ar.to_float(r)), where) for r, where in residuals if not ar.is_zero(r)]
+    return max(bad) if bad else None
+
+
+def check_B(ar, b, c, p):
+    """B(p): sum_i b_i c_i^(k-1) = 1/k, k = 1..p. Returns (holds, worst (residual, where))."""
+    with ar.context():
+        res = []
+        for k in range(1, p + 1):
+            r = _dot(ar, b, [ci ** (k - 1) for ci in c]) - ar.num(1, k)
+            res.append((r, f"k={k}"))
+        w = _worst(ar, res)
+    return w is None, w
+
+
+def check_C(ar, A, c, q):
+    """C(q): sum_j a_ij c_j^(k-1) = c_i^k / k, i = 1..s, k = 1..q."""
+    with ar.context():
+        res = []
+        for k in range(1, q + 1):
+            ck = [cj ** (k - 1) for cj in c]
+            Ac = _matvec(ar, A, ck)
+            for i, ci in enumerate(c):
+                res.append((Ac[i] - ci ** k * ar.num(1, k), f"k={k}, i={i + 1}"))
+        w = _worst(ar, res)
+    return w is None, w
+
+
+def check_D(ar, A, b, c, r):
+    """D(r): sum_i b_i c_i^(k-1) a_ij = b_j (1 - c_j^k) / k, j = 1..s, k = 1..r."""
+    s = len(b)
+    with ar.context():
+        res = []
+        for k in range(1, r + 1):
+            w = [b[i] * c[i] ** (k - 1) for i in range(s)]
+            for j in range(s):
+                lhs = _dot(ar, w, [A[i][j] for i in range(s)])
+                res.append((lhs - b[j] * (ar.num(1) - c[j] ** k) * ar.num(1, k), f"k={k}, j={j + 1}"))
+        wst = _worst(ar, res)
+    return wst is None, wst
+
+
+def largest(check, cap):
+    """Largest n in 0..cap with check(n) true (the conditions are nested)."""
+    n = 0
+    while n < cap and check(n + 1)[0]:
+        n += 1
+    return n
+
+
+def simplifying_assumptions(ar, A, b, c, cap: int | None = None) -> dict:
+    """Largest p, q, r with B(p), C(q), D(r) (capped at 2s for B, s for C and D... plus one, so
+    that a degenerate method exceeding the generic bound is still seen)."""
+    s = len(b)
+    capB = cap or 2 * s + 1
+    capCD = cap or s + 1
+    return {"B": largest(lambda p: check_B(ar, b, c, p), capB),
+            "C": largest(lambda q: check_C(ar, A, c, q), capCD),
+            "D": largest(lambda r: check_D(ar, A, b, c, r), capCD)}
+
+
+# --- stability function ------------------------------------------------------------------
+def char_coeffs(ar, M):
+    """Coefficients d_0..d_s of det(I - z M) = sum_k d_k z^k (Faddeev-LeVerrier; exact in
+    any field of characteristic 0)."""
+    s = len(M)
+    with ar.context():
+        zero, one = ar.num(0), ar.num(1)
+        # det(x I - M) = x^s + c_1 x^(s-1) + ... + c_s; det(I - z M) = sum_k c_k z^k
+        Mk = [[zero] * s for _ in range(s)]   # M_0 = 0
+        coeffs = [one]
+        prev_c = one
+        for k in range(1, s + 1):
+            # M_k = M M_{k-1} + c_{k-1} I ; c_k = -tr(M M_k) / k
+            MM = [[sum((M[i][l] * Mk[l][j] for l in range(s)), zero) for j in range(s)] for i in range(s)]
+            Mk = [[MM[i][j] + (prev_c if i == j else zero) for j in range(s)] for i in range(s)]
+            AM = [[sum((M[i][l] * Mk[l][j] for l in range(s)), zero) for j in range(s)] for i in range(s)]
+            tr = sum((AM[i][i] for i in range(s)), zero)
+            ck = -tr * ar.num(1, k)
+            coeffs.append(ck)
+            prev_c = ck
+    return coeffs
+
+
+@dataclass
+class Stability:
+    """R(z) = P(z)/Q(z); ``r_inf`` the limit at infinity (float, inf for |R| unbounded);
+    ``r_inf_str`` exact when available; ``A_singular`` whether 1 - b^T A^{-1} 1 is unusable."""
+
+    P: list
+    Q: list
+    r_inf: float
+    r_inf_str: str
+    A_singular: bool
+    note: str
+
+
+def stability(ar, A, b) -> Stability:
+    """Stability function of (A, b): R(z) = det(I - z(A - 1 b^T)) / det(I - z A); R(inf) is
+    the ratio of leading coefficients (= 1 - b^T A^{-1} 1 when A is invertible)."""
+    s = len(b)
+    with ar.context():
+        Ab = [[A[i][j] - b[j] for j in range(s)] for i in range(s)]
+        P = char_coeffs(ar, Ab)
+        Q = char_coeffs(ar, A)
+
+        def deg(c):
+            d = len(c) - 1
+            while d > 0 and ar.is_zero(c[d]):
+                d -= 1
+            return d
+
+        dP, dQ = deg(P), deg(Q)
+        A_singular = ar.is_zero(Q[s])  # det(I - zA) has degree s iff det A != 0
+        if dP > dQ:
+            r, rs = float("inf"), "inf"
+        elif dP < dQ:
+            r, rs = 0.0, "0"
+        else:
+            ratio = P[dP] / Q[dQ]
+            r, rs = ar.to_float(ratio), ar.to_str(ratio)
+        note = ("A singular: 1 - b^T A^{-1} 1 undefined; R(inf) is the limit of P/Q"
+                if A_singular else "R(inf) = 1 - b^T A^{-1} 1")
+    return Stability(P, Q, r, rs, A_singular, note)
