@@ -1,0 +1,654 @@
+"""The SPARK discrete Lagrangian of Theorem 1 as a function of the endpoints (t0, q0, t1, q1).
+
+Theorem 1 treats the quantities of (21) as implicit functions of (t0, q0, t1, q1): with (21c)
+imposed, q1 is data and v0 becomes an unknown. This module owns that boundary-value solve.
+
+Unknowns (packed)   x = [V (s*n) | Lambda = h*Psi (s*m) | v1 (n) | v0 (n)]
+Residual rows       G = [(21b) s*n | (21d) n | (21e) (s-1)*m | (21f) m | (21c)/h n]
+
+with p0 = grad_v L(t0, q0, v0); the (21c) row is b.V - (q1 - q0)/h so every block is O(1).
+The count is square: s n + s m + 2 n unknowns and equations.
+
+Public API (used by ``ldaspark audit`` too):
+
+* ``discrete_lagrangian(system, tableau, t0, q0, t1, q1, dps=40, v0_guess=None, x_guess=None)``
+  -> ``DiscreteResult`` with L_d, p0, p1, v0, v1, V, Q, Psi, f_d_minus, f_d_plus, dV_dq0,
+  dV_dq1 ((s, n, n): dV_i/dq0 from one linear solve with the Jacobian, implicit
+  differentiation, no finite differences), sigma (singular values of the Jacobian, largest
+  first), rank_deficiency, wellposed ('well-posed' | 'gauge-deficient' | 'singular'), ...
+* ``base_point(system, tableau, t0, q0, v0, h, dps)`` -> (t1, q1, x_guess): one IVP step from
+  consistent data, the natural place to check Theorem 1.
+* ``theorem1_residuals(system, tableau, t0, q0, v0, h, dps=40)`` -> dict: dL_d/dq0 and
+  dL_d/dq1 by Richardson-extrapolated central differences at dps + 20 digits, compared with
+  -p0 - f_d^- and p1 - f_d^+ (Theorem 1), relative residuals and the FD error estimate.
+* ``check_symmetry(system, tableau, t0, q0, v0, h, dps=40)`` -> dict: the (23) identities
+  L_d(t1,q1,t0,q0) + L_d(t0,q0,t1,q1), f_d^+(rev) + f_d^-, f_d^-(rev) + f_d^+, and
+  |Phi_{-h}(Phi_h(y)) - y|.
+* ``classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50))`` -> dict: rank
+  decided at two precisions and two step sizes (see below).
+
+Well-posedness. The Jacobian J = dG/dx can be rank deficient. Example: A_tilde with constant
+first column equal to b_tilde_1 (Lobatto IIIA-IIIB, Euler I): p0 and Lambda_1 enter (21b) and
+(21d) only through p0 - b_tilde_1 K_1^T Lambda_1, so p0 -> p0 + K_1^T d, Lambda_1 -> Lambda_1 +
+d / b_tilde_1 is a gauge (m null directions in (Lambda, v0)). Then the BVP is also solvable only
+on a submanifold of (q0, q1) (the discrete constraint c = 0 of (14b)): J has left null vectors W
+with W^T dG/dq != 0. We gauge-fix by a bordered system
+
+    [[J, W], [N^T, 0]] [dx; mu] = [-G; -(N^T x - N^T x_ref)]
+
+(N: right null vectors at the base point, pinned at the IVP solution, i.e. at consistent v0;
+W: left null vectors with their (21c) rows zeroed, so (21c) holds exactly and the proof's
+algebra applies). mu measures the distance from solvability (0 on the solvable set).
+A deficient direction is one with sigma / sigma_max below 10^(-dps/2); it is a *gauge* if the
+null vectors do not move V and v1 (then L_d is gauge-invariant), *singular* otherwise.
+"""
+from __future__ import annotations
+
+import math
+import time
+from fractions import Fraction
+from dataclasses import dataclass, field
+
+import mpmath
+import numpy as np
+
+from .backend import Backend, SingularMatrixError
+from .errors import LdasparkError, NewtonError
+from .spark import SparkMethod
+from .system import LagrangianSystem
+from .tableau import SparkTableau
+
+WELLPOSED = "well-posed"
+GAUGE = "gauge-deficient"
+SINGULAR = "singular"
+
+
+class DiscreteSolveError(LdasparkError):
+    """The boundary-value solve of (21) for given (t0, q0, t1, q1) failed."""
+
+
+@dataclass
+class DiscreteResult:
+    """Quantities of Theorem 1 at one (t0, q0, t1, q1). Vectors are numpy arrays (float or
+    mpf objects); f_d_minus, f_d_plus are the column vectors whose transposes Theorem 1 prints."""
+
+    L_d: object
+    p0: np.ndarray
+    p1: np.ndarray
+    v0: np.ndarray
+    v1: np.ndarray
+    V: np.ndarray             # (s, n)
+    Q: np.ndarray             # (s, n)
+    Psi: np.ndarray           # (s, m)
+    f_d_minus: np.ndarray
+    f_d_plus: np.ndarray
+    dV_dq0: np.ndarray        # (s, n, n): dV_i / dq0
+    dV_dq1: np.ndarray
+    sigma: np.ndarray         # singular values of J, largest first
+    rank_deficiency: int
+    wellposed: str
+    mu_norm: float            # solvability defect (0 when G(x) = 0 is solvable exactly)
+    residual: float           # |G|_inf at the solution (incl. the absorbed part W mu)
+    iterations: int
+    x: np.ndarray
+    dps: int | None
+    extra: dict = field(default_factory=dict)
+
+
+class DiscreteBVP:
+    """Assembly of the boundary-value system (21b-f) in the unknowns x = [V|Lambda|v1|v0]."""
+
+    def __init__(self, system: LagrangianSystem, tableau: SparkTableau, dps: int | None = 40):
+        self.system = system
+        self.tableau = tableau
+        self.method = SparkMethod(system, tableau, dps=dps)
+        self.bk = self.method.backend
+        self.tab = self.method.tab
+        self.dps = dps
+        s, n, m = tableau.s, system.n, system.m
+        self.s, self.n, self.m = s, n, m
+        self.size = s * n + s * m + 2 * n
+        self.c_lam, self.c_v1, self.c_v0 = s * n, s * n + s * m, s * n + s * m + n
+        self.r_d, self.r_e = s * n, s * n + n
+        self.r_f, self.r_c = s * n + n + (s - 1) * m, s * n + n + s * m
+
+    # --- packing -----------------------------------------------------------------------
+    def unpack(self, x):
+        s, n, m = self.s, self.n, self.m
+        return (x[:self.c_lam].reshape(s, n), x[self.c_lam:self.c_v1].reshape(s, m),
+                x[self.c_v1:self.c_v0], x[self.c_v0:])
+
+    def pack(self, V, Lam, v1, v0):
+        return np.concatenate([np.asarray(V).reshape(-1), np.asarray(Lam).reshape(-1),
+                               np.asarray(v1), np.asarray(v0)])
+
+    # --- residual ----------------------------------------------------------------------
+    def evaluate(self, t0, q0, t1, q1, x, jacobian=True):
+        """G(x; q0, q1) and, if asked, J = dG/dx, dG/dq0, dG/dq1 (each N x n)."""
+        sysm, tab, bk = self.system, self.tab, self.bk
+        s, n, m = self.s, self.n, self.m
+        h = t1 - t0
+        V, Lam, v1, v0 = self.unpack(x)
+        T = [t0 + tab.c[i] * h for i in range(s)]
+        Q = q0 + h * tab.A.dot(V)
+        q1i = q0 + h * tab.b.dot(V)           # = q1 once (21c) holds
+        st = [sysm.stage(bk, T[i], Q[i], V[i], Lam[i], jacobian) for i in range(s)]
+        fin = sysm.stage(bk, t1, q1i, v1, bk.zeros(m), jacobian)
+        st0 = sysm.stage(bk, t0, q0, v0, bk.zeros(m), jacobian)
+        p0 = st0.L_v
+        F = np.array([e.L_q for e in st])
+        Rl = np.array([e.R_lam for e in st])
+        Kst = np.array([e.k for e in st])
+        G = bk.zeros(self.size)
+        G[:self.r_d] = (np.array([e.L_v for e in st]) - p0 - h * tab.A_hat.dot(F)
+                        - tab.A_tilde.dot(Rl)).reshape(-1)
+        G[self.r_d:self.r_e] = fin.L_v - p0 - h * tab.b_hat.dot(F) - tab.b_tilde.dot(Rl)
+        if s > 1:
+            G[self.r_e:self.r_f] = tab.omega.dot(Kst).reshape(-1)
+        G[self.r_f:self.r_c] = fin.k
+        G[self.r_c:] = tab.b.dot(V) - (q1 - q0) / h
+        if not jacobian:
+            return G, None, None, None
+        N = self.size
+        J = bk.zeros((N, N))
+        J[:self.r_c, :self.c_v0] = self.method._jacobian(h, st, fin)
+        for i in range(s):
+            J[i * n:(i + 1) * n, self.c_v0:] = -st0.L_vv
+        J[self.r_d:self.r_e, self.c_v0:] = -st0.L_vv
+        for j in range(s):
+            for a in range(n):
+                J[self.r_c + a, j * n + a] = tab.b[j]
+        # dG/dq0: Q_i, q1i and q0 all move with q0 (x fixed)
+        Lqq = np.array([e.L_qq for e in st]); Rq = np.array([e.R_q for e in st])
+        dq0 = bk.zeros((N, n))
+        for i in range(s):
+            dq0[i * n:(i + 1) * n] = (st[i].L_vq - st0.L_vq - h * np.einsum("j,jab->ab", tab.A_hat[i], Lqq)
+                                      - np.einsum("j,jab->ab", tab.A_tilde[i], Rq))
+        dq0[self.r_d:self.r_e] = (fin.L_vq - st0.L_vq - h * np.einsum("j,jab->ab", tab.b_hat, Lqq)
+                                  - np.einsum("j,jab->ab", tab.b_tilde, Rq))
+        if s > 1:
+            kq = np.array([e.k_q for e in st])
+            dq0[self.r_e:self.r_f] = np.einsum("lj,jab->lab", tab.omega, kq).reshape((s - 1) * m, n)
+        dq0[self.r_f:self.r_c] = fin.k_q
+        dq1 = bk.zeros((N, n))
+        for a in range(n):
+            dq0[self.r_c + a, a] = 1 / h
+            dq1[self.r_c + a, a] = -1 / h
+        return G, J, dq0, dq1
+
+    def lagrangian_and_forces(self, t0, q0, t1, q1, x, dV_dq0, dV_dq1):
+        """L_d, p0, p1, f_d^-, f_d^+ of Theorem 1 at a solution x (Lambda = h Psi)."""
+        sysm, tab, bk = self.system, self.tab, self.bk
+        s, n = self.s, self.n
+        h = t1 - t0
+        V, Lam, v1, v0 = self.unpack(x)
+        T = [t0 + tab.c[i] * h for i in range(s)]
+        Q = q0 + h * tab.A.dot(V)
+        Lfn = sysm._fn("L", [sysm.L], bk)
+        Kfn = sysm._fn("K", [sysm.k_v], bk)
+        L_d = h * sum(tab.b[i] * Lfn(T[i], *Q[i], *V[i])[0] for i in range(s))
+        K = [np.array(Kfn(T[j], *Q[j], *V[j])[0], dtype=object if bk.is_mp else float) for j in range(s)]
+        LK = [Lam[j].dot(K[j]) for j in range(s)]          # h Psi_j^T K_j, row n-vectors
+        fm = bk.zeros(n)
+        fp = bk.zeros(n)
+        for i in range(s):
+            wm = sum(tab.A_tilde[i, j] * LK[j] for j in range(s))
+            wp = sum((tab.b_tilde[j] - tab.A_tilde[i, j]) * LK[j] for j in range(s))
+            fm = fm + h * tab.b[i] * wm.dot(dV_dq0[i])
+            fp = fp - h * tab.b[i] * wp.dot(dV_dq1[i])
+        p0 = sysm.momentum(bk, t0, q0, v0)
+        p1 = sysm.momentum(bk, t1, q1, v1)
+        return L_d, p0, p1, fm, fp, Q
+
+    def L_d_only(self, t0, q0, t1, q1, x):
+        sysm, tab, bk = self.system, self.tab, self.bk
+        h = t1 - t0
+        V = x[:self.c_lam].reshape(self.s, self.n)
+        Q = q0 + h * tab.A.dot(V)
+        Lfn = sysm._fn("L", [sysm.L], bk)
+        return h * sum(tab.b[i] * Lfn(t0 + tab.c[i] * h, *Q[i], *V[i])[0] for i in range(self.s))
+
+
+# --- linear algebra helpers (float64 and mpf) ------------------------------------------------
+def _svd(bk, J):
+    """(U, sigma, Vt) full SVD, sigma descending."""
+    if bk.is_mp:
+        U, S, Vh = mpmath.svd_r(mpmath.matrix(J.tolist()))
+        U = np.array(U.tolist(), dtype=object)
+        Vh = np.array(Vh.tolist(), dtype=object)
+        S = np.array([S[i] for i in range(S.rows)], dtype=object)
+        order = sorted(range(len(S)), key=lambda i: -S[i])
+        return U[:, order], S[order], Vh[order, :]
+    U, S, Vh = np.linalg.svd(J)
+    return U, S, Vh
+
+
+def _rel(x):
+    return float(x)
+
+
+@dataclass
+class Gauge:
+    """Bordering data for a rank-deficient J: pin rows C (r x N), targets c0, border W (N x r)."""
+
+    C: np.ndarray
+    c0: np.ndarray
+    W: np.ndarray
+
+
+def _deficiency(sig, dps):
+    """Number of singular values that are zero to working precision: sigma/sigma_max below
+    10^(-dps/2) (mpmath) or 1e-9 (float64). Genuine small values scale like h^k >> these."""
+    smax = float(sig[0])
+    thr = 10.0 ** (-dps / 2) if dps is not None else 1e-9
+    return sum(1 for x in sig if float(x) <= thr * smax)
+
+
+class _Solver:
+    """Bordered Newton for the BVP at one precision."""
+
+    def __init__(self, bvp: DiscreteBVP, max_iter=60):
+        self.bvp = bvp
+        self.bk = bvp.bk
+        self.max_iter = max_iter
+
+    def bordered(self, J, gauge):
+        if gauge is None:
+            return J
+        bk = self.bk
+        N, r = J.shape[0], gauge.W.shape[1]
+        B = bk.zeros((N + r, N + r))
+        B[:N, :N] = J
+        B[:N, N:] = gauge.W
+        B[N:, :N] = gauge.C
+        return B
+
+    def full_residual(self, G, x, mu, gauge):
+        if gauge is None:
+            return G
+        return np.concatenate([G + gauge.W.dot(mu), gauge.C.dot(x) - gauge.c0])
+
+    def newton(self, t0, q0, t1, q1, x, gauge=None, fac=None, tol=None):
+        """Solve G(x) + W mu = 0, C x = c0. With ``fac`` (LU of the bordered matrix at a
+        nearby point) runs simplified Newton first, falling back to full Newton."""
+        bk, bvp = self.bk, self.bvp
+        tol = tol if tol is not None else 100 * bk.eps
+        r = 0 if gauge is None else gauge.W.shape[1]
+        mu = bk.zeros(r)
+        x = x.copy()
+        prev = None
+        simplified = fac is not None
+        it = 0
+        for it in range(1, self.max_iter + 1):
+            G, J, _, _ = bvp.evaluate(t0, q0, t1, q1, x, jacobian=not simplified)
+            R = self.full_residual(G, x, mu, gauge)
+            if not simplified:
+                try:
+                    fac = bk.factor(self.bordered(J, gauge))
+                except SingularMatrixError as exc:
+                    raise DiscreteSolveError(f"BVP Jacobian singular: {exc}") from None
+            d = bk.solve_factored(fac, -R)
+            x = x + d[:bvp.size]
+            mu = mu + d[bvp.size:]
+            dn = bk.norm_inf(d)
+            if not math.isfinite(dn):
+                raise DiscreteSolveError("BVP Newton diverged (non-finite increment)")
+            if dn <= tol * (1 + bk.norm_inf(x)):
+                G, _, _, _ = bvp.evaluate(t0, q0, t1, q1, x, jacobian=False)
+                res = bk.norm_inf(self.full_residual(G, x, mu, gauge))
+                return x, mu, it, res
+            if prev is not None and dn > 0.5 * prev:
+                if simplified:
+                    simplified = False        # contraction too slow: switch to full Newton
+                elif dn <= 1e4 * tol * (1 + bk.norm_inf(x)):
+                    G, _, _, _ = bvp.evaluate(t0, q0, t1, q1, x, jacobian=False)
+                    return x, mu, it, bk.norm_inf(self.full_residual(G, x, mu, gauge))
+            prev = dn
+        raise DiscreteSolveError(f"BVP Newton did not converge in {self.max_iter} iterations "
+                                 f"(last increment {dn:.2e})")
+
+
+def _make_gauge(bvp, J, x_ref, sig, U, Vh, r):
+    """Gauge from the SVD at the base point: pin the r right-null directions at x_ref and border
+    with the r left-null directions, (21c) rows zeroed so (21c) stays exact."""
+    bk = bvp.bk
+    N = bvp.size
+    Nv = Vh[N - r:, :]                       # r x N
+    W = U[:, N - r:].copy()                  # N x r
+    W0 = W.copy()
+    W[bvp.r_c:, :] = 0
+    g = Gauge(C=Nv, c0=Nv.dot(x_ref), W=W)
+    try:
+        bk.factor(_Solver(bvp).bordered(J, g))
+    except SingularMatrixError:
+        g = Gauge(C=Nv, c0=Nv.dot(x_ref), W=W0)
+    return g
+
+
+def _null_support(bvp, Vh, r):
+    """Max |component| of the right null vectors in the V, Lambda, v1, v0 blocks."""
+    N = bvp.size
+    Nv = Vh[N - r:, :]
+    blocks = {"V": (0, bvp.c_lam), "Lambda": (bvp.c_lam, bvp.c_v1), "v1": (bvp.c_v1, bvp.c_v0),
+              "v0": (bvp.c_v0, N)}
+    out = {}
+    for k, (a, b) in blocks.items():
+        out[k] = max((float(abs(v)) for v in Nv[:, a:b].reshape(-1)), default=0.0) if r else 0.0
+    return out
+
+
+def _as_backend(bk, v):
+    return bk.array(v) if bk.is_mp else np.array([float(x) for x in np.asarray(v).reshape(-1)]).reshape(np.shape(v))
+
+
+# --- public API -------------------------------------------------------------------------------
+def base_point(system, tableau, t0, q0, v0, h, dps=40):
+    """One IVP step of (21) from (t0, q0, v0): returns (t1, q1, x_guess) in the BVP layout
+    (the BVP solution at (t0, q0, t1, q1) up to the Newton tolerance)."""
+    meth = SparkMethod(system, tableau, dps=dps)
+    bk = meth.backend
+    with bk.context():
+        t0 = bk.scalar(t0)
+        h = bk.scalar(h)
+        q0 = bk.array(q0)
+        v0 = bk.array(v0)
+        r = meth.step(t0, q0, v0, h)
+        x = np.concatenate([r.V.reshape(-1), (r.Psi * h).reshape(-1), r.v1, v0])
+        return r.t1, r.q1, x
+
+
+def discrete_lagrangian(system, tableau, t0, q0, t1, q1, dps=40, v0_guess=None, x_guess=None,
+                        gauge_ref=None) -> DiscreteResult:
+    """Solve (21b-f) with (21c) imposed for given (t0, q0, t1, q1); return L_d, p0, p1, f_d^-,
+    f_d^+ exactly as printed in Theorem 1, and dV/dq0, dV/dq1 by implicit differentiation
+    dx/dq = -J^{-1} dG/dq (bordered when J is rank deficient).
+
+    ``x_guess`` (BVP layout) or ``v0_guess`` seed Newton; ``gauge_ref`` (a packed x) pins the
+    gauge (default: the converged solution of a first unpinned pass, or x_guess)."""
+    bvp = DiscreteBVP(system, tableau, dps)
+    bk = bvp.bk
+    with bk.context():
+        t0, t1 = bk.scalar(t0), bk.scalar(t1)
+        q0, q1 = bk.array(q0), bk.array(q1)
+        h = t1 - t0
+        if x_guess is None:
+            v0g = bk.array(v0_guess) if v0_guess is not None else (q1 - q0) / h
+            _, _, x_guess = base_point(system, tableau, t0, q0, v0g, h, dps)
+        x = _as_backend(bk, x_guess)
+        return _solve_and_differentiate(bvp, t0, q0, t1, q1, x, gauge_ref)
+
+
+def _solve_and_differentiate(bvp, t0, q0, t1, q1, x, gauge_ref=None, gauge=None):
+    bk = bvp.bk
+    sol = _Solver(bvp)
+    # first pass: plain Newton if J is nonsingular near the guess; otherwise gauge at the guess
+    G, J, _, _ = bvp.evaluate(t0, q0, t1, q1, x)
+    U, sig, Vh = _svd(bk, J)
+    r = _deficiency(sig, bvp.dps)
+    if r and gauge is None:
+        gauge = _make_gauge(bvp, J, x if gauge_ref is None else _as_backend(bk, gauge_ref), sig, U, Vh, r)
+    x, mu, it, res = sol.newton(t0, q0, t1, q1, x, gauge)
+    G, J, dq0, dq1 = bvp.evaluate(t0, q0, t1, q1, x)
+    U, sig, Vh = _svd(bk, J)
+    r = _deficiency(sig, bvp.dps)
+    support = _null_support(bvp, Vh, r)
+    if r == 0:
+        cls = WELLPOSED
+        gauge_used = None
+    else:
+        small = 10.0 ** (-(bvp.dps or 16) / 3)
+        cls = GAUGE if support["V"] <= small and support["v1"] <= small else SINGULAR
+        gauge_used = gauge if gauge is not None else _make_gauge(bvp, J, x, sig, U, Vh, r)
+    B = sol.bordered(J, gauge_used)
+    rb = 0 if gauge_used is None else gauge_used.W.shape[1]
+    rhs = bk.zeros((bvp.size + rb, 2 * bvp.n))
+    rhs[:bvp.size, :bvp.n] = -dq0
+    rhs[:bvp.size, bvp.n:] = -dq1
+    try:
+        fac = bk.factor(B)
+    except SingularMatrixError as exc:
+        raise DiscreteSolveError(f"sensitivity system singular ({cls}): {exc}") from None
+    dx = np.array([bk.solve_factored(fac, rhs[:, k]) for k in range(2 * bvp.n)]).T   # (N+r, 2n)
+    s, n = bvp.s, bvp.n
+    dV = dx[:bvp.c_lam].reshape(s, n, 2 * n)
+    dV_dq0, dV_dq1 = dV[:, :, :n], dV[:, :, n:]
+    L_d, p0, p1, fm, fp, Q = bvp.lagrangian_and_forces(t0, q0, t1, q1, x, dV_dq0, dV_dq1)
+    V, Lam, v1, v0 = bvp.unpack(x)
+    st0 = bvp.system.stage(bk, t0, q0, v0, bk.zeros(bvp.m), True)
+    dv0 = dx[bvp.c_v0:bvp.size]                       # (n, 2n)
+    dk0_dq = (st0.k_q + st0.k_v.dot(dv0[:, :n]), st0.k_v.dot(dv0[:, n:]))
+    h = t1 - t0
+    return DiscreteResult(L_d=L_d, p0=p0, p1=p1, v0=v0.copy(), v1=v1.copy(), V=V.copy(), Q=Q,
+                          Psi=Lam / h, f_d_minus=fm, f_d_plus=fp, dV_dq0=dV_dq0, dV_dq1=dV_dq1,
+                          sigma=sig, rank_deficiency=r, wellposed=cls,
+                          mu_norm=bk.norm_inf(mu), residual=res, iterations=it, x=x, dps=bvp.dps,
+                          extra={"null_support": support, "gauge": gauge_used, "fac": fac,
+                                 "dx_dq": dx, "dG_dq": (dq0, dq1), "J": J,
+                                 "dk0_dq": dk0_dq, "k0": st0.k})
+
+
+def _rel_residual(bk, a, b, scale):
+    d = bk.norm_inf(np.asarray(a) - np.asarray(b))
+    return d / max(scale, 1e-300)
+
+
+def theorem1_residuals(system, tableau, t0, q0, v0, h, dps=40, fd_delta=None, q1_shift=None,
+                       q0_shift=None, x_guess=None):
+    """Theorem 1 at the endpoints reached by one IVP step from (t0, q0, v0) (optionally with
+    q0, q1 shifted by small vectors): dL_d/dq0 = -p0^T - f_d^-^T, dL_d/dq1 = p1^T - f_d^+^T.
+
+    dL_d/dq is measured by central differences on the BVP solution at ``dps + 20`` digits,
+    Richardson-extrapolated over delta, delta/2, delta/4 (delta = 10^-(dps/4)); the error
+    estimate is the difference of the two extrapolants. Residuals are relative to
+    max(|p0|, |p1|, |dL_d/dq|)."""
+    t_start = time.time()
+    dps_fd = dps + 20
+    bk_fd = Backend(dps_fd)
+    with bk_fd.context():
+        t1, q1, xg = base_point(system, tableau, t0, q0, v0, h, dps_fd)
+        t0_ = bk_fd.scalar(t0)
+        q0_ = bk_fd.array(q0)
+        if q0_shift is not None:
+            q0_ = q0_ + bk_fd.array(q0_shift)
+        if q1_shift is not None:
+            q1 = q1 + bk_fd.array(q1_shift)
+        res = discrete_lagrangian(system, tableau, t0_, q0_, t1, q1, dps=dps_fd, x_guess=xg)
+        bvp = DiscreteBVP(system, tableau, dps_fd)
+        sol = _Solver(bvp)
+        gauge = res.extra["gauge"]
+        fac = res.extra["fac"]
+        dxdq = res.extra["dx_dq"][:bvp.size]
+        n = system.n
+        delta = mpmath.mpf(10) ** (-(dps // 4))
+        grads = []
+        errs = []
+        for k in range(2 * n):
+            def Ld_at(eps):
+                qa, qb = q0_.copy(), q1.copy()
+                if k < n:
+                    qa[k] += eps
+                else:
+                    qb[k - n] += eps
+                xp = res.x + dxdq[:, k] * eps          # first-order predictor
+                xs, _, _, _ = sol.newton(t0_, qa, t1, qb, xp, gauge, fac=fac)
+                return bvp.L_d_only(t0_, qa, t1, qb, xs)
+            D = []
+            for dl in (delta, delta / 2, delta / 4):
+                D.append((Ld_at(dl) - Ld_at(-dl)) / (2 * dl))
+            R1 = (4 * D[1] - D[0]) / 3
+            R2 = (4 * D[2] - D[1]) / 3
+            grads.append((16 * R2 - R1) / 15)
+            errs.append(abs(R2 - R1))
+        g = np.array(grads, dtype=object)
+        claim0 = -res.p0 - res.f_d_minus
+        claim1 = res.p1 - res.f_d_plus
+        scale = max(bk_fd.norm_inf(res.p0), bk_fd.norm_inf(res.p1), bk_fd.norm_inf(g))
+        r0 = _rel_residual(bk_fd, g[:n], claim0, scale)
+        r1 = _rel_residual(bk_fd, g[n:], claim1, scale)
+        fd_err = float(max(errs)) / scale
+        # what (22) alone would not give: the bare momenta, to show the forces matter
+        r0_nof = _rel_residual(bk_fd, g[:n], -res.p0, scale)
+        out = {"theorem1-q0": r0, "theorem1-q1": r1, "fd_error": fd_err,
+               "without_forces_q0": r0_nof, "L_d": float(res.L_d),
+               "f_d_minus_norm": float(bk_fd.norm_inf(res.f_d_minus)),
+               "f_d_plus_norm": float(bk_fd.norm_inf(res.f_d_plus)),
+               "wellposed": res.wellposed, "rank_deficiency": res.rank_deficiency,
+               "sigma_min": float(res.sigma[-1]), "sigma_max": float(res.sigma[0]),
+               "sigma_min_nonzero": float(res.sigma[len(res.sigma) - 1 - res.rank_deficiency]),
+               "mu_norm": res.mu_norm, "bvp_residual": res.residual, "dps": dps, "dps_fd": dps_fd,
+               "fd_delta": float(delta), "seconds": time.time() - t_start,
+               "null_support": res.extra["null_support"]}
+    return out
+
+
+def check_symmetry(system, tableau, t0, q0, v0, h, dps=40):
+    """The symmetry claims under (23): with the forward BVP at (t0, q0, t1, q1) from one IVP
+    step and the reversed BVP at (t1, q1, t0, q0),
+
+    * L_d(t1,q1,t0,q0) + L_d(t0,q0,t1,q1)
+    * f_d^+(t1,q1,t0,q0) + f_d^-(t0,q0,t1,q1) and f_d^-(t1,q1,t0,q0) + f_d^+(t0,q0,t1,q1)
+    * |Phi_{-h}(Phi_h(y)) - y| (IVP steps)
+
+    all relative to the size of the compared quantities. For a rank-deficient J the f_d
+    comparisons are restricted to directions in which the BVP stays solvable (their pairing
+    with other directions depends on the gauge-fixing)."""
+    t_start = time.time()
+    bk = Backend(dps)
+    with bk.context():
+        t1, q1, xg = base_point(system, tableau, t0, q0, v0, h, dps)
+        t0_ = bk.scalar(t0)
+        q0_ = bk.array(q0)
+        v0_ = bk.array(v0)
+        fwd = discrete_lagrangian(system, tableau, t0_, q0_, t1, q1, dps=dps, x_guess=xg)
+        bvp = DiscreteBVP(system, tableau, dps)
+        V, Lam, v1, v0x = bvp.unpack(fwd.x)
+        # adjoint stage values under (23): V_i -> V_{s+1-i}, Psi_i -> Psi_{s+1-i} (Lambda flips sign)
+        xr = bvp.pack(V[::-1], -Lam[::-1], v0x, v1)
+        rev = discrete_lagrangian(system, tableau, t1, q1, t0_, q0_, dps=dps, x_guess=xr,
+                                  gauge_ref=xr)
+        sL = abs(fwd.L_d + rev.L_d) / max(abs(fwd.L_d), 1e-300)
+        (P0, dim0), (P1, dim1) = _tangent_projector(fwd, 0), _tangent_projector(rev, 0)
+        # f_d^+(rev) pairs with variations of fwd q0 = rev q1; f_d^-(rev) with fwd q1 = rev q0
+        a, b = P0.dot(fwd.f_d_minus + rev.f_d_plus), P1.dot(fwd.f_d_plus + rev.f_d_minus)
+        sc = max(bk.norm_inf(P0.dot(fwd.f_d_minus)), bk.norm_inf(P1.dot(fwd.f_d_plus)),
+                 bk.norm_inf(fwd.p0), 1e-300)
+        sfp = bk.norm_inf(a) / sc
+        sfm = bk.norm_inf(b) / sc
+        # the unrestricted covectors, to show the restriction matters
+        sc_full = max(bk.norm_inf(fwd.f_d_minus), bk.norm_inf(fwd.f_d_plus), bk.norm_inf(fwd.p0))
+        full_p = bk.norm_inf(fwd.f_d_minus + rev.f_d_plus) / sc_full
+        full_m = bk.norm_inf(fwd.f_d_plus + rev.f_d_minus) / sc_full
+        # Phi_{-h} o Phi_h
+        meth = SparkMethod(system, tableau, dps=dps)
+        hh = bk.scalar(h)
+        r1 = meth.step(t0_, q0_, v0_, hh)
+        r2 = meth.step(r1.t1, r1.q1, r1.v1, -hh)
+        sc_y = max(bk.norm_inf(q0_), bk.norm_inf(v0_), 1.0)
+        sPhi = max(bk.norm_inf(r2.q1 - q0_), bk.norm_inf(r2.v1 - v0_)) / sc_y
+    return {"symmetry-Ld": float(sL), "symmetry-fd-plus": float(sfp), "symmetry-fd-minus": float(sfm),
+            "symmetry-Phi": float(sPhi), "wellposed": fwd.wellposed,
+            "tangent_dim": (dim0, dim1), "fd_restricted_norm": (float(bk.norm_inf(P0.dot(fwd.f_d_minus))),
+                                                                float(bk.norm_inf(P1.dot(fwd.f_d_plus)))),
+            "symmetry-fd-unrestricted": (float(full_p), float(full_m)),
+            "rank_deficiency": fwd.rank_deficiency, "dps": dps, "seconds": time.time() - t_start}
+
+
+def _tangent_projector(res, which):
+    """Orthogonal projector onto the pure-q0 (which=0) or pure-q1 (which=1) variations tangent
+    to the discrete constraint manifold C_d, where v0 stays consistent, k(t0, q0, v0) = 0 (the
+    IVP's assumption; off C_d the forward and the reversed BVP differ, so (23) cannot hold there).
+    Well-posed J: null space of d k(t0, q0, v0(q0, q1)) / dq. Deficient J: null space of
+    W^T dG/dq (first-order solvability; the gauge pin keeps v0 consistent)."""
+    g = res.extra["gauge"]
+    bk = Backend(res.dps)
+    if g is None:
+        M = res.extra["dk0_dq"][which]
+    else:
+        M = g.W.T.dot(res.extra["dG_dq"][which])
+    n = M.shape[1]
+    Mp = bk.zeros((n, n))                     # pad to square: full right singular basis
+    Mp[:M.shape[0]] = M
+    U, sig, Vh = _svd(bk, Mp)
+    k = sum(1 for x in sig if float(x) > 1e-8 * max(float(sig[0]), 1e-300))
+    Nt = Vh[k:, :]                            # orthonormal basis of the tangent directions
+    return Nt.T.dot(Nt), Nt.shape[0]
+
+
+def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_factors=(1, "1/2")):
+    """Rank of the BVP Jacobian at the IVP base point, decided at high precision: for each
+    dps in ``dps`` and each step h*f, the singular values of J. A structurally zero sigma sits
+    at the precision floor (sigma/sigma_max ~ 10^-dps: it moves with dps); a genuinely small one
+    scales like a power of h and does not move with dps. Returns the class, the deficiency, the
+    smallest nonzero sigma per (dps, h), its observed power of h, and the floor per dps."""
+    out = {"sigma": {}, "deficiency": {}}
+    floors = {}
+    nz = {}
+    support = None
+    for d in dps:
+        for f in h_factors:
+            bk = Backend(d)
+            with bk.context():
+                fr = Fraction(str(f))
+                hf = bk.scalar(h) * fr.numerator / fr.denominator
+                t1, q1, xg = base_point(system, tableau, t0, q0, v0, hf, d)
+                bvp = DiscreteBVP(system, tableau, d)
+                t0_ = bk.scalar(t0)
+                G, J, _, _ = bvp.evaluate(t0_, bk.array(q0), t1, q1, xg)
+                U, sig, Vh = _svd(bk, J)
+                r = _deficiency(sig, d)
+                smax = float(sig[0])
+                rel = [float(x) / smax for x in sig]
+                key = f"dps={d},h={float(hf):.4g}"
+                out["sigma"][key] = rel[-min(len(rel), 3):]
+                out["deficiency"][key] = r
+                floors.setdefault(d, []).append(rel[-1] if r else None)
+                nz[(d, f)] = (float(hf), rel[len(rel) - 1 - r])
+                if support is None or r:
+                    support = _null_support(bvp, Vh, r)
+    defs = set(out["deficiency"].values())
+    r = max(defs)
+    # genuine small sigma: stable across dps, power of h
+    (h1, s1), (h2, s2) = nz[(dps[0], h_factors[0])], nz[(dps[0], h_factors[1])]
+    p = math.log(s1 / s2) / math.log(h1 / h2) if s1 > 0 and s2 > 0 else float("nan")
+    stable = abs(nz[(dps[0], h_factors[0])][1] / nz[(dps[1], h_factors[0])][1] - 1) < 1e-10
+    tracks = True
+    if r:
+        f0 = [x for x in floors[dps[0]] if x is not None]
+        f1 = [x for x in floors[dps[1]] if x is not None]
+        # a structural zero follows the precision: lower at higher dps
+        tracks = bool(f0 and f1 and max(f1) < min(f0) * 10.0 ** (-(dps[1] - dps[0]) / 2))
+    if len(defs) > 1:
+        cls = SINGULAR      # rank changes with h or dps: not a clean structural property
+    elif r == 0:
+        cls = WELLPOSED
+    else:
+        small = 1e-10
+        cls = GAUGE if support["V"] <= small and support["v1"] <= small and tracks else SINGULAR
+    out.update({"class": cls, "rank_deficiency": r, "sigma_min_nonzero_rel": s1,
+                "sigma_min_power_of_h": p, "sigma_stable_across_dps": stable,
+                "floor_tracks_precision": tracks, "null_support": support})
+    return out
+
+
+def gauge_invariance(system, tableau, t0, q0, v0, h, dps=40, shift="1e-3"):
+    """For a rank-deficient J: re-solve with the gauge pinned at x + shift * n (n a right null
+    vector of J) and report how L_d, p0 + f_d^- and p1 - f_d^+ (= -dL_d/dq0, dL_d/dq1 by
+    Theorem 1; gauge-invariant) move, next to how p0 itself moves (the gauge is real).
+    Returns None when J has full rank."""
+    bk = Backend(dps)
+    with bk.context():
+        t1, q1, xg = base_point(system, tableau, t0, q0, v0, h, dps)
+        t0_, q0_ = bk.scalar(t0), bk.array(q0)
+        a = discrete_lagrangian(system, tableau, t0_, q0_, t1, q1, dps=dps, x_guess=xg)
+        if a.rank_deficiency == 0:
+            return None
+        xs = a.x + bk.scalar(shift) * a.extra["gauge"].C[0]
+        b = discrete_lagrangian(system, tableau, t0_, q0_, t1, q1, dps=dps, x_guess=xs, gauge_ref=xs)
+        sc = max(bk.norm_inf(a.p0), bk.norm_inf(a.p1), 1e-300)
+        return {"wellposed": a.wellposed,
+                "dL_d": float(abs(a.L_d - b.L_d) / max(abs(a.L_d), 1e-300)),
+                "d(p0+f_d_minus)": float(bk.norm_inf((a.p0 + a.f_d_minus) - (b.p0 + b.f_d_minus)) / sc),
+                "d(p1-f_d_plus)": float(bk.norm_inf((a.p1 - a.f_d_plus) - (b.p1 - b.f_d_plus)) / sc),
+                "dp0": float(bk.norm_inf(a.p0 - b.p0) / sc),
+                "dV": float(bk.norm_inf(a.V - b.V)),
+                "shift": float(shift), "dps": dps}
