@@ -20,8 +20,9 @@ compensated summation, GNI VIII.5):
 
 Newton: predictor = linear extrapolation of the previous two steps' unknowns (first step: zero
 increments), simplified Newton with one LU factorisation per step reused by every iteration,
-stopping when |dx|_inf <= tol (|x|_inf + floor) or when the increments stagnate at round-off
-level (same rule as ``SparkMethod.step``); tol defaults to 8 unit round-offs. Counters: steps,
+stopping when |dx|_inf <= tol (|x|_inf + h (1 + |v0|_inf)) (the unknowns are increments of size
+O(h), so this is a relative test on them) or when the increments stagnate at round-off level
+(same rule as ``SparkMethod.step``); tol defaults to 8 unit round-offs. Counters: steps,
 newton_iterations, nfev (stage points evaluated), njev, nlu, max_iterations.
 
 Where a system cannot be compiled (not in mechanical form, or an expression numba cannot
@@ -43,7 +44,7 @@ from sympy.printing.pycode import PythonCodePrinter
 from .errors import InputError, LdasparkError, NewtonError
 
 __all__ = ["fast_integrate", "FastSolution", "compile_system", "CompiledSystem", "mechanical_parts",
-           "FAST_METHODS", "NotCompilableError"]
+           "kernel_spec", "run_compiled", "generic_integrate", "FAST_METHODS", "NotCompilableError"]
 
 # comparator names with a specialised kernel: name -> lf2 variant
 LF2_VARIANTS = {
@@ -478,7 +479,7 @@ def spark_run(c, A, Ah, At, bw, bh, bt, om, M, t0, q0, v0, h, n_steps, every, co
         if not ok:
             stats[6] = step
             return
-        floor = 1e-6 * h * (1.0 + norm_inf(v))
+        floor = abs(h) * (1.0 + norm_inf(v))
         prev = -1.0
         it = 0
         done = False
@@ -612,7 +613,7 @@ def lf2_run(variant, M, Minv, t0, q0, v0, h, n_steps, every, compensated, tol, m
         else:
             for l in range(m):
                 lam[l] = 0.0
-        floor = 1e-6 * h * (1.0 + norm_inf(v))
+        floor = abs(h) * (1.0 + norm_inf(v))
         prev = -1.0
         it = 0
         done = False
@@ -851,13 +852,30 @@ def _resolve(method):
                          f"or one of {', '.join(LF2_VARIANTS)}") from None
 
 
-def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, compensated=True,
-                 tol=None, max_iter=50, kernel="auto"):
-    """Run a compiled kernel (no fallback). ``kernel`` "auto" uses the semi-implicit kernel for
-    lobatto-iiia-iiib-2 (the same method, (25)); "spark" forces the general kernel."""
+def kernel_spec(method, kernel="auto"):
+    """Picklable description of the kernel to run: ("lf2", variant, name) or
+    ("spark", {c, A, A_hat, A_tilde, b, b_hat, b_tilde, omega float arrays}, name).
+    ``kernel`` "auto" runs lobatto-iiia-iiib-2 with the semi-implicit kernel (the same method,
+    (25)); "spark" forces the general kernel."""
+    if kernel not in ("auto", "spark"):
+        raise InputError(f"kernel must be 'auto' or 'spark', got {kernel!r}")
     kind, what, name = _resolve(method)
     if kind == "spark" and kernel == "auto" and what.name == "lobatto-iiia-iiib-2":
-        kind, what = "lf2", 0
+        return "lf2", 0, name
+    if kind == "lf2":
+        return "lf2", what, name
+    ta = what.arrays(None)
+    arr = {k: np.asarray(getattr(ta, k), dtype=float) for k in
+           ("c", "A", "A_hat", "A_tilde", "b", "b_hat", "b_tilde")}
+    arr["omega"] = np.asarray(ta.omega, dtype=float).reshape(max(what.s - 1, 0), what.s)
+    return "spark", arr, name
+
+
+def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, compensated=True,
+                 tol=None, max_iter=50, kernel="auto"):
+    """Run a compiled kernel (no fallback); ``method`` a name, a SparkTableau or a kernel_spec."""
+    spec = method if isinstance(method, tuple) else kernel_spec(method, kernel)
+    kind, what, name = spec
     if not isinstance(n_steps, (int, np.integer)) or n_steps <= 0:
         raise InputError(f"n_steps must be a positive integer, got {n_steps!r}")
     if not isinstance(every, (int, np.integer)) or every <= 0:
@@ -882,13 +900,10 @@ def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, co
         mod.lf2_run(int(what), cs.M, cs.Minv, float(t0), q0, v0, h, int(n_steps), int(every), bool(compensated),
                     tol, int(max_iter), out_t, out_q, out_v, out_E, out_k, stats)
     else:
-        ta = what.arrays(None)
-        om = np.asarray(ta.omega, dtype=float).reshape(max(what.s - 1, 0), what.s)
-        s, n, m = what.s, cs.n, cs.m
-        out_x = np.zeros(s * n + s * m + n)
-        mod.spark_run(np.asarray(ta.c, float), np.asarray(ta.A, float), np.asarray(ta.A_hat, float),
-                      np.asarray(ta.A_tilde, float), np.asarray(ta.b, float), np.asarray(ta.b_hat, float),
-                      np.asarray(ta.b_tilde, float), om, cs.M, float(t0), q0, v0, h, int(n_steps), int(every),
+        s = what["A"].shape[0]
+        out_x = np.zeros(s * cs.n + s * cs.m + cs.n)
+        mod.spark_run(what["c"], what["A"], what["A_hat"], what["A_tilde"], what["b"], what["b_hat"],
+                      what["b_tilde"], what["omega"], cs.M, float(t0), q0, v0, h, int(n_steps), int(every),
                       bool(compensated), tol, int(max_iter), out_t, out_q, out_v, out_E, out_k, out_x, stats)
     st = dict(zip(STAT_NAMES, (int(x) for x in stats)))
     if st["failed_step"] >= 0:
@@ -898,7 +913,7 @@ def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, co
     st.pop("failed_step")
     st["mean_iterations"] = st["newton_iterations"] / max(st["steps"], 1)
     st["path"] = "fast"
-    st["kernel"] = "lf2" if kind == "lf2" else "spark"
+    st["kernel"] = kind
     st["compensated"] = bool(compensated)
     return FastSolution(out_t, out_q, out_v, out_E, out_k, st)
 
@@ -945,7 +960,7 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
         v0 = sv0 if v0 is None else v0
     if h is None or n_steps is None:
         raise InputError("give h and n_steps")
-    _resolve(method)
+    kernel_spec(method, kernel)
     try:
         cs = compile_system(system)
         cs.module  # noqa: B018  (import / compile now so that failures fall back)
