@@ -223,8 +223,19 @@ def _svd(bk, J):
     return U, S, Vh
 
 
-def _rel(x):
-    return float(x)
+def _rank_info(bk, J, dps):
+    """(sigma, r, U, Vh): singular values at working precision (values only: cheap in mpmath),
+    the deficiency r decided relative to the precision, and float64 singular vectors, which
+    are ample for pinning/bordering (any transversal choice works) and for the null support."""
+    Jf = np.array([[float(v) for v in row] for row in J]) if bk.is_mp else J
+    U, s64, Vh = np.linalg.svd(Jf)
+    if bk.is_mp and s64[-1] <= 1e-9 * s64[0]:
+        sig = bk.singular_values(J)          # candidate deficiency: decide at full precision
+    elif bk.is_mp:
+        sig = np.array([mpmath.mpf(float(v)) for v in s64], dtype=object)
+    else:
+        sig = s64
+    return sig, _deficiency(sig, dps), U, Vh
 
 
 @dataclass
@@ -234,6 +245,7 @@ class Gauge:
     C: np.ndarray
     c0: np.ndarray
     W: np.ndarray
+    W_left: np.ndarray | None = None     # the true left null vectors (solvability directions)
 
 
 def _deficiency(sig, dps):
@@ -317,15 +329,15 @@ def _make_gauge(bvp, J, x_ref, sig, U, Vh, r):
     W = U[:, N - r:].copy()                  # N x r
     W0 = W.copy()
     W[bvp.r_c:, :] = 0
-    g = Gauge(C=Nv, c0=Nv.dot(x_ref), W=W)
+    g = Gauge(C=Nv, c0=Nv.dot(x_ref), W=W, W_left=W0)
     try:
         bk.factor(_Solver(bvp).bordered(J, g))
     except SingularMatrixError:
-        g = Gauge(C=Nv, c0=Nv.dot(x_ref), W=W0)
+        g = Gauge(C=Nv, c0=Nv.dot(x_ref), W=W0, W_left=W0)
     return g
 
 
-def _null_support(bvp, Vh, r):
+def _null_support(bvp, Vh, r):  # noqa: D401
     """Max |component| of the right null vectors in the V, Lambda, v1, v0 blocks."""
     N = bvp.size
     Nv = Vh[N - r:, :]
@@ -381,23 +393,22 @@ def discrete_lagrangian(system, tableau, t0, q0, t1, q1, dps=40, v0_guess=None, 
 def _solve_and_differentiate(bvp, t0, q0, t1, q1, x, gauge_ref=None, gauge=None):
     bk = bvp.bk
     sol = _Solver(bvp)
-    # first pass: plain Newton if J is nonsingular near the guess; otherwise gauge at the guess
+    x_in = x
+    # rank at the guess decides whether Newton needs the gauge-fixing border
     G, J, _, _ = bvp.evaluate(t0, q0, t1, q1, x)
-    U, sig, Vh = _svd(bk, J)
-    r = _deficiency(sig, bvp.dps)
+    sig, r, U, Vh = _rank_info(bk, J, bvp.dps)
     if r and gauge is None:
         gauge = _make_gauge(bvp, J, x if gauge_ref is None else _as_backend(bk, gauge_ref), sig, U, Vh, r)
     x, mu, it, res = sol.newton(t0, q0, t1, q1, x, gauge)
     G, J, dq0, dq1 = bvp.evaluate(t0, q0, t1, q1, x)
-    U, sig, Vh = _svd(bk, J)
-    r = _deficiency(sig, bvp.dps)
+    if bk.norm_inf(x - x_in) > 1e-8:
+        sig, r, U, Vh = _rank_info(bk, J, bvp.dps)
     support = _null_support(bvp, Vh, r)
     if r == 0:
         cls = WELLPOSED
         gauge_used = None
     else:
-        small = 10.0 ** (-(bvp.dps or 16) / 3)
-        cls = GAUGE if support["V"] <= small and support["v1"] <= small else SINGULAR
+        cls = GAUGE if support["V"] <= 1e-8 and support["v1"] <= 1e-8 else SINGULAR
         gauge_used = gauge if gauge is not None else _make_gauge(bvp, J, x, sig, U, Vh, r)
     B = sol.bordered(J, gauge_used)
     rb = 0 if gauge_used is None else gauge_used.W.shape[1]
@@ -409,6 +420,15 @@ def _solve_and_differentiate(bvp, t0, q0, t1, q1, x, gauge_ref=None, gauge=None)
     except SingularMatrixError as exc:
         raise DiscreteSolveError(f"sensitivity system singular ({cls}): {exc}") from None
     dx = np.array([bk.solve_factored(fac, rhs[:, k]) for k in range(2 * bvp.n)]).T   # (N+r, 2n)
+    if gauge_used is not None and bk.is_mp:
+        # exact left null vectors at working precision: B^T [w; 0] = [0; e_k] (J^T w = 0)
+        BT = bk.factor(np.ascontiguousarray(B.T))
+        Wl = bk.zeros((bvp.size, rb))
+        for k in range(rb):
+            e = bk.zeros(bvp.size + rb)
+            e[bvp.size + k] = 1
+            Wl[:, k] = bk.solve_factored(BT, e)[:bvp.size]
+        gauge_used = Gauge(C=gauge_used.C, c0=gauge_used.c0, W=gauge_used.W, W_left=Wl)
     s, n = bvp.s, bvp.n
     dV = dx[:bvp.c_lam].reshape(s, n, 2 * n)
     dV_dq0, dV_dq1 = dV[:, :, :n], dV[:, :, n:]
@@ -564,7 +584,7 @@ def _tangent_projector(res, which):
     if g is None:
         M = res.extra["dk0_dq"][which]
     else:
-        M = g.W.T.dot(res.extra["dG_dq"][which])
+        M = g.W_left.T.dot(res.extra["dG_dq"][which])
     n = M.shape[1]
     Mp = bk.zeros((n, n))                     # pad to square: full right singular basis
     Mp[:M.shape[0]] = M
@@ -594,8 +614,7 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
                 bvp = DiscreteBVP(system, tableau, d)
                 t0_ = bk.scalar(t0)
                 G, J, _, _ = bvp.evaluate(t0_, bk.array(q0), t1, q1, xg)
-                U, sig, Vh = _svd(bk, J)
-                r = _deficiency(sig, d)
+                sig, r, U, Vh = _rank_info(bk, J, d)
                 smax = float(sig[0])
                 rel = [float(x) / smax for x in sig]
                 key = f"dps={d},h={float(hf):.4g}"
@@ -622,7 +641,7 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
     elif r == 0:
         cls = WELLPOSED
     else:
-        small = 1e-10
+        small = 1e-8
         cls = GAUGE if support["V"] <= small and support["v1"] <= small and tracks else SINGULAR
     out.update({"class": cls, "rank_deficiency": r, "sigma_min_nonzero_rel": s1,
                 "sigma_min_power_of_h": p, "sigma_stable_across_dps": stable,
