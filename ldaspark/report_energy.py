@@ -1,0 +1,294 @@
+"""``ldaspark report energy``: the paper's Figs. 1-4 (section 8), energy error E - E0 vs t.
+
+* Fig. 1: Gauss s = 1, 2, 3, h = 0.2, t in [0, 250], nonholonomic particle (8.1).
+* Fig. 2: Lobatto IIIA-B s = 2, 3, 4, h = 0.1, t in [0, 100], skate (8.2).
+* Fig. 3: Lobatto IIIA-B-D s = 2, 3, 4, h = 0.2, t in [0, 150], mobile robot (8.3).
+* Fig. 4: McLachlan-Perlmutter particles (8.4), mu((E - E0)^2)/h^4 over J+1 = 10 initial
+  conditions for Lobatto IIIA-B 2, its modified form and McLachlan-Perlmutter (26), from the
+  compiled fast path ``ldaspark.fig4.figure4_data``.
+
+"Bounded" (Figs. 1-3) is measured, not eyeballed: the maximum of |E - E0| over the last quarter
+of the interval divided by that over the first quarter (a linear drift gives about 4, a
+random walk about 2, a bounded error about 1) must be <= BOUNDED_RATIO; the max over the two
+halves and the least-squares linear trend over the interval are reported too.
+"""
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import io
+import os
+import sys
+import time
+
+import numpy as np
+
+from .errors import InputError
+from .io import atomic_write_bytes, atomic_write_json, atomic_write_text
+
+REPORT_DIR = "reports"
+BOUNDED_RATIO = 1.5
+E0_PAPER = 3.06
+
+FIGURES = {
+    1: {"scene": "particle", "methods": ["gauss-1", "gauss-2", "gauss-3"], "h": 0.2, "t_end": 250.0,
+        "caption": "s-stage Gauss SPARK, s = 1, 2, 3, h = 0.2, nonholonomic particle (8.1)"},
+    2: {"scene": "skate", "methods": ["lobatto-iiia-iiib-2", "lobatto-iiia-iiib-3", "lobatto-iiia-iiib-4"],
+        "h": 0.1, "t_end": 100.0,
+        "caption": "s-stage Lobatto IIIA-B SPARK, s = 2, 3, 4, h = 0.1, skate on an inclined plane (8.2)"},
+    3: {"scene": "robot", "methods": ["lobatto-iiia-iiib-iiid-2", "lobatto-iiia-iiib-iiid-3",
+                                      "lobatto-iiia-iiib-iiid-4"], "h": 0.2, "t_end": 150.0,
+        "caption": "s-stage Lobatto IIIA-B-D SPARK, s = 2, 3, 4, h = 0.2, mobile robot (8.3)"},
+}
+
+
+def _progress(label):
+    state = {"next": 0.25, "t": time.time()}
+
+    def cb(i, n):
+        frac = i / n
+        if frac >= state["next"] or i == n:
+            print(f"    {label}: {100 * frac:5.1f}% ({i}/{n} steps, {time.time() - state['t']:.1f} s)",
+                  flush=True)
+            state["next"] = frac + 0.25
+    return cb
+
+
+def boundedness(t, dE):
+    """Max |E - E0| overall, per half and per quarter; last/first quarter ratio; LS trend."""
+    t = np.asarray(t, float)
+    a = np.abs(np.asarray(dE, float))
+    n = len(a)
+    quarters = [float(a[i * n // 4:(i + 1) * n // 4 + 1].max()) for i in range(4)]
+    halves = [float(a[:n // 2 + 1].max()), float(a[n // 2:].max())]
+    slope = float(np.polyfit(t, np.asarray(dE, float), 1)[0])
+    ratio = quarters[3] / quarters[0] if quarters[0] > 0 else float("inf")
+    return {"max_abs_dE": float(a.max()), "max_first_half": halves[0], "max_second_half": halves[1],
+            "max_quarters": quarters, "last_over_first_quarter": ratio,
+            "trend_over_interval": slope * float(t[-1] - t[0]),
+            "bounded": bool(ratio <= BOUNDED_RATIO)}
+
+
+def figure_data(fig, t_end=None):
+    """Integrate the methods of Fig. ``fig`` (1-3) in float64; returns a JSON-able dict."""
+    from .scenes import get_scene
+    from .spark import integrate
+    from .tableau import get_method
+    if fig not in FIGURES:
+        raise InputError(f"figure must be 1, 2, 3 or 4, got {fig}")
+    spec = FIGURES[fig]
+    T = float(t_end) if t_end is not None else spec["t_end"]
+    sc = get_scene(spec["scene"])
+    t0, q0, v0 = sc.initial()
+    out = {"figure": fig, "scene": spec["scene"], "h": spec["h"], "t_end": T, "caption": spec["caption"],
+           "bounded_ratio_threshold": BOUNDED_RATIO, "methods": {}}
+    for m in spec["methods"]:
+        tic = time.time()
+        sol = integrate(sc.system, get_method(m), t0, q0, v0, spec["h"], t_end=T,
+                        progress=_progress(f"Fig. {fig} {m}"))
+        dE = sol.energy - sol.energy[0]
+        rec = boundedness(sol.t, dE)
+        rec.update({"E0": float(sol.energy[0]), "max_abs_constraint": float(np.abs(sol.constraint).max()),
+                    "seconds": time.time() - tic, "stats": sol.stats,
+                    "t": [float(x) for x in sol.t], "dE": [float(x) for x in dE]})
+        out["methods"][m] = rec
+    return out
+
+
+def plot_energy(data, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(len(data["methods"]), 1, figsize=(9, 2.4 * len(data["methods"])), sharex=True)
+    axes = np.atleast_1d(axes)
+    for ax, (m, rec) in zip(axes, data["methods"].items()):
+        ax.plot(rec["t"], rec["dE"], lw=0.6, label=f"{m} (max |E - E0| = {rec['max_abs_dE']:.2e})")
+        ax.set_ylabel("E - E0")
+        ax.legend(loc="upper right", fontsize=8)
+        ax.grid(True, alpha=0.3)
+        ax.ticklabel_format(axis="y", style="sci", scilimits=(-2, 2))
+    axes[-1].set_xlabel("t")
+    fig.suptitle(f"Fig. {data['figure']}: energy error, {data['caption']}", fontsize=9)
+    fig.tight_layout()
+    _save(fig, path)
+
+
+def _save(fig, path):
+    import matplotlib.pyplot as plt
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90)
+    plt.close(fig)
+    atomic_write_bytes(path, buf.getvalue())
+
+
+# --- Fig. 4 (data from the fast path of ldaspark.fig4) ------------------------------------------
+def fig4_available() -> bool:
+    return importlib.util.find_spec("ldaspark.fig4") is not None
+
+
+def figure4(t_end=50000.0, h=0.05, J=9, every=100):
+    """Call ``ldaspark.fig4.figure4_data`` and add checks: E0 = 3.06 and an independent LS fit
+    of log(mu/h^4) against log t over t >= t_end/100 (the paper: mu/h^4 ~ O(t))."""
+    if not fig4_available():
+        raise InputError("Fig. 4 needs ldaspark.fig4 (the compiled fast path), which is not installed")
+    fig4 = importlib.import_module("ldaspark.fig4")
+    tic = time.time()
+    print(f"    Fig. 4: figure4_data(t_end={t_end}, h={h}, J={J}, every={every}) ...", flush=True)
+    d = fig4.figure4_data(t_end=t_end, h=h, J=J, every=every)
+    out = {"figure": 4, "scene": "mp-particles", "h": h, "t_end": t_end, "J": J, "every": every,
+           "seconds": time.time() - tic, "t": [float(x) for x in d["t"]], "E0": float(d["E0"]),
+           "E0_matches_paper": bool(abs(float(d["E0"]) - E0_PAPER) < 1e-12),
+           "methods": list(d["methods"]), "mu_over_h4": {}, "fit": {}, "own_fit": {}}
+    t = np.asarray(out["t"], float)
+    for m in out["methods"]:
+        y = np.asarray(d["mu_over_h4"][m], float)
+        out["mu_over_h4"][m] = [float(x) for x in y]
+        out["fit"][m] = {k: (float(v) if isinstance(v, (int, float, np.floating)) else v)
+                         for k, v in dict(d["fit"][m]).items()}
+        sel = (t >= t[-1] / 100) & (y > 0)
+        out["own_fit"][m] = (float(np.polyfit(np.log(t[sel]), np.log(y[sel]), 1)[0])
+                             if sel.sum() >= 2 else None)
+    return out
+
+
+def plot_fig4(data, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.2))
+    t = np.asarray(data["t"], float)
+    for m in data["methods"]:
+        y = np.asarray(data["mu_over_h4"][m], float)
+        ex = data["fit"][m].get("exponent")
+        lab = f"{m} (fit exponent {ex:.2f})" if isinstance(ex, float) else m
+        pos = (t > 0) & (y > 0)
+        a1.loglog(t[pos], y[pos], lw=0.7, label=lab)
+        a2.plot(t, y, lw=0.7, label=lab)
+    tt = t[t > 0]
+    if len(tt):
+        ref = np.asarray(data["mu_over_h4"][data["methods"][0]], float)[t > 0]
+        k = ref[-1] / tt[-1] if ref[-1] > 0 else 1.0
+        a1.loglog(tt, k * tt, "k--", lw=0.8, label="slope 1 (paper: O(t))")
+    for ax, title in ((a1, "log-log"), (a2, "linear")):
+        ax.set_xlabel("t")
+        ax.set_ylabel("mu((E - E0)^2) / h^4")
+        ax.set_title(f"Fig. 4 ({title}), h = {data['h']}, J+1 = {data['J'] + 1} initial conditions")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    _save(fig, path)
+
+
+# --- markdown -------------------------------------------------------------------------------------
+def markdown(figs, fig4=None, fig4_note=None):
+    L = ["# Energy behaviour (paper, section 8, Figs. 1-4)", "",
+         "Generated by `ldaspark report energy` (per figure: `ldaspark report energy --figure N --json FILE`)."
+         " Same scenes, methods, step sizes and intervals as the paper. Data (subsampled arrays and all"
+         " numbers) in `reports/energy.json`.", "",
+         f"**Bounded** means: max |E - E0| over the last quarter of the interval / max over the first quarter"
+         f" <= {BOUNDED_RATIO} (linear drift would give ~4, a random walk ~2). The least-squares linear"
+         " trend of E - E0 over the whole interval is listed as a second, independent indicator.", ""]
+    for d in figs:
+        L += [f"## Fig. {d['figure']}: {d['caption']}, t in [0, {d['t_end']:g}]", "",
+              f"![Fig. {d['figure']}](figures/energy_fig{d['figure']}.png)", "",
+              "| method | max abs(E - E0) | max 1st half | max 2nd half | last/first quarter | linear trend over interval | max abs(k) | bounded |",
+              "|---|---|---|---|---|---|---|---|"]
+        for m, r in d["methods"].items():
+            L.append(f"| {m} | {r['max_abs_dE']:.3e} | {r['max_first_half']:.3e} | {r['max_second_half']:.3e} | "
+                     f"{r['last_over_first_quarter']:.3f} | {r['trend_over_interval']:.2e} | "
+                     f"{r['max_abs_constraint']:.1e} | {'yes' if r['bounded'] else 'NO'} |")
+        L.append("")
+    L += ["## Fig. 4: McLachlan-Perlmutter particles (8.4)", ""]
+    if fig4 is not None:
+        L += [f"h = {fig4['h']}, t in [0, {fig4['t_end']:g}], J+1 = {fig4['J'] + 1} initial conditions, samples every"
+              f" {fig4['every']} steps; data from `ldaspark.fig4.figure4_data` in {fig4['seconds']:.1f} s.", "",
+              f"E0 = {fig4['E0']:.15g} (paper: 3.06; {'matches' if fig4['E0_matches_paper'] else 'DOES NOT MATCH'}).", "",
+              "![Fig. 4](figures/energy_fig4.png)", "",
+              "| method | fitted exponent (fig4) | own LS exponent, t >= t_end/100 | final mu/h^4 |", "|---|---|---|---|"]
+        for m in fig4["methods"]:
+            ex = fig4["fit"][m].get("exponent")
+            own = fig4["own_fit"][m]
+            L.append(f"| {m} | {ex if not isinstance(ex, float) else f'{ex:.3f}'} | "
+                     f"{'-' if own is None else f'{own:.3f}'} | {fig4['mu_over_h4'][m][-1]:.3e} |")
+        L += ["", "The paper reports mu((E - E0)^2)/h^4 ~ O(t) (a random walk), i.e. exponent 1, and that the"
+              " three methods behave very similarly."]
+    else:
+        L.append(fig4_note or "Fig. 4 was not generated.")
+    return "\n".join(L) + "\n"
+
+
+def _strip(d, max_points=2000):
+    """Subsample the arrays of a figure dict for the committed JSON."""
+    d = dict(d)
+    if "methods" in d and isinstance(d["methods"], dict):
+        ms = {}
+        for m, r in d["methods"].items():
+            r = dict(r)
+            n = len(r["t"])
+            k = max(1, -(-n // max_points))
+            r["t"], r["dE"] = r["t"][::k], r["dE"][::k]
+            ms[m] = r
+        d["methods"] = ms
+    return d
+
+
+# --- section interface --------------------------------------------------------------------------
+def add_arguments(p):
+    p.add_argument("--figure", type=int, choices=(1, 2, 3, 4), default=None,
+                   help="one figure (default: Figs. 1-3, and Fig. 4 when ldaspark.fig4 exists)")
+    p.add_argument("--t-end", type=float, default=None, help="shorter interval (default: the paper's)")
+    p.add_argument("--json", default=None, help="write the figure data (JSON) to FILE")
+    p.add_argument("--outdir", default=None, help="also write the PNG(s) here (default: reports/ when no --json)")
+
+
+def run(args) -> int:
+    if args.t_end is not None and args.t_end <= 0:
+        raise InputError("--t-end must be positive")
+    if args.figure is None:
+        if args.json:
+            raise InputError("--json needs --figure N")
+        run_default(args.outdir or REPORT_DIR, t_end=args.t_end)
+        return 0
+    if args.figure == 4:
+        d = figure4(t_end=args.t_end if args.t_end is not None else 50000.0)
+        if args.json:
+            atomic_write_json(args.json, d)
+        if args.outdir or not args.json:
+            plot_fig4(d, os.path.join(args.outdir or REPORT_DIR, "figures", "energy_fig4.png"))
+        print(f"Fig. 4: E0 = {d['E0']:.15g}; exponents: " + ", ".join(
+            f"{m} {d['fit'][m].get('exponent')}" for m in d["methods"]))
+        return 0
+    d = figure_data(args.figure, args.t_end)
+    if args.json:
+        atomic_write_json(args.json, d)
+        print(f"wrote {args.json}")
+    if args.outdir or not args.json:
+        plot_energy(d, os.path.join(args.outdir or REPORT_DIR, "figures", f"energy_fig{args.figure}.png"))
+    for m, r in d["methods"].items():
+        print(f"Fig. {args.figure} {m}: max |E - E0| = {r['max_abs_dE']:.3e}, last/first quarter "
+              f"{r['last_over_first_quarter']:.3f}, bounded: {r['bounded']}")
+    return 0
+
+
+def run_default(outdir=REPORT_DIR, t_end=None, with_fig4=True):
+    figs = []
+    for n in (1, 2, 3):
+        print(f"[energy] Fig. {n} ...", flush=True)
+        d = figure_data(n, t_end)
+        plot_energy(d, os.path.join(outdir, "figures", f"energy_fig{n}.png"))
+        figs.append(d)
+    f4, note = None, None
+    if with_fig4 and fig4_available():
+        try:
+            print("[energy] Fig. 4 ...", flush=True)
+            f4 = figure4()
+            plot_fig4(f4, os.path.join(outdir, "figures", "energy_fig4.png"))
+        except Exception as exc:  # the fast path is another module: report, do not hide
+            note = f"Fig. 4 failed: {type(exc).__name__}: {exc}"
+            print(note, file=sys.stderr, flush=True)
+    elif with_fig4:
+        note = "Fig. 4 pending: `ldaspark.fig4` (the compiled fast path) is not installed yet."
+    atomic_write_text(os.path.join(outdir, "energy.md"), markdown(figs, f4, note))
+    atomic_write_json(os.path.join(outdir, "energy.json"),
+                      {"figures": [_strip(d) for d in figs], "figure4": f4, "figure4_note": note})
+    print(f"wrote {os.path.join(outdir, 'energy.md')}, energy.json, figures/energy_fig*.png", flush=True)
