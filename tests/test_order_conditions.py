@@ -1,0 +1,143 @@
+"""Trees, elementary weights, B/C/D and the stability function (ldaspark.order_conditions),
+against textbook facts and independent sympy computations; each with a negative control."""
+import mpmath
+import pytest
+import sympy
+from hypothesis import given, strategies as st
+from sympy import Rational as R
+
+from ldaspark import order_conditions as oc
+from ldaspark.tableau import SparkTableau, get_method
+
+
+def rk_tab(A, b, name="rk"):
+    """Exact SparkTableau with A = A_hat = A_tilde (only A, b matter for these tests)."""
+    s = len(b)
+    A = sympy.Matrix(A)
+    b = sympy.Matrix(s, 1, b)
+    c = sympy.Matrix(s, 1, [sum(A.row(i)) for i in range(s)])
+    om = sympy.Matrix(max(s - 1, 0), s, lambda i, j: b[j] * c[j] ** i) if s > 1 else sympy.zeros(0, 1)
+    ex = {"c": c, "A": A, "A_hat": A, "A_tilde": A, "b": b, "b_hat": b, "b_tilde": b, "omega": om}
+    return SparkTableau(name, s, exact=ex)
+
+
+RK4 = ([[0, 0, 0, 0], [R(1, 2), 0, 0, 0], [0, R(1, 2), 0, 0], [0, 0, 1, 0]], [R(1, 6), R(1, 3), R(1, 3), R(1, 6)])
+
+
+def test_tree_counts_match_oeis():
+    assert [len(oc.trees(n)) for n in range(1, 9)] == [1, 1, 2, 4, 9, 20, 48, 115]        # A000081
+    assert [len(oc.trees(n, 2)) for n in range(1, 9)] == [2, 4, 14, 52, 214, 916, 4116, 18996]  # A038055
+    assert [len(oc.trees(n, 3)) for n in range(1, 6)] == [3, 9, 45, 246, 1485]
+    # canonical forms: no duplicates
+    assert len(set(oc.trees(7, 2))) == 4116
+
+
+def test_density_tall_and_bushy():
+    tall = (0, ())
+    for n in range(2, 9):
+        tall = (0, (tall,))
+        assert oc.density(tall) == sympy.factorial(n)
+    for n in range(1, 9):
+        bushy = (0, tuple([(0, ())] * (n - 1)))
+        assert oc.density(bushy) == n
+
+
+def test_rk4_order_4_and_perturbed_b_breaks_it():
+    ar, e = oc.exact_arith(rk_tab(*RK4))
+    assert oc.rk_order(ar, e["A"], e["b"]).order == 4
+    A, b = RK4
+    bad = oc.exact_arith(rk_tab(A, [R(1, 6), R(1, 3) + R(1, 100), R(1, 3) - R(1, 100), R(1, 6)]))
+    r = oc.rk_order(bad[0], bad[1]["A"], bad[1]["b"])
+    # c2 = c3 so sum b c^k is unchanged; b^T A c = 1/6 (tree o[o[o]]) is the first to fail
+    assert r.order == 2 and r.failing == "o[o[o]]" and abs(r.residual - 1 / 400) < 1e-15
+
+
+@pytest.mark.parametrize("s", [1, 2, 3])
+def test_gauss_exact_order_2s_bcd(s):
+    tab = get_method(f"gauss-{s}", exact=True)
+    ar, e = oc.exact_arith(tab)
+    assert ar.exact
+    assert oc.rk_order(ar, e["A"], e["b"]).order == 2 * s
+    sa = oc.simplifying_assumptions(ar, e["A"], e["b"], e["c"])
+    assert sa == {"B": 2 * s, "C": s, "D": s}
+    st_ = oc.stability(ar, e["A"], e["b"])
+    assert not st_.A_singular and st_.r_inf == (-1) ** s
+
+
+@pytest.mark.parametrize("s", [2, 3])
+def test_lobatto_pair_order_2s_minus_2(s):
+    tab = get_method(f"lobatto-iiia-iiib-{s}", exact=True)
+    ar, e = oc.exact_arith(tab)
+    assert oc.pair_order(ar, e["A"], e["b"], e["A_hat"], e["b_hat"]).order == 2 * s - 2
+    assert oc.simplifying_assumptions(ar, e["A"], e["b"], e["c"])["C"] == s          # IIIA: C(s)
+    assert oc.simplifying_assumptions(ar, e["A_hat"], e["b_hat"], e["c"])["D"] == s  # IIIB: D(s)
+    st_ = oc.stability(ar, e["A"], e["b"])
+    assert st_.A_singular and st_.r_inf == (-1) ** (s - 1)  # IIIA: first row zero
+
+
+def test_symplectic_euler_pair_is_order_1_but_each_part_alone_is_order_1_too():
+    ar, e = oc.exact_arith(get_method("euler-i"))
+    r = oc.pair_order(ar, e["A"], e["b"], e["A_hat"], e["b_hat"])
+    assert r.order == 1 and r.failing in ("q[p]", "p[q]")
+    # negative control: Stormer-Verlet = Lobatto IIIA-IIIB 2 reaches 2
+    ar2, e2 = oc.exact_arith(get_method("lobatto-iiia-iiib-2", exact=True))
+    assert oc.pair_order(ar2, e2["A"], e2["b"], e2["A_hat"], e2["b_hat"]).order == 2
+
+
+def test_two_colours_with_equal_coefficients_reduce_to_one_colour():
+    """The merge in additive_order is a shortcut: evaluating all bi-coloured trees with the same
+    method in both colours gives the same order."""
+    ar, e = oc.exact_arith(get_method("gauss-2", exact=True))
+    full = oc._order_from_trees(ar, [e["A"], e["A"]], [e["b"], e["b"]], 2, 6, ("q", "p"))
+    assert full.order == 4 == oc.rk_order(ar, e["A"], e["b"], 6).order
+
+
+def test_iiid_forced_ode_order_uses_three_colours():
+    ar, e = oc.exact_arith(get_method("lobatto-iiia-iiib-iiid-3", exact=True))
+    r = oc.spark_ode_order(ar, e)
+    assert r.order == 4 and r.counts[5] == 1485   # 3 colours really evaluated
+
+
+def test_mp_arith_agrees_with_exact_and_has_a_tolerance():
+    tab = get_method("gauss-3")  # builder only: mp path
+    ar, e = oc.mp_arith(tab, 30)
+    assert not ar.exact and ar.tol < 1e-25
+    assert oc.rk_order(ar, e["A"], e["b"]).order == 6
+    assert oc.simplifying_assumptions(ar, e["A"], e["b"], e["c"]) == {"B": 6, "C": 3, "D": 3}
+    # float-precision entries: tolerance follows the 15 source digits
+    tabf = SparkTableau("f", 3, exact=get_method("gauss-3", exact=True).exact, source_digits=15)
+    arf, _ = oc.mp_arith(tabf, 30)
+    assert 1e-13 < arf.tol < 1e-10
+
+
+def _direct_R(A, b, z):
+    s = len(b)
+    M = sympy.eye(s) - z * sympy.Matrix(A)
+    return sympy.nsimplify(1 + z * (sympy.Matrix([b]) * M.inv() * sympy.ones(s, 1))[0])
+
+
+@given(st.lists(st.fractions(min_value=-2, max_value=2, max_denominator=7), min_size=6, max_size=6))
+def test_stability_polynomials_match_direct_formula(vals):
+    A = [[R(vals[0].numerator, vals[0].denominator), R(vals[1].numerator, vals[1].denominator)],
+         [R(vals[2].numerator, vals[2].denominator), R(vals[3].numerator, vals[3].denominator)]]
+    b = [R(vals[4].numerator, vals[4].denominator), R(vals[5].numerator, vals[5].denominator)]
+    ar, e = oc.exact_arith(rk_tab(A, b))
+    stb = oc.stability(ar, e["A"], e["b"])
+    for z in (R(1, 3), R(-2, 5)):
+        if (sympy.eye(2) - z * sympy.Matrix(A)).det() == 0:
+            continue
+        P = sum(ar.K.to_sympy(c) * z ** k for k, c in enumerate(stb.P))
+        Q = sum(ar.K.to_sympy(c) * z ** k for k, c in enumerate(stb.Q))
+        assert sympy.simplify(P / Q - _direct_R(A, b, z)) == 0
+    detA = sympy.Matrix(A).det()
+    assert stb.A_singular == (detA == 0)
+    if detA != 0:   # R(inf) = 1 - b^T A^{-1} 1
+        rinf = 1 - (sympy.Matrix([b]) * sympy.Matrix(A).inv() * sympy.ones(2, 1))[0]
+        assert abs(stb.r_inf - float(rinf)) < 1e-12
+
+
+def test_explicit_and_implicit_euler_r_inf():
+    ar, e = oc.exact_arith(rk_tab([[0]], [1]))
+    assert oc.stability(ar, e["A"], e["b"]).r_inf == float("inf")
+    ar, e = oc.exact_arith(rk_tab([[1]], [1]))
+    assert oc.stability(ar, e["A"], e["b"]).r_inf == 0.0
