@@ -1,0 +1,160 @@
+"""``ldaspark audit``: exit codes 0 / 1 / 2, the checks' teeth, the JSON schema, bad input."""
+import json
+import pathlib
+
+import pytest
+
+from ldaspark import audit as au
+from ldaspark.cli import main
+from ldaspark.errors import TableauError
+from ldaspark.methods import check_23
+from ldaspark.tableau import builtin_method_names, get_method, load_tableau
+
+EX = pathlib.Path(__file__).resolve().parents[1] / "examples" / "tableaux"
+BAD = sorted(p.name for p in EX.glob("bad-*.json"))
+
+
+@pytest.mark.parametrize("name", BAD)
+def test_malformed_file_exits_2_with_one_line(name, capsys):
+    rc = main(["audit", str(EX / name), "--quick"])
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if not ln.startswith("[audit]")]
+    assert rc == 2
+    assert len(lines) == 1 and lines[0].startswith("ldaspark: error:") and "Traceback" not in err
+
+
+def test_bad_files_name_their_problem(capsys):
+    expect = {"bad-nan.json": "not finite", "bad-shape.json": "A must be", "bad-missing-key.json": "b_tilde",
+              "bad-nonnumeric.json": "'half'", "bad-singular-omega.json": "omega is singular",
+              "bad-unsolvable.json": "cannot be solved", "bad-syntax.json": "not valid JSON"}
+    assert set(expect) == set(BAD)
+    for name, frag in expect.items():
+        main(["audit", str(EX / name), "--quick"])
+        assert frag in capsys.readouterr().err, name
+
+
+@pytest.mark.parametrize("text", ["(lambda: 1)()", "__import__('os').getcwd()", "10**10**10", "2**100",
+                                  "x", "1e999", "sqrt(3) if 1 else 0", "a" * 300])
+def test_unsafe_or_non_arithmetic_strings_are_rejected_before_sympy(text, tmp_path):
+    d = json.loads((EX / "gauss2.json").read_text())
+    d["b"][0] = text
+    p = tmp_path / "t.json"
+    p.write_text(json.dumps(d))
+    with pytest.raises(TableauError):
+        au.safe_load_tableau(p)
+
+
+@pytest.mark.parametrize("text", ["1/2", "0.5", "5e-1", "Rational(1, 2)", "sqrt(4)/4", "2**(-1)", "(1 + 0)/2"])
+def test_plain_arithmetic_strings_are_accepted(text, tmp_path):
+    d = json.loads((EX / "gauss2.json").read_text())
+    d["b"][0] = d["b_hat"][0] = d["b_tilde"][0] = text
+    p = tmp_path / "t.json"
+    p.write_text(json.dumps(d))
+    tab = au.safe_load_tableau(p)
+    assert tab.is_exact and str(tab.exact["b"][0]) == "1/2"
+
+
+def test_file_xor_method_and_dps_range(capsys):
+    assert main(["audit"]) == 2
+    assert main(["audit", str(EX / "gauss2.json"), "--method", "gauss-2"]) == 2
+    assert main(["audit", "--method", "gauss-2", "--dps", "5"]) == 2
+    assert main(["audit", "--method", "gauss-x"]) == 2
+    err = capsys.readouterr().err
+    assert "exactly one of FILE or --method" in err and "--dps" in err and "unknown method" in err
+
+
+@pytest.mark.parametrize("name", builtin_method_names(4))
+def test_builtin_coefficient_checks(name):
+    """(22) holds, (23) as the exact core check says, and the predicted order equals the
+    claimed order for every built-in (exact for s <= 3, mpmath at 30 digits for s = 4)."""
+    tab = get_method(name)
+    if tab.s <= 3:
+        tab = get_method(name, exact=True)
+    ar, e = au.oc.arith_for(tab, 30)
+    assert au.check_22a(ar, e).status == au.PASS and au.check_22b(ar, e).status == au.PASS
+    sym = all(c.status == au.PASS for c in au.check_23(ar, e))
+    if tab.is_exact:
+        assert sym == check_23(tab)
+    checks, facts = au.order_checks(ar, e)
+    assert au.predicted_order(tab, facts) == tab.claimed_order
+    assert facts["order:pair"] == tab.claimed_order
+
+
+def test_22b_check_names_the_worst_entry():
+    tab = load_tableau(EX / "broken-22b.json")
+    ar, e = au.oc.arith_for(tab)
+    c = au.check_22b(ar, e)
+    assert c.status == au.FAIL and "(i, j) = (2, 1)" in c.detail and abs(c.residual - 0.05) < 1e-15
+    assert au.check_22a(ar, e).status == au.PASS
+
+
+def test_float_tableau_tolerance_and_worst_entry():
+    """Float entries: (22b) holds to ~1e-17, within the 15-digit tolerance; a 1e-8 change does not."""
+    tab = load_tableau(EX / "lobatto3-float.json")
+    assert not tab.is_exact
+    ar, e = au.oc.arith_for(tab, 30)
+    assert au.check_22b(ar, e).status == au.PASS and ar.tol > 1e-14
+    bad = tab.with_entry("A_hat", 1, 2, 1e-8)
+    ar2, e2 = au.oc.arith_for(bad, 30)
+    c = au.check_22b(ar2, e2)
+    assert c.status == au.FAIL and "(i, j) = (3, 2)" in c.detail
+
+
+def test_convergence_check_fails_when_prediction_is_wrong():
+    """Negative control of the observed-order check: Euler I measured against a claimed 2."""
+    tab = get_method("euler-i")
+    ok, _ = au.convergence_checks(tab, 1, 30, quick=True)
+    bad, _ = au.convergence_checks(tab, 2, 30, quick=True)
+    assert [c.status for c in ok if c.name.startswith("convergence")] == [au.PASS, au.PASS]
+    assert [c.status for c in bad if c.name.startswith("convergence")] == [au.FAIL, au.FAIL]
+
+
+def test_broken_22b_exits_1_with_theorem1_failing():
+    tab = load_tableau(EX / "broken-22b.json")
+    res = au.audit(tab, quick=True, theorem_scenes=("skate", "particle"))
+    assert res.exit_code == 1
+    th = [c for c in res.checks if c.name.startswith("theorem1")]
+    assert th and all(c.status == au.FAIL for c in th)
+    assert all(c.residual > 1e-4 for c in th)
+    assert "violates" in res.verdict and "Theorem 1 does not apply" in res.verdict
+
+
+def test_cli_builtin_exit_0_and_json_schema(tmp_path, capsys):
+    out = tmp_path / "a.json"
+    md = tmp_path / "a.md"
+    rc = main(["audit", "--method", "gauss-2", "--quick", "--json", str(out), "--out", str(md)])
+    assert rc == 0
+    d = json.loads(out.read_text())
+    assert d["exit_code"] == 0 and d["tableau"] == "gauss-2"
+    names = {c["name"] for c in d["checks"]}
+    for need in ("22a", "22b", "23a", "order:pair(A,A_hat)", "omega-rank", "convergence:skate",
+                 "convergence:particle", "constraint", "energy", "theorem1:particle", "theorem1:skate",
+                 "theorem1:robot", "theorem1:mp-particles", "symmetry:skate", "stability:A"):
+        assert need in names, need
+    for c in d["checks"]:
+        assert set(c) == {"name", "status", "residual", "detail"}
+        assert c["status"] in ("pass", "fail", "info", "skip")
+    assert all(c["status"] != "fail" for c in d["checks"])
+    text = md.read_text()
+    assert "## Verdict" in text and "Theorem 1 applies" in text
+
+
+def test_float_file_audits_exit_0():
+    tab = load_tableau(EX / "lobatto3-float.json")
+    res = au.audit(tab, quick=True, theorem_scenes=("skate",))
+    assert res.exit_code == 0, [c for c in res.checks if c.status == au.FAIL]
+    assert res.facts["predicted_order"] == 4
+
+
+@pytest.mark.exhaustive
+@pytest.mark.parametrize("name", builtin_method_names(4))
+def test_every_builtin_full_quick_audit_exit_0(name):
+    assert main(["audit", "--method", name, "--quick"]) == 0
+
+
+@pytest.mark.exhaustive
+def test_three_stage_quick_audit_under_a_minute():
+    import time
+    t = time.time()
+    assert main(["audit", "--method", "lobatto-iiia-iiib-iiid-3", "--quick"]) == 0
+    assert time.time() - t < 60
