@@ -416,7 +416,7 @@ def spark_eval(jac, x, t0, q0, v0, h, c, A, Ah, At, bw, bh, bt, om, M, s, n, m,
 
 @numba.njit(cache=True)
 def spark_run(c, A, Ah, At, bw, bh, bt, om, M, t0, q0, v0, h, n_steps, every, compensated, tol,
-              max_iter, out_t, out_q, out_v, out_E, out_k, out_x, stats):
+              max_iter, predictor, out_t, out_q, out_v, out_E, out_k, out_x, stats):
     """n_steps of the SPARK method (21) from (t0, q0, v0); samples every ``every`` steps and
     the last step. out_x receives the last step's unknowns. stats: see STAT_NAMES."""
     s = A.shape[0]
@@ -461,10 +461,10 @@ def spark_run(c, A, Ah, At, bw, bh, bt, om, M, t0, q0, v0, h, n_steps, every, co
     j_out = 1
     for step in range(n_steps):
         t = t0 + step * h
-        if step >= 2:
+        if step >= 2 and predictor == 2:
             for r in range(NN):
                 x[r] = 2.0 * x_last[r] - x_prev[r]
-        elif step == 1:
+        elif step >= 1 and predictor >= 1:
             for r in range(NN):
                 x[r] = x_last[r]
         else:
@@ -530,7 +530,7 @@ def spark_run(c, A, Ah, At, bw, bh, bt, om, M, t0, q0, v0, h, n_steps, every, co
 
 
 @numba.njit(cache=True)
-def lf2_run(variant, M, Minv, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter,
+def lf2_run(variant, M, Minv, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, predictor,
             out_t, out_q, out_v, out_E, out_k, stats):
     """Semi-implicit 2-stage methods with Newton on the m multipliers only (Lambda = h Psi).
 
@@ -604,10 +604,10 @@ def lf2_run(variant, M, Minv, t0, q0, v0, h, n_steps, every, compensated, tol, m
                 for b in range(n):
                     acc += Minv[a, b] * K0[l, b]
                 B0[a, l] = fb * acc
-        if step >= 2:
+        if step >= 2 and predictor == 2:
             for l in range(m):
                 lam[l] = 2.0 * lam_last[l] - lam_prev[l]
-        elif step == 1:
+        elif step >= 1 and predictor >= 1:
             for l in range(m):
                 lam[l] = lam_last[l]
         else:
@@ -872,8 +872,12 @@ def kernel_spec(method, kernel="auto"):
 
 
 def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, compensated=True,
-                 tol=None, max_iter=50, kernel="auto"):
-    """Run a compiled kernel (no fallback); ``method`` a name, a SparkTableau or a kernel_spec."""
+                 tol=None, max_iter=50, kernel="auto", predictor=2):
+    """Run a compiled kernel (no fallback); ``method`` a name, a SparkTableau or a kernel_spec.
+    predictor: 2 = linear extrapolation of the last two steps' unknowns, 1 = last step's,
+    0 = zero increments (V_i = v1 = v0, Psi = 0)."""
+    if predictor not in (0, 1, 2):
+        raise InputError(f"predictor must be 0, 1 or 2, got {predictor!r}")
     spec = method if isinstance(method, tuple) else kernel_spec(method, kernel)
     kind, what, name = spec
     if not isinstance(n_steps, (int, np.integer)) or n_steps <= 0:
@@ -898,13 +902,13 @@ def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, co
     mod = cs.module
     if kind == "lf2":
         mod.lf2_run(int(what), cs.M, cs.Minv, float(t0), q0, v0, h, int(n_steps), int(every), bool(compensated),
-                    tol, int(max_iter), out_t, out_q, out_v, out_E, out_k, stats)
+                    tol, int(max_iter), int(predictor), out_t, out_q, out_v, out_E, out_k, stats)
     else:
         s = what["A"].shape[0]
         out_x = np.zeros(s * cs.n + s * cs.m + cs.n)
         mod.spark_run(what["c"], what["A"], what["A_hat"], what["A_tilde"], what["b"], what["b_hat"],
                       what["b_tilde"], what["omega"], cs.M, float(t0), q0, v0, h, int(n_steps), int(every),
-                      bool(compensated), tol, int(max_iter), out_t, out_q, out_v, out_E, out_k, out_x, stats)
+                      bool(compensated), tol, int(max_iter), int(predictor), out_t, out_q, out_v, out_E, out_k, out_x, stats)
     st = dict(zip(STAT_NAMES, (int(x) for x in stats)))
     if st["failed_step"] >= 0:
         k = st["failed_step"]
@@ -942,7 +946,7 @@ def generic_integrate(system, method, t0, q0, v0, h, n_steps, every=1, tol=None)
 
 
 def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n_steps=None,
-                   every=1, compensated=True, tol=None, max_iter=50, kernel="auto") -> FastSolution:
+                   every=1, compensated=True, tol=None, max_iter=50, kernel="auto", predictor=2) -> FastSolution:
     """Integrate with the compiled float64 path; returns FastSolution (t, q, v, energy,
     constraint, stats) sampled every ``every`` steps (and at the last step).
 
@@ -971,7 +975,7 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
         _notice(f"{system.name}: compilation failed ({type(exc).__name__}: {str(exc).splitlines()[0][:120]})")
         return generic_integrate(system, method, t0, q0, v0, h, n_steps, every, tol)
     try:
-        return run_compiled(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, kernel)
+        return run_compiled(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, kernel, predictor)
     except LdasparkError:
         raise
     except Exception as exc:  # numba compiles lazily at the first call: typing errors land here

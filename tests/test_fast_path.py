@@ -1,0 +1,187 @@
+"""The compiled fast path (ldaspark.fast) against the generic path: same numbers to 1e-12 over
+1000 steps for every SPARK family and the Fig. 4 comparators; fallback with a one-line notice;
+Newton counters and predictor. Compilation is cached on disk (numba cache=True)."""
+import numpy as np
+import pytest
+import sympy
+
+from ldaspark.comparators import integrate_comparator
+from ldaspark.errors import InputError
+from ldaspark.fast import compile_system, fast_integrate, mechanical_parts, NotCompilableError
+from ldaspark.scenes import get_scene, mp_particles
+from ldaspark.spark import integrate
+from ldaspark.system import LagrangianSystem
+from ldaspark.tableau import get_method
+
+AGREE = 1e-12
+N = 1000
+
+
+def max_diff(fast, sol):
+    return max(float(np.max(np.abs(fast.q - np.asarray(sol.q, float)))),
+               float(np.max(np.abs(fast.v - np.asarray(sol.v, float)))),
+               float(np.max(np.abs(fast.energy - np.asarray(sol.energy, float)))),
+               float(np.max(np.abs(fast.constraint - np.asarray(sol.constraint, float)))))
+
+
+@pytest.fixture(scope="module")
+def particle():
+    return get_scene("particle")
+
+
+@pytest.fixture(scope="module")
+def disk():
+    return get_scene("rolling-disk")
+
+
+@pytest.fixture(scope="module")
+def mp5():
+    return mp_particles(j=5)
+
+
+ONE_PER_FAMILY = ["gauss-2", "lobatto-iiia-iiib-3", "lobatto-iiia-iiib-iiid-2", "euler-ii"]
+SPARK_FAMILIES = ["gauss-1", "gauss-2", "gauss-3", "lobatto-iiia-iiib-2", "lobatto-iiia-iiib-3",
+                  "lobatto-iiia-iiib-iiid-2", "lobatto-iiia-iiib-iiid-3", "euler-i", "euler-ii"]
+
+
+def check_spark_agreement(scene, name, h=0.1):
+    t0, q0, v0 = scene.initial()
+    fast = fast_integrate(scene, name, h=h, n_steps=N, kernel="spark", compensated=False)
+    sol = integrate(scene.system, get_method(name), t0, q0, v0, h, n_steps=N)
+    assert fast.stats["path"] == "fast" and fast.stats["kernel"] == "spark"
+    assert max_diff(fast, sol) <= AGREE
+
+
+@pytest.mark.parametrize("name", ONE_PER_FAMILY)
+def test_spark_kernel_agrees_with_generic(particle, name):
+    """General compiled SPARK kernel (21) vs ldaspark.spark.integrate, particle, 1000 steps, one
+    method of each family (all of them and three scenes: --exhaustive)."""
+    check_spark_agreement(particle, name)
+
+
+@pytest.mark.exhaustive
+@pytest.mark.parametrize("scene_name", ["particle", "skate", "robot"])
+@pytest.mark.parametrize("name", SPARK_FAMILIES)
+def test_spark_kernel_agrees_with_generic_all(scene_name, name):
+    check_spark_agreement(get_scene(scene_name), name)
+
+
+@pytest.mark.parametrize("name,generic", [
+    ("lobatto-iiia-iiib-2", "spark"),                 # semi-implicit kernel (25) = the SPARK method
+    ("lobatto-iiia-iiib-2-modified", "comparator"),
+    ("mp-lobatto-iiib-a-2", "comparator"),
+])
+def test_fig4_kernels_agree_with_generic(disk, mp5, name, generic):
+    """Fig. 4 kernels vs the generic path: rolling disk, h = 0.1, 1000 steps (there the modified
+    constraint differs from (K1 + K2)/2); MP particles, h = 0.05, 300 steps (chaotic: round-off
+    differences grow like exp(t / 12), so only a short window can agree to 1e-12). The generic
+    path sums plainly, so the comparison is with compensated=False; Kahan changes only round-off."""
+    for scene, h, n in ((disk, 0.1, N), (mp5, 0.05, 300)):
+        t0, q0, v0 = scene.initial()
+        fast = fast_integrate(scene, name, h=h, n_steps=n, compensated=False)
+        kahan = fast_integrate(scene, name, h=h, n_steps=n)
+        assert max_diff(fast, kahan) <= 100 * AGREE
+        if generic == "spark":
+            sol = integrate(scene.system, get_method(name), t0, q0, v0, h, n_steps=n)
+        else:
+            sol = integrate_comparator(name, scene.system, t0, q0, v0, h, n)
+        assert fast.stats["kernel"] == "lf2"
+        assert max_diff(fast, sol) <= AGREE, scene.name
+
+
+def test_agreement_check_has_teeth(particle, disk):
+    """Negative controls: a 1e-8 change of one tableau entry, or the modified constraint in
+    place of (K1 + K2)/2, is seen far above the agreement tolerance."""
+    t0, q0, v0 = particle.initial()
+    tab = get_method("gauss-2")
+    bad = tab.with_entry("A", 0, 1, 1e-8)
+    fast = fast_integrate(particle, bad, h=0.1, n_steps=N, compensated=False)
+    sol = integrate(particle.system, tab, t0, q0, v0, 0.1, n_steps=N)
+    assert max_diff(fast, sol) > 1e3 * AGREE
+    t0, q0, v0 = disk.initial()
+    fast = fast_integrate(disk, "lobatto-iiia-iiib-2-modified", h=0.1, n_steps=N, compensated=False)
+    sol = integrate(disk.system, get_method("lobatto-iiia-iiib-2"), t0, q0, v0, 0.1, n_steps=N)
+    assert max_diff(fast, sol) > 1e3 * AGREE
+
+
+def test_modified_equals_original_when_k_is_affine_in_q(mp5):
+    """For the MP particles k = v1 + sum q_i v_i is affine in q, so (k(q0, V1) + k(q1, V1))/2 =
+    k(q0 + h/2 V1, V1): the modified method of 8.4 IS the Lobatto IIIA-B SPARK method there
+    (up to round-off) -- why the first two curves of Fig. 4 coincide at first. (Same for the
+    particle, the skate and the robot; not for the rolling disk, see the negative control above.)"""
+    a = fast_integrate(mp5, "lobatto-iiia-iiib-2", h=0.05, n_steps=100)
+    b = fast_integrate(mp5, "lobatto-iiia-iiib-2-modified", h=0.05, n_steps=100)
+    c = fast_integrate(mp5, "mp-lobatto-iiib-a-2", h=0.05, n_steps=100)
+    assert np.max(np.abs(a.q - b.q)) < 1e-13
+    assert np.max(np.abs(a.q - c.q)) > 1e-6        # (26) is a different method
+
+
+def test_sampling_and_unpacking(particle):
+    full = fast_integrate(particle, "gauss-2", h=0.1, n_steps=25)
+    t, q, v, E, k, stats = fast_integrate(particle, "gauss-2", h=0.1, n_steps=25, every=10)
+    assert np.allclose(t, [0.0, 1.0, 2.0, 2.5])
+    assert np.array_equal(q, full.q[[0, 10, 20, 25]]) and np.array_equal(E, full.energy[[0, 10, 20, 25]])
+    assert k.shape == (4, 1) and stats["steps"] == 25
+
+
+def test_newton_counters_and_predictor(particle):
+    """Simplified Newton: one Jacobian and one LU per step; the extrapolating predictor saves
+    iterations against the zero-increment start (negative control)."""
+    r2 = fast_integrate(particle, "lobatto-iiia-iiib-3", h=0.05, n_steps=2000)
+    r0 = fast_integrate(particle, "lobatto-iiia-iiib-3", h=0.05, n_steps=2000, predictor=0)
+    for r in (r2, r0):
+        assert r.stats["njev"] == r.stats["nlu"] == r.stats["steps"] == 2000
+        assert r.stats["newton_iterations"] >= 2000
+    assert r2.stats["mean_iterations"] <= r0.stats["mean_iterations"] - 0.5
+    assert r2.stats["max_iterations"] <= 8
+    # tolerance tied to the precision: a loose tolerance stops earlier
+    loose = fast_integrate(particle, "lobatto-iiia-iiib-3", h=0.05, n_steps=2000, tol=1e-6)
+    assert loose.stats["mean_iterations"] < r2.stats["mean_iterations"]
+
+
+def test_mechanical_form_detected_from_L_and_k(particle):
+    parts = mechanical_parts(particle.system)          # particle has system.mechanical = None
+    assert particle.system.mechanical is None
+    q, v = particle.system.q, particle.system.v
+    assert parts["M"] == sympy.eye(3)
+    assert sympy.simplify(parts["U"] - (q[0] ** 2 + q[1] ** 2)) == 0
+    assert parts["K"] == sympy.Matrix([[-q[1], 0, 1]])
+
+
+def _non_mechanical():
+    """L with a quartic kinetic term: L_vv depends on v, so no mechanical form."""
+    q = list(sympy.symbols("q1:4"))
+    v = list(sympy.symbols("v1:4"))
+    L = (v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 + v[0] ** 4 / 12 - (q[0] ** 2 + q[1] ** 2)
+    return LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name="quartic")
+
+
+def test_fallback_notice_and_same_numbers(capsys):
+    sysm = _non_mechanical()
+    with pytest.raises(NotCompilableError):
+        compile_system(sysm)
+    r = fast_integrate(sysm, "gauss-2", 0.0, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], 0.1, 30, every=10)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "falling back to the generic path" in err[0] and "quartic" in err[0]
+    assert r.stats["path"] == "generic"
+    sol = integrate(sysm, get_method("gauss-2"), 0.0, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], 0.1, n_steps=30)
+    assert np.array_equal(r.q, np.asarray(sol.q, float)[[0, 10, 20, 30]])
+
+
+def test_gyroscopic_term_is_not_mechanical():
+    q = list(sympy.symbols("q1:4"))
+    v = list(sympy.symbols("v1:4"))
+    L = (v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 + q[1] * v[0] - q[0] ** 2
+    with pytest.raises(NotCompilableError):
+        mechanical_parts(LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v))
+
+
+def test_bad_inputs(particle):
+    with pytest.raises(InputError):
+        fast_integrate(particle, "no-such-method", h=0.1, n_steps=10)
+    with pytest.raises(InputError):
+        fast_integrate(particle, "gauss-2", h=0.1, n_steps=0)
+    with pytest.raises(InputError):
+        fast_integrate(particle, "gauss-2", h=float("nan"), n_steps=10)
+    with pytest.raises(InputError):
+        fast_integrate(particle, "gauss-2", h=0.1, n_steps=10, predictor=3)
