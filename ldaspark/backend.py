@@ -7,6 +7,7 @@ integrator is written once against this interface.
 from __future__ import annotations
 
 import contextlib
+import warnings
 
 import mpmath
 import numpy as np
@@ -87,7 +88,9 @@ class Backend:
             return ("mp",) + _mp_lu(J)
         if not np.all(np.isfinite(J)):
             raise SingularMatrixError("Newton matrix has non-finite entries")
-        lu, piv = scipy.linalg.lu_factor(J, check_finite=False)
+        with warnings.catch_warnings():  # exact singularity is reported below as one error, not a LinAlgWarning
+            warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
+            lu, piv = scipy.linalg.lu_factor(J, check_finite=False)
         d = np.abs(np.diag(lu))
         if d.min() <= 1e-300 or d.min() <= 64 * np.finfo(float).eps * d.max() * 1e-3:
             raise SingularMatrixError(

@@ -79,6 +79,8 @@ class SparkMethod:
         self.tableau = tableau
         self.backend = Backend(dps)
         self.dps = dps
+        if tol is not None and not (math.isfinite(float(tol)) and tol > 0):
+            raise InputError(f"Newton tolerance must be finite and positive, got {tol!r}")
         self.tol = tol if tol is not None else 10 * self.backend.eps
         self.newton = newton
         self.max_iter = max_iter
@@ -184,9 +186,15 @@ class SparkMethod:
             fac = None
             prev = None
             res = float("inf")
+            why = ""
             for it in range(1, self.max_iter + 1):
                 need_j = fac is None or self.newton == "full"
-                G, J, _ = self.residual(t0, q0, p0, h, x, jacobian=need_j)
+                try:
+                    G, J, _ = self.residual(t0, q0, p0, h, x, jacobian=need_j)
+                except (ValueError, ZeroDivisionError, OverflowError, TypeError) as exc:
+                    # L or k evaluated outside its domain (math domain error, mpc from mpmath)
+                    res, why = float("nan"), f" ({type(exc).__name__}: {exc} evaluating L or k)"
+                    break
                 res = bk.norm_inf(G)
                 if not math.isfinite(res):
                     break
@@ -200,6 +208,8 @@ class SparkMethod:
                     self.stats.nlu += 1
                 dx = bk.solve_factored(fac, -G)
                 x = x + dx
+                # relative to the current iterate, not the starting guess (|Lambda| ~ 1/eps for near-rank-loss K)
+                tol_abs = self.tol * (1 + bk.norm_inf(x))
                 dn = bk.norm_inf(dx)
                 if not math.isfinite(dn):
                     res = float("nan")
@@ -212,7 +222,7 @@ class SparkMethod:
                 prev = dn
             raise NewtonError(
                 f"Newton did not converge at step {step_index}, t = {float(t0):.6g}, h = {float(h):.3g}: "
-                f"residual {res:.3e} after {it} iterations", step=step_index, time=float(t0),
+                f"residual {res:.3e} after {it} iterations{why}", step=step_index, time=float(t0),
                 residual=res, iterations=it)
 
     def _finish(self, t0, q0, h, x, it, res, step_index):
@@ -245,10 +255,17 @@ class Solution:
     system: str
 
 
+MAX_STEPS = 10 ** 9  # beyond this a run cannot finish; reject instead of hanging (h = 1e-300)
+
+
 def n_steps_for(t0, t_end, h) -> int:
     if h == 0 or not math.isfinite(float(h)):
         raise InputError(f"step size h must be finite and nonzero, got {h}")
+    if not (math.isfinite(float(t0)) and math.isfinite(float(t_end))):
+        raise InputError(f"t0 and t_end must be finite, got t0 = {t0}, t_end = {t_end}")
     span = float(t_end) - float(t0)
+    if abs(span / float(h)) > MAX_STEPS:
+        raise InputError(f"h = {h} needs {abs(span / float(h)):.3g} steps to reach t_end = {t_end} (limit {MAX_STEPS:.0e})")
     N = int(round(span / float(h)))
     if N <= 0:
         raise InputError(f"t_end = {t_end} is not reached from t0 = {t0} with h = {h}")
@@ -269,20 +286,23 @@ def integrate(system: LagrangianSystem, tableau: SparkTableau, t0, q0, v0, h, t_
     method = SparkMethod(system, tableau, dps=dps, tol=tol, newton=newton)
     bk = method.backend
     with bk.context():
-        h_ = bk.scalar(h)
-        t0_ = bk.scalar(t0)
+        try:
+            h_, t0_ = bk.scalar(h), bk.scalar(t0)
+            q, v = bk.array(q0), bk.array(v0)
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"t0, h, q0 and v0 must be numbers: {exc}") from None
+        if not (math.isfinite(float(h_)) and math.isfinite(float(t0_))) or h_ == 0:
+            raise InputError(f"step size h must be finite and nonzero and t0 finite, got h = {h}, t0 = {t0}")
+        if (t_end is None) == (n_steps is None):
+            raise InputError("give exactly one of t_end or n_steps")
         if n_steps is None:
-            if t_end is None:
-                raise InputError("give t_end or n_steps")
             n_steps = n_steps_for(t0, t_end, h)
-        if n_steps <= 0:
-            raise InputError(f"n_steps must be positive, got {n_steps}")
-        q = bk.array(q0)
-        v = bk.array(v0)
-        if len(q) != system.n or len(v) != system.n:
-            raise InputError(f"initial data have dimensions q: {len(q)}, v: {len(v)}; the system has n = {system.n}")
-        if not (bk.isfinite(q) and bk.isfinite(v)) or not math.isfinite(float(h_)):
-            raise InputError("initial data or step size contain NaN or infinity")
+        if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps <= 0:
+            raise InputError(f"n_steps must be a positive integer, got {n_steps!r}")
+        if q.ndim != 1 or v.ndim != 1 or len(q) != system.n or len(v) != system.n:
+            raise InputError(f"initial data have shapes q: {q.shape}, v: {v.shape}; the system has n = {system.n}")
+        if not (bk.isfinite(q) and bk.isfinite(v)):
+            raise InputError("initial data contain NaN or infinity")
         if check_initial:
             system.check_saddle(bk, t0_, q, v)
             if project:
