@@ -38,4 +38,8 @@ def atomic_write_text(path, text: str) -> None:
 
 
 def atomic_write_json(path, obj) -> None:
-    atomic_write_text(path, json.dumps(obj, indent=1, allow_nan=False) + "\n")
+    try:
+        text = json.dumps(obj, indent=1, allow_nan=False)
+    except ValueError as exc:  # NaN/inf: refuse before touching the file, as a user-facing error
+        raise LdasparkError(f"cannot write {path}: {exc}") from None
+    atomic_write_text(path, text + "\n")

@@ -1,0 +1,171 @@
+"""The CLI on user errors (issue 7): exit code 2, exactly one line on stderr starting with
+"ldaspark: error:", no traceback, no warning lines, and no output file left behind."""
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+import sympy
+
+import ldaspark.scenes as scenes
+from ldaspark.cli import main
+
+OK = ["integrate", "skate", "gauss-1", "--h", "0.5", "--t-end", "1"]
+
+
+def _one_error_line(capsys, argv, code=2, match=None):
+    try:
+        rc = main(argv)
+    except SystemExit as exc:      # argparse usage errors exit from parse_args
+        rc = exc.code
+    out, err = capsys.readouterr()
+    lines = err.strip("\n").split("\n")
+    assert rc == code, (rc, err)
+    assert len(lines) == 1 and lines[0].startswith("ldaspark: "), err
+    assert "Traceback" not in err and "Warning" not in err
+    if match:
+        assert match in lines[0], lines[0]
+    return lines[0]
+
+
+def _tab(tmp_path, text):
+    p = tmp_path / "t.json"
+    p.write_text(text)
+    return str(p)
+
+
+USER_ERRORS = [
+    (["--h", "0"], "nonzero"),
+    (["--h", "nan"], "finite"),
+    (["--h", "abc"], "must be numbers"),
+    (["--t-end", "inf"], "finite"),            # was OverflowError traceback
+    (["--t-end", "0.3"], "multiple"),
+    (["--t-end", "-1"], "not reached"),
+    (["--h", "1e-300"], "steps"),               # was a hang (1e300 steps)
+    (["--dps", "2"], "dps"),
+    (["--dps", "20.5"], "invalid int"),
+    (["--ic", "3"], "--ic"),
+    (["--newton", "quasi"], "invalid choice"),
+]
+
+
+@pytest.mark.parametrize("extra, match", USER_ERRORS)
+def test_integrate_user_errors(capsys, tmp_path, extra, match):
+    out = tmp_path / "o.json"
+    argv = OK + ["--out", str(out)]
+    for i in range(0, len(extra), 2):   # replace or add the option
+        if extra[i] in argv:
+            argv[argv.index(extra[i]) + 1] = extra[i + 1]
+        else:
+            argv += extra[i:i + 2]
+    _one_error_line(capsys, argv, match=match)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["integrate", "nosuch", "gauss-1", "--h", "0.5", "--t-end", "1", "--out", "X"], "unknown scene"),
+    (["integrate", "skate", "gauss-x", "--h", "0.5", "--t-end", "1", "--out", "X"], "unknown method"),
+    (["integrate", "skate", "gauss-0", "--h", "0.5", "--t-end", "1", "--out", "X"], "s >= 1"),
+    (["integrate", "mp-particles", "gauss-1", "--ic", "99", "--h", "0.5", "--t-end", "1", "--out", "X"], "0..9"),
+    (["integrate", "skate", "custom", "--h", "0.5", "--t-end", "1", "--out", "X"], "--tableau"),
+    (["integrate", "skate", "gauss-1", "--tableau", "t.json", "--h", "0.5", "--t-end", "1", "--out", "X"], "custom"),
+    (["integrate", "skate", "gauss-1", "--h", "0.5", "--t-end", "1"], "--out"),
+    (["frobnicate"], "invalid choice"),
+])
+def test_argument_errors(capsys, tmp_path, argv, match):
+    argv = [str(tmp_path / a) if a == "X" else a for a in argv]
+    _one_error_line(capsys, argv, match=match)
+    assert not (tmp_path / "X").exists()
+
+
+@pytest.mark.parametrize("text, match", [
+    ("{not json", "not valid JSON"),
+    ('{"c": [0.5]}', "missing"),
+    ('{"c": [0.5], "A": [[0.5, 1]], "A_hat": [[0.5]], "A_tilde": [[0.5]], "b": [1], "b_hat": [1], "b_tilde": [1]}',
+     "A must be"),
+    ('{"c": ["x"], "A": [[0.5]], "A_hat": [[0.5]], "A_tilde": [[0.5]], "b": [1], "b_hat": [1], "b_tilde": [1]}',
+     "not a number"),
+    ('{"c": [NaN], "A": [[0.5]], "A_hat": [[0.5]], "A_tilde": [[0.5]], "b": [1], "b_hat": [1], "b_tilde": [1]}',
+     "not finite"),
+])
+def test_bad_tableau_files(capsys, tmp_path, text, match):
+    argv = ["integrate", "skate", "custom", "--tableau", _tab(tmp_path, text), "--h", "0.5", "--t-end", "1",
+            "--out", str(tmp_path / "o.json")]
+    _one_error_line(capsys, argv, match=match)
+
+
+def test_missing_tableau_file(capsys, tmp_path):
+    argv = ["integrate", "skate", "custom", "--tableau", str(tmp_path / "none.json"), "--h", "0.5", "--t-end", "1",
+            "--out", str(tmp_path / "o.json")]
+    _one_error_line(capsys, argv, match="not found")
+
+
+def test_singular_newton_matrix_one_line_no_linalg_warning(capsys, tmp_path):
+    # A_tilde = b_tilde = 0: the multipliers drop out of (21b, d), the Newton matrix is exactly
+    # singular; scipy used to add a LinAlgWarning line next to the error.
+    t = _tab(tmp_path, '{"c": ["1/2"], "A": [["1/2"]], "A_hat": [["1/2"]], "A_tilde": [[0]], '
+                       '"b": [1], "b_hat": [1], "b_tilde": [0]}')
+    argv = ["integrate", "skate", "custom", "--tableau", t, "--h", "0.1", "--t-end", "1",
+            "--out", str(tmp_path / "o.json")]
+    line = _one_error_line(capsys, argv, match="singular")
+    assert "step 0" in line and "iteration 1" in line
+
+
+def test_newton_divergence_one_line(capsys, tmp_path):
+    argv = ["integrate", "robot", "gauss-2", "--h", "4", "--t-end", "8", "--out", str(tmp_path / "o.json")]
+    line = _one_error_line(capsys, argv, match="Newton did not converge")
+    assert "step 0" in line and "t = 0" in line and "residual" in line and "iterations" in line
+    assert not (tmp_path / "o.json").exists()
+
+
+@pytest.fixture
+def inconsistent_skate(monkeypatch):
+    def factory():
+        sc = scenes.skate()
+        sc.v0 = [0, sympy.Rational(3, 10), 1]
+        return sc
+    monkeypatch.setitem(scenes.SCENES, "skate", factory)
+
+
+def test_inconsistent_initial_data_and_project_opt_in(capsys, tmp_path, inconsistent_skate):
+    out = tmp_path / "o.json"
+    line = _one_error_line(capsys, OK + ["--out", str(out)], match="inconsistent")
+    assert "3.000e-01" in line and "--project" in line and not out.exists()
+    assert main(OK + ["--out", str(out), "--project"]) == 0
+    d = json.loads(out.read_text())
+    assert max(abs(x) for row in d["constraint"] for x in row) < 1e-14
+    assert d["v"][0] == pytest.approx([0.0, 0.0, 1.0], abs=1e-15)
+
+
+def test_keyboard_interrupt_no_output(capsys, tmp_path, monkeypatch):
+    import ldaspark.spark as spark
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(spark, "integrate", interrupted)
+    out = tmp_path / "o.json"
+    line = _one_error_line(capsys, OK + ["--out", str(out)], code=130, match="interrupted")
+    assert not out.exists() and os.listdir(tmp_path) == []
+
+
+def test_unwritable_output(capsys, tmp_path):
+    _one_error_line(capsys, OK + ["--out", str(tmp_path)], match="cannot write")   # a directory
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    _one_error_line(capsys, OK + ["--out", str(blocker / "o.json")], match="cannot write")
+
+
+def test_success_is_not_an_error(capsys, tmp_path):
+    # negative control for the helper: a valid run exits 0 with nothing on stderr
+    assert main(OK + ["--out", str(tmp_path / "o.json")]) == 0
+    assert capsys.readouterr().err == ""
+
+
+def test_subprocess_real_process_exit_code_and_stderr(tmp_path):
+    # the real entry point, stderr as the user sees it (warnings included)
+    cmd = [sys.executable, "-m", "ldaspark.cli", "integrate", "robot", "gauss-2", "--h", "4", "--t-end", "8",
+           "--out", str(tmp_path / "o.json")]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert r.returncode == 2
+    assert r.stderr.count("\n") == 1 and r.stderr.startswith("ldaspark: error:") and "Traceback" not in r.stderr
