@@ -115,3 +115,63 @@ def test_verdicts():
     assert verdict(recs[0], recs) == "holds"          # method order = min over q, v
     recs2 = [_rec("gauss-irk-1", "q", 1, 2.0, "method"), _rec("gauss-irk-1", "v", 1, 2.0, "method")]
     assert verdict(recs2[0], recs2) == "HIGHER than claimed"
+
+
+# --- the report sections' command-line contracts ---------------------------------------------
+def test_report_convergence_json_contract(tmp_path):
+    import json
+    from ldaspark.cli import main
+    out = tmp_path / "c.json"
+    assert main(["report", "convergence", "--json", str(out), "--scenes", "skate",
+                 "--methods", "gauss-1", "gauss-irk-2", "--workers", "1"]) == 0
+    recs = json.loads(out.read_text())
+    assert {(r["method"], r["variable"]) for r in recs} == {
+        (m, v) for m in ("gauss-1", "gauss-irk-2") for v in ("q", "v", "psi")}
+    for r in recs:
+        for key in ("method", "scene", "variable", "claimed_order", "observed_order", "pairwise_orders",
+                    "h", "errors", "dps"):
+            assert key in r
+        assert len(r["h"]) == len(r["errors"]) == len(r["pairwise_orders"]) + 1
+    q = [r for r in recs if r["method"] == "gauss-1" and r["variable"] == "q"][0]
+    assert q["claimed_order"] == 2 and abs(q["observed_order"] - 2) < 0.3 and q["dps"] is None
+    assert [r for r in recs if r["variable"] == "psi"][0]["claimed_order"] is None
+    assert not (tmp_path / "convergence.md").exists()       # --json alone writes only the JSON
+
+
+def test_boundedness_measure_separates_bounded_from_drift():
+    from ldaspark.report_energy import boundedness
+    t = np.linspace(0, 100, 2001)
+    assert boundedness(t, 1e-3 * np.sin(3 * t))["bounded"]
+    drift = boundedness(t, 1e-3 * np.sin(3 * t) + 1e-4 * t)     # negative control: linear drift
+    assert not drift["bounded"] and drift["last_over_first_quarter"] > 2
+    walk = boundedness(t, 1e-3 * np.sqrt(t) * np.sin(3 * t))     # sqrt(t) growth is not bounded either
+    assert not walk["bounded"]
+
+
+def test_report_energy_figure_json(tmp_path):
+    import json
+    from ldaspark.cli import main
+    out = tmp_path / "e.json"
+    assert main(["report", "energy", "--figure", "2", "--t-end", "3", "--json", str(out)]) == 0
+    d = json.loads(out.read_text())
+    assert d["scene"] == "skate" and d["h"] == 0.1 and d["t_end"] == 3.0
+    assert set(d["methods"]) == {"lobatto-iiia-iiib-2", "lobatto-iiia-iiib-3", "lobatto-iiia-iiib-4"}
+    r = d["methods"]["lobatto-iiia-iiib-2"]
+    assert len(r["t"]) == len(r["dE"]) == 31 and r["max_abs_dE"] == max(abs(x) for x in r["dE"])
+    with pytest.raises(InputError):
+        from ldaspark.report_energy import figure_data
+        figure_data(7)
+
+
+def test_report_energy_figure4_through_fast_path(tmp_path):
+    from ldaspark.report_energy import fig4_available, figure4, plot_fig4
+    if not fig4_available():
+        pytest.fail("ldaspark.fig4 is part of the package and must be importable")
+    d = figure4(t_end=50.0)
+    assert d["E0_matches_paper"] and abs(d["E0"] - 3.06) < 1e-12
+    assert set(d["methods"]) == {"lobatto-iiia-iiib-2", "lobatto-iiia-iiib-2-modified", "mp-lobatto-iiib-a-2"}
+    assert all(len(d["mu_over_h4"][m]) == len(d["t"]) for m in d["methods"])
+    assert all(isinstance(d["fit"][m]["exponent"], float) for m in d["methods"])
+    png = tmp_path / "f4.png"
+    plot_fig4(d, png)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
