@@ -51,6 +51,7 @@ from dataclasses import dataclass, field
 
 import mpmath
 import numpy as np
+import scipy.linalg
 
 from .backend import Backend, SingularMatrixError
 from .errors import LdasparkError, NewtonError
@@ -321,19 +322,28 @@ class _Solver:
 
 
 def _make_gauge(bvp, J, x_ref, sig, U, Vh, r):
-    """Gauge from the SVD at the base point: pin the r right-null directions at x_ref and border
-    with the r left-null directions, (21c) rows zeroed so (21c) stays exact."""
+    """Gauge from the SVD at the base point, made canonical and exact: pin the r unknowns that
+    carry most of the right null space (QR with column pivoting) at x_ref, and border with the
+    r residual rows that carry most of the left null space, (21c) rows excluded so (21c) stays
+    exact. Only the spans matter, so coordinate vectors are as good as singular vectors and do
+    not change with round-off from one solve to the next."""
     bk = bvp.bk
     N = bvp.size
-    Nv = Vh[N - r:, :]                       # r x N
-    W = U[:, N - r:].copy()                  # N x r
-    W0 = W.copy()
-    W[bvp.r_c:, :] = 0
-    g = Gauge(C=Nv, c0=Nv.dot(x_ref), W=W, W_left=W0)
+    Nv = np.asarray(Vh[N - r:, :], dtype=float)
+    Wn = np.asarray(U[:, N - r:], dtype=float).copy()
+    Wn[bvp.r_c:, :] = 0
+    cols = scipy.linalg.qr(Nv, pivoting=True, mode="r")[1][:r]
+    rows = scipy.linalg.qr(Wn.T, pivoting=True, mode="r")[1][:r]
+    C = bk.zeros((r, N))
+    W = bk.zeros((N, r))
+    for k in range(r):
+        C[k, cols[k]] = 1
+        W[rows[k], k] = 1
+    g = Gauge(C=C, c0=C.dot(x_ref), W=W, W_left=np.asarray(U[:, N - r:]))
     try:
         bk.factor(_Solver(bvp).bordered(J, g))
     except SingularMatrixError:
-        g = Gauge(C=Nv, c0=Nv.dot(x_ref), W=W0, W_left=W0)
+        raise DiscreteSolveError("gauge-fixing failed: bordered matrix singular") from None
     return g
 
 
