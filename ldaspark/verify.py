@@ -206,9 +206,12 @@ def symmetry_records(scene, tab, expected, t0, q0, v0, point, cls):
 
 
 def constraint_residuals(scene, tab, n_steps=5, dps=None):
-    """max_n |k(t_n, q_n, v_n)| / (1 + |v_n|) over a few IVP steps, and the same for the secant
-    velocity (q_n - q_{n-1}) / h (negative control: not constrained by (21))."""
-    t0, q0, v0 = scene.initial(dps)
+    """max_n |k(t_n, q_n, v_n)| / (1 + |v_n|) over a few IVP steps from generic consistent data
+    (``perturbed_initial``), and the same for the secant velocity (q_n - q_{n-1}) / h (negative
+    control: not constrained by (21))."""
+    t0, q0, v0 = perturbed_initial(scene, dps or 30)
+    if dps is None:
+        t0, q0, v0 = float(t0), [float(x) for x in q0], [float(x) for x in v0]
     sol = integrate(scene.system, tab, t0, q0, v0, H if dps else float(H), n_steps=n_steps, dps=dps)
     bk = Backend(dps)
     with bk.context():
