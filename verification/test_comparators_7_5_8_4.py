@@ -210,3 +210,32 @@ def test_inconsistent_data_and_unknown_name():
         integrate_comparator("gauss-irk-x", sc.system, 0.0, [1, 0, 0], [0, 1, 0], 0.1, 2)
     with pytest.raises(InputError):
         integrate_comparator("mp-lobatto-iiib-a-2", sc.system, 0.0, [1, 0, 0], [0, 1, 0], 0.1, 0)
+
+
+def test_output_velocity_formula_uses_v_k_minus_half_not_the_printed_v_k_plus_half(runs):
+    """The paper prints M v_k + K(q_k)^T (h/2 Psi_2k) = M v_{k+1/2} - h/2 grad U(q_k). Solving that
+    literal system does not give the SPARK method's v_k; with v_{k-1/2} it does (to round-off)."""
+    scene = "particle"
+    sc = get_scene(scene)
+    mech = derive_mechanical(sc.system)
+    q = sc.system.q
+    gU = sympy.lambdify(q, [sympy.diff(mech["U"], x) for x in q])
+    Kf = sympy.lambdify(q, mech["K"])
+    M = np.array(mech["M"], dtype=float)
+    sol = runs[(scene, "lobatto-iiia-iiib-2")]
+    n, m = M.shape[0], 1
+    err_literal = err_fixed = 0.0
+    for k in range(1, len(sol.t) - 1):
+        qk = sol.q[k]
+        K = np.array(Kf(*qk), float).reshape(m, n)
+        S = np.block([[M, K.T], [K, np.zeros((m, m))]])
+        for w, which in (((sol.q[k + 1] - qk) / H, "literal"), ((qk - sol.q[k - 1]) / H, "fixed")):
+            rhs = np.concatenate([M @ w - H / 2 * np.array(gU(*qk), float), np.zeros(m)])
+            vk = np.linalg.solve(S, rhs)[:n]
+            e = np.abs(vk - sol.v[k]).max()
+            if which == "literal":
+                err_literal = max(err_literal, e)
+            else:
+                err_fixed = max(err_fixed, e)
+    assert err_fixed < 1e-13
+    assert err_literal > 1e-3
