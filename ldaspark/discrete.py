@@ -480,6 +480,12 @@ def theorem1_residuals(system, tableau, t0, q0, v0, h, dps=40, fd_delta=None, q1
         q0_ = bk_fd.array(q0)
         if q0_shift is not None:
             q0_ = q0_ + bk_fd.array(q0_shift)
+        if q0_shift is not None or q1_shift is not None:
+            # first-order predictor from the unshifted solve: off C_d Newton needs a good start
+            r0 = discrete_lagrangian(system, tableau, t0_, bk_fd.array(q0), t1, q1, dps=dps_fd, x_guess=xg)
+            dq = np.concatenate([bk_fd.array(q0_shift) if q0_shift is not None else bk_fd.zeros(system.n),
+                                 bk_fd.array(q1_shift) if q1_shift is not None else bk_fd.zeros(system.n)])
+            xg = r0.x + r0.extra["dx_dq"][:len(r0.x)].dot(dq)
         if q1_shift is not None:
             q1 = q1 + bk_fd.array(q1_shift)
         res = discrete_lagrangian(system, tableau, t0_, q0_, t1, q1, dps=dps_fd, x_guess=xg)
@@ -560,8 +566,11 @@ def check_symmetry(system, tableau, t0, q0, v0, h, dps=40):
         (P0, dim0), (P1, dim1) = _tangent_projector(fwd, 0), _tangent_projector(rev, 0)
         # f_d^+(rev) pairs with variations of fwd q0 = rev q1; f_d^-(rev) with fwd q1 = rev q0
         a, b = P0.dot(fwd.f_d_minus + rev.f_d_plus), P1.dot(fwd.f_d_plus + rev.f_d_minus)
-        sc = max(bk.norm_inf(P0.dot(fwd.f_d_minus)), bk.norm_inf(P1.dot(fwd.f_d_plus)),
-                 bk.norm_inf(fwd.p0), 1e-300)
+        norms_p = (bk.norm_inf(P0.dot(fwd.f_d_minus)), bk.norm_inf(P0.dot(rev.f_d_plus)))
+        norms_m = (bk.norm_inf(P1.dot(fwd.f_d_plus)), bk.norm_inf(P1.dot(rev.f_d_minus)))
+        # relative to the covectors involved (p0 may vanish: a scene at rest)
+        sc = max(max(norms_p), max(norms_m), bk.norm_inf(fwd.p0), bk.norm_inf(fwd.p1),
+                 bk.norm_inf(fwd.f_d_minus), bk.norm_inf(fwd.f_d_plus), 1e-300)
         sfp = bk.norm_inf(a) / sc
         sfm = bk.norm_inf(b) / sc
         # the unrestricted covectors, to show the restriction matters
@@ -577,8 +586,10 @@ def check_symmetry(system, tableau, t0, q0, v0, h, dps=40):
         sPhi = max(bk.norm_inf(r2.q1 - q0_), bk.norm_inf(r2.v1 - v0_)) / sc_y
     return {"symmetry-Ld": float(sL), "symmetry-fd-plus": float(sfp), "symmetry-fd-minus": float(sfm),
             "symmetry-Phi": float(sPhi), "wellposed": fwd.wellposed,
-            "tangent_dim": (dim0, dim1), "fd_restricted_norm": (float(bk.norm_inf(P0.dot(fwd.f_d_minus))),
-                                                                float(bk.norm_inf(P1.dot(fwd.f_d_plus)))),
+            "tangent_dim": (dim0, dim1),
+            "fd_restricted_norm": (float(bk.norm_inf(P0.dot(fwd.f_d_minus))), float(bk.norm_inf(P1.dot(fwd.f_d_plus)))),
+            "fd_plus_identity_norms": tuple(float(x) for x in norms_p),
+            "fd_minus_identity_norms": tuple(float(x) for x in norms_m),
             "symmetry-fd-unrestricted": (float(full_p), float(full_m)),
             "rank_deficiency": fwd.rank_deficiency, "dps": dps, "seconds": time.time() - t_start}
 
