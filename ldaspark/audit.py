@@ -142,6 +142,28 @@ def check_omega(tab: SparkTableau, ar, e, dps) -> Check:
     return Check("omega-rank", PASS, smin, f"rank {s - 1} = s-1; singular values in [{smin:.3g}, {smax:.3g}]")
 
 
+def check_omega_default(tab: SparkTableau, dps) -> Check:
+    """Whether the rows of omega span {(b_j c_j^(i-1))_j : i = 1..s-1}, the choice after (21e)
+    under which the Gauss and Lobatto convergence results [26, 27] are stated (information)."""
+    s = tab.s
+    if s == 1:
+        return Check("omega-span", INFO, None, "s = 1: no (21e) rows")
+    with mpmath.workdps(dps):
+        ent = tab.mp_entries(dps)
+        b = [x[0] if isinstance(x, list) else x for x in ent["b"]]
+        c = [x[0] if isinstance(x, list) else x for x in ent["c"]]
+        dflt = [[b[j] * c[j] ** i for j in range(s)] for i in range(s - 1)]
+        sv = mpmath.svd_r(mpmath.matrix(ent["omega"] + dflt), compute_uv=False)
+        sv = sorted((float(sv[i]) for i in range(min(2 * s - 2, s))), reverse=True)
+    tol = 10.0 ** (3 - min(dps, tab.source_digits or dps)) * s * max(sv[0], 1.0)
+    rank = sum(x > tol for x in sv)
+    if rank == s - 1:
+        return Check("omega-span", PASS, sv[s - 1] if len(sv) >= s else 0.0,
+                     "rows of omega span {b_j c_j^(i-1)}, i < s (the choice of [26, 27])")
+    return Check("omega-span", INFO, sv[s - 1], f"rows of omega do not span {{b_j c_j^(i-1)}} (stacked rank {rank} "
+                 f"> s-1 = {s - 1}): convergence results of [26, 27] are stated for that choice")
+
+
 def check_22a(ar, e) -> Check:
     """(22a) b_hat_i = b_i."""
     with ar.context():
@@ -366,6 +388,7 @@ def theorem1_checks(tab, hyp22, hyp23, dps, quick, scenes=PAPER_SCENES):
     return _theorem1_with_discrete(tab, hyp22, hyp23, dps, quick, scenes)
 
 
+TEETH = 1e-6        # a Theorem 1 tolerance above this could not tell (22) from its violation
 THEOREM_H = "1/10"   # step of the base point (t0, q0) -> (t1, q1) for Theorem 1 and symmetry
 
 
@@ -380,15 +403,27 @@ def _theorem1_with_discrete(tab, hyp22, hyp23, dps, quick, scenes):
     from . import discrete
     from .scenes import get_scene
     checks, facts = [], {}
-    d = min(dps, 20) if quick else dps
+    d = dps
     for name in scenes:
         sc = get_scene(name)
-        t0, q0, v0 = sc.initial(d + 25)
-        try:
-            r = discrete.theorem1_residuals(sc.system, tab, t0, q0, v0, THEOREM_H, dps=d)
-        except LdasparkError as exc:
-            checks.append(Check(f"theorem1:{name}", FAIL, None,
-                                f"boundary-value solve of (21) failed: {str(exc).splitlines()[0]}"))
+        t0, q0, v0 = sc.initial(d + 45)
+        r, err = None, None
+        # an ill-conditioned BVP (tiny sigma_min) can stall Newton at the precision floor or
+        # make the finite differences too coarse: the full audit retries once at +20 digits
+        for dd in (d,) if quick else (d, d + 20):
+            try:
+                r = discrete.theorem1_residuals(sc.system, tab, t0, q0, v0, THEOREM_H, dps=dd)
+                err = None
+            except LdasparkError as exc:
+                r, err = None, str(exc).splitlines()[0]
+                continue
+            if _theorem1_tol(tab, dd, r["fd_error"]) <= TEETH:
+                break
+        if r is None:
+            checks.append(Check(f"theorem1:{name}", SKIP, None,
+                                f"not decided: boundary-value solve of (21) failed ({err}) at dps "
+                                f"{d}{'' if quick else f' and {d + 20}'}; the implicit functions of Theorem 1 "
+                                "are not established numerically here"))
             continue
         wp = r["wellposed"]
         if not quick:
@@ -400,16 +435,30 @@ def _theorem1_with_discrete(tab, hyp22, hyp23, dps, quick, scenes):
         else:
             wp = f"{wp} (rank deficiency {r['rank_deficiency']} at dps {r['dps_fd']})"
         res = max(r["theorem1-q0"], r["theorem1-q1"])
-        tol = _theorem1_tol(tab, d, r["fd_error"])
+        tol = _theorem1_tol(tab, r["dps"], r["fd_error"])
         facts[f"theorem1:{name}"] = {k: v for k, v in r.items() if k != "null_support"}
         ok = res <= tol
         claim = ("agrees with Theorem 1" if hyp22 else
                  "holds although (22) fails" if ok else "fails, as expected without (22)")
+        status = PASS if ok else FAIL
+        if tol > TEETH:
+            status, claim = SKIP, f"not decided (tolerance {tol:.0e} above {TEETH:.0e} at dps {r['dps']})"
         checks.append(Check(
-            f"theorem1:{name}", PASS if ok else FAIL, res,
+            f"theorem1:{name}", status, res,
             f"{claim}: |dL_d/dq0 + p0 + f_d^-|, |dL_d/dq1 - p1 + f_d^+| relative = "
             f"{r['theorem1-q0']:.1e}, {r['theorem1-q1']:.1e} (tolerance {tol:.0e}; FD error {r['fd_error']:.0e}; "
-            f"without the forces {r['without_forces_q0']:.1e}); h = {THEOREM_H}, dps {d}; BVP {wp}"))
+            f"without the forces {r['without_forces_q0']:.1e}); h = {THEOREM_H}, dps {r['dps']}; BVP {wp}"))
+    th = [c for c in checks if c.name.startswith("theorem1:")]
+    decided = [c for c in th if c.status != SKIP]
+    nfail = sum(c.status == FAIL for c in decided)
+    need = min(2, len(th))
+    if len(decided) < need:
+        checks.append(Check("theorem1", FAIL, None, f"decided on only {len(decided)} of {len(th)} scenes "
+                                                    f"(at least {need} needed)"))
+    else:
+        checks.append(Check("theorem1", FAIL if nfail else PASS,
+                            max((c.residual or 0.0) for c in decided),
+                            f"decided on {len(decided)} of {len(th)} scenes, {nfail} failing"))
     if hyp23:
         for name in [x for x in scenes if x in ("skate", "particle")] if quick else scenes:
             sc = get_scene(name)
@@ -420,13 +469,18 @@ def _theorem1_with_discrete(tab, hyp22, hyp23, dps, quick, scenes):
                 checks.append(Check(f"symmetry:{name}", FAIL, None, f"reverse solve failed: {str(exc).splitlines()[0]}"))
                 continue
             keys = ("symmetry-Ld", "symmetry-fd-plus", "symmetry-fd-minus", "symmetry-Phi")
-            res = max(r[k] for k in keys)
+            # With a singular (non-gauge) BVP Jacobian the implicit functions of Theorem 1 are
+            # not unique, so f_d^+- (built from dV/dq) depend on the gauge fixing: only L_d and
+            # the map Phi_h are then decidable; the f_d parts are reported, not judged.
+            judged = keys if r["wellposed"] != "singular" else ("symmetry-Ld", "symmetry-Phi")
+            res = max(r[k] for k in judged)
             tol = _theorem1_tol(tab, d, 0.0)
-            facts[f"symmetry:{name}"] = r
+            facts[f"symmetry:{name}"] = {k: v for k, v in r.items() if isinstance(v, (int, float, str))}
+            note = "" if judged == keys else "; f_d parts not judged: BVP singular, f_d not unique"
             checks.append(Check(
                 f"symmetry:{name}", PASS if res <= tol else FAIL, res,
                 "L_d(t1,q1,t0,q0) + L_d, f_d^+(rev) + f_d^-, f_d^-(rev) + f_d^+, Phi_-h(Phi_h(y)) - y: "
-                + ", ".join(f"{r[k]:.1e}" for k in keys) + f" (tolerance {tol:.0e}; BVP {r['wellposed']})"))
+                + ", ".join(f"{r[k]:.1e}" for k in keys) + f" (tolerance {tol:.0e}; BVP {r['wellposed']}{note})"))
     else:
         checks.append(Check("symmetry", SKIP, None, "(23) does not hold: Theorem 1 claims no symmetry"))
     return checks, facts
@@ -443,7 +497,8 @@ def audit(tab: SparkTableau, dps: int = 30, quick: bool = False, arith: str = "a
     """Run every check on ``tab``; see the module docstring. ``theorem_scenes`` restricts the
     Theorem 1 scenes (the CLI always uses the four paper scenes; tests use fewer)."""
     t_start = time.time()
-    say = progress or (lambda msg: None)
+    _say = progress or (lambda msg: None)
+    say = lambda msg: _say(f"{msg} (t = {time.time() - t_start:.1f} s)")
     if arith == "exact" or (arith == "auto" and tab.is_exact):
         if not tab.is_exact:
             raise InputError(f"tableau {tab.name} has inexact entries: --arith exact is not possible")
@@ -460,6 +515,7 @@ def audit(tab: SparkTableau, dps: int = 30, quick: bool = False, arith: str = "a
     for M in ("A", "A_hat", "A_tilde"):
         C.append(check_row_sums(ar, e, M))
     C.append(check_omega(tab, ar, e, dps))
+    C.append(check_omega_default(tab, dps))
     C.append(check_22a(ar, e))
     C.append(check_22b(ar, e))
     C.extend(check_23(ar, e))
@@ -497,7 +553,7 @@ def verdict(res: AuditResult) -> str:
     s = res.s
     parts = []
     c22a, c22b = res.get("22a"), res.get("22b")
-    how = "exactly" if res.exact else "to the precision of its entries"
+    how = ("exactly" if res.exact else f"to the tolerance of its precision ({res.facts.get('arithmetic')})")
     if f["22"]:
         parts.append(f"{res.tableau} ({s} stage{'s' if s > 1 else ''}) satisfies (22a) and (22b) {how}, "
                      "so Theorem 1 applies: the SPARK method is a nonholonomically constrained discrete "
@@ -507,15 +563,22 @@ def verdict(res: AuditResult) -> str:
         parts.append(f"{res.tableau} ({s} stage{'s' if s > 1 else ''}) violates "
                      + " and ".join(f"({c.name}) ({c.detail})" for c in bad)
                      + ", so Theorem 1 does not apply.")
-    th = [c for c in res.checks if c.name.startswith("theorem1")]
-    if th and all(c.status == SKIP for c in th):
+    th = [c for c in res.checks if c.name.startswith("theorem1:")]
+    summ = res.get("theorem1")
+    if summ is not None and summ.status == SKIP:
         parts.append("Theorem 1 was not checked numerically (ldaspark.discrete missing).")
     elif th:
-        nfail = sum(c.status == FAIL for c in th)
-        worst = max((c.residual or 0.0) for c in th)
+        decided = [c for c in th if c.status != SKIP]
+        nfail = sum(c.status == FAIL for c in decided)
+        worst = max([(c.residual or 0.0) for c in decided] or [0.0])
+        undecided = [c.name.split(":", 1)[1] for c in th if c.status == SKIP]
         parts.append(f"The numerical check of Theorem 1 on the paper scenes "
-                     + ("agrees" if nfail == 0 else f"fails on {nfail} of {len(th)} checks")
-                     + f" (largest residual {worst:.1e}).")
+                     + ("agrees" if nfail == 0 and summ.status == PASS
+                        else f"fails on {nfail} of {len(decided)} decided scenes" if nfail
+                        else "is decided on too few scenes")
+                     + f" (largest residual {worst:.1e})"
+                     + (f"; not decided on {', '.join(undecided)} (see the checks)" if undecided else "")
+                     + ".")
     if f["23"]:
         parts.append("It satisfies the symmetry conditions (23), so the method is symmetric.")
     else:

@@ -158,3 +158,46 @@ def test_three_stage_quick_audit_under_a_minute():
     t = time.time()
     assert main(["audit", "--method", "lobatto-iiia-iiib-iiid-3", "--quick"]) == 0
     assert time.time() - t < 60
+
+
+def _fake_t1(**over):
+    r = {"theorem1-q0": 1e-40, "theorem1-q1": 1e-40, "fd_error": 1e-35, "without_forces_q0": 1.0,
+         "wellposed": "well-posed", "rank_deficiency": 0, "dps": 30, "dps_fd": 50}
+    r.update(over)
+    return r
+
+
+def test_undecided_theorem1_scenes_cannot_pass_silently(monkeypatch):
+    """Negative control of the skip rule: when every BVP solve fails, the summary check fails."""
+    from ldaspark import discrete
+
+    def boom(*a, **k):
+        raise discrete.DiscreteSolveError("BVP Newton did not converge")
+    monkeypatch.setattr(discrete, "theorem1_residuals", boom)
+    checks, _ = au.theorem1_checks(get_method("gauss-1"), True, False, 30, True, ("skate", "particle"))
+    by = {c.name: c.status for c in checks}
+    assert by["theorem1:skate"] == au.SKIP and by["theorem1"] == au.FAIL
+
+
+def test_theorem1_residual_above_tolerance_fails_and_coarse_fd_is_not_a_pass(monkeypatch):
+    from ldaspark import discrete
+    monkeypatch.setattr(discrete, "theorem1_residuals", lambda *a, **k: _fake_t1(**{"theorem1-q1": 1e-3}))
+    checks, _ = au.theorem1_checks(get_method("gauss-1"), True, False, 30, True, ("skate", "particle"))
+    assert {c.status for c in checks if c.name.startswith("theorem1")} == {au.FAIL}
+    monkeypatch.setattr(discrete, "theorem1_residuals", lambda *a, **k: _fake_t1(fd_error=1e-3))
+    checks, _ = au.theorem1_checks(get_method("gauss-1"), True, False, 30, True, ("skate",))
+    assert [c.status for c in checks if c.name.startswith("theorem1")] == [au.SKIP, au.FAIL]
+
+
+def test_symmetry_fd_parts_judged_only_for_nonsingular_bvp(monkeypatch):
+    from ldaspark import discrete
+    monkeypatch.setattr(discrete, "theorem1_residuals", lambda *a, **k: _fake_t1())
+    sym = {"symmetry-Ld": 0.0, "symmetry-fd-plus": 1e-3, "symmetry-fd-minus": 1e-3, "symmetry-Phi": 1e-30}
+    for cls, want in (("well-posed", au.FAIL), ("gauge-deficient", au.FAIL), ("singular", au.PASS)):
+        monkeypatch.setattr(discrete, "check_symmetry", lambda *a, cls=cls, **k: dict(sym, wellposed=cls))
+        checks, _ = au.theorem1_checks(get_method("gauss-1"), True, True, 30, True, ("skate",))
+        assert next(c for c in checks if c.name == "symmetry:skate").status == want, cls
+    monkeypatch.setattr(discrete, "check_symmetry",
+                        lambda *a, **k: dict(sym, wellposed="singular", **{"symmetry-Phi": 1e-3}))
+    checks, _ = au.theorem1_checks(get_method("gauss-1"), True, True, 30, True, ("skate",))
+    assert next(c for c in checks if c.name == "symmetry:skate").status == au.FAIL
