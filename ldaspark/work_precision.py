@@ -154,25 +154,15 @@ def study_scene(scene_name, t_end, hs_fast, hs_generic, rtols, rtols_radau, prog
             "E0": float(E0), "rows": rows}
 
 
-def envelope(rows, key="error"):
-    """Lower envelope (error, cpu) pairs of a set of runs, sorted by error."""
-    pts = sorted((r[key], r["cpu"]) for r in rows if r[key] > 0 and np.isfinite(r[key]))
-    env, best = [], float("inf")
-    for e, c in sorted(pts, key=lambda p: p[0], reverse=True):   # from coarse to fine
-        best = min(best, c) if env else c
-        env.append((e, c))
-    return sorted(env)
-
-
 def cpu_at(rows, target, key="error"):
     """CPU time to reach ``target`` (log-log interpolation on the cheapest runs), None if out of range."""
     pts = sorted((r[key], r["cpu"]) for r in rows if r[key] > 0 and np.isfinite(r[key]))
     if not pts or target < pts[0][0] or target > pts[-1][0]:
         return None
-    # cheapest time among runs at least as accurate as each error level, then interpolate
+    # C(e) = cheapest run with error <= e (non-increasing in e), interpolated log-log
     errs = np.array([p[0] for p in pts])
     cpus = np.array([p[1] for p in pts])
-    mono = np.minimum.accumulate(cpus[::-1])[::-1]               # cost of reaching <= errs[i]
+    mono = np.minimum.accumulate(cpus)
     return float(10 ** np.interp(np.log10(target), np.log10(errs), np.log10(mono)))
 
 
@@ -232,12 +222,14 @@ def dps_cost(dps_list=(16, 30, 50, 100), n_steps=8, method="gauss-2", scene_name
     tab = get_method(method)
     rows = []
     t0, q0, v0 = sc.initial()
+    fast_integrate(sc, method, h=float(h), n_steps=2)
     cf, _ = _cpu(lambda: fast_integrate(sc, method, h=float(h), n_steps=20000), 3)
     rows.append({"precision": "float64 fast", "seconds_per_step": cf / 20000})
     cg, _ = _cpu(lambda: integrate(sc.system, tab, t0, q0, v0, float(h), n_steps=n_steps * 5))
     rows.append({"precision": "float64 generic", "seconds_per_step": cg / (n_steps * 5)})
     for d in dps_list:
         t0, q0, v0 = sc.initial(d)
+        integrate(sc.system, tab, t0, q0, v0, h, n_steps=1, dps=d)        # lambdify/tableau caches
         c, _ = _cpu(lambda: integrate(sc.system, tab, t0, q0, v0, h, n_steps=n_steps, dps=d))
         rows.append({"precision": f"mpmath dps={d}", "dps": d, "seconds_per_step": c / n_steps})
     return rows
