@@ -313,7 +313,8 @@ class _Solver:
             if prev is not None and dn > 0.5 * prev:
                 if simplified:
                     simplified = False        # contraction too slow: switch to full Newton
-                elif dn <= 1e4 * tol * (1 + bk.norm_inf(x)):
+                elif dn <= math.sqrt(bk.eps) * (1 + bk.norm_inf(x)):
+                    # increments stopped shrinking at the round-off floor of an ill-conditioned J
                     G, _, _, _ = bvp.evaluate(t0, q0, t1, q1, x, jacobian=False)
                     return x, mu, it, bk.norm_inf(self.full_residual(G, x, mu, gauge))
             prev = dn
