@@ -163,3 +163,33 @@ def test_cli_ctrl_c_mid_write_keeps_previous_output(target, monkeypatch, capsys)
     err = capsys.readouterr().err
     assert rc == 130 and err.count("\n") == 1 and "interrupted" in err
     _assert_untouched(target)
+
+
+def test_report_interrupted_leaves_previous_report(tmp_path, monkeypatch, capsys):
+    # `ldaspark report stability` writes the markdown once, at the end, atomically: Ctrl-C during
+    # a section leaves the previous report as it was (exit 130, one line)
+    import ldaspark.stability as S
+    rep = tmp_path / S.REPORT
+    rep.write_bytes(OLD)
+
+    def ctrl_c(*a, **k):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(S, "step_size_sweep", ctrl_c)
+    rc = main(["report", "stability", "--outdir", str(tmp_path)])
+    assert rc == 130 and capsys.readouterr().err.count("\n") == 1
+    _assert_untouched(rep)
+
+
+def test_report_figure_disk_full_leaves_previous_figure(tmp_path, monkeypatch):
+    # figures go through atomic_write_bytes too: a full disk keeps the old PNG
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import ldaspark.stability as S
+    png = tmp_path / "stability_x.png"
+    png.write_bytes(OLD)
+    fig = plt.figure()
+    monkeypatch.setattr(lio.os, "replace", _enospc)
+    with pytest.raises(LdasparkError, match="No space left"):
+        S._save(fig, str(png))
+    _assert_untouched(png)
