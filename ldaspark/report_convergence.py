@@ -206,8 +206,9 @@ def _observations(records):
         psi1 = [r["scene"] for r in irk if r["method"] == "gauss-irk-1" and r["variable"] == "psi"
                 and r["observed_order"] is not None and abs(r["observed_order"] - 1) <= TOLERANCE]
         L.append("  Reading: an order above the claim means the order reduction did not show (the claim is a"
-                 " statement about general problems). For s = 1, order 2 in q and v agrees with Hairer-Wanner's"
-                 " index-2 theory for Gauss methods with s odd (y-error O(h^(s+1))); order 1 is seen only in Psi,"
+                 " statement about general problems). Order 2 in v for s = 2 and order 2 in q and v for s = 1 agree"
+                 " with the index-2 convergence results for Gauss methods (Hairer-Wanner, vol. II, VII.4: y-error"
+                 " O(h^s) for even s, O(h^(s+1)) for odd s); for s = 1 order 1 is seen only in Psi,"
                  f" on {', '.join(psi1) or 'no scene'}. On the robot, q3 stays 0, so K(q) is constant along the solution, the stage"
                  " constraints imply k(t1, q1, v1) = 0 and nothing is lost. The constraint defect"
                  " k(t1, q1, v1) != 0 is tested in `verification/test_order_reduction_7_3_7_4.py`.")
