@@ -156,3 +156,20 @@ def test_theorem1_exhaustive(name, scn, scene):
     for point in ("base", "perturbed"):
         r = _t1(scene(scn), tab, point=point)
         assert r["theorem1-q0"] <= TOL_THEOREM1 and r["theorem1-q1"] <= TOL_THEOREM1, (point, r)
+
+
+@pytest.mark.parametrize("name", ["gauss-2", "lobatto-iiia-iiib-2"])
+def test_float64_and_mpmath_agree(name, exact_method, scene):
+    """discrete_lagrangian in float64 (no guess: secant v0) matches the 40-digit solve."""
+    sc = scene("skate")
+    tab = exact_method(name)
+    out = {}
+    for dps in (None, 40):
+        t0, q0, v0 = sc.initial(dps)
+        t1, q1, _ = base_point(sc.system, tab, t0, q0, v0, "0.1" if dps else 0.1, dps)
+        out[dps] = discrete_lagrangian(sc.system, tab, t0, q0, t1, q1, dps=dps)
+    a, b = out[None], out[40]
+    assert a.wellposed == b.wellposed
+    assert abs(a.L_d - float(b.L_d)) < 1e-14
+    for k in ("f_d_minus", "f_d_plus", "p0", "p1"):
+        assert np.max(np.abs(getattr(a, k) - np.array([float(x) for x in getattr(b, k)]))) < 1e-11
