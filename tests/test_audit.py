@@ -201,3 +201,17 @@ def test_symmetry_fd_parts_judged_only_for_nonsingular_bvp(monkeypatch):
                         lambda *a, **k: dict(sym, wellposed="singular", **{"symmetry-Phi": 1e-3}))
     checks, _ = au.theorem1_checks(get_method("gauss-1"), True, True, 30, True, ("skate",))
     assert next(c for c in checks if c.name == "symmetry:skate").status == au.FAIL
+
+
+def test_a_tilde_lowers_the_order_and_the_prediction_sees_it():
+    """Gauss-2 with a lower-triangular A_tilde satisfies (22) (A_tilde is not in it) but the
+    three-coloured trees predict order 2, not the pair's 4; the skate and particle agree."""
+    tab = au.safe_load_tableau(EX / "gauss2-lowtri-atilde.json")
+    ar, e = au.oc.arith_for(tab)
+    assert au.check_22b(ar, e).status == au.PASS
+    checks, facts = au.order_checks(ar, e)
+    assert facts["order:pair"] == 4 and au.predicted_order(tab, facts) == 2
+    ok, f2 = au.convergence_checks(tab, 2, 30, quick=True)
+    assert all(c.status == au.PASS for c in ok)
+    wrong, _ = au.convergence_checks(tab, 4, 30, quick=True)
+    assert [c.status for c in wrong if c.name.startswith("convergence")] == [au.FAIL, au.FAIL]
