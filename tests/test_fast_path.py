@@ -185,3 +185,12 @@ def test_bad_inputs(particle):
         fast_integrate(particle, "gauss-2", h=float("nan"), n_steps=10)
     with pytest.raises(InputError):
         fast_integrate(particle, "gauss-2", h=0.1, n_steps=10, predictor=3)
+
+
+def test_cpu_at_equal_accuracy_interpolation():
+    """Work-precision ratios read the cheapest run reaching an error (log-log interpolation)."""
+    from ldaspark.work_precision import cpu_at
+    rows = [{"error": e, "cpu": c} for e, c in [(1e-2, 1.0), (1e-4, 2.0), (1e-6, 4.0), (1e-8, 8.0), (1e-5, 9.0)]]
+    assert cpu_at(rows, 1e-4) == pytest.approx(2.0)
+    assert cpu_at(rows, 1e-5) == pytest.approx(2 * 2 ** 0.5)       # the dominated 9 s run is ignored
+    assert cpu_at(rows, 1e-9) is None and cpu_at(rows, 1e-1) is None
