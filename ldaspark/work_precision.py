@@ -162,8 +162,8 @@ def cpu_at(rows, target, key="error"):
     # C(e) = cheapest run with error <= e (non-increasing in e), interpolated log-log
     errs = np.array([p[0] for p in pts])
     cpus = np.array([p[1] for p in pts])
-    mono = np.minimum.accumulate(cpus)
-    return float(10 ** np.interp(np.log10(target), np.log10(errs), np.log10(mono)))
+    keep = cpus <= np.minimum.accumulate(cpus)                   # drop runs a more accurate one beats
+    return float(10 ** np.interp(np.log10(target), np.log10(errs[keep]), np.log10(cpus[keep])))
 
 
 def ratios(study, targets=TARGETS, key="error"):
