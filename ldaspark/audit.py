@@ -75,11 +75,26 @@ class AuditResult:
     def as_dict(self) -> dict:
         return {"tableau": self.tableau, "s": self.s, "exact": self.exact, "dps": self.dps,
                 "quick": self.quick, "exit_code": self.exit_code, "verdict": self.verdict,
-                "facts": self.facts, "seconds": round(self.seconds, 2),
+                "facts": _jsonable(self.facts), "seconds": round(self.seconds, 2),
                 "checks": [c.as_dict() for c in self.checks]}
 
 
 # --- helpers -------------------------------------------------------------------------------
+def _jsonable(x):
+    """Plain JSON: non-finite floats become strings ("nan", "inf"), unknown types str()."""
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, bool) or x is None or isinstance(x, (int, str)):
+        return x
+    try:
+        f = float(x)
+    except (TypeError, ValueError):
+        return str(x)
+    return f if math.isfinite(f) else str(f)
+
+
 def _worst(ar, items):
     """items: (value, label). Returns (max |value| as float, its label, all exactly/tol zero)."""
     worst, label, ok = 0.0, None, True
@@ -323,7 +338,7 @@ def _step_counts(p: int, quick: bool):
     return Ns[:2] if quick and p >= 3 else Ns
 
 
-def convergence_checks(tab, predicted, dps, quick):
+def convergence_checks(tab, predicted, dps, quick, capped=False):
     """Observed order on the skate (exact solution) and the particle (reference solution)."""
     checks, facts = [], {}
     # float64 suffices while the finest error stays far above round-off (order <= 4 at the
@@ -335,7 +350,12 @@ def convergence_checks(tab, predicted, dps, quick):
     kmax = 0.0
     for scene_name, t_end in (("skate", 1), ("particle", 1)):
         Ns = _step_counts(predicted, quick)
-        res = observed_order(tab, scene_name, Ns, t_end, wdps, floor)
+        try:
+            res = observed_order(tab, scene_name, Ns, t_end, wdps, floor)
+        except LdasparkError as exc:   # e.g. Newton fails at the larger steps
+            checks.append(Check(f"convergence:{scene_name}", FAIL, None,
+                                f"integration failed: {str(exc).splitlines()[0]}"))
+            continue
         kmax = max(kmax, res["max_constraint"])
         facts[f"convergence:{scene_name}"] = res
         obs = res["observed"]
@@ -344,6 +364,8 @@ def convergence_checks(tab, predicted, dps, quick):
             status, what = FAIL, "no usable slope (errors at the floor or zero)"
         elif obs < predicted - ORDER_SLACK:
             status, what = FAIL, f"observed {obs:.2f} below the predicted {predicted}"
+        elif capped and obs > predicted + 1 - ORDER_SLACK:
+            status, what = PASS, f"observed {obs:.2f}, consistent with the prediction >= {predicted} (tree cap)"
         elif obs > predicted + 1 - ORDER_SLACK:
             status, what = PASS, f"observed {obs:.2f} above the predicted {predicted} (superconvergence on this scene)"
         else:
@@ -367,7 +389,11 @@ def energy_check(tab, quick):
     T = 5.0 if quick else 10.0
     out = []
     for N in (50, 100) if quick else (100, 200):
-        sol = _run(tab, sc, N, T, None)
+        try:
+            sol = _run(tab, sc, N, T, None)
+        except LdasparkError as exc:
+            return Check("energy", FAIL, None, f"particle run with h = {T / N:g} failed: "
+                                               f"{str(exc).splitlines()[0]}"), {}
         E = np.asarray(sol.energy, dtype=float)
         out.append((T / N, float(np.max(np.abs(E - E[0])))))
     (h1, e1), (h2, e2) = out
@@ -536,7 +562,7 @@ def audit(tab: SparkTableau, dps: int = 30, quick: bool = False, arith: str = "a
     C.extend(chk)
     res.facts.update(facts)
     say("convergence")
-    chk, facts = convergence_checks(tab, p, dps, quick)
+    chk, facts = convergence_checks(tab, p, dps, quick, bool(res.facts.get("order:forced-ode-capped")))
     C.extend(chk)
     res.facts.update(facts)
     say("energy")
@@ -591,7 +617,7 @@ def verdict(res: AuditResult) -> str:
         if r:
             obs.append(f"{r['observed']:.2f} on the {sc}")
     parts.append(f"The tree conditions give order {f['order:pair']} for the pair (A, A_hat) and {p}{cap} for "
-                 f"(A; A_hat, A_tilde) on the forced ODE (6); observed orders {', '.join(obs)} "
+                 f"(A; A_hat, A_tilde) on the forced ODE (6); observed orders {', '.join(obs) or '(none: runs failed)'} "
                  + ("agree with it." if all(res.get(f'convergence:{sc}').status == PASS for sc in ("skate", "particle"))
                     else "do NOT agree with it.")
                  + " This prediction ignores the index-2 coupling through psi: Jay proved order 2s for Gauss"
@@ -599,9 +625,9 @@ def verdict(res: AuditResult) -> str:
                  " tree prediction is possible and only the measurement decides.")
     if f.get("claimed_order") is not None:
         parts.append(f"(Claimed order of this built-in: {f['claimed_order']}.)")
-    k = res.get("constraint")
-    parts.append(f"The constraint is satisfied to {k.residual:.1e} at the step points; the energy error on a short "
-                 f"particle run is {res.get('energy').residual:.1e}.")
+    k, en = res.get("constraint"), res.get("energy")
+    parts.append(f"The constraint is satisfied to {_fmt(k.residual)} at the step points; the energy error on a "
+                 f"short particle run is {_fmt(en.residual if en else None)}.")
     fails = [c.name for c in res.checks if c.status == FAIL]
     parts.append("Result: all checks agree with the theory." if not fails
                  else f"Result: {len(fails)} check(s) failed: {', '.join(fails)}.")

@@ -215,3 +215,13 @@ def test_a_tilde_lowers_the_order_and_the_prediction_sees_it():
     assert all(c.status == au.PASS for c in ok)
     wrong, _ = au.convergence_checks(tab, 4, 30, quick=True)
     assert [c.status for c in wrong if c.name.startswith("convergence")] == [au.FAIL, au.FAIL]
+
+
+def test_json_output_is_strict_json_even_with_nan_and_mpf():
+    import mpmath
+    res = au.AuditResult("t", 1, True, 30, True)
+    res.checks.append(au.Check("x", au.INFO, float("inf"), "d"))
+    res.facts = {"a": float("nan"), "b": [mpmath.mpf(2), (1, float("-inf"))], "c": {"d": object}}
+    d = res.as_dict()
+    json.dumps(d, allow_nan=False)
+    assert d["facts"]["a"] == "nan" and d["facts"]["b"] == [2.0, [1, "-inf"]] and d["checks"][0]["residual"] is None
