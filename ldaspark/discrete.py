@@ -463,17 +463,33 @@ def _rel_residual(bk, a, b, scale):
     return d / max(scale, 1e-300)
 
 
-def theorem1_residuals(system, tableau, t0, q0, v0, h, dps=40, fd_delta=None, q1_shift=None,
-                       q0_shift=None, x_guess=None):
+def theorem1_residuals(system, tableau, t0, q0, v0, h, dps=40, q1_shift=None, q0_shift=None,
+                       fd_target=1e-26, max_refine=3):
+    """Theorem 1 at the endpoints reached by one IVP step from (t0, q0, v0) (see
+    ``_theorem1_once``). When the finite-difference error estimate exceeds ``fd_target``
+    (an ill-conditioned J: L_d then has large higher derivatives), delta shrinks by 1e-5 and the
+    precision grows by 15 digits, up to ``max_refine`` times; the last attempt is returned."""
+    t_start = time.time()
+    for attempt in range(max_refine + 1):
+        out = _theorem1_once(system, tableau, t0, q0, v0, h, dps, q1_shift, q0_shift,
+                             dps_fd=dps + 20 + 15 * attempt,
+                             delta=mpmath.mpf(10) ** (-(dps // 4) - 5 * attempt))
+        out["fd_refinements"] = attempt
+        if out["fd_error"] <= fd_target:
+            break
+    out["seconds"] = time.time() - t_start
+    return out
+
+
+def _theorem1_once(system, tableau, t0, q0, v0, h, dps, q1_shift, q0_shift, dps_fd, delta):
     """Theorem 1 at the endpoints reached by one IVP step from (t0, q0, v0) (optionally with
     q0, q1 shifted by small vectors): dL_d/dq0 = -p0^T - f_d^-^T, dL_d/dq1 = p1^T - f_d^+^T.
 
-    dL_d/dq is measured by central differences on the BVP solution at ``dps + 20`` digits,
-    Richardson-extrapolated over delta, delta/2, delta/4 (delta = 10^-(dps/4)); the error
+    dL_d/dq is measured by central differences on the BVP solution at ``dps_fd`` (>= dps + 20) digits,
+    Richardson-extrapolated over delta, delta/2, delta/4 (first try delta = 10^-(dps/4)); the error
     estimate is the difference of the two extrapolants. Residuals are relative to
     max(|p0|, |p1|, |dL_d/dq|)."""
     t_start = time.time()
-    dps_fd = dps + 20
     bk_fd = Backend(dps_fd)
     with bk_fd.context():
         t1, q1, xg = base_point(system, tableau, t0, q0, v0, h, dps_fd)
@@ -496,7 +512,6 @@ def theorem1_residuals(system, tableau, t0, q0, v0, h, dps=40, fd_delta=None, q1
         fac = res.extra["fac"]
         dxdq = res.extra["dx_dq"][:bvp.size]
         n = system.n
-        delta = mpmath.mpf(10) ** (-(dps // 4))
         grads = []
         errs = []
         for k in range(2 * n):
