@@ -10,7 +10,8 @@ def main():
     print(f"{'precision':18s} {'s/step':>10s} {'x generic f64':>14s} {'x fast f64':>11s}")
     for r in rows:
         s = r["seconds_per_step"]
-        print(f"{r['precision']:18s} {s:10.3g} {s / base:14.3g} {s / fast:11.3g}")
+        it = r.get("mean_iterations")
+        print(f"{r['precision']:18s} {s:10.3g} {s / base:14.3g} {s / fast:11.3g}  Newton {'-' if it is None else f'{it:.2f}'}/step")
 
 
 if __name__ == "__main__":

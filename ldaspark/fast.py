@@ -20,9 +20,10 @@ compensated summation, GNI VIII.5):
 
 Newton: predictor = linear extrapolation of the previous two steps' unknowns (first step: zero
 increments), simplified Newton with one LU factorisation per step reused by every iteration,
-stopping when |dx|_inf <= tol (|x|_inf + h (1 + |v0|_inf)) (the unknowns are increments of size
-O(h), so this is a relative test on them) or when the increments stagnate at round-off level
-(same rule as ``SparkMethod.step``); tol defaults to 8 unit round-offs. Counters: steps,
+stopping when |dx|_inf, or the estimate theta/(1 - theta) |dx|_inf of the remaining error
+(theta = contraction of the last two increments), is <= tol (|x|_inf + h (1 + |v0|_inf)) (the
+unknowns are increments of size O(h), so this is a relative test on them), or when the increments
+stagnate at round-off level (same rule as ``SparkMethod.step``); tol defaults to 8 unit round-offs. Counters: steps,
 newton_iterations, nfev (stage points evaluated), njev, nlu, max_iterations.
 
 Where a system cannot be compiled (not in mechanical form, or an expression numba cannot
@@ -278,11 +279,18 @@ def store(j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, kK, kb, kout):
 
 @numba.njit(cache=True)
 def converged(dn, prev, xn, floor, tol):
-    """Increment test with the round-off floor of SparkMethod.step."""
+    """Increment test: |dx| <= lim, or the error estimate theta/(1 - theta) |dx| <= lim of the
+    linearly converging simplified Newton (theta = |dx_k| / |dx_k-1|, Hairer-Wanner IV.8), or the
+    round-off floor of SparkMethod.step (increments stopped shrinking at noise level)."""
     lim = tol * (xn + floor)
     if dn <= lim:
         return True
-    return prev >= 0.0 and dn >= 0.5 * prev and dn <= 1e3 * lim
+    if prev <= 0.0:
+        return False
+    theta = dn / prev
+    if theta < 0.5 and theta / (1.0 - theta) * dn <= lim:
+        return True
+    return dn >= 0.5 * prev and dn <= 1e3 * lim
 
 
 @numba.njit(cache=True)

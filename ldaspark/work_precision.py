@@ -205,14 +205,14 @@ def steps_per_second(scenes=("particle", "skate", "robot", "mp-particles"),
             try:
                 fast_integrate(sc, m, h=h, n_steps=nf)
             except NewtonError as exc:      # e.g. euler-i leaves the MP particles' energy surface
-                nf, note = max(exc.step - 10, 10), f"Newton fails at t = {exc.time:.4g} (also generic)"
+                nf, note = max(exc.step - 10, 10), f"diverges: Newton fails at t = {exc.time:.4g}"
             cf, r = _cpu(lambda: fast_integrate(sc, m, h=h, n_steps=nf), 3)
             rows.append({"scene": sname, "method": m, "generic": n_generic / cg, "fast": nf / cf,
                          "ratio": (nf / cf) / (n_generic / cg), "kernel": r.stats["kernel"], "note": note})
     return rows
 
 
-def dps_cost(dps_list=(16, 30, 50, 100), n_steps=8, method="gauss-2", scene_name="particle", h="0.1"):
+def dps_cost(dps_list=(16, 30, 50, 100, 200), n_steps=8, method="gauss-2", scene_name="particle", h="0.1"):
     """Time per step of the mpmath path against dps, with float64 generic and fast for scale."""
     from .fast import fast_integrate
     from .scenes import get_scene
@@ -225,13 +225,17 @@ def dps_cost(dps_list=(16, 30, 50, 100), n_steps=8, method="gauss-2", scene_name
     fast_integrate(sc, method, h=float(h), n_steps=2)
     cf, _ = _cpu(lambda: fast_integrate(sc, method, h=float(h), n_steps=20000), 3)
     rows.append({"precision": "float64 fast", "seconds_per_step": cf / 20000})
-    cg, _ = _cpu(lambda: integrate(sc.system, tab, t0, q0, v0, float(h), n_steps=n_steps * 5))
-    rows.append({"precision": "float64 generic", "seconds_per_step": cg / (n_steps * 5)})
+    cg, sol = _cpu(lambda: integrate(sc.system, tab, t0, q0, v0, float(h), n_steps=n_steps * 5))
+    rows.append({"precision": "float64 generic", "seconds_per_step": cg / (n_steps * 5),
+                 "mean_iterations": sol.stats["mean_iterations"]})
+    t0, q0, v0 = sc.initial(20)
+    integrate(sc.system, tab, t0, q0, v0, h, n_steps=2, dps=20)          # one-time mpmath/lambdify set-up
     for d in dps_list:
         t0, q0, v0 = sc.initial(d)
-        integrate(sc.system, tab, t0, q0, v0, h, n_steps=1, dps=d)        # lambdify/tableau caches
-        c, _ = _cpu(lambda: integrate(sc.system, tab, t0, q0, v0, h, n_steps=n_steps, dps=d))
-        rows.append({"precision": f"mpmath dps={d}", "dps": d, "seconds_per_step": c / n_steps})
+        integrate(sc.system, tab, t0, q0, v0, h, n_steps=1, dps=d)        # per-dps tableau cache
+        c, sol = _cpu(lambda: integrate(sc.system, tab, t0, q0, v0, h, n_steps=n_steps, dps=d), 2)
+        rows.append({"precision": f"mpmath dps={d}", "dps": d, "seconds_per_step": c / n_steps,
+                     "mean_iterations": sol.stats["mean_iterations"]})
     return rows
 
 
@@ -384,10 +388,12 @@ def write_report(outdir, studies, sps, dps_rows, le, seconds):
         L.append(f"| {r['scene']} | {r['method']} | {r['kernel']} | {r['generic']:.3g} | {r['fast']:.3g} | "
                  f"{r['ratio']:.0f} | {r['note']} |")
     L += ["", "## Cost of precision (particle, gauss-2, h = 0.1)", "", "![dps](figures/wp_dps.png)", "",
-          "| precision | CPU seconds per step | relative to float64 generic |", "|---|---|---|"]
+          "| precision | CPU seconds per step | relative to float64 generic | Newton iterations per step |",
+          "|---|---|---|---|"]
     base = [r for r in dps_rows if r["precision"] == "float64 generic"][0]["seconds_per_step"]
     for r in dps_rows:
-        L.append(f"| {r['precision']} | {r['seconds_per_step']:.3g} | {r['seconds_per_step'] / base:.3g} |")
+        L.append(f"| {r['precision']} | {r['seconds_per_step']:.3g} | {r['seconds_per_step'] / base:.3g} | "
+                 f"{_fmt(r.get('mean_iterations'), '{:.2f}')} |")
     L += ["", f"Report generated in {seconds:.0f} s.", ""]
     path = os.path.join(outdir, "work_precision.md")
     atomic_write_text(path, "\n".join(L))
