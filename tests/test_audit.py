@@ -225,3 +225,16 @@ def test_json_output_is_strict_json_even_with_nan_and_mpf():
     d = res.as_dict()
     json.dumps(d, allow_nan=False)
     assert d["facts"]["a"] == "nan" and d["facts"]["b"] == [2.0, [1, "-inf"]] and d["checks"][0]["residual"] is None
+
+
+def test_new_tableau_radau_iia_with_symplectic_conjugate():
+    """A tableau that is not built in: Radau IIA (order 5) with A_hat = A_tilde from (22b).
+    (22) holds exactly, (23a) does not (c3 = 1 has no mirror), the forced-ODE order is 5."""
+    tab = au.safe_load_tableau(EX / "radau-iia-3-conjugate.json")
+    ar, e = au.oc.arith_for(tab)
+    assert ar.exact
+    assert au.check_22a(ar, e).status == au.PASS and au.check_22b(ar, e).status == au.PASS
+    assert au.check_23(ar, e)[0].status == au.INFO
+    _, facts = au.order_checks(ar, e)
+    assert facts["order:pair"] == 5 and au.predicted_order(tab, facts) == 5
+    assert facts["R_inf:A"] == "0" and facts["R_inf:A_hat"] == "inf"
