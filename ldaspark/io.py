@@ -18,6 +18,7 @@ def atomic_write_bytes(path, data: bytes) -> None:
     except OSError as exc:
         raise LdasparkError(f"cannot write {path}: {exc.strerror or exc}") from None
     try:
+        os.chmod(tmp, _default_mode(path))  # mkstemp makes 0600; give the mode open() would
         with os.fdopen(fd, "wb") as f:
             f.write(data)
             f.flush()
@@ -31,6 +32,16 @@ def atomic_write_bytes(path, data: bytes) -> None:
         if isinstance(exc, OSError):
             raise LdasparkError(f"cannot write {path}: {exc.strerror or exc}") from None
         raise
+
+
+def _default_mode(path) -> int:
+    """Mode of the existing file, else 0666 minus the umask (what a plain open() creates)."""
+    try:
+        return os.stat(path).st_mode & 0o7777
+    except OSError:
+        mask = os.umask(0)
+        os.umask(mask)
+        return 0o666 & ~mask
 
 
 def atomic_write_text(path, text: str) -> None:

@@ -193,3 +193,19 @@ def test_report_figure_disk_full_leaves_previous_figure(tmp_path, monkeypatch):
     with pytest.raises(LdasparkError, match="No space left"):
         S._save(fig, str(png))
     _assert_untouched(png)
+
+
+def test_new_file_gets_the_mode_open_would_give(tmp_path):
+    # Bug fixed: mkstemp creates 0600, so every report/JSON became unreadable for group/others
+    old = os.umask(0o022)
+    try:
+        p = tmp_path / "new.json"
+        lio.atomic_write_json(p, {"a": 1})
+        assert (p.stat().st_mode & 0o777) == 0o644
+        q = tmp_path / "keep.txt"
+        q.write_text("x")
+        os.chmod(q, 0o640)
+        lio.atomic_write_text(q, "y")            # an existing file keeps its mode
+        assert (q.stat().st_mode & 0o777) == 0o640
+    finally:
+        os.umask(old)

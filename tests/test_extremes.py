@@ -25,7 +25,7 @@ def test_float64_round_off_floor_and_mpmath_removes_it():
 
 
 def test_float64_floor_h_is_named_and_detector_has_teeth():
-    hs = ["1e-5", "1e-4", "1e-3", "1e-2", "1e-1"]
+    hs = ["1e-5", "1e-4", "1e-3", "1e-2"]
     r = S.step_size_sweep(("gauss-2",), hs, precisions=(None, 50))[0]
     fh = S.float64_floor_h(r["h"], r["err"]["float64"], r["err"]["50"])
     assert 1e-4 <= fh <= 1e-3
@@ -84,7 +84,7 @@ def test_order_s10_at_50_digits(name, p):
 
 # --- 3. long runs -------------------------------------------------------------------------------------
 def test_long_run_constraint_at_roundoff_energy_bounded():
-    lr = S.long_run("gauss-2", "particle", 0.05, 20000, 100)
+    lr = S.long_run("gauss-2", "particle", 0.05, 10000, 100)
     assert lr["max_k"]["kahan"] < 1e-15 and lr["max_k"]["plain"] < 1e-15
     w = lr["dE_window"]["kahan"]              # windows 1e3, 1e4
     assert w[-1] < 1.2e-7 and w[-1] < 1.6 * w[0]
