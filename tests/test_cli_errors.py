@@ -169,3 +169,28 @@ def test_subprocess_real_process_exit_code_and_stderr(tmp_path):
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert r.returncode == 2
     assert r.stderr.count("\n") == 1 and r.stderr.startswith("ldaspark: error:") and "Traceback" not in r.stderr
+
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+
+@settings(max_examples=8)
+@given(st.one_of(st.text(max_size=8), st.sampled_from(["-0", "1e400", "-inf", "0x10", "1_0", " 0.5", "5e-324"])))
+def test_any_step_string_is_rc0_or_one_line_rc2(h):
+    # property: whatever the user types for --h, no traceback: success or one line + exit 2
+    import tempfile
+    from contextlib import redirect_stderr
+    from io import StringIO
+    with tempfile.TemporaryDirectory() as d:
+        err = StringIO()
+        with redirect_stderr(err):
+            try:
+                rc = main(["integrate", "skate", "gauss-1", "--h", h, "--t-end", "1", "--out", os.path.join(d, "o.json")])
+            except SystemExit as exc:
+                rc = exc.code
+        e = err.getvalue()
+        assert rc in (0, 2), (h, rc, e)
+        if rc == 2:
+            assert e.count("\n") == 1 and e.startswith("ldaspark: error:") and "Traceback" not in e
+        else:
+            assert os.path.exists(os.path.join(d, "o.json"))

@@ -161,3 +161,12 @@ def test_report_section_is_registered():
     from ldaspark.cli import build_parser
     args = build_parser().parse_args(["report", "stability", "--full", "--outdir", "x"])
     assert args.full and args.outdir == "x" and args.section_run is S.run
+
+
+def test_newton_stagnation_near_limit_of_4_is_a_named_error():
+    # delta = 1e-9: at step 199 the Newton matrix is so ill-conditioned that the increments stagnate
+    # above the tolerance although the residual is ~1e-17 -> NewtonError naming all four facts
+    rows = S.soft_scene((1e-9,), n_steps=210)
+    assert rows[0]["outcome"] == "NewtonError"
+    msg = rows[0]["message"]
+    assert "step 199" in msg and "t = 1.99" in msg and "residual" in msg and "50 iterations" in msg
