@@ -119,6 +119,19 @@ def _fmt(x) -> str:
     return f"{x:.2e}"
 
 
+def _coefficient_strings(tab: SparkTableau) -> dict:
+    """The entries as printed in the report: exact expressions, else 17 significant digits."""
+    if tab.exact is not None and tab.source_digits is None:
+        from .tableau import _matrix_to_json
+        return {k: _matrix_to_json(M, k, str) for k, M in tab.exact.items()}
+    ent = tab.mp_entries(30)
+    fmt = lambda v: [fmt(x) for x in v] if isinstance(v, list) else mpmath.nstr(v, 17)
+    out = {k: fmt(v) for k, v in ent.items()}
+    for k in ("c", "b", "b_hat", "b_tilde"):
+        out[k] = [x[0] if isinstance(x, list) else x for x in out[k]]
+    return out
+
+
 # --- algebraic checks ------------------------------------------------------------------------
 def check_shapes(tab: SparkTableau) -> Check:
     s = tab.s
@@ -136,8 +149,11 @@ def check_row_sums(ar, e, name) -> Check:
         w, lab, ok = _worst(ar, items)
     if ok:
         return Check(f"row-sums:{name}", PASS, w, f"sum_j {name}_ij = c_i for every i, {_mode(ar)}")
+    why = ("A sets the stage points Q_i: a mismatch lowers the stage order" if name == "A" else
+           f"every stage is evaluated at T_i = t0 + c_i h, so the row sums of {name} only matter through "
+           "the t-dependence of L and k (none in the paper's scenes)")
     return Check(f"row-sums:{name}", INFO, w,
-                 f"sum_j {name}_ij != c_i, worst at {lab} (|diff| = {w:.3g}); not a hypothesis of Theorem 1")
+                 f"sum_j {name}_ij != c_i, worst at {lab} (|diff| = {w:.3g}); not a hypothesis of Theorem 1: {why}")
 
 
 def check_omega(tab: SparkTableau, ar, e, dps) -> Check:
@@ -535,6 +551,7 @@ def audit(tab: SparkTableau, dps: int = 30, quick: bool = False, arith: str = "a
     res.facts["arithmetic"] = (f"exact in {ar.K}" if ar.exact
                                else f"mpmath dps {dps}, tolerance {ar.tol:.1e}")
     res.facts["claimed_order"] = tab.claimed_order
+    res.facts["coefficients"] = _coefficient_strings(tab)
     C = res.checks
     say("coefficients")
     C.append(check_shapes(tab))
@@ -646,6 +663,10 @@ def to_markdown(res: AuditResult, command: str | None = None) -> str:
           "| check | status | residual | detail |", "|---|---|---|---|"]
     for c in res.checks:
         L.append(f"| {c.name} | {c.status} | {_fmt(c.residual)} | {c.detail.replace('|', chr(92) + '|')} |")
+    if res.facts.get("coefficients"):
+        L += ["", "## Coefficients", "", "```"]
+        L += [f"{k} = {v}" for k, v in res.facts["coefficients"].items()]
+        L += ["```"]
     L.append("")
     return "\n".join(L)
 
