@@ -572,6 +572,9 @@ def audit(tab: SparkTableau, dps: int = 30, quick: bool = False, arith: str = "a
     res.facts.update(facts)
     p = predicted_order(tab, res.facts)
     res.facts["predicted_order"] = p
+    C.append(Check("consistent", PASS if p >= 1 else FAIL, None,
+                   f"the conditions predict order {p}" + (" >= 1: the method converges" if p >= 1 else
+                                                          ": sum b != 1 or similar, the method cannot converge")))
     say("probe step")
     probe_step(tab)
     say("Theorem 1")
@@ -640,6 +643,9 @@ def verdict(res: AuditResult) -> str:
                  + " This prediction ignores the index-2 coupling through psi: Jay proved order 2s for Gauss"
                  " and 2s-2 for Lobatto SPARK methods [26, 27]; for other tableaux, order reduction below the"
                  " tree prediction is possible and only the measurement decides.")
+    if p == 0:
+        parts.append("Order 0 means the method is not even consistent (e.g. sum b_i != 1): it does not "
+                     "converge, whatever Theorem 1 says about its geometry; the audit counts that as a failure.")
     if f.get("claimed_order") is not None:
         parts.append(f"(Claimed order of this built-in: {f['claimed_order']}.)")
     k, en = res.get("constraint"), res.get("energy")

@@ -238,3 +238,13 @@ def test_new_tableau_radau_iia_with_symplectic_conjugate():
     _, facts = au.order_checks(ar, e)
     assert facts["order:pair"] == 5 and au.predicted_order(tab, facts) == 5
     assert facts["R_inf:A"] == "0" and facts["R_inf:A_hat"] == "inf"
+
+
+def test_inconsistent_tableau_fails_although_22_and_theorem1_hold():
+    """(22) can hold for a method that does not converge (b = 2): the consistency check fails."""
+    tab = au.safe_load_tableau(EX / "inconsistent-b2.json")
+    ar, e = au.oc.arith_for(tab)
+    assert au.check_22b(ar, e).status == au.PASS
+    res = au.audit(tab, quick=True, theorem_scenes=("skate",))
+    assert res.get("consistent").status == au.FAIL and res.exit_code == 1
+    assert res.get("theorem1:skate").status == au.PASS      # the geometry is still there
