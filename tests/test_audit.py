@@ -248,3 +248,15 @@ def test_inconsistent_tableau_fails_although_22_and_theorem1_hold():
     res = au.audit(tab, quick=True, theorem_scenes=("skate",))
     assert res.get("consistent").status == au.FAIL and res.exit_code == 1
     assert res.get("theorem1:skate").status == au.PASS      # the geometry is still there
+
+
+def test_symmetry_summary_fails_when_nothing_is_decided(monkeypatch):
+    from ldaspark import discrete
+    monkeypatch.setattr(discrete, "theorem1_residuals", lambda *a, **k: _fake_t1())
+
+    def boom(*a, **k):
+        raise discrete.DiscreteSolveError("reverse BVP failed")
+    monkeypatch.setattr(discrete, "check_symmetry", boom)
+    checks, _ = au.theorem1_checks(get_method("gauss-1"), True, True, 30, True, ("skate", "particle"))
+    by = {c.name: c.status for c in checks}
+    assert by["symmetry:skate"] == au.SKIP and by["symmetry"] == au.FAIL
