@@ -172,6 +172,18 @@ def test_newton_iteration_cap_error_names_step_time_residual_iterations(skate, g
     assert "step 7" in msg and "t = 0.7" in msg and "after 1 iterations" in msg and f"{e.residual:.3e}" in msg
 
 
+@pytest.mark.parametrize("kw", [dict(newton="simplified"), dict(dps=20)])
+def test_newton_divergence_simplified_and_mp(kw):
+    # the same failure through simplified Newton (diverges to ~1e32) and in mpmath: named, finite
+    sc = get_scene("robot")
+    t0, q0, v0 = sc.initial(kw.get("dps"))
+    with pytest.raises(NewtonError) as ei:
+        integrate(sc.system, get_method("gauss-2"), t0, q0, v0, "4" if "dps" in kw else 4.0, n_steps=2, **kw)
+    e = ei.value
+    assert (e.step, e.time, e.iterations) == (0, 0.0, 50) and e.residual > 1
+    assert "step 0" in str(e) and "after 50 iterations" in str(e)
+
+
 def test_newton_divergence_robot_large_step():
     # measured: gauss-2 on the robot converges up to h = 2 and fails at h = 4 (report stability)
     sc = get_scene("robot")

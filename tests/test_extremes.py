@@ -170,3 +170,18 @@ def test_newton_stagnation_near_limit_of_4_is_a_named_error():
     assert rows[0]["outcome"] == "NewtonError"
     msg = rows[0]["message"]
     assert "step 199" in msg and "t = 1.99" in msg and "residual" in msg and "50 iterations" in msg
+
+
+@pytest.mark.exhaustive
+def test_report_is_reproducible(tmp_path):
+    # two runs of the default report give the same text, except wall-clock columns
+    import re
+    texts = []
+    for d in ("a", "b"):
+        S.build_report(full=False, outdir=str(tmp_path / d))
+        t = (tmp_path / d / S.REPORT).read_text()
+        t = re.sub(r"\| [0-9.]+ / [0-9.]+ \|\n", "|\n", t)          # seconds (Kahan / plain)
+        t = re.sub(r"Run time of this report: \d+ s", "", t)
+        texts.append(t)
+        assert (tmp_path / d / "figures" / "stability_step_size.png").stat().st_size > 10000
+    assert texts[0] == texts[1]
