@@ -796,5 +796,5 @@ def run(args) -> int:
         print(md)
     if args.json:
         from .io import atomic_write_json
-        atomic_write_json(args.json, res.as_dict())
+        atomic_write_json(args.json, dict(res.as_dict(), command=cmd))
     return res.exit_code
