@@ -787,7 +787,8 @@ def run(args) -> int:
     progress = (lambda msg: print(f"[audit] {msg}", file=sys.stderr, flush=True))
     res = audit(tab, dps=args.dps, quick=args.quick, arith=args.arith, progress=progress)
     cmd = "ldaspark audit " + (f"--method {args.method}" if args.method else str(args.file)) \
-        + f" --dps {args.dps}" + (" --quick" if args.quick else "")
+        + f" --dps {args.dps}" + (" --quick" if args.quick else "") \
+        + (f" --arith {args.arith}" if args.arith != "auto" else "")
     md = to_markdown(res, cmd)
     if args.out:
         from .io import atomic_write_text

@@ -167,15 +167,23 @@ def _fake_t1(**over):
     return r
 
 
+def _raising(msg):
+    def boom(*a, **k):
+        from ldaspark.discrete import DiscreteSolveError
+        raise DiscreteSolveError(msg)
+    return boom
+
+
+def _statuses(hyp23):
+    checks, _ = au.theorem1_checks(get_method("gauss-1"), True, hyp23, 30, True, ("skate", "particle"))
+    return {c.name: c.status for c in checks}
+
+
 def test_undecided_theorem1_scenes_cannot_pass_silently(monkeypatch):
     """Negative control of the skip rule: when every BVP solve fails, the summary check fails."""
     from ldaspark import discrete
-
-    def boom(*a, **k):
-        raise discrete.DiscreteSolveError("BVP Newton did not converge")
-    monkeypatch.setattr(discrete, "theorem1_residuals", boom)
-    checks, _ = au.theorem1_checks(get_method("gauss-1"), True, False, 30, True, ("skate", "particle"))
-    by = {c.name: c.status for c in checks}
+    monkeypatch.setattr(discrete, "theorem1_residuals", _raising("BVP Newton did not converge"))
+    by = _statuses(hyp23=False)
     assert by["theorem1:skate"] == au.SKIP and by["theorem1"] == au.FAIL
 
 
@@ -253,10 +261,6 @@ def test_inconsistent_tableau_fails_although_22_and_theorem1_hold():
 def test_symmetry_summary_fails_when_nothing_is_decided(monkeypatch):
     from ldaspark import discrete
     monkeypatch.setattr(discrete, "theorem1_residuals", lambda *a, **k: _fake_t1())
-
-    def boom(*a, **k):
-        raise discrete.DiscreteSolveError("reverse BVP failed")
-    monkeypatch.setattr(discrete, "check_symmetry", boom)
-    checks, _ = au.theorem1_checks(get_method("gauss-1"), True, True, 30, True, ("skate", "particle"))
-    by = {c.name: c.status for c in checks}
+    monkeypatch.setattr(discrete, "check_symmetry", _raising("reverse BVP failed"))
+    by = _statuses(hyp23=True)
     assert by["symmetry:skate"] == au.SKIP and by["symmetry"] == au.FAIL
