@@ -9,12 +9,21 @@ import sympy
 
 from ldaspark.ensemble import ensemble_integrate
 from ldaspark.errors import InputError
-from ldaspark.fast import fast_integrate
+from ldaspark.fast import fast_integrate, precompile
 from ldaspark.fig4 import FIG4_METHODS, figure4_data, fit_growth
 from ldaspark.scenes import mp_particles
 from ldaspark.system import LagrangianSystem
 
 N_STEPS = 2000
+
+
+@pytest.fixture(scope="module", autouse=True)
+def compiled():
+    """Compile in parallel processes first; the same list as test_fast_path.WARM, so whichever
+    file runs first compiles for all three (test_kahan uses linear-3)."""
+    return precompile([("particle", "gauss-2", "spark"), ("rolling-disk", "mp-lobatto-iiib-a-2", "auto"),
+                       ("mp-particles", "mp-lobatto-iiib-a-2", "auto"),
+                       ("linear-3", "lobatto-iiia-iiib-2", "auto")])
 
 
 @pytest.fixture(scope="module")

@@ -7,7 +7,7 @@ import sympy
 
 from ldaspark.comparators import integrate_comparator
 from ldaspark.errors import InputError
-from ldaspark.fast import compile_system, fast_integrate, mechanical_parts, NotCompilableError
+from ldaspark.fast import compile_system, fast_integrate, mechanical_parts, NotCompilableError, precompile
 from ldaspark.scenes import get_scene, mp_particles
 from ldaspark.spark import integrate
 from ldaspark.system import LagrangianSystem
@@ -15,6 +15,16 @@ from ldaspark.tableau import get_method
 
 AGREE = 1e-12
 N = 1000
+
+# every compiled (system, kernel) of the default run of this file, test_ensemble and test_kahan
+WARM = [("particle", "gauss-2", "spark"), ("rolling-disk", "mp-lobatto-iiib-a-2", "auto"),
+        ("mp-particles", "mp-lobatto-iiib-a-2", "auto"), ("linear-3", "lobatto-iiia-iiib-2", "auto")]
+
+
+@pytest.fixture(scope="module", autouse=True)
+def compiled():
+    """Compile the kernels in parallel processes first (numba cache=True); later loads are fast."""
+    return precompile(WARM)
 
 
 def max_diff(fast, sol):
