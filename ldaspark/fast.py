@@ -422,7 +422,7 @@ def spark_eval(jac, x, t0, q0, v0, h, c, A, Ah, At, bw, bh, bt, om, M, s, n, m,
             J[rf0 + mm, sn + sm + b] = K1[mm, b]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def spark_run(c, A, Ah, At, bw, bh, bt, om, M, t0, q0, v0, h, n_steps, every, compensated, tol,
               max_iter, predictor, out_t, out_q, out_v, out_E, out_k, out_x, stats):
     """n_steps of the SPARK method (21) from (t0, q0, v0); samples every ``every`` steps and
@@ -537,7 +537,7 @@ def spark_run(c, A, Ah, At, bw, bh, bt, om, M, t0, q0, v0, h, n_steps, every, co
         out_x[r] = x_last[r]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def lf2_run(variant, M, Minv, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, predictor,
             out_t, out_q, out_v, out_E, out_k, stats):
     """Semi-implicit 2-stage methods with Newton on the m multipliers only (Lambda = h Psi).
