@@ -941,6 +941,24 @@ def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, co
     return FastSolution(out_t, out_q, out_v, out_E, out_k, st)
 
 
+def _setup_checks(system, t0, q0, v0):
+    """The generic path's set-up checks, in float64: finite data of the right shape, (4)
+    nonsingular with K of full rank, consistent v0 (the compiled kernels assume all three)."""
+    from .backend import Backend
+    bk = Backend(None)
+    try:
+        q, v = bk.array(q0), bk.array(v0)
+        t = float(t0)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"t0, q0 and v0 must be numbers: {exc}") from None
+    if q.shape != (system.n,) or v.shape != (system.n,):
+        raise InputError(f"initial data have shapes q: {q.shape}, v: {v.shape}; the system has n = {system.n}")
+    if not (np.isfinite(t) and bk.isfinite(q) and bk.isfinite(v)):
+        raise InputError("initial data contain NaN or infinity")
+    system.check_saddle(bk, t, q, v)
+    system.check_consistent(bk, t, q, v)
+
+
 def _notice(msg):
     print(f"ldaspark.fast: {msg}; falling back to the generic path", file=sys.stderr, flush=True)
 
@@ -984,6 +1002,7 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
     if h is None or n_steps is None:
         raise InputError("give h and n_steps")
     kernel_spec(method, kernel)
+    _setup_checks(system, t0, q0, v0)
     try:
         cs = compile_system(system)
         cs.module  # noqa: B018  (import / compile now so that failures fall back)

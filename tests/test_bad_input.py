@@ -329,8 +329,7 @@ def test_all_errors_are_ldaspark_errors():
 
 
 # --- the compiled fast path (ldaspark.fast, not owned here): known gaps, strict xfail ------------
-# When the fast path gains the set-up checks these XPASS and fail (strict): then drop the marker.
-@pytest.mark.xfail(strict=True, reason="fast_integrate skips check_consistent: inconsistent v0 runs silently")
+# The remaining strict xfail XPASSes (and fails) once the kernels report residual and iterations.
 def test_fast_path_rejects_inconsistent_v0():
     from ldaspark.fast import fast_integrate
     with pytest.raises(InconsistentInitialDataError):
@@ -338,7 +337,6 @@ def test_fast_path_rejects_inconsistent_v0():
 
 
 @pytest.mark.exhaustive   # compiles a new system (~15 s)
-@pytest.mark.xfail(strict=True, reason="fast_integrate skips check_saddle: rank-deficient K is a NewtonError")
 def test_fast_path_rank_deficient_K_is_setup_error():
     from ldaspark.fast import fast_integrate
     with pytest.raises(SingularSaddleError):
