@@ -22,7 +22,6 @@ fails, 2 (LdasparkError) for unusable input.
 from __future__ import annotations
 
 import math
-import re
 import sys
 import time
 from dataclasses import dataclass, field
@@ -32,7 +31,7 @@ import numpy as np
 
 from . import order_conditions as oc
 from .errors import InputError, LdasparkError, TableauError
-from .tableau import SparkTableau, from_json_dict, get_method, load_tableau
+from .tableau import SparkTableau, get_method, load_tableau
 
 PASS, FAIL, INFO, SKIP = "pass", "fail", "info", "skip"
 PAPER_SCENES = ("particle", "skate", "robot", "mp-particles")
@@ -702,70 +701,10 @@ def add_arguments(parser) -> None:
                              "built-ins are exact up to s = 3)")
 
 
-_TOKEN = re.compile(r"\s*(?:(?P<num>(?:\d+\.?\d*|\.\d+)(?:[eE](?P<exp>[+-]?\d+))?)|(?P<name>[A-Za-z_]\w*)"
-                    r"|(?P<op>\*\*|[-+*/(),]))")
-_NAMES = {"sqrt", "Rational", "pi"}
-_MAX_LEN = 200
-
-
-def _check_entry_string(x: str, where: str) -> None:
-    """Reject strings that are not plain arithmetic before sympy sees them: the core parser
-    (sympy.parse_expr) evaluates Python, so a tableau file could run code or ask for
-    10**10**10. Allowed: numbers, + - * / ( ), '**' with a literal exponent <= 64 (not
-    chained), and sqrt, Rational, pi."""
-    if len(x) > _MAX_LEN:
-        raise TableauError(f"{where}: expression longer than {_MAX_LEN} characters")
-    pos, toks = 0, []
-    x2 = x.rstrip()
-    while pos < len(x2):
-        m = _TOKEN.match(x2, pos)
-        if not m or m.end() == pos:
-            raise TableauError(f"{where}: {x!r} is not a number (unexpected {x2[pos:pos + 10]!r})")
-        if m.group("name") and m.group("name") not in _NAMES:
-            raise TableauError(f"{where}: {x!r} is not a number (unknown name {m.group('name')!r}; "
-                               f"allowed: {', '.join(sorted(_NAMES))})")
-        if m.group("exp") and abs(int(m.group("exp"))) > 300:
-            raise TableauError(f"{where}: {x!r}: decimal exponent out of range")
-        toks.append(m)
-        pos = m.end()
-    for k, m in enumerate(toks):
-        if m.group("op") == "**":
-            rest = toks[k + 1:k + 4]
-            n_lead = next((i for i, t in enumerate(rest) if t.group("num")), None)
-            lit = None if n_lead is None else rest[n_lead]
-            if lit is None or any(t.group("op") not in ("(", "-", "+") for t in rest[:n_lead]):
-                raise TableauError(f"{where}: {x!r}: '**' needs a literal exponent")
-            if float(lit.group("num")) > 64:
-                raise TableauError(f"{where}: {x!r}: exponent {lit.group('num')} too large")
-            if any(t.group("op") == "**" for t in toks[k + 1:k + 4]):
-                raise TableauError(f"{where}: {x!r}: chained '**' not allowed")
-
-
-def _check_strings(d) -> None:
-    if not isinstance(d, dict):
-        return
-    for key, val in d.items():
-        if key == "name":
-            continue
-        stack = [(val, key)]
-        while stack:
-            v, where = stack.pop()
-            if isinstance(v, list):
-                stack.extend((u, f"{where}[{i}]") for i, u in enumerate(v))
-            elif isinstance(v, str):
-                _check_entry_string(v, where)
-
-
 def safe_load_tableau(path) -> SparkTableau:
-    """``load_tableau`` after rejecting non-arithmetic string entries (see _check_entry_string)."""
-    import json
-    try:
-        with open(path) as f:
-            d = json.load(f)
-    except (OSError, ValueError):
-        return load_tableau(path)   # raises the core's one-line TableauError
-    _check_strings(d)
-    return from_json_dict(d)
+    """The core loader: string entries go through ``tableau.parse_exact_string``, an AST
+    whitelist (numbers, + - * / **, sqrt, Rational, pi) that never evaluates Python."""
+    return load_tableau(path)
 
 
 def load_for_args(args) -> SparkTableau:

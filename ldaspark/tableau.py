@@ -495,6 +495,80 @@ def builtin_method_names(max_s: int = 4) -> list[str]:
 
 
 # --- JSON input ---------------------------------------------------------------------------
+_MAX_ENTRY_LEN = 200
+_MAX_EXPONENT = 64
+_FUNCTIONS = {"sqrt": sympy.sqrt, "Rational": sympy.Rational, "cos": sympy.cos, "sin": sympy.sin}
+_CONSTANTS = {"pi": sympy.pi}
+
+
+def parse_exact_string(x: str, where: str = "entry"):
+    """An exact tableau entry such as "1/4 - sqrt(3)/6" as a sympy number.
+
+    Parsed with Python's ``ast`` and built node by node (never evaluated as Python): numbers
+    (decimals read as exact decimals), + - * /, ** with a literal integer exponent of at most 64,
+    sqrt, Rational, sin, cos and pi. Anything else is a TableauError naming the entry."""
+    import ast
+    if len(x) > _MAX_ENTRY_LEN:
+        raise TableauError(f"{where}: expression longer than {_MAX_ENTRY_LEN} characters")
+    try:
+        tree = ast.parse(x.strip(), mode="eval")
+    except SyntaxError:
+        raise TableauError(f"{where}: cannot parse {x!r}") from None
+    src = x.strip()
+
+    def bad(why):
+        return TableauError(f"{where}: {x!r} is not a number ({why})")
+
+    def build(node):
+        if isinstance(node, ast.Constant):
+            if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
+                raise bad(f"literal {node.value!r}")
+            text = ast.get_source_segment(src, node) or repr(node.value)
+            if isinstance(node.value, int):
+                return sympy.Integer(node.value)
+            if not math.isfinite(node.value):
+                raise bad("not finite")
+            return sympy.Rational(text.replace("_", ""))
+        if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.UAdd, ast.USub)):
+            v = build(node.operand)
+            return -v if isinstance(node.op, ast.USub) else v
+        if isinstance(node, ast.BinOp):
+            if isinstance(node.op, ast.Pow):
+                ex = node.right
+                neg = isinstance(ex, ast.UnaryOp) and isinstance(ex.op, ast.USub)
+                lit = ex.operand if neg else ex
+                if not (isinstance(lit, ast.Constant) and type(lit.value) is int and lit.value <= _MAX_EXPONENT):
+                    raise bad(f"'**' needs a literal integer exponent <= {_MAX_EXPONENT}")
+                return build(node.left) ** (-lit.value if neg else lit.value)
+            ops = {ast.Add: lambda a, b: a + b, ast.Sub: lambda a, b: a - b,
+                   ast.Mult: lambda a, b: a * b, ast.Div: lambda a, b: a / b}
+            f = ops.get(type(node.op))
+            if f is None:
+                raise bad(f"operator {type(node.op).__name__}")
+            a, b = build(node.left), build(node.right)
+            if f is ops[ast.Div] and b == 0:
+                raise bad("division by zero")
+            return f(a, b)
+        if isinstance(node, ast.Name) and node.id in _CONSTANTS:
+            return _CONSTANTS[node.id]
+        if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in _FUNCTIONS
+                and not node.keywords and 1 <= len(node.args) <= 2):
+            args = [build(a) for a in node.args]
+            if node.func.id == "Rational":
+                if not all(a.is_Integer for a in args) or (len(args) == 2 and args[1] == 0):
+                    raise bad("Rational needs integer arguments and a nonzero denominator")
+            elif len(args) != 1:
+                raise bad(f"{node.func.id} takes one argument")
+            return _FUNCTIONS[node.func.id](*args)
+        name = getattr(node, "id", None) or getattr(getattr(node, "func", None), "id", None)
+        raise bad(f"unknown name {name!r}" if name else f"unsupported syntax {type(node).__name__}")
+
+    e = build(tree.body)
+    if not getattr(e, "is_number", False):
+        raise bad("not a number")
+    return e
+
+
 def _parse_entry(x, where):
     """An entry: int (exact), string (exact expression, decimals read as exact decimals) or
     float (approximate, 53 bits). Returns (sympy number, is_exact)."""
@@ -507,14 +581,7 @@ def _parse_entry(x, where):
             raise TableauError(f"{where}: entry {x!r} is not finite")
         return sympy.Float(x, 17), False
     if isinstance(x, str):
-        try:
-            e = sympy.parsing.sympy_parser.parse_expr(
-                x, evaluate=True, transformations=sympy.parsing.sympy_parser.standard_transformations)
-        except Exception as exc:  # sympy raises many kinds here
-            raise TableauError(f"{where}: cannot parse {x!r} ({type(exc).__name__})") from None
-        if not getattr(e, "is_number", False) or e.free_symbols:
-            raise TableauError(f"{where}: {x!r} is not a number")
-        e = sympy.nsimplify(e, rational=True) if e.has(sympy.Float) else e
+        e = parse_exact_string(x, where)
         val = complex(sympy.N(e, 30))
         if not (math.isfinite(val.real) and abs(val.imag) <= 1e-25 * (1 + abs(val.real))):
             raise TableauError(f"{where}: {x!r} is not a finite real number")

@@ -169,3 +169,20 @@ def test_unknown_method_name():
         get_method("gauss-x")
     with pytest.raises(TableauError):
         get_method("lobatto-iiia-iiib-1")
+
+
+@pytest.mark.parametrize("text", ["(lambda: 1)()", "__import__('os').getcwd()", "10**10**10", "x", "1e999",
+                                  "[1]", "1/0", "Rational(1, 0)", "a" * 300])
+def test_string_entries_are_never_evaluated_as_python(text):
+    d = {"c": ["1/2"], "A": [["1/2"]], "A_hat": [["1/2"]], "A_tilde": [["1/2"]], "b": [text], "b_hat": [1],
+         "b_tilde": [1]}
+    with pytest.raises(TableauError, match=r"b\[0\]"):
+        from_json_dict(d)
+
+
+@pytest.mark.parametrize("text, value", [("1/4 - sqrt(3)/6", sympy.Rational(1, 4) - sqrt(3) / 6), ("0.1", R(1, 10)),
+                                         ("-2.5e-1", R(-1, 4)), ("Rational(1, 3)", R(1, 3)), ("2**-3", R(1, 8)),
+                                         ("pi/4", sympy.pi / 4)])
+def test_exact_string_entries(text, value):
+    from ldaspark.tableau import parse_exact_string
+    assert sympy.simplify(parse_exact_string(text) - value) == 0
