@@ -35,11 +35,12 @@ def fit_growth(t, mu, window):
 
 
 def figure4_data(t_end=50000.0, h=0.05, J=9, every=100, executor=None, methods=FIG4_METHODS,
-                 window=None, compensated=True) -> dict:
+                 window=None, compensated=True, constraint="printed") -> dict:
     """Fig. 4 data. Returns {"t": sample times, "methods": names, "mu_over_h4": {name: list},
     "E0": energy of the initial data, "E0_spread": max |E_j0 - E0|, "fit": {name: {"exponent",
     "window"}}, "seconds": wall time, "n_steps", "h", "J", "every", "newton": {name: mean
-    iterations}}. ``window`` defaults to [t_end / 100, t_end]."""
+    iterations}}. ``window`` defaults to [t_end / 100, t_end]. ``constraint`` picks the scene
+    variant of ``scenes.mp_particles``: "printed" (as in 8.4; integrable) or "nonholonomic"."""
     from .scenes import mp_particles
     t0_wall = time.perf_counter()
     n_steps = int(round(t_end / h))
@@ -47,7 +48,7 @@ def figure4_data(t_end=50000.0, h=0.05, J=9, every=100, executor=None, methods=F
         raise InputError(f"t_end = {t_end} must be a positive multiple of h = {h}")
     if n_steps % every:
         raise InputError(f"n_steps = {n_steps} must be a multiple of every = {every}")
-    scenes = [mp_particles(m=3, J=J, j=j) for j in range(J + 1)]
+    scenes = [mp_particles(m=3, J=J, j=j, constraint=constraint) for j in range(J + 1)]
     system = scenes[0].system          # the system does not depend on j, only the data do
     ics = [sc.initial() for sc in scenes]
     t0 = ics[0][0]
@@ -60,7 +61,7 @@ def figure4_data(t_end=50000.0, h=0.05, J=9, every=100, executor=None, methods=F
     E0 = float(np.mean(E_init))
     out = {"t": results[0].t.tolist(), "methods": list(methods), "mu_over_h4": {}, "fit": {},
            "E0": E0, "E0_spread": float(np.max(np.abs(E_init - E0))), "n_steps": n_steps, "h": h,
-           "J": J, "every": every, "newton": {}}
+           "J": J, "every": every, "newton": {}, "constraint": constraint, "scene": system.name}
     for name, res in zip(methods, results):
         mu = np.mean((res.energy - E0) ** 2, axis=0) / h ** 4
         out["mu_over_h4"][name] = mu.tolist()

@@ -126,16 +126,18 @@ def fig4_available() -> bool:
     return importlib.util.find_spec("ldaspark.fig4") is not None
 
 
-def figure4(t_end=50000.0, h=0.05, J=9, every=100):
+def figure4(t_end=50000.0, h=0.05, J=9, every=100, constraint="printed"):
     """Call ``ldaspark.fig4.figure4_data`` and add checks: E0 = 3.06 and an independent LS fit
     of log(mu/h^4) against log t over t >= t_end/100 (the paper: mu/h^4 ~ O(t))."""
     if not fig4_available():
         raise InputError("Fig. 4 needs ldaspark.fig4 (the compiled fast path), which is not installed")
     fig4 = importlib.import_module("ldaspark.fig4")
     tic = time.time()
-    print(f"    Fig. 4: figure4_data(t_end={t_end}, h={h}, J={J}, every={every}) ...", flush=True)
-    d = fig4.figure4_data(t_end=t_end, h=h, J=J, every=every)
-    out = {"figure": 4, "scene": "mp-particles", "h": h, "t_end": t_end, "J": J, "every": every,
+    print(f"    Fig. 4: figure4_data(t_end={t_end}, h={h}, J={J}, every={every}, constraint={constraint!r}) ...",
+          flush=True)
+    d = fig4.figure4_data(t_end=t_end, h=h, J=J, every=every, constraint=constraint)
+    out = {"figure": 4, "scene": d.get("scene", "mp-particles"), "constraint": constraint,
+           "h": h, "t_end": t_end, "J": J, "every": every,
            "seconds": time.time() - tic, "t": [float(x) for x in d["t"]], "E0": float(d["E0"]),
            "E0_matches_paper": bool(abs(float(d["E0"]) - E0_PAPER) < 1e-12),
            "methods": list(d["methods"]), "mu_over_h4": {}, "fit": {}, "own_fit": {}}
@@ -172,7 +174,8 @@ def plot_fig4(data, path):
     for ax, title in ((a1, "log-log"), (a2, "linear")):
         ax.set_xlabel("t")
         ax.set_ylabel("mu((E - E0)^2) / h^4")
-        ax.set_title(f"Fig. 4 ({title}), h = {data['h']}, J+1 = {data['J'] + 1} initial conditions")
+        ax.set_title(f"Fig. 4 ({title}), {data.get('constraint', 'printed')} constraint, h = {data['h']}, "
+                     f"J+1 = {data['J'] + 1}", fontsize=9)
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
     fig.tight_layout()
@@ -198,36 +201,51 @@ def markdown(figs, fig4=None, fig4_note=None):
                      f"{r['last_over_first_quarter']:.3f} | {r['trend_over_interval']:.2e} | "
                      f"{r['max_abs_constraint']:.1e} | {'yes' if r['bounded'] else 'NO'} |")
         L.append("")
-    L += ["## Fig. 4: McLachlan-Perlmutter particles (8.4)", ""]
-    if fig4 is not None:
-        L += [f"h = {fig4['h']}, t in [0, {fig4['t_end']:g}], J+1 = {fig4['J'] + 1} initial conditions, samples every"
-              f" {fig4['every']} steps; data from `ldaspark.fig4.figure4_data` in {fig4['seconds']:.1f} s.", "",
-              f"E0 = {fig4['E0']:.15g} (paper: 3.06; {'matches' if fig4['E0_matches_paper'] else 'DOES NOT MATCH'}).", "",
-              "![Fig. 4](figures/energy_fig4.png)", "",
-              "| method | fitted exponent (fig4) | own LS exponent, t >= t_end/100 | final mu/h^4 |", "|---|---|---|---|"]
-        for m in fig4["methods"]:
-            ex = fig4["fit"][m].get("exponent")
-            own = fig4["own_fit"][m]
-            L.append(f"| {m} | {ex if not isinstance(ex, float) else f'{ex:.3f}'} | "
-                     f"{'-' if own is None else f'{own:.3f}'} | {fig4['mu_over_h4'][m][-1]:.3e} |")
-        exps = {m: fig4["fit"][m].get("exponent") for m in fig4["methods"]}
-        ok = [m for m, e in exps.items() if isinstance(e, float) and abs(e - 1) <= 0.3]
-        t4 = np.asarray(fig4["t"], float)
-        late = [float(np.mean(np.asarray(fig4["mu_over_h4"][m], float)[t4 >= t4[-1] / 2])) for m in fig4["methods"]]
-        L += ["", "The paper reports mu((E - E0)^2)/h^4 ~ O(t) (a random walk), i.e. growth exponent 1, and that"
-              " the three methods behave very similarly.", "",
-              f"**Observed:** growth exponent within 0.3 of 1 for {len(ok)} of {len(exps)} methods"
-              f" ({', '.join(f'{m}: {e:.3f}' for m, e in exps.items() if isinstance(e, float))}); "
-              + ("the random-walk growth is reproduced." if len(ok) == len(exps) else
-                 "the O(t) growth is NOT reproduced: the mean squared energy error stays bounded over"
-                 " [0, 50000] (an exponent near 0 means no growth).")
-              + f" The means of mu/h^4 over the second half of the interval are within a factor"
-              f" {max(late) / min(late):.2f} of each other"
-              f" ({', '.join(f'{m}: {x:.3e}' for m, x in zip(fig4['methods'], late))}), in line with the paper's"
-              " 'the 3 methods behave very similarly'."]
-    else:
+    L += ["## Fig. 4: McLachlan-Perlmutter particles (8.4)", "",
+          "The constraint printed in 8.4, v1 + sum_{i=m+2}^{n} q_i v_i = 0, is integrable: it is"
+          " d/dt (q1 + sum_{i>=m+2} q_i^2 / 2) = 0, so the printed scene is a *holonomically* constrained"
+          " Hamiltonian system. We therefore run Fig. 4 twice: on the printed scene (`mp-particles`) and"
+          " on the nonholonomic variant v1 + sum_{i=m+2}^{n} q_{i-m} v_i = 0 (`mp-particles-nh`; the"
+          " generalization of the nonholonomic particle v3 - q2 v1 = 0 of 8.1, which we take the printed"
+          " q_i to be a typo for). Same methods, h, interval and initial data (E0 = 3.06 for both).", ""]
+    f4s = fig4 if isinstance(fig4, list) else ([fig4] if fig4 is not None else [])
+    for f in f4s:
+        L += _fig4_markdown(f)
+    if not f4s:
         L.append(fig4_note or "Fig. 4 was not generated.")
     return "\n".join(L) + "\n"
+
+
+def fig4_png_name(d):
+    return "energy_fig4.png" if d.get("constraint", "printed") == "printed" else "energy_fig4_nh.png"
+
+
+def _fig4_markdown(fig4):
+    L = [f"### Fig. 4, {fig4.get('constraint', 'printed')} constraint (scene `{fig4.get('scene', 'mp-particles')}`)", "",
+         f"h = {fig4['h']}, t in [0, {fig4['t_end']:g}], J+1 = {fig4['J'] + 1} initial conditions, samples every"
+         f" {fig4['every']} steps; data from `ldaspark.fig4.figure4_data` in {fig4['seconds']:.1f} s.", "",
+         f"E0 = {fig4['E0']:.15g} (paper: 3.06; {'matches' if fig4['E0_matches_paper'] else 'DOES NOT MATCH'}).", "",
+         f"![Fig. 4](figures/{fig4_png_name(fig4)})", "",
+         "| method | fitted exponent (fig4) | own LS exponent, t >= t_end/100 | final mu/h^4 |", "|---|---|---|---|"]
+    for m in fig4["methods"]:
+        ex = fig4["fit"][m].get("exponent")
+        own = fig4["own_fit"][m]
+        L.append(f"| {m} | {ex if not isinstance(ex, float) else f'{ex:.3f}'} | "
+                 f"{'-' if own is None else f'{own:.3f}'} | {fig4['mu_over_h4'][m][-1]:.3e} |")
+    exps = {m: fig4["fit"][m].get("exponent") for m in fig4["methods"]}
+    ok = [m for m, e in exps.items() if isinstance(e, float) and abs(e - 1) <= 0.3]
+    t4 = np.asarray(fig4["t"], float)
+    late = [float(np.mean(np.asarray(fig4["mu_over_h4"][m], float)[t4 >= t4[-1] / 2])) for m in fig4["methods"]]
+    L += ["", "The paper reports mu((E - E0)^2)/h^4 ~ O(t) (a random walk), i.e. growth exponent 1, and that"
+          " the three methods behave very similarly.", "",
+          f"**Observed:** growth exponent within 0.3 of 1 for {len(ok)} of {len(exps)} methods"
+          f" ({', '.join(f'{m}: {e:.3f}' for m, e in exps.items() if isinstance(e, float))}); "
+          + ("the random-walk growth is reproduced." if len(ok) == len(exps) else
+             "the O(t) growth is NOT reproduced (an exponent near 0 means no growth, near 1 a random walk).")
+          + f" The means of mu/h^4 over the second half of the interval are within a factor"
+          f" {max(late) / min(late):.2f} of each other"
+          f" ({', '.join(f'{m}: {x:.3e}' for m, x in zip(fig4['methods'], late))}).", ""]
+    return L
 
 
 def _strip(d, max_points=2000):
@@ -264,6 +282,8 @@ def add_arguments(p):
     p.add_argument("--t-end", type=float, default=None, help="shorter interval (default: the paper's)")
     p.add_argument("--json", default=None, help="write the figure data (JSON) to FILE")
     p.add_argument("--outdir", default=None, help="also write the PNG(s) here (default: reports/ when no --json)")
+    p.add_argument("--mp-constraint", choices=("printed", "nonholonomic"), default="printed",
+                   help="Fig. 4 scene: the constraint as printed in 8.4 (integrable) or its nonholonomic variant")
 
 
 def run(args) -> int:
@@ -275,11 +295,11 @@ def run(args) -> int:
         run_default(args.outdir or REPORT_DIR, t_end=args.t_end)
         return 0
     if args.figure == 4:
-        d = figure4(t_end=args.t_end if args.t_end is not None else 50000.0)
+        d = figure4(t_end=args.t_end if args.t_end is not None else 50000.0, constraint=args.mp_constraint)
         if args.json:
             atomic_write_json(args.json, d)
         if args.outdir or not args.json:
-            plot_fig4(d, os.path.join(args.outdir or REPORT_DIR, "figures", "energy_fig4.png"))
+            plot_fig4(d, os.path.join(args.outdir or REPORT_DIR, "figures", fig4_png_name(d)))
         print(f"Fig. 4: E0 = {d['E0']:.15g}; exponents: " + ", ".join(
             f"{m} {d['fit'][m].get('exponent')}" for m in d["methods"]))
         return 0
@@ -302,18 +322,23 @@ def run_default(outdir=REPORT_DIR, t_end=None, with_fig4=True):
         d = figure_data(n, t_end)
         plot_energy(d, os.path.join(outdir, "figures", f"energy_fig{n}.png"))
         figs.append(d)
-    f4, note = None, None
+    f4, note = [], None
     if with_fig4 and fig4_available():
-        try:
-            print("[energy] Fig. 4 ...", flush=True)
-            f4 = figure4()
-            plot_fig4(f4, os.path.join(outdir, "figures", "energy_fig4.png"))
-        except Exception as exc:  # the fast path is another module: report, do not hide
-            note = f"Fig. 4 failed: {type(exc).__name__}: {exc}"
-            print(note, file=sys.stderr, flush=True)
+        for cons in ("printed", "nonholonomic"):
+            try:
+                print(f"[energy] Fig. 4 ({cons} constraint) ...", flush=True)
+                d4 = figure4(constraint=cons)
+                plot_fig4(d4, os.path.join(outdir, "figures", fig4_png_name(d4)))
+                f4.append(d4)
+            except Exception as exc:  # the fast path is another module: report, do not hide
+                note = f"Fig. 4 ({cons}) failed: {type(exc).__name__}: {exc}"
+                print(note, file=sys.stderr, flush=True)
     elif with_fig4:
         note = "Fig. 4 pending: `ldaspark.fig4` (the compiled fast path) is not installed yet."
     atomic_write_text(os.path.join(outdir, "energy.md"), markdown(figs, f4, note))
     atomic_write_json(os.path.join(outdir, "energy.json"),
-                      {"figures": [_strip(d, 1000) for d in figs], "figure4": _strip4(f4), "figure4_note": note})
+                      {"figures": [_strip(d, 1000) for d in figs],
+                       "figure4": _strip4(f4[0]) if f4 else None,
+                       "figure4_nonholonomic": _strip4(f4[1]) if len(f4) > 1 else None,
+                       "figure4_note": note})
     print(f"wrote {os.path.join(outdir, 'energy.md')}, energy.json, figures/energy_fig*.png", flush=True)

@@ -115,12 +115,23 @@ def robot(m=1, I=1, I_w=1, ell=1) -> Scene:
                  params={"m": m, "I": I, "I_w": I_w, "ell": ell})
 
 
-def mp_particles(m: int = 3, J: int = 9, j: int = 0) -> Scene:
+MP_CONSTRAINTS = ("printed", "nonholonomic")
+
+
+def mp_particles(m: int = 3, J: int = 9, j: int = 0, constraint: str = "printed") -> Scene:
     """8.4 McLachlan-Perlmutter particles, n = 2m+1: T = |v|^2/2,
-    U = (|q|^2 + q_{m+2}^2 q_{m+3}^2 + sum_i q_{1+i}^2 q_{m+1+i}^2)/2, k = v1 + sum_{i>=m+2} q_i v_i.
-    Initial condition j of J+1 (requires m = 3 for the paper's data)."""
+    U = (|q|^2 + q_{m+2}^2 q_{m+3}^2 + sum_i q_{1+i}^2 q_{m+1+i}^2)/2. Initial condition j of J+1.
+
+    ``constraint="printed"``: k = v1 + sum_{i=m+2}^{n} q_i v_i as printed in section 8.4. This
+    constraint is integrable, k = d/dt (q1 + sum_{i>=m+2} q_i^2 / 2): the scene is holonomic.
+    ``constraint="nonholonomic"``: k = v1 + sum_{i=m+2}^{n} q_{i-m} v_i, a non-integrable
+    constraint generalizing the nonholonomic particle of 8.1 (v3 - q2 v1 = 0), which is what a
+    chaotic *nonholonomic* test problem needs; we take the printed q_i to be a typo for q_{i-m}
+    and measure both (scene names ``mp-particles`` and ``mp-particles-nh``)."""
     if m < 2:
         raise InputError("mp-particles needs m >= 2")
+    if constraint not in MP_CONSTRAINTS:
+        raise InputError(f"constraint must be one of {MP_CONSTRAINTS}, got {constraint!r}")
     if not (0 <= j <= J):
         raise InputError(f"initial condition index j = {j} must be in 0..{J}")
     n = 2 * m + 1
@@ -129,9 +140,10 @@ def mp_particles(m: int = 3, J: int = 9, j: int = 0) -> Scene:
     U = (sum(x ** 2 for x in q) + q[m + 1] ** 2 * q[m + 2] ** 2
          + sum(q[i] ** 2 * q[m + i] ** 2 for i in range(1, m + 1))) / 2
     L = sum(x ** 2 for x in v) / 2 - U
-    k = [v[0] + sum(q[i - 1] * v[i - 1] for i in range(m + 2, n + 1))]
-    sysm = LagrangianSystem(L, k, q, v, name="mp-particles",
-                            mechanical=None)
+    shift = 0 if constraint == "printed" else m
+    k = [v[0] + sum(q[i - 1 - shift] * v[i - 1] for i in range(m + 2, n + 1))]
+    name = "mp-particles" if constraint == "printed" else "mp-particles-nh"
+    sysm = LagrangianSystem(L, k, q, v, name=name, mechanical=None)
     sysm.mechanical = {"M": sympy.eye(n), "U": U,
                        "K": sympy.Matrix([k]).jacobian(v), "b": sympy.zeros(1, 1)}
     alpha = sympy.cos(j * sympy.pi / (2 * J))
@@ -141,9 +153,10 @@ def mp_particles(m: int = 3, J: int = 9, j: int = 0) -> Scene:
     else:  # same pattern for other m: decreasing middle block, ones at the end
         q0 = [alpha] + [R(2 * (m - i), 10) for i in range(m)] + [1] * m
     v0 = [0, beta] + [0] * (n - 2)
-    return Scene("mp-particles", sysm, sympy.Integer(0), q0, v0,
-                 f"McLachlan-Perlmutter particles (8.4), m = {m}, initial condition j = {j} of J+1 = {J + 1}",
-                 params={"m": m, "J": J, "j": j})
+    return Scene(name, sysm, sympy.Integer(0), q0, v0,
+                 f"McLachlan-Perlmutter particles (8.4), m = {m}, {constraint} constraint, "
+                 f"initial condition j = {j} of J+1 = {J + 1}",
+                 params={"m": m, "J": J, "j": j, "constraint": constraint})
 
 
 def pendulum() -> Scene:
@@ -174,6 +187,7 @@ SCENES: dict[str, Callable[..., Scene]] = {
     "skate": skate,
     "robot": robot,
     "mp-particles": mp_particles,
+    "mp-particles-nh": lambda **kw: mp_particles(constraint="nonholonomic", **kw),
     "pendulum": pendulum,
     "rolling-disk": rolling_disk,
 }
@@ -185,8 +199,8 @@ def get_scene(name: str, ic: int | None = None) -> Scene:
     """Scene by name; ``ic`` selects the initial condition j of mp-particles."""
     if name not in SCENES:
         raise InputError(f"unknown scene {name!r}; choose from {', '.join(SCENES)}")
-    if name == "mp-particles":
-        return mp_particles(j=ic or 0)
+    if name in ("mp-particles", "mp-particles-nh"):
+        return SCENES[name](j=ic or 0)
     if ic not in (None, 0):
         raise InputError(f"--ic applies only to mp-particles, not {name}")
     return SCENES[name]()
