@@ -464,19 +464,27 @@ def _rel_residual(bk, a, b, scale):
 
 
 def theorem1_residuals(system, tableau, t0, q0, v0, h, dps=40, q1_shift=None, q0_shift=None,
-                       fd_target=1e-26, max_refine=3):
+                       fd_target=1e-26, max_refine=4):
     """Theorem 1 at the endpoints reached by one IVP step from (t0, q0, v0) (see
     ``_theorem1_once``). When the finite-difference error estimate exceeds ``fd_target``
     (an ill-conditioned J: L_d then has large higher derivatives), delta shrinks by 1e-5 and the
     precision grows by 15 digits, up to ``max_refine`` times; the last attempt is returned."""
     t_start = time.time()
+    err = None
+    out = None
     for attempt in range(max_refine + 1):
-        out = _theorem1_once(system, tableau, t0, q0, v0, h, dps, q1_shift, q0_shift,
-                             dps_fd=dps + 20 + 15 * attempt,
-                             delta=mpmath.mpf(10) ** (-(dps // 4) - 5 * attempt))
+        try:
+            out = _theorem1_once(system, tableau, t0, q0, v0, h, dps, q1_shift, q0_shift,
+                                 dps_fd=dps + 20 + 15 * attempt,
+                                 delta=mpmath.mpf(10) ** (-(dps // 4) - 5 * attempt))
+        except DiscreteSolveError as exc:   # delta too large for a nearly singular J: refine
+            err = exc
+            continue
         out["fd_refinements"] = attempt
         if out["fd_error"] <= fd_target:
             break
+    if out is None:
+        raise err
     out["seconds"] = time.time() - t_start
     return out
 
@@ -640,6 +648,7 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
     out = {"sigma": {}, "deficiency": {}}
     floors = {}
     nz = {}
+    sig_rel = {}
     support = None
     for d in dps:
         for f in h_factors:
@@ -654,32 +663,45 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
                 sig, r, U, Vh = _rank_info(bk, J, d)
                 smax = float(sig[0])
                 rel = [float(x) / smax for x in sig]
+                sig_rel[(d, f)] = rel
                 key = f"dps={d},h={float(hf):.4g}"
                 out["sigma"][key] = rel[-min(len(rel), 3):]
                 out["deficiency"][key] = r
                 floors.setdefault(d, []).append(rel[-1] if r else None)
                 nz[(d, f)] = (float(hf), rel[len(rel) - 1 - r])
-                if support is None or r:
-                    support = _null_support(bvp, Vh, r)
-    defs = set(out["deficiency"].values())
-    r = max(defs)
-    # genuine small sigma: stable across dps, power of h
+                if d == dps[-1] and f == h_factors[0]:
+                    keep = (bvp, J, Vh, bk)
+    # structural zeros follow the precision: index-wise (from the bottom), sigma at the higher dps
+    # is more than 8 orders below sigma at the lower dps; genuine small sigma agree to many digits
+    struct = {}
+    for f in h_factors:
+        lo, hi = sig_rel[(dps[0], f)][::-1], sig_rel[(dps[1], f)][::-1]   # ascending
+        k = 0
+        while k < len(lo) and hi[k] < 1e-8 * lo[k]:
+            k += 1
+        struct[f] = k
+    out["structural"] = {str(f): k for f, k in struct.items()}
+    r = max(struct.values())
+    for f in h_factors:   # the smallest genuine sigma per h
+        nz[(dps[0], f)] = (nz[(dps[0], f)][0], sig_rel[(dps[0], f)][len(sig_rel[(dps[0], f)]) - 1 - r])
+        nz[(dps[1], f)] = (nz[(dps[1], f)][0], sig_rel[(dps[1], f)][len(sig_rel[(dps[1], f)]) - 1 - r])
     (h1, s1), (h2, s2) = nz[(dps[0], h_factors[0])], nz[(dps[0], h_factors[1])]
     p = math.log(s1 / s2) / math.log(h1 / h2) if s1 > 0 and s2 > 0 else float("nan")
     stable = abs(nz[(dps[0], h_factors[0])][1] / nz[(dps[1], h_factors[0])][1] - 1) < 1e-10
-    tracks = True
-    if r:
-        f0 = [x for x in floors[dps[0]] if x is not None]
-        f1 = [x for x in floors[dps[1]] if x is not None]
-        # a structural zero follows the precision: lower at higher dps
-        tracks = bool(f0 and f1 and max(f1) < min(f0) * 10.0 ** (-(dps[1] - dps[0]) / 2))
-    if len(defs) > 1:
-        cls = SINGULAR      # rank changes with h or dps: not a clean structural property
+    tracks = r > 0
+    bvp, J, Vh, bk = keep
+    if r and r < len(sig_rel[(dps[-1], h_factors[0])]) and sig_rel[(dps[-1], h_factors[0])][-1 - r] < 1e-12:
+        # a genuine sigma below float64 resolution: float64 vectors would mix it into the null space
+        with bk.context():
+            Vh = _svd(bk, J)[2]
+    support = _null_support(bvp, Vh, r)
+    if len(set(struct.values())) > 1:
+        cls = SINGULAR      # structural rank changes with h: not a clean property
     elif r == 0:
         cls = WELLPOSED
     else:
         small = 1e-8
-        cls = GAUGE if support["V"] <= small and support["v1"] <= small and tracks else SINGULAR
+        cls = GAUGE if support["V"] <= small and support["v1"] <= small else SINGULAR
     out.update({"class": cls, "rank_deficiency": r, "sigma_min_nonzero_rel": s1,
                 "sigma_min_power_of_h": p, "sigma_stable_across_dps": stable,
                 "floor_tracks_precision": tracks, "null_support": support})
