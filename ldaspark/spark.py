@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .backend import Backend, SingularMatrixError
-from .errors import InputError, NewtonError
+from .errors import InputError, NewtonError, SingularSaddleError
 from .system import LagrangianSystem
 from .tableau import SparkTableau
 
@@ -258,6 +258,13 @@ class Solution:
 MAX_STEPS = 10 ** 9  # beyond this a run cannot finish; reject instead of hanging (h = 1e-300)
 
 
+def _saddle_sign(system, bk, t, q, v) -> int:
+    """sign(det (4)) in float64 (0 when it is not finite)."""
+    S = system.saddle_matrix(bk, t, q, v)
+    sgn, _ = np.linalg.slogdet(np.asarray(S, dtype=float))
+    return int(sgn) if np.isfinite(sgn) else 0
+
+
 def n_steps_for(t0, t_end, h) -> int:
     if h == 0 or not math.isfinite(float(h)):
         raise InputError(f"step size h must be finite and nonzero, got {h}")
@@ -276,11 +283,15 @@ def n_steps_for(t0, t_end, h) -> int:
 
 def integrate(system: LagrangianSystem, tableau: SparkTableau, t0, q0, v0, h, t_end=None,
               n_steps=None, dps=None, project=False, tol=None, newton="full", progress=None,
-              check_initial=True) -> Solution:
+              check_initial=True, monitor_saddle=True) -> Solution:
     """Integrate (1) with the SPARK method (21) at constant step h from consistent data.
 
     Exactly one of ``t_end`` / ``n_steps``. With ``dps`` the computation runs in mpmath at
     that precision (inputs may be strings or sympy numbers to carry full precision).
+    ``monitor_saddle`` watches the sign of det (4) at every step point: near the limit of (4)
+    the stage equations have a second, nearby solution, and a sign change means the step
+    landed on it (or the solution left the region where (4) holds); it is an error, not a
+    silent jump.
     Raises InconsistentInitialDataError (unless ``project``), SingularSaddleError, NewtonError.
     """
     method = SparkMethod(system, tableau, dps=dps, tol=tol, newton=newton)
@@ -313,6 +324,7 @@ def integrate(system: LagrangianSystem, tableau: SparkTableau, t0, q0, v0, h, t_
         Qs, Vs, Ps = [q], [v], []
         x = None
         v_prev = None
+        sign0 = _saddle_sign(system, bk, t0_, q, v) if monitor_saddle else None
         for i in range(N):
             if x is not None and v_prev is not None:
                 # predictor: previous stage solution shifted by the last velocity increment
@@ -321,6 +333,11 @@ def integrate(system: LagrangianSystem, tableau: SparkTableau, t0, q0, v0, h, t_
             r = method.step(ts[i], q, v, h_, x0=x, step_index=i)
             v_prev = v
             q, v, x = r.q1, r.v1, r.x
+            if sign0 and _saddle_sign(system, bk, r.t1, q, v) != sign0:
+                raise SingularSaddleError(
+                    f"step {i} (t = {float(ts[i]):.6g} -> {float(r.t1):.6g}) crossed the singular set of the "
+                    "saddle matrix (4): det (4) changed sign, so the step solved (21) on the wrong branch or the "
+                    "solution left the region where (4) holds (monitor_saddle=False skips this check)")
             Qs.append(q)
             Vs.append(v)
             Ps.append(r.Psi)

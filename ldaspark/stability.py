@@ -714,19 +714,24 @@ def build_report(full=False, outdir="reports"):
          "(Kahan) against the exact map -- close to linear, not the sqrt(N) of a random walk, which suggests "
          "correlated (not independent) per-step errors; the cause was not isolated. Kahan lowers the error at "
          "small N but not its growth exponent; at 1e6 both are below eps sqrt(N).",
-         f"* Mass ratio: solved to relative error ~1e-15 up to mu = {_e(mu_ok)}; from mu = {_e(mu_bad)} on, "
-         "`check_saddle` rejects the (well-posed) problem at set-up because its test uses the unscaled condition "
-         "number of (4) (a false positive: a scale-invariant test is needed, see docs/stability.md).",
+         (f"* Mass ratio: solved to relative error ~1e-15 up to mu = {_e(mu_ok)}; from mu = {_e(mu_bad)} on, "
+          "`check_saddle` rejects the problem at set-up." if mu_bad is not None else
+          f"* Mass ratio: solved to relative error ~1e-15 up to mu = {_e(mu_ok)} (the largest tried): "
+          "`check_saddle` equilibrates (4) symmetrically before judging its condition, so mass ratios are not "
+          "mistaken for singularity (the unscaled reciprocal condition is listed in section 4)."),
          f"* K near rank loss: works down to eps = {_e(eps_ok)} with error {_e(eps_err)} (~ u / eps^2 relative to "
          "the eps-independent exact solution); below, SingularSaddleError at set-up (rcond(4) ~ eps^2). Before the "
          "fix in this issue, eps = 1e-6 failed in Newton (tolerance relative to the starting guess).",
-         f"* Near the limit of (4) the user is NOT warned: for delta in "
-         f"{', '.join(format(r['delta'], '.0e') for r in silent) or '(none)'} the run returns without error but the "
-         "trajectory jumped across the singular set onto the wrong branch of (21) (det(4) changes sign; energy error "
-         f"between {min((r['dE'] for r in silent), default=0):.1e} and {max((r['dE'] for r in silent), default=0):.1e}: "
-         "the wrong branch has the same energy, so energy monitoring does not reveal it). Only rcond(4) <= 2.2e-13 "
-         "is caught at set-up; in between, a NewtonError can report stagnation at a tiny residual (ill-conditioned "
-         "step). `ldaspark.stability.check_saddle_along(system, sol)` detects the crossing after the run.",
+         (f"* Near the limit of (4) the user is NOT warned: for delta in "
+          f"{', '.join(format(r['delta'], '.0e') for r in silent)} the run returns without error but the "
+          "trajectory jumped across the singular set onto the wrong branch of (21)." if silent else
+          "* Near the limit of (4): `integrate` watches the sign of det (4) at every step (`monitor_saddle`, on by "
+          "default) and raises SingularSaddleError naming the step where the trajectory crosses the singular set "
+          "(the step solved (21) on the wrong branch, which has the same energy, so energy monitoring would not "
+          "reveal it); outcomes per delta: "
+          + ", ".join(f"{r['delta']:.0e}: {r['outcome']}" for r in so)
+          + ". Exact singularity at t0 is a set-up error; `check_saddle_along(system, sol)` checks a finished run "
+          "made with monitor_saddle=False."),
          f"* Time reversal: symmetric methods return to {sym_max:.1e} (float64) and {sym_mp:.1e} (30 digits) "
          f"after 100 + 100 steps; the non-symmetric Euler methods miss by >= {non_min:.1e}.", ""]
     L[4:4] = F

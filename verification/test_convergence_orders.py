@@ -66,6 +66,12 @@ def test_order_particle_against_ode_reference(method, particle_ref):
     _assert_claim(recs, claimed_order_of(method))
 
 
+def test_order_mp_particles_nonholonomic_variant():
+    """The nonholonomic variant of 8.4 (the printed constraint is integrable): order 2s-2 holds."""
+    recs = _orders("lobatto-iiia-iiib-3", "mp-particles-nh", _ref("mp-particles-nh"), [4, 8, 16, 32])
+    _assert_claim(recs, 4)
+
+
 def test_order_6_needs_mpmath_skate(skate_ref):
     """Gauss s = 3 (order 6) at 25 digits: the float64 floor would cut the window short."""
     recs = _orders("gauss-3", "skate", skate_ref, [4, 8, 16, 32], dps=25, newton="simplified")
@@ -113,7 +119,7 @@ EXHAUSTIVE_METHODS = ([f"gauss-{s}" for s in range(1, 6)] + [f"lobatto-iiia-iiib
 
 
 @pytest.mark.exhaustive
-@pytest.mark.parametrize("scene_name", PAPER_SCENES)
+@pytest.mark.parametrize("scene_name", tuple(PAPER_SCENES) + ("mp-particles-nh",))
 @pytest.mark.parametrize("method", EXHAUSTIVE_METHODS)
 def test_order_exhaustive(method, scene_name):
     dps, n_list, newton = _plan(method)
