@@ -54,3 +54,15 @@ def atomic_write_json(path, obj) -> None:
     except ValueError as exc:  # NaN/inf: refuse before touching the file, as a user-facing error
         raise LdasparkError(f"cannot write {path}: {exc}") from None
     atomic_write_text(path, text + "\n")
+
+
+def atomic_save_figure(fig, path, dpi: int = 100) -> None:
+    """Render a matplotlib figure to PNG in memory, close it, and write it atomically."""
+    import io as _io
+    import matplotlib.pyplot as plt
+    buf = _io.BytesIO()
+    try:
+        fig.savefig(buf, format="png", dpi=dpi)
+    finally:
+        plt.close(fig)
+    atomic_write_bytes(path, buf.getvalue())

@@ -8,7 +8,6 @@ reports/figures/convergence_<family>.png. Methods of claimed order >= 6 run in m
 """
 from __future__ import annotations
 
-import json
 import os
 import sys
 import time
@@ -16,7 +15,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 from .convergence import claimed_order_of, verdict, make_reference, measure_errors, order_records
 from .errors import InputError
-from .io import atomic_write_bytes, atomic_write_json, atomic_write_text
+from .io import atomic_save_figure, atomic_write_json, atomic_write_text
 from .scenes import PAPER_SCENES, get_scene
 
 REPORT_DIR = "reports"
@@ -128,11 +127,7 @@ def plot_family(records, family, methods, path):
             ax.legend(fontsize=6)
     fig.suptitle(f"Global error vs step size: {family}")
     fig.tight_layout()
-    import io
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90)
-    plt.close(fig)
-    atomic_write_bytes(path, buf.getvalue())
+    atomic_save_figure(fig, path, dpi=90)
 
 
 def markdown(records, elapsed=None, identities=None):

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
-import io
 import os
 import sys
 import time
@@ -24,7 +23,7 @@ import time
 import numpy as np
 
 from .errors import InputError
-from .io import atomic_write_bytes, atomic_write_json, atomic_write_text
+from .io import atomic_save_figure, atomic_write_json, atomic_write_text
 
 REPORT_DIR = "reports"
 BOUNDED_RATIO = 1.5
@@ -114,11 +113,7 @@ def plot_energy(data, path):
 
 
 def _save(fig, path):
-    import matplotlib.pyplot as plt
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90)
-    plt.close(fig)
-    atomic_write_bytes(path, buf.getvalue())
+    atomic_save_figure(fig, path, dpi=90)
 
 
 # --- Fig. 4 (data from the fast path of ldaspark.fig4) ------------------------------------------

@@ -28,7 +28,7 @@ import sympy
 
 from .backend import Backend
 from .errors import LdasparkError, SingularSaddleError
-from .io import atomic_write_bytes, atomic_write_text
+from .io import atomic_save_figure, atomic_write_text
 from .scenes import get_scene
 from .spark import SparkMethod, integrate
 from .system import LagrangianSystem
@@ -480,12 +480,7 @@ def _fig_long(lr, rg, path):
 
 
 def _save(fig, path):
-    import io as _io
-    import matplotlib.pyplot as plt
-    buf = _io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    atomic_write_bytes(path, buf.getvalue())
+    atomic_save_figure(fig, path, dpi=110)
 
 
 def _outcome_cell(r):
