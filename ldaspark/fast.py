@@ -941,6 +941,34 @@ def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, co
     return FastSolution(out_t, out_q, out_v, out_E, out_k, st)
 
 
+def _diagnose_newton_failure(exc, system, cs, method, t0, q0, v0, h, compensated, tol, max_iter, kernel,
+                             predictor):
+    """The kernels report only the failing step; for SPARK methods, recompute the state there
+    (the same compiled arithmetic, k steps) and let the generic step report residual and
+    iterations. Returns the NewtonError to raise."""
+    from .spark import SparkMethod
+    from .tableau import SparkTableau, get_method
+    k = exc.step
+    try:
+        tab = method if isinstance(method, SparkTableau) else get_method(method)
+    except LdasparkError:
+        return exc                      # a comparator kernel: no generic step to ask
+    if k:
+        pre = run_compiled(cs, method, t0, q0, v0, h, k, k, compensated, tol, max_iter, kernel, predictor)
+        qk, vk = pre.q[-1], pre.v[-1]
+    else:
+        qk, vk = np.asarray(q0, float), np.asarray(v0, float)
+    tk = float(t0) + k * float(h)
+    try:
+        SparkMethod(system, tab, max_iter=max_iter).step(tk, qk, vk, float(h), step_index=k)
+    except NewtonError as gen:
+        return NewtonError(f"{exc} (generic step at the same state: residual {gen.residual:.3e} after "
+                           f"{gen.iterations} iterations)", step=k, time=tk, residual=gen.residual,
+                           iterations=gen.iterations)
+    return NewtonError(f"{exc} (the generic full-Newton step converges at this state: use "
+                       "ldaspark.spark.integrate for this step size)", step=k, time=tk)
+
+
 def _setup_checks(system, t0, q0, v0):
     """The generic path's set-up checks, in float64: finite data of the right shape, (4)
     nonsingular with K of full rank, consistent v0 (the compiled kernels assume all three)."""
@@ -1014,6 +1042,9 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
         return generic_integrate(system, method, t0, q0, v0, h, n_steps, every, tol)
     try:
         return run_compiled(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, kernel, predictor)
+    except NewtonError as exc:
+        raise _diagnose_newton_failure(exc, system, cs, method, t0, q0, v0, h, compensated, tol, max_iter,
+                                       kernel, predictor) from None
     except LdasparkError:
         raise
     except Exception as exc:  # numba compiles lazily at the first call: typing errors land here

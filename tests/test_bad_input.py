@@ -328,8 +328,7 @@ def test_all_errors_are_ldaspark_errors():
         assert issubclass(cls, LdasparkError)
 
 
-# --- the compiled fast path (ldaspark.fast, not owned here): known gaps, strict xfail ------------
-# The remaining strict xfail XPASSes (and fails) once the kernels report residual and iterations.
+# --- the compiled fast path (ldaspark.fast): the same set-up checks and error detail -----------
 def test_fast_path_rejects_inconsistent_v0():
     from ldaspark.fast import fast_integrate
     with pytest.raises(InconsistentInitialDataError):
@@ -344,7 +343,6 @@ def test_fast_path_rank_deficient_K_is_setup_error():
 
 
 @pytest.mark.exhaustive   # compiles the robot (~15 s when the numba cache is cold)
-@pytest.mark.xfail(strict=True, reason="fast-path NewtonError carries no residual / iteration count")
 def test_fast_path_newton_error_names_residual_and_iterations():
     from ldaspark.fast import fast_integrate
     with pytest.raises(NewtonError) as ei:
