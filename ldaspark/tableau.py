@@ -226,8 +226,12 @@ def _exact_roots(poly_expr, x):
     """Real roots of a polynomial, as radicals where sympy finds them, else CRootOf; sorted."""
     P = sympy.Poly(sympy.expand(poly_expr), x)
     rts = sympy.roots(P)
-    if sum(rts.values()) != P.degree():
-        rts = {r: 1 for r in P.all_roots()}
+    if sum(rts.values()) != P.degree() or any(r.has(sympy.I) for r in rts):
+        # casus irreducibilis (Gauss s = 6, Lobatto s = 8, ...): the real nodes have no real
+        # radical form, and the algebraic field of their CRootOf forms is too large to be useful
+        raise TableauError(f"exact nodes need real radicals, which the degree-{P.degree()} node polynomial "
+                           "does not have (exact families go up to Gauss s = 5, Lobatto s = 7); "
+                           "use exact=False: coefficients at any precision")
     return sorted(rts, key=lambda r: float(sympy.N(r, 30)))
 
 

@@ -186,3 +186,9 @@ def test_string_entries_are_never_evaluated_as_python(text):
 def test_exact_string_entries(text, value):
     from ldaspark.tableau import parse_exact_string
     assert sympy.simplify(parse_exact_string(text) - value) == 0
+
+
+def test_exact_beyond_radicals_is_a_clear_error():
+    with pytest.raises(TableauError, match="any precision"):
+        gauss(6, exact=True)
+    assert gauss(6).arrays(30).A.shape == (6, 6)
