@@ -54,7 +54,7 @@ import numpy as np
 import scipy.linalg
 
 from .backend import Backend, SingularMatrixError
-from .errors import LdasparkError, NewtonError
+from .errors import LdasparkError
 from .spark import SparkMethod
 from .system import LagrangianSystem
 from .tableau import SparkTableau

@@ -12,7 +12,6 @@ symmetry <= 1e-25 at 40 digits; constraint <= 1e3 eps (1 + |v|); negative contro
 """
 from __future__ import annotations
 
-import json
 import math
 import os
 import sys
@@ -22,7 +21,7 @@ import mpmath
 import numpy as np
 
 from .backend import Backend
-from .discrete import (WELLPOSED, GAUGE, SINGULAR, DiscreteSolveError, base_point, check_symmetry,
+from .discrete import (WELLPOSED, GAUGE, SINGULAR, base_point, check_symmetry,
                        classify_wellposedness, discrete_lagrangian, gauge_invariance,
                        theorem1_residuals)
 from .errors import LdasparkError

@@ -145,7 +145,7 @@ def test_keyboard_interrupt_no_output(capsys, tmp_path, monkeypatch):
         raise KeyboardInterrupt
     monkeypatch.setattr(spark, "integrate", interrupted)
     out = tmp_path / "o.json"
-    line = _one_error_line(capsys, OK + ["--out", str(out)], code=130, match="interrupted")
+    _one_error_line(capsys, OK + ["--out", str(out)], code=130, match="interrupted")
     assert not out.exists() and os.listdir(tmp_path) == []
 
 

@@ -1,6 +1,5 @@
 """Extremes of issue 7 (reports/stability.md): each measured behaviour has a test that fails if it
 regresses, and each detector has a negative control."""
-import math
 
 import numpy as np
 import pytest

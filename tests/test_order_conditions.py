@@ -1,6 +1,5 @@
 """Trees, elementary weights, B/C/D and the stability function (ldaspark.order_conditions),
 against textbook facts and independent sympy computations; each with a negative control."""
-import mpmath
 import pytest
 import sympy
 from hypothesis import given, strategies as st
