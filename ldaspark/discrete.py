@@ -131,8 +131,8 @@ class DiscreteBVP:
         h = t1 - t0
         V, Lam, v1, v0 = self.unpack(x)
         T = [t0 + tab.c[i] * h for i in range(s)]
-        Q = q0 + h * tab.A.dot(V)
-        q1i = q0 + h * tab.b.dot(V)           # = q1 once (21c) holds
+        Q = q0 + tab.A.dot(V) * h
+        q1i = q0 + tab.b.dot(V) * h           # = q1 once (21c) holds
         st = [sysm.stage(bk, T[i], Q[i], V[i], Lam[i], jacobian) for i in range(s)]
         fin = sysm.stage(bk, t1, q1i, v1, bk.zeros(m), jacobian)
         st0 = sysm.stage(bk, t0, q0, v0, bk.zeros(m), jacobian)
@@ -141,9 +141,9 @@ class DiscreteBVP:
         Rl = np.array([e.R_lam for e in st])
         Kst = np.array([e.k for e in st])
         G = bk.zeros(self.size)
-        G[:self.r_d] = (np.array([e.L_v for e in st]) - p0 - h * tab.A_hat.dot(F)
+        G[:self.r_d] = (np.array([e.L_v for e in st]) - p0 - tab.A_hat.dot(F) * h
                         - tab.A_tilde.dot(Rl)).reshape(-1)
-        G[self.r_d:self.r_e] = fin.L_v - p0 - h * tab.b_hat.dot(F) - tab.b_tilde.dot(Rl)
+        G[self.r_d:self.r_e] = fin.L_v - p0 - tab.b_hat.dot(F) * h - tab.b_tilde.dot(Rl)
         if s > 1:
             G[self.r_e:self.r_f] = tab.omega.dot(Kst).reshape(-1)
         G[self.r_f:self.r_c] = fin.k
@@ -163,9 +163,9 @@ class DiscreteBVP:
         Lqq = np.array([e.L_qq for e in st]); Rq = np.array([e.R_q for e in st])
         dq0 = bk.zeros((N, n))
         for i in range(s):
-            dq0[i * n:(i + 1) * n] = (st[i].L_vq - st0.L_vq - h * np.einsum("j,jab->ab", tab.A_hat[i], Lqq)
+            dq0[i * n:(i + 1) * n] = (st[i].L_vq - st0.L_vq - np.einsum("j,jab->ab", tab.A_hat[i], Lqq) * h
                                       - np.einsum("j,jab->ab", tab.A_tilde[i], Rq))
-        dq0[self.r_d:self.r_e] = (fin.L_vq - st0.L_vq - h * np.einsum("j,jab->ab", tab.b_hat, Lqq)
+        dq0[self.r_d:self.r_e] = (fin.L_vq - st0.L_vq - np.einsum("j,jab->ab", tab.b_hat, Lqq) * h
                                   - np.einsum("j,jab->ab", tab.b_tilde, Rq))
         if s > 1:
             kq = np.array([e.k_q for e in st])
@@ -184,7 +184,7 @@ class DiscreteBVP:
         h = t1 - t0
         V, Lam, v1, v0 = self.unpack(x)
         T = [t0 + tab.c[i] * h for i in range(s)]
-        Q = q0 + h * tab.A.dot(V)
+        Q = q0 + tab.A.dot(V) * h
         Lfn = sysm._fn("L", [sysm.L], bk)
         Kfn = sysm._fn("K", [sysm.k_v], bk)
         L_d = h * sum(tab.b[i] * Lfn(T[i], *Q[i], *V[i])[0] for i in range(s))
@@ -193,10 +193,10 @@ class DiscreteBVP:
         fm = bk.zeros(n)
         fp = bk.zeros(n)
         for i in range(s):
-            wm = sum(tab.A_tilde[i, j] * LK[j] for j in range(s))
-            wp = sum((tab.b_tilde[j] - tab.A_tilde[i, j]) * LK[j] for j in range(s))
-            fm = fm + h * tab.b[i] * wm.dot(dV_dq0[i])
-            fp = fp - h * tab.b[i] * wp.dot(dV_dq1[i])
+            wm = sum(LK[j] * tab.A_tilde[i, j] for j in range(s))
+            wp = sum(LK[j] * (tab.b_tilde[j] - tab.A_tilde[i, j]) for j in range(s))
+            fm = fm + wm.dot(dV_dq0[i]) * (h * tab.b[i])
+            fp = fp - wp.dot(dV_dq1[i]) * (h * tab.b[i])
         p0 = sysm.momentum(bk, t0, q0, v0)
         p1 = sysm.momentum(bk, t1, q1, v1)
         return L_d, p0, p1, fm, fp, Q
@@ -205,7 +205,7 @@ class DiscreteBVP:
         sysm, tab, bk = self.system, self.tab, self.bk
         h = t1 - t0
         V = x[:self.c_lam].reshape(self.s, self.n)
-        Q = q0 + h * tab.A.dot(V)
+        Q = q0 + tab.A.dot(V) * h
         Lfn = sysm._fn("L", [sysm.L], bk)
         return h * sum(tab.b[i] * Lfn(t0 + tab.c[i] * h, *Q[i], *V[i])[0] for i in range(self.s))
 
