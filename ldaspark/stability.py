@@ -611,8 +611,9 @@ def build_report(full=False, outdir="reports"):
           "### Mass ratio", "",
           "Particle (8.1) with M = diag(1, mu, 1), v0 = (0, mu^(-1/2), 0), gauss-2, h = 0.05, 40 steps; error "
           "relative to each component's size, float64 against the same method at 40 digits (so only "
-          "conditioning and round-off are measured). rcond = sigma_min / sigma_max of the saddle matrix (4) "
-          "at t0; `check_saddle` rejects rcond <= 1e3 eps = 2.2e-13.", "",
+          "conditioning and round-off are measured). rcond = sigma_min / sigma_max of the unscaled saddle matrix "
+          "(4) at t0; `check_saddle` judges the symmetrically equilibrated matrix and rejects its rcond "
+          "<= 1e3 eps = 2.2e-13.", "",
           "| mu | rcond (4) | outcome | relative error | Newton it./step |", "|---|---|---|---|---|"]
     for r in mr:
         L.append(f"| {r['mu']:.0e} | {r['rcond']:.1e} | {_outcome_cell(r)} | {_e(r.get('rel_err'))} | "
