@@ -8,7 +8,7 @@ import time
 
 import numpy as np
 
-from ldaspark.fig4 import FIG4_METHODS, figure4_data
+from ldaspark.reports.fig4 import FIG4_METHODS, figure4_data
 
 
 def main():
@@ -33,10 +33,10 @@ def main():
         print(f"{m:30s} fit exponent {d['fit'][m]['exponent']:+.3f} on {d['fit'][m]['window']}, "
               f"mean mu/h^4 per decade {', '.join(f'{b:.4f}' for b in blocks)}, Newton {d['newton'][m]:.2f}/step")
     # generic path speed on the same problem (short run), for the side-by-side ratio
-    from ldaspark.comparators import integrate_comparator
-    from ldaspark.scenes import mp_particles
-    from ldaspark.spark import integrate
-    from ldaspark.tableau import get_method
+    from ldaspark.core.comparators import integrate_comparator
+    from ldaspark.core.scenes import mp_particles
+    from ldaspark.core.spark import integrate
+    from ldaspark.core.families import get_method
     sc = mp_particles(j=3)
     t0, q0, v0 = sc.initial()
     per_step = []
@@ -51,7 +51,7 @@ def main():
     print(f"generic path estimate for the same work: {est:.0f} s serial ({est / 3600:.1f} h); "
           f"fast parallel / generic serial = {est / d['seconds']:.0f}x")
     if args.out:
-        from ldaspark.io import atomic_write_json
+        from ldaspark.core.io import atomic_write_json
         atomic_write_json(args.out, d)
         print(f"wrote {args.out}")
 

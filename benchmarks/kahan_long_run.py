@@ -8,7 +8,7 @@ import os
 
 import numpy as np
 
-from ldaspark.fast import growth_exponent, roundoff_errors
+from ldaspark.compiled.fast import growth_exponent, roundoff_errors
 
 
 def main():

@@ -2,7 +2,7 @@
 side by side in one run (h = 0.05). Usage: python benchmarks/steps_per_second.py [--quick]"""
 import argparse
 
-from ldaspark.work_precision import steps_per_second
+from ldaspark.reports.work_precision import steps_per_second
 
 METHODS = ("gauss-1", "gauss-2", "gauss-3", "lobatto-iiia-iiib-2", "lobatto-iiia-iiib-3",
            "lobatto-iiia-iiib-iiid-2", "lobatto-iiia-iiib-iiid-3", "euler-i", "euler-ii")
@@ -14,11 +14,11 @@ def main():
     args = ap.parse_args()
     rows = steps_per_second(methods=METHODS, n_generic=10 if args.quick else 40,
                             n_fast=2000 if args.quick else 20000)
-    # the Fig. 4 comparators on their scene, generic (ldaspark.comparators) vs fast
+    # the Fig. 4 comparators on their scene, generic (ldaspark.core.comparators) vs fast
     import time
-    from ldaspark.comparators import integrate_comparator
-    from ldaspark.fast import fast_integrate
-    from ldaspark.scenes import mp_particles
+    from ldaspark.core.comparators import integrate_comparator
+    from ldaspark.compiled.fast import fast_integrate
+    from ldaspark.core.scenes import mp_particles
     sc = mp_particles(j=3)
     t0, q0, v0 = sc.initial()
     for m in ("lobatto-iiia-iiib-2-modified", "mp-lobatto-iiib-a-2"):

@@ -4,7 +4,7 @@ reports/figures/wp_*.png and prints the CPU-time ratios at equal accuracy.
 Usage: python benchmarks/work_precision.py [--quick] [--outdir reports]"""
 import argparse
 
-from ldaspark.work_precision import ratios, run_study
+from ldaspark.reports.work_precision import ratios, run_study
 
 
 def main():

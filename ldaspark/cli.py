@@ -1,22 +1,22 @@
-"""Command line: ``ldaspark integrate | methods | report | verify | audit``.
+"""Command line: ``ldaspark integrate | methods | report | verify | audit`` (also ``python -m ldaspark``).
 
 User errors (LdasparkError) print one line to stderr and exit 2, without a traceback.
-Subcommands other than integrate/methods live in their own modules (``ldaspark.<name>``),
-each exposing ``add_arguments(parser)`` and ``run(args) -> int``.
+Subcommands other than integrate/methods live in their own modules, each exposing
+``add_arguments(parser)`` and ``run(args) -> int``; a module is imported only when its command
+runs (or its own ``--help`` is asked for), so ``ldaspark --help`` imports nothing heavy.
 """
 from __future__ import annotations
 
 import argparse
 import importlib
-import importlib.util
 import sys
 
-from .errors import LdasparkError
+from .core.errors import LdasparkError
 
 PLUGIN_COMMANDS = {
-    "report": ("report", "write the reports (main job; no arguments = everything)"),
-    "verify": ("verify", "run the theorem checks and write the claims ledger"),
-    "audit": ("audit", "audit a tableau against Theorem 1's hypotheses and the numerics"),
+    "report": ("reports.driver", "write the reports (main job; no arguments = everything)"),
+    "verify": ("reports.claims", "run the theorem checks and write the claims ledger"),
+    "audit": ("theory.audit", "audit a tableau against Theorem 1's hypotheses and the numerics"),
 }
 
 
@@ -42,11 +42,12 @@ def _add_integrate(sub):
 
 
 def _run_integrate(args) -> int:
-    from .io import atomic_write_json
-    from .scenes import get_scene
-    from .spark import integrate, n_steps_for
-    from .tableau import get_method, load_tableau
-    from .errors import InputError
+    from .core.io import atomic_write_json
+    from .core.scenes import get_scene
+    from .core.spark import integrate, n_steps_for
+    from .core.tableau import load_tableau
+    from .core.families import get_method
+    from .core.errors import InputError
 
     if args.method == "custom":
         if not args.tableau:
@@ -96,35 +97,51 @@ def _add_methods(sub):
 
 
 def _run_methods(args) -> int:
-    from .methods import method_table
+    from .theory.conditions import method_table
     rows = method_table(args.max_s)
     print(f"{'method':28s} {'s':>2s} {'order':>5s}  (22)  (23)")
     for r in rows:
         print(f"{r['method']:28s} {r['s']:2d} {r['order']:5d}  {'yes' if r['22'] else 'no':4s}  "
               f"{'yes' if r['23'] else 'no'}")
     if args.json:
-        from .io import atomic_write_json
+        from .core.io import atomic_write_json
         atomic_write_json(args.json, rows)
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = "*") -> argparse.ArgumentParser:
+    """The parser; plugin modules are imported only for ``command`` ("*" = all of them)."""
+    from . import __version__
     parser = _Parser(prog="ldaspark", description="Lagrange-d'Alembert SPARK integrators (Jay)")
+    parser.add_argument("--version", action="version", version=f"ldaspark {__version__}")
     sub = parser.add_subparsers(dest="command", parser_class=_Parser)
     _add_integrate(sub)
     _add_methods(sub)
     for name, (mod, helptext) in PLUGIN_COMMANDS.items():
-        if importlib.util.find_spec(f"ldaspark.{mod}") is None:
-            continue
         p = sub.add_parser(name, help=helptext)
+        if command not in ("*", name):
+            continue
         module = importlib.import_module(f"ldaspark.{mod}")
         module.add_arguments(p)
         p.set_defaults(func=module.run)
     return parser
 
 
+def _command_of(argv) -> str | None:
+    """The subcommand named in argv (the first word that is not an option), if any."""
+    for a in argv:
+        if not a.startswith("-"):
+            return a
+    return None
+
+
 def main(argv=None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    try:
+        parser = build_parser(_command_of(argv))
+    except KeyboardInterrupt:
+        print("ldaspark: interrupted", file=sys.stderr)
+        return 130
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()

@@ -4,11 +4,12 @@ import pathlib
 
 import pytest
 
-from ldaspark import audit as au
+from ldaspark.theory import audit as au
 from ldaspark.cli import main
-from ldaspark.errors import TableauError
-from ldaspark.methods import check_23
-from ldaspark.tableau import builtin_method_names, get_method, load_tableau
+from ldaspark.core.errors import TableauError
+from ldaspark.theory.conditions import check_23
+from ldaspark.core.tableau import load_tableau
+from ldaspark.core.families import builtin_method_names, get_method
 
 EX = pathlib.Path(__file__).resolve().parents[1] / "examples" / "tableaux"
 BAD = sorted(p.name for p in EX.glob("bad-*.json"))
@@ -169,7 +170,7 @@ def _fake_t1(**over):
 
 def _raising(msg):
     def boom(*a, **k):
-        from ldaspark.discrete import DiscreteSolveError
+        from ldaspark.theory.discrete import DiscreteSolveError
         raise DiscreteSolveError(msg)
     return boom
 
@@ -181,14 +182,14 @@ def _statuses(hyp23):
 
 def test_undecided_theorem1_scenes_cannot_pass_silently(monkeypatch):
     """Negative control of the skip rule: when every BVP solve fails, the summary check fails."""
-    from ldaspark import discrete
+    from ldaspark.theory import discrete, symmetry
     monkeypatch.setattr(discrete, "theorem1_residuals", _raising("BVP Newton did not converge"))
     by = _statuses(hyp23=False)
     assert by["theorem1:skate"] == au.SKIP and by["theorem1"] == au.FAIL
 
 
 def test_theorem1_residual_above_tolerance_fails_and_coarse_fd_is_not_a_pass(monkeypatch):
-    from ldaspark import discrete
+    from ldaspark.theory import discrete, symmetry
     monkeypatch.setattr(discrete, "theorem1_residuals", lambda *a, **k: _fake_t1(**{"theorem1-q1": 1e-3}))
     checks, _ = au.theorem1_checks(get_method("gauss-1"), True, False, 30, True, ("skate", "particle"))
     assert {c.status for c in checks if c.name.startswith("theorem1")} == {au.FAIL}
@@ -198,14 +199,14 @@ def test_theorem1_residual_above_tolerance_fails_and_coarse_fd_is_not_a_pass(mon
 
 
 def test_symmetry_fd_parts_judged_only_for_nonsingular_bvp(monkeypatch):
-    from ldaspark import discrete
+    from ldaspark.theory import discrete, symmetry
     monkeypatch.setattr(discrete, "theorem1_residuals", lambda *a, **k: _fake_t1())
     sym = {"symmetry-Ld": 0.0, "symmetry-fd-plus": 1e-3, "symmetry-fd-minus": 1e-3, "symmetry-Phi": 1e-30}
     for cls, want in (("well-posed", au.FAIL), ("gauge-deficient", au.FAIL), ("singular", au.PASS)):
-        monkeypatch.setattr(discrete, "check_symmetry", lambda *a, cls=cls, **k: dict(sym, wellposed=cls))
+        monkeypatch.setattr(symmetry, "check_symmetry", lambda *a, cls=cls, **k: dict(sym, wellposed=cls))
         checks, _ = au.theorem1_checks(get_method("gauss-1"), True, True, 30, True, ("skate",))
         assert next(c for c in checks if c.name == "symmetry:skate").status == want, cls
-    monkeypatch.setattr(discrete, "check_symmetry",
+    monkeypatch.setattr(symmetry, "check_symmetry",
                         lambda *a, **k: dict(sym, wellposed="singular", **{"symmetry-Phi": 1e-3}))
     checks, _ = au.theorem1_checks(get_method("gauss-1"), True, True, 30, True, ("skate",))
     assert next(c for c in checks if c.name == "symmetry:skate").status == au.FAIL
@@ -259,8 +260,8 @@ def test_inconsistent_tableau_fails_although_22_and_theorem1_hold():
 
 
 def test_symmetry_summary_fails_when_nothing_is_decided(monkeypatch):
-    from ldaspark import discrete
+    from ldaspark.theory import discrete, symmetry
     monkeypatch.setattr(discrete, "theorem1_residuals", lambda *a, **k: _fake_t1())
-    monkeypatch.setattr(discrete, "check_symmetry", _raising("reverse BVP failed"))
+    monkeypatch.setattr(symmetry, "check_symmetry", _raising("reverse BVP failed"))
     by = _statuses(hyp23=True)
     assert by["symmetry:skate"] == au.SKIP and by["symmetry"] == au.FAIL

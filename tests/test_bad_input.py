@@ -7,13 +7,13 @@ import pytest
 import sympy
 from hypothesis import given, settings, strategies as st
 
-from ldaspark.backend import Backend
-from ldaspark.errors import (InconsistentInitialDataError, InputError, LdasparkError, NewtonError,
+from ldaspark.core.backend import Backend
+from ldaspark.core.errors import (InconsistentInitialDataError, InputError, LdasparkError, NewtonError,
                              SingularSaddleError, SystemDefinitionError)
-from ldaspark.scenes import get_scene
-from ldaspark.spark import SparkMethod, integrate, n_steps_for
-from ldaspark.system import LagrangianSystem
-from ldaspark.tableau import get_method
+from ldaspark.core.scenes import get_scene
+from ldaspark.core.spark import SparkMethod, integrate, n_steps_for
+from ldaspark.core.system import LagrangianSystem
+from ldaspark.core.families import get_method
 
 
 @pytest.fixture(scope="module")
@@ -328,23 +328,23 @@ def test_all_errors_are_ldaspark_errors():
         assert issubclass(cls, LdasparkError)
 
 
-# --- the compiled fast path (ldaspark.fast): the same set-up checks and error detail -----------
+# --- the compiled fast path (ldaspark.compiled.fast): the same set-up checks and error detail -----------
 def test_fast_path_rejects_inconsistent_v0():
-    from ldaspark.fast import fast_integrate
+    from ldaspark.compiled.fast import fast_integrate
     with pytest.raises(InconsistentInitialDataError):
         fast_integrate(get_scene("skate"), "gauss-2", t0=0.0, q0=[0, 0, 0], v0=[0, 0.3, 1], h=0.1, n_steps=3)
 
 
 @pytest.mark.exhaustive   # compiles a new system (~15 s)
 def test_fast_path_rank_deficient_K_is_setup_error():
-    from ldaspark.fast import fast_integrate
+    from ldaspark.compiled.fast import fast_integrate
     with pytest.raises(SingularSaddleError):
         fast_integrate(_two_constraints(0), "gauss-2", t0=0.0, q0=[1, 0.5, 0], v0=[0, 0, 0], h=0.1, n_steps=3)
 
 
 @pytest.mark.exhaustive   # compiles the robot (~15 s when the numba cache is cold)
 def test_fast_path_newton_error_names_residual_and_iterations():
-    from ldaspark.fast import fast_integrate
+    from ldaspark.compiled.fast import fast_integrate
     with pytest.raises(NewtonError) as ei:
         fast_integrate(get_scene("robot"), "gauss-2", h=4.0, n_steps=3)
     assert ei.value.residual is not None and ei.value.iterations is not None

@@ -8,7 +8,7 @@ import sys
 import pytest
 import sympy
 
-import ldaspark.scenes as scenes
+import ldaspark.core.scenes as scenes
 from ldaspark.cli import main
 
 OK = ["integrate", "skate", "gauss-1", "--h", "0.5", "--t-end", "1"]
@@ -139,7 +139,7 @@ def test_inconsistent_initial_data_and_project_opt_in(capsys, tmp_path, inconsis
 
 
 def test_keyboard_interrupt_no_output(capsys, tmp_path, monkeypatch):
-    import ldaspark.spark as spark
+    import ldaspark.core.spark as spark
 
     def interrupted(*a, **k):
         raise KeyboardInterrupt

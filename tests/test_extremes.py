@@ -4,9 +4,9 @@ regresses, and each detector has a negative control."""
 import numpy as np
 import pytest
 
-from ldaspark import stability as S
-from ldaspark.errors import SingularSaddleError
-from ldaspark.tableau import get_method
+from ldaspark.reports import stability as S
+from ldaspark.core.errors import SingularSaddleError
+from ldaspark.core.families import get_method
 
 
 # --- 1. step size ------------------------------------------------------------------------------
@@ -123,7 +123,7 @@ def test_rank_loss_accuracy_and_setup_error():
 
 
 def test_near_limit_of_4_wrong_branch_is_detected():
-    from ldaspark.spark import integrate
+    from ldaspark.core.spark import integrate
     sysm = S.soft_system()
     tab = get_method("gauss-2")
     with pytest.raises(SingularSaddleError, match="step 200 .*crossed the singular set"):

@@ -1,17 +1,17 @@
-"""The compiled fast path (ldaspark.fast) against the generic path: same numbers to 1e-12 over
+"""The compiled fast path (ldaspark.compiled.fast) against the generic path: same numbers to 1e-12 over
 1000 steps for every SPARK family and the Fig. 4 comparators; fallback with a one-line notice;
 Newton counters and predictor. Compilation is cached on disk (numba cache=True)."""
 import numpy as np
 import pytest
 import sympy
 
-from ldaspark.comparators import integrate_comparator
-from ldaspark.errors import InputError
-from ldaspark.fast import compile_system, fast_integrate, mechanical_parts, NotCompilableError, precompile
-from ldaspark.scenes import get_scene, mp_particles
-from ldaspark.spark import integrate
-from ldaspark.system import LagrangianSystem
-from ldaspark.tableau import get_method
+from ldaspark.core.comparators import integrate_comparator
+from ldaspark.core.errors import InputError
+from ldaspark.compiled.fast import compile_system, fast_integrate, mechanical_parts, NotCompilableError, precompile
+from ldaspark.core.scenes import get_scene, mp_particles
+from ldaspark.core.spark import integrate
+from ldaspark.core.system import LagrangianSystem
+from ldaspark.core.families import get_method
 
 AGREE = 1e-12
 N = 1000
@@ -64,7 +64,7 @@ def check_spark_agreement(scene, name, h=0.1):
 
 @pytest.mark.parametrize("name", ONE_PER_FAMILY)
 def test_spark_kernel_agrees_with_generic(particle, name):
-    """General compiled SPARK kernel (21) vs ldaspark.spark.integrate, particle, 1000 steps, one
+    """General compiled SPARK kernel (21) vs ldaspark.core.spark.integrate, particle, 1000 steps, one
     method of each family (all of them and three scenes: --exhaustive)."""
     check_spark_agreement(particle, name)
 
@@ -199,7 +199,7 @@ def test_bad_inputs(particle):
 
 def test_cpu_at_equal_accuracy_interpolation():
     """Work-precision ratios read the cheapest run reaching an error (log-log interpolation)."""
-    from ldaspark.work_precision import cpu_at
+    from ldaspark.reports.work_precision import cpu_at
     rows = [{"error": e, "cpu": c} for e, c in [(1e-2, 1.0), (1e-4, 2.0), (1e-6, 4.0), (1e-8, 8.0), (1e-5, 9.0)]]
     assert cpu_at(rows, 1e-4) == pytest.approx(2.0)
     assert cpu_at(rows, 1e-5) == pytest.approx(2 * 2 ** 0.5)       # the dominated 9 s run is ignored

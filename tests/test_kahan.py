@@ -1,9 +1,9 @@
 """Compensated (Kahan) summation of the q and p updates: round-off against the same discrete
-map in 40-digit mpmath (ldaspark.fast.roundoff_errors), on a linear system where the 2-stage
+map in 40-digit mpmath (ldaspark.compiled.fast.roundoff_errors), on a linear system where the 2-stage
 Lobatto IIIA-B SPARK step is a linear map. 1e5 steps here; 1e6 in benchmarks/kahan_long_run.py."""
 import pytest
 
-from ldaspark.fast import growth_exponent, roundoff_errors
+from ldaspark.compiled.fast import growth_exponent, roundoff_errors
 
 N_STEPS = 100_000
 

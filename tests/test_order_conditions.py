@@ -1,12 +1,13 @@
-"""Trees, elementary weights, B/C/D and the stability function (ldaspark.order_conditions),
+"""Trees, elementary weights, B/C/D and the stability function (ldaspark.theory.order_conditions),
 against textbook facts and independent sympy computations; each with a negative control."""
 import pytest
 import sympy
 from hypothesis import given, strategies as st
 from sympy import Rational as R
 
-from ldaspark import order_conditions as oc
-from ldaspark.tableau import SparkTableau, get_method
+from ldaspark.theory import order_conditions as oc
+from ldaspark.core.tableau import SparkTableau
+from ldaspark.core.families import get_method
 
 
 def rk_tab(A, b, name="rk"):

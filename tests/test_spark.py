@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 import sympy
 
-from ldaspark.errors import InconsistentInitialDataError, InputError, SingularSaddleError
-from ldaspark.scenes import PAPER_SCENES, get_scene
-from ldaspark.spark import SparkMethod, integrate
-from ldaspark.system import LagrangianSystem
-from ldaspark.tableau import builtin_method_names, gauss, get_method
+from ldaspark.core.errors import InconsistentInitialDataError, InputError, SingularSaddleError
+from ldaspark.core.scenes import PAPER_SCENES, get_scene
+from ldaspark.core.spark import SparkMethod, integrate
+from ldaspark.core.system import LagrangianSystem
+from ldaspark.core.families import builtin_method_names, gauss, get_method
 
 
 def test_skate_gauss2_error_and_constraint():

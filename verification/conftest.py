@@ -4,8 +4,8 @@ import functools
 
 import pytest
 
-from ldaspark.scenes import get_scene
-from ldaspark.tableau import get_method
+from ldaspark.core.scenes import get_scene
+from ldaspark.core.families import get_method
 
 
 @functools.lru_cache(maxsize=None)

@@ -14,8 +14,8 @@ g(q1) = g(q0). The nonholonomic variant has no such g, and its solve is well-pos
 import numpy as np
 import pytest
 
-from ldaspark.scenes import mp_particles
-from ldaspark.tableau import gauss
+from ldaspark.core.scenes import mp_particles
+from ldaspark.core.families import gauss
 
 RNG = np.random.default_rng(7)
 
@@ -28,7 +28,7 @@ def first_21e_row_and_discrete_g(scene, s, h=0.1):
     V = RNG.normal(size=(s, sysm.n))
     Q = q0 + h * tab.A.dot(V)
     q1 = q0 + h * tab.b.dot(V)
-    from ldaspark.backend import Backend
+    from ldaspark.core.backend import Backend
     bk = Backend(None)
     row = sum(tab.omega[0, j] * sysm.constraint(bk, 0.0, Q[j], V[j])[0] for j in range(s))
     g = lambda q: q[0] + 0.5 * np.sum(q[4:] ** 2)

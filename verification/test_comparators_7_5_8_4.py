@@ -14,15 +14,15 @@ import numpy as np
 import pytest
 import sympy
 
-from ldaspark import comparators
-from ldaspark.backend import Backend
-from ldaspark.comparators import ModifiedLobatto2, derive_mechanical, integrate_comparator
-from ldaspark.convergence import estimate_order, floor_for
-from ldaspark.errors import InconsistentInitialDataError, InputError
-from ldaspark.scenes import PAPER_SCENES, get_scene
-from ldaspark.spark import integrate
-from ldaspark.system import LagrangianSystem
-from ldaspark.tableau import get_method
+from ldaspark.core import comparators
+from ldaspark.core.backend import Backend
+from ldaspark.core.comparators import ModifiedLobatto2, derive_mechanical, integrate_comparator
+from ldaspark.theory.orders import estimate_order, floor_for
+from ldaspark.core.errors import InconsistentInitialDataError, InputError
+from ldaspark.core.scenes import PAPER_SCENES, get_scene
+from ldaspark.core.spark import integrate
+from ldaspark.core.system import LagrangianSystem
+from ldaspark.core.families import get_method
 
 SCENES = list(PAPER_SCENES) + ["rolling-disk"]
 H, N = 0.1, 30
@@ -112,7 +112,7 @@ def test_modified_satisfies_midpoint_constraint_and_lobatto_does_not():
     V1 = mod.V[0]
     assert np.abs(sc.system.constraint(bk, t0 + h / 2, q0 + h / 2 * V1, V1)).max() < 1e-14
     assert np.abs(sc.system.constraint(bk, mod.t1, mod.q1, mod.v1)).max() < 1e-14
-    from ldaspark.spark import SparkMethod
+    from ldaspark.core.spark import SparkMethod
     lob = SparkMethod(sc.system, get_method("lobatto-iiia-iiib-2")).step(t0, q0, v0, h)
     W1 = lob.V[0]
     assert np.abs(sc.system.constraint(bk, t0 + h / 2, q0 + h / 2 * W1, W1)).max() > 1e-6

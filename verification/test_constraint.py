@@ -3,10 +3,10 @@ and mpmath, for every built-in method on every paper scene. Negative control: th
 velocity (q1 - q0)/h is not constrained by (21), so k at it is far from zero."""
 import pytest
 
-from ldaspark.discrete import base_point, discrete_lagrangian
-from ldaspark.backend import Backend
-from ldaspark.tableau import builtin_method_names
-from ldaspark.verify import constraint_residuals
+from ldaspark.theory.discrete import base_point, discrete_lagrangian
+from ldaspark.core.backend import Backend
+from ldaspark.core.families import builtin_method_names
+from ldaspark.theory.ledger import constraint_residuals
 
 SCENES = ["particle", "skate", "robot", "mp-particles"]
 
@@ -47,6 +47,6 @@ def test_constraint_in_bvp(exact_method, scene):
 @pytest.mark.parametrize("name", builtin_method_names(6))
 @pytest.mark.parametrize("scn", SCENES)
 def test_constraint_mpmath_exhaustive(name, scn, scene):
-    from ldaspark.tableau import get_method
+    from ldaspark.core.families import get_method
     k, secant, eps = constraint_residuals(scene(scn), get_method(name), n_steps=5, dps=30)
     assert k <= 1e3 * eps

@@ -9,11 +9,11 @@ Psi has no claim; we check only that the stage multipliers converge and record t
 """
 import pytest
 
-from ldaspark.convergence import (claimed_order_of, estimate_order, floor_for, make_reference,
+from ldaspark.theory.orders import (claimed_order_of, estimate_order, floor_for, make_reference,
                                   measure_errors, order_records)
-from ldaspark.scenes import PAPER_SCENES, get_scene
-from ldaspark.spark import integrate
-from ldaspark.tableau import gauss
+from ldaspark.core.scenes import PAPER_SCENES, get_scene
+from ldaspark.core.spark import integrate
+from ldaspark.core.families import gauss
 
 TOL = 0.3
 T_END = 1.0

@@ -7,7 +7,7 @@ Lobatto IIIA-IIIB-3 p ~ 4, Lobatto IIIA-IIIB-2 and Euler I/II: zero to working p
 The full covectors (normal part) are O(h) and do not vanish: the restriction is what 5.1 says."""
 import pytest
 
-from ldaspark.verify import holonomic_order
+from ldaspark.theory.ledger import holonomic_order
 
 EXPECTED_P = {"gauss-1": 1.7, "gauss-2": 1.7, "gauss-3": 2.7, "lobatto-iiia-iiib-3": 3.4}
 
@@ -31,6 +31,6 @@ def test_holonomic_forces_vanish(name, exact_method):
 @pytest.mark.exhaustive
 @pytest.mark.parametrize("name", ["gauss-4", "lobatto-iiia-iiib-4", "lobatto-iiia-iiib-iiid-3"])
 def test_holonomic_exhaustive(name):
-    from ldaspark.tableau import get_method
+    from ldaspark.core.families import get_method
     r = holonomic_order(get_method(name), hs=("0.1", "0.05", "0.025", "0.0125"))
     assert r["p_tangential"] >= 1.5 or max(r["tangential"]) < 1e-35, r

@@ -10,12 +10,12 @@ with the same tableau is the control that has the full order and satisfies the c
 import numpy as np
 import pytest
 
-from ldaspark.backend import Backend
-from ldaspark.comparators import GaussIRK, integrate_comparator
-from ldaspark.convergence import claimed_order_of, make_reference, measure_errors, order_records
-from ldaspark.scenes import get_scene
-from ldaspark.spark import integrate
-from ldaspark.tableau import gauss, get_method
+from ldaspark.core.backend import Backend
+from ldaspark.core.comparators import GaussIRK, integrate_comparator
+from ldaspark.theory.orders import claimed_order_of, make_reference, measure_errors, order_records
+from ldaspark.core.scenes import get_scene
+from ldaspark.core.spark import integrate
+from ldaspark.core.families import gauss, get_method
 
 TOL = 0.3
 

@@ -6,10 +6,10 @@ from fractions import Fraction
 
 from hypothesis import given, settings, strategies as st
 
-from ldaspark.discrete import theorem1_residuals
-from ldaspark.methods import check_22a, check_22b
-from ldaspark.scenes import get_scene
-from ldaspark.tableau import from_json_dict
+from ldaspark.theory.discrete import theorem1_residuals
+from ldaspark.theory.conditions import check_22a, check_22b
+from ldaspark.core.scenes import get_scene
+from ldaspark.core.tableau import from_json_dict
 
 SCENE = get_scene("particle")
 GAUSS_A = {1: [[Fraction(1, 2)]], 2: [[Fraction(1, 4), Fraction(1, 4)], [Fraction(3, 4), Fraction(1, 4)]]}

@@ -7,8 +7,9 @@ C_d (consistent v0); as covectors on all of R^n they fail (off C_d the forward B
 inconsistent while the reversed one imposes k = 0 there), which the last test shows."""
 import pytest
 
-from ldaspark.discrete import SINGULAR, check_symmetry
-from ldaspark.verify import TOL_SYMMETRY, perturbed_initial
+from ldaspark.theory.discrete import SINGULAR
+from ldaspark.theory.symmetry import check_symmetry
+from ldaspark.theory.ledger import TOL_SYMMETRY, perturbed_initial
 
 H = "0.1"
 
@@ -62,6 +63,6 @@ def test_symmetry_robot(exact_method, scene):
                                   "gauss-6", "lobatto-iiia-iiib-6"])
 @pytest.mark.parametrize("scn", ["particle", "skate", "robot", "mp-particles"])
 def test_symmetry_exhaustive(name, scn, scene):
-    from ldaspark.tableau import get_method
+    from ldaspark.core.families import get_method
     r = _sym(scene(scn), get_method(name))
     assert r["symmetry-Ld"] <= TOL_SYMMETRY and r["symmetry-Phi"] <= TOL_SYMMETRY, r

@@ -11,12 +11,12 @@ import mpmath
 import numpy as np
 import pytest
 
-from ldaspark.backend import Backend
-from ldaspark.discrete import (GAUGE, SINGULAR, WELLPOSED, base_point, classify_wellposedness,
-                               discrete_lagrangian, gauge_invariance, theorem1_residuals)
-from ldaspark.tableau import builtin_method_names
-from ldaspark.verify import (TOL_NEGATIVE, TOL_THEOREM1, negative_controls, perturbed_initial,
-                             run_ledger, write_markdown)
+from ldaspark.core.backend import Backend
+from ldaspark.theory.discrete import GAUGE, SINGULAR, WELLPOSED, base_point, discrete_lagrangian, theorem1_residuals
+from ldaspark.theory.wellposedness import classify_wellposedness, gauge_invariance
+from ldaspark.core.families import builtin_method_names
+from ldaspark.reports.claims import write_markdown
+from ldaspark.theory.ledger import TOL_NEGATIVE, TOL_THEOREM1, negative_controls, perturbed_initial, run_ledger
 
 H = "0.1"
 DEFAULT_METHODS = builtin_method_names(3)
@@ -151,7 +151,7 @@ def test_ledger_records_and_markdown(tmp_path):
 @pytest.mark.parametrize("name", builtin_method_names(6))
 @pytest.mark.parametrize("scn", ["particle", "skate", "robot", "mp-particles"])
 def test_theorem1_exhaustive(name, scn, scene):
-    from ldaspark.tableau import get_method
+    from ldaspark.core.families import get_method
     tab = get_method(name)
     for point in ("base", "perturbed"):
         r = _t1(scene(scn), tab, point=point)

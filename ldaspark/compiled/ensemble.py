@@ -1,6 +1,6 @@
 """Ensembles: many initial conditions at once, in parallel over any ``concurrent.futures.Executor``.
 
-    from ldaspark.ensemble import ensemble_integrate
+    from ldaspark.compiled.ensemble import ensemble_integrate
     res = ensemble_integrate(system, "lobatto-iiia-iiib-2", t0, Q0, V0, h=0.05, n_steps=10**6,
                              every=100)                      # process pool over all cores
     res.energy.shape                                         # (J + 1, samples)
@@ -8,7 +8,7 @@
 Any executor works (``executor=``): the default is a ``ProcessPoolExecutor`` over all cores,
 created and shut down here; a thread pool, or a cluster's executor, are passed the same way,
 e.g. Dask: ``client = distributed.Client(...); ensemble_integrate(..., executor=client.get_executor())``.
-A task carries the compiled system's generated source text (``ldaspark.fast.CompiledSystem``),
+A task carries the compiled system's generated source text (``ldaspark.compiled.fast.CompiledSystem``),
 not a file path, so a remote worker builds (or loads from its numba cache) the same kernels.
 The parent compiles first, so local workers load the cached machine code instead of compiling.
 
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError
+from ..core.errors import InputError
 
 
 @dataclass
@@ -123,7 +123,7 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None):
 
 def ensemble_integrate(system, method, t0, Q0, V0, h, n_steps, every=1, compensated=True, tol=None,
                        executor=None, max_workers=None, chunk=1, kernel="auto", progress=None) -> EnsembleResult:
-    """Integrate ``system`` from every row of (Q0, V0) with the fast path (``ldaspark.fast``),
+    """Integrate ``system`` from every row of (Q0, V0) with the fast path (``ldaspark.compiled.fast``),
     in parallel over ``executor`` (default: a process pool over all cores). ``chunk`` initial
     data per task."""
     if not isinstance(chunk, int) or chunk <= 0:

@@ -2,7 +2,9 @@
 (checked exactly on the coefficients, not asserted)."""
 from __future__ import annotations
 
-from .tableau import SparkTableau, builtin_method_names, get_method
+from ..core.tableau import SparkTableau
+
+from ..core.families import builtin_method_names, get_method
 
 
 def check_22a(tab: SparkTableau) -> bool:

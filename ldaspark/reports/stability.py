@@ -8,7 +8,7 @@ Sections (each a function returning plain data, used by the report and by tests/
 * ``stage_sweep``: coefficient accuracy of the built-in families up to s = 10, residuals of
   B(p), C(q), D(r) and (22b) for the float64 and 50-digit coefficients; ``order_at_50_digits``
   measures whether the step still reaches its order.
-* ``long_run``: 1e6 steps with ``ldaspark.fast`` (Kahan on / off): constraint residual and energy
+* ``long_run``: 1e6 steps with ``ldaspark.compiled.fast`` (Kahan on / off): constraint residual and energy
   drift; ``roundoff_growth`` fits the round-off growth exponent (sqrt(N) law: 1/2).
 * ``mass_ratio_scene``, ``rank_loss_scene``, ``soft_scene``: ill-conditioned scenes built here,
   with what the user gets (error class and message, or silence); ``saddle_crossings`` is a
@@ -26,13 +26,13 @@ import mpmath
 import numpy as np
 import sympy
 
-from .backend import Backend
-from .errors import LdasparkError, SingularSaddleError
-from .io import atomic_save_figure, atomic_write_text
-from .scenes import get_scene
-from .spark import SparkMethod, integrate
-from .system import LagrangianSystem
-from .tableau import get_method
+from ..core.backend import Backend
+from ..core.errors import LdasparkError, SingularSaddleError
+from ..core.io import atomic_save_figure, atomic_write_text
+from ..core.scenes import get_scene
+from ..core.spark import SparkMethod, integrate
+from ..core.system import LagrangianSystem
+from ..core.families import get_method
 
 REPORT = "stability.md"
 SWEEP_METHODS = ("euler-i", "gauss-1", "gauss-2", "gauss-3", "lobatto-iiia-iiib-2", "lobatto-iiia-iiib-3",
@@ -196,7 +196,7 @@ def long_run(method="gauss-2", scene="particle", h=0.05, n_steps=10 ** 6, every=
     sc = get_scene(scene)
     out = {"method": method, "scene": scene, "h": h, "N": n_steps, "every": every}
     try:
-        from .fast import fast_integrate
+        from ..compiled.fast import fast_integrate
     except ImportError:  # pragma: no cover - fast path not installed
         fast_integrate = None
     runs = {}
@@ -237,8 +237,8 @@ def long_run(method="gauss-2", scene="particle", h=0.05, n_steps=10 ** 6, every=
 
 def roundoff_growth(n_steps=10 ** 6, every=1000, n_ics=8):
     """Round-off error against an exact-arithmetic reference of the same discrete map (linear
-    test system of ldaspark.fast), with and without Kahan; fitted exponent of N."""
-    from .fast import roundoff_errors
+    test system of ldaspark.compiled.fast), with and without Kahan; fitted exponent of N."""
+    from ..compiled.fast import roundoff_errors
     r = roundoff_errors(n_steps=n_steps, every=every, n_ics=n_ics)
     N = np.array(r["N"], dtype=float)
     fit = {}
@@ -577,7 +577,7 @@ def build_report(full=False, outdir="reports"):
     _fig_long(lrs[0], rg, os.path.join(figdir, "stability_long_run.png"))
     L += ["## 3. Long runs of 1e6 steps: constraint and energy drift, round-off growth", "",
           f"Particle (8.1), h = 0.05, N = {N:.0e} steps, float64 with the compiled path "
-          f"(`ldaspark.fast`, path = {lrs[0]['path']}), sampled every 1000 steps, with and without Kahan "
+          f"(`ldaspark.compiled.fast`, path = {lrs[0]['path']}), sampled every 1000 steps, with and without Kahan "
           "summation. max|E_n - E_0| over growing windows: a bounded, non-growing value means no drift (the "
           "truncation part of the energy error of a symmetric method oscillates, O(h^p)). "
           "'plain - Kahan' is the energy difference between the runs: the round-off of the plain summation.", "",
@@ -591,7 +591,7 @@ def build_report(full=False, outdir="reports"):
                  + f" | {lr['plain_minus_kahan'][-1]:.1e} | {lr['gap_exponent']:.2f} | {lr['drift_halves']['kahan']:.1e} | "
                  f"{lr['seconds_kahan']:.1f} / {lr['seconds_plain']:.1f} |")
     L += ["", "Round-off growth against an exact-arithmetic reference of the same discrete map "
-          "(`ldaspark.fast.roundoff_errors`: linear test system, 2-stage Lobatto IIIA-B, h = 0.05, 8 initial "
+          "(`ldaspark.compiled.fast.roundoff_errors`: linear test system, 2-stage Lobatto IIIA-B, h = 0.05, 8 initial "
           "data, reference = the step map at 40 digits raised to the power N). Fitted exponent of N for "
           "N >= 1e4 (Brouwer's law for random round-off: 1/2):", "",
           "| summation | RMS error at N = 1e4 | 1e5 | 1e6 | fitted exponent | eps sqrt(1e6) |", "|---|---|---|---|---|---|"]
@@ -631,7 +631,7 @@ def build_report(full=False, outdir="reports"):
           "and (4) fails on 1 - v1^2 + q2^2 = 0. Start q = 0, v = (1 - delta, 0, 0); gauss-2, h = 0.01, 300 "
           "steps. The momentum p1 = v1 - v1^3/3 has a maximum at v1 = 1, so near the limit the stage equations "
           "have two nearby solutions (v1 < 1 and v1 > 1). 'crossing' = first step where det(4) changes sign "
-          "along the computed trajectory (`ldaspark.stability.saddle_crossings`).", "",
+          "along the computed trajectory (`ldaspark.reports.stability.saddle_crossings`).", "",
           "| delta | rcond (4) at t0 | outcome | min v1 | max v1 | crossing at step | max dE |", "|---|---|---|---|---|---|---|"]
     for r in so:
         L.append(f"| {r['delta']:.0e} | {r['rcond']:.1e} | {_outcome_cell(r)} | {_e(r.get('min_v1'))} | "
@@ -678,7 +678,7 @@ def build_report(full=False, outdir="reports"):
           "| h so small that N > 1e9 | InputError | n_steps_for | test_absurd_step_count_is_rejected_not_run |",
           "| wrong dimensions / types of q0, v0, n_steps | InputError | integrate set-up | test_dimension_and_type_mismatch, test_bad_n_steps |",
           "| L, k with foreign symbols, m >= n, len(q) != len(v) | SystemDefinitionError | LagrangianSystem() | test_system_definition_mismatches |",
-          "| full disk, Ctrl-C while writing | old file intact, no temp file; one line, exit 2 / 130 | ldaspark.io | tests/test_atomic_writes.py |",
+          "| full disk, Ctrl-C while writing | old file intact, no temp file; one line, exit 2 / 130 | ldaspark.core.io | tests/test_atomic_writes.py |",
           ""]
     # findings, with the numbers of this run
     g2 = next((r for r in rows if r["method"] == "gauss-2"), rows[0])

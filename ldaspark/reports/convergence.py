@@ -13,10 +13,10 @@ import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 
-from .convergence import claimed_order_of, verdict, make_reference, measure_errors, order_records
-from .errors import InputError
-from .io import atomic_save_figure, atomic_write_json, atomic_write_text
-from .scenes import PAPER_SCENES, get_scene
+from ..theory.orders import claimed_order_of, verdict, make_reference, measure_errors, order_records
+from ..core.errors import InputError
+from ..core.io import atomic_save_figure, atomic_write_json, atomic_write_text
+from ..core.scenes import PAPER_SCENES, get_scene
 
 REPORT_DIR = "reports"
 T_END = 1.0
@@ -228,9 +228,9 @@ def _observations(records):
 def comparator_identities(h=0.1, n=30):
     """Max differences |q|, |v| between comparators and the SPARK method (7.5, 8.4), and grad U
     evaluations per step; float64, n steps of h from each scene's initial data."""
-    from .comparators import integrate_comparator
-    from .spark import integrate
-    from .tableau import get_method
+    from ..core.comparators import integrate_comparator
+    from ..core.spark import integrate
+    from ..core.families import get_method
     pairs = [("lobatto-iiia-iiib-2-leapfrog", "lobatto-iiia-iiib-2"),
              ("euler-i-ii-composition", "lobatto-iiia-iiib-2"),
              ("euler-ii-i-composition", "lobatto-iiia-iiib-2"),

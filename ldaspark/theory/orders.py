@@ -26,11 +26,11 @@ from dataclasses import dataclass, field
 import mpmath
 import numpy as np
 
-from .backend import Backend
-from .errors import InputError
-from .scenes import get_scene
-from .spark import integrate
-from .tableau import get_method
+from ..core.backend import Backend
+from ..core.errors import InputError
+from ..core.scenes import get_scene
+from ..core.spark import integrate
+from ..core.families import get_method
 
 VARIABLES = ("q", "v", "psi")
 
@@ -152,7 +152,7 @@ def make_reference(scene, dps=40):
 # --- running a method -------------------------------------------------------------------------
 def stage_nodes(method_name, dps=None):
     """c of the method whose Psi are compared, or None (no stage times known)."""
-    from .comparators import is_comparator
+    from ..core.comparators import is_comparator
     if method_name.startswith("gauss-irk-"):
         return get_method("gauss-" + method_name.split("-")[-1]).arrays(dps).c
     if is_comparator(method_name):
@@ -162,8 +162,8 @@ def stage_nodes(method_name, dps=None):
 
 def run_method(method_name, system, t0, q0, v0, h, n_steps, dps=None, newton="full"):
     """A SPARK method by name (``newton`` as in ``integrate``), or a comparator of
-    ``ldaspark.comparators``."""
-    from .comparators import integrate_comparator, is_comparator
+    ``ldaspark.core.comparators``."""
+    from ..core.comparators import integrate_comparator, is_comparator
     if is_comparator(method_name):
         return integrate_comparator(method_name, system, t0, q0, v0, h, n_steps, dps=dps)
     return integrate(system, get_method(method_name), t0, q0, v0, h, n_steps=n_steps, dps=dps,
@@ -244,7 +244,7 @@ def claimed_order_of(method_name):
     """The paper's order claim (7: Gauss 2s, Lobatto 2s-2; 7.3-7.4: standard Gauss IRK 1, 2)."""
     if method_name in ("gauss-irk-1", "gauss-irk-2"):
         return int(method_name[-1])
-    from .comparators import is_comparator
+    from ..core.comparators import is_comparator
     if is_comparator(method_name):
         return None
     return get_method(method_name).claimed_order

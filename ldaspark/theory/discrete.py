@@ -21,11 +21,8 @@ Public API (used by ``ldaspark audit`` too):
 * ``theorem1_residuals(system, tableau, t0, q0, v0, h, dps=40)`` -> dict: dL_d/dq0 and
   dL_d/dq1 by Richardson-extrapolated central differences at dps + 20 digits, compared with
   -p0 - f_d^- and p1 - f_d^+ (Theorem 1), relative residuals and the FD error estimate.
-* ``check_symmetry(system, tableau, t0, q0, v0, h, dps=40)`` -> dict: the (23) identities
-  L_d(t1,q1,t0,q0) + L_d(t0,q0,t1,q1), f_d^+(rev) + f_d^-, f_d^-(rev) + f_d^+, and
-  |Phi_{-h}(Phi_h(y)) - y|.
-* ``classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50))`` -> dict: rank
-  decided at two precisions and two step sizes (see below).
+* ``check_symmetry`` and ``classify_wellposedness`` / ``gauge_invariance`` live in
+  ``ldaspark.theory.symmetry`` and ``ldaspark.theory.wellposedness``, on top of this solve.
 
 Well-posedness. The Jacobian J = dG/dx can be rank deficient. Example: A_tilde with constant
 first column equal to b_tilde_1 (Lobatto IIIA-IIIB, Euler I): p0 and Lambda_1 enter (21b) and
@@ -46,18 +43,17 @@ from __future__ import annotations
 
 import math
 import time
-from fractions import Fraction
 from dataclasses import dataclass, field
 
 import mpmath
 import numpy as np
 import scipy.linalg
 
-from .backend import Backend, SingularMatrixError
-from .errors import LdasparkError
-from .spark import SparkMethod
-from .system import LagrangianSystem
-from .tableau import SparkTableau
+from ..core.backend import Backend, SingularMatrixError
+from ..core.errors import LdasparkError
+from ..core.spark import SparkMethod
+from ..core.system import LagrangianSystem
+from ..core.tableau import SparkTableau
 
 WELLPOSED = "well-posed"
 GAUGE = "gauge-deficient"
@@ -559,174 +555,3 @@ def _theorem1_once(system, tableau, t0, q0, v0, h, dps, q1_shift, q0_shift, dps_
                "fd_delta": float(delta), "seconds": time.time() - t_start,
                "null_support": res.extra["null_support"]}
     return out
-
-
-def check_symmetry(system, tableau, t0, q0, v0, h, dps=40):
-    """The symmetry claims under (23): with the forward BVP at (t0, q0, t1, q1) from one IVP
-    step and the reversed BVP at (t1, q1, t0, q0),
-
-    * L_d(t1,q1,t0,q0) + L_d(t0,q0,t1,q1)
-    * f_d^+(t1,q1,t0,q0) + f_d^-(t0,q0,t1,q1) and f_d^-(t1,q1,t0,q0) + f_d^+(t0,q0,t1,q1)
-    * |Phi_{-h}(Phi_h(y)) - y| (IVP steps)
-
-    all relative to the size of the compared quantities. For a rank-deficient J the f_d
-    comparisons are restricted to directions in which the BVP stays solvable (their pairing
-    with other directions depends on the gauge-fixing)."""
-    t_start = time.time()
-    bk = Backend(dps)
-    with bk.context():
-        t1, q1, xg = base_point(system, tableau, t0, q0, v0, h, dps)
-        t0_ = bk.scalar(t0)
-        q0_ = bk.array(q0)
-        v0_ = bk.array(v0)
-        fwd = discrete_lagrangian(system, tableau, t0_, q0_, t1, q1, dps=dps, x_guess=xg)
-        bvp = DiscreteBVP(system, tableau, dps)
-        V, Lam, v1, v0x = bvp.unpack(fwd.x)
-        # adjoint stage values under (23): V_i -> V_{s+1-i}, Psi_i -> Psi_{s+1-i} (Lambda flips sign)
-        xr = bvp.pack(V[::-1], -Lam[::-1], v0x, v1)
-        rev = discrete_lagrangian(system, tableau, t1, q1, t0_, q0_, dps=dps, x_guess=xr,
-                                  gauge_ref=xr)
-        sL = abs(fwd.L_d + rev.L_d) / max(abs(fwd.L_d), 1e-300)
-        (P0, dim0), (P1, dim1) = _tangent_projector(fwd, 0), _tangent_projector(rev, 0)
-        # f_d^+(rev) pairs with variations of fwd q0 = rev q1; f_d^-(rev) with fwd q1 = rev q0
-        a, b = P0.dot(fwd.f_d_minus + rev.f_d_plus), P1.dot(fwd.f_d_plus + rev.f_d_minus)
-        norms_p = (bk.norm_inf(P0.dot(fwd.f_d_minus)), bk.norm_inf(P0.dot(rev.f_d_plus)))
-        norms_m = (bk.norm_inf(P1.dot(fwd.f_d_plus)), bk.norm_inf(P1.dot(rev.f_d_minus)))
-        # relative to the covectors involved (p0 may vanish: a scene at rest)
-        sc = max(max(norms_p), max(norms_m), bk.norm_inf(fwd.p0), bk.norm_inf(fwd.p1),
-                 bk.norm_inf(fwd.f_d_minus), bk.norm_inf(fwd.f_d_plus), 1e-300)
-        sfp = bk.norm_inf(a) / sc
-        sfm = bk.norm_inf(b) / sc
-        # the unrestricted covectors, to show the restriction matters
-        sc_full = max(bk.norm_inf(fwd.f_d_minus), bk.norm_inf(fwd.f_d_plus), bk.norm_inf(fwd.p0))
-        full_p = bk.norm_inf(fwd.f_d_minus + rev.f_d_plus) / sc_full
-        full_m = bk.norm_inf(fwd.f_d_plus + rev.f_d_minus) / sc_full
-        # Phi_{-h} o Phi_h
-        meth = SparkMethod(system, tableau, dps=dps)
-        hh = bk.scalar(h)
-        r1 = meth.step(t0_, q0_, v0_, hh)
-        r2 = meth.step(r1.t1, r1.q1, r1.v1, -hh)
-        sc_y = max(bk.norm_inf(q0_), bk.norm_inf(v0_), 1.0)
-        sPhi = max(bk.norm_inf(r2.q1 - q0_), bk.norm_inf(r2.v1 - v0_)) / sc_y
-    return {"symmetry-Ld": float(sL), "symmetry-fd-plus": float(sfp), "symmetry-fd-minus": float(sfm),
-            "symmetry-Phi": float(sPhi), "wellposed": fwd.wellposed,
-            "tangent_dim": (dim0, dim1),
-            "fd_restricted_norm": (float(bk.norm_inf(P0.dot(fwd.f_d_minus))), float(bk.norm_inf(P1.dot(fwd.f_d_plus)))),
-            "fd_plus_identity_norms": tuple(float(x) for x in norms_p),
-            "fd_minus_identity_norms": tuple(float(x) for x in norms_m),
-            "symmetry-fd-unrestricted": (float(full_p), float(full_m)),
-            "rank_deficiency": fwd.rank_deficiency, "dps": dps, "seconds": time.time() - t_start}
-
-
-def _tangent_projector(res, which):
-    """Orthogonal projector onto the pure-q0 (which=0) or pure-q1 (which=1) variations tangent
-    to the discrete constraint manifold C_d, where v0 stays consistent, k(t0, q0, v0) = 0 (the
-    IVP's assumption; off C_d the forward and the reversed BVP differ, so (23) cannot hold there).
-    Well-posed J: null space of d k(t0, q0, v0(q0, q1)) / dq. Deficient J: null space of
-    W^T dG/dq (first-order solvability; the gauge pin keeps v0 consistent)."""
-    g = res.extra["gauge"]
-    bk = Backend(res.dps)
-    if g is None:
-        M = res.extra["dk0_dq"][which]
-    else:
-        M = g.W_left.T.dot(res.extra["dG_dq"][which])
-    n = M.shape[1]
-    Mp = bk.zeros((n, n))                     # pad to square: full right singular basis
-    Mp[:M.shape[0]] = M
-    U, sig, Vh = _svd(bk, Mp)
-    k = sum(1 for x in sig if float(x) > 1e-8 * max(float(sig[0]), 1e-300))
-    Nt = Vh[k:, :]                            # orthonormal basis of the tangent directions
-    return Nt.T.dot(Nt), Nt.shape[0]
-
-
-def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_factors=(1, "1/2")):
-    """Rank of the BVP Jacobian at the IVP base point, decided at high precision: for each
-    dps in ``dps`` and each step h*f, the singular values of J. A structurally zero sigma sits
-    at the precision floor (sigma/sigma_max ~ 10^-dps: it moves with dps); a genuinely small one
-    scales like a power of h and does not move with dps. Returns the class, the deficiency, the
-    smallest nonzero sigma per (dps, h), its observed power of h, and the floor per dps."""
-    out = {"sigma": {}, "deficiency": {}}
-    floors = {}
-    nz = {}
-    sig_rel = {}
-    support = None
-    for d in dps:
-        for f in h_factors:
-            bk = Backend(d)
-            with bk.context():
-                fr = Fraction(str(f))
-                hf = bk.scalar(h) * fr.numerator / fr.denominator
-                t1, q1, xg = base_point(system, tableau, t0, q0, v0, hf, d)
-                bvp = DiscreteBVP(system, tableau, d)
-                t0_ = bk.scalar(t0)
-                G, J, _, _ = bvp.evaluate(t0_, bk.array(q0), t1, q1, xg)
-                sig, r, U, Vh = _rank_info(bk, J, d)
-                smax = float(sig[0])
-                rel = [float(x) / smax for x in sig]
-                sig_rel[(d, f)] = rel
-                key = f"dps={d},h={float(hf):.4g}"
-                out["sigma"][key] = rel[-min(len(rel), 3):]
-                out["deficiency"][key] = r
-                floors.setdefault(d, []).append(rel[-1] if r else None)
-                nz[(d, f)] = (float(hf), rel[len(rel) - 1 - r])
-                if d == dps[-1] and f == h_factors[0]:
-                    keep = (bvp, J, Vh, bk)
-    # structural zeros follow the precision: index-wise (from the bottom), sigma at the higher dps
-    # is more than 8 orders below sigma at the lower dps; genuine small sigma agree to many digits
-    struct = {}
-    for f in h_factors:
-        lo, hi = sig_rel[(dps[0], f)][::-1], sig_rel[(dps[1], f)][::-1]   # ascending
-        k = 0
-        while k < len(lo) and hi[k] < 1e-8 * lo[k]:
-            k += 1
-        struct[f] = k
-    out["structural"] = {str(f): k for f, k in struct.items()}
-    r = max(struct.values())
-    for f in h_factors:   # the smallest genuine sigma per h
-        nz[(dps[0], f)] = (nz[(dps[0], f)][0], sig_rel[(dps[0], f)][len(sig_rel[(dps[0], f)]) - 1 - r])
-        nz[(dps[1], f)] = (nz[(dps[1], f)][0], sig_rel[(dps[1], f)][len(sig_rel[(dps[1], f)]) - 1 - r])
-    (h1, s1), (h2, s2) = nz[(dps[0], h_factors[0])], nz[(dps[0], h_factors[1])]
-    p = math.log(s1 / s2) / math.log(h1 / h2) if s1 > 0 and s2 > 0 else float("nan")
-    stable = abs(nz[(dps[0], h_factors[0])][1] / nz[(dps[1], h_factors[0])][1] - 1) < 1e-10
-    tracks = r > 0
-    bvp, J, Vh, bk = keep
-    if r and r < len(sig_rel[(dps[-1], h_factors[0])]) and sig_rel[(dps[-1], h_factors[0])][-1 - r] < 1e-12:
-        # a genuine sigma below float64 resolution: float64 vectors would mix it into the null space
-        with bk.context():
-            Vh = _svd(bk, J)[2]
-    support = _null_support(bvp, Vh, r)
-    if len(set(struct.values())) > 1:
-        cls = SINGULAR      # structural rank changes with h: not a clean property
-    elif r == 0:
-        cls = WELLPOSED
-    else:
-        small = 1e-8
-        cls = GAUGE if support["V"] <= small and support["v1"] <= small else SINGULAR
-    out.update({"class": cls, "rank_deficiency": r, "sigma_min_nonzero_rel": s1,
-                "sigma_min_power_of_h": p, "sigma_stable_across_dps": stable,
-                "floor_tracks_precision": tracks, "null_support": support})
-    return out
-
-
-def gauge_invariance(system, tableau, t0, q0, v0, h, dps=40, shift="1e-3"):
-    """For a rank-deficient J: re-solve with the gauge pinned at x + shift * n (n a right null
-    vector of J) and report how L_d, p0 + f_d^- and p1 - f_d^+ (= -dL_d/dq0, dL_d/dq1 by
-    Theorem 1; gauge-invariant) move, next to how p0 itself moves (the gauge is real).
-    Returns None when J has full rank."""
-    bk = Backend(dps)
-    with bk.context():
-        t1, q1, xg = base_point(system, tableau, t0, q0, v0, h, dps)
-        t0_, q0_ = bk.scalar(t0), bk.array(q0)
-        a = discrete_lagrangian(system, tableau, t0_, q0_, t1, q1, dps=dps, x_guess=xg)
-        if a.rank_deficiency == 0:
-            return None
-        xs = a.x + bk.scalar(shift) * a.extra["gauge"].C[0]
-        b = discrete_lagrangian(system, tableau, t0_, q0_, t1, q1, dps=dps, x_guess=xs, gauge_ref=xs)
-        sc = max(bk.norm_inf(a.p0), bk.norm_inf(a.p1), 1e-300)
-        return {"wellposed": a.wellposed,
-                "dL_d": float(abs(a.L_d - b.L_d) / max(abs(a.L_d), 1e-300)),
-                "d(p0+f_d_minus)": float(bk.norm_inf((a.p0 + a.f_d_minus) - (b.p0 + b.f_d_minus)) / sc),
-                "d(p1-f_d_plus)": float(bk.norm_inf((a.p1 - a.f_d_plus) - (b.p1 - b.f_d_plus)) / sc),
-                "dp0": float(bk.norm_inf(a.p0 - b.p0) / sc),
-                "dV": float(bk.norm_inf(a.V - b.V)),
-                "shift": float(shift), "dps": dps}

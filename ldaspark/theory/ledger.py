@@ -1,5 +1,9 @@
-"""``ldaspark verify``: run the checks of Theorem 1, (22), (23) and section 5.1 on the built-in
-methods and write the claims ledger (reports/claims.md and a JSON list of records).
+"""The claims ledger: run the checks of Theorem 1, (22), (23) and section 5.1 on the built-in
+methods and return one record per measured check (written by ``ldaspark.reports.claims``).
+
+Further claim groups (sections 2.2, 4, 5, 7 and the general systems) live in their own modules
+of ``ldaspark.theory`` and are listed in ``CLAIM_GROUPS``: each is a function
+``records(quick: bool, progress) -> list[dict]`` returning records built with ``record``.
 
 Each record: claim, method, scene, point, status (pass | fail | not-applicable), expected
 (the status the paper predicts: pass when the tableau satisfies the hypothesis, fail for the
@@ -13,25 +17,22 @@ symmetry <= 1e-25 at 40 digits; constraint <= 1e3 eps (1 + |v|); negative contro
 from __future__ import annotations
 
 import math
-import os
-import sys
+import importlib
 import time
 
 import mpmath
 import numpy as np
 
-from .backend import Backend
-from .discrete import (WELLPOSED, GAUGE, SINGULAR, base_point, check_symmetry,
-                       classify_wellposedness, discrete_lagrangian, gauge_invariance,
-                       theorem1_residuals)
-from .errors import LdasparkError
-from .io import atomic_write_json, atomic_write_text
-from .methods import check_22a, check_22b, check_23
-from .scenes import PAPER_SCENES, get_scene
-from .spark import integrate
-from .tableau import builtin_method_names, get_method
+from ..core.backend import Backend
+from .discrete import WELLPOSED, GAUGE, SINGULAR, base_point, discrete_lagrangian, theorem1_residuals
+from .symmetry import check_symmetry
+from .wellposedness import classify_wellposedness, gauge_invariance
+from ..core.errors import LdasparkError
+from .conditions import check_22a, check_22b, check_23
+from ..core.scenes import PAPER_SCENES, get_scene
+from ..core.spark import integrate
+from ..core.families import builtin_method_names, get_method
 
-REPORT_DIR = "reports"
 TOL_THEOREM1 = 1e-20
 TOL_SYMMETRY = 1e-25
 TOL_NEGATIVE = 1e-6
@@ -66,7 +67,7 @@ def proof_conditions(tab):
     return c0, c1
 
 
-def _rec(claim, method, scene, status, residual, expected, dps=None, wellposed="n/a", seconds=0.0,
+def record(claim, method, scene, status, residual, expected, dps=None, wellposed="n/a", seconds=0.0,
          point="base", threshold=None, note=""):
     r = residual
     if isinstance(r, (mpmath.mpf,)):
@@ -104,7 +105,7 @@ def exact_condition_records(tab, expected):
         exp = expected[claim]
         t = time.time()
         ok = fn(tab)
-        out.append(_rec(claim, tab.name, "-", "pass" if ok else "fail", 0.0 if ok else 1.0,
+        out.append(record(claim, tab.name, "-", "pass" if ok else "fail", 0.0 if ok else 1.0,
                         exp, seconds=time.time() - t, note="exact (sympy field arithmetic)"))
     return out
 
@@ -116,7 +117,7 @@ def theorem1_records(scene, tab, expected, point, t0, q0, v0, dps=DPS, q1_shift=
         r = theorem1_residuals(scene.system, tab, t0, q0, v0, H, dps=dps, q1_shift=q1_shift)
     except (LdasparkError, ZeroDivisionError) as exc:
         note = f"solve failed: {exc}"
-        return [_rec(c, tab.name, scene.name, "fail", None, expected[c], dps, "singular", time.time() - t,
+        return [record(c, tab.name, scene.name, "fail", None, expected[c], dps, "singular", time.time() - t,
                      point, TOL_THEOREM1, note) for c in ("theorem1-q0", "theorem1-q1")], None
     note = (f"FD error est {r['fd_error']:.1e}; |f_d-|={r['f_d_minus_norm']:.2e}; "
             f"without forces {r['without_forces_q0']:.1e}; sigma_min/max(nonzero)="
@@ -132,7 +133,7 @@ def theorem1_records(scene, tab, expected, point, t0, q0, v0, dps=DPS, q1_shift=
             st, tol = _status(res, TOL_THEOREM1), TOL_THEOREM1
         else:  # negative control: the residual must be large (>= 1e-6) to count as a failure
             st, tol = ("fail" if res >= TOL_NEGATIVE else "pass"), TOL_NEGATIVE
-        recs.append(_rec(c, tab.name, scene.name, st, res, expected[c], dps, r["wellposed"],
+        recs.append(record(c, tab.name, scene.name, st, res, expected[c], dps, r["wellposed"],
                          r["seconds"] / 2, point, tol, note))
     return recs, r
 
@@ -143,7 +144,7 @@ def wellposed_records(scene, tab, t0, q0, v0, point):
     try:
         c = classify_wellposedness(scene.system, tab, t0, q0, v0, H)
     except (LdasparkError, ZeroDivisionError) as exc:
-        return [_rec("wellposedness", tab.name, scene.name, "fail", None, "pass", None, "singular",
+        return [record("wellposedness", tab.name, scene.name, "fail", None, "pass", None, "singular",
                      time.time() - t, point, None, f"classification failed: {exc}")], "singular"
     cls = c["class"]
     sig = c["sigma_min_nonzero_rel"]
@@ -153,7 +154,7 @@ def wellposed_records(scene, tab, t0, q0, v0, point):
             f"null vector support V={c['null_support']['V']:.1e} Lambda={c['null_support']['Lambda']:.1e} "
             f"v0={c['null_support']['v0']:.1e}")
     # the implicit functions of Theorem 1 exist (up to a gauge that leaves L_d unchanged)?
-    out.append(_rec("implicit-function", tab.name, scene.name, "fail" if cls == SINGULAR else "pass",
+    out.append(record("implicit-function", tab.name, scene.name, "fail" if cls == SINGULAR else "pass",
                     float(c["rank_deficiency"]), "pass", 50, cls, time.time() - t, point, None, note))
     if c["rank_deficiency"]:
         t = time.time()
@@ -161,11 +162,11 @@ def wellposed_records(scene, tab, t0, q0, v0, point):
             g = gauge_invariance(scene.system, tab, t0, q0, v0, H, dps=DPS)
         except (LdasparkError, ZeroDivisionError) as exc:
             g = None
-            out.append(_rec("gauge-invariance", tab.name, scene.name, "fail", None, "pass", DPS, cls,
+            out.append(record("gauge-invariance", tab.name, scene.name, "fail", None, "pass", DPS, cls,
                             time.time() - t, point, TOL_SYMMETRY, f"re-solve failed: {exc}"))
         if g is not None:
             res = max(g["dL_d"], g["d(p0+f_d_minus)"], g["d(p1-f_d_plus)"])
-            out.append(_rec("gauge-invariance", tab.name, scene.name,
+            out.append(record("gauge-invariance", tab.name, scene.name,
                             _status(res, TOL_SYMMETRY) if cls == GAUGE else "not-applicable", res,
                             "pass", DPS, cls, time.time() - t, point, TOL_SYMMETRY,
                             f"pin shifted by 1e-3 along the null vector: p0 moves {g['dp0']:.1e}, V moves "
@@ -178,13 +179,13 @@ def symmetry_records(scene, tab, expected, t0, q0, v0, point, cls):
     try:
         r = check_symmetry(scene.system, tab, t0, q0, v0, H, dps=DPS)
     except (LdasparkError, ZeroDivisionError) as exc:
-        return [_rec("symmetry-Ld", tab.name, scene.name, "fail", None, expected, DPS, cls,
+        return [record("symmetry-Ld", tab.name, scene.name, "fail", None, expected, DPS, cls,
                      time.time() - t, point, TOL_SYMMETRY, f"solve failed: {exc}")]
     out = []
     sec = r["seconds"] / 4
     acc = ("accidental at this special initial point (see the perturbed point)"
            if expected == "fail" and point == "base" and r["symmetry-Ld"] <= TOL_SYMMETRY else "")
-    out.append(_rec("symmetry-Ld", tab.name, scene.name, _status(r["symmetry-Ld"], TOL_SYMMETRY),
+    out.append(record("symmetry-Ld", tab.name, scene.name, _status(r["symmetry-Ld"], TOL_SYMMETRY),
                     r["symmetry-Ld"], expected, DPS, r["wellposed"], sec, point, TOL_SYMMETRY, acc))
     fn = (f"restricted to variations tangent to C_d (dims {r['tangent_dim']}; restricted |f_d| "
           f"{r['fd_restricted_norm'][0]:.1e}, {r['fd_restricted_norm'][1]:.1e}); unrestricted covectors "
@@ -199,9 +200,9 @@ def symmetry_records(scene, tab, expected, t0, q0, v0, point, cls):
         elif max(r[nk]) < 1e-30:
             st = "not-applicable"
             note = "vacuous (restricted forces vanish); " + fn
-        out.append(_rec(c, tab.name, scene.name, st, r[key], expected, DPS, r["wellposed"], sec, point,
+        out.append(record(c, tab.name, scene.name, st, r[key], expected, DPS, r["wellposed"], sec, point,
                         TOL_SYMMETRY, note))
-    out.append(_rec("symmetry-Phi", tab.name, scene.name, _status(r["symmetry-Phi"], TOL_SYMMETRY),
+    out.append(record("symmetry-Phi", tab.name, scene.name, _status(r["symmetry-Phi"], TOL_SYMMETRY),
                     r["symmetry-Phi"], expected, DPS, r["wellposed"], sec, point, TOL_SYMMETRY,
                     "|Phi_{-h}(Phi_h(y)) - y| / |y| (IVP steps)"))
     return out
@@ -231,11 +232,11 @@ def constraint_records(scene, tab):
         try:
             k, sec, eps = constraint_residuals(scene, tab, dps=dps)
         except (LdasparkError, ZeroDivisionError) as exc:
-            out.append(_rec("constraint", tab.name, scene.name, "fail", None, "pass", dps, "n/a",
+            out.append(record("constraint", tab.name, scene.name, "fail", None, "pass", dps, "n/a",
                             time.time() - t, "ivp-5-steps", None, f"integration failed: {exc}"))
             continue
         tol = 1e3 * eps
-        out.append(_rec("constraint", tab.name, scene.name, _status(k, tol), k, "pass", dps, "n/a",
+        out.append(record("constraint", tab.name, scene.name, _status(k, tol), k, "pass", dps, "n/a",
                         time.time() - t, "ivp-5-steps", tol,
                         f"(21f) at every step; control: secant velocity gives {sec:.1e}"))
     return out
@@ -275,14 +276,14 @@ def holonomic_records(tab, expected):
     try:
         r = holonomic_order(tab)
     except (LdasparkError, ZeroDivisionError) as exc:
-        return [_rec("5.1-holonomic", tab.name, "pendulum", "fail", None, expected, DPS, "singular",
+        return [record("5.1-holonomic", tab.name, "pendulum", "fail", None, expected, DPS, "singular",
                      time.time() - t, "h-sweep", None, f"failed: {exc}")]
     vanish = r["tangential"][-1] < 1e-30
     ok = vanish or r["p_tangential"] >= 1.5
     note = (f"tangential |f_d| at h={r['h']}: " + ", ".join(f"{x:.2e}" for x in r["tangential"])
             + (" (vanish identically)" if vanish else f", observed p = {r['p_tangential']:.2f}")
             + f"; full covector (normal part) ~ h^{r['p_full']:.2f}: " + ", ".join(f"{x:.1e}" for x in r["full"]))
-    return [_rec("5.1-holonomic", tab.name, "pendulum", "pass" if ok else "fail",
+    return [record("5.1-holonomic", tab.name, "pendulum", "pass" if ok else "fail",
                  r["tangential"][-1], expected, DPS, r["wellposed"], time.time() - t, "h-sweep", None, note)]
 
 
@@ -340,104 +341,21 @@ def run_ledger(max_s=3, scenes=LEDGER_SCENES, perturbed=True, holonomic=True, co
     return records
 
 
+# extra claim groups: "module:function", each returning a list of records (see module docstring)
+CLAIM_GROUPS: tuple[str, ...] = ()
+
+
+def extra_records(quick=False, progress=None, groups=None):
+    """Records of the claim groups in CLAIM_GROUPS (or ``groups``), in order."""
+    out = []
+    for spec in (CLAIM_GROUPS if groups is None else groups):
+        mod, _, fn = spec.partition(":")
+        out += getattr(importlib.import_module(mod), fn)(quick=quick, progress=progress)
+    return out
+
+
 def summarize(records):
     def ok(r):
         return r["status"] == "not-applicable" or r["status"] == r["expected"]
     n_unexp = sum(1 for r in records if not ok(r))
     return n_unexp
-
-
-def write_markdown(records, path, seconds, command):
-    lines = ["# Claims ledger (Theorem 1, (22), (23), section 5.1)", "",
-             f"Generated by `{command}` in {seconds:.0f} s. Every row is a measured check; "
-             "`expected` is what the paper predicts for that tableau (negative controls and the Euler "
-             "methods under (23) are expected to fail). Thresholds: Theorem 1 <= 1e-20 relative "
-             "(40 digits; dL_d/dq by Richardson-extrapolated central differences at 60 digits); "
-             "symmetry <= 1e-25; negative controls >= 1e-6.", ""]
-    unexp = [r for r in records if r["status"] != "not-applicable" and r["status"] != r["expected"]]
-    lines += [f"**{len(records)} records, {len(unexp)} with an unexpected outcome.**", ""]
-    # well-posedness matrix
-    wp = {}
-    for r in records:
-        if r["claim"] == "implicit-function":
-            k = (r["method"], r["scene"])
-            wp[k] = r["wellposed"] if k not in wp else (wp[k] if wp[k] == r["wellposed"]
-                                                         else f"{wp[k]} / {r['wellposed']}")
-    methods = list(dict.fromkeys(r["method"] for r in records))
-    scenes = list(dict.fromkeys(r["scene"] for r in records if r["claim"] == "implicit-function"))
-    lines += ["## Well-posedness of the boundary-value solve (t0, q0, t1, q1) -> (V, Lambda, v0, v1)", "",
-              "| method | " + " | ".join(scenes) + " |", "|---|" + "---|" * len(scenes)]
-    for m in methods:
-        if any((m, s) in wp for s in scenes):
-            lines.append(f"| {m} | " + " | ".join(wp.get((m, s), "-") for s in scenes) + " |")
-    lines += ["", "Where two classes are shown: at the scene's initial data / at a generic consistent point "
-              "(q0 + pattern/20, v0 projected onto k = 0); one class: both agree (or only the base point was run).",
-              "", "well-posed: J nonsingular (smallest sigma may scale like a power of h); gauge-deficient: "
-              "null vectors move only (Lambda, v0), L_d and the Theorem 1 residuals are invariant "
-              "(claim gauge-invariance); singular: null vectors move V, L_d is not a function of the "
-              "endpoints (the paper's implicit-function assumption fails); identities are then checked in "
-              "the pinned solve.", ""]
-    # per-claim summary
-    lines += ["## Summary per claim", "", "| claim | pass | fail | not-applicable | unexpected | max residual (expected pass) |",
-              "|---|---|---|---|---|---|"]
-    for c in dict.fromkeys(r["claim"] for r in records):
-        rs = [r for r in records if r["claim"] == c]
-        mx = max((r["residual"] for r in rs if r["expected"] == "pass" and r["status"] == "pass"
-                  and r["residual"] is not None), default=None)
-        lines.append(f"| {c} | {sum(r['status'] == 'pass' for r in rs)} | {sum(r['status'] == 'fail' for r in rs)} | "
-                     f"{sum(r['status'] == 'not-applicable' for r in rs)} | "
-                     f"{sum(1 for r in rs if r['status'] != 'not-applicable' and r['status'] != r['expected'])} | "
-                     f"{'-' if mx is None else f'{mx:.1e}'} |")
-    if unexp:
-        lines += ["", "## Unexpected outcomes", "", "| claim | method | scene | point | status | residual | note |",
-                  "|---|---|---|---|---|---|---|"]
-        for r in unexp:
-            lines.append(f"| {r['claim']} | {r['method']} | {r['scene']} | {r['point']} | {r['status']} | "
-                         f"{_fmt(r['residual'])} | {r['note']} |")
-    lines += ["", "## All records", "", "| claim | method | scene | point | status | expected | residual | dps | wellposed | s | note |",
-              "|---|---|---|---|---|---|---|---|---|---|---|"]
-    for r in records:
-        lines.append(f"| {r['claim']} | {r['method']} | {r['scene']} | {r['point']} | {r['status']} | {r['expected']} | "
-                     f"{_fmt(r['residual'])} | {r['dps'] or 'f64'} | {r['wellposed']} | {r['seconds']:.2f} | {r['note']} |")
-    atomic_write_text(path, "\n".join(lines) + "\n")
-
-
-def _fmt(x):
-    return "-" if x is None else f"{x:.1e}"
-
-
-def _progress(i, n, m, s):
-    print(f"  [{i}/{n}] {m} on {s}", file=sys.stderr, flush=True)
-
-
-def run_verify(outdir=REPORT_DIR, quick=False, json_path=None, command="ldaspark verify"):
-    t = time.time()
-    if quick:
-        recs = run_ledger(max_s=2, scenes=("particle", "skate"), perturbed=False, holonomic=False,
-                          progress=_progress)
-    else:
-        recs = run_ledger(max_s=3, progress=_progress)
-    sec = time.time() - t
-    os.makedirs(outdir, exist_ok=True)
-    write_markdown(recs, os.path.join(outdir, "claims.md"), sec, command)
-    atomic_write_json(json_path or os.path.join(outdir, "claims.json"), recs)
-    return recs
-
-
-def add_arguments(p):
-    p.add_argument("--quick", action="store_true", help="s <= 2, scenes particle and skate, base points only")
-    p.add_argument("--json", default=None, help="write the JSON records here (default reports/claims.json)")
-    p.add_argument("--outdir", default=REPORT_DIR, help="directory for claims.md (default reports)")
-
-
-def run(args) -> int:
-    cmd = "ldaspark verify" + (" --quick" if args.quick else "")
-    recs = run_verify(args.outdir, args.quick, args.json, cmd)
-    n = summarize(recs)
-    print(f"{len(recs)} records, {n} with an outcome other than the paper predicts (findings, listed in "
-          f"{os.path.join(args.outdir, 'claims.md')})")
-    return 0
-
-
-def run_default(outdir=REPORT_DIR) -> None:
-    run_verify(outdir, False, None, "ldaspark report claims")

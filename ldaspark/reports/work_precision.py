@@ -18,8 +18,8 @@ import time
 
 import numpy as np
 
-from .backend import Backend
-from .io import atomic_save_figure, atomic_write_text
+from ..core.backend import Backend
+from ..core.io import atomic_save_figure, atomic_write_text
 
 SPARK_FAST = ("gauss-1", "gauss-2", "gauss-3", "lobatto-iiia-iiib-2", "lobatto-iiia-iiib-3")
 SPARK_GENERIC = ("gauss-2",)
@@ -39,7 +39,7 @@ def _cpu(fn, repeats=1):
 
 
 def run_fast(scene, method, h, t_end, repeats=3):
-    from .fast import fast_integrate
+    from ..compiled.fast import fast_integrate
     n = int(round(t_end / h))
     fast_integrate(scene, method, h=h, n_steps=2)                       # compile outside the clock
     cpu, r = _cpu(lambda: fast_integrate(scene, method, h=h, n_steps=n), repeats)
@@ -47,8 +47,8 @@ def run_fast(scene, method, h, t_end, repeats=3):
 
 
 def run_generic(scene, method, h, t_end):
-    from .spark import integrate
-    from .tableau import get_method
+    from ..core.spark import integrate
+    from ..core.families import get_method
     t0, q0, v0 = scene.initial()
     tab = get_method(method)
     cpu, sol = _cpu(lambda: integrate(scene.system, tab, t0, q0, v0, h, n_steps=int(round(t_end / h))))
@@ -117,7 +117,7 @@ def reference_final(scene_name, scene, t_end):
 
 
 def study_scene(scene_name, t_end, hs_fast, hs_generic, rtols, rtols_radau, progress=print):
-    from .scenes import get_scene
+    from ..core.scenes import get_scene
     scene = get_scene(scene_name)
     q_ref, ref_label = reference_final(scene_name, scene, t_end)
     t0, q0, v0 = scene.initial()
@@ -189,11 +189,11 @@ def steps_per_second(scenes=("particle", "skate", "robot", "mp-particles"),
                      methods=("gauss-1", "gauss-2", "lobatto-iiia-iiib-2", "lobatto-iiia-iiib-3",
                               "lobatto-iiia-iiib-iiid-2", "euler-i"), n_generic=40, n_fast=20000, h=0.05):
     """Steps per second generic vs fast path, measured side by side in one run."""
-    from .errors import NewtonError
-    from .fast import fast_integrate
-    from .scenes import get_scene
-    from .spark import integrate
-    from .tableau import get_method
+    from ..core.errors import NewtonError
+    from ..compiled.fast import fast_integrate
+    from ..core.scenes import get_scene
+    from ..core.spark import integrate
+    from ..core.families import get_method
     rows = []
     for sname in scenes:
         sc = get_scene(sname)
@@ -214,10 +214,10 @@ def steps_per_second(scenes=("particle", "skate", "robot", "mp-particles"),
 
 def dps_cost(dps_list=(16, 30, 50, 100, 200), n_steps=8, method="gauss-2", scene_name="particle", h="0.1"):
     """Time per step of the mpmath path against dps, with float64 generic and fast for scale."""
-    from .fast import fast_integrate
-    from .scenes import get_scene
-    from .spark import integrate
-    from .tableau import get_method
+    from ..compiled.fast import fast_integrate
+    from ..core.scenes import get_scene
+    from ..core.spark import integrate
+    from ..core.families import get_method
     sc = get_scene(scene_name)
     tab = get_method(method)
     rows = []
@@ -241,8 +241,8 @@ def dps_cost(dps_list=(16, 30, 50, 100, 200), n_steps=8, method="gauss-2", scene
 
 def long_energy(t_long=2500.0, h=0.1, rtol=1e-6, every=10):
     """|E - E0| over [0, t_long] for the particle: gauss-2 SPARK vs DOP853 with/without projection."""
-    from .fast import fast_integrate
-    from .scenes import get_scene
+    from ..compiled.fast import fast_integrate
+    from ..core.scenes import get_scene
     sc = get_scene("particle")
     t0, q0, v0 = sc.initial()
     E0 = sc.system.energy(Backend(None), t0, q0, v0)

@@ -5,7 +5,7 @@
 * Fig. 3: Lobatto IIIA-B-D s = 2, 3, 4, h = 0.2, t in [0, 150], mobile robot (8.3).
 * Fig. 4: McLachlan-Perlmutter particles (8.4), mu((E - E0)^2)/h^4 over J+1 = 10 initial
   conditions for Lobatto IIIA-B 2, its modified form and McLachlan-Perlmutter (26), from the
-  compiled fast path ``ldaspark.fig4.figure4_data``.
+  compiled fast path ``ldaspark.reports.fig4.figure4_data``.
 
 "Bounded" (Figs. 1-3) is measured, not eyeballed: the maximum of |E - E0| over the last quarter
 of the interval divided by that over the first quarter (a linear drift gives about 4, a
@@ -22,8 +22,8 @@ import time
 
 import numpy as np
 
-from .errors import InputError
-from .io import atomic_save_figure, atomic_write_json, atomic_write_text
+from ..core.errors import InputError
+from ..core.io import atomic_save_figure, atomic_write_json, atomic_write_text
 
 REPORT_DIR = "reports"
 BOUNDED_RATIO = 1.5
@@ -70,9 +70,9 @@ def boundedness(t, dE):
 
 def figure_data(fig, t_end=None):
     """Integrate the methods of Fig. ``fig`` (1-3) in float64; returns a JSON-able dict."""
-    from .scenes import get_scene
-    from .spark import integrate
-    from .tableau import get_method
+    from ..core.scenes import get_scene
+    from ..core.spark import integrate
+    from ..core.families import get_method
     if fig not in FIGURES:
         raise InputError(f"figure must be 1, 2, 3 or 4, got {fig}")
     spec = FIGURES[fig]
@@ -116,17 +116,17 @@ def _save(fig, path):
     atomic_save_figure(fig, path, dpi=90)
 
 
-# --- Fig. 4 (data from the fast path of ldaspark.fig4) ------------------------------------------
+# --- Fig. 4 (data from the fast path of ldaspark.reports.fig4) ------------------------------------------
 def fig4_available() -> bool:
-    return importlib.util.find_spec("ldaspark.fig4") is not None
+    return importlib.util.find_spec("ldaspark.reports.fig4") is not None
 
 
 def figure4(t_end=50000.0, h=0.05, J=9, every=100, constraint="printed"):
-    """Call ``ldaspark.fig4.figure4_data`` and add checks: E0 = 3.06 and an independent LS fit
+    """Call ``ldaspark.reports.fig4.figure4_data`` and add checks: E0 = 3.06 and an independent LS fit
     of log(mu/h^4) against log t over t >= t_end/100 (the paper: mu/h^4 ~ O(t))."""
     if not fig4_available():
-        raise InputError("Fig. 4 needs ldaspark.fig4 (the compiled fast path), which is not installed")
-    fig4 = importlib.import_module("ldaspark.fig4")
+        raise InputError("Fig. 4 needs ldaspark.reports.fig4 (the compiled fast path), which is not installed")
+    fig4 = importlib.import_module("ldaspark.reports.fig4")
     tic = time.time()
     print(f"    Fig. 4: figure4_data(t_end={t_end}, h={h}, J={J}, every={every}, constraint={constraint!r}) ...",
           flush=True)
@@ -218,7 +218,7 @@ def fig4_png_name(d):
 def _fig4_markdown(fig4):
     L = [f"### Fig. 4, {fig4.get('constraint', 'printed')} constraint (scene `{fig4.get('scene', 'mp-particles')}`)", "",
          f"h = {fig4['h']}, t in [0, {fig4['t_end']:g}], J+1 = {fig4['J'] + 1} initial conditions, samples every"
-         f" {fig4['every']} steps; data from `ldaspark.fig4.figure4_data` in {fig4['seconds']:.1f} s.", "",
+         f" {fig4['every']} steps; data from `ldaspark.reports.fig4.figure4_data` in {fig4['seconds']:.1f} s.", "",
          f"E0 = {fig4['E0']:.15g} (paper: 3.06; {'matches' if fig4['E0_matches_paper'] else 'DOES NOT MATCH'}).", "",
          f"![Fig. 4](figures/{fig4_png_name(fig4)})", "",
          "| method | fitted exponent (fig4) | own LS exponent, t >= t_end/100 | final mu/h^4 |", "|---|---|---|---|"]
@@ -273,7 +273,7 @@ def _strip4(d, max_points=1000):
 # --- section interface --------------------------------------------------------------------------
 def add_arguments(p):
     p.add_argument("--figure", type=int, choices=(1, 2, 3, 4), default=None,
-                   help="one figure (default: Figs. 1-3, and Fig. 4 when ldaspark.fig4 exists)")
+                   help="one figure (default: Figs. 1-3, and Fig. 4 when ldaspark.reports.fig4 exists)")
     p.add_argument("--t-end", type=float, default=None, help="shorter interval (default: the paper's)")
     p.add_argument("--json", default=None, help="write the figure data (JSON) to FILE")
     p.add_argument("--outdir", default=None, help="also write the PNG(s) here (default: reports/ when no --json)")
@@ -329,7 +329,7 @@ def run_default(outdir=REPORT_DIR, t_end=None, with_fig4=True):
                 note = f"Fig. 4 ({cons}) failed: {type(exc).__name__}: {exc}"
                 print(note, file=sys.stderr, flush=True)
     elif with_fig4:
-        note = "Fig. 4 pending: `ldaspark.fig4` (the compiled fast path) is not installed yet."
+        note = "Fig. 4 pending: `ldaspark.reports.fig4` (the compiled fast path) is not installed yet."
     atomic_write_text(os.path.join(outdir, "energy.md"), markdown(figs, f4, note))
     atomic_write_json(os.path.join(outdir, "energy.json"),
                       {"figures": [_strip(d, 1000) for d in figs],

@@ -22,11 +22,11 @@ REPORT_DIR = "reports"
 
 # order = order of the main job
 SECTION_MODULES = {
-    "convergence": "ldaspark.report_convergence",
-    "energy": "ldaspark.report_energy",
-    "claims": "ldaspark.verify",
-    "work-precision": "ldaspark.work_precision",
-    "stability": "ldaspark.stability",
+    "convergence": "ldaspark.reports.convergence",
+    "energy": "ldaspark.reports.energy",
+    "claims": "ldaspark.reports.claims",
+    "work-precision": "ldaspark.reports.work_precision",
+    "stability": "ldaspark.reports.stability",
 }
 
 

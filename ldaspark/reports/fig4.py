@@ -17,8 +17,8 @@ import time
 
 import numpy as np
 
-from .ensemble import RunSpec, run_many
-from .errors import InputError
+from ..compiled.ensemble import RunSpec, run_many
+from ..core.errors import InputError
 
 FIG4_METHODS = ("lobatto-iiia-iiib-2", "lobatto-iiia-iiib-2-modified", "mp-lobatto-iiib-a-2")
 
@@ -41,7 +41,7 @@ def figure4_data(t_end=50000.0, h=0.05, J=9, every=100, executor=None, methods=F
     "window"}}, "seconds": wall time, "n_steps", "h", "J", "every", "newton": {name: mean
     iterations}}. ``window`` defaults to [t_end / 100, t_end]. ``constraint`` picks the scene
     variant of ``scenes.mp_particles``: "printed" (as in 8.4; integrable) or "nonholonomic"."""
-    from .scenes import mp_particles
+    from ..core.scenes import mp_particles
     t0_wall = time.perf_counter()
     n_steps = int(round(t_end / h))
     if n_steps <= 0 or abs(n_steps * h - t_end) > 1e-9 * max(1.0, t_end):

@@ -1,7 +1,7 @@
 """Comparator methods of sections 7.3-7.5 and 8.4 (not Lagrange-d'Alembert SPARK methods
 themselves, or other implementations of one), behind one entry point
 ``integrate_comparator(name, system, t0, q0, v0, h, n_steps, dps=None)`` returning a
-``ldaspark.spark.Solution``.
+``ldaspark.core.spark.Solution``.
 
 Names (shared contract between engineers):
 
@@ -37,7 +37,7 @@ from .backend import Backend, SingularMatrixError
 from .errors import InputError, NewtonError
 from .spark import Solution, SparkMethod
 from .system import LagrangianSystem, _arr
-from .tableau import euler_i, euler_ii, gauss, lobatto_iiia_iiib
+from .families import euler_i, euler_ii, gauss, lobatto_iiia_iiib
 
 FIXED_NAMES = ("lobatto-iiia-iiib-2-leapfrog", "lobatto-iiia-iiib-2-modified",
                "lobatto-iiia-iiib-2-modified-leapfrog", "mp-lobatto-iiib-a-2",

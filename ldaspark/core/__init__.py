@@ -1,0 +1,11 @@
+"""The solver core: what a SPARK integration of (1) needs and nothing more.
+
+errors (exception hierarchy), backend (float64 / mpmath arithmetic), tableau (SparkTableau (21),
+the families gauss / lobatto_iiia_iiib / lobatto_iiia_iiib_iiid / euler_i / euler_ii, the method
+registry ``get_method``, tableau files), system (LagrangianSystem: L, k and what sympy derives from
+them), spark (the step (21a-f) and the loop ``integrate``), comparators (sections 7-8), scenes
+(section 8 and more), io (atomic file writes).
+
+Imports only numpy, scipy, mpmath, sympy and itself; never ``ldaspark.theory``, ``compiled``,
+``reports`` or ``cli``.
+"""

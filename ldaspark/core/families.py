@@ -1,0 +1,299 @@
+"""The built-in tableau families and the method registry (section 7 and [26, 27]).
+
+* ``gauss(s)``: A = A_hat = A_tilde = Gauss collocation, order 2s.
+* ``lobatto_iiia_iiib(s)``: A = IIIA, A_hat = A_tilde = IIIB, order 2s-2.
+* ``lobatto_iiia_iiib_iiid(s)``: A = IIIA, A_hat = IIIB, A_tilde = IIID = (IIIC + IIIC*)/2.
+* ``euler_i()``, ``euler_ii()``: the "symplectic" Euler SPARK methods of 7.1-7.2, order 1.
+* ``get_method(name)``: the registry of names ``gauss-S``, ``lobatto-iiia-iiib-S``, ...
+
+Each coefficient matrix is built from its own defining conditions (IIIA from C(s), IIIB from
+D(s), IIIC from a_i1 = b_1 and C(s-1), IIIC* from a_is = 0 and C(s-1)), never from (22b), so
+that checking (22b) on them is a real test.
+"""
+from __future__ import annotations
+
+import mpmath
+import sympy
+from sympy import QQ
+from sympy.polys.matrices import DomainMatrix
+
+from .errors import TableauError
+from .tableau import SparkTableau, guard_digits
+
+# --- exact construction ------------------------------------------------------------------
+# Exact coefficients are computed in the algebraic number field Q(c_1, ..., c_s) with sympy's
+# DomainMatrix: exact, fast, and its results convert back to radicals.
+def _exact_roots(poly_expr, x):
+    """Real roots of a polynomial, as radicals where sympy finds them, else CRootOf; sorted."""
+    P = sympy.Poly(sympy.expand(poly_expr), x)
+    rts = sympy.roots(P)
+    if sum(rts.values()) != P.degree() or any(r.has(sympy.I) for r in rts):
+        # casus irreducibilis (Gauss s = 6, Lobatto s = 8, ...): the real nodes have no real
+        # radical form, and the algebraic field of their CRootOf forms is too large to be useful
+        raise TableauError(f"exact nodes need real radicals, which the degree-{P.degree()} node polynomial "
+                           "does not have (exact families go up to Gauss s = 5, Lobatto s = 7); "
+                           "use exact=False: coefficients at any precision")
+    return sorted(rts, key=lambda r: float(sympy.N(r, 30)))
+
+
+class _Field:
+    def __init__(self, numbers):
+        gens = [r for r in numbers if not r.is_rational]
+        self.K = QQ.algebraic_field(*gens) if gens else QQ
+
+    def __call__(self, e):
+        return self.K.from_sympy(sympy.sympify(e))
+
+    def solve(self, rows, rhs):
+        n = len(rows)
+        M = DomainMatrix(rows, (n, len(rows[0])), self.K)
+        r = DomainMatrix([[v] for v in rhs], (n, 1), self.K)
+        sol = M.lu_solve(r).to_list()
+        return [row[0] for row in sol]
+
+    def to_sympy(self, rows):
+        return sympy.Matrix([[self.K.to_sympy(v) for v in row] for row in rows])
+
+
+def _exact_weights(F, c):
+    s = len(c)
+    return F.solve([[cj ** k for cj in c] for k in range(s)], [F(sympy.Rational(1, k + 1)) for k in range(s)])
+
+
+def _exact_collocation(F, c, nconds, fixed=None):
+    """Rows of A from C(nconds): sum_j a_ij c_j^(k-1) = c_i^k / k, k = 1..nconds, with
+    ``fixed`` = (column, value) prescribing one column (IIIC: a_i1 = b_1; IIIC*: a_is = 0)."""
+    s = len(c)
+    A = [[F(0)] * s for _ in range(s)]
+    free = list(range(s))
+    if fixed is not None:
+        free.remove(fixed[0])
+    V = [[c[j] ** k for j in free] for k in range(nconds)]
+    for i in range(s):
+        rhs = [c[i] ** (k + 1) * F(sympy.Rational(1, k + 1)) for k in range(nconds)]
+        if fixed is not None:
+            rhs = [rhs[k] - fixed[1] * c[fixed[0]] ** k for k in range(nconds)]
+            A[i][fixed[0]] = fixed[1]
+        for jj, v in zip(free, F.solve(V, rhs)):
+            A[i][jj] = v
+    return A
+
+
+def _exact_iiib(F, c, b):
+    """IIIB from D(s): sum_i b_i c_i^(k-1) a_ij = b_j (1 - c_j^k) / k, k = 1..s."""
+    s = len(c)
+    W = [[b[i] * c[i] ** k for i in range(s)] for k in range(s)]
+    A = [[None] * s for _ in range(s)]
+    for j in range(s):
+        col = F.solve(W, [b[j] * (F(1) - c[j] ** (k + 1)) * F(sympy.Rational(1, k + 1)) for k in range(s)])
+        for i in range(s):
+            A[i][j] = col[i]
+    return A
+
+
+# --- numeric construction at any precision ---------------------------------------------
+def _gauss_nodes_mp(s):
+    x, _ = mpmath.mp.gauss_quadrature(s, "legendre")
+    f = lambda t: mpmath.legendre(s, t)
+    nodes = [mpmath.findroot(f, xi) for xi in x]
+    return sorted((1 + xi) / 2 for xi in nodes)
+
+
+def _lobatto_nodes_mp(s):
+    if s < 2:
+        raise TableauError("Lobatto methods need s >= 2")
+    interior = []
+    if s > 2:
+        x, _ = mpmath.mp.gauss_quadrature(s - 2, "jacobi", 1, 1)
+        n = s - 1
+        # P'_n(x) = n (x P_n(x) - P_{n-1}(x)) / (x^2 - 1)
+        f = lambda t: t * mpmath.legendre(n, t) - mpmath.legendre(n - 1, t)
+        interior = [mpmath.findroot(f, xi) for xi in x]
+    return [mpmath.mpf(0)] + sorted((1 + xi) / 2 for xi in interior) + [mpmath.mpf(1)]
+
+
+def _mp_solve(M, rhs):
+    return list(mpmath.lu_solve(mpmath.matrix(M), mpmath.matrix(rhs)))
+
+
+def _mp_weights(c):
+    s = len(c)
+    return _mp_solve([[cj ** k for cj in c] for k in range(s)],
+                     [mpmath.mpf(1) / (k + 1) for k in range(s)])
+
+
+def _mp_collocation(c, nconds, fixed=None):
+    s = len(c)
+    A = [[mpmath.mpf(0)] * s for _ in range(s)]
+    free = list(range(s))
+    if fixed is not None:
+        free.remove(fixed[0])
+    V = [[c[j] ** k for j in free] for k in range(nconds)]
+    for i in range(s):
+        rhs = [c[i] ** (k + 1) / (k + 1) for k in range(nconds)]
+        if fixed is not None:
+            rhs = [rhs[k] - fixed[1] * c[fixed[0]] ** k for k in range(nconds)]
+            A[i][fixed[0]] = fixed[1]
+        sol = _mp_solve(V, rhs)
+        for jj, j in enumerate(free):
+            A[i][j] = sol[jj]
+    return A
+
+
+def _mp_iiib(c, b):
+    s = len(c)
+    W = [[b[i] * c[i] ** k for i in range(s)] for k in range(s)]
+    A = [[None] * s for _ in range(s)]
+    for j in range(s):
+        col = _mp_solve(W, [b[j] * (1 - c[j] ** (k + 1)) / (k + 1) for k in range(s)])
+        for i in range(s):
+            A[i][j] = col[i]
+    return A
+
+
+def _assemble(c, A, A_hat, A_tilde, b, omega=None):
+    s = len(c)
+    if omega is None:
+        omega = [[b[j] * c[j] ** i for j in range(s)] for i in range(s - 1)]
+    return {"c": list(c), "A": A, "A_hat": A_hat, "A_tilde": A_tilde, "b": list(b),
+            "b_hat": list(b), "b_tilde": list(b), "omega": omega}
+
+
+def _mp_family(kind):
+    def builder(dps, s):
+        with mpmath.workdps(dps + guard_digits(s)):
+            if kind == "gauss":
+                c = _gauss_nodes_mp(s)
+                b = _mp_weights(c)
+                A = _mp_collocation(c, s)
+                return _assemble(c, A, A, A, b)
+            c = _lobatto_nodes_mp(s)
+            b = _mp_weights(c)
+            A = _mp_collocation(c, s)
+            B = _mp_iiib(c, b)
+            if kind == "lobatto-iiia-iiib":
+                return _assemble(c, A, B, B, b)
+            C = _mp_collocation(c, s - 1, fixed=(0, b[0]))
+            Cs = _mp_collocation(c, s - 1, fixed=(s - 1, mpmath.mpf(0)))
+            D = [[(C[i][j] + Cs[i][j]) / 2 for j in range(s)] for i in range(s)]
+            return _assemble(c, A, B, D, b)
+    return builder
+
+
+def lobatto_coefficients(s: int) -> dict:
+    """Exact Lobatto coefficients for s stages: c, b and the matrices IIIA (C(s)), IIIB (D(s)),
+    IIIC (a_i1 = b_1, C(s-1)), IIIC* (a_is = 0, C(s-1)) and IIID = (IIIC + IIIC*)/2, as sympy
+    Matrices."""
+    if s < 2:
+        raise TableauError(f"Lobatto coefficients need s >= 2, got {s}")
+    F, c, b = _exact_nodes_weights("lobatto", s)
+    C = _exact_collocation(F, c, s - 1, fixed=(0, b[0]))
+    Cs = _exact_collocation(F, c, s - 1, fixed=(s - 1, F(0)))
+    half = F(sympy.Rational(1, 2))
+    D = [[(C[i][j] + Cs[i][j]) * half for j in range(s)] for i in range(s)]
+    return {"c": F.to_sympy([[e] for e in c]), "b": F.to_sympy([[e] for e in b]),
+            "IIIA": F.to_sympy(_exact_collocation(F, c, s)), "IIIB": F.to_sympy(_exact_iiib(F, c, b)),
+            "IIIC": F.to_sympy(C), "IIIC_star": F.to_sympy(Cs), "IIID": F.to_sympy(D)}
+
+
+def _exact_nodes_weights(kind, s):
+    x = sympy.Symbol("x")
+    if kind == "gauss":
+        nodes = _exact_roots(sympy.legendre(s, 2 * x - 1), x)
+    else:
+        inner = _exact_roots(sympy.diff(sympy.legendre(s - 1, 2 * x - 1), x), x) if s > 2 else []
+        nodes = [sympy.Integer(0)] + inner + [sympy.Integer(1)]
+    F = _Field(nodes)
+    c = [F(r) for r in nodes]
+    return F, c, _exact_weights(F, c)
+
+
+def _exact_family(kind, s):
+    F, c, b = _exact_nodes_weights(kind, s)
+    A = _exact_collocation(F, c, s)
+    if kind == "gauss":
+        Ah = At = A
+    else:
+        Ah = _exact_iiib(F, c, b)
+        if kind == "lobatto-iiia-iiib":
+            At = Ah
+        else:
+            C = _exact_collocation(F, c, s - 1, fixed=(0, b[0]))
+            Cs = _exact_collocation(F, c, s - 1, fixed=(s - 1, F(0)))
+            half = F(sympy.Rational(1, 2))
+            At = [[(C[i][j] + Cs[i][j]) * half for j in range(s)] for i in range(s)]
+    omega = [[b[j] * c[j] ** i for j in range(s)] for i in range(s - 1)]
+    col = lambda v: F.to_sympy([[e] for e in v])
+    return {"c": col(c), "A": F.to_sympy(A), "A_hat": F.to_sympy(Ah), "A_tilde": F.to_sympy(At),
+            "b": col(b), "b_hat": col(b), "b_tilde": col(b),
+            "omega": F.to_sympy(omega) if s > 1 else sympy.zeros(0, 1)}
+
+
+def _family(kind, s, exact, order, label):
+    if s < (1 if kind == "gauss" else 2):
+        raise TableauError(f"{kind} needs s >= {1 if kind == 'gauss' else 2}, got s = {s}")
+    if exact:
+        return SparkTableau(label, s, exact=_exact_family(kind, s), claimed_order=order, family=kind)
+    b = _mp_family(kind)
+    return SparkTableau(label, s, builder=lambda dps, b=b: b(dps, s), claimed_order=order,
+                        family=kind)
+
+
+def gauss(s: int, exact: bool = False) -> SparkTableau:
+    """s-stage Gauss SPARK (SRK-DAE2) method [27]: A = A_hat = A_tilde Gauss, order 2s."""
+    return _family("gauss", s, exact, 2 * s, f"gauss-{s}")
+
+
+def lobatto_iiia_iiib(s: int, exact: bool = False) -> SparkTableau:
+    """s-stage Lobatto IIIA-B SPARK method [26]: A = IIIA, A_hat = A_tilde = IIIB, order 2s-2."""
+    return _family("lobatto-iiia-iiib", s, exact, 2 * s - 2, f"lobatto-iiia-iiib-{s}")
+
+
+def lobatto_iiia_iiib_iiid(s: int, exact: bool = False) -> SparkTableau:
+    """s-stage Lobatto IIIA-B-D SPARK method: A = IIIA, A_hat = IIIB, A_tilde = IIID."""
+    return _family("lobatto-iiia-iiib-iiid", s, exact, 2 * s - 2, f"lobatto-iiia-iiib-iiid-{s}")
+
+
+def _one_stage(name, c, a, ah):
+    one = sympy.Integer(1)
+    ex = {"c": sympy.Matrix([[c]]), "A": sympy.Matrix([[a]]), "A_hat": sympy.Matrix([[ah]]),
+          "A_tilde": sympy.Matrix([[ah]]), "b": sympy.Matrix([[one]]),
+          "b_hat": sympy.Matrix([[one]]), "b_tilde": sympy.Matrix([[one]]),
+          "omega": sympy.zeros(0, 1)}
+    return SparkTableau(name, 1, exact=ex, claimed_order=1, family=name)
+
+
+def euler_i(exact: bool = True) -> SparkTableau:
+    """"Symplectic" Euler SPARK method I (7.1): c = 0, A = 0, A_hat = A_tilde = 1."""
+    return _one_stage("euler-i", 0, 0, 1)
+
+
+def euler_ii(exact: bool = True) -> SparkTableau:
+    """"Symplectic" Euler SPARK method II (7.2): c = 1, A = 1, A_hat = A_tilde = 0."""
+    return _one_stage("euler-ii", 1, 1, 0)
+
+
+# --- method names ----------------------------------------------------------------------
+def get_method(name: str, exact: bool = False) -> SparkTableau:
+    """Tableau for a built-in method name (``gauss-S``, ``lobatto-iiia-iiib-S``,
+    ``lobatto-iiia-iiib-iiid-S``, ``euler-i``, ``euler-ii``)."""
+    if name == "euler-i":
+        return euler_i()
+    if name == "euler-ii":
+        return euler_ii()
+    for prefix, fn in (("lobatto-iiia-iiib-iiid-", lobatto_iiia_iiib_iiid),
+                       ("lobatto-iiia-iiib-", lobatto_iiia_iiib), ("gauss-", gauss)):
+        if name.startswith(prefix):
+            tail = name[len(prefix):]
+            if not tail.isdigit():
+                break
+            return fn(int(tail), exact=exact)
+    raise TableauError(f"unknown method {name!r}; expected gauss-S, lobatto-iiia-iiib-S, "
+                       "lobatto-iiia-iiib-iiid-S, euler-i, euler-ii or custom")
+
+
+def builtin_method_names(max_s: int = 4) -> list[str]:
+    names = [f"gauss-{s}" for s in range(1, max_s + 1)]
+    names += [f"lobatto-iiia-iiib-{s}" for s in range(2, max_s + 1)]
+    names += [f"lobatto-iiia-iiib-iiid-{s}" for s in range(2, max_s + 1)]
+    return names + ["euler-i", "euler-ii"]

@@ -1,0 +1,87 @@
+"""The symmetry claims of section 4.1 under (23): L_d and f_d^{+/-} under exchange of the
+endpoints, and time reversal of the IVP step, on the boundary-value solve of ``discrete``."""
+from __future__ import annotations
+
+import time
+
+from ..core.backend import Backend
+from ..core.spark import SparkMethod
+from .discrete import DiscreteBVP, _svd, base_point, discrete_lagrangian
+
+
+def check_symmetry(system, tableau, t0, q0, v0, h, dps=40):
+    """The symmetry claims under (23): with the forward BVP at (t0, q0, t1, q1) from one IVP
+    step and the reversed BVP at (t1, q1, t0, q0),
+
+    * L_d(t1,q1,t0,q0) + L_d(t0,q0,t1,q1)
+    * f_d^+(t1,q1,t0,q0) + f_d^-(t0,q0,t1,q1) and f_d^-(t1,q1,t0,q0) + f_d^+(t0,q0,t1,q1)
+    * |Phi_{-h}(Phi_h(y)) - y| (IVP steps)
+
+    all relative to the size of the compared quantities. For a rank-deficient J the f_d
+    comparisons are restricted to directions in which the BVP stays solvable (their pairing
+    with other directions depends on the gauge-fixing)."""
+    t_start = time.time()
+    bk = Backend(dps)
+    with bk.context():
+        t1, q1, xg = base_point(system, tableau, t0, q0, v0, h, dps)
+        t0_ = bk.scalar(t0)
+        q0_ = bk.array(q0)
+        v0_ = bk.array(v0)
+        fwd = discrete_lagrangian(system, tableau, t0_, q0_, t1, q1, dps=dps, x_guess=xg)
+        bvp = DiscreteBVP(system, tableau, dps)
+        V, Lam, v1, v0x = bvp.unpack(fwd.x)
+        # adjoint stage values under (23): V_i -> V_{s+1-i}, Psi_i -> Psi_{s+1-i} (Lambda flips sign)
+        xr = bvp.pack(V[::-1], -Lam[::-1], v0x, v1)
+        rev = discrete_lagrangian(system, tableau, t1, q1, t0_, q0_, dps=dps, x_guess=xr,
+                                  gauge_ref=xr)
+        sL = abs(fwd.L_d + rev.L_d) / max(abs(fwd.L_d), 1e-300)
+        (P0, dim0), (P1, dim1) = _tangent_projector(fwd, 0), _tangent_projector(rev, 0)
+        # f_d^+(rev) pairs with variations of fwd q0 = rev q1; f_d^-(rev) with fwd q1 = rev q0
+        a, b = P0.dot(fwd.f_d_minus + rev.f_d_plus), P1.dot(fwd.f_d_plus + rev.f_d_minus)
+        norms_p = (bk.norm_inf(P0.dot(fwd.f_d_minus)), bk.norm_inf(P0.dot(rev.f_d_plus)))
+        norms_m = (bk.norm_inf(P1.dot(fwd.f_d_plus)), bk.norm_inf(P1.dot(rev.f_d_minus)))
+        # relative to the covectors involved (p0 may vanish: a scene at rest)
+        sc = max(max(norms_p), max(norms_m), bk.norm_inf(fwd.p0), bk.norm_inf(fwd.p1),
+                 bk.norm_inf(fwd.f_d_minus), bk.norm_inf(fwd.f_d_plus), 1e-300)
+        sfp = bk.norm_inf(a) / sc
+        sfm = bk.norm_inf(b) / sc
+        # the unrestricted covectors, to show the restriction matters
+        sc_full = max(bk.norm_inf(fwd.f_d_minus), bk.norm_inf(fwd.f_d_plus), bk.norm_inf(fwd.p0))
+        full_p = bk.norm_inf(fwd.f_d_minus + rev.f_d_plus) / sc_full
+        full_m = bk.norm_inf(fwd.f_d_plus + rev.f_d_minus) / sc_full
+        # Phi_{-h} o Phi_h
+        meth = SparkMethod(system, tableau, dps=dps)
+        hh = bk.scalar(h)
+        r1 = meth.step(t0_, q0_, v0_, hh)
+        r2 = meth.step(r1.t1, r1.q1, r1.v1, -hh)
+        sc_y = max(bk.norm_inf(q0_), bk.norm_inf(v0_), 1.0)
+        sPhi = max(bk.norm_inf(r2.q1 - q0_), bk.norm_inf(r2.v1 - v0_)) / sc_y
+    return {"symmetry-Ld": float(sL), "symmetry-fd-plus": float(sfp), "symmetry-fd-minus": float(sfm),
+            "symmetry-Phi": float(sPhi), "wellposed": fwd.wellposed,
+            "tangent_dim": (dim0, dim1),
+            "fd_restricted_norm": (float(bk.norm_inf(P0.dot(fwd.f_d_minus))), float(bk.norm_inf(P1.dot(fwd.f_d_plus)))),
+            "fd_plus_identity_norms": tuple(float(x) for x in norms_p),
+            "fd_minus_identity_norms": tuple(float(x) for x in norms_m),
+            "symmetry-fd-unrestricted": (float(full_p), float(full_m)),
+            "rank_deficiency": fwd.rank_deficiency, "dps": dps, "seconds": time.time() - t_start}
+
+
+def _tangent_projector(res, which):
+    """Orthogonal projector onto the pure-q0 (which=0) or pure-q1 (which=1) variations tangent
+    to the discrete constraint manifold C_d, where v0 stays consistent, k(t0, q0, v0) = 0 (the
+    IVP's assumption; off C_d the forward and the reversed BVP differ, so (23) cannot hold there).
+    Well-posed J: null space of d k(t0, q0, v0(q0, q1)) / dq. Deficient J: null space of
+    W^T dG/dq (first-order solvability; the gauge pin keeps v0 consistent)."""
+    g = res.extra["gauge"]
+    bk = Backend(res.dps)
+    if g is None:
+        M = res.extra["dk0_dq"][which]
+    else:
+        M = g.W_left.T.dot(res.extra["dG_dq"][which])
+    n = M.shape[1]
+    Mp = bk.zeros((n, n))                     # pad to square: full right singular basis
+    Mp[:M.shape[0]] = M
+    U, sig, Vh = _svd(bk, Mp)
+    k = sum(1 for x in sig if float(x) > 1e-8 * max(float(sig[0]), 1e-300))
+    Nt = Vh[k:, :]                            # orthonormal basis of the tangent directions
+    return Nt.T.dot(Nt), Nt.shape[0]
