@@ -85,98 +85,119 @@ def _theorem1_tol(tab, dps, fd_error):
 
 
 def _theorem1_with_discrete(tab, hyp22, hyp23, dps, quick, scenes):
-    from . import discrete, symmetry, wellposedness
-    from ..core.scenes import get_scene
+    """Theorem 1 per scene, its summary, then the symmetry identities under (23)."""
     checks, facts = [], {}
-    d = dps
     for name in scenes:
-        sc = get_scene(name)
-        t0, q0, v0 = sc.initial(d + 45)
-        r, err = None, None
-        # an ill-conditioned BVP (tiny sigma_min) can stall Newton at the precision floor or
-        # make the finite differences too coarse: the full audit retries once at +20 digits
-        for dd in (d,) if quick else (d, d + 20):
-            try:
-                r = discrete.theorem1_residuals(sc.system, tab, t0, q0, v0, THEOREM_H, dps=dd)
-                err = None
-            except LdasparkError as exc:
-                r, err = None, str(exc).splitlines()[0]
-                continue
-            if _theorem1_tol(tab, dd, r["fd_error"]) <= TEETH:
-                break
-        if r is None:
-            checks.append(Check(f"theorem1:{name}", SKIP, None,
-                                f"not decided: boundary-value solve of (21) failed ({err}) at dps "
-                                f"{d}{'' if quick else f' and {d + 20}'}; the implicit functions of Theorem 1 "
-                                "are not established numerically here"))
+        check, fact = _theorem1_scene(tab, name, hyp22, dps, quick)
+        checks.append(check)
+        if fact is not None:
+            facts[f"theorem1:{name}"] = fact
+    checks.append(_theorem1_summary(checks))
+    if hyp23:
+        sym_scenes = [x for x in scenes if x in ("skate", "particle")] if quick else scenes
+        sym_checks, sym_facts = _symmetry_checks(tab, dps, sym_scenes)
+        checks += sym_checks
+        facts.update(sym_facts)
+    else:
+        checks.append(Check("symmetry", SKIP, None, "(23) does not hold: Theorem 1 claims no symmetry"))
+    return checks, facts
+
+
+def _theorem1_scene(tab, name, hyp22, d, quick):
+    """One scene's Theorem 1 check (dL_d/dq0 = -p0 - f_d^-, dL_d/dq1 = p1 - f_d^+) and its facts."""
+    from . import discrete, wellposedness
+    from ..core.scenes import get_scene
+    sc = get_scene(name)
+    t0, q0, v0 = sc.initial(d + 45)
+    r, err = None, None
+    # an ill-conditioned BVP (tiny sigma_min) can stall Newton at the precision floor or
+    # make the finite differences too coarse: the full audit retries once at +20 digits
+    for dd in (d,) if quick else (d, d + 20):
+        try:
+            r = discrete.theorem1_residuals(sc.system, tab, t0, q0, v0, THEOREM_H, dps=dd)
+            err = None
+        except LdasparkError as exc:
+            r, err = None, str(exc).splitlines()[0]
             continue
-        wp = r["wellposed"]
-        if not quick:
-            try:
-                wpc = wellposedness.classify_wellposedness(sc.system, tab, t0, q0, v0, THEOREM_H, dps=(d, d + 20))
-                wp = f"{wpc['class']} (rank deficiency {wpc['rank_deficiency']}, decided at dps {d}, {d + 20} and h, h/2)"
-            except LdasparkError as exc:
-                wp = f"{wp} (classification failed: {exc})"
-        else:
-            wp = f"{wp} (rank deficiency {r['rank_deficiency']} at dps {r['dps_fd']})"
-        res = max(r["theorem1-q0"], r["theorem1-q1"])
-        tol = _theorem1_tol(tab, r["dps"], r["fd_error"])
-        facts[f"theorem1:{name}"] = {k: v for k, v in r.items() if k != "null_support"}
-        ok = res <= tol
-        claim = ("agrees with Theorem 1" if hyp22 else
-                 "holds although (22) fails" if ok else "fails, as expected without (22)")
-        status = PASS if ok else FAIL
-        if tol > TEETH:
-            status, claim = SKIP, f"not decided (tolerance {tol:.0e} above {TEETH:.0e} at dps {r['dps']})"
-        checks.append(Check(
-            f"theorem1:{name}", status, res,
-            f"{claim}: |dL_d/dq0 + p0 + f_d^-|, |dL_d/dq1 - p1 + f_d^+| relative = "
-            f"{r['theorem1-q0']:.1e}, {r['theorem1-q1']:.1e} (tolerance {tol:.0e}; FD error {r['fd_error']:.0e}; "
-            f"without the forces {r['without_forces_q0']:.1e}); h = {THEOREM_H}, dps {r['dps']}; BVP {wp}"))
+        if _theorem1_tol(tab, dd, r["fd_error"]) <= TEETH:
+            break
+    if r is None:
+        return Check(f"theorem1:{name}", SKIP, None,
+                     f"not decided: boundary-value solve of (21) failed ({err}) at dps "
+                     f"{d}{'' if quick else f' and {d + 20}'}; the implicit functions of Theorem 1 "
+                     "are not established numerically here"), None
+    wp = r["wellposed"]
+    if not quick:
+        try:
+            wpc = wellposedness.classify_wellposedness(sc.system, tab, t0, q0, v0, THEOREM_H, dps=(d, d + 20))
+            wp = f"{wpc['class']} (rank deficiency {wpc['rank_deficiency']}, decided at dps {d}, {d + 20} and h, h/2)"
+        except LdasparkError as exc:
+            wp = f"{wp} (classification failed: {exc})"
+    else:
+        wp = f"{wp} (rank deficiency {r['rank_deficiency']} at dps {r['dps_fd']})"
+    res = max(r["theorem1-q0"], r["theorem1-q1"])
+    tol = _theorem1_tol(tab, r["dps"], r["fd_error"])
+    ok = res <= tol
+    claim = ("agrees with Theorem 1" if hyp22 else
+             "holds although (22) fails" if ok else "fails, as expected without (22)")
+    status = PASS if ok else FAIL
+    if tol > TEETH:
+        status, claim = SKIP, f"not decided (tolerance {tol:.0e} above {TEETH:.0e} at dps {r['dps']})"
+    check = Check(
+        f"theorem1:{name}", status, res,
+        f"{claim}: |dL_d/dq0 + p0 + f_d^-|, |dL_d/dq1 - p1 + f_d^+| relative = "
+        f"{r['theorem1-q0']:.1e}, {r['theorem1-q1']:.1e} (tolerance {tol:.0e}; FD error {r['fd_error']:.0e}; "
+        f"without the forces {r['without_forces_q0']:.1e}); h = {THEOREM_H}, dps {r['dps']}; BVP {wp}")
+    return check, {k: v for k, v in r.items() if k != "null_support"}
+
+
+def _theorem1_summary(checks):
+    """Theorem 1 overall: decided on at least two scenes (or all, if fewer), none failing."""
     th = [c for c in checks if c.name.startswith("theorem1:")]
     decided = [c for c in th if c.status != SKIP]
     nfail = sum(c.status == FAIL for c in decided)
     need = min(2, len(th))
     if len(decided) < need:
-        checks.append(Check("theorem1", FAIL, None, f"decided on only {len(decided)} of {len(th)} scenes "
-                                                    f"(at least {need} needed)"))
-    else:
-        checks.append(Check("theorem1", FAIL if nfail else PASS,
-                            max((c.residual or 0.0) for c in decided),
-                            f"decided on {len(decided)} of {len(th)} scenes, {nfail} failing"))
-    if hyp23:
-        for name in [x for x in scenes if x in ("skate", "particle")] if quick else scenes:
-            sc = get_scene(name)
-            t0, q0, v0 = sc.initial(d + 5)
-            try:
-                r = symmetry.check_symmetry(sc.system, tab, t0, q0, v0, THEOREM_H, dps=d)
-            except LdasparkError as exc:
-                checks.append(Check(f"symmetry:{name}", SKIP, None,
-                                    f"not decided: forward/reverse BVP solve failed ({str(exc).splitlines()[0]})"))
-                continue
-            keys = ("symmetry-Ld", "symmetry-fd-plus", "symmetry-fd-minus", "symmetry-Phi")
-            # With a singular (non-gauge) BVP Jacobian the implicit functions of Theorem 1 are
-            # not unique, so f_d^+- (built from dV/dq) depend on the gauge fixing: only L_d and
-            # the map Phi_h are then decidable; the f_d parts are reported, not judged.
-            judged = keys if r["wellposed"] != "singular" else ("symmetry-Ld", "symmetry-Phi")
-            res = max(r[k] for k in judged)
-            tol = _theorem1_tol(tab, d, 0.0)
-            facts[f"symmetry:{name}"] = {k: v for k, v in r.items() if isinstance(v, (int, float, str))}
-            note = "" if judged == keys else "; f_d parts not judged: BVP singular, f_d not unique"
-            checks.append(Check(
-                f"symmetry:{name}", PASS if res <= tol else FAIL, res,
-                "L_d(t1,q1,t0,q0) + L_d, f_d^+(rev) + f_d^-, f_d^-(rev) + f_d^+, Phi_-h(Phi_h(y)) - y: "
-                + ", ".join(f"{r[k]:.1e}" for k in keys) + f" (tolerance {tol:.0e}; BVP {r['wellposed']}{note})"))
-        sy = [c for c in checks if c.name.startswith("symmetry:")]
-        dec = [c for c in sy if c.status != SKIP]
-        if sy:
-            nf = sum(c.status == FAIL for c in dec)
-            checks.append(Check("symmetry", FAIL if (nf or not dec) else PASS,
-                                max([(c.residual or 0.0) for c in dec] or [0.0]),
-                                f"decided on {len(dec)} of {len(sy)} scenes, {nf} failing"
-                                + ("" if dec else " (at least one needed)")))
-    else:
-        checks.append(Check("symmetry", SKIP, None, "(23) does not hold: Theorem 1 claims no symmetry"))
+        return Check("theorem1", FAIL, None, f"decided on only {len(decided)} of {len(th)} scenes "
+                                             f"(at least {need} needed)")
+    return Check("theorem1", FAIL if nfail else PASS, max((c.residual or 0.0) for c in decided),
+                 f"decided on {len(decided)} of {len(th)} scenes, {nfail} failing")
+
+
+def _symmetry_checks(tab, d, scenes):
+    """The (23) symmetry identities per scene and their summary."""
+    from . import symmetry
+    from ..core.scenes import get_scene
+    checks, facts = [], {}
+    keys = ("symmetry-Ld", "symmetry-fd-plus", "symmetry-fd-minus", "symmetry-Phi")
+    for name in scenes:
+        sc = get_scene(name)
+        t0, q0, v0 = sc.initial(d + 5)
+        try:
+            r = symmetry.check_symmetry(sc.system, tab, t0, q0, v0, THEOREM_H, dps=d)
+        except LdasparkError as exc:
+            checks.append(Check(f"symmetry:{name}", SKIP, None,
+                                f"not decided: forward/reverse BVP solve failed ({str(exc).splitlines()[0]})"))
+            continue
+        # With a singular (non-gauge) BVP Jacobian the implicit functions of Theorem 1 are
+        # not unique, so f_d^+- (built from dV/dq) depend on the gauge fixing: only L_d and
+        # the map Phi_h are then decidable; the f_d parts are reported, not judged.
+        judged = keys if r["wellposed"] != "singular" else ("symmetry-Ld", "symmetry-Phi")
+        res = max(r[k] for k in judged)
+        tol = _theorem1_tol(tab, d, 0.0)
+        facts[f"symmetry:{name}"] = {k: v for k, v in r.items() if isinstance(v, (int, float, str))}
+        note = "" if judged == keys else "; f_d parts not judged: BVP singular, f_d not unique"
+        checks.append(Check(
+            f"symmetry:{name}", PASS if res <= tol else FAIL, res,
+            "L_d(t1,q1,t0,q0) + L_d, f_d^+(rev) + f_d^-, f_d^-(rev) + f_d^+, Phi_-h(Phi_h(y)) - y: "
+            + ", ".join(f"{r[k]:.1e}" for k in keys) + f" (tolerance {tol:.0e}; BVP {r['wellposed']}{note})"))
+    dec = [c for c in checks if c.status != SKIP]
+    if checks:
+        nf = sum(c.status == FAIL for c in dec)
+        checks.append(Check("symmetry", FAIL if (nf or not dec) else PASS,
+                            max([(c.residual or 0.0) for c in dec] or [0.0]),
+                            f"decided on {len(dec)} of {len(checks)} scenes, {nf} failing"
+                            + ("" if dec else " (at least one needed)")))
     return checks, facts
 
 
