@@ -16,6 +16,7 @@ import mpmath
 import sympy
 from sympy import QQ
 from sympy.polys.matrices import DomainMatrix
+from sympy.polys.numberfields.subfield import primitive_element
 
 from .errors import TableauError
 from .tableau import SparkTableau, guard_digits
@@ -37,12 +38,37 @@ def _exact_roots(poly_expr, x):
 
 
 class _Field:
+    """Q(numbers) with the numbers themselves as known elements.
+
+    The field is built from a primitive element of half the nodes (the symmetric families' nodes
+    come in pairs c, 1 - c), and each node is mapped by the representation the primitive-element
+    search returns: sympy's generic ``from_sympy`` would redo a field isomorphism per node
+    (Gauss s = 4: 3.6 s against 0.2 s)."""
+
     def __init__(self, numbers):
-        gens = [r for r in numbers if not r.is_rational]
-        self.K = QQ.algebraic_field(*gens) if gens else QQ
+        irr = [sympy.sympify(r) for r in numbers if not sympy.sympify(r).is_rational]
+        self.known = {}
+        if not irr:
+            self.K = QQ
+            return
+        half = [r for r in irr if sympy.N(r, 30) < sympy.Rational(1, 2)]
+        paired = {sympy.nsimplify(1 - r) for r in half} | set(half)
+        gens = half + [r for r in irr if r not in paired and sympy.simplify(1 - r) not in half]
+        x = sympy.Dummy("x")
+        f, coeffs, reps = primitive_element(gens, x, ex=True)
+        theta = sum(c * g for c, g in zip(coeffs, gens))
+        self.K = QQ.algebraic_field((sympy.Poly(f, x), theta))
+        for g, rep in zip(gens, reps):
+            el = self.K([QQ(c) for c in rep])
+            self.known[g] = el
+            self.known[sympy.expand(1 - g)] = self.K.one - el
 
     def __call__(self, e):
-        return self.K.from_sympy(sympy.sympify(e))
+        e = sympy.sympify(e)
+        hit = self.known.get(e)
+        if hit is None:
+            hit = self.known.get(sympy.expand(e))
+        return hit if hit is not None else self.K.from_sympy(e)
 
     def solve(self, rows, rhs):
         n = len(rows)
