@@ -1,0 +1,193 @@
+"""Dense output (continuous extensions) and event location.
+
+``CollocationDense``: on the step [t_n, t_n + h] of a SPARK method (21), q(t) is the polynomial
+through (t_n, q_n) and the stage points (T_i, Q_i) of (21a) (nodes with equal c merged, e.g. the
+first Lobatto node), and v(t) the polynomial through the stage velocities (T_i, V_i). For a
+collocation tableau A (Gauss, Lobatto IIIA) this is the collocation polynomial u and v = u'.
+Its error is O(h^(s+1)) in q and O(h^s) in v (the stage order), below the nodal order 2s of
+Gauss: measured orders are in ``tests/test_dense_events.py`` (gauss-2 on the skate: q 3, v 2).
+
+``HermiteDense``: engines that do not keep stage values (compiled kernels, comparators) get the
+cubic Hermite interpolant of (t_n, q_n, v_n) and (t_n+1, q_n+1, v_n+1) for q and its derivative
+for v (error O(h^4) in q, O(h^3) in v at most; limited by the nodal accuracy).
+
+Both are evaluated in float64 (also after an mpmath run) and need increasing t.
+
+Events: functions g(t, q, v) -> float with optional attributes ``terminal`` (bool) and
+``direction`` (sign of the crossing: > 0 upward only, < 0 downward only, 0 both), as in
+``scipy.integrate.solve_ivp``. A sign change of g between two consecutive steps is located by
+``scipy.optimize.brentq`` on g(t, sol(t)) inside that step.
+"""
+from __future__ import annotations
+
+from typing import Callable, Sequence
+
+import numpy as np
+
+from .errors import InputError
+
+
+def _lagrange_weights(nodes: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """W[k, j] = l_j(theta_k), the Lagrange basis on ``nodes`` (a handful of points in [0, 1])."""
+    th = np.asarray(theta, float)[:, None]
+    W = np.ones((th.shape[0], len(nodes)))
+    for j, xj in enumerate(nodes):
+        for i, xi in enumerate(nodes):
+            if i != j:
+                W[:, j] *= (th[:, 0] - xi) / (xj - xi)
+    return W
+
+
+class _Dense:
+    """Piecewise interpolant on the step grid ``t`` (N + 1 increasing points)."""
+
+    def __init__(self, t: np.ndarray):
+        self.t = np.asarray(t, float)
+        if len(self.t) < 2 or np.any(np.diff(self.t) <= 0):
+            raise InputError("dense output needs at least one step and increasing times (h > 0)")
+
+    @property
+    def t_min(self) -> float:
+        return float(self.t[0])
+
+    @property
+    def t_max(self) -> float:
+        return float(self.t[-1])
+
+    def _locate(self, t):
+        tt = np.atleast_1d(np.asarray(t, float))
+        span = self.t[-1] - self.t[0]
+        if np.any(tt < self.t[0] - 1e-12 * span) or np.any(tt > self.t[-1] + 1e-12 * span):
+            raise InputError(f"dense output is defined on [{self.t[0]:g}, {self.t[-1]:g}], got t outside it")
+        k = np.clip(np.searchsorted(self.t, tt, side="right") - 1, 0, len(self.t) - 2)
+        h = self.t[k + 1] - self.t[k]
+        return tt, k, (tt - self.t[k]) / h, h
+
+    def __call__(self, t):
+        """(q, v) at t: arrays (n,) for a scalar t, (len(t), n) for an array."""
+        tt, k, theta, h = self._locate(t)
+        q, v = self._eval(k, theta, h)
+        if np.ndim(t) == 0:
+            return q[0], v[0]
+        return q, v
+
+
+class CollocationDense(_Dense):
+    """Stage-value extension of a SPARK method (see module docstring).
+
+    t (N+1,), q_nodes (N+1, n); c (s,) the tableau's nodes; Q, V (N, s, n) stage values."""
+
+    def __init__(self, t, q_nodes, c, Q, V):
+        super().__init__(t)
+        c = np.asarray(c, float)
+        Q = np.asarray(Q, float)
+        V = np.asarray(V, float)
+        q_nodes = np.asarray(q_nodes, float)
+        keep = [i for i in range(len(c)) if abs(c[i]) > 1e-14
+                and all(abs(c[i] - c[j]) > 1e-14 for j in range(i))]
+        self.cq = np.concatenate([[0.0], c[keep]])
+        self.Yq = np.concatenate([q_nodes[:-1, None, :], Q[:, keep, :]], axis=1)   # (N, kq, n)
+        vkeep = [i for i in range(len(c)) if all(abs(c[i] - c[j]) > 1e-14 for j in range(i))]
+        self.cv = c[vkeep]
+        self.Yv = V[:, vkeep, :]
+
+    def _eval(self, k, theta, h):
+        Wq = _lagrange_weights(self.cq, theta)
+        q = np.einsum("kj,kjn->kn", Wq, self.Yq[k])
+        if len(self.cv) == 1:
+            v = self.Yv[k, 0, :]
+        else:
+            v = np.einsum("kj,kjn->kn", _lagrange_weights(self.cv, theta), self.Yv[k])
+        return q, v
+
+
+class HermiteDense(_Dense):
+    """Cubic Hermite interpolant of the nodal (q, v) (see module docstring)."""
+
+    def __init__(self, t, q, v):
+        super().__init__(t)
+        self.q = np.asarray(q, float)
+        self.v = np.asarray(v, float)
+
+    def _eval(self, k, theta, h):
+        th = theta[:, None]
+        hh = h[:, None]
+        q0, q1, v0, v1 = self.q[k], self.q[k + 1], self.v[k], self.v[k + 1]
+        h00, h10 = 2 * th ** 3 - 3 * th ** 2 + 1, th ** 3 - 2 * th ** 2 + th
+        h01, h11 = -2 * th ** 3 + 3 * th ** 2, th ** 3 - th ** 2
+        q = h00 * q0 + h10 * hh * v0 + h01 * q1 + h11 * hh * v1
+        d00, d10, d01, d11 = 6 * th ** 2 - 6 * th, 3 * th ** 2 - 4 * th + 1, -6 * th ** 2 + 6 * th, 3 * th ** 2 - 2 * th
+        v = (d00 * q0 + d01 * q1) / hh + d10 * v0 + d11 * v1
+        return q, v
+
+
+def check_events(events) -> list:
+    """Normalise ``events`` (None, one callable, or a sequence of callables) to a list."""
+    if events is None:
+        return []
+    evs = [events] if callable(events) else list(events)
+    for g in evs:
+        if not callable(g):
+            raise InputError(f"an event must be a callable g(t, q, v), got {g!r}")
+    return evs
+
+
+def _crossed(g0: float, g1: float, direction: float) -> bool:
+    if not (np.isfinite(g0) and np.isfinite(g1)):
+        raise InputError("an event function returned NaN or infinity")
+    if g0 == 0 or np.sign(g0) == np.sign(g1):
+        return False
+    up = g1 > g0
+    return direction == 0 or (direction > 0 and up) or (direction < 0 and not up)
+
+
+class EventTracker:
+    """Watches g_e(t, q, v) at the step points; ``after_step`` locates crossings in a step."""
+
+    def __init__(self, events: Sequence[Callable], t0, q0, v0):
+        self.events = list(events)
+        self.found = [[] for _ in self.events]
+        self.g = [float(g(float(t0), np.asarray(q0, float), np.asarray(v0, float))) for g in self.events]
+
+    def after_step(self, t0, t1, q1, v1, piece: Callable) -> bool:
+        """Check the step [t0, t1] (end state q1, v1, local dense output ``piece``);
+        returns True when a terminal event occurred in it."""
+        from scipy.optimize import brentq
+        stop = False
+        q1f, v1f = np.asarray(q1, float), np.asarray(v1, float)
+        for e, g in enumerate(self.events):
+            g1 = float(g(float(t1), q1f, v1f))
+            if _crossed(self.g[e], g1, float(getattr(g, "direction", 0))):
+                fn = lambda tt, g=g: float(g(tt, *piece(tt)))
+                a, b = float(t0), float(t1)
+                ga, gb = fn(a), fn(b)
+                if ga == 0:
+                    te = a
+                elif gb == 0 or np.sign(ga) == np.sign(gb):
+                    te = b   # the interpolant disagrees in sign with the nodes only at round-off level
+                else:
+                    te = brentq(fn, a, b, xtol=4 * np.finfo(float).eps * max(1.0, abs(b)), rtol=4 * np.finfo(float).eps)
+                qe, ve = piece(te)
+                self.found[e].append((te, np.asarray(qe, float), np.asarray(ve, float)))
+                stop = stop or bool(getattr(g, "terminal", False))
+            self.g[e] = g1
+        return stop
+
+    def arrays(self):
+        """(t_events, q_events, v_events): one array per event function."""
+        te = [np.array([x[0] for x in f], float) for f in self.found]
+        qe = [np.array([x[1] for x in f], float).reshape(len(f), -1) for f in self.found]
+        ve = [np.array([x[2] for x in f], float).reshape(len(f), -1) for f in self.found]
+        return te, qe, ve
+
+
+def step_piece(t0, h, q0, c, Q, V) -> Callable:
+    """Dense output of one step from its stage values (used while stepping, for events)."""
+    d = CollocationDense(np.array([float(t0), float(t0) + float(h)]),
+                         np.array([np.asarray(q0, float), np.asarray(q0, float)]),
+                         c, np.asarray(Q, float)[None], np.asarray(V, float)[None])
+    return d
+
+
+def hermite_piece(t0, t1, q0, v0, q1, v1) -> Callable:
+    return HermiteDense(np.array([float(t0), float(t1)]), np.array([q0, q1], float), np.array([v0, v1], float))
