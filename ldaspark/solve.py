@@ -249,7 +249,7 @@ def _run_generic(system, tableau, t0, q0, v0, h, N, every, dense, events, dps, t
         c = np.asarray(float_array(tableau.arrays(None).c))
         tracker = EventTracker(events, t0_, q, v) if events else None
         saved_i, Qs, Vs, Ps = [0], [q], [v], []
-        dense_q, dense_Q, dense_V = [], [], []
+        dense_q, dense_V = [], []
         x = v_prev = None
         sign0 = _saddle_sign(system, bk, t0_, q, v)
         done = 0
@@ -272,10 +272,9 @@ def _run_generic(system, tableau, t0, q0, v0, h, N, every, dense, events, dps, t
                 Ps.append(r.Psi)
             if dense or tracker:
                 dense_q.append(float_array(q))
-                dense_Q.append(float_array(r.Q))
                 dense_V.append(float_array(r.V))
             stop = tracker is not None and tracker.after_step(
-                ti, t0_ + (i + 1) * h_, r.q1, r.v1, step_piece(ti, h_, q, c, r.Q, r.V))
+                ti, t0_ + (i + 1) * h_, r.q1, r.v1, step_piece(ti, h_, q, c, r.V))
             v_prev = v
             q, v, x = r.q1, r.v1, r.x
             done = i + 1
@@ -302,14 +301,17 @@ def _run_generic(system, tableau, t0, q0, v0, h, N, every, dense, events, dps, t
                  stats=dict(st, path="generic"), error=error)
     if dense and done > 0:
         tg = float(t0_) + np.arange(done + 1) * float(h_)
-        res.sol = CollocationDense(tg, np.array(dense_q + [float_array(q)]), c, np.array(dense_Q), np.array(dense_V))
+        res.sol = CollocationDense(tg, np.array(dense_q + [float_array(q)]), c, np.array(dense_V))
     if tracker is not None:
         res.t_events, res.q_events, res.v_events = tracker.arrays()
     return res
 
 
-def _post_process(full: Result, every: int, dense: bool, events) -> Result:
-    """Dense output (Hermite), events and ``save_every`` for engines that return every step."""
+def _post_process(full: Result, every: int, dense: bool, events, sliced: bool = False) -> Result:
+    """Dense output (Hermite), events and ``save_every`` for engines that return every step
+    (``sliced``: the engine already kept every ``every``-th point; no dense output or events)."""
+    if sliced:
+        return full
     t, q, v = float_array(full.t), float_array(full.q), float_array(full.v)
     done = len(t) - 1
     if events and done > 0:
@@ -359,10 +361,10 @@ def _run_compiled(system, method, t0, q0, v0, h, N, every, dense, events, tol, p
                       *(st.get(c, 0) for c in ("nfev", "njev", "nlu", "newton_iterations")),
                       engine="compiled" if st.get("path") == "fast" else "generic", stats=st)
     res, exc = _prefix_run(run, N, inner)
-    return _finish_prefix(res, exc, system, t0, q0, v0, every, dense, events, "compiled")
+    return _finish_prefix(res, exc, system, t0, q0, v0, every, dense, events, "compiled", sliced=inner != 1)
 
 
-def _finish_prefix(res, exc, system, t0, q0, v0, every, dense, events, engine) -> Result:
+def _finish_prefix(res, exc, system, t0, q0, v0, every, dense, events, engine, sliced=False) -> Result:
     if res is None:        # failure in the first step: the initial point only
         from .core.backend import Backend
         bk = Backend(None)
@@ -371,7 +373,7 @@ def _finish_prefix(res, exc, system, t0, q0, v0, every, dense, events, engine) -
                      system.constraint(bk, float(t0), q, v)[None], None, engine=engine)
     if exc is not None:
         (res.status, res.message), res.error = _failure(exc), exc
-    return _post_process(res, every, dense, events)
+    return _post_process(res, every, dense, events, sliced)
 
 
 def _run_comparator(system, name, t0, q0, v0, h, N, every, dense, events, dps, tol, project) -> Result:

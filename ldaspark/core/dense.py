@@ -1,9 +1,9 @@
 """Dense output (continuous extensions) and event location.
 
-``CollocationDense``: on the step [t_n, t_n + h] of a SPARK method (21), q(t) is the polynomial
-through (t_n, q_n) and the stage points (T_i, Q_i) of (21a) (nodes with equal c merged, e.g. the
-first Lobatto node), and v(t) the polynomial through the stage velocities (T_i, V_i). For a
-collocation tableau A (Gauss, Lobatto IIIA) this is the collocation polynomial u and v = u'.
+``CollocationDense``: on the step [t_n, t_n + h] of a SPARK method (21), v(t) is the polynomial
+through the stage velocities (T_i, V_i) and q(t) = q_n + int_{t_n}^t v. For a collocation tableau
+A (Gauss, Lobatto IIIA) q is the collocation polynomial through (t_n, q_n) and the stage points
+(T_i, Q_i) of (21a), and v = q'.
 Its error is O(h^(s+1)) in q and O(h^s) in v (the stage order), below the nodal order 2s of
 Gauss: measured orders are in ``tests/test_dense_events.py`` (gauss-2 on the skate: q 3, v 2).
 
@@ -75,29 +75,33 @@ class _Dense:
 class CollocationDense(_Dense):
     """Stage-value extension of a SPARK method (see module docstring).
 
-    t (N+1,), q_nodes (N+1, n); c (s,) the tableau's nodes; Q, V (N, s, n) stage values."""
+    t (N+1,), q_nodes (N+1, n); c (s,) the tableau's nodes; V (N, s, n) stage velocities.
+    With l_j the Lagrange basis on c: v(t_n + theta h) = sum_j l_j(theta) V_j and
+    q(t_n + theta h) = q_n + h sum_j (int_0^theta l_j) V_j. For a collocation A (a_ij =
+    int_0^c_i l_j: Gauss, Lobatto IIIA) this is the collocation polynomial through (t_n, q_n) and
+    the stage points (T_i, Q_i) of (21a), and it ends at q_n+1 of (21c) since b_j = int_0^1 l_j."""
 
-    def __init__(self, t, q_nodes, c, Q, V):
+    def __init__(self, t, q_nodes, c, V):
         super().__init__(t)
         c = np.asarray(c, float)
-        Q = np.asarray(Q, float)
-        V = np.asarray(V, float)
-        q_nodes = np.asarray(q_nodes, float)
-        keep = [i for i in range(len(c)) if abs(c[i]) > 1e-14
-                and all(abs(c[i] - c[j]) > 1e-14 for j in range(i))]
-        self.cq = np.concatenate([[0.0], c[keep]])
-        self.Yq = np.concatenate([q_nodes[:-1, None, :], Q[:, keep, :]], axis=1)   # (N, kq, n)
-        vkeep = [i for i in range(len(c)) if all(abs(c[i] - c[j]) > 1e-14 for j in range(i))]
-        self.cv = c[vkeep]
-        self.Yv = V[:, vkeep, :]
+        keep = [i for i in range(len(c)) if all(abs(c[i] - c[j]) > 1e-14 for j in range(i))]
+        self.c = c[keep]
+        self.q = np.asarray(q_nodes, float)
+        self.V = np.asarray(V, float)[:, keep, :]
+        P = np.polynomial.polynomial
+        self._basis = []
+        for j, cj in enumerate(self.c):
+            others = np.delete(self.c, j)
+            lj = P.polyfromroots(others) / np.prod(cj - others) if len(others) else np.array([1.0])
+            self._basis.append((lj, P.polyint(lj)))
 
     def _eval(self, k, theta, h):
-        Wq = _lagrange_weights(self.cq, theta)
-        q = np.einsum("kj,kjn->kn", Wq, self.Yq[k])
-        if len(self.cv) == 1:
-            v = self.Yv[k, 0, :]
-        else:
-            v = np.einsum("kj,kjn->kn", _lagrange_weights(self.cv, theta), self.Yv[k])
+        P = np.polynomial.polynomial
+        L = np.stack([P.polyval(theta, lj) for lj, _ in self._basis], axis=1)        # (K, s)
+        B = np.stack([P.polyval(theta, ij) for _, ij in self._basis], axis=1)
+        V = self.V[k]                                                                   # (K, s, n)
+        v = np.einsum("kj,kjn->kn", L, V)
+        q = self.q[k] + h[:, None] * np.einsum("kj,kjn->kn", B, V)
         return q, v
 
 
@@ -181,12 +185,11 @@ class EventTracker:
         return te, qe, ve
 
 
-def step_piece(t0, h, q0, c, Q, V) -> Callable:
+def step_piece(t0, h, q0, c, V) -> Callable:
     """Dense output of one step from its stage values (used while stepping, for events)."""
-    d = CollocationDense(np.array([float(t0), float(t0) + float(h)]),
-                         np.array([np.asarray(q0, float), np.asarray(q0, float)]),
-                         c, np.asarray(Q, float)[None], np.asarray(V, float)[None])
-    return d
+    q0 = np.asarray(q0, float)
+    return CollocationDense(np.array([float(t0), float(t0) + float(h)]), np.array([q0, q0]), c,
+                            np.asarray(V, float)[None])
 
 
 def hermite_piece(t0, t1, q0, v0, q1, v1) -> Callable:
