@@ -58,7 +58,7 @@ def test_missing_and_unknown_parameters():
         LagrangianSystem(M * v[0] ** 2 / 2 + v[1] ** 2 / 2, [v[1] - q[0] * v[0]], q, v)
 
 
-def test_ensemble_over_parameters_and_compiled_substitution():
+def test_ensemble_over_parameters():
     sysm = _param_skate()
     kw = dict(n_steps=5, h=0.1, q0=[0, 0, 0], v0=[0, 0, 1])
     ens = ldaspark.integrate(sysm, "gauss-2", params=[{"m": 1, "I": 1}, {"m": 2, "I": 1}], engine="generic", **kw)
