@@ -37,8 +37,8 @@ def _add_integrate(sub):
     p.add_argument("--tableau", default=None, help="tableau JSON file for METHOD custom")
     p.add_argument("--newton", choices=("full", "simplified"), default="full")
     p.add_argument("--project", action="store_true", help="project v0 onto k = 0 instead of failing")
-    p.add_argument("--out", required=True, help="output file, format by extension: .json (psi needs the generic "
-                                                "engine), .npz, .h5 (h5py); written atomically")
+    p.add_argument("--out", required=True, help="output file, format by extension: .npz, .h5 (h5py), else JSON "
+                                                "(psi needs the generic engine); written atomically")
     p.add_argument("--engine", choices=("auto", "compiled", "generic"), default="auto",
                    help="auto (default): compiled kernels when the scene and method qualify, else generic")
     p.add_argument("--every", type=int, default=1, help="save every k-th step (and the last); default 1")
@@ -46,13 +46,12 @@ def _add_integrate(sub):
 
 
 def _run_integrate(args) -> int:
-    from .core.resultio import _ext, save_result
+    from .core.resultio import save_result
     from .core.scenes import get_scene
     from .core.tableau import load_tableau
     from .core.errors import InputError
     from .solve import integrate
 
-    _ext(args.out)   # an unknown extension fails before the run
     if args.method == "custom":
         if not args.tableau:
             raise InputError("METHOD custom needs --tableau FILE")
@@ -68,12 +67,8 @@ def _run_integrate(args) -> int:
     except ValueError:
         raise InputError(f"--h and --t-end must be numbers, got {args.h!r}, {args.t_end!r}") from None
     res = integrate(scene, method, h=args.h if args.dps else h, t_end=t_end, dps=args.dps, project=args.project,
-                    newton=args.newton, engine=args.engine, save_every=args.every)
+                    newton=args.newton, engine=args.engine, save_every=args.every, raise_on_failure=True)
     save_result(res, args.out)
-    if not res.success:   # the trajectory up to the last good step is in the file, with its status
-        print(f"ldaspark: error: {res.message} (status {res.status}; steps before it written to {args.out})",
-              file=sys.stderr)
-        return 2
     mean = res.newton_iterations / max(int(res.stats.get("steps", 0)) or 1, 1)
     print(f"{scene.name} {res.method}: {res.stats.get('steps', len(res.t) - 1)} steps ({res.engine}), "
           f"max |k| = {max(abs(float(x)) for x in res.constraint.reshape(-1)):.2e}, "

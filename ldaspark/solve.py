@@ -58,7 +58,9 @@ def resolve_method(method) -> tuple:
         return "comparator", method, method
     try:
         return "spark", get_method(method), method
-    except TableauError:
+    except TableauError as exc:
+        if not str(exc).startswith("unknown method"):
+            raise
         raise InputError(f"unknown method {method!r}; choose gauss-S, lobatto-iiia-iiib-S, lobatto-iiia-iiib-iiid-S, "
                          f"euler-i, euler-ii, a SparkTableau, or a comparator ({', '.join(comparator_names(2))}, ...)"
                          ) from None
@@ -361,7 +363,26 @@ def _run_compiled(system, method, t0, q0, v0, h, N, every, dense, events, tol, p
                       *(st.get(c, 0) for c in ("nfev", "njev", "nlu", "newton_iterations")),
                       engine="compiled" if st.get("path") == "fast" else "generic", stats=st)
     res, exc = _prefix_run(run, N, inner)
+    if isinstance(exc, NewtonError):
+        exc = _generic_diagnosis(exc, system, method, res, t0, q0, v0, h, tol)
     return _finish_prefix(res, exc, system, t0, q0, v0, every, dense, events, "compiled", sliced=inner != 1)
+
+
+def _generic_diagnosis(exc, system, method, res, t0, q0, v0, h, tol) -> LdasparkError:
+    """The kernels report only the failing step k: redo step k with the generic step from the
+    same state, whose error says why (singular matrix, divergence, domain error)."""
+    from .core.spark import SparkMethod
+    k = exc.step
+    if not isinstance(method, SparkTableau):
+        return exc
+    q, v = (np.asarray(q0, float), np.asarray(v0, float)) if res is None else (res.q[-1], res.v[-1])
+    tk = float(t0) + k * float(h)
+    try:
+        SparkMethod(system, method, tol=tol).step(tk, q, v, float(h), step_index=k)
+    except LdasparkError as gen:
+        return gen
+    return NewtonError(f"Newton did not converge at step {k} (compiled engine, simplified Newton): {exc}; "
+                       "the generic full-Newton step converges there (engine='generic')", step=k, time=tk)
 
 
 def _finish_prefix(res, exc, system, t0, q0, v0, every, dense, events, engine, sliced=False) -> Result:

@@ -56,9 +56,10 @@ def test_h5_without_h5py_is_a_clear_error(res, tmp_path, monkeypatch):
     assert not (tmp_path / "r.h5").exists()
 
 
-def test_bad_extension_and_bad_file(res, tmp_path):
-    with pytest.raises(InputError, match="extension"):
-        save_result(res, tmp_path / "r.txt")
+def test_other_extension_is_json_and_bad_file(res, tmp_path):
+    save_result(res, tmp_path / "r.txt")
+    assert json.loads((tmp_path / "r.txt").read_text())["method"] == "gauss-2"
+    assert np.array_equal(load_result(tmp_path / "r.txt").q, res.q)
     (tmp_path / "bad.npz").write_bytes(b"not a zip")
     with pytest.raises(InputError, match="cannot read"):
         load_result(tmp_path / "bad.npz")
@@ -88,14 +89,13 @@ def test_cli_npz_engines_agree_and_every(tmp_path):
         assert key in d
 
 
-def test_cli_writes_prefix_on_failure(tmp_path, capsys):
+def test_cli_step_failure_is_one_line_and_no_file(tmp_path, capsys):
+    """The CLI keeps its contract (exit 2, one line, no file); the library keeps the prefix."""
     out = tmp_path / "f.npz"
     rc = main(["integrate", "particle", "gauss-2", "--h", "1", "--t-end", "40", "--engine", "compiled",
                "--out", str(out)])
     err = capsys.readouterr().err.strip().splitlines()
-    assert rc == 2 and len(err) == 1 and "status -1" in err[0]
-    r = load_result(out)
-    assert r.status == -1 and len(r.t) == 7
+    assert rc == 2 and len(err) == 1 and "step 6" in err[0] and not out.exists()
 
 
 def test_plots_never_touch_the_backend(res):

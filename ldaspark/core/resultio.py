@@ -1,6 +1,6 @@
 """Result files: ``save_result(result, path)`` and ``load_result(path)``, format by extension.
 
-* ``.json``: the ``ldaspark integrate`` contract (keys scene, method, h, dps, t, q, v, energy,
+* ``.json`` (and any name without one of the other extensions): the ``ldaspark integrate`` contract (keys scene, method, h, dps, t, q, v, energy,
   constraint, psi, stats; numbers as floats, or as strings of ``dps`` digits after an mpmath
   run), plus engine, status, message, save_every, params, version.
 * ``.npz``: named arrays t, q, v, energy, constraint (and psi when the engine forms it) and
@@ -31,11 +31,10 @@ FORMATS = (".json", ".npz", ".h5", ".hdf5")
 
 
 def _ext(path) -> str:
+    """The format of ``path``: .npz, .h5 / .hdf5, else .json (any other name, as the
+    ``ldaspark integrate --out`` contract has always written JSON)."""
     ext = os.path.splitext(os.fspath(path))[1].lower()
-    if ext not in FORMATS:
-        raise InputError(f"unknown result file extension {ext or '(none)'!r} of {os.fspath(path)}; "
-                         f"use one of {', '.join(FORMATS)}")
-    return ext
+    return ext if ext in FORMATS else ".json"
 
 
 def _json_value(x: Any) -> Any:
