@@ -6,12 +6,15 @@ the Axes (``ax.figure.savefig(...)`` writes it). Ensembles draw one line per mem
 """
 from __future__ import annotations
 
-from typing import Any, Optional
+from typing import TYPE_CHECKING, Any, Optional
 
 import numpy as np
 
 from .core.errors import InputError
 from .core.result import Result, float_array
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 
 def _axes(ax: Optional[Any]):
@@ -28,7 +31,7 @@ def _rows(result: Result, name: str):
     return [(float_array(result.t), float_array(getattr(result, name)))]
 
 
-def energy(result: Result, ax: Optional[Any] = None, relative: bool = True):
+def energy(result: Result, ax: Optional[Any] = None, relative: bool = True) -> "Axes":
     """Energy error E(t) - E(t0) of (8) (divided by |E(t0)| when ``relative`` and E(t0) != 0)."""
     ax = _axes(ax)
     for t, E in _rows(result, "energy"):
@@ -40,7 +43,7 @@ def energy(result: Result, ax: Optional[Any] = None, relative: bool = True):
     return ax
 
 
-def constraint(result: Result, ax: Optional[Any] = None):
+def constraint(result: Result, ax: Optional[Any] = None) -> "Axes":
     """|k(t, q, v)| of (1c) per constraint, log scale (zeros drawn at the smallest float)."""
     ax = _axes(ax)
     for t, K in _rows(result, "constraint"):
@@ -52,7 +55,7 @@ def constraint(result: Result, ax: Optional[Any] = None):
     return ax
 
 
-def trajectory(result: Result, i: int, j: int, ax: Optional[Any] = None):
+def trajectory(result: Result, i: int, j: int, ax: Optional[Any] = None) -> "Axes":
     """q_j against q_i (0-based indices), with the dense output when the Result has one."""
     n = result.n
     if not (0 <= i < n and 0 <= j < n):

@@ -46,7 +46,7 @@ def _notice(msg: str) -> None:
     print(f"ldaspark.integrate: {msg}; using the generic engine", file=sys.stderr, flush=True)
 
 
-def resolve_method(method) -> tuple:
+def resolve_method(method: Union[str, SparkTableau]) -> tuple:
     """("spark", SparkTableau, name) or ("comparator", name, name)."""
     from .core.comparators import comparator_names, is_comparator
     from .core.families import get_method

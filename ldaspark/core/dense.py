@@ -30,7 +30,7 @@ Events: functions g(t, q, v) -> float with optional attributes ``terminal`` (boo
 """
 from __future__ import annotations
 
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence, Union
 
 import numpy as np
 
@@ -73,7 +73,7 @@ class _Dense:
         h = self.t[k + 1] - self.t[k]
         return tt, k, (tt - self.t[k]) / h, h
 
-    def __call__(self, t):
+    def __call__(self, t: Any) -> tuple:
         """(q, v) at t: arrays (n,) for a scalar t, (len(t), n) for an array."""
         tt, k, theta, h = self._locate(t)
         q, v = self._eval(k, theta, h)
@@ -135,7 +135,7 @@ class HermiteDense(_Dense):
         return q, v
 
 
-def check_events(events) -> list:
+def check_events(events: Union[None, Callable, Sequence[Callable]]) -> list:
     """Normalise ``events`` (None, one callable, or a sequence of callables) to a list."""
     if events is None:
         return []
@@ -163,7 +163,7 @@ class EventTracker:
         self.found = [[] for _ in self.events]
         self.g = [float(g(float(t0), np.asarray(q0, float), np.asarray(v0, float))) for g in self.events]
 
-    def after_step(self, t0, t1, q1, v1, piece: Callable) -> bool:
+    def after_step(self, t0: Any, t1: Any, q1: Any, v1: Any, piece: Callable) -> bool:
         """Check the step [t0, t1] (end state q1, v1, local dense output ``piece``);
         returns True when a terminal event occurred in it."""
         from scipy.optimize import brentq
@@ -187,7 +187,7 @@ class EventTracker:
             self.g[e] = g1
         return stop
 
-    def arrays(self):
+    def arrays(self) -> tuple:
         """(t_events, q_events, v_events): one array per event function."""
         te = [np.array([x[0] for x in f], float) for f in self.found]
         qe = [np.array([x[1] for x in f], float).reshape(len(f), -1) for f in self.found]
@@ -195,12 +195,8 @@ class EventTracker:
         return te, qe, ve
 
 
-def step_piece(t0, h, q0, c, V) -> Callable:
+def step_piece(t0: Any, h: Any, q0: Any, c: Any, V: Any) -> CollocationDense:
     """Dense output of one step from its stage values (used while stepping, for events)."""
     q0 = np.asarray(q0, float)
     return CollocationDense(np.array([float(t0), float(t0) + float(h)]), np.array([q0, q0]), c,
                             np.asarray(V, float)[None])
-
-
-def hermite_piece(t0, t1, q0, v0, q1, v1) -> Callable:
-    return HermiteDense(np.array([float(t0), float(t1)]), np.array([q0, q1], float), np.array([v0, v1], float))

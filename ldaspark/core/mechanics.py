@@ -15,6 +15,8 @@ parameters (values at integrate time) unless ``params`` lists them explicitly.
 """
 from __future__ import annotations
 
+from typing import Any, Optional, Sequence
+
 import sympy
 
 from .errors import SystemDefinitionError
@@ -45,7 +47,8 @@ def _to_symbols(exprs, qs, t):
     return out, qsym, vsym
 
 
-def from_mechanics(model, q=None, constraints=None, params=None, name: str = "system", cls=None):
+def from_mechanics(model: Any, q: Optional[Sequence] = None, constraints: Optional[Sequence] = None,
+                   params: Optional[Sequence] = None, name: str = "system", cls: Optional[type] = None) -> Any:
     """A ``LagrangianSystem`` from a LagrangesMethod or a Lagrangian in dynamicsymbols (see the
     module docstring); ``params`` defaults to every free symbol other than t."""
     from sympy.physics.mechanics import LagrangesMethod, dynamicsymbols

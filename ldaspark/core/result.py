@@ -111,7 +111,7 @@ class Result:
                 f"points={np.shape(self.t)[-1]}, status={self.status!r}, message={self.message!r})")
 
 
-def float_array(x) -> np.ndarray:
+def float_array(x: Any) -> np.ndarray:
     """float64 copy of a (possibly mpmath object) array."""
     a = np.asarray(x)
     if a.dtype == object:
