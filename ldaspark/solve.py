@@ -111,7 +111,9 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
 
     ``params``: {symbol or name: value}, or a list of such dicts for an ensemble over parameters.
     ``q0``/``v0`` with shape (B, n): an ensemble over initial data. Ensemble members run in a
-    loop, or through ``executor.map`` (e.g. a ThreadPoolExecutor) when given."""
+    loop, or through ``executor`` when given: compiled initial-data ensembles as pickled tasks
+    (``ldaspark.compiled.ensemble``, any executor), everything else by ``executor.map`` (a
+    ThreadPoolExecutor; the generic engine's compiled functions do not pickle)."""
     if engine not in ENGINES:
         raise InputError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
     if dps is not None and engine == "compiled":
@@ -137,6 +139,10 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
         V0 = list(v0) if batch_ic else [v0]
         if batch_ic and len(Q0) != len(V0):
             raise InputError(f"q0 has {len(Q0)} rows but v0 has {len(V0)}")
+        if executor is not None and batch_ic and not batch_params:
+            fast = _compiled_ensemble(sysm, params, Q0, V0, executor, common)
+            if fast is not None:
+                return fast
         jobs = [(k, p, a, b) for k, (p, (a, b)) in enumerate((p, ab) for p in plist for ab in zip(Q0, V0))]
 
         def run(job):   # the fallback notice once per ensemble, not once per member
@@ -144,6 +150,23 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
         members = list(executor.map(run, jobs)) if executor is not None else [run(j) for j in jobs]
         return stack(members)
     return _single(sysm, params, q0, v0, quiet=False, **common)
+
+
+def _compiled_ensemble(system, params, Q0, V0, executor, c) -> Optional[Result]:
+    """Initial-data ensembles on the compiled engine go through
+    ``ldaspark.compiled.ensemble.ensemble_integrate`` (tasks that pickle, so any executor, process
+    pools and clusters included); None when the run does not qualify (then the loop runs)."""
+    if (c["engine"] == "generic" or c["dps"] is not None or c["dense"] or c["events"] or c["project"]
+            or params is not None or system.params
+            or _compiled_reason(system, c["kind"], c["name"]) is not None):
+        return None
+    from .compiled.ensemble import ensemble_integrate
+    from .core.result import from_ensemble
+    method = c["what"] if c["kind"] == "spark" else c["name"]
+    ens = ensemble_integrate(system, method, c["t0"], Q0, V0, c["h"], c["N"], every=c["every"], tol=c["tol"],
+                             executor=executor)
+    return from_ensemble(ens, method=c["name"], system=system.name, scene=c["scene"], h=c["h"],
+                         save_every=c["every"])
 
 
 def _with_params(system: LagrangianSystem, params) -> LagrangianSystem:

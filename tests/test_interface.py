@@ -128,3 +128,16 @@ def test_ensemble_over_initial_data():
     assert r.batch == 2 and r.q.shape == (2, 6, 3) and r.status.tolist() == [0, 0] and r.success
     one = ldaspark.integrate(sc.system, "gauss-2", n_steps=5, h=0.1, q0=Q0[1], v0=V0[1], engine="generic")
     assert np.array_equal(r.q[1], one.q) and r.nfev.shape == (2,)
+
+
+def test_compiled_ensemble_through_an_executor_equals_the_loop():
+    from concurrent.futures import ThreadPoolExecutor
+    Q0 = [[1, 0, 0], [0.5, 0, 0], [0.2, 0, 0]]
+    V0 = [[0, 1, 0], [0, 0.5, 0], [0, 0.3, 0]]
+    kw = dict(n_steps=20, h=0.05, q0=Q0, v0=V0, engine="compiled", save_every=4)
+    loop = ldaspark.integrate("particle", "gauss-2", **kw)
+    with ThreadPoolExecutor(1) as ex:
+        par = ldaspark.integrate("particle", "gauss-2", executor=ex, **kw)
+    assert par.batch == loop.batch == 3 and par.q.shape == (3, 6, 3) and par.success
+    assert np.array_equal(par.q, loop.q) and np.array_equal(par.t, loop.t) and par.method == "gauss-2"
+    assert list(par.nfev) == list(loop.nfev)

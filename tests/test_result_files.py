@@ -126,6 +126,10 @@ def test_packaging(capsys):
     assert (ir.files("ldaspark") / "py.typed").is_file()
     from ldaspark.theory.audit import example_names, example_path
     assert "gauss2" in example_names() and example_path("gauss2").is_file()
+    shipped = os.listdir(os.path.join(ROOT, "examples", "tableaux"))
+    assert sorted(n[:-5] for n in shipped if n.endswith(".json")) == example_names()
+    for n in example_names():          # the package data are copies of examples/tableaux
+        assert example_path(n).read_text() == open(os.path.join(ROOT, "examples", "tableaux", n + ".json")).read()
     with pytest.raises(InputError, match="unknown example"):
         example_path("nope")
     with pytest.raises(SystemExit):

@@ -166,3 +166,17 @@ def stack(members: list) -> Result:
                   params={"members": [r.params for r in members]},
                   stats={"members": [r.stats for r in members]}, n_valid=n_valid, members=list(members),
                   **out)
+
+
+def from_ensemble(ens: Any, **meta: Any) -> Result:
+    """A batched Result from ``ldaspark.compiled.ensemble.EnsembleResult`` (t (S,), q (R, S, n),
+    ...; one stats dict per run); ``meta`` sets method, system, h, ... ."""
+    R = len(ens.stats)
+    counters = {c: np.array([int(st.get(c, 0)) for st in ens.stats]) for c in COUNTERS}
+    members = [Result(np.asarray(ens.t), ens.q[r], ens.v[r], ens.energy[r], ens.constraint[r],
+                      **{c: int(counters[c][r]) for c in COUNTERS}, stats=ens.stats[r],
+                      engine="compiled" if ens.stats[r].get("path") == "fast" else "generic", **meta)
+               for r in range(R)]
+    res = stack(members)
+    res.stats["seconds"] = ens.seconds
+    return res
