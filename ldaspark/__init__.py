@@ -10,6 +10,8 @@ Layers (a module imports only from its own layer or the ones to its left):
 * ``ldaspark.theory``: discrete Lagrangian (13), Theorem 1 residuals, well-posedness, symmetry (23),
   order conditions, the tableau audit, observed orders, the claims ledger.
 * ``ldaspark.compiled``: code generation from a scene's sympy expressions, numba kernels, ensembles.
+* ``ldaspark.solve``: ``integrate`` (one entry point for every engine) returning ``Result``;
+  ``ldaspark.plot``: energy, constraint and trajectory plots of a Result.
 * ``ldaspark.reports``: one module per section of ``ldaspark report``.
 
 The names below are imported lazily (sympy, numba, scipy and matplotlib load on first use).
@@ -22,7 +24,10 @@ __version__ = "0.2.0"
 
 _EXPORTS = {
     "LagrangianSystem": "ldaspark.core.system",
-    "integrate": "ldaspark.core.spark",
+    "integrate": "ldaspark.solve",
+    "Result": "ldaspark.core.result",
+    "load_result": "ldaspark.core.resultio",
+    "save_result": "ldaspark.core.resultio",
     "fast_integrate": "ldaspark.compiled.fast",
     "gauss": "ldaspark.core.families",
     "lobatto_iiia_iiib": "ldaspark.core.families",
@@ -41,10 +46,12 @@ _EXPORTS = {
     "LdasparkError": "ldaspark.core.errors",
 }
 
-__all__ = sorted(_EXPORTS) + ["__version__"]
+__all__ = sorted(_EXPORTS) + ["__version__", "plot"]
 
 
 def __getattr__(name):
+    if name == "plot":   # the submodule ldaspark.plot (energy, constraint, trajectory)
+        return importlib.import_module("ldaspark.plot")
     mod = _EXPORTS.get(name)
     if mod is None:
         raise AttributeError(f"module 'ldaspark' has no attribute {name!r}")

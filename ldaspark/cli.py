@@ -26,7 +26,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _add_integrate(sub):
-    p = sub.add_parser("integrate", help="integrate a scene with a SPARK method and write JSON")
+    p = sub.add_parser("integrate", help="integrate a scene with a SPARK method and write JSON, npz or h5")
     p.add_argument("scene", help="particle, skate, robot, mp-particles (also pendulum, rolling-disk)")
     p.add_argument("method", help="gauss-S, lobatto-iiia-iiib-S, lobatto-iiia-iiib-iiid-S, euler-i, "
                                   "euler-ii, or custom with --tableau FILE")
@@ -37,50 +37,42 @@ def _add_integrate(sub):
     p.add_argument("--tableau", default=None, help="tableau JSON file for METHOD custom")
     p.add_argument("--newton", choices=("full", "simplified"), default="full")
     p.add_argument("--project", action="store_true", help="project v0 onto k = 0 instead of failing")
-    p.add_argument("--out", required=True, help="output JSON file (written atomically)")
+    p.add_argument("--out", required=True, help="output file, format by extension: .npz, .h5 (h5py), else JSON "
+                                                "(psi needs the generic engine); written atomically")
+    p.add_argument("--engine", choices=("auto", "compiled", "generic"), default="auto",
+                   help="auto (default): compiled kernels when the scene and method qualify, else generic")
+    p.add_argument("--every", type=int, default=1, help="save every k-th step (and the last); default 1")
     p.set_defaults(func=_run_integrate)
 
 
 def _run_integrate(args) -> int:
-    from .core.io import atomic_write_json
+    from .core.resultio import save_result
     from .core.scenes import get_scene
-    from .core.spark import integrate, n_steps_for
     from .core.tableau import load_tableau
-    from .core.families import get_method
     from .core.errors import InputError
+    from .solve import integrate
 
     if args.method == "custom":
         if not args.tableau:
             raise InputError("METHOD custom needs --tableau FILE")
-        tab = load_tableau(args.tableau)
+        method = load_tableau(args.tableau)
     else:
         if args.tableau:
             raise InputError("--tableau is only used with METHOD custom")
-        tab = get_method(args.method)
+        method = args.method
     scene = get_scene(args.scene, args.ic)
     try:
         h = float(args.h)
         t_end = float(args.t_end)
     except ValueError:
         raise InputError(f"--h and --t-end must be numbers, got {args.h!r}, {args.t_end!r}") from None
-    t0, q0, v0 = scene.initial(args.dps)
-    N = n_steps_for(float(t0), t_end, h)
-    sol = integrate(scene.system, tab, t0, q0, v0, args.h if args.dps else h, n_steps=N, dps=args.dps,
-                    project=args.project, newton=args.newton)
-    fmt = (lambda x: _mp_str(x, args.dps)) if args.dps else float
-    out = {
-        "scene": scene.name, "method": tab.name, "h": args.h if args.dps else h, "dps": args.dps,
-        "t": [fmt(x) for x in sol.t],
-        "q": [[fmt(x) for x in row] for row in sol.q],
-        "v": [[fmt(x) for x in row] for row in sol.v],
-        "energy": [fmt(x) for x in sol.energy],
-        "constraint": [[fmt(x) for x in row] for row in sol.constraint],
-        "psi": [[[fmt(x) for x in r] for r in stage] for stage in sol.psi],
-        "stats": sol.stats,
-    }
-    atomic_write_json(args.out, out)
-    print(f"{scene.name} {tab.name}: {N} steps, max |k| = {max(abs(float(x)) for x in sol.constraint.reshape(-1)):.2e}, "
-          f"mean Newton iterations {sol.stats['mean_iterations']:.2f} -> {args.out}")
+    res = integrate(scene, method, h=args.h if args.dps else h, t_end=t_end, dps=args.dps, project=args.project,
+                    newton=args.newton, engine=args.engine, save_every=args.every, raise_on_failure=True)
+    save_result(res, args.out)
+    mean = res.newton_iterations / max(int(res.stats.get("steps", 0)) or 1, 1)
+    print(f"{scene.name} {res.method}: {res.stats.get('steps', len(res.t) - 1)} steps ({res.engine}), "
+          f"max |k| = {max(abs(float(x)) for x in res.constraint.reshape(-1)):.2e}, "
+          f"mean Newton iterations {mean:.2f} -> {args.out}")
     return 0
 
 

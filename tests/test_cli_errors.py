@@ -139,11 +139,11 @@ def test_inconsistent_initial_data_and_project_opt_in(capsys, tmp_path, inconsis
 
 
 def test_keyboard_interrupt_no_output(capsys, tmp_path, monkeypatch):
-    import ldaspark.core.spark as spark
+    import ldaspark.solve as solve
 
     def interrupted(*a, **k):
         raise KeyboardInterrupt
-    monkeypatch.setattr(spark, "integrate", interrupted)
+    monkeypatch.setattr(solve, "integrate", interrupted)
     out = tmp_path / "o.json"
     _one_error_line(capsys, OK + ["--out", str(out)], code=130, match="interrupted")
     assert not out.exists() and os.listdir(tmp_path) == []

@@ -47,9 +47,13 @@ class LagrangianSystem:
     q, v : lists of n sympy symbols; t : the time symbol (optional when L, k are autonomous).
     mechanical : optional dict with sympy M, U, K, b when the system is of the form
         L = 1/2 v^T M v - U(q), k = K(q) v + b(q); the fast path uses it.
+    params : optional free symbols of L and k kept symbolic (a list, or a dict symbol -> default
+        value). Derivation and lambdify happen once with the parameters as extra arguments;
+        values are given later (``with_params`` or ``ldaspark.integrate(..., params=...)``).
     """
 
-    def __init__(self, L, k, q, v, t=None, name: str = "system", mechanical: dict | None = None):
+    def __init__(self, L, k, q, v, t=None, name: str = "system", mechanical: dict | None = None,
+                 params=None):
         self.name = name
         self.q = list(q)
         self.v = list(v)
@@ -62,11 +66,14 @@ class LagrangianSystem:
         self.m = self.k.rows
         if self.m >= self.n:
             raise SystemDefinitionError(f"need m < n constraints, got m = {self.m}, n = {self.n}")
-        allowed = set(self.q) | set(self.v) | {self.t}
+        _reject_dynamicsymbols(self.L, self.k)
+        self.params, self._param_values = _parse_params(params)
+        allowed = set(self.q) | set(self.v) | {self.t} | set(self.params)
         extra = (self.L.free_symbols | self.k.free_symbols) - allowed
         if extra:
             raise SystemDefinitionError(
-                f"L or k contain symbols other than t, q, v: {sorted(map(str, extra))}; substitute parameters first")
+                f"L or k contain symbols other than t, q, v: {sorted(map(str, extra))}; "
+                "substitute them or declare them with params=[...]")
         self.mechanical = mechanical
         self.lam = sympy.symbols(f"lam0:{self.m}")
         self._derive()
@@ -85,6 +92,54 @@ class LagrangianSystem:
         L = (vv.T * M * vv)[0, 0] / 2 - sympy.sympify(U)
         k = list(K * vv + b)
         return cls(L, k, q, v, name=name, mechanical={"M": M, "U": sympy.sympify(U), "K": K, "b": b})
+
+    @classmethod
+    def from_mechanics(cls, model, q=None, constraints=None, params=None, name: str = "system"):
+        """From a ``sympy.physics.mechanics.LagrangesMethod`` (with ``nonhol_coneqs``) or a
+        Lagrangian and velocity constraints in dynamicsymbols; see ``ldaspark.core.mechanics``."""
+        from .mechanics import from_mechanics
+        return from_mechanics(model, q=q, constraints=constraints, params=params, name=name, cls=cls)
+
+    # --- parameters ----------------------------------------------------------------------------
+    def with_params(self, values=None, **by_name) -> "LagrangianSystem":
+        """A view of this system with parameter values set (symbol or name -> number); shares
+        the derived expressions and compiled functions, so nothing is derived again."""
+        import copy
+        new = copy.copy(self)
+        new._param_values = dict(self._param_values)
+        items = list((values or {}).items()) + list(by_name.items())
+        names = {str(p): p for p in self.params}
+        for key, val in items:
+            sym = key if key in self.params else names.get(str(key))
+            if sym is None:
+                raise SystemDefinitionError(f"{self.name}: {key} is not a parameter "
+                                            f"(parameters: {', '.join(map(str, self.params)) or 'none'})")
+            new._param_values[sym] = val
+        return new
+
+    def param_values(self) -> dict:
+        """Current values {symbol: value} (may be incomplete)."""
+        return dict(self._param_values)
+
+    def substituted(self) -> "LagrangianSystem":
+        """A parameter-free system with the current values substituted (derives again; used by
+        the compiled path and the comparators, which generate code from the expressions)."""
+        if not self.params:
+            return self
+        vals = self._param_arg_values(None)
+        sub = {p: sympy.nsimplify(x) if isinstance(x, str) else sympy.sympify(x) for p, x in zip(self.params, vals)}
+        mech = None if self.mechanical is None else {
+            key: (sympy.sympify(val).subs(sub) if val is not None else None) for key, val in self.mechanical.items()}
+        return LagrangianSystem(self.L.subs(sub), [e.subs(sub) for e in self.k], self.q, self.v, self.t,
+                                name=self.name, mechanical=mech)
+
+    def _param_arg_values(self, backend):
+        missing = [str(p) for p in self.params if p not in self._param_values]
+        if missing:
+            raise SystemDefinitionError(f"{self.name}: no value for parameter(s) {', '.join(missing)} "
+                                        "(pass params={...} to integrate, or use system.with_params)")
+        vals = [self._param_values[p] for p in self.params]
+        return vals if backend is None else [backend.scalar(x) for x in vals]
 
     # --- symbolic derivation ----------------------------------------------------------------
     def _derive(self):
@@ -109,10 +164,14 @@ class LagrangianSystem:
     def _fn(self, key, exprs, backend: Backend, with_lam=False):
         ck = (key, backend.lambdify_module)
         if ck not in self._compiled:
-            args = [self.t] + self.q + self.v + (list(self.lam) if with_lam else [])
+            args = [self.t] + self.q + self.v + (list(self.lam) if with_lam else []) + list(self.params)
             lists = [e.tolist() if isinstance(e, sympy.MatrixBase) else e for e in exprs]
             self._compiled[ck] = sympy.lambdify(args, lists, modules=backend.lambdify_module, cse=True)
-        return self._compiled[ck]
+        f = self._compiled[ck]
+        if not self.params:
+            return f
+        pv = self._param_arg_values(backend)     # parameters are the trailing arguments
+        return lambda *a: f(*a, *pv)
 
     # --- numeric evaluation -------------------------------------------------------------------
     def stage(self, backend: Backend, t, q, v, lam, jacobians: bool = True) -> StageEval:
@@ -230,6 +289,33 @@ class LagrangianSystem:
         rhs = np.concatenate([-Lvt[:, 0] - Lvq.dot(v) + Lq[:, 0], -kt[:, 0] - kq.dot(v)])
         sol = backend.solve(S, rhs)
         return sol[:self.n], sol[self.n:]
+
+
+def _parse_params(params):
+    """(tuple of parameter symbols, {symbol: default value})."""
+    if params is None:
+        return (), {}
+    items = list(params.items()) if isinstance(params, dict) else [(p, None) for p in params]
+    syms, vals = [], {}
+    for p, val in items:
+        p = sympy.Symbol(p) if isinstance(p, str) else p
+        if not isinstance(p, sympy.Symbol):
+            raise SystemDefinitionError(f"parameters must be sympy symbols, got {p!r}")
+        syms.append(p)
+        if val is not None:
+            vals[p] = val
+    return tuple(syms), vals
+
+
+def _reject_dynamicsymbols(L, k):
+    """Functions of t (sympy.physics.mechanics.dynamicsymbols) and derivatives are not
+    coordinates here: their time derivatives would contain q''(t) later on."""
+    from sympy.core.function import AppliedUndef
+    for e in [L, *k]:
+        if e.atoms(AppliedUndef) or e.has(sympy.Derivative):
+            raise SystemDefinitionError(
+                "L or k contain functions of t or derivatives (dynamicsymbols); use plain symbols q, v, "
+                "or LagrangianSystem.from_mechanics(...) for sympy.physics.mechanics models")
 
 
 def _arr(x, backend):

@@ -100,11 +100,10 @@ def compute(scenes=DEFAULT_SCENES, methods=None, t_end=T_END, workers=2):
 
 # --- output -------------------------------------------------------------------------------------
 def plot_family(records, family, methods, path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
     scenes = list(dict.fromkeys(r["scene"] for r in records))
-    fig, axes = plt.subplots(len(scenes), 3, figsize=(13, 3.2 * len(scenes)), squeeze=False)
+    fig = Figure(figsize=(13, 3.2 * len(scenes)))
+    axes = fig.subplots(len(scenes), 3, squeeze=False)
     for i, sc in enumerate(scenes):
         for j, var in enumerate(("q", "v", "psi")):
             ax = axes[i][j]

@@ -95,10 +95,9 @@ def figure_data(fig, t_end=None):
 
 
 def plot_energy(data, path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(len(data["methods"]), 1, figsize=(9, 2.4 * len(data["methods"])), sharex=True)
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(9, 2.4 * len(data["methods"])))
+    axes = fig.subplots(len(data["methods"]), 1, sharex=True)
     axes = np.atleast_1d(axes)
     for ax, (m, rec) in zip(axes, data["methods"].items()):
         ax.plot(rec["t"], rec["dE"], lw=0.6, label=f"{m} (max |E - E0| = {rec['max_abs_dE']:.2e})")
@@ -149,10 +148,9 @@ def figure4(t_end=50000.0, h=0.05, J=9, every=100, constraint="printed"):
 
 
 def plot_fig4(data, path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.2))
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(12, 4.2))
+    (a1, a2) = fig.subplots(1, 2)
     t = np.asarray(data["t"], float)
     for m in data["methods"]:
         y = np.asarray(data["mu_over_h4"][m], float)

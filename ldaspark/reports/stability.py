@@ -408,13 +408,12 @@ def time_reversal(method, scene="particle", h=0.05, n_steps=100, dps=None):
 
 # --- report ---------------------------------------------------------------------------------------
 def _fig_step_sweep(rows, path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
     n = len(rows)
     cols = 4
-    fig, axes = plt.subplots((n + cols - 1) // cols, cols, figsize=(4 * cols, 3.3 * ((n + cols - 1) // cols)),
-                             squeeze=False)
+    fig = Figure(figsize=(4 * cols, 3.3 * ((n + cols - 1) // cols)))
+    axes = fig.subplots((n + cols - 1) // cols, cols,
+                        squeeze=False)
     for ax, r in zip(axes.flat, rows):
         for p, st in (("float64", "o-"), ("30", "s--"), ("50", "^:")):
             if p in r["err"]:
@@ -431,10 +430,9 @@ def _fig_step_sweep(rows, path):
 
 
 def _fig_stage(rows, path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 3, figsize=(13, 3.6))
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(13, 3.6))
+    axes = fig.subplots(1, 3)
     fams = sorted({r["method"].rsplit("-", 1)[0] for r in rows}, key=len)
     for ax, cond in zip(axes, ("B", "C", "22b")):
         for fam in fams:
@@ -451,10 +449,9 @@ def _fig_stage(rows, path):
 
 
 def _fig_long(lr, rg, path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 2, figsize=(11, 3.8))
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(11, 3.8))
+    axes = fig.subplots(1, 2)
     ax = axes[0]
     st = np.array(lr["series"]["steps"][1:], float)
     ax.loglog(st, np.abs(lr["series"]["dE_kahan"][1:]), ".", ms=1, label="|E_n - E_0| Kahan")

@@ -271,10 +271,9 @@ STYLE = {"spark-fast": "-o", "spark-generic": "-s", "scipy": "--^", "scipy-proje
 
 
 def plot_study(study, path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 2, figsize=(12, 5))
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(12, 5))
+    axes = fig.subplots(1, 2)
     for ax, key, lab in ((axes[0], "error", f"final error max|q - q_ref| at t = {study['t_end']:g}"),
                          (axes[1], "energy_error", "max |E - E0| over the run")):
         seen = {}
@@ -294,10 +293,9 @@ def plot_study(study, path):
 
 
 def plot_long(le, path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(8, 4.5))
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(8, 4.5))
+    ax = fig.subplots()
     for key in ("spark", "dop853", "dop853_projected"):
         d = le[key]
         ax.semilogy(d["t"], np.maximum(d["dE"], 1e-17), label=f"{d['label']} ({d['cpu']:.2f} s)")
@@ -311,11 +309,10 @@ def plot_long(le, path):
 
 
 def plot_dps(rows, path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
     mp = [r for r in rows if "dps" in r]
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig = Figure(figsize=(6, 4))
+    ax = fig.subplots()
     ax.semilogy([r["dps"] for r in mp], [r["seconds_per_step"] for r in mp], "-o", label="mpmath path")
     for r in rows:
         if "dps" not in r:

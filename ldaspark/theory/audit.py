@@ -355,6 +355,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("file", nargs="?", default=None, help="tableau JSON file (keys c, A, A_hat, "
                         "A_tilde, b, b_hat, b_tilde, optional omega, name)")
     parser.add_argument("--method", default=None, help="audit a built-in method instead (gauss-S, ...)")
+    parser.add_argument("--example", default=None, help="audit a shipped example tableau by name "
+                        f"({', '.join(example_names())})")
     parser.add_argument("--dps", type=int, default=30, help="working digits of the numerical checks (default 30)")
     parser.add_argument("--json", default=None, help="write the checks as JSON to this file")
     parser.add_argument("--out", default=None, help="write the markdown report to this file instead of stdout")
@@ -370,9 +372,29 @@ def safe_load_tableau(path) -> SparkTableau:
     return load_tableau(path)
 
 
+def example_names() -> list[str]:
+    """Names of the example tableaux shipped in ldaspark/data/tableaux (without .json)."""
+    from importlib import resources
+    d = resources.files("ldaspark") / "data" / "tableaux"
+    return sorted(p.name[:-5] for p in d.iterdir() if p.name.endswith(".json")) if d.is_dir() else []
+
+
+def example_path(name: str):
+    """Path of a shipped example tableau."""
+    from importlib import resources
+    if name not in example_names():
+        raise InputError(f"unknown example tableau {name!r}; choose from {', '.join(example_names())}")
+    return resources.files("ldaspark") / "data" / "tableaux" / f"{name}.json"
+
+
 def load_for_args(args) -> SparkTableau:
+    example = getattr(args, "example", None)
+    if example is not None:
+        if args.file is not None or args.method is not None:
+            raise InputError("give exactly one of FILE, --method NAME or --example NAME")
+        args.file = str(example_path(example))
     if (args.file is None) == (args.method is None):
-        raise InputError("give exactly one of FILE or --method NAME")
+        raise InputError("give exactly one of FILE or --method NAME (or --example NAME)")
     if args.dps is not None and not (10 <= args.dps <= 200):
         raise InputError(f"--dps must be between 10 and 200, got {args.dps}")
     if args.method is not None:

@@ -1,0 +1,182 @@
+"""One result type for every engine (generic float64 / mpmath, compiled, comparators) and for
+ensembles (a leading batch axis).
+
+Shapes for one run with S saved points (S = N + 1 for ``save_every = 1``):
+
+* ``t`` (S,), ``q`` and ``v`` (S, n), ``energy`` (S,) = E of (8), ``constraint`` (S, m) = k(t, q, v)
+  of (1c), ``psi`` (S - 1, s, m): the stage multipliers Psi_i of (21b) of the step starting at
+  ``t[j]`` (``None`` when the engine does not form them: compiled kernels, leapfrog comparators).
+* ``status``: 0 success, 1 a terminal event stopped the run, negative failure (scipy's
+  convention): -1 the Newton iteration of (21) failed, -2 the saddle matrix (4) became singular
+  or changed sign, -3 another step failure (non-finite values). On failure the arrays hold the
+  trajectory up to the last good step and ``message`` says why.
+* counters ``nfev`` (stage points evaluated), ``njev`` (Jacobian assemblies), ``nlu`` (LU
+  factorisations), ``newton_iterations``.
+* ``sol``: the dense output (``ldaspark.core.dense``) when asked for, ``sol(t) -> (q, v)``.
+* ``t_events`` / ``q_events`` / ``v_events``: one array per event function.
+
+An ensemble (``batch`` = B) has arrays with a leading axis B, ``status`` an int array (B,),
+``message`` a list, counters arrays (B,), ``n_valid`` (B,) the number of valid rows of each
+member (rows after a failure repeat the last good state; nothing is NaN) and ``members`` the
+individual Results.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable, Optional
+
+import numpy as np
+
+from .errors import InputError, LdasparkError
+
+STATUS_SUCCESS = 0
+STATUS_EVENT = 1
+STATUS_NEWTON = -1
+STATUS_SADDLE = -2
+STATUS_OTHER = -3
+
+COUNTERS = ("nfev", "njev", "nlu", "newton_iterations")
+
+
+@dataclass
+class Result:
+    """Trajectory, diagnostics and counters of one integration (or of an ensemble)."""
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    energy: np.ndarray
+    constraint: np.ndarray
+    psi: Optional[np.ndarray] = None
+    status: Any = STATUS_SUCCESS
+    message: Any = "The integration reached t_end."
+    nfev: Any = 0
+    njev: Any = 0
+    nlu: Any = 0
+    newton_iterations: Any = 0
+    method: str = ""
+    system: str = ""
+    scene: Optional[str] = None
+    engine: str = "generic"
+    h: Any = None
+    dps: Optional[int] = None
+    save_every: int = 1
+    params: dict = field(default_factory=dict)
+    stats: dict = field(default_factory=dict)
+    sol: Optional[Callable] = None
+    t_events: list = field(default_factory=list)
+    q_events: list = field(default_factory=list)
+    v_events: list = field(default_factory=list)
+    n_valid: Optional[np.ndarray] = None
+    members: Optional[list] = None
+    error: Optional[BaseException] = field(default=None, repr=False)
+
+    @property
+    def success(self) -> bool:
+        """True when the run (every member of an ensemble) did not fail (status >= 0)."""
+        return bool(np.all(np.asarray(self.status) >= 0))
+
+    @property
+    def batch(self) -> Optional[int]:
+        """Number of ensemble members, None for a single run."""
+        return None if self.members is None else len(self.members)
+
+    @property
+    def n(self) -> int:
+        return int(np.shape(self.q)[-1])
+
+    @property
+    def m(self) -> int:
+        return int(np.shape(self.constraint)[-1])
+
+    def raise_for_status(self) -> "Result":
+        """Re-raise the step failure that ended the run (no-op on success)."""
+        if self.members is not None:
+            for r in self.members:
+                r.raise_for_status()
+            return self
+        if self.status < 0:
+            if self.error is not None:
+                raise self.error
+            raise LdasparkError(self.message)
+        return self
+
+    def __iter__(self):
+        """Unpacks like ``FastSolution``: (t, q, v, energy, constraint, stats)."""
+        return iter((self.t, self.q, self.v, self.energy, self.constraint, self.stats))
+
+    def __repr__(self) -> str:
+        b = f"batch={self.batch}, " if self.members is not None else ""
+        return (f"Result({b}system={self.system!r}, method={self.method!r}, engine={self.engine!r}, "
+                f"points={np.shape(self.t)[-1]}, status={self.status!r}, message={self.message!r})")
+
+
+def float_array(x: Any) -> np.ndarray:
+    """float64 copy of a (possibly mpmath object) array."""
+    a = np.asarray(x)
+    if a.dtype == object:
+        return np.vectorize(float, otypes=[float])(a) if a.size else a.astype(float)
+    return a.astype(float)
+
+
+def save_indices(n_steps: int, every: int) -> np.ndarray:
+    """Indices of the saved points: 0, every, 2 every, ... and the last step (as the compiled
+    kernels do)."""
+    if isinstance(every, bool) or not isinstance(every, (int, np.integer)) or every <= 0:
+        raise InputError(f"save_every must be a positive integer, got {every!r}")
+    idx = list(range(0, int(n_steps) + 1, int(every)))
+    if idx[-1] != n_steps:
+        idx.append(int(n_steps))
+    return np.array(idx, dtype=int)
+
+
+def stack(members: list) -> Result:
+    """An ensemble Result from member Results (same system, method and grid).
+
+    Members that stopped early (failure or terminal event) are padded to the longest member by
+    repeating their last state; ``n_valid`` records each member's own length."""
+    if not members:
+        raise InputError("an ensemble needs at least one member")
+    S = max(len(r.t) for r in members)
+    n_valid = np.array([len(r.t) for r in members], dtype=int)
+
+    def pad(a, rows):
+        a = np.asarray(a)
+        if len(a) == rows:
+            return a
+        if len(a) == 0:
+            raise InputError("cannot pad an empty member trajectory")
+        return np.concatenate([a, np.repeat(a[-1:], rows - len(a), axis=0)])
+
+    long_t = max(members, key=lambda r: len(r.t)).t
+    out = {}
+    for name in ("q", "v", "energy", "constraint"):
+        out[name] = np.stack([pad(getattr(r, name), S) for r in members])
+    t = np.stack([np.concatenate([r.t, long_t[len(r.t):]]) for r in members])
+    psi = None
+    if all(r.psi is not None for r in members) and S > 1:
+        psi = np.stack([pad(r.psi, S - 1) if len(r.psi) else np.zeros((S - 1,) + r.psi.shape[1:])
+                        for r in members])
+    first = members[0]
+    return Result(t=t, psi=psi, status=np.array([r.status for r in members], dtype=int),
+                  message=[r.message for r in members],
+                  **{c: np.array([getattr(r, c) for r in members]) for c in COUNTERS},
+                  method=first.method, system=first.system, scene=first.scene, engine=first.engine,
+                  h=first.h, dps=first.dps, save_every=first.save_every,
+                  params={"members": [r.params for r in members]},
+                  stats={"members": [r.stats for r in members]}, n_valid=n_valid, members=list(members),
+                  **out)
+
+
+def from_ensemble(ens: Any, **meta: Any) -> Result:
+    """A batched Result from ``ldaspark.compiled.ensemble.EnsembleResult`` (t (S,), q (R, S, n),
+    ...; one stats dict per run); ``meta`` sets method, system, h, ... ."""
+    R = len(ens.stats)
+    counters = {c: np.array([int(st.get(c, 0)) for st in ens.stats]) for c in COUNTERS}
+    members = [Result(np.asarray(ens.t), ens.q[r], ens.v[r], ens.energy[r], ens.constraint[r],
+                      **{c: int(counters[c][r]) for c in COUNTERS}, stats=ens.stats[r],
+                      engine="compiled" if ens.stats[r].get("path") == "fast" else "generic", **meta)
+               for r in range(R)]
+    res = stack(members)
+    res.stats["seconds"] = ens.seconds
+    return res

@@ -1,0 +1,73 @@
+"""Plots of a Result with matplotlib's object-oriented API; the backend is never touched.
+
+Each function draws on ``ax`` when given, else on a new ``matplotlib.figure.Figure`` (not
+pyplot, so nothing is registered with a GUI and nothing changes the user's backend), and returns
+the Axes (``ax.figure.savefig(...)`` writes it). Ensembles draw one line per member.
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, Optional
+
+import numpy as np
+
+from .core.errors import InputError
+from .core.result import Result, float_array
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
+
+def _axes(ax: Optional[Any]):
+    if ax is not None:
+        return ax
+    from matplotlib.figure import Figure
+    return Figure(figsize=(6, 4)).add_subplot(1, 1, 1)
+
+
+def _rows(result: Result, name: str):
+    """[(t, values)] for one run or per ensemble member (valid rows only)."""
+    if result.members is not None:
+        return [(float_array(r.t), float_array(getattr(r, name))) for r in result.members]
+    return [(float_array(result.t), float_array(getattr(result, name)))]
+
+
+def energy(result: Result, ax: Optional[Any] = None, relative: bool = True) -> "Axes":
+    """Energy error E(t) - E(t0) of (8) (divided by |E(t0)| when ``relative`` and E(t0) != 0)."""
+    ax = _axes(ax)
+    for t, E in _rows(result, "energy"):
+        scale = abs(E[0]) if relative and E[0] != 0 else 1.0
+        ax.plot(t, (E - E[0]) / scale)
+    ax.set_xlabel("t")
+    ax.set_ylabel("(E - E(t0)) / |E(t0)|" if relative else "E - E(t0)")
+    ax.set_title(f"{result.system} {result.method}: energy error")
+    return ax
+
+
+def constraint(result: Result, ax: Optional[Any] = None) -> "Axes":
+    """|k(t, q, v)| of (1c) per constraint, log scale (zeros drawn at the smallest float)."""
+    ax = _axes(ax)
+    for t, K in _rows(result, "constraint"):
+        for j in range(K.shape[1]):
+            ax.semilogy(t, np.maximum(np.abs(K[:, j]), np.finfo(float).tiny), label=f"k{j + 1}")
+    ax.set_xlabel("t")
+    ax.set_ylabel("|k(t, q, v)|")
+    ax.set_title(f"{result.system} {result.method}: constraint residual")
+    return ax
+
+
+def trajectory(result: Result, i: int, j: int, ax: Optional[Any] = None) -> "Axes":
+    """q_j against q_i (0-based indices), with the dense output when the Result has one."""
+    n = result.n
+    if not (0 <= i < n and 0 <= j < n):
+        raise InputError(f"coordinate indices must be in 0..{n - 1}, got {i}, {j}")
+    ax = _axes(ax)
+    for t, q in _rows(result, "q"):
+        ax.plot(q[:, i], q[:, j], ".", markersize=2)
+    if result.sol is not None:
+        tt = np.linspace(result.sol.t_min, result.sol.t_max, 20 * len(result.sol.t))
+        qd, _ = result.sol(tt)
+        ax.plot(qd[:, i], qd[:, j], "-", linewidth=0.8)
+    ax.set_xlabel(f"q{i + 1}")
+    ax.set_ylabel(f"q{j + 1}")
+    ax.set_title(f"{result.system} {result.method}")
+    return ax

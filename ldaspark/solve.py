@@ -1,0 +1,438 @@
+"""One entry point: ``ldaspark.integrate(system, method, t_span, q0, v0, h, ...) -> Result``.
+
+    import ldaspark
+    res = ldaspark.integrate("skate", "gauss-2", t_span=(0, 10), h=0.01, dense_output=True)
+    res.q[-1], res.status, res.message, res.nfev     # one Result type for every engine
+    q, v = res.sol(3.14159)                          # dense output between the steps
+
+``system``: a LagrangianSystem, a Scene (its initial data are the defaults) or a scene name.
+``method``: a SPARK method name (gauss-S, lobatto-iiia-iiib-S, lobatto-iiia-iiib-iiid-S,
+euler-i, euler-ii), a ``SparkTableau``, or a comparator name (``ldaspark.core.comparators``).
+
+Engines: ``"generic"`` steps (21a-f) with ``SparkMethod`` in float64, or in mpmath with ``dps``;
+``"compiled"`` runs the numba kernels of ``ldaspark.compiled.fast`` (mechanical systems,
+float64); ``"auto"`` (default) is compiled whenever the system and method qualify, else generic
+with a one-line notice on stderr. Both solve the same equations (21) to round-off (the compiled
+kernels use simplified Newton and compensated sums), and agree to ~1e-13 over 1e4 steps.
+
+A step failure (NewtonError, SingularSaddleError, non-finite values) ends the run with a
+negative ``status`` and keeps the trajectory up to the last good step; ``raise_on_failure=True``
+raises instead. ``save_every=k`` keeps steps 0, k, 2k, ... and the last one; the computed numbers
+do not depend on k. Dense output and events: ``ldaspark.core.dense``. Parameters: values for
+``LagrangianSystem(..., params=[...])`` symbols, applied without deriving again; a list of
+dicts (or q0, v0 with a leading batch axis) runs an ensemble and returns a batched Result.
+"""
+from __future__ import annotations
+
+import math
+import sys
+from typing import Any, Callable, Optional, Sequence, Union
+
+import numpy as np
+
+from .core.dense import CollocationDense, EventTracker, HermiteDense, check_events, step_piece
+from .core.errors import InputError, LdasparkError, NewtonError, SingularSaddleError, TableauError
+from .core.result import (STATUS_EVENT, STATUS_NEWTON, STATUS_OTHER, STATUS_SADDLE, Result, float_array,
+                          save_indices, stack)
+from .core.system import LagrangianSystem
+from .core.tableau import SparkTableau
+
+ENGINES = ("auto", "compiled", "generic")
+MSG_DONE = "The integration reached t_end."
+MSG_EVENT = "A termination event occurred."
+
+
+def _notice(msg: str) -> None:
+    print(f"ldaspark.integrate: {msg}; using the generic engine", file=sys.stderr, flush=True)
+
+
+def resolve_method(method: Union[str, SparkTableau]) -> tuple:
+    """("spark", SparkTableau, name) or ("comparator", name, name)."""
+    from .core.comparators import comparator_names, is_comparator
+    from .core.families import get_method
+    if isinstance(method, SparkTableau):
+        return "spark", method, method.name
+    if not isinstance(method, str):
+        raise InputError(f"method must be a name or a SparkTableau, got {method!r}")
+    if is_comparator(method):
+        return "comparator", method, method
+    try:
+        return "spark", get_method(method), method
+    except TableauError as exc:
+        if not str(exc).startswith("unknown method"):
+            raise
+        raise InputError(f"unknown method {method!r}; choose gauss-S, lobatto-iiia-iiib-S, lobatto-iiia-iiib-iiid-S, "
+                         f"euler-i, euler-ii, a SparkTableau, or a comparator ({', '.join(comparator_names(2))}, ...)"
+                         ) from None
+
+
+def _resolve_system(system, dps):
+    """(LagrangianSystem, scene name or None, default (t0, q0, v0) or None)."""
+    from .core.scenes import Scene, get_scene
+    if isinstance(system, str):
+        system = get_scene(system)
+    if isinstance(system, Scene):
+        return system.system, system.name, system.initial(dps)
+    if isinstance(system, LagrangianSystem):
+        return system, None, None
+    raise InputError(f"system must be a LagrangianSystem, a Scene or a scene name, got {type(system).__name__}")
+
+
+def _time_grid(t_span, t0, t_end, n_steps, h, default_t0):
+    if t_span is not None:
+        if t0 is not None or t_end is not None:
+            raise InputError("give t_span or t0/t_end, not both")
+        try:
+            t0, t_end = t_span
+        except (TypeError, ValueError):
+            raise InputError(f"t_span must be (t0, t_end), got {t_span!r}") from None
+    if t0 is None:
+        t0 = default_t0 if default_t0 is not None else 0.0
+    if h is None:
+        raise InputError("give the step size h")
+    if (t_end is None) == (n_steps is None):
+        raise InputError("give exactly one of t_span / t_end or n_steps")
+    if n_steps is None:
+        from .core.spark import n_steps_for
+        n_steps = n_steps_for(float(t0), float(t_end), float(h))
+    if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps <= 0:
+        raise InputError(f"n_steps must be a positive integer, got {n_steps!r}")
+    return t0, int(n_steps)
+
+
+def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, SparkTableau],
+              t_span: Optional[Sequence] = None, q0: Optional[Sequence] = None, v0: Optional[Sequence] = None,
+              h: Any = None, *, t0: Any = None, t_end: Any = None, n_steps: Optional[int] = None,
+              engine: str = "auto", dps: Optional[int] = None, save_every: int = 1, dense_output: bool = False,
+              events: Union[None, Callable, Sequence[Callable]] = None, params: Union[None, dict, list] = None,
+              raise_on_failure: bool = False, newton: str = "full", project: bool = False,
+              tol: Optional[float] = None, executor: Any = None) -> Result:
+    """Integrate (1) from (t0, q0, v0) with constant step h; see the module docstring.
+
+    ``params``: {symbol or name: value}, or a list of such dicts for an ensemble over parameters.
+    ``q0``/``v0`` with shape (B, n): an ensemble over initial data. Ensemble members run in a
+    loop, or through ``executor`` when given: compiled initial-data ensembles as pickled tasks
+    (``ldaspark.compiled.ensemble``, any executor), everything else by ``executor.map`` (a
+    ThreadPoolExecutor; the generic engine's compiled functions do not pickle)."""
+    if engine not in ENGINES:
+        raise InputError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    if dps is not None and engine == "compiled":
+        raise InputError("the compiled engine is float64 only; dps needs engine='generic' (or 'auto')")
+    save_indices(1, save_every)   # validates save_every
+    sysm, scene, init = _resolve_system(system, dps)
+    kind, what, name = resolve_method(method)
+    t0, N = _time_grid(t_span, t0, t_end, n_steps, h, init[0] if init else None)
+    if q0 is None or v0 is None:
+        if init is None:
+            raise InputError("give q0 and v0 (or pass a Scene / scene name for its initial data)")
+        q0 = init[1] if q0 is None else q0
+        v0 = init[2] if v0 is None else v0
+    evs = check_events(events)
+    common = dict(kind=kind, what=what, name=name, t0=t0, h=h, N=N, engine=engine, dps=dps, every=save_every,
+                  dense=dense_output, events=evs, raise_on_failure=raise_on_failure, newton=newton,
+                  project=project, tol=tol, scene=scene)
+    batch_params = isinstance(params, (list, tuple))
+    batch_ic = dps is None and np.ndim(np.asarray(q0, dtype=object)) == 2
+    if batch_params or batch_ic:
+        plist = list(params) if batch_params else [params]
+        Q0 = list(q0) if batch_ic else [q0]
+        V0 = list(v0) if batch_ic else [v0]
+        if batch_ic and len(Q0) != len(V0):
+            raise InputError(f"q0 has {len(Q0)} rows but v0 has {len(V0)}")
+        if executor is not None and batch_ic and not batch_params:
+            fast = _compiled_ensemble(sysm, params, Q0, V0, executor, common)
+            if fast is not None:
+                return fast
+        jobs = [(k, p, a, b) for k, (p, (a, b)) in enumerate((p, ab) for p in plist for ab in zip(Q0, V0))]
+
+        def run(job):   # the fallback notice once per ensemble, not once per member
+            return _single(sysm, job[1], job[2], job[3], quiet=job[0] > 0, **common)
+        members = list(executor.map(run, jobs)) if executor is not None else [run(j) for j in jobs]
+        return stack(members)
+    return _single(sysm, params, q0, v0, quiet=False, **common)
+
+
+def _compiled_ensemble(system, params, Q0, V0, executor, c) -> Optional[Result]:
+    """Initial-data ensembles on the compiled engine go through
+    ``ldaspark.compiled.ensemble.ensemble_integrate`` (tasks that pickle, so any executor, process
+    pools and clusters included); None when the run does not qualify (then the loop runs)."""
+    if (c["engine"] == "generic" or c["dps"] is not None or c["dense"] or c["events"] or c["project"]
+            or params is not None or system.params
+            or _compiled_reason(system, c["kind"], c["name"]) is not None):
+        return None
+    from .compiled.ensemble import ensemble_integrate
+    from .core.result import from_ensemble
+    method = c["what"] if c["kind"] == "spark" else c["name"]
+    ens = ensemble_integrate(system, method, c["t0"], Q0, V0, c["h"], c["N"], every=c["every"], tol=c["tol"],
+                             executor=executor)
+    return from_ensemble(ens, method=c["name"], system=system.name, scene=c["scene"], h=c["h"],
+                         save_every=c["every"])
+
+
+def _with_params(system: LagrangianSystem, params) -> LagrangianSystem:
+    if params is None:
+        if system.params:
+            system._param_arg_values(None)     # raises if a value is missing
+        return system
+    if not isinstance(params, dict):
+        raise InputError(f"params must be a dict (or a list of dicts for an ensemble), got {params!r}")
+    return system.with_params(params)
+
+
+def _compiled_reason(system: LagrangianSystem, kind: str, name: str) -> Optional[str]:
+    """None when the compiled engine can run this system and method, else why not."""
+    from .compiled import fast
+    if kind == "comparator" and name not in fast.LF2_VARIANTS:
+        return f"comparator {name} has no compiled kernel"
+    try:
+        cs = fast.compile_system(system)
+        cs.module  # noqa: B018  (import / compile now so that failures fall back)
+    except fast.NotCompilableError as exc:
+        return str(exc)
+    except Exception as exc:  # numba typing/lowering errors of generated code
+        return f"{system.name}: compilation failed ({type(exc).__name__})"
+    return None
+
+
+def _single(system, params, q0, v0, *, kind, what, name, t0, h, N, engine, dps, every, dense, events,
+            raise_on_failure, newton, project, tol, scene, quiet) -> Result:
+    system = _with_params(system, params)
+    pvals = {str(k): v for k, v in system.param_values().items()}
+    use = engine
+    if engine != "generic":
+        if dps is not None:
+            use = "generic"
+        else:
+            csys = system.substituted() if (system.params and engine == "compiled") else system
+            reason = ("parameters are applied without code generation only by the generic engine"
+                      if system.params and engine == "auto" else _compiled_reason(csys, kind, name))
+            if reason is None:
+                use, system_c = "compiled", csys
+            elif engine == "compiled":
+                raise InputError(f"engine 'compiled' cannot run this: {reason}")
+            else:
+                use = "generic"
+                if not quiet:
+                    _notice(reason)
+    if use == "compiled":
+        res = _run_compiled(system_c, what if kind == "spark" else name, t0, q0, v0, h, N, every, dense,
+                            events, tol, project)
+    elif kind == "comparator":
+        res = _run_comparator(system.substituted(), name, t0, q0, v0, h, N, every, dense, events, dps, tol,
+                              project)
+    else:
+        res = _run_generic(system, what, t0, q0, v0, h, N, every, dense, events, dps, tol, newton, project)
+    res.method, res.system, res.scene, res.h, res.dps, res.save_every, res.params = \
+        name, system.name, scene, h, dps, every, pvals
+    if raise_on_failure and res.status < 0:
+        res.raise_for_status()
+    return res
+
+
+def _failure(exc: BaseException) -> tuple:
+    if isinstance(exc, NewtonError):
+        return STATUS_NEWTON, str(exc)
+    if isinstance(exc, SingularSaddleError):
+        return STATUS_SADDLE, str(exc)
+    return STATUS_OTHER, str(exc)
+
+
+def _initial_checks(system, bk, t0, q0, v0, project, tol):
+    """The set-up checks of ``ldaspark.core.spark.integrate``: numbers, shapes, finite, (4), k = 0."""
+    try:
+        t0_ = bk.scalar(t0)
+        q, v = bk.array(q0), bk.array(v0)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"t0, q0 and v0 must be numbers: {exc}") from None
+    if q.ndim != 1 or v.ndim != 1 or len(q) != system.n or len(v) != system.n:
+        raise InputError(f"initial data have shapes q: {q.shape}, v: {v.shape}; the system has n = {system.n}")
+    if not (math.isfinite(float(t0_)) and bk.isfinite(q) and bk.isfinite(v)):
+        raise InputError("initial data contain NaN or infinity")
+    system.check_saddle(bk, t0_, q, v)
+    if project:
+        v = system.project_velocity(bk, t0_, q, v)
+    system.check_consistent(bk, t0_, q, v, tol=None if tol is None else 10 * tol)
+    return t0_, q, v
+
+
+def _run_generic(system, tableau, t0, q0, v0, h, N, every, dense, events, dps, tol, newton, project) -> Result:
+    """The loop of ``ldaspark.core.spark.integrate`` (same predictor, same checks, so the same
+    numbers), keeping every ``every``-th point, the stage values for dense output, events, and
+    the prefix on a step failure."""
+    from .core.spark import SparkMethod, _saddle_sign
+    method = SparkMethod(system, tableau, dps=dps, tol=tol, newton=newton)
+    bk = method.backend
+    status, message, error = 0, MSG_DONE, None
+    with bk.context():
+        try:
+            h_ = bk.scalar(h)
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"h must be a number: {exc}") from None
+        if not math.isfinite(float(h_)) or h_ == 0:
+            raise InputError(f"step size h must be finite and nonzero, got {h}")
+        t0_, q, v = _initial_checks(system, bk, t0, q0, v0, project, tol)
+        c = np.asarray(float_array(tableau.arrays(None).c))
+        tracker = EventTracker(events, t0_, q, v) if events else None
+        saved_i, Qs, Vs, Ps = [0], [q], [v], []
+        dense_q, dense_V = [], []
+        x = v_prev = None
+        sign0 = _saddle_sign(system, bk, t0_, q, v)
+        done = 0
+        for i in range(N):
+            ti = t0_ + i * h_
+            if x is not None and v_prev is not None:
+                Vp, Lp, v1p = method.unpack(x)
+                x = method.pack(Vp + (v - v_prev), Lp, v1p + (v - v_prev))
+            try:
+                r = method.step(ti, q, v, h_, x0=x, step_index=i)
+                if not (bk.isfinite(r.q1) and bk.isfinite(r.v1)):
+                    raise LdasparkError(f"step {i} at t = {float(ti):.6g} produced non-finite values")
+                if sign0 and _saddle_sign(system, bk, r.t1, r.q1, r.v1) != sign0:
+                    raise SingularSaddleError(
+                        f"step {i} (t = {float(ti):.6g}) crossed the singular set of the saddle matrix (4)")
+            except LdasparkError as exc:
+                (status, message), error = _failure(exc), exc
+                break
+            if i % every == 0:
+                Ps.append(r.Psi)
+            if dense or tracker:
+                dense_q.append(float_array(q))
+                dense_V.append(float_array(r.V))
+            stop = tracker is not None and tracker.after_step(
+                ti, t0_ + (i + 1) * h_, r.q1, r.v1, step_piece(ti, h_, q, c, r.V))
+            v_prev = v
+            q, v, x = r.q1, r.v1, r.x
+            done = i + 1
+            if done % every == 0 or done == N or stop:
+                saved_i.append(done)
+                Qs.append(q)
+                Vs.append(v)
+            if stop:
+                status, message = STATUS_EVENT, MSG_EVENT
+                break
+        if saved_i[-1] != done:           # failure: the last good state ends the trajectory
+            saved_i.append(done)
+            Qs.append(q)
+            Vs.append(v)
+        ts = [t0_ + j * h_ for j in saved_i]
+        E = [system.energy(bk, ts[j], Qs[j], Vs[j]) for j in range(len(ts))]
+        K = [system.constraint(bk, ts[j], Qs[j], Vs[j]) for j in range(len(ts))]
+    dt = object if bk.is_mp else float
+    st = method.stats.as_dict()
+    psi = np.array(Ps[:len(ts) - 1], dtype=dt).reshape(len(ts) - 1, tableau.s, system.m)
+    res = Result(np.array(ts, dtype=dt), np.array(Qs, dtype=dt), np.array(Vs, dtype=dt), np.array(E, dtype=dt),
+                 np.array(K, dtype=dt).reshape(len(ts), system.m), psi, status, message,
+                 st["nfev"], st["njev"], st["nlu"], st["newton_iterations"], engine="generic",
+                 stats=dict(st, path="generic"), error=error)
+    if dense and done > 0:
+        tg = float(t0_) + np.arange(done + 1) * float(h_)
+        res.sol = CollocationDense(tg, np.array(dense_q + [float_array(q)]), c, np.array(dense_V))
+    if tracker is not None:
+        res.t_events, res.q_events, res.v_events = tracker.arrays()
+    return res
+
+
+def _post_process(full: Result, every: int, dense: bool, events, sliced: bool = False) -> Result:
+    """Dense output (Hermite), events and ``save_every`` for engines that return every step
+    (``sliced``: the engine already kept every ``every``-th point; no dense output or events)."""
+    if sliced:
+        return full
+    t, q, v = float_array(full.t), float_array(full.q), float_array(full.v)
+    done = len(t) - 1
+    if events and done > 0:
+        tracker = EventTracker(events, t[0], q[0], v[0])
+        for i in range(done):
+            piece = HermiteDense(t[i:i + 2], q[i:i + 2], v[i:i + 2])
+            if tracker.after_step(t[i], t[i + 1], q[i + 1], v[i + 1], piece):
+                done = i + 1
+                if full.status >= 0:
+                    full.status, full.message = STATUS_EVENT, MSG_EVENT
+                break
+        full.t_events, full.q_events, full.v_events = tracker.arrays()
+    if dense and done > 0:
+        full.sol = HermiteDense(t[:done + 1], q[:done + 1], v[:done + 1])
+    idx = save_indices(done, every) if done > 0 else np.array([0])
+    for name in ("t", "q", "v", "energy", "constraint"):
+        setattr(full, name, np.asarray(getattr(full, name))[idx])
+    if full.psi is not None:
+        full.psi = np.asarray(full.psi)[idx[:-1]]
+    return full
+
+
+def _prefix_run(run: Callable, N: int, every: int) -> tuple:
+    """run(n_steps, every) -> Result; on a step failure at step k, rerun k steps (the kernels and
+    the comparators do not return partial trajectories) and mark the failure."""
+    try:
+        return run(N, every), None
+    except LdasparkError as exc:
+        k = getattr(exc, "step", None)
+        if not isinstance(k, int) or k < 0 or k >= N:
+            raise
+        return (run(k, every) if k > 0 else None), exc
+
+
+def _run_compiled(system, method, t0, q0, v0, h, N, every, dense, events, tol, project) -> Result:
+    from .compiled.fast import fast_integrate
+    from .core.backend import Backend
+    if project:
+        bk = Backend(None)
+        v0 = system.project_velocity(bk, float(t0), bk.array(q0), bk.array(v0))
+    inner = 1 if (dense or events) else every
+
+    def run(n, e):
+        fs = fast_integrate(system, method, t0, q0, v0, h, n, every=e, tol=tol)
+        st = dict(fs.stats)
+        return Result(fs.t, fs.q, fs.v, fs.energy, fs.constraint, None, 0, MSG_DONE,
+                      *(st.get(c, 0) for c in ("nfev", "njev", "nlu", "newton_iterations")),
+                      engine="compiled" if st.get("path") == "fast" else "generic", stats=st)
+    res, exc = _prefix_run(run, N, inner)
+    if isinstance(exc, NewtonError):
+        exc = _generic_diagnosis(exc, system, method, res, t0, q0, v0, h, tol)
+    return _finish_prefix(res, exc, system, t0, q0, v0, every, dense, events, "compiled", sliced=inner != 1)
+
+
+def _generic_diagnosis(exc, system, method, res, t0, q0, v0, h, tol) -> LdasparkError:
+    """The kernels report only the failing step k: redo step k with the generic step from the
+    same state, whose error says why (singular matrix, divergence, domain error)."""
+    from .core.spark import SparkMethod
+    k = exc.step
+    if not isinstance(method, SparkTableau):
+        return exc
+    q, v = (np.asarray(q0, float), np.asarray(v0, float)) if res is None else (res.q[-1], res.v[-1])
+    tk = float(t0) + k * float(h)
+    try:
+        SparkMethod(system, method, tol=tol).step(tk, q, v, float(h), step_index=k)
+    except LdasparkError as gen:
+        return gen
+    return NewtonError(f"Newton did not converge at step {k} (compiled engine, simplified Newton): {exc}; "
+                       "the generic full-Newton step converges there (engine='generic')", step=k, time=tk)
+
+
+def _finish_prefix(res, exc, system, t0, q0, v0, every, dense, events, engine, sliced=False) -> Result:
+    if res is None:        # failure in the first step: the initial point only
+        from .core.backend import Backend
+        bk = Backend(None)
+        q, v = bk.array(q0), bk.array(v0)
+        res = Result(np.array([float(t0)]), q[None], v[None], np.array([system.energy(bk, float(t0), q, v)]),
+                     system.constraint(bk, float(t0), q, v)[None], None, engine=engine)
+    if exc is not None:
+        (res.status, res.message), res.error = _failure(exc), exc
+    return _post_process(res, every, dense, events, sliced)
+
+
+def _run_comparator(system, name, t0, q0, v0, h, N, every, dense, events, dps, tol, project) -> Result:
+    from .core.backend import Backend
+    from .core.comparators import integrate_comparator
+    bk = Backend(dps)
+    with bk.context():
+        t0_, q0, v0 = _initial_checks(system, bk, t0, q0, v0, project, tol)
+
+    def run(n, e):
+        sol = integrate_comparator(name, system, t0_, q0, v0, h, int(n), dps=dps, tol=tol)
+        st = dict(sol.stats, path="generic")
+        psi = np.asarray(sol.psi)
+        return Result(sol.t, sol.q, sol.v, sol.energy, sol.constraint, psi if psi.ndim == 3 else None, 0,
+                      MSG_DONE, *(st.get(c, 0) for c in ("nfev", "njev", "nlu", "newton_iterations")),
+                      engine="generic", stats=st)
+    res, exc = _prefix_run(run, N, 1)
+    return _finish_prefix(res, exc, system, t0_, q0, v0, every, dense, events, "generic")

@@ -1,0 +1,84 @@
+"""Dense output (measured orders against the skate's closed-form solution) and events (located
+crossing times against the exact ones)."""
+import numpy as np
+import pytest
+
+import ldaspark
+from ldaspark.core.errors import InputError
+from ldaspark.core.scenes import get_scene
+
+SK = get_scene("skate")
+TT = np.linspace(0, 2, 201)
+EXACT = [SK.exact_solution(t) for t in TT]
+QE = np.array([e[0] for e in EXACT])
+VE = np.array([e[1] for e in EXACT])
+T_STAR = np.arcsin(np.sqrt(0.6))   # q1(t) = -sin(t)^2 / 2 on the skate: q1 = -0.3 here
+
+
+def _orders(method, engine, hs=(0.2, 0.1, 0.05), extension=None):
+    errs = []
+    for h in hs:
+        r = ldaspark.integrate(SK, method, t_span=(0, 2), h=h, engine=engine, dense_output=True)
+        q, v = r.sol(TT) if extension is None else extension(r, TT)
+        errs.append((np.abs(q - QE).max(), np.abs(v - VE).max()))
+    e = np.array(errs)
+    return np.log2(e[-2] / e[-1])
+
+
+@pytest.mark.parametrize("method, engine, q_order, v_order", [
+    ("gauss-2", "generic", 3, 2),                 # collocation polynomial: stage order, below 4
+    ("lobatto-iiia-iiib-2", "generic", 2, 1),
+    ("gauss-2", "compiled", 4, 3),                # cubic Hermite of the nodal values
+])
+def test_dense_output_order(method, engine, q_order, v_order):
+    oq, ov = _orders(method, engine)
+    assert abs(oq - q_order) < 0.25 and abs(ov - v_order) < 0.25, (oq, ov)
+
+
+def test_dense_order_is_below_nodal_and_control_fails():
+    """Negative control: a piecewise-constant extension (q_n on the whole step) is caught as
+    order 1 by the same measurement."""
+    def constant(r, t):
+        k = np.clip(np.searchsorted(r.t, t, side="right") - 1, 0, len(r.t) - 2)
+        return r.q[k], r.v[k]
+    oq, ov = _orders("gauss-2", "generic", extension=constant)
+    assert abs(oq - 1) < 0.3 and abs(ov - 1) < 0.3
+
+
+def test_dense_output_interpolates_the_steps():
+    r = ldaspark.integrate(SK, "gauss-3", t_span=(0, 1), h=0.1, engine="generic", dense_output=True)
+    q, v = r.sol(r.t)
+    assert np.abs(q - r.q).max() < 1e-13          # ends at q_{n+1} of (21c): b_j = int_0^1 l_j
+    assert r.sol(0.5)[0].shape == (3,)
+    with pytest.raises(InputError):
+        r.sol(1.5)
+
+
+def _g(t, q, v):
+    return q[0] + 0.3
+
+
+def test_events_located_at_the_exact_crossings():
+    exact = np.array([T_STAR, np.pi - T_STAR, np.pi + T_STAR, 2 * np.pi - T_STAR])
+    r = ldaspark.integrate(SK, "gauss-2", t_span=(0, 7), h=0.05, engine="generic", events=_g)
+    te = r.t_events[0]
+    assert r.status == 0 and len(te) == 4 and np.abs(te - exact).max() < 1e-5
+    assert np.abs(r.q_events[0][:, 0] + 0.3).max() < 1e-12          # g = 0 on the dense output
+    # control: the secant of the nodal g values misses by much more than the dense-output root
+    k = int(T_STAR / 0.05)
+    g0, g1 = r.q[k, 0] + 0.3, r.q[k + 1, 0] + 0.3
+    secant = r.t[k] - g0 * 0.05 / (g1 - g0)
+    assert abs(secant - T_STAR) > 20 * abs(te[0] - T_STAR)
+    up = lambda t, q, v: _g(t, q, v)
+    up.direction = 1
+    r2 = ldaspark.integrate(SK, "gauss-2", t_span=(0, 7), h=0.05, engine="generic", events=[up, _g])
+    assert np.allclose(r2.t_events[0], exact[[1, 3]], atol=1e-5) and len(r2.t_events[1]) == 4
+
+
+def test_terminal_event_stops_the_run():
+    stop = lambda t, q, v: _g(t, q, v)
+    stop.terminal = True
+    for engine in ("generic", "compiled"):
+        r = ldaspark.integrate(SK, "gauss-2", t_span=(0, 7), h=0.1, engine=engine, events=stop, save_every=3)
+        assert r.status == 1 and r.success and abs(r.t_events[0][0] - T_STAR) < 1e-4
+        assert r.t[-1] == pytest.approx(0.9) and r.t[-2] == pytest.approx(0.6)
