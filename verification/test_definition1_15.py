@@ -34,6 +34,17 @@ def test_15a_15b_along_trajectory(name, scn, exact_method, scene):
     assert r["15b_secant"] > NEG, r                 # u = v1 of the solve, not the secant
 
 
+@pytest.mark.parametrize("system", ["nonlinear-k", pytest.param("time-L", marks=pytest.mark.exhaustive)])
+def test_15a_15b_time_dependent_L_and_nonlinear_k(system, exact_method):
+    """Assumption (2) (k affine in v) is not needed, nor an autonomous L: Euler II on the test
+    systems of section 2.2 (L(t, q, v) and k = v3 - q2 v1 + v1^2/4)."""
+    from ldaspark.theory.energy_balance import energy_system
+    sysm, q0, v0 = energy_system(system)
+    r = definition1_residuals(sysm, exact_method("euler-ii"), 0, q0, v0, "0.1", n_steps=10, dps=30)
+    assert r["15a"] < TOL_15A and r["15b"] < TOL_15B, r
+    assert r["15a_without_forces"] > NEG, r
+
+
 def test_15a_fails_for_22b_breaking_tableau(scene):
     tab, intended = negative_controls()[0]           # Gauss-2 with A_hat[0, 1] += 1/10
     assert intended["22b"] == "fail"

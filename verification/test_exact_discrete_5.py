@@ -57,7 +57,8 @@ def test_16_18_exact_momentum_identities(scn, offset):
     # control: without the exact forces (a holonomic-style identity) the derivatives do not match
     assert r["16-without-force"] > NEG and r["18-without-force"] > NEG, r
     if offset is not None:
-        assert r["k0"] > 1e-4, r                 # off C_d: k is a nonzero first integral
+        assert r["k0"] > 1e-4, r                 # off C_d: k is a nonzero first integral (2.1) ...
+        assert r["first_integral"] < 1e-15, r    # ... constant along the flow (to stage order h^(s+1))
 
 
 def test_17_19_integral_forms():

@@ -66,6 +66,9 @@ def exact_identities(scene_name, h="0.1", offset=None, dps=DPS, stages=STAGES):
             "20b-corrected": _nrm(-f_minus_20b_printed(fl, r, hh) - r.f_d_minus) / fscale,
             "f_d_minus": _nrm(r.f_d_minus), "f_d_plus": _nrm(r.f_d_plus),
             "k0": _nrm(r.k0), "bvp_residual": float(r.residual), "L_d": float(r.L_d),
+            # 2.1: k is a first integral of (6)-(7): constant (= k0, not 0) along the flow off C_d
+            "first_integral": max(_nrm(fl.system.constraint(fl.bk, r.T[i], r.Q[i], r.V[i]) - r.k0)
+                                  for i in range(fl.s)),
         }
     return out
 
