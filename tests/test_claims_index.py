@@ -4,7 +4,6 @@ parsing the test files with ast, not by importing them), every numbered equation
 import ast
 import os
 
-import pytest
 
 from ldaspark.theory import claims_index as ci
 

@@ -26,6 +26,7 @@ import numpy as np
 import sympy
 
 from ..core.backend import Backend
+from ..core.errors import InputError
 from ..core.spark import SparkMethod
 from ..core.system import LagrangianSystem
 from .exact_flow import ExactFlow
@@ -37,7 +38,7 @@ SYSTEMS = ("time-L", "affine-b", "nonlinear-k", "rheonomic-linear", "particle")
 def energy_system(name: str):
     """(system, t0, q0, v0 strings) of one of SYSTEMS; v0 is made consistent by projection."""
     if name not in SYSTEMS:
-        raise ValueError(f"unknown energy test system {name!r}")
+        raise InputError(f"unknown energy test system {name!r}; choose from {', '.join(SYSTEMS)}")
     t = sympy.Symbol("t")
     q = list(sympy.symbols("q1:4"))
     v = list(sympy.symbols("v1:4"))
