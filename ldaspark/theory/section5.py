@@ -3,7 +3,8 @@
 anti-symmetries, and section 5.1 (holonomic: the exact forces vanish on tangent variations).
 
 Every function returns plain floats (cached: arguments are hashable, offsets are tuples):
-residuals relative to the size of the compared quantities, and the size of what a broken claim would leave (the negative controls)."""
+residuals relative to the size of the compared quantities, and the size of what a broken claim
+would leave (the negative controls)."""
 from __future__ import annotations
 
 import functools
