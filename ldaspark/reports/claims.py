@@ -7,6 +7,7 @@ import sys
 import time
 
 from ..core.io import atomic_write_json, atomic_write_text
+from ..theory.claims_index import claims_index_markdown
 from ..theory.ledger import extra_records, run_ledger, summarize
 
 REPORT_DIR = "reports"
@@ -59,6 +60,7 @@ def write_markdown(records, path, seconds, command):
         for r in unexp:
             lines.append(f"| {r['claim']} | {r['method']} | {r['scene']} | {r['point']} | {r['status']} | "
                          f"{_fmt(r['residual'])} | {r['note']} |")
+    lines += ["", claims_index_markdown().rstrip("\n")]
     lines += ["", "## All records", "", "| claim | method | scene | point | status | expected | residual | dps | wellposed | s | note |",
               "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in records:
