@@ -35,6 +35,7 @@ def _add_integrate(sub):
     p.add_argument("--dps", type=int, default=None, help="mpmath digits (default: float64)")
     p.add_argument("--ic", type=int, default=None, help="initial condition j (mp-particles)")
     p.add_argument("--tableau", default=None, help="tableau JSON file for METHOD custom")
+    p.add_argument("--max-stages", type=int, default=None, help="allow methods with more than 20 stages")
     p.add_argument("--newton", choices=("full", "simplified"), default="full")
     p.add_argument("--project", action="store_true", help="project v0 onto k = 0 instead of failing")
     p.add_argument("--out", required=True, help="output JSON file (written atomically)")
@@ -52,11 +53,11 @@ def _run_integrate(args) -> int:
     if args.method == "custom":
         if not args.tableau:
             raise InputError("METHOD custom needs --tableau FILE")
-        tab = load_tableau(args.tableau)
+        tab = load_tableau(args.tableau, max_stages=args.max_stages)
     else:
         if args.tableau:
             raise InputError("--tableau is only used with METHOD custom")
-        tab = get_method(args.method)
+        tab = get_method(args.method, max_stages=args.max_stages)
     scene = get_scene(args.scene, args.ic)
     try:
         h = float(args.h)
