@@ -137,6 +137,49 @@ def _command_of(argv) -> str | None:
 
 
 def main(argv=None) -> int:
+    """Run the command line; returns the exit code (0 ok, 2 user error, 130 interrupted)."""
+    with _SigintSeen() as sigint:
+        try:
+            return _main(argv)
+        except KeyboardInterrupt:
+            print("ldaspark: interrupted", file=sys.stderr)
+            return 130
+        except ImportError:
+            # Ctrl-C inside an extension module's import (numpy, scipy) surfaces as ImportError
+            if sigint.seen:
+                print("ldaspark: interrupted", file=sys.stderr)
+                return 130
+            raise
+
+
+class _SigintSeen:
+    """Remember whether SIGINT arrived (and still raise KeyboardInterrupt, as by default);
+    restores the previous handler on exit. Only in the main thread."""
+
+    def __enter__(self):
+        import signal
+        import threading
+        self.seen, self.old = False, None
+        if threading.current_thread() is threading.main_thread():
+            try:
+                if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+                    self.old = signal.signal(signal.SIGINT, self._handler)
+            except (ValueError, OSError):
+                self.old = None
+        return self
+
+    def _handler(self, signum, frame):
+        self.seen = True
+        raise KeyboardInterrupt
+
+    def __exit__(self, *exc):
+        if self.old is not None:
+            import signal
+            signal.signal(signal.SIGINT, self.old)
+        return False
+
+
+def _main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     try:
         parser = build_parser(_command_of(argv))

@@ -57,8 +57,7 @@ class LagrangianSystem:
         self.n = len(self.q)
         if len(self.v) != self.n:
             raise SystemDefinitionError(f"q has {self.n} symbols but v has {len(self.v)}")
-        self.L = sympy.sympify(L)
-        self.k = sympy.Matrix([sympy.sympify(e) for e in (k if isinstance(k, (list, tuple)) else [k])])
+        self.L, self.k = _sympify_L_k(L, k)
         self.m = self.k.rows
         if self.m >= self.n:
             raise SystemDefinitionError(f"need m < n constraints, got m = {self.m}, n = {self.n}")
@@ -230,6 +229,27 @@ class LagrangianSystem:
         rhs = np.concatenate([-Lvt[:, 0] - Lvq.dot(v) + Lq[:, 0], -kt[:, 0] - kq.dot(v)])
         sol = backend.solve(S, rhs)
         return sol[:self.n], sol[self.n:]
+
+
+def _sympify_L_k(L, k):
+    """L as a scalar sympy expression and k as an m x 1 Matrix with m >= 1, or a
+    SystemDefinitionError saying what is wrong (not a TypeError from inside sympy)."""
+    if L is None or k is None:
+        raise SystemDefinitionError(f"L and k must be sympy expressions, got L = {L!r}, k = {k!r}")
+    try:
+        Ls = sympy.sympify(L, strict=not isinstance(L, str))
+        ks = [sympy.sympify(e, strict=not isinstance(e, str))
+              for e in (list(k) if isinstance(k, (list, tuple, sympy.MatrixBase)) else [k])]
+    except (sympy.SympifyError, TypeError, ValueError, SyntaxError) as exc:
+        raise SystemDefinitionError(f"L and k must be sympy expressions: {str(exc).splitlines()[0][:120]}") from None
+    def scalar(e):
+        return isinstance(e, sympy.Expr) and not getattr(e, "is_Matrix", False)
+    if not scalar(Ls) or not all(scalar(e) for e in ks):
+        raise SystemDefinitionError("L must be a scalar expression and k a list of scalar expressions")
+    if not ks:
+        raise SystemDefinitionError("k is empty: the SPARK methods (21) need m >= 1 constraints "
+                                    "(for an unconstrained system use a partitioned Runge-Kutta method)")
+    return Ls, sympy.Matrix(ks)
 
 
 def _arr(x, backend):
