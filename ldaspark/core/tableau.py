@@ -374,7 +374,10 @@ def _parse_entry(x, where):
         if e.is_real is False:                        # sqrt(-1) * tiny: exactly non-real, however small
             raise TableauError(f"{where}: {x!r} is not a real number")
         try:
-            val = complex(sympy.N(e, 30))
+            num = sympy.N(e, 30)
+            if bool(abs(num) > MAX_MAGNITUDE):
+                raise TableauError(f"{where}: {x!r} exceeds {MAX_MAGNITUDE:g} in modulus")
+            val = complex(num)
         except (TypeError, ValueError, OverflowError):
             raise TableauError(f"{where}: {x!r} is not a finite real number") from None
         if not (math.isfinite(val.real) and abs(val.imag) <= 1e-25 * (1 + abs(val.real))):
