@@ -99,6 +99,9 @@ def _add_methods(sub):
 
 def _run_methods(args) -> int:
     from .theory.conditions import method_table
+    from .core.errors import InputError
+    if not 1 <= args.max_s <= 5:    # the table is exact; exact Gauss nodes exist up to s = 5
+        raise InputError(f"--max-s must be between 1 and 5 (exact coefficients), got {args.max_s}")
     rows = method_table(args.max_s)
     print(f"{'method':28s} {'s':>2s} {'order':>5s}  (22)  (23)")
     for r in rows:
@@ -189,6 +192,7 @@ def _main(argv=None) -> int:
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
+        print("ldaspark: error: give a command (integrate, methods, report, verify, audit)", file=sys.stderr)
         return 2
     try:
         return int(args.func(args) or 0)
