@@ -3,7 +3,6 @@ line (exit 2 at the command line): bounded entry size, nesting depth, nested exp
 scientific exponents, magnitude, file size (regular files only) and stages (s <= 20 unless
 raised). Controls: legitimate entries and a raised --max-stages still work."""
 import json
-import math
 import os
 
 import pytest
