@@ -103,7 +103,7 @@ def test_audit_special_files_and_names_one_line(argv_tail, match):
 
 @pytest.mark.parametrize("content, match", [
     ("[" * 100000, "nested too deeply"),
-    ('{"c": [' + "9" * 5000 + "]}", "not valid JSON"),
+    ('{"c": [' + "9" * 5000 + "]}", "not valid JSON: an integer literal has too many digits"),
     ('{"c": [1], "A": [["sqrt(-1)*10**-64*10**-64"]], "A_hat": [[1]], "A_tilde": [[1]], "b": [1], "b_hat": [1], '
      '"b_tilde": [1]}', "not a real number"),
     ('{"c": [1], "A": [["1e-9999999"]], "A_hat": [[1]], "A_tilde": [[1]], "b": [1], "b_hat": [1], "b_tilde": [1]}',

@@ -475,7 +475,9 @@ def load_tableau(path, max_stages: int | None = None) -> SparkTableau:
     except (OSError, UnicodeDecodeError) as exc:
         raise TableauError(f"cannot read tableau file {path}: {exc}") from None
     except ValueError as exc:       # e.g. an integer of more than 4300 digits
-        raise TableauError(f"tableau file {path} is not valid JSON: {str(exc).splitlines()[0][:120]}") from None
+        why = ("an integer literal has too many digits" if "integer string conversion" in str(exc)
+               else str(exc).splitlines()[0][:120])
+        raise TableauError(f"tableau file {path} is not valid JSON: {why}") from None
     except RecursionError:
         raise TableauError(f"tableau file {path} is not valid JSON: nested too deeply") from None
     return from_json_dict(d, max_stages=max_stages)
