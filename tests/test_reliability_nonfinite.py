@@ -87,3 +87,13 @@ def test_energy_jump_must_be_positive(bad):
     sc = get_scene("skate")
     with pytest.raises(LdasparkError, match="energy_jump"):
         SparkMethod(sc.system, get_method("gauss-2"), energy_jump=bad)
+
+
+@pytest.mark.parametrize("name, dps", [("lobatto-iiia-iiib-2-leapfrog", None), ("lobatto-iiia-iiib-2-leapfrog", 30),
+                                       ("gauss-irk-2", None)])
+def test_comparators_leaving_the_domain_stop_with_step_and_time(name, dps):
+    from ldaspark.core.comparators import integrate_comparator
+    q, v = list(sympy.symbols("q1:4")), list(sympy.symbols("v1:4"))
+    sysm = LagrangianSystem.mechanical_form(sympy.eye(3), -sympy.log(1 - q[0]), [[0, -q[1], 1]], q=q, v=v)
+    with pytest.raises(NonFiniteError, match=r"step 3 \(t = 0.3 -> 0.4\)"):
+        integrate_comparator(name, sysm, 0, [0, 0, 0], [3, 0, 0], 0.1 if dps is None else "0.1", 20, dps=dps)

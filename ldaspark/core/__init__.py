@@ -4,7 +4,7 @@ errors (exception hierarchy), backend (float64 / mpmath arithmetic), tableau (Sp
 the families gauss / lobatto_iiia_iiib / lobatto_iiia_iiib_iiid / euler_i / euler_ii, the method
 registry ``get_method``, tableau files), system (LagrangianSystem: L, k and what sympy derives from
 them), spark (the step (21a-f) and the loop ``integrate``), comparators (sections 7-8), scenes
-(section 8 and more), io (atomic file writes).
+(section 8 and more), io (atomic file writes), validate (argument checks shared with the compiled path).
 
 Imports only numpy, scipy, mpmath, sympy and itself; never ``ldaspark.theory``, ``compiled``,
 ``reports`` or ``cli``.
