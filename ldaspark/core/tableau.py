@@ -271,80 +271,104 @@ def parse_exact_string(x: str, where: str = "entry"):
         tree = ast.parse(src, mode="eval")
     except (SyntaxError, ValueError, MemoryError, RecursionError):
         raise TableauError(f"{where}: cannot parse {x!r}") from None
+    b = _EntryBuilder(x, src, where)
+    e = b.build(tree.body, 0, 1)
+    if not getattr(e, "is_number", False):
+        raise b.bad("not a number")
+    return e
 
-    def bad(why):
-        return TableauError(f"{where}: {x!r} is not a number ({why})")
 
-    def build(node, depth=0, power=1):
-        """``power``: product of the exponents of the '**' nodes above this one."""
+class _EntryBuilder:
+    """Builds the sympy number of one entry from its AST, enforcing the bounds as it goes.
+    ``power`` is the product of the exponents of the '**' nodes above the current node."""
+
+    def __init__(self, x, src, where):
+        self.x, self.src, self.where = x, src, where
+
+    def bad(self, why):
+        return TableauError(f"{self.where}: {self.x!r} is not a number ({why})")
+
+    def build(self, node, depth, power):
+        import ast
         if depth > _MAX_DEPTH:
-            raise bad(f"nested deeper than {_MAX_DEPTH} levels")
+            raise self.bad(f"nested deeper than {_MAX_DEPTH} levels")
         if isinstance(node, ast.Constant):
-            if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
-                raise bad(f"literal {node.value!r}")
-            text = ast.get_source_segment(src, node) or repr(node.value)
-            if isinstance(node.value, int):
-                e = sympy.Integer(node.value)
-            else:
-                if abs(_sci_exponent(text)) > _MAX_SCI_EXPONENT:
-                    raise bad(f"exponent of scientific notation beyond +-{_MAX_SCI_EXPONENT}")
-                if not math.isfinite(node.value):
-                    raise bad("not finite")
-                e = sympy.Rational(text.replace("_", ""))
-            if _bits(e) * power > _MAX_BITS:
-                raise bad(f"a power of it exceeds {_MAX_BITS} bits")
-            return e
+            return self.constant(node, power)
         if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.UAdd, ast.USub)):
-            v = build(node.operand, depth + 1, power)
+            v = self.build(node.operand, depth + 1, power)
             return -v if isinstance(node.op, ast.USub) else v
         if isinstance(node, ast.BinOp):
             if isinstance(node.op, ast.Pow):
-                ex = node.right
-                neg = isinstance(ex, ast.UnaryOp) and isinstance(ex.op, ast.USub)
-                lit = ex.operand if neg else ex
-                if not (isinstance(lit, ast.Constant) and type(lit.value) is int and lit.value <= _MAX_EXPONENT):
-                    raise bad(f"'**' needs a literal integer exponent <= {_MAX_EXPONENT}")
-                if lit.value * power > _MAX_EXPONENT:
-                    raise bad(f"nested '**' with exponents multiplying to more than {_MAX_EXPONENT}")
-                base = build(node.left, depth + 1, power * max(lit.value, 1))
-                if neg and base == 0:
-                    raise bad("division by zero")
-                r = base ** (-lit.value if neg else lit.value)
-                if _bits(r) > _MAX_BITS:
-                    raise bad(f"a power exceeds {_MAX_BITS} bits")
-                return r
-            ops = {ast.Add: lambda a, b: a + b, ast.Sub: lambda a, b: a - b,
-                   ast.Mult: lambda a, b: a * b, ast.Div: lambda a, b: a / b}
-            f = ops.get(type(node.op))
-            if f is None:
-                raise bad(f"operator {type(node.op).__name__}")
-            a, b = build(node.left, depth + 1, power), build(node.right, depth + 1, power)
-            if f is ops[ast.Div] and b == 0:
-                raise bad("division by zero")
-            r = f(a, b)
-            if _bits(r) > _MAX_BITS:
-                raise bad(f"an intermediate rational exceeds {_MAX_BITS} bits")
-            return r
+                return self.pow(node, depth, power)
+            return self.binop(node, depth, power)
         if isinstance(node, ast.Name) and node.id in _CONSTANTS:
             return _CONSTANTS[node.id]
         if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in _FUNCTIONS
                 and not node.keywords and 1 <= len(node.args) <= 2):
-            args = [build(a, depth + 1, power) for a in node.args]
-            if node.func.id == "Rational":
-                if not all(a.is_Integer for a in args) or (len(args) == 2 and args[1] == 0):
-                    raise bad("Rational needs integer arguments and a nonzero denominator")
-            elif len(args) != 1:
-                raise bad(f"{node.func.id} takes one argument")
-            elif node.func.id in ("sin", "cos") and not _small(args[0], _MAX_TRIG_ARG):
-                raise bad(f"argument of {node.func.id} is not a real number of modulus <= {_MAX_TRIG_ARG:g}")
-            return _FUNCTIONS[node.func.id](*args)
+            return self.call(node, depth, power)
         name = getattr(node, "id", None) or getattr(getattr(node, "func", None), "id", None)
-        raise bad(f"unknown name {name!r}" if name else f"unsupported syntax {type(node).__name__}")
+        raise self.bad(f"unknown name {name!r}" if name else f"unsupported syntax {type(node).__name__}")
 
-    e = build(tree.body)
-    if not getattr(e, "is_number", False):
-        raise bad("not a number")
-    return e
+    def constant(self, node, power):
+        import ast
+        if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
+            raise self.bad(f"literal {node.value!r}")
+        text = ast.get_source_segment(self.src, node) or repr(node.value)
+        if isinstance(node.value, int):
+            e = sympy.Integer(node.value)
+        else:
+            if abs(_sci_exponent(text)) > _MAX_SCI_EXPONENT:
+                raise self.bad(f"exponent of scientific notation beyond +-{_MAX_SCI_EXPONENT}")
+            if not math.isfinite(node.value):
+                raise self.bad("not finite")
+            e = sympy.Rational(text.replace("_", ""))
+        if _bits(e) * power > _MAX_BITS:
+            raise self.bad(f"a power of it exceeds {_MAX_BITS} bits")
+        return e
+
+    def pow(self, node, depth, power):
+        import ast
+        ex = node.right
+        neg = isinstance(ex, ast.UnaryOp) and isinstance(ex.op, ast.USub)
+        lit = ex.operand if neg else ex
+        if not (isinstance(lit, ast.Constant) and type(lit.value) is int and lit.value <= _MAX_EXPONENT):
+            raise self.bad(f"'**' needs a literal integer exponent <= {_MAX_EXPONENT}")
+        if lit.value * power > _MAX_EXPONENT:
+            raise self.bad(f"nested '**' with exponents multiplying to more than {_MAX_EXPONENT}")
+        base = self.build(node.left, depth + 1, power * max(lit.value, 1))
+        if neg and base == 0:
+            raise self.bad("division by zero")
+        r = base ** (-lit.value if neg else lit.value)
+        if _bits(r) > _MAX_BITS:
+            raise self.bad(f"a power exceeds {_MAX_BITS} bits")
+        return r
+
+    def binop(self, node, depth, power):
+        import ast
+        ops = {ast.Add: lambda a, b: a + b, ast.Sub: lambda a, b: a - b,
+               ast.Mult: lambda a, b: a * b, ast.Div: lambda a, b: a / b}
+        f = ops.get(type(node.op))
+        if f is None:
+            raise self.bad(f"operator {type(node.op).__name__}")
+        a, b = self.build(node.left, depth + 1, power), self.build(node.right, depth + 1, power)
+        if isinstance(node.op, ast.Div) and b == 0:
+            raise self.bad("division by zero")
+        r = f(a, b)
+        if _bits(r) > _MAX_BITS:
+            raise self.bad(f"an intermediate rational exceeds {_MAX_BITS} bits")
+        return r
+
+    def call(self, node, depth, power):
+        fname = node.func.id
+        args = [self.build(a, depth + 1, power) for a in node.args]
+        if fname == "Rational":
+            if not all(a.is_Integer for a in args) or (len(args) == 2 and args[1] == 0):
+                raise self.bad("Rational needs integer arguments and a nonzero denominator")
+        elif len(args) != 1:
+            raise self.bad(f"{fname} takes one argument")
+        elif fname in ("sin", "cos") and not _small(args[0], _MAX_TRIG_ARG):
+            raise self.bad(f"argument of {fname} is not a real number of modulus <= {_MAX_TRIG_ARG:g}")
+        return _FUNCTIONS[fname](*args)
 
 
 def _small(e, bound) -> bool:
