@@ -258,14 +258,10 @@ class SparkMethod:
         if J is None:
             return False
         lim = self.ROUNDOFF_FACTOR * bk.eps
-        ax = np.abs(x)
-        ap0 = np.abs(p0)
-        if bk.norm_inf(G) > lim * (bk.norm_inf(np.abs(J).dot(ax)) + bk.norm_inf(ap0)):
-            return False          # cheap norm-wise pre-test fails: not at round-off anywhere
-        scale = np.abs(J).dot(ax)
-        pad = np.concatenate([np.tile(ap0, self.s + 1), bk.zeros(self.s * self.m)])
-        scale = scale + pad
-        return all(abs(g) <= lim * sc for g, sc in zip(G, scale))
+        scale = np.abs(J).dot(np.abs(x))             # one matrix-vector product: cheap next to the LU
+        mom_rows = (self.s + 1) * self.n                # rows (21b), (21d) contain p0
+        scale[:mom_rows] = scale[:mom_rows] + np.tile(np.abs(p0), self.s + 1)
+        return len(scale) == len(G) and all(abs(g) <= lim * sc for g, sc in zip(G, scale))
 
     def _finish(self, t0, q0, h, x, it, res, step_index):
         tab = self.tab
