@@ -153,3 +153,31 @@ def test_sigterm_mid_write_removes_the_temporary_file(tmp_path, handler):
     assert target.read_bytes() == b"old"
     # ... and gone; negative control: without the handler SIGTERM leaves it behind
     assert _no_tmp(tmp_path) == handler
+
+
+def _savez(name):
+    import numpy as np
+    with open(name, "wb") as f:              # a writer that needs a file name (np.savez, h5py)
+        np.savez(f, a=np.arange(3))
+
+
+def test_writers_that_need_a_file_name_get_the_same_guarantees(tmp_path):
+    import numpy as np
+    target = tmp_path / "real.npz"
+    target.write_bytes(b"old")
+    link = tmp_path / "link.npz"
+    os.symlink("real.npz", link)
+    lio.atomic_write_with(link, _savez)
+    assert os.path.islink(link) and list(np.load(target)["a"]) == [0, 1, 2] and _no_tmp(tmp_path)
+    lio.atomic_write_with("/dev/null", _savez)
+    assert stat.S_ISCHR(os.stat("/dev/null").st_mode)
+    with pytest.raises(LdasparkError, match="is a directory"):
+        lio.atomic_write_with(tmp_path, _savez)
+
+    def failing(name):
+        with open(name, "wb") as f:
+            f.write(b"half")
+        raise OSError(28, "No space left on device")
+    with pytest.raises(LdasparkError, match="No space left"):
+        lio.atomic_write_with(target, failing)
+    assert list(np.load(target)["a"]) == [0, 1, 2] and _no_tmp(tmp_path)    # previous file intact

@@ -58,8 +58,9 @@ def _write_all(f, data: bytes) -> None:
     f.write(data)
 
 
-def atomic_write_bytes(path, data: bytes) -> None:
-    path = os.fspath(path)
+def _destination(path):
+    """("direct", None) for a device or FIFO, ("fd", match) for /dev/stdout & co. onto a regular
+    file, ("replace", target) for a regular or new file (symlinks resolved); refuses the rest."""
     try:
         st = os.stat(path)                      # follows symlinks: the type of the final target
     except FileNotFoundError:
@@ -68,7 +69,7 @@ def atomic_write_bytes(path, data: bytes) -> None:
         raise LdasparkError(f"cannot write {path}: {exc.strerror or exc}") from None
     if st is not None and not stat.S_ISREG(st.st_mode):
         if stat.S_ISCHR(st.st_mode) or stat.S_ISFIFO(st.st_mode):
-            return _write_direct(path, data)
+            return "direct", None
         kind = "a directory" if stat.S_ISDIR(st.st_mode) else "not a regular file"
         raise LdasparkError(f"cannot write {path}: it is {kind} (refusing to replace it)")
     m = _FD_PATH.match(os.path.abspath(path)) if st is not None else None
@@ -76,10 +77,44 @@ def atomic_write_bytes(path, data: bytes) -> None:
         # /dev/stdout, /dev/fd/N, /proc/self/fd/N onto a regular file: an open file of this
         # process (a shell redirection); written through that descriptor, at its offset, so that
         # it interleaves with what else the process prints there; never replaced
-        return _write_fd(path, m, data)
+        return "fd", m
     # a symlink (possibly dangling) is written through: replace its final target, keep the link
-    target = os.path.realpath(path) if os.path.islink(path) else path
-    _atomic_replace(path, target, data)
+    return "replace", (os.path.realpath(path) if os.path.islink(path) else path)
+
+
+def atomic_write_bytes(path, data: bytes) -> None:
+    path = os.fspath(path)
+    kind, what = _destination(path)
+    if kind == "direct":
+        return _write_direct(path, data)
+    if kind == "fd":
+        return _write_fd(path, what, data)
+    _atomic_replace(path, what, data)
+
+
+def atomic_write_with(path, write) -> None:
+    """For writers that need a file name (h5py, numpy.savez, matplotlib): ``write(name)`` writes
+    a complete file at ``name``; it lands at ``path`` with the same guarantees as
+    ``atomic_write_bytes`` (a temporary file in the target directory, replaced atomically; devices,
+    FIFOs and /dev/stdout receive the bytes directly; directories are refused)."""
+    path = os.fspath(path)
+    kind, what = _destination(path)
+    if kind == "replace":
+        return _atomic_replace(path, what, None, write)
+    fd, tmp = tempfile.mkstemp(prefix=".tmp-ldaspark-")
+    os.close(fd)
+    try:
+        write(tmp)
+        with open(tmp, "rb") as f:
+            data = f.read()
+    except OSError as exc:
+        raise LdasparkError(f"cannot write {path}: {exc.strerror or exc}") from None
+    finally:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+    return _write_direct(path, data) if kind == "direct" else _write_fd(path, what, data)
 
 
 def _write_direct(path, data: bytes, append: bool = False) -> None:
@@ -92,7 +127,9 @@ def _write_direct(path, data: bytes, append: bool = False) -> None:
         raise LdasparkError(f"cannot write {path}: {exc.strerror or exc}") from None
 
 
-def _atomic_replace(path, target, data: bytes) -> None:
+def _atomic_replace(path, target, data: bytes | None, write=None) -> None:
+    """Write ``data`` (or let ``write(tmp_name)`` write) to a temporary file next to ``target``,
+    fsync, os.replace; the temporary file is removed on any error, Ctrl-C or SIGTERM."""
     d = os.path.dirname(os.path.abspath(target))
     tmp = None
     with _sigterm_raises():
@@ -100,8 +137,11 @@ def _atomic_replace(path, target, data: bytes) -> None:
             os.makedirs(d, exist_ok=True)
             fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=os.path.basename(target), dir=d)
             os.chmod(tmp, _default_mode(target))  # mkstemp makes 0600; give the mode open() would
-            with os.fdopen(fd, "wb") as f:
-                _write_all(f, data)
+            with os.fdopen(fd, "wb" if write is None else "rb+") as f:
+                if write is None:
+                    _write_all(f, data)
+                else:
+                    write(tmp)
                 f.flush()
                 os.fsync(f.fileno())
             os.replace(tmp, target)
