@@ -289,7 +289,7 @@ class SparkMethod:
                                  time=float(t0))
         try:
             E = self.system.energy(bk, t1, q1, v1)
-            ok = _is_real_scalar(E) and math.isfinite(float(E))
+            ok = _is_real_scalar(E) and (bool(mpmath.isfinite(E)) if bk.is_mp else math.isfinite(float(E)))
         except (ValueError, ZeroDivisionError, OverflowError, TypeError) as exc:
             E, ok = None, False
             why = f"{type(exc).__name__}: {exc}"
