@@ -1,6 +1,10 @@
 """``python -m ldaspark``: the command line (``ldaspark.cli``)."""
 import sys
 
-from .cli import main
+try:
+    from .cli import main
+except KeyboardInterrupt:          # Ctrl-C while the command line module loads: one line, 130
+    print("ldaspark: interrupted", file=sys.stderr)
+    sys.exit(130)
 
 sys.exit(main())

@@ -35,6 +35,7 @@ def _add_integrate(sub):
     p.add_argument("--dps", type=int, default=None, help="mpmath digits (default: float64)")
     p.add_argument("--ic", type=int, default=None, help="initial condition j (mp-particles)")
     p.add_argument("--tableau", default=None, help="tableau JSON file for METHOD custom")
+    p.add_argument("--max-stages", type=int, default=None, help="allow methods with more than 20 stages")
     p.add_argument("--newton", choices=("full", "simplified"), default="full")
     p.add_argument("--project", action="store_true", help="project v0 onto k = 0 instead of failing")
     p.add_argument("--out", required=True, help="output file, format by extension: .npz, .h5 (h5py), else JSON "
@@ -49,17 +50,22 @@ def _run_integrate(args) -> int:
     from .core.resultio import save_result
     from .core.scenes import get_scene
     from .core.tableau import load_tableau
+    from .core.families import get_method
     from .core.errors import InputError
     from .solve import integrate
 
     if args.method == "custom":
         if not args.tableau:
             raise InputError("METHOD custom needs --tableau FILE")
-        method = load_tableau(args.tableau)
+        method = load_tableau(args.tableau, max_stages=args.max_stages)
     else:
         if args.tableau:
             raise InputError("--tableau is only used with METHOD custom")
         method = args.method
+        if args.max_stages is not None:     # a built-in name beyond the default stage bound
+            from .core.comparators import is_comparator
+            if not is_comparator(method):
+                method = get_method(method, max_stages=args.max_stages)
     scene = get_scene(args.scene, args.ic)
     try:
         h = float(args.h)
@@ -90,6 +96,9 @@ def _add_methods(sub):
 
 def _run_methods(args) -> int:
     from .theory.conditions import method_table
+    from .core.errors import InputError
+    if not 1 <= args.max_s <= 5:    # the table is exact; exact Gauss nodes exist up to s = 5
+        raise InputError(f"--max-s must be between 1 and 5 (exact coefficients), got {args.max_s}")
     rows = method_table(args.max_s)
     print(f"{'method':28s} {'s':>2s} {'order':>5s}  (22)  (23)")
     for r in rows:
@@ -128,6 +137,49 @@ def _command_of(argv) -> str | None:
 
 
 def main(argv=None) -> int:
+    """Run the command line; returns the exit code (0 ok, 2 user error, 130 interrupted)."""
+    with _SigintSeen() as sigint:
+        try:
+            return _main(argv)
+        except KeyboardInterrupt:
+            print("ldaspark: interrupted", file=sys.stderr)
+            return 130
+        except ImportError:
+            # Ctrl-C inside an extension module's import (numpy, scipy) surfaces as ImportError
+            if sigint.seen:
+                print("ldaspark: interrupted", file=sys.stderr)
+                return 130
+            raise
+
+
+class _SigintSeen:
+    """Remember whether SIGINT arrived (and still raise KeyboardInterrupt, as by default);
+    restores the previous handler on exit. Only in the main thread."""
+
+    def __enter__(self):
+        import signal
+        import threading
+        self.seen, self.old = False, None
+        if threading.current_thread() is threading.main_thread():
+            try:
+                if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+                    self.old = signal.signal(signal.SIGINT, self._handler)
+            except (ValueError, OSError):
+                self.old = None
+        return self
+
+    def _handler(self, signum, frame):
+        self.seen = True
+        raise KeyboardInterrupt
+
+    def __exit__(self, *exc):
+        if self.old is not None:
+            import signal
+            signal.signal(signal.SIGINT, self.old)
+        return False
+
+
+def _main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     try:
         parser = build_parser(_command_of(argv))
@@ -137,6 +189,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
+        print("ldaspark: error: give a command (integrate, methods, report, verify, audit)", file=sys.stderr)
         return 2
     try:
         return int(args.func(args) or 0)

@@ -123,17 +123,23 @@ def test_rank_loss_accuracy_and_setup_error():
 
 
 def test_near_limit_of_4_wrong_branch_is_detected():
+    # what holds for any round-off (any BLAS kernel, any CPU): the det (4) monitor stops the run
+    # at the step that jumps to the other branch, and that step is where the trajectory computed
+    # without the monitor crosses the singular set (never a Newton failure at a 1e-17 residual)
+    import re
     from ldaspark.core.spark import integrate
     sysm = S.soft_system()
     tab = get_method("gauss-2")
-    with pytest.raises(SingularSaddleError, match="step 200 .*crossed the singular set"):
+    with pytest.raises(SingularSaddleError, match=r"step \d+ .*crossed the singular set") as ei:
         integrate(sysm, tab, 0.0, [0.0, 0.0, 0.0], [1 - 1e-6, 0.0, 0.0], 0.01, n_steps=220)
+    n = int(re.search(r"step (\d+)", str(ei.value)).group(1))
+    assert 190 <= n <= 210                       # v1 returns to 1 - delta after half a period (t ~ 2)
     # without the per-step monitor the jump is silent; check_saddle_along finds it afterwards
     bad = integrate(sysm, tab, 0.0, [0.0, 0.0, 0.0], [1 - 1e-6, 0.0, 0.0], 0.01, n_steps=220,
                     monitor_saddle=False)
     assert np.min(bad.v[:, 0]) < -1.1            # silently on the other branch (|v1| > 1)
-    assert S.saddle_crossings(sysm, bad) == [200]
-    with pytest.raises(SingularSaddleError, match="step 200"):
+    assert S.saddle_crossings(sysm, bad) == [n]
+    with pytest.raises(SingularSaddleError, match=f"step {n}"):
         S.check_saddle_along(sysm, bad)
     good = integrate(sysm, tab, 0.0, [0.0, 0.0, 0.0], [0.9, 0.0, 0.0], 0.01, n_steps=220)
     assert S.saddle_crossings(sysm, good) == [] and S.check_saddle_along(sysm, good) is None
@@ -167,13 +173,13 @@ def test_report_section_is_registered():
     assert args.full and args.outdir == "x" and args.section_run is S.run
 
 
-def test_newton_stagnation_near_limit_of_4_is_a_named_error():
-    # delta = 1e-9: at step 199 the Newton matrix is so ill-conditioned that the increments stagnate
-    # above the tolerance although the residual is ~1e-17 -> NewtonError naming all four facts
+def test_newton_near_limit_of_4_residual_at_roundoff_is_converged():
+    # delta = 1e-9: at step 199 the Newton matrix is so ill-conditioned that the increments are
+    # amplified noise (how large depends on the BLAS kernel) while the residual is ~1e-17; the
+    # residual test accepts the step, and the det (4) monitor names the wrong-branch step
     rows = S.soft_scene((1e-9,), n_steps=210)
-    assert rows[0]["outcome"] == "NewtonError"
-    msg = rows[0]["message"]
-    assert "step 199" in msg and "t = 1.99" in msg and "residual" in msg and "50 iterations" in msg
+    assert rows[0]["outcome"] == "SingularSaddleError", rows[0]
+    assert "crossed the singular set" in rows[0]["message"]
 
 
 @pytest.mark.exhaustive

@@ -60,13 +60,41 @@ class RunSpec:
 
     def __init__(self, system, method, t0, Q0, V0, h, n_steps, every=1, compensated=True, tol=None,
                  kernel="auto"):
-        Q0 = np.atleast_2d(np.asarray(Q0, dtype=float))
-        V0 = np.atleast_2d(np.asarray(V0, dtype=float))
-        if Q0.shape != V0.shape or Q0.shape[1] != system.n:
+        from ..core.validate import check_newton_options, check_storage
+        from .fast import n_samples
+        try:
+            Q0 = np.atleast_2d(np.asarray(Q0, dtype=float))
+            V0 = np.atleast_2d(np.asarray(V0, dtype=float))
+            t0, h = float(t0), float(h)
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"t0, h, Q0 and V0 must be numbers: {exc}") from None
+        if Q0.ndim != 2 or Q0.shape != V0.shape or Q0.shape[1] != system.n:
             raise InputError(f"Q0 and V0 must both have shape (runs, {system.n}), got {Q0.shape}, {V0.shape}")
-        self.system, self.method, self.t0, self.Q0, self.V0 = system, method, float(t0), Q0, V0
+        for name, val in (("n_steps", n_steps), ("every", every)):
+            if isinstance(val, bool) or not isinstance(val, (int, np.integer)) or val <= 0:
+                raise InputError(f"{name} must be a positive integer, got {val!r}")
+        if not (np.isfinite(h) and h != 0 and np.isfinite(t0)):
+            raise InputError(f"h must be finite and nonzero and t0 finite, got h = {h}, t0 = {t0}")
+        check_newton_options(tol, 1)
+        check_storage(n_samples(int(n_steps), int(every)) * len(Q0), 2 + 2 * system.n + system.m,
+                      what="the ensemble samples")
+        self._check_members(system, t0, Q0, V0)
+        self.system, self.method, self.t0, self.Q0, self.V0 = system, method, t0, Q0, V0
         self.h, self.n_steps, self.every, self.compensated, self.tol, self.kernel = (
-            float(h), int(n_steps), int(every), bool(compensated), tol, kernel)
+            h, int(n_steps), int(every), bool(compensated), tol, kernel)
+
+    @staticmethod
+    def _check_members(system, t0, Q0, V0):
+        """The set-up checks of ``integrate`` for every member: finite data, (4) regular with K of
+        full rank, consistent v0 (an inconsistent v0 would otherwise run, its energy jumping in
+        the first step); the error names the member."""
+        from ..core.errors import LdasparkError
+        from .fast import _setup_checks
+        for j, (q0, v0) in enumerate(zip(Q0, V0)):
+            try:
+                _setup_checks(system, t0, q0, v0)
+            except LdasparkError as exc:
+                raise type(exc)(f"ensemble member {j}: {exc}") from None
 
     def tasks(self, chunk):
         """(callable, args) per chunk of initial data; compiles in this process first."""
@@ -99,18 +127,7 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None):
     for k, sp in enumerate(specs):
         for fn, args in sp.tasks(chunk):
             plan.append((k, fn, args))
-    own = executor is None
-    ex = default_executor(max_workers) if own else executor
-    try:
-        futs = [(k, ex.submit(fn, *args)) for k, fn, args in plan]
-        results = [[] for _ in specs]
-        for i, (k, f) in enumerate(futs):
-            results[k].extend(f.result())
-            if progress is not None:
-                progress(i + 1, len(futs))
-    finally:
-        if own:
-            ex.shutdown(wait=True)
+    results = _run_plan(plan, len(specs), executor, max_workers, progress)
     seconds = time.perf_counter() - t_start
     out = []
     for rs in results:
@@ -119,6 +136,49 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None):
                                   np.array([r[3] for r in rs]), np.array([r[4] for r in rs]),
                                   [r[5] for r in rs], seconds))
     return out
+
+
+def _run_plan(plan, n_specs, executor=None, max_workers=None, progress=None):
+    """Submit (k, fn, args) tasks; results grouped by k. On any exception, Ctrl-C included, the
+    pending tasks are cancelled and, for a pool created here, its workers are stopped, so that
+    an interrupted run ends within a second or two instead of finishing the queue."""
+    own = executor is None
+    ex = default_executor(max_workers) if own else executor
+    futs = []
+    try:
+        futs = [(k, ex.submit(fn, *args)) for k, fn, args in plan]
+        results = [[] for _ in range(n_specs)]
+        for i, (k, f) in enumerate(futs):
+            results[k].extend(f.result())
+            if progress is not None:
+                progress(i + 1, len(futs))
+    except BaseException:
+        for _, f in futs:
+            f.cancel()
+        if own:
+            _stop_pool(ex)
+        raise
+    if own:
+        ex.shutdown(wait=True)
+    return results
+
+
+def _stop_pool(ex):
+    """Shut a pool down without waiting: cancel what is queued, terminate running workers."""
+    terminate = getattr(ex, "terminate_workers", None)         # Python >= 3.14
+    if terminate is not None:
+        terminate()
+        return
+    # before shutdown, which drops the executor's reference to its processes
+    procs = list((getattr(ex, "_processes", None) or {}).values())
+    ex.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        try:
+            p.terminate()
+        except (OSError, AttributeError, ValueError):
+            pass
+    for p in procs:
+        p.join(timeout=2)
 
 
 def ensemble_integrate(system, method, t0, Q0, V0, h, n_steps, every=1, compensated=True, tol=None,

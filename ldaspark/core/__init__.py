@@ -6,7 +6,8 @@ registry ``get_method``, tableau files), system (LagrangianSystem: L, k and what
 them), spark (the step (21a-f) and the loop ``integrate``), comparators (sections 7-8), scenes
 (section 8 and more), io (atomic file writes), result (the Result type of every engine), dense
 (dense output and events), resultio (Result files .json / .npz / .h5), mechanics (adapter from
-sympy.physics.mechanics models).
+sympy.physics.mechanics models), validate (argument checks shared with
+the compiled path).
 
 Imports only numpy, scipy, mpmath, sympy and itself; never ``ldaspark.theory``, ``compiled``,
 ``reports`` or ``cli``.

@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 import re
 
+import mpmath
 import numpy as np
 import sympy
 
@@ -127,12 +128,17 @@ def _newton(fun, x0, bk: Backend, tol, max_iter, step_index, t):
         except SingularMatrixError as exc:
             raise NewtonError(f"step {step_index} at t = {float(t):.6g}: {exc}", step=step_index,
                               time=float(t), residual=res, iterations=it) from None
-        x = x + dx
+        x_new = x + dx
         dn = bk.norm_inf(dx)
         if not math.isfinite(dn):
             break
         if dn <= tol_abs or (prev is not None and dn >= 0.5 * prev and dn <= 1e3 * tol_abs):
+            return x_new, it
+        # residual at round-off of its own scale |J| |x|: converged (see SparkMethod.step)
+        scale = np.abs(J).dot(np.abs(x))
+        if all(abs(g) <= SparkMethod.ROUNDOFF_FACTOR * bk.eps * sc for g, sc in zip(G, scale)):
             return x, it
+        x = x_new
         prev = dn
     raise NewtonError(f"Newton did not converge at step {step_index}, t = {float(t):.6g}: residual {res:.3e}",
                       step=step_index, time=float(t), residual=res, iterations=max_iter)
@@ -196,12 +202,30 @@ class ModifiedLobatto2(SparkMethod):
 # --- drivers ------------------------------------------------------------------------------
 def _finish_solution(system, bk, ts, Qs, Vs, Ps, stats, dps, name):
     with bk.context():
-        E = [system.energy(bk, ts[i], Qs[i], Vs[i]) for i in range(len(ts))]
+        E = [_energy_checked(system, bk, ts, Qs, Vs, i) for i in range(len(ts))]
         K = [system.constraint(bk, ts[i], Qs[i], Vs[i]) for i in range(len(ts))]
     dt = object if bk.is_mp else float
     return Solution(np.array(ts, dtype=dt), np.array(Qs, dtype=dt), np.array(Vs, dtype=dt),
                     np.array(Ps, dtype=dt), np.array(E, dtype=dt), np.array(K, dtype=dt),
                     stats, dps, name, system.name)
+
+
+def _energy_checked(system, bk, ts, Qs, Vs, i):
+    """Energy (8) at step point i; NonFiniteError naming the step that produced a point with
+    NaN / infinite / complex values or outside the domain of L (as SparkMethod's per-step check)."""
+    from .errors import NonFiniteError
+    try:
+        E = system.energy(bk, ts[i], Qs[i], Vs[i])
+        ok = (not isinstance(E, (complex, mpmath.mpc)) and math.isfinite(float(E))
+              and bk.isfinite(Qs[i]) and bk.isfinite(Vs[i]))
+    except (ValueError, ZeroDivisionError, OverflowError, TypeError):
+        ok = False
+    if not ok:
+        k = max(i - 1, 0)
+        raise NonFiniteError(f"step {k} (t = {float(ts[k]):.6g} -> {float(ts[i]):.6g}) produced a point where the "
+                             "energy (8) is not a finite real number: the solution left the domain of L",
+                             step=k, time=float(ts[k]))
+    return E
 
 
 def _spark_variant_loop(method_objs, system, t0, q0, v0, h, n_steps, name, progress):

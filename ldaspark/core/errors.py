@@ -35,3 +35,13 @@ class NewtonError(LdasparkError):
 
 class InputError(LdasparkError):
     """Bad user input: NaN/inf, zero step, unknown scene or method, bad file."""
+
+
+class NonFiniteError(LdasparkError):
+    """A step produced NaN, infinity or complex values (L or k evaluated outside its domain),
+    or an opt-in monitor (energy jump) stopped the run; names the step and its time."""
+
+    def __init__(self, message, step=None, time=None):
+        super().__init__(message)
+        self.step = step
+        self.time = time

@@ -13,13 +13,14 @@ that checking (22b) on them is a real test.
 from __future__ import annotations
 
 import mpmath
+import numpy as np
 import sympy
 from sympy import QQ
 from sympy.polys.matrices import DomainMatrix
 from sympy.polys.numberfields.subfield import primitive_element
 
 from .errors import TableauError
-from .tableau import SparkTableau, guard_digits
+from .tableau import SparkTableau, check_stages, guard_digits
 
 # --- exact construction ------------------------------------------------------------------
 # Exact coefficients are computed in the algebraic number field Q(c_1, ..., c_s) with sympy's
@@ -256,6 +257,9 @@ def _exact_family(kind, s):
 
 
 def _family(kind, s, exact, order, label):
+    if isinstance(s, bool) or not isinstance(s, (int, np.integer)):
+        raise TableauError(f"{kind}: the number of stages s must be an integer, got {s!r}")
+    s = int(s)
     if s < (1 if kind == "gauss" else 2):
         raise TableauError(f"{kind} needs s >= {1 if kind == 'gauss' else 2}, got s = {s}")
     if exact:
@@ -265,19 +269,30 @@ def _family(kind, s, exact, order, label):
                         family=kind)
 
 
-def gauss(s: int, exact: bool = False) -> SparkTableau:
+# s <= MAX_STAGES (20) unless max_stages raises it: the mpmath builders cost grows steeply with s
+# (gauss-100 does not finish in minutes)
+def gauss(s: int, exact: bool = False, max_stages: int | None = None) -> SparkTableau:
     """s-stage Gauss SPARK (SRK-DAE2) method [27]: A = A_hat = A_tilde Gauss, order 2s."""
+    _check_s(s, max_stages, "gauss")
     return _family("gauss", s, exact, 2 * s, f"gauss-{s}")
 
 
-def lobatto_iiia_iiib(s: int, exact: bool = False) -> SparkTableau:
+def lobatto_iiia_iiib(s: int, exact: bool = False, max_stages: int | None = None) -> SparkTableau:
     """s-stage Lobatto IIIA-B SPARK method [26]: A = IIIA, A_hat = A_tilde = IIIB, order 2s-2."""
+    _check_s(s, max_stages, "lobatto-iiia-iiib")
     return _family("lobatto-iiia-iiib", s, exact, 2 * s - 2, f"lobatto-iiia-iiib-{s}")
 
 
-def lobatto_iiia_iiib_iiid(s: int, exact: bool = False) -> SparkTableau:
+def lobatto_iiia_iiib_iiid(s: int, exact: bool = False, max_stages: int | None = None) -> SparkTableau:
     """s-stage Lobatto IIIA-B-D SPARK method: A = IIIA, A_hat = IIIB, A_tilde = IIID."""
+    _check_s(s, max_stages, "lobatto-iiia-iiib-iiid")
     return _family("lobatto-iiia-iiib-iiid", s, exact, 2 * s - 2, f"lobatto-iiia-iiib-iiid-{s}")
+
+
+def _check_s(s, max_stages, kind):
+    if isinstance(s, bool) or not isinstance(s, (int, np.integer)):
+        raise TableauError(f"{kind}: the number of stages s must be an integer, got {s!r}")
+    check_stages(int(s), max_stages, what=kind)
 
 
 def _one_stage(name, c, a, ah):
@@ -300,9 +315,12 @@ def euler_ii(exact: bool = True) -> SparkTableau:
 
 
 # --- method names ----------------------------------------------------------------------
-def get_method(name: str, exact: bool = False) -> SparkTableau:
+def get_method(name: str, exact: bool = False, max_stages: int | None = None) -> SparkTableau:
     """Tableau for a built-in method name (``gauss-S``, ``lobatto-iiia-iiib-S``,
-    ``lobatto-iiia-iiib-iiid-S``, ``euler-i``, ``euler-ii``)."""
+    ``lobatto-iiia-iiib-iiid-S``, ``euler-i``, ``euler-ii``); S is at most ``max_stages``
+    (default 20)."""
+    if not isinstance(name, str):
+        raise TableauError(f"method name must be a string such as 'gauss-2', got {type(name).__name__}")
     if name == "euler-i":
         return euler_i()
     if name == "euler-ii":
@@ -311,9 +329,13 @@ def get_method(name: str, exact: bool = False) -> SparkTableau:
                        ("lobatto-iiia-iiib-", lobatto_iiia_iiib), ("gauss-", gauss)):
         if name.startswith(prefix):
             tail = name[len(prefix):]
-            if not tail.isdigit():
+            # ASCII digits only: str.isdigit accepts '²' and other digits int() refuses
+            if not (tail.isascii() and tail.isdigit()) or len(tail) > 6:
+                if tail.isascii() and tail.isdigit():
+                    raise TableauError(f"{name}: s has {len(tail)} digits, beyond the stage limit "
+                                       "(raise it with --max-stages / max_stages=)")
                 break
-            return fn(int(tail), exact=exact)
+            return fn(int(tail), exact=exact, max_stages=max_stages)
     raise TableauError(f"unknown method {name!r}; expected gauss-S, lobatto-iiia-iiib-S, "
                        "lobatto-iiia-iiib-iiid-S, euler-i, euler-ii or custom")
 

@@ -1,37 +1,187 @@
 """Atomic file output: write to a temporary file in the target directory, fsync, then
-os.replace, so an interrupted run or a full disk never leaves a half-written file."""
+os.replace, so an interrupted run or a full disk never leaves a half-written file.
+
+What is written where (the path is ``--out`` / ``--json`` of the command line):
+
+* a regular file, or a path that does not exist yet: atomic replace (temporary ``.tmp-*`` file
+  in the same directory, removed again on any error, Ctrl-C or SIGTERM);
+* a symbolic link: followed; its final target is replaced atomically (the link stays a link);
+* a character device or a FIFO (``/dev/null``, ``/dev/stdout``, a named pipe, ``>(cmd)``):
+  written directly, as a shell redirection would (no atomicity is possible there; a FIFO blocks
+  until a reader opens it; ``/dev/full`` gives "No space left on device");
+* ``/dev/stdout``, ``/dev/stderr``, ``/dev/fd/N``, ``/proc/self/fd/N`` onto a regular file (a
+  shell redirection): appended to through that open file, never replaced;
+* a directory, block device, socket or anything else: refused (LdasparkError), never replaced.
+"""
 from __future__ import annotations
 
 import json
 import os
+import re
+import signal
+import stat
 import tempfile
+import threading
 
 from .errors import LdasparkError
 
 
-def atomic_write_bytes(path, data: bytes) -> None:
-    path = os.fspath(path)
-    d = os.path.dirname(os.path.abspath(path))
+_FD_PATH = re.compile(r"^/(?:dev/(?:(stdout|stderr)|fd/(\d+))|proc/(self|\d+)/fd/(\d+))$")
+
+
+def _write_fd(path, m, data: bytes) -> None:
+    import sys
+    name, fd_dev, pid, fd_proc = m.groups()
+    if pid is not None and pid != "self" and int(pid) != os.getpid():
+        return _write_direct(path, data, append=True)         # another process's file
+    fd = {"stdout": 1, "stderr": 2}[name] if name else int(fd_dev or fd_proc)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            if stream is not None and stream.fileno() == fd:
+                stream.flush()
+        except (OSError, ValueError, AttributeError):
+            pass
     try:
-        os.makedirs(d, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=os.path.basename(path), dir=d)
+        view = memoryview(data)
+        while view:
+            view = view[os.write(fd, view):]
     except OSError as exc:
         raise LdasparkError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+class _Terminated(BaseException):
+    """Raised from the SIGTERM handler installed while a temporary file exists."""
+
+
+def _write_all(f, data: bytes) -> None:
+    """The write itself (a seam for tests that need a slow writer)."""
+    f.write(data)
+
+
+def _destination(path):
+    """("direct", None) for a device or FIFO, ("fd", match) for /dev/stdout & co. onto a regular
+    file, ("replace", target) for a regular or new file (symlinks resolved); refuses the rest."""
     try:
-        os.chmod(tmp, _default_mode(path))  # mkstemp makes 0600; give the mode open() would
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException as exc:
+        st = os.stat(path)                      # follows symlinks: the type of the final target
+    except FileNotFoundError:
+        st = None
+    except OSError as exc:
+        raise LdasparkError(f"cannot write {path}: {exc.strerror or exc}") from None
+    if st is not None and not stat.S_ISREG(st.st_mode):
+        if stat.S_ISCHR(st.st_mode) or stat.S_ISFIFO(st.st_mode):
+            return "direct", None
+        kind = "a directory" if stat.S_ISDIR(st.st_mode) else "not a regular file"
+        raise LdasparkError(f"cannot write {path}: it is {kind} (refusing to replace it)")
+    m = _FD_PATH.match(os.path.abspath(path)) if st is not None else None
+    if m:
+        # /dev/stdout, /dev/fd/N, /proc/self/fd/N onto a regular file: an open file of this
+        # process (a shell redirection); written through that descriptor, at its offset, so that
+        # it interleaves with what else the process prints there; never replaced
+        return "fd", m
+    # a symlink (possibly dangling) is written through: replace its final target, keep the link
+    return "replace", (os.path.realpath(path) if os.path.islink(path) else path)
+
+
+def atomic_write_bytes(path, data: bytes) -> None:
+    path = os.fspath(path)
+    kind, what = _destination(path)
+    if kind == "direct":
+        return _write_direct(path, data)
+    if kind == "fd":
+        return _write_fd(path, what, data)
+    _atomic_replace(path, what, data)
+
+
+def atomic_write_with(path, write) -> None:
+    """For writers that need a file name (h5py, numpy.savez, matplotlib): ``write(name)`` writes
+    a complete file at ``name``; it lands at ``path`` with the same guarantees as
+    ``atomic_write_bytes`` (a temporary file in the target directory, replaced atomically; devices,
+    FIFOs and /dev/stdout receive the bytes directly; directories are refused)."""
+    path = os.fspath(path)
+    kind, what = _destination(path)
+    if kind == "replace":
+        return _atomic_replace(path, what, None, write)
+    fd, tmp = tempfile.mkstemp(prefix=".tmp-ldaspark-")
+    os.close(fd)
+    try:
+        write(tmp)
+        with open(tmp, "rb") as f:
+            data = f.read()
+    except OSError as exc:
+        raise LdasparkError(f"cannot write {path}: {exc.strerror or exc}") from None
+    finally:
         try:
             os.unlink(tmp)
         except OSError:
             pass
-        if isinstance(exc, OSError):
-            raise LdasparkError(f"cannot write {path}: {exc.strerror or exc}") from None
-        raise
+    return _write_direct(path, data) if kind == "direct" else _write_fd(path, what, data)
+
+
+def _write_direct(path, data: bytes, append: bool = False) -> None:
+    """Character devices and FIFOs: open for writing (no create, no replace) and write."""
+    try:
+        fd = os.open(path, os.O_WRONLY | getattr(os, "O_NOCTTY", 0) | (os.O_APPEND if append else 0))
+        with os.fdopen(fd, "wb") as f:
+            _write_all(f, data)
+    except OSError as exc:
+        raise LdasparkError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+def _atomic_replace(path, target, data: bytes | None, write=None) -> None:
+    """Write ``data`` (or let ``write(tmp_name)`` write) to a temporary file next to ``target``,
+    fsync, os.replace; the temporary file is removed on any error, Ctrl-C or SIGTERM."""
+    d = os.path.dirname(os.path.abspath(target))
+    tmp = None
+    with _sigterm_raises():
+        try:
+            os.makedirs(d, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=os.path.basename(target), dir=d)
+            os.chmod(tmp, _default_mode(target))  # mkstemp makes 0600; give the mode open() would
+            with os.fdopen(fd, "wb" if write is None else "rb+") as f:
+                if write is None:
+                    _write_all(f, data)
+                else:
+                    write(tmp)
+                f.flush()
+                os.fsync(f.fileno())
+            os.replace(tmp, target)
+        except BaseException as exc:
+            if tmp is not None:
+                try:
+                    os.unlink(tmp)
+                except OSError:
+                    pass
+            if isinstance(exc, OSError):
+                raise LdasparkError(f"cannot write {path}: {exc.strerror or exc}") from None
+            raise
+
+
+class _sigterm_raises:
+    """While a temporary file exists, SIGTERM raises _Terminated (so the cleanup above runs);
+    on the way out the default action is restored and the signal re-sent, so the process still
+    ends by SIGTERM as its parent expects. Only in the main thread, and only when SIGTERM has
+    its default action (a program's own handler is left alone)."""
+
+    def __enter__(self):
+        self.old = None
+        if threading.current_thread() is threading.main_thread():
+            try:
+                if signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:
+                    self.old = signal.signal(signal.SIGTERM, _raise_terminated)
+            except (ValueError, OSError):
+                self.old = None
+        return self
+
+    def __exit__(self, typ, exc, tb):
+        if self.old is not None:
+            signal.signal(signal.SIGTERM, self.old)
+            if typ is _Terminated:
+                os.kill(os.getpid(), signal.SIGTERM)
+        return False
+
+
+def _raise_terminated(signum, frame):
+    raise _Terminated()
 
 
 def _default_mode(path) -> int:

@@ -20,10 +20,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import mpmath
 import numpy as np
 
 from .backend import Backend, SingularMatrixError
-from .errors import InputError, NewtonError, SingularSaddleError
+from .errors import InputError, NewtonError, NonFiniteError, SingularSaddleError
 from .system import LagrangianSystem
 from .tableau import SparkTableau
 
@@ -39,6 +40,7 @@ class StepResult:
     iterations: int
     residual: float        # inf-norm of the residual at the last evaluation
     x: np.ndarray          # packed unknowns (warm start of the next step)
+    energy: object = None  # energy (8) at (t1, q1, v1), checked finite and real
 
 
 @dataclass
@@ -69,21 +71,28 @@ class SparkMethod:
     tol : Newton increment tolerance (relative); default 10 * unit round-off.
     newton : "full" (Jacobian every iteration) or "simplified" (one Jacobian per step).
     max_iter : Newton iteration cap before NewtonError.
+    energy_jump : optional monitor: stop (NonFiniteError) when one step changes the energy (8) by
+        more than energy_jump (1 + |E|); off by default (the energy of a time-dependent or
+        non-conservative system may change).
     """
 
     def __init__(self, system: LagrangianSystem, tableau: SparkTableau, dps: int | None = None,
-                 tol: float | None = None, newton: str = "full", max_iter: int = 50):
+                 tol: float | None = None, newton: str = "full", max_iter: int = 50, energy_jump=None):
+        from .validate import check_newton_options, check_system_and_tableau
         if newton not in ("full", "simplified"):
             raise InputError(f"newton must be 'full' or 'simplified', got {newton!r}")
+        check_system_and_tableau(system, tableau)
+        check_newton_options(tol, max_iter)
+        if energy_jump is not None:
+            check_newton_options(energy_jump, 1, what="energy_jump")
         self.system = system
         self.tableau = tableau
         self.backend = Backend(dps)
         self.dps = dps
-        if tol is not None and not (math.isfinite(float(tol)) and tol > 0):
-            raise InputError(f"Newton tolerance must be finite and positive, got {tol!r}")
         self.tol = tol if tol is not None else 10 * self.backend.eps
         self.newton = newton
         self.max_iter = max_iter
+        self.energy_jump = None if energy_jump is None else float(energy_jump)
         self.tab = tableau.arrays(dps)
         self.stats = Stats()
         s, n, m = tableau.s, system.n, system.m
@@ -179,11 +188,15 @@ class SparkMethod:
     def step(self, t0, q0, v0, h, x0=None, step_index=0) -> StepResult:
         """One step of (21); x0 is the packed starting guess (default V_i = v1 = v0, Psi = 0)."""
         bk = self.backend
-        with bk.context():
+        self._step_start = (t0, q0, v0)
+        # overflow / invalid operations are detected below (non-finite residual, increment or
+        # values), so numpy's RuntimeWarnings would only print noise before the one-line error
+        with bk.context(), np.errstate(all="ignore"):
             p0 = self.system.momentum(bk, t0, q0, v0)
             x = (self.initial_guess(v0) if x0 is None else x0).copy()
             tol_abs = self.tol * (1 + bk.norm_inf(x))
             fac = None
+            J_last = None
             prev = None
             res = float("inf")
             why = ""
@@ -196,8 +209,10 @@ class SparkMethod:
                     res, why = float("nan"), f" ({type(exc).__name__}: {exc} evaluating L or k)"
                     break
                 res = bk.norm_inf(G)
-                if not math.isfinite(res):
+                if not math.isfinite(res) or not _is_real(bk, G):
+                    res, why = float("nan"), why or " (complex or non-finite residual: L or k evaluated outside its domain)"
                     break
+                J_last = J if J is not None else J_last
                 if need_j:
                     try:
                         fac = bk.factor(J)
@@ -207,35 +222,102 @@ class SparkMethod:
                             step=step_index, time=float(t0), residual=res, iterations=it) from None
                     self.stats.nlu += 1
                 dx = bk.solve_factored(fac, -G)
-                x = x + dx
+                x_new = x + dx
                 # relative to the current iterate, not the starting guess (|Lambda| ~ 1/eps for near-rank-loss K)
-                tol_abs = self.tol * (1 + bk.norm_inf(x))
+                tol_abs = self.tol * (1 + bk.norm_inf(x_new))
                 dn = bk.norm_inf(dx)
                 if not math.isfinite(dn):
                     res = float("nan")
                     break
                 if dn <= tol_abs:
-                    return self._finish(t0, q0, h, x, it, res, step_index)
+                    return self._finish(t0, q0, h, x_new, it, res, step_index)
                 # round-off floor: increments stopped shrinking at the noise level
                 if prev is not None and dn >= 0.5 * prev and dn <= 1e3 * tol_abs:
+                    return self._finish(t0, q0, h, x_new, it, res, step_index)
+                # the residual itself is at round-off: x solves (21) as well as the working precision
+                # can tell; when the Newton matrix is ill-conditioned (near the limit of (4)) the
+                # increments are amplified noise and need not fall below the tolerance (BLAS-dependent)
+                if self._residual_at_roundoff(G, J_last, x, p0):
                     return self._finish(t0, q0, h, x, it, res, step_index)
+                x = x_new
                 prev = dn
             raise NewtonError(
                 f"Newton did not converge at step {step_index}, t = {float(t0):.6g}, h = {float(h):.3g}: "
                 f"residual {res:.3e} after {it} iterations{why}", step=step_index, time=float(t0),
                 residual=res, iterations=it)
 
+    #: residual rows within this many units of round-off of their own scale count as converged
+    ROUNDOFF_FACTOR = 8
+
+    def _residual_at_roundoff(self, G, J, x, p0) -> bool:
+        """|G_i| <= ROUNDOFF_FACTOR * eps * scale_i for every row i of (21b, d, e, f), with
+        scale = |J| |x| + |p0| (rows (21b), (21d)): a lower estimate of the magnitude of the terms
+        that cancel in G_i (the linear part of each equation plus the momentum p0), so that the
+        test is invariant under scaling of the equations and never looser than round-off."""
+        bk = self.backend
+        if J is None:
+            return False
+        lim = self.ROUNDOFF_FACTOR * bk.eps
+        scale = np.abs(J).dot(np.abs(x))             # one matrix-vector product: cheap next to the LU
+        mom_rows = (self.s + 1) * self.n                # rows (21b), (21d) contain p0
+        scale[:mom_rows] = scale[:mom_rows] + np.tile(np.abs(p0), self.s + 1)
+        return len(scale) == len(G) and all(abs(g) <= lim * sc for g, sc in zip(G, scale))
+
     def _finish(self, t0, q0, h, x, it, res, step_index):
         tab = self.tab
         V, Lam, v1 = self.unpack(x)
         q1 = q0 + tab.b.dot(V) * h
         Q = q0 + tab.A.dot(V) * h
+        energy = self._check_values(t0 + h, q1, v1, x, step_index, t0)
         st = self.stats
         st.steps += 1
         st.newton_iterations += it
         st.iterations_per_step.append(it)
         st.max_residual = max(st.max_residual, res)
-        return StepResult(t0 + h, q1, v1.copy(), V.copy(), Q, Lam / h, it, res, x)
+        return StepResult(t0 + h, q1, v1.copy(), V.copy(), Q, Lam / h, it, res, x, energy)
+
+    def _check_values(self, t1, q1, v1, x, step_index, t0):
+        """Stop the run (NonFiniteError naming the step and its time) when the step produced NaN,
+        infinity or complex (mpc) values, or when the energy (8) at the new point is not a finite
+        real number: the step equations use only derivatives of L, so a trajectory that left the
+        domain of L (e.g. -log(1 - q1) past q1 = 1) is seen only here. Returns the energy.
+        With ``energy_jump`` set, also stops when |E(t1) - E(t0)| > energy_jump (1 + |E(t0)|)."""
+        bk = self.backend
+        where = f"step {step_index} (t = {float(t0):.6g} -> {float(t1):.6g})"
+        if not (_is_real(bk, x) and bk.isfinite(x) and bk.isfinite(q1)):
+            raise NonFiniteError(f"{where} produced NaN, infinity or complex values", step=step_index,
+                                 time=float(t0))
+        try:
+            E = self.system.energy(bk, t1, q1, v1)
+            ok = _is_real_scalar(E) and (bool(mpmath.isfinite(E)) if bk.is_mp else math.isfinite(float(E)))
+        except (ValueError, ZeroDivisionError, OverflowError, TypeError) as exc:
+            E, ok = None, False
+            why = f"{type(exc).__name__}: {exc}"
+        else:
+            why = f"E = {E}"
+        if not ok:
+            raise NonFiniteError(f"{where}: the energy (8) at the new point is not a finite real number ({why}): "
+                                 "the solution left the domain of L", step=step_index, time=float(t0))
+        if self.energy_jump is not None:
+            E0 = self._energy_at(t0, step_index)
+            if E0 is not None and abs(float(E) - E0) > self.energy_jump * (1 + abs(E0)):
+                raise NonFiniteError(
+                    f"{where}: energy jumped from {E0:.6g} to {float(E):.6g} (more than energy_jump = "
+                    f"{self.energy_jump:g} relative): a collision with a singularity of L or a step too large",
+                    step=step_index, time=float(t0))
+            self._last_energy = (step_index + 1, float(E))
+        return E
+
+    def _energy_at(self, t0, step_index):
+        """Energy at the start of this step: cached from the previous step when consecutive."""
+        last = getattr(self, "_last_energy", None)
+        if last is not None and last[0] == step_index:
+            return last[1]
+        try:
+            E0 = float(self.system.energy(self.backend, *self._step_start))
+        except (ValueError, ZeroDivisionError, OverflowError, TypeError):
+            return None
+        return E0 if math.isfinite(E0) else None
 
 
 @dataclass
@@ -253,6 +335,15 @@ class Solution:
     dps: int | None
     method: str
     system: str
+
+
+def _is_real(bk, a) -> bool:
+    """No mpc among the entries (mpmath returns complex numbers outside a real domain)."""
+    return not bk.is_mp or not any(isinstance(e, mpmath.mpc) for e in np.asarray(a).reshape(-1))
+
+
+def _is_real_scalar(e) -> bool:
+    return not isinstance(e, (complex, mpmath.mpc))
 
 
 MAX_STEPS = 10 ** 9  # beyond this a run cannot finish; reject instead of hanging (h = 1e-300)
@@ -283,7 +374,7 @@ def n_steps_for(t0, t_end, h) -> int:
 
 def integrate(system: LagrangianSystem, tableau: SparkTableau, t0, q0, v0, h, t_end=None,
               n_steps=None, dps=None, project=False, tol=None, newton="full", progress=None,
-              check_initial=True, monitor_saddle=True) -> Solution:
+              check_initial=True, monitor_saddle=True, energy_jump=None) -> Solution:
     """Integrate (1) with the SPARK method (21) at constant step h from consistent data.
 
     Exactly one of ``t_end`` / ``n_steps``. With ``dps`` the computation runs in mpmath at
@@ -291,10 +382,15 @@ def integrate(system: LagrangianSystem, tableau: SparkTableau, t0, q0, v0, h, t_
     ``monitor_saddle`` watches the sign of det (4) at every step point: near the limit of (4)
     the stage equations have a second, nearby solution, and a sign change means the step
     landed on it (or the solution left the region where (4) holds); it is an error, not a
-    silent jump.
-    Raises InconsistentInitialDataError (unless ``project``), SingularSaddleError, NewtonError.
+    silent jump. Every step stops with NonFiniteError on NaN, infinity or complex values (or an
+    energy (8) that is not a finite real number: the solution left the domain of L).
+    ``energy_jump`` (off by default) also stops a step that changes the energy by more than
+    energy_jump (1 + |E|): the only monitor that sees a passage through a singularity of L such
+    as 1/q1, which leaves finite values and a regular (4) behind.
+    Raises InconsistentInitialDataError (unless ``project``), SingularSaddleError, NewtonError,
+    NonFiniteError.
     """
-    method = SparkMethod(system, tableau, dps=dps, tol=tol, newton=newton)
+    method = SparkMethod(system, tableau, dps=dps, tol=tol, newton=newton, energy_jump=energy_jump)
     bk = method.backend
     with bk.context():
         try:
@@ -320,6 +416,8 @@ def integrate(system: LagrangianSystem, tableau: SparkTableau, t0, q0, v0, h, t_
                 v = system.project_velocity(bk, t0_, q, v)
             system.check_consistent(bk, t0_, q, v, tol=None if tol is None else 10 * tol)
         N = n_steps
+        from .validate import check_storage
+        check_storage(N + 1, 2 + 2 * system.n + (tableau.s + 1) * system.m, bk.is_mp)
         ts = [t0_ + i * h_ for i in range(N + 1)]
         Qs, Vs, Ps = [q], [v], []
         x = None

@@ -61,8 +61,7 @@ class LagrangianSystem:
         self.n = len(self.q)
         if len(self.v) != self.n:
             raise SystemDefinitionError(f"q has {self.n} symbols but v has {len(self.v)}")
-        self.L = sympy.sympify(L)
-        self.k = sympy.Matrix([sympy.sympify(e) for e in (k if isinstance(k, (list, tuple)) else [k])])
+        self.L, self.k = _sympify_L_k(L, k)
         self.m = self.k.rows
         if self.m >= self.n:
             raise SystemDefinitionError(f"need m < n constraints, got m = {self.m}, n = {self.n}")
@@ -316,6 +315,27 @@ def _reject_dynamicsymbols(L, k):
             raise SystemDefinitionError(
                 "L or k contain functions of t or derivatives (dynamicsymbols); use plain symbols q, v, "
                 "or LagrangianSystem.from_mechanics(...) for sympy.physics.mechanics models")
+
+
+def _sympify_L_k(L, k):
+    """L as a scalar sympy expression and k as an m x 1 Matrix with m >= 1, or a
+    SystemDefinitionError saying what is wrong (not a TypeError from inside sympy)."""
+    if L is None or k is None:
+        raise SystemDefinitionError(f"L and k must be sympy expressions, got L = {L!r}, k = {k!r}")
+    try:
+        Ls = sympy.sympify(L, strict=not isinstance(L, str))
+        ks = [sympy.sympify(e, strict=not isinstance(e, str))
+              for e in (list(k) if isinstance(k, (list, tuple, sympy.MatrixBase)) else [k])]
+    except (sympy.SympifyError, TypeError, ValueError, SyntaxError) as exc:
+        raise SystemDefinitionError(f"L and k must be sympy expressions: {str(exc).splitlines()[0][:120]}") from None
+    def scalar(e):
+        return isinstance(e, sympy.Expr) and not getattr(e, "is_Matrix", False)
+    if not scalar(Ls) or not all(scalar(e) for e in ks):
+        raise SystemDefinitionError("L must be a scalar expression and k a list of scalar expressions")
+    if not ks:
+        raise SystemDefinitionError("k is empty: the SPARK methods (21) need m >= 1 constraints "
+                                    "(for an unconstrained system use a partitioned Runge-Kutta method)")
+    return Ls, sympy.Matrix(ks)
 
 
 def _arr(x, backend):

@@ -219,78 +219,165 @@ def _col(vals):
 
 
 # --- JSON input ---------------------------------------------------------------------------
-_MAX_ENTRY_LEN = 200
-_MAX_EXPONENT = 64
+# Every bound below keeps parsing a hostile file fast (each entry well under a millisecond to a
+# few milliseconds) and memory-bounded; each violation is one TableauError line.
+_MAX_ENTRY_LEN = 200          # characters of one string entry
+_MAX_EXPONENT = 64            # product of the literal exponents of nested '**'
+_MAX_SCI_EXPONENT = 400       # |e| of scientific notation 1.5e-30 (float64 spans 1e-324 .. 1e308)
+_MAX_DEPTH = 32               # depth of the expression tree
+_MAX_BITS = 8192              # numerator / denominator of an intermediate rational
+_MAX_TRIG_ARG = 1e6           # |x| in sin(x), cos(x)
+MAX_MAGNITUDE = 1e300         # |entry|: every entry converts to a finite float64
+MAX_STAGES = 20               # s, unless raised (max_stages=, --max-stages)
 _FUNCTIONS = {"sqrt": sympy.sqrt, "Rational": sympy.Rational, "cos": sympy.cos, "sin": sympy.sin}
 _CONSTANTS = {"pi": sympy.pi}
+
+
+def _bits(e) -> int:
+    """Bit size of a rational (0 for other numbers: radicals keep their rational parts small)."""
+    if getattr(e, "is_Rational", False):
+        return max(int(e.p).bit_length(), int(e.q).bit_length())
+    return 0
+
+
+def _sci_exponent(text: str) -> int:
+    """The decimal exponent of a float literal's text ('1.5e-30' -> -30; 0 without one)."""
+    import re
+    m = re.search(r"[eE]([+-]?[0-9_]+)$", text)
+    if not m:
+        return 0
+    digits = m.group(1).replace("_", "")
+    if len(digits.lstrip("+-")) > 6:
+        return 10 ** 6
+    return int(digits)
 
 
 def parse_exact_string(x: str, where: str = "entry"):
     """An exact tableau entry such as "1/4 - sqrt(3)/6" as a sympy number.
 
     Parsed with Python's ``ast`` and built node by node (never evaluated as Python): numbers
-    (decimals read as exact decimals), + - * /, ** with a literal integer exponent of at most 64,
-    sqrt, Rational, sin, cos and pi. Anything else is a TableauError naming the entry."""
+    (decimals read as exact decimals), + - * /, ** with a literal integer exponent, sqrt,
+    Rational, sin, cos and pi. Bounded so that no entry can hang or exhaust memory: at most
+    200 characters, tree depth 32, the product of nested '**' exponents at most 64, scientific
+    exponents |e| <= 400, intermediate rationals of at most 8192 bits, |x| <= 1e6 inside sin/cos.
+    Anything else is a TableauError naming the entry."""
     import ast
+    if not isinstance(x, str):
+        raise TableauError(f"{where}: expected a string, got {type(x).__name__}")
     if len(x) > _MAX_ENTRY_LEN:
         raise TableauError(f"{where}: expression longer than {_MAX_ENTRY_LEN} characters")
-    try:
-        tree = ast.parse(x.strip(), mode="eval")
-    except SyntaxError:
-        raise TableauError(f"{where}: cannot parse {x!r}") from None
     src = x.strip()
+    try:
+        tree = ast.parse(src, mode="eval")
+    except (SyntaxError, ValueError, MemoryError, RecursionError):
+        raise TableauError(f"{where}: cannot parse {x!r}") from None
+    b = _EntryBuilder(x, src, where)
+    e = b.build(tree.body, 0, 1)
+    if not getattr(e, "is_number", False):
+        raise b.bad("not a number")
+    return e
 
-    def bad(why):
-        return TableauError(f"{where}: {x!r} is not a number ({why})")
 
-    def build(node):
+class _EntryBuilder:
+    """Builds the sympy number of one entry from its AST, enforcing the bounds as it goes.
+    ``power`` is the product of the exponents of the '**' nodes above the current node."""
+
+    def __init__(self, x, src, where):
+        self.x, self.src, self.where = x, src, where
+
+    def bad(self, why):
+        return TableauError(f"{self.where}: {self.x!r} is not a number ({why})")
+
+    def build(self, node, depth, power):
+        import ast
+        if depth > _MAX_DEPTH:
+            raise self.bad(f"nested deeper than {_MAX_DEPTH} levels")
         if isinstance(node, ast.Constant):
-            if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
-                raise bad(f"literal {node.value!r}")
-            text = ast.get_source_segment(src, node) or repr(node.value)
-            if isinstance(node.value, int):
-                return sympy.Integer(node.value)
-            if not math.isfinite(node.value):
-                raise bad("not finite")
-            return sympy.Rational(text.replace("_", ""))
+            return self.constant(node, power)
         if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.UAdd, ast.USub)):
-            v = build(node.operand)
+            v = self.build(node.operand, depth + 1, power)
             return -v if isinstance(node.op, ast.USub) else v
         if isinstance(node, ast.BinOp):
             if isinstance(node.op, ast.Pow):
-                ex = node.right
-                neg = isinstance(ex, ast.UnaryOp) and isinstance(ex.op, ast.USub)
-                lit = ex.operand if neg else ex
-                if not (isinstance(lit, ast.Constant) and type(lit.value) is int and lit.value <= _MAX_EXPONENT):
-                    raise bad(f"'**' needs a literal integer exponent <= {_MAX_EXPONENT}")
-                return build(node.left) ** (-lit.value if neg else lit.value)
-            ops = {ast.Add: lambda a, b: a + b, ast.Sub: lambda a, b: a - b,
-                   ast.Mult: lambda a, b: a * b, ast.Div: lambda a, b: a / b}
-            f = ops.get(type(node.op))
-            if f is None:
-                raise bad(f"operator {type(node.op).__name__}")
-            a, b = build(node.left), build(node.right)
-            if f is ops[ast.Div] and b == 0:
-                raise bad("division by zero")
-            return f(a, b)
+                return self.pow(node, depth, power)
+            return self.binop(node, depth, power)
         if isinstance(node, ast.Name) and node.id in _CONSTANTS:
             return _CONSTANTS[node.id]
         if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in _FUNCTIONS
                 and not node.keywords and 1 <= len(node.args) <= 2):
-            args = [build(a) for a in node.args]
-            if node.func.id == "Rational":
-                if not all(a.is_Integer for a in args) or (len(args) == 2 and args[1] == 0):
-                    raise bad("Rational needs integer arguments and a nonzero denominator")
-            elif len(args) != 1:
-                raise bad(f"{node.func.id} takes one argument")
-            return _FUNCTIONS[node.func.id](*args)
+            return self.call(node, depth, power)
         name = getattr(node, "id", None) or getattr(getattr(node, "func", None), "id", None)
-        raise bad(f"unknown name {name!r}" if name else f"unsupported syntax {type(node).__name__}")
+        raise self.bad(f"unknown name {name!r}" if name else f"unsupported syntax {type(node).__name__}")
 
-    e = build(tree.body)
-    if not getattr(e, "is_number", False):
-        raise bad("not a number")
-    return e
+    def constant(self, node, power):
+        import ast
+        if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
+            raise self.bad(f"literal {node.value!r}")
+        text = ast.get_source_segment(self.src, node) or repr(node.value)
+        if isinstance(node.value, int):
+            e = sympy.Integer(node.value)
+        else:
+            if abs(_sci_exponent(text)) > _MAX_SCI_EXPONENT:
+                raise self.bad(f"exponent of scientific notation beyond +-{_MAX_SCI_EXPONENT}")
+            if not math.isfinite(node.value):
+                raise self.bad("not finite")
+            e = sympy.Rational(text.replace("_", ""))
+        if _bits(e) * power > _MAX_BITS:
+            raise self.bad(f"a power of it exceeds {_MAX_BITS} bits")
+        return e
+
+    def pow(self, node, depth, power):
+        import ast
+        ex = node.right
+        neg = isinstance(ex, ast.UnaryOp) and isinstance(ex.op, ast.USub)
+        lit = ex.operand if neg else ex
+        if not (isinstance(lit, ast.Constant) and type(lit.value) is int and lit.value <= _MAX_EXPONENT):
+            raise self.bad(f"'**' needs a literal integer exponent <= {_MAX_EXPONENT}")
+        if lit.value * power > _MAX_EXPONENT:
+            raise self.bad(f"nested '**' with exponents multiplying to more than {_MAX_EXPONENT}")
+        base = self.build(node.left, depth + 1, power * max(lit.value, 1))
+        if neg and base == 0:
+            raise self.bad("division by zero")
+        r = base ** (-lit.value if neg else lit.value)
+        if _bits(r) > _MAX_BITS:
+            raise self.bad(f"a power exceeds {_MAX_BITS} bits")
+        return r
+
+    def binop(self, node, depth, power):
+        import ast
+        ops = {ast.Add: lambda a, b: a + b, ast.Sub: lambda a, b: a - b,
+               ast.Mult: lambda a, b: a * b, ast.Div: lambda a, b: a / b}
+        f = ops.get(type(node.op))
+        if f is None:
+            raise self.bad(f"operator {type(node.op).__name__}")
+        a, b = self.build(node.left, depth + 1, power), self.build(node.right, depth + 1, power)
+        if isinstance(node.op, ast.Div) and b == 0:
+            raise self.bad("division by zero")
+        r = f(a, b)
+        if _bits(r) > _MAX_BITS:
+            raise self.bad(f"an intermediate rational exceeds {_MAX_BITS} bits")
+        return r
+
+    def call(self, node, depth, power):
+        fname = node.func.id
+        args = [self.build(a, depth + 1, power) for a in node.args]
+        if fname == "Rational":
+            if not all(a.is_Integer for a in args) or (len(args) == 2 and args[1] == 0):
+                raise self.bad("Rational needs integer arguments and a nonzero denominator")
+        elif len(args) != 1:
+            raise self.bad(f"{fname} takes one argument")
+        elif fname in ("sin", "cos") and not _small(args[0], _MAX_TRIG_ARG):
+            raise self.bad(f"argument of {fname} is not a real number of modulus <= {_MAX_TRIG_ARG:g}")
+        return _FUNCTIONS[fname](*args)
+
+
+def _small(e, bound) -> bool:
+    """|e| <= bound for a real number e (numerically, at 15 digits: e is already size-bounded)."""
+    try:
+        val = complex(sympy.N(e, 15))
+    except (TypeError, ValueError, OverflowError):
+        return False
+    return val.imag == 0 and abs(val.real) <= bound
 
 
 def _parse_entry(x, where):
@@ -299,6 +386,8 @@ def _parse_entry(x, where):
     if isinstance(x, bool) or x is None:
         raise TableauError(f"{where}: entry {x!r} is not a number")
     if isinstance(x, int):
+        if x.bit_length() > 1000:                     # |x| > 1e300: not a float64, not a coefficient
+            raise TableauError(f"{where}: integer with {len(str(abs(x)))} digits exceeds {MAX_MAGNITUDE:g}")
         return sympy.Integer(x), True
     if isinstance(x, float):
         if not math.isfinite(x):
@@ -306,16 +395,38 @@ def _parse_entry(x, where):
         return sympy.Float(x, 17), False
     if isinstance(x, str):
         e = parse_exact_string(x, where)
-        val = complex(sympy.N(e, 30))
+        if e.is_real is False:                        # sqrt(-1) * tiny: exactly non-real, however small
+            raise TableauError(f"{where}: {x!r} is not a real number")
+        try:
+            num = sympy.N(e, 30)
+            if bool(abs(num) > MAX_MAGNITUDE):
+                raise TableauError(f"{where}: {x!r} exceeds {MAX_MAGNITUDE:g} in modulus")
+            val = complex(num)
+        except (TypeError, ValueError, OverflowError):
+            raise TableauError(f"{where}: {x!r} is not a finite real number") from None
         if not (math.isfinite(val.real) and abs(val.imag) <= 1e-25 * (1 + abs(val.real))):
             raise TableauError(f"{where}: {x!r} is not a finite real number")
+        if abs(val.real) > MAX_MAGNITUDE:
+            raise TableauError(f"{where}: {x!r} exceeds {MAX_MAGNITUDE:g} in modulus")
         return e, True
     raise TableauError(f"{where}: entry {x!r} is not a number")
 
 
-def from_json_dict(d: dict, name: str | None = None) -> SparkTableau:
+def check_stages(s: int, max_stages: int | None = None, what: str = "tableau") -> None:
+    """s <= max_stages (default MAX_STAGES = 20): building, auditing and integrating cost grows
+    like s^3 and beyond, so larger s must be asked for explicitly."""
+    limit = MAX_STAGES if max_stages is None else max_stages
+    if isinstance(limit, bool) or not isinstance(limit, int) or limit < 1:
+        raise TableauError(f"max_stages must be a positive integer, got {limit!r}")
+    if s > limit:
+        raise TableauError(f"{what} has s = {s} stages, more than the limit {limit} "
+                           "(raise it with --max-stages / max_stages=)")
+
+
+def from_json_dict(d: dict, name: str | None = None, max_stages: int | None = None) -> SparkTableau:
     """Tableau from the JSON format (keys c, A, A_hat, A_tilde, b, b_hat, b_tilde, optional
-    omega and name). Exact when every entry is an int or string, else float precision."""
+    omega and name). Exact when every entry is an int or string, else float precision.
+    At most ``max_stages`` (default MAX_STAGES) stages."""
     if not isinstance(d, dict):
         raise TableauError("tableau JSON must be an object with keys c, A, A_hat, A_tilde, b, b_hat, b_tilde")
     missing = [k for k in NAMES if k != "omega" and k not in d]
@@ -325,6 +436,7 @@ def from_json_dict(d: dict, name: str | None = None) -> SparkTableau:
     if not isinstance(c, list) or not c:
         raise TableauError("c must be a non-empty list")
     s = len(c)
+    check_stages(s, max_stages)
     all_exact = True
     ex = {}
     for k in NAMES:
@@ -357,15 +469,39 @@ def from_json_dict(d: dict, name: str | None = None) -> SparkTableau:
     return SparkTableau(str(label), s, exact=ex, source_digits=15, family="custom")
 
 
-def load_tableau(path) -> SparkTableau:
-    """Read a tableau JSON file; errors name the problem (TableauError)."""
+def max_file_bytes(max_stages: int | None = None) -> int:
+    """Largest tableau file read: 4000 bytes per coefficient slot (s^2 of them), at least 1 MiB."""
+    s = MAX_STAGES if max_stages is None else max_stages
+    return max(2 ** 20, 4000 * s * s)
+
+
+def load_tableau(path, max_stages: int | None = None) -> SparkTableau:
+    """Read a tableau JSON file; errors name the problem (TableauError). Only regular files of at
+    most ``max_file_bytes(max_stages)`` bytes are read (never /dev/zero, a FIFO or a directory)."""
+    import os
+    import stat
+    limit = max_file_bytes(max_stages)
     try:
-        with open(path) as f:
-            d = json.load(f)
+        st = os.stat(path)
+        if not stat.S_ISREG(st.st_mode):
+            raise TableauError(f"tableau file {path} is not a regular file")
+        if st.st_size > limit:
+            raise TableauError(f"tableau file {path} has {st.st_size} bytes, more than {limit}")
+        with open(path, "rb") as f:
+            raw = f.read(limit + 1)
+        if len(raw) > limit:
+            raise TableauError(f"tableau file {path} has more than {limit} bytes")
+        d = json.loads(raw.decode("utf-8"))
     except FileNotFoundError:
         raise TableauError(f"tableau file {path} not found") from None
     except json.JSONDecodeError as exc:
         raise TableauError(f"tableau file {path} is not valid JSON: {exc.msg} at line {exc.lineno}") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise TableauError(f"cannot read tableau file {path}: {exc}") from None
-    return from_json_dict(d)
+    except ValueError as exc:       # e.g. an integer of more than 4300 digits
+        why = ("an integer literal has too many digits" if "integer string conversion" in str(exc)
+               else str(exc).splitlines()[0][:120])
+        raise TableauError(f"tableau file {path} is not valid JSON: {why}") from None
+    except RecursionError:
+        raise TableauError(f"tableau file {path} is not valid JSON: nested too deeply") from None
+    return from_json_dict(d, max_stages=max_stages)

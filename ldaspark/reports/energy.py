@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import math
 import os
 import sys
 import time
@@ -280,8 +281,8 @@ def add_arguments(p):
 
 
 def run(args) -> int:
-    if args.t_end is not None and args.t_end <= 0:
-        raise InputError("--t-end must be positive")
+    if args.t_end is not None and not (math.isfinite(args.t_end) and args.t_end > 0):
+        raise InputError(f"--t-end must be a finite positive number, got {args.t_end}")
     if args.figure is None:
         if args.json:
             raise InputError("--json needs --figure N")

@@ -13,6 +13,7 @@ sqrt(mu) ~ h^2 sqrt(t)). Runs on the compiled fast path, all (method, j) runs in
 """
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -43,6 +44,13 @@ def figure4_data(t_end=50000.0, h=0.05, J=9, every=100, executor=None, methods=F
     variant of ``scenes.mp_particles``: "printed" (as in 8.4; integrable) or "nonholonomic"."""
     from ..core.scenes import mp_particles
     t0_wall = time.perf_counter()
+    from ..core.spark import MAX_STEPS
+    if not all(isinstance(x, (int, float)) and math.isfinite(x) and x > 0 for x in (t_end, h)):
+        raise InputError(f"t_end and h must be finite positive numbers, got t_end = {t_end}, h = {h}")
+    if t_end / h > MAX_STEPS:
+        raise InputError(f"t_end / h = {t_end / h:.3g} steps, more than the limit {MAX_STEPS:.0e}")
+    if isinstance(every, bool) or not isinstance(every, int) or every <= 0:
+        raise InputError(f"every must be a positive integer, got {every!r}")
     n_steps = int(round(t_end / h))
     if n_steps <= 0 or abs(n_steps * h - t_end) > 1e-9 * max(1.0, t_end):
         raise InputError(f"t_end = {t_end} must be a positive multiple of h = {h}")

@@ -361,15 +361,17 @@ def add_arguments(parser) -> None:
     parser.add_argument("--json", default=None, help="write the checks as JSON to this file")
     parser.add_argument("--out", default=None, help="write the markdown report to this file instead of stdout")
     parser.add_argument("--quick", action="store_true", help="fewer step sizes and shorter runs")
+    parser.add_argument("--max-stages", type=int, default=None, help="allow tableaux with more than 20 stages")
     parser.add_argument("--arith", choices=("auto", "exact", "mp"), default="auto",
                         help="arithmetic of the algebraic checks (auto: exact when the entries are exact; "
                              "built-ins are exact up to s = 3)")
 
 
-def safe_load_tableau(path) -> SparkTableau:
+def safe_load_tableau(path, max_stages=None) -> SparkTableau:
     """The core loader: string entries go through ``tableau.parse_exact_string``, an AST
-    whitelist (numbers, + - * / **, sqrt, Rational, pi) that never evaluates Python."""
-    return load_tableau(path)
+    whitelist (numbers, + - * / **, sqrt, Rational, pi) that never evaluates Python; the file
+    is read only if regular and bounded in size, s <= max_stages (default 20)."""
+    return load_tableau(path, max_stages=max_stages)
 
 
 def example_names() -> list[str]:
@@ -398,12 +400,13 @@ def load_for_args(args) -> SparkTableau:
     if args.dps is not None and not (10 <= args.dps <= 200):
         raise InputError(f"--dps must be between 10 and 200, got {args.dps}")
     if args.method is not None:
-        tab = get_method(args.method)
+        ms = getattr(args, "max_stages", None)
+        tab = get_method(args.method, max_stages=ms)
         want_exact = args.arith == "exact" or (args.arith == "auto" and tab.s <= 3)
         if want_exact and tab.exact is None:
-            tab = get_method(args.method, exact=True)
+            tab = get_method(args.method, exact=True, max_stages=ms)
         return tab
-    return safe_load_tableau(args.file)
+    return safe_load_tableau(args.file, getattr(args, "max_stages", None))
 
 
 def run(args) -> int:

@@ -1,0 +1,108 @@
+"""Ensembles run the set-up checks of integrate on every member (an inconsistent v0 is an error
+naming the member, not a run whose energy jumps in the first step), validate their options, and
+stop promptly on Ctrl-C: pending tasks are cancelled and the pool's workers stopped."""
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from ldaspark.compiled.ensemble import RunSpec, _run_plan, ensemble_integrate
+from ldaspark.core.errors import InconsistentInitialDataError, InputError, SingularSaddleError
+from ldaspark.core.scenes import get_scene
+
+
+@pytest.fixture(scope="module")
+def skate():
+    return get_scene("skate")
+
+
+def _ics(skate):
+    t0, q0, v0 = skate.initial()
+    return t0, np.array([q0, q0, q0], float), np.array([v0, v0, v0], float)
+
+
+def test_inconsistent_member_is_named(skate):
+    t0, Q0, V0 = _ics(skate)
+    V0[2] += [0.5, 0.3, 0.2]                 # k = -v1 sin q3 + v2 cos q3 = 0.3 for member 2
+    with pytest.raises(InconsistentInitialDataError, match="ensemble member 2: initial data are inconsistent"):
+        ensemble_integrate(skate.system, "gauss-2", t0, Q0, V0, 0.1, 10)
+
+
+def test_consistent_members_pass_the_checks(skate):
+    # control: the checks alone (RunSpec builds no kernel) accept consistent data
+    t0, Q0, V0 = _ics(skate)
+    assert RunSpec(skate.system, "gauss-2", t0, Q0, V0, 0.1, 10).Q0.shape == (3, 3)
+
+
+def test_singular_member_is_named():
+    from ldaspark.reports.stability import soft_system
+    sysm = soft_system()
+    Q0 = np.zeros((2, 3))
+    V0 = np.array([[0.5, 0, 0], [1.0, 0, 0]])   # v1 = 1: (4) fails
+    with pytest.raises(SingularSaddleError, match="ensemble member 1"):
+        RunSpec(sysm, "gauss-2", 0.0, Q0, V0, 0.1, 10)
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(h=float("nan")), "h must be finite"), (dict(h=0.0), "h must be finite"),
+    (dict(n_steps=0), "n_steps"), (dict(n_steps=2.5), "n_steps"), (dict(every=0), "every"),
+    (dict(tol=0.0), "tolerance"), (dict(tol=float("nan")), "tolerance"),
+    (dict(n_steps=10 ** 12), "GiB"),
+])
+def test_ensemble_options(skate, kw, match):
+    t0, Q0, V0 = _ics(skate)
+    args = dict(h=0.1, n_steps=10, every=1, tol=None)
+    args.update(kw)
+    with pytest.raises(InputError, match=match):
+        RunSpec(skate.system, "gauss-2", t0, Q0, V0, args["h"], args["n_steps"], args["every"], tol=args["tol"])
+
+
+def _sleep_task(x):
+    time.sleep(x)
+    return [x]
+
+
+def test_plan_results_grouped_by_spec():
+    # control for the refactoring of run_many: results come back grouped and in order
+    from concurrent.futures import ThreadPoolExecutor
+    with ThreadPoolExecutor(2) as ex:
+        res = _run_plan([(0, _sleep_task, (0.0,)), (1, _sleep_task, (0.01,)), (0, _sleep_task, (0.02,))], 2, ex)
+    assert res == [[0.0, 0.02], [0.01]]
+
+
+_CTRL_C = """
+import sys, time
+sys.path.insert(0, sys.argv[1])
+from test_reliability_ensemble import _sleep_task
+from ldaspark.compiled.ensemble import _run_plan
+print("start", flush=True)
+try:
+    _run_plan([(0, _sleep_task, (3.0,)) for _ in range(20)], 1, max_workers=2)   # 30 s of work
+except KeyboardInterrupt:
+    print("interrupted", flush=True)
+    sys.exit(130)
+"""
+
+
+def test_ctrl_c_cancels_pending_tasks_and_stops_workers():
+    # Ctrl-C (SIGINT to the process group, as a terminal sends it) ends the run well before the
+    # 30 s of queued work; the bound is loose (the machine may be loaded), the queue is not
+    here = os.path.dirname(os.path.abspath(__file__))
+    p = subprocess.Popen([sys.executable, "-c", _CTRL_C, here], stdout=subprocess.PIPE, text=True,
+                         env=dict(os.environ, PYTHONPATH=os.getcwd()), start_new_session=True)
+    try:
+        assert p.stdout.readline().strip() == "start"
+        time.sleep(1.0)
+        t = time.monotonic()
+        os.killpg(p.pid, signal.SIGINT)
+        out, _ = p.communicate(timeout=60)
+        elapsed = time.monotonic() - t
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+    assert p.returncode == 130 and "interrupted" in out
+    assert elapsed < 12, f"took {elapsed:.1f} s to stop (the queue holds 30 s)"
