@@ -155,16 +155,22 @@ class LagrangianSystem:
             self._add_nonideal(backend, st, t, q, v, lam, h, jacobians)
         return st
 
-    def nonideal_terms(self, backend, t, q, v, psi):
-        """N, N_q, N_v, N_psi at (t, q, v, psi) (section 3.3)."""
-        ck = ("N", backend.lambdify_module)
+    def nonideal_terms(self, backend, t, q, v, psi, partials=True):
+        """N, N_q, N_v, N_psi at (t, q, v, psi) (section 3.3); N_q, N_v are None unless
+        ``partials``. One flat expression list, so that lambdify's CSE shares subexpressions
+        (it does not across nested lists); this matters at the thousands of bits of mpmath.odefun."""
+        n, m = self.n, self.m
+        ck = ("N", partials, backend.lambdify_module)
         if ck not in self._compiled:
+            mats = [self.N, self.N_q, self.N_v, self.N_psi] if partials else [self.N, self.N_psi]
+            flat = [e for M in mats for e in M]
             args = [self.t] + self.q + self.v + self.psi
-            self._compiled[ck] = sympy.lambdify(args, [self.N.tolist(), self.N_q.tolist(), self.N_v.tolist(),
-                                                       self.N_psi.tolist()], modules=backend.lambdify_module,
-                                                cse=True)
-        N, Nq, Nv, Np = (_arr(x, backend) for x in self._compiled[ck](t, *q, *v, *psi))
-        return N[:, 0], Nq, Nv, Np.reshape(self.n, self.m)
+            self._compiled[ck] = sympy.lambdify(args, flat, modules=backend.lambdify_module, cse=True)
+        out = _arr(self._compiled[ck](t, *q, *v, *psi), backend)
+        N, rest = out[:n], out[n:]
+        if not partials:
+            return N, None, None, rest.reshape(n, m)
+        return N, rest[:n * n].reshape(n, n), rest[n * n:2 * n * n].reshape(n, n), rest[2 * n * n:].reshape(n, m)
 
     def _add_nonideal(self, backend, st, t, q, v, lam, h, jacobians):
         # Lambda = h Psi is the unknown: h N(Psi) with Psi = Lambda / h; d/dLambda gives N_psi
@@ -283,16 +289,22 @@ class LagrangianSystem:
         """(3a) with the nonideal term: L_vv v' + K^T psi - N(t, q, v, psi) = rhs, nonlinear in
         psi; Newton from the ideal solution on [[L_vv, K^T - N_psi], [K, 0]]."""
         n = self.n
+        # mpmath.odefun raises the working precision beyond the backend's: converge to the current eps
+        tol = 10 * float(mpmath.mp.eps) if backend.is_mp else 10 * backend.eps
+        prev = None
         for _ in range(maxiter):
-            N, _, _, Np = self.nonideal_terms(backend, t, q, v, sol[n:])
+            N, _, _, Np = self.nonideal_terms(backend, t, q, v, sol[n:], partials=False)
             G = S.dot(sol) - rhs
             G[:n] = G[:n] - N
             Sj = S.copy()
             Sj[:n, n:] = S[:n, n:] - Np
             dx = backend.solve(Sj, -G)
             sol = sol + dx
-            if backend.norm_inf(dx) <= 10 * backend.eps * (1 + backend.norm_inf(sol)):
+            dn = backend.norm_inf(dx)
+            if dn <= tol * (1 + backend.norm_inf(sol)) or (prev is not None and dn >= prev / 2
+                                                           and dn <= 1e3 * tol * (1 + backend.norm_inf(sol))):
                 return sol
+            prev = dn
         raise SingularSaddleError(f"(3a) with the nonideal term: Newton for psi did not converge at t = {float(t):g}")
 
 
