@@ -155,3 +155,15 @@ def test_nonideal_orders_exhaustive_mpmath_reference():
         dps, _, newton = order_plan(meth)
         m = measure_errors(meth, sc, ref, 1.0, [32, 64, 128], dps=dps, newton=newton)
         _assert_orders(order_records(meth, sc.name, get_method(meth).claimed_order, m, dps, 1.0, ref.kind))
+
+
+@pytest.mark.exhaustive
+def test_claims_general_ledger_outcomes_as_predicted():
+    """The ledger group (quick): every record has the outcome the paper predicts (controls fail)."""
+    from ldaspark.theory.claims_general import records
+    from ldaspark.theory.ledger import summarize
+    recs = records(quick=True)
+    assert {"theorem1-general-q0", "theorem1-general-q1", "symmetry-general", "constraint-general",
+            "order-general-scenes", "nonideal-3.3"} <= {r["claim"] for r in recs}
+    assert summarize(recs) == 0, [r for r in recs if r["status"] not in (r["expected"], "not-applicable")]
+    assert any(r["expected"] == "fail" and r["status"] == "fail" for r in recs)
