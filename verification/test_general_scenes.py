@@ -124,6 +124,29 @@ def test_energy_balance_2_2_general_scenes(scn):
             assert abs(dE - lt) > 1e-4
 
 
+@pytest.mark.parametrize("scn", list(GENERAL_SCENES) + ["friction-skate"])
+def test_derived_quantities_general_scenes(scn):
+    """At each scene's initial data: (4) nonsingular, E (8) the same in float64 and at 30 digits,
+    and the acceleration of (3a-b) satisfies the differentiated constraint (3b)
+    K v' = -k_t - k_q v (control: without k_t the rheonomic skate's (3b) fails)."""
+    sc = get_scene(scn)
+    S = sc.system
+    t0, q0, v0 = sc.initial()
+    assert S.check_saddle(Backend(None), t0, q0, v0) > 1e-3
+    bk = Backend(30)
+    tm, qm, vm = sc.initial(30)
+    with bk.context():
+        assert abs(float(S.energy(bk, tm, qm, vm)) - S.energy(Backend(None), t0, q0, v0)) < 1e-14
+        a, _ = S.ode_rhs(bk, tm, bk.array(qm), bk.array(vm))
+        f = S._fn("kder", [S.k_v, S.k_t, S.k_q], bk)
+        K, kt, kq = (np.array(x, dtype=object) for x in f(tm, *qm, *vm))
+        K, kq = K.reshape(S.m, S.n), kq.reshape(S.m, S.n)
+        r = K.dot(a) + kt[:, 0] + kq.dot(bk.array(vm))
+        assert bk.norm_inf(r) < 1e-27
+        if scn == "rheonomic-skate":
+            assert bk.norm_inf(K.dot(a) + kq.dot(bk.array(vm))) > 1e-3
+
+
 def test_saddle_4_fails_for_constant_speed_at_rest():
     """(4) needs K = k_v of full rank: the isokinetic constraint has K = v^T, singular at v = 0."""
     S = get_scene("constant-speed").system
