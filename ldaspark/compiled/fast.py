@@ -69,6 +69,8 @@ def mechanical_parts(system) -> dict:
 
     Uses ``system.mechanical`` when set, else detects the form: L_vv free of t, q, v;
     grad_v L - M v = 0 (no gyroscopic terms); k_v free of v. Raises NotCompilableError."""
+    if getattr(system, "N", None) is not None:
+        raise NotCompilableError(f"{system.name}: nonideal constraint term (3.3) is not compiled")
     q, v, t = list(system.q), list(system.v), system.t
     mech = system.mechanical
     if mech is not None:

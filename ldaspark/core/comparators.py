@@ -59,6 +59,8 @@ class MechanicalParts:
     evaluation counters (``n_grad_U``)."""
 
     def __init__(self, system: LagrangianSystem, backend: Backend):
+        if getattr(system, "N", None) is not None:
+            raise InputError(f"{system.name}: the semi-implicit comparators have no nonideal term (3.3)")
         mech = system.mechanical or derive_mechanical(system)
         q, v = system.q, system.v
         M = sympy.Matrix(mech["M"])

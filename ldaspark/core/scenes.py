@@ -1,5 +1,7 @@
 """The paper's scenes (section 8) with its parameters and initial data, plus a holonomic
-pendulum for section 5.1 and a vertical rolling disk as a user-style example.
+pendulum for section 5.1, a vertical rolling disk as a user-style example, and general scenes
+(``GENERAL_SCENES``: rheonomic L and k, k nonlinear in v, b != 0, L not quadratic in v;
+``NONIDEAL_SCENES``: a nonideal constraint of 3.3).
 
 Each scene states only L and k (or M, U, K, b); the library derives the rest. Parameters and
 initial data are exact sympy numbers so that the mpmath path carries full precision.
@@ -182,6 +184,93 @@ def rolling_disk() -> Scene:
                  "vertical rolling disk")
 
 
+# --- general scenes: what the section 8 scenes do not exercise (t in L and k, k nonlinear in v,
+# b != 0, L not quadratic in v, nonideal constraints of 3.3) ----------------------------------
+def rheonomic_skate() -> Scene:
+    """Skate (8.2) on a conveyor belt that moves along x with speed u(t) = (1 + sin t)/2, on a
+    slope whose effective gravity g(t) = 1 + cos(t)/2 oscillates (a tilting table).
+
+    The blade's velocity relative to the belt is along the blade: k = cos(q3) v2 - sin(q3)
+    (v1 - u(t)), so k is rheonomic with affine part b(t, q) = sin(q3) u(t) != 0, and
+    L = (v1^2 + v2^2 + v3^2)/2 - g(t) q1 depends on t (L_t != 0). Built from 8.2; no closed form."""
+    q, v = _syms(3)
+    t = sympy.Symbol("t")
+    u = (1 + sympy.sin(t)) / 2
+    L = (v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 - (1 + sympy.cos(t) / 2) * q[0]
+    k = [sympy.cos(q[2]) * v[1] - sympy.sin(q[2]) * (v[0] - u)]
+    sysm = LagrangianSystem(L, k, q, v, t=t, name="rheonomic-skate")
+    q3 = R(1, 5)
+    return Scene("rheonomic-skate", sysm, sympy.Integer(0), [0, 0, q3], [1, sympy.tan(q3) / 2, 1],
+                 "skate on a moving belt and a tilting slope: rheonomic L and k, b(t, q) != 0")
+
+
+def constant_speed() -> Scene:
+    """Isokinetic particle (Gaussian thermostat of Evans and Hoover; a constraint nonlinear in v of
+    the Appell-Hamel kind): L = |v|^2/2 - U(q), U = (q1^2 + 2 q2^2 + q3^2)/2 + q1 q3^2/2,
+    k = (|v|^2 - 1)/2. By Chetaev's rule (9c) K = k_v = v^T, so (1b) reads
+    v' = -grad U - psi v with psi = -v . grad U: the speed stays 1 and E (8) is not conserved."""
+    q, v = _syms(3)
+    U = (q[0] ** 2 + 2 * q[1] ** 2 + q[2] ** 2) / 2 + q[0] * q[2] ** 2 / 2
+    L = (v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 - U
+    k = [(v[0] ** 2 + v[1] ** 2 + v[2] ** 2 - 1) / 2]
+    sysm = LagrangianSystem(L, k, q, v, name="constant-speed")
+    return Scene("constant-speed", sysm, sympy.Integer(0), [1, 0, R(1, 2)], [0, R(3, 5), R(4, 5)],
+                 "isokinetic particle: constraint |v| = 1, nonlinear in v")
+
+
+def relativistic(B=R(1, 2)) -> Scene:
+    """Relativistic charged particle (c = m = 1) with the constraint of 8.1, in the potential of
+    8.1 and a constant magnetic field B along q3: L = -sqrt(1 - |v|^2) + B (q1 v2 - q2 v1)/2
+    - (q1^2 + q2^2), k = v3 - q2 v1. L is not quadratic in v (L_vv depends on v) and has a
+    gyroscopic q-v coupling; L and k are autonomous and k is linear in v, so E (8) =
+    1/sqrt(1 - |v|^2) + q1^2 + q2^2 is conserved (2.2)."""
+    q, v = _syms(3)
+    B = sympy.sympify(B)
+    L = (-sympy.sqrt(1 - v[0] ** 2 - v[1] ** 2 - v[2] ** 2) + B * (q[0] * v[1] - q[1] * v[0]) / 2
+         - (q[0] ** 2 + q[1] ** 2))
+    k = [v[2] - q[1] * v[0]]
+    sysm = LagrangianSystem(L, k, q, v, name="relativistic")
+    return Scene("relativistic", sysm, sympy.Integer(0), [R(1, 2), 0, 0], [0, R(1, 2), 0],
+                 "relativistic particle in a potential and a magnetic field, constraint of 8.1",
+                 params={"B": B})
+
+
+def turntable(Omega=R(1, 2)) -> Scene:
+    """Vertical rolling disk (the ``rolling-disk`` scene) on a turntable rotating with angular
+    speed Omega about the origin: the contact point moves with the table, velocity
+    Omega (-y, x), so k = (vx - cos(phi) vtheta + Omega y, vy - sin(phi) vtheta - Omega x): affine
+    in v with b(q) = Omega (y, -x) != 0 (autonomous; energy is not conserved, 2.2)."""
+    x, y, th, ph = sympy.symbols("x y theta phi")
+    vx, vy, vth, vph = sympy.symbols("vx vy vtheta vphi")
+    Om = sympy.sympify(Omega)
+    L = (vx ** 2 + vy ** 2) / 2 + vth ** 2 / 4 + vph ** 2 / 8
+    k = [vx - sympy.cos(ph) * vth + Om * y, vy - sympy.sin(ph) * vth - Om * x]
+    sysm = LagrangianSystem(L, k, [x, y, th, ph], [vx, vy, vth, vph], name="turntable")
+    return Scene("turntable", sysm, sympy.Integer(0), [1, 0, 0, 0], [1, Om, 1, R(1, 2)],
+                 "rolling disk on a turntable: affine constraint, b(q) != 0", params={"Omega": Om})
+
+
+def friction_skate(mu=R(1, 2), eps=R(1, 10)) -> Scene:
+    """Skate (8.2) with sliding friction along the blade proportional to the normal reaction
+    |psi| (nonideal constraint, 3.3; dry friction as in [3, Example 3.2.6]):
+    N = -mu |psi|_eps sgn_eps(u) e, e = (cos q3, sin q3, 0) the blade, u = e . v the sliding speed.
+    Coulomb's |psi| and sgn(u) are not differentiable, and SPARK order claims need smooth data:
+    we smooth both, |psi|_eps = sqrt(psi^2 + eps^2), sgn_eps(u) = u / sqrt(u^2 + eps^2).
+    N_psi != 0 and K N_psi = 0 (friction acts along the blade), so (4) with K^T - N_psi holds."""
+    q, v = _syms(3)
+    mu, eps = sympy.sympify(mu), sympy.sympify(eps)
+    psi = sympy.Symbol("psi1")
+    L = (v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 - q[0]
+    k = [sympy.cos(q[2]) * v[1] - sympy.sin(q[2]) * v[0]]
+    u = sympy.cos(q[2]) * v[0] + sympy.sin(q[2]) * v[1]
+    f = -mu * sympy.sqrt(psi ** 2 + eps ** 2) * u / sympy.sqrt(u ** 2 + eps ** 2)
+    N = [f * sympy.cos(q[2]), f * sympy.sin(q[2]), 0]
+    sysm = LagrangianSystem(L, k, q, v, name="friction-skate", nonideal=N, psi=[psi])
+    return Scene("friction-skate", sysm, sympy.Integer(0), [0, 0, 0], [0, 0, 1],
+                 "skate with smoothed sliding friction mu |psi| along the blade (nonideal, 3.3)",
+                 params={"mu": mu, "eps": eps})
+
+
 SCENES: dict[str, Callable[..., Scene]] = {
     "particle": particle,
     "skate": skate,
@@ -190,9 +279,17 @@ SCENES: dict[str, Callable[..., Scene]] = {
     "mp-particles-nh": lambda **kw: mp_particles(constraint="nonholonomic", **kw),
     "pendulum": pendulum,
     "rolling-disk": rolling_disk,
+    "rheonomic-skate": rheonomic_skate,
+    "constant-speed": constant_speed,
+    "relativistic": relativistic,
+    "turntable": turntable,
+    "friction-skate": friction_skate,
 }
 
 PAPER_SCENES = ("particle", "skate", "robot", "mp-particles")
+# ideal general scenes (Theorem 1 applies) and the nonideal one (3.3)
+GENERAL_SCENES = ("rheonomic-skate", "constant-speed", "relativistic", "turntable")
+NONIDEAL_SCENES = ("friction-skate",)
 
 
 def get_scene(name: str, ic: int | None = None) -> Scene:

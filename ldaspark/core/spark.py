@@ -121,7 +121,7 @@ class SparkMethod:
         Q = q0 + tab.A.dot(V) * h
         q1 = q0 + tab.b.dot(V) * h
         t1 = t0 + h
-        st = [sysm.stage(bk, T[i], Q[i], V[i], Lam[i], jacobian) for i in range(s)]
+        st = [sysm.stage(bk, T[i], Q[i], V[i], Lam[i], jacobian, h=h) for i in range(s)]   # h: nonideal N (3.3)
         fin = sysm.stage(bk, t1, q1, v1, bk.zeros(m), jacobian)
         self.stats.nfev += s + 1
         F = np.array([e.L_q for e in st])
@@ -156,6 +156,8 @@ class SparkMethod:
         dP = np.einsum("ik,iab->ikab", eye_s, Lvv) + np.einsum("ik,iab->ikab", A, Lvq) * h
         dk = np.einsum("jk,jab->jkab", eye_s, kv) + np.einsum("jk,jab->jkab", A, kq) * h
         KT = np.transpose(kv, (0, 2, 1))                                 # (s, n, m)
+        if st[0].R_L is not None:   # nonideal (3.3): d(h R)/dLambda = -K^T + N_psi replaces -K^T
+            KT = -np.array([e.R_L for e in st])
         N = self.size
         J = bk.zeros((N, N))
         r_d, r_e, r_f = s * n, s * n + n, s * n + n + (s - 1) * m

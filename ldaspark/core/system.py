@@ -35,10 +35,11 @@ class StageEval:
     k_v: np.ndarray | None = None
     R_q: np.ndarray | None = None
     R_v: np.ndarray | None = None
+    R_L: np.ndarray | None = None      # d(h R)/d Lambda (n x m); None means -K^T (ideal constraints)
 
 
 class LagrangianSystem:
-    """A Lagrangian system with ideal nonholonomic constraints (1a-d).
+    """A Lagrangian system with ideal nonholonomic constraints (1a-d), or nonideal ones (3.3).
 
     Parameters
     ----------
@@ -50,10 +51,14 @@ class LagrangianSystem:
     params : optional free symbols of L and k kept symbolic (a list, or a dict symbol -> default
         value). Derivation and lambdify happen once with the parameters as extra arguments;
         values are given later (``with_params`` or ``ldaspark.integrate(..., params=...)``).
+    nonideal : optional list of n sympy expressions N(t, q, v, psi) added to (1b) (section 3.3):
+        d/dt grad_v L = grad_q L - K^T psi + N; ``psi`` (m symbols, default psi1..psim) names the
+        multipliers in N. The SPARK stage equations take R_i = -K_i^T Psi_i + N(T_i, Q_i, V_i, Psi_i)
+        (N belongs to the constraint reaction, so it enters (21b, d) with A_tilde, b_tilde).
     """
 
     def __init__(self, L, k, q, v, t=None, name: str = "system", mechanical: dict | None = None,
-                 params=None):
+                 params=None, nonideal=None, psi=None):
         self.name = name
         self.q = list(q)
         self.v = list(v)
@@ -75,6 +80,17 @@ class LagrangianSystem:
                 "substitute them or declare them with params=[...]")
         self.mechanical = mechanical
         self.lam = sympy.symbols(f"lam0:{self.m}")
+        self.psi = list(psi) if psi is not None else list(sympy.symbols(f"psi1:{self.m + 1}"))
+        self.N = None
+        if nonideal is not None:
+            self.N = sympy.Matrix([sympy.sympify(e) for e in nonideal])
+            if self.N.rows != self.n or len(self.psi) != self.m:
+                raise SystemDefinitionError(f"nonideal term needs n = {self.n} components in m = {self.m} "
+                                            f"psi symbols, got {self.N.rows} and {len(self.psi)}")
+            extra = self.N.free_symbols - allowed - set(self.psi)
+            if extra:
+                raise SystemDefinitionError(f"nonideal term N contains symbols other than t, q, v, psi: "
+                                            f"{sorted(map(str, extra))}")
         self._derive()
         self._compiled = {}
 
@@ -129,8 +145,9 @@ class LagrangianSystem:
         sub = {p: sympy.nsimplify(x) if isinstance(x, str) else sympy.sympify(x) for p, x in zip(self.params, vals)}
         mech = None if self.mechanical is None else {
             key: (sympy.sympify(val).subs(sub) if val is not None else None) for key, val in self.mechanical.items()}
+        N = None if self.N is None else [e.subs(sub) for e in self.N]
         return LagrangianSystem(self.L.subs(sub), [e.subs(sub) for e in self.k], self.q, self.v, self.t,
-                                name=self.name, mechanical=mech)
+                                name=self.name, mechanical=mech, nonideal=N, psi=self.psi)
 
     def _param_arg_values(self, backend):
         missing = [str(p) for p in self.params if p not in self._param_values]
@@ -159,6 +176,8 @@ class LagrangianSystem:
         self.R_q = self.R_lam.jacobian(q)
         self.R_v = self.R_lam.jacobian(v)
         self.energy_expr = (self.L_v.T * sympy.Matrix(v))[0, 0] - L  # (8)
+        if self.N is not None:
+            self.N_q, self.N_v, self.N_psi = self.N.jacobian(q), self.N.jacobian(v), self.N.jacobian(self.psi)
 
     def _fn(self, key, exprs, backend: Backend, with_lam=False):
         ck = (key, backend.lambdify_module)
@@ -173,19 +192,53 @@ class LagrangianSystem:
         return lambda *a: f(*a, *pv)
 
     # --- numeric evaluation -------------------------------------------------------------------
-    def stage(self, backend: Backend, t, q, v, lam, jacobians: bool = True) -> StageEval:
-        """Evaluate L_v, L_q, k, -K^T lam (and their partials) at one point."""
+    def stage(self, backend: Backend, t, q, v, lam, jacobians: bool = True, h=None) -> StageEval:
+        """Evaluate L_v, L_q, k, h R = -K^T lam (and their partials) at one point. With a
+        nonideal term (3.3) and the step ``h`` given, h R also carries h N(t, q, v, lam / h)
+        and R_L = d(h R)/d lam = -K^T + N_psi (without ``h`` only the ideal part: the
+        endpoint evaluations of (21d, f) do not use R)."""
         args = (t, *q, *v, *lam)
         if jacobians:
             f = self._fn("stage_jac", [self.L_v, self.L_q, self.k, self.R_lam, self.L_vv, self.L_vq,
                                         self.L_qq, self.k_q, self.k_v, self.R_q, self.R_v], backend, True)
             out = [_arr(x, backend) for x in f(*args)]
             Lv, Lq, k, R, Lvv, Lvq, Lqq, kq, kv, Rq, Rv = out
-            return StageEval(Lv[:, 0], Lq[:, 0], k[:, 0], R[:, 0], Lvv, Lvq, Lvq.T, Lqq,
-                             kq.reshape(self.m, self.n), kv.reshape(self.m, self.n), Rq, Rv)
-        f = self._fn("stage_val", [self.L_v, self.L_q, self.k, self.R_lam], backend, True)
-        Lv, Lq, k, R = (_arr(x, backend)[:, 0] for x in f(*args))
-        return StageEval(Lv, Lq, k, R)
+            st = StageEval(Lv[:, 0], Lq[:, 0], k[:, 0], R[:, 0], Lvv, Lvq, Lvq.T, Lqq,
+                           kq.reshape(self.m, self.n), kv.reshape(self.m, self.n), Rq, Rv)
+        else:
+            f = self._fn("stage_val", [self.L_v, self.L_q, self.k, self.R_lam], backend, True)
+            Lv, Lq, k, R = (_arr(x, backend)[:, 0] for x in f(*args))
+            st = StageEval(Lv, Lq, k, R)
+        if self.N is not None and h is not None:
+            self._add_nonideal(backend, st, t, q, v, lam, h, jacobians)
+        return st
+
+    def nonideal_terms(self, backend, t, q, v, psi, partials=True):
+        """N, N_q, N_v, N_psi at (t, q, v, psi) (section 3.3); N_q, N_v are None unless
+        ``partials``. One flat expression list, so that lambdify's CSE shares subexpressions
+        (it does not across nested lists); this matters at the thousands of bits of mpmath.odefun."""
+        n, m = self.n, self.m
+        ck = ("N", partials, backend.lambdify_module)
+        if ck not in self._compiled:
+            mats = [self.N, self.N_q, self.N_v, self.N_psi] if partials else [self.N, self.N_psi]
+            flat = [e for M in mats for e in M]
+            args = [self.t] + self.q + self.v + self.psi + list(self.params)
+            self._compiled[ck] = sympy.lambdify(args, flat, modules=backend.lambdify_module, cse=True)
+        pv = self._param_arg_values(backend) if self.params else ()
+        out = _arr(self._compiled[ck](t, *q, *v, *psi, *pv), backend)
+        N, rest = out[:n], out[n:]
+        if not partials:
+            return N, None, None, rest.reshape(n, m)
+        return N, rest[:n * n].reshape(n, n), rest[n * n:2 * n * n].reshape(n, n), rest[2 * n * n:].reshape(n, m)
+
+    def _add_nonideal(self, backend, st, t, q, v, lam, h, jacobians):
+        # Lambda = h Psi is the unknown: h N(Psi) with Psi = Lambda / h; d/dLambda gives N_psi
+        N, Nq, Nv, Np = self.nonideal_terms(backend, t, q, v, [x / h for x in lam])
+        st.R_lam = st.R_lam + N * h
+        if jacobians:
+            st.R_q = st.R_q + Nq * h
+            st.R_v = st.R_v + Nv * h
+            st.R_L = Np - st.k_v.T
 
     def momentum(self, backend, t, q, v):
         return _arr(self._fn("p", [self.L_v], backend)(t, *q, *v)[0], backend)[:, 0]
@@ -287,7 +340,31 @@ class LagrangianSystem:
         S[self.n:, :self.n] = kv
         rhs = np.concatenate([-Lvt[:, 0] - Lvq.dot(v) + Lq[:, 0], -kt[:, 0] - kq.dot(v)])
         sol = backend.solve(S, rhs)
+        if self.N is not None:
+            sol = self._ode_nonideal(backend, t, q, v, S, rhs, sol)
         return sol[:self.n], sol[self.n:]
+
+    def _ode_nonideal(self, backend, t, q, v, S, rhs, sol, maxiter=30):
+        """(3a) with the nonideal term: L_vv v' + K^T psi - N(t, q, v, psi) = rhs, nonlinear in
+        psi; Newton from the ideal solution on [[L_vv, K^T - N_psi], [K, 0]]."""
+        n = self.n
+        # mpmath.odefun raises the working precision beyond the backend's: converge to the current eps
+        tol = 10 * float(mpmath.mp.eps) if backend.is_mp else 10 * backend.eps
+        prev = None
+        for _ in range(maxiter):
+            N, _, _, Np = self.nonideal_terms(backend, t, q, v, sol[n:], partials=False)
+            G = S.dot(sol) - rhs
+            G[:n] = G[:n] - N
+            Sj = S.copy()
+            Sj[:n, n:] = S[:n, n:] - Np
+            dx = backend.solve(Sj, -G)
+            sol = sol + dx
+            dn = backend.norm_inf(dx)
+            if dn <= tol * (1 + backend.norm_inf(sol)) or (prev is not None and dn >= prev / 2
+                                                           and dn <= 1e3 * tol * (1 + backend.norm_inf(sol))):
+                return sol
+            prev = dn
+        raise SingularSaddleError(f"(3a) with the nonideal term: Newton for psi did not converge at t = {float(t):g}")
 
 
 def _parse_params(params):

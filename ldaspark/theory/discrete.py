@@ -96,6 +96,8 @@ class DiscreteBVP:
     """Assembly of the boundary-value system (21b-f) in the unknowns x = [V|Lambda|v1|v0]."""
 
     def __init__(self, system: LagrangianSystem, tableau: SparkTableau, dps: int | None = 40):
+        if getattr(system, "N", None) is not None:   # the BVP stages below carry no h N term
+            raise DiscreteSolveError("Theorem 1 is stated for ideal constraints; this system has a nonideal term (3.3)")
         self.system = system
         self.tableau = tableau
         self.method = SparkMethod(system, tableau, dps=dps)

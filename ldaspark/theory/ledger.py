@@ -342,7 +342,7 @@ def run_ledger(max_s=3, scenes=LEDGER_SCENES, perturbed=True, holonomic=True, co
 
 
 # extra claim groups: "module:function", each returning a list of records (see module docstring)
-CLAIM_GROUPS: tuple[str, ...] = ("ldaspark.theory.claims_paper:records",)
+CLAIM_GROUPS: tuple[str, ...] = ("ldaspark.theory.claims_general:records", "ldaspark.theory.claims_paper:records")
 
 
 def extra_records(quick=False, progress=None, groups=None):
