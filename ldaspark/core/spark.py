@@ -90,6 +90,10 @@ class SparkMethod:
         self.s, self.n, self.m = s, n, m
         # unknown layout: V (s*n) | Lambda (s*m) | v1 (n); residual rows: (21b) s*n | (21d) n | (21e) (s-1)*m | (21f) m
         self.size = s * n + s * m + n
+        # blocks whose sympy expression vanishes identically (R_v for k affine in v, L_vq for
+        # mechanical L, ...) are skipped in the Newton matrix
+        self._structural_zero = {k: bool(getattr(system, k).is_zero_matrix)
+                                 for k in ("L_vv", "L_vq", "L_qq", "k_q", "k_v", "R_q", "R_v")}
 
     # --- packing ---------------------------------------------------------------------------
     def unpack(self, x):
@@ -133,41 +137,56 @@ class SparkMethod:
         return G, J, (T, Q, q1)
 
     def _jacobian(self, h, st, fin):
+        """Newton matrix of (21b, d, e, f), assembled block by block: d X_j / d V_k =
+        delta_jk X_v(j) + h a_jk X_q(j) for every stage quantity X, and only the nonzero
+        tableau coefficients contribute (no products with identity or zero blocks, which
+        dominated the cost on object arrays)."""
         tab, bk = self.tab, self.backend
         s, n, m = self.s, self.n, self.m
         A, Ah, At, b, bh, bt = tab.A, tab.A_hat, tab.A_tilde, tab.b, tab.b_hat, tab.b_tilde
-        Lvv = np.array([e.L_vv for e in st]); Lvq = np.array([e.L_vq for e in st])
-        Lqv = np.array([e.L_qv for e in st]); Lqq = np.array([e.L_qq for e in st])
-        kq = np.array([e.k_q for e in st]); kv = np.array([e.k_v for e in st])
-        Rq = np.array([e.R_q for e in st]); Rv = np.array([e.R_v for e in st])
-        eye_s = np.eye(s, dtype=object if bk.is_mp else float)
-        # d X_j / d V_k = delta_jk X_v(j) + h a_jk X_q(j) for every stage quantity X
-        dF = np.einsum("jk,jab->jkab", eye_s, Lqv) + np.einsum("jk,jab->jkab", A, Lqq) * h
-        dR = np.einsum("jk,jab->jkab", eye_s, Rv) + np.einsum("jk,jab->jkab", A, Rq) * h
-        dP = np.einsum("ik,iab->ikab", eye_s, Lvv) + np.einsum("ik,iab->ikab", A, Lvq) * h
-        dk = np.einsum("jk,jab->jkab", eye_s, kv) + np.einsum("jk,jab->jkab", A, kq) * h
-        KT = np.transpose(kv, (0, 2, 1))                                 # (s, n, m)
+        z = self._structural_zero
+
+        def pick(name, attr):     # the stage blocks, or None where the system's expression is 0
+            return [None] * s if z[name] else [getattr(e, attr) for e in st]
+        dF = _stage_blocks(pick("L_vq", "L_qv"), pick("L_qq", "L_qq"), A, h)
+        dR = _stage_blocks(pick("R_v", "R_v"), pick("R_q", "R_q"), A, h)
+        dP = _stage_blocks(pick("L_vv", "L_vv"), pick("L_vq", "L_vq"), A, h)
+        KT = [e.k_v.T for e in st]                                       # (n, m) each
         N = self.size
         J = bk.zeros((N, N))
         r_d, r_e, r_f = s * n, s * n + n, s * n + n + (s - 1) * m
         c_lam, c_v1 = s * n, s * n + s * m
-        # (21b) rows
-        JbV = dP - np.einsum("ij,jkab->ikab", Ah, dF) * h - np.einsum("ij,jkab->ikab", At, dR)
-        J[:r_d, :c_lam] = JbV.transpose(0, 2, 1, 3).reshape(s * n, s * n)
-        JbL = np.einsum("ik,kam->ikam", At, KT)
-        J[:r_d, c_lam:c_v1] = JbL.transpose(0, 2, 1, 3).reshape(s * n, s * m)
-        # (21d) rows
-        JdV = np.einsum("k,ab->kab", b, fin.L_vq) * h - np.einsum("j,jkab->kab", bh, dF) * h \
-            - np.einsum("j,jkab->kab", bt, dR)
-        J[r_d:r_e, :c_lam] = JdV.transpose(1, 0, 2).reshape(n, s * n)
-        J[r_d:r_e, c_lam:c_v1] = np.einsum("k,kam->akm", bt, KT).reshape(n, s * m)
+        for k in range(s):
+            cV, cL = slice(k * n, (k + 1) * n), slice(c_lam + k * m, c_lam + (k + 1) * m)
+            for i in range(s):      # (21b) rows
+                blk = _combine(dP[i][k], [(Ah[i, j], dF[j][k]) for j in range(s)], h,
+                               [(At[i, j], dR[j][k]) for j in range(s)])
+                if blk is not None:
+                    J[i * n:(i + 1) * n, cV] = blk
+                if At[i, k]:
+                    J[i * n:(i + 1) * n, cL] = KT[k] * At[i, k]
+            # (21d) rows
+            blk = _combine(fin.L_vq * (b[k] * h) if b[k] else None, [(bh[j], dF[j][k]) for j in range(s)], h,
+                           [(bt[j], dR[j][k]) for j in range(s)])
+            if blk is not None:
+                J[r_d:r_e, cV] = blk
+            if bt[k]:
+                J[r_d:r_e, cL] = KT[k] * bt[k]
+            # (21e) rows: sum_j omega_lj d k_j / d V_k
+            if s > 1:
+                dk = _stage_blocks(pick("k_v", "k_v"), pick("k_q", "k_q"), A, h, col=k)
+                for l in range(s - 1):
+                    blk = None
+                    for j in range(s):
+                        if tab.omega[l, j] and dk[j] is not None:
+                            t = dk[j] * tab.omega[l, j]
+                            blk = t if blk is None else blk + t
+                    if blk is not None:
+                        J[r_e + l * m:r_e + (l + 1) * m, cV] = blk
+            # (21f) rows
+            if b[k]:
+                J[r_f:, cV] = fin.k_q * (b[k] * h)
         J[r_d:r_e, c_v1:] = fin.L_vv
-        # (21e) rows
-        if s > 1:
-            JeV = np.einsum("lj,jkab->lkab", tab.omega, dk)
-            J[r_e:r_f, :c_lam] = JeV.transpose(0, 2, 1, 3).reshape((s - 1) * m, s * n)
-        # (21f) rows
-        J[r_f:, :c_lam] = (np.einsum("k,ab->akb", b, fin.k_q) * h).reshape(m, s * n)
         J[r_f:, c_v1:] = fin.k_v
         return J
 
@@ -236,6 +255,38 @@ class SparkMethod:
         st.iterations_per_step.append(it)
         st.max_residual = max(st.max_residual, res)
         return StepResult(t0 + h, q1, v1.copy(), V.copy(), Q, Lam / h, it, res, x)
+
+
+def _stage_blocks(Xv, Xq, A, h, col=None):
+    """D[j][k] = delta_jk Xv[j] + h a_jk Xq[j] (None where both vanish); with ``col`` only
+    the column k = col, as a list over j."""
+    s = len(Xv)
+
+    def one(j, k):
+        blk = Xv[j] if j == k else None
+        if A[j, k] and Xq[j] is not None:
+            t = Xq[j] * (A[j, k] * h)
+            blk = t if blk is None else blk + t
+        return blk
+    if col is not None:
+        return [one(j, col) for j in range(s)]
+    return [[one(j, k) for k in range(s)] for j in range(s)]
+
+
+def _combine(first, terms_h, h, terms):
+    """first - h sum_j c_j X_j - sum_j d_j Y_j over the nonzero coefficients and blocks
+    (None if everything vanishes); ``first`` may be None."""
+    acc = None
+    for c, X in terms_h:
+        if c and X is not None:
+            acc = X * c if acc is None else acc + X * c
+    out = None if acc is None else -(acc * h)
+    for c, Y in terms:
+        if c and Y is not None:
+            out = -(Y * c) if out is None else out - Y * c
+    if first is None:
+        return out
+    return first if out is None else first + out
 
 
 @dataclass

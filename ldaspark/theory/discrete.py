@@ -426,7 +426,7 @@ def _solve_and_differentiate(bvp, t0, q0, t1, q1, x, gauge_ref=None, gauge=None)
         fac = bk.factor(B)
     except SingularMatrixError as exc:
         raise DiscreteSolveError(f"sensitivity system singular ({cls}): {exc}") from None
-    dx = np.array([bk.solve_factored(fac, rhs[:, k]) for k in range(2 * bvp.n)]).T   # (N+r, 2n)
+    dx = bk.solve_factored(fac, rhs)                  # (N+r, 2n)
     if gauge_used is not None and bk.is_mp:
         # exact left null vectors at working precision: B^T [w; 0] = [0; e_k] (J^T w = 0)
         BT = bk.factor(np.ascontiguousarray(B.T))
