@@ -35,7 +35,7 @@ def _add_integrate(sub):
     p.add_argument("--dps", type=int, default=None, help="mpmath digits (default: float64)")
     p.add_argument("--ic", type=int, default=None, help="initial condition j (mp-particles)")
     p.add_argument("--tableau", default=None, help="tableau JSON file for METHOD custom")
-    p.add_argument("--newton", choices=("full", "simplified"), default="full")
+    p.add_argument("--newton", choices=("full", "simplified", "auto"), default="full")
     p.add_argument("--project", action="store_true", help="project v0 onto k = 0 instead of failing")
     p.add_argument("--out", required=True, help="output JSON file (written atomically)")
     p.set_defaults(func=_run_integrate)

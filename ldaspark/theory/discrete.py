@@ -379,7 +379,7 @@ def _as_backend(bk, v):
 def base_point(system, tableau, t0, q0, v0, h, dps=40):
     """One IVP step of (21) from (t0, q0, v0): returns (t1, q1, x_guess) in the BVP layout
     (the BVP solution at (t0, q0, t1, q1) up to the Newton tolerance)."""
-    meth = SparkMethod(system, tableau, dps=dps)
+    meth = SparkMethod(system, tableau, dps=dps, newton="full")   # the reference step of the checks
     bk = meth.backend
     with bk.context():
         t0 = bk.scalar(t0)

@@ -218,7 +218,7 @@ def constraint_residuals(scene, tab, n_steps=5, dps=None):
     t0, q0, v0 = perturbed_initial(scene, dps or 30)
     if dps is None:
         t0, q0, v0 = float(t0), [float(x) for x in q0], [float(x) for x in v0]
-    sol = integrate(scene.system, tab, t0, q0, v0, H if dps else float(H), n_steps=n_steps, dps=dps)
+    sol = integrate(scene.system, tab, t0, q0, v0, H if dps else float(H), n_steps=n_steps, dps=dps, newton="full")
     bk = Backend(dps)
     with bk.context():
         h = bk.scalar(H)
