@@ -142,11 +142,14 @@ class SparkMethod:
         return G, J, (T, Q, q1)
 
     def _jacobian(self, h, st, fin):
-        """Newton matrix of (21b, d, e, f), assembled block by block: d X_j / d V_k =
-        delta_jk X_v(j) + h a_jk X_q(j) for every stage quantity X, and only the nonzero
-        tableau coefficients contribute (no products with identity or zero blocks, which
-        dominated the cost on object arrays)."""
+        """Newton matrix of (21b, d, e, f). In mpmath it is assembled block by block:
+        d X_j / d V_k = delta_jk X_v(j) + h a_jk X_q(j) for every stage quantity X, and only
+        the nonzero tableau coefficients and the blocks whose expressions are not identically
+        zero contribute (einsum over identity blocks on object arrays multiplied by zeros and
+        ones: 2-3x the cost at dps 30-50). float64: ``_jacobian_f64``."""
         tab, bk = self.tab, self.backend
+        if not bk.is_mp:
+            return self._jacobian_f64(h, st, fin)
         s, n, m = self.s, self.n, self.m
         A, Ah, At, b, bh, bt = tab.A, tab.A_hat, tab.A_tilde, tab.b, tab.b_hat, tab.b_tilde
         z = self._structural_zero
@@ -192,6 +195,42 @@ class SparkMethod:
             if b[k]:
                 J[r_f:, cV] = fin.k_q * (b[k] * h)
         J[r_d:r_e, c_v1:] = fin.L_vv
+        J[r_f:, c_v1:] = fin.k_v
+        return J
+
+    def _jacobian_f64(self, h, st, fin):
+        """The same matrix in float64, by einsum over the stacked stage blocks (identity
+        included): numpy's call count, not flops, is the cost there, and this measured
+        1.5x faster than the block loop (70 vs 107 us on the robot, gauss-2)."""
+        tab = self.tab
+        s, n, m = self.s, self.n, self.m
+        A, Ah, At, b, bh, bt = tab.A, tab.A_hat, tab.A_tilde, tab.b, tab.b_hat, tab.b_tilde
+        Lvv = np.array([e.L_vv for e in st]); Lvq = np.array([e.L_vq for e in st])
+        Lqv = np.array([e.L_qv for e in st]); Lqq = np.array([e.L_qq for e in st])
+        kq = np.array([e.k_q for e in st]); kv = np.array([e.k_v for e in st])
+        Rq = np.array([e.R_q for e in st]); Rv = np.array([e.R_v for e in st])
+        eye_s = np.eye(s)
+        dF = np.einsum("jk,jab->jkab", eye_s, Lqv) + np.einsum("jk,jab->jkab", A, Lqq) * h
+        dR = np.einsum("jk,jab->jkab", eye_s, Rv) + np.einsum("jk,jab->jkab", A, Rq) * h
+        dP = np.einsum("ik,iab->ikab", eye_s, Lvv) + np.einsum("ik,iab->ikab", A, Lvq) * h
+        dk = np.einsum("jk,jab->jkab", eye_s, kv) + np.einsum("jk,jab->jkab", A, kq) * h
+        KT = np.transpose(kv, (0, 2, 1))                                 # (s, n, m)
+        N = self.size
+        J = np.zeros((N, N))
+        r_d, r_e, r_f = s * n, s * n + n, s * n + n + (s - 1) * m
+        c_lam, c_v1 = s * n, s * n + s * m
+        JbV = dP - np.einsum("ij,jkab->ikab", Ah, dF) * h - np.einsum("ij,jkab->ikab", At, dR)
+        J[:r_d, :c_lam] = JbV.transpose(0, 2, 1, 3).reshape(s * n, s * n)
+        J[:r_d, c_lam:c_v1] = np.einsum("ik,kam->ikam", At, KT).transpose(0, 2, 1, 3).reshape(s * n, s * m)
+        JdV = np.einsum("k,ab->kab", b, fin.L_vq) * h - np.einsum("j,jkab->kab", bh, dF) * h \
+            - np.einsum("j,jkab->kab", bt, dR)
+        J[r_d:r_e, :c_lam] = JdV.transpose(1, 0, 2).reshape(n, s * n)
+        J[r_d:r_e, c_lam:c_v1] = np.einsum("k,kam->akm", bt, KT).reshape(n, s * m)
+        J[r_d:r_e, c_v1:] = fin.L_vv
+        if s > 1:
+            JeV = np.einsum("lj,jkab->lkab", tab.omega, dk)
+            J[r_e:r_f, :c_lam] = JeV.transpose(0, 2, 1, 3).reshape((s - 1) * m, s * n)
+        J[r_f:, :c_lam] = (np.einsum("k,ab->akb", b, fin.k_q) * h).reshape(m, s * n)
         J[r_f:, c_v1:] = fin.k_v
         return J
 
