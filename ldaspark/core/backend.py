@@ -23,6 +23,7 @@ except ImportError:  # pragma: no cover - the pure-mpmath path below is complete
 #: use python-flint for mpmath-precision linear solves when it is installed (set False to force
 #: the pure-mpmath LU, e.g. to compare the two; ``benchmarks/ledger_speed.py`` does)
 USE_FLINT = _flint is not None
+GUARD_BITS = 32
 
 
 class SingularMatrixError(LdasparkError):
@@ -216,18 +217,23 @@ def _flint_factor(J):
     with _flint.ctx.workprec(prec):
         A = _flint.arb_mat([[_to_arb(v) for v in row] for row in J.tolist()])
         try:
-            inv = A.inv()
+            A.inv()                  # the decision: certified nonsingular at the working precision
         except (ZeroDivisionError, ValueError):
             return None
-        return ("flint", inv.mid(), prec)
+    with _flint.ctx.workprec(prec + GUARD_BITS):
+        # the inverse used by the solves, 32 bits more accurate than an LU at the working
+        # precision would be: the solutions' round-off is then that of the rounded right-hand side
+        inv = A.solve(_flint.arb_mat(A.nrows(), A.nrows(), [int(i == j) for i in range(A.nrows())
+                                                            for j in range(A.nrows())]), algorithm="approx")
+    return ("flint", inv, prec)
 
 
 def _flint_solve(fac, r):
-    """x = J^-1 r with the stored inverse, the product in arb at 32 guard bits."""
+    """x = J^-1 r with the stored inverse, the product in arb at GUARD_BITS more bits."""
     _, inv, prec = fac
     r = np.asarray(r)
     cols = r.reshape(r.shape[0], -1)
-    with _flint.ctx.workprec(prec + 32):
+    with _flint.ctx.workprec(prec + GUARD_BITS):
         R = _flint.arb_mat([[_to_arb(v) for v in row] for row in cols.tolist()])
         X = inv * R
     out = np.empty(cols.shape, dtype=object)
