@@ -70,8 +70,8 @@ class SparkMethod:
     newton : "full" (default: Jacobian every iteration), "simplified" (one Jacobian per step)
         or "auto" (simplified Newton; at the first increment that does not contract by 1/4 the
         increment is discarded and the step continues as full Newton). "auto" gives the same q
-        as "full" to round-off on the named scenes at 1.3-2x less cost per step
-        (``benchmarks/ledger_speed.py``), but not near the limit of (4), where round-off
+        as "full" to round-off on the named scenes at 1.4-3x less cost per step at 30-50 digits
+        (float64: 0.9-1.5x, within the noise; ``benchmarks/ledger_speed.py``), but not near the limit of (4), where round-off
         decides the branch (tests/test_extremes.py), so it is not the default.
     max_iter : Newton iteration cap before NewtonError.
     """
