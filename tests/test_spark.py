@@ -77,11 +77,15 @@ def test_mpmath_constraint_at_working_precision():
 def test_newton_counters_and_simplified_newton():
     sc = get_scene("particle")
     t0, q0, v0 = sc.initial()
-    full = integrate(sc.system, gauss(3), t0, q0, v0, 0.1, n_steps=20)
+    full = integrate(sc.system, gauss(3), t0, q0, v0, 0.1, n_steps=20, newton="full")
     simp = integrate(sc.system, gauss(3), t0, q0, v0, 0.1, n_steps=20, newton="simplified")
+    auto = integrate(sc.system, gauss(3), t0, q0, v0, 0.1, n_steps=20, newton="auto")
     assert np.abs(full.q - simp.q).max() < 1e-12
     assert simp.stats["nlu"] == 20 and full.stats["nlu"] == full.stats["newton_iterations"]
     assert simp.stats["newton_iterations"] >= full.stats["newton_iterations"]
+    # simplified Newton, switching to full on slow contraction: same q, fewer LUs
+    assert np.abs(full.q - auto.q).max() < 1e-12
+    assert 20 <= auto.stats["nlu"] < full.stats["nlu"]
 
 
 def test_general_lagrangian_time_dependent_nonquadratic():

@@ -15,6 +15,16 @@ import scipy.linalg
 
 from .errors import LdasparkError
 
+try:  # arb (via python-flint) for the high-precision LU: 10-40x faster than pure-Python mpmath
+    import flint as _flint
+except ImportError:  # pragma: no cover - the pure-mpmath path below is complete on its own
+    _flint = None
+
+#: use python-flint for mpmath-precision linear solves when it is installed (set False to force
+#: the pure-mpmath LU, e.g. to compare the two; ``benchmarks/ledger_speed.py`` does)
+USE_FLINT = _flint is not None
+GUARD_BITS = 32
+
 
 class SingularMatrixError(LdasparkError):
     """A linear system of the Newton iteration is (numerically) singular."""
@@ -85,6 +95,10 @@ class Backend:
         (simplified Newton). The mpmath branch works on plain lists of mpf: mpmath.matrix
         indexing costs more than the arithmetic at these sizes."""
         if self.is_mp:
+            if USE_FLINT:
+                fac = _flint_factor(J)
+                if fac is not None:
+                    return fac
             return ("mp",) + _mp_lu(J)
         if not np.all(np.isfinite(J)):
             raise SingularMatrixError("Newton matrix has non-finite entries")
@@ -98,7 +112,13 @@ class Backend:
         return ("np", lu, piv)
 
     def solve_factored(self, fac, r) -> np.ndarray:
+        """Solve with a factorisation from ``factor``; ``r`` a vector or an (N, k) matrix."""
+        if fac[0] == "flint":
+            return _flint_solve(fac, r)
         if fac[0] == "mp":
+            r = np.asarray(r)
+            if r.ndim == 2:
+                return np.array([_mp_lu_solve(fac[1], fac[2], r[:, k]) for k in range(r.shape[1])]).T
             return _mp_lu_solve(fac[1], fac[2], r)
         return scipy.linalg.lu_solve(fac[1:], r, check_finite=False)
 
@@ -108,6 +128,10 @@ class Backend:
     def singular_values(self, J) -> np.ndarray:
         """Singular values, largest first (float64 or mpf)."""
         if self.is_mp:
+            if USE_FLINT:
+                sv = _flint_singular_values(J)
+                if sv is not None:
+                    return sv
             S = mpmath.svd_r(mpmath.matrix(J.tolist()), compute_uv=False)
             return np.array(sorted((S[i] for i in range(S.rows)), reverse=True), dtype=object)
         return scipy.linalg.svdvals(J)
@@ -164,3 +188,96 @@ def _mp_lu_solve(a, perm, r):
             acc -= row[j] * y[j]
         y[i] = acc / row[i]
     return np.array(y, dtype=object)
+
+
+# --- python-flint (arb) path --------------------------------------------------------------------
+def _to_arb(v):
+    """Exact conversion mpf -> arb (midpoint man * 2^exp, radius 0)."""
+    if not isinstance(v, mpmath.mpf):
+        v = mpmath.mpf(v)
+    sign, man, exp, _ = v._mpf_
+    if not man and exp:          # inf / nan have zero mantissa and a nonzero exponent code
+        raise SingularMatrixError("Newton matrix has non-finite entries")
+    return _flint.arb((-man if sign else man, exp))
+
+
+def _from_arb(a):
+    """Midpoint of an arb ball as an mpf (rounded to the current mpmath precision)."""
+    m, e = a.mid().man_exp()
+    return mpmath.mpf((int(m), int(e)))
+
+
+def _flint_factor(J):
+    """Inverse of J at the working precision with arb's rigorous solver; its midpoint is the
+    factorisation reused by ``_flint_solve`` (simplified Newton applies it many times). None
+    when arb cannot certify J nonsingular at this precision: then the pure-mpmath LU decides
+    (it raises SingularMatrixError on a pivot below the precision, as before), so flint never
+    accepts a matrix the mpmath path would reject."""
+    prec = mpmath.mp.prec
+    with _flint.ctx.workprec(prec):
+        A = _flint.arb_mat([[_to_arb(v) for v in row] for row in J.tolist()])
+        try:
+            A.inv()                  # the decision: certified nonsingular at the working precision
+        except (ZeroDivisionError, ValueError):
+            return None
+    with _flint.ctx.workprec(prec + GUARD_BITS):
+        # the inverse used by the solves, 32 bits more accurate than an LU at the working
+        # precision would be: the solutions' round-off is then that of the rounded right-hand side
+        inv = A.solve(_flint.arb_mat(A.nrows(), A.nrows(), [int(i == j) for i in range(A.nrows())
+                                                            for j in range(A.nrows())]), algorithm="approx")
+    return ("flint", inv, prec)
+
+
+def _flint_solve(fac, r):
+    """x = J^-1 r with the stored inverse, the product in arb at GUARD_BITS more bits."""
+    _, inv, prec = fac
+    r = np.asarray(r)
+    cols = r.reshape(r.shape[0], -1)
+    with _flint.ctx.workprec(prec + GUARD_BITS):
+        R = _flint.arb_mat([[_to_arb(v) for v in row] for row in cols.tolist()])
+        X = inv * R
+    out = np.empty(cols.shape, dtype=object)
+    for i in range(cols.shape[0]):
+        for k in range(cols.shape[1]):
+            out[i, k] = _from_arb(X[i, k])
+    return out.reshape(r.shape)
+
+
+def _flint_singular_values(J):
+    """Singular values of J (largest first) as square roots of the eigenvalues of G = J^T J,
+    formed exactly from the rounded J and diagonalised by arb's approximate QR at twice the
+    working precision plus 64 bits, so that the eigenvalues' absolute error (~2^-2p
+    sigma_max^2) resolves sigma down to ~2^-p sigma_max, as the mpmath SVD at precision p does;
+    about 10x faster than ``mpmath.svd_r``. Values at the precision floor (structural zeros)
+    are noise of that size, as with mpmath.
+
+    The QR has no error bound and can fail silently on clustered eigenvalues, so the result is
+    accepted only if every eigenpair has a small residual |G r - lambda r| (then each lambda
+    lies within it of an eigenvalue of the symmetric G) and the eigenvalues reproduce trace(G)
+    and |G|_F^2 (no eigenvalue lost or duplicated); otherwise None and the caller uses mpmath."""
+    prec = mpmath.mp.prec
+    N = J.shape[1]
+    with _flint.ctx.workprec(2 * prec + 64):
+        A = _flint.arb_mat([[_to_arb(v) for v in row] for row in J.tolist()])
+        G = (A.transpose() * A).mid()
+        try:
+            E, R = _flint.acb_mat(G).eig(right=True, algorithm="approx")
+        except (ValueError, ZeroDivisionError, NotImplementedError):
+            return None
+        Gc = _flint.acb_mat(G)
+        GR = Gc * R
+        gmax = max(abs(G[i, j]).mid() for i in range(N) for j in range(N))
+        tol = gmax * N * _flint.arb(2) ** (-2 * prec)
+        for k in range(N):
+            rn = max(abs(R[i, k]).mid() for i in range(N))
+            res = max(abs(GR[i, k] - E[k] * R[i, k]).mid() for i in range(N))
+            if not (rn > 0 and res <= tol * rn):
+                return None
+        ev = [e.real.mid() for e in E]
+        tr = sum((G[i, i] for i in range(N)), _flint.arb(0))
+        fro = sum((G[i, j] ** 2 for i in range(N) for j in range(N)), _flint.arb(0))
+        if not (abs(sum(ev, _flint.arb(0)) - tr).mid() <= N * tol
+                and abs(sum((x * x for x in ev), _flint.arb(0)) - fro).mid() <= N * tol * gmax * N):
+            return None
+        sv = [_from_arb(abs(x).sqrt()) for x in ev]
+    return np.array(sorted(sv, reverse=True), dtype=object)

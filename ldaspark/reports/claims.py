@@ -77,13 +77,13 @@ def _progress(i, n, m, s):
     print(f"  [{i}/{n}] {m} on {s}", file=sys.stderr, flush=True)
 
 
-def run_verify(outdir=REPORT_DIR, quick=False, json_path=None, command="ldaspark verify"):
+def run_verify(outdir=REPORT_DIR, quick=False, json_path=None, command="ldaspark verify", jobs=None):
     t = time.time()
     if quick:
         recs = run_ledger(max_s=2, scenes=("particle", "skate"), perturbed=False, holonomic=False,
-                          progress=_progress)
+                          progress=_progress, jobs=jobs)
     else:
-        recs = run_ledger(max_s=3, progress=_progress)
+        recs = run_ledger(max_s=3, progress=_progress, jobs=jobs)
     recs += extra_records(quick=quick, progress=_progress)
     sec = time.time() - t
     os.makedirs(outdir, exist_ok=True)
@@ -96,11 +96,14 @@ def add_arguments(p):
     p.add_argument("--quick", action="store_true", help="s <= 2, scenes particle and skate, base points only")
     p.add_argument("--json", default=None, help="write the JSON records here (default reports/claims.json)")
     p.add_argument("--outdir", default=REPORT_DIR, help="directory for claims.md (default reports)")
+    p.add_argument("--jobs", type=int, default=None,
+                   help="worker processes for the ledger (default $LDASPARK_JOBS or the CPU count; "
+                        "the records do not depend on it)")
 
 
 def run(args) -> int:
     cmd = "ldaspark verify" + (" --quick" if args.quick else "")
-    recs = run_verify(args.outdir, args.quick, args.json, cmd)
+    recs = run_verify(args.outdir, args.quick, args.json, cmd, getattr(args, "jobs", None))
     n = summarize(recs)
     print(f"{len(recs)} records, {n} with an outcome other than the paper predicts (findings, listed in "
           f"{os.path.join(args.outdir, 'claims.md')})")

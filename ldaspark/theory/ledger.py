@@ -16,8 +16,11 @@ symmetry <= 1e-25 at 40 digits; constraint <= 1e3 eps (1 + |v|); negative contro
 """
 from __future__ import annotations
 
-import math
+import concurrent.futures
 import importlib
+import math
+import multiprocessing
+import os
 import time
 
 import mpmath
@@ -215,7 +218,7 @@ def constraint_residuals(scene, tab, n_steps=5, dps=None):
     t0, q0, v0 = perturbed_initial(scene, dps or 30)
     if dps is None:
         t0, q0, v0 = float(t0), [float(x) for x in q0], [float(x) for x in v0]
-    sol = integrate(scene.system, tab, t0, q0, v0, H if dps else float(H), n_steps=n_steps, dps=dps)
+    sol = integrate(scene.system, tab, t0, q0, v0, H if dps else float(H), n_steps=n_steps, dps=dps, newton="full")
     bk = Backend(dps)
     with bk.context():
         h = bk.scalar(H)
@@ -292,53 +295,122 @@ def holonomic_records(tab, expected):
 LEDGER_SCENES = tuple(PAPER_SCENES) + ("mp-particles-nh",)
 
 
-def run_ledger(max_s=3, scenes=LEDGER_SCENES, perturbed=True, holonomic=True, controls=True,
-               progress=None):
+def _ledger_tabs(max_s, controls):
+    """[(tableau, control expectations or None)] in ledger order (rebuilt in each worker)."""
+    tabs = [(get_method(n, exact=True), None) for n in builtin_method_names(max_s)]
+    return tabs + negative_controls() if controls else tabs
+
+
+def _expectations(tab, control):
+    """(expected statuses of (22a), (22b), (23); expected Theorem 1 statuses)."""
+    c0, c1 = proof_conditions(tab)
+    exp_ex = {"22a": "pass" if check_22a(tab) else "fail", "22b": "pass" if check_22b(tab) else "fail"}
+    if control is not None:
+        exp_ex = dict(control)      # what the construction intends, not what was measured
+    exp_ex["23"] = "pass" if check_23(tab) else "fail"
+    return exp_ex, {"theorem1-q0": "pass" if c0 else "fail", "theorem1-q1": "pass" if c1 else "fail"}
+
+
+def _tab_records(tab, control, holonomic):
+    """The per-tableau records: exact conditions and section 5.1."""
+    exp_ex, _ = _expectations(tab, control)
+    records = exact_condition_records(tab, exp_ex)
+    if holonomic and control is None:
+        records += holonomic_records(tab, "pass")
+    return records
+
+
+def _scene_records(tab, control, scn, perturbed):
+    """All records of one tableau on one scene (ledger order)."""
+    exp_ex, exp_t1 = _expectations(tab, control)
+    exp23 = exp_ex["23"]
     records = []
-    names = builtin_method_names(max_s)
-    tabs = [(get_method(n, exact=True), None) for n in names]
-    if controls:
-        tabs += negative_controls()
-    total = len(tabs) * len(scenes)
-    done = 0
-    for tab, control in tabs:
-        c0, c1 = proof_conditions(tab)
-        exp_ex = {"22a": "pass" if check_22a(tab) else "fail", "22b": "pass" if check_22b(tab) else "fail"}
-        if control is not None:
-            exp_ex = dict(control)      # what the construction intends, not what was measured
-        h23 = check_23(tab)
-        exp_ex["23"] = "pass" if h23 else "fail"
-        exp23 = exp_ex["23"]
-        exp_t1 = {"theorem1-q0": "pass" if c0 else "fail", "theorem1-q1": "pass" if c1 else "fail"}
-        records += exact_condition_records(tab, exp_ex)
-        if holonomic and control is None:
-            records += holonomic_records(tab, "pass")
-        for scn in scenes:
-            scene = get_scene(scn)
-            t0, q0, v0 = scene.initial(60)
-            tp, qp, vp = perturbed_initial(scene, 60)
-            wrec, cls = wellposed_records(scene, tab, t0, q0, v0, "base")
-            records += wrec
-            if perturbed:   # the base data can be special (at rest, cyclic angle 0): also a generic point
-                records += wellposed_records(scene, tab, tp, qp, vp, "perturbed-ivp")[0]
-            recs, _ = theorem1_records(scene, tab, exp_t1, "base", t0, q0, v0)
+    scene = get_scene(scn)
+    t0, q0, v0 = scene.initial(60)
+    tp, qp, vp = perturbed_initial(scene, 60)
+    wrec, cls = wellposed_records(scene, tab, t0, q0, v0, "base")
+    records += wrec
+    if perturbed:   # the base data can be special (at rest, cyclic angle 0): also a generic point
+        records += wellposed_records(scene, tab, tp, qp, vp, "perturbed-ivp")[0]
+    recs, _ = theorem1_records(scene, tab, exp_t1, "base", t0, q0, v0)
+    records += recs
+    if perturbed and control is None:
+        recs, r = theorem1_records(scene, tab, exp_t1, "perturbed-ivp", tp, qp, vp)
+        records += recs
+        if r is not None and r["wellposed"] == WELLPOSED:
+            shift = [mpmath.mpf(1) / 10000 * (-1) ** k for k in range(len(q0))]  # 1e-3 is too far: Newton diverges
+            recs, _ = theorem1_records(scene, tab, exp_t1, "q1-off-C_d", tp, qp, vp, q1_shift=shift)
             records += recs
-            if perturbed and control is None:
-                recs, r = theorem1_records(scene, tab, exp_t1, "perturbed-ivp", tp, qp, vp)
-                records += recs
-                if r is not None and r["wellposed"] == WELLPOSED:
-                    shift = [mpmath.mpf(1) / 10000 * (-1) ** k for k in range(len(q0))]  # 1e-3 is too far: Newton diverges
-                    recs, _ = theorem1_records(scene, tab, exp_t1, "q1-off-C_d", tp, qp, vp, q1_shift=shift)
-                    records += recs
-            if control is None:
-                if perturbed:
-                    records += symmetry_records(scene, tab, exp23, t0, q0, v0, "base", cls)
-                records += symmetry_records(scene, tab, exp23, tp, qp, vp, "perturbed-ivp", cls)
-                records += constraint_records(scene, tab)
+    if control is None:
+        if perturbed:
+            records += symmetry_records(scene, tab, exp23, t0, q0, v0, "base", cls)
+        records += symmetry_records(scene, tab, exp23, tp, qp, vp, "perturbed-ivp", cls)
+        records += constraint_records(scene, tab)
+    return records
+
+
+_WORKER_TABS = {}
+
+
+def _ledger_task(max_s, controls, holonomic, perturbed, i, scn):
+    """One unit of work (picklable arguments): tableau i's own records (scn None) or its
+    records on scene scn."""
+    key = (max_s, controls)
+    if key not in _WORKER_TABS:
+        _WORKER_TABS[key] = _ledger_tabs(max_s, controls)
+    tab, control = _WORKER_TABS[key][i]
+    if scn is None:
+        return _tab_records(tab, control, holonomic)
+    return _scene_records(tab, control, scn, perturbed)
+
+
+def ledger_jobs(jobs=None):
+    """Worker processes for the ledger: ``jobs``, else $LDASPARK_JOBS, else the CPU count."""
+    if jobs is None:
+        env = os.environ.get("LDASPARK_JOBS", "")
+        jobs = int(env) if env.strip().isdigit() else (os.cpu_count() or 1)
+    return max(1, int(jobs))
+
+
+def run_ledger(max_s=3, scenes=LEDGER_SCENES, perturbed=True, holonomic=True, controls=True,
+               progress=None, jobs=None):
+    """All records, in the same order for any ``jobs``: the (tableau, scene) units run in
+    ``ledger_jobs(jobs)`` worker processes (1: in this process), each unit's records
+    computed independently of the others, so the output does not depend on the schedule."""
+    n_tabs = len(_ledger_tabs(max_s, controls))
+    units = []
+    for i in range(n_tabs):
+        units.append((i, None))
+        units += [(i, scn) for scn in scenes]
+    total = n_tabs * len(scenes)
+    names = [t.name for t, _ in _ledger_tabs(max_s, controls)]
+    results = {}
+    done = 0
+
+    def finished(u, recs):
+        nonlocal done
+        results[u] = recs
+        if u[1] is not None:
             done += 1
             if progress:
-                progress(done, total, tab.name, scn)
-    return records
+                progress(done, total, names[u[0]], u[1])
+    jobs = min(ledger_jobs(jobs), len(units))
+    if jobs == 1:
+        for u in units:
+            finished(u, _ledger_task(max_s, controls, holonomic, perturbed, *u))
+    else:
+        # the most expensive units first (the particle chains), so the pool drains evenly
+        order = sorted(units, key=lambda u: (u[1] is None, -_UNIT_COST.get(u[1], 1)))
+        ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else None)
+        with concurrent.futures.ProcessPoolExecutor(jobs, mp_context=ctx) as ex:
+            futs = {ex.submit(_ledger_task, max_s, controls, holonomic, perturbed, *u): u for u in order}
+            for f in concurrent.futures.as_completed(futs):
+                finished(futs[f], f.result())
+    return [r for u in units for r in results[u]]
+
+
+# relative cost of a scene's unit (scheduling only; measured on the full ledger)
+_UNIT_COST = {"mp-particles": 10, "mp-particles-nh": 7, "robot": 3, "particle": 1, "skate": 1}
 
 
 # extra claim groups: "module:function", each returning a list of records (see module docstring)

@@ -50,7 +50,7 @@ def check_symmetry(system, tableau, t0, q0, v0, h, dps=40):
         full_p = bk.norm_inf(fwd.f_d_minus + rev.f_d_plus) / sc_full
         full_m = bk.norm_inf(fwd.f_d_plus + rev.f_d_minus) / sc_full
         # Phi_{-h} o Phi_h
-        meth = SparkMethod(system, tableau, dps=dps)
+        meth = SparkMethod(system, tableau, dps=dps, newton="full")
         hh = bk.scalar(h)
         r1 = meth.step(t0_, q0_, v0_, hh)
         r2 = meth.step(r1.t1, r1.q1, r1.v1, -hh)

@@ -1,0 +1,168 @@
+"""High precision at speed: the claims ledger and the generic path's step, before and after.
+
+Prints, in one run (CPU seconds from ``time.process_time``, so other jobs on the machine
+inflate them less than wall time; every ratio is measured side by side):
+
+1. LU solves at 30/50/100 digits: python-flint (arb) inverse + product vs the pure-mpmath LU
+   (``ldaspark.core.backend``), 20x20 and 40x40, and the agreement of the two solutions.
+2. The generic SPARK step (robot, gauss-2; MP particles, lobatto-iiia-iiib-3) at float64 /
+   dps 30 / dps 50: the previous assembly (einsum over identity blocks, kept below as
+   ``_einsum_jacobian``, with the pure-mpmath LU) against the block assembly with the arb LU,
+   full Newton in both; and newton="auto" against "full", with max |q_auto - q_full|.
+3. The claims ledger: a representative subset (``--ledger subset``, default: every method with
+   s <= 2 on the particle and the robot, ~1/10 of the full ledger) or the full ledger
+   (``--ledger full``, what ``ldaspark verify`` runs), wall and CPU seconds (workers included),
+   against the full-ledger baseline measured before these changes (``BEFORE``).
+
+    python benchmarks/ledger_speed.py [--ledger subset|full|none] [--jobs N] [--steps 20]
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import sys
+import time
+
+import mpmath
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+
+from ldaspark.core import backend as B                      # noqa: E402
+from ldaspark.core.families import get_method               # noqa: E402
+from ldaspark.core.scenes import get_scene                  # noqa: E402
+from ldaspark.core.spark import SparkMethod, integrate      # noqa: E402
+
+# the full ledger (ldaspark verify, 936 records) before these changes, same code as commit 87cb774:
+# 192 s wall on an idle machine (reports/claims.md of that commit); 386 s CPU / 2421 s wall
+# measured on 2026-12-01 on the shared 2-core machine at load 8-12 (docs/performance.md)
+BEFORE = {"idle_wall": 192.0, "loaded_cpu": 386.5, "loaded_wall": 2421.0}
+
+
+def cpu():
+    """CPU seconds of this process and its finished children (ledger workers)."""
+    s, c = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return s.ru_utime + s.ru_stime + c.ru_utime + c.ru_stime
+
+
+def _einsum_jacobian(self, h, st, fin):
+    """The Newton matrix as assembled before (einsum over identity blocks), for comparison."""
+    tab, bk = self.tab, self.backend
+    s, n, m = self.s, self.n, self.m
+    A, Ah, At, b, bh, bt = tab.A, tab.A_hat, tab.A_tilde, tab.b, tab.b_hat, tab.b_tilde
+    Lvv = np.array([e.L_vv for e in st]); Lvq = np.array([e.L_vq for e in st])
+    Lqv = np.array([e.L_qv for e in st]); Lqq = np.array([e.L_qq for e in st])
+    kq = np.array([e.k_q for e in st]); kv = np.array([e.k_v for e in st])
+    Rq = np.array([e.R_q for e in st]); Rv = np.array([e.R_v for e in st])
+    eye_s = np.eye(s, dtype=object if bk.is_mp else float)
+    dF = np.einsum("jk,jab->jkab", eye_s, Lqv) + np.einsum("jk,jab->jkab", A, Lqq) * h
+    dR = np.einsum("jk,jab->jkab", eye_s, Rv) + np.einsum("jk,jab->jkab", A, Rq) * h
+    dP = np.einsum("ik,iab->ikab", eye_s, Lvv) + np.einsum("ik,iab->ikab", A, Lvq) * h
+    dk = np.einsum("jk,jab->jkab", eye_s, kv) + np.einsum("jk,jab->jkab", A, kq) * h
+    KT = np.transpose(kv, (0, 2, 1))
+    J = bk.zeros((self.size, self.size))
+    r_d, r_e, r_f = s * n, s * n + n, s * n + n + (s - 1) * m
+    c_lam, c_v1 = s * n, s * n + s * m
+    JbV = dP - np.einsum("ij,jkab->ikab", Ah, dF) * h - np.einsum("ij,jkab->ikab", At, dR)
+    J[:r_d, :c_lam] = JbV.transpose(0, 2, 1, 3).reshape(s * n, s * n)
+    J[:r_d, c_lam:c_v1] = np.einsum("ik,kam->ikam", At, KT).transpose(0, 2, 1, 3).reshape(s * n, s * m)
+    JdV = np.einsum("k,ab->kab", b, fin.L_vq) * h - np.einsum("j,jkab->kab", bh, dF) * h \
+        - np.einsum("j,jkab->kab", bt, dR)
+    J[r_d:r_e, :c_lam] = JdV.transpose(1, 0, 2).reshape(n, s * n)
+    J[r_d:r_e, c_lam:c_v1] = np.einsum("k,kam->akm", bt, KT).reshape(n, s * m)
+    J[r_d:r_e, c_v1:] = fin.L_vv
+    if s > 1:
+        J[r_e:r_f, :c_lam] = np.einsum("lj,jkab->lkab", tab.omega, dk).transpose(0, 2, 1, 3).reshape((s - 1) * m, s * n)
+    J[r_f:, :c_lam] = (np.einsum("k,ab->akb", b, fin.k_q) * h).reshape(m, s * n)
+    J[r_f:, c_v1:] = fin.k_v
+    return J
+
+
+def lu_table():
+    print("1. LU solve, python-flint (arb) vs pure mpmath (one factorisation + one solve)")
+    print(f"{'N':>4} {'dps':>4} {'mpmath ms':>10} {'flint ms':>9} {'ratio':>6} {'|x_f - x_m|/|x|':>16}")
+    rng = np.random.default_rng(1)
+    for N in (20, 40):
+        M = rng.standard_normal((N, N))
+        r = rng.standard_normal(N)
+        for dps in (30, 50, 100):
+            bk = B.Backend(dps)
+            with bk.context():
+                J, rhs = bk.array(M.tolist()), bk.array(r.tolist())
+                times, sols = {}, {}
+                for use in (False, True):
+                    B.USE_FLINT = use
+                    t = time.process_time()
+                    for _ in range(3):
+                        x = bk.solve(J, rhs)
+                    times[use], sols[use] = (time.process_time() - t) / 3, x
+                B.USE_FLINT = B._flint is not None
+                d = bk.norm_inf(sols[True] - sols[False]) / bk.norm_inf(sols[False])
+            print(f"{N:>4} {dps:>4} {times[False] * 1e3:>10.2f} {times[True] * 1e3:>9.2f} "
+                  f"{times[False] / times[True]:>6.1f} {d:>16.1e}")
+
+
+def _run(sc, tab, dps, steps, newton):
+    t0, q0, v0 = sc.initial(dps or 30)
+    h = "0.05"
+    if dps is None:
+        t0, q0, v0, h = float(t0), [float(x) for x in q0], [float(x) for x in v0], 0.05
+    t = time.process_time()
+    sol = integrate(sc.system, tab, t0, q0, v0, h, n_steps=steps, dps=dps, newton=newton)
+    return (time.process_time() - t) / steps, sol
+
+
+def step_table(steps):
+    print(f"\n2. generic SPARK step, CPU ms per step ({steps} steps, h = 0.05)")
+    print(f"{'scene':>13} {'method':>20} {'dps':>4} {'before':>8} {'after':>8} {'ratio':>6} "
+          f"{'auto':>8} {'full/auto':>9} {'|q_auto-q_full|':>15}")
+    new_jac = SparkMethod._jacobian
+    for scn, meth in (("robot", "gauss-2"), ("mp-particles", "lobatto-iiia-iiib-3")):
+        sc, tab = get_scene(scn), get_method(meth)
+        for dps in (None, 30, 50):
+            n = steps if dps is None else max(3, steps // 4)
+            _run(sc, tab, dps, 1, "full")             # compile the lambdified functions
+            SparkMethod._jacobian, B.USE_FLINT = _einsum_jacobian, False
+            before, ref = _run(sc, tab, dps, n, "full")
+            SparkMethod._jacobian, B.USE_FLINT = new_jac, B._flint is not None
+            after, full = _run(sc, tab, dps, n, "full")
+            auto, sa = _run(sc, tab, dps, n, "auto")
+            dq = max(float(abs(x)) for x in (sa.q - full.q).reshape(-1))
+            dref = max(float(abs(x)) for x in (ref.q - full.q).reshape(-1))
+            print(f"{scn:>13} {meth:>20} {str(dps or 'f64'):>4} {before * 1e3:>8.2f} {after * 1e3:>8.2f} "
+                  f"{before / after:>6.2f} {auto * 1e3:>8.2f} {after / auto:>9.2f} {dq:>15.1e}"
+                  f"   (before vs after q: {dref:.1e})")
+
+
+def ledger(kind, jobs):
+    from ldaspark.theory.ledger import run_ledger
+    print(f"\n3. claims ledger ({kind}), {jobs or 'default'} worker process(es)")
+    w, c = time.time(), cpu()
+    if kind == "full":
+        recs = run_ledger(max_s=3, jobs=jobs)
+    else:
+        recs = run_ledger(max_s=2, scenes=("particle", "robot"), controls=False, jobs=jobs)
+    w, c = time.time() - w, cpu() - c
+    print(f"{len(recs)} records in {w:.1f} s wall, {c:.1f} s CPU (load average {os.getloadavg()[0]:.1f})")
+    if kind == "full":
+        print(f"before: {BEFORE['idle_wall']:.0f} s wall idle, {BEFORE['loaded_cpu']:.0f} s CPU at load 8-12: "
+              f"CPU ratio {BEFORE['loaded_cpu'] / c:.1f}x")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--ledger", choices=("subset", "full", "none"), default="subset")
+    ap.add_argument("--jobs", type=int, default=None)
+    ap.add_argument("--steps", type=int, default=20)
+    a = ap.parse_args(argv)
+    print(f"python-flint: {'yes' if B._flint is not None else 'no (pure mpmath)'}; "
+          f"load average {os.getloadavg()[0]:.1f}\n")
+    lu_table()
+    step_table(a.steps)
+    if a.ledger != "none":
+        ledger(a.ledger, a.jobs)
+
+
+if __name__ == "__main__":
+    main()
