@@ -1,0 +1,195 @@
+"""The compiled path for general L(t, q, v), k(t, q, v), measured side by side in one run:
+
+1. cold start: a new system's first compiled call in a fresh process with an empty model cache
+   (the kernels are compiled once per machine and loaded from numba's cache), then the same
+   system in a second process (warm); the n = 61 MP particles (J large) likewise;
+2. per-call overhead of ``fast_integrate`` / ``run_compiled`` (one step);
+3. at equal final error on a general scene (a charged particle with the nonholonomic
+   constraint of 8.1 in a magnetic field: gyroscopic terms, grad_v L != M v), CPU time of
+   gauss-2 on the general compiled kernel, on the generic path, and scipy's DOP853 with a
+   compiled (numba) right-hand side generated from the same expressions; steps per second of
+   the general kernel against the mechanical kernel at the same (s, n, m).
+
+Usage: python benchmarks/compiled_general.py [--quick]
+"""
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+import sympy
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+TARGETS = (1e-3, 1e-6, 1e-9)
+
+
+def gyroscopic(B=sympy.Rational(1, 2)):
+    q = list(sympy.symbols("q1:4"))
+    v = list(sympy.symbols("v1:4"))
+    L = (v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 + B * (q[0] * v[1] - q[1] * v[0]) / 2 - (q[0] ** 2 + q[1] ** 2) / 2
+    from ldaspark.core.system import LagrangianSystem
+    return LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name=f"gyroscopic-{B}")
+
+
+COLD = r'''
+import sys, time
+sys.path.insert(0, {root!r}); sys.path.insert(0, {bench!r})
+t = time.perf_counter()
+import ldaspark.compiled.kernels
+t_kernels = time.perf_counter() - t
+from ldaspark.compiled.fast import fast_integrate, compile_system
+from ldaspark.core.scenes import mp_particles
+import sympy
+what = {what!r}
+if what == "mp61":
+    sc = mp_particles(m=30, J=100, j=3)
+    system, t0, q0, v0 = sc.system, *sc.initial()
+else:
+    from compiled_general import gyroscopic
+    system = gyroscopic(sympy.Rational({B}, 7))
+    t0, q0, v0 = 0.0, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]
+t = time.perf_counter()
+cs = compile_system(system, form={form!r})
+t_gen = time.perf_counter() - t
+cs.module
+t_mod = time.perf_counter() - t
+r = fast_integrate(system, "gauss-2", t0, q0, v0, 0.01, 10) if {form!r} == "auto" else None
+from ldaspark.compiled.fast import run_compiled
+run_compiled(cs, "gauss-2", t0, q0, v0, 0.01, 10)
+t_first = time.perf_counter() - t
+print(f"{{t_kernels:.2f}} {{t_gen:.2f}} {{t_mod:.2f}} {{t_first:.2f}}")
+'''
+
+
+def cold_start(cache, what, form="auto", B=3):
+    code = COLD.format(root=ROOT, bench=os.path.dirname(os.path.abspath(__file__)), what=what, form=form, B=B)
+    env = dict(os.environ, LDASPARK_CACHE_DIR=cache)
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    return [float(x) for x in out.stdout.split()[-4:]]
+
+
+def overhead(n_calls=200):
+    from ldaspark.compiled.fast import compile_system, fast_integrate, run_compiled
+    from ldaspark.core.scenes import get_scene, mp_particles
+    rows = []
+    for sc in (get_scene("particle"), mp_particles(m=30, J=100, j=3)):
+        cs = compile_system(sc.system)
+        t0, q0, v0 = sc.initial()
+        fast_integrate(sc, "gauss-2", h=0.01, n_steps=1)
+        t = time.perf_counter()
+        for _ in range(n_calls):
+            fast_integrate(sc, "gauss-2", h=0.01, n_steps=1)
+        a = (time.perf_counter() - t) / n_calls
+        t = time.perf_counter()
+        for _ in range(n_calls):
+            run_compiled(cs, "gauss-2", t0, q0, v0, 0.01, 1)
+        b = (time.perf_counter() - t) / n_calls
+        rows.append((sc.name, sc.system.n, a, b))
+    return rows
+
+
+def cpu(fn, repeat=3):
+    best = np.inf
+    for _ in range(repeat):
+        t = time.process_time()
+        out = fn()
+        best = min(best, time.process_time() - t)
+    return best, out
+
+
+def work_precision(quick):
+    from scipy.integrate import solve_ivp
+    from ldaspark.compiled.fast import compile_system, run_compiled
+    from ldaspark.compiled.ode import compiled_rhs
+    from ldaspark.core.families import get_method
+    from ldaspark.core.spark import integrate
+    from ldaspark.reports.work_precision import cpu_at
+    system = gyroscopic()
+    T = 20.0
+    q0, v0 = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
+    cs = compile_system(system)
+    ref = run_compiled(cs, "gauss-4", 0.0, q0, v0, T / 20000, 20000, every=20000)
+    f = compiled_rhs(system)
+    y0 = np.concatenate([q0, v0])
+    chk = solve_ivp(f, (0, T), y0, method="DOP853", rtol=1e-14, atol=1e-14)
+    print(f"reference (compiled gauss-4, h = {T / 20000:g}) vs DOP853 rtol 1e-14: "
+          f"{np.max(np.abs(chk.y[:3, -1] - ref.q[-1])):.1e}")
+    spark, scipy_rows = [], []
+    for N in (100, 200, 400, 800, 1600, 3200, 6400, 12800):
+        c, r = cpu(lambda: run_compiled(cs, "gauss-2", 0.0, q0, v0, T / N, N, every=N))
+        spark.append({"N": N, "cpu": c, "error": float(np.max(np.abs(r.q[-1] - ref.q[-1])))})
+    for rtol in (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12):
+        c, r = cpu(lambda: solve_ivp(f, (0, T), y0, method="DOP853", rtol=rtol, atol=rtol * 1e-2))
+        scipy_rows.append({"rtol": rtol, "cpu": c, "nfev": r.nfev,
+                           "error": float(np.max(np.abs(r.y[:3, -1] - ref.q[-1])))})
+    # generic path: the same method and h give the same error; its cost per step is measured once
+    n_gen = 30 if quick else 100
+    c, _ = cpu(lambda: integrate(system, get_method("gauss-2"), 0.0, q0, v0, T / 1600, n_steps=n_gen), repeat=1)
+    per_step_generic = c / n_gen
+    generic = [{"cpu": per_step_generic * r["N"], "error": r["error"]} for r in spark]
+    out = []
+    for tgt in TARGETS:
+        a, b, g = cpu_at(spark, tgt), cpu_at(scipy_rows, tgt), cpu_at(generic, tgt)
+        out.append((tgt, a, b, g))
+    return spark, scipy_rows, per_step_generic, out
+
+
+def general_vs_mechanical(n_steps):
+    from ldaspark.compiled.fast import compile_system, run_compiled
+    from ldaspark.core.scenes import get_scene, mp_particles
+    rows = []
+    for sc in (get_scene("particle"), get_scene("robot"), mp_particles(m=3, j=3)):
+        t0, q0, v0 = sc.initial()
+        res = {}
+        for form in ("mechanical", "general"):
+            cs = compile_system(sc.system, form=form)
+            run_compiled(cs, "gauss-2", t0, q0, v0, 0.05, 2)
+            c, r = cpu(lambda: run_compiled(cs, "gauss-2", t0, q0, v0, 0.05, n_steps, every=n_steps))
+            res[form] = n_steps / c
+        rows.append((sc.name, sc.system.n, sc.system.m, res["mechanical"], res["general"]))
+    return rows
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--quick", action="store_true")
+    args = ap.parse_args()
+    sys.path.insert(0, ROOT)
+    import ldaspark.compiled.kernels  # noqa: F401  (compile once per machine, before timing)
+    print("== cold start (fresh process, empty model cache; kernels from numba's cache) ==")
+    print(f"{'system':22s} {'form':10s} {'import kernels':>14s} {'codegen':>8s} {'+compile':>9s} {'first call':>10s}")
+    with tempfile.TemporaryDirectory() as d:
+        for label, what, form in (("gyroscopic n=3 (new)", "gyro", "auto"), ("same, 2nd process", "gyro", "auto"),
+                                  ("mp-particles n=61", "mp61", "mechanical"),
+                                  ("mp-particles n=61", "mp61", "general")):
+            k, g, m, f = cold_start(d, what, form)
+            print(f"{label:22s} {form:10s} {k:14.2f} {g:8.2f} {m:9.2f} {f:10.2f}")
+    print("\n== per-call overhead (one step, warm) ==")
+    for name, n, a, b in overhead(50 if args.quick else 200):
+        print(f"{name:14s} n = {n:3d}: fast_integrate {a * 1e3:.3f} ms, run_compiled {b * 1e3:.3f} ms")
+    print("\n== general kernel vs mechanical kernel, gauss-2, h = 0.05, same system (steps/s) ==")
+    for name, n, m, mech, gen in general_vs_mechanical(20000 if args.quick else 100000):
+        print(f"{name:14s} (s, n, m) = (2, {n}, {m}): mechanical {mech:10.3g}  general {gen:10.3g}  "
+              f"ratio {mech / gen:.2f}")
+    print("\n== equal final error, gyroscopic scene, T = 20 (CPU seconds) ==")
+    spark, sp, per_gen, out = work_precision(args.quick)
+    for r in spark:
+        print(f"  gauss-2 compiled N = {r['N']:6d}: error {r['error']:.2e}, cpu {r['cpu'] * 1e3:8.3f} ms, "
+              f"{r['N'] / r['cpu']:.3g} steps/s")
+    for r in sp:
+        print(f"  DOP853 (numba RHS) rtol {r['rtol']:.0e}: error {r['error']:.2e}, cpu {r['cpu'] * 1e3:8.3f} ms, "
+              f"nfev {r['nfev']}")
+    print(f"  generic path gauss-2: {per_gen * 1e3:.3f} ms per step ({1 / per_gen:.3g} steps/s)")
+    print(f"{'error':>8s} {'compiled':>10s} {'DOP853':>10s} {'generic':>10s} {'DOP853/compiled':>16s} {'generic/compiled':>17s}")
+    for tgt, a, b, g in out:
+        fmt = lambda x: f"{x * 1e3:8.3f}ms" if x is not None else f"{'-':>10s}"   # noqa: E731
+        r1 = f"{b / a:16.1f}" if a and b else f"{'-':>16s}"
+        r2 = f"{g / a:17.0f}" if a and g else f"{'-':>17s}"
+        print(f"{tgt:8.0e} {fmt(a)} {fmt(b)} {fmt(g)} {r1} {r2}")
+
+
+if __name__ == "__main__":
+    main()

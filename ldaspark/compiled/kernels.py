@@ -1,0 +1,231 @@
+"""The compiled kernels' entry points: the SPARK method (21a-f) for mechanical systems
+(``spark_run``), for general L(t, q, v), k(t, q, v) (``general_run``), and the semi-implicit
+2-stage methods (25), 8.4 and (26) (``lf2_run``).
+
+The kernels are compiled ONCE, for every system: the model (the generated functions of
+``codegen``) comes in as a tuple of first-class functions whose types (``modeltypes``) do not
+depend on the system, so each kernel has one explicit signature, is compiled eagerly when this
+module is imported and cached on disk by numba (``cache=True``: ``__pycache__`` next to this
+file, or numba's per-user cache directory). Only the small model functions compile per system.
+
+All kernels work on increments (Z_i = V_i - v0, Lambda_i = h Psi_i, dv = v1 - v0), so that the
+q and v updates can be summed with Kahan's compensated summation (GNI VIII.5); the Newton and
+bookkeeping steps they share are in ``newton``; the residuals and Newton matrices in
+``kernels_mech`` and ``kernels_general``.
+"""
+import os
+import numba
+import numpy as np
+from numba import types
+
+from . import modeltypes as mt
+
+
+def _refresh_stamp():
+    """numba keys a cached kernel on the file that defines it only; the helpers it inlines live
+    in sibling modules, so touch this file when one of them is newer (a stale kernel would
+    otherwise be loaded after an edit of a helper)."""
+    here = os.path.abspath(__file__)
+    d = os.path.dirname(here)
+    try:
+        mine = os.stat(here).st_mtime
+        newest = max(os.stat(os.path.join(d, f)).st_mtime
+                     for f in ("newton.py", "kernels_mech.py", "kernels_general.py", "modeltypes.py"))
+        if newest > mine:
+            os.utime(here, None)
+    except OSError:
+        pass                                # read-only install: files of one release share a stamp
+
+
+_refresh_stamp()
+
+from .newton import (FAIL_NONFINITE, advance, end_newton, fail, is_sample, newton_increment,  # noqa: E402
+                     newton_status, norm_inf, predict, shift, start_newton)
+from .kernels_mech import lf2_step, mech_store, spark_eval  # noqa: E402
+from .kernels_general import general_eval, general_store, momentum, workspace  # noqa: E402
+
+
+SPARK_SIG = types.void(mt.MECH_MODEL, mt.TABLEAU_T, mt.a2, *mt.RUN, mt.a1)
+
+
+@numba.njit(SPARK_SIG, cache=True, nogil=True)
+def spark_run(model, tab, M, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, predictor,
+              out_t, out_q, out_v, out_E, out_k, stats, out_x):
+    """n_steps of the SPARK method (21) for a mechanical system from (t0, q0, v0); samples every
+    ``every`` steps and the last step; out_x receives the last step's unknowns."""
+    s = tab[1].shape[0]
+    n = q0.shape[0]
+    m = out_k.shape[1]
+    sn, sm = s * n, s * m
+    NN = sn + sm + n
+    ws = (np.zeros(s), np.zeros((s, n)), np.zeros((s, n)), np.zeros((s, n)), np.zeros((s, n)),
+          np.zeros((s, m, n)), np.zeros((s, m)), np.zeros((s, m)), np.zeros((s, n, n)), np.zeros((s, n, n)),
+          np.zeros((s, m, n)), np.zeros(n), np.zeros(n), np.zeros((m, n)), np.zeros(m), np.zeros((m, n)))
+    G, J = np.zeros(NN), np.zeros((NN, NN))
+    piv = np.zeros(NN, dtype=np.int64)
+    x, x_last, x_prev = np.zeros(NN), np.zeros(NN), np.zeros(NN)
+    dq, dv, cq, cv = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+    kK, kb, kout = np.zeros((m, n)), np.zeros(m), np.zeros(m)
+    q, v = q0.copy(), v0.copy()
+    bw = tab[4]
+    sb = 0.0
+    for j in range(s):
+        sb += bw[j]
+    stats[mt.FAILED_STEP] = -1
+    if not mech_store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, kK, kb, kout):
+        fail(stats, 0, FAIL_NONFINITE)
+        return
+    j_out = 1
+    for step in range(n_steps):
+        t = t0 + step * h
+        predict(x, x_last, x_prev, step, predictor)
+        spark_eval(model, tab, True, x, t, q, v, h, M, ws, G, J)
+        stats[2] += 2 * s + 1
+        if not start_newton(stats, step, G, J, piv):
+            return
+        floor = abs(h) * (1.0 + norm_inf(v))
+        prev = -1.0
+        it = 0
+        status = 0
+        while it < max_iter:
+            it += 1
+            dn = newton_increment(J, piv, G, x)
+            status = newton_status(dn, prev, norm_inf(x), floor, tol)
+            if status != 0:
+                break
+            prev = dn
+            spark_eval(model, tab, False, x, t, q, v, h, M, ws, G, J)
+            stats[2] += s + 1
+        if not end_newton(stats, step, it, status):
+            return
+        # q1 - q0 = h sum_j b_j (v0 + Z_j); v1 - v0 = dv
+        for a in range(n):
+            acc = 0.0
+            for j in range(s):
+                acc += bw[j] * x[j * n + a]
+            dq[a] = h * (sb * v[a] + acc)
+            dv[a] = x[sn + sm + a]
+        if not advance(q, v, cq, cv, dq, dv, compensated):
+            fail(stats, step, FAIL_NONFINITE)
+            return
+        shift(x, x_last, x_prev)
+        stats[0] += 1
+        if is_sample(step, every, n_steps):
+            if not mech_store(model, j_out, t0 + (step + 1) * h, q, v, M, out_t, out_q, out_v, out_E, out_k, kK, kb, kout):
+                fail(stats, step, FAIL_NONFINITE)
+                return
+            j_out += 1
+    for r in range(NN):
+        out_x[r] = x_last[r]
+
+
+LF2_SIG = types.void(mt.MECH_MODEL, types.int64, mt.a2, mt.a2, *mt.RUN)
+
+
+@numba.njit(LF2_SIG, cache=True, nogil=True)
+def lf2_run(model, variant, M, Minv, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, predictor,
+            out_t, out_q, out_v, out_E, out_k, stats):
+    """Semi-implicit 2-stage methods with Newton on the m multipliers only (Lambda = h Psi):
+    variant 0 the Lobatto IIIA-B SPARK method in the form (25), 1 the modified method of 8.4,
+    2 McLachlan-Perlmutter's (26); one step is ``kernels_mech.lf2_step``."""
+    n = q0.shape[0]
+    m = out_k.shape[1]
+    q, v = q0.copy(), v0.copy()
+    cq, cv, dq, dv = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+    ws = (np.zeros(n), np.zeros(n), np.zeros((m, n)), np.zeros(m), np.zeros((m, n)), np.zeros(m),
+          np.zeros((m, n)), np.zeros((n, m)), np.zeros((n, m)), np.zeros(n), np.zeros(n), np.zeros(n),
+          np.zeros(n), np.zeros(m), np.zeros((m, m)), np.zeros((m, m)), np.zeros(m, dtype=np.int64),
+          np.zeros(m))
+    lam, lam_last, lam_prev = np.zeros(m), np.zeros(m), np.zeros(m)
+    kK, kb, kout = np.zeros((m, n)), np.zeros(m), np.zeros(m)
+    stats[mt.FAILED_STEP] = -1
+    if not mech_store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, kK, kb, kout):
+        fail(stats, 0, FAIL_NONFINITE)
+        return
+    j_out = 1
+    for step in range(n_steps):
+        t = t0 + step * h
+        predict(lam, lam_last, lam_prev, step, predictor)
+        if not lf2_step(model, variant, M, Minv, t, q, v, cv, h, tol, max_iter, lam, dq, dv, ws, stats, step):
+            return
+        if not advance(q, v, cq, cv, dq, dv, compensated):
+            fail(stats, step, FAIL_NONFINITE)
+            return
+        shift(lam, lam_last, lam_prev)
+        stats[0] += 1
+        if is_sample(step, every, n_steps):
+            if not mech_store(model, j_out, t0 + (step + 1) * h, q, v, M, out_t, out_q, out_v, out_E, out_k, kK, kb, kout):
+                fail(stats, step, FAIL_NONFINITE)
+                return
+            j_out += 1
+
+
+GENERAL_SIG = types.void(mt.GEN_MODEL, mt.TABLEAU_T, *mt.RUN, mt.a1)
+
+
+@numba.njit(GENERAL_SIG, cache=True, nogil=True)
+def general_run(model, tab, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, predictor,
+                out_t, out_q, out_v, out_E, out_k, stats, out_x):
+    """n_steps of the SPARK method (21) for general L(t, q, v), k(t, q, v) (``kernels_general``);
+    same sampling, counters and failure codes as ``spark_run``."""
+    s = tab[1].shape[0]
+    n = q0.shape[0]
+    m = out_k.shape[1]
+    sn, sm = s * n, s * m
+    NN = sn + sm + n
+    ws = workspace(s, n, m)
+    G, J = np.zeros(NN), np.zeros((NN, NN))
+    piv = np.zeros(NN, dtype=np.int64)
+    x, x_last, x_prev = np.zeros(NN), np.zeros(NN), np.zeros(NN)
+    dq, dv, cq, cv = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+    q, v = q0.copy(), v0.copy()
+    bw = tab[4]
+    sb = 0.0
+    for j in range(s):
+        sb += bw[j]
+    stats[mt.FAILED_STEP] = -1
+    if not general_store(model, 0, t0, q, v, out_t, out_q, out_v, out_E, out_k, ws):
+        fail(stats, 0, FAIL_NONFINITE)
+        return
+    j_out = 1
+    for step in range(n_steps):
+        t = t0 + step * h
+        momentum(model, t, q, v, ws)
+        predict(x, x_last, x_prev, step, predictor)
+        general_eval(model, tab, True, x, t, q, v, h, ws, G, J)
+        stats[2] += 2 * s + 3
+        if not start_newton(stats, step, G, J, piv):
+            return
+        floor = abs(h) * (1.0 + norm_inf(v))
+        prev = -1.0
+        it = 0
+        status = 0
+        while it < max_iter:
+            it += 1
+            dn = newton_increment(J, piv, G, x)
+            status = newton_status(dn, prev, norm_inf(x), floor, tol)
+            if status != 0:
+                break
+            prev = dn
+            general_eval(model, tab, False, x, t, q, v, h, ws, G, J)
+            stats[2] += s + 1
+        if not end_newton(stats, step, it, status):
+            return
+        for a in range(n):
+            acc = 0.0
+            for j in range(s):
+                acc += bw[j] * x[j * n + a]
+            dq[a] = h * (sb * v[a] + acc)
+            dv[a] = x[sn + sm + a]
+        if not advance(q, v, cq, cv, dq, dv, compensated):
+            fail(stats, step, FAIL_NONFINITE)
+            return
+        shift(x, x_last, x_prev)
+        stats[0] += 1
+        if is_sample(step, every, n_steps):
+            if not general_store(model, j_out, t0 + (step + 1) * h, q, v, out_t, out_q, out_v, out_E, out_k, ws):
+                fail(stats, step, FAIL_NONFINITE)
+                return
+            j_out += 1
+    for r in range(NN):
+        out_x[r] = x_last[r]
