@@ -85,11 +85,12 @@ def _verified(path: str, digest: str) -> bool:
 _MODULES: dict[str, types.ModuleType] = {}
 
 
-def load_source(source: str, prefix: str = "ldaspark_model_") -> types.ModuleType:
+def load_source(source: str, prefix: str = "ldaspark_model_", digest: str | None = None) -> types.ModuleType:
     """The module of this source text, executed from the text itself (never from what is on disk);
     the file in the cache directory is (re)written to hold exactly this text. Works in worker
-    processes of any executor: the file is written if this machine lacks it."""
-    digest = source_key(source)
+    processes of any executor: the file is written if this machine lacks it. ``digest``: the
+    sha256 of ``source`` when the caller has it."""
+    digest = digest or source_key(source)
     hit = _MODULES.get(digest)
     if hit is not None:
         return hit

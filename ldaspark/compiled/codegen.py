@@ -99,6 +99,16 @@ def _sym_outputs(out, H, n):
     return res + copies
 
 
+def _jacobian(f, xs):
+    """d f_i / d x_j, differentiating only where x_j occurs in f_i (n^2 -> nonzeros sympy diffs)."""
+    J = sympy.zeros(len(f), len(xs))
+    pos = {x: j for j, x in enumerate(xs)}
+    for i, e in enumerate(f):
+        for x in e.free_symbols & pos.keys():
+            J[i, pos[x]] = sympy.diff(e, x)
+    return J
+
+
 def _mat_outputs(out, A):
     return [(f"{out}[{i}, {j}]", A[i, j]) for i in range(A.rows) for j in range(A.cols)]
 
@@ -155,10 +165,10 @@ def mechanical_source(system, parts) -> str:
     b = sympy.Matrix(parts["b"]).xreplace(S.sub)
     if (K.free_symbols | b.free_symbols | U.free_symbols) & set(S.v):
         raise NotCompilableError(f"{system.name}: U, K or b depend on v")
-    gU = sympy.Matrix([sympy.diff(U, x) for x in S.q])
-    H = gU.jacobian(S.q)
-    kq = (K * sympy.Matrix(S.v) + b).jacobian(S.q)
-    KTl_q = (K.T * sympy.Matrix(S.lam)).jacobian(S.q)
+    gU = sympy.Matrix([sympy.diff(U, x) if x in U.free_symbols else 0 for x in S.q])
+    H = _jacobian(gU, S.q)
+    kq = _jacobian(K * sympy.Matrix(S.v) + b, S.q)
+    KTl_q = _jacobian(K.T * sympy.Matrix(S.lam), S.q)
     pr = _Printer({"fully_qualified_modules": True})
     tq = S.ut + S.uq
     fns = [

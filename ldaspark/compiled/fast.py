@@ -28,6 +28,7 @@ to the generic path`` to stderr and runs ``ldaspark.core.spark.integrate`` /
 """
 from __future__ import annotations
 
+import functools
 import math
 import sys
 from dataclasses import dataclass
@@ -106,17 +107,33 @@ class CompiledSystem:
     Minv: np.ndarray
     form: str = "mechanical"
 
+    @functools.cached_property
+    def digest(self) -> str:
+        return source_key(self.source)
+
     @property
     def module(self):
-        return load_source(self.source)
+        return load_source(self.source, digest=self.digest)
 
     @property
     def model(self):
-        return self.module.MODEL
+        """The model tuple (n, functions...) as the kernels take it: each function as the address
+        of its compiled code (numba's wrapper address protocol), looked up once per process;
+        passing the dispatchers themselves costs their type conversion at every call."""
+        hit = _MODELS.get(self.digest)
+        if hit is None:
+            from numba.core.types.function_type import CompileResultWAP
+            mod = self.module.MODEL
+            hit = (mod[0],) + tuple(CompileResultWAP(f.overloads[f.signatures[0]]) for f in mod[1:])
+            _MODELS[self.digest] = hit
+        return hit
 
     @property
     def key(self) -> str:
-        return source_key(self.source)[:20]
+        return self.digest[:20]
+
+
+_MODELS: dict[str, tuple] = {}
 
 
 _COMPILED: dict[tuple, tuple] = {}
