@@ -312,7 +312,7 @@ def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, co
         if cs.form == "mechanical":
             K.spark_run(model, what, cs.M, *run, *outs, stats, out_x)
         else:
-            K.general_run(model, what, *run, *outs, stats, out_x)
+            K.general_run(model, what, cs.M, *run, *outs, stats, out_x)
     st = dict(zip(STAT_NAMES, (int(x) for x in stats)))
     if st["failed_step"] >= 0:
         raise _failure(st, name, float(t0), h)

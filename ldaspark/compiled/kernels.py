@@ -17,6 +17,7 @@ import os
 import numba
 import numpy as np
 from numba import types
+from numba.extending import overload
 
 from . import modeltypes as mt
 
@@ -39,48 +40,73 @@ def _refresh_stamp():
 
 _refresh_stamp()
 
-from .newton import (FAIL_NONFINITE, advance, end_newton, fail, is_sample, newton_increment,  # noqa: E402
-                     newton_status, norm_inf, predict, shift, start_newton)
-from .kernels_mech import lf2_step, mech_store, spark_eval  # noqa: E402
-from .kernels_general import general_eval, general_store, momentum, workspace  # noqa: E402
+from .newton import (FAIL_NONFINITE, accept_step, end_newton, fail, newton_increment, newton_status,  # noqa: E402
+                     norm_inf, predict, record, start_newton)
+from .kernels_mech import lf2_step, mech_point, mech_store, mech_workspace, spark_eval  # noqa: E402
+from .kernels_general import general_eval, general_store, workspace  # noqa: E402
 
 
-SPARK_SIG = types.void(mt.MECH_MODEL, mt.TABLEAU_T, mt.a2, *mt.RUN, mt.a1)
+def evaluate(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
+    """Residual and Newton matrix of (21) for the model's form (chosen by numba at typing time)."""
 
 
-@numba.njit(SPARK_SIG, cache=True, nogil=True)
-def spark_run(model, tab, M, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, predictor,
-              out_t, out_q, out_v, out_E, out_k, stats, out_x):
-    """n_steps of the SPARK method (21) for a mechanical system from (t0, q0, v0); samples every
-    ``every`` steps and the last step; out_x receives the last step's unknowns."""
+def store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
+    """One sample (t, q, v, E, k) for the model's form (chosen by numba at typing time)."""
+
+
+@overload(evaluate)
+def _evaluate(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
+    # the model tuple is (n, 7 mechanical functions) or (n, 3 general functions)
+    if len(model.types) == 8:
+        def impl(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
+            return spark_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J)
+    else:
+        def impl(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
+            return general_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J)
+    return impl
+
+
+@overload(store)
+def _store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
+    if len(model.types) == 8:
+        def impl(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
+            return mech_store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws)
+    else:
+        def impl(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
+            return general_store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws)
+    return impl
+
+
+@numba.njit(cache=True)
+def spark_loop(model, tab, M, ws, t0, q0, v0, h, n_steps, every, compensated, tol,
+               max_iter, predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x):
+    """The step loop of the SPARK method (21) shared by both forms: ``evaluate`` (residual and
+    Newton matrix: ``kernels_mech.spark_eval`` or ``kernels_general.general_eval``) and ``store``
+    (one sample) are resolved from the model's type when numba compiles each entry point.
+    (Passing the functions as values would keep numba from caching the kernels.)"""
     s = tab[1].shape[0]
     n = q0.shape[0]
     m = out_k.shape[1]
     sn, sm = s * n, s * m
     NN = sn + sm + n
-    ws = (np.zeros(s), np.zeros((s, n)), np.zeros((s, n)), np.zeros((s, n)), np.zeros((s, n)),
-          np.zeros((s, m, n)), np.zeros((s, m)), np.zeros((s, m)), np.zeros((s, n, n)), np.zeros((s, n, n)),
-          np.zeros((s, m, n)), np.zeros(n), np.zeros(n), np.zeros((m, n)), np.zeros(m), np.zeros((m, n)))
     G, J = np.zeros(NN), np.zeros((NN, NN))
     piv = np.zeros(NN, dtype=np.int64)
     x, x_last, x_prev = np.zeros(NN), np.zeros(NN), np.zeros(NN)
     dq, dv, cq, cv = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
-    kK, kb, kout = np.zeros((m, n)), np.zeros(m), np.zeros(m)
     q, v = q0.copy(), v0.copy()
     bw = tab[4]
     sb = 0.0
     for j in range(s):
         sb += bw[j]
     stats[mt.FAILED_STEP] = -1
-    if not mech_store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, kK, kb, kout):
+    if not store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
         fail(stats, 0, FAIL_NONFINITE)
         return
     j_out = 1
     for step in range(n_steps):
         t = t0 + step * h
         predict(x, x_last, x_prev, step, predictor)
-        spark_eval(model, tab, True, x, t, q, v, h, M, ws, G, J)
-        stats[2] += 2 * s + 1
+        stats[2] += evaluate(model, tab, True, x, t, q, v, h, M, ws, G, J)
         if not start_newton(stats, step, G, J, piv):
             return
         floor = abs(h) * (1.0 + norm_inf(v))
@@ -94,8 +120,7 @@ def spark_run(model, tab, M, t0, q0, v0, h, n_steps, every, compensated, tol, ma
             if status != 0:
                 break
             prev = dn
-            spark_eval(model, tab, False, x, t, q, v, h, M, ws, G, J)
-            stats[2] += s + 1
+            stats[2] += evaluate(model, tab, False, x, t, q, v, h, M, ws, G, J)
         if not end_newton(stats, step, it, status):
             return
         # q1 - q0 = h sum_j b_j (v0 + Z_j); v1 - v0 = dv
@@ -105,18 +130,41 @@ def spark_run(model, tab, M, t0, q0, v0, h, n_steps, every, compensated, tol, ma
                 acc += bw[j] * x[j * n + a]
             dq[a] = h * (sb * v[a] + acc)
             dv[a] = x[sn + sm + a]
-        if not advance(q, v, cq, cv, dq, dv, compensated):
-            fail(stats, step, FAIL_NONFINITE)
+        if not accept_step(q, v, cq, cv, dq, dv, compensated, x, x_last, x_prev, stats, step):
             return
-        shift(x, x_last, x_prev)
-        stats[0] += 1
-        if is_sample(step, every, n_steps):
-            if not mech_store(model, j_out, t0 + (step + 1) * h, q, v, M, out_t, out_q, out_v, out_E, out_k, kK, kb, kout):
+        if (step + 1) % every == 0 or step + 1 == n_steps:
+            if not store(model, j_out, t0 + (step + 1) * h, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
                 fail(stats, step, FAIL_NONFINITE)
                 return
             j_out += 1
     for r in range(NN):
         out_x[r] = x_last[r]
+
+
+SPARK_SIG = types.void(mt.MECH_MODEL, mt.TABLEAU_T, mt.a2, *mt.RUN, mt.a1)
+
+
+@numba.njit(SPARK_SIG, cache=True, nogil=True)
+def spark_run(model, tab, M, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, predictor,
+              out_t, out_q, out_v, out_E, out_k, stats, out_x):
+    """n_steps of the SPARK method (21) for a mechanical system from (t0, q0, v0); samples every
+    ``every`` steps and the last step; out_x receives the last step's unknowns."""
+    ws = mech_workspace(tab[1].shape[0], q0.shape[0], out_k.shape[1])
+    spark_loop(model, tab, M, ws, t0, q0, v0, h, n_steps, every, compensated, tol,
+               max_iter, predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x)
+
+
+GENERAL_SIG = types.void(mt.GEN_MODEL, mt.TABLEAU_T, mt.a2, *mt.RUN, mt.a1)
+
+
+@numba.njit(GENERAL_SIG, cache=True, nogil=True)
+def general_run(model, tab, M, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, predictor,
+                out_t, out_q, out_v, out_E, out_k, stats, out_x):
+    """n_steps of the SPARK method (21) for general L(t, q, v), k(t, q, v) (``kernels_general``;
+    M is unused); same sampling, counters and failure codes as ``spark_run``."""
+    ws = workspace(tab[1].shape[0], q0.shape[0], out_k.shape[1])
+    spark_loop(model, tab, M, ws, t0, q0, v0, h, n_steps, every, compensated, tol,
+               max_iter, predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x)
 
 
 LF2_SIG = types.void(mt.MECH_MODEL, types.int64, mt.a2, mt.a2, *mt.RUN)
@@ -139,93 +187,19 @@ def lf2_run(model, variant, M, Minv, t0, q0, v0, h, n_steps, every, compensated,
     lam, lam_last, lam_prev = np.zeros(m), np.zeros(m), np.zeros(m)
     kK, kb, kout = np.zeros((m, n)), np.zeros(m), np.zeros(m)
     stats[mt.FAILED_STEP] = -1
-    if not mech_store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, kK, kb, kout):
-        fail(stats, 0, FAIL_NONFINITE)
-        return
-    j_out = 1
-    for step in range(n_steps):
-        t = t0 + step * h
-        predict(lam, lam_last, lam_prev, step, predictor)
-        if not lf2_step(model, variant, M, Minv, t, q, v, cv, h, tol, max_iter, lam, dq, dv, ws, stats, step):
-            return
-        if not advance(q, v, cq, cv, dq, dv, compensated):
-            fail(stats, step, FAIL_NONFINITE)
-            return
-        shift(lam, lam_last, lam_prev)
-        stats[0] += 1
-        if is_sample(step, every, n_steps):
-            if not mech_store(model, j_out, t0 + (step + 1) * h, q, v, M, out_t, out_q, out_v, out_E, out_k, kK, kb, kout):
-                fail(stats, step, FAIL_NONFINITE)
+    j_out = 0
+    for step in range(-1, n_steps):
+        if step >= 0:
+            t = t0 + step * h
+            predict(lam, lam_last, lam_prev, step, predictor)
+            if not lf2_step(model, variant, M, Minv, t, q, v, cv, h, tol, max_iter, lam, dq, dv, ws, stats, step):
+                return
+            if not accept_step(q, v, cq, cv, dq, dv, compensated, lam, lam_last, lam_prev, stats, step):
+                return
+        if step < 0 or (step + 1) % every == 0 or step + 1 == n_steps:
+            tj = t0 + (step + 1) * h
+            e = mech_point(model, tj, q, v, M, kK, kb, kout)
+            if not record(j_out, tj, q, v, e, kout, out_t, out_q, out_v, out_E, out_k):
+                fail(stats, max(step, 0), FAIL_NONFINITE)
                 return
             j_out += 1
-
-
-GENERAL_SIG = types.void(mt.GEN_MODEL, mt.TABLEAU_T, *mt.RUN, mt.a1)
-
-
-@numba.njit(GENERAL_SIG, cache=True, nogil=True)
-def general_run(model, tab, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, predictor,
-                out_t, out_q, out_v, out_E, out_k, stats, out_x):
-    """n_steps of the SPARK method (21) for general L(t, q, v), k(t, q, v) (``kernels_general``);
-    same sampling, counters and failure codes as ``spark_run``."""
-    s = tab[1].shape[0]
-    n = q0.shape[0]
-    m = out_k.shape[1]
-    sn, sm = s * n, s * m
-    NN = sn + sm + n
-    ws = workspace(s, n, m)
-    G, J = np.zeros(NN), np.zeros((NN, NN))
-    piv = np.zeros(NN, dtype=np.int64)
-    x, x_last, x_prev = np.zeros(NN), np.zeros(NN), np.zeros(NN)
-    dq, dv, cq, cv = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
-    q, v = q0.copy(), v0.copy()
-    bw = tab[4]
-    sb = 0.0
-    for j in range(s):
-        sb += bw[j]
-    stats[mt.FAILED_STEP] = -1
-    if not general_store(model, 0, t0, q, v, out_t, out_q, out_v, out_E, out_k, ws):
-        fail(stats, 0, FAIL_NONFINITE)
-        return
-    j_out = 1
-    for step in range(n_steps):
-        t = t0 + step * h
-        momentum(model, t, q, v, ws)
-        predict(x, x_last, x_prev, step, predictor)
-        general_eval(model, tab, True, x, t, q, v, h, ws, G, J)
-        stats[2] += 2 * s + 3
-        if not start_newton(stats, step, G, J, piv):
-            return
-        floor = abs(h) * (1.0 + norm_inf(v))
-        prev = -1.0
-        it = 0
-        status = 0
-        while it < max_iter:
-            it += 1
-            dn = newton_increment(J, piv, G, x)
-            status = newton_status(dn, prev, norm_inf(x), floor, tol)
-            if status != 0:
-                break
-            prev = dn
-            general_eval(model, tab, False, x, t, q, v, h, ws, G, J)
-            stats[2] += s + 1
-        if not end_newton(stats, step, it, status):
-            return
-        for a in range(n):
-            acc = 0.0
-            for j in range(s):
-                acc += bw[j] * x[j * n + a]
-            dq[a] = h * (sb * v[a] + acc)
-            dv[a] = x[sn + sm + a]
-        if not advance(q, v, cq, cv, dq, dv, compensated):
-            fail(stats, step, FAIL_NONFINITE)
-            return
-        shift(x, x_last, x_prev)
-        stats[0] += 1
-        if is_sample(step, every, n_steps):
-            if not general_store(model, j_out, t0 + (step + 1) * h, q, v, out_t, out_q, out_v, out_E, out_k, ws):
-                fail(stats, step, FAIL_NONFINITE)
-                return
-            j_out += 1
-    for r in range(NN):
-        out_x[r] = x_last[r]

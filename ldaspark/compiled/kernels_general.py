@@ -26,10 +26,14 @@ def workspace(s, n, m):
 
 
 @numba.njit(cache=True)
-def general_eval(model, tab, jac, x, t0, q0, v0, h, ws, G, J):
+def general_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
     """Residual G of (21b, d, e, f) in x = [Z | Lambda | dv] (V_i = v0 + Z_i, v1 = v0 + dv) and,
-    if jac, its Jacobian J. Needs ws[27] = p0 = grad_v L(t0, q0, v0)."""
+    if jac, its Jacobian J. The first call of a step (jac) also sets ws[27] = p0 = grad_v L(t0,
+    q0, v0). M is unused (the signature is that of ``kernels_mech.spark_eval``). Returns the
+    number of points evaluated."""
     point_val, point_jac = model[1], model[2]
+    if jac:
+        point_val(t0, q0, v0, ws[27], ws[17], ws[18], ws[19])
     c, A, Ah, At, bw, bh, bt, om = tab
     (T, Q, V, Lv, Lq, kst, kv, KTL, Lvv, Lvq, Lqq, kq, KRq, KRv,
      q1, v1, Lv1, Lq1, k1, kv1, Lvv1, Lvq1, Lqq1, kq1, KRq1, KRv1, zl, p0) = ws
@@ -83,6 +87,8 @@ def general_eval(model, tab, jac, x, t0, q0, v0, h, ws, G, J):
                       KRq[j], KRv[j])
         point_jac(t0 + h, q1, v1, zl, Lvv1, Lvq1, Lqq1, kq1, KRq1, KRv1)
         general_jacobian(tab, h, ws, J)
+        return 2 * s + 3
+    return s + 1
 
 
 @numba.njit(cache=True)
@@ -137,15 +143,9 @@ def general_jacobian(tab, h, ws, J):
 
 
 @numba.njit(cache=True)
-def general_store(model, j, t, q, v, out_t, out_q, out_v, out_E, out_k, ws):
-    """Sample j: the energy (8) and k at (t, q, v) (end-point arrays of ws as scratch)."""
+def general_store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
+    """Sample j: the energy (8) and k at (t, q, v) (end-point arrays of ws as scratch; M unused)."""
     point_val, energy = model[1], model[3]
     Lv1, Lq1, k1, kv1 = ws[16], ws[17], ws[18], ws[19]
     point_val(t, q, v, Lv1, Lq1, k1, kv1)
     return record(j, t, q, v, energy(t, q, v), k1, out_t, out_q, out_v, out_E, out_k)
-
-
-@numba.njit(cache=True)
-def momentum(model, t, q, v, ws):
-    """ws[27] = p0 = grad_v L(t, q, v)."""
-    model[1](t, q, v, ws[27], ws[17], ws[18], ws[19])

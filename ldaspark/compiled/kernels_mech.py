@@ -12,8 +12,8 @@ from .newton import FAIL_SINGULAR, end_newton, fail, lu_factor, lu_solve, newton
 
 
 @numba.njit(cache=True)
-def mech_store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, kK, kb, kout):
-    """Sample j: E = 1/2 v^T M v + U (8) and k = K v + b at one point."""
+def mech_point(model, t, q, v, M, kK, kb, kout):
+    """E = 1/2 v^T M v + U (8) at one point; kout = k = K v + b."""
     K_of, b_of, U_of = model[3], model[4], model[7]
     n = q.shape[0]
     e = U_of(t, q)
@@ -29,18 +29,34 @@ def mech_store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, kK, kb, 
         for a in range(n):
             s += kK[l, a] * v[a]
         kout[l] = s
-    return record(j, t, q, v, e, kout, out_t, out_q, out_v, out_E, out_k)
+    return e
 
 
+@numba.njit(cache=True)
+def mech_workspace(s, n, m):
+    """T, Q, V, grad U, K^T Lambda, K, b, k at the stages; Hess U, d(K^T Lambda)/dq, k_q at the
+    stages; q1, v1, K, b, k_q at the end point; k scratch."""
+    return (np.zeros(s), np.zeros((s, n)), np.zeros((s, n)), np.zeros((s, n)), np.zeros((s, n)),
+            np.zeros((s, m, n)), np.zeros((s, m)), np.zeros((s, m)), np.zeros((s, n, n)), np.zeros((s, n, n)),
+            np.zeros((s, m, n)), np.zeros(n), np.zeros(n), np.zeros((m, n)), np.zeros(m), np.zeros((m, n)),
+            np.zeros(m))
+
+
+@numba.njit(cache=True)
+def mech_store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
+    """Sample j (end-point arrays of ws as scratch); False if not finite."""
+    e = mech_point(model, t, q, v, M, ws[13], ws[14], ws[16])
+    return record(j, t, q, v, e, ws[16], out_t, out_q, out_v, out_E, out_k)
 
 
 @numba.njit(cache=True)
 def spark_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
     """Residual G of (21b, d, e, f) in the increment unknowns x = [Z | Lambda | dv] and, if jac,
-    its Jacobian J. gU = grad U = -F, KTL_j = K_j^T Lambda_j = -h R_j; P_i - p0 = M Z_i exactly."""
+    its Jacobian J. gU = grad U = -F, KTL_j = K_j^T Lambda_j = -h R_j; P_i - p0 = M Z_i exactly.
+    Returns the number of points evaluated."""
     grad_U, K_of, b_of = model[1], model[3], model[4]
     c, A, Ah, At, bw, bh, bt, om = tab
-    T, Q, V, gU, KTL, KK, bb, kst, H, Rq, kq, q1, v1, K1, b1, kq1 = ws
+    T, Q, V, gU, KTL, KK, bb, kst, H, Rq, kq, q1, v1, K1, b1, kq1, kout = ws
     s, n, m = A.shape[0], q0.shape[0], K1.shape[0]
     sn, sm = s * n, s * m
     t1 = t0 + h
@@ -106,6 +122,8 @@ def spark_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
         G[rf0 + mm] = acc
     if jac:
         spark_jacobian(model, tab, x, t0, h, M, ws, J)
+        return 2 * s + 1
+    return s + 1
 
 
 @numba.njit(cache=True)
@@ -113,7 +131,7 @@ def spark_jacobian(model, tab, x, t0, h, M, ws, J):
     """d(21b, d, e, f)/d(Z, Lambda, dv) at the stage values of the last ``spark_eval``."""
     hess_U, kq_of, KTlam_q = model[2], model[5], model[6]
     c, A, Ah, At, bw, bh, bt, om = tab
-    T, Q, V, gU, KTL, KK, bb, kst, H, Rq, kq, q1, v1, K1, b1, kq1 = ws
+    T, Q, V, gU, KTL, KK, bb, kst, H, Rq, kq, q1, v1, K1, b1, kq1, kout = ws
     s, n, m = A.shape[0], q1.shape[0], K1.shape[0]
     sn, sm = s * n, s * m
     re0, rf0 = sn + n, sn + n + (s - 1) * m

@@ -109,6 +109,18 @@ def advance(q, v, cq, cv, dq, dv, compensated):
 
 
 @numba.njit(cache=True)
+def accept_step(q, v, cq, cv, dq, dv, compensated, x, x_last, x_prev, stats, step):
+    """q += dq, v += dv, the unknowns x into the predictor's history, one step counted; False
+    (failure recorded) when the new state is not finite."""
+    if not advance(q, v, cq, cv, dq, dv, compensated):
+        fail(stats, step, FAIL_NONFINITE)
+        return False
+    shift(x, x_last, x_prev)
+    stats[0] += 1
+    return True
+
+
+@numba.njit(cache=True)
 def predict(x, x_last, x_prev, step, predictor):
     """Starting guess: 2 = linear extrapolation of the last two steps' unknowns, 1 = the last
     step's, 0 = zero increments (V_i = v1 = v0, Psi = 0)."""
@@ -204,10 +216,3 @@ def record(j, t, q, v, E, k, out_t, out_q, out_v, out_E, out_k):
     for l in range(k.shape[0]):
         out_k[j, l] = k[l]
     return np.isfinite(E) and np.isfinite(norm_inf(k))
-
-
-@numba.njit(cache=True)
-def is_sample(step, every, n_steps):
-    return (step + 1) % every == 0 or step + 1 == n_steps
-
-
