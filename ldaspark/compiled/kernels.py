@@ -54,27 +54,22 @@ def store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
     """One sample (t, q, v, E, k) for the model's form (chosen by numba at typing time)."""
 
 
+def _form(model, mechanical, general):
+    """The model tuple is (n, 7 mechanical functions) or (n, 3 general functions)."""
+    return mechanical if len(model.types) == 8 else general
+
+
 @overload(evaluate)
 def _evaluate(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
-    # the model tuple is (n, 7 mechanical functions) or (n, 3 general functions)
-    if len(model.types) == 8:
-        def impl(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
-            return spark_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J)
-    else:
-        def impl(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
-            return general_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J)
-    return impl
+    fn = _form(model, spark_eval, general_eval)
+    return lambda model, tab, jac, x, t0, q0, v0, h, M, ws, G, J: fn(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J)
 
 
 @overload(store)
 def _store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
-    if len(model.types) == 8:
-        def impl(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
-            return mech_store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws)
-    else:
-        def impl(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
-            return general_store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws)
-    return impl
+    fn = _form(model, mech_store, general_store)
+    return lambda model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws: fn(
+        model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws)
 
 
 @numba.njit(cache=True)

@@ -10,7 +10,7 @@ Workspace ``ws`` (see ``workspace``): stage arrays, end-point arrays, and p0 = g
 import numba
 import numpy as np
 
-from .newton import record
+from .newton import constraint_rows, record, stage_points
 
 
 @numba.njit(cache=True)
@@ -38,22 +38,8 @@ def general_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
     (T, Q, V, Lv, Lq, kst, kv, KTL, Lvv, Lvq, Lqq, kq, KRq, KRv,
      q1, v1, Lv1, Lq1, k1, kv1, Lvv1, Lvq1, Lqq1, kq1, KRq1, KRv1, zl, p0) = ws
     s, n, m = A.shape[0], q0.shape[0], k1.shape[0]
-    sn, sm = s * n, s * m
-    for i in range(s):
-        T[i] = t0 + c[i] * h
-        for a in range(n):
-            V[i, a] = v0[a] + x[i * n + a]
-    for a in range(n):
-        for i in range(s):
-            acc = 0.0
-            for j in range(s):
-                acc += A[i, j] * V[j, a]
-            Q[i, a] = q0[a] + h * acc
-        acc = 0.0
-        for j in range(s):
-            acc += bw[j] * V[j, a]
-        q1[a] = q0[a] + h * acc
-        v1[a] = v0[a] + x[sn + sm + a]
+    sn = s * n
+    stage_points(tab, x, t0, q0, v0, h, m, T, Q, V, q1, v1)
     for j in range(s):
         point_val(T[j], Q[j], V[j], Lv[j], Lq[j], kst[j], kv[j])
         for a in range(n):
@@ -101,8 +87,7 @@ def general_jacobian(tab, h, ws, J):
     (T, Q, V, Lv, Lq, kst, kv, KTL, Lvv, Lvq, Lqq, kq, KRq, KRv,
      q1, v1, Lv1, Lq1, k1, kv1, Lvv1, Lvq1, Lqq1, kq1, KRq1, KRv1, zl, p0) = ws
     s, n, m = A.shape[0], q1.shape[0], k1.shape[0]
-    sn, sm = s * n, s * m
-    re0, rf0 = sn + n, sn + n + (s - 1) * m
+    sn = s * n
     J[:, :] = 0.0
     h2 = h * h
     for i in range(s + 1):
@@ -123,23 +108,7 @@ def general_jacobian(tab, h, ws, J):
                     J[i * n + a, k * n + b] = acc
                 for l in range(m):
                     J[i * n + a, sn + k * m + l] = wk_t * kv[k, l, a]
-    for a in range(n):
-        for b in range(n):
-            J[sn + a, sn + sm + b] = Lvv1[a, b]
-    for l in range(s - 1):
-        for mm in range(m):
-            for k in range(s):
-                for b in range(n):
-                    acc = om[l, k] * kv[k, mm, b]
-                    for j in range(s):
-                        acc += h * om[l, j] * A[j, k] * kq[j, mm, b]
-                    J[re0 + l * m + mm, k * n + b] = acc
-    for mm in range(m):
-        for k in range(s):
-            for b in range(n):
-                J[rf0 + mm, k * n + b] = h * bw[k] * kq1[mm, b]
-        for b in range(n):
-            J[rf0 + mm, sn + sm + b] = kv1[mm, b]
+    constraint_rows(tab, h, kv, kq, kv1, kq1, Lvv1, J)
 
 
 @numba.njit(cache=True)

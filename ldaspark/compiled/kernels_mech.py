@@ -8,7 +8,7 @@ The model is the tuple ``codegen.mechanical_source`` exports:
 import numba
 import numpy as np
 
-from .newton import FAIL_SINGULAR, end_newton, fail, lu_factor, lu_solve, newton_status, norm_inf, record
+from .newton import FAIL_SINGULAR, constraint_rows, stage_points, end_newton, fail, lu_factor, lu_solve, newton_status, norm_inf, record
 
 
 @numba.njit(cache=True)
@@ -60,21 +60,7 @@ def spark_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
     s, n, m = A.shape[0], q0.shape[0], K1.shape[0]
     sn, sm = s * n, s * m
     t1 = t0 + h
-    for i in range(s):
-        T[i] = t0 + c[i] * h
-        for a in range(n):
-            V[i, a] = v0[a] + x[i * n + a]
-    for a in range(n):
-        for i in range(s):
-            acc = 0.0
-            for j in range(s):
-                acc += A[i, j] * V[j, a]
-            Q[i, a] = q0[a] + h * acc
-        acc = 0.0
-        for j in range(s):
-            acc += bw[j] * V[j, a]
-        q1[a] = q0[a] + h * acc
-        v1[a] = v0[a] + x[sn + sm + a]
+    stage_points(tab, x, t0, q0, v0, h, m, T, Q, V, q1, v1)
     for j in range(s):
         grad_U(T[j], Q[j], gU[j])
         K_of(T[j], Q[j], KK[j])
@@ -133,8 +119,7 @@ def spark_jacobian(model, tab, x, t0, h, M, ws, J):
     c, A, Ah, At, bw, bh, bt, om = tab
     T, Q, V, gU, KTL, KK, bb, kst, H, Rq, kq, q1, v1, K1, b1, kq1, kout = ws
     s, n, m = A.shape[0], q1.shape[0], K1.shape[0]
-    sn, sm = s * n, s * m
-    re0, rf0 = sn + n, sn + n + (s - 1) * m
+    sn = s * n
     for j in range(s):
         hess_U(T[j], Q[j], H[j])
         KTlam_q(T[j], Q[j], x[sn + j * m:sn + (j + 1) * m], Rq[j])
@@ -156,23 +141,7 @@ def spark_jacobian(model, tab, x, t0, h, M, ws, J):
                 wt = At[i, k] if i < s else bt[k]
                 for l in range(m):
                     J[i * n + a, sn + k * m + l] = wt * KK[k, l, a]
-    for a in range(n):
-        for b in range(n):
-            J[sn + a, sn + sm + b] = M[a, b]
-    for l in range(s - 1):
-        for mm in range(m):
-            for k in range(s):
-                for b in range(n):
-                    acc = om[l, k] * KK[k, mm, b]
-                    for j in range(s):
-                        acc += h * om[l, j] * A[j, k] * kq[j, mm, b]
-                    J[re0 + l * m + mm, k * n + b] = acc
-    for mm in range(m):
-        for k in range(s):
-            for b in range(n):
-                J[rf0 + mm, k * n + b] = h * bw[k] * kq1[mm, b]
-        for b in range(n):
-            J[rf0 + mm, sn + sm + b] = K1[mm, b]
+    constraint_rows(tab, h, KK, kq, K1, kq1, M, J)
 
 
 @numba.njit(cache=True)
@@ -283,12 +252,9 @@ def lf2_step(model, variant, M, Minv, t, q, v, cv, h, tol, max_iter, lam, dq, dv
     n, m = q.shape[0], lam.shape[0]
     lf2_explicit(model, variant, Minv, t, q, v, h, ws)
     stats[2] += 1
+    status, prev = 0, -1.0
     floor = abs(h) * (1.0 + norm_inf(v))
-    prev = -1.0
-    it = 0
-    status = 0
-    while it < max_iter:
-        it += 1
+    for it in range(1, max_iter + 1):
         lf2_velocity(lam, ws)
         tc = lf2_constraint(model, variant, t, q, v, Z, h, ws)
         stats[2] += 1

@@ -216,3 +216,56 @@ def record(j, t, q, v, E, k, out_t, out_q, out_v, out_E, out_k):
     for l in range(k.shape[0]):
         out_k[j, l] = k[l]
     return np.isfinite(E) and np.isfinite(norm_inf(k))
+
+
+@numba.njit(cache=True)
+def constraint_rows(tab, h, Kst, kq, K1, kq1, P1v, J):
+    """The rows of the Newton matrix both SPARK forms share, with Kst, kq = K, k_q at the stages
+    and K1, kq1, P1v = K, k_q, dp/dv at the end point: d(21d)/dv1 = P1v,
+    d(21e)_l/dV_k = omega_lk K_k + h sum_j omega_lj a_jk k_q,j, d(21f)/dV_k = h b_k k_q(t1, q1, v1),
+    d(21f)/dv1 = K(t1, q1, v1)."""
+    c, A, Ah, At, bw, bh, bt, om = tab
+    s, m, n = kq.shape[0], kq.shape[1], kq.shape[2]
+    sn, sm = s * n, s * m
+    re0, rf0 = sn + n, sn + n + (s - 1) * m
+    for a in range(n):
+        for b in range(n):
+            J[sn + a, sn + sm + b] = P1v[a, b]
+    for l in range(s - 1):
+        for mm in range(m):
+            for k in range(s):
+                for b in range(n):
+                    acc = om[l, k] * Kst[k, mm, b]
+                    for j in range(s):
+                        acc += h * om[l, j] * A[j, k] * kq[j, mm, b]
+                    J[re0 + l * m + mm, k * n + b] = acc
+    for mm in range(m):
+        for k in range(s):
+            for b in range(n):
+                J[rf0 + mm, k * n + b] = h * bw[k] * kq1[mm, b]
+        for b in range(n):
+            J[rf0 + mm, sn + sm + b] = K1[mm, b]
+
+
+@numba.njit(cache=True)
+def stage_points(tab, x, t0, q0, v0, h, m, T, Q, V, q1, v1):
+    """(21a), (21c) from the increments x = [Z | Lambda | dv]: T_i = t0 + c_i h, V_i = v0 + Z_i,
+    Q_i = q0 + h sum_j a_ij V_j, q1 = q0 + h sum_j b_j V_j, v1 = v0 + dv."""
+    c, A, bw = tab[0], tab[1], tab[4]
+    s, n = A.shape[0], q0.shape[0]
+    off = s * n + s * m
+    for i in range(s):
+        T[i] = t0 + c[i] * h
+        for a in range(n):
+            V[i, a] = v0[a] + x[i * n + a]
+    for a in range(n):
+        for i in range(s):
+            acc = 0.0
+            for j in range(s):
+                acc += A[i, j] * V[j, a]
+            Q[i, a] = q0[a] + h * acc
+        acc = 0.0
+        for j in range(s):
+            acc += bw[j] * V[j, a]
+        q1[a] = q0[a] + h * acc
+        v1[a] = v0[a] + x[off + a]
