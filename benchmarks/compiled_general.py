@@ -76,22 +76,27 @@ def cold_start(cache, what, form="auto", B=3):
 
 
 def overhead(n_calls=200):
+    """Per-call overhead: CPU and wall time of a one-step call minus the marginal cost of a step
+    (from a 101-step call), for fast_integrate (set-up checks included) and run_compiled."""
     from ldaspark.compiled.fast import compile_system, fast_integrate, run_compiled
     from ldaspark.core.scenes import get_scene, mp_particles
     rows = []
     for sc in (get_scene("particle"), mp_particles(m=30, J=100, j=3)):
         cs = compile_system(sc.system)
         t0, q0, v0 = sc.initial()
-        fast_integrate(sc, "gauss-2", h=0.01, n_steps=1)
-        t = time.perf_counter()
-        for _ in range(n_calls):
-            fast_integrate(sc, "gauss-2", h=0.01, n_steps=1)
-        a = (time.perf_counter() - t) / n_calls
-        t = time.perf_counter()
-        for _ in range(n_calls):
-            run_compiled(cs, "gauss-2", t0, q0, v0, 0.01, 1)
-        b = (time.perf_counter() - t) / n_calls
-        rows.append((sc.name, sc.system.n, a, b))
+        calls = {"fast_integrate": lambda k: fast_integrate(sc, "gauss-2", h=0.01, n_steps=k),
+                 "run_compiled": lambda k: run_compiled(cs, "gauss-2", t0, q0, v0, 0.01, k)}
+        for name, fn in calls.items():
+            fn(1)
+            res = []
+            for k in (1, 101):
+                w, c = time.perf_counter(), time.process_time()
+                for _ in range(n_calls):
+                    fn(k)
+                res.append(((time.perf_counter() - w) / n_calls, (time.process_time() - c) / n_calls))
+            per_step = [(b - a) / 100 for a, b in zip(res[0], res[1])]
+            rows.append((sc.name, sc.system.n, name, res[0][0] - per_step[0], res[0][1] - per_step[1],
+                         per_step[1]))
     return rows
 
 
@@ -123,7 +128,7 @@ def work_precision(quick):
           f"{np.max(np.abs(chk.y[:3, -1] - ref.q[-1])):.1e}")
     spark, scipy_rows = [], []
     for method in ("gauss-2", "gauss-3"):
-        for N in (50, 100, 200, 400, 800, 1600, 3200, 6400, 12800):
+        for N in (25, 50, 100, 200, 400, 800, 1600, 3200, 6400, 12800):
             c, r = cpu(lambda: run_compiled(cs, method, 0.0, q0, v0, T / N, N, every=N))
             err = float(np.max(np.abs(r.q[-1] - ref.q[-1])))
             spark.append({"method": method, "N": N, "cpu": c, "error": err})
@@ -168,7 +173,7 @@ def main():
     ap.add_argument("--quick", action="store_true")
     args = ap.parse_args()
     sys.path.insert(0, ROOT)
-    import ldaspark.compiled.kernels  # noqa: F401  (compile once per machine, before timing)
+    import ldaspark.compiled.kernels  # noqa: F401,E402  (compile once per machine, before timing)
     print("== cold start (fresh process, empty model cache; kernels from numba's cache) ==")
     print("seconds wall (CPU); 'first call' = codegen + compile + run, what a user waits for a new system")
     print(f"{'system':22s} {'form':10s} {'load kernels':>13s} {'codegen':>12s} {'compile':>12s} "
@@ -181,8 +186,9 @@ def main():
             cols = [(w[0], c[0]), (w[2], c[2]), (w[3], c[3]), (w[4], c[4]), (sum(w[2:]), sum(c[2:]))]
             print(f"{label:22s} {form:10s} " + " ".join(f"{a:6.2f} ({b:5.2f})" for a, b in cols))
     print("\n== per-call overhead (one step, warm) ==")
-    for name, n, a, b in overhead(50 if args.quick else 200):
-        print(f"{name:14s} n = {n:3d}: fast_integrate {a * 1e3:.3f} ms, run_compiled {b * 1e3:.3f} ms")
+    for name, n, call, w, c, step in overhead(20 if args.quick else 100):
+        print(f"{name:14s} n = {n:3d} {call:15s}: overhead {c * 1e3:.3f} ms CPU ({w * 1e3:.3f} ms wall); "
+              f"one step {step * 1e3:.3f} ms CPU")
     print("\n== general kernel vs mechanical kernel, gauss-2, h = 0.05, same system (steps/s) ==")
     for name, n, m, mech, gen in general_vs_mechanical(20000 if args.quick else 100000):
         print(f"{name:14s} (s, n, m) = (2, {n}, {m}): mechanical {mech:10.3g}  general {gen:10.3g}  "
