@@ -270,3 +270,17 @@ def test_nonideal_or_untranslatable_systems_fall_back(capsys):
     bessel = LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name="bessel")
     with pytest.raises(NotCompilableError, match="bessel"):
         compile_system(bessel)
+
+
+def test_kernel_file_records_its_helpers():
+    """numba keys a cached kernel on the content of kernels.py only; kernels.HELPERS_SHA256 must be
+    the digest of the helper modules compiled into it, so that an edit of a helper changes
+    kernels.py and the cached kernels are rebuilt instead of silently reused."""
+    import hashlib
+    from ldaspark.compiled import kernels
+    d = os.path.dirname(kernels.__file__)
+    h = hashlib.sha256()
+    for f in kernels.HELPERS:
+        with open(os.path.join(d, f), "rb") as fh:
+            h.update(fh.read())
+    assert kernels.HELPERS_SHA256 == h.hexdigest(), "update HELPERS_SHA256 in ldaspark/compiled/kernels.py"

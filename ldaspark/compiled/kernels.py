@@ -13,7 +13,6 @@ q and v updates can be summed with Kahan's compensated summation (GNI VIII.5); t
 bookkeeping steps they share are in ``newton``; the residuals and Newton matrices in
 ``kernels_mech`` and ``kernels_general``.
 """
-import os
 import numba
 import numpy as np
 from numba import types
@@ -22,23 +21,11 @@ from numba.extending import overload
 from . import modeltypes as mt
 
 
-def _refresh_stamp():
-    """numba keys a cached kernel on the file that defines it only; the helpers it inlines live
-    in sibling modules, so touch this file when one of them is newer (a stale kernel would
-    otherwise be loaded after an edit of a helper)."""
-    here = os.path.abspath(__file__)
-    d = os.path.dirname(here)
-    try:
-        mine = os.stat(here).st_mtime
-        newest = max(os.stat(os.path.join(d, f)).st_mtime
-                     for f in ("newton.py", "kernels_mech.py", "kernels_general.py", "modeltypes.py"))
-        if newest > mine:
-            os.utime(here, None)
-    except OSError:
-        pass                                # read-only install: files of one release share a stamp
-
-
-_refresh_stamp()
+# numba keys a cached kernel on the content of the file that defines it (this one); the helpers
+# it compiles in live in sibling modules. Their digest is written here so that editing a helper
+# changes this file too (tests/test_compiled_general.py checks it; update it after an edit).
+HELPERS = ("newton.py", "kernels_mech.py", "kernels_general.py", "modeltypes.py")
+HELPERS_SHA256 = "c236d564a2d31bc537b2f69c158aed67a305b7ede0886a88395f830f873292f8"
 
 from .newton import (FAIL_NONFINITE, accept_step, end_newton, fail, newton_increment, newton_status,  # noqa: E402
                      norm_inf, predict, record, start_newton)

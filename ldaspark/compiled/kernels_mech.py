@@ -149,7 +149,7 @@ def lf2_constraint(model, variant, t, q, v, Z, h, ws):
     """The multiplier equation c(lam) = 0 of the semi-implicit step at Z = u0 - B0 lam; returns
     the time of the constraint point (q1 holds its position, V1 = v0 + Z)."""
     K_of, b_of = model[3], model[4]
-    g0, g1, K0, b0, K1, b1, kq1, B0, B1, u0, Zw, V1, q1, cres, D, S, piv, mu = ws
+    K0, b0, K1, b1, V1, q1, cres = ws[2], ws[3], ws[4], ws[5], ws[11], ws[12], ws[13]
     n, m = q.shape[0], K0.shape[0]
     half = 0.5 * h
     for a in range(n):
@@ -181,7 +181,7 @@ def lf2_constraint(model, variant, t, q, v, Z, h, ws):
 def lf2_matrix(model, variant, tc, h, ws):
     """dc/dlam at the predictor (simplified Newton: factorised once per step)."""
     kq_of = model[5]
-    g0, g1, K0, b0, K1, b1, kq1, B0, B1, u0, Zw, V1, q1, cres, D, S, piv, mu = ws
+    K0, K1, kq1, B0, V1, q1, D, piv = ws[2], ws[4], ws[6], ws[7], ws[11], ws[12], ws[14], ws[16]
     n, m = q1.shape[0], K0.shape[0]
     kq_of(tc, q1, V1, kq1)
     fq = h if variant == 0 else 0.5 * h
@@ -201,7 +201,7 @@ def lf2_matrix(model, variant, tc, h, ws):
 def lf2_explicit(model, variant, Minv, t, q, v, h, ws):
     """u0 and B0 = M^-1 K^T at the stage where grad U and K are frozen."""
     grad_U, K_of, b_of = model[1], model[3], model[4]
-    g0, g1, K0, b0, K1, b1, kq1, B0, B1, u0, Zw, V1, q1, cres, D, S, piv, mu = ws
+    g0, K0, b0, B0, u0, q1 = ws[0], ws[2], ws[3], ws[7], ws[9], ws[12]
     n, m = q.shape[0], K0.shape[0]
     half = 0.5 * h
     if variant == 2:
@@ -248,7 +248,7 @@ def lf2_step(model, variant, M, Minv, t, q, v, cv, h, tol, max_iter, lam, dq, dv
     variant 1, modified (8.4): constraint k(t0 + h/2, q0 + h/2 V1, V1) = 0 instead.
     variant 2, McLachlan-Perlmutter (26): Q1 = q0 + h/2 v0, M dv = -h grad U(Q1) - K(Q1)^T Lambda,
       q1 = q0 + h/2 (v0 + v1), 0 = K(q1) v1 + b(q1)."""
-    g0, g1, K0, b0, K1, b1, kq1, B0, B1, u0, Z, V1, q1, cres, D, S, piv, mu = ws
+    Z, V1, q1, cres, D, piv = ws[10], ws[11], ws[12], ws[13], ws[14], ws[16]
     n, m = q.shape[0], lam.shape[0]
     lf2_explicit(model, variant, Minv, t, q, v, h, ws)
     stats[2] += 1
@@ -292,7 +292,7 @@ def lf2_step(model, variant, M, Minv, t, q, v, cv, h, tol, max_iter, lam, dq, dv
 def lf2_second_stage(model, M, Minv, t1, v, cv, h, dv, ws, stats, step):
     """M dv + K(q1)^T mu = M Z - h/2 grad U(q1), K(q1)(v0 + dv) + b(q1) = 0 (a linear solve)."""
     grad_U, K_of, b_of = model[1], model[3], model[4]
-    g0, g1, K0, b0, K1, b1, kq1, B0, B1, u0, Z, V1, q1, cres, D, S, piv, mu = ws
+    g1, K1, b1, B1, Z, q1, S, piv, mu = ws[1], ws[4], ws[5], ws[8], ws[10], ws[12], ws[15], ws[16], ws[17]
     n, m = v.shape[0], K1.shape[0]
     grad_U(t1, q1, g1)
     K_of(t1, q1, K1)
