@@ -25,11 +25,11 @@ from . import modeltypes as mt
 # it compiles in live in sibling modules. Their digest is written here so that editing a helper
 # changes this file too (tests/test_compiled_general.py checks it; update it after an edit).
 HELPERS = ("newton.py", "kernels_mech.py", "kernels_general.py", "modeltypes.py")
-HELPERS_SHA256 = "c236d564a2d31bc537b2f69c158aed67a305b7ede0886a88395f830f873292f8"
+HELPERS_SHA256 = "4aebd728d921add3a78101cd483d92059e6eb7439238366830fadff4f6f57dcb"
 
-from .newton import (FAIL_NONFINITE, accept_step, end_newton, fail, newton_increment, newton_status,  # noqa: E402
-                     norm_inf, predict, record, start_newton)
-from .kernels_mech import lf2_step, mech_point, mech_store, mech_workspace, spark_eval  # noqa: E402
+from .newton import (FAIL_NONFINITE, FAIL_SINGULAR, accept_step, advance, end_newton, fail, lu_factor,  # noqa: E402
+                     lu_solve, newton_increment, newton_status, norm_inf, predict, record, start_newton)
+from .kernels_mech import mech_point, mech_store, mech_workspace, spark_eval  # noqa: E402
 from .kernels_general import general_eval, general_store, workspace  # noqa: E402
 
 
@@ -149,39 +149,236 @@ def general_run(model, tab, M, t0, q0, v0, h, n_steps, every, compensated, tol, 
                max_iter, predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x)
 
 
+@numba.njit(cache=True)
+def lf2_store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, kK, kb, kout):
+    """Sample j of the semi-implicit kernel; False if not finite."""
+    return record(j, t, q, v, mech_point(model, t, q, v, M, kK, kb, kout), kout, out_t, out_q, out_v, out_E, out_k)
+
+
 LF2_SIG = types.void(mt.MECH_MODEL, types.int64, mt.a2, mt.a2, *mt.RUN)
 
 
 @numba.njit(LF2_SIG, cache=True, nogil=True)
 def lf2_run(model, variant, M, Minv, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, predictor,
             out_t, out_q, out_v, out_E, out_k, stats):
-    """Semi-implicit 2-stage methods with Newton on the m multipliers only (Lambda = h Psi):
-    variant 0 the Lobatto IIIA-B SPARK method in the form (25), 1 the modified method of 8.4,
-    2 McLachlan-Perlmutter's (26); one step is ``kernels_mech.lf2_step``."""
+    """Semi-implicit 2-stage methods with Newton on the m multipliers only (Lambda = h Psi).
+
+    variant 0, Lobatto IIIA-B SPARK (25): M Z1 = -h/2 grad U(q0) - 1/2 K(q0)^T Lambda_1,
+      0 = (k(q0, V1) + k(q1, V1))/2, q1 = q0 + h V1; then M dv + K(q1)^T mu = M Z1 - h/2 grad U(q1),
+      K(q1) v1 + b(q1) = 0.
+    variant 1, modified (8.4): constraint k(t0 + h/2, q0 + h/2 V1, V1) = 0 instead.
+    variant 2, McLachlan-Perlmutter (26): Q1 = q0 + h/2 v0, M dv = -h grad U(Q1) - K(Q1)^T Lambda,
+      q1 = q0 + h/2 (v0 + v1), 0 = K(q1) v1 + b(q1).
+
+    One function of ~190 lines on purpose: the step is ~0.4 us, and the same code split into
+    helper functions taking a workspace tuple measured 3-5x slower per step (with the model
+    called through the same function pointers as here, or directly)."""
+    grad_U, K_of, b_of, kq_of = model[1], model[3], model[4], model[5]
     n = q0.shape[0]
     m = out_k.shape[1]
-    q, v = q0.copy(), v0.copy()
-    cq, cv, dq, dv = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
-    ws = (np.zeros(n), np.zeros(n), np.zeros((m, n)), np.zeros(m), np.zeros((m, n)), np.zeros(m),
-          np.zeros((m, n)), np.zeros((n, m)), np.zeros((n, m)), np.zeros(n), np.zeros(n), np.zeros(n),
-          np.zeros(n), np.zeros(m), np.zeros((m, m)), np.zeros((m, m)), np.zeros(m, dtype=np.int64),
-          np.zeros(m))
-    lam, lam_last, lam_prev = np.zeros(m), np.zeros(m), np.zeros(m)
-    kK, kb, kout = np.zeros((m, n)), np.zeros(m), np.zeros(m)
+    q = q0.copy()
+    v = v0.copy()
+    cq = np.zeros(n)
+    cv = np.zeros(n)
+    g0 = np.zeros(n)
+    g1 = np.zeros(n)
+    K0 = np.zeros((m, n))
+    b0 = np.zeros(m)
+    K1 = np.zeros((m, n))
+    b1 = np.zeros(m)
+    kq1 = np.zeros((m, n))
+    B0 = np.zeros((n, m))
+    B1 = np.zeros((n, m))
+    u0 = np.zeros(n)
+    Z = np.zeros(n)
+    V1 = np.zeros(n)
+    q1 = np.zeros(n)
+    dq = np.zeros(n)
+    dv = np.zeros(n)
+    cres = np.zeros(m)
+    D = np.zeros((m, m))
+    S = np.zeros((m, m))
+    piv = np.zeros(m, dtype=np.int64)
+    lam = np.zeros(m)
+    lam_last = np.zeros(m)
+    lam_prev = np.zeros(m)
+    mu = np.zeros(m)
+    kK = np.zeros((m, n))
+    kb = np.zeros(m)
+    kout = np.zeros(m)
+    half = 0.5 * h
     stats[mt.FAILED_STEP] = -1
-    j_out = 0
-    for step in range(-1, n_steps):
-        if step >= 0:
-            t = t0 + step * h
-            predict(lam, lam_last, lam_prev, step, predictor)
-            if not lf2_step(model, variant, M, Minv, t, q, v, cv, h, tol, max_iter, lam, dq, dv, ws, stats, step):
+    if not lf2_store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, kK, kb, kout):
+        fail(stats, 0, FAIL_NONFINITE)
+        return
+    j_out = 1
+    for step in range(n_steps):
+        t = t0 + step * h
+        t1 = t + h
+        # explicit part: u0 and B0 = M^-1 K^T at the stage where grad U and K are frozen
+        if variant == 2:
+            for a in range(n):
+                q1[a] = q[a] + half * v[a]
+            grad_U(t + half, q1, g0)
+            K_of(t + half, q1, K0)
+            fu = h
+            fb = 1.0
+        else:
+            grad_U(t, q, g0)
+            K_of(t, q, K0)
+            b_of(t, q, b0)
+            fu = half
+            fb = 0.5
+        stats[2] += 1
+        for a in range(n):
+            acc = 0.0
+            for b in range(n):
+                acc += Minv[a, b] * g0[b]
+            u0[a] = -fu * acc
+            for l in range(m):
+                acc = 0.0
+                for b in range(n):
+                    acc += Minv[a, b] * K0[l, b]
+                B0[a, l] = fb * acc
+        if step >= 2 and predictor == 2:
+            for l in range(m):
+                lam[l] = 2.0 * lam_last[l] - lam_prev[l]
+        elif step >= 1 and predictor >= 1:
+            for l in range(m):
+                lam[l] = lam_last[l]
+        else:
+            for l in range(m):
+                lam[l] = 0.0
+        floor = abs(h) * (1.0 + norm_inf(v))
+        prev = -1.0
+        it = 0
+        status = 0
+        while it < max_iter:
+            it += 1
+            # Z = u0 - B0 lam is the velocity increment (V1 - v0, or v1 - v0 for variant 2)
+            for a in range(n):
+                acc = 0.0
+                for l in range(m):
+                    acc += B0[a, l] * lam[l]
+                Z[a] = u0[a] - acc
+                V1[a] = v[a] + Z[a]
+            if variant == 0:
+                for a in range(n):
+                    q1[a] = q[a] + h * V1[a]
+                tc = t1
+            elif variant == 1:
+                for a in range(n):
+                    q1[a] = q[a] + half * V1[a]
+                tc = t + half
+            else:
+                for a in range(n):
+                    q1[a] = q[a] + h * v[a] + half * Z[a]
+                tc = t1
+            K_of(tc, q1, K1)
+            b_of(tc, q1, b1)
+            stats[2] += 1
+            for l in range(m):
+                acc = b1[l]
+                for a in range(n):
+                    acc += K1[l, a] * V1[a]
+                if variant == 0:
+                    acc2 = b0[l]
+                    for a in range(n):
+                        acc2 += K0[l, a] * V1[a]
+                    cres[l] = 0.5 * (acc + acc2)
+                else:
+                    cres[l] = acc
+            if it == 1:
+                # simplified Newton: dc/dlam at the predictor, factorised once per step
+                kq_of(tc, q1, V1, kq1)
+                stats[3] += 1
+                fq = h if variant == 0 else half
+                for l in range(m):
+                    for r in range(m):
+                        acc = 0.0
+                        for a in range(n):
+                            Cla = K1[l, a] + fq * kq1[l, a]
+                            if variant == 0:
+                                Cla = 0.5 * (Cla + K0[l, a])
+                            acc += Cla * B0[a, r]
+                        D[l, r] = -acc
+                if not lu_factor(D, piv):
+                    fail(stats, step, FAIL_SINGULAR)
+                    return
+                stats[4] += 1
+            for l in range(m):
+                cres[l] = -cres[l]
+            lu_solve(D, piv, cres)
+            for l in range(m):
+                lam[l] += cres[l]
+            dn = norm_inf(cres)
+            status = newton_status(dn, prev, norm_inf(lam), floor, tol)
+            if status != 0:
+                break
+            prev = dn
+        if not end_newton(stats, step, it, status):
+            return
+        for a in range(n):
+            acc = 0.0
+            for l in range(m):
+                acc += B0[a, l] * lam[l]
+            Z[a] = u0[a] - acc
+        if variant == 2:
+            for a in range(n):
+                dq[a] = h * v[a] + half * Z[a]
+                dv[a] = Z[a]
+        else:
+            for a in range(n):
+                V1[a] = v[a] + Z[a]
+                dq[a] = h * V1[a]
+                q1[a] = q[a] + dq[a]
+            # second stage: M dv + K(q1)^T mu = M Z - h/2 grad U(q1), K(q1)(v0 + dv) + b(q1) = 0
+            grad_U(t1, q1, g1)
+            K_of(t1, q1, K1)
+            b_of(t1, q1, b1)
+            stats[2] += 1
+            for a in range(n):
+                acc = 0.0
+                for b in range(n):
+                    acc += Minv[a, b] * g1[b]
+                dv[a] = Z[a] - half * acc
+                for l in range(m):
+                    acc = 0.0
+                    for b in range(n):
+                        acc += Minv[a, b] * K1[l, b]
+                    B1[a, l] = acc
+            for l in range(m):
+                acc = b1[l]
+                for a in range(n):
+                    acc += K1[l, a] * v[a]
+                acc2 = 0.0
+                for a in range(n):
+                    acc2 += K1[l, a] * (dv[a] + cv[a])
+                mu[l] = acc + acc2
+                for r in range(m):
+                    acc = 0.0
+                    for a in range(n):
+                        acc += K1[l, a] * B1[a, r]
+                    S[l, r] = acc
+            if not lu_factor(S, piv):
+                fail(stats, step, FAIL_SINGULAR)
                 return
-            if not accept_step(q, v, cq, cv, dq, dv, compensated, lam, lam_last, lam_prev, stats, step):
-                return
-        if step < 0 or (step + 1) % every == 0 or step + 1 == n_steps:
-            tj = t0 + (step + 1) * h
-            e = mech_point(model, tj, q, v, M, kK, kb, kout)
-            if not record(j_out, tj, q, v, e, kout, out_t, out_q, out_v, out_E, out_k):
-                fail(stats, max(step, 0), FAIL_NONFINITE)
+            lu_solve(S, piv, mu)
+            for a in range(n):
+                acc = 0.0
+                for l in range(m):
+                    acc += B1[a, l] * mu[l]
+                dv[a] -= acc
+        if not advance(q, v, cq, cv, dq, dv, compensated):
+            fail(stats, step, FAIL_NONFINITE)
+            return
+        for l in range(m):
+            lam_prev[l] = lam_last[l]
+            lam_last[l] = lam[l]
+        stats[0] += 1
+        if (step + 1) % every == 0 or step + 1 == n_steps:
+            if not lf2_store(model, j_out, t0 + (step + 1) * h, q, v, M, out_t, out_q, out_v, out_E, out_k,
+                                  kK, kb, kout):
+                fail(stats, step, FAIL_NONFINITE)
                 return
             j_out += 1
