@@ -28,7 +28,7 @@ HELPERS = ("newton.py", "kernels_mech.py", "kernels_general.py", "modeltypes.py"
 HELPERS_SHA256 = "4aebd728d921add3a78101cd483d92059e6eb7439238366830fadff4f6f57dcb"
 
 from .newton import (FAIL_NONFINITE, FAIL_SINGULAR, accept_step, advance, end_newton, fail, lu_factor,  # noqa: E402
-                     lu_solve, newton_increment, newton_status, norm_inf, predict, record, start_newton)
+                     lu_solve, newton_increment, newton_status, norm_inf, predict, record, shift, start_newton)
 from .kernels_mech import mech_point, mech_store, mech_workspace, spark_eval  # noqa: E402
 from .kernels_general import general_eval, general_store, workspace  # noqa: E402
 
@@ -176,36 +176,14 @@ def lf2_run(model, variant, M, Minv, t0, q0, v0, h, n_steps, every, compensated,
     grad_U, K_of, b_of, kq_of = model[1], model[3], model[4], model[5]
     n = q0.shape[0]
     m = out_k.shape[1]
-    q = q0.copy()
-    v = v0.copy()
-    cq = np.zeros(n)
-    cv = np.zeros(n)
-    g0 = np.zeros(n)
-    g1 = np.zeros(n)
-    K0 = np.zeros((m, n))
-    b0 = np.zeros(m)
-    K1 = np.zeros((m, n))
-    b1 = np.zeros(m)
-    kq1 = np.zeros((m, n))
-    B0 = np.zeros((n, m))
-    B1 = np.zeros((n, m))
-    u0 = np.zeros(n)
-    Z = np.zeros(n)
-    V1 = np.zeros(n)
-    q1 = np.zeros(n)
-    dq = np.zeros(n)
-    dv = np.zeros(n)
-    cres = np.zeros(m)
-    D = np.zeros((m, m))
-    S = np.zeros((m, m))
+    q, v = q0.copy(), v0.copy()
+    cq, cv, g0, g1, u0 = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+    Z, V1, q1, dq, dv = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+    K0, K1, kq1, kK = np.zeros((m, n)), np.zeros((m, n)), np.zeros((m, n)), np.zeros((m, n))
+    B0, B1, D, S = np.zeros((n, m)), np.zeros((n, m)), np.zeros((m, m)), np.zeros((m, m))
+    b0, b1, cres, lam, lam_last = np.zeros(m), np.zeros(m), np.zeros(m), np.zeros(m), np.zeros(m)
+    lam_prev, mu, kb, kout = np.zeros(m), np.zeros(m), np.zeros(m), np.zeros(m)
     piv = np.zeros(m, dtype=np.int64)
-    lam = np.zeros(m)
-    lam_last = np.zeros(m)
-    lam_prev = np.zeros(m)
-    mu = np.zeros(m)
-    kK = np.zeros((m, n))
-    kb = np.zeros(m)
-    kout = np.zeros(m)
     half = 0.5 * h
     stats[mt.FAILED_STEP] = -1
     if not lf2_store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, kK, kb, kout):
@@ -240,19 +218,9 @@ def lf2_run(model, variant, M, Minv, t0, q0, v0, h, n_steps, every, compensated,
                 for b in range(n):
                     acc += Minv[a, b] * K0[l, b]
                 B0[a, l] = fb * acc
-        if step >= 2 and predictor == 2:
-            for l in range(m):
-                lam[l] = 2.0 * lam_last[l] - lam_prev[l]
-        elif step >= 1 and predictor >= 1:
-            for l in range(m):
-                lam[l] = lam_last[l]
-        else:
-            for l in range(m):
-                lam[l] = 0.0
+        predict(lam, lam_last, lam_prev, step, predictor)
         floor = abs(h) * (1.0 + norm_inf(v))
-        prev = -1.0
-        it = 0
-        status = 0
+        status, prev, it = 0, -1.0, 0
         while it < max_iter:
             it += 1
             # Z = u0 - B0 lam is the velocity increment (V1 - v0, or v1 - v0 for variant 2)
@@ -372,9 +340,7 @@ def lf2_run(model, variant, M, Minv, t0, q0, v0, h, n_steps, every, compensated,
         if not advance(q, v, cq, cv, dq, dv, compensated):
             fail(stats, step, FAIL_NONFINITE)
             return
-        for l in range(m):
-            lam_prev[l] = lam_last[l]
-            lam_last[l] = lam[l]
+        shift(lam, lam_last, lam_prev)
         stats[0] += 1
         if (step + 1) % every == 0 or step + 1 == n_steps:
             if not lf2_store(model, j_out, t0 + (step + 1) * h, q, v, M, out_t, out_q, out_v, out_E, out_k,
