@@ -75,10 +75,10 @@ def max_diff(fast, sol):
                float(np.max(np.abs(fast.constraint - np.asarray(sol.constraint, float)))))
 
 
-def agreement(system, q0, v0, method, h=0.1, n=N, form="auto"):
+def agreement(system, q0, v0, method, h=0.1, n=N, form="auto", tol=None):
     cs = compile_system(system, form=form)
     assert cs.form == "general"
-    fast = run_compiled(cs, method, 0.0, q0, v0, h, n, compensated=False)
+    fast = run_compiled(cs, method, 0.0, q0, v0, h, n, compensated=False, tol=tol)
     tab = method if not isinstance(method, str) else get_method(method)
     sol = integrate(system, tab, 0.0, q0, v0, h, n_steps=n)
     assert fast.stats["kernel"] == "general" and fast.stats["steps"] == n
@@ -100,8 +100,12 @@ def test_general_kernel_agrees_with_generic(name, method):
 @pytest.mark.parametrize("method", ["gauss-1", "gauss-3", "lobatto-iiia-iiib-2", "lobatto-iiia-iiib-iiid-3",
                                     "euler-i", "euler-ii"])
 def test_general_kernel_agrees_all_families(name, method):
+    """With the default Newton tolerance (8 unit round-offs, stopping on the contraction estimate)
+    the 1-stage methods on the non-quadratic L differ by 2-3e-12 at t = 100 (the stopping points
+    of the two Newton iterations differ at round-off level and the difference grows); iterated to
+    the round-off floor (tol = 1e-16) every pair agrees to ~1.5e-13."""
     system, q0, v0 = SYSTEMS[name]()
-    assert agreement(system, q0, v0, method) <= AGREE
+    assert agreement(system, q0, v0, method, tol=1e-16) <= AGREE
 
 
 @pytest.mark.parametrize("scene_name", ["skate"])
