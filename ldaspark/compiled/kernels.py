@@ -1,0 +1,350 @@
+"""The compiled kernels' entry points: the SPARK method (21a-f) for mechanical systems
+(``spark_run``), for general L(t, q, v), k(t, q, v) (``general_run``), and the semi-implicit
+2-stage methods (25), 8.4 and (26) (``lf2_run``).
+
+The kernels are compiled ONCE, for every system: the model (the generated functions of
+``codegen``) comes in as a tuple of first-class functions whose types (``modeltypes``) do not
+depend on the system, so each kernel has one explicit signature, is compiled eagerly when this
+module is imported and cached on disk by numba (``cache=True``: ``__pycache__`` next to this
+file, or numba's per-user cache directory). Only the small model functions compile per system.
+
+All kernels work on increments (Z_i = V_i - v0, Lambda_i = h Psi_i, dv = v1 - v0), so that the
+q and v updates can be summed with Kahan's compensated summation (GNI VIII.5); the Newton and
+bookkeeping steps they share are in ``newton``; the residuals and Newton matrices in
+``kernels_mech`` and ``kernels_general``.
+"""
+import numba
+import numpy as np
+from numba import types
+from numba.extending import overload
+
+from . import modeltypes as mt
+
+
+# numba keys a cached kernel on the content of the file that defines it (this one); the helpers
+# it compiles in live in sibling modules. Their digest is written here so that editing a helper
+# changes this file too (tests/test_compiled_general.py checks it; update it after an edit).
+HELPERS = ("newton.py", "kernels_mech.py", "kernels_general.py", "modeltypes.py")
+HELPERS_SHA256 = "4aebd728d921add3a78101cd483d92059e6eb7439238366830fadff4f6f57dcb"
+
+from .newton import (FAIL_NONFINITE, FAIL_SINGULAR, accept_step, advance, end_newton, fail, lu_factor,  # noqa: E402
+                     lu_solve, newton_increment, newton_status, norm_inf, predict, record, shift, start_newton)
+from .kernels_mech import mech_point, mech_store, mech_workspace, spark_eval  # noqa: E402
+from .kernels_general import general_eval, general_store, workspace  # noqa: E402
+
+
+def evaluate(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
+    """Residual and Newton matrix of (21) for the model's form (chosen by numba at typing time)."""
+
+
+def store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
+    """One sample (t, q, v, E, k) for the model's form (chosen by numba at typing time)."""
+
+
+def _form(model, mechanical, general):
+    """The model tuple is (n, 7 mechanical functions) or (n, 3 general functions)."""
+    return mechanical if len(model.types) == 8 else general
+
+
+@overload(evaluate)
+def _evaluate(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
+    fn = _form(model, spark_eval, general_eval)
+    return lambda model, tab, jac, x, t0, q0, v0, h, M, ws, G, J: fn(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J)
+
+
+@overload(store)
+def _store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
+    fn = _form(model, mech_store, general_store)
+    return lambda model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws: fn(
+        model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws)
+
+
+@numba.njit(cache=True)
+def spark_loop(model, tab, M, ws, t0, q0, v0, h, n_steps, every, compensated, tol,
+               max_iter, predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x):
+    """The step loop of the SPARK method (21) shared by both forms: ``evaluate`` (residual and
+    Newton matrix: ``kernels_mech.spark_eval`` or ``kernels_general.general_eval``) and ``store``
+    (one sample) are resolved from the model's type when numba compiles each entry point.
+    (Passing the functions as values would keep numba from caching the kernels.)"""
+    s = tab[1].shape[0]
+    n = q0.shape[0]
+    m = out_k.shape[1]
+    sn, sm = s * n, s * m
+    NN = sn + sm + n
+    G, J = np.zeros(NN), np.zeros((NN, NN))
+    piv = np.zeros(NN, dtype=np.int64)
+    x, x_last, x_prev = np.zeros(NN), np.zeros(NN), np.zeros(NN)
+    dq, dv, cq, cv = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+    q, v = q0.copy(), v0.copy()
+    bw = tab[4]
+    sb = 0.0
+    for j in range(s):
+        sb += bw[j]
+    stats[mt.FAILED_STEP] = -1
+    if not store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
+        fail(stats, 0, FAIL_NONFINITE)
+        return
+    j_out = 1
+    for step in range(n_steps):
+        t = t0 + step * h
+        predict(x, x_last, x_prev, step, predictor)
+        stats[2] += evaluate(model, tab, True, x, t, q, v, h, M, ws, G, J)
+        if not start_newton(stats, step, G, J, piv):
+            return
+        floor = abs(h) * (1.0 + norm_inf(v))
+        prev = -1.0
+        it = 0
+        status = 0
+        while it < max_iter:
+            it += 1
+            dn = newton_increment(J, piv, G, x)
+            status = newton_status(dn, prev, norm_inf(x), floor, tol)
+            if status != 0:
+                break
+            prev = dn
+            stats[2] += evaluate(model, tab, False, x, t, q, v, h, M, ws, G, J)
+        if not end_newton(stats, step, it, status):
+            return
+        # q1 - q0 = h sum_j b_j (v0 + Z_j); v1 - v0 = dv
+        for a in range(n):
+            acc = 0.0
+            for j in range(s):
+                acc += bw[j] * x[j * n + a]
+            dq[a] = h * (sb * v[a] + acc)
+            dv[a] = x[sn + sm + a]
+        if not accept_step(q, v, cq, cv, dq, dv, compensated, x, x_last, x_prev, stats, step):
+            return
+        if (step + 1) % every == 0 or step + 1 == n_steps:
+            if not store(model, j_out, t0 + (step + 1) * h, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
+                fail(stats, step, FAIL_NONFINITE)
+                return
+            j_out += 1
+    for r in range(NN):
+        out_x[r] = x_last[r]
+
+
+SPARK_SIG = types.void(mt.MECH_MODEL, mt.TABLEAU_T, mt.a2, *mt.RUN, mt.a1)
+
+
+@numba.njit(SPARK_SIG, cache=True, nogil=True)
+def spark_run(model, tab, M, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, predictor,
+              out_t, out_q, out_v, out_E, out_k, stats, out_x):
+    """n_steps of the SPARK method (21) for a mechanical system from (t0, q0, v0); samples every
+    ``every`` steps and the last step; out_x receives the last step's unknowns."""
+    ws = mech_workspace(tab[1].shape[0], q0.shape[0], out_k.shape[1])
+    spark_loop(model, tab, M, ws, t0, q0, v0, h, n_steps, every, compensated, tol,
+               max_iter, predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x)
+
+
+GENERAL_SIG = types.void(mt.GEN_MODEL, mt.TABLEAU_T, mt.a2, *mt.RUN, mt.a1)
+
+
+@numba.njit(GENERAL_SIG, cache=True, nogil=True)
+def general_run(model, tab, M, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, predictor,
+                out_t, out_q, out_v, out_E, out_k, stats, out_x):
+    """n_steps of the SPARK method (21) for general L(t, q, v), k(t, q, v) (``kernels_general``;
+    M is unused); same sampling, counters and failure codes as ``spark_run``."""
+    ws = workspace(tab[1].shape[0], q0.shape[0], out_k.shape[1])
+    spark_loop(model, tab, M, ws, t0, q0, v0, h, n_steps, every, compensated, tol,
+               max_iter, predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x)
+
+
+@numba.njit(cache=True)
+def lf2_store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, kK, kb, kout):
+    """Sample j of the semi-implicit kernel; False if not finite."""
+    return record(j, t, q, v, mech_point(model, t, q, v, M, kK, kb, kout), kout, out_t, out_q, out_v, out_E, out_k)
+
+
+LF2_SIG = types.void(mt.MECH_MODEL, types.int64, mt.a2, mt.a2, *mt.RUN)
+
+
+@numba.njit(LF2_SIG, cache=True, nogil=True)
+def lf2_run(model, variant, M, Minv, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, predictor,
+            out_t, out_q, out_v, out_E, out_k, stats):
+    """Semi-implicit 2-stage methods with Newton on the m multipliers only (Lambda = h Psi).
+
+    variant 0, Lobatto IIIA-B SPARK (25): M Z1 = -h/2 grad U(q0) - 1/2 K(q0)^T Lambda_1,
+      0 = (k(q0, V1) + k(q1, V1))/2, q1 = q0 + h V1; then M dv + K(q1)^T mu = M Z1 - h/2 grad U(q1),
+      K(q1) v1 + b(q1) = 0.
+    variant 1, modified (8.4): constraint k(t0 + h/2, q0 + h/2 V1, V1) = 0 instead.
+    variant 2, McLachlan-Perlmutter (26): Q1 = q0 + h/2 v0, M dv = -h grad U(Q1) - K(Q1)^T Lambda,
+      q1 = q0 + h/2 (v0 + v1), 0 = K(q1) v1 + b(q1).
+
+    One function of ~190 lines on purpose: the step is ~0.4 us, and the same code split into
+    helper functions taking a workspace tuple measured 3-5x slower per step (with the model
+    called through the same function pointers as here, or directly)."""
+    grad_U, K_of, b_of, kq_of = model[1], model[3], model[4], model[5]
+    n = q0.shape[0]
+    m = out_k.shape[1]
+    q, v = q0.copy(), v0.copy()
+    cq, cv, g0, g1, u0 = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+    Z, V1, q1, dq, dv = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+    K0, K1, kq1, kK = np.zeros((m, n)), np.zeros((m, n)), np.zeros((m, n)), np.zeros((m, n))
+    B0, B1, D, S = np.zeros((n, m)), np.zeros((n, m)), np.zeros((m, m)), np.zeros((m, m))
+    b0, b1, cres, lam, lam_last = np.zeros(m), np.zeros(m), np.zeros(m), np.zeros(m), np.zeros(m)
+    lam_prev, mu, kb, kout = np.zeros(m), np.zeros(m), np.zeros(m), np.zeros(m)
+    piv = np.zeros(m, dtype=np.int64)
+    half = 0.5 * h
+    stats[mt.FAILED_STEP] = -1
+    if not lf2_store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, kK, kb, kout):
+        fail(stats, 0, FAIL_NONFINITE)
+        return
+    j_out = 1
+    for step in range(n_steps):
+        t = t0 + step * h
+        t1 = t + h
+        # explicit part: u0 and B0 = M^-1 K^T at the stage where grad U and K are frozen
+        if variant == 2:
+            for a in range(n):
+                q1[a] = q[a] + half * v[a]
+            grad_U(t + half, q1, g0)
+            K_of(t + half, q1, K0)
+            fu = h
+            fb = 1.0
+        else:
+            grad_U(t, q, g0)
+            K_of(t, q, K0)
+            b_of(t, q, b0)
+            fu = half
+            fb = 0.5
+        stats[2] += 1
+        for a in range(n):
+            acc = 0.0
+            for b in range(n):
+                acc += Minv[a, b] * g0[b]
+            u0[a] = -fu * acc
+            for l in range(m):
+                acc = 0.0
+                for b in range(n):
+                    acc += Minv[a, b] * K0[l, b]
+                B0[a, l] = fb * acc
+        predict(lam, lam_last, lam_prev, step, predictor)
+        floor = abs(h) * (1.0 + norm_inf(v))
+        status, prev, it = 0, -1.0, 0
+        while it < max_iter:
+            it += 1
+            # Z = u0 - B0 lam is the velocity increment (V1 - v0, or v1 - v0 for variant 2)
+            for a in range(n):
+                acc = 0.0
+                for l in range(m):
+                    acc += B0[a, l] * lam[l]
+                Z[a] = u0[a] - acc
+                V1[a] = v[a] + Z[a]
+            if variant == 0:
+                for a in range(n):
+                    q1[a] = q[a] + h * V1[a]
+                tc = t1
+            elif variant == 1:
+                for a in range(n):
+                    q1[a] = q[a] + half * V1[a]
+                tc = t + half
+            else:
+                for a in range(n):
+                    q1[a] = q[a] + h * v[a] + half * Z[a]
+                tc = t1
+            K_of(tc, q1, K1)
+            b_of(tc, q1, b1)
+            stats[2] += 1
+            for l in range(m):
+                acc = b1[l]
+                for a in range(n):
+                    acc += K1[l, a] * V1[a]
+                if variant == 0:
+                    acc2 = b0[l]
+                    for a in range(n):
+                        acc2 += K0[l, a] * V1[a]
+                    cres[l] = 0.5 * (acc + acc2)
+                else:
+                    cres[l] = acc
+            if it == 1:
+                # simplified Newton: dc/dlam at the predictor, factorised once per step
+                kq_of(tc, q1, V1, kq1)
+                stats[3] += 1
+                fq = h if variant == 0 else half
+                for l in range(m):
+                    for r in range(m):
+                        acc = 0.0
+                        for a in range(n):
+                            Cla = K1[l, a] + fq * kq1[l, a]
+                            if variant == 0:
+                                Cla = 0.5 * (Cla + K0[l, a])
+                            acc += Cla * B0[a, r]
+                        D[l, r] = -acc
+                if not lu_factor(D, piv):
+                    fail(stats, step, FAIL_SINGULAR)
+                    return
+                stats[4] += 1
+            for l in range(m):
+                cres[l] = -cres[l]
+            lu_solve(D, piv, cres)
+            for l in range(m):
+                lam[l] += cres[l]
+            dn = norm_inf(cres)
+            status = newton_status(dn, prev, norm_inf(lam), floor, tol)
+            if status != 0:
+                break
+            prev = dn
+        if not end_newton(stats, step, it, status):
+            return
+        for a in range(n):
+            acc = 0.0
+            for l in range(m):
+                acc += B0[a, l] * lam[l]
+            Z[a] = u0[a] - acc
+        if variant == 2:
+            for a in range(n):
+                dq[a] = h * v[a] + half * Z[a]
+                dv[a] = Z[a]
+        else:
+            for a in range(n):
+                V1[a] = v[a] + Z[a]
+                dq[a] = h * V1[a]
+                q1[a] = q[a] + dq[a]
+            # second stage: M dv + K(q1)^T mu = M Z - h/2 grad U(q1), K(q1)(v0 + dv) + b(q1) = 0
+            grad_U(t1, q1, g1)
+            K_of(t1, q1, K1)
+            b_of(t1, q1, b1)
+            stats[2] += 1
+            for a in range(n):
+                acc = 0.0
+                for b in range(n):
+                    acc += Minv[a, b] * g1[b]
+                dv[a] = Z[a] - half * acc
+                for l in range(m):
+                    acc = 0.0
+                    for b in range(n):
+                        acc += Minv[a, b] * K1[l, b]
+                    B1[a, l] = acc
+            for l in range(m):
+                acc = b1[l]
+                for a in range(n):
+                    acc += K1[l, a] * v[a]
+                acc2 = 0.0
+                for a in range(n):
+                    acc2 += K1[l, a] * (dv[a] + cv[a])
+                mu[l] = acc + acc2
+                for r in range(m):
+                    acc = 0.0
+                    for a in range(n):
+                        acc += K1[l, a] * B1[a, r]
+                    S[l, r] = acc
+            if not lu_factor(S, piv):
+                fail(stats, step, FAIL_SINGULAR)
+                return
+            lu_solve(S, piv, mu)
+            for a in range(n):
+                acc = 0.0
+                for l in range(m):
+                    acc += B1[a, l] * mu[l]
+                dv[a] -= acc
+        if not advance(q, v, cq, cv, dq, dv, compensated):
+            fail(stats, step, FAIL_NONFINITE)
+            return
+        shift(lam, lam_last, lam_prev)
+        stats[0] += 1
+        if (step + 1) % every == 0 or step + 1 == n_steps:
+            if not lf2_store(model, j_out, t0 + (step + 1) * h, q, v, M, out_t, out_q, out_v, out_E, out_k,
+                                  kK, kb, kout):
+                fail(stats, step, FAIL_NONFINITE)
+                return
+            j_out += 1

@@ -1,0 +1,120 @@
+"""Residual and Newton matrix of the SPARK method (21) for general L(t, q, v), k(t, q, v):
+the same equations as ``ldaspark.core.spark.SparkMethod.residual``, with the momentum map
+implicit ((21b) and (21d) are solved for V_i and v1 directly). Called by ``kernels.general_run``.
+
+The model is the tuple ``codegen.general_source`` exports: (n, point_val, point_jac, energy), with
+point_val -> grad_v L, grad_q L, k, K = k_v and point_jac -> L_vv, L_vq, L_qq, k_q and
+KRq, KRv = the q- and v-partials of K^T lam (= -h R of (21) with lam = Lambda).
+Workspace ``ws`` (see ``workspace``): stage arrays, end-point arrays, and p0 = grad_v L(t0, q0, v0).
+"""
+import numba
+import numpy as np
+
+from .newton import constraint_rows, record, stage_points
+
+
+@numba.njit(cache=True)
+def workspace(s, n, m):
+    """Zeroed arrays; the model never writes structurally zero entries, so they stay zero."""
+    return (np.zeros(s), np.zeros((s, n)), np.zeros((s, n)), np.zeros((s, n)), np.zeros((s, n)),
+            np.zeros((s, m)), np.zeros((s, m, n)), np.zeros((s, n)),
+            np.zeros((s, n, n)), np.zeros((s, n, n)), np.zeros((s, n, n)), np.zeros((s, m, n)),
+            np.zeros((s, n, n)), np.zeros((s, n, n)),
+            np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(m), np.zeros((m, n)),
+            np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n)), np.zeros((m, n)), np.zeros((n, n)),
+            np.zeros((n, n)), np.zeros(m), np.zeros(n))
+
+
+@numba.njit(cache=True)
+def general_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
+    """Residual G of (21b, d, e, f) in x = [Z | Lambda | dv] (V_i = v0 + Z_i, v1 = v0 + dv) and,
+    if jac, its Jacobian J. The first call of a step (jac) also sets ws[27] = p0 = grad_v L(t0,
+    q0, v0). M is unused (the signature is that of ``kernels_mech.spark_eval``). Returns the
+    number of points evaluated."""
+    point_val, point_jac = model[1], model[2]
+    if jac:
+        point_val(t0, q0, v0, ws[27], ws[17], ws[18], ws[19])
+    c, A, Ah, At, bw, bh, bt, om = tab
+    (T, Q, V, Lv, Lq, kst, kv, KTL, Lvv, Lvq, Lqq, kq, KRq, KRv,
+     q1, v1, Lv1, Lq1, k1, kv1, Lvv1, Lvq1, Lqq1, kq1, KRq1, KRv1, zl, p0) = ws
+    s, n, m = A.shape[0], q0.shape[0], k1.shape[0]
+    sn = s * n
+    stage_points(tab, x, t0, q0, v0, h, m, T, Q, V, q1, v1)
+    for j in range(s):
+        point_val(T[j], Q[j], V[j], Lv[j], Lq[j], kst[j], kv[j])
+        for a in range(n):
+            acc = 0.0
+            for l in range(m):
+                acc += kv[j, l, a] * x[sn + j * m + l]
+            KTL[j, a] = acc
+    point_val(t0 + h, q1, v1, Lv1, Lq1, k1, kv1)
+    # (21b) rows i < s, (21d) row i = s: P_i - p0 - h sum_j A^_ij F_j + sum_j A~_ij K_j^T Lambda_j
+    for i in range(s + 1):
+        for a in range(n):
+            acc2 = 0.0
+            acc3 = 0.0
+            for j in range(s):
+                acc2 += (Ah[i, j] if i < s else bh[j]) * Lq[j, a]
+                acc3 += (At[i, j] if i < s else bt[j]) * KTL[j, a]
+            P = Lv[i, a] if i < s else Lv1[a]
+            G[i * n + a] = (P - p0[a]) - h * acc2 + acc3
+    re0 = sn + n
+    for l in range(s - 1):                                   # (21e)
+        for mm in range(m):
+            acc = 0.0
+            for j in range(s):
+                acc += om[l, j] * kst[j, mm]
+            G[re0 + l * m + mm] = acc
+    for mm in range(m):                                      # (21f)
+        G[re0 + (s - 1) * m + mm] = k1[mm]
+    if jac:
+        for j in range(s):
+            point_jac(T[j], Q[j], V[j], x[sn + j * m:sn + (j + 1) * m], Lvv[j], Lvq[j], Lqq[j], kq[j],
+                      KRq[j], KRv[j])
+        point_jac(t0 + h, q1, v1, zl, Lvv1, Lvq1, Lqq1, kq1, KRq1, KRv1)
+        general_jacobian(tab, h, ws, J)
+        return 2 * s + 3
+    return s + 1
+
+
+@numba.njit(cache=True)
+def general_jacobian(tab, h, ws, J):
+    """d(21b, d, e, f)/d(Z, Lambda, dv): with dX_j/dV_k = delta_jk X_v(j) + h a_jk X_q(j),
+    d(21b)_i/dV_k = delta_ik L_vv,i + h a_ik L_vq,i - h a^_ik L_qv,k - h^2 sum_j a^_ij a_jk L_qq,j
+    + a~_ik KRv_k + h sum_j a~_ij a_jk KRq_j, d(21b)_i/dLambda_k = a~_ik K_k^T; (21d) alike with
+    b, b^, b~ and dp1/dV_k = h b_k L_vq(t1, q1, v1), dp1/dv1 = L_vv(t1, q1, v1)."""
+    c, A, Ah, At, bw, bh, bt, om = tab
+    (T, Q, V, Lv, Lq, kst, kv, KTL, Lvv, Lvq, Lqq, kq, KRq, KRv,
+     q1, v1, Lv1, Lq1, k1, kv1, Lvv1, Lvq1, Lqq1, kq1, KRq1, KRv1, zl, p0) = ws
+    s, n, m = A.shape[0], q1.shape[0], k1.shape[0]
+    sn = s * n
+    J[:, :] = 0.0
+    h2 = h * h
+    for i in range(s + 1):
+        for k in range(s):
+            wk_h = Ah[i, k] if i < s else bh[k]
+            wk_t = At[i, k] if i < s else bt[k]
+            for a in range(n):
+                for b in range(n):
+                    if i < s:
+                        acc = h * A[i, k] * Lvq[i, a, b] + (Lvv[i, a, b] if i == k else 0.0)
+                    else:
+                        acc = h * bw[k] * Lvq1[a, b]
+                    acc += wk_t * KRv[k, a, b] - h * wk_h * Lvq[k, b, a]
+                    for j in range(s):
+                        wh = Ah[i, j] if i < s else bh[j]
+                        wt = At[i, j] if i < s else bt[j]
+                        acc += A[j, k] * (h * wt * KRq[j, a, b] - h2 * wh * Lqq[j, a, b])
+                    J[i * n + a, k * n + b] = acc
+                for l in range(m):
+                    J[i * n + a, sn + k * m + l] = wk_t * kv[k, l, a]
+    constraint_rows(tab, h, kv, kq, kv1, kq1, Lvv1, J)
+
+
+@numba.njit(cache=True)
+def general_store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
+    """Sample j: the energy (8) and k at (t, q, v) (end-point arrays of ws as scratch; M unused)."""
+    point_val, energy = model[1], model[3]
+    Lv1, Lq1, k1, kv1 = ws[16], ws[17], ws[18], ws[19]
+    point_val(t, q, v, Lv1, Lq1, k1, kv1)
+    return record(j, t, q, v, energy(t, q, v), k1, out_t, out_q, out_v, out_E, out_k)

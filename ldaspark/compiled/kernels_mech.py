@@ -1,0 +1,143 @@
+"""Residual and Newton matrix of the SPARK method (21) for mechanical systems (section 7,
+L = 1/2 v^T M v - U(t, q), k = K(t, q) v + b(t, q)). Called by the entry points in ``kernels``.
+
+The model is the tuple ``codegen.mechanical_source`` exports:
+(n, grad_U, hess_U, K_of, b_of, kq_of, KTlam_q, U_of).
+"""
+import numba
+import numpy as np
+
+from .newton import constraint_rows, record, stage_points
+
+
+@numba.njit(cache=True)
+def mech_point(model, t, q, v, M, kK, kb, kout):
+    """E = 1/2 v^T M v + U (8) at one point; kout = k = K v + b."""
+    K_of, b_of, U_of = model[3], model[4], model[7]
+    n = q.shape[0]
+    e = U_of(t, q)
+    for a in range(n):
+        s = 0.0
+        for b in range(n):
+            s += M[a, b] * v[b]
+        e += 0.5 * v[a] * s
+    K_of(t, q, kK)
+    b_of(t, q, kb)
+    for l in range(kK.shape[0]):
+        s = kb[l]
+        for a in range(n):
+            s += kK[l, a] * v[a]
+        kout[l] = s
+    return e
+
+
+@numba.njit(cache=True)
+def mech_workspace(s, n, m):
+    """T, Q, V, grad U, K^T Lambda, K, b, k at the stages; Hess U, d(K^T Lambda)/dq, k_q at the
+    stages; q1, v1, K, b, k_q at the end point; k scratch."""
+    return (np.zeros(s), np.zeros((s, n)), np.zeros((s, n)), np.zeros((s, n)), np.zeros((s, n)),
+            np.zeros((s, m, n)), np.zeros((s, m)), np.zeros((s, m)), np.zeros((s, n, n)), np.zeros((s, n, n)),
+            np.zeros((s, m, n)), np.zeros(n), np.zeros(n), np.zeros((m, n)), np.zeros(m), np.zeros((m, n)),
+            np.zeros(m))
+
+
+@numba.njit(cache=True)
+def mech_store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
+    """Sample j (end-point arrays of ws as scratch); False if not finite."""
+    e = mech_point(model, t, q, v, M, ws[13], ws[14], ws[16])
+    return record(j, t, q, v, e, ws[16], out_t, out_q, out_v, out_E, out_k)
+
+
+@numba.njit(cache=True)
+def spark_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
+    """Residual G of (21b, d, e, f) in the increment unknowns x = [Z | Lambda | dv] and, if jac,
+    its Jacobian J. gU = grad U = -F, KTL_j = K_j^T Lambda_j = -h R_j; P_i - p0 = M Z_i exactly.
+    Returns the number of points evaluated."""
+    grad_U, K_of, b_of = model[1], model[3], model[4]
+    c, A, Ah, At, bw, bh, bt, om = tab
+    T, Q, V, gU, KTL, KK, bb, kst, H, Rq, kq, q1, v1, K1, b1, kq1, kout = ws
+    s, n, m = A.shape[0], q0.shape[0], K1.shape[0]
+    sn, sm = s * n, s * m
+    t1 = t0 + h
+    stage_points(tab, x, t0, q0, v0, h, m, T, Q, V, q1, v1)
+    for j in range(s):
+        grad_U(T[j], Q[j], gU[j])
+        K_of(T[j], Q[j], KK[j])
+        b_of(T[j], Q[j], bb[j])
+        for a in range(n):
+            acc = 0.0
+            for l in range(m):
+                acc += KK[j, l, a] * x[sn + j * m + l]
+            KTL[j, a] = acc
+        for l in range(m):
+            acc = bb[j, l]
+            for a in range(n):
+                acc += KK[j, l, a] * V[j, a]
+            kst[j, l] = acc
+    K_of(t1, q1, K1)
+    b_of(t1, q1, b1)
+    # (21b): M Z_i + h sum_j A^_ij grad U_j + sum_j A~_ij K_j^T Lambda_j; (21d) likewise
+    for i in range(s + 1):
+        off = i * n if i < s else sn + sm
+        for a in range(n):
+            acc = 0.0
+            for b in range(n):
+                acc += M[a, b] * x[off + b]
+            acc2 = 0.0
+            acc3 = 0.0
+            for j in range(s):
+                wh = Ah[i, j] if i < s else bh[j]
+                wt = At[i, j] if i < s else bt[j]
+                acc2 += wh * gU[j, a]
+                acc3 += wt * KTL[j, a]
+            G[i * n + a] = acc + h * acc2 + acc3
+    # (21e), (21f)
+    re0 = sn + n
+    for l in range(s - 1):
+        for mm in range(m):
+            acc = 0.0
+            for j in range(s):
+                acc += om[l, j] * kst[j, mm]
+            G[re0 + l * m + mm] = acc
+    rf0 = re0 + (s - 1) * m
+    for mm in range(m):
+        acc = b1[mm]
+        for a in range(n):
+            acc += K1[mm, a] * v1[a]
+        G[rf0 + mm] = acc
+    if jac:
+        spark_jacobian(model, tab, x, t0, h, M, ws, J)
+        return 2 * s + 1
+    return s + 1
+
+
+@numba.njit(cache=True)
+def spark_jacobian(model, tab, x, t0, h, M, ws, J):
+    """d(21b, d, e, f)/d(Z, Lambda, dv) at the stage values of the last ``spark_eval``."""
+    hess_U, kq_of, KTlam_q = model[2], model[5], model[6]
+    c, A, Ah, At, bw, bh, bt, om = tab
+    T, Q, V, gU, KTL, KK, bb, kst, H, Rq, kq, q1, v1, K1, b1, kq1, kout = ws
+    s, n, m = A.shape[0], q1.shape[0], K1.shape[0]
+    sn = s * n
+    for j in range(s):
+        hess_U(T[j], Q[j], H[j])
+        KTlam_q(T[j], Q[j], x[sn + j * m:sn + (j + 1) * m], Rq[j])
+        kq_of(T[j], Q[j], V[j], kq[j])
+    kq_of(t0 + h, q1, v1, kq1)
+    J[:, :] = 0.0
+    h2 = h * h
+    # (21b) rows i < s and (21d) row i = s
+    for i in range(s + 1):
+        for k in range(s):
+            for a in range(n):
+                for b in range(n):
+                    acc = M[a, b] if i == k else 0.0
+                    for j in range(s):
+                        wh = Ah[i, j] if i < s else bh[j]
+                        wt = At[i, j] if i < s else bt[j]
+                        acc += h2 * wh * A[j, k] * H[j, a, b] + h * wt * A[j, k] * Rq[j, a, b]
+                    J[i * n + a, k * n + b] = acc
+                wt = At[i, k] if i < s else bt[k]
+                for l in range(m):
+                    J[i * n + a, sn + k * m + l] = wt * KK[k, l, a]
+    constraint_rows(tab, h, KK, kq, K1, kq1, M, J)

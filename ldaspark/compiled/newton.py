@@ -1,0 +1,271 @@
+"""Linear algebra and the Newton / bookkeeping steps every compiled kernel shares (plain numba
+functions, compiled into the kernels of ``kernels`` that call them).
+
+Newton is simplified Newton (one LU per step) from an extrapolating predictor; stats holds the
+counters of ``fast.STAT_NAMES``; a failure sets stats[FAILED_STEP] and stats[FAILURE]
+(``modeltypes`` codes: Newton did not converge, singular Newton matrix, NaN/inf).
+"""
+import numba
+import numpy as np
+
+from . import modeltypes as mt
+
+FAIL_NEWTON, FAIL_SINGULAR, FAIL_NONFINITE = mt.FAIL_NEWTON, mt.FAIL_SINGULAR, mt.FAIL_NONFINITE
+
+
+@numba.njit(cache=True)
+def lu_factor(A, piv):
+    """In-place LU with partial pivoting (LAPACK getrf order); False if singular or not finite."""
+    n = A.shape[0]
+    dmax = 0.0
+    dmin = np.inf
+    for k in range(n):
+        p = k
+        amax = abs(A[k, k])
+        for i in range(k + 1, n):
+            if abs(A[i, k]) > amax:
+                amax = abs(A[i, k])
+                p = i
+        piv[k] = p
+        if not (amax > 0.0) or not np.isfinite(amax):
+            return False
+        dmax = max(dmax, amax)
+        dmin = min(dmin, amax)
+        if p != k:
+            for j in range(n):
+                tmp = A[k, j]
+                A[k, j] = A[p, j]
+                A[p, j] = tmp
+        inv = 1.0 / A[k, k]
+        for i in range(k + 1, n):
+            A[i, k] *= inv
+            f = A[i, k]
+            if f != 0.0:
+                for j in range(k + 1, n):
+                    A[i, j] -= f * A[k, j]
+    return dmin > 1e-13 * dmax
+
+
+@numba.njit(cache=True)
+def lu_solve(LU, piv, b):
+    n = LU.shape[0]
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            tmp = b[k]
+            b[k] = b[p]
+            b[p] = tmp
+    for i in range(n):
+        s = b[i]
+        for j in range(i):
+            s -= LU[i, j] * b[j]
+        b[i] = s
+    for i in range(n - 1, -1, -1):
+        s = b[i]
+        for j in range(i + 1, n):
+            s -= LU[i, j] * b[j]
+        b[i] = s / LU[i, i]
+
+
+@numba.njit(cache=True)
+def norm_inf(x):
+    """max |x_i|, NaN if any entry is NaN."""
+    r = 0.0
+    for i in range(x.shape[0]):
+        a = abs(x[i])
+        if a > r or a != a:
+            r = a
+    return r
+
+
+@numba.njit(cache=True)
+def matrix_finite(J):
+    for r in range(J.shape[0]):
+        for c in range(J.shape[1]):
+            if not np.isfinite(J[r, c]):
+                return False
+    return True
+
+
+@numba.njit(cache=True)
+def add_to(x, c, inc, compensated):
+    """x += inc; with compensated summation the low-order bits lost are kept in c (Kahan)."""
+    for i in range(x.shape[0]):
+        if compensated:
+            a = inc[i] + c[i]
+            b = x[i]
+            x[i] = b + a
+            c[i] = (b - x[i]) + a
+        else:
+            x[i] += inc[i]
+
+
+@numba.njit(cache=True)
+def advance(q, v, cq, cv, dq, dv, compensated):
+    """q += dq, v += dv (compensated or not); False when the new state is not finite."""
+    add_to(q, cq, dq, compensated)
+    add_to(v, cv, dv, compensated)
+    return np.isfinite(norm_inf(q)) and np.isfinite(norm_inf(v))
+
+
+@numba.njit(cache=True)
+def accept_step(q, v, cq, cv, dq, dv, compensated, x, x_last, x_prev, stats, step):
+    """q += dq, v += dv, the unknowns x into the predictor's history, one step counted; False
+    (failure recorded) when the new state is not finite."""
+    if not advance(q, v, cq, cv, dq, dv, compensated):
+        fail(stats, step, FAIL_NONFINITE)
+        return False
+    shift(x, x_last, x_prev)
+    stats[0] += 1
+    return True
+
+
+@numba.njit(cache=True)
+def predict(x, x_last, x_prev, step, predictor):
+    """Starting guess: 2 = linear extrapolation of the last two steps' unknowns, 1 = the last
+    step's, 0 = zero increments (V_i = v1 = v0, Psi = 0)."""
+    for r in range(x.shape[0]):
+        if step >= 2 and predictor == 2:
+            x[r] = 2.0 * x_last[r] - x_prev[r]
+        elif step >= 1 and predictor >= 1:
+            x[r] = x_last[r]
+        else:
+            x[r] = 0.0
+
+
+@numba.njit(cache=True)
+def shift(x, x_last, x_prev):
+    for r in range(x.shape[0]):
+        x_prev[r] = x_last[r]
+        x_last[r] = x[r]
+
+
+@numba.njit(cache=True)
+def newton_increment(LU, piv, G, x):
+    """Simplified Newton update x += -J^-1 G with J factored in LU (G is overwritten by the
+    increment); returns |dx|_inf."""
+    for r in range(G.shape[0]):
+        G[r] = -G[r]
+    lu_solve(LU, piv, G)
+    for r in range(G.shape[0]):
+        x[r] += G[r]
+    return norm_inf(G)
+
+
+@numba.njit(cache=True)
+def newton_status(dn, prev, xn, floor, tol):
+    """1 converged, 0 continue, -1 increment not finite. Converged: |dx| <= lim, or the error
+    estimate theta/(1 - theta) |dx| <= lim of the linearly converging simplified Newton
+    (theta = |dx_k| / |dx_k-1|, Hairer-Wanner IV.8), or the round-off floor of SparkMethod.step
+    (increments stopped shrinking at noise level); lim = tol (|x| + floor)."""
+    if not np.isfinite(dn):
+        return -1
+    lim = tol * (xn + floor)
+    if dn <= lim:
+        return 1
+    if prev <= 0.0:
+        return 0
+    theta = dn / prev
+    if theta < 0.5 and theta / (1.0 - theta) * dn <= lim:
+        return 1
+    if dn >= 0.5 * prev and dn <= 1e3 * lim:
+        return 1
+    return 0
+
+
+@numba.njit(cache=True)
+def fail(stats, step, code):
+    stats[mt.FAILED_STEP] = step
+    stats[mt.FAILURE] = code
+
+
+@numba.njit(cache=True)
+def end_newton(stats, step, it, status):
+    """Count the iterations; on failure record why (False: the kernel must return)."""
+    stats[1] += it
+    if it > stats[5]:
+        stats[5] = it
+    if status == 1:
+        return True
+    fail(stats, step, FAIL_NONFINITE if status < 0 else FAIL_NEWTON)
+    return False
+
+
+@numba.njit(cache=True)
+def start_newton(stats, step, G, J, piv):
+    """Checks and factors the Newton matrix at the predictor (one LU per step)."""
+    stats[3] += 1
+    if not (np.isfinite(norm_inf(G)) and matrix_finite(J)):
+        fail(stats, step, FAIL_NONFINITE)
+        return False
+    stats[4] += 1
+    if not lu_factor(J, piv):
+        fail(stats, step, FAIL_SINGULAR)
+        return False
+    return True
+
+
+@numba.njit(cache=True)
+def record(j, t, q, v, E, k, out_t, out_q, out_v, out_E, out_k):
+    """Store one sample; False when the energy or the constraint is not finite."""
+    out_t[j] = t
+    for a in range(q.shape[0]):
+        out_q[j, a] = q[a]
+        out_v[j, a] = v[a]
+    out_E[j] = E
+    for l in range(k.shape[0]):
+        out_k[j, l] = k[l]
+    return np.isfinite(E) and np.isfinite(norm_inf(k))
+
+
+@numba.njit(cache=True)
+def constraint_rows(tab, h, Kst, kq, K1, kq1, P1v, J):
+    """The rows of the Newton matrix both SPARK forms share, with Kst, kq = K, k_q at the stages
+    and K1, kq1, P1v = K, k_q, dp/dv at the end point: d(21d)/dv1 = P1v,
+    d(21e)_l/dV_k = omega_lk K_k + h sum_j omega_lj a_jk k_q,j, d(21f)/dV_k = h b_k k_q(t1, q1, v1),
+    d(21f)/dv1 = K(t1, q1, v1)."""
+    c, A, Ah, At, bw, bh, bt, om = tab
+    s, m, n = kq.shape[0], kq.shape[1], kq.shape[2]
+    sn, sm = s * n, s * m
+    re0, rf0 = sn + n, sn + n + (s - 1) * m
+    for a in range(n):
+        for b in range(n):
+            J[sn + a, sn + sm + b] = P1v[a, b]
+    for l in range(s - 1):
+        for mm in range(m):
+            for k in range(s):
+                for b in range(n):
+                    acc = om[l, k] * Kst[k, mm, b]
+                    for j in range(s):
+                        acc += h * om[l, j] * A[j, k] * kq[j, mm, b]
+                    J[re0 + l * m + mm, k * n + b] = acc
+    for mm in range(m):
+        for k in range(s):
+            for b in range(n):
+                J[rf0 + mm, k * n + b] = h * bw[k] * kq1[mm, b]
+        for b in range(n):
+            J[rf0 + mm, sn + sm + b] = K1[mm, b]
+
+
+@numba.njit(cache=True)
+def stage_points(tab, x, t0, q0, v0, h, m, T, Q, V, q1, v1):
+    """(21a), (21c) from the increments x = [Z | Lambda | dv]: T_i = t0 + c_i h, V_i = v0 + Z_i,
+    Q_i = q0 + h sum_j a_ij V_j, q1 = q0 + h sum_j b_j V_j, v1 = v0 + dv."""
+    c, A, bw = tab[0], tab[1], tab[4]
+    s, n = A.shape[0], q0.shape[0]
+    off = s * n + s * m
+    for i in range(s):
+        T[i] = t0 + c[i] * h
+        for a in range(n):
+            V[i, a] = v0[a] + x[i * n + a]
+    for a in range(n):
+        for i in range(s):
+            acc = 0.0
+            for j in range(s):
+                acc += A[i, j] * V[j, a]
+            Q[i, a] = q0[a] + h * acc
+        acc = 0.0
+        for j in range(s):
+            acc += bw[j] * V[j, a]
+        q1[a] = q0[a] + h * acc
+        v1[a] = v0[a] + x[off + a]

@@ -1,0 +1,290 @@
+"""The compiled path for general L(t, q, v) and k(t, q, v) (``ldaspark.compiled.kernels.general_run``)
+against the generic path (``ldaspark.core.spark.integrate``): the same numbers to 1e-12 over 1000
+steps on small systems outside mechanical form (time-dependent L, a constraint nonlinear in v,
+gyroscopic terms, a non-quadratic L) and on the named scenes with the general form forced; NaN/inf
+stops with an error naming the step; bad Newton options are input errors; the compiled-model cache
+never executes what it finds on disk; generated code holds only the nonzero entries."""
+import math
+import os
+import stat
+
+import numpy as np
+import pytest
+import sympy
+
+from ldaspark.compiled import cache
+from ldaspark.compiled.fast import (NonFiniteError, NotCompilableError, can_compile, compile_system,
+                                    fast_integrate, kernel_spec, run_compiled)
+from ldaspark.core.errors import InputError, NewtonError
+from ldaspark.core.families import get_method
+from ldaspark.core.scenes import get_scene, mp_particles
+from ldaspark.core.spark import integrate
+from ldaspark.core.system import LagrangianSystem
+
+AGREE = 1e-12
+N = 1000
+
+
+def _qv(n=3):
+    return list(sympy.symbols(f"q1:{n + 1}")), list(sympy.symbols(f"v1:{n + 1}"))
+
+
+def time_dependent():
+    """L = (1 + sin(t)/4) v1^2/2 + (v2^2 + v3^2)/2 - (1 + cos(t)/4)(q1^2 + q2^2)/2, k = v3 - q2 v1
+    (the particle of 8.1 with a time-dependent mass and potential: L_vt != 0)."""
+    q, v = _qv()
+    t = sympy.Symbol("t")
+    L = ((1 + sympy.sin(t) / 4) * v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 \
+        - (1 + sympy.cos(t) / 4) * (q[0] ** 2 + q[1] ** 2) / 2
+    return LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, t=t, name="driven-particle"), [1.0, 0.0, 0.0], \
+        [0.0, 1.0, 0.0]
+
+
+def nonlinear_constraint():
+    """k = v3 + v3^3/10 - q2 v1: nonlinear in v (K = k_v depends on v)."""
+    q, v = _qv()
+    L = (v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 - (q[0] ** 2 + q[1] ** 2) / 2
+    return LagrangianSystem(L, [v[2] + v[2] ** 3 / 10 - q[1] * v[0]], q, v, name="cubic-constraint"), \
+        [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]
+
+
+def gyroscopic():
+    """A charged particle in a magnetic field B = 1/2 plus a potential: L = |v|^2/2 + B (q1 v2 - q2 v1)/2 - U,
+    with the particle's constraint k = v3 - q2 v1 (grad_v L = v + gyroscopic terms)."""
+    q, v = _qv()
+    B = sympy.Rational(1, 2)
+    L = (v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 + B * (q[0] * v[1] - q[1] * v[0]) / 2 - (q[0] ** 2 + q[1] ** 2) / 2
+    return LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name="gyroscopic"), [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]
+
+
+def non_quadratic():
+    """L with a quartic kinetic term and a non-polynomial potential: L_vv depends on v."""
+    q, v = _qv()
+    L = (v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 + v[0] ** 4 / 12 + sympy.cos(q[0]) - q[1] ** 2 / 2
+    return LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name="quartic"), [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]
+
+
+SYSTEMS = {"time-dependent": time_dependent, "nonlinear-constraint": nonlinear_constraint,
+           "gyroscopic": gyroscopic, "non-quadratic": non_quadratic}
+
+
+def max_diff(fast, sol):
+    return max(float(np.max(np.abs(fast.q - np.asarray(sol.q, float)))),
+               float(np.max(np.abs(fast.v - np.asarray(sol.v, float)))),
+               float(np.max(np.abs(fast.energy - np.asarray(sol.energy, float)))),
+               float(np.max(np.abs(fast.constraint - np.asarray(sol.constraint, float)))))
+
+
+def agreement(system, q0, v0, method, h=0.1, n=N, form="auto", tol=None):
+    cs = compile_system(system, form=form)
+    assert cs.form == "general"
+    fast = run_compiled(cs, method, 0.0, q0, v0, h, n, compensated=False, tol=tol)
+    tab = method if not isinstance(method, str) else get_method(method)
+    sol = integrate(system, tab, 0.0, q0, v0, h, n_steps=n)
+    assert fast.stats["kernel"] == "general" and fast.stats["steps"] == n
+    return max_diff(fast, sol)
+
+
+@pytest.mark.parametrize("name,method", [("time-dependent", "gauss-2"), ("nonlinear-constraint", "lobatto-iiia-iiib-3"),
+                                         ("gyroscopic", "lobatto-iiia-iiib-iiid-2"), ("non-quadratic", "gauss-2")])
+def test_general_kernel_agrees_with_generic(name, method):
+    """Systems outside mechanical form, 1000 steps of h = 0.1, one SPARK family each (all
+    families on all four: --exhaustive)."""
+    system, q0, v0 = SYSTEMS[name]()
+    assert can_compile(system) == (True, "general")
+    assert agreement(system, q0, v0, method) <= AGREE
+
+
+@pytest.mark.exhaustive
+@pytest.mark.parametrize("name", list(SYSTEMS))
+@pytest.mark.parametrize("method", ["gauss-1", "gauss-3", "lobatto-iiia-iiib-2", "lobatto-iiia-iiib-iiid-3",
+                                    "euler-i", "euler-ii"])
+def test_general_kernel_agrees_all_families(name, method):
+    """With the default Newton tolerance (8 unit round-offs, stopping on the contraction estimate)
+    the 1-stage methods on the non-quadratic L differ by 2-3e-12 at t = 100 (the stopping points
+    of the two Newton iterations differ at round-off level and the difference grows); iterated to
+    the round-off floor (tol = 1e-16) every pair agrees to ~1.5e-13."""
+    system, q0, v0 = SYSTEMS[name]()
+    assert agreement(system, q0, v0, method, tol=1e-16) <= AGREE
+
+
+@pytest.mark.parametrize("scene_name", ["skate"])
+def test_general_form_on_named_scene(scene_name):
+    """The general kernel on a named (mechanical) scene, general form forced: the same numbers as
+    the generic path (every named scene: --exhaustive)."""
+    sc = get_scene(scene_name)
+    t0, q0, v0 = sc.initial()
+    assert agreement(sc.system, q0, v0, "gauss-2", form="general") <= AGREE
+
+
+@pytest.mark.exhaustive
+@pytest.mark.parametrize("scene_name", ["particle", "robot", "pendulum", "rolling-disk", "mp-particles"])
+def test_general_form_on_every_named_scene(scene_name):
+    sc = get_scene(scene_name)
+    t0, q0, v0 = sc.initial()
+    # MP particles are chaotic: round-off differences grow like exp(t / 12) (see test_fast_path)
+    n, h = (300, 0.05) if scene_name == "mp-particles" else (N, 0.1)
+    assert agreement(sc.system, q0, v0, "gauss-2", h=h, n=n, form="general") <= AGREE
+
+
+def test_general_agreement_has_teeth():
+    """Negative control: a 1e-8 change of one tableau entry is seen far above the tolerance."""
+    system, q0, v0 = gyroscopic()
+    bad = get_method("gauss-2").with_entry("A", 0, 1, 1e-8)
+    cs = compile_system(system)
+    fast = run_compiled(cs, bad, 0.0, q0, v0, 0.1, N, compensated=False)
+    sol = integrate(system, get_method("gauss-2"), 0.0, q0, v0, 0.1, n_steps=N)
+    assert max_diff(fast, sol) > 1e3 * AGREE
+
+
+def test_fast_integrate_takes_the_general_path_and_kahan():
+    """fast_integrate compiles a non-mechanical system (no fallback notice) and lobatto-iiia-iiib-2
+    with kernel="auto" runs the general SPARK kernel there; Kahan changes round-off only."""
+    system, q0, v0 = non_quadratic()
+    a = fast_integrate(system, "lobatto-iiia-iiib-2", 0.0, q0, v0, 0.1, 200)
+    b = fast_integrate(system, "lobatto-iiia-iiib-2", 0.0, q0, v0, 0.1, 200, compensated=False)
+    assert a.stats["path"] == "fast" and a.stats["kernel"] == "general"
+    assert 0 < np.max(np.abs(a.q - b.q)) <= 1e-12
+
+
+def test_comparator_kernel_needs_mechanical_form(capsys):
+    """The semi-implicit comparators (25), (26) assume mechanical form: a general system falls back
+    with one notice line, and the generic comparator refuses it the same way."""
+    system, q0, v0 = gyroscopic()
+    with pytest.raises(Exception) as exc:
+        fast_integrate(system, "mp-lobatto-iiib-a-2", 0.0, q0, v0, 0.1, 5)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "mechanical form" in err[0]
+    assert "mechanical" in str(exc.value)
+
+
+# --- NaN / inf and options ----------------------------------------------------------------------
+def log_potential(general: bool):
+    """U = log(1 - q1) pulls q1 -> 1, past the domain of log, in finite time."""
+    q, v = _qv(2)
+    extra = v[0] ** 4 / 100 if general else 0
+    L = (v[0] ** 2 + v[1] ** 2) / 2 + extra - sympy.log(1 - q[0])
+    return LagrangianSystem(L, [v[1] - q[0] * v[0]], q, v, name="log-wall")
+
+
+@pytest.mark.parametrize("general", [False, True])
+def test_nonfinite_run_stops_with_step_and_time(general):
+    system = log_potential(general)
+    assert compile_system(system).form == ("general" if general else "mechanical")
+    with pytest.raises(NonFiniteError) as exc:
+        fast_integrate(system, "gauss-2", 0.0, [0.5, 0.0], [1.0, 0.5], 0.05, 400)
+    e = exc.value
+    assert isinstance(e, NewtonError) and e.step is not None and 0 < e.step < 400
+    assert f"step {e.step}" in str(e) and "NaN or inf" in str(e)
+    assert e.time == pytest.approx(0.05 * e.step)
+    # control: stopping before the wall, the same run returns finite energies
+    ok = fast_integrate(system, "gauss-2", 0.0, [0.5, 0.0], [1.0, 0.5], 0.05, max(e.step - 5, 1))
+    assert np.all(np.isfinite(ok.energy))
+
+
+@pytest.mark.parametrize("kw", [{"max_iter": 0}, {"max_iter": -1}, {"max_iter": 2.5}, {"tol": 0.0},
+                                {"tol": float("nan")}, {"tol": -1e-10}, {"tol": float("inf")}, {"every": 0}])
+def test_bad_newton_options_are_input_errors(kw):
+    sc = get_scene("particle")
+    with pytest.raises(InputError):
+        fast_integrate(sc, "gauss-2", h=0.1, n_steps=10, **kw)
+
+
+# --- the compiled-model cache ------------------------------------------------------------------
+def test_cache_rewrites_planted_and_truncated_files(tmp_path, monkeypatch):
+    """A file planted under the expected name is never executed: its content is compared with the
+    expected source (sha256) and replaced; a truncated file is rebuilt, not given up on."""
+    monkeypatch.setenv("LDASPARK_CACHE_DIR", str(tmp_path / "c"))
+    src = "X = 41 + 1\n"
+    digest = cache.source_key(src)
+    path = tmp_path / "c" / f"ldaspark_model_{digest[:20]}.py"
+    marker = tmp_path / "executed"
+    os.makedirs(path.parent, mode=0o700)
+    path.write_text(f"open({str(marker)!r}, 'w').write('pwned')\nX = 0\n")
+    mod = cache.load_source(src)
+    assert mod.X == 42 and not marker.exists()
+    assert path.read_text() == src
+    cache._MODULES.pop(digest)
+    path.write_text(src[:4])                                   # truncated
+    assert cache.load_source(src).X == 42 and path.read_text() == src
+    # control: the check compares content, so the right content is accepted as it is
+    cache._MODULES.pop(digest)
+    before = path.stat().st_mtime_ns
+    cache.load_source(src)
+    assert path.stat().st_mtime_ns == before
+
+
+def test_cache_directory_is_private(tmp_path, monkeypatch):
+    d = tmp_path / "loose"
+    d.mkdir(mode=0o777)
+    os.chmod(d, 0o777)
+    monkeypatch.setenv("LDASPARK_CACHE_DIR", str(d))
+    assert cache.cache_dir() == str(d)
+    assert stat.S_IMODE(os.stat(d).st_mode) == 0o700           # tightened before use
+    fresh = tmp_path / "fresh" / "x"
+    ok, why = cache.secure_dir(str(fresh))
+    assert ok == str(fresh) and stat.S_IMODE(os.stat(fresh).st_mode) == 0o700
+    f = tmp_path / "file"
+    f.write_text("")
+    assert cache.secure_dir(str(f))[0] is None                 # not a directory
+    fallback = list(cache._candidates())[-1]
+    assert fallback.endswith(f"ldaspark-fast-{os.getuid()}")   # per-user fallback under the temp dir
+
+
+@pytest.mark.skipif(os.getuid() == 0, reason="root owns everything")
+def test_cache_directory_of_another_user_is_refused():
+    """/ is owned by root: refused as a cache directory (ownership check)."""
+    ok, why = cache.secure_dir("/")
+    assert ok is None and "another user" in why
+
+
+# --- generated code and coefficients --------------------------------------------------------------
+def test_generated_code_holds_only_nonzero_entries():
+    """MP particles at n = 21 (the n = 61 of J large is measured in benchmarks/compiled_general.py):
+    Hess U, K, d(K^T lam)/dq are sparse; the generated model has a line per nonzero entry, not
+    per entry of the dense blocks (n^2 = 441 each)."""
+    sc = mp_particles(m=10)
+    cs = compile_system(sc.system)
+    assert cs.form == "mechanical" and cs.n == 21
+    assert cs.source.count("\n") < 441
+    hess = cs.source.split("def hess_U")[1].split("def K_of")[0]
+    assert "out[0, 1] =" not in hess and "out[1, 11] =" in hess and "out[11, 1] = out[1, 11]" in hess
+    gen = compile_system(sc.system, form="general").source
+    assert gen.count("\n") < 441 and "Lvq[" not in gen                   # L_vq = 0: nothing emitted
+
+
+def test_kernel_spec_is_cached():
+    a = kernel_spec("gauss-3", "spark")
+    assert kernel_spec("gauss-3", "spark") is a
+    c, A = a[1][0], a[1][1]
+    assert A.flags.c_contiguous and np.allclose(c, [0.5 - math.sqrt(15) / 10, 0.5, 0.5 + math.sqrt(15) / 10])
+
+
+def test_nonideal_or_untranslatable_systems_fall_back(capsys):
+    """A nonideal term (not compiled yet) and an expression without numba translation give
+    NotCompilableError from compile_system and one notice line from fast_integrate."""
+    system, q0, v0 = non_quadratic()
+    q, v = system.q, system.v
+    system.N = sympy.Matrix([q[1] * v[0], 0, 0])
+    assert can_compile(system)[0] is False and "nonideal" in can_compile(system)[1]
+    r = fast_integrate(system, "gauss-2", 0.0, q0, v0, 0.1, 20, every=10)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "falling back to the generic path" in err[0] and r.stats["path"] == "generic"
+    L = (v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 - sympy.besselj(0, q[0])
+    bessel = LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name="bessel")
+    with pytest.raises(NotCompilableError, match="bessel"):
+        compile_system(bessel)
+
+
+def test_kernel_file_records_its_helpers():
+    """numba keys a cached kernel on the content of kernels.py only; kernels.HELPERS_SHA256 must be
+    the digest of the helper modules compiled into it, so that an edit of a helper changes
+    kernels.py and the cached kernels are rebuilt instead of silently reused."""
+    import hashlib
+    from ldaspark.compiled import kernels
+    d = os.path.dirname(kernels.__file__)
+    h = hashlib.sha256()
+    for f in kernels.HELPERS:
+        with open(os.path.join(d, f), "rb") as fh:
+            h.update(fh.read())
+    assert kernels.HELPERS_SHA256 == h.hexdigest(), "update HELPERS_SHA256 in ldaspark/compiled/kernels.py"
