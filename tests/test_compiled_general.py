@@ -15,7 +15,7 @@ import sympy
 from ldaspark.compiled import cache
 from ldaspark.compiled.fast import (NonFiniteError, NotCompilableError, can_compile, compile_system,
                                     fast_integrate, kernel_spec, run_compiled)
-from ldaspark.core.errors import InputError, NewtonError
+from ldaspark.core.errors import InputError, LdasparkError, NewtonError
 from ldaspark.core.families import get_method
 from ldaspark.core.scenes import get_scene, mp_particles
 from ldaspark.core.spark import integrate
@@ -174,7 +174,7 @@ def test_nonfinite_run_stops_with_step_and_time(general):
     with pytest.raises(NonFiniteError) as exc:
         fast_integrate(system, "gauss-2", 0.0, [0.5, 0.0], [1.0, 0.5], 0.05, 400)
     e = exc.value
-    assert isinstance(e, NewtonError) and e.step is not None and 0 < e.step < 400
+    assert isinstance(e, LdasparkError) and not isinstance(e, NewtonError) and e.step is not None and 0 < e.step < 400
     assert f"step {e.step}" in str(e) and "NaN or inf" in str(e)
     assert e.time == pytest.approx(0.05 * e.step)
     # control: stopping before the wall, the same run returns finite energies
@@ -263,9 +263,10 @@ def test_kernel_spec_is_cached():
 def test_nonideal_or_untranslatable_systems_fall_back(capsys):
     """A nonideal term (not compiled yet) and an expression without numba translation give
     NotCompilableError from compile_system and one notice line from fast_integrate."""
-    system, q0, v0 = non_quadratic()
-    q, v = system.q, system.v
-    system.N = sympy.Matrix([q[1] * v[0], 0, 0])
+    base, q0, v0 = non_quadratic()
+    q, v = base.q, base.v
+    system = LagrangianSystem(base.L, list(base.k), q, v, base.t, name="nonideal",
+                              nonideal=[q[1] * v[0], 0, 0])
     assert can_compile(system)[0] is False and "nonideal" in can_compile(system)[1]
     r = fast_integrate(system, "gauss-2", 0.0, q0, v0, 0.1, 20, every=10)
     err = capsys.readouterr().err.strip().splitlines()

@@ -87,8 +87,8 @@ def test_generic_fallback_in_workers(capsys):
     q = list(sympy.symbols("q1:4"))
     v = list(sympy.symbols("v1:4"))
     L = (v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 + v[0] ** 4 / 12 - (q[0] ** 2 + q[1] ** 2)
-    sysm = LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name="quartic")
-    sysm.N = sympy.Matrix([q[1] * v[0], 0, 0])    # a nonideal term: not compiled (yet), generic path
+    # a nonideal term (3.3): not compiled (yet), so the workers run the generic path
+    sysm = LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name="quartic", nonideal=[q[1] * v[0], 0, 0])
     Q0 = [[1.0, 0.0, 0.0], [0.5, 0.0, 0.0]]
     V0 = [[0.0, 1.0, 0.0], [0.0, 0.5, 0.0]]
     with concurrent.futures.ProcessPoolExecutor(max_workers=2) as ex:

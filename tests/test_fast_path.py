@@ -169,9 +169,10 @@ def _non_mechanical():
 def test_fallback_notice_and_same_numbers(capsys):
     """A system the compiled path does not take (here: a nonideal term, not compiled yet; the
     generic path runs it) falls back with one notice line and the generic path's numbers."""
-    sysm = _non_mechanical()
-    assert compile_system(sysm).form == "general"           # non-quadratic L alone is compiled
-    sysm.N = sympy.Matrix([sysm.q[1] * sysm.v[0], 0, 0])
+    base = _non_mechanical()
+    assert compile_system(base).form == "general"           # non-quadratic L alone is compiled
+    sysm = LagrangianSystem(base.L, list(base.k), base.q, base.v, base.t, name=base.name,
+                            nonideal=[base.q[1] * base.v[0], 0, 0])
     with pytest.raises(NotCompilableError):
         compile_system(sysm)
     r = fast_integrate(sysm, "gauss-2", 0.0, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], 0.1, 30, every=10)

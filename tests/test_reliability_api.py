@@ -109,13 +109,6 @@ def test_all_new_errors_are_ldaspark_errors():
     assert issubclass(errors.NonFiniteError, LdasparkError)
 
 
-def _fast_path_validates():
-    import inspect
-    from ldaspark.compiled import fast
-    return "check_newton_options" in inspect.getsource(fast.run_compiled)
-
-
-@pytest.mark.skipif(not _fast_path_validates(), reason="run_compiled does not call core.validate yet")
 @pytest.mark.parametrize("kw, match", [(dict(max_iter=0), "max_iter"), (dict(tol=0.0), "tolerance"),
                                        (dict(tol=float("nan")), "tolerance"), (dict(n_steps=10 ** 12), "GiB")])
 def test_fast_path_options_are_input_errors(skate, kw, match):

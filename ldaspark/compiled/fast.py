@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy
 
-from ..core.errors import InputError, LdasparkError, NewtonError
+from ..core.errors import InputError, LdasparkError, NewtonError, NonFiniteError
 from . import modeltypes as mt
 from .cache import CacheDirectoryError, load_source, source_key
 from .codegen import NotCompilableError, general_source, mechanical_source, nonideal_term
@@ -55,10 +55,6 @@ LF2_VARIANTS = {
 FAST_METHODS = ("any SPARK tableau (gauss-S, lobatto-iiia-iiib-S, lobatto-iiia-iiib-iiid-S, euler-i, euler-ii)",
                 ) + tuple(LF2_VARIANTS)
 STAT_NAMES = ("steps", "newton_iterations", "nfev", "njev", "nlu", "max_iterations", "failed_step", "failure")
-
-
-class NonFiniteError(NewtonError):
-    """A compiled run met NaN or inf (L or k outside their domain, overflow)."""
 
 
 # --- mechanical form ---------------------------------------------------------------------
@@ -256,24 +252,16 @@ def _make_spec(method, kernel):
     return "spark", tuple(arr), name
 
 
-def _check_options(n_steps, every, predictor, tol, max_iter):
+def _check_options(n_steps, every, predictor, tol, max_iter, n_dof, n_con):
+    from ..core.validate import check_newton_options, check_storage
     if predictor not in (0, 1, 2) or isinstance(predictor, bool):
         raise InputError(f"predictor must be 0, 1 or 2, got {predictor!r}")
     if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps <= 0:
         raise InputError(f"n_steps must be a positive integer, got {n_steps!r}")
     if isinstance(every, bool) or not isinstance(every, (int, np.integer)) or every <= 0:
         raise InputError(f"every must be a positive integer, got {every!r}")
-    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter <= 0:
-        raise InputError(f"max_iter must be a positive integer, got {max_iter!r}")
-    if tol is not None:
-        try:
-            ok = math.isfinite(float(tol)) and float(tol) > 0
-        except (TypeError, ValueError):
-            ok = False
-        if not ok:
-            raise InputError(f"Newton tolerance must be finite and positive, got {tol!r}")
-    if n_samples(int(n_steps), int(every)) > 10 ** 8:
-        raise InputError(f"n_steps / every = {n_steps} / {every} asks for more than 1e8 samples; raise every")
+    check_newton_options(tol, max_iter)
+    check_storage(n_samples(int(n_steps), int(every)), 2 + 2 * n_dof + n_con, what="the samples")
 
 
 def _kernels():
@@ -286,7 +274,7 @@ def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, co
     """Run a compiled kernel (no fallback); ``method`` a name, a SparkTableau or a kernel_spec.
     predictor: 2 = linear extrapolation of the last two steps' unknowns, 1 = last step's,
     0 = zero increments (V_i = v1 = v0, Psi = 0). Raises NewtonError, NonFiniteError."""
-    _check_options(n_steps, every, predictor, tol, max_iter)
+    _check_options(n_steps, every, predictor, tol, max_iter, cs.n, cs.m)
     spec = method if isinstance(method, tuple) else kernel_spec(method, kernel)
     kind, what, name = spec
     if kind == "lf2" and cs.form != "mechanical":
@@ -438,7 +426,7 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
         v0 = sv0 if v0 is None else v0
     if h is None or n_steps is None:
         raise InputError("give h and n_steps")
-    _check_options(n_steps, every, predictor, tol, max_iter)
+    _check_options(n_steps, every, predictor, tol, max_iter, len(q0), system.m)
     kernel_spec(method, kernel)
     _setup_checks(system, t0, q0, v0)
     try:
