@@ -293,12 +293,17 @@ LEDGER_SCENES = tuple(PAPER_SCENES) + ("mp-particles-nh",)
 
 
 def run_ledger(max_s=3, scenes=LEDGER_SCENES, perturbed=True, holonomic=True, controls=True,
-               progress=None):
+               progress=None, only=None):
+    """Records of every tableau (built-ins up to ``max_s`` stages, then the negative controls) on
+    every scene; ``only``: indices into that list of tableaux to run (the report's main job runs
+    the tableaux as separate jobs and concatenates their records in index order)."""
     records = []
     names = builtin_method_names(max_s)
     tabs = [(get_method(n, exact=True), None) for n in names]
     if controls:
         tabs += negative_controls()
+    if only is not None:
+        tabs = [t for i, t in enumerate(tabs) if i in set(only)]
     total = len(tabs) * len(scenes)
     done = 0
     for tab, control in tabs:
