@@ -25,7 +25,7 @@ REPORT_DIR = "reports"
 T_END = 1.0
 MP_DPS = 25
 REF_DPS = 40
-TOLERANCE = 0.3          # |observed - claimed| allowed by the contract
+TOLERANCE = 0.3          # |observed - claimed| allowed for the verdict "holds"
 
 FAMILIES = {
     "gauss": [f"gauss-{s}" for s in range(1, 5)],
