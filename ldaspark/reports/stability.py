@@ -392,7 +392,9 @@ def build_report(full=False, outdir="reports"):
     """Run every job here, write reports/stability.md, stability.json and the figures; returns the data."""
     clock = Clock()
     results = run_jobs_here(full)
-    return write(results, outdir, full, clock)
+    d = write(results, outdir, full, clock)
+    print(f"[stability] {clock.summary()}", flush=True)
+    return d
 
 
 def add_arguments(p):
