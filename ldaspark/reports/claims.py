@@ -74,8 +74,8 @@ def _fmt(x):
 def _took(seconds):
     if hasattr(seconds, "cpu"):
         if getattr(seconds, "shared", False):
-            return (f"(its jobs used {seconds.cpu:.0f} s CPU; written {seconds.wall:.0f} s after the start of the "
-                    "run, all sections sharing the worker processes)")
+            return (f"(its jobs used {seconds.cpu:.0f} s CPU and were done {seconds.wall:.0f} s after the start "
+                    "of the run, all sections sharing the worker processes)")
         return f"in {seconds.wall:.0f} s wall, {seconds.cpu:.0f} s CPU"
     return f"in {seconds:.0f} s"
 
@@ -125,13 +125,19 @@ def group_job(spec):
     return extra_records(quick=False, groups=(spec,))
 
 
+# CPU seconds of each tableau's records on an idle core (sum of the records' "seconds"), to start
+# the longest jobs first; others: by stage count
+COST = {"gauss-1": 5, "gauss-2": 15, "gauss-3": 33, "lobatto-iiia-iiib-2": 12, "lobatto-iiia-iiib-3": 29,
+        "lobatto-iiia-iiib-iiid-2": 9, "lobatto-iiia-iiib-iiid-3": 43, "euler-i": 6, "euler-ii": 3}
+
+
 def jobs(full=False):
-    """Each tableau of the ledger, then each claim group of ``ledger.CLAIM_GROUPS``; cost: CPU seconds
-    measured on an idle core (s = 3 tableaux dominate)."""
+    """Each tableau of the ledger (built-ins, then the negative controls), then each claim group
+    of ``ledger.CLAIM_GROUPS``."""
     names = builtin_method_names(MAX_S)
-    cost = [12.0 * int(n.rsplit("-", 1)[-1]) if n[-1].isdigit() else 6.0 for n in names]
-    J = [(("ledger", i), "ledger_job", (i,), c) for i, c in enumerate(cost)]
-    J += [(("ledger", i), "ledger_job", (i,), 10.0) for i in range(len(names), n_tableaux())]
+    J = [(("ledger", i), "ledger_job", (i,), float(COST.get(n, 12 * int(n[-1]) if n[-1].isdigit() else 6)))
+         for i, n in enumerate(names)]
+    J += [(("ledger", i), "ledger_job", (i,), 12.0) for i in range(len(names), n_tableaux())]
     J += [(("group", spec), "group_job", (spec,), 20.0) for spec in _ledger.CLAIM_GROUPS]
     return J
 

@@ -47,13 +47,26 @@ def plan_for(method):
     return MP_DPS, [5, 10, 20, 40], "simplified"
 
 
+_REFERENCES = {}     # per process: the main job runs several jobs of a scene in one worker
+
+
+def reference_for(scene_name, t_end=T_END, log=None):
+    """The scene's reference, built once per process (``make_reference``) and evaluated at t_end
+    first, so that its Taylor segments are laid out exactly as in a fresh run."""
+    key = (scene_name, REF_DPS, float(t_end))
+    if key not in _REFERENCES:
+        t = time.time()
+        ref = make_reference(get_scene(scene_name), REF_DPS)
+        ref(t_end)
+        _say(log, f"  {scene_name}: reference ({ref.kind}, {REF_DPS} digits) in {time.time() - t:.1f} s")
+        _REFERENCES[key] = ref
+    return _REFERENCES[key]
+
+
 def run_scene(scene_name, methods, t_end=T_END, log=None):
-    """All records of one scene (one reference per scene)."""
+    """All records of one scene for ``methods`` (one reference per scene and process)."""
     scene = get_scene(scene_name)
-    t = time.time()
-    ref = make_reference(scene, REF_DPS)
-    ref(t_end)
-    _say(log, f"  {scene_name}: reference ({ref.kind}, {REF_DPS} digits) in {time.time() - t:.1f} s")
+    ref = reference_for(scene_name, t_end, log)
     recs = []
     for meth in methods:
         dps, nl, newton = plan_for(meth)
@@ -330,14 +343,31 @@ def all_methods():
     return [m for fam in FAMILIES.values() for m in fam]
 
 
+# rough CPU seconds on an idle core (to start the longest first): mpmath methods by claimed
+# order, scaled by the scene's size; the float64 methods of a scene together
+_MP_COST = {6: 6.0, 8: 10.0}
+_SCENE_COST = {"mp-particles": 2.5, "mp-particles-nh": 2.5, "particle": 1.2, "robot": 1.0, "skate": 0.6}
+
+
 def jobs(full=False):
-    # one reference per scene, so one job per scene (the ODE references cost seconds each)
-    J = [(("scene", sc), "_scene_job", ((sc, all_methods(), T_END),), 25.0) for sc in DEFAULT_SCENES]
+    """Per scene: one job for the float64 methods, one per mpmath method (their runs dominate);
+    the comparator table. Jobs of a scene share its reference when they meet in one worker."""
+    ms = all_methods()
+    J = []
+    for sc in DEFAULT_SCENES:
+        f = _SCENE_COST.get(sc, 1.5)
+        fl = [m for m in ms if plan_for(m)[0] is None]
+        J.append((("scene", sc, "float64"), "_scene_job", ((sc, fl, T_END),), 3.0 * f))
+        J += [(("scene", sc, m), "_scene_job", ((sc, [m], T_END),), _MP_COST.get(claimed_order_of(m), 10.0) * f)
+              for m in ms if plan_for(m)[0] is not None]
     return J + [(("identities",), "comparator_identities", (), 4.0)]
 
 
 def write(results, outdir=REPORT_DIR, full=False, clock=None, command="ldaspark report convergence"):
-    recs = [r for sc in DEFAULT_SCENES for r in results[("scene", sc)]]
+    recs = []
+    for sc in DEFAULT_SCENES:                 # the order of a serial run: scene, then method
+        part = [r for k, v in results.items() if k[0] == "scene" and k[1] == sc for r in v]
+        recs += [r for m in all_methods() for r in part if r["method"] == m]
     write_outputs(recs, outdir, clock, results[("identities",)], command)
     return recs
 

@@ -91,7 +91,7 @@ def timing_line(command, clock) -> str:
     wall, cpu = clock.wall, clock.cpu
     if getattr(clock, "shared", False):
         return (f"_Written by `{command}` (all sections' jobs shared the worker processes): this section's "
-                f"jobs used {cpu:.0f} s CPU; its files were written {wall:.0f} s after the start of the run._")
+                f"jobs used {cpu:.0f} s CPU and were done {wall:.0f} s after the start of the run._")
     return f"_Written by `{command}`: {wall:.0f} s wall, {cpu:.0f} s CPU (this process and its workers)._"
 
 
