@@ -81,5 +81,5 @@ def test_table_helper_rejects_a_row_of_the_wrong_length():
 def test_cell_and_number_formatting():
     assert cell(None) == "-" and cell("a|b") == "a\\|b" and cell("a\\|b") == "a\\|b" and cell("x\ny") == "x y"
     assert num(0.052560069877837824) == "0.0526" and num(3.0) == "3" and num(2e-7) == "2.00e-07"
-    assert num(123456.7) == "1.2e+05" and num(None) == "-" and num(7) == "7"
+    assert num(123456.7) == "1.23e+05" and num(None) == "-" and num(7) == "7"
     assert jsonable({"a": float("nan"), "b": (1, float("inf"))}) == {"a": None, "b": [1, None]}
