@@ -464,15 +464,20 @@ def jobs(full=False, quick=False, t_long=2500.0):
     for name, t_end in cfg:
         J.append((("ref", name), "scene_reference", (name, t_end), 4.0))
         for kind, m, params in study_plan(name, t_end, hs_fast, hs_gen, rtols, rtols_r):
-            J.append((("runs", name, kind, m), "scene_runs", (name, t_end, kind, m, params),
-                      COST.get(m, COST.get(kind, 2.0)) * t_end / 250.0))
-    J += [(("long",), "long_energy", (t_long,), 15.0), (("sps",), "sps_job", (n_gen, n_fast), 20.0),
-          (("dps",), "dps_job", (dps_steps,), 15.0)]
+            # one job per run: the tight-tolerance scipy runs are the longest of the main job
+            J += [(("runs", name, kind, m, p), "scene_runs", (name, t_end, kind, m, (p,)),
+                   COST.get(m, COST.get(kind, 2.0)) * t_end / 250.0 / len(params) * (1 + i))
+                  for i, p in enumerate(params)]
+    J += [(("long",), "long_energy", (t_long,), 15.0), (("dps",), "dps_job", (dps_steps,), 15.0)]
+    J += [(("sps", sc), "sps_job", (sc, n_gen, n_fast), 5.0) for sc in SPS_SCENES]
     return J
 
 
-def sps_job(n_generic, n_fast):
-    return steps_per_second(n_generic=n_generic, n_fast=n_fast)
+SPS_SCENES = ("particle", "skate", "robot", "mp-particles")
+
+
+def sps_job(scene, n_generic, n_fast):
+    return steps_per_second(scenes=(scene,), n_generic=n_generic, n_fast=n_fast)
 
 
 def dps_job(n_steps):
@@ -485,17 +490,17 @@ def write(results, outdir="reports", full=False, clock=None, command="ldaspark r
     figdir = os.path.join(outdir, "figures")
     studies = []
     for name, t_end in cfg:
-        rows = [r for kind, m, _ in study_plan(name, t_end, hs_fast, hs_gen, rtols, rtols_r)
-                for r in results[("runs", name, kind, m)]]
+        rows = [r for kind, m, params in study_plan(name, t_end, hs_fast, hs_gen, rtols, rtols_r)
+                for p in params for r in results[("runs", name, kind, m, p)]]
         st = finish_study(name, t_end, results[("ref", name)], rows)
         plot_study(st, os.path.join(figdir, f"wp_{name}.png"))
         studies.append(st)
     le = results[("long",)]
     plot_long(le, os.path.join(figdir, "wp_energy_long.png"))
     plot_dps(results[("dps",)], os.path.join(figdir, "wp_dps.png"))
-    path = write_report(outdir, studies, results[("sps",)], results[("dps",)], le, clock or Clock(), command)
-    return {"studies": studies, "steps_per_second": results[("sps",)], "dps": results[("dps",)], "long": le,
-            "path": path}
+    sps = [r for sc in SPS_SCENES for r in results[("sps", sc)]]
+    path = write_report(outdir, studies, sps, results[("dps",)], le, clock or Clock(), command)
+    return {"studies": studies, "steps_per_second": sps, "dps": results[("dps",)], "long": le, "path": path}
 
 
 def run_study(outdir="reports", quick=False, t_long=2500.0, progress=print):
