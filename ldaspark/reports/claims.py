@@ -113,16 +113,26 @@ def _write_files(recs, outdir, quick, json_path, clock, command):
 MAX_S = 3
 
 
-def n_tableaux(max_s=MAX_S):
-    return len(builtin_method_names(max_s)) + len(negative_controls())
+def n_tableaux(max_s=None):
+    return len(builtin_method_names(MAX_S if max_s is None else max_s)) + len(negative_controls())
 
 
 def ledger_job(index):
     return run_ledger(max_s=MAX_S, only=(index,))
 
 
+def unit_job(index, scene):
+    """One (tableau, scene) unit of a ledger that runs in units (``ledger._ledger_task``)."""
+    return _ledger._ledger_task(MAX_S, True, True, True, index, scene)
+
+
 def group_job(spec):
     return extra_records(quick=False, groups=(spec,))
+
+
+def _units():
+    """[(tableau index, scene or None)] in ledger order, when the ledger runs in units."""
+    return [u for i in range(n_tableaux()) for u in [(i, None)] + [(i, sc) for sc in _ledger.LEDGER_SCENES]]
 
 
 # CPU seconds of each tableau's records on an idle core (sum of the records' "seconds"), to start
@@ -132,12 +142,18 @@ COST = {"gauss-1": 5, "gauss-2": 15, "gauss-3": 33, "lobatto-iiia-iiib-2": 12, "
 
 
 def jobs(full=False):
-    """Each tableau of the ledger (built-ins, then the negative controls), then each claim group
-    of ``ledger.CLAIM_GROUPS``."""
+    """Each (tableau, scene) unit of the ledger where the ledger is split that way, else each
+    tableau (built-ins, then the negative controls); then each claim group of
+    ``ledger.CLAIM_GROUPS``."""
     names = builtin_method_names(MAX_S)
-    J = [(("ledger", i), "ledger_job", (i,), float(COST.get(n, 12 * int(n[-1]) if n[-1].isdigit() else 6)))
-         for i, n in enumerate(names)]
-    J += [(("ledger", i), "ledger_job", (i,), 12.0) for i in range(len(names), n_tableaux())]
+    tab_cost = [float(COST.get(n, 12 * int(n[-1]) if n[-1].isdigit() else 6)) for n in names]
+    tab_cost += [12.0] * (n_tableaux() - len(names))
+    if hasattr(_ledger, "_ledger_task"):
+        w = {"mp-particles": 10, "mp-particles-nh": 7, "robot": 3, "particle": 1, "skate": 1}
+        J = [(("unit", i, sc), "unit_job", (i, sc), 0.5 if sc is None else tab_cost[i] * w.get(sc, 2) / 22)
+             for i, sc in _units()]
+    else:
+        J = [(("ledger", i), "ledger_job", (i,), c) for i, c in enumerate(tab_cost)]
     J += [(("group", spec), "group_job", (spec,), 20.0) for spec in _ledger.CLAIM_GROUPS]
     return J
 
