@@ -17,12 +17,15 @@ from ..theory.orders import claimed_order_of, verdict, make_reference, measure_e
 from ..core.errors import InputError
 from ..core.io import atomic_save_figure, atomic_write_json, atomic_write_text
 from ..core.scenes import GENERAL_SCENES, PAPER_SCENES, get_scene
+from .markdown import sci, table, timing_line
+from .plotting import colours, figure
+from .timing import Clock
 
 REPORT_DIR = "reports"
 T_END = 1.0
 MP_DPS = 25
 REF_DPS = 40
-TOLERANCE = 0.3          # |observed - claimed| allowed by the issue's contract
+TOLERANCE = 0.3          # |observed - claimed| allowed for the verdict "holds"
 
 FAMILIES = {
     "gauss": [f"gauss-{s}" for s in range(1, 5)],
@@ -44,13 +47,26 @@ def plan_for(method):
     return MP_DPS, [5, 10, 20, 40], "simplified"
 
 
+_REFERENCES = {}     # per process: the main job runs several jobs of a scene in one worker
+
+
+def reference_for(scene_name, t_end=T_END, log=None):
+    """The scene's reference, built once per process (``make_reference``) and evaluated at t_end
+    first, so that its Taylor segments are laid out exactly as in a fresh run."""
+    key = (scene_name, REF_DPS, float(t_end))
+    if key not in _REFERENCES:
+        t = time.time()
+        ref = make_reference(get_scene(scene_name), REF_DPS)
+        ref(t_end)
+        _say(log, f"  {scene_name}: reference ({ref.kind}, {REF_DPS} digits) in {time.time() - t:.1f} s")
+        _REFERENCES[key] = ref
+    return _REFERENCES[key]
+
+
 def run_scene(scene_name, methods, t_end=T_END, log=None):
-    """All records of one scene (one reference per scene)."""
+    """All records of one scene for ``methods`` (one reference per scene and process)."""
     scene = get_scene(scene_name)
-    t = time.time()
-    ref = make_reference(scene, REF_DPS)
-    ref(t_end)
-    _say(log, f"  {scene_name}: reference ({ref.kind}, {REF_DPS} digits) in {time.time() - t:.1f} s")
+    ref = reference_for(scene_name, t_end, log)
     recs = []
     for meth in methods:
         if scene_name in GENERAL_SCENES and meth == "mp-lobatto-iiib-a-2":
@@ -102,36 +118,39 @@ def compute(scenes=DEFAULT_SCENES, methods=None, t_end=T_END, workers=2):
 
 # --- output -------------------------------------------------------------------------------------
 def plot_family(records, family, methods, path):
-    from matplotlib.figure import Figure
+    """Log-log error against h, one row per scene, one column per variable with data (the
+    comparators have no stage multipliers, so their figure has no Psi column)."""
     scenes = list(dict.fromkeys(r["scene"] for r in records))
-    fig = Figure(figsize=(13, 3.2 * len(scenes)))
-    axes = fig.subplots(len(scenes), 3, squeeze=False)
+    fam = [r for r in records if r["method"] in methods and any(e > 0 for e in r["errors"])]
+    variables = [v for v in ("q", "v", "psi") if any(r["variable"] == v for r in fam)]
+    scenes = [sc for sc in scenes if any(r["scene"] == sc for r in fam)]
+    if not variables or not scenes:
+        return
+    fig, axes = figure(len(scenes), len(variables), figsize=(4.4 * len(variables), 3.2 * len(scenes)))
+    col = dict(zip(methods, colours(len(methods))))
     for i, sc in enumerate(scenes):
-        for j, var in enumerate(("q", "v", "psi")):
+        t_end = next((r["t_end"] for r in records if r["scene"] == sc), T_END)
+        for j, var in enumerate(variables):
             ax = axes[i][j]
             for meth in methods:
-                rs = [r for r in records if r["scene"] == sc and r["method"] == meth and r["variable"] == var]
-                if not rs:
+                r = next((r for r in fam if r["scene"] == sc and r["method"] == meth and r["variable"] == var), None)
+                if r is None:
                     continue
-                r = rs[0]
                 pts = [(h, e) for h, e in zip(r["h"], r["errors"]) if e > 0]
-                if not pts:
-                    continue
                 lab = f"{meth} (obs {_fmt(r['observed_order'])}" + (
                     f", claim {r['claimed_order']})" if r["claimed_order"] is not None else ")")
-                ax.loglog([p[0] for p in pts], [p[1] for p in pts], "o-", ms=3, label=lab)
+                ax.loglog([p[0] for p in pts], [p[1] for p in pts], "o-", ms=3, color=col[meth], label=lab)
             ax.set_xlabel("step size h")
-            t_end = next((r["t_end"] for r in records if r["scene"] == sc), T_END)
             ax.set_ylabel(f"error in {var}" + (" (stages of last step)" if var == "psi" else f" at t = {t_end:g}"))
             ax.set_title(f"{sc}: {var}")
             ax.grid(True, which="both", alpha=0.3)
-            ax.legend(fontsize=6)
+            if ax.get_legend_handles_labels()[0]:
+                ax.legend(fontsize=6)
     fig.suptitle(f"Global error vs step size: {family}")
-    fig.tight_layout()
     atomic_save_figure(fig, path, dpi=90)
 
 
-def markdown(records, elapsed=None, identities=None):
+def markdown(records, clock=None, identities=None, command="ldaspark report convergence"):
     L = ["# Convergence orders (paper, sections 7 and 7.3-7.4)", "",
          "Generated by `ldaspark report convergence` (this file, `reports/convergence.json` and"
          " `reports/figures/convergence_*.png`; records only: `ldaspark report convergence --json FILE`)."
@@ -165,24 +184,23 @@ def markdown(records, elapsed=None, identities=None):
         if fails:
             L.append("")
     for fam, methods in FAMILIES.items():
-        L += [f"## {fam}", "", f"![{fam}](figures/convergence_{fam}.png)", "",
-              "| method | scene | var | claimed | observed (LS) | pairwise | window (h) | smallest error | precision | verdict |",
-              "|---|---|---|---|---|---|---|---|---|---|"]
+        rows = []
         for r in records:
             if r["method"] not in methods:
                 continue
             w = r["window"]
             win = f"{r['h'][w[0]]:.4g} .. {r['h'][w[1]]:.4g}" if w else "-"
-            L.append(f"| {r['method']} | {r['scene']} | {r['variable']} | "
-                     f"{'-' if r['claimed_order'] is None else r['claimed_order']} | {_fmt(r['observed_order'])} | "
-                     f"{', '.join(_fmt(p) for p in r['pairwise_orders'])} | {win} | {min(r['errors']):.2e} | "
-                     f"{'float64' if r['dps'] is None else str(r['dps']) + ' digits'} | {verdict(r, records)} |")
-        L.append("")
+            rows.append([r["method"], r["scene"], r["variable"], r["claimed_order"], _fmt(r["observed_order"]),
+                         ", ".join(_fmt(p) for p in r["pairwise_orders"]), win, sci(min(r["errors"]), 2),
+                         "float64" if r["dps"] is None else f"{r['dps']} digits", verdict(r, records)])
+        L += [f"## {fam}", "", f"![{fam}](figures/convergence_{fam}.png)", ""]
+        L += table(["method", "scene", "var", "claimed", "observed (LS)", "pairwise", "window (h)",
+                    "smallest error", "precision", "verdict"], rows) + [""]
     L += _observations(records)
     if identities is not None:
         L += [""] + comparator_markdown(identities)
-    if elapsed is not None:
-        L += ["", f"_Computed in {elapsed:.0f} s._"]
+    if clock is not None:
+        L += ["", timing_line(command, clock)]
     return "\n".join(L) + "\n"
 
 
@@ -275,11 +293,13 @@ def comparator_markdown(ci):
          f"max(|q_a - q_b|, |v_a - v_b|) over {ci['n_steps']} steps of h = {ci['h']} (float64); tested in"
          " `verification/test_comparators_7_5_8_4.py`. rolling-disk is not a paper scene: its K(q) is"
          " nonlinear in q, which separates the mean-of-K constraint (25) from the midpoint constraint of 8.4.", "",
-         "| method a | method b | " + " | ".join(scenes) + " |", "|---|---|" + "---|" * len(scenes)]
+         ]
     pairs = list(dict.fromkeys((r["a"], r["b"]) for r in ci["rows"]))
+    rows = []
     for a, b in pairs:
         vals = {r["scene"]: r["max_diff"] for r in ci["rows"] if (r["a"], r["b"]) == (a, b)}
-        L.append(f"| {a} | {b} | " + " | ".join(f"{vals[s]:.1e}" for s in scenes) + " |")
+        rows.append([a, b] + [sci(vals[s]) for s in scenes])
+    L += table(["method a", "method b"] + scenes, rows)
     def mx(a, b, only=None, skip=None):
         v = [r["max_diff"] for r in ci["rows"] if (r["a"], r["b"]) == (a, b)
              and (only is None or r["scene"] in only) and (skip is None or r["scene"] not in skip)]
@@ -295,33 +315,64 @@ def comparator_markdown(ci):
           f" {mx('lobatto-iiia-iiib-2-modified', 'lobatto-iiia-iiib-2', only=paper):.1e}: there the mean-of-K"
           " constraint (25) and the midpoint constraint have the same zero set) but on the rolling disk can"
           f" ({mx('lobatto-iiia-iiib-2-modified', 'lobatto-iiia-iiib-2', only=['rolling-disk']):.1e}).", "",
-          "grad U (or grad_q L for the Newton-solved forms) evaluations per step:", "",
-          "| method | " + " | ".join(scenes) + " |", "|---|" + "---|" * len(scenes)]
-    for m in ci["grad_U_per_step"][scenes[0]]:
-        L.append(f"| {m} | " + " | ".join(f"{ci['grad_U_per_step'][s][m]:.2f}" for s in scenes) + " |")
+          "grad U (or grad_q L for the Newton-solved forms) evaluations per step:", ""]
+    L += table(["method"] + scenes, [[m] + [f"{ci['grad_U_per_step'][s][m]:.2f}" for s in scenes]
+                                     for m in ci["grad_U_per_step"][scenes[0]]])
     if "constraint_defect" in ci:
         cd = ci["constraint_defect"]
         sc_d = list(cd)
         L += ["", f"Constraint defect max_n |k(t_n, q_n, v_n)| over {ci['n_steps']} steps of h = {ci['h']}: the"
-              " standard Gauss IRK (7.3-7.4) against the SPARK method with the same coefficients:", "",
-              "| method | " + " | ".join(sc_d) + " |", "|---|" + "---|" * len(sc_d)]
-        for m in cd[sc_d[0]]:
-            L.append(f"| {m} | " + " | ".join(f"{cd[s][m]:.1e}" for s in sc_d) + " |")
+              " standard Gauss IRK (7.3-7.4) against the SPARK method with the same coefficients:", ""]
+        L += table(["method"] + sc_d, [[m] + [sci(cd[s][m]) for s in sc_d] for m in cd[sc_d[0]]])
     L += ["", "The semi-implicit forms (leapfrog, modified-leapfrog, McLachlan-Perlmutter) evaluate grad U once"
           " per step (plus one at the end for the leapfrog forms' output velocity); the Newton-solved"
           " SPARK forms evaluate grad_q L at every stage point of every iteration.", ""]
     return L
 
 
-def write_outputs(records, outdir, elapsed=None):
+def write_outputs(records, outdir, clock=None, identities=None, command="ldaspark report convergence"):
     figdir = os.path.join(outdir, "figures")
     for fam, methods in FAMILIES.items():
         if any(r["method"] in methods for r in records):
             plot_family(records, fam, methods, os.path.join(figdir, f"convergence_{fam}.png"))
-    ident = comparator_identities()
-    atomic_write_text(os.path.join(outdir, "convergence.md"), markdown(records, elapsed, ident))
+    ident = comparator_identities() if identities is None else identities
+    atomic_write_text(os.path.join(outdir, "convergence.md"), markdown(records, clock, ident, command))
     atomic_write_json(os.path.join(outdir, "convergence.json"), records)
     print(f"wrote {os.path.join(outdir, 'convergence.md')}, convergence.json, figures/convergence_*.png", flush=True)
+
+
+# --- jobs of the main job (see ldaspark.reports.jobs): one per scene, and the comparator table ---
+def all_methods():
+    return [m for fam in FAMILIES.values() for m in fam]
+
+
+# rough CPU seconds on an idle core (to start the longest first): mpmath methods by claimed
+# order, scaled by the scene's size; the float64 methods of a scene together
+_MP_COST = {6: 6.0, 8: 10.0}
+_SCENE_COST = {"mp-particles": 2.5, "mp-particles-nh": 2.5, "particle": 1.2, "robot": 1.0, "skate": 0.6}
+
+
+def jobs(full=False):
+    """Per scene: one job for the float64 methods, one per mpmath method (their runs dominate);
+    the comparator table. Jobs of a scene share its reference when they meet in one worker."""
+    ms = all_methods()
+    J = []
+    for sc in DEFAULT_SCENES:
+        f = _SCENE_COST.get(sc, 1.5)
+        fl = [m for m in ms if plan_for(m)[0] is None]
+        J.append((("scene", sc, "float64"), "_scene_job", ((sc, fl, T_END),), 3.0 * f))
+        J += [(("scene", sc, m), "_scene_job", ((sc, [m], T_END),), _MP_COST.get(claimed_order_of(m), 10.0) * f)
+              for m in ms if plan_for(m)[0] is not None]
+    return J + [(("identities",), "comparator_identities", (), 4.0)]
+
+
+def write(results, outdir=REPORT_DIR, full=False, clock=None, command="ldaspark report convergence"):
+    recs = []
+    for sc in DEFAULT_SCENES:                 # the order of a serial run: scene, then method
+        part = [r for k, v in results.items() if k[0] == "scene" and k[1] == sc for r in v]
+        recs += [r for m in all_methods() for r in part if r["method"] == m]
+    write_outputs(recs, outdir, clock, results[("identities",)], command)
+    return recs
 
 
 # --- section interface --------------------------------------------------------------------------
@@ -340,21 +391,22 @@ def add_arguments(p):
 def run(args) -> int:
     if args.t_end <= 0:
         raise InputError("--t-end must be positive")
-    t = time.time()
+    clock = Clock()
     recs = compute(args.scenes, args.methods, args.t_end, args.workers)
     if args.json:
         atomic_write_json(args.json, recs)
         print(f"wrote {args.json} ({len(recs)} records)")
     if args.outdir or not args.json:
-        write_outputs(recs, args.outdir or REPORT_DIR, time.time() - t)
+        write_outputs(recs, args.outdir or REPORT_DIR, clock)
     bad = [r for r in recs if verdict(r, recs) not in ("holds", "no claim")]
     for r in bad:
         print(f"{verdict(r, recs)}: {r['method']} {r['scene']} {r['variable']}: claimed "
               f"{r['claimed_order']}, observed {_fmt(r['observed_order'])}")
+    print(f"[convergence] {clock.summary()}", flush=True)
     return 0
 
 
 def run_default(outdir=REPORT_DIR):
-    t = time.time()
+    clock = Clock()
     recs = compute()
-    write_outputs(recs, outdir, time.time() - t)
+    write_outputs(recs, outdir, clock)

@@ -1,21 +1,27 @@
 """``ldaspark report``: the main job.
 
-``ldaspark report`` with no section writes every section's default report into reports/;
-``ldaspark report SECTION [options]`` runs one section with its own options. Each section
-lives in its own module (``ldaspark.report_<name>`` or as listed in SECTION_MODULES) exposing
+``ldaspark report`` with no section writes every section's default report into reports/ (or
+``--outdir``); ``ldaspark report SECTION [options]`` runs one section with its own options. Each
+section lives in its own module (listed in SECTION_MODULES) exposing
 
 * ``add_arguments(parser)``: options of ``ldaspark report SECTION``;
 * ``run(args) -> int``: run with parsed options;
-* ``run_default(outdir) -> None``: what the no-argument main job does for this section.
+* ``run_default(outdir) -> None``: what the no-argument main job does for this section;
+* optionally ``jobs(full)`` and ``write(results, outdir, ...)`` (see ``ldaspark.reports.jobs``):
+  the main job then spreads the section's independent pieces over the worker processes
+  together with the other sections' pieces.
 
-Sections whose module is not installed are skipped (and not offered on the command line).
+The main job prints each section's CPU time and the wall time at which it was written; every
+report file ends with the numbers of the run that wrote it. Sections whose module is not
+installed are skipped (and not offered on the command line).
 """
 from __future__ import annotations
 
 import importlib
 import importlib.util
-import time
+import os
 
+from .timing import Clock
 
 
 REPORT_DIR = "reports"
@@ -41,6 +47,10 @@ def available_sections():
 # --- dispatcher -----------------------------------------------------------------------------
 def add_arguments(p):
     p.add_argument("--outdir", default=REPORT_DIR, help="directory of the reports (main job)")
+    p.add_argument("--full", action="store_true",
+                   help="main job: the exhaustive sweeps of the sections that have them (stability)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="main job: worker processes (default: the number of cores)")
     sub = p.add_subparsers(dest="section", parser_class=type(p))
     for name, mod in available_sections().items():
         sp = sub.add_parser(name, help=f"{name} report")
@@ -52,10 +62,16 @@ def add_arguments(p):
 def run(args) -> int:
     if getattr(args, "section", None):
         return int(args.section_run(args) or 0)
-    for name, mod in available_sections().items():
-        t = time.time()
-        print(f"[report] {name} ...", flush=True)
-        module = importlib.import_module(mod)
-        module.run_default(args.outdir)
-        print(f"[report] {name} done in {time.time() - t:.1f} s", flush=True)
+    from ..core.errors import InputError
+    from .jobs import run_sections
+    workers = args.workers or os.cpu_count() or 1
+    if workers < 1:
+        raise InputError(f"--workers must be positive, got {workers}")
+    clock = Clock()
+    modules = {name: importlib.import_module(mod) for name, mod in available_sections().items()}
+    stats = run_sections(modules, args.outdir, full=getattr(args, "full", False), workers=workers)
+    print("[report] section      CPU [s]  written at [s wall]", flush=True)
+    for name, st in stats.items():
+        print(f"[report] {name:14s} {st['cpu']:7.1f}  {st['wall']:7.1f}", flush=True)
+    print(f"[report] all sections: {clock.summary()} -> {args.outdir}", flush=True)
     return 0

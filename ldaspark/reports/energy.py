@@ -25,6 +25,9 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..core.io import atomic_save_figure, atomic_write_json, atomic_write_text
+from .markdown import cell, jsonable, num, sci, table, timing_line
+from .plotting import colours, figure
+from .timing import Clock
 
 REPORT_DIR = "reports"
 BOUNDED_RATIO = 1.5
@@ -40,18 +43,6 @@ FIGURES = {
                                       "lobatto-iiia-iiib-iiid-4"], "h": 0.2, "t_end": 150.0,
         "caption": "s-stage Lobatto IIIA-B-D SPARK, s = 2, 3, 4, h = 0.2, mobile robot (8.3)"},
 }
-
-
-def _progress(label):
-    state = {"next": 0.25, "t": time.time()}
-
-    def cb(i, n):
-        frac = i / n
-        if frac >= state["next"] or i == n:
-            print(f"    {label}: {100 * frac:5.1f}% ({i}/{n} steps, {time.time() - state['t']:.1f} s)",
-                  flush=True)
-            state["next"] = frac + 0.25
-    return cb
 
 
 def boundedness(t, dE):
@@ -70,45 +61,47 @@ def boundedness(t, dE):
 
 
 def figure_data(fig, t_end=None):
-    """Integrate the methods of Fig. ``fig`` (1-3) in float64; returns a JSON-able dict."""
+    """Integrate the methods of Fig. ``fig`` (1-3) in float64 on the compiled path
+    (``ldaspark.compiled.fast``; the generic path if the scene cannot be compiled); returns a
+    JSON-able dict."""
+    from ..compiled.fast import fast_integrate
     from ..core.scenes import get_scene
-    from ..core.spark import integrate
-    from ..core.families import get_method
     if fig not in FIGURES:
         raise InputError(f"figure must be 1, 2, 3 or 4, got {fig}")
     spec = FIGURES[fig]
     T = float(t_end) if t_end is not None else spec["t_end"]
     sc = get_scene(spec["scene"])
     t0, q0, v0 = sc.initial()
+    n = int(round((T - float(t0)) / spec["h"]))
+    if n <= 0:
+        raise InputError(f"t_end = {T} gives no step of h = {spec['h']}")
     out = {"figure": fig, "scene": spec["scene"], "h": spec["h"], "t_end": T, "caption": spec["caption"],
            "bounded_ratio_threshold": BOUNDED_RATIO, "methods": {}}
     for m in spec["methods"]:
         tic = time.time()
-        sol = integrate(sc.system, get_method(m), t0, q0, v0, spec["h"], t_end=T,
-                        progress=_progress(f"Fig. {fig} {m}"))
+        sol = fast_integrate(sc, m, h=spec["h"], n_steps=n)
         dE = sol.energy - sol.energy[0]
         rec = boundedness(sol.t, dE)
         rec.update({"E0": float(sol.energy[0]), "max_abs_constraint": float(np.abs(sol.constraint).max()),
                     "seconds": time.time() - tic, "stats": sol.stats,
                     "t": [float(x) for x in sol.t], "dE": [float(x) for x in dE]})
         out["methods"][m] = rec
+        print(f"    Fig. {fig} {m}: {n} steps ({sol.stats.get('path', 'fast')} path) in {rec['seconds']:.1f} s",
+              flush=True)
     return out
 
 
 def plot_energy(data, path):
-    from matplotlib.figure import Figure
-    fig = Figure(figsize=(9, 2.4 * len(data["methods"])))
-    axes = fig.subplots(len(data["methods"]), 1, sharex=True)
-    axes = np.atleast_1d(axes)
-    for ax, (m, rec) in zip(axes, data["methods"].items()):
-        ax.plot(rec["t"], rec["dE"], lw=0.6, label=f"{m} (max |E - E0| = {rec['max_abs_dE']:.2e})")
+    ms = list(data["methods"].items())
+    fig, axes = figure(len(ms), 1, figsize=(9, 2.4 * len(ms)), sharex=True)
+    for ax, (m, rec), c in zip(axes[:, 0], ms, colours(len(ms))):
+        ax.plot(rec["t"], rec["dE"], lw=0.6, color=c, label=f"{m} (max |E - E0| = {rec['max_abs_dE']:.2e})")
         ax.set_ylabel("E - E0")
         ax.legend(loc="upper right", fontsize=8)
         ax.grid(True, alpha=0.3)
         ax.ticklabel_format(axis="y", style="sci", scilimits=(-2, 2))
-    axes[-1].set_xlabel("t")
+    axes[-1, 0].set_xlabel("t")
     fig.suptitle(f"Fig. {data['figure']}: energy error, {data['caption']}", fontsize=9)
-    fig.tight_layout()
     _save(fig, path)
 
 
@@ -121,7 +114,7 @@ def fig4_available() -> bool:
     return importlib.util.find_spec("ldaspark.reports.fig4") is not None
 
 
-def figure4(t_end=50000.0, h=0.05, J=9, every=100, constraint="printed"):
+def figure4(t_end=50000.0, h=0.05, J=9, every=100, constraint="printed", executor=None):
     """Call ``ldaspark.reports.fig4.figure4_data`` and add checks: E0 = 3.06 and an independent LS fit
     of log(mu/h^4) against log t over t >= t_end/100 (the paper: mu/h^4 ~ O(t))."""
     if not fig4_available():
@@ -130,7 +123,7 @@ def figure4(t_end=50000.0, h=0.05, J=9, every=100, constraint="printed"):
     tic = time.time()
     print(f"    Fig. 4: figure4_data(t_end={t_end}, h={h}, J={J}, every={every}, constraint={constraint!r}) ...",
           flush=True)
-    d = fig4.figure4_data(t_end=t_end, h=h, J=J, every=every, constraint=constraint)
+    d = fig4.figure4_data(t_end=t_end, h=h, J=J, every=every, constraint=constraint, executor=executor)
     out = {"figure": 4, "scene": d.get("scene", "mp-particles"), "constraint": constraint,
            "h": h, "t_end": t_end, "J": J, "every": every,
            "seconds": time.time() - tic, "t": [float(x) for x in d["t"]], "E0": float(d["E0"]),
@@ -149,17 +142,16 @@ def figure4(t_end=50000.0, h=0.05, J=9, every=100, constraint="printed"):
 
 
 def plot_fig4(data, path):
-    from matplotlib.figure import Figure
-    fig = Figure(figsize=(12, 4.2))
-    (a1, a2) = fig.subplots(1, 2)
+    fig, axes = figure(1, 2, figsize=(12, 4.2))
+    a1, a2 = axes[0]
     t = np.asarray(data["t"], float)
-    for m in data["methods"]:
+    for m, c in zip(data["methods"], colours(len(data["methods"]))):
         y = np.asarray(data["mu_over_h4"][m], float)
         ex = data["fit"][m].get("exponent")
-        lab = f"{m} (fit exponent {ex:.2f})" if isinstance(ex, float) else m
+        lab = f"{m} (fit exponent {ex:.3f})" if isinstance(ex, float) else m
         pos = (t > 0) & (y > 0)
-        a1.loglog(t[pos], y[pos], lw=0.7, label=lab)
-        a2.plot(t, y, lw=0.7, label=lab)
+        a1.loglog(t[pos], y[pos], lw=0.7, color=c, label=lab)
+        a2.plot(t, y, lw=0.7, color=c, label=lab)
     tt = t[t > 0]
     if len(tt):
         ref = np.asarray(data["mu_over_h4"][data["methods"][0]], float)[t > 0]
@@ -168,32 +160,30 @@ def plot_fig4(data, path):
     for ax, title in ((a1, "log-log"), (a2, "linear")):
         ax.set_xlabel("t")
         ax.set_ylabel("mu((E - E0)^2) / h^4")
-        ax.set_title(f"Fig. 4 ({title}), {data.get('constraint', 'printed')} constraint, h = {data['h']}, "
+        ax.set_title(f"Fig. 4 ({title}), {data.get('constraint', 'printed')} constraint, h = {num(data['h'])}, "
                      f"J+1 = {data['J'] + 1}", fontsize=9)
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
-    fig.tight_layout()
     _save(fig, path)
 
 
 # --- markdown -------------------------------------------------------------------------------------
-def markdown(figs, fig4=None, fig4_note=None):
+def markdown(figs, fig4=None, fig4_note=None, clock=None, command="ldaspark report energy"):
     L = ["# Energy behaviour (paper, section 8, Figs. 1-4)", "",
          "Generated by `ldaspark report energy` (per figure: `ldaspark report energy --figure N --json FILE`)."
-         " Same scenes, methods, step sizes and intervals as the paper. Data (subsampled arrays and all"
-         " numbers) in `reports/energy.json`.", "",
+         " Same scenes, methods, step sizes and intervals as the paper, in float64 on the compiled path"
+         " (`ldaspark.compiled.fast`). Data (subsampled arrays and all numbers) in `reports/energy.json`.", "",
          f"**Bounded** means: max |E - E0| over the last quarter of the interval / max over the first quarter"
          f" <= {BOUNDED_RATIO} (linear drift would give ~4, a random walk ~2). The least-squares linear"
          " trend of E - E0 over the whole interval is listed as a second, independent indicator.", ""]
     for d in figs:
         L += [f"## Fig. {d['figure']}: {d['caption']}, t in [0, {d['t_end']:g}]", "",
-              f"![Fig. {d['figure']}](figures/energy_fig{d['figure']}.png)", "",
-              "| method | max abs(E - E0) | max 1st half | max 2nd half | last/first quarter | linear trend over interval | max abs(k) | bounded |",
-              "|---|---|---|---|---|---|---|---|"]
-        for m, r in d["methods"].items():
-            L.append(f"| {m} | {r['max_abs_dE']:.3e} | {r['max_first_half']:.3e} | {r['max_second_half']:.3e} | "
-                     f"{r['last_over_first_quarter']:.3f} | {r['trend_over_interval']:.2e} | "
-                     f"{r['max_abs_constraint']:.1e} | {'yes' if r['bounded'] else 'NO'} |")
+              f"![Fig. {d['figure']}](figures/energy_fig{d['figure']}.png)", ""]
+        L += table(["method", "max abs(E - E0)", "max 1st half", "max 2nd half", "last/first quarter",
+                    "linear trend over interval", "max abs(k)", "bounded"],
+                   [[m, sci(r["max_abs_dE"], 3), sci(r["max_first_half"], 3), sci(r["max_second_half"], 3),
+                     f"{r['last_over_first_quarter']:.3f}", sci(r["trend_over_interval"], 2),
+                     sci(r["max_abs_constraint"]), "yes" if r["bounded"] else "NO"] for m, r in d["methods"].items()])
         L.append("")
     L += ["## Fig. 4: McLachlan-Perlmutter particles (8.4)", "",
           "The constraint printed in 8.4, v1 + sum_{i=m+2}^{n} q_i v_i = 0, is integrable: it is"
@@ -207,6 +197,8 @@ def markdown(figs, fig4=None, fig4_note=None):
         L += _fig4_markdown(f)
     if not f4s:
         L.append(fig4_note or "Fig. 4 was not generated.")
+    if clock is not None:
+        L += ["", timing_line(command, clock)]
     return "\n".join(L) + "\n"
 
 
@@ -216,16 +208,13 @@ def fig4_png_name(d):
 
 def _fig4_markdown(fig4):
     L = [f"### Fig. 4, {fig4.get('constraint', 'printed')} constraint (scene `{fig4.get('scene', 'mp-particles')}`)", "",
-         f"h = {fig4['h']}, t in [0, {fig4['t_end']:g}], J+1 = {fig4['J'] + 1} initial conditions, samples every"
+         f"h = {num(fig4['h'])}, t in [0, {fig4['t_end']:g}], J+1 = {fig4['J'] + 1} initial conditions, samples every"
          f" {fig4['every']} steps; data from `ldaspark.reports.fig4.figure4_data` in {fig4['seconds']:.1f} s.", "",
          f"E0 = {fig4['E0']:.15g} (paper: 3.06; {'matches' if fig4['E0_matches_paper'] else 'DOES NOT MATCH'}).", "",
-         f"![Fig. 4](figures/{fig4_png_name(fig4)})", "",
-         "| method | fitted exponent (fig4) | own LS exponent, t >= t_end/100 | final mu/h^4 |", "|---|---|---|---|"]
-    for m in fig4["methods"]:
-        ex = fig4["fit"][m].get("exponent")
-        own = fig4["own_fit"][m]
-        L.append(f"| {m} | {ex if not isinstance(ex, float) else f'{ex:.3f}'} | "
-                 f"{'-' if own is None else f'{own:.3f}'} | {fig4['mu_over_h4'][m][-1]:.3e} |")
+         f"![Fig. 4](figures/{fig4_png_name(fig4)})", ""]
+    L += table(["method", "fitted exponent (fig4)", "own LS exponent, t >= t_end/100", "final mu/h^4"],
+               [[m, _exp(fig4["fit"][m].get("exponent")), _exp(fig4["own_fit"][m]), sci(fig4["mu_over_h4"][m][-1], 3)]
+                for m in fig4["methods"]])
     exps = {m: fig4["fit"][m].get("exponent") for m in fig4["methods"]}
     ok = [m for m, e in exps.items() if isinstance(e, float) and abs(e - 1) <= 0.3]
     t4 = np.asarray(fig4["t"], float)
@@ -240,6 +229,10 @@ def _fig4_markdown(fig4):
           f" {max(late) / min(late):.2f} of each other"
           f" ({', '.join(f'{m}: {x:.3e}' for m, x in zip(fig4['methods'], late))}).", ""]
     return L
+
+
+def _exp(x):
+    return f"{x:.3f}" if isinstance(x, float) else cell(x)
 
 
 def _strip(d, max_points=2000):
@@ -281,6 +274,7 @@ def add_arguments(p):
 
 
 def run(args) -> int:
+    clock = Clock()
     if args.t_end is not None and not (math.isfinite(args.t_end) and args.t_end > 0):
         raise InputError(f"--t-end must be a finite positive number, got {args.t_end}")
     if args.figure is None:
@@ -295,44 +289,76 @@ def run(args) -> int:
         if args.outdir or not args.json:
             plot_fig4(d, os.path.join(args.outdir or REPORT_DIR, "figures", fig4_png_name(d)))
         print(f"Fig. 4: E0 = {d['E0']:.15g}; exponents: " + ", ".join(
-            f"{m} {d['fit'][m].get('exponent')}" for m in d["methods"]))
-        return 0
-    d = figure_data(args.figure, args.t_end)
-    if args.json:
-        atomic_write_json(args.json, d)
-        print(f"wrote {args.json}")
-    if args.outdir or not args.json:
-        plot_energy(d, os.path.join(args.outdir or REPORT_DIR, "figures", f"energy_fig{args.figure}.png"))
-    for m, r in d["methods"].items():
-        print(f"Fig. {args.figure} {m}: max |E - E0| = {r['max_abs_dE']:.3e}, last/first quarter "
-              f"{r['last_over_first_quarter']:.3f}, bounded: {r['bounded']}")
+            f"{m} {_exp(d['fit'][m].get('exponent'))}" for m in d["methods"]))
+    else:
+        d = figure_data(args.figure, args.t_end)
+        if args.json:
+            atomic_write_json(args.json, d)
+            print(f"wrote {args.json}")
+        if args.outdir or not args.json:
+            plot_energy(d, os.path.join(args.outdir or REPORT_DIR, "figures", f"energy_fig{args.figure}.png"))
+        for m, r in d["methods"].items():
+            print(f"Fig. {args.figure} {m}: max |E - E0| = {r['max_abs_dE']:.3e}, last/first quarter "
+                  f"{r['last_over_first_quarter']:.3f}, bounded: {r['bounded']}")
+    print(f"[energy] {clock.summary()}", flush=True)
     return 0
 
 
-def run_default(outdir=REPORT_DIR, t_end=None, with_fig4=True):
-    figs = []
-    for n in (1, 2, 3):
-        print(f"[energy] Fig. {n} ...", flush=True)
-        d = figure_data(n, t_end)
-        plot_energy(d, os.path.join(outdir, "figures", f"energy_fig{n}.png"))
-        figs.append(d)
-    f4, note = [], None
-    if with_fig4 and fig4_available():
-        for cons in ("printed", "nonholonomic"):
-            try:
-                print(f"[energy] Fig. 4 ({cons} constraint) ...", flush=True)
-                d4 = figure4(constraint=cons)
-                plot_fig4(d4, os.path.join(outdir, "figures", fig4_png_name(d4)))
-                f4.append(d4)
-            except Exception as exc:  # the fast path is another module: report, do not hide
-                note = f"Fig. 4 ({cons}) failed: {type(exc).__name__}: {exc}"
-                print(note, file=sys.stderr, flush=True)
-    elif with_fig4:
-        note = "Fig. 4 pending: `ldaspark.reports.fig4` (the compiled fast path) is not installed yet."
-    atomic_write_text(os.path.join(outdir, "energy.md"), markdown(figs, f4, note))
+# --- jobs of the main job (see ldaspark.reports.jobs) -----------------------------------------
+FIG4_CONSTRAINTS = ("printed", "nonholonomic")
+
+
+def fig4_job(constraint, inline=True):
+    """Fig. 4 for one constraint; ``inline``: its runs one after the other in this process (in
+    the main job, which already keeps every core busy). A failure is reported in energy.md, not
+    hidden."""
+    from .jobs import InlineExecutor
+    if not fig4_available():
+        return {"note": "Fig. 4 pending: `ldaspark.reports.fig4` (the compiled fast path) is not installed yet."}
+    try:
+        return figure4(constraint=constraint, executor=InlineExecutor() if inline else None)
+    except Exception as exc:  # the fast path is another module: report, do not hide
+        note = f"Fig. 4 ({constraint}) failed: {type(exc).__name__}: {exc}"
+        print(note, file=sys.stderr, flush=True)
+        return {"note": note}
+
+
+def jobs(full=False, t_end=None):
+    """Figs. 1-3 (``t_end``: a shorter interval) and Fig. 4 for both constraints."""
+    return ([(("fig", n), "figure_data", (n, t_end), 3.0) for n in FIGURES]
+            + [(("fig4", c), "fig4_job", (c,), 12.0) for c in FIG4_CONSTRAINTS])
+
+
+def write(results, outdir=REPORT_DIR, full=False, clock=None, command="ldaspark report energy"):
+    figs = [results[("fig", n)] for n in FIGURES]
+    for d in figs:
+        plot_energy(d, os.path.join(outdir, "figures", f"energy_fig{d['figure']}.png"))
+    f4, notes = [], []
+    for c in FIG4_CONSTRAINTS:
+        d4 = results.get(("fig4", c))
+        if d4 is None:
+            continue
+        if "note" in d4:
+            notes.append(d4["note"])
+            continue
+        plot_fig4(d4, os.path.join(outdir, "figures", fig4_png_name(d4)))
+        f4.append(d4)
+    note = "; ".join(notes) or None
+    atomic_write_text(os.path.join(outdir, "energy.md"), markdown(figs, f4, note, clock, command))
     atomic_write_json(os.path.join(outdir, "energy.json"),
-                      {"figures": [_strip(d, 1000) for d in figs],
-                       "figure4": _strip4(f4[0]) if f4 else None,
-                       "figure4_nonholonomic": _strip4(f4[1]) if len(f4) > 1 else None,
-                       "figure4_note": note})
+                      jsonable({"figures": [_strip(d, 1000) for d in figs],
+                                "figure4": _strip4(f4[0]) if f4 else None,
+                                "figure4_nonholonomic": _strip4(f4[1]) if len(f4) > 1 else None,
+                                "figure4_note": note}))
     print(f"wrote {os.path.join(outdir, 'energy.md')}, energy.json, figures/energy_fig*.png", flush=True)
+
+
+def run_default(outdir=REPORT_DIR, t_end=None, with_fig4=True):
+    clock = Clock()
+    results = {}
+    for key, fn, args, _ in jobs(False, t_end):
+        if key[0] == "fig4" and not with_fig4:
+            continue
+        print(f"[energy] {key[0]} {key[1]} ...", flush=True)
+        results[key] = fig4_job(args[0], inline=False) if key[0] == "fig4" else figure_data(*args)
+    write(results, outdir, clock=clock)

@@ -19,7 +19,10 @@ import time
 import numpy as np
 
 from ..core.backend import Backend
-from ..core.io import atomic_save_figure, atomic_write_text
+from ..core.io import atomic_save_figure, atomic_write_json, atomic_write_text
+from .markdown import jsonable, sci, table, timing_line
+from .plotting import colours, figure
+from .timing import Clock
 
 SPARK_FAST = ("gauss-1", "gauss-2", "gauss-3", "lobatto-iiia-iiib-2", "lobatto-iiia-iiib-3")
 SPARK_GENERIC = ("gauss-2",)
@@ -116,42 +119,81 @@ def reference_final(scene_name, scene, t_end):
     return q[-1], "gauss-3 SPARK, h = 0.0025 (fast path)"
 
 
-def study_scene(scene_name, t_end, hs_fast, hs_generic, rtols, rtols_radau, progress=print):
+def _E0(scene):
+    t0, q0, v0 = scene.initial()
+    return scene.system.energy(Backend(None), t0, q0, v0)
+
+
+def _row(kind, method, param, cpu, q, E, K, E0, nfev=None):
+    """One run; its final error is added by ``finish_study`` (the reference may come from another job)."""
+    return {"kind": kind, "method": method, "param": float(param), "cpu": float(cpu),
+            "q_final": [float(x) for x in np.asarray(q[-1], float)],
+            "energy_error": float(np.max(np.abs(np.asarray(E, float) - E0))),
+            "constraint": float(np.max(np.abs(np.asarray(K, float)))), "nfev": nfev}
+
+
+def scene_runs(scene_name, t_end, kind, method, params):
+    """The runs of one (kind, method) on a scene: h values for the SPARK paths, rtol values for scipy."""
     from ..core.scenes import get_scene
     scene = get_scene(scene_name)
-    q_ref, ref_label = reference_final(scene_name, scene, t_end)
-    t0, q0, v0 = scene.initial()
-    E0 = scene.system.energy(Backend(None), t0, q0, v0)
+    E0 = _E0(scene)
     rows = []
+    for p in params:
+        if kind == "spark-fast":
+            cpu, t, q, E, K = run_fast(scene, method, p, t_end)
+            rows.append(_row(kind, method, p, cpu, q, E, K, E0))
+        elif kind == "spark-generic":
+            cpu, t, q, E, K = run_generic(scene, method, p, t_end)
+            rows.append(_row(kind, method, p, cpu, q, E, K, E0))
+        else:
+            cpu, t, q, E, K, nfev = run_scipy(scene, method, p, t_end, project=(kind == "scipy-projected"))
+            rows.append(_row(kind, method, p, cpu, q, E, K, E0, nfev))
+    return rows
 
-    def add(kind, method, param, cpu, q, E, K, nfev=None):
-        rows.append({"kind": kind, "method": method, "param": float(param), "cpu": float(cpu),
-                     "error": float(np.max(np.abs(np.asarray(q[-1], float) - q_ref))),
-                     "energy_error": float(np.max(np.abs(np.asarray(E, float) - E0))),
-                     "constraint": float(np.max(np.abs(np.asarray(K, float)))), "nfev": nfev})
 
-    for m in SPARK_FAST:
-        for h in hs_fast:
-            cpu, t, q, E, K = run_fast(scene, m, h, t_end)
-            add("spark-fast", m, h, cpu, q, E, K)
-    progress(f"  {scene_name}: SPARK fast path done")
-    for m in SPARK_GENERIC:
-        for h in hs_generic:
-            cpu, t, q, E, K = run_generic(scene, m, h, t_end)
-            add("spark-generic", m, h, cpu, q, E, K)
-    progress(f"  {scene_name}: SPARK generic path done")
-    for m in SCIPY:
-        for proj in (False, True):
-            for rtol in (rtols_radau if m == "Radau" else rtols):
-                cpu, t, q, E, K, nfev = run_scipy(scene, m, rtol, t_end, project=proj)
-                add("scipy-projected" if proj else "scipy", m, rtol, cpu, q, E, K, nfev)
-        progress(f"  {scene_name}: scipy {m} done")
+def scene_reference(scene_name, t_end):
+    """(q_ref at t_end, label, DOP853 rtol 1e-13 final q or None for a closed-form reference)."""
+    from ..core.scenes import get_scene
+    scene = get_scene(scene_name)
+    q_ref, label = reference_final(scene_name, scene, t_end)
     check = None
     if scene.exact is None:
-        _, _, q, _, _, _ = run_scipy(scene, "DOP853", 1e-13, t_end)
-        check = float(np.max(np.abs(q[-1] - q_ref)))
-    return {"scene": scene_name, "t_end": t_end, "reference": ref_label, "reference_check": check,
-            "E0": float(E0), "rows": rows}
+        check = [float(x) for x in run_scipy(scene, "DOP853", 1e-13, t_end)[2][-1]]
+    return [float(x) for x in np.asarray(q_ref, float)], label, check
+
+
+def study_plan(scene_name, t_end, hs_fast, hs_generic, rtols, rtols_radau):
+    """[(kind, method, params)] of one scene's study."""
+    plan = [("spark-fast", m, tuple(hs_fast)) for m in SPARK_FAST]
+    plan += [("spark-generic", m, tuple(hs_generic)) for m in SPARK_GENERIC]
+    plan += [(kind, m, tuple(rtols_radau if m == "Radau" else rtols)) for m in SCIPY
+             for kind in ("scipy", "scipy-projected")]
+    return plan
+
+
+def finish_study(scene_name, t_end, reference, rows):
+    """The study dict of one scene: final errors against the reference, the reference check."""
+    from ..core.scenes import get_scene
+    q_ref, label, check_q = reference
+    q_ref = np.asarray(q_ref, float)
+    out = []
+    for r in rows:
+        r = dict(r)
+        r["error"] = float(np.max(np.abs(np.asarray(r.pop("q_final"), float) - q_ref)))
+        out.append(r)
+    check = None if check_q is None else float(np.max(np.abs(np.asarray(check_q) - q_ref)))
+    return {"scene": scene_name, "t_end": t_end, "reference": label, "reference_check": check,
+            "E0": float(_E0(get_scene(scene_name))), "rows": out}
+
+
+def study_scene(scene_name, t_end, hs_fast, hs_generic, rtols, rtols_radau, progress=print):
+    """One scene's study in this process (the main job runs the same pieces as separate jobs)."""
+    ref = scene_reference(scene_name, t_end)
+    rows = []
+    for kind, m, params in study_plan(scene_name, t_end, hs_fast, hs_generic, rtols, rtols_radau):
+        rows += scene_runs(scene_name, t_end, kind, m, params)
+        progress(f"  {scene_name}: {kind} {m} done")
+    return finish_study(scene_name, t_end, ref, rows)
 
 
 def cpu_at(rows, target, key="error"):
@@ -239,31 +281,38 @@ def dps_cost(dps_list=(16, 30, 50, 100, 200), n_steps=8, method="gauss-2", scene
     return rows
 
 
-def long_energy(t_long=2500.0, h=0.1, rtol=1e-6, every=10):
-    """|E - E0| over [0, t_long] for the particle: gauss-2 SPARK vs DOP853 with/without projection."""
+LONG_RUNS = ("spark", "dop853", "dop853_projected")
+
+
+def long_part(which, t_long=2500.0, h=0.1, rtol=1e-6, every=10):
+    """One run of ``long_energy``: "spark" (gauss-2 SPARK fast), "dop853" or "dop853_projected"."""
     from ..compiled.fast import fast_integrate
     from ..core.scenes import get_scene
     sc = get_scene("particle")
-    t0, q0, v0 = sc.initial()
-    E0 = sc.system.energy(Backend(None), t0, q0, v0)
-    n = int(round(t_long / h))
-    cpu_s, r = _cpu(lambda: fast_integrate(sc, "gauss-2", h=h, n_steps=n, every=every))
-    t_eval = np.arange(0.0, t_long + 1e-9, 5.0)
-    out = {"t_long": t_long, "spark": {"t": r.t.tolist(), "dE": np.abs(r.energy - E0).tolist(), "cpu": cpu_s,
-                                       "label": f"gauss-2 SPARK fast, h = {h}"}}
-    for proj in (False, True):
+    E0 = _E0(sc)
+    if which == "spark":
+        n = int(round(t_long / h))
+        cpu_s, r = _cpu(lambda: fast_integrate(sc, "gauss-2", h=h, n_steps=n, every=every))
+        out = {"t": r.t.tolist(), "dE": np.abs(r.energy - E0).tolist(), "cpu": cpu_s,
+               "label": f"gauss-2 SPARK fast, h = {h}"}
+    else:
+        proj = which == "dop853_projected"
+        t_eval = np.arange(0.0, t_long + 1e-9, 5.0)
         cpu, ts, q, E, K, nfev = run_scipy(sc, "DOP853", rtol, t_long, project=proj, segment=5.0, t_eval=t_eval)
-        key = "dop853_projected" if proj else "dop853"
-        out[key] = {"t": list(map(float, ts)), "dE": np.abs(E - E0).tolist(), "cpu": cpu,
-                    "constraint": float(np.max(np.abs(K))),
-                    "label": f"DOP853 rtol={rtol:g}" + (" + projection every 5" if proj else "")}
-    for key in ("spark", "dop853", "dop853_projected"):
-        t = np.array(out[key]["t"])
-        d = np.array(out[key]["dE"])
-        half = t >= t_long / 2
-        out[key]["max_first_half"] = float(np.max(d[~half]))
-        out[key]["max_second_half"] = float(np.max(d[half]))
+        out = {"t": list(map(float, ts)), "dE": np.abs(E - E0).tolist(), "cpu": cpu,
+               "constraint": float(np.max(np.abs(K))),
+               "label": f"DOP853 rtol={rtol:g}" + (" + projection every 5" if proj else "")}
+    t = np.array(out["t"])
+    d = np.array(out["dE"])
+    half = t >= t_long / 2
+    out["max_first_half"] = float(np.max(d[~half]))
+    out["max_second_half"] = float(np.max(d[half]))
     return out
+
+
+def long_energy(t_long=2500.0, h=0.1, rtol=1e-6, every=10):
+    """|E - E0| over [0, t_long] for the particle: gauss-2 SPARK vs DOP853 with/without projection."""
+    return {"t_long": t_long, **{w: long_part(w, t_long, h, rtol, every) for w in LONG_RUNS}}
 
 
 # --- plots and report -------------------------------------------------------------------------
@@ -271,49 +320,49 @@ STYLE = {"spark-fast": "-o", "spark-generic": "-s", "scipy": "--^", "scipy-proje
 
 
 def plot_study(study, path):
-    from matplotlib.figure import Figure
-    fig = Figure(figsize=(12, 5))
-    axes = fig.subplots(1, 2)
-    for ax, key, lab in ((axes[0], "error", f"final error max|q - q_ref| at t = {study['t_end']:g}"),
-                         (axes[1], "energy_error", "max |E - E0| over the run")):
-        seen = {}
-        for r in study["rows"]:
-            seen.setdefault((r["kind"], r["method"]), []).append(r)
+    fig, axes = figure(1, 2, figsize=(12, 5))
+    seen = {}
+    for r in study["rows"]:
+        seen.setdefault((r["kind"], r["method"]), []).append(r)
+    # one colour per method (shared by both panels); the kind (fast, generic, scipy, + projection)
+    # is the line style and marker, so gauss-2 fast and generic share a colour but not a marker
+    methods = list(dict.fromkeys(m for _, m in seen))
+    mcol = dict(zip(methods, colours(len(methods))))
+    col = {km: mcol[km[1]] for km in seen}
+    for ax, key, lab in ((axes[0][0], "error", f"final error max|q - q_ref| at t = {study['t_end']:g}"),
+                         (axes[0][1], "energy_error", "max |E - E0| over the run")):
         for (kind, m), rs in seen.items():
             rs = sorted(rs, key=lambda r: r["cpu"])
             ax.loglog([r["cpu"] for r in rs], [max(r[key], 1e-17) for r in rs], STYLE[kind], ms=4,
-                      label=f"{m} ({kind})")
+                      color=col[(kind, m)], label=f"{m} ({kind})")
         ax.set_xlabel("CPU time [s]")
         ax.set_ylabel(lab)
         ax.grid(True, which="both", alpha=0.3)
-    axes[0].legend(fontsize=7)
+    axes[0][0].legend(fontsize=7)
     fig.suptitle(f"Work-precision, {study['scene']} on [0, {study['t_end']:g}]")
-    fig.tight_layout()
     atomic_save_figure(fig, path, dpi=110)
 
 
 def plot_long(le, path):
-    from matplotlib.figure import Figure
-    fig = Figure(figsize=(8, 4.5))
-    ax = fig.subplots()
-    for key in ("spark", "dop853", "dop853_projected"):
+    fig, axes = figure(1, 1, figsize=(8, 4.5))
+    ax = axes[0][0]
+    keys = ("spark", "dop853", "dop853_projected")
+    for key, c in zip(keys, colours(len(keys))):
         d = le[key]
-        ax.semilogy(d["t"], np.maximum(d["dE"], 1e-17), label=f"{d['label']} ({d['cpu']:.2f} s)")
+        ax.semilogy(d["t"], np.maximum(d["dE"], 1e-17), color=c, label=f"{d['label']} ({d['cpu']:.2f} s)")
     ax.set_xlabel("t")
     ax.set_ylabel("|E - E0|")
     ax.set_title("Particle: energy error at long times")
     ax.legend(fontsize=8)
     ax.grid(True, alpha=0.3)
-    fig.tight_layout()
     atomic_save_figure(fig, path, dpi=110)
 
 
 def plot_dps(rows, path):
-    from matplotlib.figure import Figure
     mp = [r for r in rows if "dps" in r]
-    fig = Figure(figsize=(6, 4))
-    ax = fig.subplots()
-    ax.semilogy([r["dps"] for r in mp], [r["seconds_per_step"] for r in mp], "-o", label="mpmath path")
+    fig, axes = figure(1, 1, figsize=(6, 4))
+    ax = axes[0][0]
+    ax.semilogy([r["dps"] for r in mp], [r["seconds_per_step"] for r in mp], "-o", color="C0", label="mpmath path")
     for r in rows:
         if "dps" not in r:
             ax.axhline(r["seconds_per_step"], ls="--", color="gray" if "generic" in r["precision"] else "k",
@@ -323,7 +372,6 @@ def plot_dps(rows, path):
     ax.set_title("Cost of precision: particle, gauss-2")
     ax.legend(fontsize=8)
     ax.grid(True, alpha=0.3)
-    fig.tight_layout()
     atomic_save_figure(fig, path, dpi=110)
 
 
@@ -331,92 +379,148 @@ def _fmt(x, f="{:.3g}"):
     return "-" if x is None else f.format(x)
 
 
-def write_report(outdir, studies, sps, dps_rows, le, seconds):
+def _ratio_rows(st, key):
+    return [[f"{r['target']:.0e}", _fmt(r["spark-fast"]), _fmt(r["spark-generic"]), _fmt(r["scipy (best of 3)"]),
+             _fmt(r["scipy + projection (best of 3)"]), _fmt(r["scipy/spark-fast"], "{:.0f}"),
+             _fmt(r["scipy/spark-generic"], "{:.1f}")] for r in ratios(st, key=key)]
+
+
+RATIO_HEADER = ["SPARK fast [s]", "SPARK generic [s]", "scipy best [s]", "scipy + proj. best [s]",
+                "scipy / SPARK fast", "scipy / SPARK generic"]
+
+
+def _study_markdown(st):
+    name = st["scene"]
+    L = [f"## {name} on [0, {st['t_end']:g}]", "",
+         f"Reference: {st['reference']}"
+         + (f" (differs from DOP853 rtol 1e-13 by {sci(st['reference_check'])})" if st["reference_check"] is not None else "")
+         + f". E0 = {st['E0']:.6g}.", "", f"![work-precision {name}](figures/wp_{name}.png)", "",
+         "CPU time to reach a final error (log-log interpolation on the cheapest runs; '-' = not reached):", ""]
+    L += table(["final error"] + RATIO_HEADER, _ratio_rows(st, "error"))
+    L += ["", "CPU time to reach a maximum energy error:", ""]
+    L += table(["max energy error"] + RATIO_HEADER, _ratio_rows(st, "energy_error"))
+    L += ["", "<details><summary>all runs</summary>", ""]
+    L += table(["kind", "method", "h or rtol", "CPU [s]", "final error", "max energy error", "max abs k", "nfev"],
+               [[r["kind"], r["method"], f"{r['param']:g}", f"{r['cpu']:.3g}", sci(r["error"], 2),
+                 sci(r["energy_error"], 2), sci(r["constraint"]), r["nfev"]] for r in st["rows"]])
+    return L + ["", "</details>", ""]
+
+
+def sps_summary(sps):
+    """Median, min and max of the fast / generic steps-per-second ratios."""
+    r = sorted(x["ratio"] for x in sps)
+    return {"median": float(np.median(r)), "min": r[0], "max": r[-1], "n": len(r)} if r else None
+
+
+def write_report(outdir, studies, sps, dps_rows, le, clock, command="ldaspark report work-precision"):
     L = ["# Work-precision: SPARK against scipy.integrate.solve_ivp", "",
          "Generated by `ldaspark report work-precision` (`python benchmarks/work_precision.py` prints the "
-         "same tables). CPU times are `time.process_time` on a shared 2-core machine (noisy, other jobs "
-         "run concurrently); compiled runs are best of 3 and exclude numba compilation. scipy solves the "
-         "index-reduced ODE (3a-b) with the library's `system.ode_rhs` (lambdified, ~0.1 ms per call), "
-         "atol = 1e-3 rtol; \"+ projection\" restarts every time unit after projecting v onto k = 0.", ""]
+         "same tables; every number is in `work_precision.json`). CPU times are `time.process_time` on a "
+         "shared 2-core machine (noisy, other jobs run concurrently); compiled runs are best of 3 and exclude "
+         "numba compilation. scipy solves the index-reduced ODE (3a-b) with the library's `system.ode_rhs` "
+         "(lambdified, ~0.1 ms per call), atol = 1e-3 rtol; \"+ projection\" restarts every time unit after "
+         "projecting v onto k = 0.", ""]
     for st in studies:
-        name = st["scene"]
-        L += [f"## {name} on [0, {st['t_end']:g}]", "",
-              f"Reference: {st['reference']}"
-              + (f" (differs from DOP853 rtol 1e-13 by {st['reference_check']:.1e})" if st["reference_check"] is not None else "")
-              + f". E0 = {st['E0']:.6g}.", "", f"![work-precision {name}](figures/wp_{name}.png)", "",
-              "CPU time to reach a final error (log-log interpolation on the cheapest runs; '-' = not reached):", "",
-              "| final error | SPARK fast [s] | SPARK generic [s] | scipy best [s] | scipy + proj. best [s] | scipy / SPARK fast | scipy / SPARK generic |",
-              "|---|---|---|---|---|---|---|"]
-        for r in ratios(st):
-            L.append(f"| {r['target']:.0e} | {_fmt(r['spark-fast'])} | {_fmt(r['spark-generic'])} | "
-                     f"{_fmt(r['scipy (best of 3)'])} | {_fmt(r['scipy + projection (best of 3)'])} | "
-                     f"{_fmt(r['scipy/spark-fast'], '{:.0f}')} | {_fmt(r['scipy/spark-generic'], '{:.1f}')} |")
-        L += ["", "CPU time to reach a maximum energy error:", "",
-              "| max energy error | SPARK fast [s] | SPARK generic [s] | scipy best [s] | scipy + proj. best [s] | scipy / SPARK fast | scipy / SPARK generic |",
-              "|---|---|---|---|---|---|---|"]
-        for r in ratios(st, key="energy_error"):
-            L.append(f"| {r['target']:.0e} | {_fmt(r['spark-fast'])} | {_fmt(r['spark-generic'])} | "
-                     f"{_fmt(r['scipy (best of 3)'])} | {_fmt(r['scipy + projection (best of 3)'])} | "
-                     f"{_fmt(r['scipy/spark-fast'], '{:.0f}')} | {_fmt(r['scipy/spark-generic'], '{:.1f}')} |")
-        L += ["", "<details><summary>all runs</summary>", "",
-              "| kind | method | h or rtol | CPU [s] | final error | max energy error | max abs k | nfev |",
-              "|---|---|---|---|---|---|---|---|"]
-        for r in st["rows"]:
-            L.append(f"| {r['kind']} | {r['method']} | {r['param']:g} | {r['cpu']:.3g} | {r['error']:.2e} | "
-                     f"{r['energy_error']:.2e} | {r['constraint']:.1e} | {r['nfev'] if r['nfev'] is not None else '-'} |")
-        L += ["", "</details>", ""]
-    L += ["## Energy error at long times (particle)", "", "![long](figures/wp_energy_long.png)", "",
-          "| run | CPU [s] | max abs(E - E0), first half | max abs(E - E0), second half | max abs k |", "|---|---|---|---|---|"]
-    for key in ("spark", "dop853", "dop853_projected"):
-        d = le[key]
-        L.append(f"| {d['label']} | {d['cpu']:.3g} | {d['max_first_half']:.2e} | {d['max_second_half']:.2e} | "
-                 f"{d.get('constraint', 0.0):.1e} |")
-    L += ["", "## Steps per second, generic vs fast path (h = 0.05, measured side by side)", "",
-          "| scene | method | kernel | generic [steps/s] | fast [steps/s] | fast / generic | note |", "|---|---|---|---|---|---|---|"]
-    for r in sps:
-        L.append(f"| {r['scene']} | {r['method']} | {r['kernel']} | {r['generic']:.3g} | {r['fast']:.3g} | "
-                 f"{r['ratio']:.0f} | {r['note']} |")
-    L += ["", "## Cost of precision (particle, gauss-2, h = 0.1)", "", "![dps](figures/wp_dps.png)", "",
-          "| precision | CPU seconds per step | relative to float64 generic | Newton iterations per step |",
-          "|---|---|---|---|"]
+        L += _study_markdown(st)
+    L += ["## Energy error at long times (particle)", "", "![long](figures/wp_energy_long.png)", ""]
+    L += table(["run", "CPU [s]", "max abs(E - E0), first half", "max abs(E - E0), second half", "max abs k"],
+               [[le[k]["label"], f"{le[k]['cpu']:.3g}", sci(le[k]["max_first_half"], 2), sci(le[k]["max_second_half"], 2),
+                 sci(le[k].get("constraint"))] for k in ("spark", "dop853", "dop853_projected")])
+    sm = sps_summary(sps)
+    L += ["", "## Steps per second, generic vs fast path (h = 0.05, measured side by side)", ""]
+    if sm:
+        L += [f"fast / generic: median {sm['median']:.0f}x ({sm['min']:.0f}x to {sm['max']:.0f}x) over "
+              f"{sm['n']} (scene, method) pairs.", ""]
+    L += table(["scene", "method", "kernel", "generic [steps/s]", "fast [steps/s]", "fast / generic", "note"],
+               [[r["scene"], r["method"], r["kernel"], f"{r['generic']:.3g}", f"{r['fast']:.3g}", f"{r['ratio']:.0f}",
+                 r["note"]] for r in sps])
+    L += ["", "## Cost of precision (particle, gauss-2, h = 0.1)", "", "![dps](figures/wp_dps.png)", ""]
     base = [r for r in dps_rows if r["precision"] == "float64 generic"][0]["seconds_per_step"]
-    for r in dps_rows:
-        L.append(f"| {r['precision']} | {r['seconds_per_step']:.3g} | {r['seconds_per_step'] / base:.3g} | "
-                 f"{_fmt(r.get('mean_iterations'), '{:.2f}')} |")
-    L += ["", f"Report generated in {seconds:.0f} s.", ""]
+    L += table(["precision", "CPU seconds per step", "relative to float64 generic", "Newton iterations per step"],
+               [[r["precision"], f"{r['seconds_per_step']:.3g}", f"{r['seconds_per_step'] / base:.3g}",
+                 _fmt(r.get("mean_iterations"), "{:.2f}")] for r in dps_rows])
+    L += ["", timing_line(command, clock), ""]
     path = os.path.join(outdir, "work_precision.md")
     atomic_write_text(path, "\n".join(L))
+    data = {"studies": [dict(st, ratios={"error": ratios(st, key="error"),
+                                         "energy_error": ratios(st, key="energy_error")}) for st in studies],
+            "steps_per_second": sps, "steps_per_second_summary": sm, "dps": dps_rows,
+            "long": {k: {kk: vv for kk, vv in v.items() if kk not in ("t", "dE")} if isinstance(v, dict) else v
+                     for k, v in le.items()}}
+    atomic_write_json(os.path.join(outdir, "work_precision.json"), jsonable(data))
     return path
 
 
-def run_study(outdir="reports", quick=False, t_long=2500.0, progress=print):
-    t_start = time.time()
-    figdir = os.path.join(outdir, "figures")
-    os.makedirs(figdir, exist_ok=True)
+# --- sizes, jobs of the main job, the section's own command -----------------------------------
+def sizes(quick=False, t_long=2500.0):
+    """(hs_fast, hs_generic, rtols, rtols_radau, ((scene, t_end), ...), t_long, n_generic, n_fast, dps_steps)."""
     if quick:
-        hs_fast, hs_gen, rtols, rtols_r = (0.2, 0.05, 0.0125), (0.2,), (1e-4, 1e-8), (1e-4,)
-        cfg = (("particle", 50.0), ("skate", 20.0))
-    else:
-        hs_fast = (0.4, 0.2, 0.1, 0.05, 0.025, 0.0125, 0.00625)
-        hs_gen, rtols, rtols_r = (0.2, 0.1, 0.05), (1e-3, 1e-5, 1e-7, 1e-9, 1e-11), (1e-3, 1e-5, 1e-7)
-        cfg = (("particle", 250.0), ("skate", 100.0))
+        return ((0.2, 0.05, 0.0125), (0.2,), (1e-4, 1e-8), (1e-4,), (("particle", 50.0), ("skate", 20.0)),
+                250.0, 20, 5000, 3)
+    return ((0.4, 0.2, 0.1, 0.05, 0.025, 0.0125, 0.00625), (0.2, 0.1, 0.05), (1e-3, 1e-5, 1e-7, 1e-9, 1e-11),
+            (1e-3, 1e-5, 1e-7), (("particle", 250.0), ("skate", 100.0)), t_long, 40, 20000, 8)
+
+
+# rough CPU seconds on an idle core, to start the longest jobs first
+COST = {"Radau": 25.0, "LSODA": 12.0, "DOP853": 6.0, "spark-generic": 12.0, "spark-fast": 2.0}
+
+
+def jobs(full=False, quick=False, t_long=2500.0):
+    hs_fast, hs_gen, rtols, rtols_r, cfg, t_long, n_gen, n_fast, dps_steps = sizes(quick, t_long)
+    J = []
+    for name, t_end in cfg:
+        J.append((("ref", name), "scene_reference", (name, t_end), 4.0))
+        for kind, m, params in study_plan(name, t_end, hs_fast, hs_gen, rtols, rtols_r):
+            # one job per run: the tight-tolerance scipy runs are the longest of the main job
+            J += [(("runs", name, kind, m, p), "scene_runs", (name, t_end, kind, m, (p,)),
+                   COST.get(m, COST.get(kind, 2.0)) * t_end / 250.0 / len(params) * (1 + i))
+                  for i, p in enumerate(params)]
+    J += [(("long", w), "long_part", (w, t_long), 6.0) for w in LONG_RUNS] + [(("dps",), "dps_job", (dps_steps,), 15.0)]
+    J += [(("sps", sc), "sps_job", (sc, n_gen, n_fast), 5.0) for sc in SPS_SCENES]
+    return J
+
+
+SPS_SCENES = ("particle", "skate", "robot", "mp-particles")
+
+
+def sps_job(scene, n_generic, n_fast):
+    return steps_per_second(scenes=(scene,), n_generic=n_generic, n_fast=n_fast)
+
+
+def dps_job(n_steps):
+    return dps_cost(n_steps=n_steps)
+
+
+def write(results, outdir="reports", full=False, clock=None, command="ldaspark report work-precision",
+          quick=False, t_long=2500.0):
+    hs_fast, hs_gen, rtols, rtols_r, cfg, t_long, *_ = sizes(quick, t_long)
+    figdir = os.path.join(outdir, "figures")
     studies = []
     for name, t_end in cfg:
-        progress(f"[work-precision] {name} on [0, {t_end:g}] ...")
-        st = study_scene(name, t_end, hs_fast, hs_gen, rtols, rtols_r, progress)
+        rows = [r for kind, m, params in study_plan(name, t_end, hs_fast, hs_gen, rtols, rtols_r)
+                for p in params for r in results[("runs", name, kind, m, p)]]
+        st = finish_study(name, t_end, results[("ref", name)], rows)
         plot_study(st, os.path.join(figdir, f"wp_{name}.png"))
         studies.append(st)
-    progress("[work-precision] long-time energy ...")
-    le = long_energy(t_long=t_long if not quick else 250.0)
+    le = {"t_long": t_long, **{w: results[("long", w)] for w in LONG_RUNS}}
     plot_long(le, os.path.join(figdir, "wp_energy_long.png"))
-    progress("[work-precision] steps per second ...")
-    sps = steps_per_second(n_generic=20 if quick else 40, n_fast=5000 if quick else 20000)
-    progress("[work-precision] cost of precision ...")
-    dps_rows = dps_cost(n_steps=3 if quick else 8)
-    plot_dps(dps_rows, os.path.join(figdir, "wp_dps.png"))
-    path = write_report(outdir, studies, sps, dps_rows, le, time.time() - t_start)
-    progress(f"wrote {path}")
-    return {"studies": studies, "steps_per_second": sps, "dps": dps_rows, "long": le, "path": path}
+    plot_dps(results[("dps",)], os.path.join(figdir, "wp_dps.png"))
+    sps = [r for sc in SPS_SCENES for r in results[("sps", sc)]]
+    path = write_report(outdir, studies, sps, results[("dps",)], le, clock or Clock(), command)
+    return {"studies": studies, "steps_per_second": sps, "dps": results[("dps",)], "long": le, "path": path}
+
+
+def run_study(outdir="reports", quick=False, t_long=2500.0, progress=print):
+    """The whole section in this process: every job in turn, then the report."""
+    clock = Clock()
+    os.makedirs(os.path.join(outdir, "figures"), exist_ok=True)
+    results = {}
+    for key, fn, args, _ in jobs(quick=quick, t_long=t_long):
+        progress(f"[work-precision] {' '.join(map(str, key))} ...")
+        results[key] = globals()[fn](*args)
+    out = write(results, outdir, clock=clock, quick=quick, t_long=t_long)
+    progress(f"wrote {out['path']} ({clock.summary()})")
+    return out
 
 
 def add_arguments(p):

@@ -1,0 +1,174 @@
+"""The numbers and verdict words README.md quotes, computed from the committed reports' JSON.
+
+README's findings and speed tables mark every quoted value as ``<!--KEY-->text<!--/-->`` (the
+comment is invisible when rendered); ``tests/test_readme.py`` checks that ``text`` equals
+``readme_values(reports)[KEY]``, so README and reports cannot disagree. ``python -m
+ldaspark.reports.summary`` prints every key with its current text; ``--fill README.md`` rewrites
+the marked values after the reports were regenerated.
+"""
+from __future__ import annotations
+
+import json
+import os
+import re
+import sys
+
+from ..theory.orders import verdict
+
+IRK = ("gauss-irk-1", "gauss-irk-2")
+
+
+def _load(d, name):
+    path = os.path.join(d, name)
+    if not os.path.exists(path):
+        return None
+    with open(path) as f:
+        return json.load(f)
+
+
+def _e(x):
+    return f"{x:.1e}"
+
+
+def _x(x):
+    return f"{x:.0f}x"
+
+
+def _list(xs):
+    return ", ".join(xs) if xs else "none"
+
+
+def convergence_values(recs):
+    out = {}
+    spark = [r for r in recs if r["claimed_order"] is not None and r["claim_scope"] == "variable"]
+    n_ok = sum(verdict(r, recs) == "holds" for r in spark)
+    out["convergence.spark"] = f"{n_ok} of {len(spark)}"
+    out["convergence.spark.verdict"] = "hold" if n_ok == len(spark) else "do not all hold"
+    for m in IRK:
+        rs = [r for r in recs if r["method"] == m and r["variable"] == "q"]
+        groups = {}
+        for r in rs:
+            groups.setdefault(verdict(r, recs), []).append(r["scene"])
+        s = m.rsplit("-", 1)[1]
+        parts = [f"holds on {_list(groups.get('holds', []))}"]
+        for v, label in (("HIGHER than claimed", "higher than claimed on"), ("FAILS", "fails on"),
+                         ("NO WINDOW", "no asymptotic window on")):
+            if groups.get(v):
+                parts.append(f"{label} {_list(groups[v])}")
+        out[f"convergence.{m}"] = f"s = {s}: " + "; ".join(parts)
+    return out
+
+
+def claims_values(recs):
+    out = {}
+    ex = [r for r in recs if r["claim"] in ("22a", "22b", "23")]
+    out["claims.conditions"] = f"{sum(r['status'] == r['expected'] for r in ex)} of {len(ex)}"
+    t1 = [r for r in recs if r["claim"].startswith("theorem1") and r["residual"] is not None]
+    ok = [r["residual"] for r in t1 if r["expected"] == "pass" and r["status"] == "pass"]
+    neg = [r["residual"] for r in t1 if r["method"].startswith("negctl") and r["expected"] == "fail"]
+    if ok:
+        out["claims.theorem1.max"] = _e(max(ok))
+    if neg:
+        out["claims.theorem1.negctl_min"] = _e(min(neg))
+    un = [r for r in t1 if r["expected"] == "pass" and r["status"] != "pass"]
+    out["claims.theorem1.unexpected"] = str(len(un))
+    sym = [r["residual"] for r in recs if r["claim"].startswith("symmetry") and r["expected"] == "pass"
+           and r["status"] == "pass" and r["residual"] is not None]
+    if sym:
+        out["claims.symmetry.max"] = _e(max(sym))
+    sing = list(dict.fromkeys(f"{r['method']} on {r['scene']}" for r in recs if r["claim"] == "implicit-function"
+                              and r["wellposed"] == "singular" and not r["method"].startswith("negctl")))
+    out["claims.singular"] = _list(sing)
+    out["claims.singular.count"] = str(len(sing))
+    return out
+
+
+def energy_values(d):
+    out = {}
+    recs = [r for f in d["figures"] for r in f["methods"].values()]
+    ratios = [r["last_over_first_quarter"] for r in recs]
+    out["energy.figs13.ratio"] = f"{min(ratios):.2f}-{max(ratios):.2f}"
+    nb = sum(r["bounded"] for r in recs)
+    out["energy.figs13.bounded"] = f"{nb} of {len(recs)}"
+    for key, label in (("figure4", "printed"), ("figure4_nonholonomic", "nh")):
+        f4 = d.get(key)
+        if not f4:
+            continue
+        ex = [f4["fit"][m]["exponent"] for m in f4["methods"]]
+        out[f"energy.fig4.{label}.exponents"] = ", ".join(f"{x:.3f}" for x in ex)     # as energy.md prints them
+        n1 = sum(abs(x - 1) <= 0.3 for x in ex)
+        out[f"energy.fig4.{label}.near1"] = f"{n1} of {len(ex)}"
+        out[f"energy.fig4.{label}.verdict"] = ("reproduced" if n1 == len(ex) else
+                                              "not reproduced" if n1 == 0 else "partly reproduced")
+        out[f"energy.fig4.{label}.seconds"] = f"{f4['seconds']:.1f} s"
+    return out
+
+
+def work_precision_values(d):
+    out = {}
+    sm = d.get("steps_per_second_summary")
+    if sm:
+        out["wp.sps.median"] = _x(sm["median"])
+        out["wp.sps.range"] = f"{_x(sm['min'])} to {_x(sm['max'])}"
+    for st in d["studies"]:
+        rs = st["ratios"]["error"]
+        out[f"wp.{st['scene']}.ratios"] = " / ".join("-" if r["scipy/spark-fast"] is None else _x(r["scipy/spark-fast"])
+                                                      for r in rs)
+        out[f"wp.{st['scene']}.targets"] = " / ".join(f"{r['target']:.0e}" for r in rs)
+    le = d.get("long", {})
+    if "spark" in le:
+        out["wp.long.spark"] = _e(le["spark"]["max_second_half"])
+        dp = le["dop853"]
+        out["wp.long.dop853"] = f"{_e(dp['max_first_half'])} -> {_e(dp['max_second_half'])}"
+    base = [r for r in d["dps"] if r["precision"] == "float64 generic"]
+    mp = [r for r in d["dps"] if "dps" in r]
+    if base and mp:
+        out["wp.dps.ratios"] = " / ".join(f"{r['seconds_per_step'] / base[0]['seconds_per_step']:.1f}x" for r in mp)
+        out["wp.dps.digits"] = " / ".join(str(r["dps"]) for r in mp)
+    return out
+
+
+def readme_values(reports_dir="reports") -> dict:
+    """{key: text} for every value README quotes (keys of absent reports are missing)."""
+    out = {}
+    for name, fn in (("convergence.json", convergence_values), ("claims.json", claims_values),
+                     ("energy.json", energy_values), ("work_precision.json", work_precision_values)):
+        d = _load(reports_dir, name)
+        if d is not None:
+            out.update(fn(d))
+    return out
+
+
+MARK = re.compile(r"<!--([\w.:+\-]+)-->(.*?)<!--/-->")
+
+
+def fill(text, values):
+    """``text`` with every marked value replaced by the reports' current one (unknown keys kept)."""
+    return MARK.sub(lambda m: f"<!--{m.group(1)}-->{values.get(m.group(1), m.group(2))}<!--/-->", text)
+
+
+def main(argv=None):
+    """``python -m ldaspark.reports.summary [--reports DIR] [--fill FILE]``: list every key with its
+    current text, or rewrite the marked values of FILE (README.md) from the reports."""
+    import argparse
+    ap = argparse.ArgumentParser(prog="python -m ldaspark.reports.summary", description=main.__doc__)
+    ap.add_argument("--reports", default="reports")
+    ap.add_argument("--fill", default=None, help="rewrite the <!--KEY-->value<!--/--> marks of this file")
+    args = ap.parse_args(argv)
+    values = readme_values(args.reports)
+    if args.fill:
+        with open(args.fill) as f:
+            text = f.read()
+        new = fill(text, values)
+        if new != text:
+            from ..core.io import atomic_write_text
+            atomic_write_text(args.fill, new)
+        print(f"{args.fill}: {'updated' if new != text else 'already current'}")
+        return 0
+    for k, v in values.items():
+        print(f"<!--{k}-->{v}<!--/-->")
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,97 @@
+"""Where the report writers write: every section takes --outdir, the quick ledger never
+overwrites the full one, and the main job's job runner writes each section from its jobs'
+results (with the run's CPU time in the file). Cost: ~3 s (fake ledger, one tiny fake section)."""
+import sys
+import types
+
+import pytest
+
+from ldaspark.cli import build_parser, main
+from ldaspark.reports import claims, jobs
+from ldaspark.reports.driver import available_sections
+from ldaspark.theory.ledger import record
+
+
+def _fake_ledger(monkeypatch):
+    rec = record("22a", "gauss-1", "-", "pass", 0.0, "pass", note="tangential |k| = 0")
+    monkeypatch.setattr(claims, "run_ledger", lambda *a, **k: [dict(rec)])
+    monkeypatch.setattr(claims, "extra_records", lambda *a, **k: [])
+
+
+def test_verify_quick_writes_its_own_files(tmp_path, monkeypatch, capsys):
+    _fake_ledger(monkeypatch)
+    full = tmp_path / "claims.md"
+    full.write_text("the full ledger\n")
+    assert main(["verify", "--quick", "--outdir", str(tmp_path)]) == 0
+    assert full.read_text() == "the full ledger\n"                  # untouched
+    assert (tmp_path / "claims-quick.md").exists() and (tmp_path / "claims-quick.json").exists()
+    assert not (tmp_path / "claims.json").exists()
+    assert "claims-quick.md" in capsys.readouterr().out
+    text = (tmp_path / "claims-quick.md").read_text()
+    assert "tangential \\|k\\| = 0" in text                           # pipes in notes escaped
+    # negative control: the full run writes claims.md
+    assert main(["verify", "--outdir", str(tmp_path)]) == 0
+    assert full.read_text() != "the full ledger\n"
+
+
+@pytest.mark.parametrize("section", sorted(available_sections()))
+def test_every_section_takes_outdir(section):
+    args = build_parser("report").parse_args(["report", section, "--outdir", "somewhere"])
+    assert args.outdir == "somewhere"
+
+
+def test_main_job_takes_outdir_full_and_workers():
+    args = build_parser("report").parse_args(["report", "--outdir", "x", "--full", "--workers", "1"])
+    assert args.outdir == "x" and args.full and args.workers == 1 and args.section is None
+
+
+def _fake_section():
+    mod = types.ModuleType("ldaspark_fake_section")
+    mod.square = lambda x: x * x
+
+    def _jobs(full=False):
+        return [(("sq", i), "square", (i,), float(i)) for i in range(5)]
+
+    def _write(results, outdir, full=False, clock=None, command=None):
+        mod.written = (dict(results), clock.cpu, clock.shared, command)
+    mod.jobs, mod.write = _jobs, _write
+    sys.modules[mod.__name__] = mod          # the forked workers find it by name
+    return mod
+
+
+def test_run_sections_pools_jobs_and_writes_each_section(tmp_path):
+    mod = _fake_section()
+    try:
+        stats = jobs.run_sections({"fake": mod}, str(tmp_path), workers=2, say=lambda *a: None)
+    finally:
+        del sys.modules[mod.__name__]
+    results, cpu, shared, command = mod.written
+    assert results == {("sq", i): i * i for i in range(5)}
+    assert shared and command == "ldaspark report" and cpu >= 0 and stats["fake"]["jobs"] == 5
+    # longest first
+    assert [p[2] for p in jobs.plan({"fake": mod}, "x")] == [("sq", i) for i in (4, 3, 2, 1, 0)]
+
+
+def test_inline_executor_delivers_results_and_errors():
+    ex = jobs.InlineExecutor()
+    assert ex.submit(pow, 2, 10).result() == 1024
+    with pytest.raises(ZeroDivisionError):
+        ex.submit(lambda: 1 / 0).result()
+
+
+@pytest.mark.exhaustive
+def test_claims_jobs_give_the_serial_ledger(tmp_path, monkeypatch):
+    # the main job's claims jobs, concatenated in job order, are the records of one serial run
+    # (s = 1, particle only: ~30 s)
+    import functools
+    import json
+    from ldaspark.theory import ledger
+    monkeypatch.setattr(claims, "MAX_S", 1)
+    monkeypatch.setattr(ledger, "LEDGER_SCENES", ("particle",))
+    if not hasattr(ledger, "_ledger_task"):
+        monkeypatch.setattr(claims, "run_ledger", functools.partial(ledger.run_ledger, scenes=("particle",)))
+    jobs.run_sections({"claims": claims}, str(tmp_path), workers=2, say=lambda *a: None)
+    got = json.loads((tmp_path / "claims.json").read_text())
+    ser = ledger.run_ledger(max_s=1, scenes=("particle",))
+    strip = lambda rs: [{k: v for k, v in r.items() if k != "seconds"} for r in rs]   # noqa: E731
+    assert strip(got) == strip(ser)
