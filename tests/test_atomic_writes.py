@@ -151,7 +151,7 @@ def test_any_fault_point_all_or_nothing(tmp_path_factory, data, where):
 
 def test_cli_disk_full_keeps_previous_output(target, monkeypatch, capsys):
     monkeypatch.setattr(lio.os, "replace", _enospc)
-    rc = main(["integrate", "skate", "gauss-1", "--h", "0.5", "--t-end", "1", "--out", str(target)])
+    rc = main(["integrate", "skate", "gauss-1", "--h", "0.5", "--t-end", "1", "--engine", "generic", "--out", str(target)])
     err = capsys.readouterr().err
     assert rc == 2 and err.count("\n") == 1 and "No space left on device" in err
     _assert_untouched(target)
@@ -159,7 +159,7 @@ def test_cli_disk_full_keeps_previous_output(target, monkeypatch, capsys):
 
 def test_cli_ctrl_c_mid_write_keeps_previous_output(target, monkeypatch, capsys):
     monkeypatch.setattr(lio.os, "fdopen", _fdopen_failing(KeyboardInterrupt()))
-    rc = main(["integrate", "skate", "gauss-1", "--h", "0.5", "--t-end", "1", "--out", str(target)])
+    rc = main(["integrate", "skate", "gauss-1", "--h", "0.5", "--t-end", "1", "--engine", "generic", "--out", str(target)])
     err = capsys.readouterr().err
     assert rc == 130 and err.count("\n") == 1 and "interrupted" in err
     _assert_untouched(target)
