@@ -44,6 +44,23 @@ class CatalogueError(LdasparkError):
 
 
 # --- applying mutants ---------------------------------------------------------------------------
+def resolve_file(package_dir, mutant: Mutant) -> tuple[pathlib.Path | None, str]:
+    """The file the mutant applies to: ``mutant.file`` may list alternatives separated by '|'
+    (code that is expected to move, e.g. the compiled kernels); exactly one of them must hold the
+    snippet, exactly once. Returns (path, "") or (None, why not)."""
+    counts = {}
+    for rel in mutant.file.split("|"):
+        path = pathlib.Path(package_dir) / rel
+        counts[rel] = path.read_text().count(mutant.snippet) if path.is_file() else None
+    hits = [rel for rel, n in counts.items() if n]
+    if len(hits) == 1 and counts[hits[0]] == 1:
+        return pathlib.Path(package_dir) / hits[0], ""
+    if all(n is None for n in counts.values()):
+        return None, f"file ldaspark/{mutant.file} not found"
+    where = ", ".join(f"{n if n is not None else 'no file'} in ldaspark/{rel}" for rel, n in counts.items())
+    return None, f"snippet occurs {where} (must be exactly once in exactly one file)"
+
+
 def snippet_problems(package_dir=PACKAGE, catalogue=CATALOGUE) -> list[str]:
     """Every mutant whose snippet does not occur exactly once in its file (empty list: all good),
     plus duplicate ids and no-op replacements."""
@@ -55,25 +72,19 @@ def snippet_problems(package_dir=PACKAGE, catalogue=CATALOGUE) -> list[str]:
         seen.add(m.id)
         if m.snippet == m.replacement:
             out.append(f"{m.id}: replacement equals the snippet")
-        path = pathlib.Path(package_dir) / m.file
-        if not path.is_file():
-            out.append(f"{m.id}: file ldaspark/{m.file} not found")
-            continue
-        n = path.read_text().count(m.snippet)
-        if n != 1:
-            out.append(f"{m.id}: snippet occurs {n} times in ldaspark/{m.file} (must be exactly once)")
+        path, why = resolve_file(package_dir, m)
+        if path is None:
+            out.append(f"{m.id}: {why}")
     return out
 
 
 def apply_mutant(root, mutant: Mutant) -> pathlib.Path:
     """Apply ``mutant`` to the package copy under ``root`` (root/ldaspark/...); returns the file.
     Raises CatalogueError unless the snippet occurs exactly once."""
-    path = pathlib.Path(root) / "ldaspark" / mutant.file
-    text = path.read_text()
-    n = text.count(mutant.snippet)
-    if n != 1:
-        raise CatalogueError(f"mutant {mutant.id}: snippet occurs {n} times in ldaspark/{mutant.file}")
-    path.write_text(text.replace(mutant.snippet, mutant.replacement))
+    path, why = resolve_file(pathlib.Path(root) / "ldaspark", mutant)
+    if path is None:
+        raise CatalogueError(f"mutant {mutant.id}: {why}")
+    path.write_text(path.read_text().replace(mutant.snippet, mutant.replacement))
     return path
 
 
@@ -96,13 +107,15 @@ def all_test_files(project=PROJECT) -> list[str]:
     return [f for f in files if f not in EXCLUDED_TESTS]
 
 
-def ordered_targets(mutant: Mutant, project=PROJECT, hints_only=False) -> list[str]:
-    """The mutant's hint files (or node ids) first, then every other test file."""
-    hint = [h for h in mutant.hint if (pathlib.Path(project) / h.split("::")[0]).exists()]
+def ordered_targets(mutant: Mutant, project=PROJECT, hints_only=False, exclude=()) -> list[str]:
+    """The mutant's hint files (or node ids) first, then every other test file; files in
+    ``exclude`` are left out (to ask whether the rest of the suite alone would kill)."""
+    hint = [h for h in mutant.hint if (pathlib.Path(project) / h.split("::")[0]).exists()
+            and h.split("::")[0] not in exclude]
     if hints_only:
         return hint
     hinted = {h.split("::")[0] for h in hint if "::" not in h}
-    return hint + [f for f in all_test_files(project) if f not in hinted]
+    return hint + [f for f in all_test_files(project) if f not in hinted and f not in exclude]
 
 
 # --- running --------------------------------------------------------------------------------------
@@ -146,39 +159,46 @@ def classify(rc, output) -> tuple[str, str | None]:
     return "invalid", first
 
 
-def run_mutant(mutant: Mutant, hints_only=False, project=PROJECT, timeout=TIMEOUT) -> dict:
-    """Apply one mutant to a fresh scratch copy, run the suite, return its record."""
+def run_mutant(mutant: Mutant | None, hints_only=False, project=PROJECT, timeout=TIMEOUT,
+               targets=None, exclude=()) -> dict:
+    """Apply one mutant (None: the unmutated package, a control) to a fresh scratch copy, run the
+    suite (or ``targets``), return its record."""
     t = time.time()
-    with tempfile.TemporaryDirectory(prefix=f"ldaspark-mut-{mutant.id}-") as tmp:
+    label = mutant.id if mutant is not None else "none"
+    with tempfile.TemporaryDirectory(prefix=f"ldaspark-mut-{label}-") as tmp:
         root = copy_project(pathlib.Path(tmp) / "proj", project)
-        path = apply_mutant(root, mutant)
-        try:
-            compile(path.read_text(), str(path), "exec")
-        except SyntaxError as exc:
-            return _record(mutant, "invalid", f"SyntaxError: {exc}", time.time() - t)
-        cache = pathlib.Path(tmp) / "cache" if mutant.category == "compiled" else None
-        targets = ordered_targets(mutant, root, hints_only)
+        if mutant is not None:
+            path = apply_mutant(root, mutant)
+            try:
+                compile(path.read_text(), str(path), "exec")
+            except SyntaxError as exc:
+                return _record(mutant, "invalid", f"SyntaxError: {exc}", time.time() - t)
+        cache = pathlib.Path(tmp) / "cache" if mutant is not None and mutant.category == "compiled" else None
+        if targets is None:
+            targets = ordered_targets(mutant, root, hints_only, exclude)
         if not targets:     # pytest without targets would run its default testpaths
-            raise CatalogueError(f"mutant {mutant.id}: none of its hint files exists")
-        rc, out, _ = run_pytest(root, targets, timeout, cache)
+            raise CatalogueError(f"mutant {label}: none of its hint files exists")
+        rc, out, _ = run_pytest(root, list(targets), timeout, cache)
         status, first = classify(rc, out)
         rec = _record(mutant, status, first, time.time() - t)
-        if status == "invalid":
+        if status != "killed":
             rec["output_tail"] = out[-2000:]
         return rec
 
 
-def _record(m: Mutant, status, first, seconds) -> dict:
-    return {"mutant": m.id, "file": f"ldaspark/{m.file}", "description": m.description,
+def _record(m: Mutant | None, status, first, seconds) -> dict:
+    if m is None:
+        m = Mutant("none", "", "", "", "unmutated package (control)", "control")
+    return {"mutant": m.id, "file": "|".join(f"ldaspark/{f}" for f in m.file.split("|")), "description": m.description,
             "category": m.category, "killed": status == "killed", "status": status,
             "first_failing_test": first, "seconds": round(seconds, 1)}
 
 
-def run_catalogue(mutants, jobs=2, hints_only=False, progress=None) -> list[dict]:
+def run_catalogue(mutants, jobs=2, hints_only=False, progress=None, exclude=()) -> list[dict]:
     """Run mutants, ``jobs`` at a time; records in catalogue order."""
     recs = {}
     with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, jobs)) as ex:
-        futs = {ex.submit(run_mutant, m, hints_only): m for m in mutants}
+        futs = {ex.submit(run_mutant, m, hints_only, exclude=exclude): m for m in mutants}
         for f in concurrent.futures.as_completed(futs):
             r = f.result()
             recs[r["mutant"]] = r
@@ -230,6 +250,8 @@ def add_arguments(parser):
     parser.add_argument("--outdir", default="reports", help="directory for mutation.md and mutation.json")
     parser.add_argument("--jobs", type=int, default=2, help="mutants run in parallel (default 2)")
     parser.add_argument("--only", default=None, help="comma-separated mutant ids (default: the whole catalogue)")
+    parser.add_argument("--exclude", default="",
+                        help="comma-separated test files to leave out (which mutants would the rest miss?)")
 
 
 def run(args) -> int:
@@ -250,9 +272,10 @@ def run(args) -> int:
     def progress(r):
         print(f"{r['mutant']:32s} {r['status']:9s} {r['seconds']:7.1f}s  {r['first_failing_test'] or ''}",
               flush=True)
-    recs = run_catalogue(mutants, args.jobs, hints_only=args.quick, progress=progress)
+    exclude = tuple(x.strip() for x in args.exclude.split(",") if x.strip())
+    recs = run_catalogue(mutants, args.jobs, hints_only=args.quick, progress=progress, exclude=exclude)
     cmd = "ldaspark mutants" + (" --quick" if args.quick else "") + (f" --only {args.only}" if args.only else "") \
-        + f" --jobs {args.jobs}"
+        + (f" --exclude {args.exclude}" if exclude else "") + f" --jobs {args.jobs}"
     write_reports(recs, args.outdir, cmd, time.time() - t)
     n_k = sum(r["killed"] for r in recs)
     print(f"{n_k} of {len(recs)} mutants killed -> {args.outdir}/mutation.md")

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 @dataclass(frozen=True)
 class Mutant:
     id: str
-    file: str            # path relative to the package directory ldaspark/
+    file: str            # path relative to ldaspark/ ('a|b': alternatives, exactly one holds the snippet)
     snippet: str         # exact source text, occurring exactly once in the file
     replacement: str
     description: str
@@ -43,6 +43,8 @@ TTAB = "tests/test_tableau.py"
 TFAST = "tests/test_fast_path.py"
 TORD = "tests/test_orders_estimates.py"
 TCONV = "tests/test_convergence_tools.py"
+# the compiled kernels live in a source string of fast.py or (after a planned move) in kernels.py
+KERNELS = "compiled/fast.py|compiled/kernels.py"
 
 
 def _m(id, file, snippet, replacement, description, category, *hint):
@@ -231,10 +233,10 @@ CATALOGUE: tuple[Mutant, ...] = (
        "t_last = bk.scalar(t_end) - h", "t_last = bk.scalar(t_end)",
        "Psi_i of the last step compared with psi(T + c_i h) instead of psi(T - h + c_i h)", "orders", TORD),
     # --- compiled fast path only, compiled/fast.py (kernels) -----------------------------------
-    _m("compiled-21d-gradU-sign", "compiled/fast.py",
+    _m("compiled-21d-gradU-sign", KERNELS,
        "G[sn + a] = acc + h * acc2 + acc3", "G[sn + a] = acc - h * acc2 + acc3",
        "compiled kernel: sign of h sum b^_j grad U_j in (21d)", "compiled", TFAST),
-    _m("compiled-q1-last-row-of-A", "compiled/fast.py",
+    _m("compiled-q1-last-row-of-A", KERNELS,
        "acc += bw[j] * V[j, a]\n        q1[a] = q0[a] + h * acc",
        "acc += A[s - 1, j] * V[j, a]\n        q1[a] = q0[a] + h * acc",
        "compiled kernel: q1 in the residual from the last row of A instead of b", "compiled", TFAST),
