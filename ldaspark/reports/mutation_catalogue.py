@@ -32,6 +32,7 @@ V21 = "verification/test_equations_21.py"
 VTD = "verification/test_time_dependence.py"
 VNL = "verification/test_nonlinear_constraint.py"
 VT1 = "verification/test_theorem1.py"
+VFD = "verification/test_fd_stencil.py"
 VCO = "verification/test_constraint.py"
 VSY = "verification/test_symmetry_23.py"
 VCMP = "verification/test_comparators_7_5_8_4.py"
@@ -162,10 +163,10 @@ CATALOGUE: tuple[Mutant, ...] = (
        "boundary-value (21c) row with the last row of A instead of b", "spark-21", VT1),
     _m("fd-forward-difference", "theory/discrete.py",
        "D.append((Ld_at(dl) - Ld_at(-dl)) / (2 * dl))", "D.append((Ld_at(dl) - Ld_at(0 * dl)) / dl)",
-       "dL_d/dq by forward instead of central differences under the same Richardson weights", "fd", VT1),
+       "dL_d/dq by forward instead of central differences under the same Richardson weights", "fd", VT1, VFD),
     _m("fd-richardson-weight", "theory/discrete.py",
        "R1 = (4 * D[1] - D[0]) / 3", "R1 = (2 * D[1] - D[0])",
-       "Richardson weights of an order-1 stencil on a central difference", "fd", VT1),
+       "Richardson weights of an order-1 stencil on a central difference", "fd", VFD, VT1),
     # --- tableaux, core/families.py -----------------------------------------------------------
     _m("iiid-exact-is-iiic", "core/families.py",
        "At = [[(C[i][j] + Cs[i][j]) * half for j in range(s)] for i in range(s)]",
