@@ -181,6 +181,8 @@ def run_mutant(mutant: Mutant | None, hints_only=False, project=PROJECT, timeout
         rc, out, _ = run_pytest(root, list(targets), timeout, cache)
         status, first = classify(rc, out)
         rec = _record(mutant, status, first, time.time() - t)
+        if mutant is not None:       # the file actually mutated (of the alternatives)
+            rec["file"] = str(path.relative_to(root))
         if status != "killed":
             rec["output_tail"] = out[-2000:]
         return rec
@@ -232,6 +234,17 @@ def write_reports(recs, outdir, command, seconds):
         f"wall time {seconds / 60:.1f} min.",
         "",
         f"Reproduce: `{command}`",
+        "",
+        "| category | mutants | killed |",
+        "|---|---|---|",
+    ]
+    cats = {}
+    for r in recs:
+        c = cats.setdefault(r["category"], [0, 0])
+        c[0] += 1
+        c[1] += bool(r["killed"])
+    lines += [f"| {c} | {a} | {b} |" for c, (a, b) in cats.items()]
+    lines += [
         "",
         "| mutant | file | description | killed | first failing test | seconds |",
         "|---|---|---|---|---|---|",
