@@ -1,0 +1,306 @@
+"""Mutation testing of the verification suite: ``ldaspark mutants [--quick] [--outdir DIR] [--jobs N]``.
+
+Each mutant of ``ldaspark.reports.mutation_catalogue.CATALOGUE`` (a semantic fault a developer
+of the method could plausibly make) is applied in isolation to a scratch copy of the project
+(package, tests, verification suite), and pytest runs against that copy, stopping at the first
+failure (``-x``), with the mutant's hint files first. A mutant is
+
+* killed: pytest failed a test (its id is recorded);
+* SURVIVED: the suite passed, i.e. no check can see the fault: a missing test;
+* invalid: the mutated package does not compile or a test module cannot be collected (a
+  catalogue error, not a verdict on the suite);
+* timeout: pytest did not finish in time (counted as not killed).
+
+Writes ``mutation.md`` (table and the command that reproduces it) and ``mutation.json`` (list of
+{mutant, file, description, category, killed, status, first_failing_test, seconds}) to
+``--outdir`` (default ``reports``). ``--quick`` runs the fixed subset ``QUICK`` with the hint
+files only. The catalogue checks its own snippets first (each must occur exactly once).
+"""
+from __future__ import annotations
+
+import concurrent.futures
+import json
+import os
+import pathlib
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+from ..core.errors import LdasparkError
+from .mutation_catalogue import CATALOGUE, QUICK, Mutant, by_id
+
+PACKAGE = pathlib.Path(__file__).resolve().parents[1]          # .../ldaspark
+PROJECT = PACKAGE.parent
+# what a test run needs from the project tree (tests read examples/, README.md, .ci/run)
+COPY = ("ldaspark", "tests", "verification", "examples", "conftest.py", "pyproject.toml", "README.md", ".ci")
+EXCLUDED_TESTS = ("tests/test_mutation_quick.py",)          # would recurse into this runner
+TIMEOUT = 1500
+
+
+class CatalogueError(LdasparkError):
+    """A catalogue snippet does not occur exactly once in the current source."""
+
+
+# --- applying mutants ---------------------------------------------------------------------------
+def resolve_file(package_dir, mutant: Mutant) -> tuple[pathlib.Path | None, str]:
+    """The file the mutant applies to: ``mutant.file`` may list alternatives separated by '|'
+    (code that is expected to move, e.g. the compiled kernels); exactly one of them must hold the
+    snippet, exactly once. Returns (path, "") or (None, why not)."""
+    counts = {}
+    for rel in mutant.file.split("|"):
+        path = pathlib.Path(package_dir) / rel
+        counts[rel] = path.read_text().count(mutant.snippet) if path.is_file() else None
+    hits = [rel for rel, n in counts.items() if n]
+    if len(hits) == 1 and counts[hits[0]] == 1:
+        return pathlib.Path(package_dir) / hits[0], ""
+    if all(n is None for n in counts.values()):
+        return None, f"file ldaspark/{mutant.file} not found"
+    where = ", ".join(f"{n if n is not None else 'no file'} in ldaspark/{rel}" for rel, n in counts.items())
+    return None, f"snippet occurs {where} (must be exactly once in exactly one file)"
+
+
+def snippet_problems(package_dir=PACKAGE, catalogue=CATALOGUE) -> list[str]:
+    """Every mutant whose snippet does not occur exactly once in its file (empty list: all good),
+    plus duplicate ids and no-op replacements."""
+    out = []
+    seen = set()
+    for m in catalogue:
+        if m.id in seen:
+            out.append(f"{m.id}: duplicate id")
+        seen.add(m.id)
+        if m.snippet == m.replacement:
+            out.append(f"{m.id}: replacement equals the snippet")
+        path, why = resolve_file(package_dir, m)
+        if path is None:
+            out.append(f"{m.id}: {why}")
+    return out
+
+
+def apply_mutant(root, mutant: Mutant) -> pathlib.Path:
+    """Apply ``mutant`` to the package copy under ``root`` (root/ldaspark/...); returns the file.
+    Raises CatalogueError unless the snippet occurs exactly once."""
+    path, why = resolve_file(pathlib.Path(root) / "ldaspark", mutant)
+    if path is None:
+        raise CatalogueError(f"mutant {mutant.id}: {why}")
+    path.write_text(path.read_text().replace(mutant.snippet, mutant.replacement))
+    return path
+
+
+def copy_project(dest, project=PROJECT) -> pathlib.Path:
+    """The parts of the project a test run needs, without caches."""
+    dest = pathlib.Path(dest)
+    ignore = shutil.ignore_patterns("__pycache__", "*.pyc", ".hypothesis", ".pytest_cache")
+    for name in COPY:
+        src = pathlib.Path(project) / name
+        if src.is_dir():
+            shutil.copytree(src, dest / name, ignore=ignore)
+        elif src.is_file():
+            shutil.copy2(src, dest / name)
+    return dest
+
+
+def all_test_files(project=PROJECT) -> list[str]:
+    files = sorted(str(p.relative_to(project)) for d in ("verification", "tests")
+                   for p in (pathlib.Path(project) / d).glob("test_*.py"))
+    return [f for f in files if f not in EXCLUDED_TESTS]
+
+
+def ordered_targets(mutant: Mutant, project=PROJECT, hints_only=False, exclude=()) -> list[str]:
+    """The mutant's hint files (or node ids) first, then every other test file; files in
+    ``exclude`` are left out (to ask whether the rest of the suite alone would kill)."""
+    hint = [h for h in mutant.hint if (pathlib.Path(project) / h.split("::")[0]).exists()
+            and h.split("::")[0] not in exclude]
+    if hints_only:
+        return hint
+    hinted = {h.split("::")[0] for h in hint if "::" not in h}
+    return hint + [f for f in all_test_files(project) if f not in hinted and f not in exclude]
+
+
+# --- running --------------------------------------------------------------------------------------
+def _first_failure(output: str) -> str | None:
+    for line in output.splitlines():
+        for tag in ("FAILED ", "ERROR "):
+            if line.startswith(tag):
+                return line[len(tag):].split(" - ")[0].strip()
+    return None
+
+
+def run_pytest(root, targets, timeout=TIMEOUT, cache_dir=None, python=sys.executable):
+    """pytest -x on ``targets`` inside the copy ``root`` with only that copy on the path.
+    Returns (returncode or None on timeout, output, seconds)."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(root)
+    env["PYTHONDONTWRITEBYTECODE"] = "1"
+    if cache_dir is not None:
+        env["LDASPARK_CACHE_DIR"] = str(cache_dir)
+    cmd = [python, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", "-rfE", *targets]
+    t = time.time()
+    try:
+        p = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired as exc:
+        out = (exc.stdout or b"").decode() if isinstance(exc.stdout, bytes) else (exc.stdout or "")
+        return None, out, time.time() - t
+    return p.returncode, p.stdout + p.stderr, time.time() - t
+
+
+def classify(rc, output) -> tuple[str, str | None]:
+    """(status, first failing test) from a pytest run on a mutant."""
+    if rc is None:
+        return "timeout", None
+    first = _first_failure(output)
+    if rc == 0:
+        return "survived", None
+    if rc == 1 and first is not None:
+        return "killed", first
+    if "error during collection" in output or "errors during collection" in output or rc in (2, 3, 4):
+        return "invalid", first
+    return "invalid", first
+
+
+def run_mutant(mutant: Mutant | None, hints_only=False, project=PROJECT, timeout=TIMEOUT,
+               targets=None, exclude=()) -> dict:
+    """Apply one mutant (None: the unmutated package, a control) to a fresh scratch copy, run the
+    suite (or ``targets``), return its record."""
+    t = time.time()
+    label = mutant.id if mutant is not None else "none"
+    with tempfile.TemporaryDirectory(prefix=f"ldaspark-mut-{label}-") as tmp:
+        root = copy_project(pathlib.Path(tmp) / "proj", project)
+        if mutant is not None:
+            path = apply_mutant(root, mutant)
+            try:
+                compile(path.read_text(), str(path), "exec")
+            except SyntaxError as exc:
+                return _record(mutant, "invalid", f"SyntaxError: {exc}", time.time() - t)
+        cache = pathlib.Path(tmp) / "cache" if mutant is not None and mutant.category == "compiled" else None
+        if targets is None:
+            targets = ordered_targets(mutant, root, hints_only, exclude)
+        if not targets:     # pytest without targets would run its default testpaths
+            raise CatalogueError(f"mutant {label}: none of its hint files exists")
+        rc, out, _ = run_pytest(root, list(targets), timeout, cache)
+        status, first = classify(rc, out)
+        rec = _record(mutant, status, first, time.time() - t)
+        if mutant is not None:       # the file actually mutated (of the alternatives)
+            rec["file"] = str(path.relative_to(root))
+        if status != "killed":
+            rec["output_tail"] = out[-2000:]
+        return rec
+
+
+def _record(m: Mutant | None, status, first, seconds) -> dict:
+    if m is None:
+        m = Mutant("none", "", "", "", "unmutated package (control)", "control")
+    return {"mutant": m.id, "file": "|".join(f"ldaspark/{f}" for f in m.file.split("|")), "description": m.description,
+            "category": m.category, "killed": status == "killed", "status": status,
+            "first_failing_test": first, "seconds": round(seconds, 1)}
+
+
+def run_catalogue(mutants, jobs=2, hints_only=False, progress=None, exclude=()) -> list[dict]:
+    """Run mutants, ``jobs`` at a time; records in catalogue order."""
+    recs = {}
+    with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, jobs)) as ex:
+        futs = {ex.submit(run_mutant, m, hints_only, exclude=exclude): m for m in mutants}
+        for f in concurrent.futures.as_completed(futs):
+            r = f.result()
+            recs[r["mutant"]] = r
+            if progress is not None:
+                progress(r)
+    return [recs[m.id] for m in mutants]
+
+
+# --- reports ----------------------------------------------------------------------------------
+def _cell(x) -> str:
+    return "" if x is None else str(x).replace("|", "\\|").replace("\n", " ")
+
+
+def write_reports(recs, outdir, command, seconds):
+    from ..core.io import atomic_write_json, atomic_write_text
+    outdir = pathlib.Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(outdir / "mutation.json", [{k: r[k] for k in (
+        "mutant", "file", "description", "category", "killed", "status", "first_failing_test", "seconds")}
+        for r in recs])
+    n_k = sum(r["killed"] for r in recs)
+    lines = [
+        "# Mutation catalogue: does the suite notice plausible faults?",
+        "",
+        "Each row is one semantic fault a developer of the method could plausibly make, planted alone in a",
+        "scratch copy of the package (`ldaspark/reports/mutation_catalogue.py`); the unit tests and the",
+        "verification suite then run against the copy and stop at the first failure. A killed mutant names",
+        "the first test that failed; a surviving one would be a fault no check can see.",
+        "",
+        f"**{n_k} of {len(recs)} mutants killed** ({100 * n_k / max(len(recs), 1):.0f}%), "
+        f"wall time {seconds / 60:.1f} min.",
+        "",
+        f"Reproduce: `{command}`",
+        "",
+        "| category | mutants | killed |",
+        "|---|---|---|",
+    ]
+    cats = {}
+    for r in recs:
+        c = cats.setdefault(r["category"], [0, 0])
+        c[0] += 1
+        c[1] += bool(r["killed"])
+    lines += [f"| {c} | {a} | {b} |" for c, (a, b) in cats.items()]
+    lines += [
+        "",
+        "| mutant | file | description | killed | first failing test | seconds |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in recs:
+        k = "yes" if r["killed"] else f"**NO ({r['status']})**"
+        lines.append(f"| {_cell(r['mutant'])} | {_cell(r['file'])} | {_cell(r['description'])} | {k} | "
+                     f"{_cell(r['first_failing_test'])} | {r['seconds']:.1f} |")
+    atomic_write_text(outdir / "mutation.md", "\n".join(lines) + "\n")
+
+
+# --- CLI ----------------------------------------------------------------------------------------
+def add_arguments(parser):
+    parser.add_argument("--quick", action="store_true",
+                        help=f"only the fixed subset {', '.join(QUICK)}, with their hint files")
+    parser.add_argument("--outdir", default="reports", help="directory for mutation.md and mutation.json")
+    parser.add_argument("--jobs", type=int, default=2, help="mutants run in parallel (default 2)")
+    parser.add_argument("--only", default=None, help="comma-separated mutant ids (default: the whole catalogue)")
+    parser.add_argument("--exclude", default="",
+                        help="comma-separated test files to leave out (which mutants would the rest miss?)")
+
+
+def run(args) -> int:
+    problems = snippet_problems()
+    if problems:
+        raise CatalogueError("mutation catalogue out of date: " + "; ".join(problems))
+    if args.only:
+        try:
+            mutants = [by_id(x.strip()) for x in args.only.split(",") if x.strip()]
+        except KeyError as exc:
+            raise CatalogueError(f"unknown mutant id {exc.args[0]!r}") from None
+    else:
+        mutants = [by_id(x) for x in QUICK] if args.quick else list(CATALOGUE)
+    if args.jobs < 1:
+        raise CatalogueError("--jobs must be >= 1")
+    t = time.time()
+
+    def progress(r):
+        print(f"{r['mutant']:32s} {r['status']:9s} {r['seconds']:7.1f}s  {r['first_failing_test'] or ''}",
+              flush=True)
+    exclude = tuple(x.strip() for x in args.exclude.split(",") if x.strip())
+    recs = run_catalogue(mutants, args.jobs, hints_only=args.quick, progress=progress, exclude=exclude)
+    cmd = "ldaspark mutants" + (" --quick" if args.quick else "") + (f" --only {args.only}" if args.only else "") \
+        + (f" --exclude {args.exclude}" if exclude else "") + f" --jobs {args.jobs}"
+    write_reports(recs, args.outdir, cmd, time.time() - t)
+    n_k = sum(r["killed"] for r in recs)
+    print(f"{n_k} of {len(recs)} mutants killed -> {args.outdir}/mutation.md")
+    return 0 if n_k == len(recs) else 1
+
+
+def main(argv=None) -> int:
+    import argparse
+    p = argparse.ArgumentParser(prog="mutants", description=__doc__.splitlines()[0])
+    add_arguments(p)
+    try:
+        return run(p.parse_args(argv))
+    except LdasparkError as exc:
+        print(f"mutants: error: {exc}", file=sys.stderr)
+        return 2
