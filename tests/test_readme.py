@@ -90,3 +90,16 @@ def test_readme_quote_check_catches_a_stale_number():
     assert len(problems) == 2 and "119 of 120" in problems[0] and "unmarked" in problems[1]
     ok = text.replace("119 of 120", "120 of 120").replace("median 178x", "median <!--wp.sps.median-->178x<!--/-->")
     assert check_readme_quotes(ok, {"convergence.spark": "120 of 120", "wp.sps.median": "178x"}) == []
+
+
+def test_readme_interface_example_runs(tmp_path, monkeypatch, capsys):
+    """The dense output / event / plot / file example runs as written (in a scratch directory:
+    it writes energy.png and skate.npz) and finds the crossing it names."""
+    blocks = re.findall(r"```python\n(.*?)```", README.read_text(), re.S)
+    assert len(blocks) >= 2, "README has no interface example"
+    monkeypatch.chdir(tmp_path)
+    ns = {}
+    exec(compile(blocks[1], "README.md", "exec"), ns)
+    assert ns["hit"].status == 1
+    assert abs(ns["hit"].t_events[0][0] - np.arcsin(np.sqrt(0.6))) < 1e-5
+    assert (tmp_path / "energy.png").stat().st_size > 0 and (tmp_path / "skate.npz").exists()

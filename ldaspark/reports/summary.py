@@ -80,7 +80,30 @@ def claims_values(recs):
                               and r["wellposed"] == "singular" and not r["method"].startswith("negctl")))
     out["claims.singular"] = _list(sing)
     out["claims.singular.count"] = str(len(sing))
+    for key, names in CLAIM_GROUP_KEYS.items():
+        rs = [r for r in recs if names(r["claim"])]
+        if not rs:
+            continue
+        decided = [r for r in rs if r["status"] != "not-applicable"]
+        out[key] = f"{sum(r['status'] == r['expected'] for r in decided)} of {len(decided)}"
+        res = [r["residual"] for r in decided if r["expected"] == "pass" and r["status"] == "pass"
+               and r["residual"] is not None and r["claim"] not in ORDER_CLAIMS]
+        if res:
+            out[key + ".max"] = _e(max(res))
     return out
+
+
+# claim groups of ldaspark.theory.claims_general / claims_paper quoted in README: records whose
+# outcome is what the paper predicts, and the largest residual of the passing identities
+ORDER_CLAIMS = ("order-general-scenes", "variational-order", "nonideal-3.3", "energy-balance-2.2")
+CLAIM_GROUP_KEYS = {
+    "claims.general": lambda c: c.endswith("-general") or "-general-" in c or c == "order-general-scenes",
+    "claims.paper": lambda c: c in ("15a", "15b", "16", "18", "17-integral", "19-integral", "20-integral",
+                                    "antisymmetry-exact", "5.1-exact", "euler-i-reduction",
+                                    "euler-ii-reduction", "midpoint-7.3", "linearly-implicit-7"),
+    "claims.energy-balance": lambda c: c == "energy-balance-2.2",
+    "claims.nonideal": lambda c: c == "nonideal-3.3",
+}
 
 
 def energy_values(d):
