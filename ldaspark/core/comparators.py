@@ -27,6 +27,8 @@ SPARK-based comparators, one per stage point per Newton iteration).
 """
 from __future__ import annotations
 
+import contextlib
+
 import math
 import re
 
@@ -266,6 +268,19 @@ def _spark_variant_loop(method_objs, system, t0, q0, v0, h, n_steps, name, progr
     return _finish_solution(system, bk, ts, Qs, Vs, Ps, st, method_objs[0][0].dps, name)
 
 
+@contextlib.contextmanager
+def _semi_implicit(system, dps, tol, h, t0, q0, v0):
+    """Set-up shared by the semi-implicit comparators (25), (8.4), (26): in the backend's
+    context, yields (backend, mechanical parts, Newton tolerance, h, h/2, t0, q0, v0), the numbers
+    as the backend's."""
+    bk = Backend(dps)
+    mp = MechanicalParts(system, bk)
+    tol = tol if tol is not None else 10 * bk.eps
+    with bk.context():
+        h_ = bk.scalar(h)
+        yield bk, mp, tol, h_, h_ / 2, bk.scalar(t0), bk.array(q0), bk.array(v0)
+
+
 def _leapfrog(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, constraint, name, progress):
     """Step-by-step form after (25) for constant h, with the half-step constraint either
     (K(q_k) v + b(q_k) + K(q_{k+1}) v + b(q_{k+1}))/2 = 0 ("mean", Lobatto IIIA-B) or
@@ -278,19 +293,9 @@ def _leapfrog(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, constraint, na
     M v_k + K(q_k)^T (h/2 Psi_{2,k-1}) = M v_{k-1/2} - h/2 grad U(q_k), K(q_k) v_k = -b(q_k)
     (the paper prints v_{k+1/2} on its right-hand side; the SPARK step gives v_{k-1/2}).
     grad U(q_k) is evaluated once per step and shared by both uses."""
-    bk = Backend(dps)
-    mp = MechanicalParts(system, bk)
-    n, m = mp.n, mp.m
-    tol = tol if tol is not None else 10 * bk.eps
-    iters = 0
-    with bk.context():
-        h_ = bk.scalar(h)
-        half = h_ / 2
-        t0_ = bk.scalar(t0)
-        q = bk.array(q0)
-        v = bk.array(v0)
+    with _semi_implicit(system, dps, tol, h, t0, q0, v0) as (bk, mp, tol, h_, half, t0_, q, v):
+        n, m, M, iters = mp.n, mp.m, mp.M, 0
         ts, Qs, Vs, Ps = [t0_], [q], [v], []
-        M = mp.M
         g = mp.grad_U(q)
         w = None                 # v_{k-1/2}
         psi2_prev = bk.zeros(m)  # Psi_{2,k-1}
@@ -341,18 +346,9 @@ def _mp_iiib_a(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, name, progres
     """McLachlan-Perlmutter's 2-stage Lobatto IIIB-A LDA method (26a-d):
     Q_1 = q0 + h/2 v0, M v1 = M v0 - h (grad U(Q_1) + K(Q_1)^T Psi_1),
     q1 = q0 + h/2 (v0 + v1), 0 = K(q1) v1 + b(q1). One grad U per step."""
-    bk = Backend(dps)
-    mp = MechanicalParts(system, bk)
-    n, m = mp.n, mp.m
-    tol = tol if tol is not None else 10 * bk.eps
-    iters = 0
-    with bk.context():
-        h_ = bk.scalar(h)
-        half = h_ / 2
-        t0_ = bk.scalar(t0)
-        q, v = bk.array(q0), bk.array(v0)
+    with _semi_implicit(system, dps, tol, h, t0, q0, v0) as (bk, mp, tol, h_, half, t0_, q, v):
+        n, m, M, iters = mp.n, mp.m, mp.M, 0
         ts, Qs, Vs, Ps = [t0_], [q], [v], []
-        M = mp.M
         x = np.concatenate([v, bk.zeros(m)])
         for k in range(n_steps):
             Q1 = q + half * v                                   # (26a)

@@ -350,12 +350,7 @@ def plot_long(le, path):
     for key, c in zip(keys, colours(len(keys))):
         d = le[key]
         ax.semilogy(d["t"], np.maximum(d["dE"], 1e-17), color=c, label=f"{d['label']} ({d['cpu']:.2f} s)")
-    ax.set_xlabel("t")
-    ax.set_ylabel("|E - E0|")
-    ax.set_title("Particle: energy error at long times")
-    ax.legend(fontsize=8)
-    ax.grid(True, alpha=0.3)
-    atomic_save_figure(fig, path, dpi=110)
+    _finish(fig, ax, path, "t", "|E - E0|", "Particle: energy error at long times")
 
 
 def plot_dps(rows, path):
@@ -367,9 +362,14 @@ def plot_dps(rows, path):
         if "dps" not in r:
             ax.axhline(r["seconds_per_step"], ls="--", color="gray" if "generic" in r["precision"] else "k",
                        label=r["precision"])
-    ax.set_xlabel("dps (decimal digits)")
-    ax.set_ylabel("CPU seconds per step")
-    ax.set_title("Cost of precision: particle, gauss-2")
+    _finish(fig, ax, path, "dps (decimal digits)", "CPU seconds per step", "Cost of precision: particle, gauss-2")
+
+
+def _finish(fig, ax, path, xlabel, ylabel, title):
+    """Labels, legend and grid of a one-panel figure, written atomically."""
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
     ax.legend(fontsize=8)
     ax.grid(True, alpha=0.3)
     atomic_save_figure(fig, path, dpi=110)

@@ -32,10 +32,8 @@ def flow_for(scene_name: str, dps: int = DPS, stages: int = STAGES) -> ExactFlow
 def endpoints(scene_name, h="0.1", dps=DPS, stages=STAGES, offset=None):
     """(t0, q0, t1, q1): the scene's initial data and the exact flow after h; ``offset`` (a list)
     (a tuple) shifts q1 off the exact constraint manifold C_d (then k(t0, q0, v0) != 0 is a first integral)."""
-    sc = get_scene(scene_name)
-    fl = flow_for(scene_name, dps, stages)
+    fl, (t0, q0, v0) = flow_for(scene_name, dps, stages), get_scene(scene_name).initial(dps)
     with mpmath.workdps(dps):
-        t0, q0, v0 = sc.initial(dps)
         h = mpmath.mpf(h)
         q1, _, _ = fl.ivp(t0, q0, v0, h)
         if offset is not None:
@@ -81,10 +79,8 @@ def exact_del(scene_name, h="0.1", dps=DPS, stages=STAGES):
     the forms (20a) (= (19) on [t0, t1]) and (20b) corrected (= (17) on [t1, t2]); the printed
     (20b) and the force-free sum as controls."""
     fd_dps = dps + 20
-    sc = get_scene(scene_name)
-    fl = flow_for(scene_name, fd_dps, stages)
+    fl, (t0, q0, v0) = flow_for(scene_name, fd_dps, stages), get_scene(scene_name).initial(fd_dps)
     with mpmath.workdps(fd_dps):
-        t0, q0, v0 = sc.initial(fd_dps)
         hh = mpmath.mpf(h)
         q1, v1, _ = fl.ivp(t0, q0, v0, hh)
         q2, _, _ = fl.ivp(t0 + hh, q1, v1, hh)

@@ -23,10 +23,8 @@ def check_symmetry(system, tableau, t0, q0, v0, h, dps=40):
     t_start = time.time()
     bk = Backend(dps)
     with bk.context():
-        t1, q1, xg = base_point(system, tableau, t0, q0, v0, h, dps)
-        t0_ = bk.scalar(t0)
-        q0_ = bk.array(q0)
-        v0_ = bk.array(v0)
+        t0_, q0_, v0_ = bk.scalar(t0), bk.array(q0), bk.array(v0)
+        t1, q1, xg = base_point(system, tableau, t0_, q0_, v0_, h, dps)
         fwd = discrete_lagrangian(system, tableau, t0_, q0_, t1, q1, dps=dps, x_guess=xg)
         bvp = DiscreteBVP(system, tableau, dps)
         V, Lam, v1, v0x = bvp.unpack(fwd.x)
