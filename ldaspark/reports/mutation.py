@@ -154,9 +154,7 @@ def classify(rc, output) -> tuple[str, str | None]:
         return "survived", None
     if rc == 1 and first is not None:
         return "killed", first
-    if "error during collection" in output or "errors during collection" in output or rc in (2, 3, 4):
-        return "invalid", first
-    return "invalid", first
+    return "invalid", first          # collection error, usage error, crash: not a verdict
 
 
 def run_mutant(mutant: Mutant | None, hints_only=False, project=PROJECT, timeout=TIMEOUT,
