@@ -29,7 +29,6 @@ to the generic path`` to stderr and runs ``ldaspark.core.spark.integrate`` /
 from __future__ import annotations
 
 import functools
-import math
 import sys
 from dataclasses import dataclass
 
@@ -336,8 +335,6 @@ def _diagnose_newton_failure(exc, system, cs, method, t0, q0, v0, h, compensated
     from ..core.tableau import SparkTableau
     from ..core.families import get_method
     k = exc.step
-    if isinstance(exc, NonFiniteError):
-        return exc
     try:
         tab = method if isinstance(method, SparkTableau) else get_method(method)
     except LdasparkError:

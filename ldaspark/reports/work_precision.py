@@ -231,7 +231,7 @@ def steps_per_second(scenes=("particle", "skate", "robot", "mp-particles"),
                      methods=("gauss-1", "gauss-2", "lobatto-iiia-iiib-2", "lobatto-iiia-iiib-3",
                               "lobatto-iiia-iiib-iiid-2", "euler-i"), n_generic=40, n_fast=20000, h=0.05):
     """Steps per second generic vs fast path, measured side by side in one run."""
-    from ..core.errors import NewtonError
+    from ..core.errors import NewtonError, NonFiniteError
     from ..compiled.fast import fast_integrate
     from ..core.scenes import get_scene
     from ..core.spark import integrate
@@ -246,8 +246,9 @@ def steps_per_second(scenes=("particle", "skate", "robot", "mp-particles"),
             nf, note = n_fast, ""
             try:
                 fast_integrate(sc, m, h=h, n_steps=nf)
-            except NewtonError as exc:      # e.g. euler-i leaves the MP particles' energy surface
-                nf, note = max(exc.step - 10, 10), f"diverges: Newton fails at t = {exc.time:.4g}"
+            except (NewtonError, NonFiniteError) as exc:   # e.g. euler-i leaves the MP particles' energy surface
+                why = "NaN / inf" if isinstance(exc, NonFiniteError) else "Newton fails"
+                nf, note = max(exc.step - 10, 10), f"diverges: {why} at t = {exc.time:.4g}"
             cf, r = _cpu(lambda: fast_integrate(sc, m, h=h, n_steps=nf), 3)
             rows.append({"scene": sname, "method": m, "generic": n_generic / cg, "fast": nf / cf,
                          "ratio": (nf / cf) / (n_generic / cg), "kernel": r.stats["kernel"], "note": note})
