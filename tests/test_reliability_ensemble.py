@@ -93,7 +93,10 @@ def test_ctrl_c_cancels_pending_tasks_and_stops_workers():
     # 30 s of queued work; the bound is loose (the machine may be loaded), the queue is not
     here = os.path.dirname(os.path.abspath(__file__))
     p = subprocess.Popen([sys.executable, "-c", _CTRL_C, here], stdout=subprocess.PIPE, text=True,
-                         env=dict(os.environ, PYTHONPATH=os.getcwd()), start_new_session=True)
+                         env=dict(os.environ, PYTHONPATH=os.getcwd()), start_new_session=True,
+                         # a shell's background job inherits SIGINT ignored; Python then installs no
+                         # KeyboardInterrupt handler: give the child the terminal's default
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         assert p.stdout.readline().strip() == "start"
         time.sleep(1.0)

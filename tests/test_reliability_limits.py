@@ -150,7 +150,12 @@ def test_ctrl_c_in_a_lazy_import_is_one_line(monkeypatch):
                 raise ImportError("PyCapsule_Import could not import module") from None
         return real(name, *a, **k)
     monkeypatch.setattr(importlib, "import_module", interrupted)
-    rc, err = run_cli(["audit", "--method", "gauss-1"])
+    # SIGINT may be inherited as ignored (a shell's background job): install Python's handler
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        rc, err = run_cli(["audit", "--method", "gauss-1"])
+    finally:
+        signal.signal(signal.SIGINT, old)
     assert rc == 130 and err == "ldaspark: interrupted\n"
 
 
