@@ -24,7 +24,6 @@ import resource
 import sys
 import time
 
-import mpmath
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
@@ -47,36 +46,8 @@ def cpu():
 
 
 def _einsum_jacobian(self, h, st, fin):
-    """The Newton matrix as assembled before (einsum over identity blocks), for comparison."""
-    tab, bk = self.tab, self.backend
-    s, n, m = self.s, self.n, self.m
-    A, Ah, At, b, bh, bt = tab.A, tab.A_hat, tab.A_tilde, tab.b, tab.b_hat, tab.b_tilde
-    Lvv = np.array([e.L_vv for e in st]); Lvq = np.array([e.L_vq for e in st])
-    Lqv = np.array([e.L_qv for e in st]); Lqq = np.array([e.L_qq for e in st])
-    kq = np.array([e.k_q for e in st]); kv = np.array([e.k_v for e in st])
-    Rq = np.array([e.R_q for e in st]); Rv = np.array([e.R_v for e in st])
-    eye_s = np.eye(s, dtype=object if bk.is_mp else float)
-    dF = np.einsum("jk,jab->jkab", eye_s, Lqv) + np.einsum("jk,jab->jkab", A, Lqq) * h
-    dR = np.einsum("jk,jab->jkab", eye_s, Rv) + np.einsum("jk,jab->jkab", A, Rq) * h
-    dP = np.einsum("ik,iab->ikab", eye_s, Lvv) + np.einsum("ik,iab->ikab", A, Lvq) * h
-    dk = np.einsum("jk,jab->jkab", eye_s, kv) + np.einsum("jk,jab->jkab", A, kq) * h
-    KT = np.transpose(kv, (0, 2, 1))
-    J = bk.zeros((self.size, self.size))
-    r_d, r_e, r_f = s * n, s * n + n, s * n + n + (s - 1) * m
-    c_lam, c_v1 = s * n, s * n + s * m
-    JbV = dP - np.einsum("ij,jkab->ikab", Ah, dF) * h - np.einsum("ij,jkab->ikab", At, dR)
-    J[:r_d, :c_lam] = JbV.transpose(0, 2, 1, 3).reshape(s * n, s * n)
-    J[:r_d, c_lam:c_v1] = np.einsum("ik,kam->ikam", At, KT).transpose(0, 2, 1, 3).reshape(s * n, s * m)
-    JdV = np.einsum("k,ab->kab", b, fin.L_vq) * h - np.einsum("j,jkab->kab", bh, dF) * h \
-        - np.einsum("j,jkab->kab", bt, dR)
-    J[r_d:r_e, :c_lam] = JdV.transpose(1, 0, 2).reshape(n, s * n)
-    J[r_d:r_e, c_lam:c_v1] = np.einsum("k,kam->akm", bt, KT).reshape(n, s * m)
-    J[r_d:r_e, c_v1:] = fin.L_vv
-    if s > 1:
-        J[r_e:r_f, :c_lam] = np.einsum("lj,jkab->lkab", tab.omega, dk).transpose(0, 2, 1, 3).reshape((s - 1) * m, s * n)
-    J[r_f:, :c_lam] = (np.einsum("k,ab->akb", b, fin.k_q) * h).reshape(m, s * n)
-    J[r_f:, c_v1:] = fin.k_v
-    return J
+    """The Newton matrix as assembled before at every precision (einsum over identity blocks)."""
+    return SparkMethod._jacobian_einsum(self, h, st, fin)
 
 
 def lu_table():

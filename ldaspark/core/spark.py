@@ -157,10 +157,10 @@ class SparkMethod:
         d X_j / d V_k = delta_jk X_v(j) + h a_jk X_q(j) for every stage quantity X, and only
         the nonzero tableau coefficients and the blocks whose expressions are not identically
         zero contribute (einsum over identity blocks on object arrays multiplied by zeros and
-        ones: 2-3x the cost at dps 30-50). float64: ``_jacobian_f64``."""
+        ones: 2-3x the cost at dps 30-50). float64: ``_jacobian_einsum``."""
         tab, bk = self.tab, self.backend
         if not bk.is_mp:
-            return self._jacobian_f64(h, st, fin)
+            return self._jacobian_einsum(h, st, fin)
         s, n, m = self.s, self.n, self.m
         A, Ah, At, b, bh, bt = tab.A, tab.A_hat, tab.A_tilde, tab.b, tab.b_hat, tab.b_tilde
         z = self._structural_zero
@@ -211,10 +211,11 @@ class SparkMethod:
         J[r_f:, c_v1:] = fin.k_v
         return J
 
-    def _jacobian_f64(self, h, st, fin):
-        """The same matrix in float64, by einsum over the stacked stage blocks (identity
-        included): numpy's call count, not flops, is the cost there, and this measured
-        1.5x faster than the block loop (70 vs 107 us on the robot, gauss-2)."""
+    def _jacobian_einsum(self, h, st, fin):
+        """The same matrix by einsum over the stacked stage blocks (identity included), the
+        float64 assembly: numpy's call count, not flops, is the cost there, and this measured
+        1.5x faster than the block loop (70 vs 107 us on the robot, gauss-2). Works at any
+        precision too (benchmarks/ledger_speed.py compares it with the block assembly)."""
         tab = self.tab
         s, n, m = self.s, self.n, self.m
         A, Ah, At, b, bh, bt = tab.A, tab.A_hat, tab.A_tilde, tab.b, tab.b_hat, tab.b_tilde
@@ -231,7 +232,7 @@ class SparkMethod:
         if st[0].R_L is not None:   # nonideal (3.3): d(h R)/dLambda = -K^T + N_psi replaces -K^T
             KT = -np.array([e.R_L for e in st])
         N = self.size
-        J = np.zeros((N, N))
+        J = self.backend.zeros((N, N))
         r_d, r_e, r_f = s * n, s * n + n, s * n + n + (s - 1) * m
         c_lam, c_v1 = s * n, s * n + s * m
         JbV = dP - np.einsum("ij,jkab->ikab", Ah, dF) * h - np.einsum("ij,jkab->ikab", At, dR)
