@@ -19,7 +19,6 @@ files only. The catalogue checks its own snippets first (each must occur exactly
 from __future__ import annotations
 
 import concurrent.futures
-import json
 import os
 import pathlib
 import shutil
