@@ -111,8 +111,23 @@ class Backend:
                 f"Newton matrix is numerically singular (pivot ratio {d.min() / max(d.max(), 1e-300):.1e})")
         return ("np", lu, piv)
 
+    def factor_float64(self, J):
+        """LU of a float64 approximation of J, for Newton at mpmath precision with the
+        residual at full precision (mixed-precision iterative refinement): the iterates converge
+        to the same fixed point, linearly with rate ~ eps_64 cond(J), i.e. as fast as full
+        Newton in 3-4 iterations at 30-60 digits, and the LU costs microseconds instead of the
+        arb inverse plus an object-array assembly."""
+        J = np.asarray(J, dtype=float)
+        return ("f64",) + Backend(None).factor(J)[1:]
+
     def solve_factored(self, fac, r) -> np.ndarray:
         """Solve with a factorisation from ``factor``; ``r`` a vector or an (N, k) matrix."""
+        if fac[0] == "f64":
+            x = scipy.linalg.lu_solve(fac[1:], np.asarray(r, dtype=float), check_finite=False)
+            if not self.is_mp:
+                return x
+            with self.context():
+                return np.array([mpmath.mpf(float(v)) for v in x.reshape(-1)], dtype=object).reshape(x.shape)
         if fac[0] == "flint":
             return _flint_solve(fac, r)
         if fac[0] == "mp":

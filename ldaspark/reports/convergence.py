@@ -38,13 +38,13 @@ FAMILIES = {
 
 def plan_for(method):
     """(dps, list of N, newton) for a method: float64 and more steps for low orders; mpmath
-    with simplified Newton (one LU per step; same fixed point) beyond."""
+    beyond, with the Newton matrix in float64 ("mixed": same fixed point, 2-5x cheaper)."""
     p = claimed_order_of(method) or 2
     if p <= 2:
         return None, [8, 16, 32, 64, 128], "full"
     if p <= 4:
         return None, [4, 8, 16, 32, 64], "full"
-    return MP_DPS, [5, 10, 20, 40], "simplified"
+    return MP_DPS, [5, 10, 20, 40], "mixed"
 
 
 _REFERENCES = {}     # per process: the main job runs several jobs of a scene in one worker
@@ -346,23 +346,16 @@ def all_methods():
     return [m for fam in FAMILIES.values() for m in fam]
 
 
-# rough CPU seconds on an idle core (to start the longest first): mpmath methods by claimed
-# order, scaled by the scene's size; the float64 methods of a scene together
-_MP_COST = {6: 6.0, 8: 10.0}
-_SCENE_COST = {"mp-particles": 2.5, "mp-particles-nh": 2.5, "particle": 1.2, "robot": 1.0, "skate": 0.6}
+# rough CPU seconds of a scene's job on an idle core (to start the longest first)
+_SCENE_COST = {"mp-particles": 30.0, "mp-particles-nh": 30.0, "relativistic": 25.0, "particle": 12.0,
+               "robot": 12.0, "skate": 6.0}
 
 
 def jobs(full=False):
-    """Per scene: one job for the float64 methods, one per mpmath method (their runs dominate);
-    the comparator table. Jobs of a scene share its reference when they meet in one worker."""
-    ms = all_methods()
-    J = []
-    for sc in DEFAULT_SCENES:
-        f = _SCENE_COST.get(sc, 1.5)
-        fl = [m for m in ms if plan_for(m)[0] is None]
-        J.append((("scene", sc, "float64"), "_scene_job", ((sc, fl, T_END),), 3.0 * f))
-        J += [(("scene", sc, m), "_scene_job", ((sc, [m], T_END),), _MP_COST.get(claimed_order_of(m), 10.0) * f)
-              for m in ms if plan_for(m)[0] is not None]
+    """One job per scene: its reference (an mpmath Taylor solution of (3a-b), the most expensive
+    single piece for several scenes) is built once and serves all methods; the comparator table."""
+    J = [(("scene", sc), "_scene_job", ((sc, all_methods(), T_END),), _SCENE_COST.get(sc, 15.0))
+         for sc in DEFAULT_SCENES]
     return J + [(("identities",), "comparator_identities", (), 4.0)]
 
 

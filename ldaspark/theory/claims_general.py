@@ -75,7 +75,7 @@ def order_plan(method):
         return None, [8, 16, 32, 64], "full"
     if p <= 4:
         return None, [4, 8, 16, 32], "full"
-    return 25, [4, 8, 16], "simplified"
+    return 25, [4, 8, 16], "mixed"
 
 
 def scene_orders(scene_name, methods, t_end=1.0, reference=None):
