@@ -5,10 +5,14 @@ odelab is not a dependency of ldaspark. Set it up in a separate environment (ode
 ``newton`` and ``padexp``, same author), e.g.::
 
     python3 -m venv /tmp/venv-peer
-    git clone https://github.com/olivierverdier/{odelab,newton,padexp}     # one clone each
+    for r in odelab newton padexp; do git clone https://github.com/olivierverdier/$r; done
     (cd odelab && git apply /path/to/ldaspark/benchmarks/peer/odelab-compat.patch)
     /tmp/venv-peer/bin/pip install numpy scipy -e newton -e padexp -e odelab -e /path/to/ldaspark
     /tmp/venv-peer/bin/python benchmarks/peer_odelab.py          # writes reports/peer_odelab.json
+
+The patch adds the subpackage ``odelab.system.exponential``, missing from odelab's setup.py
+(a plain, non-editable install fails to import odelab without it). Editable installs record the
+commits of the three clones in the JSON.
 
 The system. odelab's ``odelab.system.nonholonomic.rolling.Robot``: state u = (q, v, lambda) with
 q = (x, y, phi, theta) = u[0:4], v = u[4:8], lambda = u[8:10]; identity mass matrix (the default
@@ -27,9 +31,9 @@ The methods (read from odelab's source, and the coefficients checked below at ru
   sum_j a_ij A(Q_j) V_j = 0 for the IIIA rows i = 2..s and A(q1) v1 = 0. That is
   ``lobatto-iiia-iiib-s`` here (A = IIIA, A_hat = A_tilde = IIIB, b, and (21e) whose rows omega span
   the same space as odelab's IIIA rows, (21f) the same).
-* odelab ``McLachlan`` (McLachlan-Perlmutter (4.18)): q_1/2 = q0 + h/2 v0, p1 = p0 + h f(q_1/2) +
+* odelab ``McLachlan`` (McLachlan-Perlmutter (4.18)): q_1/2 = q0 + h/2 v0, p1 = p0 + h f(q_1/2) -
   A(q_1/2)^T lambda, q1 = q_1/2 + h/2 v1, A(q1) v1 = 0; that is (26), ``mp-lobatto-iiib-a-2``
-  here (lambda = -h Psi_1). It is not the form (25) (``lobatto-iiia-iiib-2-leapfrog``), which has
+  here (lambda = h Psi_1). It is not the form (25) (``lobatto-iiia-iiib-2-leapfrog``), which has
   the constraint (25) and grad U at q0; the run against (25) is the negative control.
 * Not compared: odelab ``NonHolonomicLeapFrog`` imposes A(q_i)(v_i + v_i+1) = 0 at one point q_i,
   where (25) averages K(q_k) and K(q_k+1) on one velocity; ``SymplecticEuler`` and the
