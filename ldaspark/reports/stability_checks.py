@@ -39,7 +39,8 @@ def one_step_error(method, h, dps=None, t0="0.5", scene="skate"):
         t0m, hm = mpmath.mpf(t0), mpmath.mpf(h)
         qa, va, _ = sc.exact_solution(t0m, ref_dps)
         qb, vb, _ = sc.exact_solution(t0m + hm, ref_dps)
-    m = SparkMethod(sc.system, tab, dps=dps)
+    # at mpmath precision the Newton matrix in float64 ("mixed"): the same fixed point, 3-9x cheaper
+    m = SparkMethod(sc.system, tab, dps=dps, newton="mixed")
     if dps is None:
         r = m.step(float(t0m), np.array([float(x) for x in qa]), np.array([float(x) for x in va]), float(hm))
         with mpmath.workdps(ref_dps):
@@ -154,7 +155,7 @@ def order_at_precision(method, dps=50, t_end="1", Ns=(4, 8)):
             t0, q0, v0 = sc.initial(dps)
             with mpmath.workdps(dps):
                 h = mpmath.mpf(t_end) / N
-            sol = integrate(sc.system, tab, t0, q0, v0, h, n_steps=N, dps=dps)
+            sol = integrate(sc.system, tab, t0, q0, v0, h, n_steps=N, dps=dps, newton="mixed")
             qe, ve, _ = sc.exact_solution(t_end, dps + 10)
             with mpmath.workdps(dps + 10):
                 errs.append(float(max(max(abs(a - b) for a, b in zip(sol.q[-1], qe)),

@@ -165,9 +165,10 @@ def time_reversal(method, scene="particle", h=0.05, n_steps=100, dps=None):
     tab = get_method(method)
     t0, q0, v0 = sc.initial(dps)
     hh = h if dps is None else mpmath.mpf(str(h))
-    fw = integrate(sc.system, tab, t0, q0, v0, hh, n_steps=n_steps, dps=dps)
+    nw = "full" if dps is None else "mixed"     # mpmath: float64 Newton matrix, same fixed point
+    fw = integrate(sc.system, tab, t0, q0, v0, hh, n_steps=n_steps, dps=dps, newton=nw)
     bw = integrate(sc.system, tab, fw.t[-1], fw.q[-1], fw.v[-1], -hh, n_steps=n_steps, dps=dps,
-                   check_initial=False)
+                   check_initial=False, newton=nw)
     with mpmath.workdps(dps or 15):
         err = max(max(abs(a - b) for a, b in zip(bw.q[-1], fw.q[0])), max(abs(a - b) for a, b in zip(bw.v[-1], fw.v[0])))
         excursion = max(abs(a - b) for a, b in zip(fw.q[-1], fw.q[0]))
