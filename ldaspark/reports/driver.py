@@ -74,4 +74,21 @@ def run(args) -> int:
     for name, st in stats.items():
         print(f"[report] {name:14s} {st['cpu']:7.1f}  {st['wall']:7.1f}", flush=True)
     print(f"[report] all sections: {clock.summary()} -> {args.outdir}", flush=True)
+    write_run_timing(args.outdir, stats, clock, workers, full=getattr(args, "full", False))
     return 0
+
+
+def write_run_timing(outdir, stats, clock, workers, full=False):
+    """``OUTDIR/report_timing.json``: the wall and CPU time of this run of the main job, per
+    section and in all (README quotes it), with the machine's core count and load."""
+    import datetime
+    import platform
+    from ..core.io import atomic_write_json
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
+    atomic_write_json(os.path.join(outdir, "report_timing.json"), {
+        "command": f"ldaspark report{' --full' if full else ''}", "wall": round(clock.wall, 1),
+        "cpu": round(clock.cpu, 1), "workers": workers, "cpu_count": os.cpu_count(),
+        "load_average_1min_at_end": None if load is None else round(load, 2),
+        "date": datetime.date.today().isoformat(), "python": platform.python_version(),
+        "sections": {k: {"cpu": round(v["cpu"], 1), "written_at_wall": round(v["wall"], 1), "jobs": v["jobs"]}
+                     for k, v in stats.items()}})

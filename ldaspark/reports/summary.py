@@ -151,11 +151,18 @@ def work_precision_values(d):
     return out
 
 
+def run_values(d):
+    """The main job's own time (``report_timing.json``, written by ``ldaspark report``)."""
+    return {"run.wall": f"{d['wall']:.0f} s", "run.cpu": f"{d['cpu']:.0f} s",
+            "run.cores": str(d["cpu_count"])}
+
+
 def readme_values(reports_dir="reports") -> dict:
     """{key: text} for every value README quotes (keys of absent reports are missing)."""
     out = {}
     for name, fn in (("convergence.json", convergence_values), ("claims.json", claims_values),
-                     ("energy.json", energy_values), ("work_precision.json", work_precision_values)):
+                     ("energy.json", energy_values), ("work_precision.json", work_precision_values),
+                     ("report_timing.json", run_values)):
         d = _load(reports_dir, name)
         if d is not None:
             out.update(fn(d))
