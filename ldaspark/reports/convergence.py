@@ -347,8 +347,8 @@ def all_methods():
 
 
 # rough CPU seconds of a scene's job on an idle core (to start the longest first)
-_SCENE_COST = {"mp-particles": 30.0, "mp-particles-nh": 30.0, "relativistic": 25.0, "particle": 12.0,
-               "robot": 12.0, "skate": 6.0}
+_SCENE_COST = {"mp-particles": 16.0, "mp-particles-nh": 15.0, "relativistic": 15.0, "constant-speed": 15.0,
+               "turntable": 10.0, "rheonomic-skate": 9.0, "particle": 8.0, "robot": 8.0, "skate": 4.0}
 
 
 def jobs(full=False):

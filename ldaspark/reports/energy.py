@@ -326,7 +326,7 @@ def fig4_job(constraint, inline=True):
 def jobs(full=False, t_end=None):
     """Figs. 1-3 (``t_end``: a shorter interval) and Fig. 4 for both constraints."""
     return ([(("fig", n), "figure_data", (n, t_end), 3.0) for n in FIGURES]
-            + [(("fig4", c), "fig4_job", (c,), 12.0) for c in FIG4_CONSTRAINTS])
+            + [(("fig4", c), "fig4_job", (c,), 30.0) for c in FIG4_CONSTRAINTS])
 
 
 def write(results, outdir=REPORT_DIR, full=False, clock=None, command="ldaspark report energy"):

@@ -91,7 +91,7 @@ def jobs(full=False):
     J = [(("step", m), "step_row", (m,), 12.0) for m in (SWEEP_METHODS if full else DEFAULT_SWEEP)]
     J += [(("stage",), "stage_sweep", (10,), 6.0)]
     J += [(("order", m), "order_pair", (m,), 3.0) for m in order_methods(full)]
-    J += [(("long", m), "long_job", (m,), 10.0) for m in LONG_METHODS] + [(("roundoff",), "roundoff_job", (), 8.0)]
+    J += [(("long", m), "long_job", (m,), 18.0 if m.startswith("gauss") else 2.0) for m in LONG_METHODS] + [(("roundoff",), "roundoff_job", (), 10.0)]
     J += [(("mass",), "mass_ratio_scene", (), 10.0), (("rank",), "rank_loss_scene", (), 1.0),
           (("soft",), "soft_scene", (), 2.0)]
     J += [(("reversal", m, sc), "reversal_pair", (m, sc, full), 3.0) for m in SYMMETRIC + NONSYMMETRIC

@@ -538,7 +538,16 @@ def sizes(quick=False, t_long=2500.0):
 
 
 # rough CPU seconds on an idle core, to start the longest jobs first
-COST = {"Radau": 25.0, "LSODA": 12.0, "DOP853": 6.0, "spark-generic": 12.0, "spark-fast": 2.0}
+COST = {"Radau": 8.0, "LSODA": 2.0, "DOP853": 1.5, "spark-generic": 12.0, "spark-fast": 2.0}   # rough CPU s, for scheduling
+
+
+def _run_groups(kind, method, params):
+    """[(key tag, params, cost weight)]: one job per run for the expensive kinds (Radau, the generic
+    path: the longest pieces of the main job), one job for all runs of a cheap kind (the compiled
+    path, DOP853, LSODA: a job's set-up would cost more than its runs)."""
+    if method == "Radau" or kind == "spark-generic":
+        return [((p,), (p,), (1 + i) / len(params)) for i, p in enumerate(params)]
+    return [(("all",), tuple(params), 1.0)]
 
 
 def jobs(full=False, quick=False, t_long=2500.0):
@@ -547,10 +556,9 @@ def jobs(full=False, quick=False, t_long=2500.0):
     for name, t_end in cfg:
         J.append((("ref", name), "scene_reference", (name, t_end), 4.0))
         for kind, m, params in study_plan(name, t_end, hs_fast, hs_gen, rtols, rtols_r):
-            # one job per run: the tight-tolerance scipy runs are the longest of the main job
-            J += [(("runs", name, kind, m, p), "scene_runs", (name, t_end, kind, m, (p,)),
-                   COST.get(m, COST.get(kind, 2.0)) * t_end / 250.0 / len(params) * (1 + i))
-                  for i, p in enumerate(params)]
+            J += [(("runs", name, kind, m) + tag, "scene_runs", (name, t_end, kind, m, ps),
+                   COST.get(m, COST.get(kind, 2.0)) * t_end / 250.0 * w)
+                  for tag, ps, w in _run_groups(kind, m, params)]
     J += [(("long", w), "long_part", (w, t_long), 6.0) for w in LONG_RUNS] + [(("dps",), "dps_job", (dps_steps,), 15.0)]
     J += [(("sps", sc), "sps_job", (sc, n_gen, n_fast), 5.0) for sc in SPS_SCENES]
     return J
@@ -574,7 +582,7 @@ def write(results, outdir="reports", full=False, clock=None, command="ldaspark r
     studies = []
     for name, t_end in cfg:
         rows = [r for kind, m, params in study_plan(name, t_end, hs_fast, hs_gen, rtols, rtols_r)
-                for p in params for r in results[("runs", name, kind, m, p)]]
+                for tag, _, _ in _run_groups(kind, m, params) for r in results[("runs", name, kind, m) + tag]]
         st = finish_study(name, t_end, results[("ref", name)], rows)
         plot_study(st, os.path.join(figdir, f"wp_{name}.png"))
         studies.append(st)
