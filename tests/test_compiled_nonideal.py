@@ -180,6 +180,9 @@ def test_nonideal_systems_take_the_general_form():
     assert "N[2]" not in src and "Npsi[0, 0]" in src        # structural zeros are not emitted
     ideal = compile_system(get_scene("skate").system, form="general").source
     assert "def nonideal(" in ideal and "N[" not in ideal.split("def nonideal(")[1]
+    from ldaspark.compiled.ode import ode_source        # the ideal ODE (3a-b) only: refused, not wrong
+    with pytest.raises(NotCompilableError, match="nonideal"):
+        ode_source(S)
 
 
 def test_integrate_auto_runs_friction_skate_compiled(capsys):
