@@ -7,7 +7,8 @@ Two model forms, each a fixed set of functions with the signatures of ``modeltyp
 * general, any L(t, q, v) and k(t, q, v) of (1): point_val (grad_v L, grad_q L, k, K = k_v),
   point_jac (L_vv, L_vq, L_qq, k_q and the partials of K^T lam), energy (8), and the nonideal
   term of 3.3: nonideal (N(t, q, v, psi)) and nonideal_jac (N_q, N_v, N_psi), which return False
-  and write nothing for a system without N. A system with N always takes the general form.
+  and write nothing for a system without N, and the flag HAS_N (the model's last entry) the
+  kernel reads. A system with N always takes the general form.
 
 Each function shares common subexpressions (``sympy.cse``) and writes only the structurally
 nonzero entries of its outputs (a symmetric Hessian's lower triangle is copied from the upper),
@@ -220,7 +221,8 @@ def general_source(system) -> str:
     head = HEADER.format(name=system.name, form="general", n=n, m=m)
     fns += _nonideal_functions(system, S, pr)
     src = head + "\n\n" + "\n\n\n".join(fns) + \
-        "\n\n\nMODEL = (N_DOF, point_val, point_jac, energy, nonideal, nonideal_jac)\n"
+        f"\n\n\nHAS_N = {nonideal_term(system) is not None}\n" \
+        "MODEL = (N_DOF, point_val, point_jac, energy, nonideal, nonideal_jac, HAS_N)\n"
     return _check(src, system.name)
 
 

@@ -123,7 +123,8 @@ class CompiledSystem:
         if hit is None:
             from numba.core.types.function_type import CompileResultWAP
             mod = self.module.MODEL
-            hit = (mod[0],) + tuple(CompileResultWAP(f.overloads[f.signatures[0]]) for f in mod[1:])
+            hit = (mod[0],) + tuple(f if isinstance(f, bool) else CompileResultWAP(f.overloads[f.signatures[0]])
+                                    for f in mod[1:])      # a general model ends with its flag has_N
             _MODELS[self.digest] = hit
         return hit
 

@@ -25,7 +25,7 @@ from . import modeltypes as mt
 # it compiles in live in sibling modules. Their digest is written here so that editing a helper
 # changes this file too (tests/test_compiled_general.py checks it; update it after an edit).
 HELPERS = ("newton.py", "kernels_mech.py", "kernels_general.py", "modeltypes.py")
-HELPERS_SHA256 = "e321facd8a2fe17068824d197646ab3b1a32e525564e47ca1d4680cbf57b3959"
+HELPERS_SHA256 = "dae35f9e4a3487143c23d1f302862baaf470c3b833ff7ab13dd79c4e45301d7c"
 
 from .newton import (FAIL_NONFINITE, FAIL_SINGULAR, accept_step, advance, end_newton, fail, lu_factor,  # noqa: E402
                      lu_solve, newton_increment, newton_status, norm_inf, predict, record, shift, start_newton)
@@ -42,7 +42,7 @@ def store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
 
 
 def _form(model, mechanical, general):
-    """The model tuple is (n, 7 mechanical functions) or (n, 5 general functions)."""
+    """The model tuple is (n, 7 mechanical functions) or (n, 5 general functions, has_N)."""
     return mechanical if len(model.types) == 8 else general
 
 

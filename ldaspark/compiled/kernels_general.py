@@ -3,15 +3,18 @@ the same equations as ``ldaspark.core.spark.SparkMethod.residual``, with the mom
 implicit ((21b) and (21d) are solved for V_i and v1 directly). Called by ``kernels.general_run``.
 
 The model is the tuple ``codegen.general_source`` exports: (n, point_val, point_jac, energy,
-nonideal, nonideal_jac), with point_val -> grad_v L, grad_q L, k, K = k_v and point_jac -> L_vv,
-L_vq, L_qq, k_q and KRq, KRv = the q- and v-partials of K^T lam (= -h R of (21) with lam = Lambda
-for ideal constraints); nonideal -> N(t, q, v, psi) and nonideal_jac -> N_q, N_v, N_psi of 3.3
-(both return False for a system without N, and the nonideal terms below are skipped).
+nonideal, nonideal_jac, has_N), with point_val -> grad_v L, grad_q L, k, K = k_v and point_jac ->
+L_vv, L_vq, L_qq, k_q and KRq, KRv = the q- and v-partials of K^T lam (= -h R of (21) with
+lam = Lambda for ideal constraints); nonideal -> N(t, q, v, psi) and nonideal_jac -> N_q, N_v,
+N_psi of 3.3. For a system without N, has_N is False and the nonideal terms below are skipped
+without a call, so that the ideal path is the code it was before N (a model call per stage, or
+five more arrays in the workspace tuple passed to every helper, each measured 3-5% of the step
+of an ideal n = 3 system).
 With N: -h R_i = K_i^T Lambda_i - h N(T_i, Q_i, V_i, Lambda_i / h) (Lambda = h Psi), so the
 stage reaction gains -h N, its q- and v-partials -h N_q, -h N_v, and d(-h R_i)/dLambda_i =
 K_i^T - N_psi (as ``LagrangianSystem.stage`` with ``h``; the end point carries no reaction).
 Workspace ``ws`` (see ``workspace``): stage arrays, end-point arrays, p0 = grad_v L(t0, q0, v0),
-then N, N_q, N_v, N_psi at the stages and psi (scratch).
+then one flat array holding N, N_q, N_v, N_psi at the stages and psi (``nonideal_views``).
 """
 import numba
 import numpy as np
@@ -28,8 +31,36 @@ def workspace(s, n, m):
             np.zeros((s, n, n)), np.zeros((s, n, n)),
             np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(m), np.zeros((m, n)),
             np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n)), np.zeros((m, n)), np.zeros((n, n)),
-            np.zeros((n, n)), np.zeros(m), np.zeros(n),
-            np.zeros((s, n)), np.zeros((s, n, n)), np.zeros((s, n, n)), np.zeros((s, n, m)), np.zeros(m))
+            np.zeros((n, n)), np.zeros(m), np.zeros(n), np.zeros(s * n * (1 + 2 * n + m) + m))
+
+
+@numba.njit(cache=True)
+def nonideal_views(nw, s, n, m):
+    """N (s, n), N_q (s, n, n), N_v (s, n, n), N_psi (s, n, m) at the stages and psi (m) as views
+    of the workspace's flat array (zero-initialised: the model writes only nonzero entries)."""
+    sn, snn = s * n, s * n * n
+    o2, o3, o4 = sn + snn, sn + 2 * snn, sn + 2 * snn + sn * m
+    return (nw[:sn].reshape((s, n)), nw[sn:o2].reshape((s, n, n)), nw[o2:o3].reshape((s, n, n)),
+            nw[o3:o4].reshape((s, n, m)), nw[o4:o4 + m])
+
+
+@numba.njit(cache=True)
+def nonideal_stages(model, jac, x, T, Q, V, h, nw, KTL):
+    """-h R_j = K_j^T Lambda_j - h N(T_j, Q_j, V_j, Lambda_j / h) (3.3): subtracts h N from
+    KTL = K^T Lambda and, if jac, evaluates N_q, N_v, N_psi at the stages."""
+    nonideal, nonideal_jac = model[4], model[5]
+    s, n = KTL.shape[0], KTL.shape[1]
+    m = (x.shape[0] - s * n - n) // s
+    sn = s * n
+    Nst, Nq, Nv, Np, psi = nonideal_views(nw, s, n, m)
+    for j in range(s):
+        for l in range(m):
+            psi[l] = x[sn + j * m + l] / h
+        nonideal(T[j], Q[j], V[j], psi, Nst[j])
+        if jac:
+            nonideal_jac(T[j], Q[j], V[j], psi, Nq[j], Nv[j], Np[j])
+        for a in range(n):
+            KTL[j, a] -= h * Nst[j, a]
 
 
 @numba.njit(cache=True)
@@ -38,8 +69,7 @@ def general_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
     if jac, its Jacobian J. The first call of a step (jac) also sets ws[27] = p0 = grad_v L(t0,
     q0, v0). M is unused (the signature is that of ``kernels_mech.spark_eval``). Returns the
     number of points evaluated."""
-    point_val, point_jac, nonideal, nonideal_jac = model[1], model[2], model[4], model[5]
-    Nst, psi = ws[28], ws[32]
+    point_val, point_jac = model[1], model[2]
     if jac:
         point_val(t0, q0, v0, ws[27], ws[17], ws[18], ws[19])
     c, A, Ah, At, bw, bh, bt, om = tab
@@ -48,17 +78,15 @@ def general_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
     s, n, m = A.shape[0], q0.shape[0], k1.shape[0]
     sn = s * n
     stage_points(tab, x, t0, q0, v0, h, m, T, Q, V, q1, v1)
-    has_N = False
     for j in range(s):
         point_val(T[j], Q[j], V[j], Lv[j], Lq[j], kst[j], kv[j])
-        for l in range(m):
-            psi[l] = x[sn + j * m + l] / h
-        has_N = nonideal(T[j], Q[j], V[j], psi, Nst[j])
         for a in range(n):
             acc = 0.0
             for l in range(m):
                 acc += kv[j, l, a] * x[sn + j * m + l]
-            KTL[j, a] = acc - h * Nst[j, a] if has_N else acc     # -h R_j (3.3)
+            KTL[j, a] = acc
+    if model[6]:                 # has_N: the nonideal term (3.3) in the stage reactions
+        nonideal_stages(model, jac, x, T, Q, V, h, ws[28], KTL)
     point_val(t0 + h, q1, v1, Lv1, Lq1, k1, kv1)
     # (21b) rows i < s, (21d) row i = s: P_i - p0 - h sum_j A^_ij F_j + sum_j A~_ij K_j^T Lambda_j
     for i in range(s + 1):
@@ -83,14 +111,10 @@ def general_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
         for j in range(s):
             point_jac(T[j], Q[j], V[j], x[sn + j * m:sn + (j + 1) * m], Lvv[j], Lvq[j], Lqq[j], kq[j],
                       KRq[j], KRv[j])
-            if has_N:
-                for l in range(m):
-                    psi[l] = x[sn + j * m + l] / h
-                nonideal_jac(T[j], Q[j], V[j], psi, ws[29][j], ws[30][j], ws[31][j])
         point_jac(t0 + h, q1, v1, zl, Lvv1, Lvq1, Lqq1, kq1, KRq1, KRv1)
         general_jacobian(tab, h, ws, J)
-        if has_N:
-            nonideal_jacobian(tab, h, ws, J)
+        if model[6]:
+            nonideal_jacobian(tab, h, ws[28], m, J)
         return 2 * s + 3
     return s + 1
 
@@ -130,15 +154,16 @@ def general_jacobian(tab, h, ws, J):
 
 
 @numba.njit(cache=True)
-def nonideal_jacobian(tab, h, ws, J):
+def nonideal_jacobian(tab, h, nw, m, J):
     """The nonideal term's part of d(21b, d)/d(Z, Lambda) (3.3), added to ``general_jacobian``:
     -h N(T_j, Q_j, V_j, Lambda_j / h) in -h R_j gives d(21b)_i/dV_k += -h a~_ik N_v,k
     - h^2 sum_j a~_ij a_jk N_q,j and d(21b)_i/dLambda_k += -a~_ik N_psi,k; (21d) alike with b~.
     The model's output arrays are left as written (their structural zeros must stay zero)."""
     A, At, bt = tab[1], tab[3], tab[6]
-    Nv, Nq, Np = ws[30], ws[29], ws[31]
-    s, n, m = A.shape[0], Np.shape[1], Np.shape[2]
+    s = A.shape[0]
+    n = (J.shape[0] - s * m) // (s + 1)
     sn = s * n
+    Nst, Nq, Nv, Np, psi = nonideal_views(nw, s, n, m)
     h2 = h * h
     for i in range(s + 1):
         for k in range(s):
