@@ -25,7 +25,7 @@ from . import modeltypes as mt
 # it compiles in live in sibling modules. Their digest is written here so that editing a helper
 # changes this file too (tests/test_compiled_general.py checks it; update it after an edit).
 HELPERS = ("newton.py", "kernels_mech.py", "kernels_general.py", "modeltypes.py")
-HELPERS_SHA256 = "dae35f9e4a3487143c23d1f302862baaf470c3b833ff7ab13dd79c4e45301d7c"
+HELPERS_SHA256 = "d971ddb3d6092e26f58189f5b723807a5758dbcd6e24034c29b6f43489f2179e"
 
 from .newton import (FAIL_NONFINITE, FAIL_SINGULAR, accept_step, advance, end_newton, fail, lu_factor,  # noqa: E402
                      lu_solve, newton_increment, newton_status, norm_inf, predict, record, shift, start_newton)

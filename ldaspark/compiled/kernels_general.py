@@ -7,9 +7,9 @@ nonideal, nonideal_jac, has_N), with point_val -> grad_v L, grad_q L, k, K = k_v
 L_vv, L_vq, L_qq, k_q and KRq, KRv = the q- and v-partials of K^T lam (= -h R of (21) with
 lam = Lambda for ideal constraints); nonideal -> N(t, q, v, psi) and nonideal_jac -> N_q, N_v,
 N_psi of 3.3. For a system without N, has_N is False and the nonideal terms below are skipped
-without a call, so that the ideal path is the code it was before N (a model call per stage, or
-five more arrays in the workspace tuple passed to every helper, each measured 3-5% of the step
-of an ideal n = 3 system).
+without a call, so that the ideal path is the code it was before N (a model call per stage and
+five more arrays in the workspace tuple passed to every helper measured 4-8% of the step of an
+ideal n = 3 system; the flag and one flat array 1-2%).
 With N: -h R_i = K_i^T Lambda_i - h N(T_i, Q_i, V_i, Lambda_i / h) (Lambda = h Psi), so the
 stage reaction gains -h N, its q- and v-partials -h N_q, -h N_v, and d(-h R_i)/dLambda_i =
 K_i^T - N_psi (as ``LagrangianSystem.stage`` with ``h``; the end point carries no reaction).
