@@ -10,7 +10,7 @@ reaction -K^T Psi + N(T, Q, V, Psi) in (21b, d) and N_q, N_v, N_psi in the Newto
 * ``ldaspark.integrate(..., engine="auto")`` runs friction-skate compiled, with no notice.
 
 Default cost ~12 s CPU with the process start (15 s wall at load ~6): three generic 1000-step
-references at ~2 s each, computed once per module; the eight generated models add ~1 s each the
+references at ~2 s each, computed once per module; the ~10 generated models add ~1 s each the
 first time on a machine. --exhaustive: three more references. The kernels themselves are
 compiled once per machine.
 """
