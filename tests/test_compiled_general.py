@@ -260,17 +260,26 @@ def test_kernel_spec_is_cached():
     assert A.flags.c_contiguous and np.allclose(c, [0.5 - math.sqrt(15) / 10, 0.5, 0.5 + math.sqrt(15) / 10])
 
 
-def test_nonideal_or_untranslatable_systems_fall_back(capsys):
-    """A nonideal term (not compiled yet) and an expression without numba translation give
-    NotCompilableError from compile_system and one notice line from fast_integrate."""
+def test_untranslatable_systems_fall_back(capsys, monkeypatch):
+    """An expression without numba translation gives NotCompilableError from compile_system, and
+    a system the code generator refuses one notice line from fast_integrate (a nonideal term
+    (3.3) is compiled: tests/test_compiled_nonideal.py)."""
     base, q0, v0 = non_quadratic()
     q, v = base.q, base.v
     system = LagrangianSystem(base.L, list(base.k), q, v, base.t, name="nonideal",
                               nonideal=[q[1] * v[0], 0, 0])
-    assert can_compile(system)[0] is False and "nonideal" in can_compile(system)[1]
+    assert can_compile(system) == (True, "general")
+    import ldaspark.compiled.fast as fast
+
+    def refuse(sysm):
+        raise NotCompilableError(f"{sysm.name}: an expression has no numba translation (refused here)")
+    monkeypatch.setattr(fast, "general_source", refuse)
+    system = LagrangianSystem(base.L, list(base.k), q, v, base.t, name="refused")   # compile_system caches per object
+    assert can_compile(system)[0] is False and "no numba translation" in can_compile(system)[1]
     r = fast_integrate(system, "gauss-2", 0.0, q0, v0, 0.1, 20, every=10)
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "falling back to the generic path" in err[0] and r.stats["path"] == "generic"
+    monkeypatch.undo()
     L = (v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 - sympy.besselj(0, q[0])
     bessel = LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name="bessel")
     with pytest.raises(NotCompilableError, match="bessel"):

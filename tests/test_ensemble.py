@@ -83,12 +83,19 @@ def test_default_executor_and_any_executor(ics, serial):
     assert ex.calls == 3
 
 
-def test_generic_fallback_in_workers(capsys):
+def test_generic_fallback_in_workers(capsys, monkeypatch):
     q = list(sympy.symbols("q1:4"))
     v = list(sympy.symbols("v1:4"))
     L = (v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 + v[0] ** 4 / 12 - (q[0] ** 2 + q[1] ** 2)
-    # a nonideal term (3.3): not compiled (yet), so the workers run the generic path
+    # a system the code generator refuses (as it does an expression without numba translation):
+    # the workers run the generic path
     sysm = LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name="quartic", nonideal=[q[1] * v[0], 0, 0])
+    import ldaspark.compiled.fast as fast
+    from ldaspark.compiled.codegen import NotCompilableError
+
+    def refuse(system):
+        raise NotCompilableError(f"{system.name}: an expression has no numba translation (refused here)")
+    monkeypatch.setattr(fast, "general_source", refuse)
     Q0 = [[1.0, 0.0, 0.0], [0.5, 0.0, 0.0]]
     V0 = [[0.0, 1.0, 0.0], [0.0, 0.5, 0.0]]
     with concurrent.futures.ProcessPoolExecutor(max_workers=2) as ex:

@@ -166,13 +166,19 @@ def _non_mechanical():
     return LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name="quartic")
 
 
-def test_fallback_notice_and_same_numbers(capsys):
-    """A system the compiled path does not take (here: a nonideal term, not compiled yet; the
-    generic path runs it) falls back with one notice line and the generic path's numbers."""
+def test_fallback_notice_and_same_numbers(capsys, monkeypatch):
+    """A system the compiled path does not take (here: the code generator refuses it, as it does
+    an expression without numba translation; the generic path runs it) falls back with one
+    notice line and the generic path's numbers."""
     base = _non_mechanical()
     assert compile_system(base).form == "general"           # non-quadratic L alone is compiled
     sysm = LagrangianSystem(base.L, list(base.k), base.q, base.v, base.t, name=base.name,
                             nonideal=[base.q[1] * base.v[0], 0, 0])
+    import ldaspark.compiled.fast as fast
+
+    def refuse(system):
+        raise NotCompilableError(f"{system.name}: an expression has no numba translation (refused here)")
+    monkeypatch.setattr(fast, "general_source", refuse)
     with pytest.raises(NotCompilableError):
         compile_system(sysm)
     r = fast_integrate(sysm, "gauss-2", 0.0, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], 0.1, 30, every=10)

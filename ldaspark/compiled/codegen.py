@@ -5,7 +5,10 @@ Two model forms, each a fixed set of functions with the signatures of ``modeltyp
 * mechanical (section 7), L = 1/2 v^T M v - U(t, q) with constant M, k = K(t, q) v + b(t, q):
   U_of, grad_U, hess_U, K_of, b_of, kq_of (d(K v + b)/dq), KTlam_q (d(K^T lam)/dq);
 * general, any L(t, q, v) and k(t, q, v) of (1): point_val (grad_v L, grad_q L, k, K = k_v),
-  point_jac (L_vv, L_vq, L_qq, k_q and the partials of K^T lam), energy (8).
+  point_jac (L_vv, L_vq, L_qq, k_q and the partials of K^T lam), energy (8), and the nonideal
+  term of 3.3: nonideal (N(t, q, v, psi)) and nonideal_jac (N_q, N_v, N_psi), which return False
+  and write nothing for a system without N, and the flag HAS_N (the model's last entry) the
+  kernel reads. A system with N always takes the general form.
 
 Each function shares common subexpressions (``sympy.cse``) and writes only the structurally
 nonzero entries of its outputs (a symmetric Hessian's lower triangle is copied from the upper),
@@ -49,7 +52,7 @@ class _Printer(PythonCodePrinter):
 
 
 def nonideal_term(system):
-    """The system's nonideal force N(t, q, v, psi) if it has one (not compiled yet), else None."""
+    """The system's nonideal force N(t, q, v, psi) of 3.3 if it has one (not identically zero), else None."""
     for attr in ("N", "nonideal", "N_expr"):
         val = getattr(system, attr, None)
         if val is None or isinstance(val, (int, str)) or callable(val):
@@ -65,9 +68,11 @@ def nonideal_term(system):
 
 def _emit(name, sig, args, unpack, outputs, printer, ret=None):
     """Source of one eagerly compiled function: ``outputs`` = [(target, expr)] (zeros dropped),
-    after CSE; ``ret`` an expression to return instead."""
+    after CSE; ``ret`` an expression to return instead (a str: returned as written)."""
     outputs = [(tg, e) for tg, e in outputs if not (isinstance(e, str) or e.is_zero)] + \
         [(tg, e) for tg, e in outputs if isinstance(e, str)]
+    literal = ret if isinstance(ret, str) else None
+    ret = None if literal is not None else ret
     exprs = [e for _, e in outputs if not isinstance(e, str)] + ([ret] if ret is not None else [])
     reps, red = sympy.cse(exprs, symbols=sympy.numbered_symbols("_x"), optimizations="basic") if exprs else ([], [])
     used = set().union(*(e.free_symbols for e in exprs)) if exprs else set()
@@ -81,7 +86,7 @@ def _emit(name, sig, args, unpack, outputs, printer, ret=None):
         else:
             lines.append(f"    {target} = {printer.doprint(red[k])}")
             k += 1
-    lines.append(f"    return {printer.doprint(red[k])}" if ret is not None else "    return")
+    lines.append(f"    return {printer.doprint(red[k])}" if ret is not None else f"    return {literal or ''}".rstrip())
     return "\n".join(lines)
 
 
@@ -131,6 +136,8 @@ class _Symbols:
         self.uq = [(f"_q{i}", f"q[{i}]") for i in range(n)]
         self.uv = [(f"_v{i}", f"v[{i}]") for i in range(n)]
         self.ul = [(f"_l{i}", f"lam[{i}]") for i in range(m)]
+        self.psi = [sympy.Symbol(f"_p{i}", real=True) for i in range(m)]
+        self.up = [(f"_p{i}", f"psi[{i}]") for i in range(m)]
 
     def __call__(self, e):
         return sympy.sympify(e).xreplace(self.sub)
@@ -212,5 +219,26 @@ def general_source(system) -> str:
         _emit("energy", "E_SIG", ["t", "q", "v"], tqv, [], pr, ret=E),
     ]
     head = HEADER.format(name=system.name, form="general", n=n, m=m)
-    src = head + "\n\n" + "\n\n\n".join(fns) + "\n\n\nMODEL = (N_DOF, point_val, point_jac, energy)\n"
+    fns += _nonideal_functions(system, S, pr)
+    src = head + "\n\n" + "\n\n\n".join(fns) + \
+        f"\n\n\nHAS_N = {nonideal_term(system) is not None}\n" \
+        "MODEL = (N_DOF, point_val, point_jac, energy, nonideal, nonideal_jac, HAS_N)\n"
     return _check(src, system.name)
+
+
+def _nonideal_functions(system, S, pr):
+    """nonideal(t, q, v, psi, N) and nonideal_jac(t, q, v, psi, N_q, N_v, N_psi) of the term
+    N(t, q, v, psi) of 3.3 (each returns True), or two functions that return False at once for
+    a system without N: the kernel then skips the nonideal terms of (21b, d) and the Newton matrix."""
+    N = nonideal_term(system)
+    args, jargs = ["t", "q", "v", "psi", "N"], ["t", "q", "v", "psi", "Nq", "Nv", "Npsi"]
+    if N is None:
+        return [_emit("nonideal", "NI_SIG", args, [], [], pr, ret="False"),
+                _emit("nonideal_jac", "NIJ_SIG", jargs, [], [], pr, ret="False")]
+    sub = S.sub | dict(zip(system.psi, S.psi))
+    Nx = sympy.Matrix(N).xreplace(sub)
+    unpack = S.ut + S.uq + S.uv + S.up
+    jac = (_mat_outputs("Nq", _jacobian(Nx, S.q)) + _mat_outputs("Nv", _jacobian(Nx, S.v))
+           + _mat_outputs("Npsi", _jacobian(Nx, S.psi)))
+    return [_emit("nonideal", "NI_SIG", args, unpack, _vec_outputs("N", Nx), pr, ret="True"),
+            _emit("nonideal_jac", "NIJ_SIG", jargs, unpack, jac, pr, ret="True")]

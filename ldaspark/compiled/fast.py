@@ -21,7 +21,9 @@ newton_iterations, nfev (stage points evaluated), njev, nlu, max_iterations.
 
 A run that meets NaN or inf (L or k evaluated outside their domain, overflow) stops with
 ``NonFiniteError`` naming the step and the time; Newton failures raise ``NewtonError``.
-Where a system cannot be compiled (a nonideal term, an expression numba cannot compile, no safe
+Nonideal constraints (3.3) run on the general kernel (``kernels_general``: the reaction
+-K^T Psi + N(t, q, v, Psi) in (21b, d) and N_q, N_v, N_psi in the Newton matrix).
+Where a system cannot be compiled (an expression numba cannot compile, no safe
 cache directory) ``fast_integrate`` prints one line ``ldaspark.compiled.fast: ... falling back
 to the generic path`` to stderr and runs ``ldaspark.core.spark.integrate`` /
 ``ldaspark.core.comparators``.
@@ -62,8 +64,8 @@ def mechanical_parts(system) -> dict:
 
     Uses ``system.mechanical`` when set, else detects the form: L_vv free of t, q, v;
     grad_v L - M v = 0 (no gyroscopic terms); k_v free of v. Raises NotCompilableError."""
-    if getattr(system, "N", None) is not None:
-        raise NotCompilableError(f"{system.name}: nonideal constraint term (3.3) is not compiled")
+    if nonideal_term(system) is not None:
+        raise NotCompilableError(f"{system.name}: a nonideal term (3.3) needs the general form")
     q, v, t = list(system.q), list(system.v), system.t
     mech = system.mechanical
     if mech is not None:
@@ -121,7 +123,8 @@ class CompiledSystem:
         if hit is None:
             from numba.core.types.function_type import CompileResultWAP
             mod = self.module.MODEL
-            hit = (mod[0],) + tuple(CompileResultWAP(f.overloads[f.signatures[0]]) for f in mod[1:])
+            hit = (mod[0],) + tuple(f if isinstance(f, bool) else CompileResultWAP(f.overloads[f.signatures[0]])
+                                    for f in mod[1:])      # a general model ends with its flag has_N
             _MODELS[self.digest] = hit
         return hit
 
@@ -138,12 +141,11 @@ _COMPILED: dict[tuple, tuple] = {}
 
 def compile_system(system, form: str = "auto") -> CompiledSystem:
     """Generate (and cache per system object) the compiled model: the mechanical form where the
-    system has it (``form="auto"`` or "mechanical"), else the general form. The module itself
+    system has it (``form="auto"`` or "mechanical"), else the general form (always for a
+    nonideal term N(t, q, v, psi) of 3.3). The module itself
     is compiled at first use (``CompiledSystem.module``). Raises NotCompilableError."""
     if form not in ("auto", "mechanical", "general"):
         raise InputError(f"form must be 'auto', 'mechanical' or 'general', got {form!r}")
-    if nonideal_term(system) is not None:
-        raise NotCompilableError(f"{system.name}: the nonideal term N(t, q, v, psi) is not compiled yet")
     key = (id(system), form)
     hit = _COMPILED.get(key)
     if hit is not None and hit[0] is system:

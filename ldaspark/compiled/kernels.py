@@ -25,7 +25,7 @@ from . import modeltypes as mt
 # it compiles in live in sibling modules. Their digest is written here so that editing a helper
 # changes this file too (tests/test_compiled_general.py checks it; update it after an edit).
 HELPERS = ("newton.py", "kernels_mech.py", "kernels_general.py", "modeltypes.py")
-HELPERS_SHA256 = "4aebd728d921add3a78101cd483d92059e6eb7439238366830fadff4f6f57dcb"
+HELPERS_SHA256 = "d971ddb3d6092e26f58189f5b723807a5758dbcd6e24034c29b6f43489f2179e"
 
 from .newton import (FAIL_NONFINITE, FAIL_SINGULAR, accept_step, advance, end_newton, fail, lu_factor,  # noqa: E402
                      lu_solve, newton_increment, newton_status, norm_inf, predict, record, shift, start_newton)
@@ -42,7 +42,7 @@ def store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
 
 
 def _form(model, mechanical, general):
-    """The model tuple is (n, 7 mechanical functions) or (n, 3 general functions)."""
+    """The model tuple is (n, 7 mechanical functions) or (n, 5 general functions, has_N)."""
     return mechanical if len(model.types) == 8 else general
 
 

@@ -2,10 +2,19 @@
 the same equations as ``ldaspark.core.spark.SparkMethod.residual``, with the momentum map
 implicit ((21b) and (21d) are solved for V_i and v1 directly). Called by ``kernels.general_run``.
 
-The model is the tuple ``codegen.general_source`` exports: (n, point_val, point_jac, energy), with
-point_val -> grad_v L, grad_q L, k, K = k_v and point_jac -> L_vv, L_vq, L_qq, k_q and
-KRq, KRv = the q- and v-partials of K^T lam (= -h R of (21) with lam = Lambda).
-Workspace ``ws`` (see ``workspace``): stage arrays, end-point arrays, and p0 = grad_v L(t0, q0, v0).
+The model is the tuple ``codegen.general_source`` exports: (n, point_val, point_jac, energy,
+nonideal, nonideal_jac, has_N), with point_val -> grad_v L, grad_q L, k, K = k_v and point_jac ->
+L_vv, L_vq, L_qq, k_q and KRq, KRv = the q- and v-partials of K^T lam (= -h R of (21) with
+lam = Lambda for ideal constraints); nonideal -> N(t, q, v, psi) and nonideal_jac -> N_q, N_v,
+N_psi of 3.3. For a system without N, has_N is False and the nonideal terms below are skipped
+without a call, so that the ideal path is the code it was before N (a model call per stage and
+five more arrays in the workspace tuple passed to every helper measured 4-8% of the step of an
+ideal n = 3 system; the flag and one flat array 1-2%).
+With N: -h R_i = K_i^T Lambda_i - h N(T_i, Q_i, V_i, Lambda_i / h) (Lambda = h Psi), so the
+stage reaction gains -h N, its q- and v-partials -h N_q, -h N_v, and d(-h R_i)/dLambda_i =
+K_i^T - N_psi (as ``LagrangianSystem.stage`` with ``h``; the end point carries no reaction).
+Workspace ``ws`` (see ``workspace``): stage arrays, end-point arrays, p0 = grad_v L(t0, q0, v0),
+then one flat array holding N, N_q, N_v, N_psi at the stages and psi (``nonideal_views``).
 """
 import numba
 import numpy as np
@@ -22,7 +31,36 @@ def workspace(s, n, m):
             np.zeros((s, n, n)), np.zeros((s, n, n)),
             np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(m), np.zeros((m, n)),
             np.zeros((n, n)), np.zeros((n, n)), np.zeros((n, n)), np.zeros((m, n)), np.zeros((n, n)),
-            np.zeros((n, n)), np.zeros(m), np.zeros(n))
+            np.zeros((n, n)), np.zeros(m), np.zeros(n), np.zeros(s * n * (1 + 2 * n + m) + m))
+
+
+@numba.njit(cache=True)
+def nonideal_views(nw, s, n, m):
+    """N (s, n), N_q (s, n, n), N_v (s, n, n), N_psi (s, n, m) at the stages and psi (m) as views
+    of the workspace's flat array (zero-initialised: the model writes only nonzero entries)."""
+    sn, snn = s * n, s * n * n
+    o2, o3, o4 = sn + snn, sn + 2 * snn, sn + 2 * snn + sn * m
+    return (nw[:sn].reshape((s, n)), nw[sn:o2].reshape((s, n, n)), nw[o2:o3].reshape((s, n, n)),
+            nw[o3:o4].reshape((s, n, m)), nw[o4:o4 + m])
+
+
+@numba.njit(cache=True)
+def nonideal_stages(model, jac, x, T, Q, V, h, nw, KTL):
+    """-h R_j = K_j^T Lambda_j - h N(T_j, Q_j, V_j, Lambda_j / h) (3.3): subtracts h N from
+    KTL = K^T Lambda and, if jac, evaluates N_q, N_v, N_psi at the stages."""
+    nonideal, nonideal_jac = model[4], model[5]
+    s, n = KTL.shape[0], KTL.shape[1]
+    m = (x.shape[0] - s * n - n) // s
+    sn = s * n
+    Nst, Nq, Nv, Np, psi = nonideal_views(nw, s, n, m)
+    for j in range(s):
+        for l in range(m):
+            psi[l] = x[sn + j * m + l] / h
+        nonideal(T[j], Q[j], V[j], psi, Nst[j])
+        if jac:
+            nonideal_jac(T[j], Q[j], V[j], psi, Nq[j], Nv[j], Np[j])
+        for a in range(n):
+            KTL[j, a] -= h * Nst[j, a]
 
 
 @numba.njit(cache=True)
@@ -36,7 +74,7 @@ def general_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
         point_val(t0, q0, v0, ws[27], ws[17], ws[18], ws[19])
     c, A, Ah, At, bw, bh, bt, om = tab
     (T, Q, V, Lv, Lq, kst, kv, KTL, Lvv, Lvq, Lqq, kq, KRq, KRv,
-     q1, v1, Lv1, Lq1, k1, kv1, Lvv1, Lvq1, Lqq1, kq1, KRq1, KRv1, zl, p0) = ws
+     q1, v1, Lv1, Lq1, k1, kv1, Lvv1, Lvq1, Lqq1, kq1, KRq1, KRv1, zl, p0) = ws[:28]
     s, n, m = A.shape[0], q0.shape[0], k1.shape[0]
     sn = s * n
     stage_points(tab, x, t0, q0, v0, h, m, T, Q, V, q1, v1)
@@ -47,6 +85,8 @@ def general_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
             for l in range(m):
                 acc += kv[j, l, a] * x[sn + j * m + l]
             KTL[j, a] = acc
+    if model[6]:                 # has_N: the nonideal term (3.3) in the stage reactions
+        nonideal_stages(model, jac, x, T, Q, V, h, ws[28], KTL)
     point_val(t0 + h, q1, v1, Lv1, Lq1, k1, kv1)
     # (21b) rows i < s, (21d) row i = s: P_i - p0 - h sum_j A^_ij F_j + sum_j A~_ij K_j^T Lambda_j
     for i in range(s + 1):
@@ -73,6 +113,8 @@ def general_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
                       KRq[j], KRv[j])
         point_jac(t0 + h, q1, v1, zl, Lvv1, Lvq1, Lqq1, kq1, KRq1, KRv1)
         general_jacobian(tab, h, ws, J)
+        if model[6]:
+            nonideal_jacobian(tab, h, ws[28], m, J)
         return 2 * s + 3
     return s + 1
 
@@ -85,7 +127,7 @@ def general_jacobian(tab, h, ws, J):
     b, b^, b~ and dp1/dV_k = h b_k L_vq(t1, q1, v1), dp1/dv1 = L_vv(t1, q1, v1)."""
     c, A, Ah, At, bw, bh, bt, om = tab
     (T, Q, V, Lv, Lq, kst, kv, KTL, Lvv, Lvq, Lqq, kq, KRq, KRv,
-     q1, v1, Lv1, Lq1, k1, kv1, Lvv1, Lvq1, Lqq1, kq1, KRq1, KRv1, zl, p0) = ws
+     q1, v1, Lv1, Lq1, k1, kv1, Lvv1, Lvq1, Lqq1, kq1, KRq1, KRv1, zl, p0) = ws[:28]
     s, n, m = A.shape[0], q1.shape[0], k1.shape[0]
     sn = s * n
     J[:, :] = 0.0
@@ -109,6 +151,32 @@ def general_jacobian(tab, h, ws, J):
                 for l in range(m):
                     J[i * n + a, sn + k * m + l] = wk_t * kv[k, l, a]
     constraint_rows(tab, h, kv, kq, kv1, kq1, Lvv1, J)
+
+
+@numba.njit(cache=True)
+def nonideal_jacobian(tab, h, nw, m, J):
+    """The nonideal term's part of d(21b, d)/d(Z, Lambda) (3.3), added to ``general_jacobian``:
+    -h N(T_j, Q_j, V_j, Lambda_j / h) in -h R_j gives d(21b)_i/dV_k += -h a~_ik N_v,k
+    - h^2 sum_j a~_ij a_jk N_q,j and d(21b)_i/dLambda_k += -a~_ik N_psi,k; (21d) alike with b~.
+    The model's output arrays are left as written (their structural zeros must stay zero)."""
+    A, At, bt = tab[1], tab[3], tab[6]
+    s = A.shape[0]
+    n = (J.shape[0] - s * m) // (s + 1)
+    sn = s * n
+    Nst, Nq, Nv, Np, psi = nonideal_views(nw, s, n, m)
+    h2 = h * h
+    for i in range(s + 1):
+        for k in range(s):
+            wk_t = At[i, k] if i < s else bt[k]
+            for a in range(n):
+                for b in range(n):
+                    acc = -h * wk_t * Nv[k, a, b]
+                    for j in range(s):
+                        wt = At[i, j] if i < s else bt[j]
+                        acc -= h2 * wt * A[j, k] * Nq[j, a, b]
+                    J[i * n + a, k * n + b] += acc
+                for l in range(m):
+                    J[i * n + a, sn + k * m + l] -= wk_t * Np[k, a, l]
 
 
 @numba.njit(cache=True)

@@ -30,9 +30,14 @@ VAL_SIG = types.void(f8, a1, a1, a1, a1, a1, a2)     # point_val(t, q, v, L_v, L
 # point_jac(t, q, v, lam, L_vv, L_vq, L_qq, k_q, KTl_q, KTl_v), KTl = K^T lam
 JAC_SIG = types.void(f8, a1, a1, a1, a2, a2, a2, a2, a2, a2)
 E_SIG = f8(f8, a1, a1)                               # energy(t, q, v) = L_v v - L (8)
+# the nonideal term N(t, q, v, psi) of 3.3 and its partials; for a system without N both write
+# nothing and return False, and the model's flag has_N (last entry of GEN_MODEL) is False, so
+# that one kernel signature serves ideal and nonideal systems
+NI_SIG = b1(f8, a1, a1, a1, a1)                      # nonideal(t, q, v, psi, N)
+NIJ_SIG = b1(f8, a1, a1, a1, a2, a2, a2)             # nonideal_jac(t, q, v, psi, N_q, N_v, N_psi)
 
 U_FN, VEC_FN, MAT_FN, MATX_FN = (types.FunctionType(s) for s in (U_SIG, VEC_SIG, MAT_SIG, MATX_SIG))
-VAL_FN, JAC_FN, E_FN = (types.FunctionType(s) for s in (VAL_SIG, JAC_SIG, E_SIG))
+VAL_FN, JAC_FN, E_FN, NI_FN, NIJ_FN = (types.FunctionType(s) for s in (VAL_SIG, JAC_SIG, E_SIG, NI_SIG, NIJ_SIG))
 
 # the SPARK coefficients (21): c, A, A_hat, A_tilde, b, b_hat, b_tilde, omega
 TABLEAU = (a1, a2, a2, a2, a1, a1, a1, a2)
@@ -46,7 +51,7 @@ FAIL_NEWTON, FAIL_SINGULAR, FAIL_NONFINITE = 1, 2, 3
 # codegen's MODEL tuples: (n, functions...). The leading integer is n; it also keeps numba from
 # trying to unify the function types into one (and warning at every call) when typing the tuple.
 MECH_MODEL = types.Tuple((i8, VEC_FN, MAT_FN, MAT_FN, VEC_FN, MATX_FN, MATX_FN, U_FN))
-GEN_MODEL = types.Tuple((i8, VAL_FN, JAC_FN, E_FN))
+GEN_MODEL = types.Tuple((i8, VAL_FN, JAC_FN, E_FN, NI_FN, NIJ_FN, b1))
 TABLEAU_T = types.Tuple(TABLEAU)
 STATS = types.Array(i8, 1, "C")
 ODE_SIG = types.void(f8, a1, a1, a2, a1)             # ode_parts(t, q, v, S, r) of ``ode``

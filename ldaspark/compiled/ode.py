@@ -10,7 +10,8 @@ from __future__ import annotations
 import sympy
 
 from .cache import load_source
-from .codegen import HEADER, _emit, _mat_outputs, _named, _Printer, _Symbols, _vec_outputs
+from .codegen import HEADER, NotCompilableError, _emit, _mat_outputs, _named, _Printer, _Symbols, _vec_outputs, \
+    nonideal_term
 
 _RHS = '''
 
@@ -34,7 +35,10 @@ def rhs(t, y):
 @_named
 def ode_source(system) -> str:
     """Module with ``ode_parts(t, q, v, S, r)`` (the saddle matrix (4) and the right-hand side of
-    (3a-b), nonzero entries only) and ``rhs(t, y)``."""
+    (3a-b), nonzero entries only) and ``rhs(t, y)``. Ideal constraints only: with a nonideal
+    term (3.3), (3a) is nonlinear in psi (``LagrangianSystem.ode_rhs`` solves it by Newton)."""
+    if nonideal_term(system) is not None:
+        raise NotCompilableError(f"{system.name}: the compiled ODE (3a-b) has no nonideal term (3.3)")
     n, m = system.n, system.m
     S = _Symbols(system, m)
     X = lambda M: sympy.Matrix(M).xreplace(S.sub)          # noqa: E731
