@@ -10,8 +10,8 @@
 euler-i, euler-ii), a ``SparkTableau``, or a comparator name (``ldaspark.core.comparators``).
 
 Engines: ``"generic"`` steps (21a-f) with ``SparkMethod`` in float64, or in mpmath with ``dps``;
-``"compiled"`` runs the numba kernels of ``ldaspark.compiled.fast`` (mechanical systems,
-float64); ``"auto"`` (default) is compiled whenever the system and method qualify, else generic
+``"compiled"`` runs the numba kernels of ``ldaspark.compiled.fast`` (every system: mechanical
+form, general L(t, q, v) and k(t, q, v), nonideal terms; float64); ``"auto"`` (default) is compiled whenever the system and method qualify, else generic
 with a one-line notice on stderr. Both solve the same equations (21) to round-off (the compiled
 kernels use simplified Newton and compensated sums), and agree to ~1e-13 over 1e4 steps.
 
