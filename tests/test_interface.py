@@ -94,9 +94,9 @@ def test_generic_failure_keeps_prefix():
 
 
 def test_compiled_failure_keeps_prefix():
-    r = ldaspark.integrate("particle", "gauss-2", n_steps=40, h=1.0, engine="compiled")
-    assert r.status == -1 and r.engine == "compiled" and len(r.t) == 7
-    ok = ldaspark.integrate("particle", "gauss-2", n_steps=6, h=1.0, engine="compiled")
+    r = ldaspark.integrate("robot", "gauss-2", n_steps=40, h=2.0, engine="compiled")
+    assert r.status == -1 and r.engine == "compiled" and 1 < len(r.t) < 41
+    ok = ldaspark.integrate("robot", "gauss-2", n_steps=len(r.t) - 1, h=2.0, engine="compiled")
     assert ok.success and np.array_equal(ok.q, r.q)
 
 

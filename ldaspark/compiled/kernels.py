@@ -95,12 +95,23 @@ def spark_loop(model, tab, M, ws, t0, q0, v0, h, n_steps, every, compensated, to
         prev = -1.0
         it = 0
         status = 0
+        fresh = 0
         while it < max_iter:
             it += 1
             dn = newton_increment(J, piv, G, x)
             status = newton_status(dn, prev, norm_inf(x), floor, tol)
             if status != 0:
                 break
+            if prev > 0.0 and dn > 0.5 * prev and fresh < 8:
+                # simplified Newton contracts too slowly or diverges here (the matrix at the
+                # predictor is too far off, e.g. k strongly nonlinear in v): a new Newton matrix
+                # at this iterate, as the generic path's full Newton would use
+                fresh += 1
+                stats[2] += evaluate(model, tab, True, x, t, q, v, h, M, ws, G, J)
+                if not start_newton(stats, step, G, J, piv):
+                    return
+                prev = -1.0
+                continue
             prev = dn
             stats[2] += evaluate(model, tab, False, x, t, q, v, h, M, ws, G, J)
         if not end_newton(stats, step, it, status):
