@@ -479,6 +479,35 @@ def n_steps_for(t0, t_end, h) -> int:
     return N
 
 
+def march(method: SparkMethod, t0, q0, v0, h, n_steps: int, monitor_saddle: bool = True):
+    """The stepping loop of (21) shared by ``integrate`` and ``ldaspark.integrate``: yields
+    (i, t_i, q_i, StepResult of step i) for i = 0..n_steps-1 from checked, consistent
+    (t0, q0, v0) already converted by ``method.backend`` (t_i = t0 + i h). The caller stores
+    what it needs (every point, every k-th, stage values for dense output, events) and may stop
+    early; a failing step raises (NewtonError, NonFiniteError, SingularSaddleError) from the
+    generator. Predictor: the previous step's unknowns shifted by the last velocity increment.
+    ``monitor_saddle``: a sign change of det (4) between t0 and a step point is an error (the
+    step landed on the second solution near the limit of (4), see ``integrate``)."""
+    system, bk = method.system, method.backend
+    q, v = q0, v0
+    x = v_prev = None
+    sign0 = _saddle_sign(system, bk, t0, q, v) if monitor_saddle else None
+    for i in range(n_steps):
+        ti = t0 + i * h
+        if x is not None and v_prev is not None:
+            Vp, Lp, v1p = method.unpack(x)
+            x = method.pack(Vp + (v - v_prev), Lp, v1p + (v - v_prev))
+        r = method.step(ti, q, v, h, x0=x, step_index=i)
+        if sign0 and _saddle_sign(system, bk, r.t1, r.q1, r.v1) != sign0:
+            raise SingularSaddleError(
+                f"step {i} (t = {float(ti):.6g} -> {float(r.t1):.6g}) crossed the singular set of the "
+                "saddle matrix (4): det (4) changed sign, so the step solved (21) on the wrong branch or the "
+                "solution left the region where (4) holds (monitor_saddle=False skips this check)")
+        yield i, ti, q, r
+        v_prev = v
+        q, v, x = r.q1, r.v1, r.x
+
+
 def integrate(system: LagrangianSystem, tableau: SparkTableau, t0, q0, v0, h, t_end=None,
               n_steps=None, dps=None, project=False, tol=None, newton="full", progress=None,
               check_initial=True, monitor_saddle=True, energy_jump=None) -> Solution:
@@ -527,24 +556,9 @@ def integrate(system: LagrangianSystem, tableau: SparkTableau, t0, q0, v0, h, t_
         check_storage(N + 1, 2 + 2 * system.n + (tableau.s + 1) * system.m, bk.is_mp)
         ts = [t0_ + i * h_ for i in range(N + 1)]
         Qs, Vs, Ps = [q], [v], []
-        x = None
-        v_prev = None
-        sign0 = _saddle_sign(system, bk, t0_, q, v) if monitor_saddle else None
-        for i in range(N):
-            if x is not None and v_prev is not None:
-                # predictor: previous stage solution shifted by the last velocity increment
-                Vp, Lp, v1p = method.unpack(x)
-                x = method.pack(Vp + (v - v_prev), Lp, v1p + (v - v_prev))
-            r = method.step(ts[i], q, v, h_, x0=x, step_index=i)
-            v_prev = v
-            q, v, x = r.q1, r.v1, r.x
-            if sign0 and _saddle_sign(system, bk, r.t1, q, v) != sign0:
-                raise SingularSaddleError(
-                    f"step {i} (t = {float(ts[i]):.6g} -> {float(r.t1):.6g}) crossed the singular set of the "
-                    "saddle matrix (4): det (4) changed sign, so the step solved (21) on the wrong branch or the "
-                    "solution left the region where (4) holds (monitor_saddle=False skips this check)")
-            Qs.append(q)
-            Vs.append(v)
+        for i, _, _, r in march(method, t0_, q, v, h_, N, monitor_saddle=monitor_saddle):
+            Qs.append(r.q1)
+            Vs.append(r.v1)
             Ps.append(r.Psi)
             if progress is not None:
                 progress(i + 1, N)
