@@ -85,6 +85,40 @@ def table(dps, steps, methods, scenes):
     return worst
 
 
+def jacobian_table(calls=300):
+    """float64 Newton matrix: ``_jacobian_einsum`` vs ``_jacobian_blocks`` on the same stage
+    values (median CPU microseconds of ``calls`` assemblies) and their largest difference."""
+    import numpy as np
+    from ldaspark.core.spark import SparkMethod
+    print(f"\nfloat64 Newton matrix assembly, median CPU us of {calls} calls (same stage values)")
+    print(f"{'scene':>16} {'method':>24} {'size':>5} {'einsum':>8} {'blocks':>8} {'einsum/blocks':>13} {'max |diff|':>10}")
+    for scene in ("robot", "particle", "mp-particles"):
+        for method in ("gauss-2", "lobatto-iiia-iiib-3"):
+            sc = get_scene(scene)
+            meth = SparkMethod(sc.system, get_method(method))
+            t0, q0, v0 = sc.initial()
+            q0, v0, h = np.array(q0), np.array(v0), 0.05
+            x = meth.initial_guess(v0)
+            V, Lam, v1 = meth.unpack(x)
+            T = [t0 + meth.tab.c[i] * h for i in range(meth.s)]
+            Q = q0 + meth.tab.A.dot(V) * h
+            bk = meth.backend
+            st = [sc.system.stage(bk, T[i], Q[i], V[i], Lam[i], True, h=h) for i in range(meth.s)]
+            fin = sc.system.stage(bk, t0 + h, q0 + meth.tab.b.dot(V) * h, v1, bk.zeros(meth.m), True)
+            out = {}
+            for name in ("_jacobian_einsum", "_jacobian_blocks"):
+                fn = getattr(meth, name)
+                ts = []
+                for _ in range(calls):
+                    c = time.process_time()
+                    J = fn(h, st, fin)
+                    ts.append(time.process_time() - c)
+                out[name] = (float(np.median(ts)), J)
+            e, b = out["_jacobian_einsum"], out["_jacobian_blocks"]
+            print(f"{scene:>16} {method:>24} {meth.size:>5} {e[0] * 1e6:>8.1f} {b[0] * 1e6:>8.1f} "
+                  f"{e[0] / b[0]:>13.2f} {np.max(np.abs(e[1] - b[1])):>10.1e}", flush=True)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=200)
@@ -94,7 +128,11 @@ def main(argv=None):
     ap.add_argument("--methods-mp", default=",".join(METHODS_MP))
     ap.add_argument("--skip-f64", action="store_true")
     ap.add_argument("--skip-mp", action="store_true")
+    ap.add_argument("--jacobian-only", action="store_true", help="only the float64 Newton-matrix assembly table")
     a = ap.parse_args(argv)
+    jacobian_table()
+    if a.jacobian_only:
+        return
     scenes = a.scenes.split(",")
     if not a.skip_f64:
         table(None, a.steps, a.methods.split(","), scenes)

@@ -105,10 +105,13 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
               h: Any = None, *, t0: Any = None, t_end: Any = None, n_steps: Optional[int] = None,
               engine: str = "auto", dps: Optional[int] = None, save_every: int = 1, dense_output: bool = False,
               events: Union[None, Callable, Sequence[Callable]] = None, params: Union[None, dict, list] = None,
-              raise_on_failure: bool = False, newton: str = "full", project: bool = False,
+              raise_on_failure: bool = False, newton: str = "auto", project: bool = False,
               tol: Optional[float] = None, executor: Any = None) -> Result:
     """Integrate (1) from (t0, q0, v0) with constant step h; see the module docstring.
 
+    ``newton``: the generic engine's Newton variant (``SparkMethod``): "auto" (default: simplified
+    Newton with a fall-back to full Newton on slow contraction, full Newton's numbers to within
+    the Newton tolerance), "full" or "simplified".
     ``params``: {symbol or name: value}, or a list of such dicts for an ensemble over parameters.
     ``q0``/``v0`` with shape (B, n): an ensemble over initial data. Ensemble members run in a
     loop, or through ``executor`` when given: compiled initial-data ensembles as pickled tasks

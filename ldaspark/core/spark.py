@@ -69,12 +69,17 @@ class SparkMethod:
     tableau : SparkTableau
     dps : None for float64, else mpmath digits.
     tol : Newton increment tolerance (relative); default 10 * unit round-off.
-    newton : "full" (default: Jacobian every iteration), "simplified" (one Jacobian per step)
-        or "auto" (simplified Newton; at the first increment that does not contract by 1/4 the
-        increment is discarded and the step continues as full Newton). "auto" gives the same q
-        as "full" to round-off on the named scenes at 1.4-3x less cost per step at 30-50 digits
-        (float64: 0.9-1.5x, within the noise; ``benchmarks/ledger_speed.py``), but not near the limit of (4), where round-off
-        decides the branch (tests/test_extremes.py), so it is not the default.
+    newton : "full" (Jacobian every iteration; the default of ``SparkMethod``, the reference step
+        of the checks), "simplified" (one Jacobian and one LU per step) or "auto" (the default of
+        ``integrate`` and ``ldaspark.integrate``: simplified Newton; at the first increment that
+        does not contract by 1/4 the increment is discarded and the step continues as full
+        Newton). Measured by ``benchmarks/newton_variants.py`` (12 named scenes x 7 methods in
+        float64, 2 methods at 30 digits, 200 steps of h = 0.05): "auto" stays within 14 tol of
+        full Newton's q and v after 200 steps (chaotic MP particles and constant-speed; <= 2 tol
+        on most scenes), at 1.1-1.6x the steps/s in float64 and up to 1.9x at 30 digits; near the
+        limit of (4) the det (4) monitor stops it at the same step as full Newton on every
+        OpenBLAS kernel (tests/test_extremes.py, tests/test_newton_default.py). "simplified"
+        alone diverges there at step 0, so the fallback is what makes "auto" safe.
     max_iter : Newton iteration cap before NewtonError.
     energy_jump : optional monitor: stop (NonFiniteError) when one step changes the energy (8) by
         more than energy_jump (1 + |E|); off by default (the energy of a time-dependent or
@@ -153,14 +158,19 @@ class SparkMethod:
         return G, J, (T, Q, q1)
 
     def _jacobian(self, h, st, fin):
-        """Newton matrix of (21b, d, e, f). In mpmath it is assembled block by block:
+        """Newton matrix of (21b, d, e, f): ``_jacobian_blocks`` in mpmath, ``_jacobian_einsum``
+        in float64 (see their docstrings for the measurements behind the choice)."""
+        if not self.backend.is_mp:
+            return self._jacobian_einsum(h, st, fin)
+        return self._jacobian_blocks(h, st, fin)
+
+    def _jacobian_blocks(self, h, st, fin):
+        """Newton matrix of (21b, d, e, f) assembled block by block:
         d X_j / d V_k = delta_jk X_v(j) + h a_jk X_q(j) for every stage quantity X, and only
         the nonzero tableau coefficients and the blocks whose expressions are not identically
         zero contribute (einsum over identity blocks on object arrays multiplied by zeros and
-        ones: 2-3x the cost at dps 30-50). float64: ``_jacobian_einsum``."""
+        ones: 2-3x the cost at dps 30-50). Works in float64 too (same matrix)."""
         tab, bk = self.tab, self.backend
-        if not bk.is_mp:
-            return self._jacobian_einsum(h, st, fin)
         s, n, m = self.s, self.n, self.m
         A, Ah, At, b, bh, bt = tab.A, tab.A_hat, tab.A_tilde, tab.b, tab.b_hat, tab.b_tilde
         z = self._structural_zero
@@ -213,8 +223,11 @@ class SparkMethod:
 
     def _jacobian_einsum(self, h, st, fin):
         """The same matrix by einsum over the stacked stage blocks (identity included), the
-        float64 assembly: numpy's call count, not flops, is the cost there, and this measured
-        1.5x faster than the block loop (70 vs 107 us on the robot, gauss-2). Works at any
+        float64 assembly: numpy's call count, not flops, is the cost there. Measured against
+        ``_jacobian_blocks`` on the same stage values (``benchmarks/newton_variants.py``, median
+        CPU us, shared 2-core machine at load ~6): robot 136 vs 199 (gauss-2), 157 vs 310
+        (lobatto-iiia-iiib-3); particle 120 vs 161, 147 vs 349; MP particles (n = 7) 143 vs
+        187, 153 vs 334: einsum 1.3-2.4x faster, the same matrix (<= 4e-19). Works at any
         precision too (benchmarks/ledger_speed.py compares it with the block assembly)."""
         tab = self.tab
         s, n, m = self.s, self.n, self.m
@@ -509,7 +522,7 @@ def march(method: SparkMethod, t0, q0, v0, h, n_steps: int, monitor_saddle: bool
 
 
 def integrate(system: LagrangianSystem, tableau: SparkTableau, t0, q0, v0, h, t_end=None,
-              n_steps=None, dps=None, project=False, tol=None, newton="full", progress=None,
+              n_steps=None, dps=None, project=False, tol=None, newton="auto", progress=None,
               check_initial=True, monitor_saddle=True, energy_jump=None) -> Solution:
     """Integrate (1) with the SPARK method (21) at constant step h from consistent data.
 
@@ -523,6 +536,8 @@ def integrate(system: LagrangianSystem, tableau: SparkTableau, t0, q0, v0, h, t_
     ``energy_jump`` (off by default) also stops a step that changes the energy by more than
     energy_jump (1 + |E|): the only monitor that sees a passage through a singularity of L such
     as 1/q1, which leaves finite values and a regular (4) behind.
+    ``newton``: "auto" (default), "full" or "simplified" (``SparkMethod``); "auto" gives full
+    Newton's numbers to within the Newton tolerance at less cost.
     Raises InconsistentInitialDataError (unless ``project``), SingularSaddleError, NewtonError,
     NonFiniteError.
     """
