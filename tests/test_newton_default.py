@@ -35,7 +35,7 @@ def _run(name, **kw):
 def test_default_newton_gives_full_newton_numbers(name):
     default, full = _run(name), _run(name, newton="full")
     assert _gap(default, full) <= 10
-    assert default.stats["nlu"] == STEPS < full.stats["nlu"]      # the cheaper variant ran
+    assert default.stats["nlu"] < full.stats["nlu"]      # the cheaper variant ran (one LU per step, or a few more)
 
 
 def test_default_newton_at_30_digits():
@@ -44,7 +44,7 @@ def test_default_newton_at_30_digits():
     runs = [integrate(sc.system, get_method("gauss-2"), t0, q0, v0, "0.05", n_steps=4, dps=30, **kw)
             for kw in ({}, {"newton": "full"})]
     gap = max(abs(a - b) for a, b in zip(runs[0].q.reshape(-1), runs[1].q.reshape(-1)))
-    assert gap <= 10 * 10 * 10.0 ** -30 and runs[0].stats["nlu"] == 4
+    assert gap <= 10 * 10 * 10.0 ** -30 and runs[0].stats["nlu"] < runs[1].stats["nlu"]
 
 
 def test_interface_default_is_the_same_loop():
@@ -69,3 +69,16 @@ def test_near_limit_of_4_monitor_stops_default_and_full_at_the_same_step():
     with pytest.raises(NewtonError, match="step 0"):
         integrate(S.soft_system(), get_method("gauss-2"), 0.0, [0.0] * 3, [1 - 1e-6, 0.0, 0.0], 0.01,
                   n_steps=215, newton="simplified")
+
+
+def test_auto_switch_rule():
+    from ldaspark.core.spark import _full_newton_cheaper as cheaper
+    # constant-speed at 30 digits: theta ~ 1e-2 leaves ~12 simplified increments, full Newton ~3
+    assert cheaper(7e-5, 6e-3, 1e-29, 1e-29)
+    # negative controls: fast contraction (particle, float64), converged, or not contracting
+    assert not cheaper(1e-6, 8e-3, 2.2e-15, 2.2e-15)
+    assert not cheaper(1e-16, 1e-3, 2.2e-15, 2.2e-15)
+    assert not cheaper(1e-3, 1e-3, 2.2e-15, 2.2e-15)
+    import mpmath
+    with mpmath.workdps(410):   # a tolerance below the float range (400 digits): mpmath logs
+        assert cheaper(mpmath.mpf("7e-5"), mpmath.mpf("6e-3"), mpmath.mpf("1e-400"), mpmath.mpf("1e-400"))
