@@ -71,15 +71,17 @@ class SparkMethod:
     tol : Newton increment tolerance (relative); default 10 * unit round-off.
     newton : "full" (Jacobian every iteration; the default of ``SparkMethod``, the reference step
         of the checks), "simplified" (one Jacobian and one LU per step) or "auto" (the default of
-        ``integrate`` and ``ldaspark.integrate``: simplified Newton; at the first increment that
-        does not contract by 1/4 the increment is discarded and the step continues as full
-        Newton). Measured by ``benchmarks/newton_variants.py`` (12 named scenes x 7 methods in
-        float64, 2 methods at 30 digits, 200 steps of h = 0.05): "auto" stays within 14 tol of
-        full Newton's q and v after 200 steps (chaotic MP particles and constant-speed; <= 2 tol
-        on most scenes), at 1.1-1.6x the steps/s in float64 and up to 1.9x at 30 digits; near the
+        ``integrate`` and ``ldaspark.integrate``): simplified Newton, continued as full Newton
+        (i) at the first increment that does not contract by 1/4 (discarded) or (ii) when the
+        contraction leaves more simplified increments than FULL_COST times the full-Newton ones
+        (``_full_newton_cheaper``). Measured by ``benchmarks/newton_variants.py`` (12 named
+        scenes, 200 steps of h = 0.05; 6 methods in float64, 2 at 30 digits): "auto" stays
+        within 13.3 tol (float64) and 12.5 tol (30 digits) of full Newton's q and v after 200
+        steps (the per-step tolerance accumulated; 0-2 tol on most scenes), at a median 1.15x (0.74-1.99x) the
+        steps/s of full Newton in float64 and a median 1.31x (0.78-1.75x) at 30 digits; near the
         limit of (4) the det (4) monitor stops it at the same step as full Newton on every
-        OpenBLAS kernel (tests/test_extremes.py, tests/test_newton_default.py). "simplified"
-        alone diverges there at step 0, so the fallback is what makes "auto" safe.
+        OpenBLAS kernel (tests/test_newton_default.py, tests/test_reliability_newton.py).
+        "simplified" alone diverges there at step 0: the fall-back is what makes "auto" safe.
     max_iter : Newton iteration cap before NewtonError.
     energy_jump : optional monitor: stop (NonFiniteError) when one step changes the energy (8) by
         more than energy_jump (1 + |E|); off by default (the energy of a time-dependent or
@@ -227,7 +229,8 @@ class SparkMethod:
         ``_jacobian_blocks`` on the same stage values (``benchmarks/newton_variants.py``, median
         CPU us, shared 2-core machine at load ~6): robot 136 vs 199 (gauss-2), 157 vs 310
         (lobatto-iiia-iiib-3); particle 120 vs 161, 147 vs 349; MP particles (n = 7) 143 vs
-        187, 153 vs 334: einsum 1.3-2.4x faster, the same matrix (<= 4e-19). Works at any
+        187, 153 vs 334: einsum 1.3-2.4x faster, the same matrix (<= 4e-19); a second run at
+        load ~4: 69-79 vs 90-168 us (1.3-2.1x). Works at any
         precision too (benchmarks/ledger_speed.py compares it with the block assembly)."""
         tab = self.tab
         s, n, m = self.s, self.n, self.m
@@ -426,7 +429,8 @@ def _full_newton_cheaper(dn, prev, tol_abs, tol) -> bool:
     from the relative size e = dn tol / tol_abs, about log2(log(tol) / log(e)) increments at
     FULL_COST each. At 30 digits with theta ~ 1e-2 (constant-speed) this is 13 simplified
     against 3 full iterations; in float64 the two are usually close and simplified stays."""
-    ln = lambda x: float(mpmath.log(x))          # noqa: E731  (mpf below the float range at high dps)
+    # mpf values may lie below the float range (high dps); floats take the cheap log
+    ln = math.log if isinstance(dn, float) else (lambda x: float(mpmath.log(x)))   # noqa: E731
     theta = dn / prev
     e = dn * tol / tol_abs
     if not (0 < theta < 1 and 0 < e < 1 and 0 < tol < 1) or dn <= tol_abs:
