@@ -403,6 +403,8 @@ def _setup_checks(system, t0, q0, v0, cs=None):
         system.check_saddle(bk, t, q, v)
         system.check_consistent(bk, t, q, v)
     if memo is None or memo[0] is not system:
+        if len(_CHECKED) >= 256:           # bounded: a parameter sweep makes a new system per value
+            _CHECKED.clear()
         memo = _CHECKED[id(system)] = (system, {})
     if len(memo[1]) >= 64:                 # a bounded memory of checked points per system
         memo[1].clear()
