@@ -24,6 +24,7 @@ import mpmath
 import numpy as np
 
 from .backend import Backend, SingularMatrixError
+from .blocks import combine as _combine, stage_blocks as _stage_blocks
 from .errors import InputError, NewtonError, NonFiniteError, SingularSaddleError
 from .system import LagrangianSystem
 from .tableau import SparkTableau
@@ -438,38 +439,6 @@ def _full_newton_cheaper(dn, prev, tol_abs, tol) -> bool:
     n_simplified = ln(tol_abs / dn) / ln(theta)
     n_full = math.ceil(math.log2(ln(tol) / ln(e)))
     return n_simplified > FULL_COST * n_full
-
-
-def _stage_blocks(Xv, Xq, A, h, col=None):
-    """D[j][k] = delta_jk Xv[j] + h a_jk Xq[j] (None where both vanish); with ``col`` only
-    the column k = col, as a list over j."""
-    s = len(Xv)
-
-    def one(j, k):
-        blk = Xv[j] if j == k else None
-        if A[j, k] and Xq[j] is not None:
-            t = Xq[j] * (A[j, k] * h)
-            blk = t if blk is None else blk + t
-        return blk
-    if col is not None:
-        return [one(j, col) for j in range(s)]
-    return [[one(j, k) for k in range(s)] for j in range(s)]
-
-
-def _combine(first, terms_h, h, terms):
-    """first - h sum_j c_j X_j - sum_j d_j Y_j over the nonzero coefficients and blocks
-    (None if everything vanishes); ``first`` may be None."""
-    acc = None
-    for c, X in terms_h:
-        if c and X is not None:
-            acc = X * c if acc is None else acc + X * c
-    out = None if acc is None else -(acc * h)
-    for c, Y in terms:
-        if c and Y is not None:
-            out = -(Y * c) if out is None else out - Y * c
-    if first is None:
-        return out
-    return first if out is None else first + out
 
 
 @dataclass
