@@ -105,10 +105,13 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
               h: Any = None, *, t0: Any = None, t_end: Any = None, n_steps: Optional[int] = None,
               engine: str = "auto", dps: Optional[int] = None, save_every: int = 1, dense_output: bool = False,
               events: Union[None, Callable, Sequence[Callable]] = None, params: Union[None, dict, list] = None,
-              raise_on_failure: bool = False, newton: str = "full", project: bool = False,
+              raise_on_failure: bool = False, newton: str = "auto", project: bool = False,
               tol: Optional[float] = None, executor: Any = None) -> Result:
     """Integrate (1) from (t0, q0, v0) with constant step h; see the module docstring.
 
+    ``newton``: the generic engine's Newton variant (``SparkMethod``): "auto" (default: simplified
+    Newton with a fall-back to full Newton on slow contraction, full Newton's numbers to within
+    the Newton tolerance), "full" or "simplified".
     ``params``: {symbol or name: value}, or a list of such dicts for an ensemble over parameters.
     ``q0``/``v0`` with shape (B, n): an ensemble over initial data. Ensemble members run in a
     loop, or through ``executor`` when given: compiled initial-data ensembles as pickled tasks
@@ -256,10 +259,10 @@ def _initial_checks(system, bk, t0, q0, v0, project, tol):
 
 
 def _run_generic(system, tableau, t0, q0, v0, h, N, every, dense, events, dps, tol, newton, project) -> Result:
-    """The loop of ``ldaspark.core.spark.integrate`` (same predictor, same checks, so the same
-    numbers), keeping every ``every``-th point, the stage values for dense output, events, and
-    the prefix on a step failure."""
-    from .core.spark import SparkMethod, _saddle_sign
+    """The loop of ``ldaspark.core.spark.integrate`` (``core.spark.march``: same predictor, same
+    checks, so the same numbers), keeping every ``every``-th point, the stage values for dense
+    output, events, and the prefix on a step failure."""
+    from .core.spark import SparkMethod, march
     method = SparkMethod(system, tableau, dps=dps, tol=tol, newton=newton)
     bk = method.backend
     status, message, error = 0, MSG_DONE, None
@@ -275,24 +278,17 @@ def _run_generic(system, tableau, t0, q0, v0, h, N, every, dense, events, dps, t
         tracker = EventTracker(events, t0_, q, v) if events else None
         saved_i, Qs, Vs, Ps = [0], [q], [v], []
         dense_q, dense_V = [], []
-        x = v_prev = None
-        sign0 = _saddle_sign(system, bk, t0_, q, v)
         done = 0
-        for i in range(N):
-            ti = t0_ + i * h_
-            if x is not None and v_prev is not None:
-                Vp, Lp, v1p = method.unpack(x)
-                x = method.pack(Vp + (v - v_prev), Lp, v1p + (v - v_prev))
-            try:
-                r = method.step(ti, q, v, h_, x0=x, step_index=i)
-                if not (bk.isfinite(r.q1) and bk.isfinite(r.v1)):
-                    raise LdasparkError(f"step {i} at t = {float(ti):.6g} produced non-finite values")
-                if sign0 and _saddle_sign(system, bk, r.t1, r.q1, r.v1) != sign0:
-                    raise SingularSaddleError(
-                        f"step {i} (t = {float(ti):.6g}) crossed the singular set of the saddle matrix (4)")
+        steps = march(method, t0_, q, v, h_, N)
+        while True:
+            try:              # only the step itself: an error raised by an event function propagates
+                item = next(steps, None)
             except LdasparkError as exc:
                 (status, message), error = _failure(exc), exc
                 break
+            if item is None:
+                break
+            i, ti, _, r = item
             if i % every == 0:
                 Ps.append(r.Psi)
             if dense or tracker:
@@ -300,8 +296,7 @@ def _run_generic(system, tableau, t0, q0, v0, h, N, every, dense, events, dps, t
                 dense_V.append(float_array(r.V))
             stop = tracker is not None and tracker.after_step(
                 ti, t0_ + (i + 1) * h_, r.q1, r.v1, step_piece(ti, h_, q, c, r.V))
-            v_prev = v
-            q, v, x = r.q1, r.v1, r.x
+            q, v = r.q1, r.v1
             done = i + 1
             if done % every == 0 or done == N or stop:
                 saved_i.append(done)

@@ -73,11 +73,13 @@ import re
 from ldaspark.core.families import get_method
 from ldaspark.core.spark import integrate
 from ldaspark.reports import stability as S
-try:
-    integrate(S.soft_system(), get_method("gauss-2"), 0.0, [0.0] * 3, [1 - 1e-6, 0.0, 0.0], 0.01, n_steps=215)
-    print("ok")
-except Exception as exc:
-    print(type(exc).__name__, re.search(r"step (\\d+)", str(exc)).group(1))
+for newton in NEWTON:
+    try:
+        integrate(S.soft_system(), get_method("gauss-2"), 0.0, [0.0] * 3, [1 - 1e-6, 0.0, 0.0], 0.01, n_steps=215,
+                  newton=newton)
+        print("ok")
+    except Exception as exc:
+        print(type(exc).__name__, re.search(r"step (\\d+)", str(exc)).group(1))
 """
 
 
@@ -85,16 +87,20 @@ except Exception as exc:
 @pytest.mark.parametrize("core", ["", "Haswell", "Prescott", "Zen", "SkylakeX"])
 def test_same_outcome_on_every_openblas_kernel(core):
     # the CPU-dependence itself: OpenBLAS picks its kernel by CPU; force each one
+    # (the default newton="auto" and full Newton alike)
     env = dict(os.environ, OPENBLAS_CORETYPE=core, PYTHONPATH=os.getcwd())
-    r = subprocess.run([sys.executable, "-c", _SCRIPT], capture_output=True, text=True, env=env, timeout=300)
-    assert r.stdout.strip() == "SingularSaddleError 200", (core, r.stdout, r.stderr[-500:])
+    script = "NEWTON = ('auto', 'full')\n" + _SCRIPT
+    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=300)
+    assert r.stdout.split("\n")[:2] == ["SingularSaddleError 200"] * 2, (core, r.stdout, r.stderr[-500:])
 
 
 @pytest.mark.exhaustive
 def test_negative_control_without_the_residual_test_haswell_fails():
     # the bug this guards against: with the round-off residual test switched off, the Haswell
-    # kernel reports 'Newton did not converge ... residual 3e-17' at step 199
+    # kernel reports 'Newton did not converge ... residual 3e-17' at step 199 with full Newton
+    # (newton="auto" happens to reach the monitor's step 200 even without it)
     env = dict(os.environ, OPENBLAS_CORETYPE="Haswell", PYTHONPATH=os.getcwd())
-    script = "from ldaspark.core.spark import SparkMethod\nSparkMethod.ROUNDOFF_FACTOR = 0\n" + _SCRIPT
+    script = ("from ldaspark.core.spark import SparkMethod\nSparkMethod.ROUNDOFF_FACTOR = 0\nNEWTON = ('full',)\n"
+              + _SCRIPT)
     r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=300)
     assert r.stdout.strip() == "NewtonError 199", (r.stdout, r.stderr[-500:])

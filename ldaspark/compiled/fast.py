@@ -270,6 +270,22 @@ def _kernels():
     return kernels
 
 
+_ENTRIES: dict[str, object] = {}
+
+
+def _entry(name):
+    """The compiled entry point of kernel ``name`` (one explicit signature). Calling it skips
+    the dispatcher's typeof of every argument, which for the model tuple of function addresses
+    costs ~0.3 ms per call; run_compiled builds every argument with exactly the signature's types."""
+    ep = _ENTRIES.get(name)
+    if ep is None:
+        disp = getattr(_kernels(), name)
+        sigs = disp.signatures
+        ep = disp.overloads[sigs[0]].entry_point if len(sigs) == 1 else disp
+        _ENTRIES[name] = ep
+    return ep
+
+
 def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, compensated=True,
                  tol=None, max_iter=50, kernel="auto", predictor=2):
     """Run a compiled kernel (no fallback); ``method`` a name, a SparkTableau or a kernel_spec.
@@ -294,16 +310,13 @@ def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, co
     outs = (np.zeros(S), np.zeros((S, cs.n)), np.zeros((S, cs.n)), np.zeros(S), np.zeros((S, cs.m)))
     stats = np.zeros(len(STAT_NAMES), dtype=np.int64)
     run = (float(t0), q0, v0, h, int(n_steps), int(every), bool(compensated), tol, int(max_iter), int(predictor))
-    K = _kernels()
     model = cs.model
     if kind == "lf2":
-        K.lf2_run(model, int(what), cs.M, cs.Minv, *run, *outs, stats)
+        _entry("lf2_run")(model, int(what), cs.M, cs.Minv, *run, *outs, stats)
     else:
         out_x = np.zeros(what[1].shape[0] * (cs.n + cs.m) + cs.n)
-        if cs.form == "mechanical":
-            K.spark_run(model, what, cs.M, *run, *outs, stats, out_x)
-        else:
-            K.general_run(model, what, cs.M, *run, *outs, stats, out_x)
+        _entry("spark_run" if cs.form == "mechanical" else "general_run")(model, what, cs.M, *run, *outs,
+                                                                           stats, out_x)
     st = dict(zip(STAT_NAMES, (int(x) for x in stats)))
     if st["failed_step"] >= 0:
         raise _failure(st, name, float(t0), h)
@@ -360,9 +373,15 @@ def _diagnose_newton_failure(exc, system, cs, method, t0, q0, v0, h, compensated
                        "ldaspark.core.spark.integrate for this step size)", step=k, time=tk)
 
 
-def _setup_checks(system, t0, q0, v0):
+def _setup_checks(system, t0, q0, v0, cs=None):
     """The generic path's set-up checks, in float64: finite data of the right shape, (4)
-    nonsingular with K of full rank, consistent v0 (the compiled kernels assume all three)."""
+    nonsingular with K of full rank, consistent v0 (the compiled kernels assume all three).
+
+    Same tests, cheaper where possible (the per-call overhead of a short run): with ``cs`` (a
+    mechanical-form model already loaded), (4) = [[M, K^T], [K, 0]] and k = K v0 + b come from
+    the model's own compiled K_of, b_of instead of the lambdified sympy expressions, and an
+    initial point that passed both checks for this system object is remembered (the verdict
+    is a function of (system, t0, q0, v0) only), so repeating a run skips them."""
     from ..core.backend import Backend
     bk = Backend(None)
     try:
@@ -374,8 +393,51 @@ def _setup_checks(system, t0, q0, v0):
         raise InputError(f"initial data have shapes q: {q.shape}, v: {v.shape}; the system has n = {system.n}")
     if not (np.isfinite(t) and bk.isfinite(q) and bk.isfinite(v)):
         raise InputError("initial data contain NaN or infinity")
-    system.check_saddle(bk, t, q, v)
-    system.check_consistent(bk, t, q, v)
+    key = (t, q.tobytes(), v.tobytes())
+    memo = _CHECKED.get(id(system))
+    if memo is not None and memo[0] is system and key in memo[1]:
+        return
+    if cs is not None and cs.form == "mechanical":
+        S, k = _saddle_and_k(cs, t, np.ascontiguousarray(q, float), np.ascontiguousarray(v, float))
+        system.check_saddle(bk, t, q, v, S=S)
+        system.check_consistent(bk, t, q, v, k=k)
+    else:
+        system.check_saddle(bk, t, q, v)
+        system.check_consistent(bk, t, q, v)
+    if memo is None or memo[0] is not system:
+        if len(_CHECKED) >= 256:           # bounded: a parameter sweep makes a new system per value
+            _CHECKED.clear()
+        memo = _CHECKED[id(system)] = (system, {})
+    if len(memo[1]) >= 64:                 # a bounded memory of checked points per system
+        memo[1].clear()
+    memo[1][key] = True
+
+
+#: id(system) -> (system, {checked initial point: True}); the identity test guards against reuse of ids
+_CHECKED: dict[int, tuple] = {}
+
+
+def _saddle_and_k(cs, t, q, v):
+    """(4) = [[M, K^T], [K, 0]] and k = K v + b at (t, q, v) from a mechanical-form model."""
+    n, m, mod = cs.n, cs.m, cs.module
+    K, b = np.zeros((m, n)), np.zeros(m)
+    mod.K_of(t, q, K)
+    mod.b_of(t, q, b)
+    S = np.zeros((n + m, n + m))
+    S[:n, :n] = cs.M
+    S[:n, n:] = K.T
+    S[n:, :n] = K
+    return S, K.dot(v) + b
+
+
+def _loaded(system):
+    """The system's CompiledSystem when ``compile_system`` made it and a run has loaded its
+    model in this process, else None (a first call checks before compiling, so that bad data
+    fail fast)."""
+    hit = _COMPILED.get((id(system), "auto"))
+    if hit is None or hit[0] is not system or hit[1].digest not in _MODELS:
+        return None
+    return hit[1]
 
 
 def _notice(msg):
@@ -427,7 +489,7 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
         raise InputError("give h and n_steps")
     _check_options(n_steps, every, predictor, tol, max_iter, len(q0), system.m)
     kernel_spec(method, kernel)
-    _setup_checks(system, t0, q0, v0)
+    _setup_checks(system, t0, q0, v0, _loaded(system))
     try:
         cs = compile_system(system)
         cs.module  # noqa: B018  (import / compile now so that failures fall back)

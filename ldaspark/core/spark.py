@@ -24,6 +24,7 @@ import mpmath
 import numpy as np
 
 from .backend import Backend, SingularMatrixError
+from .blocks import combine as _combine, stage_blocks as _stage_blocks
 from .errors import InputError, NewtonError, NonFiniteError, SingularSaddleError
 from .system import LagrangianSystem
 from .tableau import SparkTableau
@@ -69,17 +70,24 @@ class SparkMethod:
     tableau : SparkTableau
     dps : None for float64, else mpmath digits.
     tol : Newton increment tolerance (relative); default 10 * unit round-off.
-    newton : "full" (default: Jacobian every iteration), "simplified" (one Jacobian per step)
-        or "auto" (simplified Newton; at the first increment that does not contract by 1/4 the
-        increment is discarded and the step continues as full Newton). "auto" gives the same q
-        as "full" to round-off on the named scenes at 1.4-3x less cost per step at 30-50 digits
-        (float64: 0.9-1.5x, within the noise; ``benchmarks/ledger_speed.py``), but not near the limit of (4), where round-off
-        decides the branch (tests/test_extremes.py), so it is not the default. "mixed" (mpmath
-        precision; float64: "full"): the Newton matrix at every iterate assembled and factorised
-        in float64, the residual at full precision (iterative refinement: the same fixed point,
-        reached at a rate ~ 1e-16 cond(J) per iteration, as many iterations as full Newton at
-        30-60 digits, 2-5x cheaper); a slow increment switches the rest of the step to the
-        full-precision matrix.
+    newton : "full" (Jacobian every iteration; the default of ``SparkMethod``, the reference step
+        of the checks), "simplified" (one Jacobian and one LU per step) or "auto" (the default of
+        ``integrate`` and ``ldaspark.integrate``): simplified Newton, continued as full Newton
+        (i) at the first increment that does not contract by 1/4 (discarded) or (ii) when the
+        contraction leaves more simplified increments than FULL_COST times the full-Newton ones
+        (``_full_newton_cheaper``). Measured by ``benchmarks/newton_variants.py`` (12 named
+        scenes, 200 steps of h = 0.05; 6 methods in float64, 2 at 30 digits): "auto" stays
+        within 13.3 tol (float64) and 12.5 tol (30 digits) of full Newton's q and v after 200
+        steps (the per-step tolerance accumulated; 0-2 tol on most scenes), at a median 1.15x (0.74-1.99x) the
+        steps/s of full Newton in float64 and a median 1.31x (0.78-1.75x) at 30 digits; near the
+        limit of (4) the det (4) monitor stops it at the same step as full Newton on every
+        OpenBLAS kernel (tests/test_newton_default.py, tests/test_reliability_newton.py).
+        "simplified" alone diverges there at step 0: the fall-back is what makes "auto" safe.
+        "mixed" (mpmath precision; float64: "full"): the Newton matrix at every iterate
+        assembled and factorised in float64, the residual at full precision (iterative
+        refinement: the same fixed point, reached at a rate ~ 1e-16 cond(J) per iteration, as
+        many iterations as full Newton at 30-60 digits, 2-5x cheaper); an increment that does not
+        contract by 1/10 switches the rest of the step to the full-precision matrix.
     max_iter : Newton iteration cap before NewtonError.
     energy_jump : optional monitor: stop (NonFiniteError) when one step changes the energy (8) by
         more than energy_jump (1 + |E|); off by default (the energy of a time-dependent or
@@ -158,14 +166,19 @@ class SparkMethod:
         return G, J, (T, Q, q1)
 
     def _jacobian(self, h, st, fin):
-        """Newton matrix of (21b, d, e, f). In mpmath it is assembled block by block:
+        """Newton matrix of (21b, d, e, f): ``_jacobian_blocks`` in mpmath, ``_jacobian_einsum``
+        in float64 (see their docstrings for the measurements behind the choice)."""
+        if not self.backend.is_mp:
+            return self._jacobian_einsum(h, st, fin)
+        return self._jacobian_blocks(h, st, fin)
+
+    def _jacobian_blocks(self, h, st, fin):
+        """Newton matrix of (21b, d, e, f) assembled block by block:
         d X_j / d V_k = delta_jk X_v(j) + h a_jk X_q(j) for every stage quantity X, and only
         the nonzero tableau coefficients and the blocks whose expressions are not identically
         zero contribute (einsum over identity blocks on object arrays multiplied by zeros and
-        ones: 2-3x the cost at dps 30-50). float64: ``_jacobian_einsum``."""
+        ones: 2-3x the cost at dps 30-50). Works in float64 too (same matrix)."""
         tab, bk = self.tab, self.backend
-        if not bk.is_mp:
-            return self._jacobian_einsum(h, st, fin)
         s, n, m = self.s, self.n, self.m
         A, Ah, At, b, bh, bt = tab.A, tab.A_hat, tab.A_tilde, tab.b, tab.b_hat, tab.b_tilde
         z = self._structural_zero
@@ -218,8 +231,12 @@ class SparkMethod:
 
     def _jacobian_einsum(self, h, st, fin):
         """The same matrix by einsum over the stacked stage blocks (identity included), the
-        float64 assembly: numpy's call count, not flops, is the cost there, and this measured
-        1.5x faster than the block loop (70 vs 107 us on the robot, gauss-2). Works at any
+        float64 assembly: numpy's call count, not flops, is the cost there. Measured against
+        ``_jacobian_blocks`` on the same stage values (``benchmarks/newton_variants.py``, median
+        CPU us, shared 2-core machine at load ~6): robot 136 vs 199 (gauss-2), 157 vs 310
+        (lobatto-iiia-iiib-3); particle 120 vs 161, 147 vs 349; MP particles (n = 7) 143 vs
+        187, 153 vs 334: einsum 1.3-2.4x faster, the same matrix (<= 4e-19); a second run at
+        load ~4: 69-79 vs 90-168 us (1.3-2.1x). Works at any
         precision too (benchmarks/ledger_speed.py compares it with the block assembly)."""
         tab = self.tab
         s, n, m = self.s, self.n, self.m
@@ -324,6 +341,9 @@ class SparkMethod:
                 # increments are amplified noise and need not fall below the tolerance (BLAS-dependent)
                 if self._residual_at_roundoff(G, J_last, x, p0):
                     return self._finish(t0, q0, h, x, it, res, step_index)
+                if self.newton == "auto" and not refresh and prev is not None:
+                    # contracting, but too slowly for the digits still missing: full Newton from here
+                    refresh = _full_newton_cheaper(dn, prev, tol_abs, self.tol)
                 x = x_new
                 prev = dn
             raise NewtonError(
@@ -431,36 +451,30 @@ def _magnitudes(a):
     return np.array([abs(float(v)) for v in a.reshape(-1)]).reshape(a.shape)
 
 
-def _stage_blocks(Xv, Xq, A, h, col=None):
-    """D[j][k] = delta_jk Xv[j] + h a_jk Xq[j] (None where both vanish); with ``col`` only
-    the column k = col, as a list over j."""
-    s = len(Xv)
-
-    def one(j, k):
-        blk = Xv[j] if j == k else None
-        if A[j, k] and Xq[j] is not None:
-            t = Xq[j] * (A[j, k] * h)
-            blk = t if blk is None else blk + t
-        return blk
-    if col is not None:
-        return [one(j, col) for j in range(s)]
-    return [[one(j, k) for k in range(s)] for j in range(s)]
+#: cost of a full Newton iteration (stage Jacobians, Newton matrix, LU) in simplified iterations
+#: (residual, solve with the stored factor): residual + Jacobian + LU against residual + solve
+#: measured 3.1-3.6x in float64 and 3.4-9.9x at 30 digits (particle, constant-speed, pendulum,
+#: robot, MP particles, relativistic; gauss-2 and lobatto-iiia-iiib-3); the lower end, so that
+#: "auto" leaves simplified Newton only when full Newton clearly pays
+FULL_COST = 3.5
 
 
-def _combine(first, terms_h, h, terms):
-    """first - h sum_j c_j X_j - sum_j d_j Y_j over the nonzero coefficients and blocks
-    (None if everything vanishes); ``first`` may be None."""
-    acc = None
-    for c, X in terms_h:
-        if c and X is not None:
-            acc = X * c if acc is None else acc + X * c
-    out = None if acc is None else -(acc * h)
-    for c, Y in terms:
-        if c and Y is not None:
-            out = -(Y * c) if out is None else out - Y * c
-    if first is None:
-        return out
-    return first if out is None else first + out
+def _full_newton_cheaper(dn, prev, tol_abs, tol) -> bool:
+    """For newton="auto": after a simplified increment dn (the previous one prev), do the
+    iterations still needed cost less as full Newton? Simplified Newton contracts linearly
+    (theta = dn / prev): log(tol_abs / dn) / log(theta) more increments; full Newton, quadratic
+    from the relative size e = dn tol / tol_abs, about log2(log(tol) / log(e)) increments at
+    FULL_COST each. At 30 digits with theta ~ 1e-2 (constant-speed) this is 13 simplified
+    against 3 full iterations; in float64 the two are usually close and simplified stays."""
+    # mpf values may lie below the float range (high dps); floats take the cheap log
+    ln = math.log if isinstance(dn, float) else (lambda x: float(mpmath.log(x)))   # noqa: E731
+    theta = dn / prev
+    e = dn * tol / tol_abs
+    if not (0 < theta < 1 and 0 < e < 1 and 0 < tol < 1) or dn <= tol_abs:
+        return False
+    n_simplified = ln(tol_abs / dn) / ln(theta)
+    n_full = math.ceil(math.log2(ln(tol) / ln(e)))
+    return n_simplified > FULL_COST * n_full
 
 
 @dataclass
@@ -515,8 +529,37 @@ def n_steps_for(t0, t_end, h) -> int:
     return N
 
 
+def march(method: SparkMethod, t0, q0, v0, h, n_steps: int, monitor_saddle: bool = True):
+    """The stepping loop of (21) shared by ``integrate`` and ``ldaspark.integrate``: yields
+    (i, t_i, q_i, StepResult of step i) for i = 0..n_steps-1 from checked, consistent
+    (t0, q0, v0) already converted by ``method.backend`` (t_i = t0 + i h). The caller stores
+    what it needs (every point, every k-th, stage values for dense output, events) and may stop
+    early; a failing step raises (NewtonError, NonFiniteError, SingularSaddleError) from the
+    generator. Predictor: the previous step's unknowns shifted by the last velocity increment.
+    ``monitor_saddle``: a sign change of det (4) between t0 and a step point is an error (the
+    step landed on the second solution near the limit of (4), see ``integrate``)."""
+    system, bk = method.system, method.backend
+    q, v = q0, v0
+    x = v_prev = None
+    sign0 = _saddle_sign(system, bk, t0, q, v) if monitor_saddle else None
+    for i in range(n_steps):
+        ti = t0 + i * h
+        if x is not None and v_prev is not None:
+            Vp, Lp, v1p = method.unpack(x)
+            x = method.pack(Vp + (v - v_prev), Lp, v1p + (v - v_prev))
+        r = method.step(ti, q, v, h, x0=x, step_index=i)
+        if sign0 and _saddle_sign(system, bk, r.t1, r.q1, r.v1) != sign0:
+            raise SingularSaddleError(
+                f"step {i} (t = {float(ti):.6g} -> {float(r.t1):.6g}) crossed the singular set of the "
+                "saddle matrix (4): det (4) changed sign, so the step solved (21) on the wrong branch or the "
+                "solution left the region where (4) holds (monitor_saddle=False skips this check)")
+        yield i, ti, q, r
+        v_prev = v
+        q, v, x = r.q1, r.v1, r.x
+
+
 def integrate(system: LagrangianSystem, tableau: SparkTableau, t0, q0, v0, h, t_end=None,
-              n_steps=None, dps=None, project=False, tol=None, newton="full", progress=None,
+              n_steps=None, dps=None, project=False, tol=None, newton="auto", progress=None,
               check_initial=True, monitor_saddle=True, energy_jump=None) -> Solution:
     """Integrate (1) with the SPARK method (21) at constant step h from consistent data.
 
@@ -530,6 +573,8 @@ def integrate(system: LagrangianSystem, tableau: SparkTableau, t0, q0, v0, h, t_
     ``energy_jump`` (off by default) also stops a step that changes the energy by more than
     energy_jump (1 + |E|): the only monitor that sees a passage through a singularity of L such
     as 1/q1, which leaves finite values and a regular (4) behind.
+    ``newton``: "auto" (default), "full" or "simplified" (``SparkMethod``); "auto" gives full
+    Newton's numbers to within the Newton tolerance at less cost.
     Raises InconsistentInitialDataError (unless ``project``), SingularSaddleError, NewtonError,
     NonFiniteError.
     """
@@ -563,24 +608,9 @@ def integrate(system: LagrangianSystem, tableau: SparkTableau, t0, q0, v0, h, t_
         check_storage(N + 1, 2 + 2 * system.n + (tableau.s + 1) * system.m, bk.is_mp)
         ts = [t0_ + i * h_ for i in range(N + 1)]
         Qs, Vs, Ps = [q], [v], []
-        x = None
-        v_prev = None
-        sign0 = _saddle_sign(system, bk, t0_, q, v) if monitor_saddle else None
-        for i in range(N):
-            if x is not None and v_prev is not None:
-                # predictor: previous stage solution shifted by the last velocity increment
-                Vp, Lp, v1p = method.unpack(x)
-                x = method.pack(Vp + (v - v_prev), Lp, v1p + (v - v_prev))
-            r = method.step(ts[i], q, v, h_, x0=x, step_index=i)
-            v_prev = v
-            q, v, x = r.q1, r.v1, r.x
-            if sign0 and _saddle_sign(system, bk, r.t1, q, v) != sign0:
-                raise SingularSaddleError(
-                    f"step {i} (t = {float(ts[i]):.6g} -> {float(r.t1):.6g}) crossed the singular set of the "
-                    "saddle matrix (4): det (4) changed sign, so the step solved (21) on the wrong branch or the "
-                    "solution left the region where (4) holds (monitor_saddle=False skips this check)")
-            Qs.append(q)
-            Vs.append(v)
+        for i, _, _, r in march(method, t0_, q, v, h_, N, monitor_saddle=monitor_saddle):
+            Qs.append(r.q1)
+            Vs.append(r.v1)
             Ps.append(r.Psi)
             if progress is not None:
                 progress(i + 1, N)

@@ -261,16 +261,18 @@ class LagrangianSystem:
         S[self.n:, :self.n] = kv
         return S
 
-    def check_saddle(self, backend, t, q, v, rcond: float | None = None):
+    def check_saddle(self, backend, t, q, v, rcond: float | None = None, S=None):
         """Raise SingularSaddleError when (4) fails (numerically) at (t, q, v).
 
         The test is scale invariant: the saddle matrix is equilibrated symmetrically,
         D S D with D = diag(1 / sqrt(max_j |S_ij|)), before its singular values are compared,
         and K is row-equilibrated, so that large mass ratios or badly scaled coordinates are
         not mistaken for singularity while a genuine rank loss (which no diagonal scaling
-        removes) still is. Returns the reciprocal condition number of the scaled matrix."""
+        removes) still is. Returns the reciprocal condition number of the scaled matrix.
+        ``S``: the matrix (4) at (t, q, v) when the caller has it (the compiled path evaluates it
+        with its own model functions); the same test is applied."""
         with backend.context():
-            S = self.saddle_matrix(backend, t, q, v)
+            S = self.saddle_matrix(backend, t, q, v) if S is None else S
             Sf = np.array([[float(x) for x in row] for row in S]) if backend.is_mp else np.asarray(S, float)
         if not np.all(np.isfinite(Sf)):
             raise SingularSaddleError(f"saddle matrix (4) has non-finite entries at t = {float(t):g}")
@@ -296,10 +298,11 @@ class LagrangianSystem:
                 f"(reciprocal condition {r:.2e} <= {tol:.1e} after equilibration)")
         return r
 
-    def check_consistent(self, backend, t, q, v, tol=None):
-        """Raise InconsistentInitialDataError unless |k(t, q, v)| <= tol (1 + |v|)."""
+    def check_consistent(self, backend, t, q, v, tol=None, k=None):
+        """Raise InconsistentInitialDataError unless |k(t, q, v)| <= tol (1 + |v|) (``k``: the
+        value k(t, q, v) when the caller has it)."""
         with backend.context():
-            res = backend.norm_inf(self.constraint(backend, t, q, v))
+            res = backend.norm_inf(self.constraint(backend, t, q, v) if k is None else k)
             scale = 1 + backend.norm_inf(backend.array(v))
         tol = tol if tol is not None else 1e3 * backend.eps
         if not np.isfinite(res) or res > tol * scale:
