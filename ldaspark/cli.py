@@ -37,7 +37,7 @@ def _add_integrate(sub):
     p.add_argument("--ic", type=int, default=None, help="initial condition j (mp-particles)")
     p.add_argument("--tableau", default=None, help="tableau JSON file for METHOD custom")
     p.add_argument("--max-stages", type=int, default=None, help="allow methods with more than 20 stages")
-    p.add_argument("--newton", choices=("full", "simplified", "auto"), default="auto",
+    p.add_argument("--newton", choices=("full", "simplified", "auto", "mixed"), default="auto",
                    help="generic engine's Newton variant (default: auto = simplified, full on slow contraction)")
     p.add_argument("--project", action="store_true", help="project v0 onto k = 0 instead of failing")
     p.add_argument("--out", required=True, help="output file, format by extension: .npz, .h5 (h5py), else JSON "

@@ -148,7 +148,22 @@ def work_precision_values(d):
     if base and mp:
         out["wp.dps.ratios"] = " / ".join(f"{r['seconds_per_step'] / base[0]['seconds_per_step']:.1f}x" for r in mp)
         out["wp.dps.digits"] = " / ".join(str(r["dps"]) for r in mp)
+    for st in d.get("studies", []):
+        c = st.get("rhs_seconds_per_call")
+        if c:
+            out[f"wp.{st['scene']}.rhs"] = f"{c['compiled'] * 1e6:.1f} us vs {c['python'] * 1e6:.0f} us"
     return out
+
+
+def peer_values(d):
+    """odelab vs this library on odelab's robot (``reports/peer_odelab.json``, from
+    ``benchmarks/peer_odelab.py``): the first matched Spark2 run."""
+    r = next(x for x in d["runs"] if x["matched"] and x["odelab"] == "Spark2")
+    ok = [x for x in d["runs"] if x["matched"]]
+    return {"peer.spark2": f"{r['odelab_cpu']:.1f} s / {r['generic_cpu']:.1f} s / {r['compiled_cpu'] * 1e3:.1f} ms",
+            "peer.ratios": f"{r['odelab_cpu'] / r['generic_cpu']:.1f}x / {r['odelab_cpu'] / r['compiled_cpu']:.0f}x",
+            "peer.agree": _e(max(x["tight_max_dq"] for x in ok if x.get("tight_max_dq") is not None)),
+            "peer.control": _e(min(x["max_dq"] for x in d["runs"] if not x["matched"]))}
 
 
 def run_values(d):
@@ -162,7 +177,7 @@ def readme_values(reports_dir="reports") -> dict:
     out = {}
     for name, fn in (("convergence.json", convergence_values), ("claims.json", claims_values),
                      ("energy.json", energy_values), ("work_precision.json", work_precision_values),
-                     ("report_timing.json", run_values)):
+                     ("report_timing.json", run_values), ("peer_odelab.json", peer_values)):
         d = _load(reports_dir, name)
         if d is not None:
             out.update(fn(d))
