@@ -41,6 +41,7 @@ null vectors do not move V and v1 (then L_d is gauge-invariant), *singular* othe
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from dataclasses import dataclass, field
@@ -377,20 +378,65 @@ def _as_backend(bk, v):
     return bk.array(v) if bk.is_mp else np.array([float(x) for x in np.asarray(v).reshape(-1)]).reshape(np.shape(v))
 
 
+# --- memo of the solves within one ledger unit ------------------------------------------------
+_MEMO = None        # dict while ``memoized()`` is active (one ledger unit), else None: no caching
+
+
+@contextlib.contextmanager
+def memoized():
+    """Within the block, ``base_point`` and ``discrete_lagrangian`` return the stored result for
+    inputs they have already seen (the same system and tableau objects, exactly equal numbers at
+    the same precision): the ledger's checks solve the same base point several times (the
+    well-posedness, Theorem 1 and symmetry records). The results are the very objects a first
+    call returned, so nothing changes but the cost; the store is dropped at the end."""
+    global _MEMO
+    prev = _MEMO
+    _MEMO = {} if prev is None else prev
+    try:
+        yield
+    finally:
+        _MEMO = prev
+
+
+def _key(v):
+    """Hashable exact image of a number, array or nested sequence (None for None)."""
+    if isinstance(v, mpmath.mpf):
+        return v._mpf_
+    if isinstance(v, np.ndarray):
+        return ("array", v.shape) + tuple(_key(x) for x in v.reshape(-1))
+    if isinstance(v, (list, tuple)):
+        return ("seq",) + tuple(_key(x) for x in v)
+    return (type(v).__name__, repr(v))
+
+
+def _memo(kind, system, tableau, dps, args, compute):
+    if _MEMO is None:
+        return compute()
+    k = (kind, id(system), id(tableau), dps, _key(args))
+    hit = _MEMO.get(k)
+    if hit is None:
+        hit = _MEMO[k] = (compute(), system, tableau)    # the objects kept alive: ids stay unique
+    return hit[0]
+
+
 # --- public API -------------------------------------------------------------------------------
-def base_point(system, tableau, t0, q0, v0, h, dps=40):
+def base_point(system, tableau, t0, q0, v0, h, dps=40, newton="full"):
     """One IVP step of (21) from (t0, q0, v0): returns (t1, q1, x_guess) in the BVP layout
-    (the BVP solution at (t0, q0, t1, q1) up to the Newton tolerance)."""
-    meth = SparkMethod(system, tableau, dps=dps, newton="full")   # the reference step of the checks
+    (the BVP solution at (t0, q0, t1, q1) up to the Newton tolerance). ``newton``: full Newton
+    (the reference step of the checks) or ``SparkMethod``'s "mixed"."""
+    meth = SparkMethod(system, tableau, dps=dps, newton=newton)
     bk = meth.backend
     with bk.context():
         t0 = bk.scalar(t0)
         h = bk.scalar(h)
         q0 = bk.array(q0)
         v0 = bk.array(v0)
-        r = meth.step(t0, q0, v0, h)
-        x = np.concatenate([r.V.reshape(-1), (r.Psi * h).reshape(-1), r.v1, v0])
-        return r.t1, r.q1, x
+
+        def step():
+            r = meth.step(t0, q0, v0, h)
+            return r.t1, r.q1, np.concatenate([r.V.reshape(-1), (r.Psi * h).reshape(-1), r.v1, v0])
+        t1, q1, x = _memo("base_point", system, tableau, (dps, newton), (t0, q0, v0, h), step)
+        return t1, q1.copy(), x.copy()
 
 
 def discrete_lagrangian(system, tableau, t0, q0, t1, q1, dps=40, v0_guess=None, x_guess=None,
@@ -411,7 +457,9 @@ def discrete_lagrangian(system, tableau, t0, q0, t1, q1, dps=40, v0_guess=None, 
             v0g = bk.array(v0_guess) if v0_guess is not None else (q1 - q0) / h
             _, _, x_guess = base_point(system, tableau, t0, q0, v0g, h, dps)
         x = _as_backend(bk, x_guess)
-        return _solve_and_differentiate(bvp, t0, q0, t1, q1, x, gauge_ref)
+        gr = None if gauge_ref is None else _as_backend(bk, gauge_ref)
+        return _memo("discrete_lagrangian", system, tableau, dps, (t0, q0, t1, q1, x, gr),
+                     lambda: _solve_and_differentiate(bvp, t0, q0, t1, q1, x, gauge_ref))
 
 
 def _solve_and_differentiate(bvp, t0, q0, t1, q1, x, gauge_ref=None, gauge=None):
