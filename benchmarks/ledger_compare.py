@@ -21,7 +21,8 @@ VERDICT = ("status", "expected", "wellposed")
 def compare(before, after, factor=10.0):
     """dict: n, key_diffs, verdict_diffs, max_ratio (over residuals nonzero on both sides),
     moved (> factor), floor (0 <-> tiny), and the worst records."""
-    out = {"n": len(before), "key_diffs": [], "verdict_diffs": [], "moved": [], "floor": [], "ratios": []}
+    out = {"n": len(before), "key_diffs": [], "verdict_diffs": [], "moved": [], "floor": [], "ratios": [],
+           "note_diffs": 0}
     if len(before) != len(after):
         out["key_diffs"].append(f"{len(before)} records before, {len(after)} after")
     for i, (a, b) in enumerate(zip(before, after)):
@@ -29,6 +30,7 @@ def compare(before, after, factor=10.0):
         if ka != kb:
             out["key_diffs"].append(f"#{i}: {ka} -> {kb}")
             continue
+        out["note_diffs"] += a["note"] != b["note"]
         if any(a[k] != b[k] for k in VERDICT):
             out["verdict_diffs"].append(f"#{i} {ka}: {[a[k] for k in VERDICT]} -> {[b[k] for k in VERDICT]}")
         ra, rb = a["residual"], b["residual"]
@@ -67,7 +69,8 @@ def main(argv=None):
     c = compare(before, after, a.factor)
     print(f"{c['n']} records; record/order differences: {len(c['key_diffs'])}; verdict differences: "
           f"{len(c['verdict_diffs'])}; max residual ratio (nonzero both sides) {c['max_ratio']:.3g}; "
-          f"moved > {a.factor:g}x: {len(c['moved'])}; 0 <-> round-off below 1e-6 x threshold: {len(c['floor'])}")
+          f"moved > {a.factor:g}x: {len(c['moved'])}; 0 <-> round-off below 1e-6 x threshold: {len(c['floor'])}; "
+          f"notes that differ: {c['note_diffs']}")
     for line in c["key_diffs"][:20] + c["verdict_diffs"][:20]:
         print("  ", line)
     for title, rows in (("moved", c["moved"]), ("floor", c["floor"]), ("largest ratios", c["ratios"][:a.show])):

@@ -432,11 +432,17 @@ def base_point(system, tableau, t0, q0, v0, h, dps=40, newton="full"):
         q0 = bk.array(q0)
         v0 = bk.array(v0)
 
-        def step():
-            r = meth.step(t0, q0, v0, h)
-            return r.t1, r.q1, np.concatenate([r.V.reshape(-1), (r.Psi * h).reshape(-1), r.v1, v0])
-        t1, q1, x = _memo("base_point", system, tableau, (dps, newton), (t0, q0, v0, h), step)
-        return t1, q1.copy(), x.copy()
+        r = ivp_step(meth, t0, q0, v0, h)
+        x = np.concatenate([r.V.reshape(-1), (r.Psi * h).reshape(-1), r.v1, v0])
+        return r.t1, r.q1.copy(), x
+
+
+def ivp_step(meth, t0, q0, v0, h):
+    """``meth.step(t0, q0, v0, h)`` (a ``SparkMethod``), memoized within ``memoized()``: the
+    base point and the forward step of Phi_{-h} o Phi_h in ``check_symmetry`` are the same step.
+    Arguments in the method's number type; the result is shared, not to be modified."""
+    return _memo("ivp_step", meth.system, meth.tableau, (meth.dps, meth.newton, meth.tol, meth.max_iter),
+                 (t0, q0, v0, h), lambda: meth.step(t0, q0, v0, h))
 
 
 def discrete_lagrangian(system, tableau, t0, q0, t1, q1, dps=40, v0_guess=None, x_guess=None,
