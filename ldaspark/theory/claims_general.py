@@ -204,8 +204,10 @@ def pieces(quick=False):
 
 
 # CPU seconds per piece on an idle core (scheduling only), measured on the full run
-_PIECE_COST = {("checks", "relativistic"): 5.7, ("orders", "relativistic"): 3.0, ("checks", "constant-speed"): 2.1,
-               ("orders", "constant-speed"): 2.0, ("orders", "rheonomic-skate"): 1.7, ("nonideal",): 2.8}
+_PIECE_COST = {("checks", "rheonomic-skate"): 0.8, ("orders", "rheonomic-skate"): 1.6,
+               ("checks", "constant-speed"): 1.9, ("orders", "constant-speed"): 2.9,
+               ("checks", "relativistic"): 5.8, ("orders", "relativistic"): 3.9,
+               ("checks", "turntable"): 1.7, ("orders", "turntable"): 2.2, ("nonideal",): 5.2}
 
 
 def piece_cost(piece):
