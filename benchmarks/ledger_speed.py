@@ -42,10 +42,12 @@ from ldaspark.core.spark import SparkMethod, integrate      # noqa: E402
 # measured on 2026-12-01 on the shared 2-core machine at load 8-12 (docs/performance.md)
 BEFORE = {"idle_wall": 192.0, "loaded_cpu": 386.5, "loaded_wall": 2421.0}
 # ``ldaspark verify --jobs 2`` (1094 records) at commit 665b343, before the claim groups joined the
-# pool and the per-unit memo: 108 s wall / 177 s CPU on 2 idle cores (ledger units 66 s wall in the
-# pool, then claims_general 23 s and claims_paper 11.5 s serially in the parent); 481 s wall /
-# 187 s CPU on the shared machine at load 5-7
-BEFORE_VERIFY = {"idle_wall": 108.0, "idle_cpu": 177.0, "loaded_cpu": 187.0, "loaded_wall": 481.0}
+# pool, the per-unit memo and the reuse of the first Newton iterate: 82.5 s wall / 136 s CPU on the
+# 2-core machine at load 0.1-1.6 (after: 66.7 s / 132.5 s, same conditions, one run after the
+# other); 108 s / 177 s measured earlier on the idle machine (ledger units 66 s in the pool, then
+# claims_general 23 s and claims_paper 11.5 s serially in the parent); serial (--jobs 1, before and
+# after side by side, one core each): 143 s CPU before, 114 s after; at load 5-7: 187 s CPU, 481 s wall
+BEFORE_VERIFY = {"idle_wall": 82.5, "idle_cpu": 136.4, "loaded_cpu": 187.0, "loaded_wall": 481.0}
 
 
 def cpu():
