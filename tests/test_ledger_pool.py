@@ -1,6 +1,6 @@
 """The claims ledger's worker pool: ledger units and claim-group pieces (``ledger.group_pieces``)
 run in one pool, longest first, and the records come back in the serial order for any number of
-workers. A fake claim group (this module) keeps it cheap: ~2 s (exact conditions only)."""
+workers. A fake claim group (this module) keeps it cheap: ~1 s (exact conditions only)."""
 from ldaspark.theory import ledger
 from ldaspark.theory.ledger import extra_records, group_pieces, record, run_ledger
 
@@ -37,8 +37,8 @@ def test_pool_gives_the_serial_order_with_claim_groups():
     pooled = run_ledger(jobs=2, **kw)
     assert _strip(pooled) == _strip(serial)
     assert _strip(pooled) != _strip(serial[::-1])            # control: the comparison sees the order
-    n_ledger = len(run_ledger(jobs=1, max_s=1, scenes=(), holonomic=False, controls=False))
-    assert n_ledger > 0 and [r["claim"] for r in serial[:n_ledger]] != ["fake-group"] * n_ledger
+    n_ledger = sum(r["claim"] != "fake-group" for r in serial)
+    assert n_ledger > 0 and all(r["claim"] != "fake-group" for r in serial[:n_ledger])
     # the groups come after the ledger, piece by piece, as the serial group function gives them
     assert _strip(serial[n_ledger:]) == _strip(extra_records(groups=(SPEC,)))
     assert [r["method"] for r in serial[n_ledger::2]] == pieces()
