@@ -41,7 +41,6 @@ null vectors do not move V and v1 (then L_d is gauge-invariant), *singular* othe
 """
 from __future__ import annotations
 
-import contextlib
 import math
 import time
 from dataclasses import dataclass, field
@@ -55,6 +54,7 @@ from ..core.errors import LdasparkError
 from ..core.spark import SparkMethod
 from ..core.system import LagrangianSystem
 from ..core.tableau import SparkTableau
+from .memo import cached
 
 WELLPOSED = "well-posed"
 GAUGE = "gauge-deficient"
@@ -386,47 +386,6 @@ def _as_backend(bk, v):
     return bk.array(v) if bk.is_mp else np.array([float(x) for x in np.asarray(v).reshape(-1)]).reshape(np.shape(v))
 
 
-# --- memo of the solves within one ledger unit ------------------------------------------------
-_MEMO = None        # dict while ``memoized()`` is active (one ledger unit), else None: no caching
-
-
-@contextlib.contextmanager
-def memoized():
-    """Within the block, ``base_point`` and ``discrete_lagrangian`` return the stored result for
-    inputs they have already seen (the same system and tableau objects, exactly equal numbers at
-    the same precision): the ledger's checks solve the same base point several times (the
-    well-posedness, Theorem 1 and symmetry records). The results are the very objects a first
-    call returned, so nothing changes but the cost; the store is dropped at the end."""
-    global _MEMO
-    prev = _MEMO
-    _MEMO = {} if prev is None else prev
-    try:
-        yield
-    finally:
-        _MEMO = prev
-
-
-def _key(v):
-    """Hashable exact image of a number, array or nested sequence (None for None)."""
-    if isinstance(v, mpmath.mpf):
-        return v._mpf_
-    if isinstance(v, np.ndarray):
-        return ("array", v.shape) + tuple(_key(x) for x in v.reshape(-1))
-    if isinstance(v, (list, tuple)):
-        return ("seq",) + tuple(_key(x) for x in v)
-    return (type(v).__name__, repr(v))
-
-
-def _memo(kind, system, tableau, dps, args, compute):
-    if _MEMO is None:
-        return compute()
-    k = (kind, id(system), id(tableau), dps, _key(args))
-    hit = _MEMO.get(k)
-    if hit is None:
-        hit = _MEMO[k] = (compute(), system, tableau)    # the objects kept alive: ids stay unique
-    return hit[0]
-
-
 # --- public API -------------------------------------------------------------------------------
 def base_point(system, tableau, t0, q0, v0, h, dps=40, newton="full"):
     """One IVP step of (21) from (t0, q0, v0): returns (t1, q1, x_guess) in the BVP layout
@@ -449,7 +408,7 @@ def ivp_step(meth, t0, q0, v0, h):
     """``meth.step(t0, q0, v0, h)`` (a ``SparkMethod``), memoized within ``memoized()``: the
     base point and the forward step of Phi_{-h} o Phi_h in ``check_symmetry`` are the same step.
     Arguments in the method's number type; the result is shared, not to be modified."""
-    return _memo("ivp_step", meth.system, meth.tableau, (meth.dps, meth.newton, meth.tol, meth.max_iter),
+    return cached("ivp_step", meth.system, meth.tableau, (meth.dps, meth.newton, meth.tol, meth.max_iter),
                  (t0, q0, v0, h), lambda: meth.step(t0, q0, v0, h))
 
 
@@ -472,7 +431,7 @@ def discrete_lagrangian(system, tableau, t0, q0, t1, q1, dps=40, v0_guess=None, 
             _, _, x_guess = base_point(system, tableau, t0, q0, v0g, h, dps)
         x = _as_backend(bk, x_guess)
         gr = None if gauge_ref is None else _as_backend(bk, gauge_ref)
-        return _memo("discrete_lagrangian", system, tableau, dps, (t0, q0, t1, q1, x, gr),
+        return cached("discrete_lagrangian", system, tableau, dps, (t0, q0, t1, q1, x, gr),
                      lambda: _solve_and_differentiate(bvp, t0, q0, t1, q1, x, gauge_ref))
 
 

@@ -27,8 +27,9 @@ import mpmath
 import numpy as np
 
 from ..core.backend import Backend
-from .discrete import (WELLPOSED, GAUGE, SINGULAR, base_point, discrete_lagrangian, memoized,
+from .discrete import (WELLPOSED, GAUGE, SINGULAR, base_point, discrete_lagrangian,
                        theorem1_residuals)
+from .memo import memoized
 from .symmetry import check_symmetry
 from .wellposedness import classify_wellposedness, gauge_invariance
 from ..core.errors import LdasparkError
