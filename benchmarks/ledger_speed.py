@@ -10,11 +10,15 @@ inflate them less than wall time; every ratio is measured side by side):
    ``_einsum_jacobian``, with the pure-mpmath LU) against the block assembly with the arb LU,
    full Newton in both; and newton="auto" against "full", with max |q_auto - q_full|.
 3. The claims ledger: a representative subset (``--ledger subset``, default: every method with
-   s <= 2 on the particle and the robot, ~1/10 of the full ledger) or the full ledger
-   (``--ledger full``, what ``ldaspark verify`` runs), wall and CPU seconds (workers included),
-   against the full-ledger baseline measured before these changes (``BEFORE``).
+   s <= 2 on the particle and the robot, ~1/10 of the full ledger), the ledger's units alone
+   (``--ledger full``), or everything ``ldaspark verify`` runs (``--ledger verify``: the units
+   and the claim groups' pieces in one pool), wall and CPU seconds (workers included), against
+   the baselines measured before these changes (``BEFORE``, ``BEFORE_VERIFY``). With
+   ``--compare BEFORE.json`` the records are compared with a ledger written before
+   (``benchmarks/ledger_compare.py``: same verdicts, residual ratios).
 
-    python benchmarks/ledger_speed.py [--ledger subset|full|none] [--jobs N] [--steps 20]
+    python benchmarks/ledger_speed.py [--ledger subset|full|verify|none] [--jobs N] [--steps 20]
+                                      [--compare BEFORE.json]
 """
 from __future__ import annotations
 
@@ -37,6 +41,13 @@ from ldaspark.core.spark import SparkMethod, integrate      # noqa: E402
 # 192 s wall on an idle machine (reports/claims.md of that commit); 386 s CPU / 2421 s wall
 # measured on 2026-12-01 on the shared 2-core machine at load 8-12 (docs/performance.md)
 BEFORE = {"idle_wall": 192.0, "loaded_cpu": 386.5, "loaded_wall": 2421.0}
+# ``ldaspark verify --jobs 2`` (1094 records) at commit 665b343, before the claim groups joined the
+# pool, the per-unit memo and the reuse of the first Newton iterate: 82.5 s wall / 136 s CPU on the
+# 2-core machine at load 0.1-1.6 (after: 66.7 s / 132.5 s, same conditions, one run after the
+# other); 108 s / 177 s measured earlier on the idle machine (ledger units 66 s in the pool, then
+# claims_general 23 s and claims_paper 11.5 s serially in the parent); serial (--jobs 1, before and
+# after side by side, one core each): 143 s CPU before, 114 s after; at load 5-7: 187 s CPU, 481 s wall
+BEFORE_VERIFY = {"idle_wall": 82.5, "idle_cpu": 136.4, "loaded_cpu": 187.0, "loaded_wall": 481.0}
 
 
 def cpu():
@@ -106,12 +117,14 @@ def step_table(steps):
                   f"   (before vs after q: {dref:.1e})")
 
 
-def ledger(kind, jobs):
-    from ldaspark.theory.ledger import run_ledger
+def ledger(kind, jobs, compare=None):
+    from ldaspark.theory.ledger import CLAIM_GROUPS, run_ledger
     print(f"\n3. claims ledger ({kind}), {jobs or 'default'} worker process(es)")
     w, c = time.time(), cpu()
     if kind == "full":
         recs = run_ledger(max_s=3, jobs=jobs)
+    elif kind == "verify":
+        recs = run_ledger(max_s=3, jobs=jobs, groups=CLAIM_GROUPS)
     else:
         recs = run_ledger(max_s=2, scenes=("particle", "robot"), controls=False, jobs=jobs)
     w, c = time.time() - w, cpu() - c
@@ -119,11 +132,24 @@ def ledger(kind, jobs):
     if kind == "full":
         print(f"before: {BEFORE['idle_wall']:.0f} s wall idle, {BEFORE['loaded_cpu']:.0f} s CPU at load 8-12: "
               f"CPU ratio {BEFORE['loaded_cpu'] / c:.1f}x")
+    if kind == "verify":
+        b = BEFORE_VERIFY
+        print(f"before: {b['idle_wall']:.0f} s wall / {b['idle_cpu']:.0f} s CPU idle, {b['loaded_cpu']:.0f} s CPU "
+              f"loaded: CPU ratio {b['loaded_cpu'] / c:.2f}x; projected idle wall on 2 cores ~ CPU / 2 = "
+              f"{c / 2:.0f} s (+ the longest unit's tail)")
+    if compare:
+        import json
+        from ledger_compare import compare as cmp
+        with open(compare) as f:
+            r = cmp(json.load(f), recs)
+        print(f"against {compare}: {len(r['verdict_diffs'])} verdict differences, max residual ratio "
+              f"{r['max_ratio']:.3g}, moved > 10x: {len(r['moved'])}")
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--ledger", choices=("subset", "full", "none"), default="subset")
+    ap.add_argument("--ledger", choices=("subset", "full", "verify", "none"), default="subset")
+    ap.add_argument("--compare", default=None, help="a claims.json written before, to compare the records with")
     ap.add_argument("--jobs", type=int, default=None)
     ap.add_argument("--steps", type=int, default=20)
     a = ap.parse_args(argv)
@@ -132,7 +158,7 @@ def main(argv=None):
     lu_table()
     step_table(a.steps)
     if a.ledger != "none":
-        ledger(a.ledger, a.jobs)
+        ledger(a.ledger, a.jobs, a.compare)
 
 
 if __name__ == "__main__":

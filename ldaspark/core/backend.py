@@ -213,7 +213,8 @@ def _to_arb(v):
     sign, man, exp, _ = v._mpf_
     if not man and exp:          # inf / nan have zero mantissa and a nonzero exponent code
         raise SingularMatrixError("Newton matrix has non-finite entries")
-    return _flint.arb((int(-man if sign else man), int(exp)))   # int(): mpz under the gmpy2 backend
+    man = int(man)               # an mpz when mpmath runs on gmpy2: python-flint takes ints
+    return _flint.arb((-man if sign else man, int(exp)))
 
 
 def _from_arb(a):

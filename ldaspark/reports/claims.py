@@ -9,7 +9,7 @@ from ..core.io import atomic_write_json, atomic_write_text
 from ..core.families import builtin_method_names
 from ..theory import ledger as _ledger
 from ..theory.claims_index import claims_index_markdown
-from ..theory.ledger import extra_records, negative_controls, run_ledger, summarize
+from ..theory.ledger import extra_records, negative_controls, run_ledger, summarize  # noqa: F401 (re-exported)
 from .markdown import table
 from .timing import Clock
 
@@ -93,12 +93,13 @@ def file_names(quick=False):
 
 def run_verify(outdir=REPORT_DIR, quick=False, json_path=None, command="ldaspark verify", jobs=None):
     clock = Clock()
+    # the claim groups' pieces run in the same worker processes as the ledger's units
+    groups = _ledger.CLAIM_GROUPS
     if quick:
         recs = run_ledger(max_s=2, scenes=("particle", "skate"), perturbed=False, holonomic=False,
-                          progress=_progress, jobs=jobs)
+                          progress=_progress, jobs=jobs, groups=groups, quick=True)
     else:
-        recs = run_ledger(max_s=3, progress=_progress, jobs=jobs)
-    recs += extra_records(quick=quick, progress=_progress)
+        recs = run_ledger(max_s=3, progress=_progress, jobs=jobs, groups=groups)
     _write_files(recs, outdir, quick, json_path, clock, command)
     print(f"[claims] {clock.summary()}", flush=True)
     return recs
@@ -124,8 +125,9 @@ def unit_job(index, scene):
     return _ledger._ledger_task(MAX_S, True, True, True, index, scene)
 
 
-def group_job(spec):
-    return extra_records(quick=False, groups=(spec,))
+def group_job(spec, piece=None):
+    """One piece of a claim group (``ledger.group_pieces``)."""
+    return _ledger._group_task(spec, piece, False)
 
 
 def _units():
@@ -133,22 +135,14 @@ def _units():
     return [u for i in range(n_tableaux()) for u in [(i, None)] + [(i, sc) for sc in _ledger.LEDGER_SCENES]]
 
 
-# CPU seconds of each tableau's records on an idle core (sum of the records' "seconds"), to start
-# the longest jobs first; others: by stage count
-COST = {"gauss-1": 5, "gauss-2": 15, "gauss-3": 33, "lobatto-iiia-iiib-2": 12, "lobatto-iiia-iiib-3": 29,
-        "lobatto-iiia-iiib-iiid-2": 9, "lobatto-iiia-iiib-iiid-3": 43, "euler-i": 6, "euler-ii": 3}
-
-
 def jobs(full=False):
-    """Each (tableau, scene) unit of the ledger (``ledger._ledger_task``), then each claim group of
-    ``ledger.CLAIM_GROUPS``."""
-    names = builtin_method_names(MAX_S)
-    tab_cost = [float(COST.get(n, 12 * int(n[-1]) if n[-1].isdigit() else 6)) for n in names]
-    tab_cost += [12.0] * (n_tableaux() - len(names))
-    w = {"mp-particles": 10, "mp-particles-nh": 7, "robot": 3, "particle": 1, "skate": 1}
-    J = [(("unit", i, sc), "unit_job", (i, sc), 0.5 if sc is None else tab_cost[i] * w.get(sc, 2) / 22)
-         for i, sc in _units()]
-    J += [(("group", spec), "group_job", (spec,), 20.0) for spec in _ledger.CLAIM_GROUPS]
+    """Each (tableau, scene) unit of the ledger (``ledger._ledger_task``), then each piece of the
+    claim groups of ``ledger.CLAIM_GROUPS`` (``ledger.group_pieces``), with their estimated CPU
+    seconds (``ledger.unit_cost``)."""
+    names = [t.name for t, _ in _ledger._ledger_tabs(MAX_S, True)]
+    J = [(("unit", i, sc), "unit_job", (i, sc), _ledger.unit_cost((i, sc), names)) for i, sc in _units()]
+    J += [(("group", spec, piece), "group_job", (spec, piece), _ledger.unit_cost(("group", spec, piece)))
+          for spec in _ledger.CLAIM_GROUPS for piece in _ledger.group_pieces(spec)]
     return J
 
 

@@ -188,38 +188,67 @@ def _constraint_record(scn, tab):
                   "n/a", time.time() - t, "ivp-5-steps", tol, "(21f) at every step, float64")
 
 
-def records(quick=False, progress=None):
-    """All general-system records (see module docstring); ~60 s full, ~35 s quick on a busy core.
-    Gauss 3 for Theorem 1 and Lobatto 4 for the orders are in ``verification/test_general_scenes.py
-    --exhaustive``."""
-    out = []
-    t1_methods = ["gauss-2", "lobatto-iiia-iiib-3"] + ([] if quick else ["lobatto-iiia-iiib-iiid-2"])
-    ord_methods = ["gauss-1", "gauss-2", "lobatto-iiia-iiib-2", "lobatto-iiia-iiib-3",
-                   "lobatto-iiia-iiib-iiid-3"] + ([] if quick else ["gauss-3"])
+def _t1_methods(quick):
+    return ["gauss-2", "lobatto-iiia-iiib-3"] + ([] if quick else ["lobatto-iiia-iiib-iiid-2"])
+
+
+def _ord_methods(quick):
+    return ["gauss-1", "gauss-2", "lobatto-iiia-iiib-2", "lobatto-iiia-iiib-3",
+            "lobatto-iiia-iiib-iiid-3"] + ([] if quick else ["gauss-3"])
+
+
+def pieces(quick=False):
+    """The independent pieces of ``records`` in order (``ledger.group_pieces``): per general
+    scene its checks and its orders, then the nonideal orders."""
+    return [(kind, name) for name in GENERAL_SCENES for kind in ("checks", "orders")] + [("nonideal",)]
+
+
+# CPU seconds per piece on an idle core (scheduling only), measured on the full run
+_PIECE_COST = {("checks", "rheonomic-skate"): 0.8, ("orders", "rheonomic-skate"): 1.6,
+               ("checks", "constant-speed"): 1.9, ("orders", "constant-speed"): 2.9,
+               ("checks", "relativistic"): 5.8, ("orders", "relativistic"): 3.9,
+               ("checks", "turntable"): 1.7, ("orders", "turntable"): 2.2, ("nonideal",): 5.2}
+
+
+def piece_cost(piece):
+    return _PIECE_COST.get(tuple(piece), 1.0)
+
+
+def piece_records(piece, quick=False):
+    """Records of one piece of ``pieces(quick)``."""
+    if piece[0] == "checks":
+        return _scene_checks(piece[1], quick)
+    if piece[0] == "orders":
+        t = time.time()
+        recs = scene_orders(piece[1], _ord_methods(quick))
+        dt = (time.time() - t) / max(len(recs), 1)
+        return [_order_record("order-general-scenes", r, dt) for r in recs if r["variable"] in ("q", "v")]
+    return _nonideal_records(quick)
+
+
+def _scene_checks(name, quick):
+    """Theorem 1, symmetry and (21f) records of one general scene."""
     ctl = get_method("gauss-2", exact=True).with_entry("A_hat", 0, 1, "1/10")
     ctl.name = "negctl-gauss-2+dA_hat[0,1]"
-    scenes = GENERAL_SCENES
-    for i, name in enumerate(scenes):
-        scn = get_scene(name)
-        t0, q0, v0 = scn.initial(60)
-        for m in t1_methods:
-            out += _theorem1_records(scn, get_method(m, exact=True), "pass", t0, q0, v0)
-        out += _theorem1_records(scn, ctl, "fail", t0, q0, v0)
-        out.append(_symmetry_record(scn, get_method("gauss-2", exact=True), "pass", t0, q0, v0))
-        out.append(_symmetry_record(scn, get_method("euler-i"), "fail", t0, q0, v0))
-        for m in ("gauss-2", "lobatto-iiia-iiib-iiid-3"):
-            out.append(_constraint_record(scn, get_method(m)))
-        t = time.time()
-        recs = scene_orders(name, ord_methods)
-        dt = (time.time() - t) / max(len(recs), 1)
-        out += [_order_record("order-general-scenes", r, dt) for r in recs if r["variable"] in ("q", "v")]
-        if progress:
-            progress(i + 1, len(scenes) + 1, "general", name)
+    out = []
+    scn = get_scene(name)
+    t0, q0, v0 = scn.initial(60)
+    for m in _t1_methods(quick):
+        out += _theorem1_records(scn, get_method(m, exact=True), "pass", t0, q0, v0)
+    out += _theorem1_records(scn, ctl, "fail", t0, q0, v0)
+    out.append(_symmetry_record(scn, get_method("gauss-2", exact=True), "pass", t0, q0, v0))
+    out.append(_symmetry_record(scn, get_method("euler-i"), "fail", t0, q0, v0))
+    for m in ("gauss-2", "lobatto-iiia-iiib-iiid-3"):
+        out.append(_constraint_record(scn, get_method(m)))
+    return out
+
+
+def _nonideal_records(quick):
     t = time.time()
     recs, ref = nonideal_orders(NONIDEAL_METHODS[:4] if quick else NONIDEAL_METHODS)
     dt = (time.time() - t) / max(len(recs), 1)
-    out += [_order_record("nonideal-3.3", r, dt, "; N = -mu sqrt(psi^2+eps^2) sgn_eps(u) e along the blade")
-            for r in recs if r["variable"] in ("q", "v")]
+    out = [_order_record("nonideal-3.3", r, dt, "; N = -mu sqrt(psi^2+eps^2) sgn_eps(u) e along the blade")
+           for r in recs if r["variable"] in ("q", "v")]
     errs = ideal_control_error(ref)
     est = estimate_order([1 / 16, 1 / 32, 1 / 64], errs, floor_for(None, 1.0))
     stalls = est.observed_order is None or est.observed_order < 0.5
@@ -227,6 +256,19 @@ def records(quick=False, progress=None):
                       errs[-1], "fail", None, "n/a", 0.0, "control", TOL_NEGATIVE,
                       f"ideal skate vs nonideal reference: errors {', '.join(f'{e:.1e}' for e in errs)} "
                       f"(no convergence: the reference sees N)"))
-    if progress:
-        progress(len(scenes) + 1, len(scenes) + 1, "general", "friction-skate")
+    return out
+
+
+def records(quick=False, progress=None):
+    """All general-system records (see module docstring); ~60 s full, ~35 s quick on a busy core.
+    Gauss 3 for Theorem 1 and Lobatto 4 for the orders are in ``verification/test_general_scenes.py
+    --exhaustive``. The pieces (``pieces``) run one after the other here; ``ledger.run_ledger``
+    spreads them over worker processes."""
+    out = []
+    ps = pieces(quick)
+    for piece in ps:
+        out += piece_records(piece, quick)
+        if progress and piece[0] != "checks":
+            progress(len(GENERAL_SCENES) + 1 if piece[0] == "nonideal" else GENERAL_SCENES.index(piece[1]) + 1,
+                     len(GENERAL_SCENES) + 1, "general", piece[1] if piece[0] == "orders" else "friction-skate")
     return out

@@ -54,6 +54,7 @@ from ..core.errors import LdasparkError
 from ..core.spark import SparkMethod
 from ..core.system import LagrangianSystem
 from ..core.tableau import SparkTableau
+from .memo import cached
 
 WELLPOSED = "well-posed"
 GAUGE = "gauge-deficient"
@@ -245,6 +246,7 @@ class Gauge:
     c0: np.ndarray
     W: np.ndarray
     W_left: np.ndarray | None = None     # the true left null vectors (solvability directions)
+    fac: object = None                   # factorisation of the bordered J it was checked with
 
 
 def _deficiency(sig, dps):
@@ -279,7 +281,7 @@ class _Solver:
             return G
         return np.concatenate([G + gauge.W.dot(mu), gauge.C.dot(x) - gauge.c0])
 
-    def newton(self, t0, q0, t1, q1, x, gauge=None, fac=None, tol=None, stencil=False):
+    def newton(self, t0, q0, t1, q1, x, gauge=None, fac=None, tol=None, stencil=False, first=None):
         """Solve G(x) + W mu = 0, C x = c0. With ``fac`` (LU of the bordered matrix at a
         nearby point) runs simplified Newton first, falling back to full Newton.
 
@@ -290,7 +292,10 @@ class _Solver:
         noise of the same size), and the final residual evaluation is skipped (res None).
         (A contraction-rate stopping test, theta/(1-theta)|d_k| <= tol, was tried and
         rejected: on the singular robot BVP the first simplified step contracts much faster
-        than the later ones, the test stopped early and the Theorem 1 residual grew 24x.)"""
+        than the later ones, the test stopped early and the Theorem 1 residual grew 24x.)
+
+        ``first``: (G, J, factorisation of the bordered J or None) already evaluated at x, used
+        by the first full-Newton iteration instead of evaluating and factoring them again."""
         bk, bvp = self.bk, self.bvp
         tol = tol if tol is not None else 100 * bk.eps
         r = 0 if gauge is None else gauge.W.shape[1]
@@ -306,9 +311,13 @@ class _Solver:
             G, _, _, _ = bvp.evaluate(t0, q0, t1, q1, x, jacobian=False)
             return x, mu, it, bk.norm_inf(self.full_residual(G, x, mu, gauge))
         for it in range(1, self.max_iter + 1):
-            G, J, _, _ = bvp.evaluate(t0, q0, t1, q1, x, jacobian=not simplified)
+            if it == 1 and first is not None and not simplified:
+                G, J, fac = first
+            else:
+                G, J, _, _ = bvp.evaluate(t0, q0, t1, q1, x, jacobian=not simplified)
+                fac = None if not simplified else fac
             R = self.full_residual(G, x, mu, gauge)
-            if not simplified:
+            if not simplified and fac is None:
                 try:
                     fac = bk.factor(self.bordered(J, gauge))
                 except SingularMatrixError as exc:
@@ -355,7 +364,7 @@ def _make_gauge(bvp, J, x_ref, sig, U, Vh, r):
         W[rows[k], k] = 1
     g = Gauge(C=C, c0=C.dot(x_ref), W=W, W_left=np.asarray(U[:, N - r:]))
     try:
-        bk.factor(_Solver(bvp).bordered(J, g))
+        g.fac = bk.factor(_Solver(bvp).bordered(J, g))
     except SingularMatrixError:
         raise DiscreteSolveError("gauge-fixing failed: bordered matrix singular") from None
     return g
@@ -378,19 +387,29 @@ def _as_backend(bk, v):
 
 
 # --- public API -------------------------------------------------------------------------------
-def base_point(system, tableau, t0, q0, v0, h, dps=40):
+def base_point(system, tableau, t0, q0, v0, h, dps=40, newton="full"):
     """One IVP step of (21) from (t0, q0, v0): returns (t1, q1, x_guess) in the BVP layout
-    (the BVP solution at (t0, q0, t1, q1) up to the Newton tolerance)."""
-    meth = SparkMethod(system, tableau, dps=dps, newton="full")   # the reference step of the checks
+    (the BVP solution at (t0, q0, t1, q1) up to the Newton tolerance). ``newton``: full Newton
+    (the reference step of the checks) or ``SparkMethod``'s "mixed"."""
+    meth = SparkMethod(system, tableau, dps=dps, newton=newton)
     bk = meth.backend
     with bk.context():
         t0 = bk.scalar(t0)
         h = bk.scalar(h)
         q0 = bk.array(q0)
         v0 = bk.array(v0)
-        r = meth.step(t0, q0, v0, h)
+
+        r = ivp_step(meth, t0, q0, v0, h)
         x = np.concatenate([r.V.reshape(-1), (r.Psi * h).reshape(-1), r.v1, v0])
-        return r.t1, r.q1, x
+        return r.t1, r.q1.copy(), x
+
+
+def ivp_step(meth, t0, q0, v0, h):
+    """``meth.step(t0, q0, v0, h)`` (a ``SparkMethod``), memoized within ``memoized()``: the
+    base point and the forward step of Phi_{-h} o Phi_h in ``check_symmetry`` are the same step.
+    Arguments in the method's number type; the result is shared, not to be modified."""
+    return cached("ivp_step", meth.system, meth.tableau, (meth.dps, meth.newton, meth.tol, meth.max_iter),
+                 (t0, q0, v0, h), lambda: meth.step(t0, q0, v0, h))
 
 
 def discrete_lagrangian(system, tableau, t0, q0, t1, q1, dps=40, v0_guess=None, x_guess=None,
@@ -411,7 +430,9 @@ def discrete_lagrangian(system, tableau, t0, q0, t1, q1, dps=40, v0_guess=None, 
             v0g = bk.array(v0_guess) if v0_guess is not None else (q1 - q0) / h
             _, _, x_guess = base_point(system, tableau, t0, q0, v0g, h, dps)
         x = _as_backend(bk, x_guess)
-        return _solve_and_differentiate(bvp, t0, q0, t1, q1, x, gauge_ref)
+        gr = None if gauge_ref is None else _as_backend(bk, gauge_ref)
+        return cached("discrete_lagrangian", system, tableau, dps, (t0, q0, t1, q1, x, gr),
+                     lambda: _solve_and_differentiate(bvp, t0, q0, t1, q1, x, gauge_ref))
 
 
 def _solve_and_differentiate(bvp, t0, q0, t1, q1, x, gauge_ref=None, gauge=None):
@@ -421,9 +442,12 @@ def _solve_and_differentiate(bvp, t0, q0, t1, q1, x, gauge_ref=None, gauge=None)
     # rank at the guess decides whether Newton needs the gauge-fixing border
     G, J, _, _ = bvp.evaluate(t0, q0, t1, q1, x)
     sig, r, U, Vh = _rank_info(bk, J, bvp.dps)
+    first_fac = None
     if r and gauge is None:
         gauge = _make_gauge(bvp, J, x if gauge_ref is None else _as_backend(bk, gauge_ref), sig, U, Vh, r)
-    x, mu, it, res = sol.newton(t0, q0, t1, q1, x, gauge)
+        first_fac = gauge.fac          # the bordered J at x, factored once for the check
+    # Newton's first iteration is at x too: G, J (and the bordered factorisation) are reused
+    x, mu, it, res = sol.newton(t0, q0, t1, q1, x, gauge, first=(G, J, first_fac))
     G, J, dq0, dq1 = bvp.evaluate(t0, q0, t1, q1, x)
     if bk.norm_inf(x - x_in) > 1e-8:
         sig, r, U, Vh = _rank_info(bk, J, bvp.dps)

@@ -27,7 +27,9 @@ import mpmath
 import numpy as np
 
 from ..core.backend import Backend
-from .discrete import WELLPOSED, GAUGE, SINGULAR, base_point, discrete_lagrangian, theorem1_residuals
+from .discrete import (WELLPOSED, GAUGE, SINGULAR, base_point, discrete_lagrangian,
+                       theorem1_residuals)
+from .memo import memoized
 from .symmetry import check_symmetry
 from .wellposedness import classify_wellposedness, gauge_invariance
 from ..core.errors import LdasparkError
@@ -359,9 +361,10 @@ def _ledger_task(max_s, controls, holonomic, perturbed, i, scn):
     if key not in _WORKER_TABS:
         _WORKER_TABS[key] = _ledger_tabs(max_s, controls)
     tab, control = _WORKER_TABS[key][i]
-    if scn is None:
-        return _tab_records(tab, control, holonomic)
-    return _scene_records(tab, control, scn, perturbed)
+    with memoized():        # the unit's checks share their base-point solves (exact reuse)
+        if scn is None:
+            return _tab_records(tab, control, holonomic)
+        return _scene_records(tab, control, scn, perturbed)
 
 
 def ledger_jobs(jobs=None):
@@ -373,44 +376,74 @@ def ledger_jobs(jobs=None):
 
 
 def run_ledger(max_s=3, scenes=LEDGER_SCENES, perturbed=True, holonomic=True, controls=True,
-               progress=None, jobs=None):
-    """All records, in the same order for any ``jobs``: the (tableau, scene) units run in
-    ``ledger_jobs(jobs)`` worker processes (1: in this process), each unit's records
-    computed independently of the others, so the output does not depend on the schedule."""
+               progress=None, jobs=None, groups=(), quick=False):
+    """All records, in the same order for any ``jobs``: the (tableau, scene) units, and then the
+    pieces of the claim groups ``groups`` (specs as in ``CLAIM_GROUPS``, run with ``quick``),
+    run in ``ledger_jobs(jobs)`` worker processes (1: in this process), the longest first; each
+    unit's records are computed independently of the others, so the output does not depend on
+    the schedule."""
     n_tabs = len(_ledger_tabs(max_s, controls))
     units = []
     for i in range(n_tabs):
         units.append((i, None))
         units += [(i, scn) for scn in scenes]
+    units += [("group", spec, piece) for spec in groups for piece in group_pieces(spec, quick)]
     total = n_tabs * len(scenes)
     names = [t.name for t, _ in _ledger_tabs(max_s, controls)]
     results = {}
     done = 0
 
+    def task(u):
+        if u[0] == "group":
+            return _group_task, (u[1], u[2], quick)
+        return _ledger_task, (max_s, controls, holonomic, perturbed, *u)
+
     def finished(u, recs):
         nonlocal done
         results[u] = recs
-        if u[1] is not None:
+        if u[0] == "group":
+            if progress:
+                progress(len(results), len(units), "claim group", _piece_label(u[1], u[2]))
+        elif u[1] is not None:
             done += 1
             if progress:
                 progress(done, total, names[u[0]], u[1])
     jobs = min(ledger_jobs(jobs), len(units))
     if jobs == 1:
         for u in units:
-            finished(u, _ledger_task(max_s, controls, holonomic, perturbed, *u))
+            fn, args = task(u)
+            finished(u, fn(*args))
     else:
-        # the most expensive units first (the particle chains), so the pool drains evenly
-        order = sorted(units, key=lambda u: (u[1] is None, -_UNIT_COST.get(u[1], 1)))
+        # the longest units first (measured CPU seconds), so the pool drains evenly
+        order = sorted(units, key=lambda u: -unit_cost(u, names))
         ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else None)
         with concurrent.futures.ProcessPoolExecutor(jobs, mp_context=ctx) as ex:
-            futs = {ex.submit(_ledger_task, max_s, controls, holonomic, perturbed, *u): u for u in order}
+            futs = {ex.submit(*((fn,) + args)): u for u in order for fn, args in [task(u)]}
             for f in concurrent.futures.as_completed(futs):
                 finished(futs[f], f.result())
     return [r for u in units for r in results[u]]
 
 
-# relative cost of a scene's unit (scheduling only; measured on the full ledger)
-_UNIT_COST = {"mp-particles": 10, "mp-particles-nh": 7, "robot": 3, "particle": 1, "skate": 1}
+# CPU seconds of a unit on an idle core (scheduling only: the longest start first), measured on
+# the full ledger: a (tableau, scene) unit ~ the tableau's CPU seconds over the five scenes x the
+# scene's share; a per-tableau unit ~0.5 s
+_TAB_COST = {"gauss-1": 4.2, "gauss-2": 12.0, "gauss-3": 22.0, "lobatto-iiia-iiib-2": 10.6,
+             "lobatto-iiia-iiib-3": 26.0, "lobatto-iiia-iiib-iiid-2": 10.6, "lobatto-iiia-iiib-iiid-3": 28.6,
+             "euler-i": 7.0, "euler-ii": 4.0, "negctl-gauss-2+dA_hat[0,1]": 6.9,
+             "negctl-lobatto-iiia-iiib-3+dA_hat[1,0]": 15.7, "negctl-gauss-2+db_hat[0]": 6.5}
+_SCENE_SHARE = {"mp-particles": 0.32, "mp-particles-nh": 0.33, "robot": 0.19, "particle": 0.08, "skate": 0.07}
+
+
+def unit_cost(u, names=None):
+    """Estimated CPU seconds of a unit of ``run_ledger`` (a claim-group piece: its module's
+    ``piece_cost(piece)``, default 5)."""
+    if u[0] == "group":
+        mod = importlib.import_module(u[1].partition(":")[0])
+        return float(getattr(mod, "piece_cost", lambda p: 5.0)(u[2]))
+    if u[1] is None:
+        return 0.5
+    name = names[u[0]] if names is not None else ""
+    return _TAB_COST.get(name, 10.0) * _SCENE_SHARE.get(u[1], 0.2)
 
 
 # extra claim groups: "module:function", each returning a list of records (see module docstring)
@@ -424,6 +457,28 @@ def extra_records(quick=False, progress=None, groups=None):
         mod, _, fn = spec.partition(":")
         out += getattr(importlib.import_module(mod), fn)(quick=quick, progress=progress)
     return out
+
+
+def group_pieces(spec, quick=False):
+    """The independent pieces of a claim group: its module's ``pieces(quick)`` (a list of
+    picklable labels; ``piece_records(piece, quick)`` returns a piece's records, and the pieces'
+    records concatenated in order are the group's records), or [None] (the whole group)."""
+    mod = importlib.import_module(spec.partition(":")[0])
+    return list(mod.pieces(quick)) if hasattr(mod, "pieces") else [None]
+
+
+def _group_task(spec, piece, quick):
+    """Records of one piece of a claim group (picklable arguments, for the worker processes)."""
+    mod, _, fn = spec.partition(":")
+    m = importlib.import_module(mod)
+    if piece is None:
+        return getattr(m, fn)(quick=quick, progress=None)
+    return m.piece_records(piece, quick=quick)
+
+
+def _piece_label(spec, piece):
+    name = spec.partition(":")[0].rsplit(".", 1)[-1]
+    return name if piece is None else f"{name} {' '.join(map(str, piece)) if isinstance(piece, tuple) else piece}"
 
 
 def summarize(records):

@@ -10,6 +10,8 @@ from ..core.backend import Backend
 from .discrete import (GAUGE, SINGULAR, WELLPOSED, DiscreteBVP, _null_support, _rank_info, _svd, base_point,
                        discrete_lagrangian)
 
+NEWTON = "mixed"     # the IVP step to the point where J is classified
+
 
 def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_factors=(1, "1/2")):
     """Rank of the BVP Jacobian at the IVP base point, decided at high precision: for each
@@ -28,7 +30,9 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
             with bk.context():
                 fr = Fraction(str(f))
                 hf = bk.scalar(h) * fr.numerator / fr.denominator
-                t1, q1, xg = base_point(system, tableau, t0, q0, v0, hf, d)
+                # mixed Newton (float64 Newton matrix, residual at d digits): the same point to
+                # the step's tolerance; only J there is used (its rank and sigma to a few digits)
+                t1, q1, xg = base_point(system, tableau, t0, q0, v0, hf, d, newton=NEWTON)
                 bvp = DiscreteBVP(system, tableau, d)
                 t0_ = bk.scalar(t0)
                 G, J, _, _ = bvp.evaluate(t0_, bk.array(q0), t1, q1, xg)
