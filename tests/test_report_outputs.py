@@ -72,6 +72,24 @@ def test_run_sections_pools_jobs_and_writes_each_section(tmp_path):
     assert [p[2] for p in jobs.plan({"fake": mod}, "x")] == [("sq", i) for i in (4, 3, 2, 1, 0)]
 
 
+def test_compiled_jobs_start_after_the_kernels_compile_once():
+    """A section's COMPILED_JOBS run after every other job, behind one job that compiles the
+    kernels (so that the workers load them from numba's cache instead of compiling them twice);
+    without compiled jobs there is no such job (control)."""
+    mod = _fake_section()
+    try:
+        plain = jobs.plan({"fake": mod}, "x")
+        mod.COMPILED_JOBS = ("_sq",)
+        mod.jobs = lambda full=False: [(("sq", i), "_sq", (i,), float(i)) for i in range(3)] + \
+            [(("cube", i), "_cube", (i,), 0.1) for i in range(2)]
+        p = jobs.plan({"fake": mod}, "x")
+    finally:
+        del sys.modules[mod.__name__]
+    assert all(q[1] != "prelude" for q in plain)
+    assert p[0][1] == "prelude" and p[0][4] == "warm_kernels"
+    assert [q[2] for q in p[1:]] == [("cube", 0), ("cube", 1), ("sq", 2), ("sq", 1), ("sq", 0)]
+
+
 def test_inline_executor_delivers_results_and_errors():
     ex = jobs.InlineExecutor()
     assert ex.submit(pow, 2, 10).result() == 1024

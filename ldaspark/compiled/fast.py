@@ -510,6 +510,16 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
 
 
 # --- warming the compile cache -------------------------------------------------------------
+def warm_kernels() -> float:
+    """Compile (first time on a machine) or load the kernels in this process; seconds taken.
+    The main job runs it as its first job so that the worker processes load the kernels from
+    numba's cache instead of each compiling them (45-50 s CPU each on a fresh checkout)."""
+    import time as _time
+    t = _time.perf_counter()
+    _kernels()
+    return _time.perf_counter() - t
+
+
 def _warm(scene_name, method, kernel):
     import time as _time
     from ..core.scenes import get_scene

@@ -323,6 +323,10 @@ def fig4_job(constraint, inline=True):
         return {"note": note}
 
 
+# jobs on the compiled path (started after the main job has compiled the kernels once)
+COMPILED_JOBS = ("figure_data", "fig4_job")
+
+
 def jobs(full=False, t_end=None):
     """Figs. 1-3 (``t_end``: a shorter interval) and Fig. 4 for both constraints."""
     return ([(("fig", n), "figure_data", (n, t_end), 3.0) for n in FIGURES]

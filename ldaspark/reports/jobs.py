@@ -49,8 +49,16 @@ class SectionTiming:
         self.wall, self.cpu, self.shared = wall, cpu, shared
 
 
+# jobs that run the compiled (numba) path, by section module: they are started after every other
+# job and after PRELUDE, so that the kernels compile once (in PRELUDE's worker, while the other
+# worker runs mpmath jobs) and the workers then load them from numba's cache
+COMPILED_ATTR = "COMPILED_JOBS"
+PRELUDE = ("prelude", ("compile-kernels",), "ldaspark.compiled.fast", "warm_kernels", ())
+
+
 def plan(modules, outdir, full=False):
-    """[(cost, section, key, module name, function name, args)], longest first."""
+    """[(cost, section, key, module name, function name, args)]: PRELUDE first if any job runs
+    the compiled path, then the other jobs, then the compiled-path jobs, each group longest first."""
     out = []
     for name, mod in modules.items():
         if hasattr(mod, "jobs") and hasattr(mod, "write"):
@@ -61,7 +69,12 @@ def plan(modules, outdir, full=False):
         else:
             out.append((getattr(mod, "DEFAULT_COST", 60.0), name, ("run_default",), mod.__name__,
                         "run_default", (outdir,)))
-    return sorted(out, key=lambda p: -p[0])
+    compiled = {m.__name__: set(getattr(m, COMPILED_ATTR, ())) for m in modules.values()}
+    uses = lambda p: p[4] in compiled.get(p[3], ())          # noqa: E731
+    out = sorted(out, key=lambda p: (uses(p), -p[0]))
+    if any(uses(p) for p in out):
+        out.insert(0, (0.0,) + PRELUDE)
+    return out
 
 
 def run_sections(modules, outdir, full=False, workers=2, say=print):
@@ -70,6 +83,7 @@ def run_sections(modules, outdir, full=False, workers=2, say=print):
     clock = Clock()
     jobs = plan(modules, outdir, full)
     left = {name: sum(1 for p in jobs if p[1] == name) for name in modules}
+    left["prelude"] = 1
     results = {name: {} for name in modules}
     stats = {name: {"jobs": left[name], "cpu": 0.0, "wall": 0.0} for name in modules}
     say(f"[report] {len(jobs)} jobs of {len(modules)} sections on {workers} worker process(es)")
@@ -80,7 +94,13 @@ def run_sections(modules, outdir, full=False, workers=2, say=print):
             name, key = futs[f]
             try:
                 res, _, cpu = f.result()
+                if name == "prelude":
+                    say(f"[report] compiled kernels ready in {res:.1f} s ({cpu:.1f} s CPU)")
+                    continue
             except Exception as exc:  # finish the other sections, then re-raise the first failure
+                if name == "prelude":     # the compiled jobs compile (or fall back) themselves
+                    say(f"[report] compiling the kernels first failed: {type(exc).__name__}: {exc}")
+                    continue
                 first_error = first_error or exc
                 say(f"[report] {name} {key}: {type(exc).__name__}: {exc}")
                 left[name] = -1

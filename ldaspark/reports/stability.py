@@ -85,6 +85,10 @@ def order_methods(full=False):
     return ms + (["gauss-8", "gauss-10", "lobatto-iiia-iiib-10", "lobatto-iiia-iiib-iiid-10"] if full else [])
 
 
+# jobs on the compiled path (started after the main job has compiled the kernels once)
+COMPILED_JOBS = ("long_job", "roundoff_job")
+
+
 def jobs(full=False):
     """Independent jobs of the report, as (key, function name in this module, args, cost); cost:
     rough CPU seconds on an idle core (to start the longest first)."""

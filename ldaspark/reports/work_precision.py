@@ -563,6 +563,10 @@ def _run_groups(kind, method, params):
     return [(("all",), tuple(params), 1.0)]
 
 
+# jobs on the compiled path (started after the main job has compiled the kernels once)
+COMPILED_JOBS = ("scene_runs", "scene_reference", "long_part", "sps_job", "dps_job")
+
+
 def jobs(full=False, quick=False, t_long=2500.0):
     hs_fast, hs_gen, rtols, rtols_r, cfg, t_long, n_gen, n_fast, dps_steps = sizes(quick, t_long)
     J = []
