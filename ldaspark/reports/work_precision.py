@@ -419,8 +419,8 @@ def _fmt(x, f="{:.3g}"):
 
 def _ratio_rows(st, key):
     return [[f"{r['target']:.0e}", _fmt(r["spark-fast"]), _fmt(r["spark-generic"]), _fmt(r["scipy (best of 3)"]),
-             _fmt(r["scipy + projection (best of 3)"]), _fmt(r["scipy/spark-fast"], "{:.0f}"),
-             _fmt(r["scipy/spark-generic"], "{:.1f}")] for r in ratios(st, key=key)]
+             _fmt(r["scipy + projection (best of 3)"]), _fmt(r["scipy/spark-fast"], "{:.2g}"),
+             _fmt(r["scipy/spark-generic"], "{:.2g}")] for r in ratios(st, key=key)]
 
 
 RATIO_HEADER = ["SPARK fast [s]", "SPARK generic [s]", "scipy best [s]", "scipy + proj. best [s]",
