@@ -266,7 +266,13 @@ def _check_options(n_steps, every, predictor, tol, max_iter, n_dof, n_con):
 
 
 def _kernels():
-    from . import kernels           # compiled once per machine, loaded from numba's cache after
+    import warnings
+    from numba.core.errors import NumbaExperimentalFeatureWarning
+    with warnings.catch_warnings():
+        # first-class function types are how the kernels take any system's model (see kernels.py);
+        # numba flags them as experimental at compile time: noise for a user, not a problem
+        warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
+        from . import kernels       # compiled once per machine, loaded from numba's cache after
     return kernels
 
 
