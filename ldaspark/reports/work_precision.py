@@ -21,6 +21,7 @@ import numpy as np
 from ..core.backend import Backend
 from ..core.io import atomic_save_figure, atomic_write_json, atomic_write_text
 from .markdown import jsonable, sci, table, timing_line
+from .peer import peer_section
 from .plotting import colours, figure
 from .timing import Clock
 
@@ -456,44 +457,6 @@ def sps_summary(sps):
     """Median, min and max of the fast / generic steps-per-second ratios."""
     r = sorted(x["ratio"] for x in sps)
     return {"median": float(np.median(r)), "min": r[0], "max": r[-1], "n": len(r)} if r else None
-
-
-def peer_section(path):
-    """Lines of "External peer: odelab" from ``path`` (written by ``benchmarks/peer_odelab.py``,
-    which needs odelab, not a dependency: the file is committed, not regenerated here); [] when
-    the file is absent."""
-    import json
-    if not os.path.exists(path):
-        return []
-    with open(path) as f:
-        d = json.load(f)
-    od = d["versions"]["odelab"]
-    runs = d["runs"]
-    n, h = runs[0]["n_steps"], runs[0]["h"]
-    L = ["", "## External peer: odelab", "",
-         f"The numbers in this section come from `{d['command']}` run on {d['date']} ({d['cpu_count']} CPUs; "
-         f"odelab {(od.get('commit') or '?')[:10]} with `{od['patch']}`), since odelab is not a dependency. "
-         f"Scene: {d['scene']} (defined identically on both sides); {n} steps of h = {h:g}. CPU time: {d['timing']}. "
-         "Differences are max over all step points between odelab and the generic path here; odelab solves each "
-         "step with fsolve (xtol 1.5e-8), and the column 'xtol 1e-12' repeats its run with a tight tolerance.", ""]
-    ratio = lambda a, b: None if a is None or not b else f"{a / b:.3g}"
-    L += table(["initial data", "odelab", "ldaspark", "odelab CPU [s]", "generic CPU [s]", "compiled CPU [s]",
-                "odelab / generic", "odelab / compiled", "max |dq|", "max |dv|", "max |dq|, xtol 1e-12",
-                "max |E - E0| odelab", "max |E - E0| ldaspark"],
-               [[f"{r['initial']}, v0 = ({', '.join(f'{x:g}' for x in r['v0'])})", r["odelab"],
-                 r["ldaspark"] + ("" if r["matched"] else " (another method: control)"),
-                 f"{r['odelab_cpu']:.3g}", f"{r['generic_cpu']:.3g}", _fmt(r.get("compiled_cpu")),
-                 ratio(r["odelab_cpu"], r["generic_cpu"]), ratio(r["odelab_cpu"], r.get("compiled_cpu")),
-                 sci(r["max_dq"]), sci(r["max_dv"]), sci(r.get("tight_max_dq")),
-                 sci(r["odelab_drift"]["energy_drift"]), sci(r["generic_drift"]["energy_drift"])] for r in runs])
-    gc = [r["generic_vs_compiled_dq"] for r in runs if r.get("generic_vs_compiled_dq") is not None]
-    L += [""] + ([f"The compiled path's q differs from the generic path's by at most {sci(max(gc))} in these runs."]
-                 if gc else [])
-    L += ["", "Coefficients read from odelab against the tableaux here (A, A_hat, A_tilde, b, c, constraint rows): "
-          + "; ".join(f"{t['odelab']} = {t['ldaspark']}: {'match' if t['match'] else 'differ'}"
-                      for t in d["tableau_check"]) + ".", ""]
-    L += ["Not compared (no matching method here):", ""]
-    return L + [f"- odelab {k}: {v}" for k, v in d["not_compared"].items()]
 
 
 def write_report(outdir, studies, sps, dps_rows, le, clock, command="ldaspark report work-precision"):
