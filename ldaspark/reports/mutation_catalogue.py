@@ -42,6 +42,7 @@ VORD = "verification/test_convergence_orders.py"
 TSP = "tests/test_spark.py"
 TTAB = "tests/test_tableau.py"
 TFAST = "tests/test_fast_path.py"
+TCNI = "tests/test_compiled_nonideal.py"
 TORD = "tests/test_orders_estimates.py"
 TCONV = "tests/test_convergence_tools.py"
 # the compiled kernels live in a source string of fast.py or (after a planned move) in kernels.py
@@ -242,6 +243,12 @@ CATALOGUE: tuple[Mutant, ...] = (
        "acc += bw[j] * V[j, a]\n        q1[a] = q0[a] + h * acc",
        "acc += A[s - 1, j] * V[j, a]\n        q1[a] = q0[a] + h * acc",
        "compiled kernel: q1 in the residual from the last row of A instead of b", "compiled", TFAST),
+    _m("compiled-nonideal-N-unscaled", "compiled/kernels_general.py",
+       "KTL[j, a] -= h * Nst[j, a]", "KTL[j, a] -= Nst[j, a]",
+       "compiled kernel: nonideal term N not scaled by h in R = -K^T Lambda / h + N (3.3)", "compiled", TCNI),
+    _m("compiled-nonideal-Npsi-sign", "compiled/kernels_general.py",
+       "J[i * n + a, sn + k * m + l] -= wk_t * Np[k, a, l]", "J[i * n + a, sn + k * m + l] += wk_t * Np[k, a, l]",
+       "compiled kernel: sign of the N_psi block of the Newton matrix (3.3)", "compiled", TCNI),
 )
 
 # A fixed subset for ``--quick``: one per main area, each killed fast by its hint files.
