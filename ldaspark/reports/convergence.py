@@ -47,7 +47,7 @@ def plan_for(method):
     return MP_DPS, [5, 10, 20, 40], "mixed"
 
 
-_REFERENCES = {}     # per process: the main job runs several jobs of a scene in one worker
+_REFERENCES = {}     # per process: a scene's reference serves every method run on it here
 
 
 def reference_for(scene_name, t_end=T_END, log=None):

@@ -83,7 +83,6 @@ def run_sections(modules, outdir, full=False, workers=2, say=print):
     clock = Clock()
     jobs = plan(modules, outdir, full)
     left = {name: sum(1 for p in jobs if p[1] == name) for name in modules}
-    left["prelude"] = 1
     results = {name: {} for name in modules}
     stats = {name: {"jobs": left[name], "cpu": 0.0, "wall": 0.0} for name in modules}
     say(f"[report] {len(jobs)} jobs of {len(modules)} sections on {workers} worker process(es)")

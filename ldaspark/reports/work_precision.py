@@ -80,7 +80,10 @@ def ode_fun(system):
         f = compiled_rhs(system)
         f(0.0, np.zeros(2 * system.n) + 0.5)            # compile / load outside the clock
         return f
-    except Exception:   # noqa: BLE001  (any numba or codegen failure: the uncompiled baseline)
+    except Exception as exc:   # noqa: BLE001  (any numba or codegen failure: the uncompiled baseline)
+        import sys
+        print(f"ldaspark.reports.work_precision: {type(exc).__name__}: {exc}; scipy gets the lambdified "
+              "system.ode_rhs", file=sys.stderr)
         return python_ode_fun(system)
 
 
