@@ -76,7 +76,7 @@ def _emit(name, sig, args, unpack, outputs, printer, ret=None):
     exprs = [e for _, e in outputs if not isinstance(e, str)] + ([ret] if ret is not None else [])
     reps, red = sympy.cse(exprs, symbols=sympy.numbered_symbols("_x"), optimizations="basic") if exprs else ([], [])
     used = set().union(*(e.free_symbols for e in exprs)) if exprs else set()
-    lines = [f"@numba.njit(_mt.{sig}, cache=True, nogil=True)", f"def {name}({', '.join(args)}):"]
+    lines = [f"@numba.njit(_mt.{sig}, cache=True, nogil=True, _nrt=False)", f"def {name}({', '.join(args)}):"]
     lines += [f"    {a} = {b}" for a, b in unpack if sympy.Symbol(a, real=True) in used]
     lines += [f"    {s} = {printer.doprint(e)}" for s, e in reps]
     k = 0

@@ -34,7 +34,7 @@ def workspace(s, n, m):
             np.zeros((n, n)), np.zeros(m), np.zeros(n), np.zeros(s * n * (1 + 2 * n + m) + m))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def nonideal_views(nw, s, n, m):
     """N (s, n), N_q (s, n, n), N_v (s, n, n), N_psi (s, n, m) at the stages and psi (m) as views
     of the workspace's flat array (zero-initialised: the model writes only nonzero entries)."""
@@ -44,7 +44,7 @@ def nonideal_views(nw, s, n, m):
             nw[o3:o4].reshape((s, n, m)), nw[o4:o4 + m])
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def nonideal_stages(model, jac, x, T, Q, V, h, nw, KTL):
     """-h R_j = K_j^T Lambda_j - h N(T_j, Q_j, V_j, Lambda_j / h) (3.3): subtracts h N from
     KTL = K^T Lambda and, if jac, evaluates N_q, N_v, N_psi at the stages."""
@@ -63,7 +63,7 @@ def nonideal_stages(model, jac, x, T, Q, V, h, nw, KTL):
             KTL[j, a] -= h * Nst[j, a]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def general_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
     """Residual G of (21b, d, e, f) in x = [Z | Lambda | dv] (V_i = v0 + Z_i, v1 = v0 + dv) and,
     if jac, its Jacobian J. The first call of a step (jac) also sets ws[27] = p0 = grad_v L(t0,
@@ -119,7 +119,7 @@ def general_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
     return s + 1
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def general_jacobian(tab, h, ws, J):
     """d(21b, d, e, f)/d(Z, Lambda, dv): with dX_j/dV_k = delta_jk X_v(j) + h a_jk X_q(j),
     d(21b)_i/dV_k = delta_ik L_vv,i + h a_ik L_vq,i - h a^_ik L_qv,k - h^2 sum_j a^_ij a_jk L_qq,j
@@ -153,7 +153,7 @@ def general_jacobian(tab, h, ws, J):
     constraint_rows(tab, h, kv, kq, kv1, kq1, Lvv1, J)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def nonideal_jacobian(tab, h, nw, m, J):
     """The nonideal term's part of d(21b, d)/d(Z, Lambda) (3.3), added to ``general_jacobian``:
     -h N(T_j, Q_j, V_j, Lambda_j / h) in -h R_j gives d(21b)_i/dV_k += -h a~_ik N_v,k
@@ -179,7 +179,7 @@ def nonideal_jacobian(tab, h, nw, m, J):
                     J[i * n + a, sn + k * m + l] -= wk_t * Np[k, a, l]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def general_store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
     """Sample j: the energy (8) and k at (t, q, v) (end-point arrays of ws as scratch; M unused)."""
     point_val, energy = model[1], model[3]

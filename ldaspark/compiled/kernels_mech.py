@@ -10,7 +10,7 @@ import numpy as np
 from .newton import constraint_rows, record, stage_points
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def mech_point(model, t, q, v, M, kK, kb, kout):
     """E = 1/2 v^T M v + U (8) at one point; kout = k = K v + b."""
     K_of, b_of, U_of = model[3], model[4], model[7]
@@ -41,14 +41,14 @@ def mech_workspace(s, n, m):
             np.zeros(m))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def mech_store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
     """Sample j (end-point arrays of ws as scratch); False if not finite."""
     e = mech_point(model, t, q, v, M, ws[13], ws[14], ws[16])
     return record(j, t, q, v, e, ws[16], out_t, out_q, out_v, out_E, out_k)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def spark_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
     """Residual G of (21b, d, e, f) in the increment unknowns x = [Z | Lambda | dv] and, if jac,
     its Jacobian J. gU = grad U = -F, KTL_j = K_j^T Lambda_j = -h R_j; P_i - p0 = M Z_i exactly.
@@ -111,7 +111,7 @@ def spark_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
     return s + 1
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def spark_jacobian(model, tab, x, t0, h, M, ws, J):
     """d(21b, d, e, f)/d(Z, Lambda, dv) at the stage values of the last ``spark_eval``."""
     hess_U, kq_of, KTlam_q = model[2], model[5], model[6]

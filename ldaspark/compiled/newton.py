@@ -13,7 +13,7 @@ from . import modeltypes as mt
 FAIL_NEWTON, FAIL_SINGULAR, FAIL_NONFINITE = mt.FAIL_NEWTON, mt.FAIL_SINGULAR, mt.FAIL_NONFINITE
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def lu_factor(A, piv):
     """In-place LU with partial pivoting (LAPACK getrf order); False if singular or not finite."""
     n = A.shape[0]
@@ -46,7 +46,7 @@ def lu_factor(A, piv):
     return dmin > 1e-13 * dmax
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def lu_solve(LU, piv, b):
     n = LU.shape[0]
     for k in range(n):
@@ -67,7 +67,7 @@ def lu_solve(LU, piv, b):
         b[i] = s / LU[i, i]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def norm_inf(x):
     """max |x_i|, NaN if any entry is NaN."""
     r = 0.0
@@ -78,7 +78,7 @@ def norm_inf(x):
     return r
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def matrix_finite(J):
     for r in range(J.shape[0]):
         for c in range(J.shape[1]):
@@ -87,7 +87,7 @@ def matrix_finite(J):
     return True
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def add_to(x, c, inc, compensated):
     """x += inc; with compensated summation the low-order bits lost are kept in c (Kahan)."""
     for i in range(x.shape[0]):
@@ -100,7 +100,7 @@ def add_to(x, c, inc, compensated):
             x[i] += inc[i]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def advance(q, v, cq, cv, dq, dv, compensated):
     """q += dq, v += dv (compensated or not); False when the new state is not finite."""
     add_to(q, cq, dq, compensated)
@@ -108,7 +108,7 @@ def advance(q, v, cq, cv, dq, dv, compensated):
     return np.isfinite(norm_inf(q)) and np.isfinite(norm_inf(v))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def accept_step(q, v, cq, cv, dq, dv, compensated, x, x_last, x_prev, stats, step):
     """q += dq, v += dv, the unknowns x into the predictor's history, one step counted; False
     (failure recorded) when the new state is not finite."""
@@ -120,7 +120,7 @@ def accept_step(q, v, cq, cv, dq, dv, compensated, x, x_last, x_prev, stats, ste
     return True
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def predict(x, x_last, x_prev, step, predictor):
     """Starting guess: 2 = linear extrapolation of the last two steps' unknowns, 1 = the last
     step's, 0 = zero increments (V_i = v1 = v0, Psi = 0)."""
@@ -133,14 +133,14 @@ def predict(x, x_last, x_prev, step, predictor):
             x[r] = 0.0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def shift(x, x_last, x_prev):
     for r in range(x.shape[0]):
         x_prev[r] = x_last[r]
         x_last[r] = x[r]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def newton_increment(LU, piv, G, x):
     """Simplified Newton update x += -J^-1 G with J factored in LU (G is overwritten by the
     increment); returns |dx|_inf."""
@@ -152,7 +152,7 @@ def newton_increment(LU, piv, G, x):
     return norm_inf(G)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def newton_status(dn, prev, xn, floor, tol):
     """1 converged, 0 continue, -1 increment not finite. Converged: |dx| <= lim, or the error
     estimate theta/(1 - theta) |dx| <= lim of the linearly converging simplified Newton
@@ -173,13 +173,13 @@ def newton_status(dn, prev, xn, floor, tol):
     return 0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def fail(stats, step, code):
     stats[mt.FAILED_STEP] = step
     stats[mt.FAILURE] = code
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def end_newton(stats, step, it, status):
     """Count the iterations; on failure record why (False: the kernel must return)."""
     stats[1] += it
@@ -191,7 +191,7 @@ def end_newton(stats, step, it, status):
     return False
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def start_newton(stats, step, G, J, piv):
     """Checks and factors the Newton matrix at the predictor (one LU per step)."""
     stats[3] += 1
@@ -205,7 +205,7 @@ def start_newton(stats, step, G, J, piv):
     return True
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def record(j, t, q, v, E, k, out_t, out_q, out_v, out_E, out_k):
     """Store one sample; False when the energy or the constraint is not finite."""
     out_t[j] = t
@@ -218,7 +218,7 @@ def record(j, t, q, v, E, k, out_t, out_q, out_v, out_E, out_k):
     return np.isfinite(E) and np.isfinite(norm_inf(k))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def constraint_rows(tab, h, Kst, kq, K1, kq1, P1v, J):
     """The rows of the Newton matrix both SPARK forms share, with Kst, kq = K, k_q at the stages
     and K1, kq1, P1v = K, k_q, dp/dv at the end point: d(21d)/dv1 = P1v,
@@ -247,7 +247,7 @@ def constraint_rows(tab, h, Kst, kq, K1, kq1, P1v, J):
             J[rf0 + mm, sn + sm + b] = K1[mm, b]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def stage_points(tab, x, t0, q0, v0, h, m, T, Q, V, q1, v1):
     """(21a), (21c) from the increments x = [Z | Lambda | dv]: T_i = t0 + c_i h, V_i = v0 + Z_i,
     Q_i = q0 + h sum_j a_ij V_j, q1 = q0 + h sum_j b_j V_j, v1 = v0 + dv."""
