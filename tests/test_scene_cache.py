@@ -1,0 +1,43 @@
+"""``get_scene`` builds a named scene once per process and shares it (sympy derivations of the
+closed-form solutions are the cost); a builder replaced in ``SCENES`` is used, not the shared
+scene of the old one."""
+import pytest
+
+from ldaspark.core import scenes
+from ldaspark.core.errors import InputError
+
+
+def test_named_scene_is_built_once(monkeypatch):
+    calls = []
+    real = scenes.SCENES["robot"]
+
+    def counting():
+        calls.append(1)
+        return real()
+    monkeypatch.setitem(scenes.SCENES, "robot", counting)
+    a = scenes.get_scene("robot")
+    b = scenes.get_scene("robot")
+    assert a is b and calls == [1]
+    # the initial condition of mp-particles is part of the key
+    assert scenes.get_scene("mp-particles", ic=1) is not scenes.get_scene("mp-particles", ic=2)
+    assert scenes.get_scene("mp-particles", ic=0) is scenes.get_scene("mp-particles")
+    assert scenes.get_scene("mp-particles", ic=1).v0 != scenes.get_scene("mp-particles", ic=2).v0
+
+
+def test_replaced_builder_is_used(monkeypatch):
+    shared = scenes.get_scene("skate")
+
+    def other():
+        sc = scenes.skate()
+        sc.description = "replaced"
+        return sc
+    monkeypatch.setitem(scenes.SCENES, "skate", other)
+    assert scenes.get_scene("skate").description == "replaced"
+    monkeypatch.undo()
+    assert scenes.get_scene("skate") is shared
+
+
+@pytest.mark.parametrize("name, ic", [("no-such-scene", None), ("skate", 2)])
+def test_bad_names_and_ic_still_say_why(name, ic):
+    with pytest.raises(InputError):
+        scenes.get_scene(name, ic)
