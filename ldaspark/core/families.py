@@ -186,8 +186,21 @@ def _assemble(c, A, A_hat, A_tilde, b, omega=None):
             "b_hat": list(b), "b_tilde": list(b), "omega": omega}
 
 
+_MP_BUILT: dict = {}
+
+
 def _mp_family(kind):
     def builder(dps, s):
+        """The entries at ``dps`` digits, computed once per process: every ``get_method`` makes a
+        new tableau, and rebuilding the nodes and collocation solves was 7% of a convergence
+        job. Callers copy before changing an entry (``SparkTableau.mp_entries`` rounds into new
+        lists, ``with_entry`` copies the rows)."""
+        key = (kind, int(s), int(dps))
+        if key not in _MP_BUILT:
+            _MP_BUILT[key] = _build(dps, s)
+        return _MP_BUILT[key]
+
+    def _build(dps, s):
         with mpmath.workdps(dps + guard_digits(s)):
             if kind == "gauss":
                 c = _gauss_nodes_mp(s)

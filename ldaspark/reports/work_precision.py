@@ -276,11 +276,11 @@ def steps_per_second(scenes=("particle", "skate", "robot", "mp-particles"),
             cg, _ = _cpu(lambda: integrate(sc.system, get_method(m), t0, q0, v0, h, n_steps=n_generic))
             nf, note = n_fast, ""
             try:
-                fast_integrate(sc, m, h=h, n_steps=nf)
+                cf, r = _cpu(lambda: fast_integrate(sc, m, h=h, n_steps=nf), 3)
             except (NewtonError, NonFiniteError) as exc:   # e.g. euler-i leaves the MP particles' energy surface
                 why = "NaN / inf" if isinstance(exc, NonFiniteError) else "Newton fails"
                 nf, note = max(exc.step - 10, 10), f"diverges: {why} at t = {exc.time:.4g}"
-            cf, r = _cpu(lambda: fast_integrate(sc, m, h=h, n_steps=nf), 3)
+                cf, r = _cpu(lambda: fast_integrate(sc, m, h=h, n_steps=nf), 3)
             rows.append({"scene": sname, "method": m, "generic": n_generic / cg, "fast": nf / cf,
                          "ratio": (nf / cf) / (n_generic / cg), "kernel": r.stats["kernel"], "note": note})
     return rows

@@ -41,3 +41,27 @@ def test_replaced_builder_is_used(monkeypatch):
 def test_bad_names_and_ic_still_say_why(name, ic):
     with pytest.raises(InputError):
         scenes.get_scene(name, ic)
+
+
+def test_mp_tableau_entries_are_built_once_and_never_shared_mutably(monkeypatch):
+    import mpmath
+    from ldaspark.core import families
+    calls = []
+    real = families.guard_digits
+
+    def counting(s):
+        calls.append(s)
+        return real(s)
+    monkeypatch.setattr(families, "guard_digits", counting)
+    a = families.get_method("lobatto-iiia-iiib-iiid-3").mp_entries(37)
+    b = families.get_method("lobatto-iiia-iiib-iiid-3").mp_entries(37)
+    assert len(calls) == 1 and a == b and a is not b       # one build, two tableaux' own copies
+    a["A"][0][0] += 1                                     # a caller's edit stays its own
+    assert families.get_method("lobatto-iiia-iiib-iiid-3").mp_entries(37)["A"][0][0] == b["A"][0][0]
+    # a perturbed copy (negative controls) changes its entry only
+    base = families.get_method("gauss-2")
+    pert = base.with_entry("A_hat", 0, 1, "0.1").mp_entries(37)
+    with mpmath.workdps(37):
+        assert pert["A_hat"][0][1] - base.mp_entries(37)["A_hat"][0][1] == mpmath.mpf("0.1")
+    assert families.get_method("gauss-2").mp_entries(37)["A_hat"] == base.mp_entries(37)["A_hat"]
+    assert len(calls) == 2                                  # gauss-2 at 37 digits built once too
