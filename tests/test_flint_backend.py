@@ -63,3 +63,46 @@ def test_flint_singular_values_match_mpmath():
         assert all(abs(a - b) <= 1e-40 * ref[0] for a, b in zip(sv[:-1], ref[:-1]))
         assert sv[-1] < 1e-45 * sv[0] and ref[-1] < 1e-45 * ref[0]    # both at the precision floor
         assert sv[-2] > 1e-3 * sv[0]                   # control: the others are far from it
+
+
+def _matrix_with_sigmas(sig, dps, seed=3):
+    """U diag(sig) V^T at dps digits, U and V exactly orthogonal (mpmath QR of random matrices)."""
+    rng = np.random.default_rng(seed)
+    N = len(sig)
+    with mpmath.workdps(dps + 20):
+        Q1 = mpmath.qr(mpmath.matrix(rng.standard_normal((N, N)).tolist()))[0]
+        Q2 = mpmath.qr(mpmath.matrix(rng.standard_normal((N, N)).tolist()))[0]
+        M = Q1 * mpmath.diag([mpmath.mpf(s) for s in sig]) * Q2.T
+    with mpmath.workdps(dps):
+        return np.array([[+M[i, j] for j in range(N)] for i in range(N)], dtype=object)
+
+
+@pytest.mark.parametrize("dps", [30, 60])
+def test_small_singular_values_by_schur_complement(dps):
+    """Backend.small_singular_values against mpmath's SVD: the genuinely small values to many
+    digits, a structural zero at the precision floor, the deficiency decided as before."""
+    from ldaspark.theory.discrete import _deficiency, _rank_info
+    bk = B.Backend(dps)
+    sig = ["3", "1", "0.5", "0.02", "1e-11", "3e-13", "0"]
+    J = _matrix_with_sigmas(sig, dps)
+    with bk.context():
+        ref = mpmath.svd_r(mpmath.matrix(J.tolist()), compute_uv=False)
+        ref = sorted((ref[i] for i in range(ref.rows)), reverse=True)
+        U, s64, Vh = np.linalg.svd(np.array([[float(x) for x in r] for r in J]))
+        k = int(np.sum(s64 > 1e-9 * s64[0]))
+        assert k == 4
+        small = bk.small_singular_values(J, U, Vh, k)
+        assert len(small) == 3
+        for got, want in zip(small[:2], ref[4:6]):          # 1e-11, 3e-13: genuine, to 1e-12
+            assert abs(got / want - 1) < 1e-12
+        assert small[2] < mpmath.mpf(10) ** (-dps + 5)     # the zero: at the precision floor
+        sig_full, r, _, _ = _rank_info(bk, J, dps)
+        assert r == 1 == _deficiency(np.array(ref, dtype=object), dps)
+        assert float(sig_full[-1]) > 0                     # reported at the floor, never 0
+        # control: the decision is taken on J at full precision, not on its float64 image: a
+        # perturbation 1.7 x 10^(5 - dps/2) (at 60 digits far below float64 resolution) leaves
+        # no zero singular value
+        J2 = J.copy()
+        J2[0, 0] += mpmath.mpf(10) ** (-dps // 2 + 5) * mpmath.mpf("1.7")
+        sig2, r2, _, _ = _rank_info(bk, J2, dps)
+        assert r2 == 0 and float(sig2[-1]) > 10.0 ** (-dps / 2)

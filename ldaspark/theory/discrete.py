@@ -223,14 +223,28 @@ def _svd(bk, J):
     return U, S, Vh
 
 
+RANK_BY_SCHUR = True     # False: the full-precision SVD of all of J (benchmarks compare the two)
+
+
 def _rank_info(bk, J, dps):
-    """(sigma, r, U, Vh): singular values at working precision (values only: cheap in mpmath),
+    """(sigma, r, U, Vh): singular values (the candidates for zero at working precision, from
+    the Schur complement of ``Backend.small_singular_values``; the others from float64),
     the deficiency r decided relative to the precision, and float64 singular vectors, which
     are ample for pinning/bordering (any transversal choice works) and for the null support."""
     Jf = np.array([[float(v) for v in row] for row in J]) if bk.is_mp else J
     U, s64, Vh = np.linalg.svd(Jf)
     if bk.is_mp and s64[-1] <= 1e-9 * s64[0]:
-        sig = bk.singular_values(J)          # candidate deficiency: decide at full precision
+        # candidate deficiency: decide at full precision, on the small block only
+        k = int(np.sum(s64 > 1e-9 * s64[0]))
+        small = bk.small_singular_values(J, U, Vh, k) if RANK_BY_SCHUR else None
+        if small is None:
+            sig = bk.singular_values(J)
+        else:
+            # below the precision floor a value is zero to working precision: reported at the
+            # floor (the full SVD reports noise of that size; S, built exactly from exact
+            # zeros, can give far less, or 0, which would hide that the floor tracks dps)
+            floor = mpmath.mpf(float(s64[0])) * mpmath.mpf(2) ** (-mpmath.mp.prec)
+            sig = np.array([mpmath.mpf(float(v)) for v in s64[:k]] + [max(x, floor) for x in small], dtype=object)
     elif bk.is_mp:
         sig = np.array([mpmath.mpf(float(v)) for v in s64], dtype=object)
     else:
