@@ -249,6 +249,11 @@ CATALOGUE: tuple[Mutant, ...] = (
     _m("compiled-nonideal-Npsi-sign", "compiled/kernels_general.py",
        "J[i * n + a, sn + k * m + l] -= wk_t * Np[k, a, l]", "J[i * n + a, sn + k * m + l] += wk_t * Np[k, a, l]",
        "compiled kernel: sign of the N_psi block of the Newton matrix (3.3)", "compiled", TCNI),
+    # --- rank decisions at full precision (theory/discrete.py) ------------------------------------
+    _m("rank-small-sigmas-float64", "theory/discrete.py",
+       "[max(x, floor) for x in small]", "[max(mpmath.mpf(float(v)), floor) for v in s64[k:]]",
+       "rank decision: the candidate singular values taken from the float64 SVD instead of the "
+       "full-precision Schur complement", "theorem1", "tests/test_flint_backend.py", VT1),
 )
 
 # A fixed subset for ``--quick``: one per main area, each killed fast by its hint files.
