@@ -65,3 +65,37 @@ def test_mp_tableau_entries_are_built_once_and_never_shared_mutably(monkeypatch)
         assert pert["A_hat"][0][1] - base.mp_entries(37)["A_hat"][0][1] == mpmath.mpf("0.1")
     assert families.get_method("gauss-2").mp_entries(37)["A_hat"] == base.mp_entries(37)["A_hat"]
     assert len(calls) == 2                                  # gauss-2 at 37 digits built once too
+
+
+def test_stage_arrays_equal_the_plain_conversion_entry_by_entry():
+    """LagrangianSystem._arrays converts only the entries that may not come back as mpf; on a
+    system with integer, huge-integer, pi and Piecewise entries it gives the arrays (values and
+    types) of the plain per-entry conversion ``_arr``."""
+    import mpmath
+    import numpy as np
+    import sympy
+    from ldaspark.core.backend import Backend
+    from ldaspark.core.system import LagrangianSystem, _arr
+    q = list(sympy.symbols("q1:3"))
+    v = list(sympy.symbols("v1:3"))
+    L = (v[0] ** 2 + 3 * v[1] ** 2) / 2 + sympy.pi * q[0] + 10 ** 30 * q[1] \
+        - sympy.Piecewise((q[0] ** 3, q[0] > 0), (0, True)) * (1 + v[0])
+    k = [v[0] + q[1] * v[1]]
+    sysm = LagrangianSystem(L, k, q, v, name="odd-entries")
+    bk = Backend(40)
+    exprs = [sysm.L_v, sysm.L_q, sysm.k, sysm.R_lam, sysm.L_vv, sysm.L_vq, sysm.L_qq, sysm.k_q, sysm.k_v,
+             sysm.R_q, sysm.R_v]
+    with bk.context():
+        f = sysm._fn("stage_jac", exprs, bk, True)
+        for qa, qb in (("0.3", "-0.2"), ("-0.3", "0.2")):    # both branches of Piecewise
+            args = [mpmath.mpf("0.1"), mpmath.mpf(qa), mpmath.mpf(qb), mpmath.mpf("0.5"), mpmath.mpf("-0.4"),
+                    mpmath.mpf("0.7")]
+            raw = f(*args)
+            plain = [_arr(x, bk) for x in raw]
+            fast = sysm._arrays("stage_jac", raw, bk)
+            for a, b in zip(plain, fast):
+                assert a.shape == b.shape
+                for x, y in zip(a.reshape(-1), b.reshape(-1)):
+                    assert type(x) is type(y) is mpmath.mpf and x == y
+    # control: without the plan's call-time conversion the Piecewise entries stay ints
+    assert any(type(x) is not mpmath.mpf for r in raw for x in np.asarray(r, dtype=object).reshape(-1))
