@@ -362,7 +362,7 @@ class LagrangianSystem:
     def ode_rhs(self, backend, t, q, v):
         """Underlying ODE (3a-b): returns (dv/dt, psi) from the saddle system (4)."""
         f = self._fn("ode", [self.L_vv, self.k_v, self.L_vt, self.L_vq, self.L_q, self.k_t, self.k_q], backend)
-        Lvv, kv, Lvt, Lvq, Lq, kt, kq = (_arr(x, backend) for x in f(t, *q, *v))
+        Lvv, kv, Lvt, Lvq, Lq, kt, kq = self._arrays("ode", f(t, *q, *v), backend)
         kv = kv.reshape(self.m, self.n)
         kq = kq.reshape(self.m, self.n)
         v = np.asarray(v)
