@@ -143,7 +143,10 @@ def plot_family(records, family, methods, path):
             ax.set_xlabel("step size h")
             ax.set_ylabel(f"error in {var}" + (" (stages of last step)" if var == "psi" else f" at t = {t_end:g}"))
             ax.set_title(f"{sc}: {var}")
-            ax.grid(True, which="both", alpha=0.3)
+            # major decades only: the minor log ticks and their grid were a third of the cost of
+            # drawing these 27-panel figures (6.5 -> 4.5 s CPU for one family)
+            ax.minorticks_off()
+            ax.grid(True, which="major", alpha=0.3)
             if ax.get_legend_handles_labels()[0]:
                 ax.legend(fontsize=6)
     fig.suptitle(f"Global error vs step size: {family}")
