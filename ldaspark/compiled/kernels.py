@@ -193,9 +193,10 @@ def lf2_run(model, variant, M, Minv, t0, q0, v0, h, n_steps, every, compensated,
     variant 2, McLachlan-Perlmutter (26): Q1 = q0 + h/2 v0, M dv = -h grad U(Q1) - K(Q1)^T Lambda,
       q1 = q0 + h/2 (v0 + v1), 0 = K(q1) v1 + b(q1).
 
-    One function of ~190 lines on purpose: the step is ~0.4 us, and the same code split into
-    helper functions taking a workspace tuple measured 3-5x slower per step (with the model
-    called through the same function pointers as here, or directly)."""
+    One function of ~190 lines: the step is ~0.4 us, and the same code split into helper
+    functions taking a workspace tuple measured 3-5x slower per step, at a time when numba
+    counted references on every array of such a tuple at every call (the helpers now compile
+    without reference counting, see the module docstring; the split was not measured again)."""
     grad_U, K_of, b_of, kq_of = model[1], model[3], model[4], model[5]
     n = q0.shape[0]
     m = out_k.shape[1]
