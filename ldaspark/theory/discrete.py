@@ -223,7 +223,7 @@ def _svd(bk, J):
     return U, S, Vh
 
 
-RANK_BY_SCHUR = True     # False: the full-precision SVD of all of J (benchmarks compare the two)
+RANK_BY_SCHUR = True     # False: the full-precision SVD of all of J (benchmarks/rank_decisions.py compares the two)
 
 
 def _rank_info(bk, J, dps):
