@@ -177,10 +177,8 @@ class Backend:
         m, N = J.shape
         if min(m, N) <= k:
             return np.array([], dtype=object)
-        f64 = lambda M: _flint.arb_mat([[_flint.arb(float(x)) for x in row] for row in np.asarray(M).tolist()])
         with _flint.ctx.workprec(prec + GUARD_BITS):
-            Jp = f64(np.asarray(U).T) * _flint.arb_mat([[_to_arb(v) for v in row] for row in J.tolist()]) \
-                * f64(np.asarray(Vh).T)
+            Jp = _arb_mat(np.asarray(U).T) * _arb_mat(J) * _arb_mat(np.asarray(Vh).T)
             Jp = Jp.mid()
             blk = lambda r0, r1, c0, c1: _flint.arb_mat([[Jp[i, j] for j in range(c0, c1)] for i in range(r0, r1)])
             A, B, C, D = blk(0, k, 0, k), blk(0, k, k, N), blk(k, m, 0, k), blk(k, m, k, N)
@@ -259,6 +257,11 @@ def _to_arb(v):
     return _flint.arb((-man if sign else man, int(exp)))
 
 
+def _arb_mat(M):
+    """The matrix M (mpf or float entries) as an exact arb matrix."""
+    return _flint.arb_mat([[_to_arb(v) for v in row] for row in np.asarray(M).tolist()])
+
+
 def _from_arb(a):
     """Midpoint of an arb ball as an mpf (rounded to the current mpmath precision)."""
     m, e = a.mid().man_exp()
@@ -273,7 +276,7 @@ def _flint_factor(J):
     accepts a matrix the mpmath path would reject."""
     prec = mpmath.mp.prec
     with _flint.ctx.workprec(prec):
-        A = _flint.arb_mat([[_to_arb(v) for v in row] for row in J.tolist()])
+        A = _arb_mat(J)
         try:
             A.inv()                  # the decision: certified nonsingular at the working precision
         except (ZeroDivisionError, ValueError):
@@ -292,7 +295,7 @@ def _flint_solve(fac, r):
     r = np.asarray(r)
     cols = r.reshape(r.shape[0], -1)
     with _flint.ctx.workprec(prec + GUARD_BITS):
-        R = _flint.arb_mat([[_to_arb(v) for v in row] for row in cols.tolist()])
+        R = _arb_mat(cols)
         X = inv * R
     out = np.empty(cols.shape, dtype=object)
     for i in range(cols.shape[0]):
@@ -316,7 +319,7 @@ def _flint_singular_values(J):
     prec = mpmath.mp.prec
     N = J.shape[1]
     with _flint.ctx.workprec(2 * prec + 64):
-        A = _flint.arb_mat([[_to_arb(v) for v in row] for row in J.tolist()])
+        A = _arb_mat(J)
         G = (A.transpose() * A).mid()
         try:
             E, R = _flint.acb_mat(G).eig(right=True, algorithm="approx")
