@@ -261,6 +261,25 @@ QUICK = ("spark-Ahat-Atilde-swapped", "fdplus-index-order", "system-K-at-v0", "L
          "orders-pairwise-log2", "cond-22b-index-order")
 
 
+
+def _area_catalogues() -> tuple[Mutant, ...]:
+    """Mutants of each area (``ldaspark/reports/catalogue/<area>.py``, each a ``MUTANTS`` tuple),
+    in module-name order, so that the areas' catalogues grow without editing one shared list."""
+    import importlib
+    import pkgutil
+
+    from . import catalogue
+    found = []
+    for info in sorted(pkgutil.iter_modules(catalogue.__path__), key=lambda i: i.name):
+        found.extend(importlib.import_module(f"{catalogue.__name__}.{info.name}").MUTANTS)
+    return tuple(found)
+
+
+CATALOGUE = CATALOGUE + _area_catalogues()
+if len({m.id for m in CATALOGUE}) != len(CATALOGUE):
+    raise ImportError("mutation catalogue: duplicate mutant ids")
+
+
 def by_id(mutant_id: str) -> Mutant:
     for m in CATALOGUE:
         if m.id == mutant_id:
