@@ -24,8 +24,11 @@ dicts (or q0, v0 with a leading batch axis) runs an ensemble and returns a batch
 """
 from __future__ import annotations
 
+import copy
+import functools
 import math
 import sys
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Callable, Optional, Sequence, Union
 
 import numpy as np
@@ -147,12 +150,27 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
             if fast is not None:
                 return fast
         jobs = [(k, p, a, b) for k, (p, (a, b)) in enumerate((p, ab) for p in plist for ab in zip(Q0, V0))]
-
-        def run(job):   # the fallback notice once per ensemble, not once per member
-            return _single(sysm, job[1], job[2], job[3], quiet=job[0] > 0, **common)
-        members = list(executor.map(run, jobs)) if executor is not None else [run(j) for j in jobs]
-        return stack(members)
+        if executor is None:
+            return stack([_member(sysm, common, j) for j in jobs])
+        # a module-level task over a system without its lambdified functions (rebuilt in the
+        # worker), so that process pools and clusters can run the members as well as threads
+        run = functools.partial(_member, sysm if isinstance(executor, ThreadPoolExecutor) else _portable(sysm), common)
+        return stack(list(executor.map(run, jobs)))
     return _single(sysm, params, q0, v0, quiet=False, **common)
+
+
+def _member(system, common, job) -> Result:
+    """One member of an ensemble over parameters or initial data (the fallback notice once per
+    ensemble, not once per member)."""
+    return _single(system, job[1], job[2], job[3], quiet=job[0] > 0, **common)
+
+
+def _portable(system):
+    """A copy of ``system`` that pickles: its lambdified functions (closures over generated code)
+    are dropped and rebuilt where it is unpickled."""
+    out = copy.copy(system)
+    out._compiled = {}
+    return out
 
 
 def _compiled_ensemble(system, params, Q0, V0, executor, c) -> Optional[Result]:

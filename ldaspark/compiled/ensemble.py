@@ -120,14 +120,24 @@ def default_executor(max_workers=None):
     return concurrent.futures.ProcessPoolExecutor(max_workers=max_workers or os.cpu_count() or 1)
 
 
-def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None):
-    """Run several RunSpec's through one executor; returns one EnsembleResult per spec."""
+def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, where=None):
+    """Run several RunSpec's through one executor; returns one EnsembleResult per spec.
+    ``where`` names where they run as in ``ldaspark.core.workers`` (a scheduler address, a
+    ``distributed.Client``, an executor); ``executor`` is the same as ``where`` with an executor
+    (kept for compatibility). Default: a local process pool of ``max_workers`` (all cores)."""
+    if executor is not None and where is not None:
+        raise InputError("give executor or where, not both")
     t_start = time.perf_counter()
+    specs = list(specs)
+    if not specs:
+        raise InputError("run_many needs at least one RunSpec")
     plan = []
     for k, sp in enumerate(specs):
+        if not isinstance(sp, RunSpec):
+            raise InputError(f"run_many takes RunSpec objects, got {type(sp).__name__}")
         for fn, args in sp.tasks(chunk):
             plan.append((k, fn, args))
-    results = _run_plan(plan, len(specs), executor, max_workers, progress)
+    results = _run_plan(plan, len(specs), executor if executor is not None else where, max_workers, progress)
     seconds = time.perf_counter() - t_start
     out = []
     for rs in results:
@@ -139,46 +149,24 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None):
 
 
 def _run_plan(plan, n_specs, executor=None, max_workers=None, progress=None):
-    """Submit (k, fn, args) tasks; results grouped by k. On any exception, Ctrl-C included, the
-    pending tasks are cancelled and, for a pool created here, its workers are stopped, so that
-    an interrupted run ends within a second or two instead of finishing the queue."""
-    own = executor is None
-    ex = default_executor(max_workers) if own else executor
-    futs = []
-    try:
-        futs = [(k, ex.submit(fn, *args)) for k, fn, args in plan]
-        results = [[] for _ in range(n_specs)]
-        for i, (k, f) in enumerate(futs):
-            results[k].extend(f.result())
-            if progress is not None:
-                progress(i + 1, len(futs))
-    except BaseException:
-        for _, f in futs:
-            f.cancel()
-        if own:
-            _stop_pool(ex)
-        raise
-    if own:
-        ex.shutdown(wait=True)
+    """Run the (k, fn, args) tasks where ``executor`` says (``ldaspark.core.workers.run_units``:
+    a worker that dies gets its task retried, Ctrl-C cancels what is pending and stops a pool
+    created here); results grouped by k, in plan order whatever the order of completion."""
+    from ..core.workers import Unit, run_units
+    units = [Unit(str(i), fn, tuple(args)) for i, (k, fn, args) in enumerate(plan)]
+    count = 0
+
+    def done(name, val):
+        nonlocal count
+        count += 1
+        if progress is not None:
+            progress(count, len(units))
+    res = run_units(units, executor, None if executor is not None else (max_workers or os.cpu_count() or 1),
+                    on_done=done)
+    results = [[] for _ in range(n_specs)]
+    for i, (k, _, _) in enumerate(plan):
+        results[k].extend(res[str(i)])
     return results
-
-
-def _stop_pool(ex):
-    """Shut a pool down without waiting: cancel what is queued, terminate running workers."""
-    terminate = getattr(ex, "terminate_workers", None)         # Python >= 3.14
-    if terminate is not None:
-        terminate()
-        return
-    # before shutdown, which drops the executor's reference to its processes
-    procs = list((getattr(ex, "_processes", None) or {}).values())
-    ex.shutdown(wait=False, cancel_futures=True)
-    for p in procs:
-        try:
-            p.terminate()
-        except (OSError, AttributeError, ValueError):
-            pass
-    for p in procs:
-        p.join(timeout=2)
 
 
 def ensemble_integrate(system, method, t0, Q0, V0, h, n_steps, every=1, compensated=True, tol=None,

@@ -277,9 +277,18 @@ def _family(kind, s, exact, order, label):
         raise TableauError(f"{kind} needs s >= {1 if kind == 'gauss' else 2}, got s = {s}")
     if exact:
         return SparkTableau(label, s, exact=_exact_family(kind, s), claimed_order=order, family=kind)
-    b = _mp_family(kind)
-    return SparkTableau(label, s, builder=lambda dps, b=b: b(dps, s), claimed_order=order,
-                        family=kind)
+    return SparkTableau(label, s, builder=_FamilyBuilder(kind, s), claimed_order=order, family=kind)
+
+
+class _FamilyBuilder:
+    """The mpmath builder of a family's s-stage tableau: a module-level callable (not a lambda),
+    so that a tableau pickles into the worker processes of an ensemble or a cluster."""
+
+    def __init__(self, kind, s):
+        self.kind, self.s = kind, s
+
+    def __call__(self, dps):
+        return _mp_family(self.kind)(dps, self.s)
 
 
 # s <= MAX_STAGES (20) unless max_stages raises it: the mpmath builders cost grows steeply with s

@@ -9,6 +9,7 @@ from ..core.io import atomic_write_json, atomic_write_text
 from ..core.families import builtin_method_names
 from ..theory import ledger as _ledger
 from ..theory.claims_index import claims_index_markdown
+from ..core.workers import add_scheduler_argument
 from ..theory.ledger import extra_records, negative_controls, run_ledger, summarize  # noqa: F401 (re-exported)
 from .markdown import table
 from .timing import Clock
@@ -91,16 +92,34 @@ def file_names(quick=False):
     return ("claims-quick.md", "claims-quick.json") if quick else ("claims.md", "claims.json")
 
 
-def run_verify(outdir=REPORT_DIR, quick=False, json_path=None, command="ldaspark verify", jobs=None):
+def run_verify(outdir=REPORT_DIR, quick=False, json_path=None, command="ldaspark verify", jobs=None,
+               where=None, resume=True):
+    """Run the ledger where ``where`` says (``ldaspark.core.workers``) and write its files. Each
+    finished unit is appended to ``OUTDIR/claims[-quick].partial.jsonl`` as it comes in; a run
+    that is interrupted or loses units keeps it, and the next run resumes from it (same code and
+    options only: the file carries a fingerprint of both); it is removed once the ledger is
+    written. ``resume=False`` starts afresh."""
+    from ..core.workers import Checkpoint, UnitsFailed, source_fingerprint
     clock = Clock()
     # the claim groups' pieces run in the same worker processes as the ledger's units
     groups = _ledger.CLAIM_GROUPS
-    if quick:
-        recs = run_ledger(max_s=2, scenes=("particle", "skate"), perturbed=False, holonomic=False,
-                          progress=_progress, jobs=jobs, groups=groups, quick=True)
-    else:
-        recs = run_ledger(max_s=3, progress=_progress, jobs=jobs, groups=groups)
+    md, _ = file_names(quick)
+    ck = Checkpoint(os.path.join(outdir, md[:-3] + ".partial.jsonl"), source_fingerprint("ledger", quick, groups))
+    if not resume:
+        ck.discard()
+    say = lambda msg: print(f"[claims] {msg}", file=sys.stderr, flush=True)   # noqa: E731
+    try:
+        if quick:
+            recs = run_ledger(max_s=2, scenes=("particle", "skate"), perturbed=False, holonomic=False,
+                              progress=_progress, jobs=jobs, groups=groups, quick=True, where=where,
+                              checkpoint=ck, say=say)
+        else:
+            recs = run_ledger(max_s=3, progress=_progress, jobs=jobs, groups=groups, where=where,
+                              checkpoint=ck, say=say)
+    except UnitsFailed as exc:
+        raise UnitsFailed(exc.failed, exc.results, kept=ck.path) from None
     _write_files(recs, outdir, quick, json_path, clock, command)
+    ck.discard()
     print(f"[claims] {clock.summary()}", flush=True)
     return recs
 
@@ -162,11 +181,15 @@ def add_arguments(p):
     p.add_argument("--jobs", type=int, default=None,
                    help="worker processes for the ledger (default $LDASPARK_JOBS or the CPU count; "
                         "the records do not depend on it)")
+    add_scheduler_argument(p)
+    p.add_argument("--fresh", action="store_true",
+                   help="do not resume from the checkpoint of an interrupted run (OUTDIR/claims.partial.jsonl)")
 
 
 def run(args) -> int:
     cmd = "ldaspark verify" + (" --quick" if args.quick else "")
-    recs = run_verify(args.outdir, args.quick, args.json, cmd, getattr(args, "jobs", None))
+    recs = run_verify(args.outdir, args.quick, args.json, cmd, getattr(args, "jobs", None),
+                      where=getattr(args, "scheduler", None), resume=not getattr(args, "fresh", False))
     n = summarize(recs)
     print(f"{len(recs)} records, {n} with an outcome other than the paper predicts (findings, listed in "
           f"{os.path.join(args.outdir, file_names(args.quick)[0])})")

@@ -51,6 +51,8 @@ def add_arguments(p):
                    help="main job: the exhaustive sweeps of the sections that have them (stability)")
     p.add_argument("--workers", type=int, default=None,
                    help="main job: worker processes (default: the number of cores)")
+    from ..core.workers import add_scheduler_argument
+    add_scheduler_argument(p)
     sub = p.add_subparsers(dest="section", parser_class=type(p))
     for name, mod in available_sections().items():
         sp = sub.add_parser(name, help=f"{name} report")
@@ -69,7 +71,8 @@ def run(args) -> int:
         raise InputError(f"--workers must be positive, got {workers}")
     clock = Clock()
     modules = {name: importlib.import_module(mod) for name, mod in available_sections().items()}
-    stats = run_sections(modules, args.outdir, full=getattr(args, "full", False), workers=workers)
+    stats = run_sections(modules, args.outdir, full=getattr(args, "full", False), workers=workers,
+                         where=getattr(args, "scheduler", None))
     print("[report] section      CPU [s]  written at [s wall]", flush=True)
     for name, st in stats.items():
         print(f"[report] {name:14s} {st['cpu']:7.1f}  {st['wall']:7.1f}", flush=True)

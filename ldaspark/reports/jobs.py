@@ -77,17 +77,19 @@ def plan(modules, outdir, full=False):
     return out
 
 
-def run_sections(modules, outdir, full=False, workers=2, say=print):
-    """Run every section's jobs over ``workers`` processes; write each section when complete.
+def run_sections(modules, outdir, full=False, workers=2, say=print, where=None):
+    """Run every section's jobs over ``workers`` processes (or where ``where`` says, e.g. a Dask
+    scheduler: ``ldaspark.core.workers``); write each section when complete.
     Returns {section: {"jobs", "cpu", "wall"}} (wall = seconds from the start until written)."""
+    from ..core.workers import describe, open_executor
     clock = Clock()
     jobs = plan(modules, outdir, full)
     left = {name: sum(1 for p in jobs if p[1] == name) for name in modules}
     results = {name: {} for name in modules}
     stats = {name: {"jobs": left[name], "cpu": 0.0, "wall": 0.0} for name in modules}
-    say(f"[report] {len(jobs)} jobs of {len(modules)} sections on {workers} worker process(es)")
+    say(f"[report] {len(jobs)} jobs of {len(modules)} sections on a {describe(where, workers)}")
     first_error = None
-    with cf.ProcessPoolExecutor(max_workers=workers) as ex:
+    with open_executor(where, workers) as ex:
         futs = {ex.submit(run_job, m, fn, args): (name, key) for _, name, key, m, fn, args in jobs}
         for f in cf.as_completed(futs):
             name, key = futs[f]

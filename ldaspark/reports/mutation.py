@@ -156,14 +156,43 @@ def classify(rc, output) -> tuple[str, str | None]:
     return "invalid", first          # collection error, usage error, crash: not a verdict
 
 
+def project_snapshot(project=PROJECT) -> bytes:
+    """The parts of the project a test run needs (``copy_project``) as a gzipped tar: what a
+    mutant's work unit carries to a worker on another machine (~0.4 MB)."""
+    import io
+    import tarfile
+    buf = io.BytesIO()
+    with tempfile.TemporaryDirectory(prefix="ldaspark-snap-") as tmp:
+        root = copy_project(pathlib.Path(tmp) / "proj", project)
+        with tarfile.open(fileobj=buf, mode="w:gz") as tar:
+            for p in sorted(root.iterdir()):
+                tar.add(p, arcname=p.name)
+    return buf.getvalue()
+
+
+def _unpack_snapshot(snapshot: bytes, dest) -> pathlib.Path:
+    import io
+    import tarfile
+    dest = pathlib.Path(dest)
+    dest.mkdir(parents=True)
+    with tarfile.open(fileobj=io.BytesIO(snapshot), mode="r:gz") as tar:
+        # the "data" filter refuses absolute paths, links out of dest and device files
+        tar.extractall(dest, filter="data")
+    return dest
+
+
 def run_mutant(mutant: Mutant | None, hints_only=False, project=PROJECT, timeout=TIMEOUT,
-               targets=None, exclude=()) -> dict:
-    """Apply one mutant (None: the unmutated package, a control) to a fresh scratch copy, run the
-    suite (or ``targets``), return its record."""
+               targets=None, exclude=(), snapshot: bytes | None = None) -> dict:
+    """Apply one mutant (None: the unmutated package, a control) to a fresh scratch copy (of
+    ``project``, or unpacked from ``snapshot``, see ``project_snapshot``), run the suite (or
+    ``targets``), return its record."""
     t = time.time()
     label = mutant.id if mutant is not None else "none"
     with tempfile.TemporaryDirectory(prefix=f"ldaspark-mut-{label}-") as tmp:
-        root = copy_project(pathlib.Path(tmp) / "proj", project)
+        if snapshot is not None:
+            root = _unpack_snapshot(snapshot, pathlib.Path(tmp) / "proj")
+        else:
+            root = copy_project(pathlib.Path(tmp) / "proj", project)
         if mutant is not None:
             path = apply_mutant(root, mutant)
             try:
@@ -193,16 +222,30 @@ def _record(m: Mutant | None, status, first, seconds) -> dict:
             "first_failing_test": first, "seconds": round(seconds, 1)}
 
 
-def run_catalogue(mutants, jobs=2, hints_only=False, progress=None, exclude=()) -> list[dict]:
-    """Run mutants, ``jobs`` at a time; records in catalogue order."""
-    recs = {}
-    with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, jobs)) as ex:
-        futs = {ex.submit(run_mutant, m, hints_only, exclude=exclude): m for m in mutants}
-        for f in concurrent.futures.as_completed(futs):
-            r = f.result()
-            recs[r["mutant"]] = r
-            if progress is not None:
-                progress(r)
+def run_catalogue(mutants, jobs=2, hints_only=False, progress=None, exclude=(), where=None,
+                  checkpoint=None, targets=None) -> list[dict]:
+    """Run mutants, ``jobs`` at a time on this machine (threads, each driving a pytest process), or
+    as work units on a Dask cluster (``where``: a scheduler address or client; each unit carries
+    a snapshot of the project); records in catalogue order. ``checkpoint``
+    (``ldaspark.core.workers.Checkpoint``): mutants finished by an interrupted run are resumed
+    from it. ``targets``: {mutant id: test node ids} to run instead of the suite."""
+    from ..core.workers import Unit, check_where, is_address, run_resumable
+    check_where(where, jobs)
+    targets = targets or {}
+    remote = where is not None and where != "local"
+    snapshot = project_snapshot() if remote else None
+    units = [Unit(m.id, run_mutant, (m, hints_only, PROJECT, TIMEOUT, targets.get(m.id), tuple(exclude), snapshot))
+             for m in mutants]
+
+    def done(name, rec):
+        if progress is not None:
+            progress(rec)
+    if remote:
+        recs = run_resumable(units, checkpoint, where=where, on_done=done)
+    else:
+        assert not is_address(where)
+        with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, jobs)) as ex:
+            recs = run_resumable(units, checkpoint, where=ex, on_done=done)
     return [recs[m.id] for m in mutants]
 
 
@@ -262,6 +305,10 @@ def add_arguments(parser):
     parser.add_argument("--only", default=None, help="comma-separated mutant ids (default: the whole catalogue)")
     parser.add_argument("--exclude", default="",
                         help="comma-separated test files to leave out (which mutants would the rest miss?)")
+    from ..core.workers import add_scheduler_argument
+    add_scheduler_argument(parser)
+    parser.add_argument("--fresh", action="store_true",
+                        help="do not resume from the checkpoint of an interrupted run (OUTDIR/mutation.partial.jsonl)")
 
 
 def run(args) -> int:
@@ -283,10 +330,20 @@ def run(args) -> int:
         print(f"{r['mutant']:32s} {r['status']:9s} {r['seconds']:7.1f}s  {r['first_failing_test'] or ''}",
               flush=True)
     exclude = tuple(x.strip() for x in args.exclude.split(",") if x.strip())
-    recs = run_catalogue(mutants, args.jobs, hints_only=args.quick, progress=progress, exclude=exclude)
+    from ..core.workers import Checkpoint, UnitsFailed, source_fingerprint
+    ck = Checkpoint(pathlib.Path(args.outdir) / "mutation.partial.jsonl",
+                    source_fingerprint("mutants", args.quick, exclude, dirs=(PROJECT / "tests", PROJECT / "verification")))
+    if getattr(args, "fresh", False):
+        ck.discard()
+    try:
+        recs = run_catalogue(mutants, args.jobs, hints_only=args.quick, progress=progress, exclude=exclude,
+                             where=getattr(args, "scheduler", None), checkpoint=ck)
+    except UnitsFailed as exc:
+        raise UnitsFailed(exc.failed, exc.results, kept=ck.path) from None
     cmd = "ldaspark mutants" + (" --quick" if args.quick else "") + (f" --only {args.only}" if args.only else "") \
         + (f" --exclude {args.exclude}" if exclude else "") + f" --jobs {args.jobs}"
     write_reports(recs, args.outdir, cmd, time.time() - t)
+    ck.discard()
     n_k = sum(r["killed"] for r in recs)
     print(f"{n_k} of {len(recs)} mutants killed -> {args.outdir}/mutation.md")
     return 0 if n_k == len(recs) else 1

@@ -16,7 +16,6 @@ symmetry <= 1e-25 at 40 digits; constraint <= 1e3 eps (1 + |v|); negative contro
 """
 from __future__ import annotations
 
-import concurrent.futures
 import importlib
 import math
 import multiprocessing
@@ -376,12 +375,15 @@ def ledger_jobs(jobs=None):
 
 
 def run_ledger(max_s=3, scenes=LEDGER_SCENES, perturbed=True, holonomic=True, controls=True,
-               progress=None, jobs=None, groups=(), quick=False):
-    """All records, in the same order for any ``jobs``: the (tableau, scene) units, and then the
-    pieces of the claim groups ``groups`` (specs as in ``CLAIM_GROUPS``, run with ``quick``),
-    run in ``ledger_jobs(jobs)`` worker processes (1: in this process), the longest first; each
-    unit's records are computed independently of the others, so the output does not depend on
-    the schedule."""
+               progress=None, jobs=None, groups=(), quick=False, where=None, checkpoint=None, say=None):
+    """All records, in the same order for any ``jobs`` and any ``where``: the (tableau, scene)
+    units, and then the pieces of the claim groups ``groups`` (specs as in ``CLAIM_GROUPS``, run
+    with ``quick``), run where ``where`` says (``ldaspark.core.workers``: default a local pool of
+    ``ledger_jobs(jobs)`` worker processes, 1: in this process; a Dask scheduler address or
+    client), the longest first; each unit's records are computed independently of the others,
+    so the output does not depend on the schedule. ``checkpoint`` (a ``workers.Checkpoint``):
+    units finished by an interrupted run are resumed from it, each finished unit is appended."""
+    from ..core.workers import Unit, run_resumable
     n_tabs = len(_ledger_tabs(max_s, controls))
     units = []
     for i in range(n_tabs):
@@ -390,38 +392,43 @@ def run_ledger(max_s=3, scenes=LEDGER_SCENES, perturbed=True, holonomic=True, co
     units += [("group", spec, piece) for spec in groups for piece in group_pieces(spec, quick)]
     total = n_tabs * len(scenes)
     names = [t.name for t, _ in _ledger_tabs(max_s, controls)]
-    results = {}
+    key = {unit_name(u, names): u for u in units}
     done = 0
+    seen = set()
 
-    def task(u):
-        if u[0] == "group":
-            return _group_task, (u[1], u[2], quick)
-        return _ledger_task, (max_s, controls, holonomic, perturbed, *u)
-
-    def finished(u, recs):
+    def finished(name, recs):
         nonlocal done
-        results[u] = recs
+        u = key[name]
+        seen.add(name)
         if u[0] == "group":
             if progress:
-                progress(len(results), len(units), "claim group", _piece_label(u[1], u[2]))
+                progress(len(seen), len(units), "claim group", _piece_label(u[1], u[2]))
         elif u[1] is not None:
             done += 1
             if progress:
                 progress(done, total, names[u[0]], u[1])
     jobs = min(ledger_jobs(jobs), len(units))
-    if jobs == 1:
-        for u in units:
-            fn, args = task(u)
-            finished(u, fn(*args))
-    else:
-        # the longest units first (measured CPU seconds), so the pool drains evenly
-        order = sorted(units, key=lambda u: -unit_cost(u, names))
+    # the longest units first (measured CPU seconds), so the pool drains evenly
+    order = sorted(units, key=lambda u: -unit_cost(u, names))
+    work = [Unit(unit_name(u, names), *_unit_call(u, max_s, controls, holonomic, perturbed, quick)) for u in order]
+    ctx = None
+    if where is None:
         ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else None)
-        with concurrent.futures.ProcessPoolExecutor(jobs, mp_context=ctx) as ex:
-            futs = {ex.submit(*((fn,) + args)): u for u in order for fn, args in [task(u)]}
-            for f in concurrent.futures.as_completed(futs):
-                finished(futs[f], f.result())
-    return [r for u in units for r in results[u]]
+    results = run_resumable(work, checkpoint, where=where, jobs=jobs, on_done=finished, mp_context=ctx, say=say)
+    return [r for u in units for r in results[unit_name(u, names)]]
+
+
+def unit_name(u, names) -> str:
+    """A unit's name, stable across runs and processes (checkpoints, failure reports)."""
+    if u[0] == "group":
+        return f"group {_piece_label(u[1], u[2])} [{u[1]}|{u[2]!r}]"
+    return f"{names[u[0]]} on {u[1] or 'tableau'} [{u[0]}]"
+
+
+def _unit_call(u, max_s, controls, holonomic, perturbed, quick):
+    if u[0] == "group":
+        return _group_task, (u[1], u[2], quick)
+    return _ledger_task, (max_s, controls, holonomic, perturbed, *u)
 
 
 # CPU seconds of a unit on an idle core (scheduling only: the longest start first), measured on
