@@ -280,7 +280,7 @@ def run_units_partial(units: Iterable[Unit], where=None, jobs=None, retries: int
                 raise
             if broken:
                 place.renew()
-            pending.sort(key=names.index)
+            pending.sort(key=lambda u: names.index(u.name))
     finally:
         place.close()
     return results, failed
