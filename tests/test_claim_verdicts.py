@@ -188,9 +188,9 @@ def test_section5_controls_and_antisymmetry_verdicts(monkeypatch):
     _override(monkeypatch, cp, "antisymmetry", L=1e-15, **{"wrong-pairing": 1e-9})
     _override(monkeypatch, cp, "holonomic_exact", tangential=1e-20)
     recs = cp.section5_records(quick=True)
-    assert _status(recs, "16", expected="fail") == ["pass"]
-    assert _status(recs, "20-integral", expected="fail") == ["pass"]
-    assert _status(recs, "antisymmetry-exact") == ["fail", "pass"]         # identity fails, control passes
+    assert _status(recs, "16", expected="fail") == ["pass", "pass"]          # particle, rheonomic skate
+    assert _status(recs, "20-integral", expected="fail") == ["pass", "pass"]
+    assert _status(recs, "antisymmetry-exact") == ["fail", "pass"] * 2     # identity fails, control passes
     assert _status(recs, "5.1-exact") == ["fail", "pass"]                  # pendulum fails, control too small
 
 
@@ -198,7 +198,7 @@ def test_section5_full_del_verdict(monkeypatch):
     monkeypatch.setattr(cp, "exact_del", lambda scn: {"del": 1e-15, "del-printed-20b": 1.0,
                                                       "momentum-continuity": 0.0})
     recs = cp.section5_records(quick=False)
-    assert _status(recs, "20-integral", method="exact-flow", point="exact-2-steps") == ["fail"]
+    assert _status(recs, "20-integral", method="exact-flow", point="exact-2-steps") == ["fail", "fail"]
 
 
 @pytest.mark.parametrize("shift,status", [(0.0, "pass"), (0.25, "pass"), (1.0, "fail"), (-1.0, "fail")])
