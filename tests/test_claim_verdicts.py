@@ -168,9 +168,11 @@ def test_energy_exact_verdicts(monkeypatch):
 
 
 def test_definition1_verdicts(monkeypatch):
-    _override(monkeypatch, cp, "definition1_residuals", **{"15a": 1e-20, "15b": 1e-30})
+    _override(monkeypatch, cp, "definition1_residuals", **{"15a": 1e-20, "15b": 1e-25})
     recs = cp.definition1_records(quick=True)
-    assert _status(recs, "15a", expected="pass") == ["fail"] and _status(recs, "15b") == ["fail"]
+    assert _status(recs, "15a", expected="pass") == ["fail"] and _status(recs, "15b", expected="pass") == ["fail"] * 2
+    _override(monkeypatch, cp, "definition1_residuals", **{"15b_left_end": 1e-30})
+    assert _status(cp.definition1_records(quick=True), "15b", expected="fail") == ["pass"]   # control too small
     _override(monkeypatch, cp, "definition1_residuals", **{"15a": 1e-9})
     assert _status(cp.definition1_records(quick=True), "15a", expected="fail") == ["pass"]   # control too small
 

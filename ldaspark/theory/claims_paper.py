@@ -10,6 +10,8 @@ from __future__ import annotations
 import math
 import time
 
+import mpmath
+
 from ..core.families import get_method
 from ..core.scenes import get_scene
 from .definition1 import definition1_residuals
@@ -49,6 +51,17 @@ def definition1_records(quick):
                           r["seconds"] / 2, "ivp-10-steps", TOL_15A, note))
         out.append(record("15b", name, scn, _st(r["15b"], TOL_15B), r["15b"], "pass", 30, r["wellposed"],
                           r["seconds"] / 2, "ivp-10-steps", TOL_15B, note))
+    # off C_d (inconsistent data, v0[0] + 1/10) on a time-dependent scene: (15b) is k at the
+    # right end point (0 by (21f)); the left end point is not 0 on the first step (control)
+    sc = get_scene("rheonomic-skate")
+    t0, q0, v0 = sc.initial(60)
+    v0 = [v0[0] + mpmath.mpf(1) / 10] + list(v0[1:])
+    r = definition1_residuals(sc.system, get_method("gauss-2", exact=True), t0, q0, v0, "0.1", n_steps=3, dps=20)
+    out.append(record("15b", "gauss-2", "rheonomic-skate", _st(r["15b"], 1e-30), r["15b"], "pass", 20, r["wellposed"],
+                      r["seconds"], "off-C_d-3-steps", 1e-30, f"k(t0, q0, v0) != 0 initially; (15a) {r['15a']:.1e}"))
+    out.append(record("15b", "gauss-2 (control: left end point)", "rheonomic-skate",
+                      _st(r["15b_left_end"], NEG, "fail"), r["15b_left_end"], "fail", 20, r["wellposed"], 0,
+                      "off-C_d-3-steps", NEG, "c = k(t_k, q_k, v0) at the left end point is not 0 off C_d"))
     tab, _ = negative_controls()[0]
     sc = get_scene("particle")
     t0, q0, v0 = sc.initial(60)
