@@ -68,3 +68,15 @@ def test_energy_balance_exhaustive(name, method, exact_method):
     d = discrete_balance(name, tab, hs=("0.1", "0.05", "0.025"))
     p = tab.claimed_order
     assert max(d["mismatch"]) < 1e-25 or d["order_mismatch"] > p + 1 - 0.4, d
+
+
+def test_discrete_order_is_the_finest_pair_of_a_pre_asymptotic_sweep(exact_method):
+    """Distinguishing fixture (issue 27): Euler I on time-L at h = 0.2 .. 0.025 is pre-asymptotic
+    (pairwise slopes 2.63, 2.51, 2.35, measured): the reported order is the finest pair's, which
+    differs from the coarsest by > 0.2."""
+    import math
+    r = discrete_balance("time-L", exact_method("euler-i"), hs=("0.2", "0.1", "0.05", "0.025"))
+    e, h = r["mismatch"], r["h"]
+    slopes = [math.log(e[i] / e[i + 1]) / math.log(h[i] / h[i + 1]) for i in range(3)]
+    assert slopes[0] - slopes[-1] > 0.2, slopes
+    assert r["order_mismatch"] == pytest.approx(slopes[-1], rel=1e-12)
