@@ -126,10 +126,13 @@ def test_event_directions_minus_zero_plus_at_once(engine):
 def test_terminal_event_in_each_direction(engine, direction, t_stop):
     """A terminal event stops at its first crossing in its direction; the non-terminal events
     listed before and after it keep their crossings up to that point only."""
-    evs = [_event(1), _event(direction, terminal=True), _event(-1, fn=_clock)]
+    # the last event (non-terminal, both directions) crosses in the same step as the terminal one:
+    # it is recorded, and it must not cancel the stop
+    evs = [_event(1), _event(direction, terminal=True), _event(-1, fn=_clock), _event(0)]
     r = ldaspark.integrate(SK, "gauss-2", t_span=(0, 7), h=0.05, engine=engine, events=evs)
     assert r.status == 1 and r.success
     assert len(r.t_events[1]) == 1 and abs(r.t_events[1][0] - t_stop) < 1e-5, r.t_events
     assert r.t[-1] == pytest.approx(0.05 * np.ceil(t_stop / 0.05), abs=1e-12)
     n_up = int(np.sum(UP < r.t[-1]))
     assert len(r.t_events[0]) == n_up and len(r.t_events[2]) == 0
+    assert len(r.t_events[3]) == int(np.sum(np.r_[DOWN, UP] < r.t[-1])) and abs(r.t_events[3][-1] - t_stop) < 1e-5

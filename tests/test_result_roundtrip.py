@@ -11,7 +11,7 @@ import ldaspark
 from ldaspark.core.dense import CollocationDense, HermiteDense
 from ldaspark.core.resultio import _from_numbers, _json_value, load_result, save_result
 
-FORMATS = (".json", ".npz", ".h5")
+FORMATS = (".json", ".npz", ".h5", ".hdf5")
 ARRAYS = ("t", "q", "v", "energy", "constraint", "psi")
 
 

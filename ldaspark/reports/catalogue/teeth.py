@@ -102,6 +102,10 @@ MUTANTS = (
        "if tracker.after_step(t[i], t[i + 1], q[i], v[i], piece):",
        "events after a compiled run: g at the step's end taken from the state at its start", "events",
        f"{EV}::test_event_directions_minus_zero_plus_at_once", EV),
+    _m("teeth-event-terminal-reset-by-later-event", "core/dense.py",
+       'stop = stop or bool(getattr(g, "terminal", False))', 'stop = bool(getattr(g, "terminal", False))',
+       "a non-terminal event crossing in the same step after a terminal one cancels the stop", "events",
+       f"{EV}::test_terminal_event_in_each_direction"),
     # --- class 4: shared state between copies ------------------------------------------------------
     _m("teeth-with-params-shared-store", "core/system.py",
        "new._param_values = dict(self._param_values)", "new._param_values = self._param_values",
