@@ -205,3 +205,37 @@ def test_audit_order_facts_and_22_on_the_seven_array_tableau():
     assert c22a.status == ac.FAIL and c22a.residual == pytest.approx(float(w22a), rel=1e-12)
     assert c22b.status == ac.FAIL and c22b.residual == pytest.approx(float(w22b), rel=1e-12)
     assert not check_22a(tab) and not check_22b(tab)
+
+
+def _lobatto3_with_own_tilde(b_tilde, a_from=None):
+    """Lobatto IIIA-IIIB 3 with A_tilde_ij = w_j / 2 (w = ``a_from``, default b_tilde), which
+    satisfies (23d) with respect to b_tilde = w for any symmetric w: a symmetric method with
+    b_tilde != b_hat."""
+    from ldaspark.core.tableau import from_json_dict
+    bt = [sympy.Rational(x) for x in b_tilde]
+    w = [sympy.Rational(x) for x in (a_from or b_tilde)]
+    d = {"c": ["0", "1/2", "1"],
+         "A": [["0", "0", "0"], ["5/24", "1/3", "-1/24"], ["1/6", "2/3", "1/6"]],
+         "A_hat": [["1/6", "-1/6", "0"], ["1/6", "1/3", "0"], ["1/6", "5/6", "0"]],
+         "A_tilde": [[str(x / 2) for x in w] for _ in range(3)],
+         "b": ["1/6", "2/3", "1/6"], "b_hat": ["1/6", "2/3", "1/6"], "b_tilde": [str(x) for x in bt],
+         "omega": [["1/6", "2/3", "1/6"], ["0", "1/3", "1/6"]]}
+    return from_json_dict(d, name="lobatto3-own-tilde")
+
+
+def test_23d_reads_b_tilde_not_b_hat():
+    """(23d) A_tilde_(s+1-i,s+1-j) + A_tilde_ij = b_tilde_j holds here with b_tilde = (1/4, 1/2, 1/4)
+    != b_hat; checked with b_hat it would fail (control: the same A_tilde with b_tilde = b_hat)."""
+    from ldaspark.theory import audit_checks as ac
+    from ldaspark.theory.conditions import check_22a, check_22b, check_23
+    tab = _lobatto3_with_own_tilde(["1/4", "1/2", "1/4"])
+    ar, e = oc.exact_arith(tab)
+    assert e["b_tilde"] != e["b_hat"] and e["A_tilde"] != e["A_hat"]
+    assert check_22a(tab) and check_22b(tab) and check_23(tab)
+    assert {c.name: c.status for c in ac.check_23(ar, e)} == {"23a": ac.PASS, "23b": ac.PASS, "23c": ac.PASS,
+                                                             "23d": ac.PASS}
+    # control: the same A_tilde with b_tilde = b_hat (the neighbour a wrong check would read)
+    bad = _lobatto3_with_own_tilde(["1/6", "2/3", "1/6"], a_from=["1/4", "1/2", "1/4"])
+    ar2, e2 = oc.exact_arith(bad)
+    assert not check_23(bad)
+    assert {c.name: c.status for c in ac.check_23(ar2, e2)}["23d"] == ac.INFO

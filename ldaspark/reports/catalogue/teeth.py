@@ -94,6 +94,12 @@ MUTANTS = (
        "p = (math.log(tang[0] / tang[1]) / math.log(hf[0] / hf[1])",
        "5.1 tangential rate from the coarsest pair of the h-sweep", "fixture",
        "verification/test_holonomic_5_1.py::test_holonomic_rate_is_the_finest_pair_of_a_pre_asymptotic_sweep"),
+    _m("teeth-audit-23d-bhat", "theory/audit_checks.py",
+       '("23d", "A_tilde", "b_tilde")', '("23d", "A_tilde", "b_hat")',
+       "audit (23d) checked against b_hat instead of b_tilde", "fixture", f"{OC}::test_23d_reads_b_tilde_not_b_hat"),
+    _m("teeth-conditions-23d-bhat", "theory/conditions.py",
+       '("A_tilde", "b_tilde")):', '("A_tilde", "b_hat")):',
+       "exact (23d) checked against b_hat instead of b_tilde", "fixture", f"{OC}::test_23d_reads_b_tilde_not_b_hat"),
     # --- class 3: event direction ------------------------------------------------------------------
     _m("teeth-event-direction-negative-swapped", "core/dense.py",
        "(direction < 0 and not up)", "(direction < 0 and up)",
