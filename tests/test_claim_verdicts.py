@@ -360,3 +360,11 @@ def test_audit_observed_order_comes_from_the_finest_pair(monkeypatch, scene_name
     # the floor: a finest error at the floor is not usable, the next pair decides
     res = ac.observed_order(get_method("gauss-2"), scene_name, [4, 8, 16], 1, None, 2e-3)
     assert res["observed"] == pytest.approx(math.log(5) / math.log(2), abs=1e-12)
+
+
+def test_summarize_counts_outcomes_other_than_the_papers():
+    """A control that fails as predicted is not a finding; a check that passes where the paper
+    predicts a failure is; not-applicable is neither."""
+    rec = lambda st, exp: lg.record("x", "m", "s", st, 0.0, exp)
+    assert lg.summarize([rec("pass", "pass"), rec("fail", "fail"), rec("not-applicable", "pass")]) == 0
+    assert lg.summarize([rec("fail", "pass"), rec("pass", "fail"), rec("not-applicable", "fail")]) == 2
