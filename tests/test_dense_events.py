@@ -82,3 +82,57 @@ def test_terminal_event_stops_the_run():
         r = ldaspark.integrate(SK, "gauss-2", t_span=(0, 7), h=0.1, engine=engine, events=stop, save_every=3)
         assert r.status == 1 and r.success and abs(r.t_events[0][0] - T_STAR) < 1e-4
         assert r.t[-1] == pytest.approx(0.9) and r.t[-2] == pytest.approx(0.6)
+
+
+# --- event direction (issue 27, class 3): the three directions, terminal or not, several events,
+# both engines; crossings known exactly from the skate's closed form q1(t) = -sin(t)^2 / 2 and a
+# clock event g = t - 2.5 (upward only, exactly at 2.5)
+DOWN = np.array([T_STAR, np.pi + T_STAR])          # g = q1 + 0.3 decreasing through 0
+UP = np.array([np.pi - T_STAR, 2 * np.pi - T_STAR])   # increasing through 0
+ENGINES = ("generic", "compiled")
+
+
+def _event(direction=0, terminal=False, fn=_g):
+    g = lambda t, q, v: fn(t, q, v)
+    g.direction, g.terminal = direction, terminal
+    return g
+
+
+def _clock(t, q, v):
+    return t - 2.5
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_event_directions_minus_zero_plus_at_once(engine):
+    """direction -1 finds only the downward crossings, +1 only the upward, 0 both; the clock
+    (increasing) fires for +1 and 0 and never for -1. Tolerance 1e-5: the located root of the
+    dense output (collocation or Hermite, h = 0.05) is off by its interpolation error, ~1e-7."""
+    evs = [_event(-1), _event(0), _event(1), _event(-1, fn=_clock), _event(1, fn=_clock), _event(0, fn=_clock)]
+    r = ldaspark.integrate(SK, "gauss-2", t_span=(0, 7), h=0.05, engine=engine, events=evs)
+    assert r.status == 0 and len(r.t_events) == 6
+    assert len(r.t_events[0]) == 2 and np.abs(r.t_events[0] - DOWN).max() < 1e-5, r.t_events[0]
+    assert len(r.t_events[1]) == 4 and np.abs(r.t_events[1] - np.sort(np.r_[DOWN, UP])).max() < 1e-5
+    assert len(r.t_events[2]) == 2 and np.abs(r.t_events[2] - UP).max() < 1e-5, r.t_events[2]
+    assert len(r.t_events[3]) == 0
+    assert r.t_events[4] == pytest.approx([2.5], abs=1e-12) and r.t_events[5] == pytest.approx([2.5], abs=1e-12)
+    # the states at the events lie on the exact trajectory
+    for k in (0, 2):
+        qe = np.array([SK.exact_solution(t)[0] for t in r.t_events[k]])
+        assert np.abs(r.q_events[k] - qe).max() < 1e-5
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("direction,t_stop", [(-1, T_STAR), (1, np.pi - T_STAR), (0, T_STAR)])
+def test_terminal_event_in_each_direction(engine, direction, t_stop):
+    """A terminal event stops at its first crossing in its direction; the non-terminal events
+    listed before and after it keep their crossings up to that point only."""
+    # the last event (non-terminal, both directions) crosses in the same step as the terminal one:
+    # it is recorded, and it must not cancel the stop
+    evs = [_event(1), _event(direction, terminal=True), _event(-1, fn=_clock), _event(0)]
+    r = ldaspark.integrate(SK, "gauss-2", t_span=(0, 7), h=0.05, engine=engine, events=evs)
+    assert r.status == 1 and r.success
+    assert len(r.t_events[1]) == 1 and abs(r.t_events[1][0] - t_stop) < 1e-5, r.t_events
+    assert r.t[-1] == pytest.approx(0.05 * np.ceil(t_stop / 0.05), abs=1e-12)
+    n_up = int(np.sum(UP < r.t[-1]))
+    assert len(r.t_events[0]) == n_up and len(r.t_events[2]) == 0
+    assert len(r.t_events[3]) == int(np.sum(np.r_[DOWN, UP] < r.t[-1])) and abs(r.t_events[3][-1] - t_stop) < 1e-5

@@ -69,3 +69,32 @@ def test_quick_mutant_is_killed_by_its_targeted_test(mutant_id, runs):
     rec = runs[mutant_id]
     assert rec["status"] == "killed", rec
     assert rec["first_failing_test"].startswith(CASES[mutant_id].split("[")[0]), rec
+
+
+def test_mutants_exits_nonzero_when_a_mutant_survives(monkeypatch, tmp_path):
+    """``ldaspark mutants`` is CI's gate (``.ci/run``): exit 1 on a survivor, 0 when all are killed
+    (the runs replaced by fixed records)."""
+    import argparse
+
+    from ldaspark.reports import mutation
+    from ldaspark.reports.mutation_catalogue import Mutant
+
+    def fake(status):
+        return lambda ms, jobs, hints_only=False, progress=None, exclude=(): [
+            mutation._record(m, status if i == 0 else "killed", None if status != "killed" else "t::x", 0.0)
+            for i, m in enumerate(ms)]
+    args = argparse.Namespace(quick=True, outdir=str(tmp_path), jobs=1, only=None, exclude="")
+    for status, rc in (("survived", 1), ("timeout", 1), ("invalid", 1), ("killed", 0)):
+        monkeypatch.setattr(mutation, "run_catalogue", fake(status))
+        assert mutation.run(args) == rc, status
+    assert "teeth-audit-coarsest-pair" in QUICK and len(QUICK) >= 10
+    assert isinstance(by_id(QUICK[-1]), Mutant)
+
+
+def test_ci_runs_the_quick_catalogue_after_the_tests():
+    import pathlib
+    text = (pathlib.Path(__file__).resolve().parents[1] / ".ci" / "run").read_text()
+    lines = [x.strip() for x in text.splitlines() if x.strip() and not x.strip().startswith("#")]
+    i_test = next(i for i, x in enumerate(lines) if x.startswith("python -m pytest"))
+    i_mut = next(i for i, x in enumerate(lines) if "ldaspark mutants --quick" in x)
+    assert i_mut > i_test and "set -euo pipefail" in text          # a survivor (exit 1) fails CI

@@ -141,3 +141,101 @@ def test_explicit_and_implicit_euler_r_inf():
     assert oc.stability(ar, e["A"], e["b"]).r_inf == float("inf")
     ar, e = oc.exact_arith(rk_tab([[1]], [1]))
     assert oc.stability(ar, e["A"], e["b"]).r_inf == 0.0
+
+
+def seven_array_tableau():
+    """Distinguishing fixture (issue 27): the seven coefficient arrays pairwise different, c not
+    symmetric (c = (1/5, 1/2, 1)), every row sum = c, built so that each coefficient set has its
+    own order, derived by hand:
+    (A, b): B(3) (b c^k = 1/(k+1), k < 3) and b^T A c = 1/6, b c^3 = 4/15 != 1/4: order 3;
+    (A_hat, b_hat): b_hat = b + (5/72, -1/9, 1/24), b_hat c = 1/2, b_hat c^2 = 7/20 != 1/3: order 2;
+    (A_tilde, b_tilde): b_tilde = (1/3, 1/3, 1/3), b_tilde c = 17/30 != 1/2: order 1.
+    So the pair (A; A_hat) has order 2 and the forced ODE (A; A_hat, A_tilde) order 1; with b_hat
+    in place of b_tilde it would be 2 (and the order of A_tilde alone 2)."""
+    from ldaspark.core.tableau import from_json_dict
+    d = {"c": ["1/5", "1/2", "1"],
+         "A": [["1/5", "0", "0"], ["1/4", "1/4", "0"], ["1/2", "12/25", "1/50"]],
+         "A_hat": [["0", "1/5", "0"], ["1/2", "0", "0"], ["1/3", "1/3", "1/3"]],
+         "A_tilde": [["1/10", "1/10", "0"], ["0", "1/4", "1/4"], ["1/4", "1/4", "1/2"]],
+         "b": ["25/72", "4/9", "5/24"], "b_hat": ["5/12", "1/3", "1/4"], "b_tilde": ["1/3", "1/3", "1/3"],
+         "omega": [["1/3", "1/3", "1/3"], ["1/5", "2/5", "2/5"]]}
+    return from_json_dict(d, name="seven-arrays-3")
+
+
+def test_seven_array_tableau_orders_see_which_weights_belong_to_which_matrix():
+    tab = seven_array_tableau()
+    ar, e = oc.exact_arith(tab)
+    keys = ("c", "b", "b_hat", "b_tilde", "A", "A_hat", "A_tilde")
+    assert all(e[x] != e[y] for i, x in enumerate(keys) for y in keys[i + 1:]), "arrays not pairwise different"
+    assert e["c"][0] + e["c"][2] != 1                                  # c not symmetric
+    assert oc.rk_order(ar, e["A"], e["b"]).order == 3
+    assert oc.rk_order(ar, e["A_hat"], e["b_hat"]).order == 2
+    assert oc.rk_order(ar, e["A_tilde"], e["b_tilde"]).order == 1
+    assert oc.pair_order(ar, e["A"], e["b"], e["A_hat"], e["b_hat"]).order == 2
+    r = oc.spark_ode_order(ar, e)
+    assert r.order == 1 and "R" in r.failing, r                       # an R-rooted tree of order 2 fails
+    # negative controls: the plausible neighbours give other orders on this fixture
+    assert oc.additive_order(ar, [(e["A"], e["b"]), (e["A_hat"], e["b_hat"]), (e["A_tilde"], e["b_hat"])]).order == 2
+    assert oc.rk_order(ar, e["A_tilde"], e["b_hat"]).order == 2
+    # the mpmath arithmetic (tableaux known only numerically) agrees
+    ar2, e2 = oc.mp_arith(tab, 30)
+    assert [oc.spark_ode_order(ar2, e2).order, oc.pair_order(ar2, e2["A"], e2["b"], e2["A_hat"], e2["b_hat"]).order] \
+        == [1, 2]
+
+
+def test_audit_order_facts_and_22_on_the_seven_array_tableau():
+    """The audit's per-matrix orders, the forced-ODE prediction and (22a), (22b) read the right
+    arrays: the expected residuals are computed here from the definitions."""
+    from fractions import Fraction as Fr
+
+    from ldaspark.theory import audit_checks as ac
+    from ldaspark.theory.conditions import check_22a, check_22b
+    tab = seven_array_tableau()
+    ar, e = oc.exact_arith(tab)
+    _, facts = ac.order_checks(ar, e)
+    assert (facts["order:A"], facts["order:A_hat"], facts["order:A_tilde"], facts["order:pair"],
+            facts["order:forced-ode"]) == (3, 2, 1, 2, 1)
+    b = [Fr(25, 72), Fr(4, 9), Fr(5, 24)]
+    bh = [Fr(5, 12), Fr(1, 3), Fr(1, 4)]
+    A = [[Fr(1, 5), 0, 0], [Fr(1, 4), Fr(1, 4), 0], [Fr(1, 2), Fr(12, 25), Fr(1, 50)]]
+    Ah = [[0, Fr(1, 5), 0], [Fr(1, 2), 0, 0], [Fr(1, 3), Fr(1, 3), Fr(1, 3)]]
+    w22a = max(abs(x - y) for x, y in zip(bh, b))
+    w22b = max(abs(bh[i] * A[i][j] + b[j] * Ah[j][i] - bh[i] * b[j]) for i in range(3) for j in range(3))
+    c22a, c22b = ac.check_22a(ar, e), ac.check_22b(ar, e)
+    assert c22a.status == ac.FAIL and c22a.residual == pytest.approx(float(w22a), rel=1e-12)
+    assert c22b.status == ac.FAIL and c22b.residual == pytest.approx(float(w22b), rel=1e-12)
+    assert not check_22a(tab) and not check_22b(tab)
+
+
+def _lobatto3_with_own_tilde(b_tilde, a_from=None):
+    """Lobatto IIIA-IIIB 3 with A_tilde_ij = w_j / 2 (w = ``a_from``, default b_tilde), which
+    satisfies (23d) with respect to b_tilde = w for any symmetric w: a symmetric method with
+    b_tilde != b_hat."""
+    from ldaspark.core.tableau import from_json_dict
+    bt = [sympy.Rational(x) for x in b_tilde]
+    w = [sympy.Rational(x) for x in (a_from or b_tilde)]
+    d = {"c": ["0", "1/2", "1"],
+         "A": [["0", "0", "0"], ["5/24", "1/3", "-1/24"], ["1/6", "2/3", "1/6"]],
+         "A_hat": [["1/6", "-1/6", "0"], ["1/6", "1/3", "0"], ["1/6", "5/6", "0"]],
+         "A_tilde": [[str(x / 2) for x in w] for _ in range(3)],
+         "b": ["1/6", "2/3", "1/6"], "b_hat": ["1/6", "2/3", "1/6"], "b_tilde": [str(x) for x in bt],
+         "omega": [["1/6", "2/3", "1/6"], ["0", "1/3", "1/6"]]}
+    return from_json_dict(d, name="lobatto3-own-tilde")
+
+
+def test_23d_reads_b_tilde_not_b_hat():
+    """(23d) A_tilde_(s+1-i,s+1-j) + A_tilde_ij = b_tilde_j holds here with b_tilde = (1/4, 1/2, 1/4)
+    != b_hat; checked with b_hat it would fail (control: the same A_tilde with b_tilde = b_hat)."""
+    from ldaspark.theory import audit_checks as ac
+    from ldaspark.theory.conditions import check_22a, check_22b, check_23
+    tab = _lobatto3_with_own_tilde(["1/4", "1/2", "1/4"])
+    ar, e = oc.exact_arith(tab)
+    assert e["b_tilde"] != e["b_hat"] and e["A_tilde"] != e["A_hat"]
+    assert check_22a(tab) and check_22b(tab) and check_23(tab)
+    assert {c.name: c.status for c in ac.check_23(ar, e)} == {"23a": ac.PASS, "23b": ac.PASS, "23c": ac.PASS,
+                                                             "23d": ac.PASS}
+    # control: the same A_tilde with b_tilde = b_hat (the neighbour a wrong check would read)
+    bad = _lobatto3_with_own_tilde(["1/6", "2/3", "1/6"], a_from=["1/4", "1/2", "1/4"])
+    ar2, e2 = oc.exact_arith(bad)
+    assert not check_23(bad)
+    assert {c.name: c.status for c in ac.check_23(ar2, e2)}["23d"] == ac.INFO

@@ -134,3 +134,43 @@ def test_from_mechanics_plain_lagrangian_and_refusals():
         LagrangianSystem.from_mechanics(L, q=[x, y, z])
     with pytest.raises(SystemDefinitionError, match="second time derivatives"):
         LagrangianSystem.from_mechanics(L + x.diff().diff(), q=[x, y, z], constraints=[z.diff() - y * x.diff()])
+
+
+# --- derived systems are independent of their source (issue 27, class 4) ---------------------------
+def test_with_params_copies_are_independent_of_the_source_and_of_each_other():
+    src = _param_skate()
+    a = src.with_params(m=1.0, I=1.0)
+    b = src.with_params({M: 2.0, "I": 1.0})
+    c = a.with_params(m=3.0)                     # derived from a derived system
+    assert src.param_values() == {}
+    assert a.param_values() == {M: 1.0, I: 1.0} and b.param_values() == {M: 2.0, I: 1.0}
+    assert c.param_values() == {M: 3.0, I: 1.0}
+    for x in (a, b, c):                          # mutable containers are not shared
+        assert x.q is not src.q and x.v is not src.v and x.psi is not src.psi
+    a.q[0] = sympy.Symbol("zz")
+    assert str(src.q[0]) == "q1" and str(b.q[0]) == "q1"
+    a.q[0] = src.q[0]
+    with pytest.raises(SystemDefinitionError, match="no value"):
+        src.substituted()                        # the source still has no values
+    # substituted() of each carries its own values
+    assert a.substituted().L != b.substituted().L and not a.substituted().params
+    assert sympy.simplify(a.substituted().L - _skate_like(1, 1).L) == 0
+
+
+@pytest.mark.parametrize("engine", ["generic", "compiled"])
+def test_runs_of_derived_systems_do_not_see_each_others_values(engine):
+    """a and b derived from one source, run interleaved (the compiled engine generates a model per
+    set of values: the cached models must be keyed by the values, not the source system): each
+    equals a system built by hand with its values (to 1e-12; the same method on the same data)."""
+    src = _param_skate()
+    kw = dict(n_steps=10, h=0.1, q0=[0, 0, 0], v0=[0, 0, 1], engine=engine)
+    a, b = src.with_params(m=1, I=1), src.with_params(m=2, I=1)
+    ra = ldaspark.integrate(a, "gauss-2", **kw)
+    rb = ldaspark.integrate(b, "gauss-2", **kw)
+    ra2 = ldaspark.integrate(a, "gauss-2", **kw)
+    ref_a = ldaspark.integrate(_skate_like(1, 1), "gauss-2", **kw)
+    ref_b = ldaspark.integrate(_skate_like(2, 1), "gauss-2", **kw)
+    assert np.abs(ra.q - ref_a.q).max() < 1e-12 and np.abs(ra2.q - ref_a.q).max() < 1e-12
+    assert np.abs(rb.q - ref_b.q).max() < 1e-12
+    assert np.abs(ra.q - rb.q).max() > 1e-3                 # control: the values matter
+    assert ra.engine == engine and rb.engine == engine

@@ -193,3 +193,26 @@ def test_exact_beyond_radicals_is_a_clear_error():
     with pytest.raises(TableauError, match="any precision"):
         gauss(6, exact=True)
     assert gauss(6).arrays(30).A.shape == (6, 6)
+
+
+# --- derived tableaux are independent of their source (issue 27, class 4) -------------------------
+@pytest.mark.parametrize("exact", [True, False])
+def test_with_entry_copies_are_independent_of_the_source(exact):
+    """Two negative controls derived from one tableau: each carries only its own change, and the
+    source (also its cached arrays) keeps its entries."""
+    import numpy as np
+    src = get_method("gauss-2", exact=exact)
+    a0 = np.array(src.arrays(None).A_hat, float)
+    b0 = np.array(src.arrays(None).b_hat, float)
+    d1 = src.with_entry("A_hat", 0, 1, "1/10")
+    d2 = src.with_entry("b_hat", 0, None, "1/10")
+    assert np.array_equal(np.array(src.arrays(None).A_hat, float), a0)
+    assert np.array_equal(np.array(get_method("gauss-2", exact=exact).arrays(None).A_hat, float), a0)
+    assert np.array_equal(np.array(src.arrays(None).b_hat, float), b0)
+    diff1 = np.array(d1.arrays(None).A_hat, float) - a0
+    assert abs(diff1[0, 1] - 0.1) < 1e-15 and np.count_nonzero(np.abs(diff1) > 1e-15) == 1
+    assert np.array_equal(np.array(d1.arrays(None).b_hat, float), b0)
+    assert np.array_equal(np.array(d2.arrays(None).A_hat, float), a0)        # not d1's change
+    assert abs(np.array(d2.arrays(None).b_hat, float)[0] - b0[0] - 0.1) < 1e-15
+    if exact:                                                                  # and the exact entries
+        assert src.exact["A_hat"] == get_method("gauss-2", exact=True).exact["A_hat"]

@@ -59,3 +59,27 @@ def test_15a_fails_for_22b_breaking_tableau(scene):
 def test_15_exhaustive(name, scn, scene):
     r = _run(scene(scn), get_method(name, exact=True))
     assert r["15a"] < TOL_15A and r["15b"] < TOL_15B, r
+
+
+def inconsistent_start(scene, dv="1/10"):
+    """The scene's data with v0[0] shifted by ``dv``: off C_d, k(t0, q0, v0) != 0 (issue 27:
+    on C_d the constraint is 0 at both end points of every step, so a (15b) evaluated at the
+    left end point instead of the right one is invisible)."""
+    import mpmath
+    t0, q0, v0 = scene.initial(60)
+    v0 = list(v0)
+    v0[0] = v0[0] + mpmath.mpf(dv)
+    return t0, q0, v0
+
+
+def test_15b_is_the_right_end_point_off_C_d(exact_method, scene):
+    """Gauss-2 on the rheonomic skate (L and k depend on t) from inconsistent data: each step
+    imposes k(t_{k+1}, q_{k+1}, v_{k+1}) = 0 by (21f), so (15b) holds (measured 7e-43), while c at
+    the left end point is k(t0, q0, v0) != 0 on the first step (control, > 1e-3). (15a) holds
+    off C_d too (3e-22 at 20 digits: tol 1e-15 leaves 5 digits for the finite differences)."""
+    sc = scene("rheonomic-skate")
+    t0, q0, v0 = inconsistent_start(sc)
+    r = definition1_residuals(sc.system, exact_method("gauss-2"), t0, q0, v0, "0.1", n_steps=3, dps=20)
+    assert r["15b"] < 1e-30, r
+    assert r["15b_left_end"] > 1e-3, r
+    assert r["15a"] < 1e-15 and r["15a_without_forces"] > NEG, r

@@ -12,7 +12,7 @@ conservative particle Delta E is O(h^{p+1}). Gauss methods satisfy the discrete 
 when L_t = 0 and E is quadratic (measured 1e-31). Cost ~8 s."""
 import pytest
 
-from ldaspark.theory.energy_balance import discrete_balance, exact_balance
+from ldaspark.theory.energy_balance import discrete_balance, exact_balance, predicted_mismatch_order
 
 TOL = 1e-22
 NEG = 1e-6
@@ -36,13 +36,18 @@ def test_energy_balance_2_2_exact_conserved(name):
 
 @pytest.mark.parametrize("method,p", [("gauss-1", 2), ("gauss-2", 4), ("lobatto-iiia-iiib-2", 2), ("euler-i", 1)])
 def test_energy_balance_2_2_discrete_order(method, p, exact_method):
-    r = discrete_balance("time-L", exact_method(method))
-    assert r["order_mismatch"] > p + 1 - 0.3, r
+    r = discrete_balance("time-L", exact_method(method), hs=("0.1", "0.05", "0.025"))
+    # two-sided, the finest pair decides (measured 2.96, 5.02, 3.0, 2.35: Euler I approaches 2 from
+    # above, 2.51 at 0.2/0.1); tol 0.4 < 1/2, so a prediction off by one fails
+    assert predicted_mismatch_order(exact_method(method)) == p + 1
+    assert abs(r["order_mismatch"] - (p + 1)) <= 0.4, r
     assert 0.7 < r["order_delta_E"] < 1.3 and r["delta_E"][-1] > 1e-3, r     # not conserved: O(h)
     # control: the quadrature without -L_t misses by O(h)
     assert r["mismatch_without_L_t"][-1] > NEG and r["order_mismatch_without_L_t"] < 1.3, r
     c = discrete_balance("particle", exact_method(method))
-    assert c["order_delta_E"] > p + 1 - 0.3, c                              # conserved up to O(h^{p+1})
+    # one-sided on purpose: "conserved up to O(h^{p+1})" is an upper bound on the error (Gauss
+    # does better on this quadratic energy: 5.2 for Gauss-1)
+    assert c["order_delta_E"] > p + 1 - 0.3, c
 
 
 def test_energy_balance_2_2_discrete_exact_for_gauss(exact_method):
@@ -63,3 +68,15 @@ def test_energy_balance_exhaustive(name, method, exact_method):
     d = discrete_balance(name, tab, hs=("0.1", "0.05", "0.025"))
     p = tab.claimed_order
     assert max(d["mismatch"]) < 1e-25 or d["order_mismatch"] > p + 1 - 0.4, d
+
+
+def test_discrete_order_is_the_finest_pair_of_a_pre_asymptotic_sweep(exact_method):
+    """Distinguishing fixture (issue 27): Euler I on time-L at h = 0.2 .. 0.025 is pre-asymptotic
+    (pairwise slopes 2.63, 2.51, 2.35, measured): the reported order is the finest pair's, which
+    differs from the coarsest by > 0.2."""
+    import math
+    r = discrete_balance("time-L", exact_method("euler-i"), hs=("0.2", "0.1", "0.05", "0.025"))
+    e, h = r["mismatch"], r["h"]
+    slopes = [math.log(e[i] / e[i + 1]) / math.log(h[i] / h[i + 1]) for i in range(3)]
+    assert slopes[0] - slopes[-1] > 0.2, slopes
+    assert r["order_mismatch"] == pytest.approx(slopes[-1], rel=1e-12)

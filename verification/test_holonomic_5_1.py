@@ -34,3 +34,18 @@ def test_holonomic_exhaustive(name):
     from ldaspark.core.families import get_method
     r = holonomic_order(get_method(name), hs=("0.1", "0.05", "0.025", "0.0125"))
     assert r["p_tangential"] >= 1.5 or max(r["tangential"]) < 1e-35, r
+
+
+def test_holonomic_rate_is_the_finest_pair_of_a_pre_asymptotic_sweep():
+    """Distinguishing fixture (issue 27): Gauss-1's tangential forces on the pendulum at h = 0.2,
+    0.1, 0.05, 0.025 approach O(h^2) from below (pairwise slopes 1.3 .. 1.85, measured): the
+    reported rate is the finest pair's."""
+    import math
+
+    from ldaspark.core.families import get_method
+    from ldaspark.theory.ledger import holonomic_order
+    r = holonomic_order(get_method("gauss-1", exact=True), hs=("0.2", "0.1", "0.05", "0.025"))
+    e, h = r["tangential"], r["h"]
+    slopes = [math.log(e[i] / e[i + 1]) / math.log(h[i] / h[i + 1]) for i in range(3)]
+    assert slopes[-1] - slopes[0] > 0.1, slopes
+    assert r["p_tangential"] == pytest.approx(slopes[-1], rel=1e-12)

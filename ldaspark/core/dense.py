@@ -161,6 +161,7 @@ class EventTracker:
     def __init__(self, events: Sequence[Callable], t0, q0, v0):
         self.events = list(events)
         self.found = [[] for _ in self.events]
+        self.n = int(np.size(q0))      # the event states' width also when an event never fires
         self.g = [float(g(float(t0), np.asarray(q0, float), np.asarray(v0, float))) for g in self.events]
 
     def after_step(self, t0: Any, t1: Any, q1: Any, v1: Any, piece: Callable) -> bool:
@@ -190,8 +191,8 @@ class EventTracker:
     def arrays(self) -> tuple:
         """(t_events, q_events, v_events): one array per event function."""
         te = [np.array([x[0] for x in f], float) for f in self.found]
-        qe = [np.array([x[1] for x in f], float).reshape(len(f), -1) for f in self.found]
-        ve = [np.array([x[2] for x in f], float).reshape(len(f), -1) for f in self.found]
+        qe = [np.array([x[1] for x in f], float).reshape(len(f), self.n) for f in self.found]
+        ve = [np.array([x[2] for x in f], float).reshape(len(f), self.n) for f in self.found]
         return te, qe, ve
 
 

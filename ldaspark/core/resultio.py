@@ -10,6 +10,11 @@
 
 mpmath results are stored as decimal strings (full precision) in every format and read back as
 mpf at the stored ``dps``. Every file is written atomically (``ldaspark.core.io``).
+
+Also kept (float64, as computed): ``stats`` (JSON key / metadata), the events (``t_events_e``,
+``q_events_e``, ``v_events_e`` for event function e) and the dense output's data (``dense_t``,
+``dense_q`` with ``dense_c``, ``dense_V`` for the collocation extension or ``dense_v`` for the
+Hermite one): arrays in .npz and .h5, in .json under ``extra_arrays`` as {name: {shape, data}}.
 """
 from __future__ import annotations
 
@@ -77,7 +82,45 @@ def _to_json(result: Result) -> dict:
         a = getattr(result, name)
         out[name] = [] if a is None else _numbers(a, result.dps).tolist()
     out["stats"] = _json_value(result.stats)
+    out["extra_arrays"] = {k: {"shape": list(a.shape), "data": a.reshape(-1).tolist()}
+                           for k, a in _extra_arrays(result).items()}
     return out
+
+
+def _extra_arrays(result: Result) -> dict:
+    """Events and dense-output data as named float64 arrays (none for an ensemble)."""
+    from .dense import CollocationDense, HermiteDense
+    out = {}
+    if result.members is not None:
+        return out
+    for e, (te, qe, ve) in enumerate(zip(result.t_events, result.q_events, result.v_events)):
+        out[f"t_events_{e}"], out[f"q_events_{e}"], out[f"v_events_{e}"] = (np.asarray(x, float) for x in (te, qe, ve))
+    sol = result.sol
+    if isinstance(sol, CollocationDense):
+        out.update(dense_t=sol.t, dense_q=sol.q, dense_c=sol.c, dense_V=sol.V)
+    elif isinstance(sol, HermiteDense):
+        out.update(dense_t=sol.t, dense_q=sol.q, dense_v=sol.v)
+    return out
+
+
+def _is_extra(name: str) -> bool:
+    return name.startswith(("t_events_", "q_events_", "v_events_", "dense_"))
+
+
+def _restore_extras(res: Result, extra: dict) -> None:
+    """Events and dense output from the arrays of ``_extra_arrays``."""
+    from .dense import CollocationDense, HermiteDense
+    ne = 0
+    while f"t_events_{ne}" in extra:
+        ne += 1
+    grab = lambda k: np.asarray(extra[k], float)
+    res.t_events = [grab(f"t_events_{e}") for e in range(ne)]
+    res.q_events = [grab(f"q_events_{e}") for e in range(ne)]
+    res.v_events = [grab(f"v_events_{e}") for e in range(ne)]
+    if "dense_c" in extra:
+        res.sol = CollocationDense(grab("dense_t"), grab("dense_q"), grab("dense_c"), grab("dense_V"))
+    elif "dense_v" in extra:
+        res.sol = HermiteDense(grab("dense_t"), grab("dense_q"), grab("dense_v"))
 
 
 def save_result(result: Result, path: Union[str, os.PathLike]) -> None:
@@ -90,7 +133,8 @@ def save_result(result: Result, path: Union[str, os.PathLike]) -> None:
         return
     arrays = {name: _numbers(getattr(result, name), result.dps) for name in ARRAYS
               if getattr(result, name) is not None}
-    md = json.dumps(metadata(result))
+    arrays.update(_extra_arrays(result))
+    md = json.dumps(dict(metadata(result), stats=_json_value(result.stats)))
     if ext == ".npz":
         buf = io.BytesIO()
         np.savez(buf, metadata=np.array(md), **arrays)
@@ -167,15 +211,22 @@ def load_result(path: Union[str, os.PathLike]) -> Result:
             for k in ARRAYS:
                 if k in arrays and d.get("dps"):
                     arrays[k] = np.asarray(arrays[k]).astype(str)
-            return _build(d, arrays)
+            res = _build(d, arrays)
+            _restore_extras(res, {k: np.asarray(x["data"], float).reshape(x["shape"])
+                                  for k, x in (d.get("extra_arrays") or {}).items()})
+            return res
         if ext == ".npz":
             with np.load(path, allow_pickle=False) as z:
                 md = json.loads(str(z["metadata"]))
-                return _build(md, {k: z[k] for k in ARRAYS if k in z.files})
+                res = _build(md, {k: z[k] for k in ARRAYS if k in z.files})
+                _restore_extras(res, {k: z[k] for k in z.files if _is_extra(k)})
+                return res
         h5py = _h5py()
         with h5py.File(path, "r") as f:
             md = json.loads(f.attrs["metadata"])
-            return _build(md, {k: f[k][()] for k in ARRAYS if k in f})
+            res = _build(md, {k: f[k][()] for k in ARRAYS if k in f})
+            _restore_extras(res, {k: f[k][()] for k in f.keys() if _is_extra(k)})
+            return res
     except InputError:
         raise
     except (OSError, ValueError, KeyError, json.JSONDecodeError) as exc:

@@ -122,7 +122,13 @@ class LagrangianSystem:
         the derived expressions and compiled functions, so nothing is derived again."""
         import copy
         new = copy.copy(self)
+        # the new system owns its parameter store and its containers (a store shared with the
+        # source would let one system's values leak into the other); the derived expressions are
+        # immutable sympy objects and the lambdified functions take the parameters as trailing
+        # arguments, so sharing those (``_compiled``, ``_fn_exprs``) is safe
         new._param_values = dict(self._param_values)
+        new.q, new.v, new.psi = list(self.q), list(self.v), list(self.psi)
+        new.mechanical = None if self.mechanical is None else dict(self.mechanical)
         items = list((values or {}).items()) + list(by_name.items())
         names = {str(p): p for p in self.params}
         for key, val in items:

@@ -14,7 +14,9 @@ Checks (each a ``Check``: name, status pass/fail/info/skip, residual, detail):
   R(inf);
 * Theorem 1 on the four paper scenes and the symmetry identities (ldaspark.theory.discrete);
 * observed convergence order on the skate (exact solution) and the particle (reference by a
-  different, higher-order Gauss SPARK method), the constraint residual, the energy error.
+  different, higher-order Gauss SPARK method), the constraint residual, the energy error. The
+  observed order (finest usable pair) must lie within ORDER_SLACK (0.45) of the prediction on
+  both sides; only a prediction at the tree cap (">= p") is a lower bound.
 
 Exit code 0 when (22) holds and every numerical check agrees with the theory, 1 when a check
 fails, 2 (LdasparkError) for unusable input.

@@ -15,7 +15,11 @@ from ..core.errors import InputError, LdasparkError, TableauError
 from ..core.tableau import SparkTableau
 
 PASS, FAIL, INFO, SKIP = "pass", "fail", "info", "skip"
-ORDER_SLACK = 0.5   # observed order may fall this far below the prediction before failing
+# |observed - predicted| allowed (two-sided). Below 1/2, so that a prediction off by one in
+# either direction fails where the right one passes (|obs - (p +- 1)| >= 1 - slack > slack).
+# Measured on every built-in up to s = 4, skate and particle, finest pair: worst gap 0.31
+# (Gauss-4 on the particle in --quick, 8.31; 0.06 in the full run).
+ORDER_SLACK = 0.45
 
 
 @dataclass
@@ -335,10 +339,13 @@ def convergence_checks(tab, predicted, dps, quick, capped=False):
             status, what = FAIL, "no usable slope (errors at the floor or zero)"
         elif obs < predicted - ORDER_SLACK:
             status, what = FAIL, f"observed {obs:.2f} below the predicted {predicted}"
-        elif capped and obs > predicted + 1 - ORDER_SLACK:
+        elif capped and obs > predicted + ORDER_SLACK:
+            # one-sided only here: the trees were checked up to the cap, so the prediction is
+            # ">= predicted", a lower bound
             status, what = PASS, f"observed {obs:.2f}, consistent with the prediction >= {predicted} (tree cap)"
-        elif obs > predicted + 1 - ORDER_SLACK:
-            status, what = PASS, f"observed {obs:.2f} above the predicted {predicted} (superconvergence on this scene)"
+        elif obs > predicted + ORDER_SLACK:
+            status, what = FAIL, (f"observed {obs:.2f} above the predicted {predicted} (the tree prediction is "
+                                  "not what this scene shows)")
         else:
             status, what = PASS, f"observed {obs:.2f} vs predicted {predicted}"
         checks.append(Check(f"convergence:{scene_name}", status, abs(obs - predicted) if math.isfinite(obs) else None,

@@ -7,16 +7,19 @@ group runs in ~60 s. The computations live in ``definition1``, ``section5``, ``v
 ``energy_balance`` and ``section7``; the tests in ``verification/`` use the same functions."""
 from __future__ import annotations
 
+import math
 import time
+
+import mpmath
 
 from ..core.families import get_method
 from ..core.scenes import get_scene
 from .definition1 import definition1_residuals
-from .energy_balance import discrete_balance, exact_balance
+from .energy_balance import discrete_balance, exact_balance, predicted_mismatch_order
 from .ledger import negative_controls, record
 from .section5 import antisymmetry, exact_del, exact_identities, holonomic_exact
 from .section7 import one_newton_iteration, reduction
-from .variational import variational_errors
+from .variational import predicted_local_order, variational_errors
 
 TOL_15A, TOL_15B, TOL_EXACT, TOL_S7, NEG = 1e-25, 1e-40, 1e-22, 1e-35, 1e-6
 OFF_CD = ("1/1000", "-2/1000", "1/1000")
@@ -48,6 +51,17 @@ def definition1_records(quick):
                           r["seconds"] / 2, "ivp-10-steps", TOL_15A, note))
         out.append(record("15b", name, scn, _st(r["15b"], TOL_15B), r["15b"], "pass", 30, r["wellposed"],
                           r["seconds"] / 2, "ivp-10-steps", TOL_15B, note))
+    # off C_d (inconsistent data, v0[0] + 1/10) on a time-dependent scene: (15b) is k at the
+    # right end point (0 by (21f)); the left end point is not 0 on the first step (control)
+    sc = get_scene("rheonomic-skate")
+    t0, q0, v0 = sc.initial(60)
+    v0 = [v0[0] + mpmath.mpf(1) / 10] + list(v0[1:])
+    r = definition1_residuals(sc.system, get_method("gauss-2", exact=True), t0, q0, v0, "0.1", n_steps=3, dps=20)
+    out.append(record("15b", "gauss-2", "rheonomic-skate", _st(r["15b"], 1e-30), r["15b"], "pass", 20, r["wellposed"],
+                      r["seconds"], "off-C_d-3-steps", 1e-30, f"k(t0, q0, v0) != 0 initially; (15a) {r['15a']:.1e}"))
+    out.append(record("15b", "gauss-2 (control: left end point)", "rheonomic-skate",
+                      _st(r["15b_left_end"], NEG, "fail"), r["15b_left_end"], "fail", 20, r["wellposed"], 0,
+                      "off-C_d-3-steps", NEG, "c = k(t_k, q_k, v0) at the left end point is not 0 off C_d"))
     tab, _ = negative_controls()[0]
     sc = get_scene("particle")
     t0, q0, v0 = sc.initial(60)
@@ -59,7 +73,9 @@ def definition1_records(quick):
 
 def section5_records(quick):
     out = []
-    for scn in (("particle",) if quick else ("particle", "skate")):
+    # the rheonomic skate (L and k depend on t) is the fixture that sees a time argument shifted
+    # by h; the paper scenes are autonomous
+    for scn in (("particle", "rheonomic-skate") if quick else ("particle", "skate", "rheonomic-skate")):
         r, sec = _timed(exact_identities, scn, offset=OFF_CD)
         pt = "off-C_d"
         note = f"FD at 52 digits; |f_d^E-| = {r['f_d_minus']:.2e}, k0 = {r['k0']:.1e}"
@@ -81,18 +97,20 @@ def section5_records(quick):
                           r["20b-corrected"], "pass", 32, "n/a", 0, "off-C_d", TOL_EXACT,
                           "(20b) with inner integral int_{t_k}^s vs (12a)"))
     else:
-        r, sec = _timed(exact_del, "particle")
-        out.append(record("20-integral", "exact-flow", "particle", _st(r["del"], TOL_EXACT), r["del"], "pass", 32,
-                          "n/a", sec, "exact-2-steps", TOL_EXACT,
-                          f"exact discrete EL with (20a), (20b) read int_{{t_k}}^s; printed (20b) "
-                          f"{r['del-printed-20b']:.1e}; momentum continuity {r['momentum-continuity']:.1e}"))
-    r, sec = _timed(antisymmetry, "particle", offset=OFF_CD)
-    res = max(r["L"], r["f_plus"], r["f_minus"])
-    out.append(record("antisymmetry-exact", "exact-flow", "particle", _st(res, TOL_EXACT), res, "pass", 32, "n/a", sec,
-                      "off-C_d", TOL_EXACT, "L_d^E, f_d^E+, f_d^E- under exchange of the endpoints (4.1)"))
-    out.append(record("antisymmetry-exact", "exact-flow (control: wrong pairing)", "particle",
-                      _st(r["wrong-pairing"], NEG, "fail"), r["wrong-pairing"], "fail", 32, "n/a", 0, "off-C_d", NEG,
-                      "f_d^E+(rev) + f_d^E+(fwd)"))
+        for scn in ("particle", "rheonomic-skate"):
+            r, sec = _timed(exact_del, scn)
+            out.append(record("20-integral", "exact-flow", scn, _st(r["del"], TOL_EXACT), r["del"], "pass", 32,
+                              "n/a", sec, "exact-2-steps", TOL_EXACT,
+                              f"exact discrete EL with (20a), (20b) read int_{{t_k}}^s; printed (20b) "
+                              f"{r['del-printed-20b']:.1e}; momentum continuity {r['momentum-continuity']:.1e}"))
+    for scn in ("particle", "rheonomic-skate"):
+        r, sec = _timed(antisymmetry, scn, offset=OFF_CD)
+        res = max(r["L"], r["f_plus"], r["f_minus"])
+        out.append(record("antisymmetry-exact", "exact-flow", scn, _st(res, TOL_EXACT), res, "pass", 32, "n/a", sec,
+                          "off-C_d", TOL_EXACT, "L_d^E, f_d^E+, f_d^E- under exchange of the endpoints (4.1)"))
+        out.append(record("antisymmetry-exact", "exact-flow (control: wrong pairing)", scn,
+                          _st(r["wrong-pairing"], NEG, "fail"), r["wrong-pairing"], "fail", 32, "n/a", 0, "off-C_d",
+                          NEG, "f_d^E+(rev) + f_d^E+(fwd)"))
     for scn, exp in (("pendulum", "pass"), ("particle", "fail")):
         r, sec = _timed(holonomic_exact, scn, offset=("1/1000", "-1/1000") if scn == "pendulum" else None)
         out.append(record("5.1-exact", "exact-flow", scn, _st(r["tangential"], 1e-28, exp), r["tangential"], exp, 32,
@@ -102,27 +120,46 @@ def section5_records(quick):
     return out
 
 
+# Two-sided order checks: |observed - predicted| <= tol with tol < 1/2, so that a prediction
+# off by one in either direction fails on the data where the right one passes
+# (|observed - (p +- 1)| >= 1 - tol > tol). Measured (h = 0.2, 0.1, 0.05 on the skate, 24 digits):
+# Gauss-1 2.96 (p = 3), Gauss-2 4.82 (p = 5): worst gap 0.18, tol 0.4.
+TOL_VARIATIONAL = 0.4
+# energy balance 2.2, one-step h-sweep 0.1, 0.05, 0.025 (the last pair decides): Gauss-1 2.96
+# (p + 1 = 3), Gauss-2 5.02 (5), Lobatto IIIA-B 2 3.0 (3), Euler I 2.35 (2; pre-asymptotic: 2.51 at
+# 0.2/0.1 and 2.22 at 0.025/0.0125, approaching 2 from above): worst gap 0.35, tol 0.4
+TOL_ENERGY_ORDER = 0.4
+ENERGY_HS = ("0.1", "0.05", "0.025")
+
+
 def variational_records(quick):
+    """|L_d - L_d^E| ~ h^{r+1} (``variational.predicted_local_order``), two-sided; the control
+    (Gauss-2 with (22b) broken) is judged against the unperturbed Gauss-2's prediction."""
     out = []
     tabs = [get_method("gauss-1", exact=True)] + ([] if quick else [get_method("gauss-2", exact=True)])
     if not quick:
         tabs.append(negative_controls()[0][0])
-    for tab in tabs:
-        r, sec = _timed(variational_errors, tab, "skate", dps=24, stages=8)
+    # the rheonomic skate (L and k depend on t) sees a time argument off by h; measured 2.92 for
+    # Gauss-1 (prediction 3)
+    runs = [(tab, "skate") for tab in tabs] + [(tabs[0], "rheonomic-skate")]
+    for tab, scn in runs:
+        r, sec = _timed(variational_errors, tab, scn, dps=24, stages=8)
         o = r["orders"]["L_d"]
         control = tab.name.startswith("negctl")
-        pred = r["predicted_local_order"]
-        gap = None if o is None else max(0.0, pred - o)
-        st = ("pass" if gap is not None and gap <= 0.4 else "fail")
+        pred = predicted_local_order(get_method("gauss-2", exact=True)) if control else r["predicted_local_order"]
+        gap = None if o is None or o == math.inf else abs(o - pred)
+        st = "pass" if gap is not None and gap <= TOL_VARIATIONAL else "fail"
         note = (f"|L_d - L_d^E| order {o:.2f} (global order {r['global_order']}, variational prediction {pred}); "
                 f"f_d^- order {r['orders']['f_minus']}, tangential {r['orders']['f_minus_tangential']}; "
                 f"h = {r['h']}")
-        out.append(record("variational-order", tab.name, "skate", st, gap, "fail" if control else "pass", 24, "n/a",
-                          sec, "perturbed-ivp", 0.4, note))
+        out.append(record("variational-order", tab.name, scn, st, gap, "fail" if control else "pass", 24, "n/a",
+                          sec, "perturbed-ivp", TOL_VARIATIONAL, note))
     return out
 
 
 def energy_records(quick):
+    """Exact balance of 2.2 (pointwise and integrated, with controls) and the discrete one:
+    Delta E - quadrature ~ h^{p+1} (``energy_balance.predicted_mismatch_order``), two-sided."""
     out = []
     for name, ctl in (("time-L", "without_L_t"), ("affine-b", "without_psi_term")):
         r, sec = _timed(exact_balance, name, dps=28, stages=8)
@@ -133,15 +170,21 @@ def energy_records(quick):
                           r[ctl], "fail", 28, "n/a", 0, "h=0.1", NEG, "the dropped term is what changes E"))
     for m in (("gauss-2",) if quick else ("gauss-1", "gauss-2", "lobatto-iiia-iiib-2", "euler-i")):
         tab = get_method(m, exact=True)
-        r, sec = _timed(discrete_balance, "time-L", tab)
-        p = tab.claimed_order
-        gap = max(0.0, p + 1 - r["order_mismatch"])
-        c = discrete_balance("particle", tab)
-        out.append(record("energy-balance-2.2", m, "time-L", "pass" if gap <= 0.3 else "fail", gap, "pass", 30, "n/a",
-                          sec, "one-step h-sweep", 0.3,
-                          f"Delta E - quadrature ~ h^{r['order_mismatch']:.2f} (p+1 = {p + 1}); Delta E ~ "
-                          f"h^{r['order_delta_E']:.2f}; conservative particle: Delta E ~ h^{c['order_delta_E']:.2f}"))
+        r, sec = _timed(discrete_balance, "time-L", tab, hs=ENERGY_HS)
+        pred = predicted_mismatch_order(tab)
+        o = r["order_mismatch"]
+        gap = None if o is None else abs(o - pred)
+        c = discrete_balance("particle", tab, hs=ENERGY_HS)
+        out.append(record("energy-balance-2.2", m, "time-L",
+                          "pass" if gap is not None and gap <= TOL_ENERGY_ORDER else "fail", gap, "pass", 30,
+                          "n/a", sec, "one-step h-sweep", TOL_ENERGY_ORDER,
+                          f"Delta E - quadrature ~ h^{_f2(o)} (p+1 = {pred}); Delta E ~ "
+                          f"h^{_f2(r['order_delta_E'])}; conservative particle: Delta E ~ h^{_f2(c['order_delta_E'])}"))
     return out
+
+
+def _f2(x):
+    return "-" if x is None else f"{x:.2f}"
 
 
 def section7_records(quick):

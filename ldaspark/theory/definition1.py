@@ -70,8 +70,11 @@ def definition1_residuals(system, tableau, t0, q0, v0, h, n_steps=10, dps=30):
             g0, g1 = _fd_gradient(bvp, r, t, q, t1, q1, delta)
             c = system.constraint(bk, t1, q1, r.v1)
             c_sec = system.constraint(bk, t1, q1, (q1 - q) / h)
+            # control: c at the left end point k(t_k, q_k, v0 of the solve); 0 as well on C_d, so
+            # only a run from inconsistent data (k(t0, q0, v0) != 0) tells the two ends apart
+            c_left = system.constraint(bk, t, q, r.v0)
             per.append({"D2": g0, "D4": g1, "fm": r.f_d_minus, "fp": r.f_d_plus, "p0": r.p0, "p1": r.p1,
-                        "c": _nrm(c) / (1 + _nrm(r.v1)), "c_secant": _nrm(c_sec), "mu": r.mu_norm})
+                        "c": _nrm(c) / (1 + _nrm(r.v1)), "c_secant": _nrm(c_sec), "c_left": _nrm(c_left), "mu": r.mu_norm})
             v = bvp.unpack(xg)[2]            # v1 of the IVP step: consistent data for the next step
             t, q = t1, q1
         res15a, free, scale = [], [], 0.0
@@ -83,6 +86,7 @@ def definition1_residuals(system, tableau, t0, q0, v0, h, n_steps=10, dps=30):
             free.append(_nrm(a["D4"] + b["D2"]) / sc)
     return {"15a": max(res15a), "15a_per_k": res15a, "15a_without_forces": max(free),
             "15b": max(p["c"] for p in per), "15b_secant": max(p["c_secant"] for p in per),
+            "15b_left_end": max(p["c_left"] for p in per),
             "f_scale": max(max(_nrm(p["fm"]), _nrm(p["fp"])) for p in per),
             "mu": max(p["mu"] for p in per), "wellposed": "/".join(sorted(classes)),
             "n_steps": n_steps, "dps": dps, "seconds": time.time() - t_start}

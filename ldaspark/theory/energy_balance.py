@@ -104,6 +104,15 @@ def exact_balance(name, h="0.1", dps=32, stages=10):
                 "delta_E": float(abs(E1 - E0)), "max_dEdt": float(scale)}
 
 
+def predicted_mismatch_order(tab) -> int:
+    """The order of |Delta E - h sum_i b_i rhs_i| over one step that section 2.2 with the global
+    order p of the method predicts: the exact flow satisfies the balance (8) exactly, and one step
+    of a method of order p (section 7: Gauss 2s, Lobatto 2s-2, Euler 1) has local error
+    O(h^{p+1}) in (q, v) and in the stage quadrature, hence p + 1. A two-sided prediction for the
+    tested systems (time-L: L_t != 0, so no cancellation): ``claims_paper.energy_records``."""
+    return int(tab.claimed_order) + 1
+
+
 def discrete_balance(name, tab, hs=("0.2", "0.1", "0.05"), dps=30):
     """One SPARK step from the system's data for each h: |Delta E|, the mismatch
     |Delta E - h sum b_i rhs_i| with stage values, and the control without -L_t; with the

@@ -40,6 +40,7 @@ from ..core.families import builtin_method_names, get_method
 TOL_THEOREM1 = 1e-20
 TOL_SYMMETRY = 1e-25
 TOL_NEGATIVE = 1e-6
+HOLONOMIC_RATE = 1.5      # section 5.1, SPARK forces on tangent variations -> 0 (one-sided)
 DPS = 40
 H = "0.1"
 
@@ -282,8 +283,13 @@ def holonomic_records(tab, expected):
     except (LdasparkError, ZeroDivisionError) as exc:
         return [record("5.1-holonomic", tab.name, "pendulum", "fail", None, expected, DPS, "singular",
                      time.time() - t, "h-sweep", None, f"failed: {exc}")]
+    # One-sided on purpose: section 5.1 claims only that the exact forces vanish on tangent
+    # variations (checked to 1e-28 in claims_paper "5.1-exact"); for the SPARK forces the paper
+    # predicts no rate, so the claim tested is "they tend to 0": observed rate >= HOLONOMIC_RATE
+    # (measured 1.81 .. 4.06 over the built-ins at h = 0.05/0.025, see docs/verification.md), or
+    # zero to working precision. A one-sided claim has no prediction to be off by one.
     vanish = r["tangential"][-1] < 1e-30
-    ok = vanish or r["p_tangential"] >= 1.5
+    ok = vanish or r["p_tangential"] >= HOLONOMIC_RATE
     note = (f"tangential |f_d| at h={r['h']}: " + ", ".join(f"{x:.2e}" for x in r["tangential"])
             + (" (vanish identically)" if vanish else f", observed p = {r['p_tangential']:.2f}")
             + f"; full covector (normal part) ~ h^{r['p_full']:.2f}: " + ", ".join(f"{x:.1e}" for x in r["full"]))

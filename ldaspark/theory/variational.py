@@ -33,7 +33,10 @@ PREDICTED = {"gauss": lambda s: 2 * s + 1, "lobatto-iiia-iiib": lambda s: 2 * s 
 
 
 def predicted_local_order(tab):
-    """What variational error analysis predicts for |L_d - L_d^E|: r + 1 with r the global order."""
+    """What variational error analysis predicts for |L_d - L_d^E|: r + 1 with r the global order
+    (Marsden-West [6], Theorem 2.3.1, forced version; r from section 7 / [26, 27]: Gauss 2s,
+    Lobatto IIIA-B and IIIA-B-D 2s-2; Euler I, II: 1). Pinned per family and s in
+    ``verification/test_variational_order.py``; checked two-sided in ``claims_paper``."""
     if tab.family in PREDICTED:
         return PREDICTED[tab.family](tab.s)
     return (tab.claimed_order or 1) + 1
