@@ -85,8 +85,9 @@ def path_trust(path: str, final_private: bool = True) -> str:
     Safe: each ancestor directory owned by this user or root and not writable by group or others
     unless it is sticky (/tmp: others cannot rename or delete our entries there); each symbolic
     link on the way owned by this user or root (a link another user owns can be pointed
-    elsewhere by them); the final component a directory owned by this user, and, with
-    ``final_private``, not accessible to anyone else. Links are followed (at most MAX_LINK_HOPS),
+    elsewhere by them); the final component a directory owned by this user and not accessible
+    to anyone else, or, without ``final_private``, owned by this user or root and not writable
+    by anyone else. Links are followed (at most MAX_LINK_HOPS),
     the components of their targets checked the same way."""
     uid = _uid()
     path = os.fspath(path)
@@ -126,9 +127,15 @@ def path_trust(path: str, final_private: bool = True) -> str:
         st = os.lstat(cur)                                # cur is free of links
     except OSError as exc:
         return f"{cur}: {exc.strerror or exc}"
+    if not final_private:                                # a shared read-only place (an installed package)
+        if not _trusted_owner(st):
+            return f"{cur} belongs to another user (uid {st.st_uid})"
+        if st.st_mode & 0o022:
+            return f"{cur} is writable by other users"
+        return ""
     if uid is not None and st.st_uid != uid:
         return f"{cur} belongs to another user (uid {st.st_uid})"
-    if final_private and st.st_mode & 0o077:
+    if st.st_mode & 0o077:
         return f"{cur} is accessible to other users"
     return ""
 
@@ -498,6 +505,34 @@ def model_jit(sig=None, **options):
             disp.disable_compile()
         return disp
     return wrap
+
+
+# --- numba's own cache of the kernels -------------------------------------------------------------------
+_KERNEL_CACHE_OK: list = []
+
+
+def check_kernel_cache(modules) -> None:
+    """Raise CacheDirectoryError unless every directory numba would load the cached kernels of
+    ``modules`` from (the package's ``__pycache__``, ``NUMBA_CACHE_DIR`` or numba's per-user cache,
+    as numba's locators choose) is safe by ``path_trust(..., final_private=False)``: numba unpickles
+    the index files found there, so a directory another user can write is a way to run code in
+    this process. Checked once per process and directory."""
+    paths = set()
+    for mod in modules:
+        for obj in vars(mod).values():
+            cache = getattr(obj, "_cache", None)
+            path = getattr(cache, "cache_path", None) if cache is not None else None
+            if isinstance(path, str):
+                paths.add(path)
+    for path in sorted(paths):
+        if path in _KERNEL_CACHE_OK:
+            continue
+        why = path_trust(path, final_private=False) if os.path.isdir(path) else path_trust(
+            os.path.dirname(path), final_private=False)
+        if why:
+            raise CacheDirectoryError(f"numba would load the compiled kernels from {path}, which is not safe "
+                                      f"({why}); point NUMBA_CACHE_DIR at a directory only you can write")
+        _KERNEL_CACHE_OK.append(path)
 
 
 # --- loading a generated module ---------------------------------------------------------------

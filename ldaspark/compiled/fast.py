@@ -267,6 +267,9 @@ def _check_options(n_steps, every, predictor, tol, max_iter, n_dof, n_con):
 
 def _kernels():
     from . import kernels       # cheap: a kernel compiles (or loads) on its first use, in _entry
+    from . import kernels_general, kernels_mech, newton
+    from .cache import check_kernel_cache
+    check_kernel_cache((kernels, kernels_general, kernels_mech, newton))   # numba unpickles from there
     return kernels
 
 
