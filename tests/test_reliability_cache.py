@@ -192,6 +192,43 @@ def test_issue_reproducer_cli_particle_with_planted_index(tmp_path):
         assert recorded[n] == hashlib.sha256(raw).hexdigest()
 
 
+def test_store_reads_only_the_recorded_bytes(tmp_path):
+    """TrustedStore.read: recorded bytes are returned; a file replaced behind the record (other
+    bytes, a link), or a name never recorded, is None and the file deleted."""
+    d = tmp_path / "c"
+    d.mkdir(mode=0o700)
+    store = cache.TrustedStore(str(d), "ldaspark_model_x", "digest")
+    name = "ldaspark_model_x.f-3.py311.nbi"
+    store.write(name, b"recorded")
+    assert store.read(name) == b"recorded"
+    path = d / "__pycache__" / name
+    path.write_bytes(b"planted")
+    assert store.read(name) is None and not path.exists()
+    store.write(name, b"recorded")
+    os.unlink(path)
+    (tmp_path / "t").write_bytes(b"recorded")
+    os.symlink(tmp_path / "t", path)                           # same bytes, behind a link
+    assert store.read(name) is None and not os.path.lexists(path)
+    (d / "__pycache__" / "ldaspark_model_x.g-5.py311.nbi").write_bytes(b"never recorded")
+    assert store.read("ldaspark_model_x.g-5.py311.nbi") is None
+    assert store.read("../escape") is None                     # names outside the module's are refused
+
+
+def test_sweep_deletes_every_unrecorded_or_changed_file(tmp_path):
+    d = tmp_path / "c"
+    d.mkdir(mode=0o700)
+    store = cache.TrustedStore(str(d), "ldaspark_model_x", "digest")
+    store.write("ldaspark_model_x.f-3.py311.nbi", b"kept")
+    store.write("ldaspark_model_x.f-3.py311.1.nbc", b"changed")
+    pyc = d / "__pycache__"
+    (pyc / "ldaspark_model_x.f-3.py311.1.nbc").write_bytes(b"other bytes")
+    (pyc / "ldaspark_model_x.g-9.py311.nbi").write_bytes(b"planted")
+    (pyc / "ldaspark_model_y.g-9.py311.nbi").write_bytes(b"another module's: not this sweep's business")
+    assert sorted(store.sweep()) == ["ldaspark_model_x.f-3.py311.1.nbc", "ldaspark_model_x.g-9.py311.nbi"]
+    assert sorted(os.listdir(pyc)) == ["ldaspark_model_x.f-3.py311.nbi", "ldaspark_model_y.g-9.py311.nbi"]
+    assert store._read_manifest() == {"ldaspark_model_x.f-3.py311.nbi": hashlib.sha256(b"kept").hexdigest()}
+
+
 # --- J: corrupt files are repaired ------------------------------------------------------------------
 def test_corrupt_index_and_data_are_deleted_and_compiled_again(cdir):
     """Random bytes in the model's .nbi and .nbc: the next load compiles again (no
@@ -340,6 +377,7 @@ def test_links_and_ancestors_of_another_user_are_refused(tmp_path):
     assert "belongs to another user" in cache.path_trust(str(anc / "c"))
     os.chown(anc / "c", OTHER_UID, OTHER_UID)
     os.chown(anc, 0, 0)
+    assert "belongs to another user" in cache.path_trust(str(anc / "c"))
     ok, why = cache.secure_dir(str(anc / "c"))
     assert ok is None and "another user" in why
 
