@@ -80,10 +80,22 @@ def _m(marker):
         "with_params": lambda: psys.with_params(m=p + " or 1").substituted(),
         "params ensemble": lambda: ldaspark.integrate(
             psys, "gauss-2", t_span=(0, 0.1), q0=[0, 0, 0], v0=[0, 0, 0], h=0.05, params=[{"m": 1}, {"m": p}]),
+        "mechanical set after construction (compiled)": lambda: ldaspark.integrate(
+            _hand_set(p), "gauss-2", t_span=(0, 0.1), q0=[0, 0, 0], v0=[0, 0, 0], h=0.05, engine="compiled"),
+        "mechanical set after construction (comparator)": lambda: ldaspark.integrate(
+            _hand_set(p), "lobatto-iiia-iiib-2-leapfrog", t_span=(0, 0.1), q0=[0, 0, 0], v0=[0, 0, 0], h=0.05,
+            engine="generic"),
         "scene parameter": lambda: __import__("ldaspark.core.scenes", fromlist=["skate"]).skate(m=p + " or 1"),
         "scene parameter B": lambda: __import__("ldaspark.core.scenes", fromlist=["x"]).relativistic(B=p),
         "tableau delta": lambda: ldaspark.core.families.get_method("gauss-2", exact=True).with_entry("A", 0, 0, p),
     }
+
+
+def _hand_set(p):
+    """A system whose mechanical parts are replaced by hand after construction (as the scenes do)."""
+    s = ldaspark.LagrangianSystem(L0, K0, Q, V)
+    s.mechanical = {"M": sympy.eye(3), "U": p, "K": [[0, "-x", 1]], "b": None}
+    return s
 
 
 ATTACKS = list(_m("/nonexistent"))

@@ -434,6 +434,23 @@ def _exprs(obj, names, where):
     return obj
 
 
+def refuse_text(obj, where):
+    """SystemDefinitionError if ``obj`` (a dict, list, tuple, array or value) holds a string: for
+    expressions read after construction (``system.mechanical`` set by hand), which sympify or
+    Matrix would evaluate; LagrangianSystem(..., mechanical=...) parses them instead."""
+    if isinstance(obj, (str, bytes)):
+        raise SystemDefinitionError(f"{where} is text; give it to LagrangianSystem(...), which parses it, "
+                                    "or as a sympy expression")
+    if isinstance(obj, np.ndarray) and obj.dtype.kind in "OUS":
+        obj = obj.tolist()
+    if isinstance(obj, dict):
+        for key, val in obj.items():
+            refuse_text(val, f"{where}[{key!r}]")
+    elif isinstance(obj, (list, tuple)):
+        for i, val in enumerate(obj):
+            refuse_text(val, f"{where}[{i}]")
+
+
 def _param_value(x, p):
     """A parameter's value as a sympy number: a string through the tableau entry parser
     (``tableau.parse_number``: "1/2", "sqrt(2)", "9.81"), never nsimplify or sympify of text."""
