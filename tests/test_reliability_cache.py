@@ -156,42 +156,6 @@ def test_shared_0777_directory_with_another_users_pycache(tmp_path, monkeypatch)
     assert stat.S_IMODE(os.stat(d).st_mode) == 0o700
 
 
-def test_issue_reproducer_cli_particle_with_planted_index(tmp_path):
-    """`ldaspark integrate particle gauss-2` with a 0777 LDASPARK_CACHE_DIR holding a planted
-    __pycache__/ldaspark_model_<digest>.*.nbi (the digest of a built-in scene is the same on
-    every install): the payload never runs and the run is compiled."""
-    from ldaspark.compiled.fast import compile_system
-    from ldaspark.core.scenes import get_scene
-    cs = compile_system(get_scene("particle").system)
-    modname = "ldaspark_model_" + cs.key
-    lines = cs.source.splitlines()
-    tag = f"py{sys.version_info[0]}{sys.version_info[1]}{getattr(sys, 'abiflags', '')}"
-    # numba names a function's index <module>.<function>-<first line of its decorator>.<tag>.nbi
-    names = [f"{modname}.{lines[i + 1].split('(')[0][4:]}-{i + 1}.{tag}.nbi"
-             for i, ln in enumerate(lines) if ln.startswith("@_jit")]
-    assert len(names) == 7
-    d = tmp_path / "shared"
-    (d / "__pycache__").mkdir(parents=True)
-    os.chmod(d, 0o777)
-    os.chmod(d / "__pycache__", 0o777)
-    marker = tmp_path / "executed"
-    for n in names:
-        (d / "__pycache__" / n).write_bytes(payload_bytes(marker))
-    env = dict(os.environ, LDASPARK_CACHE_DIR=str(d), PYTHONPATH=PYPATH)
-    out = tmp_path / "r.json"
-    p = subprocess.run([sys.executable, "-m", "ldaspark", "integrate", "particle", "gauss-2", "--h", "0.1",
-                        "--t-end", "1", "--out", str(out), "--engine", "compiled"],
-                       env=env, capture_output=True, text=True, timeout=600)
-    assert p.returncode == 0, p.stderr
-    assert "(compiled)" in p.stdout and "Traceback" not in p.stderr
-    assert not marker.exists()
-    # the planted names are the ones numba reads: each now holds this process's recorded index
-    recorded = cache.TrustedStore(str(d), modname, cs.digest)._read_manifest()
-    for n in names:
-        raw = (d / "__pycache__" / n).read_bytes()
-        assert recorded[n] == hashlib.sha256(raw).hexdigest()
-
-
 def test_store_reads_only_the_recorded_bytes(tmp_path):
     """TrustedStore.read: recorded bytes are returned; a file replaced behind the record (other
     bytes, a link), or a name never recorded, is None and the file deleted."""
@@ -255,31 +219,6 @@ def test_recorded_but_unreadable_index_is_rebuilt(cdir):
             store.write(n, b"\x80\x04not a pickle")               # recorded garbage
     assert hits(load(src)) == (0, 1)
     assert hits(load(src)) == (1, 0)
-
-
-def test_cli_runs_compiled_after_the_model_cache_is_corrupted(tmp_path, monkeypatch):
-    """Issue 25 J end to end: random bytes in every .nbi/.nbc of the particle's model; the next
-    run is compiled (before: 'compilation failed (UnpicklingError); using the generic engine' on
-    every later run) and leaves a cache the run after it loads (all hits)."""
-    from ldaspark.compiled.fast import compile_system
-    from ldaspark.core.scenes import get_scene
-    d = tmp_path / "c"
-    monkeypatch.setenv("LDASPARK_CACHE_DIR", str(d))
-    src = compile_system(get_scene("particle").system).source
-    load(src)
-    files = numba_files(str(d), src)
-    assert len(files) == 14                                   # 7 functions: index + data each
-    for f in files:
-        (d / "__pycache__" / f).write_bytes(os.urandom(100))
-    env = dict(os.environ, LDASPARK_CACHE_DIR=str(d), PYTHONPATH=PYPATH)
-    cmd = [sys.executable, "-m", "ldaspark", "integrate", "particle", "gauss-2", "--h", "0.1", "--t-end", "1",
-           "--out", str(tmp_path / "r.json")]
-    p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
-    assert p.returncode == 0 and "(compiled)" in p.stdout, p.stdout + p.stderr
-    assert "using the generic engine" not in p.stderr
-    mod = load(src)
-    assert all(sum(getattr(mod, f).stats.cache_hits.values()) == 1 for f in ("U_of", "grad_U", "hess_U", "K_of",
-                                                                              "b_of", "kq_of", "KTlam_q"))
 
 
 # --- C: never written through a link ---------------------------------------------------------------
@@ -421,6 +360,86 @@ def test_kernel_cache_in_a_directory_others_can_write_is_refused(tmp_path):
     cache.check_kernel_cache([_fake_kernel_module(shared / "sub")])
 
 
+# --- what held keeps holding ---------------------------------------------------------------------------
+def test_record_format_is_sha256sum(cdir):
+    """The record beside each module is `sha256sum -c` input: one '<digest>  <name>' line per file."""
+    src = model_source(9.5)
+    load(src)
+    modname = "ldaspark_model_" + cache.source_key(src)[:20]
+    lines = open(os.path.join(cdir, modname + ".sha256")).read().splitlines()
+    assert lines and len(lines) == len(numba_files(cdir, src))
+    for ln in lines:
+        digest, name = ln.split("  ")
+        with open(os.path.join(cdir, "__pycache__", name), "rb") as f:
+            assert hashlib.sha256(f.read()).hexdigest() == digest
+
+
+# --- end to end, in real processes (last: the checks above fail first under a mutant) ------------
+
+
+def test_issue_reproducer_cli_particle_with_planted_index(tmp_path):
+    """`ldaspark integrate particle gauss-2` with a 0777 LDASPARK_CACHE_DIR holding a planted
+    __pycache__/ldaspark_model_<digest>.*.nbi (the digest of a built-in scene is the same on
+    every install): the payload never runs and the run is compiled."""
+    from ldaspark.compiled.fast import compile_system
+    from ldaspark.core.scenes import get_scene
+    cs = compile_system(get_scene("particle").system)
+    modname = "ldaspark_model_" + cs.key
+    lines = cs.source.splitlines()
+    tag = f"py{sys.version_info[0]}{sys.version_info[1]}{getattr(sys, 'abiflags', '')}"
+    # numba names a function's index <module>.<function>-<first line of its decorator>.<tag>.nbi
+    names = [f"{modname}.{lines[i + 1].split('(')[0][4:]}-{i + 1}.{tag}.nbi"
+             for i, ln in enumerate(lines) if ln.startswith("@_jit")]
+    assert len(names) == 7
+    d = tmp_path / "shared"
+    (d / "__pycache__").mkdir(parents=True)
+    os.chmod(d, 0o777)
+    os.chmod(d / "__pycache__", 0o777)
+    marker = tmp_path / "executed"
+    for n in names:
+        (d / "__pycache__" / n).write_bytes(payload_bytes(marker))
+    env = dict(os.environ, LDASPARK_CACHE_DIR=str(d), PYTHONPATH=PYPATH)
+    out = tmp_path / "r.json"
+    p = subprocess.run([sys.executable, "-m", "ldaspark", "integrate", "particle", "gauss-2", "--h", "0.1",
+                        "--t-end", "1", "--out", str(out), "--engine", "compiled"],
+                       env=env, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    assert "(compiled)" in p.stdout and "Traceback" not in p.stderr
+    assert not marker.exists()
+    # the planted names are the ones numba reads: each now holds this process's recorded index
+    recorded = cache.TrustedStore(str(d), modname, cs.digest)._read_manifest()
+    for n in names:
+        raw = (d / "__pycache__" / n).read_bytes()
+        assert recorded[n] == hashlib.sha256(raw).hexdigest()
+
+
+
+def test_cli_runs_compiled_after_the_model_cache_is_corrupted(tmp_path, monkeypatch):
+    """Issue 25 J end to end: random bytes in every .nbi/.nbc of the particle's model; the next
+    run is compiled (before: 'compilation failed (UnpicklingError); using the generic engine' on
+    every later run) and leaves a cache the run after it loads (all hits)."""
+    from ldaspark.compiled.fast import compile_system
+    from ldaspark.core.scenes import get_scene
+    d = tmp_path / "c"
+    monkeypatch.setenv("LDASPARK_CACHE_DIR", str(d))
+    src = compile_system(get_scene("particle").system).source
+    load(src)
+    files = numba_files(str(d), src)
+    assert len(files) == 14                                   # 7 functions: index + data each
+    for f in files:
+        (d / "__pycache__" / f).write_bytes(os.urandom(100))
+    env = dict(os.environ, LDASPARK_CACHE_DIR=str(d), PYTHONPATH=PYPATH)
+    cmd = [sys.executable, "-m", "ldaspark", "integrate", "particle", "gauss-2", "--h", "0.1", "--t-end", "1",
+           "--out", str(tmp_path / "r.json")]
+    p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0 and "(compiled)" in p.stdout, p.stdout + p.stderr
+    assert "using the generic engine" not in p.stderr
+    mod = load(src)
+    assert all(sum(getattr(mod, f).stats.cache_hits.values()) == 1 for f in ("U_of", "grad_U", "hess_U", "K_of",
+                                                                              "b_of", "kq_of", "KTlam_q"))
+
+
+
 def test_numba_cache_dir_writable_by_others_falls_back_with_the_reason(tmp_path):
     """NUMBA_CACHE_DIR a 0777 directory: engine auto runs generic with a one-line notice naming the
     reason; engine compiled is one error line, exit 2 (one process runs both)."""
@@ -444,7 +463,7 @@ def test_numba_cache_dir_writable_by_others_falls_back_with_the_reason(tmp_path)
     assert err[1].startswith("ldaspark: error: engine 'compiled' cannot run this") and "NUMBA_CACHE_DIR" in err[1]
 
 
-# --- what held keeps holding ---------------------------------------------------------------------------
+
 def test_two_processes_compiling_one_new_system_agree_bit_for_bit(tmp_path):
     """Two processes compile the same new system into one empty cache at once: both succeed with
     the same numbers, and every file left in the cache is recorded (the next load uses it)."""
@@ -468,16 +487,3 @@ def test_two_processes_compiling_one_new_system_agree_bit_for_bit(tmp_path):
         assert store.sweep() == []                             # nothing unrecorded or stale
         assert set(store._read_manifest()) == {n for n in os.listdir(d / "__pycache__")
                                                if n.startswith(modname + ".")}
-
-
-def test_record_format_is_sha256sum(cdir):
-    """The record beside each module is `sha256sum -c` input: one '<digest>  <name>' line per file."""
-    src = model_source(9.5)
-    load(src)
-    modname = "ldaspark_model_" + cache.source_key(src)[:20]
-    lines = open(os.path.join(cdir, modname + ".sha256")).read().splitlines()
-    assert lines and len(lines) == len(numba_files(cdir, src))
-    for ln in lines:
-        digest, name = ln.split("  ")
-        with open(os.path.join(cdir, "__pycache__", name), "rb") as f:
-            assert hashlib.sha256(f.read()).hexdigest() == digest
