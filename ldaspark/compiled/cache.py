@@ -443,7 +443,8 @@ def _trusted_cache_class():
 
         def _save_index(self, overloads):
             data = self._dump((self._source_stamp, overloads))
-            self.store.write(self._index_name, pickle.dumps(self._version, protocol=-1) + data)
+            with contextlib.suppress(OSError, CacheDirectoryError):   # not cached: slower, never wrong
+                self.store.write(self._index_name, pickle.dumps(self._version, protocol=-1) + data)
 
         def _load_data(self, name):
             raw = self.store.read(name)
@@ -456,7 +457,8 @@ def _trusted_cache_class():
                 raise FileNotFoundError(name) from None
 
         def _save_data(self, name, data):
-            self.store.write(name, self._dump(data))
+            with contextlib.suppress(OSError, CacheDirectoryError):
+                self.store.write(name, self._dump(data))
 
     class TrustedFunctionCache(caching.FunctionCache):
         def __init__(self, py_func, store):
@@ -472,7 +474,8 @@ def _trusted_cache_class():
             try:
                 return super()._load_overload(sig, target_context)
             except Exception:                    # a recorded entry numba cannot rebuild: compile again
-                self._cache_file.store.discard(self._cache_file._index_name)
+                with contextlib.suppress(OSError):
+                    self._cache_file.store.discard(self._cache_file._index_name)
                 return None
 
     _CACHE_CLASS = TrustedFunctionCache
