@@ -221,6 +221,19 @@ def test_recorded_but_unreadable_index_is_rebuilt(cdir):
     assert hits(load(src)) == (1, 0)
 
 
+def test_recorded_data_numba_cannot_rebuild_is_compiled_again(cdir):
+    """A recorded data file that unpickles but is not a compiled function (a numba upgrade that
+    changed the format, a record made by hand): compiled again, the compiled engine kept."""
+    src = model_source(6.25)
+    load(src)
+    store = cache._STORES[os.path.join(cdir, "ldaspark_model_" + cache.source_key(src)[:20] + ".py")]
+    for n in numba_files(cdir, src):
+        if n.endswith(".nbc"):
+            store.write(n, pickle.dumps((1, 2)))
+    assert hits(load(src)) == (0, 1)
+    assert hits(load(src)) == (1, 0)
+
+
 # --- C: never written through a link ---------------------------------------------------------------
 def test_symlinked_model_file_does_not_destroy_its_target(cdir, tmp_path):
     """ln -s ~/notes.txt $LDASPARK_CACHE_DIR/ldaspark_model_<digest>.py: the link is replaced by
