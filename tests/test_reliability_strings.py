@@ -49,6 +49,7 @@ def _m(marker):
         "k string": lambda: ldaspark.LagrangianSystem(L0, p, Q, V),
         "k numpy array": lambda: ldaspark.LagrangianSystem(L0, np.array([p]), Q, V),
         "q name": lambda: ldaspark.LagrangianSystem(L0, K0, [p, y, z], V),
+        "q as one string": lambda: ldaspark.LagrangianSystem(L0, K0, p, V),
         "t name": lambda: ldaspark.LagrangianSystem(L0, K0, Q, V, t=p),
         "param name": lambda: ldaspark.LagrangianSystem(L0, K0, Q, V, params=[p]),
         "param default": lambda: ldaspark.LagrangianSystem(L0 - m * x, K0, Q, V, params={"m": p + " or 1"}),

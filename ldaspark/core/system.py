@@ -468,8 +468,10 @@ def _parse_strings(L, k, q, v, t, params, nonideal, psi, mechanical):
     names of q, v, t, psi and params become Symbols, L, k, N and the mechanical parts go
     through ``tableau.parse_expression`` in the declared symbols, parameter values through
     ``tableau.parse_number``."""
-    q = [_symbol(x, "q") for x in q] if isinstance(q, (list, tuple)) else q
-    v = [_symbol(x, "v") for x in v] if isinstance(v, (list, tuple)) else v
+    if isinstance(q, (str, bytes)) or isinstance(v, (str, bytes)):
+        raise SystemDefinitionError("q and v must be lists of symbols (or of names), not strings")
+    q = [_symbol(x, "q") for x in q] if hasattr(q, "__iter__") else q
+    v = [_symbol(x, "v") for x in v] if hasattr(v, "__iter__") else v
     t = _symbol(t, "t") if t is not None else None
     if isinstance(params, dict):
         params = {_symbol(p, "parameter"): (_param_value(x, p) if isinstance(x, str) else x)
