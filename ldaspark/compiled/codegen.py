@@ -14,7 +14,8 @@ Each function shares common subexpressions (``sympy.cse``) and writes only the s
 nonzero entries of its outputs (a symmetric Hessian's lower triangle is copied from the upper),
 so that the generated code grows with the number of nonzeros, not with n^2; the kernels hand in
 zero-initialised arrays and never write into them. Functions are compiled eagerly with their
-explicit signatures and ``cache=True`` (numba's cache sits next to the generated file).
+explicit signatures and numba's on-disk cache next to the generated file, read only where this
+user's process recorded it (``cache.model_jit``, ``cache.TrustedStore``).
 """
 from __future__ import annotations
 
