@@ -426,7 +426,11 @@ def _exprs(obj, names, where):
     else as it is."""
     from .tableau import parse_expression
     if isinstance(obj, str):
-        return parse_expression(obj, names, where, error=SystemDefinitionError)
+        try:
+            return parse_expression(obj, names, where, error=SystemDefinitionError)
+        except SystemDefinitionError as exc:
+            raise SystemDefinitionError(f"{exc}; expressions must be sympy expressions, or text in the declared "
+                                        "symbols and the functions of tableau.parse_expression") from None
     if isinstance(obj, np.ndarray) and obj.dtype.kind in "OUS":
         obj = obj.tolist()
     if isinstance(obj, (list, tuple)):

@@ -54,8 +54,8 @@ MUTANTS = (
        "a recorded cache entry numba cannot rebuild makes compilation fail instead of compiling again "
        "(class J)", "cache", TC + "::test_recorded_data_numba_cannot_rebuild_is_compiled_again", TC),
     _m("relcache-strings-sympified", "core/system.py",
-       "        return parse_expression(obj, names, where, error=SystemDefinitionError)",
-       "        return sympy.sympify(obj)",
+       "            return parse_expression(obj, names, where, error=SystemDefinitionError)",
+       "            return sympy.sympify(obj)",
        "strings of L, k, N and the mechanical parts go to sympify (which evaluates them)", "strings",
        TS + "::test_hostile_string_is_refused_never_executed", TS),
     _m("relcache-param-nsimplify", "core/system.py",
