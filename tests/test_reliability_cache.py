@@ -334,6 +334,27 @@ def test_links_and_ancestors_of_another_user_are_refused(tmp_path):
     assert ok is None and "another user" in why
 
 
+@pytest.mark.skipif(ROOT, reason="as root the chown tests above run; root's own files are trusted")
+def test_ownership_checks_seen_as_another_user(tmp_path, monkeypatch):
+    """Without root (no chown), the same checks from the other side: this process pretends to be
+    another user, so that the real user's directories and files are another user's."""
+    import shutil
+    import tempfile
+    monkeypatch.setattr(cache, "_uid", lambda: os.getuid() + 1)
+    d = tmp_path / "c"
+    d.mkdir(mode=0o700)
+    assert "belongs to another user" in cache.path_trust(str(d))           # an ancestor (pytest's dir)
+    top = tempfile.mkdtemp(dir="/tmp")                                      # /tmp: root's, sticky
+    try:
+        assert "belongs to another user" in cache.path_trust(top)          # the directory itself
+        f = os.path.join(top, "f")
+        with open(f, "wb") as fh:
+            fh.write(b"x")
+        assert cache.read_private(f) is None
+    finally:
+        shutil.rmtree(top)
+
+
 @pytest.mark.skipif(not ROOT, reason="files of another user need root (chown)")
 def test_cache_files_of_another_user_are_not_read(tmp_path):
     f = tmp_path / "f"
