@@ -208,7 +208,8 @@ def _compiled_reason(system: LagrangianSystem, kind: str, name: str) -> Optional
     try:
         cs = fast.compile_system(system)
         cs.module  # noqa: B018  (import / compile now so that failures fall back)
-    except fast.NotCompilableError as exc:
+        fast._kernels()     # checks the directory numba loads the kernels from (compiled.cache)
+    except (fast.NotCompilableError, fast.CacheDirectoryError) as exc:
         return str(exc)
     except Exception as exc:  # numba typing/lowering errors of generated code
         return f"{system.name}: compilation failed ({type(exc).__name__})"

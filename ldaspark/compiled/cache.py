@@ -1,23 +1,47 @@
-"""The on-disk home of the generated model modules, and loading them without executing anything
-found there.
+"""The trusted on-disk cache of the generated model modules and of numba's compiled code for them.
+
+Trust model (docs/reliability.md, "The kernel cache: what is trusted"): the only files loaded
+are files that a process of this user wrote into a directory that only this user can write.
 
 * Directory: ``$LDASPARK_CACHE_DIR``, else ``~/.cache/ldaspark/fast``, else
-  ``<tempdir>/ldaspark-fast-<uid>``; created with mode 0700 and used only when it is a real
-  directory owned by this user that nobody else can write (a looser mode on our own directory is
-  tightened to 0700; a directory of another user is skipped).
-* Loading: the file name carries a hash of the source the caller expects; the file's content is
-  compared (sha256) with that source and rewritten when it differs (planted, truncated, corrupt),
-  and the *expected* source text is what gets compiled and executed, with the file as its
-  ``__file__`` so that numba's on-disk cache (keyed on the file) still works.
+  ``<tempdir>/ldaspark-fast-<uid>``. Used only when every component of its path is safe
+  (``path_trust``): each ancestor a directory owned by this user or root that nobody else can
+  write (or sticky, as /tmp), each symbolic link on the way owned by this user or root, and the
+  directory itself owned by this user with mode 0700 (a looser mode is tightened). A directory
+  of another user, or below a directory another user can write, is skipped.
+* The model module ``ldaspark_model_<digest>.py``: the file name carries the sha256 of the
+  source the caller expects; the *expected* source text is what gets compiled and executed
+  (never the file's content); the file is rewritten when its content differs.
+* numba's cache of the model functions (``__pycache__/<module>.<function>-<line>.py311.nbi`` and
+  ``.nbc``, pickles) goes through ``TrustedStore``: every index and data file numba writes is
+  recorded (sha256, in ``<module>.sha256`` beside the module, ``sha256sum -c`` format) and a
+  file is unpickled only if its bytes, read once through a descriptor opened without following
+  links and owned by this user, have the recorded digest. Anything else under the module's
+  name (planted, corrupt, truncated, written by another process of a different library version)
+  is deleted and compiled again, so that a corrupt file costs one recompilation, not the
+  compiled engine. ``NUMBA_CACHE_DIR`` and ``NUMBA_CACHE_LOCATOR_CLASSES`` do not move these
+  files: ``model_jit`` gives each model function this cache directly.
+* Writes never follow a link: a temporary file created with O_EXCL | O_NOFOLLOW in the same
+  directory, fsync, then ``os.replace``, which replaces a planted symlink itself, not its target.
+* numba's cache of the kernels (``kernels.py`` and its helpers, compiled once for every system)
+  is numba's own, in the package's ``__pycache__`` or ``NUMBA_CACHE_DIR`` or numba's per-user
+  directory; ``check_kernel_cache`` refuses the compiled engine when that directory is writable
+  by another user (it would load pickles from it).
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
+import io
 import os
+import pickle
+import re
 import stat
 import sys
 import tempfile
+import threading
 import types
+import uuid
 
 from ..core.errors import LdasparkError
 
@@ -26,30 +50,111 @@ class CacheDirectoryError(LdasparkError):
     """No safe, writable directory for the generated modules."""
 
 
+#: largest cache file read (numba's data files for the largest generated models are ~1 MB)
+MAX_CACHE_FILE = 256 * 2 ** 20
+#: symbolic links followed while checking one path (the kernel's own limit is 40)
+MAX_LINK_HOPS = 40
+_SAFE_NAME = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]{0,250}$")
+_MANIFEST_LINE = re.compile(r"^([0-9a-f]{64})  ([A-Za-z0-9_][A-Za-z0-9_.\-]{0,250})$")
+_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
+_CLOEXEC = getattr(os, "O_CLOEXEC", 0)
+
+
+def _uid():
+    return os.getuid() if hasattr(os, "getuid") else None
+
+
 def _candidates():
-    uid = os.getuid() if hasattr(os, "getuid") else None
+    uid = _uid()
     env = os.environ.get("LDASPARK_CACHE_DIR")
     yield env
     yield os.path.join(os.path.expanduser("~"), ".cache", "ldaspark", "fast")
     yield os.path.join(tempfile.gettempdir(), f"ldaspark-fast-{uid if uid is not None else os.getlogin()}")
 
 
+# --- path trust ---------------------------------------------------------------------------------
+def _trusted_owner(st) -> bool:
+    """Owned by this user or by root (who can replace anything anyway)."""
+    uid = _uid()
+    return uid is None or st.st_uid in (uid, 0)
+
+
+def path_trust(path: str, final_private: bool = True) -> str:
+    """"" when every component of ``path`` is safe, else the reason it is not.
+
+    Safe: each ancestor directory owned by this user or root and not writable by group or others
+    unless it is sticky (/tmp: others cannot rename or delete our entries there); each symbolic
+    link on the way owned by this user or root (a link another user owns can be pointed
+    elsewhere by them); the final component a directory owned by this user and not accessible
+    to anyone else, or, without ``final_private``, owned by this user or root and not writable
+    by anyone else. Links are followed (at most MAX_LINK_HOPS),
+    the components of their targets checked the same way."""
+    uid = _uid()
+    path = os.fspath(path)
+    todo = path.split(os.sep) if os.path.isabs(path) else os.getcwd().split(os.sep) + path.split(os.sep)
+    cur, hops = os.sep, 0
+    while True:
+        while todo and todo[0] in ("", ".", ".."):       # '..' of a checked, link-free prefix
+            if todo.pop(0) == "..":
+                cur = os.path.dirname(cur)
+        if not todo:
+            break
+        nxt = os.path.join(cur, todo.pop(0))
+        try:
+            st = os.lstat(nxt)
+        except OSError as exc:
+            return f"{nxt}: {exc.strerror or exc}"
+        if stat.S_ISLNK(st.st_mode):
+            if not _trusted_owner(st):
+                return f"{nxt} is a symbolic link owned by another user (uid {st.st_uid})"
+            hops += 1
+            if hops > MAX_LINK_HOPS:
+                return f"{path}: too many levels of symbolic links"
+            target = os.readlink(nxt)
+            if os.path.isabs(target):
+                cur = os.sep
+            todo = target.split(os.sep) + todo
+            continue
+        if not stat.S_ISDIR(st.st_mode):
+            return f"{nxt} is not a directory"
+        if any(c not in ("", ".", "..") for c in todo):  # an ancestor
+            if not _trusted_owner(st):
+                return f"{nxt} belongs to another user (uid {st.st_uid}), who could replace what is below it"
+            if st.st_mode & 0o022 and not st.st_mode & stat.S_ISVTX:
+                return f"{nxt} is writable by other users (and not sticky), who could replace what is below it"
+        cur = nxt
+    try:
+        st = os.lstat(cur)                                # cur is free of links
+    except OSError as exc:
+        return f"{cur}: {exc.strerror or exc}"
+    if not final_private:                                # a shared read-only place (an installed package)
+        if not _trusted_owner(st):
+            return f"{cur} belongs to another user (uid {st.st_uid})"
+        if st.st_mode & 0o022:
+            return f"{cur} is writable by other users"
+        return ""
+    if uid is not None and st.st_uid != uid:
+        return f"{cur} belongs to another user (uid {st.st_uid})"
+    if st.st_mode & 0o077:
+        return f"{cur} is accessible to other users"
+    return ""
+
+
 def secure_dir(d: str) -> tuple[str | None, str]:
-    """(d, "") once d is made and checked as a private directory (mode 0700, owner = this user),
-    else (None, reason)."""
+    """(d, "") once d is made and checked as a private directory (mode 0700, owner = this user,
+    every component of its path safe: ``path_trust``), else (None, reason)."""
     try:
         os.makedirs(d, mode=0o700, exist_ok=True)
-        st = os.lstat(d)
-        if stat.S_ISLNK(st.st_mode):
-            st = os.stat(d)                 # a symlink to our own private directory is fine
+        st = os.stat(d)
         if not stat.S_ISDIR(st.st_mode):
             return None, f"{d} is not a directory"
-        if hasattr(os, "getuid") and st.st_uid != os.getuid():
+        if _uid() is not None and st.st_uid != _uid():
             return None, f"{d} belongs to another user (uid {st.st_uid})"
         if st.st_mode & 0o077:
             os.chmod(d, 0o700)
-            if os.stat(d).st_mode & 0o077:
-                return None, f"{d} is accessible to other users and cannot be made private"
+        why = path_trust(d)
+        if why:
+            return None, why
         if not os.access(d, os.W_OK | os.X_OK):
             return None, f"{d} is not writable"
         return d, ""
@@ -74,35 +179,396 @@ def source_key(source: str) -> str:
     return hashlib.sha256(source.encode()).hexdigest()
 
 
-def _verified(path: str, digest: str) -> bool:
+# --- files that are never followed through a link -----------------------------------------------
+def read_private(path: str, limit: int = MAX_CACHE_FILE) -> bytes | None:
+    """The bytes of ``path`` if it is a regular file owned by this user (opened without following
+    a link, without blocking on a FIFO), at most ``limit`` bytes; None otherwise."""
     try:
-        with open(path, "rb") as f:
-            return hashlib.sha256(f.read()).hexdigest() == digest
+        fd = os.open(path, os.O_RDONLY | _NOFOLLOW | _CLOEXEC | getattr(os, "O_NONBLOCK", 0))
     except OSError:
+        return None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode) or st.st_size > limit:
+            return None
+        if _uid() is not None and st.st_uid != _uid():
+            return None
+        chunks, n = [], 0
+        while True:
+            b = os.read(fd, 1 << 20)
+            if not b:
+                break
+            n += len(b)
+            if n > limit:
+                return None
+            chunks.append(b)
+        return b"".join(chunks)
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
+
+
+def write_private(path: str, data: bytes, mode: int = 0o600) -> None:
+    """Atomically replace ``path`` with ``data``: a new temporary file in the same directory
+    (O_CREAT | O_EXCL | O_NOFOLLOW: never an existing file or a link), fsync, ``os.replace``
+    (which replaces a link at ``path`` itself, never what it points to)."""
+    d = os.path.dirname(path)
+    tmp = os.path.join(d, f".tmp-{uuid.uuid4().hex[:16]}-{os.path.basename(path)[:100]}")
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW | _CLOEXEC, mode)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def remove_entry(path: str) -> None:
+    """Remove whatever is at ``path`` (a file, a link, a FIFO, or a directory tree planted there)
+    without following links; a directory that cannot be emptied (another user's) is renamed
+    aside under a hidden name, where nothing looks."""
+    try:
+        st = os.lstat(path)
+    except FileNotFoundError:
+        return
+    if stat.S_ISDIR(st.st_mode):
+        import shutil
+        shutil.rmtree(path, ignore_errors=True)
+        if os.path.lexists(path):
+            os.replace(path, os.path.join(os.path.dirname(path), f".untrusted-{uuid.uuid4().hex}"))
+    else:
+        os.unlink(path)
+
+
+def private_subdir(parent: str, name: str) -> str:
+    """``parent/name`` as a real directory of this user with mode 0700; whatever else is there
+    (a link, a file, another user's directory) is removed first. ``parent`` is trusted."""
+    path = os.path.join(parent, name)
+    for _ in range(3):
+        try:
+            os.mkdir(path, 0o700)
+        except FileExistsError:
+            pass
+        st = os.lstat(path)
+        if stat.S_ISDIR(st.st_mode) and (_uid() is None or st.st_uid == _uid()):
+            if st.st_mode & 0o077:
+                os.chmod(path, 0o700)
+            return path
+        remove_entry(path)
+    raise CacheDirectoryError(f"{path} cannot be made a private directory")
+
+
+class _FileLock:
+    """An exclusive lock between threads and processes (flock on a file in the trusted directory)."""
+
+    _threads = threading.RLock()
+
+    def __init__(self, path):
+        self.path = path
+
+    def __enter__(self):
+        self._threads.acquire()
+        try:
+            self.fd = os.open(self.path, os.O_RDWR | os.O_CREAT | _NOFOLLOW | _CLOEXEC, 0o600)
+        except OSError:
+            remove_entry(self.path)          # a link or FIFO planted under the lock's name
+            self.fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_EXCL | _NOFOLLOW | _CLOEXEC, 0o600)
+        try:
+            import fcntl
+            fcntl.flock(self.fd, fcntl.LOCK_EX)
+        except ImportError:                  # no flock (Windows): the thread lock only
+            pass
+        return self
+
+    def __exit__(self, *exc):
+        os.close(self.fd)
+        self._threads.release()
         return False
 
 
+# --- the store of one model module ----------------------------------------------------------------
+class TrustedStore:
+    """The files of one generated module ``<dir>/<modname>.py``: numba's index and data files in
+    ``<dir>/__pycache__`` named ``<modname>.*``, the record of their digests ``<dir>/<modname>.sha256``
+    and its lock. Only files whose digest was recorded when this user's process wrote them are
+    read; every other file under the module's name is deleted (``sweep``, ``read``)."""
+
+    def __init__(self, directory: str, modname: str, source_digest: str):
+        self.dir = directory
+        self.modname = modname
+        self.source_digest = source_digest
+        self.numba_dir = private_subdir(directory, "__pycache__")
+        self.manifest = os.path.join(directory, modname + ".sha256")
+        self.lock = _FileLock(os.path.join(directory, modname + ".lock"))
+
+    def _owns(self, name: str) -> bool:
+        return name.startswith(self.modname + ".") and bool(_SAFE_NAME.match(name))
+
+    def _read_manifest(self) -> dict:
+        raw = read_private(self.manifest, limit=2 ** 20)
+        out = {}
+        for line in (raw or b"").decode("ascii", "replace").splitlines():
+            m = _MANIFEST_LINE.match(line)
+            if m and self._owns(m.group(2)):
+                out[m.group(2)] = m.group(1)
+        return out
+
+    def _write_manifest(self, entries: dict) -> None:
+        text = "".join(f"{d}  {n}\n" for n, d in sorted(entries.items()))
+        write_private(self.manifest, text.encode("ascii"))
+
+    def sweep(self) -> list:
+        """Delete every entry of ``__pycache__`` under this module's name whose content is not
+        the one recorded (planted, corrupt, unrecorded); returns the names deleted."""
+        gone = []
+        with self.lock:
+            rec = self._read_manifest()
+            try:
+                names = os.listdir(self.numba_dir)
+            except OSError:
+                return gone
+            for name in names:
+                if not name.startswith(self.modname + "."):
+                    continue
+                path = os.path.join(self.numba_dir, name)
+                raw = read_private(path) if name in rec else None
+                if raw is None or hashlib.sha256(raw).hexdigest() != rec[name]:
+                    remove_entry(path)
+                    gone.append(name)
+            if len(rec) != len(set(rec) - set(gone)):
+                self._write_manifest({n: d for n, d in rec.items() if n not in gone})
+        return gone
+
+    def read(self, name: str) -> bytes | None:
+        """The bytes of ``__pycache__/name`` if they are the recorded ones, else None (and the
+        file, if any, deleted). Read once: what is checked is what is returned."""
+        if not self._owns(name):
+            return None
+        path = os.path.join(self.numba_dir, name)
+        with self.lock:
+            rec = self._read_manifest()
+            raw = read_private(path) if name in rec else None
+            if raw is not None and hashlib.sha256(raw).hexdigest() == rec[name]:
+                return raw
+            if os.path.lexists(path):
+                remove_entry(path)
+            if name in rec:
+                del rec[name]
+                self._write_manifest(rec)
+        return None
+
+    def write(self, name: str, data: bytes) -> None:
+        """Write ``__pycache__/name`` (never through a link) and record its digest, under the lock,
+        so that the record always describes the file on disk."""
+        if not self._owns(name):
+            raise CacheDirectoryError(f"refusing to write {name!r} into the cache of {self.modname}")
+        with self.lock:
+            write_private(os.path.join(self.numba_dir, name), data)
+            rec = self._read_manifest()
+            rec[name] = hashlib.sha256(data).hexdigest()
+            self._write_manifest(rec)
+
+    def discard(self, name: str) -> None:
+        with self.lock:
+            path = os.path.join(self.numba_dir, name)
+            if os.path.lexists(path):
+                remove_entry(path)
+            rec = self._read_manifest()
+            if rec.pop(name, None) is not None:
+                self._write_manifest(rec)
+
+
+_STORES: dict[str, TrustedStore] = {}
+
+
+# --- numba's cache, routed through the store ----------------------------------------------------------
+def _trusted_cache_class():
+    """numba's FunctionCache with the store as its only locator and file layer (built lazily: it
+    subclasses numba internals, stable since numba 0.4x; see ``model_jit`` for the fallback)."""
+    global _CACHE_CLASS
+    if _CACHE_CLASS is not None:
+        return _CACHE_CLASS
+    from numba.core import caching
+
+    class Locator(caching._CacheLocator):
+        def __init__(self, py_func, store):
+            self._lineno = py_func.__code__.co_firstlineno
+            self._py_file = os.path.join(store.dir, store.modname + ".py")
+            self.store = store
+
+        def ensure_cache_path(self):
+            private_subdir(self.store.dir, "__pycache__")
+
+        def get_cache_path(self):
+            return self.store.numba_dir
+
+        def get_source_stamp(self):
+            return self.store.source_digest      # the expected source, not the file on disk
+
+        def get_disambiguator(self):
+            return str(self._lineno)
+
+    class Impl(caching.CompileResultCacheImpl):
+        def __init__(self, py_func, store):      # no locator search (NUMBA_CACHE_DIR & co. ignored)
+            self._lineno = py_func.__code__.co_firstlineno
+            self._locator = Locator(py_func, store)
+            qualname = getattr(py_func, "__qualname__", py_func.__name__)
+            self._filename_base = self.get_filename_base(f"{store.modname}.{qualname}",
+                                                         getattr(sys, "abiflags", ""))
+
+    class Files(caching.IndexDataCacheFile):
+        def __init__(self, store, **kw):
+            super().__init__(**kw)
+            self.store = store
+
+        def _load_index(self):
+            raw = self.store.read(self._index_name)
+            if raw is None:
+                return {}
+            try:
+                f = io.BytesIO(raw)
+                version = pickle.load(f)
+                if version != self._version:
+                    return {}
+                stamp, overloads = pickle.loads(f.read())
+            except Exception:                    # recorded but unreadable (numba changed): rebuild
+                self.store.discard(self._index_name)
+                return {}
+            return overloads if stamp == self._source_stamp else {}
+
+        def _save_index(self, overloads):
+            data = self._dump((self._source_stamp, overloads))
+            with contextlib.suppress(OSError, CacheDirectoryError):   # not cached: slower, never wrong
+                self.store.write(self._index_name, pickle.dumps(self._version, protocol=-1) + data)
+
+        def _load_data(self, name):
+            raw = self.store.read(name)
+            if raw is None:
+                raise FileNotFoundError(name)    # numba's load() takes an OSError as a miss
+            try:
+                return pickle.loads(raw)
+            except Exception:
+                self.store.discard(name)
+                raise FileNotFoundError(name) from None
+
+        def _save_data(self, name, data):
+            with contextlib.suppress(OSError, CacheDirectoryError):
+                self.store.write(name, self._dump(data))
+
+    class TrustedFunctionCache(caching.FunctionCache):
+        def __init__(self, py_func, store):
+            self._name = repr(py_func)
+            self._py_func = py_func
+            self._impl = Impl(py_func, store)
+            self._cache_path = store.numba_dir
+            self._cache_file = Files(store, cache_path=self._cache_path, filename_base=self._impl.filename_base,
+                                     source_stamp=store.source_digest)
+            self.enable()
+
+        def _load_overload(self, sig, target_context):
+            try:
+                return super()._load_overload(sig, target_context)
+            except Exception:                    # a recorded entry numba cannot rebuild: compile again
+                with contextlib.suppress(OSError):
+                    self._cache_file.store.discard(self._cache_file._index_name)
+                return None
+
+    _CACHE_CLASS = TrustedFunctionCache
+    return _CACHE_CLASS
+
+
+_CACHE_CLASS = None
+
+
+def model_jit(sig=None, **options):
+    """``numba.njit(sig, cache=True, **options)`` for the functions of a generated module loaded by
+    ``load_source``: the compiled code is cached in the module's TrustedStore (never in
+    NUMBA_CACHE_DIR, never read unless recorded). Without a store (a module not loaded through
+    ``load_source``) or without the numba internals it relies on, the function is compiled and
+    not cached: slower, never unsafe."""
+    import numba
+
+    def wrap(func):
+        disp = numba.njit(**options)(func)
+        store = _STORES.get(func.__code__.co_filename)
+        if store is not None:
+            try:
+                disp._cache = _trusted_cache_class()(func, store)
+            except (ImportError, AttributeError, TypeError):
+                pass
+        if sig is not None:
+            from numba.core import typeinfer
+            with typeinfer.register_dispatcher(disp):
+                disp.compile(sig)
+            disp.disable_compile()
+        return disp
+    return wrap
+
+
+# --- numba's own cache of the kernels -------------------------------------------------------------------
+_KERNEL_CACHE_OK: list = []
+
+
+def check_kernel_cache(modules) -> None:
+    """Raise CacheDirectoryError unless every directory numba would load the cached kernels of
+    ``modules`` from (the package's ``__pycache__``, ``NUMBA_CACHE_DIR`` or numba's per-user cache,
+    as numba's locators choose) is safe by ``path_trust(..., final_private=False)``: numba unpickles
+    the index files found there, so a directory another user can write is a way to run code in
+    this process. Checked once per process and directory."""
+    paths = set()
+    for mod in modules:
+        for obj in vars(mod).values():
+            cache = getattr(obj, "_cache", None)
+            path = getattr(cache, "cache_path", None) if cache is not None else None
+            if isinstance(path, str):
+                paths.add(path)
+    for path in sorted(paths):
+        if path in _KERNEL_CACHE_OK:
+            continue
+        why = path_trust(path, final_private=False) if os.path.isdir(path) else path_trust(
+            os.path.dirname(path), final_private=False)
+        if why:
+            raise CacheDirectoryError(f"numba would load the compiled kernels from {path}, which is not safe "
+                                      f"({why}); point NUMBA_CACHE_DIR at a directory only you can write")
+        _KERNEL_CACHE_OK.append(path)
+
+
+# --- loading a generated module ---------------------------------------------------------------
 _MODULES: dict[str, types.ModuleType] = {}
 
 
 def load_source(source: str, prefix: str = "ldaspark_model_", digest: str | None = None) -> types.ModuleType:
     """The module of this source text, executed from the text itself (never from what is on disk);
-    the file in the cache directory is (re)written to hold exactly this text. Works in worker
-    processes of any executor: the file is written if this machine lacks it. ``digest``: the
-    sha256 of ``source`` when the caller has it."""
+    the file in the cache directory is (re)written to hold exactly this text, never through a
+    link. numba's cache files of its functions are read only when recorded (``TrustedStore``).
+    Works in worker processes of any executor: the file is written if this machine lacks it.
+    ``digest``: the sha256 of ``source`` when the caller has it."""
     digest = digest or source_key(source)
     hit = _MODULES.get(digest)
     if hit is not None:
         return hit
-    from ..core.io import atomic_write_text
     modname = f"{prefix}{digest[:20]}"
-    path = os.path.join(cache_dir(), modname + ".py")
-    if not _verified(path, digest):
-        if os.path.lexists(path) and not os.path.isfile(path):
-            os.unlink(path)                 # a symlink, FIFO or directory planted under our name
-        atomic_write_text(path, source)
-        if not _verified(path, digest):
-            raise CacheDirectoryError(f"{path} does not hold the source just written")
+    d = cache_dir()
+    path = os.path.join(d, modname + ".py")
+    try:
+        raw = read_private(path)
+        if raw is None or hashlib.sha256(raw).hexdigest() != digest:
+            if os.path.lexists(path):
+                remove_entry(path)              # a link, FIFO, directory or stale file under our name
+            write_private(path, source.encode(), mode=0o600)
+            raw = read_private(path)
+            if raw is None or hashlib.sha256(raw).hexdigest() != digest:
+                raise CacheDirectoryError(f"{path} does not hold the source just written")
+        store = TrustedStore(d, modname, digest)
+        store.sweep()
+    except OSError as exc:
+        raise CacheDirectoryError(f"cannot use the cache file {path}: {exc.strerror or exc}") from None
+    _STORES[path] = store
     mod = types.ModuleType(modname)
     mod.__file__ = path
     sys.modules[modname] = mod

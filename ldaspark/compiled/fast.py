@@ -69,8 +69,10 @@ def mechanical_parts(system) -> dict:
     q, v, t = list(system.q), list(system.v), system.t
     mech = system.mechanical
     if mech is not None:
+        from ..core.system import refuse_text
+        refuse_text(mech, f"{system.name}: mechanical")     # set by hand after construction: never sympify text
         M = sympy.Matrix(mech["M"])
-        U = sympy.sympify(mech["U"])
+        U = sympy.sympify(mech["U"], strict=True)
         K = sympy.Matrix(mech["K"])
         b = sympy.Matrix(mech.get("b") if mech.get("b") is not None else sympy.zeros(K.rows, 1))
         b = b.reshape(K.rows, 1)
@@ -267,6 +269,9 @@ def _check_options(n_steps, every, predictor, tol, max_iter, n_dof, n_con):
 
 def _kernels():
     from . import kernels       # cheap: a kernel compiles (or loads) on its first use, in _entry
+    from . import kernels_general, kernels_mech, newton
+    from .cache import check_kernel_cache
+    check_kernel_cache((kernels, kernels_general, kernels_mech, newton))   # numba unpickles from there
     return kernels
 
 

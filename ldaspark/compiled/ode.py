@@ -10,12 +10,12 @@ from __future__ import annotations
 import sympy
 
 from .cache import load_source
-from .codegen import HEADER, NotCompilableError, _emit, _mat_outputs, _named, _Printer, _Symbols, _vec_outputs, \
+from .codegen import NotCompilableError, header, _emit, _mat_outputs, _named, _Printer, _Symbols, _vec_outputs, \
     nonideal_term
 
 _RHS = '''
 
-@numba.njit(cache=True, nogil=True)
+@_jit(nogil=True)
 def rhs(t, y):
     """dy/dt = (v, a) with [[L_vv, K^T], [K, 0]] [a; psi] = [L_q - L_vt - L_vq v; -k_t - k_q v] (3a-b), (4)."""
     n, m = N_DOF, N_CON
@@ -53,7 +53,7 @@ def ode_source(system) -> str:
     outs = _mat_outputs("S", sad) + _vec_outputs("r", list(r1) + list(r2))
     fn = _emit("ode_parts", "ODE_SIG", ["t", "q", "v", "S", "r"], S.ut + S.uq + S.uv, outs,
                _Printer({"fully_qualified_modules": True}))
-    head = HEADER.format(name=system.name, form="ode", n=n, m=m) + "import numpy as np\n"
+    head = header(system.name, "ode", n, m) + "import numpy as np\n"
     return head + "\n\n" + fn + _RHS
 
 

@@ -67,7 +67,11 @@ class Backend:
 
     def scalar(self, x):
         if self.is_mp:
-            return mpmath.mpf(x) if isinstance(x, (int, float, mpmath.mpf)) else mpmath.mpf(str(x))
+            if isinstance(x, (int, float, mpmath.mpf)):
+                return mpmath.mpf(x)
+            if hasattr(x, "evalf") and getattr(x, "is_number", False):   # an exact sympy number (a parsed
+                return mpmath.mpf(str(x.evalf(mpmath.mp.dps + 10)))      # parameter string): at this precision
+            return mpmath.mpf(str(x))
         return float(x)
 
     def zeros(self, shape) -> np.ndarray:

@@ -64,13 +64,15 @@ class MechanicalParts:
         if getattr(system, "N", None) is not None:
             raise InputError(f"{system.name}: the semi-implicit comparators have no nonideal term (3.3)")
         mech = system.mechanical or derive_mechanical(system)
+        from .system import refuse_text
+        refuse_text(mech, f"{system.name}: mechanical")     # set by hand after construction: never sympify text
         q, v = system.q, system.v
         M = sympy.Matrix(mech["M"])
         if M.free_symbols:
             raise InputError(f"{system.name}: the semi-implicit comparators need a constant mass matrix M")
         K = sympy.Matrix(mech["K"])
         b = sympy.Matrix(mech["b"]).reshape(K.rows, 1)
-        U = sympy.sympify(mech["U"])
+        U = sympy.sympify(mech["U"], strict=True)
         gU = sympy.Matrix([sympy.diff(U, x) for x in q])
         kq = (K * sympy.Matrix(v) + b).jacobian(q)
         mod = backend.lambdify_module

@@ -47,6 +47,18 @@ def _to_symbols(exprs, qs, t):
     return out, qsym, vsym
 
 
+def _refuse_strings(model, q, constraints):
+    """Strings are refused here: text in dynamicsymbols (q1(t), Derivative(q1(t), t)) has no
+    bounded parser, and sympify would execute it. (LagrangianSystem itself parses strings in
+    plain symbols, ``tableau.parse_expression``.)"""
+    for what, val in (("the model", model), ("q", q), ("constraints", constraints)):
+        items = list(val) if isinstance(val, (list, tuple)) else [val]
+        if any(isinstance(x, (str, bytes)) for x in items):
+            raise SystemDefinitionError(f"from_mechanics: {what} must be sympy expressions in dynamicsymbols, "
+                                        "not strings (text is never evaluated; use LagrangianSystem with plain "
+                                        "symbols for expressions given as text)")
+
+
 def from_mechanics(model: Any, q: Optional[Sequence] = None, constraints: Optional[Sequence] = None,
                    params: Optional[Sequence] = None, name: str = "system", cls: Optional[type] = None) -> Any:
     """A ``LagrangianSystem`` from a LagrangesMethod or a Lagrangian in dynamicsymbols (see the
@@ -54,6 +66,7 @@ def from_mechanics(model: Any, q: Optional[Sequence] = None, constraints: Option
     from sympy.physics.mechanics import LagrangesMethod, dynamicsymbols
     from .system import LagrangianSystem
     cls = cls or LagrangianSystem
+    _refuse_strings(model, q, constraints)
     t = dynamicsymbols._t
     if isinstance(model, LagrangesMethod):
         if q is not None or constraints is not None:

@@ -64,6 +64,13 @@ class Scene:
                     np.array([mpmath.mpf(x) for x in p], dtype=object))
 
 
+def _number(x):
+    """A scene parameter as a sympy number: text through the tableau entry parser ("1/2",
+    "sqrt(2)"), never sympify of text (which evaluates it); other values as sympy takes them."""
+    from .system import _param_value
+    return _param_value(x, "of the scene")
+
+
 def _syms(n):
     return list(sympy.symbols(f"q1:{n + 1}")), list(sympy.symbols(f"v1:{n + 1}"))
 
@@ -81,7 +88,7 @@ def particle() -> Scene:
 def skate(m=1, I=1, g=1, beta=sympy.pi / 2) -> Scene:
     """8.2 skate on an inclined plane: T = m(v1^2+v2^2)/2 + I v3^2/2, U = m g q1 sin(beta),
     k = cos(q3) v2 - sin(q3) v1. Closed-form solution derived below (q3 = w t)."""
-    m, I, g, beta = map(sympy.sympify, (m, I, g, beta))
+    m, I, g, beta = map(_number, (m, I, g, beta))
     q, v = _syms(3)
     L = m * (v[0] ** 2 + v[1] ** 2) / 2 + I * v[2] ** 2 / 2 - m * g * q[0] * sympy.sin(beta)
     k = [sympy.cos(q[2]) * v[1] - sympy.sin(q[2]) * v[0]]
@@ -108,7 +115,7 @@ def skate(m=1, I=1, g=1, beta=sympy.pi / 2) -> Scene:
 def robot(m=1, I=1, I_w=1, ell=1) -> Scene:
     """8.3 mobile robot with fixed orientation: T = m(v1^2+v2^2)/2 + I v3^2/2 + 3 I_w v4^2/2,
     U = 10 sin(q4), k = (v1 - l cos(q3) v4, v2 - l sin(q3) v4)."""
-    m, I, I_w, ell = map(sympy.sympify, (m, I, I_w, ell))
+    m, I, I_w, ell = map(_number, (m, I, I_w, ell))
     q, v = _syms(4)
     L = m * (v[0] ** 2 + v[1] ** 2) / 2 + I * v[2] ** 2 / 2 + R(3, 2) * I_w * v[3] ** 2 - 10 * sympy.sin(q[3])
     k = [v[0] - ell * sympy.cos(q[2]) * v[3], v[1] - ell * sympy.sin(q[2]) * v[3]]
@@ -226,7 +233,7 @@ def relativistic(B=R(1, 2)) -> Scene:
     gyroscopic q-v coupling; L and k are autonomous and k is linear in v, so E (8) =
     1/sqrt(1 - |v|^2) + q1^2 + q2^2 is conserved (2.2)."""
     q, v = _syms(3)
-    B = sympy.sympify(B)
+    B = _number(B)
     L = (-sympy.sqrt(1 - v[0] ** 2 - v[1] ** 2 - v[2] ** 2) + B * (q[0] * v[1] - q[1] * v[0]) / 2
          - (q[0] ** 2 + q[1] ** 2))
     k = [v[2] - q[1] * v[0]]
@@ -243,7 +250,7 @@ def turntable(Omega=R(1, 2)) -> Scene:
     in v with b(q) = Omega (y, -x) != 0 (autonomous; energy is not conserved, 2.2)."""
     x, y, th, ph = sympy.symbols("x y theta phi")
     vx, vy, vth, vph = sympy.symbols("vx vy vtheta vphi")
-    Om = sympy.sympify(Omega)
+    Om = _number(Omega)
     L = (vx ** 2 + vy ** 2) / 2 + vth ** 2 / 4 + vph ** 2 / 8
     k = [vx - sympy.cos(ph) * vth + Om * y, vy - sympy.sin(ph) * vth - Om * x]
     sysm = LagrangianSystem(L, k, [x, y, th, ph], [vx, vy, vth, vph], name="turntable")
@@ -259,7 +266,7 @@ def friction_skate(mu=R(1, 2), eps=R(1, 10)) -> Scene:
     we smooth both, |psi|_eps = sqrt(psi^2 + eps^2), sgn_eps(u) = u / sqrt(u^2 + eps^2).
     N_psi != 0 and K N_psi = 0 (friction acts along the blade), so (4) with K^T - N_psi holds."""
     q, v = _syms(3)
-    mu, eps = sympy.sympify(mu), sympy.sympify(eps)
+    mu, eps = _number(mu), _number(eps)
     psi = sympy.Symbol("psi1")
     L = (v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 - q[0]
     k = [sympy.cos(q[2]) * v[1] - sympy.sin(q[2]) * v[0]]

@@ -59,6 +59,8 @@ class LagrangianSystem:
 
     def __init__(self, L, k, q, v, t=None, name: str = "system", mechanical: dict | None = None,
                  params=None, nonideal=None, psi=None):
+        L, k, q, v, t, params, nonideal, psi, mechanical = _parse_strings(L, k, q, v, t, params, nonideal, psi,
+                                                                           mechanical)
         self.name = name
         self.q = list(q)
         self.v = list(v)
@@ -98,11 +100,15 @@ class LagrangianSystem:
     @classmethod
     def mechanical_form(cls, M, U, K, b=None, q=None, v=None, name="system"):
         """L = 1/2 v^T M v - U(q), k = K(q) v + b(q) (section 7); M, K sympy matrices."""
+        n = len(M) if isinstance(M, (list, tuple)) else np.shape(M)[0] if isinstance(M, np.ndarray) else None
+        n = sympy.Matrix(M).rows if n is None else n
+        q = [_symbol(x, "q") for x in q] if q else list(sympy.symbols(f"q0:{n}"))
+        v = [_symbol(x, "v") for x in v] if v else list(sympy.symbols(f"v0:{n}"))
+        names = _names(q, v)
+        M, U, K, b = (_exprs(x, names, what) for x, what in ((M, "M"), (U, "U"), (K, "K"), (b, "b")))
         M = sympy.Matrix(M)
         K = sympy.Matrix(K)
         n = M.rows
-        q = q or list(sympy.symbols(f"q0:{n}"))
-        v = v or list(sympy.symbols(f"v0:{n}"))
         b = sympy.zeros(K.rows, 1) if b is None else sympy.Matrix(b)
         vv = sympy.Matrix(v)
         L = (vv.T * M * vv)[0, 0] / 2 - sympy.sympify(U)
@@ -136,7 +142,7 @@ class LagrangianSystem:
             if sym is None:
                 raise SystemDefinitionError(f"{self.name}: {key} is not a parameter "
                                             f"(parameters: {', '.join(map(str, self.params)) or 'none'})")
-            new._param_values[sym] = val
+            new._param_values[sym] = _param_value(val, sym) if isinstance(val, str) else val
         return new
 
     def param_values(self) -> dict:
@@ -149,7 +155,7 @@ class LagrangianSystem:
         if not self.params:
             return self
         vals = self._param_arg_values(None)
-        sub = {p: sympy.nsimplify(x) if isinstance(x, str) else sympy.sympify(x) for p, x in zip(self.params, vals)}
+        sub = {p: _param_value(x, p) for p, x in zip(self.params, vals)}
         mech = None if self.mechanical is None else {
             key: (sympy.sympify(val).subs(sub) if val is not None else None) for key, val in self.mechanical.items()}
         N = None if self.N is None else [e.subs(sub) for e in self.N]
@@ -403,6 +409,100 @@ class LagrangianSystem:
                 return sol
             prev = dn
         raise SingularSaddleError(f"(3a) with the nonideal term: Newton for psi did not converge at t = {float(t):g}")
+
+
+def _symbol(x, what):
+    """A symbol of the system: a sympy Symbol as given, or a plain name (an ASCII identifier)
+    for one; any other string is refused (a string is never parsed as Python or by sympify)."""
+    if isinstance(x, str):
+        if not (x.isidentifier() and x.isascii() and len(x) <= 100):
+            raise SystemDefinitionError(f"{what}: {x[:60]!r} is not a symbol name")
+        return sympy.Symbol(x)
+    return x
+
+
+def _names(*groups) -> dict:
+    """name -> Symbol of the declared symbols (what a string expression may use)."""
+    return {str(s): s for g in groups for s in g if isinstance(s, sympy.Symbol)}
+
+
+def _exprs(obj, names, where):
+    """``obj`` with every string in it (nested lists, tuples, arrays) replaced by its expression
+    (``tableau.parse_expression``: a bounded whitelist parser in the declared names); everything
+    else as it is."""
+    from .tableau import parse_expression
+    if isinstance(obj, str):
+        try:
+            return parse_expression(obj, names, where, error=SystemDefinitionError)
+        except SystemDefinitionError as exc:
+            raise SystemDefinitionError(f"{exc}; expressions must be sympy expressions, or text in the declared "
+                                        "symbols and the functions of tableau.parse_expression") from None
+    if isinstance(obj, np.ndarray) and obj.dtype.kind in "OUS":
+        obj = obj.tolist()
+    if isinstance(obj, (list, tuple)):
+        return type(obj)(_exprs(x, names, f"{where}[{i}]") for i, x in enumerate(obj))
+    return obj
+
+
+def refuse_text(obj, where):
+    """SystemDefinitionError if ``obj`` (a dict, list, tuple, array or value) holds a string: for
+    expressions read after construction (``system.mechanical`` set by hand), which sympify or
+    Matrix would evaluate; LagrangianSystem(..., mechanical=...) parses them instead."""
+    if isinstance(obj, (str, bytes)):
+        raise SystemDefinitionError(f"{where} is text; give it to LagrangianSystem(...), which parses it, "
+                                    "or as a sympy expression")
+    if isinstance(obj, np.ndarray) and obj.dtype.kind in "OUS":
+        obj = obj.tolist()
+    if isinstance(obj, dict):
+        for key, val in obj.items():
+            refuse_text(val, f"{where}[{key!r}]")
+    elif isinstance(obj, (list, tuple)):
+        for i, val in enumerate(obj):
+            refuse_text(val, f"{where}[{i}]")
+
+
+def _param_value(x, p):
+    """A parameter's value as a sympy number: a string through the tableau entry parser
+    (``tableau.parse_number``: "1/2", "sqrt(2)", "9.81"), never nsimplify or sympify of text."""
+    from .tableau import parse_number
+    if isinstance(x, str):
+        return parse_number(x, f"parameter {p}", error=SystemDefinitionError)
+    try:
+        return sympy.sympify(x, strict=True)
+    except (sympy.SympifyError, TypeError, ValueError):
+        raise SystemDefinitionError(f"parameter {p}: {x!r} is not a number") from None
+
+
+def _parse_strings(L, k, q, v, t, params, nonideal, psi, mechanical):
+    """The arguments of LagrangianSystem with every string in them parsed (never evaluated):
+    names of q, v, t, psi and params become Symbols, L, k, N and the mechanical parts go
+    through ``tableau.parse_expression`` in the declared symbols, parameter values through
+    ``tableau.parse_number``."""
+    if isinstance(q, (str, bytes)) or isinstance(v, (str, bytes)):
+        raise SystemDefinitionError("q and v must be lists of symbols (or of names), not strings")
+    q = [_symbol(x, "q") for x in q] if hasattr(q, "__iter__") else q
+    v = [_symbol(x, "v") for x in v] if hasattr(v, "__iter__") else v
+    t = _symbol(t, "t") if t is not None else None
+    if isinstance(params, dict):
+        params = {_symbol(p, "parameter"): (_param_value(x, p) if isinstance(x, str) else x)
+                  for p, x in params.items()}
+    elif isinstance(params, (list, tuple)):
+        params = [_symbol(p, "parameter") for p in params]
+    elif isinstance(params, str):
+        raise SystemDefinitionError("params must be a list of symbols (or names) or a dict, not a string")
+    if psi is not None and isinstance(psi, (list, tuple)):
+        psi = [_symbol(x, "psi") for x in psi]
+    m = len(k) if isinstance(k, (list, tuple, np.ndarray)) else getattr(k, "rows", 1)
+    names = _names(q if isinstance(q, list) else [], v if isinstance(v, list) else [], [t or sympy.Symbol("t")],
+                   list(params) if isinstance(params, (dict, list)) else [],
+                   psi if isinstance(psi, list) else sympy.symbols(f"psi1:{m + 1}"))
+    L = _exprs(L, names, "L")
+    k = _exprs(k, names, "k")
+    if nonideal is not None:
+        nonideal = [sympy.sympify(e, strict=True) for e in _exprs(list(nonideal), names, "nonideal")]
+    if isinstance(mechanical, dict):
+        mechanical = {key: _exprs(val, names, f"mechanical[{key!r}]") for key, val in mechanical.items()}
+    return L, k, q, v, t, params, nonideal, psi, mechanical
 
 
 def _parse_params(params):

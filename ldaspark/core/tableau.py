@@ -119,6 +119,8 @@ class SparkTableau:
     def with_entry(self, name: str, i: int, j: int | None, delta) -> "SparkTableau":
         """A copy with one entry changed by ``delta`` (negative controls)."""
         if self.exact is not None:
+            if isinstance(delta, str):          # text is parsed (bounded), never nsimplify'd or evaluated
+                delta = parse_exact_string(delta, f"delta of {name}")
             ex = {k: sympy.Matrix(v) for k, v in self.exact.items()}
             if j is None:
                 ex[name][i, 0] += sympy.nsimplify(delta)
@@ -231,6 +233,12 @@ MAX_MAGNITUDE = 1e300         # |entry|: every entry converts to a finite float6
 MAX_STAGES = 20               # s, unless raised (max_stages=, --max-stages)
 _FUNCTIONS = {"sqrt": sympy.sqrt, "Rational": sympy.Rational, "cos": sympy.cos, "sin": sympy.sin}
 _CONSTANTS = {"pi": sympy.pi}
+# expressions of the Python API (parse_expression): more functions, longer and deeper text
+_MAX_EXPR_LEN = 4000
+_MAX_EXPR_DEPTH = 64
+_SYMBOLIC_FUNCTIONS = dict(_FUNCTIONS, tan=sympy.tan, exp=sympy.exp, log=sympy.log, asin=sympy.asin,
+                           acos=sympy.acos, atan=sympy.atan, sinh=sympy.sinh, cosh=sympy.cosh, tanh=sympy.tanh)
+_SYMBOLIC_CONSTANTS = {"E": sympy.E}
 
 
 def _bits(e) -> int:
@@ -280,18 +288,25 @@ def parse_exact_string(x: str, where: str = "entry"):
 
 class _EntryBuilder:
     """Builds the sympy number of one entry from its AST, enforcing the bounds as it goes.
-    ``power`` is the product of the exponents of the '**' nodes above the current node."""
+    ``power`` is the product of the exponents of the '**' nodes above the current node.
+    ``names`` (``parse_expression``): the symbols an expression may use, by name; with them the
+    builder also takes the functions of _SYMBOLIC_FUNCTIONS, rational exponents p/q and long
+    sums and products (a chain a + b + c counts as one level of depth, not one per term)."""
 
-    def __init__(self, x, src, where):
+    def __init__(self, x, src, where, names=None, error=TableauError):
         self.x, self.src, self.where = x, src, where
+        self.names, self.error = names, error
+        self.symbolic = names is not None
+        self.depth_limit = _MAX_EXPR_DEPTH if self.symbolic else _MAX_DEPTH
 
     def bad(self, why):
-        return TableauError(f"{self.where}: {self.x!r} is not a number ({why})")
+        what = "an expression" if self.symbolic else "a number"
+        return self.error(f"{self.where}: {_shown(self.x) if self.symbolic else repr(self.x)} is not {what} ({why})")
 
     def build(self, node, depth, power):
         import ast
-        if depth > _MAX_DEPTH:
-            raise self.bad(f"nested deeper than {_MAX_DEPTH} levels")
+        if depth > self.depth_limit:
+            raise self.bad(f"nested deeper than {self.depth_limit} levels")
         if isinstance(node, ast.Constant):
             return self.constant(node, power)
         if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.UAdd, ast.USub)):
@@ -301,9 +316,14 @@ class _EntryBuilder:
             if isinstance(node.op, ast.Pow):
                 return self.pow(node, depth, power)
             return self.binop(node, depth, power)
+        if isinstance(node, ast.Name) and self.symbolic and node.id in self.names:
+            return self.names[node.id]
         if isinstance(node, ast.Name) and node.id in _CONSTANTS:
             return _CONSTANTS[node.id]
-        if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in _FUNCTIONS
+        if isinstance(node, ast.Name) and self.symbolic and node.id in _SYMBOLIC_CONSTANTS:
+            return _SYMBOLIC_CONSTANTS[node.id]
+        functions = _SYMBOLIC_FUNCTIONS if self.symbolic else _FUNCTIONS
+        if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in functions
                 and not node.keywords and 1 <= len(node.args) <= 2):
             return self.call(node, depth, power)
         name = getattr(node, "id", None) or getattr(getattr(node, "func", None), "id", None)
@@ -331,6 +351,8 @@ class _EntryBuilder:
         ex = node.right
         neg = isinstance(ex, ast.UnaryOp) and isinstance(ex.op, ast.USub)
         lit = ex.operand if neg else ex
+        if self.symbolic and isinstance(lit, ast.BinOp) and isinstance(lit.op, ast.Div):
+            return self.rational_pow(node, lit, neg, depth, power)
         if not (isinstance(lit, ast.Constant) and type(lit.value) is int and lit.value <= _MAX_EXPONENT):
             raise self.bad(f"'**' needs a literal integer exponent <= {_MAX_EXPONENT}")
         if lit.value * power > _MAX_EXPONENT:
@@ -343,6 +365,22 @@ class _EntryBuilder:
             raise self.bad(f"a power exceeds {_MAX_BITS} bits")
         return r
 
+    def rational_pow(self, node, frac, neg, depth, power):
+        """base ** (p/q) with literal integers 1 <= p, q <= _MAX_EXPONENT (expressions only)."""
+        import ast
+        p, q = frac.left, frac.right
+        if not all(isinstance(x, ast.Constant) and type(x.value) is int and 1 <= x.value <= _MAX_EXPONENT
+                   for x in (p, q)):
+            raise self.bad(f"'**' needs a literal integer or p/q exponent with 1 <= p, q <= {_MAX_EXPONENT}")
+        e = sympy.Rational(p.value, q.value)
+        up = max(int(sympy.ceiling(e)), 1)
+        if up * power > _MAX_EXPONENT:
+            raise self.bad(f"nested '**' with exponents multiplying to more than {_MAX_EXPONENT}")
+        base = self.build(node.left, depth + 1, power * up)
+        if neg and base == 0:
+            raise self.bad("division by zero")
+        return base ** (-e if neg else e)
+
     def binop(self, node, depth, power):
         import ast
         ops = {ast.Add: lambda a, b: a + b, ast.Sub: lambda a, b: a - b,
@@ -350,6 +388,23 @@ class _EntryBuilder:
         f = ops.get(type(node.op))
         if f is None:
             raise self.bad(f"operator {type(node.op).__name__}")
+        chain = [node]
+        if self.symbolic:                     # a + b + c + ...: the left spine at one level of depth
+            group = (ast.Add, ast.Sub) if isinstance(node.op, (ast.Add, ast.Sub)) else (ast.Mult, ast.Div)
+            while isinstance(chain[-1].left, ast.BinOp) and isinstance(chain[-1].left.op, group):
+                chain.append(chain[-1].left)
+        if self.symbolic:                     # one Add / Mul of all terms: linear in their number
+            terms = [self.build(chain[-1].left, depth + 1, power)]
+            for nd in reversed(chain):
+                b = self.build(nd.right, depth + 1, power)
+                if isinstance(nd.op, ast.Div) and b == 0:
+                    raise self.bad("division by zero")
+                op = type(nd.op)
+                terms.append(b if op in (ast.Add, ast.Mult) else (-b if op is ast.Sub else 1 / b))
+            r = sympy.Add(*terms) if isinstance(node.op, (ast.Add, ast.Sub)) else sympy.Mul(*terms)
+            if _bits(r) > _MAX_BITS or _coeff_bits(r) > _MAX_BITS:
+                raise self.bad(f"a rational coefficient exceeds {_MAX_BITS} bits")
+            return r
         a, b = self.build(node.left, depth + 1, power), self.build(node.right, depth + 1, power)
         if isinstance(node.op, ast.Div) and b == 0:
             raise self.bad("division by zero")
@@ -367,8 +422,68 @@ class _EntryBuilder:
         elif len(args) != 1:
             raise self.bad(f"{fname} takes one argument")
         elif fname in ("sin", "cos") and not _small(args[0], _MAX_TRIG_ARG):
+            if not (self.symbolic and not args[0].is_number):
+                raise self.bad(f"argument of {fname} is not a real number of modulus <= {_MAX_TRIG_ARG:g}")
+        elif self.symbolic and args[0].is_number and not _small(args[0], _MAX_TRIG_ARG):
             raise self.bad(f"argument of {fname} is not a real number of modulus <= {_MAX_TRIG_ARG:g}")
-        return _FUNCTIONS[fname](*args)
+        return (_SYMBOLIC_FUNCTIONS if self.symbolic else _FUNCTIONS)[fname](*args)
+
+
+def _coeff_bits(e) -> int:
+    """Bit size of the rational coefficient of a product or constant term of a sum."""
+    try:
+        c = e.as_coeff_Mul()[0] if e.is_Mul else (e.as_coeff_Add()[0] if e.is_Add else e)
+    except AttributeError:
+        return 0
+    return _bits(c)
+
+
+def _shown(x) -> str:
+    """A string in an error message: its repr, shortened."""
+    r = repr(x)
+    return r if len(r) <= 80 else r[:60] + "...'"
+
+
+def parse_expression(x, names: dict, where: str = "expression", error=TableauError):
+    """A symbolic expression such as "vx**2/2 + m*g*z" as a sympy expression in the given symbols.
+
+    The strings a user gives the Python API (L, k, N, the mechanical parts, parameter values)
+    come here, never to sympify or eval: parsed with Python's ``ast`` and built node by node as
+    ``parse_exact_string`` does, with ``names`` (name -> sympy Symbol: the system's declared
+    t, q, v, psi and parameters) as the only names besides pi and E, the functions sqrt, sin, cos,
+    tan, exp, log, asin, acos, atan, sinh, cosh, tanh, Rational, literal integer or p/q exponents
+    (the product of nested exponents at most 64), at most 4000 characters, depth 64 (a chain
+    a + b + c ... counts as one level), rational coefficients of at most 8192 bits, numeric
+    function arguments of modulus at most 1e6. Anything else raises ``error`` naming ``where``."""
+    import ast
+    if not isinstance(x, str):
+        raise error(f"{where}: expected a string, got {type(x).__name__}")
+    if len(x) > _MAX_EXPR_LEN:
+        raise error(f"{where}: expression longer than {_MAX_EXPR_LEN} characters")
+    src = x.strip()
+    try:
+        tree = ast.parse(src, mode="eval")
+    except (SyntaxError, ValueError, MemoryError, RecursionError):
+        raise error(f"{where}: cannot parse {_shown(x)}") from None
+    b = _EntryBuilder(x, src, where, names=dict(names), error=error)
+    try:
+        e = b.build(tree.body, 0, 1)
+    except RecursionError:
+        raise b.bad("nested too deeply") from None
+    if not isinstance(e, sympy.Expr):
+        raise b.bad("not an expression")
+    return e
+
+
+def parse_number(x, where: str = "value", error=TableauError):
+    """A number given as a string ("1/2", "sqrt(2)/3", "9.81") as an exact sympy number: the
+    tableau entry parser (``parse_exact_string``), with a finite real value of modulus at most
+    1e300; ``error`` instead of TableauError."""
+    try:
+        e, _ = _parse_entry(x, where)
+    except TableauError as exc:
+        raise error(str(exc)) from None
+    return e
 
 
 def _small(e, bound) -> bool:

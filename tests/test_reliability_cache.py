@@ -1,0 +1,523 @@
+"""The kernel cache's trust model (docs/reliability.md, "The kernel cache: what is trusted";
+issue 25, classes B, C, J): numba's pickled index (.nbi) and data (.nbc) files of the generated
+models are unpickled only when this user's process recorded their sha256 when writing them;
+planted, corrupt or foreign files are deleted and compiled again; nothing is written through a
+link; every component of the cache directory's path is checked; numba's own cache of the
+kernels is refused when another user can write it.
+
+Every hostile payload here is a pickle whose loading creates a marker file; the tests assert
+that the marker never appears, and a control shows that numba's own loader does run the same
+payload (so that the plant is live, not a file nobody reads). No test depends on timing."""
+from __future__ import annotations
+
+import hashlib
+import os
+import pickle
+import stat
+import subprocess
+import sys
+import types
+
+import pytest
+
+from ldaspark.compiled import cache
+from ldaspark.compiled.codegen import header
+
+ROOT = os.getuid() == 0 if hasattr(os, "getuid") else False
+OTHER_UID = 54321                    # a user id that is not ours (tests that chown need root)
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+PYPATH = os.pathsep.join([REPO] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p])
+
+
+class Payload:
+    """Unpickling this creates ``marker`` (what a hostile .nbi would do with os.system)."""
+
+    def __init__(self, marker):
+        self.marker = str(marker)
+
+    def __reduce__(self):
+        return (open, (self.marker, "w"))
+
+
+def payload_bytes(marker) -> bytes:
+    return pickle.dumps(Payload(marker))
+
+
+def model_source(c: float) -> str:
+    """A generated module of the form codegen writes, with one model function (compiles in
+    a fraction of a second); ``c`` makes it a new system (a new digest)."""
+    return header("probe", "mechanical", 1, 0) + f'''
+
+@_jit(_mt.U_SIG, nogil=True, _nrt=False)
+def U_of(t, q):
+    return q[0] * {c!r}
+'''
+
+
+def load(src):
+    """load_source as a fresh process would (the in-process module cache emptied)."""
+    cache._MODULES.pop(cache.source_key(src), None)
+    return cache.load_source(src)
+
+
+def hits(mod):
+    return sum(mod.U_of.stats.cache_hits.values()), sum(mod.U_of.stats.cache_misses.values())
+
+
+def numba_files(d, src):
+    modname = "ldaspark_model_" + cache.source_key(src)[:20]
+    pyc = os.path.join(d, "__pycache__")
+    return sorted(n for n in os.listdir(pyc) if n.startswith(modname + ".")) if os.path.isdir(pyc) else []
+
+
+@pytest.fixture
+def cdir(tmp_path, monkeypatch):
+    d = tmp_path / "cache"
+    monkeypatch.setenv("LDASPARK_CACHE_DIR", str(d))
+    return str(d)
+
+
+# --- B: planted index and data files ------------------------------------------------------------------
+@pytest.mark.parametrize("suffix", [".nbi", ".nbc"])
+def test_planted_numba_file_in_a_private_directory_is_never_unpickled(cdir, tmp_path, suffix):
+    src = model_source(1.25)
+    mod = load(src)
+    assert mod.U_of(0.0, __import__("numpy").array([2.0])) == 2.5
+    names = [n for n in numba_files(cdir, src) if n.endswith(suffix)]
+    assert names, "numba wrote no cache file for the model function"
+    marker = tmp_path / "executed"
+    for n in names:
+        with open(os.path.join(cdir, "__pycache__", n), "wb") as f:
+            f.write(payload_bytes(marker))
+    mod = load(src)
+    assert not marker.exists()
+    assert mod.U_of(0.0, __import__("numpy").array([2.0])) == 2.5
+    assert hits(mod) == (0, 1)                                 # the planted file was not used: compiled again
+    # the rewritten file is recorded, so the next process loads it (a hit, not a recompilation)
+    assert hits(load(src)) == (1, 0)
+    # control: numba's own loader runs the payload of the same file
+    from numba.core.caching import IndexDataCacheFile
+    ctrl = tmp_path / "control"
+    path = os.path.join(cdir, "__pycache__", names[0])
+    with open(path, "wb") as f:
+        f.write(payload_bytes(ctrl))
+    base = names[0][: -len(suffix)] if suffix == ".nbi" else names[0].rsplit(".", 2)[0]
+    files = IndexDataCacheFile(cache_path=os.path.join(cdir, "__pycache__"), filename_base=base, source_stamp=None)
+    try:
+        files._load_index() if suffix == ".nbi" else files._load_data(names[0])
+    except Exception:
+        pass
+    assert ctrl.exists()
+
+
+def test_unrecorded_file_is_refused_even_with_the_right_content(cdir):
+    """The record is what is trusted, not the bytes: a file numba itself wrote, but not through
+    this cache (no record), is deleted and compiled again; the controls load the recorded one."""
+    src = model_source(2.5)
+    load(src)
+    manifest = os.path.join(cdir, "ldaspark_model_" + cache.source_key(src)[:20] + ".sha256")
+    os.unlink(manifest)
+    assert hits(load(src)) == (0, 1)
+    assert hits(load(src)) == (1, 0)
+
+
+@pytest.mark.skipif(not ROOT, reason="planting files of another user needs root (chown)")
+def test_shared_0777_directory_with_another_users_pycache(tmp_path, monkeypatch):
+    """The issue's attack: LDASPARK_CACHE_DIR a 0777 directory in which another user created
+    __pycache__ with the model's .nbi files. The directory is tightened, the other user's
+    __pycache__ removed, and nothing is unpickled from it."""
+    src = model_source(3.75)
+    d = tmp_path / "shared"
+    monkeypatch.setenv("LDASPARK_CACHE_DIR", str(d))
+    load(src)                                                  # learn the names numba uses
+    names = numba_files(str(d), src)
+    import shutil
+    shutil.rmtree(d)
+    d.mkdir()
+    os.chmod(d, 0o777)
+    pyc = d / "__pycache__"
+    pyc.mkdir()
+    marker = tmp_path / "executed"
+    for n in names:
+        (pyc / n).write_bytes(payload_bytes(marker))
+        os.chown(pyc / n, OTHER_UID, OTHER_UID)
+    os.chmod(pyc, 0o777)
+    os.chown(pyc, OTHER_UID, OTHER_UID)
+    # a forged record of the payload's digest, also the other user's: not trusted either
+    modname = "ldaspark_model_" + cache.source_key(src)[:20]
+    rec = "".join(f"{hashlib.sha256(payload_bytes(marker)).hexdigest()}  {n}\n" for n in names)
+    (d / (modname + ".sha256")).write_text(rec)
+    os.chown(d / (modname + ".sha256"), OTHER_UID, OTHER_UID)
+    mod = load(src)
+    assert not marker.exists()
+    assert hits(mod) == (0, 1)
+    st = os.lstat(pyc)
+    assert st.st_uid == os.getuid() and stat.S_IMODE(st.st_mode) == 0o700
+    assert stat.S_IMODE(os.stat(d).st_mode) == 0o700
+
+
+def test_store_reads_only_the_recorded_bytes(tmp_path):
+    """TrustedStore.read: recorded bytes are returned; a file replaced behind the record (other
+    bytes, a link), or a name never recorded, is None and the file deleted."""
+    d = tmp_path / "c"
+    d.mkdir(mode=0o700)
+    store = cache.TrustedStore(str(d), "ldaspark_model_x", "digest")
+    name = "ldaspark_model_x.f-3.py311.nbi"
+    store.write(name, b"recorded")
+    assert store.read(name) == b"recorded"
+    path = d / "__pycache__" / name
+    path.write_bytes(b"planted")
+    assert store.read(name) is None and not path.exists()
+    store.write(name, b"recorded")
+    os.unlink(path)
+    (tmp_path / "t").write_bytes(b"recorded")
+    os.symlink(tmp_path / "t", path)                           # same bytes, behind a link
+    assert store.read(name) is None and not os.path.lexists(path)
+    (d / "__pycache__" / "ldaspark_model_x.g-5.py311.nbi").write_bytes(b"never recorded")
+    assert store.read("ldaspark_model_x.g-5.py311.nbi") is None
+    assert store.read("../escape") is None                     # names outside the module's are refused
+
+
+def test_sweep_deletes_every_unrecorded_or_changed_file(tmp_path):
+    d = tmp_path / "c"
+    d.mkdir(mode=0o700)
+    store = cache.TrustedStore(str(d), "ldaspark_model_x", "digest")
+    store.write("ldaspark_model_x.f-3.py311.nbi", b"kept")
+    store.write("ldaspark_model_x.f-3.py311.1.nbc", b"changed")
+    pyc = d / "__pycache__"
+    (pyc / "ldaspark_model_x.f-3.py311.1.nbc").write_bytes(b"other bytes")
+    (pyc / "ldaspark_model_x.g-9.py311.nbi").write_bytes(b"planted")
+    (pyc / "ldaspark_model_y.g-9.py311.nbi").write_bytes(b"another module's: not this sweep's business")
+    assert sorted(store.sweep()) == ["ldaspark_model_x.f-3.py311.1.nbc", "ldaspark_model_x.g-9.py311.nbi"]
+    assert sorted(os.listdir(pyc)) == ["ldaspark_model_x.f-3.py311.nbi", "ldaspark_model_y.g-9.py311.nbi"]
+    assert store._read_manifest() == {"ldaspark_model_x.f-3.py311.nbi": hashlib.sha256(b"kept").hexdigest()}
+
+
+# --- J: corrupt files are repaired ------------------------------------------------------------------
+def test_corrupt_index_and_data_are_deleted_and_compiled_again(cdir):
+    """Random bytes in the model's .nbi and .nbc: the next load compiles again (no
+    UnpicklingError, the compiled engine stays) and the one after that is a cache hit."""
+    import numpy as np
+    src = model_source(4.5)
+    load(src)
+    for n in numba_files(cdir, src):
+        with open(os.path.join(cdir, "__pycache__", n), "wb") as f:
+            f.write(os.urandom(64))
+    mod = load(src)
+    assert mod.U_of(0.0, np.array([2.0])) == 9.0 and hits(mod) == (0, 1)
+    assert hits(load(src)) == (1, 0)
+
+
+def test_recorded_but_unreadable_index_is_rebuilt(cdir):
+    """A file whose digest is recorded but which numba cannot read (a numba upgrade, a
+    record made by hand) is discarded, not fatal."""
+    src = model_source(5.5)
+    load(src)
+    store = cache._STORES[os.path.join(cdir, "ldaspark_model_" + cache.source_key(src)[:20] + ".py")]
+    for n in numba_files(cdir, src):
+        if n.endswith(".nbi"):
+            store.write(n, b"\x80\x04not a pickle")               # recorded garbage
+    assert hits(load(src)) == (0, 1)
+    assert hits(load(src)) == (1, 0)
+
+
+def test_recorded_data_numba_cannot_rebuild_is_compiled_again(cdir):
+    """A recorded data file that unpickles but is not a compiled function (a numba upgrade that
+    changed the format, a record made by hand): compiled again, the compiled engine kept."""
+    src = model_source(6.25)
+    load(src)
+    store = cache._STORES[os.path.join(cdir, "ldaspark_model_" + cache.source_key(src)[:20] + ".py")]
+    for n in numba_files(cdir, src):
+        if n.endswith(".nbc"):
+            store.write(n, pickle.dumps((1, 2)))
+    assert hits(load(src)) == (0, 1)
+    assert hits(load(src)) == (1, 0)
+
+
+# --- C: never written through a link ---------------------------------------------------------------
+def test_symlinked_model_file_does_not_destroy_its_target(cdir, tmp_path):
+    """ln -s ~/notes.txt $LDASPARK_CACHE_DIR/ldaspark_model_<digest>.py: the link is replaced by
+    the generated file; notes.txt keeps its content."""
+    src = model_source(6.5)
+    os.makedirs(cdir, mode=0o700)
+    notes = tmp_path / "notes.txt"
+    notes.write_text("my notes\n")
+    path = os.path.join(cdir, "ldaspark_model_" + cache.source_key(src)[:20] + ".py")
+    os.symlink(notes, path)
+    load(src)
+    assert notes.read_text() == "my notes\n"
+    assert not os.path.islink(path) and open(path).read() == src
+    # control: the old writer (follows links, as output paths do) writes into the target
+    from ldaspark.core.io import atomic_write_text
+    os.unlink(path)
+    os.symlink(notes, path)
+    atomic_write_text(path, src)
+    assert notes.read_text() == src
+
+
+@pytest.mark.parametrize("what", ["manifest", "lock", "nbi", "pycache"])
+def test_links_planted_under_the_caches_other_names_are_not_followed(cdir, tmp_path, what):
+    """The same for the record (.sha256), the lock, an index file and the __pycache__ directory."""
+    src = model_source(7.5 + ["manifest", "lock", "nbi", "pycache"].index(what))
+    load(src)
+    modname = "ldaspark_model_" + cache.source_key(src)[:20]
+    victim = tmp_path / "victim"
+    victim.mkdir() if what == "pycache" else victim.write_text("keep\n")
+    if what == "pycache":
+        (victim / "keep.txt").write_text("keep\n")
+        import shutil
+        shutil.rmtree(os.path.join(cdir, "__pycache__"))
+        target = os.path.join(cdir, "__pycache__")
+    elif what == "nbi":
+        target = os.path.join(cdir, "__pycache__", [n for n in numba_files(cdir, src) if n.endswith(".nbi")][0])
+        os.unlink(target)
+    else:
+        target = os.path.join(cdir, modname + (".sha256" if what == "manifest" else ".lock"))
+        os.unlink(target)
+    os.symlink(victim, target)
+    mod = load(src)
+    assert hits(mod)[0] + hits(mod)[1] == 1
+    if what == "pycache":
+        assert os.listdir(victim) == ["keep.txt"] and (victim / "keep.txt").read_text() == "keep\n"
+    else:
+        assert victim.read_text() == "keep\n"
+    assert not os.path.islink(target)
+
+
+# --- every component of the directory's path -----------------------------------------------------------
+def test_directory_below_a_world_writable_parent_is_refused(tmp_path):
+    loose = tmp_path / "loose"
+    loose.mkdir()
+    os.chmod(loose, 0o777)
+    ok, why = cache.secure_dir(str(loose / "c"))
+    assert ok is None and "writable by other users" in why
+    # control: the same below a sticky world-writable parent (as /tmp) is accepted
+    os.chmod(loose, 0o1777)
+    ok, why = cache.secure_dir(str(loose / "c"))
+    assert ok == str(loose / "c") and why == ""
+
+
+def test_link_to_a_private_directory_is_accepted_and_its_target_checked(tmp_path):
+    real = tmp_path / "real"
+    real.mkdir(mode=0o700)
+    link = tmp_path / "link"
+    os.symlink(real, link)
+    assert cache.path_trust(str(link)) == ""
+    loose = tmp_path / "loose"
+    loose.mkdir()
+    os.chmod(loose, 0o777)
+    (loose / "real").mkdir(mode=0o700)
+    link2 = tmp_path / "link2"
+    os.symlink(loose / "real", link2)
+    assert "writable by other users" in cache.path_trust(str(link2))
+    # '..' after a link is resolved as the kernel does (from the link's target)
+    assert "writable by other users" in cache.path_trust(str(link2 / ".." / "real"))
+
+
+@pytest.mark.skipif(not ROOT, reason="files of another user need root (chown)")
+def test_links_and_ancestors_of_another_user_are_refused(tmp_path):
+    real = tmp_path / "real"
+    real.mkdir(mode=0o700)
+    link = tmp_path / "link"
+    os.symlink(real, link)
+    os.lchown(link, OTHER_UID, OTHER_UID)
+    assert "symbolic link owned by another user" in cache.path_trust(str(link))
+    anc = tmp_path / "anc"
+    (anc / "c").mkdir(parents=True, mode=0o700)
+    os.chmod(anc, 0o755)
+    os.chown(anc, OTHER_UID, OTHER_UID)
+    assert "belongs to another user" in cache.path_trust(str(anc / "c"))
+    os.chown(anc / "c", OTHER_UID, OTHER_UID)
+    os.chown(anc, 0, 0)
+    assert "belongs to another user" in cache.path_trust(str(anc / "c"))
+    ok, why = cache.secure_dir(str(anc / "c"))
+    assert ok is None and "another user" in why
+
+
+@pytest.mark.skipif(ROOT, reason="as root the chown tests above run; root's own files are trusted")
+def test_ownership_checks_seen_as_another_user(tmp_path, monkeypatch):
+    """Without root (no chown), the same checks from the other side: this process pretends to be
+    another user, so that the real user's directories and files are another user's."""
+    import shutil
+    import tempfile
+    monkeypatch.setattr(cache, "_uid", lambda: os.getuid() + 1)
+    d = tmp_path / "c"
+    d.mkdir(mode=0o700)
+    assert "belongs to another user" in cache.path_trust(str(d))           # an ancestor (pytest's dir)
+    top = tempfile.mkdtemp(dir="/tmp")                                      # /tmp: root's, sticky
+    try:
+        assert "belongs to another user" in cache.path_trust(top)          # the directory itself
+        f = os.path.join(top, "f")
+        with open(f, "wb") as fh:
+            fh.write(b"x")
+        assert cache.read_private(f) is None
+    finally:
+        shutil.rmtree(top)
+
+
+@pytest.mark.skipif(not ROOT, reason="files of another user need root (chown)")
+def test_cache_files_of_another_user_are_not_read(tmp_path):
+    f = tmp_path / "f"
+    f.write_bytes(b"x")
+    assert cache.read_private(str(f)) == b"x"
+    os.chown(f, OTHER_UID, OTHER_UID)
+    assert cache.read_private(str(f)) is None
+
+
+def test_read_private_never_blocks_on_a_fifo_or_follows_a_link(tmp_path):
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    assert cache.read_private(str(fifo)) is None
+    target = tmp_path / "t"
+    target.write_bytes(b"secret")
+    link = tmp_path / "l"
+    os.symlink(target, link)
+    assert cache.read_private(str(link)) is None
+    assert cache.read_private(str(target)) == b"secret"
+
+
+# --- numba's own cache of the kernels -----------------------------------------------------------------
+def _fake_kernel_module(path):
+    mod = types.ModuleType("fake_kernels")
+    mod.k = types.SimpleNamespace(_cache=types.SimpleNamespace(cache_path=str(path)))
+    return mod
+
+
+def test_kernel_cache_in_a_directory_others_can_write_is_refused(tmp_path):
+    shared = tmp_path / "numba-shared"
+    (shared / "sub").mkdir(parents=True)
+    os.chmod(shared, 0o777)
+    with pytest.raises(cache.CacheDirectoryError, match="NUMBA_CACHE_DIR"):
+        cache.check_kernel_cache([_fake_kernel_module(shared / "sub")])
+    # control: the same tree, writable by its owner only
+    os.chmod(shared, 0o755)
+    cache.check_kernel_cache([_fake_kernel_module(shared / "sub")])
+
+
+# --- what held keeps holding ---------------------------------------------------------------------------
+def test_record_format_is_sha256sum(cdir):
+    """The record beside each module is `sha256sum -c` input: one '<digest>  <name>' line per file."""
+    src = model_source(9.5)
+    load(src)
+    modname = "ldaspark_model_" + cache.source_key(src)[:20]
+    lines = open(os.path.join(cdir, modname + ".sha256")).read().splitlines()
+    assert lines and len(lines) == len(numba_files(cdir, src))
+    for ln in lines:
+        digest, name = ln.split("  ")
+        with open(os.path.join(cdir, "__pycache__", name), "rb") as f:
+            assert hashlib.sha256(f.read()).hexdigest() == digest
+
+
+# --- end to end, in real processes (last: the checks above fail first under a mutant) ------------
+
+
+def test_issue_reproducer_cli_particle_with_planted_index(tmp_path):
+    """`ldaspark integrate particle gauss-2` with a 0777 LDASPARK_CACHE_DIR holding a planted
+    __pycache__/ldaspark_model_<digest>.*.nbi (the digest of a built-in scene is the same on
+    every install): the payload never runs and the run is compiled."""
+    from ldaspark.compiled.fast import compile_system
+    from ldaspark.core.scenes import get_scene
+    cs = compile_system(get_scene("particle").system)
+    modname = "ldaspark_model_" + cs.key
+    lines = cs.source.splitlines()
+    tag = f"py{sys.version_info[0]}{sys.version_info[1]}{getattr(sys, 'abiflags', '')}"
+    # numba names a function's index <module>.<function>-<first line of its decorator>.<tag>.nbi
+    names = [f"{modname}.{lines[i + 1].split('(')[0][4:]}-{i + 1}.{tag}.nbi"
+             for i, ln in enumerate(lines) if ln.startswith("@_jit")]
+    assert len(names) == 7
+    d = tmp_path / "shared"
+    (d / "__pycache__").mkdir(parents=True)
+    os.chmod(d, 0o777)
+    os.chmod(d / "__pycache__", 0o777)
+    marker = tmp_path / "executed"
+    for n in names:
+        (d / "__pycache__" / n).write_bytes(payload_bytes(marker))
+    env = dict(os.environ, LDASPARK_CACHE_DIR=str(d), PYTHONPATH=PYPATH)
+    out = tmp_path / "r.json"
+    p = subprocess.run([sys.executable, "-m", "ldaspark", "integrate", "particle", "gauss-2", "--h", "0.1",
+                        "--t-end", "1", "--out", str(out), "--engine", "compiled"],
+                       env=env, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    assert "(compiled)" in p.stdout and "Traceback" not in p.stderr
+    assert not marker.exists()
+    # the planted names are the ones numba reads: each now holds this process's recorded index
+    recorded = cache.TrustedStore(str(d), modname, cs.digest)._read_manifest()
+    for n in names:
+        raw = (d / "__pycache__" / n).read_bytes()
+        assert recorded[n] == hashlib.sha256(raw).hexdigest()
+
+
+
+def test_cli_runs_compiled_after_the_model_cache_is_corrupted(tmp_path, monkeypatch):
+    """Issue 25 J end to end: random bytes in every .nbi/.nbc of the particle's model; the next
+    run is compiled (before: 'compilation failed (UnpicklingError); using the generic engine' on
+    every later run) and leaves a cache the run after it loads (all hits)."""
+    from ldaspark.compiled.fast import compile_system
+    from ldaspark.core.scenes import get_scene
+    d = tmp_path / "c"
+    monkeypatch.setenv("LDASPARK_CACHE_DIR", str(d))
+    src = compile_system(get_scene("particle").system).source
+    load(src)
+    files = numba_files(str(d), src)
+    assert len(files) == 14                                   # 7 functions: index + data each
+    for f in files:
+        (d / "__pycache__" / f).write_bytes(os.urandom(100))
+    env = dict(os.environ, LDASPARK_CACHE_DIR=str(d), PYTHONPATH=PYPATH)
+    cmd = [sys.executable, "-m", "ldaspark", "integrate", "particle", "gauss-2", "--h", "0.1", "--t-end", "1",
+           "--out", str(tmp_path / "r.json")]
+    p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0 and "(compiled)" in p.stdout, p.stdout + p.stderr
+    assert "using the generic engine" not in p.stderr
+    mod = load(src)
+    assert all(sum(getattr(mod, f).stats.cache_hits.values()) == 1 for f in ("U_of", "grad_U", "hess_U", "K_of",
+                                                                              "b_of", "kq_of", "KTlam_q"))
+
+
+
+def test_numba_cache_dir_writable_by_others_falls_back_with_the_reason(tmp_path):
+    """NUMBA_CACHE_DIR a 0777 directory: engine auto runs generic with a one-line notice naming the
+    reason; engine compiled is one error line, exit 2 (one process runs both)."""
+    shared = tmp_path / "numba-shared"
+    shared.mkdir()
+    os.chmod(shared, 0o777)
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(shared), LDASPARK_CACHE_DIR=str(tmp_path / "c"),
+               PYTHONPATH=PYPATH)
+    out = str(tmp_path / "r.json")
+    code = ("import sys, ldaspark\n"
+            "from ldaspark.cli import main\n"
+            "r = ldaspark.integrate('particle', 'gauss-2', t_span=(0, 1), h=0.1)\n"
+            "assert r.engine == 'generic' and r.status == 0\n"
+            f"sys.exit(main(['integrate', 'particle', 'gauss-2', '--h', '0.1', '--t-end', '1', '--out', {out!r},"
+            " '--engine', 'compiled']))\n")
+    p = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=600)
+    err = p.stderr.splitlines()
+    assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+    assert len(err) == 2
+    assert "numba would load the compiled kernels from" in err[0] and "using the generic engine" in err[0]
+    assert err[1].startswith("ldaspark: error: engine 'compiled' cannot run this") and "NUMBA_CACHE_DIR" in err[1]
+
+
+
+def test_two_processes_compiling_one_new_system_agree_bit_for_bit(tmp_path):
+    """Two processes compile the same new system into one empty cache at once: both succeed with
+    the same numbers, and every file left in the cache is recorded (the next load uses it)."""
+    d = tmp_path / "c"
+    code = ("import sys, sympy, numpy as np, ldaspark\n"
+            "x, y, z, vx, vy, vz = sympy.symbols('x y z vx vy vz')\n"
+            "s = ldaspark.LagrangianSystem((vx**2 + vy**2 + vz**2)/2 - x**4/7 - y**2/3, [vz - x*vy],"
+            " [x, y, z], [vx, vy, vz], name='twin')\n"
+            "r = ldaspark.integrate(s, 'gauss-2', t_span=(0, 1), q0=[0.1, 0.2, 0.3], v0=[0.4, 0.5, 0.05],"
+            " h=0.05, engine='compiled')\n"
+            "print(r.q[-1].tobytes().hex(), r.v[-1].tobytes().hex())\n")
+    env = dict(os.environ, LDASPARK_CACHE_DIR=str(d), PYTHONPATH=PYPATH)
+    procs = [subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    outs = [p.communicate(timeout=600) for p in procs]
+    assert all(p.returncode == 0 for p in procs), outs
+    assert outs[0][0] == outs[1][0] and outs[0][0].strip()
+    for man in d.glob("ldaspark_model_*.sha256"):
+        modname = man.name[: -len(".sha256")]
+        store = cache.TrustedStore(str(d), modname, "")
+        assert store.sweep() == []                             # nothing unrecorded or stale
+        assert set(store._read_manifest()) == {n for n in os.listdir(d / "__pycache__")
+                                               if n.startswith(modname + ".")}
