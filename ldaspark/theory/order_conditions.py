@@ -153,8 +153,20 @@ class Arith:
                     raise ExactBudgetExceeded()
             return x == self.K.zero
         if self.ball:
+            if not x.is_finite():    # a NaN ball "contains" 0: never let it pass as a zero
+                from ..core.errors import NonFiniteError
+                raise NonFiniteError("ball arithmetic produced a non-finite value: condition not decidable")
             return bool(x.contains(0))
         return abs(x) <= self.tol
+
+    def pow(self, x, n: int):
+        """x^n for an integer n >= 0 (arb's ** is NaN on a ball containing 0: repeated products)."""
+        if not self.ball:
+            return x ** n
+        out = self.num(1)
+        for _ in range(n):
+            out = out * x
+        return out
 
     def radius(self, x) -> float:
         """The uncertainty of x: the ball's radius (0 when exact, tol for mp)."""
@@ -439,7 +451,7 @@ def check_B(ar, b, c, p):
     with ar.context():
         res = []
         for k in range(1, p + 1):
-            r = _dot(ar, b, [ci ** (k - 1) for ci in c]) - ar.num(1, k)
+            r = _dot(ar, b, [ar.pow(ci, k - 1) for ci in c]) - ar.num(1, k)
             res.append((r, f"k={k}"))
         w = _worst(ar, res)
     return w is None, w
@@ -450,10 +462,10 @@ def check_C(ar, A, c, q):
     with ar.context():
         res = []
         for k in range(1, q + 1):
-            ck = [cj ** (k - 1) for cj in c]
+            ck = [ar.pow(cj, k - 1) for cj in c]
             Ac = _matvec(ar, A, ck)
             for i, ci in enumerate(c):
-                res.append((Ac[i] - ci ** k * ar.num(1, k), f"k={k}, i={i + 1}"))
+                res.append((Ac[i] - ar.pow(ci, k) * ar.num(1, k), f"k={k}, i={i + 1}"))
         w = _worst(ar, res)
     return w is None, w
 
@@ -464,10 +476,10 @@ def check_D(ar, A, b, c, r):
     with ar.context():
         res = []
         for k in range(1, r + 1):
-            w = [b[i] * c[i] ** (k - 1) for i in range(s)]
+            w = [b[i] * ar.pow(c[i], k - 1) for i in range(s)]
             for j in range(s):
                 lhs = _dot(ar, w, [A[i][j] for i in range(s)])
-                res.append((lhs - b[j] * (ar.num(1) - c[j] ** k) * ar.num(1, k), f"k={k}, j={j + 1}"))
+                res.append((lhs - b[j] * (ar.num(1) - ar.pow(c[j], k)) * ar.num(1, k), f"k={k}, j={j + 1}"))
         wst = _worst(ar, res)
     return wst is None, wst
 
@@ -549,7 +561,9 @@ def stability(ar, A, b) -> Stability:
         elif dP < dQ:
             r, rs = 0.0, "0"
         else:
-            ratio = P[dP] / Q[dQ]
+            # balls: the ratio of the midpoints (the entries as written); the quotient ball of two
+            # wide balls is centred elsewhere
+            ratio = P[dP].mid() / Q[dQ].mid() if ar.ball else P[dP] / Q[dQ]
             r, rs = ar.to_float(ratio), ar.to_str(ratio)
         note = ("A singular: 1 - b^T A^{-1} 1 undefined; R(inf) is the limit of P/Q"
                 if A_singular else "R(inf) = 1 - b^T A^{-1} 1")
