@@ -65,6 +65,9 @@ class SparkTableau:
     #: the largest number of significant digits of a decimal literal in a string entry (the
     #: "digits given"), None when no string entry has a decimal literal
     decimal_digits: int | None = None
+    #: the fewest significant digits of a decimal literal of at least LONG_DECIMAL digits (None if
+    #: there is none): below ``decimal_digits`` when the entries were printed to different precisions
+    decimal_digits_min: int | None = None
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     # --- numeric views ---------------------------------------------------------------
@@ -148,9 +151,14 @@ class SparkTableau:
     def precision_text(self) -> str:
         """What the entries carry, in words (the audit's report)."""
         kind = self.precision_kind()
-        D = self.decimal_digits
-        dec = (f"decimal literals with up to {D} significant digit{'s' if D != 1 else ''} (each taken as "
-               f"known to half a unit in its {_ordinal(D)} significant digit)") if D else ""
+        D, Dmin = self.decimal_digits, self.decimal_digits_min
+        if D and Dmin and Dmin < D:
+            dec = (f"decimal literals with {Dmin} to {D} significant digits (one of {LONG_DECIMAL} or more "
+                   f"digits known to half a unit in its last digit, a shorter one (a terminating expansion) "
+                   f"to half a unit in the {_ordinal(D)} significant digit)")
+        else:
+            dec = (f"decimal literals with up to {D} significant digit{'s' if D != 1 else ''} (each taken as "
+                   f"known to half a unit in its {_ordinal(D)} significant digit)") if D else ""
         flt = "float64 entries (each known to half a unit in the last place, 2^-53 ~ 1.1e-16 relative)"
         return {"exact": "exact entries (integers, fractions, radicals, sin/cos/pi expressions)",
                 "computed": "built-in coefficients computed to any precision",
@@ -162,7 +170,8 @@ class SparkTableau:
         ``decimal_digits``-th significant digit (a coefficient printed to D digits; a shorter literal
         is a terminating expansion, exact at D digits); a float64 to 2^-53 relative (half an ulp);
         a built-in's computed coefficient to 10^(5 - digits) (its builder is correct to the digits
-        asked for). Vectors flat, matrices as lists of rows."""
+        asked for). A literal of LONG_DECIMAL or more digits counts with its own digits (entries
+        printed to different precisions). Vectors flat, matrices as lists of rows."""
         key = ("ball", digits)
         if key not in self._cache:
             import flint
@@ -207,7 +216,8 @@ class SparkTableau:
                     src[name][i][j] = (src[name][i][j], d)
             return SparkTableau(f"{self.name}+d{name}[{i},{j}]", self.s, exact=ex,
                                 source_digits=self.source_digits, claimed_order=None, family="perturbed",
-                                sources=src, decimal_digits=self.decimal_digits)
+                                sources=src, decimal_digits=self.decimal_digits,
+                                decimal_digits_min=self.decimal_digits_min)
         base = self.builder
 
         def builder(dps, base=base):
@@ -354,6 +364,12 @@ def decimal_radius(adjusted: int, digits_given: int):
     return flint.fmpq(5 * 10 ** e, 10) if e >= 0 else flint.fmpq(5, 10 ** (1 - e))
 
 
+#: A decimal literal with at least this many significant digits is known to half a unit in its own
+#: last digit; a shorter one is read as a terminating expansion ("0.5", "0.25": printing to D digits
+#: drops trailing zeros), known to the tableau's largest digit count D
+LONG_DECIMAL = 8
+
+
 class _BallEvaluator:
     """Encloses a tableau entry as the file gave it in an arb ball (at flint's current
     precision). String entries are walked from their AST once more (they were validated by
@@ -390,7 +406,8 @@ class _BallEvaluator:
             val, sig, adj = decimal_info(text)
             ball = flint.arb(val)
             if self.D is not None and sig > 0:
-                ball = ball + flint.arb(0, flint.arb(decimal_radius(adj, self.D)))
+                known = sig if sig >= LONG_DECIMAL else self.D
+                ball = ball + flint.arb(0, flint.arb(decimal_radius(adj, known)))
             return acb(ball)
         if isinstance(n, ast.UnaryOp):
             v = self.node(n.operand, src)
@@ -540,6 +557,7 @@ def parse_exact_string(x: str, where: str = "entry", info: dict | None = None):
         raise b.bad("not a number")
     if info is not None:
         info["digits"] = max(info.get("digits", 0), b.digits)
+        info.setdefault("counts", set()).update(b.counts)
     return e
 
 
@@ -550,6 +568,7 @@ class _EntryBuilder:
     def __init__(self, x, src, where):
         self.x, self.src, self.where = x, src, where
         self.digits = 0         # most significant digits of a decimal literal seen
+        self.counts = set()     # the significant digits of every nonzero decimal literal
 
     def zero(self, value, node) -> bool:
         """Whether a (validated) denominator is zero: exactly for a rational, else by its ball at
@@ -601,7 +620,9 @@ class _EntryBuilder:
                 raise self.bad("not finite")
             e = sympy.Rational(text.replace("_", ""))
             if e != 0:
-                self.digits = max(self.digits, decimal_info(text)[1])
+                sig = decimal_info(text)[1]
+                self.digits = max(self.digits, sig)
+                self.counts.add(sig)
         if _bits(e) * power > _MAX_BITS:
             raise self.bad(f"a power of it exceeds {_MAX_BITS} bits")
         return e
@@ -749,10 +770,11 @@ def from_json_dict(d: dict, name: str | None = None, max_stages: int | None = No
     # the entries as given, so that the audit decides at the precision they carry
     sources = {k: [list(r) if isinstance(r, list) else r for r in d[k]] for k in NAMES if k in d}
     digits = info["digits"] or None
+    longs = [n for n in info.get("counts", ()) if n >= LONG_DECIMAL]
+    kw = dict(family="custom", sources=sources, decimal_digits=digits, decimal_digits_min=min(longs) if longs else None)
     if all_exact:
-        return SparkTableau(str(label), s, exact=ex, family="custom", sources=sources, decimal_digits=digits)
-    return SparkTableau(str(label), s, exact=ex, source_digits=15, family="custom", sources=sources,
-                        decimal_digits=digits)
+        return SparkTableau(str(label), s, exact=ex, **kw)
+    return SparkTableau(str(label), s, exact=ex, source_digits=15, **kw)
 
 
 def max_file_bytes(max_stages: int | None = None) -> int:

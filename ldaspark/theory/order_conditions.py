@@ -234,10 +234,11 @@ def ball_arith(tab, dps: int, reason: str = "") -> tuple[Arith, dict]:
     entries to the working precision). ``reason``: why no exact decision (for the label)."""
     ent = tab.ball_entries(dps)
     ent = {k: [list(r) if isinstance(r, list) else r for r in v] for k, v in ent.items()}
-    kind, D = tab.precision_kind(), tab.decimal_digits
-    scope = {"decimal": f"the {D} digits given",
+    kind, D, Dmin = tab.precision_kind(), tab.decimal_digits, tab.decimal_digits_min
+    given = f"the {Dmin} to {D} digits given" if Dmin and Dmin < D else f"the {D} digits given"
+    scope = {"decimal": given,
              "float": "the float64 precision of the entries (~16 digits)",
-             "decimal+float": f"the {D} digits given and float64 precision",
+             "decimal+float": f"{given} and float64 precision",
              "exact": f"{dps} digits, numerically (exact entries; no exact decision, see the arithmetic)",
              "computed": f"{dps} digits, numerically"}[kind]
     label = (f"arb ball arithmetic at {dps} digits; entries: {tab.precision_text()}"
