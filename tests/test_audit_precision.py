@@ -308,3 +308,29 @@ def test_cli_decimal_tableau_exit_0_and_arithmetic_in_json(tmp_path):
     assert by["22b"]["status"] == "pass" and by["22b"]["tolerance"] < 1e-39
     assert "40 significant digits" in by["22b"]["arithmetic"] and by["energy"]["arithmetic"] is None
     assert d["facts"]["predicted_order"] == 4 and by["convergence:skate"]["status"] == "pass"
+
+
+def test_entries_printed_to_different_digits_keep_their_own():
+    """A pair printed to 25 digits with one entry given to 40: the 25-digit entries are still known
+    to 25 digits only (so (22b) holds), not to the longest literal's 40 (control: all entries at
+    the 25-digit values but claimed with 40 digits fail, test_tolerance_follows_the_digits_given)."""
+    d = conjugate_pair(25)
+    d["c"][2] = "1.000000000000000000000000000000000000001"      # 40 significant digits
+    tab = from_json_dict(d)
+    # nstr drops trailing zeros: the shortest long literal may have 24 digits
+    assert tab.decimal_digits == 40 and tab.decimal_digits_min in (24, 25)
+    by, _, ar = algebraic(tab)
+    assert by["22b"].status == au.PASS and 1e-29 < by["22b"].tolerance < 1e-23
+    assert f"the {tab.decimal_digits_min} to 40 digits given" in by["22b"].detail
+
+
+def test_a_nan_ball_is_never_a_zero():
+    """A NaN ball contains 0 for arb; the audit refuses to count it as a condition that holds."""
+    import flint
+    from ldaspark.core.errors import NonFiniteError
+    ar = oc.Arith("ball", dps=30)
+    with pytest.raises(NonFiniteError):
+        ar.is_zero(flint.arb("nan"))
+    assert ar.is_zero(flint.arb(0, 1e-30)) and not ar.is_zero(flint.arb(1e-20, 1e-30))   # control
+    # integer powers of a ball around 0 (arb's ** gives NaN there): products
+    assert ar.pow(flint.arb(0, 1e-30), 7).is_finite() and ar.is_zero(ar.pow(flint.arb(0, 1e-30), 7))
