@@ -79,7 +79,7 @@ def _mode(ar, w: float = 0.0, rad: float = 0.0) -> str:
         return "exactly"
     if ar.ball:
         return (f"to {ar.scope or f'{ar.dps} digits'} (largest |residual| {w:.1e}, within the "
-                f"uncertainty {rad:.1e} the entries carry)")
+                f"uncertainty {rad:.1e})")
     return f"to tolerance {ar.tol:.1e}"
 
 
@@ -88,7 +88,7 @@ def _beyond(ar, rad: float) -> str:
     if ar.exact:
         return "exactly nonzero"
     if ar.ball:
-        return f"beyond the uncertainty {rad:.1e} the entries carry ({ar.scope or f'{ar.dps} digits'})"
+        return f"beyond the uncertainty {rad:.1e} ({ar.scope or f'{ar.dps} digits'})"
     return f"above the tolerance {ar.tol:.1e}"
 
 
