@@ -334,3 +334,19 @@ def test_a_nan_ball_is_never_a_zero():
     assert ar.is_zero(flint.arb(0, 1e-30)) and not ar.is_zero(flint.arb(1e-20, 1e-30))   # control
     # integer powers of a ball around 0 (arb's ** gives NaN there): products
     assert ar.pow(flint.arb(0, 1e-30), 7).is_finite() and ar.is_zero(ar.pow(flint.arb(0, 1e-30), 7))
+
+
+def test_arith_exact_beyond_its_budget_decides_numerically_and_says_so(capsys):
+    """--arith exact on sin/cos entries or ten radicals: no hang, no silent exactness: decided
+    numerically and the reason names the request (control: float64 entries stay an input error)."""
+    for tab, why in ((radicals(10), "degree up to 1024 > 64"), (trig_gauss2("1/2"), "cos, sin")):
+        ar, _, reason = au.decide_arith(tab, 30, "exact")
+        assert ar.ball and "--arith exact was asked for" in reason and why in reason
+    assert main(["audit", str(EX / "lobatto3-float.json"), "--arith", "exact", "--quick"]) == 2
+    assert "inexact entries" in capsys.readouterr().err
+
+
+def test_report_shows_the_entries_as_given():
+    d = conjugate_pair(40)
+    coeff = au._coefficient_strings(from_json_dict(d))
+    assert coeff["A"][0][0] == d["A"][0][0] and "/" not in coeff["b"][0]

@@ -249,10 +249,9 @@ def decide_arith(tab: SparkTableau, dps: int, arith: str = "auto", exact_seconds
         if not tab.is_exact:
             raise InputError(f"tableau {tab.name} has inexact entries: --arith exact is not possible")
         ok, why = oc.exact_budget(tab, max_degree=EXACT_FORCED_MAX_DEGREE)
-        if not ok:
-            raise InputError(f"tableau {tab.name}: --arith exact is not possible: {why}")
         reason = ("exact by request (--arith exact)" + ("; decimal literals read as exact rationals, "
-                  "not as the digits given" if tab.decimal_digits else ""))
+                  "not as the digits given" if tab.decimal_digits else "")) if ok else \
+            f"--arith exact was asked for, but {why}"
     elif arith == "auto" and tab.known_exactly:
         ok, why = oc.exact_budget(tab)
         reason = f"the entries are exact and the decision is cheap ({why})" if ok else why

@@ -105,7 +105,15 @@ def _fmt(x) -> str:
 
 
 def _coefficient_strings(tab: SparkTableau) -> dict:
-    """The entries as printed in the report: exact expressions, else 17 significant digits."""
+    """The entries as printed in the report: as the file gave them when read from a file, else
+    exact expressions, else 17 significant digits."""
+    if tab.sources is not None:
+        show = lambda x: f"{show(x[0])} + ({x[1]})" if isinstance(x, tuple) else str(x)
+        out = {k: [[show(x) for x in r] if isinstance(r, list) else show(r) for r in v] for k, v in tab.sources.items()}
+        if "omega" not in out and tab.exact is not None:
+            from ..core.tableau import _matrix_to_json
+            out["omega"] = _matrix_to_json(tab.exact["omega"], "omega", str)
+        return out
     if tab.exact is not None and tab.source_digits is None:
         from ..core.tableau import _matrix_to_json
         return {k: _matrix_to_json(M, k, str) for k, M in tab.exact.items()}
