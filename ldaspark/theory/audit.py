@@ -82,8 +82,9 @@ TEETH = 1e-6        # a Theorem 1 tolerance above this could not tell (22) from 
 THEOREM_H = "1/10"   # step of the base point (t0, q0) -> (t1, q1) for Theorem 1 and symmetry
 #: Theorem 1's identities are computed with the entries as given; when these satisfy (22) only to
 #: a residual r (decimals, float64) the identities hold to about r times a factor of the size of
-#: the scene's derivatives; 1e3 covers it (measured: float64 Lobatto IIIA-B-3, (22b) to 2.8e-17,
-#: Theorem 1 residuals below 1e-16)
+#: the scene's derivatives; 1e3 covers it (measured, --quick: float64 Lobatto IIIA-B-3, (22b) to
+#: 1.4e-17, Theorem 1 residuals up to 2.8e-17; the 40-digit Radau IIA pair, (22b) to 1.6e-41, particle
+#: and skate residuals 1.3e-40: ratios 2 and 8)
 ENTRY_TOL_FACTOR = 1e3
 
 
