@@ -350,3 +350,12 @@ def test_report_shows_the_entries_as_given():
     d = conjugate_pair(40)
     coeff = au._coefficient_strings(from_json_dict(d))
     assert coeff["A"][0][0] == d["A"][0][0] and "/" not in coeff["b"][0]
+
+
+def test_verdict_says_to_what_precision_22_holds():
+    d = printed(get_method("gauss-2", exact=True), 25)
+    res = au.audit(from_json_dict(d), quick=True, theorem_scenes=("skate",))
+    assert "satisfies (22a) and (22b) to the 25 digits given" in res.verdict
+    assert res.facts["decided_to"] == "the 25 digits given" and res.exit_code == 0
+    res = au.audit(load_tableau(EX / "gauss2.json"), quick=True, theorem_scenes=("skate",))   # control
+    assert "satisfies (22a) and (22b) exactly" in res.verdict and res.facts["decided_to"] == "exactly"

@@ -327,6 +327,7 @@ def audit(tab: SparkTableau, dps: int = 30, quick: bool = False, arith: str = "a
     res = AuditResult(tab.name, tab.s, ar.exact, dps, quick)
     res.facts["arithmetic"] = ar.label
     res.facts["arithmetic_reason"] = reason
+    res.facts["decided_to"] = "exactly" if ar.exact else ar.scope
     res.facts["entries"] = tab.precision_text()
     res.facts["digits_given"] = tab.decimal_digits
     res.facts["claimed_order"] = tab.claimed_order
@@ -359,7 +360,8 @@ def verdict(res: AuditResult) -> str:
     s = res.s
     parts = []
     c22a, c22b = res.get("22a"), res.get("22b")
-    how = ("exactly" if res.exact else f"to the precision the entries carry ({res.facts.get('arithmetic')})")
+    how = ("exactly" if res.exact else f"to {f.get('decided_to') or 'the precision the entries carry'} "
+           f"({f.get('arithmetic')})")
     if f["22"]:
         parts.append(f"{res.tableau} ({s} stage{'s' if s > 1 else ''}) satisfies (22a) and (22b) {how}, "
                      "so Theorem 1 applies: the SPARK method is a nonholonomically constrained discrete "
