@@ -245,7 +245,7 @@ def decide_arith(tab: SparkTableau, dps: int, arith: str = "auto", exact_seconds
     float64 or transcendental entries). ``mp``: balls, whatever the entries."""
     import time as _time
     if exact_seconds is None:
-        exact_seconds = oc.EXACT_SECONDS
+        exact_seconds = EXACT_FORCED_SECONDS if arith == "exact" else oc.EXACT_SECONDS
     if arith == "exact":
         if not tab.is_exact:
             raise InputError(f"tableau {tab.name} has inexact entries: --arith exact is not possible")
@@ -269,9 +269,11 @@ def decide_arith(tab: SparkTableau, dps: int, arith: str = "auto", exact_seconds
     return _ball(tab, dps, reason) + (reason,)
 
 
-#: an exact decision asked for with --arith exact: a larger field than auto allows (Gauss-4: 16),
-#: still bounded so that sympy's primitive element cannot run for hours
+#: an exact decision asked for with --arith exact: a larger field than auto allows (Gauss-4: bound
+#: 32), still bounded so that sympy's primitive element cannot run for hours
 EXACT_FORCED_MAX_DEGREE = 64
+#: and a longer time budget (the tree conditions of Gauss-4 take ~30 s exactly)
+EXACT_FORCED_SECONDS = 120.0
 
 
 def _ball(tab, dps, reason):
@@ -319,7 +321,8 @@ def audit(tab: SparkTableau, dps: int = 30, quick: bool = False, arith: str = "a
     try:
         C, facts = algebraic_checks(tab, ar, e, dps)
     except oc.ExactBudgetExceeded:
-        budget = oc.EXACT_SECONDS if exact_seconds is None else exact_seconds
+        budget = ((EXACT_FORCED_SECONDS if arith == "exact" else oc.EXACT_SECONDS)
+                  if exact_seconds is None else exact_seconds)
         reason = f"the exact decision ({ar.label}) ran past its {budget:g} s budget"
         say(f"exact decision over budget: deciding numerically")
         ar, e = _ball(tab, dps, reason)
