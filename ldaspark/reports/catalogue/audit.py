@@ -64,6 +64,15 @@ MUTANTS = (
        "        if d:\n            parts.append(d)", "        if False:\n            parts.append(d)",
        "the verdict keeps silent when (22) and the numerical Theorem 1 check disagree", "conditions",
        T + "test_disagreement_between_22_and_theorem1_is_named", TPREC),
+    _m("audit-theorem1-entry-tol-skipped", "theory/audit.py",
+       "    if tol_num > TEETH:\n", "    if tol > TEETH:\n",
+       "a Theorem 1 tolerance widened by the entries' own precision counted as 'not decided' (a "
+       "6-digit tableau exits 1 with 'too few scenes')", "theorem1",
+       T + "test_six_digit_entries_theorem1_decided_to_their_precision", TPREC),
+    _m("audit-theorem1-no-entry-tol", "theory/audit.py",
+       "        return ENTRY_TOL_FACTOR * max((c.residual or 0.0) for c in cs)", "        return 0.0",
+       "Theorem 1 checked as if the entries satisfied (22) exactly (their residual in (22) ignored)",
+       "theorem1", T + "test_six_digit_entries_theorem1_decided_to_their_precision", TPREC),
     _m("audit-ball-digits-working-only", "theory/order_conditions.py",
        "    return max(2 * dps, (tab.decimal_digits or 0) + 20, 40)", "    return dps",
        "numerical decisions at the working dps (30) only: 40-digit entries decided below their "
