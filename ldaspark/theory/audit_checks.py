@@ -165,7 +165,8 @@ def check_omega(tab: SparkTableau, ar, e, dps) -> Check:
     if smin <= tol * max(smax, 1.0):
         raise TableauError(f"omega is singular (smallest singular value {smin:.2e}): "
                            "(21e) would not determine the multipliers")
-    return Check("omega-rank", PASS, smin, f"rank {s - 1} = s-1; singular values in [{smin:.3g}, {smax:.3g}]")
+    return Check("omega-rank", PASS, smin, f"rank {s - 1} = s-1; singular values in [{smin:.3g}, {smax:.3g}]",
+                 f"mpmath singular values at dps {dps}", tol * max(smax, 1.0))
 
 
 def check_omega_default(tab: SparkTableau, dps) -> Check:
@@ -183,11 +184,12 @@ def check_omega_default(tab: SparkTableau, dps) -> Check:
         sv = sorted((float(sv[i]) for i in range(min(2 * s - 2, s))), reverse=True)
     tol = 10.0 ** (3 - min(dps, tab.source_digits or dps)) * s * max(sv[0], 1.0)
     rank = sum(x > tol for x in sv)
+    how = f"mpmath singular values at dps {dps}"
     if rank == s - 1:
         return Check("omega-span", PASS, sv[s - 1] if len(sv) >= s else 0.0,
-                     "rows of omega span {b_j c_j^(i-1)}, i < s (the choice of [26, 27])")
+                     "rows of omega span {b_j c_j^(i-1)}, i < s (the choice of [26, 27])", how, tol)
     return Check("omega-span", INFO, sv[s - 1], f"rows of omega do not span {{b_j c_j^(i-1)}} (stacked rank {rank} "
-                 f"> s-1 = {s - 1}): convergence results of [26, 27] are stated for that choice")
+                 f"> s-1 = {s - 1}): convergence results of [26, 27] are stated for that choice", how, tol)
 
 
 def check_22a(ar, e) -> Check:
