@@ -304,7 +304,7 @@ def algebraic_checks(tab, ar, e, dps):
     chk, f = order_checks(ar, e)
     C.extend(chk)
     facts.update(f)
-    p = int(facts["order:forced-ode"])
+    p = predicted_order(tab, facts)
     facts["predicted_order"] = p
     how = "exactly" if ar.exact else f"to {ar.scope}"
     C.append(Check("consistent", PASS if p >= 1 else FAIL, None,
@@ -331,7 +331,7 @@ def audit(tab: SparkTableau, dps: int = 30, quick: bool = False, arith: str = "a
         budget = ((EXACT_FORCED_SECONDS if arith == "exact" else oc.EXACT_SECONDS)
                   if exact_seconds is None else exact_seconds)
         reason = f"the exact decision ({ar.label}) ran past its {budget:g} s budget"
-        say(f"exact decision over budget: deciding numerically")
+        say("exact decision over budget: deciding numerically")
         ar, e = _ball(tab, dps, reason)
         C, facts = algebraic_checks(tab, ar, e, dps)
     res = AuditResult(tab.name, tab.s, ar.exact, dps, quick)
