@@ -90,15 +90,18 @@ def test_22b_check_names_the_worst_entry():
 
 
 def test_float_tableau_tolerance_and_worst_entry():
-    """Float entries: (22b) holds to ~1e-17, within the 15-digit tolerance; a 1e-8 change does not."""
+    """Float entries: (22b) holds to ~1e-17, within the uncertainty float64 entries carry (half an
+    ulp each: a few 1e-16 on the condition); a 1e-8 change does not."""
     tab = load_tableau(EX / "lobatto3-float.json")
-    assert not tab.is_exact
+    assert not tab.is_exact and tab.precision_kind() == "float"
     ar, e = au.oc.arith_for(tab, 30)
-    assert au.check_22b(ar, e).status == au.PASS and ar.tol > 1e-14
+    c = au.check_22b(ar, e)
+    assert ar.ball and c.status == au.PASS and 1e-17 < c.tolerance < 1e-15 and c.residual < c.tolerance
     bad = tab.with_entry("A_hat", 1, 2, 1e-8)
     ar2, e2 = au.oc.arith_for(bad, 30)
     c = au.check_22b(ar2, e2)
-    assert c.status == au.FAIL and "(i, j) = (3, 2)" in c.detail
+    # b_2 * 1e-8 = (2/3) 1e-8 at (i, j) = (3, 2)
+    assert c.status == au.FAIL and "(i, j) = (3, 2)" in c.detail and abs(c.residual - 2e-8 / 3) < 1e-15
 
 
 def test_convergence_check_fails_when_prediction_is_wrong():
@@ -133,8 +136,12 @@ def test_cli_builtin_exit_0_and_json_schema(tmp_path, capsys):
                  "theorem1:robot", "theorem1:mp-particles", "symmetry:skate", "stability:A"):
         assert need in names, need
     for c in d["checks"]:
-        assert set(c) == {"name", "status", "residual", "detail"}
+        # the contract's four keys, extended by the arithmetic that decided and its tolerance
+        assert set(c) == {"name", "status", "residual", "detail", "arithmetic", "tolerance"}
         assert c["status"] in ("pass", "fail", "info", "skip")
+    by = {c["name"]: c for c in d["checks"]}
+    assert by["22b"]["arithmetic"].startswith("exact in QQ<sqrt(3)>") and by["22b"]["tolerance"] == 0.0
+    assert by["energy"]["arithmetic"] is None
     assert all(c["status"] != "fail" for c in d["checks"])
     text = md.read_text()
     assert "## Verdict" in text and "Theorem 1 applies" in text

@@ -58,6 +58,16 @@ class SparkTableau:
     source_digits: int | None = None
     claimed_order: int | None = None
     family: str = "custom"
+    #: the entries as the file gave them (name -> list, or list of lists, of JSON values: int,
+    #: float, str; or (value, exact_delta) after ``with_entry``), None for built-ins: the
+    #: precision the entries carry is read from these (``ball_entries``)
+    sources: dict | None = None
+    #: the largest number of significant digits of a decimal literal in a string entry (the
+    #: "digits given"), None when no string entry has a decimal literal
+    decimal_digits: int | None = None
+    #: the fewest significant digits of a decimal literal of at least LONG_DECIMAL digits (None if
+    #: there is none): below ``decimal_digits`` when the entries were printed to different precisions
+    decimal_digits_min: int | None = None
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     # --- numeric views ---------------------------------------------------------------
@@ -114,7 +124,79 @@ class SparkTableau:
 
     @property
     def is_exact(self) -> bool:
+        """The entries are exact sympy numbers (decimal strings read as exact decimals)."""
         return self.exact is not None and self.source_digits is None
+
+    @property
+    def known_exactly(self) -> bool:
+        """The entries are exact and carry no decimal literal: each is known exactly, not only
+        to the digits printed (``precision_kind``)."""
+        return self.is_exact and self.decimal_digits is None
+
+    @property
+    def has_float_entries(self) -> bool:
+        """Some entry is a float64 (a JSON number with a point or an exponent)."""
+        return self.sources is not None and any(
+            _leaf_is_float(x) for v in self.sources.values() for x in _flatten(v))
+
+    def precision_kind(self) -> str:
+        """'exact', 'decimal' (string entries with decimal literals), 'float' (float64 entries),
+        'decimal+float', or 'computed' (a built-in known to any precision, ``builder``)."""
+        if self.exact is None:
+            return "computed"
+        dec, flt = self.decimal_digits is not None, self.has_float_entries or (
+            self.sources is None and self.source_digits is not None)
+        return "decimal+float" if dec and flt else "decimal" if dec else "float" if flt else "exact"
+
+    def precision_text(self) -> str:
+        """What the entries carry, in words (the audit's report)."""
+        kind = self.precision_kind()
+        D, Dmin = self.decimal_digits, self.decimal_digits_min
+        if D and Dmin and Dmin < D:
+            dec = (f"decimal literals with {Dmin} to {D} significant digits (one of {LONG_DECIMAL} or more "
+                   f"digits known to half a unit in its last digit, a shorter one (a terminating expansion) "
+                   f"to half a unit in the {_ordinal(D)} significant digit)")
+        else:
+            dec = (f"decimal literals with up to {D} significant digit{'s' if D != 1 else ''} (each taken as "
+                   f"known to half a unit in its {_ordinal(D)} significant digit)") if D else ""
+        flt = "float64 entries (each known to half a unit in the last place, 2^-53 ~ 1.1e-16 relative)"
+        return {"exact": "exact entries (integers, fractions, radicals, sin/cos/pi expressions)",
+                "computed": "built-in coefficients computed to any precision",
+                "decimal": dec, "float": flt, "decimal+float": f"{dec}; {flt}"}[kind]
+
+    def ball_entries(self, digits: int) -> dict:
+        """The entries as arb balls at ``digits`` working digits that enclose the values the entries
+        stand for: exact entries to the working precision; a decimal literal to half a unit in its
+        ``decimal_digits``-th significant digit (a coefficient printed to D digits; a shorter literal
+        is a terminating expansion, exact at D digits); a float64 to 2^-53 relative (half an ulp);
+        a built-in's computed coefficient to 10^(5 - digits) (its builder is correct to the digits
+        asked for). A literal of LONG_DECIMAL or more digits counts with its own digits (entries
+        printed to different precisions). Vectors flat, matrices as lists of rows."""
+        key = ("ball", digits)
+        if key not in self._cache:
+            import flint
+            prec = int(digits * 3.33) + 16
+            with flint.ctx.workprec(prec):
+                if self.sources is not None:
+                    ev = _BallEvaluator(self.decimal_digits)
+                    out = {k: _map_nested(v, ev.leaf) for k, v in self.sources.items()}
+                    if "omega" not in out:
+                        out["omega"] = [[_sympy_ball(self.exact["omega"][i, j], digits, None)
+                                         for j in range(self.s)] for i in range(self.s - 1)]
+                elif self.exact is not None:
+                    src = None if self.is_exact else (self.source_digits or 15)
+                    out = {k: _matrix_to_json(M, k, lambda e: _sympy_ball(e, digits, src))
+                           for k, M in self.exact.items()}
+                else:
+                    with mpmath.workdps(digits + 10):
+                        raw = self.builder(digits + 10)
+                    rad = flint.arb(10) ** (-digits + 5)
+                    ball = lambda x: flint.arb(_mpf_to_fmpq(x)) + flint.arb(0, rad * max(1, abs(float(x))))
+                    out = {k: _map_nested(v, ball) for k, v in raw.items()}
+                    for k in VECTOR_NAMES:
+                        out[k] = [x[0] if isinstance(x, list) else x for x in out[k]]
+            self._cache[key] = out
+        return self._cache[key]
 
     def with_entry(self, name: str, i: int, j: int | None, delta) -> "SparkTableau":
         """A copy with one entry changed by ``delta`` (negative controls)."""
@@ -126,8 +208,18 @@ class SparkTableau:
                 ex[name][i, 0] += sympy.nsimplify(delta)
             else:
                 ex[name][i, j] += sympy.nsimplify(delta)
+            src = None
+            if self.sources is not None:
+                src = {k: [list(r) if isinstance(r, list) else r for r in v] for k, v in self.sources.items()}
+                d = sympy.nsimplify(delta)
+                if j is None:
+                    src[name][i] = (src[name][i], d)
+                else:
+                    src[name][i][j] = (src[name][i][j], d)
             return SparkTableau(f"{self.name}+d{name}[{i},{j}]", self.s, exact=ex,
-                                claimed_order=None, family="perturbed")
+                                source_digits=self.source_digits, claimed_order=None, family="perturbed",
+                                sources=src, decimal_digits=self.decimal_digits,
+                                decimal_digits_min=self.decimal_digits_min)
         base = self.builder
 
         def builder(dps, base=base):
@@ -212,6 +304,185 @@ def _matrix_to_json(M, name, fmt):
     return [[fmt(M[i, j]) for j in range(M.cols)] for i in range(M.rows)]
 
 
+def _flatten(v):
+    if isinstance(v, list):
+        for x in v:
+            yield from _flatten(x)
+    else:
+        yield v
+
+
+def _leaf_is_float(x) -> bool:
+    while isinstance(x, tuple):          # (value, exact delta) from with_entry
+        x = x[0]
+    return isinstance(x, float)
+
+
+def _ordinal(n: int) -> str:
+    return f"{n}{'th' if 10 <= n % 100 <= 20 else {1: 'st', 2: 'nd', 3: 'rd'}.get(n % 10, 'th')}"
+
+
+def _mpf_to_fmpq(x):
+    """An mpf as the exact rational flint.fmpq (its binary value)."""
+    import flint
+    # the raw tuple: mpmath.mpf(x) would round x to the current (default 53-bit) precision
+    sign, man, exp, _ = x._mpf_ if hasattr(x, "_mpf_") else mpmath.mpf(x)._mpf_
+    if not man:
+        return flint.fmpq(0)
+    man, exp = (-1) ** sign * int(man), int(exp)
+    return flint.fmpq(man * 2 ** exp) if exp >= 0 else flint.fmpq(man, 2 ** -exp)
+
+
+def _float_ball(x: float):
+    """A float64 as the ball of the numbers it may stand for: its exact binary value, radius
+    half an ulp (|x| 2^-53): the float nearest to the intended coefficient."""
+    import flint
+    from fractions import Fraction
+    q = Fraction(x)
+    return flint.arb(flint.fmpq(q.numerator, q.denominator)) + flint.arb(0, abs(flint.arb(x)) * flint.arb(2) ** -53)
+
+
+def decimal_info(text: str):
+    """(exact value as fmpq, significant digits, decimal exponent of the leading digit) of a
+    decimal literal such as '0.2113', '2.5e-1', '1_000.0'. Significant digits count from the
+    first nonzero digit and include trailing zeros ('0.50' has 2); zero has 0."""
+    from decimal import Decimal
+    import flint
+    d = Decimal(text.replace("_", ""))
+    sign, digits, exp = d.as_tuple()
+    n = int("".join(map(str, digits)) or "0")
+    if n == 0:
+        return flint.fmpq(0), 0, 0
+    sig = len(str(n))
+    val = flint.fmpq(n * 10 ** exp) if exp >= 0 else flint.fmpq(n, 10 ** -exp)
+    return (-val if sign else val), sig, d.adjusted()
+
+
+def decimal_radius(adjusted: int, digits_given: int):
+    """Half a unit in the ``digits_given``-th significant digit of a decimal whose leading digit
+    has exponent ``adjusted``: 0.5 * 10^(adjusted - digits_given + 1), as an exact fmpq."""
+    import flint
+    e = adjusted - digits_given + 1
+    return flint.fmpq(5 * 10 ** e, 10) if e >= 0 else flint.fmpq(5, 10 ** (1 - e))
+
+
+#: A decimal literal with at least this many significant digits is known to half a unit in its own
+#: last digit; a shorter one is read as a terminating expansion ("0.5", "0.25": printing to D digits
+#: drops trailing zeros), known to the tableau's largest digit count D
+LONG_DECIMAL = 8
+
+
+class _BallEvaluator:
+    """Encloses a tableau entry as the file gave it in an arb ball (at flint's current
+    precision). String entries are walked from their AST once more (they were validated by
+    ``parse_exact_string`` when the file was loaded; nothing is evaluated as Python), in complex
+    ball arithmetic (acb) so that sqrt of a negative intermediate follows sympy's principal branch;
+    the entry is real (checked at load), its real part is returned."""
+
+    def __init__(self, digits_given: int | None):
+        self.D = digits_given
+
+    def leaf(self, x):
+        import flint
+        if isinstance(x, tuple):                      # (value, exact delta) from with_entry
+            return self.leaf(x[0]) + _sympy_ball(x[1], int(flint.ctx.prec / 3.33), None)
+        if isinstance(x, bool):
+            raise TableauError(f"entry {x!r} is not a number")
+        if isinstance(x, int):
+            return flint.arb(x)
+        if isinstance(x, float):
+            return _float_ball(x)
+        import ast
+        src = x.strip()
+        z = self.node(ast.parse(src, mode="eval").body, src)
+        return z.real
+
+    def node(self, n, src):
+        import ast
+        import flint
+        acb = flint.acb
+        if isinstance(n, ast.Constant):
+            if isinstance(n.value, int):
+                return acb(n.value)
+            text = ast.get_source_segment(src, n) or repr(n.value)
+            val, sig, adj = decimal_info(text)
+            ball = flint.arb(val)
+            if self.D is not None and sig > 0:
+                known = sig if sig >= LONG_DECIMAL else self.D
+                ball = ball + flint.arb(0, flint.arb(decimal_radius(adj, known)))
+            return acb(ball)
+        if isinstance(n, ast.UnaryOp):
+            v = self.node(n.operand, src)
+            return -v if isinstance(n.op, ast.USub) else v
+        if isinstance(n, ast.BinOp):
+            if isinstance(n.op, ast.Pow):
+                ex = n.right
+                k = -ex.operand.value if isinstance(ex, ast.UnaryOp) else ex.value
+                return self.node(n.left, src) ** k
+            a, b = self.node(n.left, src), self.node(n.right, src)
+            if isinstance(n.op, ast.Add):
+                return a + b
+            if isinstance(n.op, ast.Sub):
+                return a - b
+            return a * b if isinstance(n.op, ast.Mult) else a / b
+        if isinstance(n, ast.Name):                   # pi (the only constant of the whitelist)
+            return acb.pi()
+        if isinstance(n, ast.Call):
+            f = n.func.id
+            if f == "Rational":           # integer arguments (checked at load)
+                args = [int(parse_exact_string(ast.get_source_segment(src, a) or "0")) for a in n.args]
+                return acb(flint.fmpq(*args))
+            v = self.node(n.args[0], src)
+            return {"sqrt": v.sqrt, "sin": v.sin, "cos": v.cos}[f]()
+        raise TableauError(f"entry {src!r}: unsupported syntax {type(n).__name__}")
+
+
+def _sympy_ball(e, digits, float_digits):
+    """A sympy number as an arb ball at flint's current precision: walked node by node (Add, Mul,
+    Pow, Rational, sin, cos, pi) in acb; anything else through sympy.N with guard digits and a
+    radius of 10^-(digits + 5) relative. A sympy Float stands for its binary value, known to half a
+    unit in its ``float_digits``-th digit when given (a float-precision tableau)."""
+    import flint
+    acb = flint.acb
+
+    def walk(x):
+        if x.is_Integer:
+            return acb(int(x))
+        if x.is_Rational:
+            return acb(flint.fmpq(int(x.p), int(x.q)))
+        if x.is_Float:
+            b = flint.arb(_mpf_to_fmpq(x))
+            if float_digits:
+                b = b + flint.arb(0, abs(b) * flint.arb(10) ** (1 - float_digits) / 2)
+            return acb(b)
+        if x is sympy.pi:
+            return acb.pi()
+        if x.is_Add:
+            out = acb(0)
+            for a in x.args:
+                out += walk(a)
+            return out
+        if x.is_Mul:
+            out = acb(1)
+            for a in x.args:
+                out *= walk(a)
+            return out
+        if x.is_Pow and x.exp.is_Integer:
+            return walk(x.base) ** int(x.exp)
+        if x.is_Pow and x.exp.is_Rational:
+            base = walk(x.base)
+            root = base.sqrt() if x.exp.q == 2 else base ** acb(flint.fmpq(1, int(x.exp.q)))
+            return root ** int(x.exp.p)
+        if isinstance(x, (sympy.sin, sympy.cos)):
+            v = walk(x.args[0])
+            return v.sin() if isinstance(x, sympy.sin) else v.cos()
+        val = sympy.re(sympy.N(x, digits + 10))
+        re = flint.arb(_mpf_to_fmpq(val) if val != 0 else 0)
+        return acb(re + flint.arb(0, flint.arb(10) ** -(digits + 5) * max(1, abs(float(val)))))
+
+    return walk(sympy.sympify(e)).real
+
+
 def _default_omega_exact(b, c, s):
     return sympy.Matrix(max(s - 1, 0), s, lambda i, j: b[j] * c[j] ** i)
 
@@ -260,7 +531,13 @@ def _sci_exponent(text: str) -> int:
     return int(digits)
 
 
-def parse_exact_string(x: str, where: str = "entry"):
+#: binary precision at which a denominator that is not a plain rational is tested for zero: a
+#: ball that still contains 0 at ~3600 digits is an exact zero (sqrt(2)**2 - 2, sin(1)**2 + cos(1)**2 - 1)
+#: or so small that the entry would exceed MAX_MAGNITUDE
+_ZERO_TEST_BITS = 12000
+
+
+def parse_exact_string(x: str, where: str = "entry", info: dict | None = None):
     """An exact tableau entry such as "1/4 - sqrt(3)/6" as a sympy number.
 
     Parsed with Python's ``ast`` and built node by node (never evaluated as Python): numbers
@@ -268,7 +545,10 @@ def parse_exact_string(x: str, where: str = "entry"):
     Rational, sin, cos and pi. Bounded so that no entry can hang or exhaust memory: at most
     200 characters, tree depth 32, the product of nested '**' exponents at most 64, scientific
     exponents |e| <= 400, intermediate rationals of at most 8192 bits, |x| <= 1e6 inside sin/cos.
-    Anything else is a TableauError naming the entry."""
+    Anything else is a TableauError naming the entry, and so is a denominator (or the base of a
+    negative power) that is zero, also when sympy does not reduce it (``sin(1)**2 + cos(1)**2 - 1``):
+    it is tested in ball arithmetic at 12000 bits. ``info``, when given, receives ``digits``: the
+    largest number of significant digits of a decimal literal in the entry (0 if none)."""
     import ast
     if not isinstance(x, str):
         raise TableauError(f"{where}: expected a string, got {type(x).__name__}")
@@ -283,6 +563,9 @@ def parse_exact_string(x: str, where: str = "entry"):
     e = b.build(tree.body, 0, 1)
     if not getattr(e, "is_number", False):
         raise b.bad("not a number")
+    if info is not None:
+        info["digits"] = max(info.get("digits", 0), b.digits)
+        info.setdefault("counts", set()).update(b.counts)
     return e
 
 
@@ -298,6 +581,20 @@ class _EntryBuilder:
         self.names, self.error = names, error
         self.symbolic = names is not None
         self.depth_limit = _MAX_EXPR_DEPTH if self.symbolic else _MAX_DEPTH
+        self.digits = 0         # most significant digits of a decimal literal seen
+        self.counts = set()     # the significant digits of every nonzero decimal literal
+
+    def zero(self, value, node) -> bool:
+        """Whether a (validated) denominator is zero: exactly for a rational, else by its ball at
+        _ZERO_TEST_BITS bits (decimals read as exact), which contains 0 for every exact zero."""
+        if value == 0:
+            return True
+        if getattr(value, "is_Rational", False):
+            return False
+        import flint
+        with flint.ctx.workprec(_ZERO_TEST_BITS):
+            z = _BallEvaluator(None).node(node, self.src)
+            return bool(z.real.contains(0) and z.imag.contains(0))
 
     def bad(self, why):
         what = "an expression" if self.symbolic else "a number"
@@ -342,6 +639,10 @@ class _EntryBuilder:
             if not math.isfinite(node.value):
                 raise self.bad("not finite")
             e = sympy.Rational(text.replace("_", ""))
+            if e != 0:
+                sig = decimal_info(text)[1]
+                self.digits = max(self.digits, sig)
+                self.counts.add(sig)
         if _bits(e) * power > _MAX_BITS:
             raise self.bad(f"a power of it exceeds {_MAX_BITS} bits")
         return e
@@ -358,7 +659,7 @@ class _EntryBuilder:
         if lit.value * power > _MAX_EXPONENT:
             raise self.bad(f"nested '**' with exponents multiplying to more than {_MAX_EXPONENT}")
         base = self.build(node.left, depth + 1, power * max(lit.value, 1))
-        if neg and base == 0:
+        if neg and lit.value != 0 and self.zero(base, node.left):
             raise self.bad("division by zero")
         r = base ** (-lit.value if neg else lit.value)
         if _bits(r) > _MAX_BITS:
@@ -406,7 +707,7 @@ class _EntryBuilder:
                 raise self.bad(f"a rational coefficient exceeds {_MAX_BITS} bits")
             return r
         a, b = self.build(node.left, depth + 1, power), self.build(node.right, depth + 1, power)
-        if isinstance(node.op, ast.Div) and b == 0:
+        if isinstance(node.op, ast.Div) and self.zero(b, node.right):
             raise self.bad("division by zero")
         r = f(a, b)
         if _bits(r) > _MAX_BITS:
@@ -495,9 +796,10 @@ def _small(e, bound) -> bool:
     return val.imag == 0 and abs(val.real) <= bound
 
 
-def _parse_entry(x, where):
+def _parse_entry(x, where, info: dict | None = None):
     """An entry: int (exact), string (exact expression, decimals read as exact decimals) or
-    float (approximate, 53 bits). Returns (sympy number, is_exact)."""
+    float (approximate, 53 bits). Returns (sympy number, is_exact). ``info`` collects the most
+    significant digits of a decimal literal (``parse_exact_string``)."""
     if isinstance(x, bool) or x is None:
         raise TableauError(f"{where}: entry {x!r} is not a number")
     if isinstance(x, int):
@@ -509,7 +811,7 @@ def _parse_entry(x, where):
             raise TableauError(f"{where}: entry {x!r} is not finite")
         return sympy.Float(x, 17), False
     if isinstance(x, str):
-        e = parse_exact_string(x, where)
+        e = parse_exact_string(x, where, info)
         if e.is_real is False:                        # sqrt(-1) * tiny: exactly non-real, however small
             raise TableauError(f"{where}: {x!r} is not a real number")
         try:
@@ -554,6 +856,7 @@ def from_json_dict(d: dict, name: str | None = None, max_stages: int | None = No
     check_stages(s, max_stages)
     all_exact = True
     ex = {}
+    info = {"digits": 0}
     for k in NAMES:
         if k not in d:
             continue
@@ -561,14 +864,14 @@ def from_json_dict(d: dict, name: str | None = None, max_stages: int | None = No
         if k in VECTOR_NAMES:
             if not isinstance(val, list) or len(val) != s or any(isinstance(v, list) for v in val):
                 raise TableauError(f"{k} must be a list of {s} numbers")
-            ent = [_parse_entry(v, f"{k}[{i}]") for i, v in enumerate(val)]
+            ent = [_parse_entry(v, f"{k}[{i}]", info) for i, v in enumerate(val)]
             ex[k] = _col([e for e, _ in ent])
         else:
             rows = s - 1 if k == "omega" else s
             if (not isinstance(val, list) or len(val) != rows
                     or any(not isinstance(r, list) or len(r) != s for r in val)):
                 raise TableauError(f"{k} must be a {rows} x {s} list of lists")
-            ent = [[_parse_entry(v, f"{k}[{i}][{j}]") for j, v in enumerate(r)] for i, r in enumerate(val)]
+            ent = [[_parse_entry(v, f"{k}[{i}][{j}]", info) for j, v in enumerate(r)] for i, r in enumerate(val)]
             ex[k] = sympy.Matrix(rows, s, [e for r in ent for e, _ in r]) if rows else sympy.zeros(0, s)
             ent = [e for r in ent for e in r]
         all_exact = all_exact and all(flag for _, flag in ent)
@@ -579,9 +882,14 @@ def from_json_dict(d: dict, name: str | None = None, max_stages: int | None = No
         if om.rank(iszerofunc=lambda e: abs(e) < 1e-20) < s - 1:
             raise TableauError("omega is singular (rank < s-1): (21e) would not determine the multipliers")
     label = name or d.get("name") or "custom"
+    # the entries as given, so that the audit decides at the precision they carry
+    sources = {k: [list(r) if isinstance(r, list) else r for r in d[k]] for k in NAMES if k in d}
+    digits = info["digits"] or None
+    longs = [n for n in info.get("counts", ()) if n >= LONG_DECIMAL]
+    kw = dict(family="custom", sources=sources, decimal_digits=digits, decimal_digits_min=min(longs) if longs else None)
     if all_exact:
-        return SparkTableau(str(label), s, exact=ex, family="custom")
-    return SparkTableau(str(label), s, exact=ex, source_digits=15, family="custom")
+        return SparkTableau(str(label), s, exact=ex, **kw)
+    return SparkTableau(str(label), s, exact=ex, source_digits=15, **kw)
 
 
 def max_file_bytes(max_stages: int | None = None) -> int:

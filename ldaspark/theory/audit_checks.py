@@ -28,12 +28,19 @@ class Check:
     status: str
     residual: float | None
     detail: str
+    #: the arithmetic that decided an algebraic check ("exact in QQ<sqrt(3)>", "arb balls at 80
+    #: digits, entries: ..."); None for the numerical checks
+    arithmetic: str | None = None
+    #: the uncertainty the residual was compared with (0 for an exact decision; None when n/a)
+    tolerance: float | None = None
 
     def as_dict(self) -> dict:
         r = self.residual
         if r is not None and not math.isfinite(r):
             r = None  # JSON has no inf/NaN; the detail says what happened
-        return {"name": self.name, "status": self.status, "residual": r, "detail": self.detail}
+        tol = self.tolerance if self.tolerance is None or math.isfinite(self.tolerance) else None
+        return {"name": self.name, "status": self.status, "residual": r, "detail": self.detail,
+                "arithmetic": self.arithmetic, "tolerance": tol}
 
 
 # --- helpers -------------------------------------------------------------------------------
@@ -53,21 +60,44 @@ def _jsonable(x):
 
 
 def _worst(ar, items):
-    """items: (value, label). Returns (max |value| as float, its label, all exactly/tol zero)."""
-    worst, label, ok, largest = 0.0, None, True, 0.0
+    """items: (value, label). Returns (max |value| as float, its label, all zero, uncertainty):
+    all zero exactly, or to the precision of the arithmetic (a ball containing 0, |x| <= tol);
+    the residual is the largest nonzero one when some is nonzero, else the largest within the
+    uncertainty (exact zeros are 0); the uncertainty is the largest radius (0 when exact)."""
+    worst, label, ok, largest, rad = 0.0, None, True, 0.0, 0.0
     for val, lab in items:
+        rad = max(rad, ar.radius(val))
         if not ar.is_zero(val):
             ok = False
             f = abs(ar.to_float(val))
             if label is None or f > worst:
                 worst, label = f, lab
-        elif not ar.exact:   # within tolerance: still report the size (exact zeros are 0)
-            largest = max(largest, abs(float(val)))
-    return (worst if not ok else largest), label, ok
+        elif not ar.exact:   # within the uncertainty: still report the size (exact zeros are 0)
+            largest = max(largest, abs(ar.to_float(val)))
+    return (worst if not ok else largest), label, ok, rad
 
 
-def _mode(ar) -> str:
-    return "exactly" if ar.exact else f"to tolerance {ar.tol:.1e}"
+def _mode(ar, w: float = 0.0, rad: float = 0.0) -> str:
+    """How a condition that holds was decided, for the check's detail."""
+    if ar.exact:
+        return "exactly"
+    if ar.ball:
+        return (f"to {ar.scope or f'{ar.dps} digits'} (largest |residual| {w:.1e}, within the "
+                f"uncertainty {rad:.1e})")
+    return f"to tolerance {ar.tol:.1e}"
+
+
+def _beyond(ar, rad: float) -> str:
+    """Why a nonzero residual is a violation, for the check's detail."""
+    if ar.exact:
+        return "exactly nonzero"
+    if ar.ball:
+        return f"beyond the uncertainty {rad:.1e} ({ar.scope or f'{ar.dps} digits'})"
+    return f"above the tolerance {ar.tol:.1e}"
+
+
+def _tol(ar, rad: float) -> float:
+    return 0.0 if ar.exact else rad if ar.ball else float(ar.tol)
 
 
 def _fmt(x) -> str:
@@ -79,7 +109,15 @@ def _fmt(x) -> str:
 
 
 def _coefficient_strings(tab: SparkTableau) -> dict:
-    """The entries as printed in the report: exact expressions, else 17 significant digits."""
+    """The entries as printed in the report: as the file gave them when read from a file, else
+    exact expressions, else 17 significant digits."""
+    if tab.sources is not None:
+        show = lambda x: f"{show(x[0])} + ({x[1]})" if isinstance(x, tuple) else str(x)
+        out = {k: [[show(x) for x in r] if isinstance(r, list) else show(r) for r in v] for k, v in tab.sources.items()}
+        if "omega" not in out and tab.exact is not None:
+            from ..core.tableau import _matrix_to_json
+            out["omega"] = _matrix_to_json(tab.exact["omega"], "omega", str)
+        return out
     if tab.exact is not None and tab.source_digits is None:
         from ..core.tableau import _matrix_to_json
         return {k: _matrix_to_json(M, k, str) for k, M in tab.exact.items()}
@@ -105,14 +143,16 @@ def check_row_sums(ar, e, name) -> Check:
     s = len(e["c"])
     with ar.context():
         items = [(sum(e[name][i], ar.num(0)) - e["c"][i], f"row {i + 1}") for i in range(s)]
-        w, lab, ok = _worst(ar, items)
+        w, lab, ok, rad = _worst(ar, items)
     if ok:
-        return Check(f"row-sums:{name}", PASS, w, f"sum_j {name}_ij = c_i for every i, {_mode(ar)}")
+        return Check(f"row-sums:{name}", PASS, w, f"sum_j {name}_ij = c_i for every i, {_mode(ar, w, rad)}",
+                     ar.label, _tol(ar, rad))
     why = ("A sets the stage points Q_i: a mismatch lowers the stage order" if name == "A" else
            f"every stage is evaluated at T_i = t0 + c_i h, so the row sums of {name} only matter through "
            "the t-dependence of L and k (none in the paper's scenes)")
     return Check(f"row-sums:{name}", INFO, w,
-                 f"sum_j {name}_ij != c_i, worst at {lab} (|diff| = {w:.3g}); not a hypothesis of Theorem 1: {why}")
+                 f"sum_j {name}_ij != c_i, worst at {lab} (|diff| = {w:.3g}, {_beyond(ar, rad)}); "
+                 f"not a hypothesis of Theorem 1: {why}", ar.label, _tol(ar, rad))
 
 
 def check_omega(tab: SparkTableau, ar, e, dps) -> Check:
@@ -129,7 +169,8 @@ def check_omega(tab: SparkTableau, ar, e, dps) -> Check:
     if smin <= tol * max(smax, 1.0):
         raise TableauError(f"omega is singular (smallest singular value {smin:.2e}): "
                            "(21e) would not determine the multipliers")
-    return Check("omega-rank", PASS, smin, f"rank {s - 1} = s-1; singular values in [{smin:.3g}, {smax:.3g}]")
+    return Check("omega-rank", PASS, smin, f"rank {s - 1} = s-1; singular values in [{smin:.3g}, {smax:.3g}]",
+                 f"mpmath singular values at dps {dps}", tol * max(smax, 1.0))
 
 
 def check_omega_default(tab: SparkTableau, dps) -> Check:
@@ -147,21 +188,23 @@ def check_omega_default(tab: SparkTableau, dps) -> Check:
         sv = sorted((float(sv[i]) for i in range(min(2 * s - 2, s))), reverse=True)
     tol = 10.0 ** (3 - min(dps, tab.source_digits or dps)) * s * max(sv[0], 1.0)
     rank = sum(x > tol for x in sv)
+    how = f"mpmath singular values at dps {dps}"
     if rank == s - 1:
         return Check("omega-span", PASS, sv[s - 1] if len(sv) >= s else 0.0,
-                     "rows of omega span {b_j c_j^(i-1)}, i < s (the choice of [26, 27])")
+                     "rows of omega span {b_j c_j^(i-1)}, i < s (the choice of [26, 27])", how, tol)
     return Check("omega-span", INFO, sv[s - 1], f"rows of omega do not span {{b_j c_j^(i-1)}} (stacked rank {rank} "
-                 f"> s-1 = {s - 1}): convergence results of [26, 27] are stated for that choice")
+                 f"> s-1 = {s - 1}): convergence results of [26, 27] are stated for that choice", how, tol)
 
 
 def check_22a(ar, e) -> Check:
     """(22a) b_hat_i = b_i."""
     with ar.context():
         items = [(e["b_hat"][i] - e["b"][i], f"i = {i + 1}") for i in range(len(e["b"]))]
-        w, lab, ok = _worst(ar, items)
+        w, lab, ok, rad = _worst(ar, items)
     if ok:
-        return Check("22a", PASS, w, f"b_hat = b {_mode(ar)}")
-    return Check("22a", FAIL, w, f"b_hat_i != b_i, worst at {lab}: |b_hat_i - b_i| = {w:.3g}")
+        return Check("22a", PASS, w, f"b_hat = b {_mode(ar, w, rad)}", ar.label, _tol(ar, rad))
+    return Check("22a", FAIL, w, f"b_hat_i != b_i, worst at {lab}: |b_hat_i - b_i| = {w:.3g}, "
+                 f"{_beyond(ar, rad)}", ar.label, _tol(ar, rad))
 
 
 def check_22b(ar, e) -> Check:
@@ -171,10 +214,12 @@ def check_22b(ar, e) -> Check:
     with ar.context():
         items = [(bh[i] * A[i][j] + b[j] * Ah[j][i] - bh[i] * b[j], f"(i, j) = ({i + 1}, {j + 1})")
                  for i in range(s) for j in range(s)]
-        w, lab, ok = _worst(ar, items)
+        w, lab, ok, rad = _worst(ar, items)
     if ok:
-        return Check("22b", PASS, w, f"b_hat_i a_ij + b_j a_hat_ji = b_hat_i b_j for all i, j, {_mode(ar)}")
-    return Check("22b", FAIL, w, f"violated, worst at {lab}: |b_hat_i a_ij + b_j a_hat_ji - b_hat_i b_j| = {w:.3g}")
+        return Check("22b", PASS, w, f"b_hat_i a_ij + b_j a_hat_ji = b_hat_i b_j for all i, j, {_mode(ar, w, rad)}",
+                     ar.label, _tol(ar, rad))
+    return Check("22b", FAIL, w, f"violated, worst at {lab}: |b_hat_i a_ij + b_j a_hat_ji - b_hat_i b_j| = {w:.3g}, "
+                 f"{_beyond(ar, rad)}", ar.label, _tol(ar, rad))
 
 
 def check_23(ar, e) -> list:
@@ -192,11 +237,12 @@ def check_23(ar, e) -> list:
             out.append((tag, items, f"{M}_(s+1-i,s+1-j) + {M}_ij = {bv}_(s+1-j) = {bv}_j"))
         checks = []
         for tag, items, text in out:
-            w, lab, ok = _worst(ar, items)
+            w, lab, ok, rad = _worst(ar, items)
             if ok:
-                checks.append(Check(tag, PASS, w, f"{text} {_mode(ar)}"))
+                checks.append(Check(tag, PASS, w, f"{text} {_mode(ar, w, rad)}", ar.label, _tol(ar, rad)))
             else:
-                checks.append(Check(tag, INFO, w, f"fails at {lab} (|residual| = {w:.3g}): the method is not symmetric"))
+                checks.append(Check(tag, INFO, w, f"fails at {lab} (|residual| = {w:.3g}, {_beyond(ar, rad)}): "
+                                    "the method is not symmetric", ar.label, _tol(ar, rad)))
     return checks
 
 
@@ -214,26 +260,26 @@ def order_checks(ar, e) -> tuple[list, dict]:
         more = "" if r.failing is None else f"; first failing tree {r.failing} (residual {r.residual:.3g})"
         checks.append(Check(f"order:{M}", INFO, r.residual,
                             f"({M}, {bv}) has order {r.order}{'+' if r.complete else ''} as an RK method "
-                            f"(rooted trees to order {r.max_order}){more}"))
+                            f"(rooted trees to order {r.max_order}){more}", ar.label))
         checks.append(Check(f"simplifying:{M}", INFO, None,
-                            f"B({sa['B']}), C({sa['C']}), D({sa['D']}) with nodes c"))
+                            f"B({sa['B']}), C({sa['C']}), D({sa['D']}) with nodes c", ar.label))
         checks.append(Check(f"stability:{M}", INFO, None,
                             f"R(inf) = {st.r_inf_str}" + (f" ({st.note})" if st.A_singular else
                                                           " (A invertible: 1 - b^T A^-1 1)")
-                            + ("; L-stable-type damping" if st.r_inf == 0 else "")))
+                            + ("; L-stable-type damping" if st.r_inf == 0 else ""), ar.label))
     pr = oc.pair_order(ar, e["A"], e["b"], e["A_hat"], e["b_hat"])
     facts["order:pair"] = pr.order
     more = "" if pr.failing is None else f"; first failing tree {pr.failing} (residual {pr.residual:.3g})"
     checks.append(Check("order:pair(A,A_hat)", INFO, pr.residual,
                         f"partitioned pair (A, b) for q' = v, (A_hat, b_hat) for p' = F: order "
-                        f"{pr.order}{'+' if pr.complete else ''} (bi-coloured trees to order {pr.max_order}){more}"))
+                        f"{pr.order}{'+' if pr.complete else ''} (bi-coloured trees to order {pr.max_order}){more}", ar.label))
     so = oc.spark_ode_order(ar, e)
     facts["order:forced-ode"] = so.order
     facts["order:forced-ode-capped"] = so.complete
     more = "" if so.failing is None else f"; first failing tree {so.failing} (residual {so.residual:.3g})"
     checks.append(Check("order:forced-ode", INFO, so.residual,
                         f"(A; A_hat, A_tilde) on q' = v, p' = F + R with psi a given smooth forcing: order "
-                        f"{so.order}{'+' if so.complete else ''} (coloured trees to order {so.max_order}){more}"))
+                        f"{so.order}{'+' if so.complete else ''} (coloured trees to order {so.max_order}){more}", ar.label))
     return checks, facts
 
 

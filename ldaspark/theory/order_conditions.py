@@ -9,8 +9,10 @@
   R(z) = 1 + z b^T (I - z A)^{-1} 1 = det(I - z(A - 1 b^T)) / det(I - z A) with R(inf).
 
 All of it runs on one small arithmetic interface (``Arith``) so the same code gives exact
-answers in an algebraic number field (``SparkTableau.field_entries()``: == is decidable) and
-tolerance-based answers with mpmath for tableaux known only numerically.
+answers in an algebraic number field (``SparkTableau.field_entries()``: == is decidable),
+answers at the precision the entries carry in ball arithmetic (arb, ``ball_arith``: a condition
+holds when its ball contains 0, is violated when it excludes 0), and tolerance-based answers
+with mpmath (``mp_arith``).
 """
 from __future__ import annotations
 
@@ -89,21 +91,43 @@ def tree_str(t, names=("", "")) -> str:
 
 
 # --- arithmetic ----------------------------------------------------------------------------
+class ExactBudgetExceeded(Exception):
+    """An exact decision ran past its time budget (``Arith.deadline``): decide numerically."""
+
+
 @dataclass
 class Arith:
-    """Numbers of one kind: exact elements of an algebraic number field K, or mpf.
+    """Numbers of one kind: exact elements of an algebraic number field K, arb balls, or mpf.
 
-    ``tol`` is the absolute tolerance for zero tests in the numeric case (None when exact)."""
+    ``tol`` is the absolute tolerance for zero tests in the mp case (None otherwise). In the ball
+    case (``kind == "ball"``, ``dps`` working digits) a number is zero when its ball contains 0:
+    the ball encloses every value the entries may stand for, so a condition is "violated" only
+    when no such value satisfies it. ``deadline`` (time.monotonic()) bounds an exact decision:
+    past it ``is_zero`` raises ExactBudgetExceeded."""
 
-    kind: str                 # "exact" or "mp"
+    kind: str                 # "exact", "ball" or "mp"
     K: object = None
     dps: int = 30
     tol: float | None = None
+    deadline: float | None = None
+    #: what decided (for the report): "exact in QQ<sqrt(3)>", "arb balls at 60 digits", ...
+    label: str = ""
+    #: to what a numerical "holds" refers: "the 40 digits given", "float64 precision", ...
+    scope: str = ""
     _q: dict = field(default_factory=dict, repr=False)
 
     @property
     def exact(self) -> bool:
         return self.kind == "exact"
+
+    @property
+    def ball(self) -> bool:
+        return self.kind == "ball"
+
+    @property
+    def prec(self) -> int:
+        """Binary precision of the ball arithmetic (guard bits above dps digits)."""
+        return int(self.dps * 3.33) + 16
 
     def num(self, p: int, q: int = 1):
         """The rational number p/q in this arithmetic."""
@@ -112,6 +136,10 @@ class Arith:
             if self.exact:
                 from sympy import Rational
                 self._q[key] = self.K.from_sympy(Rational(p, q))
+            elif self.ball:
+                import flint
+                with flint.ctx.workprec(self.prec):
+                    self._q[key] = flint.arb(flint.fmpq(p, q))
             else:
                 with mpmath.workdps(self.dps):
                     self._q[key] = mpmath.mpf(p) / q
@@ -119,13 +147,39 @@ class Arith:
 
     def is_zero(self, x) -> bool:
         if self.exact:
+            if self.deadline is not None:
+                import time
+                if time.monotonic() > self.deadline:
+                    raise ExactBudgetExceeded()
             return x == self.K.zero
+        if self.ball:
+            if not x.is_finite():    # a NaN ball "contains" 0: never let it pass as a zero
+                from ..core.errors import NonFiniteError
+                raise NonFiniteError("ball arithmetic produced a non-finite value: condition not decidable")
+            return bool(x.contains(0))
         return abs(x) <= self.tol
+
+    def pow(self, x, n: int):
+        """x^n for an integer n >= 0 (arb's ** is NaN on a ball containing 0: repeated products)."""
+        if not self.ball:
+            return x ** n
+        out = self.num(1)
+        for _ in range(n):
+            out = out * x
+        return out
+
+    def radius(self, x) -> float:
+        """The uncertainty of x: the ball's radius (0 when exact, tol for mp)."""
+        if self.ball:
+            return float(x.rad())
+        return 0.0 if self.exact else float(self.tol)
 
     def to_float(self, x) -> float:
         if self.exact:
             from sympy import N
             return float(N(self.K.to_sympy(x), 20))
+        if self.ball:
+            return float(x.mid())
         return float(x)
 
     def to_str(self, x) -> str:
@@ -137,10 +191,15 @@ class Arith:
             except Exception:  # nsimplify gives up on some algebraic numbers
                 pass
             return sstr(e)
+        if self.ball:
+            return mpmath.nstr(mpmath.mpf(x.mid().str(20, radius=False)), 17)
         return mpmath.nstr(x, 17)
 
     def context(self):
         import contextlib
+        if self.ball:
+            import flint
+            return flint.ctx.workprec(self.prec)
         return mpmath.workdps(self.dps) if not self.exact else contextlib.nullcontext()
 
 
@@ -152,7 +211,7 @@ def exact_arith(tab) -> tuple[Arith, dict]:
         conv = lambda v: [conv(x) for x in v] if isinstance(v, list) else F.convert_from(v, K)
         ent = {k: conv(v) for k, v in ent.items()}
         K = F
-    return Arith("exact", K=K), ent
+    return Arith("exact", K=K, label=f"exact in {K}"), ent
 
 
 def mp_arith(tab, dps: int) -> tuple[Arith, dict]:
@@ -169,9 +228,92 @@ def mp_arith(tab, dps: int) -> tuple[Arith, dict]:
     return Arith("mp", dps=dps, tol=tol), ent
 
 
+def ball_arith(tab, dps: int, reason: str = "") -> tuple[Arith, dict]:
+    """Ball arithmetic at ``dps`` working digits on balls enclosing what the entries stand for
+    (``SparkTableau.ball_entries``: decimals to the digits given, float64 to half an ulp, exact
+    entries to the working precision). ``reason``: why no exact decision (for the label)."""
+    ent = tab.ball_entries(dps)
+    ent = {k: [list(r) if isinstance(r, list) else r for r in v] for k, v in ent.items()}
+    kind, D, Dmin = tab.precision_kind(), tab.decimal_digits, tab.decimal_digits_min
+    given = f"the {Dmin} to {D} digits given" if Dmin and Dmin < D else f"the {D} digits given"
+    scope = {"decimal": given,
+             "float": "the float64 precision of the entries (~16 digits)",
+             "decimal+float": f"{given} and float64 precision",
+             "exact": f"{dps} digits, numerically (exact entries; no exact decision, see the arithmetic)",
+             "computed": f"{dps} digits, numerically"}[kind]
+    label = (f"arb ball arithmetic at {dps} digits; entries: {tab.precision_text()}"
+             + (f"; not exact because {reason}" if kind == "exact" and reason else ""))
+    return Arith("ball", dps=dps, label=label, scope=scope), ent
+
+
+#: Exact decisions are attempted only in an algebraic number field of degree at most this bound
+#: (the product of the root orders of the distinct radicals and CRootOfs in the entries, an upper
+#: bound of the degree): sympy's primitive element for ten square roots (degree 1024) does not
+#: finish in minutes, for three (degree 8) in under a second.
+EXACT_MAX_DEGREE = 8
+#: seconds an exact decision may take (all algebraic checks together) before it is abandoned for
+#: the numerical decision; a safety net behind the static degree bound
+EXACT_SECONDS = 20.0
+
+
+def exact_budget(tab, max_degree: int | None = EXACT_MAX_DEGREE) -> tuple[bool, str]:
+    """Whether an exact decision is possible and cheap for ``tab``: (ok, reason). Possible when the
+    entries are exact (no float64) and algebraic (rationals, radicals, CRootOf: no sin, cos, pi,
+    which sympy cannot decide in general); cheap when the degree bound of their number field is at
+    most ``max_degree`` (None: no bound)."""
+    import sympy
+    if not tab.is_exact:
+        return False, "the entries are float64 numbers"
+    vals = [M[i, j] for M in tab.exact.values() for i in range(M.rows) for j in range(M.cols)]
+    gens, trans = {}, set()
+    for v in vals:
+        v = sympy.sympify(v)
+        for a in v.atoms(sympy.Pow):
+            if a.exp.is_Rational and not a.exp.is_Integer:
+                gens[(a.base, int(a.exp.q))] = int(a.exp.q)
+        for a in v.atoms(sympy.CRootOf):
+            gens[a] = int(sympy.degree(a.poly))
+        trans |= {type(f).__name__ for f in v.atoms(sympy.Function) if not isinstance(f, sympy.CRootOf)}
+        if v.has(sympy.pi):
+            trans.add("pi")
+        if v.has(sympy.E):
+            trans.add("E")
+    if trans:
+        return False, (f"the entries involve {', '.join(sorted(trans))}: no algebraic number field "
+                       "holds them, equality is not decidable exactly")
+    deg = 1
+    for q in gens.values():
+        deg *= q
+    if max_degree is not None and deg > max_degree:
+        return False, (f"{len(gens)} distinct radicals: number field of degree up to {deg} > {max_degree}, "
+                       "beyond the budget of an exact decision")
+    return True, f"number field of degree <= {deg}"
+
+
 def arith_for(tab, dps: int = 30) -> tuple[Arith, dict]:
-    """Exact arithmetic when the tableau is exact, else mpmath at ``dps``."""
-    return exact_arith(tab) if tab.is_exact else mp_arith(tab, dps)
+    """The audit's automatic choice (without its time budget): exact arithmetic when the entries
+    are known exactly and the exact decision is cheap (``exact_budget``), else ball arithmetic at
+    the precision the entries carry (working digits max(2 dps, digits given + 20))."""
+    ok, why = exact_budget(tab) if tab.known_exactly else (False, "")
+    if ok:
+        ar, e = exact_arith(tab)
+        if _decidable(ar.K):
+            return ar, e
+        why = f"sympy puts the entries in {ar.K}, where equality is not decidable exactly"
+    return ball_arith(tab, ball_digits(tab, dps), why)
+
+
+def ball_digits(tab, dps: int) -> int:
+    """Working digits of a numerical decision: twice the audit's dps (so that an exact zero shows
+    as zero to many more digits than any coefficient of interest), and 20 guard digits above the
+    digits given."""
+    return max(2 * dps, (tab.decimal_digits or 0) + 20, 40)
+
+
+def _decidable(K) -> bool:
+    """== decides equality in K: the rationals or an algebraic number field (not sympy's EX or a
+    polynomial ring over transcendental generators such as sin(1), where == is structural)."""
+    return bool(K.is_QQ or K.is_ZZ or getattr(K, "is_AlgebraicField", False))
 
 
 # --- linear algebra on lists --------------------------------------------------------------
@@ -310,7 +452,7 @@ def check_B(ar, b, c, p):
     with ar.context():
         res = []
         for k in range(1, p + 1):
-            r = _dot(ar, b, [ci ** (k - 1) for ci in c]) - ar.num(1, k)
+            r = _dot(ar, b, [ar.pow(ci, k - 1) for ci in c]) - ar.num(1, k)
             res.append((r, f"k={k}"))
         w = _worst(ar, res)
     return w is None, w
@@ -321,10 +463,10 @@ def check_C(ar, A, c, q):
     with ar.context():
         res = []
         for k in range(1, q + 1):
-            ck = [cj ** (k - 1) for cj in c]
+            ck = [ar.pow(cj, k - 1) for cj in c]
             Ac = _matvec(ar, A, ck)
             for i, ci in enumerate(c):
-                res.append((Ac[i] - ci ** k * ar.num(1, k), f"k={k}, i={i + 1}"))
+                res.append((Ac[i] - ar.pow(ci, k) * ar.num(1, k), f"k={k}, i={i + 1}"))
         w = _worst(ar, res)
     return w is None, w
 
@@ -335,10 +477,10 @@ def check_D(ar, A, b, c, r):
     with ar.context():
         res = []
         for k in range(1, r + 1):
-            w = [b[i] * c[i] ** (k - 1) for i in range(s)]
+            w = [b[i] * ar.pow(c[i], k - 1) for i in range(s)]
             for j in range(s):
                 lhs = _dot(ar, w, [A[i][j] for i in range(s)])
-                res.append((lhs - b[j] * (ar.num(1) - c[j] ** k) * ar.num(1, k), f"k={k}, j={j + 1}"))
+                res.append((lhs - b[j] * (ar.num(1) - ar.pow(c[j], k)) * ar.num(1, k), f"k={k}, j={j + 1}"))
         wst = _worst(ar, res)
     return wst is None, wst
 
@@ -420,7 +562,9 @@ def stability(ar, A, b) -> Stability:
         elif dP < dQ:
             r, rs = 0.0, "0"
         else:
-            ratio = P[dP] / Q[dQ]
+            # balls: the ratio of the midpoints (the entries as written); the quotient ball of two
+            # wide balls is centred elsewhere
+            ratio = P[dP].mid() / Q[dQ].mid() if ar.ball else P[dP] / Q[dQ]
             r, rs = ar.to_float(ratio), ar.to_str(ratio)
         note = ("A singular: 1 - b^T A^{-1} 1 undefined; R(inf) is the limit of P/Q"
                 if A_singular else "R(inf) = 1 - b^T A^{-1} 1")

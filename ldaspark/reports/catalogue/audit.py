@@ -1,0 +1,81 @@
+"""Mutants of the audit's precision logic (issue 21): how the precision the entries carry is
+read (decimals, float64), how a condition is decided against it (balls, exact budget), zero
+denominators and the verdict's disagreement sentence."""
+from ..mutation_catalogue import _m
+
+TPREC = "tests/test_audit_precision.py"
+TAUD = "tests/test_audit.py"
+T = TPREC + "::"
+
+MUTANTS = (
+    _m("audit-decimal-literal-exact", "core/tableau.py",
+       "if self.D is not None and sig > 0:", "if False and self.D is not None and sig > 0:",
+       "a decimal literal taken as exact (no uncertainty from its digits): a (22) pair solved at 40 "
+       "digits is 'violated' at 1e-41", "conditions",
+       T + "test_22_pair_solved_at_40_digits_passes_and_a_1e10_change_fails_with_its_residual", TPREC),
+    _m("audit-decimals-decided-exactly", "theory/audit.py",
+       'elif arith == "auto" and tab.known_exactly:', 'elif arith == "auto" and tab.is_exact:',
+       "decimal entries sent to the exact decision (read as exact rationals: the original bug, "
+       "Gauss-2 at 40 digits predicted order 2)", "conditions",
+       T + "test_cli_decimal_tableau_exit_0_and_arithmetic_in_json", TPREC),
+    _m("audit-decimal-radius-wrong-digit", "core/tableau.py",
+       "    e = adjusted - digits_given + 1", "    e = adjusted - digits_given - 1",
+       "decimal uncertainty from the wrong digit count (half a unit in the (D+2)-th digit: 100x too "
+       "small)", "conditions",
+       T + "test_22_pair_solved_at_40_digits_passes_and_a_1e10_change_fails_with_its_residual", TPREC),
+    _m("audit-decimal-digits-tableau-max", "core/tableau.py",
+       "known = sig if sig >= LONG_DECIMAL else self.D", "known = self.D",
+       "every decimal literal credited with the longest literal's digits (entries printed to "
+       "different precisions)", "conditions",
+       T + "test_entries_printed_to_different_digits_keep_their_own", TPREC),
+    _m("audit-short-decimal-own-digits", "core/tableau.py",
+       "known = sig if sig >= LONG_DECIMAL else self.D", "known = sig",
+       "a short terminating decimal ('0.5') known only to its own digit (0.5 +- 0.05 beside 40-digit "
+       "entries)", "conditions",
+       T + "test_short_decimals_are_terminating_expansions", TPREC),
+    _m("audit-float64-exact", "core/tableau.py",
+       "return flint.arb(flint.fmpq(q.numerator, q.denominator)) + flint.arb(0, abs(flint.arb(x)) * flint.arb(2) ** -53)",
+       "return flint.arb(flint.fmpq(q.numerator, q.denominator))",
+       "a float64 entry taken as exactly its binary value (no half-ulp uncertainty)", "conditions",
+       TAUD + "::test_float_tableau_tolerance_and_worst_entry", TAUD, TPREC),
+    _m("audit-ball-zero-by-midpoint", "theory/order_conditions.py",
+       "return bool(x.contains(0))", "return bool(x.mid() == 0)",
+       "a condition decided by its value as written compared with 0, ignoring the uncertainty",
+       "conditions",
+       T + "test_22_pair_solved_at_40_digits_passes_and_a_1e10_change_fails_with_its_residual", TPREC),
+    _m("audit-nan-ball-is-zero", "theory/order_conditions.py",
+       "if not x.is_finite():    # a NaN ball", "if False:    # a NaN ball",
+       "a NaN ball (which contains 0 for arb) counted as a condition that holds", "conditions",
+       T + "test_a_nan_ball_is_never_a_zero", TPREC),
+    _m("audit-no-degree-budget", "theory/order_conditions.py",
+       "if max_degree is not None and deg > max_degree:", "if False:",
+       "no degree budget for the exact decision: ten square roots (degree 1024) hang in sympy",
+       "conditions", T + "test_ten_radicals_decide_numerically_without_hanging", TPREC),
+    _m("audit-no-time-budget", "theory/order_conditions.py",
+       "                    raise ExactBudgetExceeded()", "                    pass",
+       "the exact decision's time budget never enforced", "conditions",
+       T + "test_exact_time_budget_falls_back_to_numerics_and_says_so", TPREC),
+    _m("audit-zero-denominator-structural", "core/tableau.py",
+       "if isinstance(node.op, ast.Div) and self.zero(b, node.right):",
+       "if isinstance(node.op, ast.Div) and b == 0:",
+       "an exact zero denominator that sympy does not reduce (sin(1)**2 + cos(1)**2 - 1) accepted",
+       "conditions", TPREC + "::test_exact_zero_denominator_is_an_input_error", TPREC),
+    _m("audit-disagreement-silent", "theory/audit.py",
+       "        if d:\n            parts.append(d)", "        if False:\n            parts.append(d)",
+       "the verdict keeps silent when (22) and the numerical Theorem 1 check disagree", "conditions",
+       T + "test_disagreement_between_22_and_theorem1_is_named", TPREC),
+    _m("audit-theorem1-entry-tol-skipped", "theory/audit.py",
+       "    if tol_num > TEETH:\n", "    if tol > TEETH:\n",
+       "a Theorem 1 tolerance widened by the entries' own precision counted as 'not decided' (a "
+       "6-digit tableau exits 1 with 'too few scenes')", "theorem1",
+       T + "test_six_digit_entries_theorem1_decided_to_their_precision", TPREC),
+    _m("audit-theorem1-no-entry-tol", "theory/audit.py",
+       "        return ENTRY_TOL_FACTOR * max((c.residual or 0.0) for c in cs)", "        return 0.0",
+       "Theorem 1 checked as if the entries satisfied (22) exactly (their residual in (22) ignored)",
+       "theorem1", T + "test_six_digit_entries_theorem1_decided_to_their_precision", TPREC),
+    _m("audit-ball-digits-working-only", "theory/order_conditions.py",
+       "    return max(2 * dps, (tab.decimal_digits or 0) + 20, 40)", "    return dps",
+       "numerical decisions at the working dps (30) only: 40-digit entries decided below their "
+       "precision, exact entries to 30 digits", "conditions",
+       T + "test_22_pair_solved_at_40_digits_passes_and_a_1e10_change_fails_with_its_residual", TPREC),
+)
