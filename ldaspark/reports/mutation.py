@@ -200,12 +200,24 @@ def run_mutant(mutant: Mutant | None, hints_only=False, project=PROJECT, timeout
             except SyntaxError as exc:
                 return _record(mutant, "invalid", f"SyntaxError: {exc}", time.time() - t)
         cache = pathlib.Path(tmp) / "cache" if mutant is not None and mutant.category == "compiled" else None
+        phases = [targets]
         if targets is None:
-            targets = ordered_targets(mutant, root, hints_only, exclude)
-        if not targets:     # pytest without targets would run its default testpaths
+            full = ordered_targets(mutant, root, hints_only, exclude)
+            hint = ordered_targets(mutant, root, True, exclude) if mutant is not None else []
+            # the hint files alone first (pytest collects only them: seconds), then the rest of
+            # the suite only if they pass: the same verdict and first failing test as one run
+            # of hint + rest with -x, without collecting the whole suite for every killed mutant
+            phases = [hint, full[len(hint):]] if hint and not hints_only else [full]
+        if not phases[0]:     # pytest without targets would run its default testpaths
             raise CatalogueError(f"mutant {label}: none of its hint files exists")
-        rc, out, _ = run_pytest(root, list(targets), timeout, cache)
-        status, first = classify(rc, out)
+        for phase in phases:
+            if not phase:
+                continue
+            left = max(1.0, timeout - (time.time() - t))
+            rc, out, _ = run_pytest(root, list(phase), left, cache)
+            status, first = classify(rc, out)
+            if status != "survived":
+                break
         rec = _record(mutant, status, first, time.time() - t)
         if mutant is not None:       # the file actually mutated (of the alternatives)
             rec["file"] = str(path.relative_to(root))
