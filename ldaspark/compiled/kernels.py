@@ -37,10 +37,10 @@ from . import modeltypes as mt
 # it compiles in live in sibling modules. Their digest is written here so that editing a helper
 # changes this file too (tests/test_compiled_general.py checks it; update it after an edit).
 HELPERS = ("newton.py", "kernels_mech.py", "kernels_general.py", "modeltypes.py")
-HELPERS_SHA256 = "f7a60b42aba61fd7c8c94a375416a9ef07d60c9478d47b373707146628ca121b"
+HELPERS_SHA256 = "574f299de910568c55fd85bd854d3426b43af969ec0a41eaceb525a20fd96bbf"
 
-from .newton import (FAIL_NONFINITE, FAIL_SINGULAR, accept_step, advance, end_newton, fail, lu_factor,  # noqa: E402
-                     lu_solve, newton_increment, newton_status, norm_inf, predict, record, shift, start_newton)
+from .newton import (FAIL_NONFINITE, FAIL_SINGULAR, accept_step, advance, end_newton, factor_newton,  # noqa: E402
+                     fail, lu_factor, lu_solve, newton_increment, newton_status, norm_inf, predict, record, shift)
 from .kernels_mech import mech_point, mech_store, mech_workspace, spark_eval  # noqa: E402
 from .kernels_general import general_eval, general_store, workspace  # noqa: E402
 
@@ -71,13 +71,70 @@ def _store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
         model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws)
 
 
+#: fresh Newton matrices per step in the simplified phase before the full-Newton fallback
+MAX_FRESH = 8
+
+
+@numba.njit(cache=True, _nrt=False)
+def spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, full, stats):
+    """Newton for the step equations (21) from the guess in x; returns (status, iterations),
+    status as ``newton.end_newton``. Stopping rule ``newton.newton_status`` with the round-off
+    scale |v0|_inf of the stage values V_i = v0 + Z_i. full=False: simplified Newton (one
+    matrix, at the guess), with a fresh matrix at the current iterate (at most MAX_FRESH per
+    step) whenever an increment does not contract by 1/2 (the matrix at the predictor too far
+    off, e.g. k strongly nonlinear in v, or increments at noise level, which the exact matrix
+    then lets ``newton_status`` recognise); full=True: the matrix at every iterate (the generic
+    engine's full Newton)."""
+    scale = norm_inf(v)
+    stats[2] += evaluate(model, tab, True, x, t, q, v, h, M, ws, G, J)
+    status = factor_newton(stats, G, J, piv)
+    if status != 1:
+        return status, 0
+    prev = -1.0
+    theta = -1.0            # the previous contraction rate (none yet)
+    it = 0
+    status = 0
+    fresh = 0
+    exact = True            # the matrix was evaluated at the iterate the next increment corrects
+    while it < max_iter:
+        it += 1
+        dn = newton_increment(J, piv, G, x)
+        status = newton_status(dn, prev, theta, norm_inf(x), scale, tol, exact)
+        if status != 0:
+            break
+        if full or (prev > 0.0 and dn > 0.5 * prev and fresh < MAX_FRESH):
+            if not full:
+                fresh += 1
+            stats[2] += evaluate(model, tab, True, x, t, q, v, h, M, ws, G, J)
+            code = factor_newton(stats, G, J, piv)
+            if code != 1:
+                return code, it
+            # a new matrix starts a new rate history (full Newton: one matrix per increment)
+            theta = dn / prev if (full and prev > 0.0) else -1.0
+            prev = dn if full else -1.0
+            exact = True
+            continue
+        theta = dn / prev if prev > 0.0 else -1.0
+        prev = dn
+        exact = False
+        stats[2] += evaluate(model, tab, False, x, t, q, v, h, M, ws, G, J)
+    return status, it
+
+
 @numba.njit(cache=True)
 def spark_loop(model, tab, M, ws, t0, q0, v0, h, n_steps, every, compensated, tol,
                max_iter, predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x):
     """The step loop of the SPARK method (21) shared by both forms: ``evaluate`` (residual and
     Newton matrix: ``kernels_mech.spark_eval`` or ``kernels_general.general_eval``) and ``store``
     (one sample) are resolved from the model's type when numba compiles each entry point.
-    (Passing the functions as values would keep numba from caching the kernels.)"""
+    (Passing the functions as values would keep numba from caching the kernels.)
+
+    Newton per step, a fallback chain: simplified Newton from the predictor (with fresh matrices,
+    ``spark_newton``); if it does not converge (or meets a singular or non-finite matrix or
+    increment), full Newton from the generic engine's starting guess (V_i = v1 = v0, Psi = 0),
+    as ``SparkMethod.step`` with newton="full", counted in stats[FULL_NEWTON_STEPS]; if that
+    fails too, the failure (step, code, iterations of both phases) is recorded and out_x[0]
+    receives the residual |G|_inf at the last iterate."""
     s = tab[1].shape[0]
     n = q0.shape[0]
     m = out_k.shape[1]
@@ -100,32 +157,17 @@ def spark_loop(model, tab, M, ws, t0, q0, v0, h, n_steps, every, compensated, to
     for step in range(n_steps):
         t = t0 + step * h
         predict(x, x_last, x_prev, step, predictor)
-        stats[2] += evaluate(model, tab, True, x, t, q, v, h, M, ws, G, J)
-        if not start_newton(stats, step, G, J, piv):
-            return
-        floor = abs(h) * (1.0 + norm_inf(v))
-        prev = -1.0
-        it = 0
-        status = 0
-        fresh = 0
-        while it < max_iter:
-            it += 1
-            dn = newton_increment(J, piv, G, x)
-            status = newton_status(dn, prev, norm_inf(x), floor, tol)
-            if status != 0:
-                break
-            if prev > 0.0 and dn > 0.5 * prev and fresh < 8:
-                # simplified Newton contracts too slowly or diverges here (the matrix at the
-                # predictor is too far off, e.g. k strongly nonlinear in v): a new Newton matrix
-                # at this iterate, as the generic path's full Newton would use
-                fresh += 1
-                stats[2] += evaluate(model, tab, True, x, t, q, v, h, M, ws, G, J)
-                if not start_newton(stats, step, G, J, piv):
-                    return
-                prev = -1.0
-                continue
-            prev = dn
+        status, it = spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, False, stats)
+        if status != 1:
+            # fallback: full Newton from the generic engine's starting guess
+            stats[mt.FULL_NEWTON_STEPS] += 1
+            for r in range(NN):
+                x[r] = 0.0
+            status, it2 = spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, True, stats)
+            it += it2
+        if status != 1:
             stats[2] += evaluate(model, tab, False, x, t, q, v, h, M, ws, G, J)
+            out_x[0] = norm_inf(G)
         if not end_newton(stats, step, it, status):
             return
         # q1 - q0 = h sum_j b_j (v0 + Z_j); v1 - v0 = dv
@@ -243,8 +285,15 @@ def lf2_run(model, variant, M, Minv, t0, q0, v0, h, n_steps, every, compensated,
                     acc += Minv[a, b] * K0[l, b]
                 B0[a, l] = fb * acc
         predict(lam, lam_last, lam_prev, step, predictor)
-        floor = abs(h) * (1.0 + norm_inf(v))
-        status, prev, it = 0, -1.0, 0
+        # round-off scale of lam = h Psi: the velocity |v0| it must resolve, through Z = u0 - B0 lam
+        bn = 0.0
+        for a in range(n):
+            acc = 0.0
+            for l in range(m):
+                acc += abs(B0[a, l])
+            bn = max(bn, acc)
+        floor = norm_inf(v) / bn if bn > 0.0 else 0.0
+        status, prev, theta, it = 0, -1.0, -1.0, 0
         while it < max_iter:
             it += 1
             # Z = u0 - B0 lam is the velocity increment (V1 - v0, or v1 - v0 for variant 2)
@@ -304,9 +353,11 @@ def lf2_run(model, variant, M, Minv, t0, q0, v0, h, n_steps, every, compensated,
             for l in range(m):
                 lam[l] += cres[l]
             dn = norm_inf(cres)
-            status = newton_status(dn, prev, norm_inf(lam), floor, tol)
+            # (one matrix per step: the semi-implicit Newton has no fresh-matrix phase)
+            status = newton_status(dn, prev, theta, norm_inf(lam), floor, tol, True)
             if status != 0:
                 break
+            theta = dn / prev if prev > 0.0 else -1.0
             prev = dn
         if not end_newton(stats, step, it, status):
             return
