@@ -156,6 +156,7 @@ def test_generic_step_is_the_last_fallback(monkeypatch, fail_at, every):
 def test_eps_follows_the_working_precision_beyond_float_range():
     bk = Backend(400)
     assert isinstance(bk.eps, mpmath.mpf) and mpmath.mpf("0.99e-400") < bk.eps < mpmath.mpf("1.01e-400")
+    assert isinstance(Backend(30).eps, float) and math.isclose(Backend(30).eps, 1e-30, rel_tol=1e-15)
     with bk.context():
         x = np.array([mpmath.mpf("3e-350"), mpmath.mpf("-4e-350")], dtype=object)
         n = bk.norm_inf(x)

@@ -27,6 +27,8 @@ USE_FLINT = _flint is not None
 GUARD_BITS = 32
 #: floats below this may be underflowed or subnormal roundings of an mpf (float64's smallest normal number)
 FLOAT_TINY = 2.2250738585072014e-308
+#: up to this many digits ``Backend.eps`` (and tolerances of 1e3 eps) are normal float64 numbers
+EPS_FLOAT_DPS = 290
 
 
 def fmt(x, digits=4) -> str:
@@ -55,9 +57,14 @@ class Backend:
 
     @property
     def eps(self):
-        """Unit round-off of the working precision: float64's, or 10^-dps as an mpf (a float
-        would underflow to 0 at dps >= 324 and zero every tolerance derived from it, issue 22)."""
-        return 2.0 ** -52 if self.dps is None else mpmath.mpf(10) ** (-self.dps)
+        """Unit round-off of the working precision: float64's, or 10^-dps from mpmath: a float
+        where float64 holds it as a normal number (dps <= EPS_FLOAT_DPS: the same value to 16
+        digits, and the type the reports and JSON files expect), the mpf beyond (a float
+        underflowed to 0 at dps >= 324 and zeroed every tolerance derived from it, issue 22)."""
+        if self.dps is None:
+            return 2.0 ** -52
+        e = mpmath.mpf(10) ** (-self.dps)
+        return float(e) if self.dps <= EPS_FLOAT_DPS else e
 
     def context(self):
         """Context manager setting the mpmath precision locally (never a global mp.dps)."""
