@@ -209,3 +209,27 @@ def test_dps_2000_a_few_steps():
     assert 1e-12 < err < 1e-5
     with mpmath.workdps(40):
         assert max(abs(mpmath.mpf(x) - mpmath.mpf(y)) for x, y in zip(a.q[-1], b.q[-1])) < mpmath.mpf("1e-25")
+
+
+# --- the full grid (--exhaustive) -----------------------------------------------------------------
+@pytest.mark.exhaustive
+@pytest.mark.parametrize("scene", ["particle", "skate", "robot", "mp-particles"])
+def test_every_family_up_to_3_stages_finishes_whole_runs_at_tiny_h(scene):
+    """Every family with s <= 3, h = 1e-4 .. 1e-7, 1e5 steps on the compiled engine: each run
+    finishes, with the constraint at round-off (|k| <= 64 eps, the largest seen 1e-15) and no step
+    left to the generic engine."""
+    from ldaspark.reports.stability_stiff import tiny_step_grid
+    rows = tiny_step_grid(100_000, scenes=(scene,))
+    assert len(rows) == 36
+    bad = [r for r in rows if r["outcome"] != "ok"]
+    assert not bad, bad
+    assert all(r["max_k"] <= 64 * EPS and r["generic_steps"] == 0 for r in rows)
+
+
+@pytest.mark.exhaustive
+@pytest.mark.parametrize("scene,method", [("skate", "gauss-2"), ("skate", "lobatto-iiia-iiib-2"),
+                                          ("particle", "gauss-2"), ("particle", "lobatto-iiia-iiib-2")])
+def test_million_steps_at_h_1e_7(scene, method):
+    from ldaspark.reports.stability_stiff import tiny_step_run
+    r = tiny_step_run(scene, method, 1e-7, 1_000_000)
+    assert r["outcome"] == "ok" and r["max_k"] <= 64 * EPS
