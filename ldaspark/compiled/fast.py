@@ -301,7 +301,7 @@ def _entry(name):
 
 
 def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, compensated=True,
-                 tol=None, max_iter=50, kernel="auto", predictor=2):
+                 tol=None, max_iter=50, kernel="auto", predictor=2, reuse_matrix=False):
     """Run a compiled kernel (no fallback); ``method`` a name, a SparkTableau or a kernel_spec.
     predictor: 2 = linear extrapolation of the last two steps' unknowns, 1 = last step's,
     0 = zero increments (V_i = v1 = v0, Psi = 0). Raises NewtonError, NonFiniteError."""
@@ -323,7 +323,9 @@ def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, co
     S = n_samples(int(n_steps), int(every))
     outs = (np.zeros(S), np.zeros((S, cs.n)), np.zeros((S, cs.n)), np.zeros(S), np.zeros((S, cs.m)))
     stats = np.zeros(len(STAT_NAMES), dtype=np.int64)
-    run = (float(t0), q0, v0, h, int(n_steps), int(every), bool(compensated), tol, int(max_iter), int(predictor))
+    # reuse_matrix (SPARK kernels): the previous step's Newton matrix (kernels.REUSE_MATRIX)
+    pflag = int(predictor) + (4 if reuse_matrix else 0)
+    run = (float(t0), q0, v0, h, int(n_steps), int(every), bool(compensated), tol, int(max_iter), pflag)
     model = cs.model
     if kind == "lf2":
         _entry("lf2_run")(model, int(what), cs.M, cs.Minv, *run, *outs, stats)

@@ -39,3 +39,16 @@ MUTANTS = (
        "return float(e) if self.dps <= EPS_FLOAT_DPS else e", "return float(e)",
        "unit round-off of the mpmath precision rounded to float64 (0.0 at dps >= 324)", "system", TNS),
 )
+
+MUTANTS = MUTANTS + (
+    _m("newton-reuse-p0-stale", "compiled/kernels_general.py",
+       "    model[1](t0, q0, v0, ws[27], ws[17], ws[18], ws[19])\n",
+       "    return\n",
+       "a step that reuses the Newton matrix keeps the previous step's p0 (general form)", "compiled",
+       "tests/test_newton_reuse.py"),
+    _m("newton-reuse-no-theta-bound", "compiled/kernels.py",
+       "have = status == 1 and stats[3] - nj <= 1 and worst <= REUSE_THETA",
+       "have = status == 1 and stats[3] - nj <= 1",
+       "the previous step's Newton matrix kept however slowly it contracts", "compiled",
+       "tests/test_newton_reuse.py"),
+)
