@@ -3,8 +3,6 @@ the stiffness sweep (section 7) and whole runs at tiny h with the error curve's 
 (section 8). Data from ``stability_stiff`` through the jobs of ``stability``."""
 from __future__ import annotations
 
-import math
-
 from .markdown import sci, table
 from .stability_stiff import DE_BOUND, DE_GROWTH, HW, N_STIFF, OMEGA, STIFF_METHODS, STIFF_SCENES, TINY_H
 
@@ -229,7 +227,6 @@ def findings_lines(d):
     tiny = d["tiny"]
     nfail = sum(r["outcome"] != "ok" for r in tiny)
     gauss = [r for r in S if r["method"].startswith("gauss")]
-    lob2 = [r for r in S if r["method"] == "lobatto-iiia-iiib-2"]
     fmt = lambda r: ("all" if r["first"] is None else f"{r['first']['hw']:g} ({r['first']['why']})")  # noqa: E731
     out = [f"* Tiny steps: {len(tiny) - nfail} of {len(tiny)} whole runs (s <= 3, 4 paper scenes, h = 1e-4 .. 1e-7) "
            "finish on the compiled engine (section 8); the Newton limit is the round-off of the stage values, not a "
@@ -268,7 +265,3 @@ def findings_lines(d):
                f"{min(its):.1f} .. {max(its):.1f} at h omega = 1 (the extrapolating predictor misses an unresolved "
                "oscillation), ~5 beyond.")
     return out
-
-
-def _finite(x):
-    return x is not None and math.isfinite(x)
