@@ -14,10 +14,15 @@ McLachlan-Perlmutter's (26), Newton on the m multipliers only; mechanical system
 
 Newton: predictor = linear extrapolation of the previous two steps' unknowns (first step: zero
 increments), simplified Newton with one LU factorisation per step reused by every iteration,
-stopping when |dx|_inf, or the estimate theta/(1 - theta) |dx|_inf of the remaining error, is
-<= tol (|x|_inf + h (1 + |v0|_inf)), or when the increments stagnate at round-off level (same
-rule as ``SparkMethod.step``); tol defaults to 8 unit round-offs. Counters: steps,
-newton_iterations, nfev (stage points evaluated), njev, nlu, max_iterations.
+stopping when |dx|_inf, or the estimate theta/(1 - theta) |dx|_inf of the remaining error
+(RADAU5's rate test), is <= tol (|x|_inf + |v0|_inf), the round-off of the stage values
+V_i = v0 + Z_i (invariant under the scale of h and of the state), or when the increments
+stagnate at round-off level with an exact matrix (``newton.newton_status``); tol defaults to 8
+unit round-offs. Fallback chain (``kernels.spark_newton``): a fresh matrix at the iterate when
+an increment does not contract by 1/2, then full Newton from the generic engine's starting guess,
+then a NewtonError naming step, time, residual and iterations. Counters: steps,
+newton_iterations, nfev (stage points evaluated), njev, nlu, max_iterations, full_newton_steps
+(steps that needed the full-Newton fallback).
 
 A run that meets NaN or inf (L or k evaluated outside their domain, overflow) stops with
 ``NonFiniteError`` naming the step and the time; Newton failures raise ``NewtonError``.
@@ -55,7 +60,8 @@ LF2_VARIANTS = {
 }
 FAST_METHODS = ("any SPARK tableau (gauss-S, lobatto-iiia-iiib-S, lobatto-iiia-iiib-iiid-S, euler-i, euler-ii)",
                 ) + tuple(LF2_VARIANTS)
-STAT_NAMES = ("steps", "newton_iterations", "nfev", "njev", "nlu", "max_iterations", "failed_step", "failure")
+STAT_NAMES = ("steps", "newton_iterations", "nfev", "njev", "nlu", "max_iterations", "failed_step", "failure",
+              "full_newton_steps", "failed_iterations")
 
 
 # --- mechanical form ---------------------------------------------------------------------
@@ -300,7 +306,7 @@ def _entry(name):
 
 
 def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, compensated=True,
-                 tol=None, max_iter=50, kernel="auto", predictor=2):
+                 tol=None, max_iter=50, kernel="auto", predictor=2, reuse_matrix=False):
     """Run a compiled kernel (no fallback); ``method`` a name, a SparkTableau or a kernel_spec.
     predictor: 2 = linear extrapolation of the last two steps' unknowns, 1 = last step's,
     0 = zero increments (V_i = v1 = v0, Psi = 0). Raises NewtonError, NonFiniteError."""
@@ -322,7 +328,9 @@ def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, co
     S = n_samples(int(n_steps), int(every))
     outs = (np.zeros(S), np.zeros((S, cs.n)), np.zeros((S, cs.n)), np.zeros(S), np.zeros((S, cs.m)))
     stats = np.zeros(len(STAT_NAMES), dtype=np.int64)
-    run = (float(t0), q0, v0, h, int(n_steps), int(every), bool(compensated), tol, int(max_iter), int(predictor))
+    # reuse_matrix (SPARK kernels): the previous step's Newton matrix (kernels.REUSE_MATRIX)
+    pflag = int(predictor) + (4 if reuse_matrix else 0)
+    run = (float(t0), q0, v0, h, int(n_steps), int(every), bool(compensated), tol, int(max_iter), pflag)
     model = cs.model
     if kind == "lf2":
         _entry("lf2_run")(model, int(what), cs.M, cs.Minv, *run, *outs, stats)
@@ -332,9 +340,11 @@ def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, co
                                                                            stats, out_x)
     st = dict(zip(STAT_NAMES, (int(x) for x in stats)))
     if st["failed_step"] >= 0:
-        raise _failure(st, name, float(t0), h)
+        # the SPARK kernels leave the residual at the last iterate in out_x[0] (kernels.spark_loop)
+        raise _failure(st, name, float(t0), h, None if kind == "lf2" else float(out_x[0]))
     st.pop("failed_step")
     st.pop("failure")
+    st.pop("failed_iterations")
     st["mean_iterations"] = st["newton_iterations"] / max(st["steps"], 1)
     st["path"] = "fast"
     st["kernel"] = "lf2" if kind == "lf2" else ("spark" if cs.form == "mechanical" else "general")
@@ -343,7 +353,7 @@ def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, co
     return FastSolution(*outs, st)
 
 
-def _failure(st, name, t0, h):
+def _failure(st, name, t0, h, residual=None):
     k = st["failed_step"]
     tk = t0 + k * h
     where = f"step {k}, t = {tk:.6g}, h = {h:.3g}"
@@ -351,7 +361,12 @@ def _failure(st, name, t0, h):
         return NonFiniteError(f"fast path ({name}): NaN or inf at {where} (L or k evaluated outside "
                               "their domain, or overflow)", step=k, time=tk)
     why = "singular Newton matrix" if st["failure"] == mt.FAIL_SINGULAR else "Newton failed"
-    return NewtonError(f"fast path ({name}): {why} at {where}", step=k, time=tk)
+    it = st["failed_iterations"]
+    # SPARK kernels: simplified Newton, fresh matrices, then full Newton all failed at this step
+    chain = "" if residual is None else " (simplified, fresh-matrix and full Newton)"
+    res = "" if residual is None else f"residual {residual:.3e} after "
+    return NewtonError(f"fast path ({name}): {why} at {where}: {res}{it} iterations{chain}", step=k, time=tk,
+                       residual=residual, iterations=it)
 
 
 def _diagnose_newton_failure(exc, system, cs, method, t0, q0, v0, h, compensated, tol, max_iter, kernel,
@@ -518,8 +533,14 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
         _notice(str(exc))
         return generic_integrate(system, method, t0, q0, v0, h, n_steps, every, tol)
     except NewtonError as exc:
-        raise _diagnose_newton_failure(exc, system, cs, method, t0, q0, v0, h, compensated, tol, max_iter,
-                                       kernel, predictor) from None
+        kind, what, name = _resolve(method)
+        if name in LF2_VARIANTS:        # a comparator: no generic SPARK step to take over
+            raise _diagnose_newton_failure(exc, system, cs, method, t0, q0, v0, h, compensated, tol, max_iter,
+                                           kernel, predictor) from None
+        # the last link of the fallback chain: the generic full-Newton step (``rescue``)
+        from .rescue import run_with_rescue
+        return run_with_rescue(system, what, cs, method, t0, q0, v0, h, int(n_steps), int(every), compensated,
+                               tol, max_iter, kernel, predictor, exc)
 
 
 # --- warming the compile cache -------------------------------------------------------------

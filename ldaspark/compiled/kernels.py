@@ -37,12 +37,12 @@ from . import modeltypes as mt
 # it compiles in live in sibling modules. Their digest is written here so that editing a helper
 # changes this file too (tests/test_compiled_general.py checks it; update it after an edit).
 HELPERS = ("newton.py", "kernels_mech.py", "kernels_general.py", "modeltypes.py")
-HELPERS_SHA256 = "f7a60b42aba61fd7c8c94a375416a9ef07d60c9478d47b373707146628ca121b"
+HELPERS_SHA256 = "a31b86b198c87e59f1b845b09aa73af78810f8a82f13618c6e8f3ce63111df7e"
 
-from .newton import (FAIL_NONFINITE, FAIL_SINGULAR, accept_step, advance, end_newton, fail, lu_factor,  # noqa: E402
-                     lu_solve, newton_increment, newton_status, norm_inf, predict, record, shift, start_newton)
-from .kernels_mech import mech_point, mech_store, mech_workspace, spark_eval  # noqa: E402
-from .kernels_general import general_eval, general_store, workspace  # noqa: E402
+from .newton import (FAIL_NONFINITE, FAIL_SINGULAR, accept_step, advance, end_newton, factor_newton,  # noqa: E402
+                     fail, lu_factor, lu_solve, newton_increment, newton_status, norm_inf, predict, record, shift)
+from .kernels_mech import mech_begin, mech_point, mech_store, mech_workspace, spark_eval  # noqa: E402
+from .kernels_general import general_begin, general_eval, general_store, workspace  # noqa: E402
 
 
 def evaluate(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
@@ -51,6 +51,12 @@ def evaluate(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
 
 def store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
     """One sample (t, q, v, E, k) for the model's form (chosen by numba at typing time)."""
+
+
+def begin_step(model, t0, q0, v0, ws):
+    """What a step needs before a residual without the Newton matrix (a step that reuses the
+    previous step's matrix): the general form's p0 = grad_v L(t0, q0, v0); nothing for the
+    mechanical form (P_i - p0 = M Z_i)."""
 
 
 def _form(model, mechanical, general):
@@ -64,11 +70,93 @@ def _evaluate(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
     return lambda model, tab, jac, x, t0, q0, v0, h, M, ws, G, J: fn(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J)
 
 
+@overload(begin_step, jit_options={"_nrt": False})
+def _begin_step(model, t0, q0, v0, ws):
+    fn = _form(model, mech_begin, general_begin)
+    return lambda model, t0, q0, v0, ws: fn(model, t0, q0, v0, ws)
+
+
 @overload(store, jit_options={"_nrt": False})
 def _store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
     fn = _form(model, mech_store, general_store)
     return lambda model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws: fn(
         model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws)
+
+
+#: fresh Newton matrices per step in the simplified phase before the full-Newton fallback
+MAX_FRESH = 8
+#: ``predictor`` >= REUSE_MATRIX (predictor + REUSE_MATRIX, from ``fast.run_compiled(reuse_matrix=True)``):
+#: a step starts from the LU of the previous step's Newton matrix, without a Jacobian or an LU,
+#: when that step needed at most one matrix (simplified Newton across steps, RADAU5's reuse); an
+#: increment that does not contract by 1/2 brings a fresh matrix as within a step
+REUSE_MATRIX = 4
+#: (after a reuse attempt that did not stay under REUSE_THETA the next attempt waits 1, 2, 4, ...,
+#: 64 steps: where the matrix changes too fast per step, reuse is then tried rarely)
+#: the matrix is kept for the next step only if every increment of this step contracted by this
+#: factor (RADAU5 keeps its Jacobian while theta < 1e-3): a stale matrix that contracts more slowly
+#: costs more residuals than the Jacobian and LU it saves (measured: without the bound the matrix
+#: aged for thousands of steps and Newton needed 10-17 iterations per step instead of 2-3)
+REUSE_THETA = 0.01
+
+
+@numba.njit(cache=True, _nrt=False)
+def spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, full, stats, stale):
+    """Newton for the step equations (21) from the guess in x; returns (status, iterations),
+    status as ``newton.end_newton``. Stopping rule ``newton.newton_status`` with the round-off
+    scale |v0|_inf of the stage values V_i = v0 + Z_i. full=False: simplified Newton (one
+    matrix, at the guess), with a fresh matrix at the current iterate (at most MAX_FRESH per
+    step) whenever an increment does not contract by 1/2 (the matrix at the predictor too far
+    off, e.g. k strongly nonlinear in v, or increments at noise level, which the exact matrix
+    then lets ``newton_status`` recognise); full=True: the matrix at every iterate (the generic
+    engine's full Newton). Returns (status, iterations, the largest contraction rate seen).
+    stale=True: J, piv already hold the LU of the previous step's
+    matrix, used as it is (no Jacobian, no LU) until an increment does not contract by 1/2;
+    status -3 when its first increments are not finite (the caller predicts again and starts
+    with a fresh matrix)."""
+    scale = norm_inf(v)
+    if stale:
+        begin_step(model, t, q, v, ws)
+        stats[2] += evaluate(model, tab, False, x, t, q, v, h, M, ws, G, J)
+    else:
+        stats[2] += evaluate(model, tab, True, x, t, q, v, h, M, ws, G, J)
+        status = factor_newton(stats, G, J, piv)
+        if status != 1:
+            return status, 0, 0.0
+    prev = -1.0
+    theta = -1.0            # the previous contraction rate (none yet)
+    it = 0
+    status = 0
+    fresh = 0
+    exact = not stale       # the matrix was evaluated at the iterate the next increment corrects
+    worst = 0.0             # the largest contraction rate |dx_k| / |dx_k-1| of the step
+    while it < max_iter:
+        it += 1
+        dn = newton_increment(J, piv, G, x)
+        status = newton_status(dn, prev, theta, norm_inf(x), scale, tol, exact)
+        if prev > 0.0:
+            worst = max(worst, dn / prev)
+        if status == -1 and stale:
+            return -3, it, worst
+        if status != 0:
+            break
+        if full or (prev > 0.0 and dn > 0.5 * prev and fresh < MAX_FRESH):
+            if not full:
+                fresh += 1
+            stats[2] += evaluate(model, tab, True, x, t, q, v, h, M, ws, G, J)
+            code = factor_newton(stats, G, J, piv)
+            if code != 1:
+                return code, it, worst
+            stale = False
+            # a new matrix starts a new rate history (full Newton: one matrix per increment)
+            theta = dn / prev if (full and prev > 0.0) else -1.0
+            prev = dn if full else -1.0
+            exact = True
+            continue
+        theta = dn / prev if prev > 0.0 else -1.0
+        prev = dn
+        exact = False
+        stats[2] += evaluate(model, tab, False, x, t, q, v, h, M, ws, G, J)
+    return status, it, worst
 
 
 @numba.njit(cache=True)
@@ -77,7 +165,14 @@ def spark_loop(model, tab, M, ws, t0, q0, v0, h, n_steps, every, compensated, to
     """The step loop of the SPARK method (21) shared by both forms: ``evaluate`` (residual and
     Newton matrix: ``kernels_mech.spark_eval`` or ``kernels_general.general_eval``) and ``store``
     (one sample) are resolved from the model's type when numba compiles each entry point.
-    (Passing the functions as values would keep numba from caching the kernels.)"""
+    (Passing the functions as values would keep numba from caching the kernels.)
+
+    Newton per step, a fallback chain: simplified Newton from the predictor (with fresh matrices,
+    ``spark_newton``); if it does not converge (or meets a singular or non-finite matrix or
+    increment), full Newton from the generic engine's starting guess (V_i = v1 = v0, Psi = 0),
+    as ``SparkMethod.step`` with newton="full", counted in stats[FULL_NEWTON_STEPS]; if that
+    fails too, the failure (step, code, iterations of both phases) is recorded and out_x[0]
+    receives the residual |G|_inf at the last iterate."""
     s = tab[1].shape[0]
     n = q0.shape[0]
     m = out_k.shape[1]
@@ -96,36 +191,47 @@ def spark_loop(model, tab, M, ws, t0, q0, v0, h, n_steps, every, compensated, to
     if not store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
         fail(stats, 0, FAIL_NONFINITE)
         return
+    reuse = predictor >= REUSE_MATRIX          # bit REUSE_MATRIX of ``predictor``: see REUSE_MATRIX
+    predictor = predictor % REUSE_MATRIX
+    have = False            # J, piv hold the LU of a matrix of the last step, fit for reuse
+    wait, backoff = 0, 1    # steps before the next reuse attempt after a failed one, and its growth
     j_out = 1
     for step in range(n_steps):
         t = t0 + step * h
         predict(x, x_last, x_prev, step, predictor)
-        stats[2] += evaluate(model, tab, True, x, t, q, v, h, M, ws, G, J)
-        if not start_newton(stats, step, G, J, piv):
-            return
-        floor = abs(h) * (1.0 + norm_inf(v))
-        prev = -1.0
-        it = 0
-        status = 0
-        fresh = 0
-        while it < max_iter:
-            it += 1
-            dn = newton_increment(J, piv, G, x)
-            status = newton_status(dn, prev, norm_inf(x), floor, tol)
-            if status != 0:
-                break
-            if prev > 0.0 and dn > 0.5 * prev and fresh < 8:
-                # simplified Newton contracts too slowly or diverges here (the matrix at the
-                # predictor is too far off, e.g. k strongly nonlinear in v): a new Newton matrix
-                # at this iterate, as the generic path's full Newton would use
-                fresh += 1
-                stats[2] += evaluate(model, tab, True, x, t, q, v, h, M, ws, G, J)
-                if not start_newton(stats, step, G, J, piv):
-                    return
-                prev = -1.0
-                continue
-            prev = dn
+        nj = stats[3]
+        stale = reuse and have and wait == 0
+        if wait > 0:
+            wait -= 1
+        status, it, worst = spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, False,
+                                         stats, stale)
+        if status == -3:
+            # the reused matrix sent the first increments to inf/NaN: predict again, fresh matrix
+            predict(x, x_last, x_prev, step, predictor)
+            status, it2, worst = spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, False,
+                                              stats, False)
+            it += it2
+        # reuse the matrix next step if this step needed at most one and contracted fast with it
+        have = status == 1 and stats[3] - nj <= 1 and worst <= REUSE_THETA
+        if stale:
+            # a reuse attempt that did not stay fast: wait 1, 2, 4, ... 64 steps before the next
+            if have:
+                backoff = 1
+            else:
+                wait = backoff
+                backoff = min(2 * backoff, 64)
+        if status != 1:
+            have = False
+            # fallback: full Newton from the generic engine's starting guess
+            stats[mt.FULL_NEWTON_STEPS] += 1
+            for r in range(NN):
+                x[r] = 0.0
+            status, it2, worst = spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, True,
+                                              stats, False)
+            it += it2
+        if status != 1:
             stats[2] += evaluate(model, tab, False, x, t, q, v, h, M, ws, G, J)
+            out_x[0] = norm_inf(G)
         if not end_newton(stats, step, it, status):
             return
         # q1 - q0 = h sum_j b_j (v0 + Z_j); v1 - v0 = dv
@@ -208,6 +314,7 @@ def lf2_run(model, variant, M, Minv, t0, q0, v0, h, n_steps, every, compensated,
     b0, b1, cres, lam, lam_last = np.zeros(m), np.zeros(m), np.zeros(m), np.zeros(m), np.zeros(m)
     lam_prev, mu, kb, kout = np.zeros(m), np.zeros(m), np.zeros(m), np.zeros(m)
     piv = np.zeros(m, dtype=np.int64)
+    predictor = predictor % 4      # the REUSE_MATRIX flag concerns the SPARK kernels only
     half = 0.5 * h
     stats[mt.FAILED_STEP] = -1
     if not lf2_store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, kK, kb, kout):
@@ -243,8 +350,15 @@ def lf2_run(model, variant, M, Minv, t0, q0, v0, h, n_steps, every, compensated,
                     acc += Minv[a, b] * K0[l, b]
                 B0[a, l] = fb * acc
         predict(lam, lam_last, lam_prev, step, predictor)
-        floor = abs(h) * (1.0 + norm_inf(v))
-        status, prev, it = 0, -1.0, 0
+        # round-off scale of lam = h Psi: the velocity |v0| it must resolve, through Z = u0 - B0 lam
+        bn = 0.0
+        for a in range(n):
+            acc = 0.0
+            for l in range(m):
+                acc += abs(B0[a, l])
+            bn = max(bn, acc)
+        floor = norm_inf(v) / bn if bn > 0.0 else 0.0
+        status, prev, theta, it = 0, -1.0, -1.0, 0
         while it < max_iter:
             it += 1
             # Z = u0 - B0 lam is the velocity increment (V1 - v0, or v1 - v0 for variant 2)
@@ -304,9 +418,11 @@ def lf2_run(model, variant, M, Minv, t0, q0, v0, h, n_steps, every, compensated,
             for l in range(m):
                 lam[l] += cres[l]
             dn = norm_inf(cres)
-            status = newton_status(dn, prev, norm_inf(lam), floor, tol)
+            # (one matrix per step: the semi-implicit Newton has no fresh-matrix phase)
+            status = newton_status(dn, prev, theta, norm_inf(lam), floor, tol, True)
             if status != 0:
                 break
+            theta = dn / prev if prev > 0.0 else -1.0
             prev = dn
         if not end_newton(stats, step, it, status):
             return

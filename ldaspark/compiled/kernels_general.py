@@ -64,6 +64,13 @@ def nonideal_stages(model, jac, x, T, Q, V, h, nw, KTL):
 
 
 @numba.njit(cache=True, _nrt=False)
+def general_begin(model, t0, q0, v0, ws):
+    """p0 = grad_v L(t0, q0, v0) into ws[27] (as the first ``general_eval`` with jac does), for a
+    step whose first residual reuses the previous step's Newton matrix."""
+    model[1](t0, q0, v0, ws[27], ws[17], ws[18], ws[19])
+
+
+@numba.njit(cache=True, _nrt=False)
 def general_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
     """Residual G of (21b, d, e, f) in x = [Z | Lambda | dv] (V_i = v0 + Z_i, v1 = v0 + dv) and,
     if jac, its Jacobian J. The first call of a step (jac) also sets ws[27] = p0 = grad_v L(t0,

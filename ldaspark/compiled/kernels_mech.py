@@ -49,6 +49,12 @@ def mech_store(model, j, t, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
 
 
 @numba.njit(cache=True, _nrt=False)
+def mech_begin(model, t0, q0, v0, ws):
+    """Nothing: the mechanical residual needs no per-step value before the first residual."""
+    return
+
+
+@numba.njit(cache=True, _nrt=False)
 def spark_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
     """Residual G of (21b, d, e, f) in the increment unknowns x = [Z | Lambda | dv] and, if jac,
     its Jacobian J. gU = grad U = -F, KTL_j = K_j^T Lambda_j = -h R_j; P_i - p0 = M Z_i exactly.

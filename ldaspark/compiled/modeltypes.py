@@ -46,6 +46,8 @@ TABLEAU = (a1, a2, a2, a2, a1, a1, a1, a2)
 RUN = (f8, a1, a1, f8, i8, i8, b1, f8, i8, i8, a1, a2, a2, a1, a2, types.Array(i8, 1, "C"))
 # stats entries (fast.STAT_NAMES) and failure codes of stats[FAILURE]
 FAILED_STEP, FAILURE = 6, 7
+# steps that needed the full-Newton fallback; iterations of the failed step (both phases)
+FULL_NEWTON_STEPS, FAILED_ITERATIONS = 8, 9
 FAIL_NEWTON, FAIL_SINGULAR, FAIL_NONFINITE = 1, 2, 3
 
 # codegen's MODEL tuples: (n, functions...). The leading integer is n; it also keeps numba from

@@ -1,9 +1,12 @@
 """Linear algebra and the Newton / bookkeeping steps every compiled kernel shares (plain numba
 functions, compiled into the kernels of ``kernels`` that call them).
 
-Newton is simplified Newton (one LU per step) from an extrapolating predictor; stats holds the
-counters of ``fast.STAT_NAMES``; a failure sets stats[FAILED_STEP] and stats[FAILURE]
-(``modeltypes`` codes: Newton did not converge, singular Newton matrix, NaN/inf).
+Newton is simplified Newton (one LU per step) from an extrapolating predictor, stopped by
+``newton_status`` (a limit scaled with the round-off of the stage values, and RADAU5's rate
+test); the fallback chain (fresh Newton matrix at the iterate, then full Newton from the generic
+engine's starting guess) is in ``kernels.spark_newton``. stats holds the counters of
+``fast.STAT_NAMES``; a failure sets stats[FAILED_STEP], stats[FAILURE] (``modeltypes`` codes:
+Newton did not converge, singular Newton matrix, NaN/inf) and stats[FAILED_ITERATIONS].
 """
 import numba
 import numpy as np
@@ -152,23 +155,47 @@ def newton_increment(LU, piv, G, x):
     return norm_inf(G)
 
 
+#: increments that stopped contracting (theta >= 1/2) are accepted as round-off noise when they are
+#: within NOISE_FACTOR of the round-off limit and were computed with a Newton matrix evaluated at
+#: the iterate they correct (the matrix is then exact to first order, so a stalled Newton
+#: iteration can only be stalled by the rounding of the residual: its noise, amplified by
+#: cond(J), is what the increments measure)
+NOISE_FACTOR = 1e3
+#: RADAU5's kappa: the rate test accepts an estimated remaining error of kappa lim ~ 1 unit
+#: round-off of the stage values (lim = 8 eps (|x| + |v0|)), so that stopping on the estimate
+#: leaves the step as accurate as one more increment would (the estimate alone at kappa = 1 moved
+#: 1000-step runs by ~1e-12, against ~3e-14 between the engines before, issue 22)
+RATE_KAPPA = 0.1
+
+
 @numba.njit(cache=True, _nrt=False)
-def newton_status(dn, prev, xn, floor, tol):
-    """1 converged, 0 continue, -1 increment not finite. Converged: |dx| <= lim, or the error
-    estimate theta/(1 - theta) |dx| <= lim of the linearly converging simplified Newton
-    (theta = |dx_k| / |dx_k-1|, Hairer-Wanner IV.8), or the round-off floor of SparkMethod.step
-    (increments stopped shrinking at noise level); lim = tol (|x| + floor)."""
+def newton_status(dn, prev, theta_prev, xn, scale, tol, exact):
+    """1 converged, 0 continue, -1 increment not finite. lim = tol (|x| + scale) is the round-off
+    of the stage values: the unknowns x are increments (Z_i = V_i - v0, Lambda_i, dv) and the
+    stage values V_i = v0 + Z_i carry eps (|v0| + |Z_i|) of rounding, so ``scale`` = |v0|_inf
+    (the caller's; the semi-implicit kernel converts it to multiplier units). The limit scales
+    with the state and does not depend on h (an h-proportional limit, tol (|x| + h (1 + |v0|)),
+    fell below the rounding of V_i at h <= 1e-5 and failed runs spuriously, issue 22).
+    Converged: |dx| <= lim; or the estimate theta/(1 - theta) |dx| <= lim of the remaining error
+    of a contracting iteration (Hairer-Wanner IV.8, RADAU5's stopping rule with kappa tol = RATE_KAPPA lim),
+    with RADAU5's rate theta = sqrt(theta_k theta_k-1), theta_k = |dx_k| / |dx_k-1| (theta_prev
+    = theta_k-1, <= 0 when there is none yet: one sudden drop of |dx|, e.g. onto a noise floor
+    far above round-off, is no evidence of contraction); or the round-off floor: the increments
+    stopped shrinking (theta_k >= 1/2) at most NOISE_FACTOR lim and ``exact`` (matrix at the
+    iterate)."""
     if not np.isfinite(dn):
         return -1
-    lim = tol * (xn + floor)
+    lim = tol * (xn + scale)
     if dn <= lim:
         return 1
     if prev <= 0.0:
         return 0
-    theta = dn / prev
-    if theta < 0.5 and theta / (1.0 - theta) * dn <= lim:
-        return 1
-    if dn >= 0.5 * prev and dn <= 1e3 * lim:
+    theta_k = dn / prev
+    if theta_prev > 0.0:
+        theta = np.sqrt(theta_k * theta_prev)
+        if theta < 1.0 and theta / (1.0 - theta) * dn <= RATE_KAPPA * lim:
+            return 1
+    if exact and theta_k >= 0.5 and dn <= NOISE_FACTOR * lim:
         return 1
     return 0
 
@@ -181,28 +208,29 @@ def fail(stats, step, code):
 
 @numba.njit(cache=True, _nrt=False)
 def end_newton(stats, step, it, status):
-    """Count the iterations; on failure record why (False: the kernel must return)."""
+    """Count the iterations; on failure record why and after how many iterations (False: the
+    kernel must return). status: 1 converged, 0 not converged, -1 not finite, -2 singular."""
     stats[1] += it
     if it > stats[5]:
         stats[5] = it
     if status == 1:
         return True
-    fail(stats, step, FAIL_NONFINITE if status < 0 else FAIL_NEWTON)
+    stats[mt.FAILED_ITERATIONS] = it
+    fail(stats, step, FAIL_NONFINITE if status == -1 else (FAIL_SINGULAR if status == -2 else FAIL_NEWTON))
     return False
 
 
 @numba.njit(cache=True, _nrt=False)
-def start_newton(stats, step, G, J, piv):
-    """Checks and factors the Newton matrix at the predictor (one LU per step)."""
+def factor_newton(stats, G, J, piv):
+    """Checks and factors the Newton matrix J (residual G at the same point): 1 factored, -1 not
+    finite, -2 singular (the codes of ``end_newton``)."""
     stats[3] += 1
     if not (np.isfinite(norm_inf(G)) and matrix_finite(J)):
-        fail(stats, step, FAIL_NONFINITE)
-        return False
+        return -1
     stats[4] += 1
     if not lu_factor(J, piv):
-        fail(stats, step, FAIL_SINGULAR)
-        return False
-    return True
+        return -2
+    return 1
 
 
 @numba.njit(cache=True, _nrt=False)

@@ -7,6 +7,7 @@ integrator is written once against this interface.
 from __future__ import annotations
 
 import contextlib
+import math
 import warnings
 
 import mpmath
@@ -24,6 +25,18 @@ except ImportError:  # pragma: no cover - the pure-mpmath path below is complete
 #: the pure-mpmath LU, e.g. to compare the two; ``benchmarks/ledger_speed.py`` does)
 USE_FLINT = _flint is not None
 GUARD_BITS = 32
+#: floats below this may be underflowed or subnormal roundings of an mpf (float64's smallest normal number)
+FLOAT_TINY = 2.2250738585072014e-308
+#: up to this many digits ``Backend.eps`` (and tolerances of 1e3 eps) are normal float64 numbers
+EPS_FLOAT_DPS = 290
+
+
+def fmt(x, digits=4) -> str:
+    """A norm for a message: '1.234e-05' for a float, mpmath's digits for an mpf (which may lie
+    outside float64's range and has no format spec)."""
+    if isinstance(x, mpmath.mpf):
+        return mpmath.nstr(x, digits)
+    return f"{float(x):.{digits - 1}e}"
 
 
 class SingularMatrixError(LdasparkError):
@@ -43,9 +56,15 @@ class Backend:
         return self.dps is not None
 
     @property
-    def eps(self) -> float:
-        """Unit round-off of the working precision."""
-        return 2.0 ** -52 if self.dps is None else float(mpmath.mpf(10) ** (-self.dps))
+    def eps(self):
+        """Unit round-off of the working precision: float64's, or 10^-dps from mpmath: a float
+        where float64 holds it as a normal number (dps <= EPS_FLOAT_DPS: the same value to 16
+        digits, and the type the reports and JSON files expect), the mpf beyond (a float
+        underflowed to 0 at dps >= 324 and zeroed every tolerance derived from it, issue 22)."""
+        if self.dps is None:
+            return 2.0 ** -52
+        e = mpmath.mpf(10) ** (-self.dps)
+        return float(e) if self.dps <= EPS_FLOAT_DPS else e
 
     def context(self):
         """Context manager setting the mpmath precision locally (never a global mp.dps)."""
@@ -81,15 +100,24 @@ class Backend:
             return out
         return np.zeros(shape)
 
-    def norm_inf(self, x) -> float:
+    def norm_inf(self, x):
+        """max |x_i|: a float, or at mpmath precision an mpf where float64 would round it to 0
+        or inf (format it with ``fmt``)."""
         if x.size == 0:
             return 0.0
         if self.is_mp:
             flat = x.reshape(-1)
             try:    # rounding to float is monotonic: the same number, 1.7x faster than max over mpf
-                return max(map(abs, map(float, flat)))
+                r = max(map(abs, map(float, flat)))
             except TypeError:                   # mpc entries (L or k outside its domain)
                 return float(max(abs(v) for v in flat))
+            if FLOAT_TINY <= r < math.inf or r != r:
+                return r
+            # below (or above) float64's range the float rounding loses the number (an increment
+            # of 1e-350 at 400 digits is 0.0 in float): the mpf itself, so that tolerances of
+            # order eps = 10^-dps still compare right
+            big = max(abs(mpmath.mpf(v)) for v in flat)
+            return big if big else 0.0
         return float(np.max(np.abs(x)))
 
     def isfinite(self, x) -> bool:
@@ -131,11 +159,19 @@ class Backend:
     def solve_factored(self, fac, r) -> np.ndarray:
         """Solve with a factorisation from ``factor``; ``r`` a vector or an (N, k) matrix."""
         if fac[0] == "f64":
-            x = scipy.linalg.lu_solve(fac[1:], np.asarray(r, dtype=float), check_finite=False)
             if not self.is_mp:
-                return x
+                return scipy.linalg.lu_solve(fac[1:], np.asarray(r, dtype=float), check_finite=False)
             with self.context():
-                return np.array([mpmath.mpf(float(v)) for v in x.reshape(-1)], dtype=object).reshape(x.shape)
+                # the residual scaled to 1 before it is rounded to float64 (and the solution scaled
+                # back): a residual below float64's range (1e-330 at 400 digits) would round to 0
+                # and stall the refinement there (issue 22)
+                r = np.asarray(r)
+                sc = max((abs(mpmath.mpf(v)) for v in r.reshape(-1)), default=mpmath.mpf(0))
+                if not sc:
+                    sc = mpmath.mpf(1)
+                rs = np.array([float(mpmath.mpf(v) / sc) for v in r.reshape(-1)]).reshape(r.shape)
+                x = scipy.linalg.lu_solve(fac[1:], rs, check_finite=False)
+                return np.array([mpmath.mpf(float(v)) * sc for v in x.reshape(-1)], dtype=object).reshape(x.shape)
         if fac[0] == "flint":
             return _flint_solve(fac, r)
         if fac[0] == "mp":

@@ -36,7 +36,7 @@ import mpmath
 import numpy as np
 import sympy
 
-from .backend import Backend, SingularMatrixError
+from .backend import Backend, SingularMatrixError, fmt
 from .errors import InputError, NewtonError
 from .spark import Solution, SparkMethod
 from .system import LagrangianSystem, _arr
@@ -121,7 +121,8 @@ def derive_mechanical(system: LagrangianSystem) -> dict:
 def _newton(fun, x0, bk: Backend, tol, max_iter, step_index, t):
     """Newton on fun(x) -> (G, J); same stopping rule as SparkMethod.step."""
     x = x0.copy()
-    tol_abs = tol * (1 + bk.norm_inf(x))
+    # round-off of the unknowns' values (invariant under the scale of h and of the state, issue 22)
+    tol_abs = tol * bk.norm_inf(x)
     prev = None
     res = float("inf")
     for it in range(1, max_iter + 1):
@@ -146,7 +147,7 @@ def _newton(fun, x0, bk: Backend, tol, max_iter, step_index, t):
             return x, it
         x = x_new
         prev = dn
-    raise NewtonError(f"Newton did not converge at step {step_index}, t = {float(t):.6g}: residual {res:.3e}",
+    raise NewtonError(f"Newton did not converge at step {step_index}, t = {float(t):.6g}: residual {fmt(res)}",
                       step=step_index, time=float(t), residual=res, iterations=max_iter)
 
 

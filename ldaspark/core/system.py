@@ -7,13 +7,14 @@ number type ("math" for float64, "mpmath" for arbitrary precision).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import mpmath
 import numpy as np
 import sympy
 
-from .backend import Backend
+from .backend import Backend, fmt
 from .errors import InconsistentInitialDataError, SingularSaddleError, SystemDefinitionError
 
 
@@ -346,9 +347,9 @@ class LagrangianSystem:
             res = backend.norm_inf(self.constraint(backend, t, q, v) if k is None else k)
             scale = 1 + backend.norm_inf(backend.array(v))
         tol = tol if tol is not None else 1e3 * backend.eps
-        if not np.isfinite(res) or res > tol * scale:
+        if not math.isfinite(res) or res > tol * scale:
             raise InconsistentInitialDataError(
-                f"initial data are inconsistent: |k(t0, q0, v0)| = {res:.3e} > {tol * scale:.1e} "
+                f"initial data are inconsistent: |k(t0, q0, v0)| = {fmt(res)} > {fmt(tol * scale, 2)} "
                 "(pass project=True / --project to project v0 onto k = 0)")
         return res
 
@@ -393,7 +394,7 @@ class LagrangianSystem:
         psi; Newton from the ideal solution on [[L_vv, K^T - N_psi], [K, 0]]."""
         n = self.n
         # mpmath.odefun raises the working precision beyond the backend's: converge to the current eps
-        tol = 10 * float(mpmath.mp.eps) if backend.is_mp else 10 * backend.eps
+        tol = 10 * mpmath.mp.eps if backend.is_mp else 10 * backend.eps
         prev = None
         for _ in range(maxiter):
             N, _, _, Np = self.nonideal_terms(backend, t, q, v, sol[n:], partials=False)

@@ -24,11 +24,14 @@ from .stability_checks import (SWEEP_METHODS, FAMILIES, float64_floor_h, local_o
                                newton_limit, one_step_error, order_at_precision, roundoff_growth,
                                stage_sweep, step_size_sweep, _residuals)
 from .stability_figures import save as _save, long_run as _fig_long, stages as _fig_stage  # noqa: F401
-from .stability_figures import step_sweep as _fig_step_sweep
+from .stability_figures import step_sweep as _fig_step_sweep, stiff as _fig_stiff, floor as _fig_floor
 from .stability_scenes import (check_saddle_along, mass_ratio_scene, mass_ratio_system,  # noqa: F401
                                rank_loss_scene, rank_loss_system, saddle_crossings, soft_scene,
                                soft_system, time_reversal)
 from .timing import Clock
+from . import stability_regimes as _regimes
+from .stability_stiff import (DE_GROWTH, HW, N_STIFF, OMEGA, STIFF_METHODS, STIFF_SCENES, TINY_H,  # noqa: F401
+                              TINY_METHODS, dps_extreme, error_floor, linear_stability, stiff_job, tiny_step_grid)
 
 REPORT = "stability.md"
 JSON = "stability.json"
@@ -80,13 +83,27 @@ def roundoff_job():
     return roundoff_growth(n_steps=N_LONG, every=1000, n_ics=8)
 
 
+PAPER = ("particle", "skate", "robot", "mp-particles")
+N_TINY, N_TINY_FULL = 10 ** 4, 10 ** 5
+FLOOR_METHODS = ("gauss-1", "gauss-2", "lobatto-iiia-iiib-2")
+
+
+def tiny_job(scene, full=False):
+    """Section 8: every family with s <= 3, h = 1e-4 .. 1e-7, whole runs on one paper scene."""
+    return tiny_step_grid(N_TINY_FULL if full else N_TINY, scenes=(scene,))
+
+
+def floor_job(method):
+    return error_floor(method)
+
+
 def order_methods(full=False):
     ms = ["gauss-2", "gauss-4", "gauss-6", "lobatto-iiia-iiib-4", "lobatto-iiia-iiib-iiid-4"]
     return ms + (["gauss-8", "gauss-10", "lobatto-iiia-iiib-10", "lobatto-iiia-iiib-iiid-10"] if full else [])
 
 
 # jobs on the compiled path (started after the main job has compiled the kernels once)
-COMPILED_JOBS = ("long_job", "roundoff_job")
+COMPILED_JOBS = ("long_job", "roundoff_job", "stiff_job", "tiny_job", "floor_job")
 
 
 def jobs(full=False):
@@ -100,6 +117,9 @@ def jobs(full=False):
           (("soft",), "soft_scene", (), 2.0)]
     J += [(("reversal", m, sc), "reversal_pair", (m, sc, full), 3.0) for m in SYMMETRIC + NONSYMMETRIC
           for sc in ("particle", "robot")]
+    J += [(("stiff", sc, m), "stiff_job", (sc, m), 10.0) for sc in STIFF_SCENES for m in STIFF_METHODS]
+    J += [(("tiny", sc), "tiny_job", (sc, full), 30.0 if full else 4.0) for sc in PAPER]
+    J += [(("floor", m), "floor_job", (m,), 6.0) for m in FLOOR_METHODS] + [(("dps",), "dps_extreme", (), 3.0)]
     return J
 
 
@@ -120,7 +140,9 @@ def collect(results, full=False):
     g = lambda kind: [results[k] for k in keys if k[0] == kind]
     return {"step": g("step"), "stage": results[("stage",)], "order": g("order"), "long": g("long"),
             "roundoff": results[("roundoff",)], "mass": results[("mass",)], "rank": results[("rank",)],
-            "soft": results[("soft",)], "reversal": g("reversal"), "full": full}
+            "soft": results[("soft",)], "reversal": g("reversal"), "full": full,
+            "stiff": [r for rows in g("stiff") for r in rows], "tiny": [r for rows in g("tiny") for r in rows],
+            "floor": g("floor"), "dps": results[("dps",)]}
 
 
 # --- report sections --------------------------------------------------------------------------
@@ -131,7 +153,8 @@ def section_header(d):
             f"({'full' if full else 'default'} sizes; also part of `ldaspark report`). Every number below is "
             "recomputed by that command and stored in `stability.json`; the regression tests are in "
             "tests/test_extremes.py, tests/test_bad_input.py, tests/test_cli_errors.py and "
-            "tests/test_atomic_writes.py.", ""]
+            "tests/test_atomic_writes.py (sections 7, 8 and the regimes table: tests/test_newton_stopping.py, "
+            "tests/test_stiff.py).", ""]
 
 
 def _newton_cell(nl):
@@ -360,11 +383,12 @@ def section_findings(d):
             soft,
             f"* Time reversal: symmetric methods return to {sci(f['reversal_symmetric_float64'])} (float64) and "
             f"{sci(f['reversal_symmetric_30'])} (30 digits) after 100 + 100 steps; the non-symmetric Euler "
-            f"methods miss by >= {sci(f['reversal_nonsymmetric_min'])}.", ""]
+            f"methods miss by >= {sci(f['reversal_nonsymmetric_min'])}."] + _regimes.findings_lines(d) + [""]
 
 
-SECTIONS = (section_header, section_findings, section_step_size, section_stages, section_long_runs,
-            section_ill_conditioned, section_time_reversal, section_bad_input)
+SECTIONS = (section_header, _regimes.section_regimes, section_findings, section_step_size, section_stages,
+            section_long_runs, section_ill_conditioned, section_time_reversal, section_bad_input,
+            _regimes.section_stiff, _regimes.section_tiny)
 
 
 def _json_data(d):
@@ -373,6 +397,8 @@ def _json_data(d):
     out["long"] = [{k: v for k, v in lr.items() if k != "series"} for lr in d["long"]]
     out["roundoff"] = {k: v for k, v in d["roundoff"].items() if k in ("N", "rms", "exponent")}
     out["findings"] = findings_numbers(d)
+    out["regimes"] = _regimes.regimes(d)
+    out["stiff_summary"] = _regimes.stiff_summary(d)
     return out
 
 
@@ -383,6 +409,8 @@ def write(results, outdir="reports", full=False, clock=None, command=None):
     _fig_step_sweep(d["step"], os.path.join(figdir, "stability_step_size.png"))
     _fig_stage(d["stage"], os.path.join(figdir, "stability_stages.png"))
     _fig_long(d["long"][0], d["roundoff"], os.path.join(figdir, "stability_long_run.png"))
+    _fig_stiff(d["stiff"], STIFF_METHODS, STIFF_SCENES, os.path.join(figdir, "stability_stiff.png"))
+    _fig_floor(d["floor"], os.path.join(figdir, "stability_floor.png"))
     L = [line for sec in SECTIONS for line in sec(d)]
     if clock is not None:
         L += [timing_line(command or f"ldaspark report stability{' --full' if full else ''}", clock), ""]

@@ -75,3 +75,44 @@ def long_run(lr, rg, path):
     ax.set_title("round-off vs exact-arithmetic map (linear-3, Lobatto-2)")
     ax.legend(fontsize=7)
     save(fig, path)
+
+
+def stiff(rows, methods, scenes, path):
+    """Section 7: per method, dE against h omega on each stiff scene (failed runs drawn at the
+    top as x), and the linear prediction rho(M(h omega)) - 1 where it exceeds 0."""
+    cols = 4
+    nr = (len(methods) + cols - 1) // cols
+    fig, axes = figure(nr, cols, figsize=(4 * cols, 3.2 * nr))
+    col = colours(len(scenes) + 1)
+    for ax, m in zip(axes.flat, methods):
+        for sc, c in zip(scenes, col):
+            rr = sorted((r for r in rows if r["method"] == m and r["scene"] == sc), key=lambda r: r["hw"])
+            ok = [r for r in rr if r["outcome"] == "ok"]
+            ax.loglog([r["hw"] for r in ok], [max(r["max_rel_dE"], 1e-17) for r in ok], "o-", ms=3, color=c, label=sc)
+            bad = [r["hw"] for r in rr if r["outcome"] != "ok"]
+            if bad:
+                ax.loglog(bad, [1e3] * len(bad), "x", ms=6, color=c, label=f"{sc}: failed")
+        rr = sorted({r["hw"]: r["rho"] for r in rows if r["method"] == m}.items())
+        un = [(hw, rho - 1) for hw, rho in rr if rho > 1 + 1e-9]
+        if un:
+            ax.loglog(*zip(*un), "k:", lw=1, label="rho(M) - 1 (linear)")
+        ax.set_title(m, fontsize=9)
+        ax.set_xlabel("h omega")
+        ax.set_ylabel("max relative energy error")
+        ax.legend(fontsize=6)
+    for ax in list(axes.flat)[len(methods):]:
+        ax.remove()
+    save(fig, path)
+
+
+def floor(rows, path):
+    """Section 8: global error at t = 0.1 on the skate against h, plain and Kahan."""
+    fig, axes = figure(1, len(rows), figsize=(4 * len(rows), 3.3))
+    for ax, r in zip(axes.flat, rows):
+        ax.loglog(r["h"], np.maximum(r["plain"], 1e-18), "o-", ms=3, label="plain")
+        ax.loglog(r["h"], np.maximum(r["kahan"], 1e-18), "s--", ms=3, label="Kahan")
+        ax.set_title(r["method"], fontsize=9)
+        ax.set_xlabel("h (N = 0.1 / h)")
+        ax.set_ylabel("error at t = 0.1")
+        ax.legend(fontsize=7)
+    save(fig, path)

@@ -210,6 +210,11 @@ class DiscreteBVP:
 
 
 # --- linear algebra helpers (float64 and mpf) ------------------------------------------------
+def _sqrt(x):
+    """sqrt of a unit round-off: a float, or an mpf below float64's range (``Backend.eps``)."""
+    return mpmath.sqrt(x) if isinstance(x, mpmath.mpf) else math.sqrt(x)
+
+
 def _svd(bk, J):
     """(U, sigma, Vt) full SVD, sigma descending."""
     if bk.is_mp:
@@ -346,11 +351,11 @@ class _Solver:
             if dn <= tol_abs:
                 return done(x, mu, it)
             if prev is not None and dn > 0.5 * prev:
-                if simplified and stencil and dn <= math.sqrt(bk.eps) * (1 + bk.norm_inf(x)):
+                if simplified and stencil and dn <= _sqrt(bk.eps) * (1 + bk.norm_inf(x)):
                     return done(x, mu, it)    # stalled at the round-off floor (as full Newton below)
                 if simplified:
                     simplified = False        # contraction too slow: switch to full Newton
-                elif dn <= math.sqrt(bk.eps) * (1 + bk.norm_inf(x)):
+                elif dn <= _sqrt(bk.eps) * (1 + bk.norm_inf(x)):
                     # increments stopped shrinking at the round-off floor of an ill-conditioned J
                     return done(x, mu, it)
             prev = dn

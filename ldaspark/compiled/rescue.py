@@ -1,0 +1,125 @@
+"""The last link of the compiled engine's Newton fallback chain (issue 22): a step where the
+kernel's simplified, fresh-matrix and full Newton all fail is taken by the generic engine's full
+Newton (``SparkMethod.step`` with newton="full", float64) from the same state, and the compiled
+run goes on from the step after. So the compiled engine fails only where the generic full Newton
+fails too, and then with the generic step's NewtonError (step, time, residual, iterations).
+
+Why a generic step and not only the kernel's own full Newton: near the Newton limit (h of order
+the period of the fastest motion) full Newton wanders for tens of iterations before it is caught
+by a root, and which root, or whether one within max_iter, depends on the rounding of every
+iterate; the kernel's increments (Z_i = V_i - v0) round differently from the generic unknowns
+(V_i), so the two can part there (measured: robot lobatto-iiia-iiib-3 h = 4, mp-particles gauss-2
+h = 32, step 0). Steps that converge in the kernel are not touched.
+
+The kernel reports only the failing step; the state there is recomputed by running the kernel
+again from the last restart point (the same arithmetic, so the same state). Each restart begins
+with the zero-increment predictor and a fresh Kahan compensation. Samples stay at the global
+steps 0, every, 2 every, ... and the last step.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.errors import NewtonError
+
+
+def _local_indices(n, every):
+    """The local step indices of run_compiled's samples for n steps sampled every ``every``."""
+    idx = list(range(0, n + 1, every))
+    if idx[-1] != n:
+        idx.append(n)
+    return idx
+
+
+def run_with_rescue(system, tab, cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter,
+                    kernel, predictor, first_failure):
+    """Finish the run that failed with ``first_failure`` (the kernel's NewtonError, local step
+    from t0) by generic full-Newton steps at the failing steps; returns a FastSolution with the
+    kernel's statistics summed and stats["generic_steps"] = the number of steps taken by the
+    generic engine. Raises the generic step's NewtonError where that fails too."""
+    from ..core.backend import Backend
+    from ..core.spark import SparkMethod
+    from .fast import FastSolution, run_compiled
+
+    want = set(range(0, n_steps + 1, every)) | {n_steps}
+    samples = {}                # global step -> (t, q, v, E, k)
+    totals = dict.fromkeys(("steps", "newton_iterations", "nfev", "njev", "nlu", "max_iterations",
+                            "full_newton_steps"), 0)
+    rescues = 0
+    generic = SparkMethod(system, tab, tol=tol, newton="full", max_iter=max_iter)
+    bk = Backend(None)
+    start, t, q, v = 0, float(t0), np.asarray(q0, float), np.asarray(v0, float)
+    failure = first_failure
+    kern = {}
+    last = None                 # (step after the last generic step, its StepResult, v before it)
+
+    def keep(sol, start, n, e):
+        kern["kernel"] = sol.stats["kernel"]
+        for j, loc in enumerate(_local_indices(n, e)):
+            if start + loc in want:
+                samples[start + loc] = (sol.t[j], sol.q[j], sol.v[j], sol.energy[j], sol.constraint[j])
+        for key, val in sol.stats.items():
+            if isinstance(val, (int, np.integer)) and not isinstance(val, bool):
+                totals[key] = max(totals.get(key, 0), val) if key == "max_iterations" else totals.get(key, 0) + val
+
+    def point(t, q, v, E=None):
+        E = float(system.energy(bk, t, q, v)) if E is None else E
+        return t, q.copy(), v.copy(), E, np.asarray(system.constraint(bk, t, q, v), float)
+
+    def run(n, e):
+        return run_compiled(cs, method, t, q, v, h, n, e, compensated, tol, max_iter, kernel, predictor)
+
+    while start < n_steps:
+        left = n_steps - start
+        # keep the samples on the global grid: a restart off the grid first runs to the next multiple
+        n = left if start % every == 0 else min(left, every - start % every)
+        e = every if start % every == 0 else n
+        if failure is None:
+            try:
+                sol = run(n, e)
+            except NewtonError as exc:
+                failure = exc
+            else:
+                keep(sol, start, n, e)
+                t, q, v = float(sol.t[-1]), sol.q[-1].copy(), sol.v[-1].copy()
+                start += n
+                continue
+        k = failure.step            # local to this segment
+        failure = None
+        if k:
+            pre = run(k, e if k >= e else k)
+            keep(pre, start, k, e if k >= e else k)
+            t, q, v = float(pre.t[-1]), pre.q[-1].copy(), pre.v[-1].copy()
+            start += k
+        if start in want and start not in samples:      # a failure at a segment's first step
+            samples[start] = point(t, q, v)
+        # the generic engine's full Newton at this state: from its own predictor when the step
+        # before was generic too (as ``march``), else (or if that fails) from its default guess;
+        # its NewtonError if both fail
+        res = None
+        if last is not None and last[0] == start:
+            Vp, Lp, v1p = generic.unpack(last[1].x)
+            dv = v - last[2]
+            try:
+                res = generic.step(t, q, v, h, x0=generic.pack(Vp + dv, Lp, v1p + dv), step_index=start)
+            except NewtonError:
+                res = None
+        if res is None:
+            res = generic.step(t, q, v, h, step_index=start)
+        last = (start + 1, res, v.copy())
+        rescues += 1
+        start += 1
+        t, q, v = float(t0) + start * h, np.asarray(res.q1, float), np.asarray(res.v1, float)
+        if start in want:
+            samples[start] = point(t, q, v, float(res.energy))
+        totals["steps"] = totals.get("steps", 0) + 1
+        totals["newton_iterations"] = totals.get("newton_iterations", 0) + res.iterations
+    order = sorted(samples)
+    st = dict(totals)
+    st["generic_steps"] = rescues
+    st["mean_iterations"] = st.get("newton_iterations", 0) / max(st.get("steps", 0), 1)
+    st.update(path="fast", kernel=kern.get("kernel", "spark" if cs.form == "mechanical" else "general"),
+              form=cs.form, compensated=bool(compensated))
+    return FastSolution(np.array([samples[i][0] for i in order]), np.array([samples[i][1] for i in order]),
+                        np.array([samples[i][2] for i in order]), np.array([samples[i][3] for i in order]),
+                        np.array([samples[i][4] for i in order]), st)

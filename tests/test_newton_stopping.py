@@ -1,0 +1,235 @@
+"""Issue 22: the Newton stopping rule at the extremes.
+
+Compiled engine: the limit is the round-off of the stage values, tol (|x| + |v0|), not a multiple
+of h (the rule before stopped 30000-step runs of the skate at h = 1e-5 at step 25808); RADAU5's
+rate test; fresh matrix, full Newton and the generic full-Newton step as fallbacks. Whole runs at
+h = 1e-4 .. 1e-7 on the paper scenes finish (a few here, the full grid with --exhaustive).
+Extreme precision: eps from mpmath (dps >= 324 divided by a float eps of 0 before), dps = 400
+and 2000 work.
+"""
+import math
+
+import mpmath
+import numpy as np
+import pytest
+import sympy
+
+from ldaspark.compiled.fast import compile_system, fast_integrate, run_compiled
+from ldaspark.compiled.newton import NOISE_FACTOR, RATE_KAPPA, newton_status
+from ldaspark.core.backend import Backend
+from ldaspark.core.errors import NewtonError
+from ldaspark.core.families import get_method
+from ldaspark.core.scenes import get_scene
+from ldaspark.core.spark import integrate
+
+EPS = 2.0 ** -52
+TOL = 8 * EPS                      # the compiled kernels' default tol
+
+
+# --- the rule itself (the numba function, called from Python) --------------------------------
+@pytest.mark.parametrize("c", [1e-12, 1e-4, 1.0, 1e6])
+def test_stopping_rule_is_invariant_under_the_scale_of_the_state(c):
+    """Same verdicts when every magnitude (|dx|, |x|, |v0|) is scaled by c: no absolute term."""
+    lim = TOL * (1e-5 + 1.0)
+    cases = [(0.5 * lim, -1.0, -1.0, True), (5 * lim, 10 * lim, -1.0, False),     # plain test / no rate yet
+             (5 * lim, 1e4 * lim, 1e-3, False), (50 * lim, 60 * lim, 0.9, True),  # rate test / noise floor
+             (50 * lim, 60 * lim, 0.9, False)]
+    got = [newton_status(dn * c, prev * c if prev > 0 else prev, th, 1e-5 * c, 1.0 * c, TOL, ex)
+           for dn, prev, th, ex in cases]
+    assert got == [1, 0, 1, 1, 0]
+
+
+def test_rate_test_needs_two_rates():
+    """RADAU5's theta = sqrt(theta_k theta_k-1): a sudden drop of |dx| onto a plateau far above
+    round-off (one small theta_k) is not convergence; with a second small rate it is."""
+    lim = TOL * 1.0
+    dn, prev = 2 * lim, 1e6 * lim               # theta_k = 2e-6, estimate ~ 4e-6 lim
+    assert newton_status(dn, prev, -1.0, 0.0, 1.0, TOL, True) == 0
+    assert newton_status(dn, prev, 1e-3, 0.0, 1.0, TOL, True) == 1
+    # two-sided around RATE_KAPPA: estimate theta / (1 - theta) dn just above / below kappa lim
+    th = 0.05                                   # both rates; theta / (1 - theta) = 1/19
+    for f, want in ((1.01, 0), (0.99, 1)):
+        dn = f * RATE_KAPPA * lim * 19          # ~1.9 lim: above the plain limit
+        assert dn > lim and newton_status(dn, dn / th, th, 0.0, 1.0, TOL, False) == want
+
+
+def test_noise_floor_needs_an_exact_matrix_and_a_bound():
+    lim = TOL
+    assert newton_status(0.9 * NOISE_FACTOR * lim, NOISE_FACTOR * lim, 0.9, 0.0, 1.0, TOL, True) == 1
+    assert newton_status(1.1 * NOISE_FACTOR * lim, NOISE_FACTOR * lim, 0.9, 0.0, 1.0, TOL, True) == 0
+    assert newton_status(0.9 * NOISE_FACTOR * lim, NOISE_FACTOR * lim, 0.9, 0.0, 1.0, TOL, False) == 0
+    assert newton_status(float("nan"), 1.0, 0.9, 0.0, 1.0, TOL, True) == -1
+
+
+# --- whole runs at tiny h ---------------------------------------------------------------------
+def _exact_skate(t):
+    sc = get_scene("skate")
+    ex = sc.exact
+    f = lambda es: [float(e.subs(ex["t"], sympy.Rational(str(t)))) for e in es]   # noqa: E731
+    return np.array(f(ex["q"])), np.array(f(ex["v"]))
+
+
+@pytest.mark.parametrize("method,h,n", [("gauss-2", 1e-5, 30_000),                 # the issue's reproduction
+                                        ("lobatto-iiia-iiib-2", 1e-6, 100_000),    # semi-implicit kernel
+                                        ("gauss-1", 1e-7, 100_000)])
+def test_skate_whole_run_at_tiny_h_finishes_at_roundoff(method, h, n):
+    """Before: "Newton did not converge at step 25808" (gauss-2, h = 1e-5), 88513 (h = 1e-6).
+    The error against the closed form is one-sided by nature (a bound): truncation C h^p with
+    h^2 <= 1e-10 times t^3 ~ 1e-3 below 1e-13 even for gauss-1, plus round-off growing at
+    most like N eps |v| per step summed (linear growth, section 3 of reports/stability.md):
+    bound 4 N eps."""
+    sol = fast_integrate(get_scene("skate"), method, h=h, n_steps=n, every=n)
+    assert sol.stats["path"] == "fast" and sol.stats["steps"] == n
+    qe, ve = _exact_skate(round(n * h, 12))
+    err = max(np.abs(sol.q[-1] - qe).max(), np.abs(sol.v[-1] - ve).max())
+    assert err <= 4 * n * EPS + 1e-13, err
+    assert np.abs(sol.constraint).max() <= 16 * EPS
+
+
+def test_limit_below_the_roundoff_of_the_stage_values_fails_with_a_named_error():
+    """Negative control: a limit below the rounding of V_i = v0 + Z_i (tol = 1e-24, the size of
+    the h-scaled limit at h = 1e-7) cannot be met: after simplified, fresh-matrix and full Newton
+    the kernel reports step, time, residual and iterations (and the generic step, given the same
+    tol, fails as well)."""
+    sc = get_scene("skate")
+    cs = compile_system(sc.system)
+    t0, q0, v0 = sc.initial()
+    with pytest.raises(NewtonError) as ei:
+        run_compiled(cs, "gauss-2", t0, q0, v0, 1e-5, 30_000, 30_000, tol=1e-24)
+    e = ei.value
+    assert e.step is not None and 0 <= e.step < 30_000 and math.isclose(e.time, e.step * 1e-5, rel_tol=1e-12)
+    assert e.iterations > 50 and math.isfinite(e.residual)
+    msg = str(e)
+    assert f"step {e.step}," in msg and "residual" in msg and f"after {e.iterations} iterations" in msg
+
+
+# --- the fallback chain -----------------------------------------------------------------------
+def _generic_q(scene, method, h, n):
+    sc = get_scene(scene)
+    t0, q0, v0 = sc.initial()
+    return np.asarray(integrate(sc.system, get_method(method), t0, q0, v0, h, n_steps=n, newton="full").q, float)
+
+
+def test_full_newton_fallback_in_the_kernel():
+    """mp-particles, gauss-1, h = 4 (near the Newton limit): simplified Newton from the
+    predictor fails, the kernel's full Newton from the generic starting guess converges to the
+    generic full-Newton solution (measured 1e-14; tolerance 1e-12 = a few thousand eps |q|)."""
+    sc = get_scene("mp-particles")
+    t0, q0, v0 = sc.initial()
+    sol = run_compiled(compile_system(sc.system), "gauss-1", t0, q0, v0, 4.0, 2, kernel="spark")
+    assert sol.stats["full_newton_steps"] >= 1
+    assert np.abs(sol.q[-1] - _generic_q("mp-particles", "gauss-1", 4.0, 2)[-1]).max() <= 1e-12
+
+
+@pytest.mark.parametrize("fail_at,every", [(5, 3), (0, 1), (6, 3)])
+def test_generic_step_is_the_last_fallback(monkeypatch, fail_at, every):
+    """When every Newton of the kernel fails at a step (simulated: the kernel's first run
+    reports a failure at step ``fail_at``; the real cases are chaotic full-Newton iterations near
+    the Newton limit, e.g. robot lobatto-iiia-iiib-3 h = 4, whose outcome depends on the rounding
+    of each iterate, so no test can rest on them), fast_integrate takes that step with the
+    generic full Newton and goes on: the same run as without the failure to round-off (measured
+    ~1e-16; tolerance 1e-13 = a few hundred eps over 20 steps), samples on the same grid."""
+    from ldaspark.compiled import fast
+    sc = get_scene("skate")
+    ref = fast_integrate(sc, "gauss-2", h=0.1, n_steps=20, every=every)
+    real = fast.run_compiled
+    calls = []
+
+    def failing(cs, method, t0, q0, v0, h, n, *a, **k):
+        calls.append(n)
+        if len(calls) == 1:
+            raise NewtonError("simulated", step=fail_at, time=t0 + fail_at * h)
+        return real(cs, method, t0, q0, v0, h, n, *a, **k)
+    monkeypatch.setattr(fast, "run_compiled", failing)
+    sol = fast_integrate(sc, "gauss-2", h=0.1, n_steps=20, every=every)
+    assert sol.stats["generic_steps"] == 1 and sol.stats["steps"] == 20
+    # the same grid; a segment's times are t_start + k h: a few ulps from t0 + (start + k) h
+    assert sol.t.shape == ref.t.shape and np.abs(sol.t - ref.t).max() <= 8 * EPS * abs(ref.t[-1])
+    assert np.abs(sol.q - ref.q).max() <= 1e-13 and np.abs(sol.energy - ref.energy).max() <= 1e-13
+    # negative control: without the rescue (run_compiled alone) the failure is raised
+    with pytest.raises(NewtonError, match="simulated"):
+        calls.clear()
+        fast.run_compiled(compile_system(sc.system), "gauss-2", 0.0, [0, 0, 0], [0, 0, 1], 0.1, 20)
+
+
+# --- extreme precision ------------------------------------------------------------------------
+def test_eps_follows_the_working_precision_beyond_float_range():
+    bk = Backend(400)
+    assert isinstance(bk.eps, mpmath.mpf) and mpmath.mpf("0.99e-400") < bk.eps < mpmath.mpf("1.01e-400")
+    assert isinstance(Backend(30).eps, float) and math.isclose(Backend(30).eps, 1e-30, rel_tol=1e-15)
+    with bk.context():
+        x = np.array([mpmath.mpf("3e-350"), mpmath.mpf("-4e-350")], dtype=object)
+        n = bk.norm_inf(x)
+    assert mpmath.mpf("3.99e-350") < n < mpmath.mpf("4.01e-350")   # float64 would round it to 0
+    assert Backend(None).eps == EPS and Backend(30).norm_inf(np.array([0.5, -2.0])) == 2.0
+
+
+@pytest.mark.parametrize("newton", ["auto", "full", "simplified", "mixed"])
+def test_dps_400_runs_and_agrees_with_dps_440(newton):
+    """Before: ZeroDivisionError at dps >= 324 (eps as a float underflowed to 0); simplified
+    Newton stopped at "residual 3.4e-177 after 50 iterations" (one matrix gains ~3.6 digits per
+    iteration). Two-sided: the 400-digit run equals the 440-digit one to the Newton tolerance
+    (10 eps = 1e-399) times the steps and a growth factor (measured ~1e-400; bound 1e-395), and
+    differs from the float64 run by its round-off (> 0)."""
+    sc = get_scene("particle")
+    t0, q0, v0 = sc.initial(400)
+    a = integrate(sc.system, get_method("gauss-2"), t0, q0, v0, "1/10", n_steps=3, dps=400, newton=newton)
+    t0, q0, v0 = sc.initial(440)
+    b = integrate(sc.system, get_method("gauss-2"), t0, q0, v0, "1/10", n_steps=3, dps=440, newton="full")
+    with mpmath.workdps(440):
+        d = max(abs(x - y) for x, y in zip(a.q[-1], b.q[-1]))
+    assert d <= mpmath.mpf("1e-395")
+    f64 = integrate(sc.system, get_method("gauss-2"), 0.0, [1.0, 0, 0], [0, 1.0, 0], 0.1, n_steps=3)
+    assert 0 < abs(float(b.q[-1][0]) - f64.q[-1][0]) < 1e-14
+
+
+def test_float_eps_at_400_digits_is_the_old_failure(monkeypatch):
+    """Negative control of the previous test: with the unit round-off computed as a float (the
+    code before issue 22: 10^-400 underflows to 0.0, and every tolerance with it) the same run
+    fails (ZeroDivisionError in the Newton cost rule, or a Newton iteration that cannot stop)."""
+    monkeypatch.setattr(Backend, "eps", property(
+        lambda self: 2.0 ** -52 if self.dps is None else float(mpmath.mpf(10) ** (-self.dps))))
+    sc = get_scene("particle")
+    t0, q0, v0 = sc.initial(400)
+    with pytest.raises((ZeroDivisionError, NewtonError)):
+        integrate(sc.system, get_method("gauss-2"), t0, q0, v0, "1/10", n_steps=3, dps=400)
+
+
+def test_dps_2000_a_few_steps():
+    """dps at the upper bound of core.validate (2000): 3 steps of the skate, gauss-2, against
+    the closed form: error = the method's O(h^5) local error (~1e-7 at h = 1/10), identical to the
+    30-digit run to 1e-25 (the 30-digit round-off)."""
+    sc = get_scene("skate")
+    t0, q0, v0 = sc.initial(2000)
+    a = integrate(sc.system, get_method("gauss-2"), t0, q0, v0, "1/10", n_steps=3, dps=2000)
+    t0, q0, v0 = sc.initial(30)
+    b = integrate(sc.system, get_method("gauss-2"), t0, q0, v0, "1/10", n_steps=3, dps=30)
+    qe, _ = _exact_skate(0.3)
+    err = float(max(abs(float(x) - y) for x, y in zip(a.q[-1], qe)))
+    assert 1e-12 < err < 1e-5
+    with mpmath.workdps(40):
+        assert max(abs(mpmath.mpf(x) - mpmath.mpf(y)) for x, y in zip(a.q[-1], b.q[-1])) < mpmath.mpf("1e-25")
+
+
+# --- the full grid (--exhaustive) -----------------------------------------------------------------
+@pytest.mark.exhaustive
+@pytest.mark.parametrize("scene", ["particle", "skate", "robot", "mp-particles"])
+def test_every_family_up_to_3_stages_finishes_whole_runs_at_tiny_h(scene):
+    """Every family with s <= 3, h = 1e-4 .. 1e-7, 1e5 steps on the compiled engine: each run
+    finishes, with the constraint at round-off (|k| <= 64 eps, the largest seen 1e-15) and no step
+    left to the generic engine."""
+    from ldaspark.reports.stability_stiff import tiny_step_grid
+    rows = tiny_step_grid(100_000, scenes=(scene,))
+    assert len(rows) == 36
+    bad = [r for r in rows if r["outcome"] != "ok"]
+    assert not bad, bad
+    assert all(r["max_k"] <= 64 * EPS and r["generic_steps"] == 0 for r in rows)
+
+
+@pytest.mark.exhaustive
+@pytest.mark.parametrize("scene,method", [("skate", "gauss-2"), ("skate", "lobatto-iiia-iiib-2"),
+                                          ("particle", "gauss-2"), ("particle", "lobatto-iiia-iiib-2")])
+def test_million_steps_at_h_1e_7(scene, method):
+    from ldaspark.reports.stability_stiff import tiny_step_run
+    r = tiny_step_run(scene, method, 1e-7, 1_000_000)
+    assert r["outcome"] == "ok" and r["max_k"] <= 64 * EPS
