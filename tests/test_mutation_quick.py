@@ -80,7 +80,7 @@ def test_mutants_exits_nonzero_when_a_mutant_survives(monkeypatch, tmp_path):
     from ldaspark.reports.mutation_catalogue import Mutant
 
     def fake(status):
-        return lambda ms, jobs, hints_only=False, progress=None, exclude=(): [
+        return lambda ms, jobs, hints_only=False, progress=None, exclude=(), **kw: [
             mutation._record(m, status if i == 0 else "killed", None if status != "killed" else "t::x", 0.0)
             for i, m in enumerate(ms)]
     args = argparse.Namespace(quick=True, outdir=str(tmp_path), jobs=1, only=None, exclude="")
