@@ -18,7 +18,9 @@
   which does not enforce k = 0 and leaves it at its O(h^4) truncation error.
 * ``long_run``: invariants along a compiled run, ``bounded`` when the max error over the last
   quarter / the first quarter <= 1.5 (``reports.energy.BOUNDED_RATIO``: linear drift gives ~4,
-  a random walk ~2) or the error stays at round-off (<= 1e3 eps (1 + |I0|)).
+  a random walk ~2) or the error stays at round-off (<= 100 eps sqrt(N) (1 + |I0|) after N steps:
+  ~100 eps per step from the Newton tolerance and the evaluation of I, accumulated as a random
+  walk); ``drift``: not at round-off and the ratio >= 2.
 """
 from __future__ import annotations
 
@@ -138,18 +140,19 @@ def long_run(scene, method, T, h, q0=None, v0=None, engine="compiled", observabl
     ``observables``: {name: f(t, q, v) -> array of errors}) along a run of ``method``."""
     import ldaspark
     res = ldaspark.integrate(scene, method, t_span=(0, T), h=h, q0=q0, v0=v0, engine=engine)
-    series = {}
+    series, I0 = {}, {}
     if observables is None:
         for k, x in scene.invariant_values(res.t, res.q, res.v).items():
             series[k] = x - x[0]
+            I0[k] = x[0]
     else:
         for k, f in observables.items():
             series[k] = np.asarray(f(res.t, res.q, res.v), float)
     out = {}
     for k, e in series.items():
         b = boundedness(res.t, e)
-        scale = 1 + abs(float(e[0]))
-        b["roundoff"] = bool(b["max_abs_dE"] <= 1e3 * EPS * scale)
+        scale = 1 + abs(float(I0.get(k, 0.0)))
+        b["roundoff"] = bool(b["max_abs_dE"] <= 100 * EPS * math.sqrt(len(res.t)) * scale)
         b["bounded"] = bool(b["roundoff"] or b["last_over_first_quarter"] <= BOUNDED_RATIO)
         b["drift"] = bool(not b["roundoff"] and b["last_over_first_quarter"] >= 2.0)
         out[k] = b
