@@ -85,14 +85,15 @@ def test_constraint_at_roundoff_and_engines_agree():
 
 def test_long_time_energy_bounded_drift_for_euler():
     """Energy of the perturbed motion over [0, 500], h = 0.1: bounded for Gauss-2 and Lobatto
-    IIIA-B 3 (last/first quarter <= 1.5); control: the non-symmetric Euler I (h = 0.02, [0, 100])
-    drifts (ratio >= 2)."""
+    IIIA-B 3 (last/first quarter <= 1.5); control: the non-symmetric Euler I (h = 0.02, [0, 8])
+    drifts (ratio >= 2; its energy error grows ~100-fold in 8 time units, and its Newton fails near
+    t = 8.7)."""
     sc, q0, v0 = _perturbed()
     for meth in ("gauss-2", "lobatto-iiia-iiib-3"):
         _, rec = long_run(sc, meth, 500, 0.1, q0, v0)
         assert rec["energy"]["bounded"], (meth, rec["energy"])
-    res, rec = long_run(sc, "euler-i", 100, 0.02, q0, v0)
-    assert rec["energy"]["drift"], (res.status, rec["energy"])
+    res, rec = long_run(sc, "euler-i", 8, 0.02, q0, v0)
+    assert res.success and rec["energy"]["drift"], (res.status, rec["energy"])
 
 
 @pytest.mark.exhaustive
