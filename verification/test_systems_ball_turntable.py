@@ -35,13 +35,16 @@ def test_closed_form_solves_3ab(name):
     q = [e.subs(sympy.Rational(2, 7), sympy.Rational(2, 5)) for e in sc.exact["q"]]
     wrong.exact = {"t": t, "q": q, "v": [sympy.diff(e, t) for e in q], "psi": sc.exact["psi"]}
     wrong._exact_fns = {}
-    assert max(ode_residual(wrong)[:1] + ode_residual(wrong)[2:]) > 1e-2
+    acc_w, _, k_w = ode_residual(wrong)
+    assert max(acc_w, k_w) > 1e-2, (acc_w, k_w)
 
 
-@pytest.mark.parametrize("name", SCENES)
+@pytest.mark.parametrize("name", [pytest.param("ball-turntable", marks=pytest.mark.exhaustive),
+                                  "ball-turntable-rheonomic"])
 def test_orders_2s_and_2s_minus_2_against_closed_form(name):
     """Orders on [0, 1] against the closed form, two-sided within 0.3; control: a wrong sign in L
-    (v_psi -> -v_psi: the psi'-phi' coupling of |omega|^2 reversed; the data stay consistent)."""
+    (v_psi -> -v_psi: the psi'-phi' coupling of |omega|^2 reversed; the data stay consistent).
+    By default the rheonomic scene only (it contains the constant-Omega one at eps = 0)."""
     sc = get_scene(name)
     ref = ExactReference(sc, 40)
     obs = observed_orders(sc, ref)
