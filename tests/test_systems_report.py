@@ -39,3 +39,21 @@ def test_system_job_row_and_markdown(job):
     assert len(table(["c"] * 12, [row])) == 3
     md = systems.markdown({"contact-oscillator": job})
     assert "`contact-oscillator`" in md and "Pending" in md and not math.isnan(job["us_per_step_gauss2"])
+
+
+def test_bicycle_hook_appends_the_section_or_its_failure(job, monkeypatch):
+    """The hook for ``ldaspark.reports.systems_bicycle.bicycle_section(outdir) -> (md, json)``: its
+    markdown lands under "The Whipple bicycle" and its data under "bicycle"; a failure of that module
+    is reported, not raised (control: without the module the section says it is pending)."""
+    import sys
+    import types
+    fake = types.ModuleType(systems.BICYCLE_MODULE)
+    fake.bicycle_section = lambda outdir: ("weave speed 4.29 m/s", {"weave": 4.29})
+    monkeypatch.setitem(sys.modules, systems.BICYCLE_MODULE, fake)
+    bike = systems.bicycle_job("unused")
+    md = systems.markdown({"contact-oscillator": job}, bike)
+    assert "## The Whipple bicycle\n\nweave speed 4.29 m/s" in md and "Pending" not in md
+    assert systems._json({"contact-oscillator": job}, bike)["bicycle"] == {"weave": 4.29}
+    fake.bicycle_section = lambda outdir: 1 / 0
+    failed = systems.bicycle_job("unused")
+    assert "ZeroDivisionError" in systems.markdown({"contact-oscillator": job}, failed)
