@@ -87,6 +87,13 @@ def test_long_time_circle_and_vertical_spin(name):
 @pytest.mark.exhaustive
 @pytest.mark.parametrize("name", SCENES)
 def test_orders_exhaustive(name):
+    """Orders 6 (Gauss 3, Lobatto IIIA-B 4) and 4 (IIIA-B-D 3). The constant-Omega steady motion is
+    so smooth that Gauss 3 reaches round-off by h = 1/8 on [0, 1] (2e-12, 3e-14, 1e-15: no window
+    above the 1e3 eps floor), so there the steps are h = 1 .. 1/8 over [0, 8]."""
     sc = get_scene(name)
-    obs = observed_orders(sc, ExactReference(sc, 40), plan=EXHAUSTIVE_PLAN)
+    if name == "ball-turntable":
+        plan = tuple((m, [8, 16, 32, 64]) for m, _ in EXHAUSTIVE_PLAN)
+        obs = observed_orders(sc, ExactReference(sc, 40), t_end=8.0, plan=plan)
+    else:
+        obs = observed_orders(sc, ExactReference(sc, 40), plan=EXHAUSTIVE_PLAN)
     assert orders_hold(obs), obs
