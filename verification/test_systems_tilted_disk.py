@@ -5,7 +5,6 @@ of a perturbed (quasi-periodic) motion; each check with a negative control. Tole
 ``verification/systems_checks.py``. Default cost ~10 s."""
 import numpy as np
 import pytest
-import sympy
 
 import ldaspark
 from ldaspark.core.backend import Backend

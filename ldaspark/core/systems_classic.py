@@ -3,18 +3,18 @@ first integrals, each with its source.
 
 * ``chaplygin-sleigh``: the Chaplygin sleigh (Bloch, *Nonholonomic Mechanics and Control*, 1.7),
   closed form (speed ~ tanh, angular velocity ~ sech, the path in elementary functions);
-* ``tilted-disk``: the rolling disk in Euler angles (Bloch 1.4; O'Reilly 1996), energy, and the
+* ``tilted-disk``: the rolling disk in Euler angles (Bloch 2003, chapter 1; O'Reilly 1996), energy, and the
   steady circular motions with their existence condition in closed form;
 * ``chaplygin-sphere``: Chaplygin's ball (centre of mass at the geometric centre, unequal
   moments), first integrals energy, |M|^2 and (M, gamma) (Chaplygin 1903; Borisov-Mamaev 2002);
 * ``suslov``: the Suslov problem (rigid body with omega_3 = 0 in the body frame; Suslov 1946,
-  Bloch 1.? "Suslov problem"; Fedorov-Jovanovic 2004), closed form of the body angular velocity;
+  Fedorov-Jovanovic 2004), closed form of the body angular velocity;
 * ``contact-oscillator``: x' + y z' = 0 with harmonic potentials (McLachlan-Perlmutter 2006;
   Modin-Verdier 2013), the y-energy (y^2 + y'^2)/2 an exact first integral;
 * ``ball-turntable``, ``ball-turntable-rheonomic``: a homogeneous ball rolling on a turntable
   rotating with Omega (constant) or Omega(t) (rheonomic); the centre moves on a circle with
-  angular velocity 2 Omega(t)/7 (Routh 1905, Advanced Rigid Dynamics 243; Bloch 1.? / Lewis-
-  Murray), and the full closed form below.
+  angular velocity 2 Omega(t)/7 (Routh, Advanced Rigid Dynamics (1905) 243), and the full
+  closed form below.
 
 The rigid bodies are written with ``sympy.physics.mechanics`` (frames, points, ``RigidBody``,
 ``Lagrangian``) and turned into (1) by ``LagrangianSystem.from_mechanics``, as a user would; the
@@ -179,7 +179,7 @@ def disk_steady_exists(theta0, spin, r=1, g=1) -> bool:
 
 
 def tilted_disk(m=1, r=1, g=1, theta0=sympy.pi / 6, Omega=1) -> ClassicScene:
-    """Rolling disk in Euler angles (Bloch 2003, 1.4; O'Reilly, Nonlinear Dynamics 10 (1996)
+    """Rolling disk in Euler angles (Bloch 2003, chapter 1; O'Reilly, Nonlinear Dynamics 10 (1996)
     287-305): uniform disk of mass m and radius r (moments m r^2/4 about a diameter, m r^2/2 about
     its axis) rolling without slipping on the horizontal plane under gravity g. q = (x, y, psi,
     theta, phi): the contact point, heading (yaw), tilt from the vertical and spin; the frames
@@ -223,7 +223,7 @@ def tilted_disk(m=1, r=1, g=1, theta0=sympy.pi / 6, Omega=1) -> ClassicScene:
                         exact=exact, params={"m": m, "r": r, "g": g, "theta0": theta0, "Omega": Omega,
                                              "spin": w},
                         invariants={"energy": S.energy_expr}, closed_forms={"theta = theta0": (TH, theta0 + 0 * t)},
-                        source="A. M. Bloch, Nonholonomic Mechanics and Control (2003), 1.4; "
+                        source="A. M. Bloch, Nonholonomic Mechanics and Control (2003), chapter 1; "
                                "O. M. O'Reilly, Nonlinear Dynamics 10 (1996) 287-305")
 
 
@@ -279,7 +279,7 @@ def chaplygin_sphere(m=1, r=1, I1=1, I2=R(3, 2), I3=2) -> ClassicScene:
 
 
 def suslov(I1=2, I2=1, I3=3, I13=1, omega1_0=1) -> ClassicScene:
-    """The Suslov problem (G. K. Suslov, Theoretical Mechanics (1946); Bloch 2003, 1.?; Fedorov,
+    """The Suslov problem (G. K. Suslov, Theoretical Mechanics (1946); Fedorov,
     Jovanovic, J. Nonlinear Sci. 14 (2004) 341-381): a rigid body about a fixed point, no
     potential, with the body-frame angular velocity component omega_3 = 0 (a nonholonomic
     constraint of the body: in ZXZ Euler angles k = psi' cos(theta) + phi'). Inertia in the
@@ -344,7 +344,7 @@ def ball_turntable(Omega=1, eps=0, rho=1, r=1, m=1) -> ClassicScene:
     """Homogeneous ball (mass m, radius r, moment I = 2 m r^2 / 5) rolling without slipping on a
     turntable that rotates about the vertical through the origin with angular velocity
     Omega(t) = Omega (1 + eps sin t) (eps = 0: the classic problem, Routh, Advanced Rigid Dynamics
-    (1905) 243; Lewis-Murray; Bloch 2003, 1.?). q = (x, y, psi, theta, phi): the centre and the
+    (1905) 243). q = (x, y, psi, theta, phi): the centre and the
     ZXZ Euler angles. The material contact point moves with the table:
     v_centre + omega x (-r N.z) = Omega(t) N.z x (x, y, 0), i.e.
     k = (x' - r omega_y + Omega(t) y, y' + r omega_x - Omega(t) x): affine, b != 0, and for
@@ -397,8 +397,7 @@ def ball_turntable(Omega=1, eps=0, rho=1, r=1, m=1) -> ClassicScene:
                         + ": centre on a circle at 2 Omega(t)/7 (closed form)", exact=exact,
                         params={"Omega": Omega, "eps": eps, "rho": rho, "r": r, "m": m},
                         invariants={"omega_z (vertical spin)": wz}, closed_forms=cf,
-                        source="E. J. Routh, Advanced Rigid Dynamics (1905), 243; A. M. Bloch, "
-                               "Nonholonomic Mechanics and Control (2003)")
+                        source="E. J. Routh, Advanced Rigid Dynamics (1905), 243")
 
 
 # --- helpers -----------------------------------------------------------------------------------------

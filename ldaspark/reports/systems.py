@@ -214,8 +214,8 @@ def _row(d):
     ctrl_cell = (f"drift in {', '.join(drift)} (ratio {', '.join(num(ctrl['invariants'][k]['ratio']) for k in drift)})"
                  if drift else "no drift (max " + ", ".join(sci(r["max"]) for r in ctrl["invariants"].values()) + ")")
     o = d["orders"]
-    orders = "; ".join(f"{m.replace('lobatto-iiia-iiib', 'LobIIIA-B')} {_ord(o[m]['q'])}/{_ord(o[m]['v'])} ({o[m]['claimed']})"
-                       for m, _ in ORDER_METHODS)
+    orders = "; ".join(f"{m.replace('lobatto-iiia-iiib', 'LobIIIA-B')} {_ord(o[m]['q'])}/{_ord(o[m]['v'])}"
+                       f" ({o[m]['claimed']})" for m, _ in ORDER_METHODS)
     kmax = max(r["max_abs_k"] for r in d["runs"].values())
     return [f"`{d['name']}`", f"{d['n']}, {d['m']}", d["form"], ", ".join(d["closed_forms"]) or "-",
             ", ".join(d["invariants"]), orders, d["order_reference"], sci(kmax),
@@ -268,9 +268,9 @@ def markdown(results, bicycle=None, clock=None, command="ldaspark report systems
     L += _observations(results, names)
     L += ["", "## The Whipple bicycle", ""]
     if bicycle is None:
-        L.append("Pending: `ldaspark.reports.systems_bicycle` (the benchmark bicycle of Meijaard, Papadopoulos, Ruina"
-                 " and Schwab 2007) is not installed in this tree; the section appends its `bicycle_section(outdir)` here when"
-                 " it is.")
+        L.append("Pending: `ldaspark.reports.systems_bicycle` (the benchmark bicycle of Meijaard, Papadopoulos,"
+                 " Ruina and Schwab 2007) is not installed in this tree; the section appends its"
+                 " `bicycle_section(outdir)` here when it is.")
     elif "error" in bicycle:
         L.append(f"The bicycle section failed: {bicycle['error']}")
     else:
@@ -284,14 +284,16 @@ def _observations(results, names):
     out = []
     bad = [(n, m, k) for n in names for m in SYMMETRIC for k, r in results[n]["runs"][m]["invariants"].items()
            if not r["bounded"]]
+
+    def quarters(n, m, k):
+        return ", ".join(sci(x) for x in results[n]["runs"][m]["invariants"][k]["quarters"])
     out.append("* Symmetric methods, long-time: " + ("every invariant bounded or at round-off." if not bad else
-               "NOT bounded: " + ", ".join(f"{n} {m} {k} (quarters {', '.join(sci(x) for x in results[n]['runs'][m]['invariants'][k]['quarters'])})"
-                                          for n, m, k in bad) + "."))
+               "NOT bounded: " + ", ".join(f"{n} {m} {k} (quarters {quarters(n, m, k)})" for n, m, k in bad) + "."))
     nodrift = [n for n in names if not any(r["drift"] for r in results[n]["runs"]["euler-i"]["invariants"].values())]
     out.append("* Control (Euler I) drifts on " + ", ".join(f"`{n}`" for n in names if n not in nodrift)
-               + (f"; no drift on {', '.join(f'`{n}`' for n in nodrift)}: there the flow is attracted to a relative"
-                  " equilibrium (the sleigh: u -> 2 a omega0, omega -> 0) or the invariant is kept to round-off by every"
-                  " method, and Euler I's error stays O(h) instead." if nodrift else "."))
+               + (f"; no drift on {', '.join(f'`{n}`' for n in nodrift)}: there the flow is attracted to a"
+                  " relative equilibrium (the sleigh: u -> 2 a omega0, omega -> 0) or the invariant is kept to"
+                  " round-off by every method, and Euler I's error stays O(h) instead." if nodrift else "."))
     offs = [(n, m, o[k]) for n in names for m, o in results[n]["orders"].items() for k in ("q", "v")
             if o[k] is None or abs(o[k] - o["claimed"]) > 0.3]
     out.append("* Orders: " + ("every observed order within 0.3 of 2s (Gauss) / 2s - 2 (Lobatto IIIA-B)." if not offs
