@@ -308,8 +308,19 @@ def _observations(results, names):
     return out
 
 
+def _thin(d, points=100):
+    """A system record with its error series cut to ~``points`` samples (the figure uses them all)."""
+    import copy
+    d = copy.deepcopy(d)
+    for run in d["runs"].values():
+        for r in run["invariants"].values():
+            k = max(1, -(-len(r["t"]) // points))
+            r["t"], r["abs_err"] = r["t"][::k], r["abs_err"][::k]
+    return d
+
+
 def _json(results, bicycle):
-    d = {"systems": {n: results[n] for n in SYSTEMS if n in results}, "t_long": T_LONG, "h_long": H_LONG,
+    d = {"systems": {n: _thin(results[n]) for n in SYSTEMS if n in results}, "t_long": T_LONG, "h_long": H_LONG,
          "bounded_ratio": BOUNDED_RATIO, "drift_ratio": DRIFT_RATIO,
          "bicycle": None if bicycle is None else bicycle.get("json", bicycle)}
     return jsonable(d)
