@@ -9,8 +9,9 @@ first integrals, each with its source.
   moments), first integrals energy, |M|^2 and (M, gamma) (Chaplygin 1903; Borisov-Mamaev 2002);
 * ``suslov``: the Suslov problem (rigid body with omega_3 = 0 in the body frame; Suslov 1946,
   Fedorov-Jovanovic 2004), closed form of the body angular velocity;
-* ``contact-oscillator``: x' + y z' = 0 with harmonic potentials (McLachlan-Perlmutter 2006;
-  Modin-Verdier 2013), the y-energy (y^2 + y'^2)/2 an exact first integral;
+* ``contact-oscillator``: x' + y z' = 0, harmonic potentials and epsilon x^2 z^2 / 2
+  (McLachlan-Perlmutter 2006, 5.2; Modin-Verdier 2013), the y-energy (y^2 + y'^2)/2 an exact
+  first integral;
 * ``ball-turntable``, ``ball-turntable-rheonomic``: a homogeneous ball rolling on a turntable
   rotating with Omega (constant) or Omega(t) (rheonomic); the centre moves on a circle with
   angular velocity 2 Omega(t)/7 (Routh, Advanced Rigid Dynamics (1905) 243), and the full
@@ -319,24 +320,31 @@ def suslov(I1=2, I2=1, I3=3, I13=1, omega1_0=1) -> ClassicScene:
 
 
 # --- contact oscillator ---------------------------------------------------------------------------
-def contact_oscillator() -> ClassicScene:
-    """Contact oscillator (McLachlan-Perlmutter, J. Nonlinear Sci. 16 (2006) 283-328; the family
-    of nonholonomically coupled oscillators of Modin-Verdier, arXiv:1212.6618): unit-frequency
-    harmonic oscillators x, y, z coupled by the constraint x' + y z' = 0 (the gear ratio between
-    x and z set by y), L = |v|^2/2 - (x^2 + y^2 + z^2)/2, k = x' + y z'. Since k_v = (1, 0, y) has no
-    y-component, the y-equation is y'' = -y: the y-energy (y^2 + y'^2)/2 is an exact first
-    integral, besides the energy (8). (The potential here is ours: any V(x, z) + y^2/2 keeps the
-    y-energy exact.)"""
+def contact_oscillator(epsilon=R(3, 10), z0=R(1, 2)) -> ClassicScene:
+    """Contact oscillator (McLachlan-Perlmutter, J. Nonlinear Sci. 16 (2006) 283-328, example 5.2;
+    Modin-Verdier, arXiv:1212.6618): harmonic oscillators x, y, z coupled by the constraint
+    x' + y z' = 0 (the gear ratio between x and z set by y) and, for epsilon != 0, by the
+    nonlinear potential term epsilon x^2 z^2 / 2: L = |v|^2/2 - (x^2 + y^2 + z^2 + epsilon x^2 z^2)/2,
+    k = x' + y z' (the energy and codistribution of odelab's ``ContactOscillator``, whose tests
+    take epsilon = 0.3). Since k_v = (1, 0, y) has no y-component and the potential separates in
+    y, the y-equation is y'' = -y: the y-energy (y^2 + y'^2)/2 is an exact first integral,
+    besides the energy (8). Initial data as odelab's ``initial_cos``: H0 = 3/2, H_y = 1/2, z' = 0,
+    q0 = (sqrt((2 H0 - z0^2 - 1) / (1 + epsilon z0^2)), 1, z0), v0 = 0."""
+    epsilon, z0 = sympy.sympify(epsilon), sympy.sympify(z0)
     q = list(sympy.symbols("x y z"))
     v = list(sympy.symbols("vx vy vz"))
-    L = sum(a ** 2 for a in v) / 2 - sum(a ** 2 for a in q) / 2
+    x, y, z = q
+    L = sum(a ** 2 for a in v) / 2 - (x ** 2 + y ** 2 + z ** 2 + epsilon * x ** 2 * z ** 2) / 2
     k = [v[0] + q[1] * v[2]]
     S = LagrangianSystem(L, k, q, v, name="contact-oscillator")
     inv = {"energy": S.energy_expr, "y-energy": (q[1] ** 2 + v[1] ** 2) / 2}
-    return ClassicScene("contact-oscillator", S, sympy.Integer(0), [0, 1, 0], [-R(1, 2), 0, R(1, 2)],
-                        "contact oscillator x' + y z' = 0: energy and the exact y-energy (y^2 + y'^2)/2",
-                        invariants=inv, source="R. McLachlan, M. Perlmutter, J. Nonlinear Sci. 16 (2006) 283-328; "
-                                                "K. Modin, O. Verdier, arXiv:1212.6618")
+    H0 = R(3, 2)
+    x0 = sympy.sqrt((2 * H0 - z0 ** 2 - 1) / (1 + epsilon * z0 ** 2))
+    return ClassicScene("contact-oscillator", S, sympy.Integer(0), [x0, 1, z0], [0, 0, 0],
+                        "contact oscillator x' + y z' = 0 (McLachlan-Perlmutter 5.2): energy and the exact"
+                        " y-energy (y^2 + y'^2)/2", params={"epsilon": epsilon, "z0": z0},
+                        invariants=inv, source="R. McLachlan, M. Perlmutter, J. Nonlinear Sci. 16 (2006) 283-328, "
+                                                "5.2; K. Modin, O. Verdier, arXiv:1212.6618")
 
 
 # --- ball on a turntable ---------------------------------------------------------------------------
