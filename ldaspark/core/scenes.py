@@ -294,6 +294,26 @@ SCENES: dict[str, Callable[..., Scene]] = {
     "friction-skate": friction_skate,
 }
 
+# classic nonholonomic systems (issue 24), built in ldaspark.core.systems_classic (imported at
+# first build: it subclasses Scene from this module)
+def _classic(builder, **fixed):
+    def build(**kw):
+        from . import systems_classic
+        return getattr(systems_classic, builder)(**{**fixed, **kw})
+    build.__doc__ = f"ldaspark.core.systems_classic.{builder}"
+    return build
+
+
+SCENES.update({
+    "chaplygin-sleigh": _classic("chaplygin_sleigh"),
+    "tilted-disk": _classic("tilted_disk"),
+    "chaplygin-sphere": _classic("chaplygin_sphere"),
+    "suslov": _classic("suslov"),
+    "contact-oscillator": _classic("contact_oscillator"),
+    "ball-turntable": _classic("ball_turntable"),
+    "ball-turntable-rheonomic": _classic("ball_turntable", eps=R(1, 2)),
+})
+
 PAPER_SCENES = ("particle", "skate", "robot", "mp-particles")
 # ideal general scenes (Theorem 1 applies) and the nonideal one (3.3)
 GENERAL_SCENES = ("rheonomic-skate", "constant-speed", "relativistic", "turntable")

@@ -33,6 +33,7 @@ SECTION_MODULES = {
     "claims": "ldaspark.reports.claims",
     "work-precision": "ldaspark.reports.work_precision",
     "stability": "ldaspark.reports.stability",
+    "systems": "ldaspark.reports.systems",
 }
 
 
