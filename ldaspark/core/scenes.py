@@ -285,6 +285,7 @@ SCENES: dict[str, Callable[..., Scene]] = {
     "relativistic": relativistic,
     "turntable": turntable,
     "friction-skate": friction_skate,
+    "bicycle": lambda **kw: __import__("ldaspark.core.bicycle", fromlist=["bicycle"]).bicycle(**kw),
 }
 
 PAPER_SCENES = ("particle", "skate", "robot", "mp-particles")

@@ -1,0 +1,145 @@
+"""The bicycle section of ``reports/systems.md``: the benchmark's linearised eigenvalues from the
+SPARK flow (``ldaspark.theory.bicycle_flow``) beside the benchmark's (Meijaard et al. 2007,
+``ldaspark.theory.bicycle_benchmark``), the weave and capsize speeds, and one nonlinear run.
+
+``bicycle_section(outdir) -> (markdown, json)`` writes the figure ``figures/systems_bicycle.png``
+into ``outdir`` and returns the Markdown section and its numbers; the integrator's
+``reports/systems.py`` places it. Cost (measured on a loaded machine, see the JSON's ``cpu_s``):
+building the model (sympy derives the Whipple Lagrangian's derivatives once, ~11 s CPU), the
+generic engine's first stage evaluation (lambdify, a few s), then ~0.1-0.3 s per flow Jacobian.
+"""
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+
+from .markdown import jsonable, num, sci, table
+
+#: the speed grid of the table and figure (m/s) and the step of the flow Jacobians
+SPEEDS = tuple(float(v) for v in range(0, 11))
+FIG_SPEEDS = tuple(np.round(np.arange(0.0, 10.01, 0.25), 2))
+METHOD, H = "gauss-3", 0.01
+ORDER_METHOD, ORDER_H = "gauss-2", (0.04, 0.02, 0.01)
+ORDER_SPEED = 5.0
+
+
+def _fmt(z):
+    z = complex(z)
+    if abs(z.imag) < 1e-9:
+        return f"{z.real:.7f}"
+    return f"{z.real:.7f} {'+' if z.imag >= 0 else '-'} {abs(z.imag):.7f}i"
+
+
+def bicycle_data(fig_speeds=FIG_SPEEDS, speeds=SPEEDS, nonlinear_t=5.0):
+    """All numbers of the section (a dict)."""
+    from ..core import bicycle as bc
+    from ..theory import bicycle_benchmark as bb
+    from ..theory import bicycle_flow as bf
+    cpu0 = time.process_time()
+    model = bc.build()
+    cpu_build = time.process_time() - cpu0
+    rows = []
+    for v in speeds:
+        got = bf.spark_eigenvalues(v, METHOD, H, model=model)
+        ref = bf.reference_eigenvalues(v)
+        rows.append({"v": v, "spark": got, "benchmark": ref, "error": bf.match_error(got, ref)})
+    fig = {"v": list(fig_speeds), "spark": [], "benchmark": []}
+    for v in fig_speeds:
+        fig["spark"].append(bf.spark_eigenvalues(v, METHOD, 0.02, model=model))
+        fig["benchmark"].append(bf.reference_eigenvalues(v))
+    ref5 = bf.reference_eigenvalues(ORDER_SPEED)
+    errs = [bf.match_error(bf.spark_eigenvalues(ORDER_SPEED, ORDER_METHOD, h, model=model), ref5) for h in ORDER_H]
+    orders = [float(np.log2(errs[i] / errs[i + 1])) for i in range(len(errs) - 1)]
+    vw, vc = bf.critical_speeds(METHOD, H, model=model)
+    pub_vw, pub_vc = float(bb.PUBLISHED["v_weave"]), float(bb.PUBLISHED["v_capsize"])
+    run = bf.nonlinear_run(5, 0.5, nonlinear_t, 0.01, "gauss-2", engine="generic", model=model)
+    quarter = max(1, len(run["t"]) // 4)
+    nl = {"speed": 5.0, "lean_rate0": 0.5, "t_end": nonlinear_t, "h": 0.01, "method": "gauss-2",
+          "max_abs_k": float(run["k"].max()), "energy_rel_spread": float(np.ptp(run["energy"]) / abs(run["energy"][0])),
+          "max_abs_f": float(np.abs(run["f"]).max()),
+          "lean_max_first_quarter": float(np.abs(run["lean"][:quarter]).max()),
+          "lean_max_last_quarter": float(np.abs(run["lean"][-quarter:]).max()),
+          "t": run["t"][::10], "lean": run["lean"][::10], "steer": run["steer"][::10]}
+    return {"method": METHOD, "h": H, "rows": rows, "figure": fig,
+            "order": {"method": ORDER_METHOD, "v": ORDER_SPEED, "h": list(ORDER_H), "errors": errs, "observed": orders},
+            "critical_speeds": {"spark": [vw, vc], "published": [pub_vw, pub_vc],
+                                "error": [abs(vw - pub_vw), abs(vc - pub_vc)]},
+            "nonlinear": nl, "cpu_build_s": cpu_build, "cpu_s": time.process_time() - cpu0}
+
+
+def _figure(data, path):
+    from ..core.io import atomic_save_figure
+    from .plotting import colours, figure
+    fig, axes = figure(1, 2, figsize=(11, 4.2))
+    ax, ax2 = axes[0]
+    f = data["figure"]
+    c = colours(2)
+    for k, (key, style) in enumerate((("benchmark", "-"), ("spark", "o"))):
+        for j in range(4):
+            re = [sorted(e, key=lambda z: (z.real, z.imag))[j].real for e in f[key]]
+            ax.plot(f["v"], re, style, color=c[k], ms=3, lw=1.2,
+                    label=("benchmark (Meijaard et al. 2007, App. A)" if key == "benchmark"
+                           else f"SPARK flow ({METHOD}, h = 0.02)") if j == 0 else None)
+    ax.axhline(0, color="0.5", lw=0.6)
+    ax.set_ylim(-10, 10)
+    ax.set_xlabel("forward speed v [m/s]")
+    ax.set_ylabel("Re lambda [1/s]")
+    ax.set_title("Whipple bicycle: real parts of the eigenvalues")
+    ax.legend(fontsize=8)
+    nl = data["nonlinear"]
+    ax2.plot(nl["t"], nl["lean"], label="lean phi")
+    ax2.plot(nl["t"], nl["steer"], label="steer delta")
+    ax2.set_xlabel("t [s]")
+    ax2.set_ylabel("rad")
+    ax2.set_title(f"nonlinear run, v = 5 m/s, lean rate 0.5 rad/s ({nl['method']}, h = {nl['h']})")
+    ax2.legend(fontsize=8)
+    atomic_save_figure(fig, path)
+
+
+def bicycle_section(outdir, data=None):
+    """(Markdown section, JSON dict); writes ``figures/systems_bicycle.png`` under ``outdir``."""
+    data = data or bicycle_data()
+    figdir = os.path.join(outdir, "figures")
+    os.makedirs(figdir, exist_ok=True)
+    _figure(data, os.path.join(figdir, "systems_bicycle.png"))
+    rows = [[num(r["v"]), "<br>".join(_fmt(z) for z in r["spark"]), "<br>".join(_fmt(z) for z in r["benchmark"]),
+             sci(r["error"])] for r in data["rows"]]
+    cs, od, nl = data["critical_speeds"], data["order"], data["nonlinear"]
+    lines = [
+        "## The Whipple bicycle (benchmark of Meijaard, Papadopoulos, Ruina and Schwab 2007)",
+        "",
+        "Scene `bicycle` (`ldaspark/core/bicycle.py`): four rigid bodies written with `sympy.physics.mechanics`, "
+        "n = 8 coordinates, m = 5 constraints (front contact height in its velocity form, rolling of both wheels), "
+        "Table 1 parameters. Linearised dynamics about upright straight running from the SPARK flow itself: "
+        f"eigenvalues log(mu)/h of the step map's Jacobian (`ldaspark.flow_jacobian`, implicit function theorem) "
+        f"restricted to lean, steer and their rates, {METHOD}, h = {H}, beside the benchmark's (its Appendix A "
+        "formulas, which reproduce its eq. 5.4 matrices and Table 2 eigenvalues to 1e-14).",
+        "",
+        *table(["v [m/s]", f"SPARK flow ({METHOD}, h = {H})", "benchmark", "max error"], rows),
+        "",
+        f"Convergence at v = {num(od['v'])} m/s with {od['method']}: errors "
+        + ", ".join(f"{sci(e)} (h = {h})" for e, h in zip(od["errors"], od["h"]))
+        + "; observed orders " + ", ".join(f"{o:.2f}" for o in od["observed"]) + " (claimed 2s = 4).",
+        "",
+        f"Weave and capsize speeds from the SPARK flow ({METHOD}, h = {H}): v_w = {cs['spark'][0]:.10f}, "
+        f"v_c = {cs['spark'][1]:.10f} m/s; published (Table 2) {cs['published'][0]:.11f} and "
+        f"{cs['published'][1]:.11f} m/s (differences {sci(cs['error'][0])}, {sci(cs['error'][1])}).",
+        "",
+        f"Nonlinear run from upright at 5 m/s with lean rate 0.5 rad/s ({nl['method']}, h = {nl['h']}, "
+        f"t = 0..{num(nl['t_end'])} s, generic engine): max |k| = {sci(nl['max_abs_k'])}, energy spread "
+        f"{sci(nl['energy_rel_spread'])} relative, front contact height |f| <= {sci(nl['max_abs_f'])} m "
+        "(the holonomic constraint is imposed in its velocity form only), max |lean| "
+        f"{num(nl['lean_max_first_quarter'])} rad in the first quarter, {sci(nl['lean_max_last_quarter'])} rad "
+        "in the last (self-stable: the weave decays).",
+        "",
+        "![bicycle eigenvalues vs speed](figures/systems_bicycle.png)",
+        "",
+        f"_Bicycle section: {data['cpu_s']:.0f} s CPU ({data['cpu_build_s']:.0f} s of it deriving the model)._",
+    ]
+    out = {k: v for k, v in data.items() if k != "figure"}
+    out["rows"] = [{"v": r["v"], "spark": [[z.real, z.imag] for z in r["spark"]],
+                    "benchmark": [[z.real, z.imag] for z in r["benchmark"]], "error": r["error"]}
+                   for r in data["rows"]]
+    return "\n".join(lines) + "\n", jsonable(out)
