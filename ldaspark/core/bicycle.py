@@ -119,12 +119,15 @@ def whipple_model(p: dict | None = None):
         J = Ry * I * Ry.T
         return inertia(H, J[0, 0], J[1, 1], J[2, 2], J[0, 1], J[1, 2], J[0, 2])
     bodies = [
-        RigidBody("R", Rc, Rw, p["mR"], (inertia(Rw, p["IRxx"], p["IRyy"], p["IRxx"]), Rc)),
+        # the wheels' inertia is axisymmetric about their axle: stated in the frame that carries
+        # the axle (B, H), T does not contain the wheel angles (cos^2 + sin^2 is not simplified)
+        RigidBody("R", Rc, Rw, p["mR"], (inertia(B, p["IRxx"], p["IRyy"], p["IRxx"]), Rc)),
         RigidBody("B", Bc, B, p["mB"], (inertia(B, p["IBxx"], p["IByy"], p["IBzz"], 0, 0, p["IBxz"]), Bc)),
         RigidBody("H", Hc, H, p["mH"], (rot(p["IHxx"], p["IHyy"], p["IHzz"], p["IHxz"]), Hc)),
-        RigidBody("F", Fc, Fw, p["mF"], (inertia(Fw, p["IFxx"], p["IFyy"], p["IFxx"]), Fc)),
+        RigidBody("F", Fc, Fw, p["mF"], (inertia(H, p["IFxx"], p["IFyy"], p["IFxx"]), Fc)),
     ]
-    L = sum(_kinetic(body, N, Yw) for body in bodies) \
+    carrier = {"R": B, "B": B, "H": H, "F": H}     # frame of each body's inertia components
+    L = sum(_kinetic(body, N, Ro, carrier[body.name]) for body in bodies) \
         + p["g"] * sum(body.mass * body.masscenter.pos_from(O).dot(N.z) for body in bodies)   # z down: U = -g m z
     # rolling: the material point of each wheel at its contact point has zero horizontal velocity
     slip_R = Rc.vel(N) + Rw.ang_vel_in(N).cross(P.pos_from(Rc))
@@ -135,14 +138,15 @@ def whipple_model(p: dict | None = None):
     return L, list(q), cons, {"f": f_hol, "N": N, "frames": (Yw, Ro, B, Rw, E, H, Fw)}
 
 
-def _kinetic(body, N, frame):
+def _kinetic(body, N, frame, inertia_frame):
     """T = m |v|^2 / 2 + omega . I . omega / 2 of a ``RigidBody``, kept as a sum of squares of
-    velocity components (v in ``frame`` components, omega in the body's own): the derivatives
-    L_q, L_qq, ... of (1) then stay products of small factors. ``Lagrangian(N, *bodies)`` gives
-    the same T expanded (10^4 operations); its second derivatives took 30 s to form."""
+    velocity components (v in ``frame`` components, omega and I in ``inertia_frame``'s): the
+    derivatives L_q, L_qq, ... of (1) then stay products of small factors. ``Lagrangian(N,
+    *bodies)`` gives the same T expanded (10^4 operations, 57 000 with velocities from
+    ``pos_from(O).dt(N)``); forming its second derivatives took 30-80 s against ~10 s CPU here."""
     v = body.masscenter.vel(N).to_matrix(frame)
-    w = body.frame.ang_vel_in(N).to_matrix(body.frame)
-    I = body.central_inertia.to_matrix(body.frame)
+    w = body.frame.ang_vel_in(N).to_matrix(inertia_frame)
+    I = body.central_inertia.to_matrix(inertia_frame)
     return body.mass * (v.T * v)[0, 0] / 2 + (w.T * I * w)[0, 0] / 2
 
 
