@@ -34,6 +34,7 @@ energy (8) is conserved.
 """
 from __future__ import annotations
 
+import mpmath
 import sympy
 from sympy import Rational as R
 
@@ -88,7 +89,9 @@ def whipple_model(p: dict | None = None):
     E = Ro.orientnew("E", "Axis", [theta + lam, Ro.y])
     H = E.orientnew("H", "Axis", [delta, E.z])                # front frame, steer positive to the right
     Fw = H.orientnew("Fw", "Axis", [thF, H.y])                # front wheel
-    cl, sl = sympy.cos(lam), sympy.sin(lam)
+    # 40-digit Floats: exact algebraic numbers (sqrt(5)) cost 1/3 more to differentiate and to
+    # print for lambdify (evalf in the ordering of every sum); the model is Table 1 to 1e-40
+    cl, sl = sympy.cos(lam).evalf(40), sympy.sin(lam).evalf(40)
 
     def in_E(xb, zb):         # a vector given by its benchmark (B-frame) components x, z, in E components
         return (xb * cl - zb * sl) * H.x + (xb * sl + zb * cl) * H.z
@@ -138,6 +141,17 @@ def whipple_model(p: dict | None = None):
     return L, list(q), cons, {"f": f_hol, "N": N, "frames": (Yw, Ro, B, Rw, E, H, Fw)}
 
 
+def _exactify(x):
+    """A solved velocity as an exact rational when it is one to 30 digits (the model carries
+    sin(lambda), cos(lambda) as 40-digit Floats), else the 40-digit Float."""
+    x = sympy.sympify(x)
+    if x.is_Rational:
+        return x
+    xf = sympy.Float(x, 40)
+    r = sympy.Rational(str(xf)).limit_denominator(10 ** 6)
+    return r if abs(sympy.Float(r, 40) - xf) <= sympy.Float("1e-30") * (1 + abs(xf)) else xf
+
+
 def _kinetic(body, N, frame, inertia_frame):
     """T = m |v|^2 / 2 + omega . I . omega / 2 of a ``RigidBody``, kept as a sum of squares of
     velocity components (v in ``frame`` components, omega and I in ``inertia_frame``'s): the
@@ -182,17 +196,20 @@ class Bicycle:
         solved from k(q, v) = 0. With zero lean and steer rates this is upright straight running
         at forward speed ``speed`` (x' = speed)."""
         q0 = [sympy.Integer(0)] * 8
-        free = {self.v[COORDS.index("phi")]: sympy.sympify(lean_rate),
-                self.v[COORDS.index("delta")]: sympy.sympify(steer_rate),
-                self.v[COORDS.index("theta_R")]: -sympy.sympify(speed) / self.params["rR"]}
-        sub = dict(zip(self.q, q0))
-        k = [sympy.nsimplify(e.subs(sub).subs(free)) for e in self.system.k]
-        dep = [self.v[i] for i in self.i_dep]
-        sol = sympy.solve(k, dep, dict=True)
-        if len(sol) != 1:
-            raise InputError("bicycle: the constraints do not determine the dependent velocities at q = 0")
-        v0 = [free.get(vs, sol[0].get(vs)) for vs in self.v]
-        return q0, [sympy.radsimp(sympy.nsimplify(x)) for x in v0]
+        num = lambda x: sympy.Rational(str(x)) if isinstance(x, float) else sympy.sympify(x)   # noqa: E731
+        free = {COORDS.index("phi"): num(lean_rate), COORDS.index("delta"): num(steer_rate),
+                COORDS.index("theta_R"): -num(speed) / self.params["rR"]}
+        # k = K(q) v is linear in v: K at q = 0 evaluated at 50 digits, K_dep v_dep = -K_free v_free
+        with mpmath.workdps(50):
+            K = self.system.k_v.subs(dict(zip(self.q, q0)))
+            Km = mpmath.matrix([[mpmath.mpf(str(sympy.N(K[i, j], 60))) for j in range(8)] for i in range(5)])
+            rhs = mpmath.matrix([-sum(Km[i, j] * mpmath.mpf(str(sympy.N(val, 60))) for j, val in free.items())
+                                 for i in range(5)])
+            dep = mpmath.lu_solve(mpmath.matrix([[Km[i, j] for j in self.i_dep] for i in range(5)]), rhs)
+            v0 = [free.get(j) for j in range(8)]
+            for a, j in enumerate(self.i_dep):
+                v0[j] = sympy.Float(mpmath.nstr(dep[a], 45), 45)
+        return q0, [_exactify(x) for x in v0]
 
     def scene(self, speed=5, lean_rate=R(1, 2)):
         from .scenes import Scene
