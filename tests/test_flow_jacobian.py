@@ -102,3 +102,9 @@ def test_restriction_and_input_errors():
         ldaspark.flow_jacobian(sysm, "gauss-2", [0.1, 0.2, 0], [0.3, 0.1, 0.3], 0.1, coords=["lean"])
     with pytest.raises(InputError):
         ldaspark.flow_jacobian(sysm, "gauss-2", [0.1, 0.2, 0], [0.3, 0.1, 0.3], 0.1, rates=["v1"], dependent=["v1"])
+
+
+def test_scene_initial_data_by_name():
+    """A scene name supplies its own initial data (the robot of 8.3: n = 4, m = 2)."""
+    fj = ldaspark.flow_jacobian("robot", "gauss-1", None, None, 0.1)
+    assert fj.full.shape == (8, 8) and np.all(np.isfinite(fj.full))

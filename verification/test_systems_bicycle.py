@@ -122,3 +122,15 @@ def test_nonlinear_run_is_self_stable_and_engines_agree():
     res = ldaspark.integrate(m.scene(5, 0.5), "gauss-2", t_span=(0, 5.0), h=0.01, engine="compiled",
                              raise_on_failure=True)
     assert np.abs(np.asarray(res.q, float) - np.asarray(run["result"].q, float)).max() <= 1e-9
+
+
+@pytest.mark.exhaustive
+def test_report_section(tmp_path):
+    """The report section on a reduced grid: a table row per speed beside the benchmark, the
+    weave and capsize speeds, the figure written."""
+    from ldaspark.reports import systems_bicycle as R
+    data = R.bicycle_data(fig_speeds=(0.0, 5.0), speeds=(5.0,), nonlinear_t=0.2)
+    md, js = R.bicycle_section(str(tmp_path), data)
+    assert (tmp_path / "figures" / "systems_bicycle.png").stat().st_size > 1000
+    assert "| 5 |" in md and "v_w = 4.2923825" in md and "v_c = 6.0242620" in md
+    assert js["rows"][0]["error"] <= 1e-6

@@ -105,7 +105,8 @@ def flow_jacobian(system, method, q0, v0, h, *, t0=0, dps=None, coords=None, rat
                   tangent=None, select=None, params=None, how="ift", tol=None):
     """The Jacobian of one SPARK step at (t0, q0, v0), optionally restricted (module docstring).
 
-    ``system``: LagrangianSystem, Scene or scene name; ``method``: SPARK method name or tableau;
+    ``system``: LagrangianSystem, Scene or scene name (q0, v0 None: the scene's initial data);
+    ``method``: SPARK method name or tableau;
     ``dps``: None (float64) or mpmath digits; ``coords``/``rates``: coordinates and velocities
     (indices or names; a rate may be named after its coordinate) spanning the restriction;
     ``dependent``: the m velocities solved from the linearised constraint (default: chosen by
@@ -120,7 +121,13 @@ def flow_jacobian(system, method, q0, v0, h, *, t0=0, dps=None, coords=None, rat
     if isinstance(system, str):
         system = get_scene(system)
     if isinstance(system, Scene):
+        if q0 is None or v0 is None:       # a scene's own initial data (at the working precision)
+            t0, q_s, v_s = system.initial(dps)
+            q0 = q_s if q0 is None else q0
+            v0 = v_s if v0 is None else v0
         system = system.system
+    if q0 is None or v0 is None:
+        raise InputError("flow_jacobian: give q0 and v0 (or a Scene / scene name for its initial data)")
     if params:
         system = system.with_params(params)
     tab = method if isinstance(method, SparkTableau) else get_method(method)
