@@ -6,10 +6,17 @@ equations for the balance and steer of a bicycle: a benchmark and review", Proc.
 sections 2-3 (x forward, y to the right, z down, origin at the rear contact point in the upright
 reference configuration, lean phi and steer delta positive to the right).
 
-The model is written the way a user of ``sympy.physics.mechanics`` writes it (frames, points,
-rigid bodies, ``Lagrangian``) and converted by ``LagrangianSystem.from_mechanics``: four rigid
-bodies (rear wheel R, rear frame B with the rider, front frame H with handlebar and fork, front
-wheel F), knife-edge wheels rolling without slip on the flat ground z = 0, gravity g along +z.
+The model is written the way a user of ``sympy.physics.mechanics`` writes it (frames, points
+with velocities by the two-point theorem, ``RigidBody`` objects) and converted by
+``LagrangianSystem.from_mechanics``: four rigid bodies (rear wheel R, rear frame B with the rider,
+front frame H with handlebar and fork, front wheel F), knife-edge wheels rolling without slip on
+the flat ground z = 0, gravity g along +z. The kinetic energy is summed from the bodies as sums of
+squares of velocity components (``_kinetic``) rather than by ``mechanics.Lagrangian``, whose
+expanded T made sympy's second derivatives 4-8x slower. sin(lambda), cos(lambda) enter as
+40-digit Floats (the model is Table 1 to 1e-40; exact sqrt(5) expressions cost a third more).
+Building the system (sympy deriving (1)'s partials of a ~2000-operation Lagrangian) takes about
+7-9 s CPU, the generic engine's first stage evaluation (lambdify) about 6 s more; the compiled
+engine's first call (code generation and numba) about a minute, cached on disk afterwards.
 
 Coordinates (n = 8): rear contact point x, y; yaw psi; lean (roll) phi; pitch theta of the rear
 frame (0 in the reference configuration); rear wheel angle theta_R (relative to the rear frame);
@@ -173,8 +180,7 @@ DEPENDENT_V = ("x", "y", "psi", "theta", "theta_F")
 class Bicycle:
     """The built model: ``system`` (LagrangianSystem, n = 8, m = 5), ``f`` the holonomic
     front-contact constraint f(q) = 0 (plain symbols; its velocity form is k[0]) and ``params``
-    (Table 1 with the overrides). Building derives the system once (about 10 s CPU: sympy
-    differentiates a Lagrangian of ~3500 operations twice)."""
+    (Table 1 with the overrides). Building derives the system once (7-9 s CPU, module docstring)."""
 
     def __init__(self, **overrides):
         from sympy.physics.mechanics import dynamicsymbols
