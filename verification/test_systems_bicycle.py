@@ -52,8 +52,8 @@ def test_front_contact_is_tangent_at_upright():
 def test_flow_eigenvalues_at_5_m_s_converge_to_the_benchmark():
     """v = 5 m/s (inside the self-stable range): gauss-2 errors against the benchmark at h = 0.02,
     0.01 give the observed order 4 +- 0.15 (the next term is O(h^2) relative: (14 h)^2 ~ 2-8%
-    for the castor eigenvalue -14 at these h; measured 3.99); gauss-3 at h = 0.01 is within 1e-6
-    (its error ~ (h |lambda|)^6 / 10^4 <= 1e-9 for |lambda| = 14; float64 round-off of the
+    for the castor eigenvalue -14 at these h; measured 4.01); gauss-3 at h = 0.01 is within 1e-6
+    (measured 1.1e-9: its error ~ (h |lambda|)^6 / 10^4 for |lambda| = 14; float64 round-off of the
     Jacobian ~1e-15 / h = 1e-13). Negative control: the benchmark with the trail's sign flipped
     is > 0.1 away."""
     m = model()
