@@ -15,8 +15,11 @@ squares of velocity components (``_kinetic``) rather than by ``mechanics.Lagrang
 expanded T made sympy's second derivatives 4-8x slower. sin(lambda), cos(lambda) enter as
 40-digit Floats (the model is Table 1 to 1e-40; exact sqrt(5) expressions cost a third more).
 Building the system (sympy deriving (1)'s partials of a ~2000-operation Lagrangian) takes about
-7-9 s CPU, the generic engine's first stage evaluation (lambdify) about 6 s more; the compiled
-engine's first call (code generation and numba) about a minute, cached on disk afterwards.
+7-9 s CPU, the generic engine's first stage evaluation (lambdify) about 6 s more, then ~0.1 s CPU
+per gauss-2 step (float64). The compiled engine (general form: the largest expression set the code
+generator has met) needs 36 s CPU for code generation and numba on first use (cached on disk
+afterwards), then 17 us CPU per gauss-2 step (1000 steps of h = 0.01: 0.017 s; energy spread 1.2e-11
+relative, |k| <= 2.9e-15; measured on a loaded 2-core machine).
 
 Coordinates (n = 8): rear contact point x, y; yaw psi; lean (roll) phi; pitch theta of the rear
 frame (0 in the reference configuration); rear wheel angle theta_R (relative to the rear frame);
