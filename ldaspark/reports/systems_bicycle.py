@@ -45,15 +45,17 @@ def bicycle_data(fig_speeds=FIG_SPEEDS, speeds=SPEEDS, nonlinear_t=NL_T):
     cpu0 = time.process_time()
     model = bc.build()
     cpu_build = time.process_time() - cpu0
+    fig = {"v": [], "spark": [], "benchmark": []}
     rows = []
-    for v in speeds:
+    for v in sorted(set(map(float, fig_speeds)) | set(map(float, speeds))):   # one flow Jacobian per speed
         got = bf.spark_eigenvalues(v, METHOD, H, model=model)
         ref = bf.reference_eigenvalues(v)
-        rows.append({"v": v, "spark": got, "benchmark": ref, "error": bf.match_error(got, ref)})
-    fig = {"v": list(fig_speeds), "spark": [], "benchmark": []}
-    for v in fig_speeds:
-        fig["spark"].append(bf.spark_eigenvalues(v, METHOD, 0.02, model=model))
-        fig["benchmark"].append(bf.reference_eigenvalues(v))
+        if v in set(map(float, fig_speeds)):
+            fig["v"].append(v)
+            fig["spark"].append(got)
+            fig["benchmark"].append(ref)
+        if v in set(map(float, speeds)):
+            rows.append({"v": v, "spark": got, "benchmark": ref, "error": bf.match_error(got, ref)})
     ref5 = bf.reference_eigenvalues(ORDER_SPEED)
     errs = [bf.match_error(bf.spark_eigenvalues(ORDER_SPEED, ORDER_METHOD, h, model=model), ref5) for h in ORDER_H]
     orders = [float(np.log2(errs[i] / errs[i + 1])) for i in range(len(errs) - 1)]
@@ -86,7 +88,7 @@ def _figure(data, path):
             re = [sorted(e, key=lambda z: (z.real, z.imag))[j].real for e in f[key]]
             ax.plot(f["v"], re, style, color=c[k], ms=3, lw=1.2,
                     label=("benchmark (Meijaard et al. 2007, App. A)" if key == "benchmark"
-                           else f"SPARK flow ({METHOD}, h = 0.02)") if j == 0 else None)
+                           else f"SPARK flow ({METHOD}, h = {H})") if j == 0 else None)
     ax.axhline(0, color="0.5", lw=0.6)
     ax.set_ylim(-10, 10)
     ax.set_xlabel("forward speed v [m/s]")
