@@ -72,8 +72,22 @@ def parameters(**overrides) -> dict:
     for key, val in overrides.items():
         if key not in p:
             raise InputError(f"bicycle: unknown parameter {key!r} (Table 1: {', '.join(p)})")
-        p[key] = sympy.nsimplify(val) if isinstance(val, float) else sympy.sympify(val)
+        p[key] = _number(val)
     return p
+
+
+def _number(x):
+    """A user's number as an exact sympy number: text and floats through ``sympy.Rational``'s
+    decimal / fraction parser ("0.08", "-2/25"; text is never sympified), sympy numbers and
+    integers as they are."""
+    if isinstance(x, (str, float)):
+        try:
+            return sympy.Rational(str(x))
+        except (TypeError, ValueError):
+            raise InputError(f"bicycle: {x!r} is not a decimal number or a fraction") from None
+    if isinstance(x, (int, sympy.Basic)) and not isinstance(x, bool):
+        return sympy.sympify(x)
+    raise InputError(f"bicycle: {x!r} is not a number")
 
 
 def whipple_model(p: dict | None = None):
@@ -205,9 +219,8 @@ class Bicycle:
         solved from k(q, v) = 0. With zero lean and steer rates this is upright straight running
         at forward speed ``speed`` (x' = speed)."""
         q0 = [sympy.Integer(0)] * 8
-        num = lambda x: sympy.Rational(str(x)) if isinstance(x, float) else sympy.sympify(x)   # noqa: E731
-        free = {COORDS.index("phi"): num(lean_rate), COORDS.index("delta"): num(steer_rate),
-                COORDS.index("theta_R"): -num(speed) / self.params["rR"]}
+        free = {COORDS.index("phi"): _number(lean_rate), COORDS.index("delta"): _number(steer_rate),
+                COORDS.index("theta_R"): -_number(speed) / self.params["rR"]}
         # k = K(q) v is linear in v: K at q = 0 evaluated at 50 digits, K_dep v_dep = -K_free v_free
         with mpmath.workdps(50):
             K = self.system.k_v.subs(dict(zip(self.q, q0)))
