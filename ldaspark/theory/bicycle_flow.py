@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import itertools
 
-import mpmath
 import numpy as np
 
 from ..core import bicycle as bc
@@ -103,11 +102,3 @@ def nonlinear_run(speed=5, lean_rate=0.5, t_end=5.0, h=0.01, method="gauss-2", e
             "k": np.abs(np.asarray(res.constraint, float)).max(axis=1),
             "f": np.array([f(*row) for row in np.asarray(res.q, float)]), "result": res}
 
-
-def reference_critical_speeds():
-    vw, vc = bb.critical_speeds(20)
-    return float(vw), float(vc)
-
-
-def mp_eig_sorted(eigs):
-    return sorted(eigs, key=lambda z: (float(mpmath.re(z)), float(mpmath.im(z))))

@@ -137,7 +137,7 @@ def flow_jacobian(system, method, q0, v0, h, *, t0=0, dps=None, coords=None, rat
         raise InputError("flow_jacobian: how='difference' needs dps (differencing in float64 loses half the digits)")
     sm = SparkMethod(system, tab, dps=dps, tol=tol, newton="full")
     bk = sm.backend
-    n, m = system.n, system.m
+    n = system.n
     with bk.context():
         t0_, h_ = bk.scalar(t0), bk.scalar(h)
         q0_, v0_ = bk.array(q0), bk.array(v0)
@@ -213,7 +213,6 @@ def _difference(sm, t0, q0, v0, h):
     (step 10^(-dps/3): truncation O(10^(-2 dps/3)), round-off O(10^(-2 dps/3)) after the
     division; the Newton tolerance is the working precision). The perturbed initial points
     need not satisfy k = 0: the step map is defined on all of (q0, v0) space."""
-    bk = sm.backend
     n = sm.n
     d = mpmath.mpf(10) ** (-(sm.dps // 3))
     cols = []
