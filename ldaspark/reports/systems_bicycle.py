@@ -37,8 +37,32 @@ def _fmt(z):
     return f"{z.real:.7f} {'+' if z.imag >= 0 else '-'} {abs(z.imag):.7f}i"
 
 
-def bicycle_data(fig_speeds=FIG_SPEEDS, speeds=SPEEDS, nonlinear_t=NL_T):
-    """All numbers of the section (a dict)."""
+def compiled_cost(model=None, n_steps=1000, h=0.01, method="gauss-2"):
+    """CPU seconds of the compiled engine on the scene ``bicycle``: the first call in a process (code
+    generation, which runs even when numba's on-disk cache is warm because the source is the cache
+    key: 21 s CPU measured with a warm cache, 36 s cold) and per step of a second run of ``n_steps``
+    steps, beside the generic engine's per step (20 steps, after its lambdify)."""
+    import ldaspark
+    from ..core import bicycle as bc
+    model = model or bc.build()
+    sc = model.scene(5, 0.5)
+    c0 = time.process_time()
+    ldaspark.integrate(sc, method, n_steps=1, h=h, engine="compiled", raise_on_failure=True)
+    first = time.process_time() - c0
+    c0 = time.process_time()
+    res = ldaspark.integrate(sc, method, n_steps=n_steps, h=h, engine="compiled", raise_on_failure=True)
+    per_step = (time.process_time() - c0) / n_steps
+    ldaspark.integrate(sc, method, n_steps=1, h=h, engine="generic", raise_on_failure=True)   # lambdify first
+    c0 = time.process_time()
+    ldaspark.integrate(sc, method, n_steps=20, h=h, engine="generic", raise_on_failure=True)
+    generic = (time.process_time() - c0) / 20
+    return {"first_call_cpu_s": first, "compiled_step_cpu_s": per_step, "generic_step_cpu_s": generic,
+            "max_abs_k": float(np.abs(np.asarray(res.constraint, float)).max()), "method": method, "h": h}
+
+
+def bicycle_data(fig_speeds=FIG_SPEEDS, speeds=SPEEDS, nonlinear_t=NL_T, measure_compiled=False):
+    """All numbers of the section (a dict); ``measure_compiled``: add ``compiled_cost`` (36 s CPU
+    with a cold cache, measured: off by default, the main job's budget)."""
     from ..core import bicycle as bc
     from ..theory import bicycle_benchmark as bb
     from ..theory import bicycle_flow as bf
@@ -73,7 +97,9 @@ def bicycle_data(fig_speeds=FIG_SPEEDS, speeds=SPEEDS, nonlinear_t=NL_T):
             "order": {"method": ORDER_METHOD, "v": ORDER_SPEED, "h": list(ORDER_H), "errors": errs, "observed": orders},
             "critical_speeds": {"spark": [vw, vc], "published": [pub_vw, pub_vc],
                                 "error": [abs(vw - pub_vw), abs(vc - pub_vc)]},
-            "nonlinear": nl, "cpu_build_s": cpu_build, "cpu_s": time.process_time() - cpu0}
+            "nonlinear": nl, "cpu_build_s": cpu_build,
+            "compiled": compiled_cost(model) if measure_compiled else None,
+            "cpu_s": time.process_time() - cpu0}
 
 
 def _figure(data, path):
@@ -144,6 +170,11 @@ def bicycle_section(outdir, data=None):
         f"{num(nl['lean_max_first_quarter'])} rad in the first quarter, {sci(nl['lean_max_last_quarter'])} rad "
         "in the last (self-stable: the weave decays).",
         "",
+        *([f"Compiled engine ({data['compiled']['method']}, h = {data['compiled']['h']}): first call "
+           f"{data['compiled']['first_call_cpu_s']:.1f} s CPU (code generation and numba, or the disk cache), then "
+           f"{data['compiled']['compiled_step_cpu_s'] * 1e6:.0f} us CPU per step against "
+           f"{data['compiled']['generic_step_cpu_s'] * 1e3:.0f} ms on the generic engine.", ""]
+          if data.get("compiled") else []),
         "![bicycle eigenvalues vs speed](figures/systems_bicycle.png)",
         "",
         f"_Bicycle section: {data['cpu_s']:.0f} s CPU ({data['cpu_build_s']:.0f} s of it deriving the model)._",
