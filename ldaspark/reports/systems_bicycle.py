@@ -7,8 +7,7 @@ into ``outdir`` and returns the Markdown section and its numbers; the integrator
 ``reports/systems.py`` places it. Cost (loaded 2-core machine; the JSON's ``cpu_s``): building the
 model (sympy derives the Whipple Lagrangian's partials once, 8-9 s CPU), the generic engine's first
 stage evaluation (lambdify, ~6 s), then ~0.12-0.17 s CPU per flow Jacobian (~60 of them) and the
-nonlinear run (200 generic steps): 35 s CPU measured with a 0.25 m/s figure grid and 500 steps,
-less with the present grid. The compiled engine is not used here: its first call alone (code
+nonlinear run (200 generic steps): 21.6 s CPU in all, measured (6 s of it deriving the model). The compiled engine is not used here: its first call alone (code
 generation and numba for this model) is 36 s CPU.
 """
 from __future__ import annotations
