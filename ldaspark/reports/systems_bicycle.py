@@ -108,13 +108,20 @@ def _figure(data, path):
     ax, ax2 = axes[0]
     f = data["figure"]
     c = colours(2)
-    for k, (key, style) in enumerate((("benchmark", "-"), ("spark", "o"))):
-        for j in range(4):
-            re = [sorted(e, key=lambda z: (z.real, z.imag))[j].real for e in f[key]]
-            ax.plot(f["v"], re, style, color=c[k], ms=3, lw=1.2,
-                    label=("benchmark (Meijaard et al. 2007, App. A)" if key == "benchmark"
-                           else f"SPARK flow ({METHOD}, h = {H})") if j == 0 else None)
+    from ..theory import bicycle_benchmark as bb
+    fine = np.linspace(0, 10, 201)         # the benchmark's real parts as points on a fine grid (cheap)
+    for v in fine:
+        ev = np.linalg.eigvals(np.array(bb.state_matrix(v, 15).tolist(), dtype=float))
+        ax.plot([v] * 4, ev.real, ".", color=c[0], ms=1.5,
+                label="benchmark (Meijaard et al. 2007, App. A)" if v == 0 else None)
+    for j in range(4):
+        re = [sorted(e, key=lambda z: (z.real, z.imag))[j].real for e in f["spark"]]
+        ax.plot(f["v"], re, "o", mfc="none", color=c[1], ms=5,
+                label=f"SPARK flow ({METHOD}, h = {H})" if j == 0 else None)
     ax.axhline(0, color="0.5", lw=0.6)
+    for v, name in zip(data["critical_speeds"]["spark"], ("v_w", "v_c")):   # the flow's weave / capsize speeds
+        ax.axvline(v, color="0.6", lw=0.8, ls="--")
+        ax.text(v, -9.3, f" {name}", fontsize=8, color="0.3")
     ax.set_ylim(-10, 10)
     ax.set_xlabel("forward speed v [m/s]")
     ax.set_ylabel("Re lambda [1/s]")
