@@ -42,6 +42,7 @@ _EXPORTS = {
     "theorem1_residuals": "ldaspark.theory.discrete",
     "check_symmetry": "ldaspark.theory.symmetry",
     "classify_wellposedness": "ldaspark.theory.wellposedness",
+    "flow_jacobian": "ldaspark.theory.flow_jacobian",
     "run_many": "ldaspark.compiled.ensemble",
     "LdasparkError": "ldaspark.core.errors",
 }

@@ -292,6 +292,7 @@ SCENES: dict[str, Callable[..., Scene]] = {
     "relativistic": relativistic,
     "turntable": turntable,
     "friction-skate": friction_skate,
+    "bicycle": lambda **kw: __import__("ldaspark.core.bicycle", fromlist=["bicycle"]).bicycle(**kw),
 }
 
 # classic nonholonomic systems (issue 24), built in ldaspark.core.systems_classic (imported at
