@@ -56,11 +56,10 @@ BOUNDED_RATIO, DRIFT_RATIO = 1.5, 2.0
 EPS = 2.0 ** -52
 
 # --- the bicycle hook ---------------------------------------------------------------------------
-# The Whipple bicycle of issue 24 is written by another helper in ldaspark/reports/systems_bicycle.py
-# with ``bicycle_section(outdir) -> (markdown_str, json_dict)``. When that module is installed, the
-# section runs it as one more job (``bicycle_job``) and appends its markdown after the table and its
-# data under the key "bicycle" of systems.json; without it the report says it is pending. Nothing
-# is imported before it exists (find_spec only).
+# The Whipple bicycle (issue 24) has its own module, ldaspark/reports/systems_bicycle.py, with
+# ``bicycle_section(outdir) -> (markdown_str, json_dict)``: the section runs it as one more job
+# (``bicycle_job``) and appends its markdown after the table and its data under the key "bicycle"
+# of systems.json. A failure there is reported in systems.md and does not stop the main job.
 BICYCLE_MODULE = "ldaspark.reports.systems_bicycle"
 
 
@@ -74,7 +73,7 @@ def bicycle_job(outdir="reports"):
     try:
         mod = importlib.import_module(BICYCLE_MODULE)
         md, data = mod.bicycle_section(outdir)
-    except Exception as exc:  # noqa: BLE001  (another helper's module: report it)
+    except Exception as exc:  # noqa: BLE001  (reported in the section, the rest of the job goes on)
         note = f"{type(exc).__name__}: {exc}"
         _log(f"bicycle section failed: {note}")
         return {"error": note}
