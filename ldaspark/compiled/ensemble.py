@@ -60,19 +60,20 @@ class RunSpec:
 
     def __init__(self, system, method, t0, Q0, V0, h, n_steps, every=1, compensated=True, tol=None,
                  kernel="auto"):
-        from ..core.validate import check_newton_options, check_storage
+        from ..core.validate import check_newton_options, check_storage, count, real_number
         from .fast import n_samples
         try:
             Q0 = np.atleast_2d(np.asarray(Q0, dtype=float))
             V0 = np.atleast_2d(np.asarray(V0, dtype=float))
-            t0, h = float(t0), float(h)
+            t0, h = float(real_number(t0, "t0")), float(real_number(h, "h", nonzero=True))
         except (TypeError, ValueError) as exc:
             raise InputError(f"t0, h, Q0 and V0 must be numbers: {exc}") from None
         if Q0.ndim != 2 or Q0.shape != V0.shape or Q0.shape[1] != system.n:
             raise InputError(f"Q0 and V0 must both have shape (runs, {system.n}), got {Q0.shape}, {V0.shape}")
-        for name, val in (("n_steps", n_steps), ("every", every)):
-            if isinstance(val, bool) or not isinstance(val, (int, np.integer)) or val <= 0:
-                raise InputError(f"{name} must be a positive integer, got {val!r}")
+        if len(Q0) == 0:
+            raise InputError("Q0 and V0 have no rows: an ensemble needs at least one initial point")
+        count(n_steps, "n_steps")          # bounded as every run (10**12 steps would never end)
+        count(every, "every")
         if not (np.isfinite(h) and h != 0 and np.isfinite(t0)):
             raise InputError(f"h must be finite and nonzero and t0 finite, got h = {h}, t0 = {t0}")
         check_newton_options(tol, 1)
@@ -122,6 +123,13 @@ def default_executor(max_workers=None):
 
 def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None):
     """Run several RunSpec's through one executor; returns one EnsembleResult per spec."""
+    from ..core.validate import check_executor, count
+    check_executor(executor)
+    specs = list(specs)
+    for k, sp in enumerate(specs):
+        if not isinstance(sp, RunSpec):
+            raise InputError(f"run_many needs RunSpec objects, got {type(sp).__name__} at position {k}")
+    count(chunk, "chunk", 1, 10 ** 9)
     t_start = time.perf_counter()
     plan = []
     for k, sp in enumerate(specs):
