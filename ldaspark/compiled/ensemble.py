@@ -65,7 +65,7 @@ class RunSpec:
         try:
             Q0 = np.atleast_2d(np.asarray(Q0, dtype=float))
             V0 = np.atleast_2d(np.asarray(V0, dtype=float))
-            t0, h = float(real_number(t0, "t0")), float(real_number(h, "h", nonzero=True))
+            t0, h = float(real_number(t0, "t0")), float(real_number(h, "h"))
         except (TypeError, ValueError) as exc:
             raise InputError(f"t0, h, Q0 and V0 must be numbers: {exc}") from None
         if Q0.ndim != 2 or Q0.shape != V0.shape or Q0.shape[1] != system.n:

@@ -138,7 +138,7 @@ class HermiteDense(_Dense):
 
 class Event:
     """A checked event function: ``g(t, q, v)`` with ``terminal`` (bool) and ``direction`` (a
-    finite real number) read once, here. g gets read-only copies of q and v (an event that
+    finite real number) read once, here. g gets copies of q and v (an event that
     modifies its argument cannot change the trajectory) and must return a real number."""
 
     def __init__(self, g: Callable, index: int):
@@ -158,9 +158,7 @@ class Event:
 
     def __call__(self, t, q, v) -> float:
         from .validate import _describe, _is_bool
-        qc, vc = np.array(q, dtype=float), np.array(v, dtype=float)
-        qc.flags.writeable = False
-        vc.flags.writeable = False
+        qc, vc = np.array(q, dtype=float), np.array(v, dtype=float)    # copies: g may modify them
         val = self.g(float(t), qc, vc)
         if _is_bool(val) or not (isinstance(val, (int, float, np.integer, np.floating))
                                 or (isinstance(val, np.ndarray) and val.shape == () and val.dtype.kind in "iuf")):

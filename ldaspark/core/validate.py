@@ -219,7 +219,8 @@ def check_symbols(q, v) -> None:
     allq, allv = list(q), list(v)
     for name, seq in (("q", allq), ("v", allv)):
         for e in seq:
-            if not (isinstance(e, sympy.Symbol) or (isinstance(e, sympy.Expr) and e.is_Function)):
+            # numbers and non-sympy values are refused here; functions of t get their own error
+            if not isinstance(e, sympy.Expr) or e.is_number:
                 raise SystemDefinitionError(f"{name} must be sympy symbols, got {_describe(e)}")
         if len(set(seq)) != len(seq):
             dup = sorted({str(e) for e in seq if seq.count(e) > 1})
