@@ -163,7 +163,7 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
     evs = check_events(events)
     common = dict(kind=kind, what=what, name=name, t0=t0, h=h, N=N, engine=engine, dps=dps, every=save_every,
                   dense=dense_output, events=evs, raise_on_failure=raise_on_failure, newton=newton,
-                  project=project, tol=tol, scene=scene, energy_jump=energy_jump)
+                  project=project, tol=tol, scene=scene, energy_jump=energy_jump, max_stages=max_stages)
     batch_params = isinstance(params, (list, tuple))
     batch_ic = dps is None and np.ndim(np.asarray(q0, dtype=object)) == 2
     if batch_params and not params:
@@ -233,7 +233,7 @@ def _compiled_reason(system: LagrangianSystem, kind: str, name: str) -> Optional
 
 
 def _single(system, params, q0, v0, *, kind, what, name, t0, h, N, engine, dps, every, dense, events,
-            raise_on_failure, newton, project, tol, scene, quiet, energy_jump) -> Result:
+            raise_on_failure, newton, project, tol, scene, quiet, energy_jump, max_stages=None) -> Result:
     system = _with_params(system, params)
     pvals = {str(k): v for k, v in system.param_values().items()}
     _check_initial_point(system, t0, q0, v0, dps)
@@ -258,7 +258,7 @@ def _single(system, params, q0, v0, *, kind, what, name, t0, h, N, engine, dps, 
                             events, tol, project, energy_jump)
     elif kind == "comparator":
         res = _run_comparator(system.substituted(), name, t0, q0, v0, h, N, every, dense, events, dps, tol,
-                              project, energy_jump)
+                              project, energy_jump, max_stages)
     else:
         res = _run_generic(system, what, t0, q0, v0, h, N, every, dense, events, dps, tol, newton, project,
                            energy_jump)
@@ -585,7 +585,7 @@ def _finish_prefix(res, exc, system, t0, q0, v0, every, dense, events, engine, s
 
 
 def _run_comparator(system, name, t0, q0, v0, h, N, every, dense, events, dps, tol, project,
-                    energy_jump=None) -> Result:
+                    energy_jump=None, max_stages=None) -> Result:
     from .core.backend import Backend
     from .core.comparators import integrate_comparator
     bk = Backend(dps)
@@ -593,7 +593,7 @@ def _run_comparator(system, name, t0, q0, v0, h, N, every, dense, events, dps, t
         t0_, q0, v0 = _initial_checks(system, bk, t0, q0, v0, project, tol)
 
     def run(n, e):
-        sol = integrate_comparator(name, system, t0_, q0, v0, h, int(n), dps=dps, tol=tol)
+        sol = integrate_comparator(name, system, t0_, q0, v0, h, int(n), dps=dps, tol=tol, max_stages=max_stages)
         st = dict(sol.stats, path="generic")
         psi = np.asarray(sol.psi)
         return Result(sol.t, sol.q, sol.v, sol.energy, sol.constraint, psi if psi.ndim == 3 else None, 0,

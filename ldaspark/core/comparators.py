@@ -382,7 +382,7 @@ def _mp_iiib_a(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, name, progres
 
 def integrate_comparator(name: str, system: LagrangianSystem, t0, q0, v0, h, n_steps: int,
                          dps: int | None = None, tol=None, max_iter: int = 50,
-                         progress=None) -> Solution:
+                         progress=None, max_stages: int | None = None) -> Solution:
     """Integrate with comparator ``name`` (see module docstring) at constant step h.
 
     Initial data must be consistent (k(t0, q0, v0) = 0). With ``dps`` the computation runs in
@@ -395,7 +395,7 @@ def integrate_comparator(name: str, system: LagrangianSystem, t0, q0, v0, h, n_s
                                 tol=None if tol is None else 10 * tol)
     mt = re.fullmatch(r"gauss-irk-([1-9][0-9]*)", name)
     if mt:
-        meth = GaussIRK(system, gauss(int(mt.group(1))), dps=dps, tol=tol, max_iter=max_iter)
+        meth = GaussIRK(system, gauss(int(mt.group(1)), max_stages=max_stages), dps=dps, tol=tol, max_iter=max_iter)
         return _spark_variant_loop([(meth, 1)], system, t0, q0, v0, h, n_steps, name, progress)
     if name == "lobatto-iiia-iiib-2-modified":
         meth = ModifiedLobatto2(system, dps=dps, tol=tol, max_iter=max_iter)

@@ -155,7 +155,8 @@ def count(x, what: str, lo: int = 1, hi: int = MAX_STEPS) -> int:
     if _is_bool(x) or not isinstance(x, (int, np.integer)):
         raise InputError(f"{what} must be an integer, got {_describe(x)}")
     if not lo <= x <= hi:
-        raise InputError(f"{what} must be an integer between {lo} and {hi:.3g}, got {_fmt_int(x)}")
+        bound = f"{hi:.0e}" if hi >= 10 ** 6 else str(hi)
+        raise InputError(f"{what} must be an integer between {lo} and {bound}, got {_fmt_int(x)}")
     return int(x)
 
 
