@@ -97,6 +97,7 @@ def _time_grid(t_span, t0, t_end, n_steps, h, default_t0):
         if isinstance(t_span, (str, bytes)) or not hasattr(t_span, "__len__") or len(t_span) != 2:
             raise InputError(f"t_span must be a pair (t0, t_end), got {validate._describe(t_span)}")
         t0, t_end = t_span
+        validate.real_number(t0, "t0")           # (None, 1) is not the default t0
     if t0 is None:
         t0 = default_t0 if default_t0 is not None else 0.0
     if h is None:
@@ -516,10 +517,11 @@ def _fast_chunked(system, method, t0, q0, v0, h, n, every, tol, chunk=None):
                 exc.step += done
                 exc.time = t0f + exc.step * hf
             raise
-        rows = slice(0, None) if not parts else slice(1, None)
-        if every > chunk:
-            end = done + L
-            rows = slice(0, None) if not parts else (slice(1, None) if end % every == 0 or end == n else slice(0, 0))
+        rows = [0] if not parts else []            # the start of a chunk ends the previous one
+        if every <= chunk:
+            rows += list(range(1, len(fs.t)))        # its samples fall on multiples of every
+        elif (done + L) % every == 0 or done + L == n:
+            rows.append(len(fs.t) - 1)               # the chunk's end is a saved point
         parts.append(tuple(np.asarray(a)[rows] for a in (fs.t, fs.q, fs.v, fs.energy, fs.constraint)))
         st = fs.stats
         if stats is None:
