@@ -321,7 +321,13 @@ def load_result(path: Union[str, os.PathLike]) -> Result:
             if not isinstance(d, dict):
                 raise InputError(f"{os.fspath(path)}: not a result file")
             _check_metadata(d)
-            arrays = {k: np.array(d[k], dtype=object if d.get("dps") else float) for k in ARRAYS if k in d}
+            arrays = {}
+            for k in ARRAYS:
+                if k in d:
+                    try:
+                        arrays[k] = np.array(d[k], dtype=object if d.get("dps") else float)
+                    except (TypeError, ValueError, OverflowError):
+                        raise InputError(f"{k} is not an array of numbers (rows of equal length)") from None
             if "psi" in arrays and d.get("dps"):
                 arrays["psi"] = np.array(d["psi"], dtype=str) if d["psi"] else np.zeros(0)
             for k in ARRAYS:
