@@ -65,6 +65,7 @@ def _run_integrate(args) -> int:
             raise InputError("--tableau is only used with METHOD custom")
         method = args.method                # built-in names and gauss-irk-S get --max-stages below
     scene = get_scene(args.scene, args.ic)
+    args.output_before = (args.out, _file_state(args.out))
     try:
         h = float(args.h)
         t_end = float(args.t_end)
@@ -198,6 +199,9 @@ def _main(argv=None) -> int:
         return 2
     except KeyboardInterrupt:
         done = getattr(args, "output_written", None)
+        path, before = getattr(args, "output_before", (None, None))
+        if done is None and path is not None and _file_state(path) not in (None, before):
+            done = path         # replaced atomically after the run: the new file is complete
         print(f"ldaspark: interrupted (after the complete result was written to {done})" if done else
               "ldaspark: interrupted (no partial output was written)", file=sys.stderr)
         return 130
@@ -211,6 +215,16 @@ def _main(argv=None) -> int:
             pass
         print("ldaspark: error: output closed by the reader (broken pipe)", file=sys.stderr)
         return 2
+
+
+def _file_state(path):
+    """(inode, mtime, size) of a regular file, else None: an atomic replace changes it."""
+    import stat
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError, TypeError):
+        return None
+    return (st.st_ino, st.st_mtime_ns, st.st_size) if stat.S_ISREG(st.st_mode) else None
 
 
 def _one_line(exc) -> str:
