@@ -39,7 +39,7 @@ import sympy
 from .backend import Backend, SingularMatrixError
 from .errors import InputError, NewtonError
 from .spark import Solution, SparkMethod
-from .system import LagrangianSystem, _arr
+from .system import _NONSMOOTH, LagrangianSystem, _arr, real_jacobian
 from .families import euler_i, euler_ii, gauss, lobatto_iiia_iiib
 
 FIXED_NAMES = ("lobatto-iiia-iiib-2-leapfrog", "lobatto-iiia-iiib-2-modified",
@@ -71,9 +71,9 @@ class MechanicalParts:
         K = sympy.Matrix(mech["K"])
         b = sympy.Matrix(mech["b"]).reshape(K.rows, 1)
         U = sympy.sympify(mech["U"])
-        gU = sympy.Matrix([sympy.diff(U, x) for x in q])
-        kq = (K * sympy.Matrix(v) + b).jacobian(q)
-        mod = backend.lambdify_module
+        gU = real_jacobian([U], q, list(q)).T
+        kq = real_jacobian(K * sympy.Matrix(v) + b, q, list(q) + list(v))
+        mod = [_NONSMOOTH, backend.lambdify_module]      # Abs' = sign, sign' = 0 off its jump
         self.bk = backend
         self.n, self.m = system.n, K.rows
         with backend.context():

@@ -357,6 +357,8 @@ def load_result(path: Union[str, os.PathLike]) -> Result:
     except RecursionError:
         raise InputError(f"cannot read result file {os.fspath(path)}: JSON nested too deeply") from None
     except (OSError, ValueError, KeyError, TypeError, EOFError, UnicodeDecodeError, json.JSONDecodeError,
-            __import__("zipfile").BadZipFile) as exc:
+            __import__("zipfile").BadZipFile, NotImplementedError, RuntimeError) as exc:
+        # corrupt files: zipfile raises NotImplementedError for an unknown compression method,
+        # h5py RuntimeError for a damaged symbol table
         why = str(exc).splitlines()[0][:160] if str(exc) else type(exc).__name__
         raise InputError(f"cannot read result file {os.fspath(path)}: {why}") from None

@@ -59,6 +59,18 @@ def _real_dummies(system) -> dict:
     return {x: sympy.Dummy(x.name, real=True) for x in syms}
 
 
+def real_jacobian(exprs, wrt, symbols):
+    """``exprs.jacobian(wrt)`` with Abs, sign, re, im, arg differentiated as functions of real
+    variables (``symbols``: every symbol of exprs that is a coordinate), as ``_derive`` does."""
+    exprs = sympy.Matrix(exprs)
+    fns = (sympy.Abs, sympy.sign, sympy.re, sympy.im, sympy.arg)
+    if not exprs.has(*fns):
+        return exprs.jacobian(list(wrt))
+    reps = {x: sympy.Dummy(x.name, real=True) for x in symbols if isinstance(x, sympy.Symbol) and not x.is_real}
+    J = exprs.xreplace(reps).jacobian([reps.get(x, x) for x in wrt])
+    return J.xreplace({d: x for x, d in reps.items()})
+
+
 class LagrangianSystem:
     """A Lagrangian system with ideal nonholonomic constraints (1a-d), or nonideal ones (3.3).
 
