@@ -176,6 +176,8 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
         if batch_ic and len(Q0) != len(V0):
             raise InputError(f"q0 has {len(Q0)} rows but v0 has {len(V0)}")
         if executor is not None and batch_ic and not batch_params:
+            if params is None:
+                _check_initial_point(_with_params(sysm, None), t0, q0, v0, dps)     # every member
             fast = _compiled_ensemble(sysm, params, Q0, V0, executor, common)
             if fast is not None:
                 return fast
@@ -277,10 +279,7 @@ def _check_initial_point(system, t0, q0, v0, dps) -> None:
     a returned Result (nor a ZeroDivisionError printed by a compiled kernel)."""
     import warnings
 
-    import mpmath
-
     from .core.backend import Backend
-    from .core.errors import NonFiniteError
     bk = Backend(dps)
     rows = [(np.asarray(q0, dtype=object), np.asarray(v0, dtype=object))]
     if rows[0][0].ndim == 2:                      # an initial-data ensemble: every member
@@ -296,20 +295,7 @@ def _check_initial_point(system, t0, q0, v0, dps) -> None:
             if qq.shape != (system.n,) or vv.shape != (system.n,):
                 raise InputError(f"{member}initial data have shapes q: {qq.shape}, v: {vv.shape}; the system has "
                                  f"n = {system.n}")
-            try:
-                E = system.energy(bk, t, qq, vv)
-                k = list(system.constraint(bk, t, qq, vv))
-            except (ArithmeticError, ValueError, TypeError) as exc:
-                raise NonFiniteError(f"{member}L or k cannot be evaluated at the initial point t0 = {float(t):g} "
-                                     f"({type(exc).__name__}: {str(exc)[:80]}): q0, v0 lie outside the domain of "
-                                     "L and k", step=0, time=float(t)) from None
-            for what, x in [("the energy (8)", E)] + [(f"k[{i}]", x) for i, x in enumerate(k)]:
-                ok = (mpmath.isfinite(x) if isinstance(x, mpmath.mpf) else
-                      isinstance(x, (int, float, np.integer, np.floating)) and math.isfinite(x))
-                if not ok:
-                    raise NonFiniteError(f"{member}{what} at the initial point t0 = {float(t):g} is {str(x)[:60]}, "
-                                         "not a finite real number: q0, v0 lie outside the domain of L and k "
-                                         "(or L has oo / zoo / I in it)", step=0, time=float(t))
+            validate.finite_initial_point(system, bk, t, qq, vv, member)
 
 
 def _energy_jump_cut(res: Result, energy_jump) -> tuple:

@@ -266,3 +266,16 @@ def test_real_number_accepts_the_number_types_and_nothing_else():
         with pytest.raises(InputError):
             validate.real_number(bad, "a")
     assert math.isfinite(float(validate.real_number("9" * 300, "a")))     # control: a long but finite string
+
+
+def test_initial_point_is_checked_by_fast_integrate_and_compiled_ensembles():
+    # fast_integrate is public too: before, numba printed "Exception ignored ... ZeroDivisionError"
+    # and returned energy[0] = 0.5; an initial-data ensemble on an executor names the member
+    from ldaspark.compiled.fast import fast_integrate
+    coulomb = skate_like(1 / x)
+    with pytest.raises(NonFiniteError, match="initial point"):
+        fast_integrate(coulomb, "gauss-2", 0, [0, 0, 0], [0, 0, 0], 0.1, 3)
+    with concurrent.futures.ThreadPoolExecutor(1) as ex, pytest.raises(NonFiniteError, match="ensemble member 1"):
+        ldaspark.integrate(coulomb, "gauss-2", t_span=(0, 0.2), h=0.1, q0=[[1, 0, 0], [0, 0, 0]],
+                           v0=[[0, 0, 0], [0, 0, 0]], executor=ex)
+    assert_finite_result(fast_integrate(coulomb, "gauss-2", 0, [1, 0, 0], [0, 0, 0], 0.1, 3))     # control

@@ -403,6 +403,8 @@ def _setup_checks(system, t0, q0, v0, cs=None):
     memo = _CHECKED.get(id(system))
     if memo is not None and memo[0] is system and key in memo[1]:
         return
+    from ..core.validate import finite_initial_point
+    finite_initial_point(system, bk, t, q, v)     # before a kernel divides by zero at it
     if cs is not None and cs.form == "mechanical":
         S, k = _saddle_and_k(cs, t, np.ascontiguousarray(q, float), np.ascontiguousarray(v, float))
         system.check_saddle(bk, t, q, v, S=S)

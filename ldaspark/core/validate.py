@@ -272,3 +272,31 @@ def regular_file(path, limit: int, what: str = "file") -> int:
     if st.st_size > limit:
         raise InputError(f"{what} {os.fspath(path)} has {st.st_size} bytes, more than {limit}")
     return st.st_size
+
+
+def finite_initial_point(system, bk, t, q, v, member: str = "") -> None:
+    """The energy (8) and k at (t, q, v) (converted by ``bk``) are finite real numbers, else one
+    NonFiniteError (issue 25, class F): U = 1/x at x = 0, oo / zoo in L, v0 = 1e200, sqrt(x) at
+    x = -1 (math domain error in float64, mpc at dps). Call inside ``bk.context()``."""
+    import warnings
+
+    import mpmath
+    import numpy as np
+
+    from .errors import NonFiniteError
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            E = system.energy(bk, t, q, v)
+            k = list(system.constraint(bk, t, q, v))
+        except (ArithmeticError, ValueError, TypeError) as exc:
+            raise NonFiniteError(f"{member}L or k cannot be evaluated at the initial point t0 = {float(t):g} "
+                                 f"({type(exc).__name__}: {str(exc)[:80]}): q0, v0 lie outside the domain of "
+                                 "L and k", step=0, time=float(t)) from None
+    for what, x in [("the energy (8)", E)] + [(f"k[{i}]", x) for i, x in enumerate(k)]:
+        ok = (mpmath.isfinite(x) if isinstance(x, mpmath.mpf) else
+              isinstance(x, (int, float, np.integer, np.floating)) and math.isfinite(x))
+        if not ok:
+            raise NonFiniteError(f"{member}{what} at the initial point t0 = {float(t):g} is {str(x)[:60]}, "
+                                 "not a finite real number: q0, v0 lie outside the domain of L and k "
+                                 "(or L has oo / zoo / I in it)", step=0, time=float(t))
