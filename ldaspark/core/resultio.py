@@ -188,6 +188,12 @@ def _check_metadata(md) -> dict:
             isinstance(st, list) and st and all(isinstance(x, int) and not isinstance(x, bool) and -3 <= x <= 1
                                                 for x in st)):
         raise InputError(f"metadata: status must be an integer in -3..1 (or a list of them), got {str(st)[:40]}")
+    for key in ("stats", "params"):
+        if md.get(key) is not None and not isinstance(md[key], dict):
+            raise InputError(f"metadata: {key} must be a JSON object, got {type(md[key]).__name__}")
+    for key in ("scene", "method", "system", "engine", "message"):
+        if md.get(key) is not None and not isinstance(md[key], (str, list)):
+            raise InputError(f"metadata: {key} must be a string, got {type(md[key]).__name__}")
     se = md.get("save_every", 1)
     if se is not None and (isinstance(se, bool) or not isinstance(se, int) or se < 1):
         raise InputError(f"metadata: save_every must be a positive integer, got {str(se)[:40]}")

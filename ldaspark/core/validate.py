@@ -118,7 +118,7 @@ def real_number(x, what: str, *, positive: bool = False, nonzero: bool = False):
         mod = type(x).__module__ or ""
         if mod.startswith("mpmath") and type(x).__name__ == "mpf":
             import mpmath
-            ok, val = True, (0.0 if mpmath.isfinite(x) else float("nan"))
+            ok, val = True, float(x) if mpmath.isfinite(x) else float("nan")
         elif mod.startswith("sympy"):
             import sympy
             if isinstance(x, sympy.Expr) and x.is_number and not x.free_symbols:
@@ -134,6 +134,8 @@ def real_number(x, what: str, *, positive: bool = False, nonzero: bool = False):
             ok, val = True, float(x)
     if not ok:
         raise InputError(f"{what} must be a real number, got {_describe(x)}")
+    if val == 0 and _nonzero(x):
+        val = 5e-324            # below float64's range but not zero: h = mpf('1e-400'), "1e-400"
     if not math.isfinite(val):
         raise InputError(f"{what} must be finite, got {x!r:.80}")
     if positive and not val > 0:
@@ -141,6 +143,17 @@ def real_number(x, what: str, *, positive: bool = False, nonzero: bool = False):
     if nonzero and val == 0:
         raise InputError(f"{what} must be nonzero, got {x!r:.80}")
     return x
+
+
+def _nonzero(x) -> bool:
+    """x is not zero in its own number type (a decimal string, mpf, sympy number)."""
+    try:
+        if isinstance(x, str):
+            import decimal
+            return decimal.Decimal(x.strip()) != 0
+        return bool(x != 0)
+    except (ArithmeticError, ValueError, TypeError):
+        return False
 
 
 def _describe(x) -> str:
