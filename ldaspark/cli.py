@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from .core.errors import LdasparkError
@@ -52,7 +53,6 @@ def _run_integrate(args) -> int:
     from .core.resultio import save_result
     from .core.scenes import get_scene
     from .core.tableau import load_tableau
-    from .core.families import get_method
     from .core.errors import InputError
     from .solve import integrate
 
@@ -63,20 +63,19 @@ def _run_integrate(args) -> int:
     else:
         if args.tableau:
             raise InputError("--tableau is only used with METHOD custom")
-        method = args.method
-        if args.max_stages is not None:     # a built-in name beyond the default stage bound
-            from .core.comparators import is_comparator
-            if not is_comparator(method):
-                method = get_method(method, max_stages=args.max_stages)
+        method = args.method                # built-in names and gauss-irk-S get --max-stages below
     scene = get_scene(args.scene, args.ic)
+    args.output_before = (args.out, _file_state(args.out))
     try:
         h = float(args.h)
         t_end = float(args.t_end)
     except ValueError:
         raise InputError(f"--h and --t-end must be numbers, got {args.h!r}, {args.t_end!r}") from None
     res = integrate(scene, method, h=args.h if args.dps else h, t_end=t_end, dps=args.dps, project=args.project,
-                    newton=args.newton, engine=args.engine, save_every=args.every, raise_on_failure=True)
+                    newton=args.newton, engine=args.engine, save_every=args.every, raise_on_failure=True,
+                    max_stages=args.max_stages if isinstance(method, str) else None)
     save_result(res, args.out)
+    args.output_written = args.out          # a Ctrl-C from here on finds the complete result written
     mean = res.newton_iterations / max(int(res.stats.get("steps", 0)) or 1, 1)
     print(f"{scene.name} {res.method}: {res.stats.get('steps', len(res.t) - 1)} steps ({res.engine}), "
           f"max |k| = {max(abs(float(x)) for x in res.constraint.reshape(-1)):.2e}, "
@@ -196,11 +195,42 @@ def _main(argv=None) -> int:
     try:
         return int(args.func(args) or 0)
     except LdasparkError as exc:
-        print(f"ldaspark: error: {exc}", file=sys.stderr)
+        print(f"ldaspark: error: {_one_line(exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("ldaspark: interrupted (no partial output was written)", file=sys.stderr)
+        done = getattr(args, "output_written", None)
+        path, before = getattr(args, "output_before", (None, None))
+        if done is None and path is not None and _file_state(path) not in (None, before):
+            done = path         # replaced atomically after the run: the new file is complete
+        print(f"ldaspark: interrupted (after the complete result was written to {done})" if done else
+              "ldaspark: interrupted (no partial output was written)", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # ``ldaspark methods | head -1``: the reader closed the pipe. Further writes to stdout
+        # go to /dev/null so that the interpreter's final flush does not raise again.
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        except (OSError, ValueError, AttributeError):
+            pass
+        print("ldaspark: error: output closed by the reader (broken pipe)", file=sys.stderr)
+        return 2
+
+
+def _file_state(path):
+    """(inode, mtime, size) of a regular file, else None: an atomic replace changes it."""
+    import stat
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError, TypeError):
+        return None
+    return (st.st_ino, st.st_mtime_ns, st.st_size) if stat.S_ISREG(st.st_mode) else None
+
+
+def _one_line(exc) -> str:
+    """The first line of an error message (the CLI's promise: one line)."""
+    lines = str(exc).splitlines()
+    return lines[0] if lines else type(exc).__name__
 
 
 if __name__ == "__main__":

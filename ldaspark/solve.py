@@ -33,6 +33,7 @@ from typing import Any, Callable, Optional, Sequence, Union
 
 import numpy as np
 
+from .core import validate
 from .core.dense import CollocationDense, EventTracker, HermiteDense, check_events, step_piece
 from .core.errors import InputError, LdasparkError, NewtonError, SingularSaddleError, TableauError
 from .core.result import (STATUS_EVENT, STATUS_NEWTON, STATUS_OTHER, STATUS_SADDLE, Result, float_array,
@@ -49,18 +50,29 @@ def _notice(msg: str) -> None:
     print(f"ldaspark.integrate: {msg}; using the generic engine", file=sys.stderr, flush=True)
 
 
-def resolve_method(method: Union[str, SparkTableau]) -> tuple:
-    """("spark", SparkTableau, name) or ("comparator", name, name)."""
+#: longest method name (the longest built-in name has 26 characters): a name of 5000 digits is
+#: refused before any int() conversion of it
+MAX_METHOD_NAME = 100
+
+
+def resolve_method(method: Union[str, SparkTableau], max_stages: Optional[int] = None) -> tuple:
+    """("spark", SparkTableau, name) or ("comparator", name, name); ``max_stages`` raises the
+    stage limit of built-in names (SPARK and gauss-irk-S alike)."""
     from .core.comparators import comparator_names, is_comparator
     from .core.families import get_method
+    from .core.tableau import check_stages
     if isinstance(method, SparkTableau):
         return "spark", method, method.name
     if not isinstance(method, str):
-        raise InputError(f"method must be a name or a SparkTableau, got {method!r}")
+        raise InputError(f"method must be a name or a SparkTableau, got {type(method).__name__}")
+    if len(method) > MAX_METHOD_NAME:
+        raise InputError(f"unknown method {method[:40]!r}... ({len(method)} characters)")
     if is_comparator(method):
+        if method.startswith("gauss-irk-"):
+            check_stages(int(method[len("gauss-irk-"):]), max_stages, what=method)
         return "comparator", method, method
     try:
-        return "spark", get_method(method), method
+        return "spark", get_method(method, max_stages=max_stages), method
     except TableauError as exc:
         if not str(exc).startswith("unknown method"):
             raise
@@ -85,22 +97,22 @@ def _time_grid(t_span, t0, t_end, n_steps, h, default_t0):
     if t_span is not None:
         if t0 is not None or t_end is not None:
             raise InputError("give t_span or t0/t_end, not both")
-        try:
-            t0, t_end = t_span
-        except (TypeError, ValueError):
-            raise InputError(f"t_span must be (t0, t_end), got {t_span!r}") from None
+        if isinstance(t_span, (str, bytes)) or not hasattr(t_span, "__len__") or len(t_span) != 2:
+            raise InputError(f"t_span must be a pair (t0, t_end), got {validate._describe(t_span)}")
+        t0, t_end = t_span
+        validate.real_number(t0, "t0")           # (None, 1) is not the default t0
     if t0 is None:
         t0 = default_t0 if default_t0 is not None else 0.0
     if h is None:
         raise InputError("give the step size h")
+    validate.real_number(t0, "t0")
+    validate.real_number(h, "h", nonzero=True)
     if (t_end is None) == (n_steps is None):
         raise InputError("give exactly one of t_span / t_end or n_steps")
     if n_steps is None:
         from .core.spark import n_steps_for
-        n_steps = n_steps_for(float(t0), float(t_end), float(h))
-    if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps <= 0:
-        raise InputError(f"n_steps must be a positive integer, got {n_steps!r}")
-    return t0, int(n_steps)
+        n_steps = n_steps_for(float(t0), float(validate.real_number(t_end, "t_end")), float(h))
+    return t0, validate.count(n_steps, "n_steps")
 
 
 def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, SparkTableau],
@@ -109,7 +121,8 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
               engine: str = "auto", dps: Optional[int] = None, save_every: int = 1, dense_output: bool = False,
               events: Union[None, Callable, Sequence[Callable]] = None, params: Union[None, dict, list] = None,
               raise_on_failure: bool = False, newton: str = "auto", project: bool = False,
-              tol: Optional[float] = None, executor: Any = None) -> Result:
+              tol: Optional[float] = None, executor: Any = None, energy_jump: Optional[float] = None,
+              max_stages: Optional[int] = None) -> Result:
     """Integrate (1) from (t0, q0, v0) with constant step h; see the module docstring.
 
     ``newton``: the generic engine's Newton variant (``SparkMethod``): "auto" (default: simplified
@@ -119,26 +132,46 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
     ``q0``/``v0`` with shape (B, n): an ensemble over initial data. Ensemble members run in a
     loop, or through ``executor`` when given: compiled initial-data ensembles as pickled tasks
     (``ldaspark.compiled.ensemble``, any executor), everything else by ``executor.map`` (a
-    ThreadPoolExecutor; the generic engine's compiled functions do not pickle)."""
-    if engine not in ENGINES:
-        raise InputError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    ThreadPoolExecutor; the generic engine's compiled functions do not pickle).
+    ``energy_jump``: the opt-in monitor of ``ldaspark.core.spark.integrate`` (every engine: the
+    compiled kernels and comparators are checked on their step energies, and the run ends with
+    status -3 at the first step whose energy (8) changes by more than energy_jump (1 + |E|)).
+    ``max_stages``: raise the stage limit (20) of built-in method names.
+    Every argument is checked here (``ldaspark.core.validate``) before any work: a wrong value is
+    one InputError naming it."""
+    # the API boundary: every user value checked once, for every engine (issue 25)
+    validate.check_choice(engine, "engine", ENGINES)
+    dps = validate.check_dps(dps)
+    validate.check_choice(newton, "newton", validate.NEWTON_VARIANTS)
+    validate.check_executor(executor)
+    validate.count(save_every, "save_every")
+    validate.check_max_stages(max_stages)
+    validate.check_newton_options(tol, 1)
+    if energy_jump is not None:
+        validate.check_newton_options(energy_jump, 1, what="energy_jump")
+    for flag, val in (("dense_output", dense_output), ("raise_on_failure", raise_on_failure), ("project", project)):
+        if not validate._is_bool(val):
+            raise InputError(f"{flag} must be True or False, got {validate._describe(val)}")
     if dps is not None and engine == "compiled":
         raise InputError("the compiled engine is float64 only; dps needs engine='generic' (or 'auto')")
-    save_indices(1, save_every)   # validates save_every
     sysm, scene, init = _resolve_system(system, dps)
-    kind, what, name = resolve_method(method)
+    kind, what, name = resolve_method(method, max_stages)
     t0, N = _time_grid(t_span, t0, t_end, n_steps, h, init[0] if init else None)
     if q0 is None or v0 is None:
         if init is None:
             raise InputError("give q0 and v0 (or pass a Scene / scene name for its initial data)")
         q0 = init[1] if q0 is None else q0
         v0 = init[2] if v0 is None else v0
+    validate.real_vector(q0, "q0")
+    validate.real_vector(v0, "v0")
     evs = check_events(events)
     common = dict(kind=kind, what=what, name=name, t0=t0, h=h, N=N, engine=engine, dps=dps, every=save_every,
                   dense=dense_output, events=evs, raise_on_failure=raise_on_failure, newton=newton,
-                  project=project, tol=tol, scene=scene)
+                  project=project, tol=tol, scene=scene, energy_jump=energy_jump, max_stages=max_stages)
     batch_params = isinstance(params, (list, tuple))
     batch_ic = dps is None and np.ndim(np.asarray(q0, dtype=object)) == 2
+    if batch_params and not params:
+        raise InputError("params is an empty list: an ensemble needs at least one member")
     if batch_params or batch_ic:
         plist = list(params) if batch_params else [params]
         Q0 = list(q0) if batch_ic else [q0]
@@ -146,6 +179,8 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
         if batch_ic and len(Q0) != len(V0):
             raise InputError(f"q0 has {len(Q0)} rows but v0 has {len(V0)}")
         if executor is not None and batch_ic and not batch_params:
+            if params is None:
+                _check_initial_point(_with_params(sysm, None), t0, q0, v0, dps)     # every member
             fast = _compiled_ensemble(sysm, params, Q0, V0, executor, common)
             if fast is not None:
                 return fast
@@ -178,6 +213,7 @@ def _compiled_ensemble(system, params, Q0, V0, executor, c) -> Optional[Result]:
     ``ldaspark.compiled.ensemble.ensemble_integrate`` (tasks that pickle, so any executor, process
     pools and clusters included); None when the run does not qualify (then the loop runs)."""
     if (c["engine"] == "generic" or c["dps"] is not None or c["dense"] or c["events"] or c["project"]
+            or c["energy_jump"] is not None
             or params is not None or system.params
             or _compiled_reason(system, c["kind"], c["name"]) is not None):
         return None
@@ -196,7 +232,9 @@ def _with_params(system: LagrangianSystem, params) -> LagrangianSystem:
             system._param_arg_values(None)     # raises if a value is missing
         return system
     if not isinstance(params, dict):
-        raise InputError(f"params must be a dict (or a list of dicts for an ensemble), got {params!r}")
+        raise InputError(f"params must be a dict (or a list of dicts for an ensemble), got {validate._describe(params)}")
+    for key, val in params.items():
+        validate.param_value(key, val)
     return system.with_params(params)
 
 
@@ -217,9 +255,10 @@ def _compiled_reason(system: LagrangianSystem, kind: str, name: str) -> Optional
 
 
 def _single(system, params, q0, v0, *, kind, what, name, t0, h, N, engine, dps, every, dense, events,
-            raise_on_failure, newton, project, tol, scene, quiet) -> Result:
+            raise_on_failure, newton, project, tol, scene, quiet, energy_jump, max_stages=None) -> Result:
     system = _with_params(system, params)
     pvals = {str(k): v for k, v in system.param_values().items()}
+    _check_initial_point(system, t0, q0, v0, dps)
     use = engine
     if engine != "generic":
         if dps is not None:
@@ -238,17 +277,68 @@ def _single(system, params, q0, v0, *, kind, what, name, t0, h, N, engine, dps, 
                     _notice(reason)
     if use == "compiled":
         res = _run_compiled(system_c, what if kind == "spark" else name, t0, q0, v0, h, N, every, dense,
-                            events, tol, project)
+                            events, tol, project, energy_jump)
     elif kind == "comparator":
         res = _run_comparator(system.substituted(), name, t0, q0, v0, h, N, every, dense, events, dps, tol,
-                              project)
+                              project, energy_jump, max_stages)
     else:
-        res = _run_generic(system, what, t0, q0, v0, h, N, every, dense, events, dps, tol, newton, project)
+        res = _run_generic(system, what, t0, q0, v0, h, N, every, dense, events, dps, tol, newton, project,
+                           energy_jump)
     res.method, res.system, res.scene, res.h, res.dps, res.save_every, res.params = \
         name, system.name, scene, h, dps, every, pvals
     if raise_on_failure and res.status < 0:
         res.raise_for_status()
     return res
+
+
+def _check_initial_point(system, t0, q0, v0, dps) -> None:
+    """The energy (8) and k at the initial point are finite real numbers (issue 25, class F):
+    U = 1/x at x = 0, oo or zoo in L, v0 = 1e200, sqrt(x) at x = -1 (a math domain error in
+    float64, a complex mpc at dps) are one error here, never a NaN, inf or complex energy[0] in
+    a returned Result (nor a ZeroDivisionError printed by a compiled kernel)."""
+    import warnings
+
+    from .core.backend import Backend
+    bk = Backend(dps)
+    rows = [(np.asarray(q0, dtype=object), np.asarray(v0, dtype=object))]
+    if rows[0][0].ndim == 2:                      # an initial-data ensemble: every member
+        rows = list(zip(rows[0][0], rows[0][1]))
+    with bk.context(), np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for j, (q, v) in enumerate(rows):
+            member = f"ensemble member {j}: " if len(rows) > 1 else ""
+            try:
+                t, qq, vv = bk.scalar(t0), bk.array(list(q)), bk.array(list(v))
+            except (TypeError, ValueError) as exc:
+                raise InputError(f"{member}t0, q0 and v0 must be numbers: {exc}") from None
+            if qq.shape != (system.n,) or vv.shape != (system.n,):
+                raise InputError(f"{member}initial data have shapes q: {qq.shape}, v: {vv.shape}; the system has "
+                                 f"n = {system.n}")
+            validate.finite_initial_point(system, bk, t, qq, vv, member)
+
+
+def _energy_jump_cut(res: Result, energy_jump) -> tuple:
+    """The ``energy_jump`` monitor on a run that returned every step (compiled kernels,
+    comparators): (the prefix up to the first step whose energy changes by more than
+    energy_jump (1 + |E|), the NonFiniteError) or (res, None). The same test as
+    ``SparkMethod``'s monitor on the generic engine."""
+    from .core.errors import NonFiniteError
+    if energy_jump is None or res is None or len(res.t) < 2:
+        return res, None
+    E = float_array(res.energy)
+    jump = np.abs(np.diff(E)) > float(energy_jump) * (1 + np.abs(E[:-1]))
+    if not jump.any():
+        return res, None
+    k = int(np.argmax(jump))
+    t = float_array(res.t)
+    exc = NonFiniteError(f"step {k} (t = {t[k]:.6g} -> {t[k + 1]:.6g}): energy jumped from {E[k]:.6g} to "
+                         f"{E[k + 1]:.6g} (more than energy_jump = {float(energy_jump):g} relative): a collision "
+                         "with a singularity of L or a step too large", step=k, time=t[k])
+    for nm in ("t", "q", "v", "energy", "constraint"):
+        setattr(res, nm, np.asarray(getattr(res, nm))[:k + 1])
+    if res.psi is not None:
+        res.psi = np.asarray(res.psi)[:k]
+    return res, exc
 
 
 def _failure(exc: BaseException) -> tuple:
@@ -277,12 +367,21 @@ def _initial_checks(system, bk, t0, q0, v0, project, tol):
     return t0_, q, v
 
 
-def _run_generic(system, tableau, t0, q0, v0, h, N, every, dense, events, dps, tol, newton, project) -> Result:
+def _run_generic(system, tableau, t0, q0, v0, h, N, every, dense, events, dps, tol, newton, project,
+                 energy_jump=None) -> Result:
     """The loop of ``ldaspark.core.spark.integrate`` (``core.spark.march``: same predictor, same
     checks, so the same numbers), keeping every ``every``-th point, the stage values for dense
     output, events, and the prefix on a step failure."""
+    from .compiled.fast import n_samples
     from .core.spark import SparkMethod, march
-    method = SparkMethod(system, tableau, dps=dps, tol=tol, newton=newton)
+    # what this run stores: every ``every``-th point (t, q, v, E, k, psi), and with dense output or
+    # events the nodes and stage velocities of every step (refused before allocating, as the
+    # compiled engine does)
+    s, n, m = tableau.s, system.n, system.m
+    validate.check_storage(n_samples(N, every), 2 + 2 * n + m + s * m, mp=dps is not None)
+    if dense or events:
+        validate.check_storage(N + 1, n + s * n, what="the dense output")
+    method = SparkMethod(system, tableau, dps=dps, tol=tol, newton=newton, energy_jump=energy_jump)
     bk = method.backend
     status, message, error = 0, MSG_DONE, None
     with bk.context():
@@ -385,16 +484,72 @@ def _prefix_run(run: Callable, N: int, every: int) -> tuple:
         return (run(k, every) if k > 0 else None), exc
 
 
-def _run_compiled(system, method, t0, q0, v0, h, N, every, dense, events, tol, project) -> Result:
-    from .compiled.fast import fast_integrate
+#: steps of one compiled kernel call: a long run is a sequence of such calls (each starting from
+#: the previous end state), and Python handles a Ctrl-C between two of them (a kernel holds the
+#: interpreter). 2**18 steps take 0.1-3 s (0.4-10 us a step), so an interrupt ends the run within
+#: a few seconds; runs up to this length are one call, bit for bit as before.
+COMPILED_CHUNK = 2 ** 18
+
+
+def _fast_chunked(system, method, t0, q0, v0, h, n, every, tol, chunk=None):
+    """``fast_integrate`` of n steps in calls of at most ``chunk`` steps whose ends fall on the
+    saved points (multiples of ``every``), so the saved samples are those of one call; a failure
+    names the step of the whole run. Between calls the predictor restarts (the numbers agree
+    with one call to the Newton tolerance)."""
+    from .compiled.fast import FastSolution, compile_system, fast_integrate, run_compiled
+    chunk = COMPILED_CHUNK if chunk is None else chunk
+    if n <= chunk:
+        return fast_integrate(system, method, t0, q0, v0, h, n, every=every, tol=tol)
+    hf, t0f = float(h), float(t0)
+    parts, stats, done, cs = [], None, 0, None
+    q, v = q0, v0
+    while done < n:
+        if every <= chunk:
+            L, e = min(n - done, (chunk // every) * every), every
+        else:
+            L = min(n - done, chunk, (done // every + 1) * every - done)
+            e = L
+        try:
+            if cs is None:
+                fs = fast_integrate(system, method, t0f + done * hf, q, v, h, L, every=e, tol=tol)
+                if fs.stats.get("path") != "fast":      # the generic fallback: one Python loop
+                    return fast_integrate(system, method, t0, q0, v0, h, n, every=every, tol=tol)
+                cs = compile_system(system)
+            else:
+                fs = run_compiled(cs, method, t0f + done * hf, q, v, h, L, e, True, tol)
+        except LdasparkError as exc:
+            if isinstance(getattr(exc, "step", None), int):
+                exc.step += done
+                exc.time = t0f + exc.step * hf
+            raise
+        rows = [0] if not parts else []            # the start of a chunk ends the previous one
+        if every <= chunk:
+            rows += list(range(1, len(fs.t)))        # its samples fall on multiples of every
+        elif (done + L) % every == 0 or done + L == n:
+            rows.append(len(fs.t) - 1)               # the chunk's end is a saved point
+        parts.append(tuple(np.asarray(a)[rows] for a in (fs.t, fs.q, fs.v, fs.energy, fs.constraint)))
+        st = fs.stats
+        if stats is None:
+            stats = dict(st)
+        else:
+            for key in ("steps", "nfev", "njev", "nlu", "newton_iterations"):
+                if key in st:
+                    stats[key] = stats.get(key, 0) + st[key]
+        q, v = fs.q[-1], fs.v[-1]
+        done += L
+    stats["mean_iterations"] = stats.get("newton_iterations", 0) / max(stats.get("steps", 1), 1)
+    return FastSolution(*(np.concatenate([p[i] for p in parts]) for i in range(5)), stats)
+
+
+def _run_compiled(system, method, t0, q0, v0, h, N, every, dense, events, tol, project, energy_jump=None) -> Result:
     from .core.backend import Backend
     if project:
         bk = Backend(None)
         v0 = system.project_velocity(bk, float(t0), bk.array(q0), bk.array(v0))
-    inner = 1 if (dense or events) else every
+    inner = 1 if (dense or events or energy_jump is not None) else every
 
     def run(n, e):
-        fs = fast_integrate(system, method, t0, q0, v0, h, n, every=e, tol=tol)
+        fs = _fast_chunked(system, method, t0, q0, v0, h, n, e, tol)
         st = dict(fs.stats)
         return Result(fs.t, fs.q, fs.v, fs.energy, fs.constraint, None, 0, MSG_DONE,
                       *(st.get(c, 0) for c in ("nfev", "njev", "nlu", "newton_iterations")),
@@ -402,6 +557,8 @@ def _run_compiled(system, method, t0, q0, v0, h, N, every, dense, events, tol, p
     res, exc = _prefix_run(run, N, inner)
     if isinstance(exc, NewtonError):
         exc = _generic_diagnosis(exc, system, method, res, t0, q0, v0, h, tol)
+    if exc is None:
+        res, exc = _energy_jump_cut(res, energy_jump)
     return _finish_prefix(res, exc, system, t0, q0, v0, every, dense, events, "compiled", sliced=inner != 1)
 
 
@@ -434,7 +591,8 @@ def _finish_prefix(res, exc, system, t0, q0, v0, every, dense, events, engine, s
     return _post_process(res, every, dense, events, sliced)
 
 
-def _run_comparator(system, name, t0, q0, v0, h, N, every, dense, events, dps, tol, project) -> Result:
+def _run_comparator(system, name, t0, q0, v0, h, N, every, dense, events, dps, tol, project,
+                    energy_jump=None, max_stages=None) -> Result:
     from .core.backend import Backend
     from .core.comparators import integrate_comparator
     bk = Backend(dps)
@@ -442,11 +600,14 @@ def _run_comparator(system, name, t0, q0, v0, h, N, every, dense, events, dps, t
         t0_, q0, v0 = _initial_checks(system, bk, t0, q0, v0, project, tol)
 
     def run(n, e):
-        sol = integrate_comparator(name, system, t0_, q0, v0, h, int(n), dps=dps, tol=tol)
+        sol = integrate_comparator(name, system, t0_, q0, v0, h, int(n), dps=dps, tol=tol, max_stages=max_stages)
         st = dict(sol.stats, path="generic")
         psi = np.asarray(sol.psi)
         return Result(sol.t, sol.q, sol.v, sol.energy, sol.constraint, psi if psi.ndim == 3 else None, 0,
                       MSG_DONE, *(st.get(c, 0) for c in ("nfev", "njev", "nlu", "newton_iterations")),
                       engine="generic", stats=st)
+    validate.check_storage(N + 1, 2 + 2 * system.n + system.m, mp=dps is not None, what="the comparator's steps")
     res, exc = _prefix_run(run, N, 1)
+    if exc is None:
+        res, exc = _energy_jump_cut(res, energy_jump)
     return _finish_prefix(res, exc, system, t0_, q0, v0, every, dense, events, "generic")

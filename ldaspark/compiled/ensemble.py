@@ -60,19 +60,20 @@ class RunSpec:
 
     def __init__(self, system, method, t0, Q0, V0, h, n_steps, every=1, compensated=True, tol=None,
                  kernel="auto"):
-        from ..core.validate import check_newton_options, check_storage
+        from ..core.validate import check_newton_options, check_storage, count, real_number
         from .fast import n_samples
         try:
             Q0 = np.atleast_2d(np.asarray(Q0, dtype=float))
             V0 = np.atleast_2d(np.asarray(V0, dtype=float))
-            t0, h = float(t0), float(h)
+            t0, h = float(real_number(t0, "t0")), float(real_number(h, "h"))
         except (TypeError, ValueError) as exc:
             raise InputError(f"t0, h, Q0 and V0 must be numbers: {exc}") from None
         if Q0.ndim != 2 or Q0.shape != V0.shape or Q0.shape[1] != system.n:
             raise InputError(f"Q0 and V0 must both have shape (runs, {system.n}), got {Q0.shape}, {V0.shape}")
-        for name, val in (("n_steps", n_steps), ("every", every)):
-            if isinstance(val, bool) or not isinstance(val, (int, np.integer)) or val <= 0:
-                raise InputError(f"{name} must be a positive integer, got {val!r}")
+        if len(Q0) == 0:
+            raise InputError("Q0 and V0 have no rows: an ensemble needs at least one initial point")
+        count(n_steps, "n_steps")          # bounded as every run (10**12 steps would never end)
+        count(every, "every")
         if not (np.isfinite(h) and h != 0 and np.isfinite(t0)):
             raise InputError(f"h must be finite and nonzero and t0 finite, got h = {h}, t0 = {t0}")
         check_newton_options(tol, 1)
@@ -125,8 +126,11 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
     ``where`` names where they run as in ``ldaspark.core.workers`` (a scheduler address, a
     ``distributed.Client``, an executor); ``executor`` is the same as ``where`` with an executor
     (kept for compatibility). Default: a local process pool of ``max_workers`` (all cores)."""
+    from ..core.validate import check_executor, count
     if executor is not None and where is not None:
         raise InputError("give executor or where, not both")
+    check_executor(executor)
+    count(chunk, "chunk", 1, 10 ** 9)
     t_start = time.perf_counter()
     specs = list(specs)
     if not specs:
@@ -134,7 +138,7 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
     plan = []
     for k, sp in enumerate(specs):
         if not isinstance(sp, RunSpec):
-            raise InputError(f"run_many takes RunSpec objects, got {type(sp).__name__}")
+            raise InputError(f"run_many needs RunSpec objects, got {type(sp).__name__} at position {k}")
         for fn, args in sp.tasks(chunk):
             plan.append((k, fn, args))
     results = _run_plan(plan, len(specs), executor if executor is not None else where, max_workers, progress)

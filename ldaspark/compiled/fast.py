@@ -262,13 +262,11 @@ def _make_spec(method, kernel):
 
 
 def _check_options(n_steps, every, predictor, tol, max_iter, n_dof, n_con):
-    from ..core.validate import check_newton_options, check_storage
+    from ..core.validate import MAX_STEPS, check_newton_options, check_storage, count
     if predictor not in (0, 1, 2) or isinstance(predictor, bool):
         raise InputError(f"predictor must be 0, 1 or 2, got {predictor!r}")
-    if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps <= 0:
-        raise InputError(f"n_steps must be a positive integer, got {n_steps!r}")
-    if isinstance(every, bool) or not isinstance(every, (int, np.integer)) or every <= 0:
-        raise InputError(f"every must be a positive integer, got {every!r}")
+    count(n_steps, "n_steps", 1, MAX_STEPS)     # 10**12 steps with a large every never end
+    count(every, "every", 1, MAX_STEPS)
     check_newton_options(tol, max_iter)
     check_storage(n_samples(int(n_steps), int(every)), 2 + 2 * n_dof + n_con, what="the samples")
 
@@ -425,6 +423,8 @@ def _setup_checks(system, t0, q0, v0, cs=None):
     memo = _CHECKED.get(id(system))
     if memo is not None and memo[0] is system and key in memo[1]:
         return
+    from ..core.validate import finite_initial_point
+    finite_initial_point(system, bk, t, q, v)     # before a kernel divides by zero at it
     if cs is not None and cs.form == "mechanical":
         S, k = _saddle_and_k(cs, t, np.ascontiguousarray(q, float), np.ascontiguousarray(v, float))
         system.check_saddle(bk, t, q, v, S=S)
@@ -515,6 +515,11 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
         v0 = sv0 if v0 is None else v0
     if h is None or n_steps is None:
         raise InputError("give h and n_steps")
+    from ..core.validate import real_number, real_vector
+    real_number(h, "h", nonzero=True)           # h=True is not 1
+    real_number(t0, "t0")
+    real_vector(q0, "q0")
+    real_vector(v0, "v0")
     _check_options(n_steps, every, predictor, tol, max_iter, len(q0), system.m)
     kernel_spec(method, kernel)
     _setup_checks(system, t0, q0, v0, _loaded(system))

@@ -39,7 +39,7 @@ import sympy
 from .backend import Backend, SingularMatrixError, fmt
 from .errors import InputError, NewtonError
 from .spark import Solution, SparkMethod
-from .system import LagrangianSystem, _arr
+from .system import _NONSMOOTH, LagrangianSystem, _arr, real_jacobian
 from .families import euler_i, euler_ii, gauss, lobatto_iiia_iiib
 
 FIXED_NAMES = ("lobatto-iiia-iiib-2-leapfrog", "lobatto-iiia-iiib-2-modified",
@@ -73,9 +73,9 @@ class MechanicalParts:
         K = sympy.Matrix(mech["K"])
         b = sympy.Matrix(mech["b"]).reshape(K.rows, 1)
         U = sympy.sympify(mech["U"], strict=True)
-        gU = sympy.Matrix([sympy.diff(U, x) for x in q])
-        kq = (K * sympy.Matrix(v) + b).jacobian(q)
-        mod = backend.lambdify_module
+        gU = real_jacobian([U], q, list(q)).T
+        kq = real_jacobian(K * sympy.Matrix(v) + b, q, list(q) + list(v))
+        mod = [_NONSMOOTH, backend.lambdify_module]      # Abs' = sign, sign' = 0 off its jump
         self.bk = backend
         self.n, self.m = system.n, K.rows
         with backend.context():
@@ -385,7 +385,7 @@ def _mp_iiib_a(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, name, progres
 
 def integrate_comparator(name: str, system: LagrangianSystem, t0, q0, v0, h, n_steps: int,
                          dps: int | None = None, tol=None, max_iter: int = 50,
-                         progress=None) -> Solution:
+                         progress=None, max_stages: int | None = None) -> Solution:
     """Integrate with comparator ``name`` (see module docstring) at constant step h.
 
     Initial data must be consistent (k(t0, q0, v0) = 0). With ``dps`` the computation runs in
@@ -398,7 +398,7 @@ def integrate_comparator(name: str, system: LagrangianSystem, t0, q0, v0, h, n_s
                                 tol=None if tol is None else 10 * tol)
     mt = re.fullmatch(r"gauss-irk-([1-9][0-9]*)", name)
     if mt:
-        meth = GaussIRK(system, gauss(int(mt.group(1))), dps=dps, tol=tol, max_iter=max_iter)
+        meth = GaussIRK(system, gauss(int(mt.group(1)), max_stages=max_stages), dps=dps, tol=tol, max_iter=max_iter)
         return _spark_variant_loop([(meth, 1)], system, t0, q0, v0, h, n_steps, name, progress)
     if name == "lobatto-iiia-iiib-2-modified":
         meth = ModifiedLobatto2(system, dps=dps, tol=tol, max_iter=max_iter)

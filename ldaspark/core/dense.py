@@ -65,7 +65,8 @@ class _Dense:
         return float(self.t[-1])
 
     def _locate(self, t):
-        tt = np.atleast_1d(np.asarray(t, float))
+        from .validate import times
+        tt = np.atleast_1d(times(t))
         span = self.t[-1] - self.t[0]
         if np.any(tt < self.t[0] - 1e-12 * span) or np.any(tt > self.t[-1] + 1e-12 * span):
             raise InputError(f"dense output is defined on [{self.t[0]:g}, {self.t[-1]:g}], got t outside it")
@@ -135,20 +136,55 @@ class HermiteDense(_Dense):
         return q, v
 
 
+class Event:
+    """A checked event function: ``g(t, q, v)`` with ``terminal`` (bool) and ``direction`` (a
+    finite real number) read once, here. g gets copies of q and v (an event that
+    modifies its argument cannot change the trajectory) and must return a real number."""
+
+    def __init__(self, g: Callable, index: int):
+        from .validate import _describe, _is_bool
+        if not callable(g):
+            raise InputError(f"event {index} must be a callable g(t, q, v), got {_describe(g)}")
+        self.g, self.index = g, index
+        term = getattr(g, "terminal", False)
+        if not (_is_bool(term) or (isinstance(term, (int, np.integer)) and term in (0, 1))):
+            raise InputError(f"event {index}: terminal must be True or False, got {_describe(term)}")
+        self.terminal = bool(term)
+        d = getattr(g, "direction", 0)
+        if _is_bool(d) or not isinstance(d, (int, float, np.integer, np.floating)) or not np.isfinite(d):
+            raise InputError(f"event {index}: direction must be a finite real number (> 0 upward, < 0 "
+                             f"downward, 0 both), got {_describe(d)}")
+        self.direction = float(d)
+
+    def __call__(self, t, q, v) -> float:
+        from .validate import _describe, _is_bool
+        qc, vc = np.array(q, dtype=float), np.array(v, dtype=float)    # copies: g may modify them
+        val = self.g(float(t), qc, vc)
+        if _is_bool(val) or not (isinstance(val, (int, float, np.integer, np.floating))
+                                or (isinstance(val, np.ndarray) and val.shape == () and val.dtype.kind in "iuf")):
+            raise InputError(f"event {self.index} must return a real number, got {_describe(val)}")
+        val = float(val)
+        if not np.isfinite(val):
+            raise InputError(f"event {self.index} returned NaN or infinity at t = {float(t):g}")
+        return val
+
+
 def check_events(events: Union[None, Callable, Sequence[Callable]]) -> list:
-    """Normalise ``events`` (None, one callable, or a sequence of callables) to a list."""
+    """Normalise ``events`` (None, one callable, or a sequence of callables) to a list of
+    ``Event``: validated once here for every engine."""
+    from .validate import _describe
     if events is None:
         return []
-    evs = [events] if callable(events) else list(events)
-    for g in evs:
-        if not callable(g):
-            raise InputError(f"an event must be a callable g(t, q, v), got {g!r}")
-    return evs
+    if callable(events):
+        evs = [events]
+    elif isinstance(events, (list, tuple)):
+        evs = list(events)
+    else:
+        raise InputError(f"events must be a callable g(t, q, v) or a list of them, got {_describe(events)}")
+    return [g if isinstance(g, Event) else Event(g, i) for i, g in enumerate(evs)]
 
 
 def _crossed(g0: float, g1: float, direction: float) -> bool:
-    if not (np.isfinite(g0) and np.isfinite(g1)):
-        raise InputError("an event function returned NaN or infinity")
     if g0 == 0 or np.sign(g0) == np.sign(g1):
         return False
     up = g1 > g0
@@ -159,21 +195,21 @@ class EventTracker:
     """Watches g_e(t, q, v) at the step points; ``after_step`` locates crossings in a step."""
 
     def __init__(self, events: Sequence[Callable], t0, q0, v0):
-        self.events = list(events)
+        self.events = check_events(list(events))
         self.found = [[] for _ in self.events]
-        self.n = int(np.size(q0))      # the event states' width also when an event never fires
-        self.g = [float(g(float(t0), np.asarray(q0, float), np.asarray(v0, float))) for g in self.events]
+        self.n = len(float_vec(q0))
+        self.g = [g(t0, float_vec(q0), float_vec(v0)) for g in self.events]
 
     def after_step(self, t0: Any, t1: Any, q1: Any, v1: Any, piece: Callable) -> bool:
         """Check the step [t0, t1] (end state q1, v1, local dense output ``piece``);
         returns True when a terminal event occurred in it."""
         from scipy.optimize import brentq
         stop = False
-        q1f, v1f = np.asarray(q1, float), np.asarray(v1, float)
+        q1f, v1f = float_vec(q1), float_vec(v1)
         for e, g in enumerate(self.events):
-            g1 = float(g(float(t1), q1f, v1f))
-            if _crossed(self.g[e], g1, float(getattr(g, "direction", 0))):
-                fn = lambda tt, g=g: float(g(tt, *piece(tt)))
+            g1 = g(t1, q1f, v1f)
+            if _crossed(self.g[e], g1, g.direction):
+                fn = lambda tt, g=g: g(tt, *piece(tt))
                 a, b = float(t0), float(t1)
                 ga, gb = fn(a), fn(b)
                 if ga == 0:
@@ -184,16 +220,25 @@ class EventTracker:
                     te = brentq(fn, a, b, xtol=4 * np.finfo(float).eps * max(1.0, abs(b)), rtol=4 * np.finfo(float).eps)
                 qe, ve = piece(te)
                 self.found[e].append((te, np.asarray(qe, float), np.asarray(ve, float)))
-                stop = stop or bool(getattr(g, "terminal", False))
+                stop = stop or g.terminal
             self.g[e] = g1
         return stop
 
     def arrays(self) -> tuple:
         """(t_events, q_events, v_events): one array per event function."""
         te = [np.array([x[0] for x in f], float) for f in self.found]
+        # (0, n) when an event never fired (reshape(0, -1) is ambiguous for an empty array)
         qe = [np.array([x[1] for x in f], float).reshape(len(f), self.n) for f in self.found]
         ve = [np.array([x[2] for x in f], float).reshape(len(f), self.n) for f in self.found]
         return te, qe, ve
+
+
+def float_vec(x) -> np.ndarray:
+    """float64 copy of a state vector (float64 or mpmath numbers)."""
+    a = np.asarray(x)
+    if a.dtype == object:
+        return np.array([float(e) for e in a.reshape(-1)], float).reshape(a.shape)
+    return a.astype(float)
 
 
 def step_piece(t0: Any, h: Any, q0: Any, c: Any, V: Any) -> CollocationDense:

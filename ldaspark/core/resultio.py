@@ -113,7 +113,11 @@ def _restore_extras(res: Result, extra: dict) -> None:
     ne = 0
     while f"t_events_{ne}" in extra:
         ne += 1
-    grab = lambda k: np.asarray(extra[k], float)
+    def grab(k):
+        a = np.asarray(extra[k], float)
+        if not np.all(np.isfinite(a)):
+            raise InputError(f"{k} contains NaN or infinity")
+        return a
     res.t_events = [grab(f"t_events_{e}") for e in range(ne)]
     res.q_events = [grab(f"q_events_{e}") for e in range(ne)]
     res.v_events = [grab(f"v_events_{e}") for e in range(ne)]
@@ -123,10 +127,30 @@ def _restore_extras(res: Result, extra: dict) -> None:
         res.sol = HermiteDense(grab("dense_t"), grab("dense_q"), grab("dense_v"))
 
 
+def _check_finite_arrays(result: Result) -> None:
+    """Every format refuses NaN, infinity and complex numbers, as the JSON writer always did: a
+    file that ``load_result`` would refuse is never written."""
+    import mpmath
+    for name in ARRAYS:
+        a = getattr(result, name)
+        if a is None:
+            continue
+        a = np.asarray(a)
+        if a.dtype == object:
+            ok = all(isinstance(x, (mpmath.mpf, int, float, np.integer, np.floating)) and mpmath.isfinite(x)
+                     for x in a.reshape(-1))
+        else:
+            ok = a.dtype.kind in "iuf" and bool(np.all(np.isfinite(a)))
+        if not ok:
+            raise InputError(f"refusing to write a result whose {name} contains NaN, infinity or non-real values")
+
+
 def save_result(result: Result, path: Union[str, os.PathLike]) -> None:
-    """Write ``result`` to ``path`` (format by extension; atomically)."""
+    """Write ``result`` to ``path`` (format by extension; atomically). NaN, infinity and complex
+    values are refused in every format."""
     if result.members is not None and _ext(path) == ".json":
         raise InputError("ensemble results are written as .npz or .h5")
+    _check_finite_arrays(result)
     ext = _ext(path)
     if ext == ".json":
         atomic_write_json(path, _to_json(result))
@@ -160,24 +184,99 @@ def _h5py():
     return h5py
 
 
-def _from_numbers(a, dps):
+#: longest decimal string read for one number (DPS_MAX digits, sign, point, exponent)
+MAX_NUMBER_CHARS = 2100
+
+
+def _from_numbers(a, dps, name="array"):
+    """float64, or mpf at ``dps`` for decimal strings; NaN, infinity and complex refused."""
     a = np.asarray(a)
     if a.dtype.kind in "SUO":
-        a = a.astype(str)
+        try:
+            a = a.astype(str)
+        except (TypeError, ValueError, UnicodeDecodeError):
+            raise InputError(f"{name} holds values that are not numbers") from None
+        if a.size and max(len(x) for x in a.reshape(-1)) > MAX_NUMBER_CHARS:
+            raise InputError(f"{name} holds a number string longer than {MAX_NUMBER_CHARS} characters")
         if dps is None:
-            return a.astype(float)
-        import mpmath
-        with mpmath.workdps(dps):
-            return np.vectorize(mpmath.mpf, otypes=[object])(a) if a.size else a.astype(object)
-    return a.astype(float)
+            try:
+                out = a.astype(float)
+            except ValueError:
+                raise InputError(f"{name} holds values that are not numbers") from None
+        else:
+            import mpmath
+            with mpmath.workdps(dps):
+                try:
+                    out = np.vectorize(mpmath.mpf, otypes=[object])(a) if a.size else a.astype(object)
+                except (ValueError, TypeError):
+                    raise InputError(f"{name} holds values that are not numbers") from None
+                if not all(mpmath.isfinite(x) for x in out.reshape(-1)):
+                    raise InputError(f"{name} holds NaN or infinity")
+            return out
+    elif a.dtype.kind not in "iuf":
+        raise InputError(f"{name} has dtype {a.dtype} (complex, boolean or compound): not a result array")
+    else:
+        out = a.astype(float)
+    if not np.all(np.isfinite(out)):
+        raise InputError(f"{name} holds NaN or infinity")
+    return out
+
+
+def _check_metadata(md) -> dict:
+    """The metadata of a result file: a dict whose dps, status and save_every are in range."""
+    from .validate import check_dps
+    if not isinstance(md, dict):
+        raise InputError(f"the metadata is a {type(md).__name__}, not a JSON object")
+    try:
+        check_dps(md.get("dps"))
+    except InputError as exc:
+        raise InputError(f"metadata: {exc}") from None
+    st = md.get("status", 0)
+    if not (isinstance(st, int) and not isinstance(st, bool) and -3 <= st <= 1) and not (
+            isinstance(st, list) and st and all(isinstance(x, int) and not isinstance(x, bool) and -3 <= x <= 1
+                                                for x in st)):
+        raise InputError(f"metadata: status must be an integer in -3..1 (or a list of them), got {str(st)[:40]}")
+    for key in ("stats", "params"):
+        if md.get(key) is not None and not isinstance(md[key], dict):
+            raise InputError(f"metadata: {key} must be a JSON object, got {type(md[key]).__name__}")
+    for key in ("scene", "method", "system", "engine", "message"):
+        if md.get(key) is not None and not isinstance(md[key], (str, list)):
+            raise InputError(f"metadata: {key} must be a string, got {type(md[key]).__name__}")
+    se = md.get("save_every", 1)
+    if se is not None and (isinstance(se, bool) or not isinstance(se, int) or se < 1):
+        raise InputError(f"metadata: save_every must be a positive integer, got {str(se)[:40]}")
+    return md
+
+
+def _check_shapes(got: dict, batch: bool) -> None:
+    """t (S,), q and v (S, n), energy (S,), constraint (S, m), psi (S - 1, s, m) or empty; an
+    ensemble (status a list) has a leading axis B on each. A 2-D t of a single run is refused."""
+    lead = 1 if batch else 0
+    t = got["t"]
+    if t.ndim != 1 + lead or t.shape[-1] == 0:
+        raise InputError(f"t has shape {t.shape}; a {'ensemble' if batch else 'single run'} needs "
+                         f"{'(B, S)' if batch else '(S,)'} with S >= 1")
+    S = t.shape[-1]
+    pre = t.shape[:lead]
+    for name, nd in (("q", 2), ("v", 2), ("energy", 1), ("constraint", 2)):
+        a = got[name]
+        if a.ndim != nd + lead or a.shape[:lead + 1] != pre + (S,):
+            raise InputError(f"{name} has shape {a.shape}, not matching t {t.shape}")
+    if got["v"].shape != got["q"].shape or got["q"].shape[-1] == 0:
+        raise InputError(f"q and v have shapes {got['q'].shape} and {got['v'].shape}")
+    psi = got.get("psi")
+    if psi is not None and psi.size and (psi.ndim != 3 + lead or psi.shape[lead] != S - 1):
+        raise InputError(f"psi has shape {psi.shape}, not matching t {t.shape}")
 
 
 def _build(md: dict, arrays: dict) -> Result:
+    md = _check_metadata(md)
     dps = md.get("dps")
-    got = {k: _from_numbers(arrays[k], dps) for k in ARRAYS if k in arrays}
-    missing = [k for k in ARRAYS[:5] if k not in got]
+    missing = [k for k in ARRAYS[:5] if k not in arrays]
     if missing:
         raise InputError(f"result file lacks {', '.join(missing)}")
+    got = {k: _from_numbers(arrays[k], dps, k) for k in ARRAYS if k in arrays}
+    _check_shapes(got, isinstance(md.get("status"), list))
     psi = got.get("psi")
     if psi is not None and psi.size == 0:
         psi = None
@@ -194,18 +293,95 @@ def _build(md: dict, arrays: dict) -> Result:
     return res
 
 
+def _no_constant(name):
+    raise InputError(f"{name} is not a finite number")
+
+
+def _finite_float(text):
+    x = float(text)
+    if not np.isfinite(x):               # 1e999
+        raise InputError(f"{text[:40]} is not a finite float64 number")
+    return x
+
+
+def _npz_arrays(path, z) -> dict:
+    """The arrays of an open .npz, each header read (and bounded) before its data: a header
+    claiming 1e15 elements, a truncated member or a pickled object array is one InputError."""
+    out = {}
+    names = set(z.files)
+    for k in ARRAYS + ("metadata",) + tuple(sorted(n for n in names if _is_extra(n))):
+        if k not in names:
+            continue
+        info = z.zip.getinfo(k + ".npy")
+        with z.zip.open(info) as f:
+            version = np.lib.format.read_magic(f)
+            hdr = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                   else np.lib.format.read_array_header_2_0)(f)
+        shape, _, dtype = hdr
+        n = int(np.prod(shape, dtype=object)) if shape else 1
+        if dtype.hasobject:
+            raise InputError(f"{k} is an object array (pickled data are never loaded)")
+        if dtype.fields is not None:
+            raise InputError(f"{k} has a compound dtype: not a result array")
+        if n * dtype.itemsize > info.file_size:
+            raise InputError(f"{k}: the header claims {n:.3g} elements, more than the file holds (truncated?)")
+        # a compressed member inflates by at most 64x (trajectories compress 1-3x; 1.4 MB of
+        # zeros claiming 2.9 GB is refused before it is inflated)
+        if info.file_size > max(64 * info.compress_size, 2 ** 24):
+            raise InputError(f"{k}: {info.file_size} bytes compressed into {info.compress_size}: refusing to inflate")
+        out[k] = z[k]
+    return out
+
+
+def _h5_arrays(f) -> dict:
+    """The datasets of an open HDF5 file: datasets only (no groups), not scalars, numeric or
+    string dtype, bounded size; read after these checks."""
+    h5py = _h5py()
+    out = {}
+    for k in ARRAYS + tuple(sorted(n for n in f.keys() if _is_extra(n))):
+        if k not in f:
+            continue
+        ds = f[k]
+        if not isinstance(ds, h5py.Dataset):
+            raise InputError(f"{k} is an HDF5 {type(ds).__name__}, not a dataset")
+        if ds.shape is None or ds.ndim == 0:
+            raise InputError(f"{k} is a scalar, not an array")
+        if ds.dtype.fields is not None or ds.dtype.kind not in "iufS":
+            raise InputError(f"{k} has dtype {ds.dtype}: not a result array")
+        need, held = int(ds.size) * ds.dtype.itemsize, int(ds.id.get_storage_size())
+        # a chunked, compressed or fill-value dataset may claim far more than the file holds:
+        # at most 64x what is stored (or 16 MiB) is read
+        if need > max(64 * held, 2 ** 24):
+            raise InputError(f"{k} claims {ds.size:.3g} elements ({need} bytes) but stores {held} bytes")
+        out[k] = ds[()]
+    return out
+
+
 def load_result(path: Union[str, os.PathLike]) -> Result:
-    """Read a result file written by ``save_result`` or ``ldaspark integrate --out`` (any format)."""
+    """Read a result file written by ``save_result`` or ``ldaspark integrate --out`` (any format).
+
+    Only regular files (checked by ``os.stat`` before opening: a FIFO, a device or a link to
+    /dev/zero is refused without blocking) of at most ``validate.MAX_RESULT_BYTES`` bytes;
+    array headers are bounded before the data are read; NaN, infinity, complex values, wrong
+    shapes and out-of-range metadata (dps outside [DPS_MIN, DPS_MAX]) are InputErrors."""
+    from .validate import MAX_RESULT_BYTES, regular_file
     ext = _ext(path)
-    if not os.path.exists(path):
-        raise InputError(f"no such result file: {os.fspath(path)}")
+    size = regular_file(path, MAX_RESULT_BYTES, "result file")
     try:
         if ext == ".json":
-            with open(path, encoding="utf-8") as f:
-                d = json.load(f)
+            with open(path, "rb") as f:
+                raw = f.read(size + 1)
+            d = json.loads(raw.decode("utf-8"), parse_constant=_no_constant, parse_float=_finite_float)
             if not isinstance(d, dict):
                 raise InputError(f"{os.fspath(path)}: not a result file")
-            arrays = {k: np.array(d[k], dtype=object if d.get("dps") else float) for k in ARRAYS if k in d}
+            _check_metadata(d)
+            arrays = {}
+            for k in ARRAYS:
+                if k in d:
+                    try:
+                        arrays[k] = np.array(d[k], dtype=object if d.get("dps") else float)
+                    except (TypeError, ValueError, OverflowError):
+                        raise InputError(f"{k} is not an array of numbers (rows of equal length)") from None
             if "psi" in arrays and d.get("dps"):
                 arrays["psi"] = np.array(d["psi"], dtype=str) if d["psi"] else np.zeros(0)
             for k in ARRAYS:
@@ -217,17 +393,36 @@ def load_result(path: Union[str, os.PathLike]) -> Result:
             return res
         if ext == ".npz":
             with np.load(path, allow_pickle=False) as z:
-                md = json.loads(str(z["metadata"]))
-                res = _build(md, {k: z[k] for k in ARRAYS if k in z.files})
-                _restore_extras(res, {k: z[k] for k in z.files if _is_extra(k)})
+                arrays = _npz_arrays(path, z)
+                if "metadata" not in arrays:
+                    raise InputError("no metadata array")
+                md = json.loads(str(arrays.pop("metadata")), parse_constant=_no_constant,
+                                parse_float=_finite_float)
+                extra = {k: arrays.pop(k) for k in list(arrays) if _is_extra(k)}
+                res = _build(md, arrays)
+                _restore_extras(res, extra)
                 return res
         h5py = _h5py()
         with h5py.File(path, "r") as f:
-            md = json.loads(f.attrs["metadata"])
-            res = _build(md, {k: f[k][()] for k in ARRAYS if k in f})
-            _restore_extras(res, {k: f[k][()] for k in f.keys() if _is_extra(k)})
+            raw = f.attrs["metadata"]
+            if not isinstance(raw, (str, bytes)) or len(raw) > 2 ** 20:
+                raise InputError("the metadata attribute is not a JSON string of at most 1 MiB")
+            md = json.loads(raw, parse_constant=_no_constant, parse_float=_finite_float)
+            arrays = _h5_arrays(f)
+            extra = {k: arrays.pop(k) for k in list(arrays) if _is_extra(k)}
+            res = _build(md, arrays)
+            _restore_extras(res, extra)
             return res
-    except InputError:
-        raise
-    except (OSError, ValueError, KeyError, json.JSONDecodeError) as exc:
-        raise InputError(f"cannot read result file {os.fspath(path)}: {exc}") from None
+    except InputError as exc:
+        msg = str(exc)
+        if os.fspath(path) in msg:
+            raise
+        raise InputError(f"cannot read result file {os.fspath(path)}: {msg}") from None
+    except RecursionError:
+        raise InputError(f"cannot read result file {os.fspath(path)}: JSON nested too deeply") from None
+    except (OSError, ValueError, KeyError, TypeError, EOFError, UnicodeDecodeError, json.JSONDecodeError,
+            __import__("zipfile").BadZipFile, NotImplementedError, RuntimeError) as exc:
+        # corrupt files: zipfile raises NotImplementedError for an unknown compression method,
+        # h5py RuntimeError for a damaged symbol table
+        why = str(exc).splitlines()[0][:160] if str(exc) else type(exc).__name__
+        raise InputError(f"cannot read result file {os.fspath(path)}: {why}") from None

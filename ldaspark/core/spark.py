@@ -98,7 +98,8 @@ class SparkMethod:
 
     def __init__(self, system: LagrangianSystem, tableau: SparkTableau, dps: int | None = None,
                  tol: float | None = None, newton: str = "full", max_iter: int = 50, energy_jump=None):
-        from .validate import check_newton_options, check_system_and_tableau
+        from .validate import check_dps, check_newton_options, check_system_and_tableau
+        check_dps(dps)          # [DPS_MIN, DPS_MAX] for every entry point (issue 25)
         if newton not in ("auto", "full", "simplified", "mixed"):
             raise InputError(f"newton must be 'auto', 'full', 'simplified' or 'mixed', got {newton!r}")
         check_system_and_tableau(system, tableau)
@@ -631,8 +632,8 @@ def integrate(system: LagrangianSystem, tableau: SparkTableau, t0, q0, v0, h, t_
             raise InputError("give exactly one of t_end or n_steps")
         if n_steps is None:
             n_steps = n_steps_for(t0, t_end, h)
-        if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps <= 0:
-            raise InputError(f"n_steps must be a positive integer, got {n_steps!r}")
+        from .validate import count
+        n_steps = count(n_steps, "n_steps", 1, MAX_STEPS)
         if q.ndim != 1 or v.ndim != 1 or len(q) != system.n or len(v) != system.n:
             raise InputError(f"initial data have shapes q: {q.shape}, v: {v.shape}; the system has n = {system.n}")
         if not (bk.isfinite(q) and bk.isfinite(v)):

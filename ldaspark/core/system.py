@@ -39,6 +39,39 @@ class StageEval:
     R_L: np.ndarray | None = None      # d(h R)/d Lambda (n x m); None means -K^T (ideal constraints)
 
 
+#: the derived expressions of ``_derive`` (mapped back from real dummies when L or k are nonsmooth)
+_DERIVED = ("L_q", "L_v", "L_vv", "L_vq", "L_qq", "L_vt", "L_t", "k_q", "k_v", "k_t", "R_lam", "R_q", "R_v",
+            "energy_expr", "N_q", "N_v", "N_psi")
+#: derivatives of the nonsmooth functions (Abs' = sign, sign' = 2 DiracDelta, Heaviside' =
+#: DiracDelta) are evaluated almost everywhere: DiracDelta is 0 off its support, which is what
+#: Newton's matrix needs (the Jacobian of a piecewise-smooth residual)
+_NONSMOOTH = {"DiracDelta": lambda *a: 0, "Heaviside": lambda x, *a: 0 if x < 0 else (1 if x > 0 else 0.5)}
+
+
+def _real_dummies(system) -> dict:
+    """{symbol: real Dummy} when L, k or N contain Abs, sign, re, im or arg (whose derivatives
+    with respect to a complex symbol are unprintable Derivative(re(x), x) terms), else {}."""
+    fns = (sympy.Abs, sympy.sign, sympy.re, sympy.im, sympy.arg)
+    exprs = [system.L, system.k] + ([system.N] if system.N is not None else [])
+    if not any(e.has(*fns) for e in exprs):
+        return {}
+    syms = [x for x in list(system.q) + list(system.v) + [system.t]
+            if isinstance(x, sympy.Symbol) and not x.is_real]
+    return {x: sympy.Dummy(x.name, real=True) for x in syms}
+
+
+def real_jacobian(exprs, wrt, symbols):
+    """``exprs.jacobian(wrt)`` with Abs, sign, re, im, arg differentiated as functions of real
+    variables (``symbols``: every symbol of exprs that is a coordinate), as ``_derive`` does."""
+    exprs = sympy.Matrix(exprs)
+    fns = (sympy.Abs, sympy.sign, sympy.re, sympy.im, sympy.arg)
+    if not exprs.has(*fns):
+        return exprs.jacobian(list(wrt))
+    reps = {x: sympy.Dummy(x.name, real=True) for x in symbols if isinstance(x, sympy.Symbol) and not x.is_real}
+    J = exprs.xreplace(reps).jacobian([reps.get(x, x) for x in wrt])
+    return J.xreplace({d: x for x, d in reps.items()})
+
+
 class LagrangianSystem:
     """A Lagrangian system with ideal nonholonomic constraints (1a-d), or nonideal ones (3.3).
 
@@ -69,6 +102,8 @@ class LagrangianSystem:
         self.n = len(self.q)
         if len(self.v) != self.n:
             raise SystemDefinitionError(f"q has {self.n} symbols but v has {len(self.v)}")
+        from .validate import check_symbols
+        check_symbols(self.q, self.v)       # q = [x, x, z] or q equal to v: one clear error
         self.L, self.k = _sympify_L_k(L, k)
         self.m = self.k.rows
         if self.m >= self.n:
@@ -173,6 +208,26 @@ class LagrangianSystem:
 
     # --- symbolic derivation ----------------------------------------------------------------
     def _derive(self):
+        reps = _real_dummies(self)
+        if reps:        # Abs, sign, re, im: differentiate as functions of real variables
+            saved = self.q, self.v, self.t, self.L, self.k, self.N
+            self.q, self.v = [reps.get(x, x) for x in self.q], [reps.get(x, x) for x in self.v]
+            self.t = reps.get(self.t, self.t)
+            self.L, self.k = self.L.xreplace(reps), self.k.xreplace(reps)
+            self.N = None if self.N is None else self.N.xreplace(reps)
+            try:
+                self._derive_exprs()
+            finally:
+                self.q, self.v, self.t, self.L, self.k, self.N = saved
+            back = {d: x for x, d in reps.items()}
+            for key in _DERIVED:
+                val = getattr(self, key, None)
+                if val is not None:
+                    setattr(self, key, val.xreplace(back))
+            return
+        self._derive_exprs()
+
+    def _derive_exprs(self):
         q, v, t = self.q, self.v, self.t
         L = self.L
         self.L_q = sympy.Matrix([sympy.diff(L, x) for x in q])
@@ -199,7 +254,7 @@ class LagrangianSystem:
         if ck not in self._compiled:
             args = [self.t] + self.q + self.v + (list(self.lam) if with_lam else []) + list(self.params)
             lists = [e.tolist() if isinstance(e, sympy.MatrixBase) else e for e in exprs]
-            self._compiled[ck] = sympy.lambdify(args, lists, modules=backend.lambdify_module, cse=True)
+            self._compiled[ck] = sympy.lambdify(args, lists, modules=[_NONSMOOTH, backend.lambdify_module], cse=True)
         f = self._compiled[ck]
         if not self.params:
             return f

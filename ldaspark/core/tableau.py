@@ -832,9 +832,13 @@ def _parse_entry(x, where, info: dict | None = None):
 def check_stages(s: int, max_stages: int | None = None, what: str = "tableau") -> None:
     """s <= max_stages (default MAX_STAGES = 20): building, auditing and integrating cost grows
     like s^3 and beyond, so larger s must be asked for explicitly."""
+    from .validate import MAX_STAGES_CEILING
     limit = MAX_STAGES if max_stages is None else max_stages
-    if isinstance(limit, bool) or not isinstance(limit, int) or limit < 1:
-        raise TableauError(f"max_stages must be a positive integer, got {limit!r}")
+    if isinstance(limit, bool) or not isinstance(limit, int) or not 1 <= limit <= MAX_STAGES_CEILING:
+        # --max-stages 10**6 was a MemoryError, 10**8 an OverflowError (issue 25, H)
+        raise TableauError(f"max_stages must be an integer between 1 and {MAX_STAGES_CEILING}, got "
+                           f"{limit if abs(limit) < 10 ** 12 else f'{float(limit):.3g}'}"
+                           if isinstance(limit, int) else f"max_stages must be an integer, got {type(limit).__name__}")
     if s > limit:
         raise TableauError(f"{what} has s = {s} stages, more than the limit {limit} "
                            "(raise it with --max-stages / max_stages=)")
@@ -895,6 +899,7 @@ def from_json_dict(d: dict, name: str | None = None, max_stages: int | None = No
 def max_file_bytes(max_stages: int | None = None) -> int:
     """Largest tableau file read: 4000 bytes per coefficient slot (s^2 of them), at least 1 MiB."""
     s = MAX_STAGES if max_stages is None else max_stages
+    check_stages(1, max_stages)          # max_stages itself in range before it sizes anything
     return max(2 ** 20, 4000 * s * s)
 
 

@@ -7,7 +7,7 @@ import math
 import numbers
 import os
 
-from .errors import InputError
+from .errors import InputError, SystemDefinitionError
 
 #: Newton iteration caps above this are certainly mistakes (each iteration costs a factorisation)
 MAX_NEWTON_ITER = 10 ** 6
@@ -59,3 +59,257 @@ def check_storage(n_points: int, floats_per_point: int, mp: bool = False, what: 
         raise InputError(f"storing {what} ({n_points:.3g} points x {floats_per_point} numbers) needs about "
                          f"{need / 2 ** 30:.3g} GiB, more than {limit / 2 ** 30:.3g} GiB: use fewer steps "
                          "(a larger h or a shorter t_end)")
+
+
+# --- the API boundary: one check per kind of user value (issue 25) ------------------------------
+# ``ldaspark.integrate``, the CLI (through it), ``RunSpec`` / ``run_many`` and the result-file
+# readers call these, so that a wrong value is one InputError naming the argument, before any work.
+
+#: mpmath precision range accepted by ``dps``. Below 16 digits mpmath is less precise than float64
+#: (whose unit round-off the tolerances of the float64 path are derived from), so a smaller dps is a
+#: mistake; 2000 digits is the bound of issue 22: one gauss-2 step on a 3-dof scene costs ~1 s there
+#: (Newton's LU at O(dps^1.6) per operation), and beyond it a run cannot finish in reasonable time
+#: (dps = 10**6 ran for minutes before this bound; the audit had its own bound).
+DPS_MIN = 16
+DPS_MAX = 2000
+#: most steps of one run (and of each ensemble member): beyond it a run cannot finish (at ~1 us a
+#: step, 10**9 steps are 20 minutes of the fastest kernel); the same limit as ``spark.MAX_STEPS``
+MAX_STEPS = 10 ** 9
+#: most characters of a number given as a decimal string (h, t_span, q0 at mpmath precision):
+#: 2.5 DPS_MAX digits plus sign and exponent; longer strings are refused before conversion
+MAX_NUMBER_CHARS = 5000
+#: a ``max_stages`` beyond this cannot be built or audited (exact Gauss nodes of degree s; the
+#: Newton matrix has s (n + m) + n rows): refused instead of a MemoryError / OverflowError
+MAX_STAGES_CEILING = 100
+#: result files larger than this are not read (a trajectory of 10**8 float64 numbers is 0.8 GB)
+MAX_RESULT_BYTES = 2 ** 31
+#: the Newton variants of ``SparkMethod`` (the compiled engine runs simplified Newton whatever the
+#: name, but a name outside this list is a mistake on every engine)
+NEWTON_VARIANTS = ("auto", "full", "simplified", "mixed")
+
+
+def _is_bool(x) -> bool:
+    import numpy as np
+    return isinstance(x, (bool, np.bool_))
+
+
+def real_number(x, what: str, *, positive: bool = False, nonzero: bool = False):
+    """A finite real number given as int, float, a NumPy scalar, mpmath ``mpf``, a real sympy
+    number or a decimal string (kept as given, so that mpmath runs keep its digits). Returns x.
+    Refused: bool (``h=True`` is not 1), complex, None, sequences, non-numeric strings, NaN, inf."""
+    ok, val = False, None
+    if _is_bool(x):
+        raise InputError(f"{what} must be a real number, got the bool {x!r}")
+    if isinstance(x, str):
+        s = x.strip()
+        if len(s) > MAX_NUMBER_CHARS:
+            raise InputError(f"{what}: a number string of {len(s)} characters (more than {MAX_NUMBER_CHARS})")
+        try:
+            val = float(s)
+            ok = True
+        except ValueError:
+            raise InputError(f"{what} must be a real number, got the string {x!r:.80}") from None
+    elif isinstance(x, numbers.Real) or type(x).__module__ == "decimal":
+        try:
+            val, ok = float(x), True
+        except (TypeError, ValueError, OverflowError):
+            val, ok = float("inf"), True
+    else:
+        mod = type(x).__module__ or ""
+        if mod.startswith("mpmath") and type(x).__name__ == "mpf":
+            import mpmath
+            ok, val = True, float(x) if mpmath.isfinite(x) else float("nan")
+        elif mod.startswith("sympy"):
+            import sympy
+            if isinstance(x, sympy.Expr) and x.is_number and not x.free_symbols:
+                try:
+                    c = complex(x)
+                except (TypeError, ValueError, OverflowError):
+                    c = complex("nan")
+                if c.imag != 0:
+                    raise InputError(f"{what} must be a real number, got {x}")
+                ok, val = True, c.real
+        elif hasattr(x, "shape") and getattr(x, "shape", None) == () and getattr(x, "dtype", None) is not None \
+                and x.dtype.kind in "iuf":
+            ok, val = True, float(x)
+    if not ok:
+        raise InputError(f"{what} must be a real number, got {_describe(x)}")
+    if val == 0 and _nonzero(x):
+        val = 5e-324            # below float64's range but not zero: h = mpf('1e-400'), "1e-400"
+    if not math.isfinite(val):
+        raise InputError(f"{what} must be finite, got {x!r:.80}")
+    if positive and not val > 0:
+        raise InputError(f"{what} must be positive, got {x!r:.80}")
+    if nonzero and val == 0:
+        raise InputError(f"{what} must be nonzero, got {x!r:.80}")
+    return x
+
+
+def _nonzero(x) -> bool:
+    """x is not zero in its own number type (a decimal string, mpf, sympy number)."""
+    try:
+        if isinstance(x, str):
+            import decimal
+            return decimal.Decimal(x.strip()) != 0
+        return bool(x != 0)
+    except (ArithmeticError, ValueError, TypeError):
+        return False
+
+
+def _describe(x) -> str:
+    """A short description of a bad value for an error message (never its full repr)."""
+    r = repr(x)
+    return f"{type(x).__name__} {r[:60]}{'...' if len(r) > 60 else ''}"
+
+
+def count(x, what: str, lo: int = 1, hi: int = MAX_STEPS) -> int:
+    """An integer in [lo, hi] (not a bool, not a float): n_steps, save_every, jobs, stages."""
+    import numpy as np
+    if _is_bool(x) or not isinstance(x, (int, np.integer)):
+        raise InputError(f"{what} must be an integer, got {_describe(x)}")
+    if not lo <= x <= hi:
+        bound = f"{hi:.0e}" if hi >= 10 ** 6 else str(hi)
+        raise InputError(f"{what} must be an integer between {lo} and {bound}, got {_fmt_int(x)}")
+    return int(x)
+
+
+def _fmt_int(x) -> str:
+    s = str(int(x)) if abs(int(x)) < 10 ** 30 else f"{float(x):.3g}"
+    return s
+
+
+def check_dps(dps):
+    """None (float64) or an integer number of mpmath digits in [DPS_MIN, DPS_MAX]."""
+    if dps is None:
+        return None
+    import numpy as np
+    if _is_bool(dps) or not isinstance(dps, (int, np.integer)):
+        raise InputError(f"dps must be None (float64) or an integer number of digits, got {_describe(dps)}")
+    if not DPS_MIN <= dps <= DPS_MAX:
+        raise InputError(f"dps must be between {DPS_MIN} and {DPS_MAX} digits, got {_fmt_int(dps)}")
+    return int(dps)
+
+
+def check_choice(x, what: str, choices) -> str:
+    if not isinstance(x, str) or x not in choices:
+        raise InputError(f"{what} must be one of {', '.join(map(repr, choices))}, got {_describe(x)}")
+    return x
+
+
+def check_executor(executor):
+    """None or a concurrent.futures-style executor (``submit`` and ``map``)."""
+    if executor is not None and not (callable(getattr(executor, "submit", None))
+                                     and callable(getattr(executor, "map", None))):
+        raise InputError(f"executor must be a concurrent.futures Executor (submit, map), got {_describe(executor)}")
+    return executor
+
+
+def real_vector(x, what: str):
+    """q0 / v0: a sequence of real numbers (1-D), or rows of them (2-D, an ensemble); entries as
+    accepted by ``real_number``. Returns x unchanged (strings and mpf keep their digits)."""
+    import numpy as np
+    try:
+        a = np.asarray(x, dtype=object)
+    except (ValueError, TypeError):
+        raise InputError(f"{what} must be a list of numbers (rows of equal length), got {_describe(x)}") from None
+    if a.ndim not in (1, 2) or a.size == 0:
+        raise InputError(f"{what} must be a non-empty vector (or rows of vectors for an ensemble), got {_describe(x)}")
+    for i, e in enumerate(a.reshape(-1)):
+        real_number(e, f"{what}[{i}]" if a.ndim == 1 else f"{what} entry {i}")
+    return x
+
+
+def param_value(name, value):
+    """A parameter value: a real number (strings are parsed by the system's own safe parser)."""
+    if isinstance(value, str):
+        return value
+    return real_number(value, f"parameter {name}")
+
+
+def check_symbols(q, v) -> None:
+    """q and v of a system: sympy Symbols (or functions of t), pairwise distinct, q and v disjoint.
+    ``q=[x, x, z]`` or q equal to v would otherwise define a different system silently."""
+    import sympy
+    allq, allv = list(q), list(v)
+    for name, seq in (("q", allq), ("v", allv)):
+        for e in seq:
+            # numbers and non-sympy values are refused here; functions of t get their own error
+            if not isinstance(e, sympy.Expr) or e.is_number:
+                raise SystemDefinitionError(f"{name} must be sympy symbols, got {_describe(e)}")
+        if len(set(seq)) != len(seq):
+            dup = sorted({str(e) for e in seq if seq.count(e) > 1})
+            raise SystemDefinitionError(f"{name} lists the same symbol twice: {', '.join(dup)}")
+    both = set(allq) & set(allv)
+    if both:
+        raise SystemDefinitionError(f"q and v share the symbols {', '.join(sorted(map(str, both)))}: "
+                         "positions and velocities must be different symbols")
+
+
+def check_max_stages(max_stages):
+    """None (the default limit) or an integer in [1, MAX_STAGES_CEILING]."""
+    if max_stages is None:
+        return None
+    return count(max_stages, "max_stages", 1, MAX_STAGES_CEILING)
+
+
+def times(t, what: str = "t"):
+    """A real finite time, or a 1-D array of them (dense output): float64 array and its ndim."""
+    import numpy as np
+    if _is_bool(t) or t is None or isinstance(t, (str, bytes)):
+        raise InputError(f"{what} must be a real number or a 1-D array of them, got {_describe(t)}")
+    try:
+        a = np.asarray(t)
+    except (ValueError, TypeError):
+        raise InputError(f"{what} must be a real number or a 1-D array of them, got {_describe(t)}") from None
+    if a.dtype.kind not in "iuf" or a.ndim > 1:
+        raise InputError(f"{what} must be a real number or a 1-D array of them, got {_describe(t)}")
+    a = a.astype(float)
+    if not np.all(np.isfinite(a)):
+        raise InputError(f"{what} must be finite, got NaN or infinity")
+    return a
+
+
+def regular_file(path, limit: int, what: str = "file") -> int:
+    """Size of ``path`` when it is a regular file of at most ``limit`` bytes; ``os.stat`` (which
+    follows symbolic links) before anything opens it, so a FIFO never blocks and /dev/zero, or a
+    link to it, is never read."""
+    import stat
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        raise InputError(f"no such {what}: {os.fspath(path)}") from None
+    except (OSError, ValueError) as exc:
+        raise InputError(f"cannot read {what} {os.fspath(path)}: {exc}") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise InputError(f"{what} {os.fspath(path)} is not a regular file")
+    if st.st_size > limit:
+        raise InputError(f"{what} {os.fspath(path)} has {st.st_size} bytes, more than {limit}")
+    return st.st_size
+
+
+def finite_initial_point(system, bk, t, q, v, member: str = "") -> None:
+    """The energy (8) and k at (t, q, v) (converted by ``bk``) are finite real numbers, else one
+    NonFiniteError (issue 25, class F): U = 1/x at x = 0, oo / zoo in L, v0 = 1e200, sqrt(x) at
+    x = -1 (math domain error in float64, mpc at dps). Call inside ``bk.context()``."""
+    import warnings
+
+    import mpmath
+    import numpy as np
+
+    from .errors import NonFiniteError
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            E = system.energy(bk, t, q, v)
+            k = list(system.constraint(bk, t, q, v))
+        except (ArithmeticError, ValueError, TypeError) as exc:
+            raise NonFiniteError(f"{member}L or k cannot be evaluated at the initial point t0 = {float(t):g} "
+                                 f"({type(exc).__name__}: {str(exc)[:80]}): q0, v0 lie outside the domain of "
+                                 "L and k", step=0, time=float(t)) from None
+    for what, x in [("the energy (8)", E)] + [(f"k[{i}]", x) for i, x in enumerate(k)]:
+        ok = (mpmath.isfinite(x) if isinstance(x, mpmath.mpf) else
+              isinstance(x, (int, float, np.integer, np.floating)) and math.isfinite(x))
+        if not ok:
+            raise NonFiniteError(f"{member}{what} at the initial point t0 = {float(t):g} is {str(x)[:60]}, "
+                                 "not a finite real number: q0, v0 lie outside the domain of L and k "
+                                 "(or L has oo / zoo / I in it)", step=0, time=float(t))

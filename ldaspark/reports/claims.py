@@ -187,6 +187,9 @@ def add_arguments(p):
 
 
 def run(args) -> int:
+    if getattr(args, "jobs", None) is not None:
+        from ..core.validate import count
+        count(args.jobs, "--jobs", 1, 1024)     # 0 or -3 used to run the full ledger
     cmd = "ldaspark verify" + (" --quick" if args.quick else "")
     recs = run_verify(args.outdir, args.quick, args.json, cmd, getattr(args, "jobs", None),
                       where=getattr(args, "scheduler", None), resume=not getattr(args, "fresh", False))
