@@ -48,22 +48,36 @@ def _notice(msg: str) -> None:
 
 def resolve_method(method: Union[str, SparkTableau]) -> tuple:
     """("spark", SparkTableau, name) or ("comparator", name, name)."""
-    from .core.comparators import comparator_names, is_comparator
-    from .core.families import get_method
     if isinstance(method, SparkTableau):
         return "spark", method, method.name
+    hit = _METHODS.get(method) if isinstance(method, str) else None
+    if hit is not None:                   # a SPARK name seen before (never a comparator's)
+        return "spark", hit, method
+    from .core.comparators import comparator_names, is_comparator
+    from .core.families import get_method
     if not isinstance(method, str):
         raise InputError(f"method must be a name or a SparkTableau, got {method!r}")
     if is_comparator(method):
         return "comparator", method, method
     try:
-        return "spark", get_method(method), method
+        tab = get_method(method)
     except TableauError as exc:
         if not str(exc).startswith("unknown method"):
             raise
         raise InputError(f"unknown method {method!r}; choose gauss-S, lobatto-iiia-iiib-S, lobatto-iiia-iiib-iiid-S, "
                          f"euler-i, euler-ii, a SparkTableau, or a comparator ({', '.join(comparator_names(2))}, ...)"
                          ) from None
+    if len(_METHODS) >= 64:        # bounded: names are few, but a sweep over s could make many
+        _METHODS.clear()
+    _METHODS[method] = tab
+    return "spark", tab, method
+
+
+#: method name -> its SparkTableau, built once per process: a tableau computes its coefficients
+#: (mpmath, ~0.2 ms for gauss-2) once and keeps them, and the compiled engine's kernel_spec cache
+#: is keyed by the tableau object, so a repeated call by name re-derives nothing. Tableaux are
+#: not modified after construction (their _cache only memoizes derived views).
+_METHODS: dict = {}
 
 
 def _resolve_system(system, dps):
@@ -383,7 +397,10 @@ def _run_compiled(system, method, t0, q0, v0, h, N, every, dense, events, tol, p
     res, exc = _prefix_run(run, N, inner)
     if isinstance(exc, NewtonError):
         exc = _generic_diagnosis(exc, system, method, res, t0, q0, v0, h, tol)
-    return _finish_prefix(res, exc, system, t0, q0, v0, every, dense, events, "compiled", sliced=inner != 1)
+    # without dense output or events the kernels kept every ``every``-th point already (inner =
+    # every): nothing to post-process (with every = 1 too: re-slicing would copy the arrays unchanged)
+    return _finish_prefix(res, exc, system, t0, q0, v0, every, dense, events, "compiled",
+                          sliced=not (dense or events))
 
 
 def _generic_diagnosis(exc, system, method, res, t0, q0, v0, h, tol) -> LdasparkError:
