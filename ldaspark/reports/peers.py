@@ -254,6 +254,9 @@ def speedups(rows, targets, key="error"):
 SCENES = ("particle", "skate", "robot", "mp-particles-nh", "relativistic")
 SPARK_METHODS = ("gauss-2", "gauss-3", "gauss-4")
 TARGETS = (1e-3, 1e-6, 1e-9)
+#: the peers of the long runs: solve_ivp's DOP853 is ode('dop853')'s method with a Python step loop,
+#: CVODE BDF and IDA are slower than CVODE Adams at every T = 100 point (too costly over 1e4)
+LONG_PEERS = ("ode-dop853", "ode-lsoda", "cvode-adams")
 ENERGY_TARGETS = (1e-4, 1e-6, 1e-8)
 
 
@@ -308,8 +311,8 @@ def scene_study(scene_name, quick=False, peers=None, progress=print):
     for m in SPARK_METHODS:
         long_rows += [run_spark(sc, m, h, P["t_long"], P["n_out_long"], repeats=1) for h in P["hs_long"][m]]
     for p in peers:
-        if p == "solve_ivp-DOP853":
-            continue                      # ode('dop853') runs the same method without the Python loop
+        if p not in LONG_PEERS:
+            continue
         for tol in P["rtols_long"]:
             try:
                 long_rows.append(run_peer(sc, p, tol, P["t_long"], P["n_out_long"], repeats=1))
