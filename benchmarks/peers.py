@@ -30,7 +30,8 @@ def main(argv=None):
     ap.add_argument("--scenes", default=",".join(SCENES))
     ap.add_argument("--out", default=os.path.join("reports", "peers.json"))
     a = ap.parse_args(argv)
-    d = run_study(tuple(a.scenes.split(",")), quick=a.quick)
+    d = run_study(tuple(a.scenes.split(",")), quick=a.quick,
+                  on_scene=lambda part: atomic_write_json(a.out, jsonable(part)))
     atomic_write_json(a.out, jsonable(d))
     print(f"speed-up of the best compiled SPARK method over the best peer (cpu(peer) / cpu(SPARK)); "
           f"final error {' / '.join(f'{t:.0e}' for t in d['targets'])} at T = {d['studies'][0]['t_end']:g}; "

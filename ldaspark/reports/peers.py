@@ -296,8 +296,16 @@ def scene_study(scene_name, quick=False, peers=None, progress=print):
     peers, notes = available_peers(tuple(PEERS) if peers is None else peers)
     q_ref, label, check = reference_final(sc, P["t_end"])
     rows, failed = [], []
+
+    def spark(m, h, t_end, *a, **k):
+        from ..core.errors import LdasparkError
+        try:
+            return [run_spark(sc, m, h, t_end, *a, **k)]
+        except LdasparkError as exc:       # e.g. a step too long for L's domain: no point at this h
+            failed.append(f"{m} h = {h:g} (T = {t_end:g}): {type(exc).__name__}: {str(exc).splitlines()[0][:100]}")
+            return []
     for m in SPARK_METHODS:
-        rows += [run_spark(sc, m, h, P["t_end"]) for h in P["hs"][m]]
+        rows += [r for h in P["hs"][m] for r in spark(m, h, P["t_end"])]
     for p in peers:
         for tol in P["rtols"]:
             try:
@@ -309,7 +317,7 @@ def scene_study(scene_name, quick=False, peers=None, progress=print):
         r["error"] = float(np.max(np.abs(np.asarray(r.pop("q_final")) - q_ref)))
     long_rows = []
     for m in SPARK_METHODS:
-        long_rows += [run_spark(sc, m, h, P["t_long"], P["n_out_long"], repeats=1) for h in P["hs_long"][m]]
+        long_rows += [r for h in P["hs_long"][m] for r in spark(m, h, P["t_long"], P["n_out_long"], repeats=1)]
     for p in peers:
         if p not in LONG_PEERS:
             continue
@@ -328,18 +336,26 @@ def scene_study(scene_name, quick=False, peers=None, progress=print):
             "long_speedups": speedups(long_rows, ENERGY_TARGETS, key="energy_error")}
 
 
-def run_study(scenes=SCENES, quick=False, peers=None, progress=print):
-    """Every scene's study, with the versions and the load of the machine."""
-    import datetime
-    import os
-    import platform
-    import scipy
+def run_study(scenes=SCENES, quick=False, peers=None, progress=print, on_scene=None):
+    """Every scene's study, with the versions and the load of the machine; ``on_scene(d)`` is
+    called with the study so far after each scene (the benchmark saves it: a long run that
+    stops keeps the scenes it finished)."""
     from .timing import Clock
     clock = Clock()
     studies = []
     for s in scenes:
         progress(f"[peers] {s} ...")
         studies.append(scene_study(s, quick=quick, peers=peers, progress=progress))
+        if on_scene is not None:
+            on_scene(_study_dict(studies, quick, peers, clock))
+    return _study_dict(studies, quick, peers, clock)
+
+
+def _study_dict(studies, quick, peers, clock):
+    import datetime
+    import os
+    import platform
+    import scipy
     sk = sundials()
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
     return {"command": "python benchmarks/peers.py" + (" --quick" if quick else ""),
