@@ -383,14 +383,20 @@ def speedup_text(sp):
     return " / ".join(_x(r["speedup"]) for r in sp)
 
 
+def _loaded(d):
+    la, n = d.get("load_average_1min_at_end"), d.get("cpu_count") or 1
+    return la is not None and la > n
+
+
 def section(d):
     """Lines of the "Strongest peers" section of reports/work_precision.md from the peers.json
     dict ``d`` (written by ``benchmarks/peers.py``)."""
     from .markdown import sci, table
     L = ["", "## Strongest peers: Fortran DOP853, LSODA, SUNDIALS CVODE and IDA", "",
          f"From `{d['command']}` run on {d['date']} ({d['cpu_count']} CPUs, load average "
-         f"{d['load_average_1min_at_end']} at the end: **a loaded machine**, other jobs ran at the same time; the "
-         "ratios are measured side by side in one run, CPU time `time.process_time`, the minimum of up to 3 "
+         f"{d['load_average_1min_at_end']} at the end"
+         + (": **a loaded machine**, other jobs ran at the same time" if _loaded(d) else "")
+         + "; the ratios are measured side by side in one run, CPU time `time.process_time`, the minimum of up to 3 "
          f"repeats for runs under 0.5 s; versions {', '.join(f'{k} {v}' for k, v in d['versions'].items())}). "
          f"Every peer solves the index-reduced ODE (3a-b) (IDA its index-1 form with psi) with a right-hand side "
          f"compiled by numba from the same sympy expressions as the SPARK model; atol = {d['atol']}. "

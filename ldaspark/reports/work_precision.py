@@ -512,7 +512,8 @@ def scaling_section(path):
     ok = [r for r in d["rows"] if r.get("status") == "ok"]
     L = ["", "## Scale: the compiled step against n (MP particles, nonholonomic constraint)", "",
          f"From `{d['command']}` on {d['date']} ({d['cpu_count']} CPUs, load average {d['load_average_1min_at_end']} "
-         "at the end: a loaded machine). n = 2m + 1, one constraint, h = 0.001; every size in a fresh process "
+         "at the end" + (": a loaded machine" if (d["load_average_1min_at_end"] or 0) > (d["cpu_count"] or 1) else "")
+         + "). n = 2m + 1, one constraint, h = 0.001; every size in a fresh process "
          "with an empty model cache. Build: sympy (L, k, Hessians); first call: code generation and numba "
          "compilation of the model (the kernels are compiled once per machine); per step: CPU time of a "
          "~0.3 s run, minimum of 3. The compiled step assembles a dense Newton matrix of size (s + 1) n + s m "
