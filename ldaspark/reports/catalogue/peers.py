@@ -5,8 +5,8 @@ from ..mutation_catalogue import _m
 
 TP = "tests/test_peers.py"
 # test_readme.py's checks of the committed reports fail in the mutants' scratch copy (it has no
-# reports/): the README-check mutants are hinted at the synthetic test, which needs none
-TR = "tests/test_readme.py::test_quote_kinds_residual_class_and_timing_snapshot"
+# reports/): the README-check mutants are hinted at the synthetic tests, which need none
+TR = "tests/test_readme_kinds.py"
 
 MUTANTS = (
     _m("peers-interp-lin-lin", "reports/work_precision.py",
