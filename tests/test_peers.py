@@ -138,3 +138,17 @@ def test_peer_section_renders_a_study():
     from ldaspark.reports.summary import peers_values
     v = peers_values(d)
     assert v["peers.skate.speedups"] == "0.45x" and v["peers.skate.long"] == "-"
+
+
+def test_speedup_is_bounded_from_below_where_spark_beats_the_target_at_every_step():
+    # every SPARK run has error <= 1e-4: at the target 1e-3 nothing to interpolate, but its
+    # cheapest run (1 ms) reaches it, so the speed-up is at least cpu(peer at 1e-3) / 1 ms;
+    # no bound where SPARK does not reach the target at all (1e-12) or where it interpolates
+    e = [10.0 ** -k for k in range(1, 11)]
+    rows = _power_law("peer", "p", 1e-3, 4.0, e) + _power_law("spark", "gauss-2", 1e-3, 1e9, [1e-4, 1e-6, 1e-8])
+    rows[-3]["cpu"] = 1e-3
+    r3, r6, r12 = peers.speedups(rows, (1e-3, 1e-6, 1e-12))
+    assert r3["speedup"] is None and abs(r3["speedup_at_least"] - (1e-3 * 1e-3 ** -0.25) / 1e-3) <= 1e-12
+    assert r6["speedup"] is not None and r6["speedup_at_least"] is None
+    assert r12["speedup"] is None and r12["speedup_at_least"] is None
+    assert peers.speedup_text([r3, r6]).startswith(">= 5.62x / ")
