@@ -152,3 +152,24 @@ def test_speedup_is_bounded_from_below_where_spark_beats_the_target_at_every_ste
     assert r6["speedup"] is not None and r6["speedup_at_least"] is None
     assert r12["speedup"] is None and r12["speedup_at_least"] is None
     assert peers.speedup_text([r3, r6]).startswith(">= 5.62x / ")
+
+
+def test_a_method_whose_runs_all_beat_the_target_counts_at_its_cheapest_run():
+    # gauss-2 interpolates at 1e-6 (cost ~1e-3 * 1e-6^-1/4 = 31.6 ms), gauss-4's runs are all more
+    # accurate (<= 1e-8) and its cheapest costs 5 ms: it reaches 1e-6 for at most 5 ms, so it is the
+    # best SPARK method there and the speed-up is a lower bound; mirrored on the peers' side
+    e = [10.0 ** -k for k in range(3, 10)]
+    g4 = [{"kind": "spark", "method": "gauss-4", "param": h, "cpu": c, "error": err, "energy_error": err}
+          for h, c, err in ((0.4, 5e-3, 1e-8), (0.2, 9e-3, 1e-10))]
+    rows = _power_law("spark", "gauss-2", 1e-3, 4.0, e) + g4 + _power_law("peer", "p", 1e-2, 4.0, e)
+    (r,) = peers.speedups(rows, (1e-6,))
+    assert r["spark"] == "gauss-4" and r["spark_cpu"] == 5e-3
+    assert r["speedup"] is None and r["speedup_at_most"] is None
+    assert abs(r["speedup_at_least"] - 1e-2 * 1e-6 ** -0.25 / 5e-3) <= 1e-9
+    flipped = [dict(x, kind={"spark": "peer", "peer": "spark"}[x["kind"]]) for x in rows]
+    (f,) = peers.speedups(flipped, (1e-6,))
+    assert f["speedup_at_least"] is None and abs(f["speedup_at_most"] - 5e-3 / (1e-2 * 1e-6 ** -0.25)) <= 1e-12
+    assert peers.speedup_text([f]).startswith("<= ")
+    # control: without gauss-4 the interpolated figure is exact (not a bound)
+    (g,) = peers.speedups([x for x in rows if x["method"] != "gauss-4"], (1e-6,))
+    assert g["speedup_at_least"] is None and abs(g["speedup"] - 10.0) <= 1e-9

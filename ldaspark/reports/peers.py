@@ -236,25 +236,52 @@ def best_spark(rows, target, key="error"):
     return m, costs[m]
 
 
-def speedups(rows, targets, key="error"):
-    """Per target: the best SPARK method and peer, their CPU times and the speed-up
-    cpu(best peer) / cpu(best SPARK) (None where either does not reach the target).
+def method_cost(rs, target, key="error"):
+    """(CPU seconds, bounded) for one method's runs ``rs`` to reach ``target``: interpolated on
+    its lower envelope where its runs bracket the target (bounded False); where every run is
+    more accurate than the target, the cheapest run's CPU time, which reaches it and bounds the
+    cost from above (bounded True: a larger step or tolerance would be cheaper); (None, False)
+    where no run reaches it."""
+    c = envelope_cpu(rs, target, key)
+    if c is not None:
+        return c, False
+    ok = [r for r in rs if r[key] > 0 and np.isfinite(r[key])]
+    if ok and max(r[key] for r in ok) <= target:
+        return min(r["cpu"] for r in ok), True
+    return None, False
 
-    Where every SPARK run is more accurate than the target (its largest steps already beat it)
-    there is nothing to interpolate, but the cheapest SPARK run reaches the target at its own
-    cost, an upper bound of SPARK's cost there: ``speedup_at_least`` = cpu(best peer) / that
-    cost, a lower bound of the speed-up (one-sided because a larger step would be cheaper)."""
+
+def best_cost(rows, kind, target, key="error"):
+    """(method, CPU seconds, bounded) of the cheapest method of ``kind`` ("spark" or "peer") at
+    ``target`` by ``method_cost``, or (None, None, False)."""
+    costs = {}
+    for m in dict.fromkeys(r["method"] for r in rows if r["kind"] == kind):
+        c, b = method_cost([r for r in rows if r["kind"] == kind and r["method"] == m], target, key)
+        if c is not None:
+            costs[m] = (c, b)
+    if not costs:
+        return None, None, False
+    m = min(costs, key=lambda k: costs[k][0])
+    return m, costs[m][0], costs[m][1]
+
+
+def speedups(rows, targets, key="error"):
+    """Per target: the best SPARK method and peer (``best_cost``), their CPU times and the
+    speed-up cpu(best peer) / cpu(best SPARK).
+
+    Where the cheaper side's cost is a bound (every run of that method more accurate than the
+    target), the ratio is one-sided: SPARK's cost bounded from above makes the speed-up a lower
+    bound (``speedup_at_least``), the peer's an upper bound (``speedup_at_most``); both bounded,
+    or a side that does not reach the target: no figure."""
     out = []
     for tgt in targets:
-        sm, sc = best_spark(rows, tgt, key)
-        pm, pc = best_peer(rows, tgt, key)
-        bound = None
-        if sc is None and pc is not None:
-            reach = [r["cpu"] for r in rows if r["kind"] == "spark" and 0 < r[key] <= tgt]
-            if reach and all(r[key] <= tgt for r in rows if r["kind"] == "spark" and r[key] > 0):
-                bound = pc / min(reach)
+        sm, sc, sb = best_cost(rows, "spark", tgt, key)
+        pm, pc, pb = best_cost(rows, "peer", tgt, key)
+        ratio = (pc / sc) if (sc and pc) else None
         out.append({"target": tgt, "spark": sm, "spark_cpu": sc, "peer": pm, "peer_cpu": pc,
-                    "speedup": (pc / sc) if (sc and pc) else None, "speedup_at_least": bound})
+                    "speedup": ratio if (ratio is not None and not sb and not pb) else None,
+                    "speedup_at_least": ratio if (ratio is not None and sb and not pb) else None,
+                    "speedup_at_most": ratio if (ratio is not None and pb and not sb) else None})
     return out
 
 
@@ -388,9 +415,11 @@ def _study_dict(studies, quick, peers, clock):
 
 
 # --- report lines -----------------------------------------------------------------------------
-def _x(v, at_least=None):
+def _x(v, at_least=None, at_most=None):
     if v is None and at_least is not None:
         return ">= " + _x(at_least)
+    if v is None and at_most is not None:
+        return "<= " + _x(at_most)
     return "-" if v is None else (f"{v:.2f}x" if v < 10 else f"{v:.0f}x")
 
 
@@ -400,7 +429,7 @@ def _s(v):
 
 def speedup_text(sp):
     """'0.45x / 0.92x / 1.1x': the speed-ups of a study at its targets, as README quotes them."""
-    return " / ".join(_x(r["speedup"], r.get("speedup_at_least")) for r in sp)
+    return " / ".join(_x(r["speedup"], r.get("speedup_at_least"), r.get("speedup_at_most")) for r in sp)
 
 
 def _loaded(d):
@@ -423,8 +452,9 @@ def section(d):
          "Speed-up = CPU time of the best peer / CPU time of the best compiled SPARK method (gauss-2/3/4) at equal "
          "final error max|q - q_ref| at t = 100 (log-log interpolation on each solver's lower envelope; > 1: "
          "SPARK is faster), and at equal energy error max|E - E0| over t in [0, 1e4] for the long runs. "
-         "'>= x': every SPARK run is more accurate than the target (its largest step already beats it), so the "
-         "cheapest one bounds SPARK's cost there and the speed-up from below; '-': a side does not reach the "
+         "'>= x': the cheapest SPARK method's runs are all more accurate than the target (its largest step "
+         "already beats it), so its cheapest run bounds SPARK's cost there and the speed-up from below ('<= x': "
+         "the same on the peer's side); '-': a side does not reach the "
          "target (the peers at the finest targets, or the reference's own uncertainty, given beside each scene, "
          "is not far enough below the target).", ""]
     for p, what in d["peers"].items():
@@ -436,7 +466,7 @@ def section(d):
             for r in sp:
                 rows.append([f"{st['scene']} (n = {st['n']})", key, f"{r['target']:.0e}",
                              f"{r['spark'] or '-'} {_s(r['spark_cpu'])}", f"{r['peer'] or '-'} {_s(r['peer_cpu'])}",
-                             _x(r["speedup"], r.get("speedup_at_least"))])
+                             _x(r["speedup"], r.get("speedup_at_least"), r.get("speedup_at_most"))])
     L += table(["scene", "accuracy", "target", "best SPARK", "best peer", "speed-up of SPARK"], rows)
     for st in d["studies"]:
         L += ["", f"<details><summary>{st['scene']}: all runs (reference: {st['reference']}"

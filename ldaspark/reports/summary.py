@@ -194,11 +194,13 @@ def run_values(d):
     return out
 
 
-def _r(x, at_least=None):
+def _r(x, at_least=None, at_most=None):
     """A speed-up as README quotes it: two significant digits ('0.45x', '1.1x', '14x'); '>= 4.9x'
-    for a lower bound (``peers.speedups``)."""
+    for a lower bound, '<= 4.9x' for an upper one (``peers.speedups``)."""
     if x is None and at_least is not None:
         return ">= " + _r(at_least)
+    if x is None and at_most is not None:
+        return "<= " + _r(at_most)
     return "-" if x is None else f"{float(f'{x:.2g}'):g}x"
 
 
@@ -209,9 +211,9 @@ def peers_values(d):
     out = {"peers.targets": " / ".join(f"{t:.0e}" for t in d["targets"]),
            "peers.energy_targets": " / ".join(f"{t:.0e}" for t in d["energy_targets"])}
     for st in d["studies"]:
-        out[f"peers.{st['scene']}.speedups"] = " / ".join(_r(r["speedup"], r.get("speedup_at_least"))
+        out[f"peers.{st['scene']}.speedups"] = " / ".join(_r(r["speedup"], r.get("speedup_at_least"), r.get("speedup_at_most"))
                                                          for r in st["speedups"])
-        out[f"peers.{st['scene']}.long"] = " / ".join(_r(r["speedup"], r.get("speedup_at_least"))
+        out[f"peers.{st['scene']}.long"] = " / ".join(_r(r["speedup"], r.get("speedup_at_least"), r.get("speedup_at_most"))
                                                      for r in st["long_speedups"])
     return out
 
