@@ -285,8 +285,11 @@ def speedups(rows, targets, key="error"):
     return out
 
 
-def recompute_speedups(d):
-    """``d`` (a peers.json dict) with every study's speed-ups computed again from its rows."""
+def recompute_speedups(d, note=None):
+    """``d`` (a peers.json dict) with every study's speed-ups computed again from its rows
+    (``note``, if given, is recorded as ``d["recomputed"]``: when and why)."""
+    if note is not None:
+        d["recomputed"] = note
     for st in d["studies"]:
         st["speedups"] = speedups(st["rows"], d["targets"])
         st["long_speedups"] = speedups(st["long_rows"], d["energy_targets"], key="energy_error")
@@ -457,6 +460,8 @@ def section(d):
          "the same on the peer's side); '-': a side does not reach the "
          "target (the peers at the finest targets, or the reference's own uncertainty, given beside each scene, "
          "is not far enough below the target).", ""]
+    if d.get("recomputed"):
+        L += [f"Speed-ups recomputed from the stored runs: {d['recomputed']}.", ""]
     for p, what in d["peers"].items():
         L.append(f"- `{p}`: {what}")
     L.append("")
