@@ -40,9 +40,14 @@ def child(n, method, h):
     c = time.process_time()
     sc = mp_particles(m=m, constraint="nonholonomic")
     build = time.process_time() - c
+    print(f"built the scene: {build:.1f} s CPU", file=sys.stderr, flush=True)
     c = time.process_time()
+    cs = fast.compile_system(sc.system)
+    print(f"generated the model source ({len(cs.source)} chars): {time.process_time() - c:.1f} s CPU",
+          file=sys.stderr, flush=True)
     fast.fast_integrate(sc, method, h=h, n_steps=2)
     first = time.process_time() - c
+    print(f"first call (2 steps): {first:.1f} s CPU", file=sys.stderr, flush=True)
     c = time.process_time()
     fast.fast_integrate(sc, method, h=h, n_steps=5)
     probe = max((time.process_time() - c) / 5, 1e-7)
@@ -82,8 +87,11 @@ def main(argv=None):
                 lines = [ln for ln in p.stdout.splitlines() if ln.startswith("{")]
                 row = json.loads(lines[-1]) if p.returncode == 0 and lines else {
                     "n": n, "method": method, "status": f"failed: {(p.stderr.strip().splitlines() or ['?'])[-1][:200]}"}
-            except subprocess.TimeoutExpired:
-                row = {"n": n, "method": method, "status": f"did not finish in {a.timeout:g} s"}
+            except subprocess.TimeoutExpired as exc:
+                err = exc.stderr.decode() if isinstance(exc.stderr, bytes) else (exc.stderr or "")
+                done = [ln for ln in err.splitlines() if ln and not ln.startswith(" ")]
+                row = {"n": n, "method": method, "status": f"did not finish in {a.timeout:g} s wall"
+                       + (f" (done: {'; '.join(done[-3:])})" if done else " (the scene was not built)")}
             row["wall"] = time.perf_counter() - t
             rows.append(row)
             print(json.dumps(row), flush=True)
