@@ -11,7 +11,11 @@ on the particle (n = 3) and the MP particles with m = 30 (n = 61):
   lambdified sympy functions at every call (the previous ``fast._setup_checks``, copied below);
 * ``fast_integrate`` after, new point: the checks through the model's own compiled K_of, b_of
   (mechanical form), the memory of checked points emptied before every call;
-* ``fast_integrate`` after, same point: a repeated run from initial data already checked.
+* ``fast_integrate`` after, same point: a repeated run from initial data already checked;
+* ``ldaspark.integrate`` (the public entry, method by name) repeated, before: the method's
+  tableau re-derived at every call (its mpmath coefficients, the kernel's coefficient arrays)
+  and the options re-validated; after: the tableau of a name and validated options remembered
+  per process (``solve._METHODS``, ``fast._OPTIONS_OK``), same point.
 
     python benchmarks/overhead.py [--calls 300]
 """
@@ -26,6 +30,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
+import ldaspark                                           # noqa: E402
+from ldaspark import solve                                # noqa: E402
 from ldaspark.compiled import fast                        # noqa: E402
 from ldaspark.core.scenes import get_scene, mp_particles  # noqa: E402
 
@@ -60,6 +66,12 @@ def overhead(sc, calls):
     rows = {}
     run = lambda k: fast.run_compiled(cs, "gauss-2", t0, q0, v0, 0.01, k)                     # noqa: E731
     full = lambda k: fast.fast_integrate(sc.system, "gauss-2", t0, q0, v0, 0.01, k)           # noqa: E731
+    public = lambda k: ldaspark.integrate(sc.system, "gauss-2", q0=q0, v0=v0, t0=t0, h=0.01, n_steps=k)  # noqa: E731
+
+    def forget():         # what a repeated call re-derived before the per-process memories
+        solve._METHODS.clear()
+        fast._SPECS.clear()
+        fast._OPTIONS_OK.clear()
     # name: (call, set-up checks, reset before each call, kernels through their dispatchers)
     variants = {
         "run_compiled before": (run, after, None, True),
@@ -67,6 +79,8 @@ def overhead(sc, calls):
         "fast_integrate before": (full, _setup_checks_before, None, True),
         "fast_integrate after, new point": (full, after, fast._CHECKED.clear, False),
         "fast_integrate after, same point": (full, after, None, False),
+        "ldaspark.integrate before, same point": (public, after, forget, False),
+        "ldaspark.integrate after, same point": (public, after, None, False),
     }
     # the marginal step cost is the same in every variant (same kernel, same data): measured
     # once, from run_compiled, so that the variants differ only by their one-step calls
@@ -98,10 +112,10 @@ def main(argv=None):
     for sc in (get_scene("particle"), mp_particles(m=30, J=100, j=3)):
         out[sc.system.n] = overhead(sc, a.calls)
     names = list(out[3])
-    print(f"{'call':34s} " + " ".join(f"{'n = ' + str(n):>10s}" for n in out) + "   (one step, ms: "
+    print(f"{'call':40s} " + " ".join(f"{'n = ' + str(n):>10s}" for n in out) + "   (one step, ms: "
           + ", ".join(f"n = {n}: {out[n]['run_compiled after'][1] * 1e3:.3f}" for n in out) + ")")
     for name in names:
-        print(f"{name:34s} " + " ".join(f"{out[n][name][0] * 1e3:10.3f}" for n in out))
+        print(f"{name:40s} " + " ".join(f"{out[n][name][0] * 1e3:10.3f}" for n in out))
 
 
 if __name__ == "__main__":

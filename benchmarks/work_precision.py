@@ -1,6 +1,8 @@
 """Work-precision of the SPARK methods against scipy's solve_ivp (DOP853, Radau, LSODA) on the
-index-reduced ODE, with and without projection; writes reports/work_precision.md and
-reports/figures/wp_*.png and prints the CPU-time ratios at equal accuracy.
+index-reduced ODE, with and without projection, and against the strongest peers (ode('dop853'),
+ode('lsoda'), CVODE Adams when scikit-sundae is installed; the full peer study is
+benchmarks/peers.py); writes reports/work_precision.md and reports/figures/wp_*.png and prints the
+CPU-time ratios at equal accuracy.
 Usage: python benchmarks/work_precision.py [--quick] [--outdir reports]"""
 import argparse
 
@@ -19,8 +21,10 @@ def main():
             for r in ratios(st, key=key):
                 f = r["scipy/spark-fast"]
                 g = r["scipy/spark-generic"]
+                p = r.get("peer/spark-fast")
                 print(f"  {r['target']:.0e}: scipy/SPARK-fast = {'-' if f is None else f'{f:.0f}x'}, "
-                      f"scipy/SPARK-generic = {'-' if g is None else f'{g:.2f}x'}")
+                      f"scipy/SPARK-generic = {'-' if g is None else f'{g:.2f}x'}, best peer "
+                      f"({r.get('best peer name') or '-'})/SPARK-fast = {'-' if p is None else f'{p:.2g}x'}")
     le = res["long"]
     for k in ("spark", "dop853", "dop853_projected"):
         print(f"long run {le[k]['label']}: max|E-E0| first half {le[k]['max_first_half']:.2e}, "

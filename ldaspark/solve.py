@@ -58,11 +58,14 @@ MAX_METHOD_NAME = 100
 def resolve_method(method: Union[str, SparkTableau], max_stages: Optional[int] = None) -> tuple:
     """("spark", SparkTableau, name) or ("comparator", name, name); ``max_stages`` raises the
     stage limit of built-in names (SPARK and gauss-irk-S alike)."""
+    if isinstance(method, SparkTableau):
+        return "spark", method, method.name
+    hit = _METHODS.get(method) if isinstance(method, str) and max_stages is None else None
+    if hit is not None:                   # a SPARK name seen before (never a comparator's)
+        return "spark", hit, method
     from .core.comparators import comparator_names, is_comparator
     from .core.families import get_method
     from .core.tableau import check_stages
-    if isinstance(method, SparkTableau):
-        return "spark", method, method.name
     if not isinstance(method, str):
         raise InputError(f"method must be a name or a SparkTableau, got {type(method).__name__}")
     if len(method) > MAX_METHOD_NAME:
@@ -72,13 +75,24 @@ def resolve_method(method: Union[str, SparkTableau], max_stages: Optional[int] =
             check_stages(int(method[len("gauss-irk-"):]), max_stages, what=method)
         return "comparator", method, method
     try:
-        return "spark", get_method(method, max_stages=max_stages), method
+        tab = get_method(method, max_stages=max_stages)
     except TableauError as exc:
         if not str(exc).startswith("unknown method"):
             raise
         raise InputError(f"unknown method {method!r}; choose gauss-S, lobatto-iiia-iiib-S, lobatto-iiia-iiib-iiid-S, "
                          f"euler-i, euler-ii, a SparkTableau, or a comparator ({', '.join(comparator_names(2))}, ...)"
                          ) from None
+    if len(_METHODS) >= 64:        # bounded: names are few, but a sweep over s could make many
+        _METHODS.clear()
+    _METHODS[method] = tab
+    return "spark", tab, method
+
+
+#: method name -> its SparkTableau, built once per process: a tableau computes its coefficients
+#: (mpmath, ~0.2 ms for gauss-2) once and keeps them, and the compiled engine's kernel_spec cache
+#: is keyed by the tableau object, so a repeated call by name re-derives nothing. Tableaux are
+#: not modified after construction (their _cache only memoizes derived views).
+_METHODS: dict = {}
 
 
 def _resolve_system(system, dps):
@@ -559,7 +573,11 @@ def _run_compiled(system, method, t0, q0, v0, h, N, every, dense, events, tol, p
         exc = _generic_diagnosis(exc, system, method, res, t0, q0, v0, h, tol)
     if exc is None:
         res, exc = _energy_jump_cut(res, energy_jump)
-    return _finish_prefix(res, exc, system, t0, q0, v0, every, dense, events, "compiled", sliced=inner != 1)
+    # without dense output, events or an energy-jump watch the kernels kept every ``every``-th
+    # point already (inner = every): nothing to post-process (with every = 1 too: re-slicing
+    # would copy the arrays unchanged)
+    return _finish_prefix(res, exc, system, t0, q0, v0, every, dense, events, "compiled",
+                          sliced=inner == every)
 
 
 def _generic_diagnosis(exc, system, method, res, t0, q0, v0, h, tol) -> LdasparkError:

@@ -82,3 +82,43 @@ def test_entry_points_give_the_dispatchers_numbers(rank_system):
     assert fast._entry("spark_run") is not kernels.spark_run
     assert np.array_equal(via_entry.q, via_dispatcher.q) and np.array_equal(via_entry.v, via_dispatcher.v)
     assert np.max(np.abs(via_entry.q[-1] - np.array([1.0, 0.5, 0.0]))) > 0.01   # the run moved
+
+
+# --- ldaspark.integrate's repeated call: the tableau of a name and validated options are
+# remembered per process (solve._METHODS, fast._OPTIONS_OK); nothing else changes
+def test_repeated_call_reuses_the_tableau_and_gives_the_same_numbers(monkeypatch):
+    import ldaspark
+    from ldaspark import solve
+    from ldaspark.core.families import gauss
+    made = []
+    orig = fast._make_spec
+    monkeypatch.setattr(fast, "_make_spec", lambda *a: made.append(a[0]) or orig(*a))
+    solve._METHODS.clear()
+    fast._SPECS.clear()
+    run = lambda m: ldaspark.integrate("skate", m, t_span=(0, 0.5), h=0.05)       # noqa: E731
+    a, b = run("gauss-2"), run("gauss-2")
+    assert len(made) == 1 and solve.resolve_method("gauss-2")[1] is solve.resolve_method("gauss-2")[1]
+    assert np.array_equal(a.q, b.q) and np.array_equal(a.v, b.v) and a.status == b.status == 0
+    # control: a tableau object given by the caller is its own (a new object: a new spec), and
+    # the same numbers as the remembered one of the same name
+    c = run(gauss(2))
+    assert len(made) == 2 and np.array_equal(c.q, a.q)
+    # a comparator name is never taken for a SPARK name
+    assert solve.resolve_method("lobatto-iiia-iiib-2-leapfrog")[0] == "comparator"
+    assert "lobatto-iiia-iiib-2-leapfrog" not in solve._METHODS
+
+
+def test_remembered_options_still_refuse_bad_ones():
+    from ldaspark.core.errors import InputError
+    fast._check_options(10, 1, 1, None, 50, 3, 1)
+    fast._check_options(10, 1, 1, None, 50, 3, 1)           # remembered
+    assert (int, 10, int, 1, int, 1, type(None), None, int, 50, 3, 1) in fast._OPTIONS_OK
+    # True == 1 and hash(True) == hash(1): without the types in the key predictor=True would pass
+    for bad in [dict(predictor=True), dict(n_steps=True), dict(n_steps=0), dict(every=1.0), dict(tol=-1.0)]:
+        args = dict(n_steps=10, every=1, predictor=1, tol=None, max_iter=50)
+        args.update(bad)
+        with pytest.raises(InputError):
+            fast._check_options(args["n_steps"], args["every"], args["predictor"], args["tol"],
+                                args["max_iter"], 3, 1)
+    with pytest.raises(InputError):                          # unhashable: checked, not remembered
+        fast._check_options([10], 1, 1, None, 50, 3, 1)

@@ -36,6 +36,7 @@ to the generic path`` to stderr and runs ``ldaspark.core.spark.integrate`` /
 from __future__ import annotations
 
 import functools
+import math
 import sys
 from dataclasses import dataclass
 
@@ -262,6 +263,25 @@ def _make_spec(method, kernel):
 
 
 def _check_options(n_steps, every, predictor, tol, max_iter, n_dof, n_con):
+    key = (type(n_steps), n_steps, type(every), every, type(predictor), predictor, type(tol), tol,
+           type(max_iter), max_iter, n_dof, n_con)
+    try:
+        if key in _OPTIONS_OK:           # a repeated call's options passed already (types in the key:
+            return                       # True == 1, but predictor=True must still be refused)
+    except TypeError:                    # unhashable option: the checks below say what is wrong
+        key = None
+    _check_options_now(n_steps, every, predictor, tol, max_iter, n_dof, n_con)
+    if key is not None:
+        if len(_OPTIONS_OK) >= 256:
+            _OPTIONS_OK.clear()
+        _OPTIONS_OK.add(key)
+
+
+#: option tuples (with their types) that passed ``_check_options_now``
+_OPTIONS_OK: set = set()
+
+
+def _check_options_now(n_steps, every, predictor, tol, max_iter, n_dof, n_con):
     from ..core.validate import MAX_STEPS, check_newton_options, check_storage, count
     if predictor not in (0, 1, 2) or isinstance(predictor, bool):
         raise InputError(f"predictor must be 0, 1 or 2, got {predictor!r}")
@@ -309,20 +329,31 @@ def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, co
     predictor: 2 = linear extrapolation of the last two steps' unknowns, 1 = last step's,
     0 = zero increments (V_i = v1 = v0, Psi = 0). Raises NewtonError, NonFiniteError."""
     _check_options(n_steps, every, predictor, tol, max_iter, cs.n, cs.m)
+    return _run_checked(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, kernel, predictor,
+                        reuse_matrix)
+
+
+_TOL_DEFAULT = 8 * float(np.finfo(float).eps)
+
+
+def _run_checked(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, kernel, predictor,
+                 reuse_matrix=False):
+    """``run_compiled`` after ``_check_options`` passed (fast_integrate checks them once, before
+    compiling; checking twice was ~3 us of a repeated short call's overhead)."""
     spec = method if isinstance(method, tuple) else kernel_spec(method, kernel)
     kind, what, name = spec
     if kind == "lf2" and cs.form != "mechanical":
         if name in LF2_VARIANTS:
             raise NotCompilableError(f"{cs.name}: {name} needs a system in mechanical form")
         kind, what, name = kernel_spec(name, "spark")        # (25) is lobatto-iiia-iiib-2
-    q0 = np.ascontiguousarray(np.asarray(q0, dtype=float)).copy()
-    v0 = np.ascontiguousarray(np.asarray(v0, dtype=float)).copy()
+    q0 = np.array(q0, dtype=float)          # a fresh contiguous copy: the kernel may not alias the caller's
+    v0 = np.array(v0, dtype=float)
     if q0.shape != (cs.n,) or v0.shape != (cs.n,):
         raise InputError(f"initial data must have n = {cs.n} entries")
     h = float(h)
-    if not (np.isfinite(h) and h != 0 and np.all(np.isfinite(q0)) and np.all(np.isfinite(v0))):
+    if not (math.isfinite(h) and h != 0 and np.isfinite(q0).all() and np.isfinite(v0).all()):
         raise InputError("initial data or step size contain NaN/inf, or h = 0")
-    tol = 8 * np.finfo(float).eps if tol is None else float(tol)
+    tol = _TOL_DEFAULT if tol is None else float(tol)
     S = n_samples(int(n_steps), int(every))
     outs = (np.zeros(S), np.zeros((S, cs.n)), np.zeros((S, cs.n)), np.zeros(S), np.zeros((S, cs.m)))
     stats = np.zeros(len(STAT_NAMES), dtype=np.int64)
@@ -408,21 +439,21 @@ def _setup_checks(system, t0, q0, v0, cs=None):
     the model's own compiled K_of, b_of instead of the lambdified sympy expressions, and an
     initial point that passed both checks for this system object is remembered (the verdict
     is a function of (system, t0, q0, v0) only), so repeating a run skips them."""
-    from ..core.backend import Backend
-    bk = Backend(None)
     try:
-        q, v = bk.array(q0), bk.array(v0)
+        q, v = np.array(q0, dtype=float), np.array(v0, dtype=float)     # = Backend(None).array
         t = float(t0)
     except (TypeError, ValueError) as exc:
         raise InputError(f"t0, q0 and v0 must be numbers: {exc}") from None
     if q.shape != (system.n,) or v.shape != (system.n,):
         raise InputError(f"initial data have shapes q: {q.shape}, v: {v.shape}; the system has n = {system.n}")
-    if not (np.isfinite(t) and bk.isfinite(q) and bk.isfinite(v)):
+    if not (math.isfinite(t) and np.isfinite(q).all() and np.isfinite(v).all()):
         raise InputError("initial data contain NaN or infinity")
     key = (t, q.tobytes(), v.tobytes())
     memo = _CHECKED.get(id(system))
     if memo is not None and memo[0] is system and key in memo[1]:
         return
+    from ..core.backend import Backend
+    bk = Backend(None)
     from ..core.validate import finite_initial_point
     finite_initial_point(system, bk, t, q, v)     # before a kernel divides by zero at it
     if cs is not None and cs.form == "mechanical":
@@ -533,7 +564,8 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
         _notice(f"{system.name}: compilation failed ({_first_line(exc)})")
         return generic_integrate(system, method, t0, q0, v0, h, n_steps, every, tol)
     try:
-        return run_compiled(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, kernel, predictor)
+        return _run_checked(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, kernel,
+                            predictor)
     except NotCompilableError as exc:
         _notice(str(exc))
         return generic_integrate(system, method, t0, q0, v0, h, n_steps, every, tol)

@@ -29,6 +29,40 @@ def rhs(t, y):
     out[:n] = v
     out[n:] = a[:n]
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def rhs_into(t, y, yp):
+    """rhs(t, y) written into yp (SUNDIALS CVODE's calling convention, scikit-sundae)."""
+    yp[:] = rhs(t, y)
+
+
+@numba.njit(cache=True, nogil=True)
+def psi_of(t, y):
+    """The multipliers psi of (3a-b) at y = (q, v): the last m entries of the saddle solve (4)."""
+    n, m = N_DOF, N_CON
+    S = np.zeros((n + m, n + m))
+    r = np.zeros(n + m)
+    ode_parts(t, np.ascontiguousarray(y[:n]), np.ascontiguousarray(y[n:2 * n]), S, r)
+    return np.linalg.solve(S, r)[n:]
+
+
+@numba.njit(cache=True, nogil=True)
+def dae_residual(t, y, yp, res):
+    """The index-1 form of (1) for SUNDIALS IDA, y = (q, v, psi): res = (q' - v,
+    L_vv v' + K^T psi - (L_q - L_vt - L_vq v), K v' + k_t + k_q v), the velocity constraint
+    differentiated once, (3a-b) with psi algebraic."""
+    n, m = N_DOF, N_CON
+    q = np.ascontiguousarray(y[:n])
+    v = np.ascontiguousarray(y[n:2 * n])
+    S = np.zeros((n + m, n + m))
+    r = np.zeros(n + m)
+    ode_parts(t, q, v, S, r)
+    x = np.empty(n + m)
+    x[:n] = yp[n:2 * n]
+    x[n:] = y[2 * n:]
+    res[:n] = yp[:n] - v
+    res[n:] = S.dot(x) - r
 '''
 
 
@@ -60,3 +94,10 @@ def ode_source(system) -> str:
 def compiled_rhs(system):
     """The numba-compiled f(t, y) of (3a-b) for ``system`` (cached on disk like the models)."""
     return load_source(ode_source(system), prefix="ldaspark_ode_").rhs
+
+
+def compiled_ode_module(system):
+    """The module of ``ode_source(system)``: ``rhs(t, y)``, ``rhs_into(t, y, yp)`` (CVODE's form),
+    ``psi_of(t, y)`` and ``dae_residual(t, y, yp, res)`` (the index-1 form for IDA), each compiled
+    on its first call."""
+    return load_source(ode_source(system), prefix="ldaspark_ode_")

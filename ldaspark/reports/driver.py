@@ -70,6 +70,8 @@ def run(args) -> int:
     workers = args.workers or os.cpu_count() or 1
     if workers < 1:
         raise InputError(f"--workers must be positive, got {workers}")
+    from .timing import probe_cpu
+    probe = probe_cpu()                  # before the workers start: the machine's speed, not the job's
     clock = Clock()
     modules = {name: importlib.import_module(mod) for name, mod in available_sections().items()}
     stats = run_sections(modules, args.outdir, full=getattr(args, "full", False), workers=workers,
@@ -78,21 +80,37 @@ def run(args) -> int:
     for name, st in stats.items():
         print(f"[report] {name:14s} {st['cpu']:7.1f}  {st['wall']:7.1f}", flush=True)
     print(f"[report] all sections: {clock.summary()} -> {args.outdir}", flush=True)
-    write_run_timing(args.outdir, stats, clock, workers, full=getattr(args, "full", False))
+    write_run_timing(args.outdir, stats, clock, workers, full=getattr(args, "full", False), probe=probe)
     return 0
 
 
-def write_run_timing(outdir, stats, clock, workers, full=False):
+def write_run_timing(outdir, stats, clock, workers, full=False, probe=None):
     """``OUTDIR/report_timing.json``: the wall and CPU time of this run of the main job, per
-    section and in all (README quotes it), with the machine's core count and load."""
+    section and in all (README quotes it), with the machine's core count and load, and the CPU
+    time of the fixed probe (``timing.probe_cpu``) so that ``cpu_over_probe`` compares machines.
+    The "readme" block of the file it replaces (the snapshot of the timings README quotes,
+    ``summary.write_snapshot``) is kept: README's timing marks are checked against it."""
     import datetime
+    import json
     import platform
     from ..core.io import atomic_write_json
+    path = os.path.join(outdir, "report_timing.json")
+    keep = {}
+    try:
+        with open(path) as f:
+            old = json.load(f)
+        if isinstance(old, dict) and isinstance(old.get("readme"), dict):
+            keep["readme"] = old["readme"]
+    except (OSError, ValueError):
+        pass
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
-    atomic_write_json(os.path.join(outdir, "report_timing.json"), {
+    extra = {} if probe is None else {
+        "probe": {"cpu": round(probe, 4), "what": "ldaspark.reports.timing.probe_cpu (min of 3)"},
+        "cpu_over_probe": round(clock.cpu / probe)}
+    atomic_write_json(path, {
         "command": f"ldaspark report{' --full' if full else ''}", "wall": round(clock.wall, 1),
         "cpu": round(clock.cpu, 1), "workers": workers, "cpu_count": os.cpu_count(),
         "load_average_1min_at_end": None if load is None else round(load, 2),
         "date": datetime.date.today().isoformat(), "python": platform.python_version(),
         "sections": {k: {"cpu": round(v["cpu"], 1), "written_at_wall": round(v["wall"], 1), "jobs": v["jobs"]}
-                     for k, v in stats.items()}})
+                     for k, v in stats.items()}, **extra, **keep})

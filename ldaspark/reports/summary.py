@@ -5,10 +5,25 @@ comment is invisible when rendered); ``tests/test_readme.py`` checks that ``text
 ``readme_values(reports)[KEY]``, so README and reports cannot disagree. ``python -m
 ldaspark.reports.summary`` prints every key with its current text; ``--fill README.md`` rewrites
 the marked values after the reports were regenerated.
+
+What a mark is checked against depends on its kind (``quote_kind``), so that running the main job
+and then the tests passes on any machine:
+
+* exact (verdicts, counts, lists, errors of deterministic runs): equal to the reports' value;
+* residual (``claims.*.max``, ``claims.*.negctl_min``: largest identity residuals, some of them
+  float64 round-off whose last digits depend on the machine's libm and BLAS): the same order of
+  magnitude as the reports' value (within a factor 10; a fault moves them by many decades);
+* timing (CPU and wall times and their ratios): equal to the snapshot in the committed
+  ``reports/report_timing.json`` ("readme": the timing values of the run README was filled from,
+  and the sha256 of each report file then), and equal to the reports' value too while a report
+  file is the one of the snapshot (same sha256). ``--fill`` writes README's marks and the snapshot;
+  the main job keeps the snapshot when it rewrites report_timing.json.
 """
 from __future__ import annotations
 
+import hashlib
 import json
+import math
 import os
 import re
 import sys
@@ -138,6 +153,8 @@ def work_precision_values(d):
         out[f"wp.{st['scene']}.ratios"] = " / ".join("-" if r["scipy/spark-fast"] is None else _x(r["scipy/spark-fast"])
                                                       for r in rs)
         out[f"wp.{st['scene']}.targets"] = " / ".join(f"{r['target']:.0e}" for r in rs)
+        if any("peer/spark-fast" in r for r in rs):
+            out[f"wp.{st['scene']}.peer_ratios"] = " / ".join(_r(r.get("peer/spark-fast")) for r in rs)
     le = d.get("long", {})
     if "spark" in le:
         out["wp.long.spark"] = _e(le["spark"]["max_second_half"])
@@ -167,9 +184,38 @@ def peer_values(d):
 
 
 def run_values(d):
-    """The main job's own time (``report_timing.json``, written by ``ldaspark report``)."""
-    return {"run.wall": f"{d['wall']:.0f} s", "run.cpu": f"{d['cpu']:.0f} s",
-            "run.cores": str(d["cpu_count"])}
+    """The main job's own time (``report_timing.json``, written by ``ldaspark report``); with the
+    probe (``timing.probe_cpu``) its CPU time in probe units, a figure that does not depend on the
+    machine's speed."""
+    out = {"run.wall": f"{d['wall']:.0f} s", "run.cpu": f"{d['cpu']:.0f} s",
+           "run.cores": str(d["cpu_count"])}
+    if d.get("probe"):
+        out["run.probe_ratio"] = f"{d['cpu'] / d['probe']['cpu']:.0f}"
+    return out
+
+
+def _r(x, at_least=None, at_most=None):
+    """A speed-up as README quotes it: two significant digits ('0.45x', '1.1x', '14x'); '>= 4.9x'
+    for a lower bound, '<= 4.9x' for an upper one (``peers.speedups``)."""
+    if x is None and at_least is not None:
+        return ">= " + _r(at_least)
+    if x is None and at_most is not None:
+        return "<= " + _r(at_most)
+    return "-" if x is None else f"{float(f'{x:.2g}'):g}x"
+
+
+def peers_values(d):
+    """The best compiled SPARK method against the best peer (``reports/peers.json``, from
+    ``benchmarks/peers.py``): speed-ups at the final-error targets (T = 100) and at the energy
+    targets of the long runs (T = 1e4), per scene."""
+    out = {"peers.targets": " / ".join(f"{t:.0e}" for t in d["targets"]),
+           "peers.energy_targets": " / ".join(f"{t:.0e}" for t in d["energy_targets"])}
+    for st in d["studies"]:
+        out[f"peers.{st['scene']}.speedups"] = " / ".join(_r(r["speedup"], r.get("speedup_at_least"), r.get("speedup_at_most"))
+                                                         for r in st["speedups"])
+        out[f"peers.{st['scene']}.long"] = " / ".join(_r(r["speedup"], r.get("speedup_at_least"), r.get("speedup_at_most"))
+                                                     for r in st["long_speedups"])
+    return out
 
 
 def readme_values(reports_dir="reports") -> dict:
@@ -177,7 +223,8 @@ def readme_values(reports_dir="reports") -> dict:
     out = {}
     for name, fn in (("convergence.json", convergence_values), ("claims.json", claims_values),
                      ("energy.json", energy_values), ("work_precision.json", work_precision_values),
-                     ("report_timing.json", run_values), ("peer_odelab.json", peer_values)):
+                     ("report_timing.json", run_values), ("peer_odelab.json", peer_values),
+                     ("peers.json", peers_values)):
         d = _load(reports_dir, name)
         if d is not None:
             out.update(fn(d))
@@ -185,6 +232,100 @@ def readme_values(reports_dir="reports") -> dict:
 
 
 MARK = re.compile(r"<!--([\w.:+\-]+)-->(.*?)<!--/-->")
+
+# --- what a mark is checked against -----------------------------------------------------------
+TIMING = re.compile(r"^(run\.(wall|cpu|probe_ratio)|energy\.fig4\.\w+\.seconds|wp\.sps\.\w+"
+                    r"|wp\.[\w-]+\.(ratios|peer_ratios|rhs)|peer\.(spark2|ratios)"
+                    r"|peers\.[\w-]+\.(speedups|long))$")
+RESIDUAL = re.compile(r"^claims\.[\w.-]+\.(max|negctl_min)$")
+#: the report file each key's value comes from (its first dotted part)
+SOURCE = {"convergence": "convergence.json", "claims": "claims.json", "energy": "energy.json",
+          "wp": "work_precision.json", "run": "report_timing.json", "peer": "peer_odelab.json",
+          "peers": "peers.json"}
+
+
+def quote_kind(key: str) -> str:
+    """"timing", "residual" or "exact" (see the module docstring)."""
+    return "timing" if TIMING.match(key) else "residual" if RESIDUAL.match(key) else "exact"
+
+
+def same_magnitude(a: str, b: str) -> bool:
+    """Two residuals printed as numbers ('6.3e-17', '9.9e-17') within a factor 10 of each other:
+    float64 round-off differs between machines by a few units in the last place times the
+    problem's amplification (1.6x here), a wrong formula by many decades."""
+    try:
+        x, y = float(a), float(b)
+    except ValueError:
+        return a == b
+    if x == 0 or y == 0 or not (math.isfinite(x) and math.isfinite(y)):
+        return x == y
+    return abs(math.log10(abs(x) / abs(y))) <= 1.0
+
+
+def _sha(path):
+    with open(path, "rb") as f:
+        return hashlib.sha256(f.read()).hexdigest()
+
+
+def file_digests(reports_dir) -> dict:
+    """{report file: sha256} of the report files present (report_timing.json excluded: its
+    snapshot block changes when it is filled)."""
+    return {name: _sha(os.path.join(reports_dir, name)) for name in sorted(set(SOURCE.values()))
+            if name != "report_timing.json" and os.path.exists(os.path.join(reports_dir, name))}
+
+
+def _run_id(d):
+    return None if d is None else {k: d.get(k) for k in ("date", "wall", "cpu")}
+
+
+def snapshot(reports_dir, values=None) -> dict:
+    """The "readme" block of report_timing.json: the timing values README quotes now, and what
+    identifies the reports they come from (report files' sha256, the main job's run)."""
+    values = readme_values(reports_dir) if values is None else values
+    return {"values": {k: v for k, v in values.items() if quote_kind(k) == "timing"},
+            "files": file_digests(reports_dir), "run": _run_id(_load(reports_dir, "report_timing.json"))}
+
+
+def _current(key, reports_dir, snap):
+    """Whether the report file of ``key`` is the one the snapshot was taken from."""
+    name = SOURCE.get(key.split(".", 1)[0])
+    if name == "report_timing.json":
+        return _run_id(_load(reports_dir, name)) == snap.get("run")
+    path = os.path.join(reports_dir, name) if name else None
+    return bool(path) and os.path.exists(path) and snap.get("files", {}).get(name) == _sha(path)
+
+
+def quote_problem(key, shown, values, reports_dir=None, snap=None):
+    """None if README's ``shown`` text for ``key`` agrees with the reports (by the key's kind),
+    else what is wrong."""
+    kind = quote_kind(key)
+    if kind == "timing":
+        if snap is None:
+            snap = (_load(reports_dir, "report_timing.json") or {}).get("readme") if reports_dir else None
+        if not snap or key not in snap.get("values", {}):
+            return f"{key}: a timing with no snapshot in report_timing.json (run --fill)"
+        if shown != snap["values"][key]:
+            return f"{key} shows {shown!r}, the committed snapshot gives {snap['values'][key]!r}"
+        if reports_dir is not None and _current(key, reports_dir, snap) and values.get(key) != shown:
+            return f"{key} shows {shown!r}, the reports (those of the snapshot) give {values.get(key)!r}"
+        return None
+    if key not in values:
+        return f"unknown key {key}"
+    if kind == "residual":
+        return None if same_magnitude(shown, values[key]) else \
+            f"{key} shows {shown!r}, the reports give {values[key]!r} (another order of magnitude)"
+    return None if shown == values[key] else f"{key} shows {shown!r}, the reports give {values[key]!r}"
+
+
+def write_snapshot(reports_dir, values=None):
+    """Store ``snapshot`` as the "readme" block of ``reports_dir``/report_timing.json."""
+    path = os.path.join(reports_dir, "report_timing.json")
+    d = _load(reports_dir, "report_timing.json")
+    if d is None:
+        return
+    d["readme"] = snapshot(reports_dir, values)
+    from ..core.io import atomic_write_json
+    atomic_write_json(path, d)
 
 
 def fill(text, values):
@@ -208,7 +349,9 @@ def main(argv=None):
         if new != text:
             from ..core.io import atomic_write_text
             atomic_write_text(args.fill, new)
-        print(f"{args.fill}: {'updated' if new != text else 'already current'}")
+        write_snapshot(args.reports, values)
+        print(f"{args.fill}: {'updated' if new != text else 'already current'}; timing snapshot in "
+              f"{os.path.join(args.reports, 'report_timing.json')}")
         return 0
     for k, v in values.items():
         print(f"<!--{k}-->{v}<!--/-->")

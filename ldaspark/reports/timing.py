@@ -33,3 +33,23 @@ class Clock:
 
     def summary(self) -> str:
         return f"{self.wall:.1f} s wall, {self.cpu:.1f} s CPU"
+
+
+def probe_cpu(repeats: int = 3) -> float:
+    """CPU seconds of a fixed reference computation (the minimum of ``repeats``; ~0.1 s on the
+    machine of the committed reports): interpreted Python float arithmetic, the kind of work
+    that dominates the main job (the mpmath references and the ledger run in the interpreter).
+    The main job's CPU time divided by it is a machine-independent size of the job (probe units),
+    recorded in report_timing.json ("probe", "cpu_over_probe"); a machine twice as fast halves
+    both. Deterministic work: 2000000 steps of a logistic-map recurrence."""
+    best = float("inf")
+    for _ in range(repeats):
+        c = time.process_time()
+        x, acc = 0.3, 0.0
+        for _ in range(2000000):
+            x = 3.7 * x * (1.0 - x)
+            acc += x
+        best = min(best, time.process_time() - c)
+        if not 0.0 < acc < 2000000.0:       # keeps the loop's result live; never true
+            raise AssertionError(acc)
+    return best

@@ -28,6 +28,9 @@ from .timing import Clock
 SPARK_FAST = ("gauss-1", "gauss-2", "gauss-3", "lobatto-iiia-iiib-2", "lobatto-iiia-iiib-3")
 SPARK_GENERIC = ("gauss-2",)
 SCIPY = ("DOP853", "Radau", "LSODA")
+#: the strongest peers (``ldaspark.reports.peers``) beside solve_ivp in the main job's studies: cheap
+#: (compiled solvers, milliseconds per run); CVODE only when scikit-sundae is installed
+PEERS_MAIN = ("ode-dop853", "ode-lsoda", "cvode-adams")
 TARGETS = (1e-3, 1e-6, 1e-9)
 
 
@@ -175,6 +178,12 @@ def scene_runs(scene_name, t_end, kind, method, params):
         elif kind == "spark-generic":
             cpu, t, q, E, K = run_generic(scene, method, p, t_end)
             rows.append(_row(kind, method, p, cpu, q, E, K, E0))
+        elif kind == "peer":
+            from .peers import PeerFailure, run_peer
+            try:
+                rows.append(run_peer(scene, method, p, t_end))
+            except PeerFailure:           # a peer that stops early has no point at this tolerance
+                continue
         else:
             cpu, t, q, E, K, nfev = run_scipy(scene, method, p, t_end, project=(kind == "scipy-projected"))
             rows.append(_row(kind, method, p, cpu, q, E, K, E0, nfev))
@@ -198,6 +207,8 @@ def study_plan(scene_name, t_end, hs_fast, hs_generic, rtols, rtols_radau):
     plan += [("spark-generic", m, tuple(hs_generic)) for m in SPARK_GENERIC]
     plan += [(kind, m, tuple(rtols_radau if m == "Radau" else rtols)) for m in SCIPY
              for kind in ("scipy", "scipy-projected")]
+    from .peers import available_peers
+    plan += [("peer", p, tuple(rtols)) for p in available_peers(PEERS_MAIN)[0]]
     return plan
 
 
@@ -247,14 +258,22 @@ def ratios(study, targets=TARGETS, key="error"):
         "scipy (best of 3)": [r for r in rows if r["kind"] == "scipy"],
         "scipy + projection (best of 3)": [r for r in rows if r["kind"] == "scipy-projected"],
     }
+    peer_rows = [r for r in rows if r["kind"] == "peer"]
     out = []
     for tgt in targets:
         c = {g: cpu_at(rs, tgt, key) for g, rs in groups.items()}
         sc = [x for x in (c["scipy (best of 3)"], c["scipy + projection (best of 3)"]) if x is not None]
         best_scipy = min(sc) if sc else None
+        # the best peer: the cheapest at this target among the strongest peers and solve_ivp
+        from .peers import best_peer
+        pm, pc = best_peer(peer_rows, tgt, key)
+        if best_scipy is not None and (pc is None or best_scipy < pc):
+            pm, pc = "solve_ivp", best_scipy
         out.append({"target": tgt, **c,
                     "scipy/spark-fast": best_scipy / c["spark-fast"] if best_scipy and c["spark-fast"] else None,
-                    "scipy/spark-generic": best_scipy / c["spark-generic"] if best_scipy and c["spark-generic"] else None})
+                    "scipy/spark-generic": best_scipy / c["spark-generic"] if best_scipy and c["spark-generic"] else None,
+                    "best peer": pc, "best peer name": pm,
+                    "peer/spark-fast": pc / c["spark-fast"] if pc and c["spark-fast"] else None})
     return out
 
 
@@ -353,7 +372,7 @@ def long_energy(t_long=2500.0, h=0.1, rtol=1e-6, every=10):
 
 
 # --- plots and report -------------------------------------------------------------------------
-STYLE = {"spark-fast": "-o", "spark-generic": "-s", "scipy": "--^", "scipy-projected": ":v"}
+STYLE = {"spark-fast": "-o", "spark-generic": "-s", "scipy": "--^", "scipy-projected": ":v", "peer": "-.d"}
 
 
 def plot_study(study, path):
@@ -424,11 +443,13 @@ def _fmt(x, f="{:.3g}"):
 def _ratio_rows(st, key):
     return [[f"{r['target']:.0e}", _fmt(r["spark-fast"]), _fmt(r["spark-generic"]), _fmt(r["scipy (best of 3)"]),
              _fmt(r["scipy + projection (best of 3)"]), _fmt(r["scipy/spark-fast"], "{:.2g}"),
-             _fmt(r["scipy/spark-generic"], "{:.2g}")] for r in ratios(st, key=key)]
+             _fmt(r["scipy/spark-generic"], "{:.2g}"),
+             "-" if r.get("best peer") is None else f"{r['best peer name']} {r['best peer']:.3g}",
+             _fmt(r.get("peer/spark-fast"), "{:.2g}")] for r in ratios(st, key=key)]
 
 
 RATIO_HEADER = ["SPARK fast [s]", "SPARK generic [s]", "scipy best [s]", "scipy + proj. best [s]",
-                "scipy / SPARK fast", "scipy / SPARK generic"]
+                "scipy / SPARK fast", "scipy / SPARK generic", "best peer [s]", "best peer / SPARK fast"]
 
 
 def _rhs_sentence(c):
@@ -462,6 +483,57 @@ def sps_summary(sps):
     return {"median": float(np.median(r)), "min": r[0], "max": r[-1], "n": len(r)} if r else None
 
 
+def _sundials_here():
+    from .peers import sundials
+    return sundials() is not None
+
+
+def strongest_peers_section(path):
+    """Lines of the "Strongest peers" section from ``path`` (``reports/peers.json``, written by
+    ``benchmarks/peers.py``: five scenes, T = 100 and T = 1e4, every peer; too long for the main
+    job, so the file is committed and rendered here); [] when the file is absent."""
+    import json
+    if not os.path.exists(path):
+        return []
+    from .peers import section
+    with open(path) as f:
+        return section(json.load(f))
+
+
+def scaling_section(path):
+    """Lines of the "Scale" section from ``path`` (``reports/scaling.json``, written by
+    ``benchmarks/scaling.py``: the compiled step's cost against n; committed, not regenerated by
+    the main job); [] when the file is absent."""
+    import json
+    if not os.path.exists(path):
+        return []
+    with open(path) as f:
+        d = json.load(f)
+    ok = [r for r in d["rows"] if r.get("status") == "ok"]
+    L = ["", "## Scale: the compiled step against n (MP particles, nonholonomic constraint)", "",
+         f"From `{d['command']}` on {d['date']} ({d['cpu_count']} CPUs, load average {d['load_average_1min_at_end']} "
+         "at the end" + (": a loaded machine" if (d["load_average_1min_at_end"] or 0) > (d["cpu_count"] or 1) else "")
+         + "). n = 2m + 1, one constraint, h = 0.001; every size in a fresh process "
+         "with an empty model cache. Build: sympy (L, k, Hessians); first call: code generation and numba "
+         "compilation of the model (the kernels are compiled once per machine); per step: CPU time of a "
+         "~0.3 s run, minimum of 3. The compiled step assembles a dense Newton matrix of size (s + 1) n + s m "
+         "(`kernels_mech.spark_jacobian`) and factors it by dense LU once per step (simplified Newton, "
+         "`newton.lu_factor`): ~((s + 1) n)^3 / 3 flops, so the cost per step tends to n^3 for large n. The "
+         "Hessians and K of this scene are sparse; a structured or sparse Newton solver is not built (the "
+         "measured limit below).", ""]
+    L += table(["n", "method", "build CPU [s]", "first call CPU [s]", "CPU per step [us]", "Newton iterations / step",
+                "model source [chars]", "status"],
+               [[r["n"], r.get("method", "-"), _fmt(r.get("build_cpu")), _fmt(r.get("first_call_cpu")),
+                 _fmt(r.get("us_per_step")), _fmt(r.get("mean_iterations"), "{:.2f}"),
+                 r.get("model_source_chars", "-"), r.get("status", "-")] for r in d["rows"]])
+    if len(ok) >= 2:
+        a, b = ok[0], ok[-1]
+        import math
+        p = math.log(b["us_per_step"] / a["us_per_step"]) / math.log(b["n"] / a["n"])
+        L += ["", f"Cost per step grows like n^{p:.2f} between n = {a['n']} and n = {b['n']}."]
+    return L + [""]
+
+
 def write_report(outdir, studies, sps, dps_rows, le, clock, command="ldaspark report work-precision"):
     L = ["# Work-precision: SPARK against scipy.integrate.solve_ivp", "",
          "Generated by `ldaspark report work-precision` (`python benchmarks/work_precision.py` prints the "
@@ -470,7 +542,12 @@ def write_report(outdir, studies, sps, dps_rows, le, clock, command="ldaspark re
          "numba compilation. scipy solves the index-reduced ODE (3a-b) with a right-hand side compiled by numba "
          "from the same sympy expressions as the SPARK model (`ldaspark.compiled.ode.compiled_rhs`, the saddle "
          "system (4) solved in numba), the strongest baseline a user would set up; atol = 1e-3 rtol; "
-         "\"+ projection\" restarts every time unit after projecting v onto k = 0.", ""]
+         "\"+ projection\" restarts every time unit after projecting v onto k = 0. The strongest peers run on the "
+         "same compiled right-hand side (kind `peer`, `ldaspark.reports.peers`): scipy's `ode('dop853')` (Hairer's "
+         "Fortran), `ode('lsoda')` and, when scikit-sundae is installed, SUNDIALS CVODE Adams"
+         + ("" if _sundials_here() else " (**not installed for this run: CVODE skipped**)")
+         + "; \"best peer\" is the cheapest of them and solve_ivp at each target, and \"best peer / SPARK fast\" "
+         "the honest speed-up (> 1: SPARK faster).", ""]
     for st in studies:
         L += _study_markdown(st)
     L += ["## Energy error at long times (particle)", "", "![long](figures/wp_energy_long.png)", ""]
@@ -494,6 +571,8 @@ def write_report(outdir, studies, sps, dps_rows, le, clock, command="ldaspark re
                [[r["precision"], f"{r['seconds_per_step']:.3g}", f"{r['seconds_per_step'] / base:.3g}",
                  _fmt(r.get("mean_iterations"), "{:.2f}")] for r in dps_rows])
     L += peer_section(os.path.join(outdir, "peer_odelab.json"))
+    L += strongest_peers_section(os.path.join(outdir, "peers.json"))
+    L += scaling_section(os.path.join(outdir, "scaling.json"))
     L += ["", timing_line(command, clock), ""]
     path = os.path.join(outdir, "work_precision.md")
     atomic_write_text(path, "\n".join(L))
@@ -517,7 +596,7 @@ def sizes(quick=False, t_long=2500.0):
 
 
 # rough CPU seconds on an idle core, to start the longest jobs first
-COST = {"Radau": 8.0, "LSODA": 2.0, "DOP853": 1.5, "spark-generic": 12.0, "spark-fast": 2.0}   # rough CPU s, for scheduling
+COST = {"Radau": 8.0, "LSODA": 2.0, "DOP853": 1.5, "spark-generic": 12.0, "spark-fast": 2.0, "peer": 0.5}   # rough CPU s, for scheduling
 
 
 def _run_groups(kind, method, params):

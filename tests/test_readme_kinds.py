@@ -1,0 +1,27 @@
+"""What each kind of README mark is checked against (``ldaspark.reports.summary.quote_kind``), on
+synthetic values: no reports needed (so this file, unlike test_readme.py, runs in the mutants'
+scratch copy, which has no reports/)."""
+
+
+def test_quote_kinds_residual_class_and_timing_snapshot():
+    """What each kind of mark is checked against, on synthetic values (no reports needed)."""
+    from ldaspark.reports.summary import quote_kind, quote_problem, same_magnitude
+    assert [quote_kind(k) for k in ("run.wall", "wp.particle.ratios", "wp.skate.peer_ratios", "peers.robot.long",
+                                    "energy.fig4.nh.seconds", "claims.general.max", "claims.theorem1.negctl_min",
+                                    "claims.general", "convergence.spark", "wp.long.spark")] == \
+        ["timing"] * 5 + ["residual"] * 2 + ["exact"] * 3
+    # residuals: the same order of magnitude (within a factor 10) passes, another fails
+    assert same_magnitude("6.3e-17", "9.9e-17") and same_magnitude("9.9e-17", "1.0e-17")
+    assert not same_magnitude("6.3e-17", "6.4e-16") and not same_magnitude("1.4e-40", "1.4e-17")
+    assert quote_problem("claims.general.max", "6.3e-17", {"claims.general.max": "9.9e-17"}) is None
+    assert "order of magnitude" in quote_problem("claims.general.max", "6.3e-17", {"claims.general.max": "2.0e-15"})
+    # exact keys: equal text only
+    assert quote_problem("claims.general", "94 of 94", {"claims.general": "94 of 94"}) is None
+    assert quote_problem("claims.general", "94 of 94", {"claims.general": "93 of 94"}) is not None
+    # timings: against the snapshot, whatever the new run measured
+    snap = {"values": {"wp.particle.ratios": "9x / 8x / 7x"}}
+    assert quote_problem("wp.particle.ratios", "9x / 8x / 7x", {"wp.particle.ratios": "14x / 19x / 16x"},
+                         snap=snap) is None
+    assert "snapshot" in quote_problem("wp.particle.ratios", "14x / 19x / 16x", {"wp.particle.ratios": "14x / 19x / 16x"},
+                                       snap=snap)
+    assert "no snapshot" in quote_problem("wp.particle.ratios", "9x / 8x / 7x", {}, snap={"values": {}})
