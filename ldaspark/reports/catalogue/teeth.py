@@ -128,7 +128,7 @@ MUTANTS = (
        "events after a compiled run: g at the step's end taken from the state at its start", "events",
        f"{EV}::test_event_directions_minus_zero_plus_at_once", EV),
     _m("teeth-event-terminal-reset-by-later-event", "core/dense.py",
-       'stop = stop or bool(getattr(g, "terminal", False))', 'stop = bool(getattr(g, "terminal", False))',
+       "stop = stop or g.terminal", "stop = g.terminal",
        "a non-terminal event crossing in the same step after a terminal one cancels the stop", "events",
        f"{EV}::test_terminal_event_in_each_direction"),
     # --- class 4: shared state between copies ------------------------------------------------------
@@ -168,8 +168,8 @@ MUTANTS = (
        "mpmath.nstr(x, dps, strip_zeros=False)", "mpmath.nstr(x, 17, strip_zeros=False)",
        "mpmath results written with 17 significant digits instead of dps", "roundtrip", RT),
     _m("teeth-mp-parsed-at-default-precision", "core/resultio.py",
-       "with mpmath.workdps(dps):\n            return np.vectorize(mpmath.mpf",
-       "with mpmath.workdps(15):\n            return np.vectorize(mpmath.mpf",
+       "with mpmath.workdps(dps):\n                try:\n                    out = np.vectorize(mpmath.mpf",
+       "with mpmath.workdps(15):\n                try:\n                    out = np.vectorize(mpmath.mpf",
        "decimal strings of an mpmath result parsed at 15 digits", "roundtrip", RT),
     # --- class 6: ledger verdict rules ---------------------------------------------------------------
     _m("teeth-energy-exact-verdict-loose", "theory/claims_paper.py",
