@@ -577,7 +577,7 @@ def _run_compiled(system, method, t0, q0, v0, h, N, every, dense, events, tol, p
     # point already (inner = every): nothing to post-process (with every = 1 too: re-slicing
     # would copy the arrays unchanged)
     return _finish_prefix(res, exc, system, t0, q0, v0, every, dense, events, "compiled",
-                          sliced=inner == every)
+                          sliced=not (dense or events or energy_jump is not None))
 
 
 def _generic_diagnosis(exc, system, method, res, t0, q0, v0, h, tol) -> LdasparkError:
