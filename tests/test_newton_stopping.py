@@ -132,7 +132,7 @@ def test_generic_step_is_the_last_fallback(monkeypatch, fail_at, every):
     from ldaspark.compiled import fast
     sc = get_scene("skate")
     ref = fast_integrate(sc, "gauss-2", h=0.1, n_steps=20, every=every)
-    real = fast.run_compiled
+    real = fast._run_checked          # what fast_integrate and run_compiled call
     calls = []
 
     def failing(cs, method, t0, q0, v0, h, n, *a, **k):
@@ -140,7 +140,7 @@ def test_generic_step_is_the_last_fallback(monkeypatch, fail_at, every):
         if len(calls) == 1:
             raise NewtonError("simulated", step=fail_at, time=t0 + fail_at * h)
         return real(cs, method, t0, q0, v0, h, n, *a, **k)
-    monkeypatch.setattr(fast, "run_compiled", failing)
+    monkeypatch.setattr(fast, "_run_checked", failing)
     sol = fast_integrate(sc, "gauss-2", h=0.1, n_steps=20, every=every)
     assert sol.stats["generic_steps"] == 1 and sol.stats["steps"] == 20
     # the same grid; a segment's times are t_start + k h: a few ulps from t0 + (start + k) h

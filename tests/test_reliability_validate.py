@@ -100,14 +100,14 @@ def test_long_compiled_run_is_chunked_with_the_same_samples(monkeypatch):
     from ldaspark import solve
     from ldaspark.compiled import fast
     calls = []
-    real = fast.run_compiled
+    real = fast._run_checked          # the kernel call behind fast_integrate and run_compiled
 
     def spy(*a, **k):
         calls.append(a[6])
         return real(*a, **k)
     one = run(t_span=(0, 2), h=0.05, save_every=3)
     monkeypatch.setattr(solve, "COMPILED_CHUNK", 7)
-    monkeypatch.setattr(fast, "run_compiled", spy)
+    monkeypatch.setattr(fast, "_run_checked", spy)
     chunked = run(t_span=(0, 2), h=0.05, save_every=3)
     assert one.engine == chunked.engine == "compiled"
     assert len(calls) >= 40 // 7, calls             # several kernel calls ...
