@@ -85,3 +85,14 @@ def test_regimes_table_aggregates_ranges_and_worst_failure():
     d["stiff"] = []
     g = {(r["engine"], r["family"]): r for r in regimes(d)}[("compiled float64", "gauss")]
     assert g["worst"].startswith("max abs dE") and "h = 1e-07" in g["worst"]
+
+
+def test_dps_extreme_runs_at_the_bound_without_exceeding_it():
+    """The stability report's extreme-precision rows run at DPS_MAX itself; its reference is then
+    the run at DPS_MAX - 40 (the API refuses more digits: the main job failed on dps = 2040)."""
+    from ldaspark.core.validate import DPS_MAX
+    from ldaspark.reports.stability_stiff import dps_extreme
+    (row,) = dps_extreme((DPS_MAX,), n=1)
+    assert row["dps"] == DPS_MAX and row["ref_dps"] == DPS_MAX - 40
+    # the difference is the lower-precision run's error: about 10^-(DPS_MAX - 40), not O(1)
+    assert row["log10_diff"] is None or -DPS_MAX - 5 < row["log10_diff"] < -(DPS_MAX - 40) + 5

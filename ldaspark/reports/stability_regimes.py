@@ -214,8 +214,10 @@ def section_tiny(d):
     dps = d["dps"]
     L += ["", "Extreme precision (generic engine, mpmath): the skate, gauss-2, h = 1/10, "
           + ", ".join(f"dps = {r['dps']}: {r['N']} steps in {r['seconds']:.2f} s, {r['iterations']:.1f} Newton "
-                      f"it./step, difference to dps + 40 digits 1e{r['log10_diff']:.0f}" if r["log10_diff"] is not None
-                      else f"dps = {r['dps']}: identical to dps + 40" for r in dps)
+                      f"it./step, difference to the run at {r.get('ref_dps', r['dps'] + 40)} digits "
+                      f"1e{r['log10_diff']:.0f}" if r["log10_diff"] is not None
+                      else f"dps = {r['dps']}: identical to the run at {r.get('ref_dps', r['dps'] + 40)} digits"
+                      for r in dps)
           + " (earlier, dps >= 324 raised ZeroDivisionError: the unit round-off was a float and "
           "underflowed to 0).", ""]
     return L
