@@ -277,10 +277,7 @@ def markdown(results, bicycle=None, clock=None, command="ldaspark report systems
         L.append(f"* `{n}` ({how}): {d['description']}. Source: {d['source']}.")
     L += ["", "## Observations", ""]
     L += _observations(results, names)
-    if bicycle is None or "error" in bicycle:          # else its markdown brings its own heading
-        L += ["", "## The Whipple bicycle", ""]
-    else:
-        L += [""]
+    L += ["", "## The Whipple bicycle", ""]
     if bicycle is None:
         L.append("Pending: `ldaspark.reports.systems_bicycle` (the benchmark bicycle of Meijaard, Papadopoulos,"
                  " Ruina and Schwab 2007) is not installed in this tree; the section appends its"

@@ -147,7 +147,7 @@ def bicycle_section(outdir, data=None):
              sci(r["error"])] for r in data["rows"]]
     cs, od, nl = data["critical_speeds"], data["order"], data["nonlinear"]
     lines = [
-        "## The Whipple bicycle (benchmark of Meijaard, Papadopoulos, Ruina and Schwab 2007)",
+        "The benchmark of Meijaard, Papadopoulos, Ruina and Schwab (2007).",
         "",
         "Scene `bicycle` (`ldaspark/core/bicycle.py`): four rigid bodies written with `sympy.physics.mechanics`, "
         "n = 8 coordinates, m = 5 constraints (front contact height in its velocity form, rolling of both wheels), "
