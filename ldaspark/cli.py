@@ -202,7 +202,10 @@ def _main(argv=None) -> int:
         path, before = getattr(args, "output_before", (None, None))
         if done is None and path is not None and _file_state(path) not in (None, before):
             done = path         # replaced atomically after the run: the new file is complete
+        kept = ("the finished units are kept in OUTDIR's *.partial.jsonl; a rerun resumes from them"
+                if getattr(args, "command", None) in ("verify", "mutants") else None)
         print(f"ldaspark: interrupted (after the complete result was written to {done})" if done else
+              f"ldaspark: interrupted ({kept})" if kept else
               "ldaspark: interrupted (no partial output was written)", file=sys.stderr)
         return 130
     except BrokenPipeError:

@@ -245,3 +245,17 @@ def test_where_is_validated():
             run_units([Unit("a", _square, (1,))], where=None, jobs=jobs)
     with pytest.raises(InputError, match="unique"):
         run_units([Unit("a", _square, (1,)), Unit("a", _square, (2,))])
+
+
+def test_ctrl_c_in_verify_says_where_the_finished_units_are(monkeypatch, capsys):
+    # the ledger and the catalogue keep a checkpoint: "no partial output" would be wrong there
+    from ldaspark import cli
+    from ldaspark.reports import claims
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(claims, "run_verify", interrupted)
+    rc = cli.main(["verify", "--quick"])
+    err = capsys.readouterr().err
+    assert rc != 0 and "partial.jsonl" in err and "no partial output" not in err
+    assert len(err.strip().splitlines()) == 1
