@@ -12,7 +12,7 @@ MUTANTS = (
     _m("newton-lim-increments-only", "compiled/newton.py",
        "lim = tol * (xn + scale)", "lim = tol * (xn + 0.0 * scale)",
        "compiled Newton limit relative to the increments x only (below the rounding of V_i = v0 + Z_i at "
-       "small h: the failure of issue 22)", "compiled", TNS),
+       "small h: the reported tiny-step failure)", "compiled", TNS),
     _m("newton-rate-test-removed", "compiled/newton.py",
        "if theta < 1.0 and theta / (1.0 - theta) * dn <= RATE_KAPPA * lim:",
        "if theta < 0.0:",
