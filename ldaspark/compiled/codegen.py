@@ -215,8 +215,18 @@ def mechanical_source(system, parts) -> str:
         _emit("KTlam_q", "MATX_SIG", ["t", "q", "lam", "out"], tq + S.ul, _mat_outputs("out", KTl_q), pr),
     ]
     head = header(system.name, "mechanical", n, m)
-    src = head + "\n\n" + "\n\n\n".join(fns) + "\n\n\nMODEL = (N_DOF, grad_U, hess_U, K_of, b_of, kq_of, KTlam_q, U_of)\n"
+    src = head + "\n\n" + "\n\n\n".join(fns) + "\n\n\nMODEL = (N_DOF, grad_U, hess_U, K_of, b_of, kq_of, KTlam_q, U_of)\n" \
+        + _pattern_literal("HESS_PATTERN", (H, KTl_q))
     return _check(src, system.name)
+
+
+def _pattern_literal(name, mats):
+    """``name = ((i, j), ...)``: the structurally nonzero entries of the union of ``mats`` (n x n),
+    the pattern of the q-blocks of the Newton matrix that ``compiled.sparse`` factors by blocks;
+    integers only, printed by us."""
+    pairs = sorted({(i, j) for A in mats for i in range(A.rows) for j in range(A.cols) if not A[i, j].is_zero})
+    body = ", ".join(f"({int(i)}, {int(j)})" for i, j in pairs)
+    return f"{name} = ({body}{',' if len(pairs) == 1 else ''})\n"
 
 
 @_named

@@ -141,8 +141,45 @@ class CompiledSystem:
     def key(self) -> str:
         return self.digest[:20]
 
+    def newton_structure(self):
+        """The block structure of the Newton matrix (``sparse.NewtonStructure``) of a mechanical
+        system, or None (general form, or a pattern too dense for the symbolic elimination's
+        budget). Computed once per process and model."""
+        if self.form != "mechanical":
+            return None
+        if self.digest not in _STRUCTURES:
+            from .sparse import newton_structure
+            pairs = getattr(self.module, "HESS_PATTERN", None)
+            _STRUCTURES[self.digest] = None if pairs is None else newton_structure(self.n, pairs, self.M)
+        return _STRUCTURES[self.digest]
+
 
 _MODELS: dict[str, tuple] = {}
+_STRUCTURES: dict[str, object] = {}
+#: ``linear_solver="auto"`` factors by blocks when the dense LU costs more than SPARSE_MARGIN
+#: times the block factorisation's multiply-adds (the block code does more bookkeeping per flop;
+#: measured crossover on mp-particles-nh, benchmarks/scaling.py: docs/performance.md)
+SPARSE_MARGIN = 4.0
+LINEAR_SOLVERS = ("auto", "dense", "sparse")
+
+
+def _sparse_structure(cs, s, linear_solver):
+    """The structure to factor by blocks with, or None for the dense LU."""
+    if linear_solver not in LINEAR_SOLVERS:
+        raise InputError(f"linear_solver must be one of {LINEAR_SOLVERS}, got {linear_solver!r}")
+    if linear_solver == "dense" or cs.form != "mechanical":
+        if linear_solver == "sparse":
+            raise InputError(f"{cs.name}: linear_solver='sparse' needs a system in mechanical form")
+        return None
+    st = cs.newton_structure()
+    if st is None:
+        if linear_solver == "sparse":
+            raise InputError(f"{cs.name}: the Newton matrix's pattern is too dense to factor by blocks")
+        return None
+    if linear_solver == "sparse":
+        return st
+    from .sparse import dense_flops
+    return st if SPARSE_MARGIN * st.factor_flops(s, cs.m) < dense_flops(s, cs.n, cs.m) else None
 
 
 _COMPILED: dict[tuple, tuple] = {}
@@ -324,20 +361,25 @@ def _entry(name):
 
 
 def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, compensated=True,
-                 tol=None, max_iter=50, kernel="auto", predictor=2, reuse_matrix=False):
+                 tol=None, max_iter=50, kernel="auto", predictor=2, reuse_matrix=False, linear_solver="auto"):
     """Run a compiled kernel (no fallback); ``method`` a name, a SparkTableau or a kernel_spec.
     predictor: 2 = linear extrapolation of the last two steps' unknowns, 1 = last step's,
-    0 = zero increments (V_i = v1 = v0, Psi = 0). Raises NewtonError, NonFiniteError."""
+    0 = zero increments (V_i = v1 = v0, Psi = 0). linear_solver (SPARK kernels, mechanical
+    form): "dense" LU of the whole Newton matrix, "sparse" block LU in a minimum-degree order
+    with a Schur complement for the multipliers (``sparse``), "auto" the sparse one where its
+    operation count is below 1/SPARSE_MARGIN of the dense one (large n with sparse Hess U and K),
+    and the dense one when a block pivot is too small (the run is repeated with it).
+    stats["linear_solver"] says which ran. Raises NewtonError, NonFiniteError."""
     _check_options(n_steps, every, predictor, tol, max_iter, cs.n, cs.m)
     return _run_checked(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, kernel, predictor,
-                        reuse_matrix)
+                        reuse_matrix, linear_solver)
 
 
 _TOL_DEFAULT = 8 * float(np.finfo(float).eps)
 
 
 def _run_checked(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, kernel, predictor,
-                 reuse_matrix=False):
+                 reuse_matrix=False, linear_solver="auto"):
     """``run_compiled`` after ``_check_options`` passed (fast_integrate checks them once, before
     compiling; checking twice was ~3 us of a repeated short call's overhead)."""
     spec = method if isinstance(method, tuple) else kernel_spec(method, kernel)
@@ -361,12 +403,23 @@ def _run_checked(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, ma
     pflag = int(predictor) + (4 if reuse_matrix else 0)
     run = (float(t0), q0, v0, h, int(n_steps), int(every), bool(compensated), tol, int(max_iter), pflag)
     model = cs.model
+    solver = "dense"
     if kind == "lf2":
         _entry("lf2_run")(model, int(what), cs.M, cs.Minv, *run, *outs, stats)
     else:
         out_x = np.zeros(what[1].shape[0] * (cs.n + cs.m) + cs.n)
-        _entry("spark_run" if cs.form == "mechanical" else "general_run")(model, what, cs.M, *run, *outs,
-                                                                           stats, out_x)
+        structure = _sparse_structure(cs, what[1].shape[0], linear_solver)
+        if structure is not None:
+            solver = "sparse"
+            _entry("spark_sparse_run")(model, what, cs.M, *run, *outs, stats, out_x, *structure.arrays())
+            if linear_solver == "auto" and stats[mt.FAILED_STEP] >= 0 and stats[mt.FAILURE] == mt.FAIL_SINGULAR:
+                # a block pivot too small for the unpivoted block order: the dense LU pivots freely
+                solver = "dense"
+                for arr in outs + (stats, out_x):
+                    arr[...] = 0
+        if solver == "dense":
+            _entry("spark_run" if cs.form == "mechanical" else "general_run")(model, what, cs.M, *run, *outs,
+                                                                               stats, out_x)
     st = dict(zip(STAT_NAMES, (int(x) for x in stats)))
     if st["failed_step"] >= 0:
         # the SPARK kernels leave the residual at the last iterate in out_x[0] (kernels.spark_loop)
@@ -379,6 +432,7 @@ def _run_checked(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, ma
     st["kernel"] = "lf2" if kind == "lf2" else ("spark" if cs.form == "mechanical" else "general")
     st["form"] = cs.form
     st["compensated"] = bool(compensated)
+    st["linear_solver"] = solver
     return FastSolution(*outs, st)
 
 

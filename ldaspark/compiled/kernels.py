@@ -36,12 +36,13 @@ from . import modeltypes as mt
 # numba keys a cached kernel on the content of the file that defines it (this one); the helpers
 # it compiles in live in sibling modules. Their digest is written here so that editing a helper
 # changes this file too (tests/test_compiled_general.py checks it; update it after an edit).
-HELPERS = ("newton.py", "kernels_mech.py", "kernels_general.py", "modeltypes.py")
-HELPERS_SHA256 = "a31b86b198c87e59f1b845b09aa73af78810f8a82f13618c6e8f3ce63111df7e"
+HELPERS = ("newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py", "modeltypes.py")
+HELPERS_SHA256 = "24910dc805cfa8d4cbe37ff8fb5ae11fc0ddafa157b5ec65f48dd55d84ee524b"
 
 from .newton import (FAIL_NONFINITE, FAIL_SINGULAR, accept_step, advance, end_newton, factor_newton,  # noqa: E402
                      fail, lu_factor, lu_solve, newton_increment, newton_status, norm_inf, predict, record, shift)
-from .kernels_mech import mech_begin, mech_point, mech_store, mech_workspace, spark_eval  # noqa: E402
+from .kernels_mech import mech_begin, mech_point, mech_store, mech_workspace, spark_eval, spark_eval_sparse  # noqa: E402
+from .kernels_sparse import sparse_factor, sparse_increment  # noqa: E402
 from .kernels_general import general_begin, general_eval, general_store, workspace  # noqa: E402
 
 
@@ -59,15 +60,43 @@ def begin_step(model, t0, q0, v0, ws):
     mechanical form (P_i - p0 = M Z_i)."""
 
 
+def factor(stats, G, J, piv):
+    """Check and factor the Newton matrix (1 factored, -1 not finite, -2 singular): dense LU
+    (``newton.factor_newton``) or, for the sparse workspace, ``kernels_sparse.sparse_factor``."""
+
+
+def increment(J, piv, G, x):
+    """x += -J^-1 G with the factored Newton matrix; returns |dx|_inf."""
+
+
 def _form(model, mechanical, general):
     """The model tuple is (n, 7 mechanical functions) or (n, 5 general functions, has_N)."""
     return mechanical if len(model.types) == 8 else general
 
 
+def _sparse(J):
+    """The Newton matrix argument is the sparse workspace tuple (``spark_sparse_run``), not an array."""
+    return isinstance(J, types.BaseTuple)
+
+
 @overload(evaluate, jit_options={"_nrt": False})
 def _evaluate(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
-    fn = _form(model, spark_eval, general_eval)
+    fn = spark_eval_sparse if _sparse(J) else _form(model, spark_eval, general_eval)
     return lambda model, tab, jac, x, t0, q0, v0, h, M, ws, G, J: fn(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J)
+
+
+@overload(factor, jit_options={"_nrt": False})
+def _factor(stats, G, J, piv):
+    if _sparse(J):
+        return lambda stats, G, J, piv: sparse_factor(stats, G, J)
+    return lambda stats, G, J, piv: factor_newton(stats, G, J, piv)
+
+
+@overload(increment, jit_options={"_nrt": False})
+def _increment(J, piv, G, x):
+    if _sparse(J):
+        return lambda J, piv, G, x: sparse_increment(J, G, x)
+    return lambda J, piv, G, x: newton_increment(J, piv, G, x)
 
 
 @overload(begin_step, jit_options={"_nrt": False})
@@ -119,7 +148,7 @@ def spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, ful
         stats[2] += evaluate(model, tab, False, x, t, q, v, h, M, ws, G, J)
     else:
         stats[2] += evaluate(model, tab, True, x, t, q, v, h, M, ws, G, J)
-        status = factor_newton(stats, G, J, piv)
+        status = factor(stats, G, J, piv)
         if status != 1:
             return status, 0, 0.0
     prev = -1.0
@@ -131,7 +160,7 @@ def spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, ful
     worst = 0.0             # the largest contraction rate |dx_k| / |dx_k-1| of the step
     while it < max_iter:
         it += 1
-        dn = newton_increment(J, piv, G, x)
+        dn = increment(J, piv, G, x)
         status = newton_status(dn, prev, theta, norm_inf(x), scale, tol, exact)
         if prev > 0.0:
             worst = max(worst, dn / prev)
@@ -143,7 +172,7 @@ def spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, ful
             if not full:
                 fresh += 1
             stats[2] += evaluate(model, tab, True, x, t, q, v, h, M, ws, G, J)
-            code = factor_newton(stats, G, J, piv)
+            code = factor(stats, G, J, piv)
             if code != 1:
                 return code, it, worst
             stale = False
@@ -160,7 +189,7 @@ def spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, ful
 
 
 @numba.njit(cache=True)
-def spark_loop(model, tab, M, ws, t0, q0, v0, h, n_steps, every, compensated, tol,
+def spark_loop(model, tab, M, ws, J, piv, t0, q0, v0, h, n_steps, every, compensated, tol,
                max_iter, predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x):
     """The step loop of the SPARK method (21) shared by both forms: ``evaluate`` (residual and
     Newton matrix: ``kernels_mech.spark_eval`` or ``kernels_general.general_eval``) and ``store``
@@ -172,14 +201,14 @@ def spark_loop(model, tab, M, ws, t0, q0, v0, h, n_steps, every, compensated, to
     increment), full Newton from the generic engine's starting guess (V_i = v1 = v0, Psi = 0),
     as ``SparkMethod.step`` with newton="full", counted in stats[FULL_NEWTON_STEPS]; if that
     fails too, the failure (step, code, iterations of both phases) is recorded and out_x[0]
-    receives the residual |G|_inf at the last iterate."""
+    receives the residual |G|_inf at the last iterate. J, piv: the Newton matrix's storage, a
+    dense matrix and its pivots, or the sparse workspace (``sparse_workspace``) and a dummy."""
     s = tab[1].shape[0]
     n = q0.shape[0]
     m = out_k.shape[1]
     sn, sm = s * n, s * m
     NN = sn + sm + n
-    G, J = np.zeros(NN), np.zeros((NN, NN))
-    piv = np.zeros(NN, dtype=np.int64)
+    G = np.zeros(NN)
     x, x_last, x_prev = np.zeros(NN), np.zeros(NN), np.zeros(NN)
     dq, dv, cq, cv = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
     q, v = q0.copy(), v0.copy()
@@ -260,9 +289,40 @@ def spark_run(model, tab, M, t0, q0, v0, h, n_steps, every, compensated, tol, ma
               out_t, out_q, out_v, out_E, out_k, stats, out_x):
     """n_steps of the SPARK method (21) for a mechanical system from (t0, q0, v0); samples every
     ``every`` steps and the last step; out_x receives the last step's unknowns."""
-    ws = mech_workspace(tab[1].shape[0], q0.shape[0], out_k.shape[1])
-    spark_loop(model, tab, M, ws, t0, q0, v0, h, n_steps, every, compensated, tol,
-               max_iter, predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x)
+    s, n, m = tab[1].shape[0], q0.shape[0], out_k.shape[1]
+    ws = mech_workspace(s, n, m, M)
+    NN = s * (n + m) + n
+    spark_loop(model, tab, M, ws, np.zeros((NN, NN)), np.zeros(NN, dtype=np.int64), t0, q0, v0, h, n_steps,
+               every, compensated, tol, max_iter, predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x)
+
+
+SPARSE_SIG = types.void(mt.MECH_MODEL, mt.TABLEAU_T, mt.a2, *mt.RUN, mt.a1, *(mt.STATS,) * 7)
+
+
+@numba.njit(cache=True)
+def sparse_workspace(s, m, perm, pattern_ptr, pattern_col, pattern_slot, row_ptr, col_pos, diag_slot):
+    """The sparse Newton workspace of ``kernels_sparse`` for the structure of ``sparse.NewtonStructure``."""
+    n = perm.shape[0]
+    b = s + 1
+    ny, sm = b * n, s * m
+    return (perm, pattern_ptr, pattern_col, pattern_slot, row_ptr, col_pos, diag_slot,
+            np.zeros((col_pos.shape[0], b, b)), np.zeros((n, b, b)), np.zeros((ny, sm)), np.zeros((sm, ny)),
+            np.zeros((ny, sm)), np.zeros((sm, sm)), np.zeros(sm, dtype=np.int64), np.zeros(ny), np.zeros(sm),
+            np.zeros((b, b)), np.zeros(n, dtype=np.int64), np.zeros(b))
+
+
+@numba.njit(cache=True, nogil=True)
+def spark_sparse_run(model, tab, M, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, predictor,
+                     out_t, out_q, out_v, out_E, out_k, stats, out_x, perm, pattern_ptr, pattern_col,
+                     pattern_slot, row_ptr, col_pos, diag_slot):
+    """``spark_run`` with the Newton matrix factored by blocks (``sparse``, ``kernels_sparse``):
+    the same iterates up to the rounding of the linear solves, at a cost per step that grows
+    with the nonzeros of Hess U, d(K^T lam)/dq and M instead of n^3."""
+    s, n, m = tab[1].shape[0], q0.shape[0], out_k.shape[1]
+    ws = mech_workspace(s, n, m, M)
+    sp = sparse_workspace(s, m, perm, pattern_ptr, pattern_col, pattern_slot, row_ptr, col_pos, diag_slot)
+    spark_loop(model, tab, M, ws, sp, np.zeros(1, dtype=np.int64), t0, q0, v0, h, n_steps, every, compensated,
+               tol, max_iter, predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x)
 
 
 GENERAL_SIG = types.void(mt.GEN_MODEL, mt.TABLEAU_T, mt.a2, *mt.RUN, mt.a1)
@@ -273,9 +333,11 @@ def general_run(model, tab, M, t0, q0, v0, h, n_steps, every, compensated, tol, 
                 out_t, out_q, out_v, out_E, out_k, stats, out_x):
     """n_steps of the SPARK method (21) for general L(t, q, v), k(t, q, v) (``kernels_general``;
     M is unused); same sampling, counters and failure codes as ``spark_run``."""
-    ws = workspace(tab[1].shape[0], q0.shape[0], out_k.shape[1])
-    spark_loop(model, tab, M, ws, t0, q0, v0, h, n_steps, every, compensated, tol,
-               max_iter, predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x)
+    s, n, m = tab[1].shape[0], q0.shape[0], out_k.shape[1]
+    ws = workspace(s, n, m)
+    NN = s * (n + m) + n
+    spark_loop(model, tab, M, ws, np.zeros((NN, NN)), np.zeros(NN, dtype=np.int64), t0, q0, v0, h, n_steps,
+               every, compensated, tol, max_iter, predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x)
 
 
 @numba.njit(cache=True, _nrt=False)
@@ -491,7 +553,8 @@ def lf2_run(model, variant, M, Minv, t0, q0, v0, h, n_steps, every, compensated,
 
 
 _COMPILE_LOCK = threading.Lock()
-SIGNATURES = {"spark_run": SPARK_SIG, "general_run": GENERAL_SIG, "lf2_run": LF2_SIG}
+SIGNATURES = {"spark_run": SPARK_SIG, "general_run": GENERAL_SIG, "lf2_run": LF2_SIG,
+              "spark_sparse_run": SPARSE_SIG}
 
 
 def entry_point(name):

@@ -7,6 +7,7 @@ The model is the tuple ``codegen.mechanical_source`` exports:
 import numba
 import numpy as np
 
+from .kernels_sparse import sparse_assemble
 from .newton import constraint_rows, record, stage_points
 
 
@@ -32,13 +33,28 @@ def mech_point(model, t, q, v, M, kK, kb, kout):
 
 
 @numba.njit(cache=True)
-def mech_workspace(s, n, m):
+def mech_workspace(s, n, m, M):
     """T, Q, V, grad U, K^T Lambda, K, b, k at the stages; Hess U, d(K^T Lambda)/dq, k_q at the
-    stages; q1, v1, K, b, k_q at the end point; k scratch."""
+    stages; q1, v1, K, b, k_q at the end point; k scratch; M in CSR (row pointers, columns,
+    values: the residual's M Z_i costs nnz(M), not n^2, per stage)."""
+    nnz = 0
+    for a in range(n):
+        for b in range(n):
+            if M[a, b] != 0.0:
+                nnz += 1
+    Mp, Mj, Mx = np.zeros(n + 1, dtype=np.int64), np.zeros(nnz, dtype=np.int64), np.zeros(nnz)
+    e = 0
+    for a in range(n):
+        for b in range(n):
+            if M[a, b] != 0.0:
+                Mj[e] = b
+                Mx[e] = M[a, b]
+                e += 1
+        Mp[a + 1] = e
     return (np.zeros(s), np.zeros((s, n)), np.zeros((s, n)), np.zeros((s, n)), np.zeros((s, n)),
             np.zeros((s, m, n)), np.zeros((s, m)), np.zeros((s, m)), np.zeros((s, n, n)), np.zeros((s, n, n)),
             np.zeros((s, m, n)), np.zeros(n), np.zeros(n), np.zeros((m, n)), np.zeros(m), np.zeros((m, n)),
-            np.zeros(m))
+            np.zeros(m), Mp, Mj, Mx)
 
 
 @numba.njit(cache=True, _nrt=False)
@@ -57,11 +73,34 @@ def mech_begin(model, t0, q0, v0, ws):
 @numba.njit(cache=True, _nrt=False)
 def spark_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
     """Residual G of (21b, d, e, f) in the increment unknowns x = [Z | Lambda | dv] and, if jac,
-    its Jacobian J. gU = grad U = -F, KTL_j = K_j^T Lambda_j = -h R_j; P_i - p0 = M Z_i exactly.
-    Returns the number of points evaluated."""
+    its Jacobian J (dense). Returns the number of points evaluated."""
+    mech_residual(model, tab, x, t0, q0, v0, h, ws, G)
+    if jac:
+        mech_jacobian_parts(model, tab, x, t0, h, ws)
+        spark_jacobian(tab, h, M, ws, J)
+        return 2 * tab[0].shape[0] + 1
+    return tab[0].shape[0] + 1
+
+
+@numba.njit(cache=True, _nrt=False)
+def spark_eval_sparse(model, tab, jac, x, t0, q0, v0, h, M, ws, G, sp):
+    """``spark_eval`` with the Newton matrix assembled by blocks into the sparse workspace sp
+    (``kernels_sparse.sparse_assemble``)."""
+    mech_residual(model, tab, x, t0, q0, v0, h, ws, G)
+    if jac:
+        mech_jacobian_parts(model, tab, x, t0, h, ws)
+        sparse_assemble(tab, h, M, ws[8], ws[9], ws[5], ws[10], ws[13], ws[15], sp)
+        return 2 * tab[0].shape[0] + 1
+    return tab[0].shape[0] + 1
+
+
+@numba.njit(cache=True, _nrt=False)
+def mech_residual(model, tab, x, t0, q0, v0, h, ws, G):
+    """Residual G of (21b, d, e, f) in the increment unknowns x = [Z | Lambda | dv].
+    gU = grad U = -F, KTL_j = K_j^T Lambda_j = -h R_j; P_i - p0 = M Z_i exactly."""
     grad_U, K_of, b_of = model[1], model[3], model[4]
     c, A, Ah, At, bw, bh, bt, om = tab
-    T, Q, V, gU, KTL, KK, bb, kst, H, Rq, kq, q1, v1, K1, b1, kq1, kout = ws
+    T, Q, V, gU, KTL, KK, bb, kst, H, Rq, kq, q1, v1, K1, b1, kq1, kout, Mp, Mj, Mx = ws
     s, n, m = A.shape[0], q0.shape[0], K1.shape[0]
     sn, sm = s * n, s * m
     t1 = t0 + h
@@ -87,8 +126,8 @@ def spark_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
         off = i * n if i < s else sn + sm
         for a in range(n):
             acc = 0.0
-            for b in range(n):
-                acc += M[a, b] * x[off + b]
+            for e in range(Mp[a], Mp[a + 1]):
+                acc += Mx[e] * x[off + Mj[e]]
             acc2 = 0.0
             acc3 = 0.0
             for j in range(s):
@@ -111,25 +150,30 @@ def spark_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
         for a in range(n):
             acc += K1[mm, a] * v1[a]
         G[rf0 + mm] = acc
-    if jac:
-        spark_jacobian(model, tab, x, t0, h, M, ws, J)
-        return 2 * s + 1
-    return s + 1
 
 
 @numba.njit(cache=True, _nrt=False)
-def spark_jacobian(model, tab, x, t0, h, M, ws, J):
-    """d(21b, d, e, f)/d(Z, Lambda, dv) at the stage values of the last ``spark_eval``."""
+def mech_jacobian_parts(model, tab, x, t0, h, ws):
+    """Hess U, d(K^T Lambda)/dq, k_q at the stages and k_q at the end point, at the stage values
+    of the last ``mech_residual``."""
     hess_U, kq_of, KTlam_q = model[2], model[5], model[6]
-    c, A, Ah, At, bw, bh, bt, om = tab
-    T, Q, V, gU, KTL, KK, bb, kst, H, Rq, kq, q1, v1, K1, b1, kq1, kout = ws
-    s, n, m = A.shape[0], q1.shape[0], K1.shape[0]
+    T, Q, V, H, Rq, kq, q1, v1, K1, kq1 = ws[0], ws[1], ws[2], ws[8], ws[9], ws[10], ws[11], ws[12], ws[13], ws[15]
+    s, n, m = T.shape[0], q1.shape[0], K1.shape[0]
     sn = s * n
     for j in range(s):
         hess_U(T[j], Q[j], H[j])
         KTlam_q(T[j], Q[j], x[sn + j * m:sn + (j + 1) * m], Rq[j])
         kq_of(T[j], Q[j], V[j], kq[j])
     kq_of(t0 + h, q1, v1, kq1)
+
+
+@numba.njit(cache=True, _nrt=False)
+def spark_jacobian(tab, h, M, ws, J):
+    """d(21b, d, e, f)/d(Z, Lambda, dv), dense, from ``mech_jacobian_parts``."""
+    c, A, Ah, At, bw, bh, bt, om = tab
+    KK, H, Rq, kq, q1, K1, kq1 = ws[5], ws[8], ws[9], ws[10], ws[11], ws[13], ws[15]
+    s, n, m = A.shape[0], q1.shape[0], K1.shape[0]
+    sn = s * n
     J[:, :] = 0.0
     h2 = h * h
     # (21b) rows i < s and (21d) row i = s
