@@ -16,6 +16,7 @@
   derivatives of size |v|; the factor 100 covers the Newton tolerance (8 eps) and the ~10
   operations of a constraint. ``rk4_constraint_drift``: the control, classical RK4 on (3a-b),
   which does not enforce k = 0 and leaves it at its O(h^4) truncation error.
+  ``check_constraint_roundoff_and_engines`` runs both, and the generic engine against the compiled one.
 * ``long_run``: invariants along a compiled run, ``bounded`` when the max error over the last
   quarter / the first quarter <= 1.5 (``reports.energy.BOUNDED_RATIO``: linear drift gives ~4,
   a random walk ~2) or the error stays at round-off (<= 100 eps sqrt(N) (1 + |I0|) after N steps:
@@ -107,6 +108,24 @@ def constraint_bound(res):
     """100 eps (1 + max|q|)(1 + max|v|) (module docstring)."""
     q, v = np.asarray(res.q, float), np.asarray(res.v, float)
     return 100 * EPS * (1 + np.abs(q).max()) * (1 + np.abs(v).max())
+
+
+def check_constraint_roundoff_and_engines(name):
+    """Asserts, for the scene ``name``: Gauss-2 (h = 0.1, [0, 200], compiled engine) succeeds with
+    max |k| <= ``constraint_bound`` (100 eps (1 + max|q|)(1 + max|v|), module docstring); the
+    generic engine's q at t = 2 agrees with the compiled run's to 1e-12 (max abs); control: classical
+    RK4 on (3a-b) over the same 20 steps leaves max |k| > 10 ``constraint_bound`` (k above the
+    bound by a factor 10, not at round-off)."""
+    import ldaspark
+    from ldaspark.core.scenes import get_scene
+    sc = get_scene(name)
+    res = ldaspark.integrate(name, "gauss-2", t_span=(0, 200), h=0.1)
+    assert res.engine == "compiled" and res.success, (res.engine, res.success)
+    assert np.abs(res.constraint).max() <= constraint_bound(res), (np.abs(res.constraint).max(), constraint_bound(res))
+    gen = ldaspark.integrate(name, "gauss-2", t_span=(0, 2), h=0.1, engine="generic")
+    assert np.abs(gen.q[-1] - res.q[20]).max() < 1e-12, np.abs(gen.q[-1] - res.q[20]).max()
+    drift = rk4_constraint_drift(sc, 0.1, 20)
+    assert drift > 10 * constraint_bound(res), (drift, constraint_bound(res))
 
 
 def rk4_constraint_drift(scene, h, n_steps, q0=None, v0=None):

@@ -233,6 +233,28 @@ def _body_zxz(me, N, psi, th, ph):
     return N.orientnew("B", "Body", [psi, th, ph], "ZXZ")
 
 
+def _ball_on_plane(me, m, r, inertia):
+    """A ball of mass m and radius r with central principal moments ``inertia`` = (I1, I2, I3)
+    on the horizontal plane, as Chaplygin's ball and the ball on a turntable share it: q = (x, y,
+    psi, theta, phi), the centre G = (x, y, r) (height r: v_G = (x', y', 0)) and the ZXZ Euler
+    angles of the body frame B in the space frame N; L = m |v_G|^2 / 2 + omega^T I omega / 2 (no
+    potential). Returns (q, N, B, L, omega, v_contact) with v_contact = v_G + omega x (-r N.z), the
+    velocity of the ball's material point at the contact (rolling on a fixed plane: its N.x and N.y
+    components are k; on a moving plane, minus the plane's velocity there)."""
+    x, y, psi, th, ph = me.dynamicsymbols("x y psi theta phi")
+    tt = me.dynamicsymbols._t
+    N = me.ReferenceFrame("N")
+    B = _body_zxz(me, N, psi, th, ph)
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    G = O.locatenew("G", x * N.x + y * N.y + r * N.z)
+    G.set_vel(N, x.diff(tt) * N.x + y.diff(tt) * N.y)
+    ball = me.RigidBody("ball", G, B, m, (me.inertia(B, *inertia), G))
+    L = me.Lagrangian(N, ball)
+    w = B.ang_vel_in(N)
+    return (x, y, psi, th, ph), N, B, L, w, G.vel(N) + w.cross(-r * N.z)
+
+
 def chaplygin_sphere(m=1, r=1, I1=1, I2=R(3, 2), I3=2) -> ClassicScene:
     """Chaplygin's ball (S. A. Chaplygin, "On a ball's rolling on a horizontal plane", Mat.
     Sbornik 24 (1903); Borisov-Mamaev, Regul. Chaotic Dyn. 7 (2002) 177-200): a ball of radius r
@@ -248,18 +270,7 @@ def chaplygin_sphere(m=1, r=1, I1=1, I2=R(3, 2), I3=2) -> ClassicScene:
     (M, gamma) are invariants. Written with sympy.physics.mechanics."""
     me = _mech()
     m, r, I1, I2, I3 = map(sympy.sympify, (m, r, I1, I2, I3))
-    x, y, psi, th, ph = me.dynamicsymbols("x y psi theta phi")
-    tt = me.dynamicsymbols._t
-    N = me.ReferenceFrame("N")
-    B = _body_zxz(me, N, psi, th, ph)
-    O = me.Point("O")
-    O.set_vel(N, 0)
-    G = O.locatenew("G", x * N.x + y * N.y + r * N.z)
-    G.set_vel(N, x.diff(tt) * N.x + y.diff(tt) * N.y)
-    ball = me.RigidBody("ball", G, B, m, (me.inertia(B, I1, I2, I3), G))
-    L = me.Lagrangian(N, ball)
-    w = B.ang_vel_in(N)
-    vc = G.vel(N) + w.cross(-r * N.z)
+    (x, y, psi, th, ph), N, B, L, w, vc = _ball_on_plane(me, m, r, (I1, I2, I3))
     cons = [vc.dot(N.x), vc.dot(N.y)]
     S = LagrangianSystem.from_mechanics(L, q=[x, y, psi, th, ph], constraints=cons, name="chaplygin-sphere")
     wb = [w.dot(B.x), w.dot(B.y), w.dot(B.z)]
@@ -366,21 +377,12 @@ def ball_turntable(Omega=1, eps=0, rho=1, r=1, m=1) -> ClassicScene:
     angles are psi = beta + pi/2, theta = theta0, phi = (5 rho / (7 r sin theta0)) Theta(t)."""
     me = _mech()
     Omega, eps, rho, r, m = map(sympy.sympify, (Omega, eps, rho, r, m))
-    x, y, psi, th, ph = me.dynamicsymbols("x y psi theta phi")
     tt = me.dynamicsymbols._t
     Om_t = Omega * (1 + eps * sympy.sin(tt))
-    N = me.ReferenceFrame("N")
-    B = _body_zxz(me, N, psi, th, ph)
-    O = me.Point("O")
-    O.set_vel(N, 0)
-    G = O.locatenew("G", x * N.x + y * N.y + r * N.z)
-    G.set_vel(N, x.diff(tt) * N.x + y.diff(tt) * N.y)
     Ib = 2 * m * r ** 2 / 5
-    ball = me.RigidBody("ball", G, B, m, (me.inertia(B, Ib, Ib, Ib), G))
-    L = me.Lagrangian(N, ball)
-    w = B.ang_vel_in(N)
+    (x, y, psi, th, ph), N, B, L, w, vc_plane = _ball_on_plane(me, m, r, (Ib, Ib, Ib))
     table = Om_t * N.z.cross(x * N.x + y * N.y)
-    vc = G.vel(N) + w.cross(-r * N.z) - table
+    vc = vc_plane - table
     cons = [vc.dot(N.x), vc.dot(N.y)]
     name = "ball-turntable" if eps == 0 else "ball-turntable-rheonomic"
     S = LagrangianSystem.from_mechanics(L, q=[x, y, psi, th, ph], constraints=cons, name=name)

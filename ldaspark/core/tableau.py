@@ -537,6 +537,25 @@ def _sci_exponent(text: str) -> int:
 _ZERO_TEST_BITS = 12000
 
 
+def _parse_source(x, where, max_len, error, shown):
+    """(stripped text, ``ast`` expression tree) of the string ``x``, the first step shared by
+    ``parse_exact_string`` (an entry of the coefficients of (21): ``max_len`` = 200, TableauError)
+    and ``parse_expression`` (L, k and the other strings of the Python API: 4000, the caller's
+    ``error``). Raises ``error`` naming ``where`` when ``x`` is not a string, is longer than
+    ``max_len`` characters or does not parse as one Python expression (``shown(x)`` in the message)."""
+    import ast
+    if not isinstance(x, str):
+        raise error(f"{where}: expected a string, got {type(x).__name__}")
+    if len(x) > max_len:
+        raise error(f"{where}: expression longer than {max_len} characters")
+    src = x.strip()
+    try:
+        tree = ast.parse(src, mode="eval")
+    except (SyntaxError, ValueError, MemoryError, RecursionError):
+        raise error(f"{where}: cannot parse {shown(x)}") from None
+    return src, tree
+
+
 def parse_exact_string(x: str, where: str = "entry", info: dict | None = None):
     """An exact tableau entry such as "1/4 - sqrt(3)/6" as a sympy number.
 
@@ -549,16 +568,7 @@ def parse_exact_string(x: str, where: str = "entry", info: dict | None = None):
     negative power) that is zero, also when sympy does not reduce it (``sin(1)**2 + cos(1)**2 - 1``):
     it is tested in ball arithmetic at 12000 bits. ``info``, when given, receives ``digits``: the
     largest number of significant digits of a decimal literal in the entry (0 if none)."""
-    import ast
-    if not isinstance(x, str):
-        raise TableauError(f"{where}: expected a string, got {type(x).__name__}")
-    if len(x) > _MAX_ENTRY_LEN:
-        raise TableauError(f"{where}: expression longer than {_MAX_ENTRY_LEN} characters")
-    src = x.strip()
-    try:
-        tree = ast.parse(src, mode="eval")
-    except (SyntaxError, ValueError, MemoryError, RecursionError):
-        raise TableauError(f"{where}: cannot parse {x!r}") from None
+    src, tree = _parse_source(x, where, _MAX_ENTRY_LEN, TableauError, repr)
     b = _EntryBuilder(x, src, where)
     e = b.build(tree.body, 0, 1)
     if not getattr(e, "is_number", False):
@@ -756,16 +766,7 @@ def parse_expression(x, names: dict, where: str = "expression", error=TableauErr
     (the product of nested exponents at most 64), at most 4000 characters, depth 64 (a chain
     a + b + c ... counts as one level), rational coefficients of at most 8192 bits, numeric
     function arguments of modulus at most 1e6. Anything else raises ``error`` naming ``where``."""
-    import ast
-    if not isinstance(x, str):
-        raise error(f"{where}: expected a string, got {type(x).__name__}")
-    if len(x) > _MAX_EXPR_LEN:
-        raise error(f"{where}: expression longer than {_MAX_EXPR_LEN} characters")
-    src = x.strip()
-    try:
-        tree = ast.parse(src, mode="eval")
-    except (SyntaxError, ValueError, MemoryError, RecursionError):
-        raise error(f"{where}: cannot parse {_shown(x)}") from None
+    src, tree = _parse_source(x, where, _MAX_EXPR_LEN, error, _shown)
     b = _EntryBuilder(x, src, where, names=dict(names), error=error)
     try:
         e = b.build(tree.body, 0, 1)
