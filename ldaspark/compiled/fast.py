@@ -158,8 +158,9 @@ _MODELS: dict[str, tuple] = {}
 _STRUCTURES: dict[str, object] = {}
 #: ``linear_solver="auto"`` factors by blocks when the dense LU costs more than SPARSE_MARGIN
 #: times the block factorisation's multiply-adds (the block code does more bookkeeping per flop;
-#: measured crossover on mp-particles-nh, benchmarks/scaling.py: docs/performance.md)
-SPARSE_MARGIN = 4.0
+#: measured: at a ratio dense/blocks of 2.1 (robot, n = 4) the dense LU was 2-20% faster, at 3.8
+#: (mp-particles-nh, n = 7) the blocks 10-40% faster, gauss-2 to gauss-4)
+SPARSE_MARGIN = 2.5
 LINEAR_SOLVERS = ("auto", "dense", "sparse")
 
 
