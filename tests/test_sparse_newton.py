@@ -39,6 +39,14 @@ def test_minimum_degree_on_a_path_creates_no_fill_and_the_pattern_is_kept():
             assert st.col_pos[st.pattern_slot[e]] == c and st.row_ptr[r] <= st.pattern_slot[e] < st.row_ptr[r + 1]
 
 
+def test_minimum_degree_on_a_star_eliminates_the_leaves_first():
+    """A hub coupled to every other degree of freedom (one coordinate in every constraint or
+    potential term): eliminating the hub first fills the whole matrix, the leaves first none."""
+    n = 12
+    st = sparse.newton_structure(n, [(0, j) for j in range(1, n)], np.eye(n))
+    assert st.fill_ratio == 1.0 and st.perm[0] >= n - 2     # (with the last leaf, a tie)
+
+
 @pytest.mark.parametrize("seed", range(6))
 def test_filled_pattern_is_closed_for_random_patterns(seed):
     rng = np.random.default_rng(seed)
