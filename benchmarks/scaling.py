@@ -126,24 +126,23 @@ def main(argv=None):
     grid = [(method, int(n)) for method in a.methods.split(",") for n in a.n.split(",")]
     grid += [(p.split(":")[0], int(p.split(":")[1])) for p in a.more.split(",") if p]
     for method, n in grid:
-        if True:
-            env = dict(os.environ, LDASPARK_CACHE_DIR=tempfile.mkdtemp(prefix="ldscale-"))
-            t = time.perf_counter()
-            try:
-                p = subprocess.run([sys.executable, os.path.abspath(__file__), "--child", str(n), method, str(a.h),
-                                    str(a.dense_max)],
-                                   capture_output=True, text=True, timeout=a.timeout, env=env)
-                lines = [ln for ln in p.stdout.splitlines() if ln.startswith("{")]
-                row = json.loads(lines[-1]) if p.returncode == 0 and lines else {
-                    "n": n, "method": method, "status": f"failed: {(p.stderr.strip().splitlines() or ['?'])[-1][:200]}"}
-            except subprocess.TimeoutExpired as exc:
-                err = exc.stderr.decode() if isinstance(exc.stderr, bytes) else (exc.stderr or "")
-                done = [ln for ln in err.splitlines() if ln and not ln.startswith(" ")]
-                row = {"n": n, "method": method, "status": f"did not finish in {a.timeout:g} s wall"
-                       + (f" (done: {'; '.join(done[-3:])})" if done else " (the scene was not built)")}
-            row["wall"] = time.perf_counter() - t
-            rows.append(row)
-            print(json.dumps(row), flush=True)
+        env = dict(os.environ, LDASPARK_CACHE_DIR=tempfile.mkdtemp(prefix="ldscale-"))
+        t = time.perf_counter()
+        try:
+            p = subprocess.run([sys.executable, os.path.abspath(__file__), "--child", str(n), method, str(a.h),
+                                str(a.dense_max)],
+                               capture_output=True, text=True, timeout=a.timeout, env=env)
+            lines = [ln for ln in p.stdout.splitlines() if ln.startswith("{")]
+            row = json.loads(lines[-1]) if p.returncode == 0 and lines else {
+                "n": n, "method": method, "status": f"failed: {(p.stderr.strip().splitlines() or ['?'])[-1][:200]}"}
+        except subprocess.TimeoutExpired as exc:
+            err = exc.stderr.decode() if isinstance(exc.stderr, bytes) else (exc.stderr or "")
+            done = [ln for ln in err.splitlines() if ln and not ln.startswith(" ")]
+            row = {"n": n, "method": method, "status": f"did not finish in {a.timeout:g} s wall"
+                   + (f" (done: {'; '.join(done[-3:])})" if done else " (the scene was not built)")}
+        row["wall"] = time.perf_counter() - t
+        rows.append(row)
+        print(json.dumps(row), flush=True)
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
     out = {"command": "python benchmarks/scaling.py " + " ".join(argv or sys.argv[1:]),
            "date": time.strftime("%Y-%m-%d"), "cpu_count": os.cpu_count(),

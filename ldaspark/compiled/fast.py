@@ -582,13 +582,14 @@ def _first_line(exc):
 
 
 def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n_steps=None,
-                   every=1, compensated=True, tol=None, max_iter=50, kernel="auto", predictor=2) -> FastSolution:
+                   every=1, compensated=True, tol=None, max_iter=50, kernel="auto", predictor=2,
+                   linear_solver="auto") -> FastSolution:
     """Integrate with the compiled float64 path; returns FastSolution (t, q, v, energy,
     constraint, stats) sampled every ``every`` steps (and at the last step).
 
     scene_or_system: a Scene (t0, q0, v0 default to its initial data) or a LagrangianSystem.
     method: SPARK method name / SparkTableau, or one of ``LF2_VARIANTS`` (Fig. 4 comparators).
-    compensated: Kahan summation of the q and v updates.
+    compensated: Kahan summation of the q and v updates. linear_solver: as ``run_compiled``.
     Falls back to the generic path, with one line on stderr, if the system cannot be compiled.
     Raises NewtonError, NonFiniteError (NaN/inf, naming step and time), InputError."""
     system = getattr(scene_or_system, "system", scene_or_system)
@@ -608,6 +609,8 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
     real_vector(v0, "v0")
     _check_options(n_steps, every, predictor, tol, max_iter, len(q0), system.m)
     kernel_spec(method, kernel)
+    if linear_solver not in LINEAR_SOLVERS:
+        raise InputError(f"linear_solver must be one of {LINEAR_SOLVERS}, got {linear_solver!r}")
     _setup_checks(system, t0, q0, v0, _loaded(system))
     try:
         cs = compile_system(system)
@@ -620,7 +623,7 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
         return generic_integrate(system, method, t0, q0, v0, h, n_steps, every, tol)
     try:
         return _run_checked(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, kernel,
-                            predictor)
+                            predictor, linear_solver=linear_solver)
     except NotCompilableError as exc:
         _notice(str(exc))
         return generic_integrate(system, method, t0, q0, v0, h, n_steps, every, tol)

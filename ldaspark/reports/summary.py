@@ -218,13 +218,34 @@ def peers_values(d):
     return out
 
 
+def scaling_values(d):
+    """The compiled step's cost against n (``reports/scaling.json``, from ``benchmarks/scaling.py``):
+    per size of the first method, CPU per step with the solver auto picks and with the dense LU,
+    and the first call's CPU."""
+    out = {}
+    ok = [r for r in d["rows"] if r.get("status") == "ok"]
+    for r in ok:
+        if r["method"] != ok[0]["method"]:
+            continue
+        dense = f" (dense LU {_us(r['us_per_step_dense'])})" if r.get("us_per_step_dense") else ""
+        out[f"scaling.step.{r['n']}"] = f"{_us(r['us_per_step'])}{dense}"
+        out[f"scaling.first_call.{r['n']}"] = f"{r['first_call_cpu']:.2g} s"
+    return out
+
+
+def _us(x):
+    """Microseconds as README quotes them: '51 us', '1.2 ms', '0.13 s' (two significant digits)."""
+    return f"{float(f'{x:.2g}'):g} us" if x < 1e3 else (f"{float(f'{x / 1e3:.2g}'):g} ms" if x < 1e6
+                                                      else f"{float(f'{x / 1e6:.2g}'):g} s")
+
+
 def readme_values(reports_dir="reports") -> dict:
     """{key: text} for every value README quotes (keys of absent reports are missing)."""
     out = {}
     for name, fn in (("convergence.json", convergence_values), ("claims.json", claims_values),
                      ("energy.json", energy_values), ("work_precision.json", work_precision_values),
                      ("report_timing.json", run_values), ("peer_odelab.json", peer_values),
-                     ("peers.json", peers_values)):
+                     ("peers.json", peers_values), ("scaling.json", scaling_values)):
         d = _load(reports_dir, name)
         if d is not None:
             out.update(fn(d))
@@ -236,12 +257,12 @@ MARK = re.compile(r"<!--([\w.:+\-]+)-->(.*?)<!--/-->")
 # --- what a mark is checked against -----------------------------------------------------------
 TIMING = re.compile(r"^(run\.(wall|cpu|probe_ratio)|energy\.fig4\.\w+\.seconds|wp\.sps\.\w+"
                     r"|wp\.[\w-]+\.(ratios|peer_ratios|rhs)|peer\.(spark2|ratios)"
-                    r"|peers\.[\w-]+\.(speedups|long))$")
+                    r"|peers\.[\w-]+\.(speedups|long)|scaling\.(step|first_call)\.\d+)$")
 RESIDUAL = re.compile(r"^claims\.[\w.-]+\.(max|negctl_min)$")
 #: the report file each key's value comes from (its first dotted part)
 SOURCE = {"convergence": "convergence.json", "claims": "claims.json", "energy": "energy.json",
           "wp": "work_precision.json", "run": "report_timing.json", "peer": "peer_odelab.json",
-          "peers": "peers.json"}
+          "peers": "peers.json", "scaling": "scaling.json"}
 
 
 def quote_kind(key: str) -> str:
