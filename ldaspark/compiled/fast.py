@@ -338,7 +338,7 @@ def _kernels():
 
 
 # the kernels the main job's compiled-path jobs run (``reports.jobs.PRELUDE`` compiles them first)
-MAIN_KERNELS = ("spark_run", "lf2_run")
+MAIN_KERNELS = ("spark_run", "spark_sparse_run", "lf2_run")
 
 _ENTRIES: dict[str, object] = {}
 
