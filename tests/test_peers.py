@@ -173,3 +173,18 @@ def test_a_method_whose_runs_all_beat_the_target_counts_at_its_cheapest_run():
     # control: without gauss-4 the interpolated figure is exact (not a bound)
     (g,) = peers.speedups([x for x in rows if x["method"] != "gauss-4"], (1e-6,))
     assert g["speedup_at_least"] is None and abs(g["speedup"] - 10.0) <= 1e-9
+
+
+def test_comparators_are_compared_with_spark_and_never_counted_as_peers():
+    """The semi-explicit comparator (26) (kind "comparator") is left out of the speed-up over the
+    peers, and compared with the best SPARK method on its own (``other="comparator"``): here it is
+    the cheapest run of all at 1e-2, yet the speed-up over the peers does not see it."""
+    e = [10.0 ** -k for k in range(1, 9)]
+    rows = (_power_law("spark", "gauss-2", 1e-3, 4.0, e) + _power_law("peer", "ode-dop853", 1e-2, 8.0, e)
+            + _power_law("comparator", "mp-lobatto-iiib-a-2", 1e-5, 2.0, e))
+    (p,) = peers.speedups(rows, (1e-2,))
+    (c,) = peers.speedups(rows, (1e-2,), other="comparator")
+    assert p["peer"] == "ode-dop853" and c["peer"] == "mp-lobatto-iiib-a-2"
+    assert abs(c["speedup"] - c["peer_cpu"] / c["spark_cpu"]) <= 1e-12 * c["speedup"] and c["speedup"] < 1
+    assert abs(p["peer_cpu"] / (1e-2 * 1e-2 ** -0.125) - 1) <= 1e-12
+    assert "mp-lobatto-iiib-a-2" in peers.COMPARATORS and "lobatto-iiia-iiib-2" in peers.SPARK_METHODS

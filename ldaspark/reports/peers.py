@@ -188,15 +188,17 @@ def _row(kind, method, param, cpu, system, t0, y0, times, ys, nfev=None):
 
 def run_spark(scene, method, h, t_end, n_out=1, repeats=3):
     """One compiled SPARK run (``fast_integrate``, compiled outside the clock), sampled at about
-    ``n_out`` equally spaced times: the same row as ``run_peer`` with ``param`` = h."""
+    ``n_out`` equally spaced times: the same row as ``run_peer`` with ``param`` = h; kind
+    "comparator" for the semi-explicit comparators that are not SPARK methods (``COMPARATORS``)."""
     from ..compiled.fast import fast_integrate
+    kind = "comparator" if method in COMPARATORS else "spark"
     t0 = float(scene.initial()[0])
     n = int(round((t_end - t0) / h))
     every = max(n // n_out, 1)
     fast_integrate(scene, method, h=h, n_steps=2)
     cpu, r = _cpu_min(lambda: fast_integrate(scene, method, h=h, n_steps=n, every=every), repeats)
     E0 = float(r.energy[0])
-    return {"kind": "spark", "method": method, "param": float(h), "cpu": float(cpu),
+    return {"kind": kind, "method": method, "param": float(h), "cpu": float(cpu),
             "q_final": [float(x) for x in r.q[-1]], "energy_error": float(np.max(np.abs(r.energy - E0))),
             "constraint": float(np.max(np.abs(r.constraint))), "nfev": None}
 
@@ -252,7 +254,7 @@ def method_cost(rs, target, key="error"):
 
 
 def best_cost(rows, kind, target, key="error"):
-    """(method, CPU seconds, bounded) of the cheapest method of ``kind`` ("spark" or "peer") at
+    """(method, CPU seconds, bounded) of the cheapest method of ``kind`` ("spark", "peer" or "comparator") at
     ``target`` by ``method_cost``, or (None, None, False)."""
     costs = {}
     for m in dict.fromkeys(r["method"] for r in rows if r["kind"] == kind):
@@ -265,9 +267,10 @@ def best_cost(rows, kind, target, key="error"):
     return m, costs[m][0], costs[m][1]
 
 
-def speedups(rows, targets, key="error"):
+def speedups(rows, targets, key="error", other="peer"):
     """Per target: the best SPARK method and peer (``best_cost``), their CPU times and the
-    speed-up cpu(best peer) / cpu(best SPARK).
+    speed-up cpu(best peer) / cpu(best SPARK); ``other="comparator"``: the best semi-explicit
+    comparator in the place of the peers (the keys stay "peer", "peer_cpu").
 
     Where the cheaper side's cost is a bound (every run of that method more accurate than the
     target), the ratio is one-sided: SPARK's cost bounded from above makes the speed-up a lower
@@ -276,7 +279,7 @@ def speedups(rows, targets, key="error"):
     out = []
     for tgt in targets:
         sm, sc, sb = best_cost(rows, "spark", tgt, key)
-        pm, pc, pb = best_cost(rows, "peer", tgt, key)
+        pm, pc, pb = best_cost(rows, other, tgt, key)
         ratio = (pc / sc) if (sc and pc) else None
         out.append({"target": tgt, "spark": sm, "spark_cpu": sc, "peer": pm, "peer_cpu": pc,
                     "speedup": ratio if (ratio is not None and not sb and not pb) else None,
@@ -300,7 +303,14 @@ def recompute_speedups(d, note=None):
 #: scenes of the study: the four paper scenes (mp-particles in its nonholonomic variant, n = 21)
 #: and one general scene (relativistic: L not quadratic in v, E (8) conserved)
 SCENES = ("particle", "skate", "robot", "mp-particles-nh", "relativistic")
-SPARK_METHODS = ("gauss-2", "gauss-3", "gauss-4")
+#: the compiled SPARK methods: Gauss of orders 4, 6, 8 and the 2-stage Lobatto IIIA-B SPARK method,
+#: which the compiled path runs in its semi-implicit form (25) on mechanical systems (Newton on the
+#: multipliers only: ~0.5 us per step, the cheapest per step, order 2)
+SPARK_METHODS = ("gauss-2", "gauss-3", "gauss-4", "lobatto-iiia-iiib-2")
+#: semi-explicit comparators that are not SPARK methods (kind "comparator": in the runs and the
+#: comparison with the best SPARK method, not in the speed-up over the peers): McLachlan-Perlmutter
+#: (26), mechanical systems only
+COMPARATORS = ("mp-lobatto-iiib-a-2",)
 TARGETS = (1e-3, 1e-6, 1e-9)
 #: the peers of the long runs: solve_ivp's DOP853 is ode('dop853')'s method with a Python step loop,
 #: CVODE BDF and IDA are slower than CVODE Adams at every T = 100 point (too costly over 1e4)
@@ -308,16 +318,24 @@ LONG_PEERS = ("ode-dop853", "ode-lsoda", "cvode-adams")
 ENERGY_TARGETS = (1e-4, 1e-6, 1e-8)
 
 
+#: step sizes of the order-2 semi-implicit methods (T = 100; the long runs): 1e-3 at T = 100 needs
+#: h ~ 0.05, 1e-6 h ~ 1e-3 (a run of 1e5 steps, 0.05 s)
+SEMI = ("lobatto-iiia-iiib-2",) + COMPARATORS
+SEMI_HS = (0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001)
+SEMI_HS_LONG = (0.1, 0.05, 0.02)
+
+
 def plan(quick=False):
     """{"t_end", "t_long", "hs", "hs_long", "rtols", "rtols_long", "n_out_long"} of the study."""
     if quick:
-        return {"t_end": 10.0, "t_long": 100.0, "hs": {m: (0.2, 0.05) for m in SPARK_METHODS},
-                "hs_long": {m: (0.2,) for m in SPARK_METHODS}, "rtols": (1e-4, 1e-8), "rtols_long": (1e-6,),
+        return {"t_end": 10.0, "t_long": 100.0, "hs": {m: (0.2, 0.05) for m in SPARK_METHODS + COMPARATORS},
+                "hs_long": {m: (0.2,) for m in SPARK_METHODS + COMPARATORS}, "rtols": (1e-4, 1e-8), "rtols_long": (1e-6,),
                 "n_out_long": 20}
     return {"t_end": 100.0, "t_long": 1e4,
             "hs": {"gauss-2": (0.2, 0.1, 0.05, 0.025, 0.0125, 0.00625), "gauss-3": (0.4, 0.2, 0.1, 0.05, 0.025),
-                   "gauss-4": (0.8, 0.4, 0.2, 0.1, 0.05)},
-            "hs_long": {"gauss-2": (0.2, 0.1, 0.05), "gauss-3": (0.4, 0.2, 0.1), "gauss-4": (0.8, 0.4, 0.2)},
+                   "gauss-4": (0.8, 0.4, 0.2, 0.1, 0.05), **{m: SEMI_HS for m in SEMI}},
+            "hs_long": {"gauss-2": (0.2, 0.1, 0.05), "gauss-3": (0.4, 0.2, 0.1), "gauss-4": (0.8, 0.4, 0.2),
+                        **{m: SEMI_HS_LONG for m in SEMI}},
             "rtols": (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12),
             "rtols_long": (1e-6, 1e-8, 1e-10, 1e-12), "n_out_long": 200}
 
@@ -352,7 +370,8 @@ def scene_study(scene_name, quick=False, peers=None, progress=print):
         except LdasparkError as exc:       # e.g. a step too long for L's domain: no point at this h
             failed.append(f"{m} h = {h:g} (T = {t_end:g}): {type(exc).__name__}: {str(exc).splitlines()[0][:100]}")
             return []
-    for m in SPARK_METHODS:
+    methods = SPARK_METHODS + (COMPARATORS if _mechanical(sc) else ())
+    for m in methods:
         rows += [r for h in P["hs"][m] for r in spark(m, h, P["t_end"])]
     for p in peers:
         for tol in P["rtols"]:
@@ -364,7 +383,7 @@ def scene_study(scene_name, quick=False, peers=None, progress=print):
     for r in rows:
         r["error"] = float(np.max(np.abs(np.asarray(r.pop("q_final")) - q_ref)))
     long_rows = []
-    for m in SPARK_METHODS:
+    for m in methods:
         long_rows += [r for h in P["hs_long"][m] for r in spark(m, h, P["t_long"], P["n_out_long"], repeats=1)]
     for p in peers:
         if p not in LONG_PEERS:
@@ -381,7 +400,16 @@ def scene_study(scene_name, quick=False, peers=None, progress=print):
             "reference": label, "reference_check": check, "rows": rows, "long_rows": long_rows,
             "peers": list(peers), "notes": notes, "failed": failed,
             "speedups": speedups(rows, TARGETS),
-            "long_speedups": speedups(long_rows, ENERGY_TARGETS, key="energy_error")}
+            "long_speedups": speedups(long_rows, ENERGY_TARGETS, key="energy_error"),
+            "comparators": speedups(rows, TARGETS, other="comparator"),
+            "long_comparators": speedups(long_rows, ENERGY_TARGETS, key="energy_error", other="comparator")}
+
+
+def _mechanical(scene):
+    """The scene has the mechanical form the semi-explicit comparators need."""
+    from ..compiled.fast import can_compile
+    ok, form = can_compile(scene.system)
+    return ok and form == "mechanical"
 
 
 def run_study(scenes=SCENES, quick=False, peers=None, progress=print, on_scene=None):
@@ -452,7 +480,8 @@ def section(d):
          f"repeats for runs under 0.5 s; versions {', '.join(f'{k} {v}' for k, v in d['versions'].items())}). "
          f"Every peer solves the index-reduced ODE (3a-b) (IDA its index-1 form with psi) with a right-hand side "
          f"compiled by numba from the same sympy expressions as the SPARK model; atol = {d['atol']}. "
-         "Speed-up = CPU time of the best peer / CPU time of the best compiled SPARK method (gauss-2/3/4) at equal "
+         "Speed-up = CPU time of the best peer / CPU time of the best compiled SPARK method (gauss-2/3/4, and "
+         "Lobatto IIIA-B 2 in its semi-implicit form (25)) at equal "
          "final error max|q - q_ref| at t = 100 (log-log interpolation on each solver's lower envelope; > 1: "
          "SPARK is faster), and at equal energy error max|E - E0| over t in [0, 1e4] for the long runs. "
          "'>= x': the cheapest SPARK method's runs are all more accurate than the target (its largest step "
@@ -473,6 +502,20 @@ def section(d):
                              f"{r['spark'] or '-'} {_s(r['spark_cpu'])}", f"{r['peer'] or '-'} {_s(r['peer_cpu'])}",
                              _x(r["speedup"], r.get("speedup_at_least"), r.get("speedup_at_most"))])
     L += table(["scene", "accuracy", "target", "best SPARK", "best peer", "speed-up of SPARK"], rows)
+    crow = []
+    for st in d["studies"]:
+        for key, sp in (("final error, T = 100", st.get("comparators")),
+                        ("energy error, T = 1e4", st.get("long_comparators"))):
+            for r in sp or []:
+                if r["peer"] is not None:
+                    crow.append([f"{st['scene']} (n = {st['n']})", key, f"{r['target']:.0e}",
+                                 f"{r['spark'] or '-'} {_s(r['spark_cpu'])}", f"{r['peer']} {_s(r['peer_cpu'])}",
+                                 _x(r["speedup"], r.get("speedup_at_least"), r.get("speedup_at_most"))])
+    if crow:
+        L += ["", "The semi-explicit McLachlan-Perlmutter scheme (26) (not a SPARK method; mechanical scenes) "
+              "against the best SPARK method at the same targets (> 1: SPARK is cheaper):", ""]
+        L += table(["scene", "accuracy", "target", "best SPARK", "McLachlan-Perlmutter (26)", "cost (26) / SPARK"],
+                   crow)
     for st in d["studies"]:
         L += ["", f"<details><summary>{st['scene']}: all runs (reference: {st['reference']}"
               + (f", differs from ode('dop853') rtol 1e-13 by {sci(st['reference_check'])}"
