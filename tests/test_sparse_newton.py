@@ -219,3 +219,61 @@ def test_linear_solver_option_is_checked():
         run_compiled(cs, "gauss-2", t0, q0, v0, 0.01, 2, linear_solver="sparse")
     with pytest.raises(InputError, match="linear_solver"):
         run_compiled(cs, "gauss-2", t0, q0, v0, 0.01, 2, linear_solver="lu")
+
+
+def _random_mechanical(seed, n, m=2):
+    """A random mechanical system: M SPD with a random sparse pattern, U a sum of random quartic
+    couplings and cosines of random pairs, k = K(q) v + b(t, q) with K rows that touch a few
+    coordinates and depend on q; initial velocity projected onto k = 0 at t = 0."""
+    rng = np.random.default_rng(seed)
+    q = sympy.symbols(f"q0:{n}")
+    v = sympy.symbols(f"v0:{n}")
+    t = sympy.Symbol("t")
+    R = lambda x: sympy.Rational(int(round(x * 100)), 100)   # noqa: E731
+    M = sympy.zeros(n, n)
+    for i in range(n):
+        M[i, i] = 2 + R(rng.uniform(0, 1))
+    for _ in range(n // 2):
+        i, j = rng.choice(n, 2, replace=False)
+        M[i, j] = M[j, i] = R(rng.uniform(-0.4, 0.4))
+    U = sum(q[i] ** 2 / 2 for i in range(n))
+    for _ in range(n):
+        i, j = rng.choice(n, 2, replace=False)
+        U += R(rng.uniform(0.1, 0.5)) * q[i] ** 2 * q[j] ** 2 + R(rng.uniform(0, 0.3)) * sympy.cos(q[i] - q[j])
+    K = sympy.zeros(m, n)
+    picks = rng.choice(n, 3 * m, replace=False)          # disjoint columns: K has full rank m
+    for l in range(m):
+        cols = picks[3 * l:3 * l + 3]
+        K[l, cols[0]] = 1
+        K[l, cols[1]] = q[int(cols[2])] / 2
+        K[l, cols[2]] = sympy.sin(q[int(cols[1])]) / 3
+    b = sympy.Matrix([sympy.sin(t) * q[int(rng.integers(n))] / 10 for _ in range(m)])
+    vv = sympy.Matrix(v)
+    L = (vv.T * M * vv)[0] / 2 - U
+    sysm = LagrangianSystem(L, list(K * vv + b), list(q), list(v), t=t, name=f"random-mech-{seed}")
+    sysm.mechanical = {"M": M, "U": U, "K": K, "b": b}
+    q0 = np.array([float(x) for x in rng.uniform(-0.5, 0.5, n)])
+    Kq = np.array(K.subs(dict(zip(q, q0))), dtype=float)
+    w = rng.uniform(-1, 1, n)
+    v0 = w - Kq.T @ np.linalg.solve(Kq @ Kq.T, Kq @ w)       # K(q0) v0 = 0 = -b(0, q0)
+    return sysm, q0, v0
+
+
+@pytest.mark.parametrize("seed,n,method", [(0, 9, "gauss-2"), (1, 14, "gauss-3"),
+                                           pytest.param(2, 20, "gauss-4", marks=pytest.mark.exhaustive),
+                                           pytest.param(3, 12, "lobatto-iiia-iiib-iiid-3",
+                                                        marks=pytest.mark.exhaustive),
+                                           pytest.param(4, 30, "gauss-2", marks=pytest.mark.exhaustive),
+                                           pytest.param(5, 8, "lobatto-iiia-iiib-3", marks=pytest.mark.exhaustive)])
+def test_random_mechanical_systems_agree_with_the_dense_lu(seed, n, method):
+    """Systems the suite's authors did not write: random patterns of M, Hess U and K (so random
+    fill), two constraints; 100 steps of h = 0.02 agree with the dense LU to 1e-12."""
+    sysm, q0, v0 = _random_mechanical(seed, n)
+    cs = compile_system(sysm)
+    assert cs.form == "mechanical" and cs.newton_structure() is not None
+    a = run_compiled(cs, method, 0.0, q0, v0, 0.02, 100, kernel="spark", linear_solver="dense")
+    b = run_compiled(cs, method, 0.0, q0, v0, 0.02, 100, kernel="spark", linear_solver="sparse")
+    for k in ("q", "v", "constraint"):
+        ref = np.asarray(getattr(a, k))
+        assert np.abs(np.asarray(getattr(b, k)) - ref).max() <= 1e-12 * max(1.0, np.abs(ref).max()), k
+    assert np.abs(b.constraint).max() <= 1e-12
