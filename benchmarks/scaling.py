@@ -94,6 +94,7 @@ def child(n, method, h, dense_max):
     row = {"n": n, "m_constraints": 1, "method": method, "s": s, "h": h, "build_cpu": build,
            "first_call_cpu": first, "us_per_step": us, "linear_solver": st["linear_solver"], "steps": steps,
            "mean_iterations": st["mean_iterations"], "jacobians_per_step": st["njev"] / max(st["steps"], 1),
+           "reuse_matrix": st["reuse_matrix"],
            "model_source_chars": len(cs.source), "status": "ok"}
     ns = cs.newton_structure()
     if ns is not None:

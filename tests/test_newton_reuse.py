@@ -52,3 +52,24 @@ def test_reuse_on_the_general_kernel_sets_p0(scene):
 def test_semi_implicit_kernel_ignores_the_flag():
     off, on, d, _ = _pair("skate", "lobatto-iiia-iiib-2", 1e-3, 1000, kernel="auto")
     assert on["kernel"] == off["kernel"] == "lf2" and d == 0.0 and on["njev"] == off["njev"]
+
+
+def test_auto_reuses_the_matrix_from_REUSE_AUTO_MIN_N_on():
+    """reuse_matrix="auto": off for the paper's scenes (n <= 7: their runs keep one fresh matrix
+    per step, so their results do not change), on for mp-particles-nh at n = 41 (Jacobians per
+    step well below 1), with results equal to a fresh matrix per step to 1e-12."""
+    from ldaspark.compiled import fast
+    from ldaspark.core.scenes import mp_particles
+    assert 7 < fast.REUSE_AUTO_MIN_N <= 41
+    small = get_scene("mp-particles-nh")
+    cs = compile_system(small.system)
+    r = run_compiled(cs, "gauss-2", *small.initial(), 0.001, 500, 500)
+    assert r.stats["reuse_matrix"] is False and r.stats["njev"] == 500
+    big = mp_particles(m=20, constraint="nonholonomic")
+    cb = compile_system(big.system)
+    on = run_compiled(cb, "gauss-2", *big.initial(), 0.001, 500, 500)
+    off = run_compiled(cb, "gauss-2", *big.initial(), 0.001, 500, 500, reuse_matrix=False)
+    assert on.stats["reuse_matrix"] is True and on.stats["njev"] <= 0.5 * off.stats["njev"]
+    assert np.abs(on.q[-1] - off.q[-1]).max() <= 1e-12
+    with pytest.raises(Exception, match="reuse_matrix"):
+        run_compiled(cb, "gauss-2", *big.initial(), 0.001, 5, reuse_matrix="yes")
