@@ -4,7 +4,7 @@ scipy's ode('dop853') (Hairer's Fortran) and ode('lsoda'), solve_ivp DOP853, SUN
 with a note without it), every one with a right-hand side compiled by numba from the same sympy
 expressions as the SPARK model (``ldaspark.reports.peers``).
 
-Scenes: particle, skate, robot, mp-particles-nh (n = 21), relativistic (a general scene).
+Scenes: particle, skate, robot, mp-particles-nh (n = 7), relativistic (a general scene).
 T = 100: CPU time at equal final error in q; T = 1e4: energy error and constraint drift vs CPU.
 Writes reports/peers.json (rendered by ``ldaspark report work-precision`` as its "Strongest
 peers" section; README quotes the speed-ups) and prints the speed-ups.

@@ -300,7 +300,7 @@ def recompute_speedups(d, note=None):
 
 
 # --- the study --------------------------------------------------------------------------------
-#: scenes of the study: the four paper scenes (mp-particles in its nonholonomic variant, n = 21)
+#: scenes of the study: the four paper scenes (mp-particles in its nonholonomic variant, n = 7)
 #: and one general scene (relativistic: L not quadratic in v, E (8) conserved)
 SCENES = ("particle", "skate", "robot", "mp-particles-nh", "relativistic")
 #: the compiled SPARK methods: Gauss of orders 4, 6, 8 and the 2-stage Lobatto IIIA-B SPARK method,
