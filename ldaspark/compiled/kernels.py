@@ -37,7 +37,7 @@ from . import modeltypes as mt
 # it compiles in live in sibling modules. Their digest is written here so that editing a helper
 # changes this file too (tests/test_compiled_general.py checks it; update it after an edit).
 HELPERS = ("newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py", "modeltypes.py")
-HELPERS_SHA256 = "24910dc805cfa8d4cbe37ff8fb5ae11fc0ddafa157b5ec65f48dd55d84ee524b"
+HELPERS_SHA256 = "fd6191b2cc5949a16428a945dfc8524260724010a553cb6d8b9edfc51c6958be"
 
 from .newton import (FAIL_NONFINITE, FAIL_SINGULAR, accept_step, advance, end_newton, factor_newton,  # noqa: E402
                      fail, lu_factor, lu_solve, newton_increment, newton_status, norm_inf, predict, record, shift)

@@ -151,6 +151,17 @@ def block_lu(sp):
 
 
 @numba.njit(cache=True, _nrt=False)
+def subtract_block_product(blk, y, oy, dst, od):
+    """dst[od:od + b] -= blk @ y[oy:oy + b] for one b x b block."""
+    b = blk.shape[0]
+    for i in range(b):
+        acc = 0.0
+        for k in range(b):
+            acc += blk[i, k] * y[oy + k]
+        dst[od + i] -= acc
+
+
+@numba.njit(cache=True, _nrt=False)
 def block_solve(sp, y):
     """y <- A^-1 y with the factors of ``block_lu`` (forward with L, backward with U and Dinv)."""
     rptr, cpos, dslot = sp[4], sp[5], sp[6]
@@ -160,25 +171,13 @@ def block_solve(sp, y):
     for r in range(n):
         o = r * b
         for e in range(rptr[r], dslot[r]):
-            oc = cpos[e] * b
-            blk = val[e]
-            for i in range(b):
-                acc = 0.0
-                for k in range(b):
-                    acc += blk[i, k] * y[oc + k]
-                y[o + i] -= acc
+            subtract_block_product(val[e], y, cpos[e] * b, y, o)
     for r in range(n - 1, -1, -1):
         o = r * b
         for i in range(b):
             vb[i] = y[o + i]
         for e in range(dslot[r] + 1, rptr[r + 1]):
-            od = cpos[e] * b
-            blk = val[e]
-            for i in range(b):
-                acc = 0.0
-                for k in range(b):
-                    acc += blk[i, k] * y[od + k]
-                vb[i] -= acc
+            subtract_block_product(val[e], y, cpos[e] * b, vb, 0)
         D = Dinv[r]
         for i in range(b):
             acc = 0.0
