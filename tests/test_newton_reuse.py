@@ -71,5 +71,7 @@ def test_auto_reuses_the_matrix_from_REUSE_AUTO_MIN_N_on():
     off = run_compiled(cb, "gauss-2", *big.initial(), 0.001, 500, 500, reuse_matrix=False)
     assert on.stats["reuse_matrix"] is True and on.stats["njev"] <= 0.5 * off.stats["njev"]
     assert np.abs(on.q[-1] - off.q[-1]).max() <= 1e-12
-    with pytest.raises(Exception, match="reuse_matrix"):
-        run_compiled(cb, "gauss-2", *big.initial(), 0.001, 5, reuse_matrix="yes")
+    from ldaspark.core.errors import InputError
+    for bad in ("yes", np.array([1, 0]), None, 1):
+        with pytest.raises(InputError, match="reuse_matrix"):
+            run_compiled(cb, "gauss-2", *big.initial(), 0.001, 5, reuse_matrix=bad)

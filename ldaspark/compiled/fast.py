@@ -409,10 +409,10 @@ def _run_checked(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, ma
     outs = (np.zeros(S), np.zeros((S, cs.n)), np.zeros((S, cs.n)), np.zeros(S), np.zeros((S, cs.m)))
     stats = np.zeros(len(STAT_NAMES), dtype=np.int64)
     # reuse_matrix (SPARK kernels): the previous step's Newton matrix (kernels.REUSE_MATRIX)
-    if reuse_matrix == "auto":
+    if isinstance(reuse_matrix, str) and reuse_matrix == "auto":
         reuse_matrix = cs.n >= REUSE_AUTO_MIN_N
     elif not isinstance(reuse_matrix, (bool, np.bool_)):
-        raise InputError(f"reuse_matrix must be True, False or 'auto', got {reuse_matrix!r}")
+        raise InputError(f"reuse_matrix must be True, False or 'auto', got {reuse_matrix!r:.60}")
     pflag = int(predictor) + (4 if reuse_matrix else 0)
     run = (float(t0), q0, v0, h, int(n_steps), int(every), bool(compensated), tol, int(max_iter), pflag)
     model = cs.model

@@ -520,7 +520,9 @@ def scaling_section(path):
          "Build: sympy (L, k, Hessians); first call: code generation and numba compilation of the model (the "
          "kernels are compiled once per machine); per step: CPU time of a ~0.3 s run, minimum of 3, with the "
          "linear solver `run_compiled(linear_solver=\"auto\")` picks and, beside it, the dense LU of the whole "
-         "Newton matrix (size (s + 1) n + s m, ~((s + 1) n)^3 / 3 multiply-adds per factorisation). The block "
+         "Newton matrix (size (s + 1) n + s m, ~((s + 1) n)^3 / 3 multiply-adds per factorisation), both with "
+         "the default Newton matrix reuse across steps (`reuse_matrix=\"auto\"`: from n >= 32; column "
+         "\"reuse\"). The block "
          "solver (`compiled/sparse.py`, `compiled/kernels_sparse.py`) factors the (s + 1) x (s + 1) blocks of "
          "one degree of freedom's unknowns (Z_1..Z_s, dv) in a minimum-degree order of the pattern of M, "
          "Hess U and d(K^T lam)/dq, and the multipliers by their Schur complement. Operation count: the "
@@ -529,11 +531,12 @@ def scaling_section(path):
          "that count (the model's evaluations are in the time, not in the count: a scalar loop runs at "
          "~1 ns per multiply-add).", ""]
     L += table(["n", "method", "solver", "build CPU [s]", "first call CPU [s]", "CPU per step [us]",
-                "dense LU per step [us]", "dense / solver", "Newton iterations / step", "Jacobians / step",
+                "dense LU per step [us]", "dense / solver", "reuse", "Newton iterations / step", "Jacobians / step",
                 "multiply-adds / step", "ns per multiply-add", "blocks (fill)", "model source [chars]", "status"],
                [[r["n"], r.get("method", "-"), r.get("linear_solver", "dense"), _fmt(r.get("build_cpu")),
                  _fmt(r.get("first_call_cpu")), _fmt(r.get("us_per_step")), _fmt(r.get("us_per_step_dense")),
-                 _fmt(r.get("dense_over_sparse"), "{:.1f}"), _fmt(r.get("mean_iterations"), "{:.2f}"),
+                 _fmt(r.get("dense_over_sparse"), "{:.1f}"),
+                 {True: "yes", False: "no"}.get(r.get("reuse_matrix"), "-"), _fmt(r.get("mean_iterations"), "{:.2f}"),
                  _fmt(r.get("jacobians_per_step"), "{:.2f}"), _fmt(r.get("madds_per_step")),
                  _fmt(r.get("ns_per_madd"), "{:.2f}"),
                  f"{r['blocks']} ({r['fill_ratio']:.2f})" if "blocks" in r else "-",
