@@ -64,7 +64,8 @@ def test_auto_reuses_the_matrix_from_REUSE_AUTO_MIN_N_on():
     small = get_scene("mp-particles-nh")
     cs = compile_system(small.system)
     r = run_compiled(cs, "gauss-2", *small.initial(), 0.001, 500, 500)
-    assert r.stats["reuse_matrix"] is False and r.stats["njev"] == 500
+    # one fresh matrix per step (a few more where an increment stalls at round-off)
+    assert r.stats["reuse_matrix"] is False and 500 <= r.stats["njev"] <= 510
     big = mp_particles(m=20, constraint="nonholonomic")
     cb = compile_system(big.system)
     on = run_compiled(cb, "gauss-2", *big.initial(), 0.001, 500, 500)

@@ -166,8 +166,10 @@ def test_runs_agree_with_the_dense_lu(scene, method, h, steps):
     for k in ("q", "v", "energy", "constraint"):
         ref = np.asarray(getattr(a, k))
         assert np.abs(np.asarray(getattr(b, k)) - ref).max() <= 1e-12 * max(1.0, np.abs(ref).max()), k
+    # the same work up to a stopping decision flipped by rounding (the two solves round differently)
     assert abs(a.stats["newton_iterations"] - b.stats["newton_iterations"]) <= 0.02 * steps
-    assert a.stats["njev"] == b.stats["njev"] and a.stats["full_newton_steps"] == b.stats["full_newton_steps"] == 0
+    assert abs(a.stats["njev"] - b.stats["njev"]) <= 0.02 * steps
+    assert a.stats["full_newton_steps"] == b.stats["full_newton_steps"] == 0
 
 
 def test_auto_picks_by_operation_count():
