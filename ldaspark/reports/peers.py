@@ -224,20 +224,6 @@ def best_peer(rows, target, key="error"):
     return p, costs[p]
 
 
-def best_spark(rows, target, key="error"):
-    """(method, CPU seconds) of the cheapest compiled SPARK method at ``target`` (per method
-    envelopes, then the cheapest), or (None, None)."""
-    costs = {}
-    for m in dict.fromkeys(r["method"] for r in rows if r["kind"] == "spark"):
-        c = envelope_cpu([r for r in rows if r["kind"] == "spark" and r["method"] == m], target, key)
-        if c is not None:
-            costs[m] = c
-    if not costs:
-        return None, None
-    m = min(costs, key=costs.get)
-    return m, costs[m]
-
-
 def method_cost(rs, target, key="error"):
     """(CPU seconds, bounded) for one method's runs ``rs`` to reach ``target``: interpolated on
     its lower envelope where its runs bracket the target (bounded False); where every run is
