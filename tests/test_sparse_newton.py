@@ -57,6 +57,15 @@ def test_filled_pattern_is_closed_for_random_patterns(seed):
     assert st.block_updates >= 0 and st.fill_ratio >= 1.0
 
 
+def test_budget_bounds_the_fill_not_n():
+    """A chain of n = 3000 couplings (no fill) gets its structure: the budget counts the cliques
+    the elimination forms, not the choice of the next node (a scan of the remaining nodes,
+    n^2 / 2 = 4.5e6, exceeded it by itself)."""
+    n = 3000
+    st = sparse.newton_structure(n, [(i, i + 1) for i in range(n - 1)], np.eye(n))
+    assert st is not None and st.fill_ratio == 1.0 and st.n_blocks == 3 * n - 2
+
+
 def test_dense_pattern_exceeds_the_symbolic_budget():
     n = 40
     pairs = [(i, j) for i in range(n) for j in range(n)]

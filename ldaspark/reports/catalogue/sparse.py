@@ -23,7 +23,7 @@ MUTANTS = (
        "            rows[r].add(c)\n            rows[c].add(r)\n", "            rows[r].add(c)\n",
        "filled pattern without the lower (L) part of the fill: the block LU drops couplings", "compiled", TSN),
     _m("sparse-natural-order", "compiled/sparse.py",
-       "k = min(alive, key=lambda x: (len(g[x]), x))", "k = min(alive)",
+       "return len(g[x])            # the degree in the elimination graph", "return x",
        "elimination in the natural order instead of minimum degree (fill on a star: n^2 blocks)", "compiled", TSN),
     _m("sparse-pivot-check-off", "compiled/kernels_sparse.py",
        "if not (abs(piv) > PIVOT_RTOL * big):", "if False:",
