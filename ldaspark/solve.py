@@ -300,6 +300,7 @@ def _single(system, params, q0, v0, *, kind, what, name, t0, h, N, engine, dps, 
                            energy_jump)
     res.method, res.system, res.scene, res.h, res.dps, res.save_every, res.params = \
         name, system.name, scene, h, dps, every, pvals
+    res.coordinate_names = [str(x) for x in system.q]
     if raise_on_failure and res.status < 0:
         res.raise_for_status()
     return res

@@ -350,7 +350,7 @@ def _potential(i, load, m: _Model, kin: _Kin, qs, conv, num: _Numeric):
     import sympy.physics.mechanics as me
     t = me.dynamicsymbols._t
     loc, vec = _load_parts(load, m.kind)
-    what = f"load {i} ({'force on point' if isinstance(loc, me.Point) else 'torque on frame'} {_name(loc)})"
+    what = f"loads[{i}] ({'force on point' if isinstance(loc, me.Point) else 'torque on frame'} {_name(loc)})"
     if m.frame is None:
         raise SystemDefinitionError(f"{m.kind}: {what}: no inertial frame to form its generalized force")
     if vec == 0:

@@ -14,6 +14,7 @@ Shapes for one run with S saved points (S = N + 1 for ``save_every = 1``):
   factorisations), ``newton_iterations``.
 * ``sol``: the dense output (``ldaspark.core.dense``) when asked for, ``sol(t) -> (q, v)``.
 * ``t_events`` / ``q_events`` / ``v_events``: one array per event function.
+* ``coordinate_names``: the names of the coordinates (columns of q and v), or None.
 
 An ensemble (``batch`` = B) has arrays with a leading axis B, ``status`` an int array (B,),
 ``message`` a list, counters arrays (B,), ``n_valid`` (B,) the number of valid rows of each
@@ -70,6 +71,8 @@ class Result:
     n_valid: Optional[np.ndarray] = None
     members: Optional[list] = None
     error: Optional[BaseException] = field(default=None, repr=False)
+    #: names of q_1..q_n (the system's coordinate symbols), the columns of q and v
+    coordinate_names: Optional[list] = None
 
     @property
     def success(self) -> bool:
@@ -165,7 +168,7 @@ def stack(members: list) -> Result:
                   h=first.h, dps=first.dps, save_every=first.save_every,
                   params={"members": [r.params for r in members]},
                   stats={"members": [r.stats for r in members]}, n_valid=n_valid, members=list(members),
-                  **out)
+                  coordinate_names=first.coordinate_names, **out)
 
 
 def from_ensemble(ens: Any, **meta: Any) -> Result:

@@ -130,6 +130,7 @@ class LagrangianSystem:
                 raise SystemDefinitionError(f"nonideal term N contains symbols other than t, q, v, psi: "
                                             f"{sorted(map(str, extra))}")
         self._derive()
+        _check_build(self)
         self._compiled = {}
         self._fn_exprs = {}
 
@@ -465,6 +466,34 @@ class LagrangianSystem:
                 return sol
             prev = dn
         raise SingularSaddleError(f"(3a) with the nonideal term: Newton for psi did not converge at t = {float(t):g}")
+
+
+def _check_build(system) -> None:
+    """Refusals that would otherwise surface only at integrate time.
+
+    * Physical units (``sympy.physics.units`` quantities) are not symbols: they pass the symbol
+      check, then the generated code fails on an undefined name.
+    * Velocities along which L_vv vanishes identically (L does not contain them, or is affine in
+      them): (4) can still be regular when K covers them, but the stage equations
+      P_i = grad_v L(Q_i, V_i) of (21) do not determine those components of V_i, and Newton's
+      matrix is singular at the first step."""
+    from sympy.physics.units import Quantity
+    exprs = [system.L, *system.k] + ([*system.N] if system.N is not None else [])
+    units = sorted({str(u) for e in exprs for u in e.atoms(Quantity)})
+    if units:
+        raise SystemDefinitionError(
+            f"{system.name}: L or k contain physical units ({', '.join(units[:6])}); the integrator works on "
+            "numbers: substitute the quantities by their values in one consistent unit system")
+    flat = [v for i, v in enumerate(system.v) if all(e == 0 for e in system.L_vv.row(i))]
+    if flat:
+        absent = [v for v in flat if v not in system.L.free_symbols]
+        which = (f"L does not contain the velocities {', '.join(map(str, absent))}" if len(absent) == len(flat)
+                 else f"L_vv vanishes along the velocities {', '.join(map(str, flat))}")
+        raise SystemDefinitionError(
+            f"{system.name}: {which}, so L_vv is singular there; the saddle matrix (4) may still be regular, "
+            "but the SPARK stage equations (21) need p = grad_v L to determine every velocity (from "
+            "sympy.physics.mechanics: define point velocities from positions, not with the rolling "
+            "condition built into the kinematics)")
 
 
 def _symbol(x, what):
