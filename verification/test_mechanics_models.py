@@ -368,6 +368,33 @@ def test_loads_without_a_potential_are_refused_by_name():
     ok = LagrangianSystem.from_mechanics(_particle_model(lambda P, N, x, y: (P, -x * N.x - sympy.sin(y) * N.y)))
     x, y, vx, vy, m = symbols("x y v_x v_y m")
     assert sympy.simplify(ok.L - (m * (vx ** 2 + vy ** 2) / 2 - x ** 2 / 2 + sympy.cos(y))) == 0
+    from sympy.physics.units import meter, newton
+    with pytest.raises(SystemDefinitionError) as err:
+        LagrangianSystem.from_mechanics(_particle_model(lambda P, N, x, y: (P, -9.81 * newton * N.x)))
+    _one_line(err, "loads[0]", "physical units", "newton")
+    # a torque: a torsion spring -c th N.z on a frame turned by th about N.z has V = c th^2 / 2; a
+    # torque c N.z constant in th has V = -c th, and one proportional to th' has no potential
+    x_, y_, th = me.dynamicsymbols("x y theta")
+    c = symbols("c")
+    N = me.ReferenceFrame("N")
+    B = N.orientnew("B", "Axis", [th, N.z])
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    P = O.locatenew("P", x_ * N.x + y_ * N.y)
+    P.set_vel(N, P.pos_from(O).dt(N))
+    body = me.RigidBody("b", P, B, 1, (me.inertia(B, 0, 0, 1), P))
+    for torque, V in ((-c * th * N.z, c * symbols("theta") ** 2 / 2), (c * N.z, -c * symbols("theta")),
+                      (-c * th.diff() * N.z, None)):
+        lm = me.LagrangesMethod(me.Lagrangian(N, body), [x_, y_, th], nonhol_coneqs=[P.vel(N).dot(B.y)],
+                                forcelist=[(B, torque)], frame=N)
+        if V is None:
+            with pytest.raises(SystemDefinitionError) as err:
+                LagrangianSystem.from_mechanics(lm)
+            _one_line(err, "torque on frame B", "velocities")
+            continue
+        tors = LagrangianSystem.from_mechanics(lm)
+        T = (symbols("v_x") ** 2 + symbols("v_y") ** 2 + symbols("v_theta") ** 2) / 2
+        assert sympy.simplify(tors.L - (T - V)) == 0, tors.L
 
 
 def test_kane_way_kinematics_named_and_other_refusals():
@@ -397,6 +424,22 @@ def test_kane_way_kinematics_named_and_other_refusals():
     with pytest.raises(SystemDefinitionError) as err:
         LagrangianSystem.from_mechanics(props['bodies'][0])
     _one_line(err, "not a RigidBody")
+    # a speed without a coordinate (sympy's test_kane3 bicycle leaves its wheel angles out this way)
+    x, y, th, u1, u2, u3, u4 = me.dynamicsymbols("x y theta u1 u2 u3 u4")
+    B = N.orientnew("B", "Axis", [th, N.z])
+    W = me.ReferenceFrame("W")
+    W.set_ang_vel(B, u4 * B.y)
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    P = O.locatenew("P", x * N.x + y * N.y)
+    P.set_vel(N, u1 * N.x + u2 * N.y)
+    B.set_ang_vel(N, u3 * N.z)
+    wheel = me.RigidBody("wheel", P, W, 1, (me.inertia(B, 1, 1, 1), P))
+    km = me.KanesMethod(N, [x, y, th], [u1, u3, u4], kd_eqs=[x.diff() - u1, y.diff() - u2, th.diff() - u3],
+                        u_dependent=[u2], velocity_constraints=[P.vel(N).dot(B.y)], bodies=[wheel])
+    with pytest.raises(SystemDefinitionError) as err:
+        LagrangianSystem.from_mechanics(km)
+    _one_line(err, "4 generalized speeds but 3 kinematic", "(u4 appears in none)")
     bare = me.KanesMethod(N, props['q_ind'], props['u_ind'], props['kdes'], u_dependent=props['u_dep'],
                           velocity_constraints=props['fnh'])
     with pytest.raises(SystemDefinitionError) as err:

@@ -106,8 +106,12 @@ def _speed_map(kind, q, u, kdes):
     if not u:
         return {}
     if not kdes or len(kdes) != len(u):
-        raise SystemDefinitionError(f"{kind}: {len(u)} generalized speeds need as many kinematic differential "
-                                    f"equations (got {len(kdes or [])}) to map u to q'")
+        free = [str(getattr(x, "func", x)) for x in u if not any(sympy.sympify(e).has(x) for e in kdes or [])]
+        which = f" ({', '.join(free)} {'appears' if len(free) == 1 else 'appear'} in none)" if free else ""
+        raise SystemDefinitionError(
+            f"{kind}: {len(u)} generalized speeds but {len(kdes or [])} kinematic differential equations{which}: "
+            "(1) needs a coordinate for every speed (add the ignored coordinates, e.g. wheel angles with q' = u, "
+            "and for a rolling contact point its position and the rolling condition as velocity constraints)")
     kd = sympy.Matrix(list(kdes))
     A = kd.jacobian(u)
     rest = kd.xreplace(dict.fromkeys(u, 0))
@@ -355,6 +359,11 @@ def _potential(i, load, m: _Model, kin: _Kin, qs, conv, num: _Numeric):
         raise SystemDefinitionError(f"{m.kind}: {what}: no inertial frame to form its generalized force")
     if vec == 0:
         return sympy.S.Zero
+    from sympy.physics.units import Quantity
+    units = sorted({str(x) for c in vec.to_matrix(m.frame) for x in sympy.sympify(c).atoms(Quantity)})
+    if units:
+        raise SystemDefinitionError(f"{m.kind}: {what} contains physical units ({', '.join(units[:6])}); the "
+                                    "integrator works on numbers: give the values in one consistent unit system")
     vec = kin._sub(vec)
     qd = [x.diff(t) for x in qs]
     vel = kin.point_velocity(loc) if isinstance(loc, me.Point) else kin.angular_velocity(loc)
@@ -436,7 +445,9 @@ def _convert_model(m: _Model, name):
         if any(d != 0 for d in dsym) and not num.zero(dsym, on_manifold=True):
             raise SystemDefinitionError(
                 f"{m.kind}: the velocity set for {what} differs from the time derivative of its position / "
-                "orientation even where the constraints hold; give velocities consistent with the kinematics")
+                "orientation even where the constraints hold; give velocities consistent with the kinematics "
+                "(a point given zero velocity that moves, such as a rolling contact, needs coordinates for its "
+                "position and the rolling condition among the velocity constraints)")
     return Ls, ks, qsym, vsym, tsym
 
 
