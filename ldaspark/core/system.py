@@ -154,7 +154,7 @@ class LagrangianSystem:
 
     @classmethod
     def from_mechanics(cls, model, q=None, constraints=None, params=None, name: str = "system"):
-        """From a ``sympy.physics.mechanics.LagrangesMethod`` (with ``nonhol_coneqs``) or a
+        """From a ``sympy.physics.mechanics`` KanesMethod, LagrangesMethod or System, or a
         Lagrangian and velocity constraints in dynamicsymbols; see ``ldaspark.core.mechanics``."""
         from .mechanics import from_mechanics
         return from_mechanics(model, q=q, constraints=constraints, params=params, name=name, cls=cls)
