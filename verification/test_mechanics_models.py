@@ -424,6 +424,28 @@ def test_kane_way_kinematics_named_and_other_refusals():
     with pytest.raises(SystemDefinitionError) as err:
         LagrangianSystem.from_mechanics(props['bodies'][0])
     _one_line(err, "not a RigidBody")
+    # sympy's test_kane rolling disc: built from the contact point C up (C given zero velocity, no
+    # position coordinates); the mass centre's set velocity is not the derivative of its position
+    # from C even where the (here: no) constraints hold
+    q1, q2, q3, w1, w2, w3 = me.dynamicsymbols('q1 q2 q3 u1 u2 u3')
+    r, m, g = symbols('r m g')
+    N3 = me.ReferenceFrame('N')
+    Y = N3.orientnew('Y', 'Axis', [q1, N3.z])
+    L3 = Y.orientnew('L', 'Axis', [q2, Y.x])
+    R = L3.orientnew('R', 'Axis', [q3, L3.y])
+    w_R_N_qd = R.ang_vel_in(N3)
+    R.set_ang_vel(N3, w1 * L3.x + w2 * L3.y + w3 * L3.z)
+    C = me.Point('C')
+    C.set_vel(N3, 0)
+    Dmc = C.locatenew('Dmc', r * L3.z)
+    Dmc.v2pt_theory(C, N3, R)
+    I3 = me.inertia(L3, m / 4 * r ** 2, m / 2 * r ** 2, m / 4 * r ** 2)
+    kd = [me.dot(R.ang_vel_in(N3) - w_R_N_qd, uv) for uv in L3]
+    KM = me.KanesMethod(N3, q_ind=[q1, q2, q3], u_ind=[w1, w2, w3], kd_eqs=kd,
+                        bodies=[me.RigidBody('BodyD', Dmc, R, m, (I3, Dmc))], forcelist=[(Dmc, - m * g * Y.z)])
+    with pytest.raises(SystemDefinitionError) as err:
+        LagrangianSystem.from_mechanics(KM)
+    _one_line(err, "point Dmc", "rolling contact")
     # a speed without a coordinate (sympy's test_kane3 bicycle leaves its wheel angles out this way)
     x, y, th, u1, u2, u3, u4 = me.dynamicsymbols("x y theta u1 u2 u3 u4")
     B = N.orientnew("B", "Axis", [th, N.z])

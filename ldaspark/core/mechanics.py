@@ -50,6 +50,17 @@ from .errors import SystemDefinitionError
 #: points at which the set velocities are compared with the derived ones (fixed seed: the
 #: same model always gives the same verdict)
 _N_CHECK = 3
+#: expressions larger than this (sympy.count_ops) are not simplified or integrated: the cost of
+#: trigsimp / integrate grows quickly with size, and a model must not make the build hang
+_SIMPLIFY_OPS = 400
+
+
+def _is_zero(e, num, on_manifold=False) -> bool:
+    """e == 0: exactly after expansion, else at random points (``_Numeric``), the one test that
+    always terminates; simplification is not needed for the verdict."""
+    if e == 0 or sympy.expand(e) == 0:
+        return True
+    return num.zero([e], on_manifold=on_manifold)
 
 
 def _to_symbols(exprs, qs, t):
@@ -258,7 +269,8 @@ def _components(vec, frame):
     """Components of a vector in ``frame``, each trigonometrically simplified."""
     if vec == 0:
         return sympy.zeros(3, 1)
-    return sympy.Matrix([sympy.trigsimp(c) for c in vec.to_matrix(frame)])
+    return sympy.Matrix([sympy.trigsimp(c) if sympy.count_ops(c) <= _SIMPLIFY_OPS else c
+                         for c in vec.to_matrix(frame)])
 
 
 def _kinetic_minus_potential(m: _Model, kin: _Kin):
@@ -378,7 +390,7 @@ def _potential(i, load, m: _Model, kin: _Kin, qs, conv, num: _Numeric):
     for a in range(n):
         for b in range(a + 1, n):
             d = Qs[a].diff(qsym[b]) - Qs[b].diff(qsym[a])
-            if d != 0 and sympy.simplify(d) != 0 and not num.zero([d], on_manifold=False):
+            if not _is_zero(d, num):
                 raise SystemDefinitionError(f"{m.kind}: {what} is not conservative: its generalized force has "
                                             f"dQ_{qsym[a]}/d{qsym[b]} != dQ_{qsym[b]}/d{qsym[a]} (no potential "
                                             "V(q) with Q = -grad V); loads without a potential are not supported yet")
@@ -392,9 +404,13 @@ def _potential(i, load, m: _Model, kin: _Kin, qs, conv, num: _Numeric):
     if V is None:
         V = sympy.S.Zero
         for j, x in enumerate(qsym):
-            rest = sympy.simplify(-Qs[j] - V.diff(x))
-            if rest == 0:
+            rest = -Qs[j] - V.diff(x)
+            if _is_zero(rest, num):
                 continue
+            if sympy.count_ops(rest) > _SIMPLIFY_OPS:
+                raise SystemDefinitionError(f"{m.kind}: {what}: its generalized force is too large to integrate to "
+                                            "a potential here; give the potential as a body's potential_energy")
+            rest = sympy.simplify(rest)
             others = rest.free_symbols & set(qsym[:j])
             if others:
                 raise SystemDefinitionError(f"{m.kind}: {what}: no potential found (integrating its generalized "
@@ -405,7 +421,7 @@ def _potential(i, load, m: _Model, kin: _Kin, qs, conv, num: _Numeric):
                                             "to a potential")
             V = V + part
     grad = [-V.diff(x) - e for x, e in zip(qsym, Qs)]
-    if not all(g == 0 or sympy.simplify(g) == 0 for g in grad) and not num.zero(grad, on_manifold=False):
+    if not all(_is_zero(g, num) for g in grad):
         raise SystemDefinitionError(f"{m.kind}: {what}: no potential V(q) with Q = -grad V found")
     return V
 
@@ -432,7 +448,8 @@ def _convert_model(m: _Model, name):
     ks, qsym, vsym = conv(cons, "velocity constraints")
     # the Kane form stores the constraints with q' -> u(q, q') of its own solve: mapped back they
     # carry removable 0/0 (1/sin, 1/cos of the inverted kinematics), which cancel out here
-    ks = [sympy.simplify(sympy.cancel(e)) if not e.as_numer_denom()[1].is_number else e for e in ks]
+    ks = [sympy.simplify(sympy.cancel(e))
+          if not e.as_numer_denom()[1].is_number and sympy.count_ops(e) <= 4 * _SIMPLIFY_OPS else e for e in ks]
     num = _Numeric(qsym, vsym, tsym, ks)
     L = m.L if m.L is not None else _kinetic_minus_potential(m, kin)
     Ls = conv([L], "the Lagrangian")[0][0]
@@ -442,7 +459,7 @@ def _convert_model(m: _Model, name):
     for what, derived, given in kin.checks:
         diff = list((derived - given).to_matrix(m.frame))
         dsym = conv(diff, what)[0]
-        if any(d != 0 for d in dsym) and not num.zero(dsym, on_manifold=True):
+        if not all(_is_zero(d, num, on_manifold=True) for d in dsym):
             raise SystemDefinitionError(
                 f"{m.kind}: the velocity set for {what} differs from the time derivative of its position / "
                 "orientation even where the constraints hold; give velocities consistent with the kinematics "
