@@ -116,16 +116,17 @@ def test_singular_saddle_mp(g2):
 
 
 def test_singular_Lvv_with_regular_saddle_fails_in_newton_not_silently(g2):
-    # Finding (report stability): (4) holds (L_vv = diag(1, 1, 0), K = (0, 0, 1)), but the stage
-    # velocities V_i3 then appear only in the s-1 rows (21e), so the SPARK equations (21) are
+    # Finding (report stability): (4) holds (L_vv = diag(1, 1, 0) on q2 = 0, K = (0, 0, 1)), but the
+    # stage velocities V_i3 then appear only in the s-1 rows (21e), so the SPARK equations (21) are
     # singular. The user gets a NewtonError at step 0, iteration 1 -- not a set-up error, no NaN.
+    # (An L without v3 at all is found when the system is built and refused at set-up.)
     q, v = _sym(3)
-    L = (v[0] ** 2 + v[1] ** 2) / 2 - q[0] ** 2
+    L = (v[0] ** 2 + v[1] ** 2 + q[1] ** 2 * v[2] ** 2) / 2 - q[0] ** 2
     sysm = LagrangianSystem(L, [v[2]], q, v)
     assert sysm.check_saddle(Backend(), 0.0, [1.0, 0, 0], [0, 1.0, 0]) > 0.1
     with _no_warnings():
         with pytest.raises(NewtonError, match="singular") as ei:
-            integrate(sysm, g2, 0.0, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], 0.1, n_steps=2)
+            integrate(sysm, g2, 0.0, [1.0, 0.0, 0.0], [1.0, 0.0, 0.0], 0.1, n_steps=2)   # q2 stays 0
     assert (ei.value.step, ei.value.iterations) == (0, 1)
     # control: with a v3 term in L the same constraint integrates fine
     sysm2 = LagrangianSystem(L + v[2] ** 2 / 2, [v[2]], q, v)

@@ -518,4 +518,9 @@ def from_mechanics(model: Any, q: Optional[Sequence] = None, constraints: Option
     if params is None:
         found = set().union(*(e.free_symbols for e in exprs)) - set(qsym) - set(vsym) - {tsym}
         params = sorted(found, key=str) or None
-    return cls(Ls, ks, qsym, vsym, t=tsym, name=name, params=params)
+    system = cls(Ls, ks, qsym, vsym, t=tsym, name=name, params=params)
+    if getattr(system, "lvv_problem", None):
+        # a model read from sympy.physics.mechanics: refused at once (the usual cause, kinematics
+        # with the rolling condition built in, is a modelling choice the user can change)
+        raise SystemDefinitionError(system.lvv_problem)
+    return system

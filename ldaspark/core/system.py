@@ -394,6 +394,8 @@ class LagrangianSystem:
             raise SingularSaddleError(
                 f"saddle matrix (4) [[L_vv, K^T], [K, 0]] is singular at t = {float(t):g} "
                 f"(reciprocal condition {r:.2e} <= {tol:.1e} after equilibration)")
+        if getattr(self, "lvv_problem", None):
+            raise SingularSaddleError(self.lvv_problem)
         return r
 
     def check_consistent(self, backend, t, q, v, tol=None, k=None):
@@ -476,7 +478,8 @@ def _check_build(system) -> None:
     * Velocities along which L_vv vanishes identically (L does not contain them, or is affine in
       them): (4) can still be regular when K covers them, but the stage equations
       P_i = grad_v L(Q_i, V_i) of (21) do not determine those components of V_i, and Newton's
-      matrix is singular at the first step."""
+      matrix is singular at the first step. Found here, named in ``lvv_problem`` and raised by
+      ``check_saddle`` (the set-up check of every engine) as SingularSaddleError."""
     from sympy.physics.units import Quantity
     exprs = [system.L, *system.k] + ([*system.N] if system.N is not None else [])
     units = sorted({str(u) for e in exprs for u in e.atoms(Quantity)})
@@ -484,13 +487,16 @@ def _check_build(system) -> None:
         raise SystemDefinitionError(
             f"{system.name}: L or k contain physical units ({', '.join(units[:6])}); the integrator works on "
             "numbers: substitute the quantities by their values in one consistent unit system")
+    system.lvv_problem = None
     flat = [v for i, v in enumerate(system.v) if all(e == 0 for e in system.L_vv.row(i))]
     if flat:
         absent = [v for v in flat if v not in system.L.free_symbols]
         which = (f"L does not contain the velocities {', '.join(map(str, absent))}" if len(absent) == len(flat)
                  else f"L_vv vanishes along the velocities {', '.join(map(str, flat))}")
-        raise SystemDefinitionError(
-            f"{system.name}: {which}, so L_vv is singular there; the saddle matrix (4) may still be regular, "
+        # kept, and raised by check_saddle after the test of (4) (so a singular (4) keeps its own
+        # message): the system stays usable for what needs only (4), e.g. the ODE (3a-b)
+        system.lvv_problem = (
+            f"{system.name}: {which}, so L_vv is singular there; the saddle matrix (4) can still be regular, "
             "but the SPARK stage equations (21) need p = grad_v L to determine every velocity (from "
             "sympy.physics.mechanics: define point velocities from positions, not with the rolling "
             "condition built into the kinematics)")
