@@ -490,7 +490,8 @@ def from_mechanics(model: Any, q: Optional[Sequence] = None, constraints: Option
             Ls, ks, qsym, vsym, tsym = _convert_model(mdl, name)
         except SystemDefinitionError:
             raise
-        except (sympy.SympifyError, TypeError, ValueError, AttributeError, NotImplementedError) as exc:
+        except (sympy.SympifyError, sympy.polys.polyerrors.PolynomialError, TypeError, ValueError, KeyError,
+                AttributeError, NotImplementedError, ZeroDivisionError) as exc:
             msg = str(exc).splitlines()[0][:160] if str(exc) else type(exc).__name__
             raise SystemDefinitionError(f"{type(model).__name__}: cannot map the model to (1): {msg}") from None
         exprs = [Ls] + ks
