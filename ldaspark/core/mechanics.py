@@ -112,7 +112,6 @@ class _Model:
 
 def _speed_map(kind, q, u, kdes):
     """{u_j: u_j(q, q')} from kinematic equations linear in u and q' (solved for u)."""
-    from sympy.physics.mechanics import dynamicsymbols
     u = list(u)
     if not u:
         return {}
@@ -126,7 +125,7 @@ def _speed_map(kind, q, u, kdes):
     kd = sympy.Matrix(list(kdes))
     A = kd.jacobian(u)
     rest = kd.xreplace(dict.fromkeys(u, 0))
-    if A.has(*u) or any(e.has(*u) for e in A):
+    if A.has(*u):
         raise SystemDefinitionError(f"{kind}: the kinematic differential equations are not linear in u")
     if A.is_diagonal() and all(A[i, i] != 0 for i in range(A.rows)):
         sol = [-rest[i] / A[i, i] for i in range(A.rows)]
@@ -136,6 +135,9 @@ def _speed_map(kind, q, u, kdes):
         except (ValueError, ZeroDivisionError, sympy.matrices.exceptions.NonInvertibleMatrixError):
             raise SystemDefinitionError(f"{kind}: the kinematic differential equations cannot be solved for "
                                         "the generalized speeds u (their u-coefficient matrix is singular)") from None
+    if any(e.has(sympy.nan, sympy.zoo, sympy.oo, -sympy.oo) for e in sol):
+        raise SystemDefinitionError(f"{kind}: the kinematic differential equations cannot be solved for "
+                                    "the generalized speeds u (their u-coefficient matrix is singular)")
     out = dict(zip(u, sol))
     if any(e.has(*u) for e in sol):
         raise SystemDefinitionError(f"{kind}: the kinematic differential equations do not determine u from q'")
