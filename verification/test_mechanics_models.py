@@ -8,7 +8,7 @@ lambdified and integrated by scipy's DOP853 at rtol = atol = 1e-12).
   condition inside), the same model as a ``System``, and the rolling disc in Lagrange form
   (gravity in the forcelist, nonholonomic constraints in q');
 * the nonminimal pendulum of sympy's test_lagrange (gravity as a load in the forcelist,
-  a holonomic constraint);
+  a holonomic constraint), and the same pendulum as a ``System`` with ``apply_uniform_gravity``;
 * the disc on an incline of sympy's test_lagrange (hol_coneqs, gravity in L).
 
 Each: agreement at the level the method's error predicts (observed order 2s for gauss-s and 2
@@ -294,6 +294,47 @@ def test_nonminimal_pendulum_gravity_as_a_load():
         errs, _ = _errors(LagrangianSystem.from_mechanics(bad), "gauss-2", q0, v0, pvals, x1[:2], x1[2:], T,
                           (0.1, 0.05))
         assert not _order_ok(errs, 4, (0.1, 0.05))[0] and min(errs) > 1e-2, errs
+
+
+def test_pendulum_as_a_system_with_uniform_gravity():
+    """The nonminimal pendulum as a ``System`` (a dependent coordinate and speed, the holonomic
+    constraint, ``apply_uniform_gravity``): L and k equal the LagrangesMethod form's, and the run
+    agrees with System's own Kane equations at gauss-2's error; control: gravity reversed."""
+    if not hasattr(me, "System"):
+        pytest.skip("sympy.physics.mechanics.System needs sympy >= 1.13")
+
+    def build(sign=1):
+        q1, q2, u1, u2 = me.dynamicsymbols('q1 q2 u1 u2')
+        L, m = symbols('L m')
+        N = me.ReferenceFrame('N')
+        pN = me.Point('N*')
+        pN.set_vel(N, 0)
+        P = pN.locatenew('P1', q1 * N.x + q2 * N.y)
+        P.set_vel(N, u1 * N.x + u2 * N.y)
+        sy = me.System(N, pN)
+        sy.add_coordinates(q1)
+        sy.add_coordinates(q2, independent=False)
+        sy.add_speeds(u1)
+        sy.add_speeds(u2, independent=False)
+        sy.add_kdes(q1.diff() - u1, q2.diff() - u2)
+        sy.add_bodies(me.Particle('pP', P, m))
+        sy.add_holonomic_constraints(q1 ** 2 + q2 ** 2 - L ** 2)
+        sy.apply_uniform_gravity(sign * 9.8 * N.x)
+        return sy
+    sy = build()
+    sysm = LagrangianSystem.from_mechanics(sy, name="pendulum-system")
+    lag = LagrangianSystem.from_mechanics(_nonminimal_pendulum())
+    assert sympy.simplify(sysm.L - lag.L) == 0 and sympy.simplify(sysm.k[0] - lag.k[0]) == 0
+    sy.form_eoms()
+    pvals = {"L": 1.5, "m": 0.7}
+    a = 0.9
+    q0 = [1.5 * math.cos(a), 1.5 * math.sin(a)]
+    v0 = [-0.8 * math.sin(a), 0.8 * math.cos(a)]
+    x1 = _reference(sy, list(sy.q) + list(sy.u), {symbols(k): v for k, v in pvals.items()}, q0 + v0, 1.0, 4)
+    hs = (0.1, 0.05)
+    for s, expect in ((sysm, True), (LagrangianSystem.from_mechanics(build(-1)), False)):
+        errs, kmax = _errors(s, "gauss-2", q0, v0, pvals, x1[:2], x1[2:], 1.0, hs)
+        assert _order_ok(errs, 4, hs)[0] is expect and bool(errs[1] < 1e-5) is expect and kmax < K_TOL, errs
 
 
 def _disc_on_incline():
