@@ -487,6 +487,23 @@ def test_kane_way_kinematics_named_and_other_refusals():
     with pytest.raises(SystemDefinitionError) as err:
         LagrangianSystem.from_mechanics(KM)
     _one_line(err, "point Dmc", "rolling contact")
+    # a contact point located from the origin by coordinates but given zero velocity (the Kane
+    # way): the mass centre's set velocity lacks the contact's motion -- refused, naming it
+    xc, yc, thc, c1, c2, c3 = me.dynamicsymbols("xc yc thc c1 c2 c3")
+    Bc = N.orientnew("Bc", "Axis", [thc, N.z])
+    Oc = me.Point("Oc")
+    Oc.set_vel(N, 0)
+    Cc = Oc.locatenew("Cc", xc * N.x + yc * N.y)
+    Cc.set_vel(N, 0)
+    Gc = Cc.locatenew("Gc", sympy.Rational(1, 2) * Bc.x)
+    Gc.v2pt_theory(Cc, N, Bc)
+    Bc.set_ang_vel(N, c3 * N.z)
+    kc = me.KanesMethod(N, [xc, yc, thc], [c1, c3], kd_eqs=[xc.diff() - c1, yc.diff() - c2, thc.diff() - c3],
+                        u_dependent=[c2], velocity_constraints=[c1 * Bc.y.dot(N.x) + c2 * Bc.y.dot(N.y)],
+                        bodies=[me.RigidBody("bc", Gc, Bc, 1, (me.inertia(Bc, 0, 0, 1), Gc))])
+    with pytest.raises(SystemDefinitionError) as err:
+        LagrangianSystem.from_mechanics(kc)
+    _one_line(err, "point Gc", "rolling contact")
     # a speed without a coordinate (sympy's test_kane3 bicycle leaves its wheel angles out this way)
     x, y, th, u1, u2, u3, u4 = me.dynamicsymbols("x y theta u1 u2 u3 u4")
     B = N.orientnew("B", "Axis", [th, N.z])

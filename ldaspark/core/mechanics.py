@@ -217,13 +217,24 @@ class _Kin:
             if vel is not None and vel == 0:
                 cands.append(x)
             todo.extend(x._pos_dict.keys())
+        if len(cands) > 1:
+            # two zero-velocity points at a varying distance: one of them moves (an instantaneous
+            # contact point, the Kane way); the origin of a model is the far end of the chain of
+            # positions (the consistency check below catches a wrong choice)
+            t = sympy.physics.mechanics.dynamicsymbols._t
+            if any(a.pos_from(b).diff(t, self.N) != 0 for a in cands for b in cands if a is not b):
+                return cands[-1]
         return cands[0] if cands else None
 
     def point_velocity(self, P):
         set_v = P._vel_dict.get(self.N)
         O = self._fixed_origin(P)
         if O is not None and O is not P:
-            derived = P.pos_from(O).dt(self.N)
+            # differentiated in components of N (direction cosines only): Vector.dt would use the
+            # angular velocities set in the model, which may be written in speeds
+            t = sympy.physics.mechanics.dynamicsymbols._t
+            comps = P.pos_from(O).to_matrix(self.N).diff(t)
+            derived = comps[0] * self.N.x + comps[1] * self.N.y + comps[2] * self.N.z
             if set_v is not None:
                 self.checks.append((f"point {_name(P)}", derived, self._sub(set_v)))
             return derived
