@@ -118,7 +118,8 @@ class RunSpec:
 
 
 def default_executor(max_workers=None):
-    return concurrent.futures.ProcessPoolExecutor(max_workers=max_workers or os.cpu_count() or 1)
+    from ..core.lifecycle import make_process_pool
+    return make_process_pool(max_workers=max_workers or os.cpu_count() or 1)
 
 
 def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, where=None):
