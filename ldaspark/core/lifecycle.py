@@ -311,6 +311,7 @@ class stop_on_signals:
         self.received = None
         self.old = {}
         self._timer = None
+        self.pid = os.getpid()
 
     def __enter__(self):
         if threading.current_thread() is threading.main_thread():
@@ -321,6 +322,8 @@ class stop_on_signals:
         return self
 
     def _handler(self, signum, frame):
+        if os.getpid() != self.pid:
+            return _as_default(signum)    # a forked worker before its initializer reset this
         if self.received is None:
             self.received = signum
             self._timer = threading.Timer(self.deadline, self.force, args=(signum,))
@@ -358,12 +361,18 @@ class raise_on_stop_signals:
 
     def __enter__(self):
         self.old = {}
+        self.pid = os.getpid()
         if threading.current_thread() is threading.main_thread():
             for s in STOP_SIGNALS:
                 if s != signal.SIGINT and _takes_default(s):
                     with contextlib.suppress(ValueError, OSError):
-                        self.old[s] = signal.signal(s, _raise_stopped)
+                        self.old[s] = signal.signal(s, self._raise)
         return self
+
+    def _raise(self, signum, frame):
+        if os.getpid() != self.pid:
+            return _as_default(signum)
+        raise Stopped(signum)
 
     def __exit__(self, typ, exc, tb):
         for s, old in self.old.items():
@@ -374,8 +383,11 @@ class raise_on_stop_signals:
         return False
 
 
-def _raise_stopped(signum, frame):
-    raise Stopped(signum)
+def _as_default(signum):
+    """In a process that inherited a handler through fork: what the default action would do."""
+    with contextlib.suppress(ValueError, OSError):
+        signal.signal(signum, signal.SIG_DFL)
+        os.kill(os.getpid(), signum)
 
 
 # --- temporary files ----------------------------------------------------------------------------
