@@ -255,6 +255,8 @@ def run_linked(cmd, timeout=None, **kwargs):
     ``CompletedProcess``; raises ``subprocess.TimeoutExpired`` as ``subprocess.run`` does."""
     import subprocess
     cmd = list(cmd)
+    if kwargs.pop("capture_output", False):
+        kwargs["stdout"] = kwargs["stderr"] = subprocess.PIPE
     proc = subprocess.Popen(linked_command(cmd), **kwargs)
     with _registry_lock:
         _children.add(proc)
