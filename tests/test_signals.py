@@ -253,8 +253,8 @@ def test_signal_during_the_write_of_out(tmp_path, signame):
         assert len(left) == 1 and lifecycle.is_temp_name(left[0])       # nothing could remove it ...
     else:
         assert rc == 128 + getattr(signal, signame), err
-        assert err.splitlines()[-1] == f"ldaspark: {'interrupted' if signame == 'SIGINT' else 'stopped by ' + signame}" \
-                                       " (no partial output was written)", err
+        word = "interrupted" if signame == "SIGINT" else f"stopped by {signame}"
+        assert err.splitlines()[-1] == f"ldaspark: {word} (no partial output was written)", err
         assert _temp_files(tmp_path / "out") == []
         return
     # ... and the next run to the same target removes it, and writes a complete result

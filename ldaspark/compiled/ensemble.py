@@ -16,7 +16,6 @@ Systems the fast path cannot compile run the generic path in the workers (one no
 """
 from __future__ import annotations
 
-import concurrent.futures
 import copy
 import os
 import time
