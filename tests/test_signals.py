@@ -265,6 +265,34 @@ def test_signal_during_the_write_of_out(tmp_path, signame):
     assert json.loads((tmp_path / "out" / "result.json").read_text())["method"]
 
 
+@pytest.mark.exhaustive
+@pytest.mark.parametrize("signame", SIGNALS)
+def test_signal_during_the_real_write_of_a_large_out(tmp_path, signame):
+    # no seam: a 65 MB JSON result; the signal is sent as soon as its temporary file appears
+    argv = ["integrate", "particle", "gauss-2", "--h", "0.001", "--t-end", "300", "--out", "out/big.json"]
+    (tmp_path / "out").mkdir()
+    run = Run(argv, tmp_path)
+    deadline = time.monotonic() + 600
+    while not _temp_files(tmp_path / "out"):
+        if run.p.poll() is not None or time.monotonic() > deadline:
+            run.p.kill()
+            pytest.skip("the write ended before the temporary file was seen")
+        time.sleep(0.002)
+    rc = run.stop(signame)
+    out = tmp_path / "out" / "big.json"
+    if rc == 0:         # the write was complete when the signal arrived: a complete result
+        assert json.loads(out.read_text())["method"]
+    elif signame == "SIGKILL":
+        assert rc == -signal.SIGKILL and not out.exists()
+    else:
+        assert rc == 128 + getattr(signal, signame), run.stderr()
+        assert _temp_files(tmp_path / "out") == []
+    nxt = subprocess.run([sys.executable, "-m", "ldaspark", *argv[:-1], "out/big.json"], cwd=tmp_path,
+                         env=_env(), capture_output=True, text=True, timeout=900)
+    assert nxt.returncode == 0, nxt.stderr
+    assert _temp_files(tmp_path / "out") == []
+
+
 def test_a_second_signal_forces_the_stop_when_the_cleanup_hangs(tmp_path):
     run = _slow_integrate(tmp_path, hang=True)
     run.p.send_signal(signal.SIGINT)

@@ -84,7 +84,7 @@ def exit_status(signum: int) -> int:
 _pools: "weakref.WeakSet" = weakref.WeakSet()
 _children: set = set()
 _temp_files: set = set()
-_registry_lock = threading.Lock()
+_registry_lock = threading.RLock()      # reentrant: a forced stop may run inside a holder (signal handler)
 
 
 def kill_children() -> None:
