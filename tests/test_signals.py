@@ -447,3 +447,27 @@ def test_temporary_file_is_created_exclusive_and_nofollow(tmp_path, monkeypatch)
     monkeypatch.setattr(lifecycle.os, "open", spy)
     lio.atomic_write_text(tmp_path / "r.json", "new")
     assert seen and all(f & os.O_EXCL and f & os.O_NOFOLLOW and f & os.O_CREAT for f in seen)
+
+
+def test_a_stopped_subprocess_guard_kills_and_refuses_children():
+    import threading
+    got = {}
+
+    def drive():
+        try:
+            got["rc"] = lifecycle.run_linked([sys.executable, "-c", "import time; time.sleep(30)"]).returncode
+        except BaseException as exc:  # noqa: BLE001
+            got["exc"] = exc
+    with lifecycle.subprocess_guard() as guard:
+        t = threading.Thread(target=drive)
+        t.start()
+        deadline = time.monotonic() + 60
+        while not lifecycle._children and time.monotonic() < deadline:
+            time.sleep(0.02)
+        guard.stop()
+        t.join(timeout=30)
+        assert got.get("rc") == -signal.SIGKILL           # the running child was killed
+        with pytest.raises(lifecycle.Stopped):             # and no new one starts
+            lifecycle.run_linked([sys.executable, "-c", "pass"])
+    # negative control: outside the stopped block children start again
+    assert lifecycle.run_linked([sys.executable, "-c", "pass"]).returncode == 0

@@ -97,6 +97,26 @@ def kill_children() -> None:
     kill_subprocesses()
 
 
+_no_new_children = threading.Event()
+
+
+@contextlib.contextmanager
+def subprocess_guard():
+    """For threads that each drive a ``run_linked`` subprocess: ``stop()`` kills the running
+    ones and refuses new ones until the block ends (so that leaving a thread pool does not wait
+    for a subprocess that a thread started after the stop)."""
+    class _Guard:
+        @staticmethod
+        def stop():
+            with _registry_lock:
+                _no_new_children.set()
+            kill_subprocesses()
+    try:
+        yield _Guard()
+    finally:
+        _no_new_children.clear()
+
+
 def kill_subprocesses() -> None:
     """SIGKILL every live ``run_linked`` subprocess of this process."""
     with _registry_lock:
@@ -257,8 +277,10 @@ def run_linked(cmd, timeout=None, **kwargs):
     cmd = list(cmd)
     if kwargs.pop("capture_output", False):
         kwargs["stdout"] = kwargs["stderr"] = subprocess.PIPE
-    proc = subprocess.Popen(linked_command(cmd), **kwargs)
-    with _registry_lock:
+    with _registry_lock:        # with stop_subprocesses(): either refused or registered, then killed
+        if _no_new_children.is_set():
+            raise Stopped(DEATH_SIGNAL)
+        proc = subprocess.Popen(linked_command(cmd), **kwargs)
         _children.add(proc)
     try:
         try:

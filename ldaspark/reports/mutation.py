@@ -28,7 +28,7 @@ import tempfile
 import time
 
 from ..core.errors import LdasparkError
-from ..core.lifecycle import kill_subprocesses, run_linked
+from ..core.lifecycle import run_linked, subprocess_guard
 from .mutation_catalogue import CATALOGUE, QUICK, Mutant, by_id
 
 PACKAGE = pathlib.Path(__file__).resolve().parents[1]          # .../ldaspark
@@ -261,13 +261,13 @@ def run_catalogue(mutants, jobs=2, hints_only=False, progress=None, exclude=(), 
         recs = run_resumable(units, checkpoint, where=where, on_done=done)
     else:
         assert not is_address(where)
-        with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, jobs)) as ex:
+        with subprocess_guard() as guard, concurrent.futures.ThreadPoolExecutor(max_workers=max(1, jobs)) as ex:
             try:
                 recs = run_resumable(units, checkpoint, where=ex, on_done=done)
             except BaseException:
-                # stopped (a signal, an error): the threads' pytest processes are killed, so
-                # that leaving the pool does not wait for them to finish
-                kill_subprocesses()
+                # stopped (a signal, an error): the threads' pytest processes are killed and no
+                # new one starts, so that leaving the pool does not wait for them to finish
+                guard.stop()
                 raise
     return [recs[m.id] for m in mutants]
 
