@@ -138,55 +138,49 @@ def _command_of(argv) -> str | None:
 
 
 def main(argv=None) -> int:
-    """Run the command line; returns the exit code (0 ok, 2 user error, 130 interrupted)."""
-    with _SigintSeen() as sigint:
+    """Run the command line; returns the exit code (0 ok, 2 user error, 128 + the signal number
+    when stopped by SIGINT, SIGTERM, SIGHUP or SIGQUIT: ``ldaspark.core.lifecycle``)."""
+    from .core import lifecycle
+    with lifecycle.stop_on_signals(line=_forced_line) as stop:
         try:
             return _main(argv)
-        except KeyboardInterrupt:
-            print("ldaspark: interrupted", file=sys.stderr)
-            return 130
+        except KeyboardInterrupt as exc:
+            return _stopped(exc, "")
         except ImportError:
             # Ctrl-C inside an extension module's import (numpy, scipy) surfaces as ImportError
-            if sigint.seen:
-                print("ldaspark: interrupted", file=sys.stderr)
-                return 130
+            if stop.received is not None:
+                return _stopped(lifecycle.Stopped(stop.received), "")
             raise
 
 
-class _SigintSeen:
-    """Remember whether SIGINT arrived (and still raise KeyboardInterrupt, as by default);
-    restores the previous handler on exit. Only in the main thread."""
+def _stopped(exc, why: str) -> int:
+    """The one line of a stopped run and its exit status; the workers and subprocesses it
+    started are gone when this returns."""
+    from .core import lifecycle
+    signum = lifecycle.signum_of(exc)
+    lifecycle.kill_children()       # normally none left: the pools have terminated theirs
+    print(_stop_line(signum, why), file=sys.stderr)
+    return lifecycle.exit_status(signum)
 
-    def __enter__(self):
-        import signal
-        import threading
-        self.seen, self.old = False, None
-        if threading.current_thread() is threading.main_thread():
-            try:
-                if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-                    self.old = signal.signal(signal.SIGINT, self._handler)
-            except (ValueError, OSError):
-                self.old = None
-        return self
 
-    def _handler(self, signum, frame):
-        self.seen = True
-        raise KeyboardInterrupt
+def _stop_line(signum, why: str = "") -> str:
+    import signal
+    from .core.lifecycle import signal_name
+    what = "interrupted" if signum == signal.SIGINT else f"stopped by {signal_name(signum)}"
+    return f"ldaspark: {what}{f' ({why})' if why else ''}"
 
-    def __exit__(self, *exc):
-        if self.old is not None:
-            import signal
-            signal.signal(signal.SIGINT, self.old)
-        return False
+
+def _forced_line(signum) -> str:
+    return _stop_line(signum, "forced: workers killed, temporary files removed; a rerun resumes "
+                              "from any checkpoint")
 
 
 def _main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     try:
         parser = build_parser(_command_of(argv))
-    except KeyboardInterrupt:
-        print("ldaspark: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        return _stopped(exc, "")
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
@@ -197,17 +191,15 @@ def _main(argv=None) -> int:
     except LdasparkError as exc:
         print(f"ldaspark: error: {_one_line(exc)}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         done = getattr(args, "output_written", None)
         path, before = getattr(args, "output_before", (None, None))
         if done is None and path is not None and _file_state(path) not in (None, before):
             done = path         # replaced atomically after the run: the new file is complete
         kept = ("the finished units are kept in OUTDIR's *.partial.jsonl; a rerun resumes from them"
                 if getattr(args, "command", None) in ("verify", "mutants") else None)
-        print(f"ldaspark: interrupted (after the complete result was written to {done})" if done else
-              f"ldaspark: interrupted ({kept})" if kept else
-              "ldaspark: interrupted (no partial output was written)", file=sys.stderr)
-        return 130
+        return _stopped(exc, f"after the complete result was written to {done}" if done else
+                        kept or "no partial output was written")
     except BrokenPipeError:
         # ``ldaspark methods | head -1``: the reader closed the pipe. Further writes to stdout
         # go to /dev/null so that the interpreter's final flush does not raise again.

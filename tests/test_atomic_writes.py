@@ -97,7 +97,7 @@ def test_keyboard_interrupt_at_replace(target, monkeypatch):
 def test_cannot_create_temp_file(target, monkeypatch):
     def eacces(*a, **k):
         raise OSError(errno.EACCES, "Permission denied")
-    monkeypatch.setattr(lio.tempfile, "mkstemp", eacces)
+    monkeypatch.setattr(lio.os, "open", eacces)         # the temporary file is created with os.open
     with pytest.raises(LdasparkError, match="Permission denied"):
         lio.atomic_write_text(target, "new")
     _assert_untouched(target)

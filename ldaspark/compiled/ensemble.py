@@ -16,7 +16,6 @@ Systems the fast path cannot compile run the generic path in the workers (one no
 """
 from __future__ import annotations
 
-import concurrent.futures
 import copy
 import os
 import time
@@ -118,7 +117,8 @@ class RunSpec:
 
 
 def default_executor(max_workers=None):
-    return concurrent.futures.ProcessPoolExecutor(max_workers=max_workers or os.cpu_count() or 1)
+    from ..core.lifecycle import make_process_pool
+    return make_process_pool(max_workers=max_workers or os.cpu_count() or 1)
 
 
 def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, where=None):

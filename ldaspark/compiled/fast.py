@@ -683,12 +683,12 @@ def precompile(jobs, max_workers=2):
     processes so that numba's on-disk cache holds them, then load them here. ``scene name`` may
     be "linear-3" (``roundoff.linear_test_system``). Returns {job: seconds}. The kernels compile
     once per machine, a model in a few seconds, so this matters only for many new systems."""
-    import concurrent.futures
     jobs = list(jobs)
     out = {}
     warm_kernels(_kernels().SIGNATURES)     # once, here, before the workers load them
     if jobs:
-        with concurrent.futures.ProcessPoolExecutor(max_workers=max_workers) as ex:
+        from ..core.lifecycle import make_process_pool
+        with make_process_pool(max_workers=max_workers) as ex:
             futs = {job: ex.submit(_warm, *job) for job in jobs}
             out = {job: f.result() for job, f in futs.items()}
         for job in jobs:

@@ -3,8 +3,10 @@ os.replace, so an interrupted run or a full disk never leaves a half-written fil
 
 What is written where (the path is ``--out`` / ``--json`` of the command line):
 
-* a regular file, or a path that does not exist yet: atomic replace (temporary ``.tmp-*`` file
-  in the same directory, removed again on any error, Ctrl-C or SIGTERM);
+* a regular file, or a path that does not exist yet: atomic replace (temporary
+  ``.tmp-ldaspark-<host>-<pid>-<random>.<name>`` file in the same directory, removed again on any
+  error and on SIGINT, SIGTERM, SIGHUP or SIGQUIT; one left by a killed writer is removed at the
+  next write to the same target: ``ldaspark.core.lifecycle``);
 * a symbolic link: followed; its final target is replaced atomically (the link stays a link);
 * a character device or a FIFO (``/dev/null``, ``/dev/stdout``, a named pipe, ``>(cmd)``):
   written directly, as a shell redirection would (no atomicity is possible there; a FIFO blocks
@@ -18,12 +20,11 @@ from __future__ import annotations
 import json
 import os
 import re
-import signal
 import stat
 import tempfile
-import threading
 
 from .errors import LdasparkError
+from .lifecycle import TempFile, raise_on_stop_signals
 
 
 _FD_PATH = re.compile(r"^/(?:dev/(?:(stdout|stderr)|fd/(\d+))|proc/(self|\d+)/fd/(\d+))$")
@@ -47,10 +48,6 @@ def _write_fd(path, m, data: bytes) -> None:
             view = view[os.write(fd, view):]
     except OSError as exc:
         raise LdasparkError(f"cannot write {path}: {exc.strerror or exc}") from None
-
-
-class _Terminated(BaseException):
-    """Raised from the SIGTERM handler installed while a temporary file exists."""
 
 
 def _write_all(f, data: bytes) -> None:
@@ -128,60 +125,36 @@ def _write_direct(path, data: bytes, append: bool = False) -> None:
 
 
 def _atomic_replace(path, target, data: bytes | None, write=None) -> None:
-    """Write ``data`` (or let ``write(tmp_name)`` write) to a temporary file next to ``target``,
-    fsync, os.replace; the temporary file is removed on any error, Ctrl-C or SIGTERM."""
+    """Write ``data`` (or let ``write(tmp_name)`` write) to a temporary file next to ``target``
+    (``lifecycle.TempFile``: a recognisable name, O_EXCL | O_NOFOLLOW, the stale ones of a
+    killed writer removed first), fsync, os.replace; the temporary file is removed on any
+    error and on every stop signal (SIGINT, SIGTERM, SIGHUP, SIGQUIT)."""
     d = os.path.dirname(os.path.abspath(target))
-    tmp = None
+    tmp = TempFile(target)
     with _sigterm_raises():
         try:
             os.makedirs(d, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=os.path.basename(target), dir=d)
-            os.chmod(tmp, _default_mode(target))  # mkstemp makes 0600; give the mode open() would
-            with os.fdopen(fd, "wb" if write is None else "rb+") as f:
+            tmp.create()
+            os.chmod(tmp.name, _default_mode(target))  # created 0600; give the mode open() would
+            with tmp.fdopen("wb" if write is None else "rb+") as f:
                 if write is None:
                     _write_all(f, data)
                 else:
-                    write(tmp)
+                    write(tmp.name)
                 f.flush()
                 os.fsync(f.fileno())
-            os.replace(tmp, target)
+            os.replace(tmp.name, target)
+            tmp.forget()
         except BaseException as exc:
-            if tmp is not None:
-                try:
-                    os.unlink(tmp)
-                except OSError:
-                    pass
+            tmp.remove()
             if isinstance(exc, OSError):
                 raise LdasparkError(f"cannot write {path}: {exc.strerror or exc}") from None
             raise
 
 
-class _sigterm_raises:
-    """While a temporary file exists, SIGTERM raises _Terminated (so the cleanup above runs);
-    on the way out the default action is restored and the signal re-sent, so the process still
-    ends by SIGTERM as its parent expects. Only in the main thread, and only when SIGTERM has
-    its default action (a program's own handler is left alone)."""
-
-    def __enter__(self):
-        self.old = None
-        if threading.current_thread() is threading.main_thread():
-            try:
-                if signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:
-                    self.old = signal.signal(signal.SIGTERM, _raise_terminated)
-            except (ValueError, OSError):
-                self.old = None
-        return self
-
-    def __exit__(self, typ, exc, tb):
-        if self.old is not None:
-            signal.signal(signal.SIGTERM, self.old)
-            if typ is _Terminated:
-                os.kill(os.getpid(), signal.SIGTERM)
-        return False
-
-
-def _raise_terminated(signum, frame):
-    raise _Terminated()
+# While a temporary file exists, the stop signals raise (so that the cleanup above runs) and the
+# process still ends by the signal afterwards; under the command line its own policy applies.
+_sigterm_raises = raise_on_stop_signals
 
 
 def _default_mode(path) -> int:

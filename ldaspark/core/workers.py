@@ -40,6 +40,8 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
 
 from .errors import InputError, LdasparkError
+from .io import atomic_write_text
+from .lifecycle import make_process_pool
 
 
 class UnitsFailed(LdasparkError):
@@ -127,7 +129,7 @@ class _Place:
             if n == 1 and self.inline_single:
                 return InlineExecutor()
             self.own_pool = True
-            return cf.ProcessPoolExecutor(n, mp_context=self.mp_context)
+            return make_process_pool(n, mp_context=self.mp_context)
         if is_address(w) or _is_client(w):
             if is_address(w):
                 try:
@@ -152,8 +154,8 @@ class _Place:
     def renew(self):
         if self.own_pool:
             _stop_pool(self.executor)
-            self.executor = cf.ProcessPoolExecutor(max(1, self.jobs or os.cpu_count() or 1),
-                                                   mp_context=self.mp_context)
+            self.executor = make_process_pool(max(1, self.jobs or os.cpu_count() or 1),
+                                              mp_context=self.mp_context)
 
     def cancel(self, futures):
         for f in futures:
@@ -353,12 +355,9 @@ class Checkpoint:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         if os.path.lexists(self.path):
             self._check_regular()
-        tmp = self.path.with_name(self.path.name + f".{os.getpid()}.tmp")
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(json.dumps({"fingerprint": self.fingerprint}) + "\n")
-            for k, v in keep.items():
-                fh.write(json.dumps({"unit": k, "value": v}) + "\n")
-        os.replace(tmp, self.path)
+        lines = [json.dumps({"fingerprint": self.fingerprint}) + "\n"]
+        lines += [json.dumps({"unit": k, "value": v}) + "\n" for k, v in keep.items()]
+        atomic_write_text(self.path, "".join(lines))
         self._fh = open(self.path, "a", encoding="utf-8")
         return self
 

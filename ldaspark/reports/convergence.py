@@ -11,7 +11,6 @@ from __future__ import annotations
 import os
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 
 from ..theory.orders import claimed_order_of, verdict, make_reference, measure_errors, order_records
 from ..core.errors import InputError
@@ -106,7 +105,8 @@ def compute(scenes=DEFAULT_SCENES, methods=None, t_end=T_END, workers=2):
     print(f"[convergence] {len(scenes)} scenes x {len(methods)} methods, t_end = {t_end}, "
           f"{workers} worker(s)", flush=True)
     if workers > 1 and len(jobs) > 1:
-        with ProcessPoolExecutor(max_workers=workers) as ex:
+        from ..core.lifecycle import make_process_pool
+        with make_process_pool(max_workers=workers) as ex:   # workers die with this process
             parts = list(ex.map(_scene_job, jobs))
     else:
         parts = [_scene_job(j) for j in jobs]

@@ -28,6 +28,7 @@ import tempfile
 import time
 
 from ..core.errors import LdasparkError
+from ..core.lifecycle import run_linked, subprocess_guard
 from .mutation_catalogue import CATALOGUE, QUICK, Mutant, by_id
 
 PACKAGE = pathlib.Path(__file__).resolve().parents[1]          # .../ldaspark
@@ -140,7 +141,8 @@ def run_pytest(root, targets, timeout=TIMEOUT, cache_dir=None, python=sys.execut
     cmd = [python, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", "-rfE", *targets]
     t = time.time()
     try:
-        p = subprocess.run(cmd, cwd=root, env=env, capture_output=True, text=True, timeout=timeout)
+        # a child that dies with this process (and is killed when the run is stopped)
+        p = run_linked(cmd, cwd=root, env=env, capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired as exc:
         out = (exc.stdout or b"").decode() if isinstance(exc.stdout, bytes) else (exc.stdout or "")
         return None, out, time.time() - t
@@ -259,8 +261,14 @@ def run_catalogue(mutants, jobs=2, hints_only=False, progress=None, exclude=(), 
         recs = run_resumable(units, checkpoint, where=where, on_done=done)
     else:
         assert not is_address(where)
-        with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, jobs)) as ex:
-            recs = run_resumable(units, checkpoint, where=ex, on_done=done)
+        with subprocess_guard() as guard, concurrent.futures.ThreadPoolExecutor(max_workers=max(1, jobs)) as ex:
+            try:
+                recs = run_resumable(units, checkpoint, where=ex, on_done=done)
+            except BaseException:
+                # stopped (a signal, an error): the threads' pytest processes are killed and no
+                # new one starts, so that leaving the pool does not wait for them to finish
+                guard.stop()
+                raise
     return [recs[m.id] for m in mutants]
 
 
