@@ -205,6 +205,13 @@ def _check_writable(result: Result) -> dict:
         a = np.asarray(a)
         if a.dtype.kind not in "iuf" or not np.all(np.isfinite(a)):
             raise InputError(f"refusing to write a result whose {k} contains NaN, infinity or non-real values")
+    # the reader's structural checks of events and dense output, on what is about to be written
+    import types
+    probe = types.SimpleNamespace(q=np.asarray(result.q), t=result.t, members=result.members, sol=None)
+    try:
+        _restore_extras(probe, extra)
+    except InputError as exc:
+        raise InputError(f"refusing to write a result that the reader would refuse: {exc}") from None
     md = metadata(result)
     for k, v in md.items():
         _check_finite_json(v, k)
