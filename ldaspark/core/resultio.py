@@ -198,8 +198,8 @@ def _check_finite_json(x, where: str) -> None:
 
 
 def _check_writable(result: Result) -> dict:
-    """The checks every writer makes before touching the file; returns the extra arrays."""
-    _check_finite_arrays(result)
+    """The checks every writer makes before touching the file, after ``_check_finite_arrays``;
+    returns the extra arrays."""
     extra = _extra_arrays(result)
     for k, a in extra.items():
         a = np.asarray(a)
@@ -249,15 +249,16 @@ def save_result(result: Result, path: Union[str, os.PathLike]) -> None:
     path = check_path(path)
     if result.members is not None and _ext(path) == ".json":
         raise InputError("ensemble results are written as .npz or .h5")
-    extra = _check_writable(result)
+    _check_finite_arrays(result)
     ext = _ext(path)
+    extra = _check_writable(result)
     if ext == ".json":
         atomic_write_json(path, _to_json(result))
         return
     arrays = {name: _numbers(getattr(result, name), result.dps) for name in ARRAYS
               if getattr(result, name) is not None}
     arrays.update(extra)
-    md = json.dumps(dict(metadata(result), stats=_json_value(result.stats)), allow_nan=False)
+    md = json.dumps(dict(metadata(result), stats=_json_value(result.stats)))
     if ext == ".npz":
         buf = io.BytesIO()
         np.savez(buf, metadata=np.array(md), **arrays)
