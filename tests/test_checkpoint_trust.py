@@ -401,3 +401,14 @@ def test_the_mutation_schema():
             check_record(m.id, bad)
     with pytest.raises(LdasparkError):
         check_record("another-id", rec)
+
+
+def test_the_key_is_made_where_hard_links_are_not_supported(private_cache, monkeypatch):
+    def no_link(src, dst):
+        raise PermissionError(1, "Operation not permitted")
+    monkeypatch.setattr(os, "link", no_link)
+    key = checkpoint_key()
+    path = private_cache / "checkpoint-hmac.key"
+    assert len(key) == 32 and stat.S_IMODE(os.lstat(path).st_mode) == 0o600
+    workers._KEYS.clear()
+    assert checkpoint_key() == key

@@ -328,7 +328,7 @@ def _hash_tree(h, root: pathlib.Path, pattern: str) -> None:
     for p in sorted(root.rglob(pattern)):
         rel = p.relative_to(root)
         if any(part in _FINGERPRINT_SKIP for part in rel.parts) or p.name.endswith(_FINGERPRINT_SKIP_SUFFIX) \
-                or p.is_symlink() or not p.is_file():
+                or not p.is_file():            # FIFOs, sockets, directories: never opened
             continue
         h.update(str(rel).encode() + b"\0")
         h.update(hashlib.sha256(p.read_bytes()).digest())
@@ -435,6 +435,13 @@ def checkpoint_key(directory: str | None = None) -> bytes:
                 os.link(tmp, path)              # never replaces a key another process made
             except FileExistsError:
                 pass
+            except OSError:                     # no hard links here: create it in place, O_EXCL
+                fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | nofollow, 0o600)
+                try:
+                    os.write(fd, secrets.token_hex(32).encode("ascii") + b"\n")
+                    os.fsync(fd)
+                finally:
+                    os.close(fd)
         except OSError as exc:
             raise CheckpointKeyError(f"cannot create the checkpoint key {path}: {exc.strerror or exc}") from None
         finally:
