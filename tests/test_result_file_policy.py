@@ -433,9 +433,10 @@ def test_a_file_claiming_non_finite_stats_is_refused_by_every_reader(res, good, 
         import shutil
         shutil.copy(good / "good.h5", p)
         with h5py.File(p, "a") as f:
-            md = json.loads(f.attrs["metadata"])
+            md = json.loads(bytes(f["metadata"][()]))
             md["stats"]["max_residual"] = float("inf")
-            f.attrs["metadata"] = json.dumps(md)
+            del f["metadata"]
+            f["metadata"] = np.bytes_(json.dumps(md).encode())
     refused(p, "not a finite")
 
 
@@ -478,3 +479,70 @@ def test_dense_data_the_reader_would_refuse_are_not_written(res, tmp_path, ext):
     with pytest.raises(InputError, match="dense_V has shape"):
         save_result(_copy(res, sol=sol), tmp_path / f"r.{ext}")
     assert os.listdir(tmp_path) == []
+
+
+def test_h5_metadata_is_a_fixed_length_string_checked_before_reading(res, good, tmp_path):
+    """Read from a scalar dataset of one fixed-length string (its size is known before it is
+    read): a variable-length string lives in the global heap, and a corrupt heap entry made the
+    HDF5 library loop forever while reading it (found by the byte-flip fuzz below, on files of
+    the earlier writer)."""
+    with h5py.File(good / "good.h5", "r") as f:
+        ds = f["metadata"]
+        assert ds.shape == () and ds.dtype.kind == "S" and json.loads(bytes(ds[()]))["method"] == "gauss-2"
+    import shutil
+    legacy = tmp_path / "legacy.h5"                  # files of the earlier writer still load
+    shutil.copy(good / "good.h5", legacy)
+    with h5py.File(legacy, "a") as f:
+        del f["metadata"]
+        assert h5py.check_string_dtype(f.attrs.get_id("metadata").dtype).length is None
+    assert np.array_equal(load_result(legacy).q, res.q)
+    for name, make in (("vlen", lambda f: f.create_dataset("metadata", data="{}", dtype=h5py.string_dtype())),
+                       ("array", lambda f: f.create_dataset("metadata", data=np.array([b"{}", b"{}"]))),
+                       ("group", lambda f: f.create_group("metadata"))):
+        p = tmp_path / f"{name}.h5"
+        shutil.copy(good / "good.h5", p)
+        with h5py.File(p, "a") as f:
+            del f["metadata"]
+            make(f)
+        refused(p, "metadata dataset is not one fixed-length JSON string")
+
+
+def test_an_ensembles_large_metadata_is_written_and_read_as_hdf5(tmp_path):
+    import copy
+    ens = ldaspark.integrate("particle", "gauss-1", n_steps=2, h=0.1, q0=[[1, 0, 0], [2, 0, 0]],
+                             v0=[[0, 1, 0], [0, 2, 0]], engine="generic")
+    big = copy.copy(ens)
+    big.params = {f"p{i}": float(i) for i in range(20000)}    # metadata of ~400 KB (> 64 KiB)
+    save_result(big, tmp_path / "e.h5")
+    assert load_result(tmp_path / "e.h5").params == big.params
+
+
+_FLIP_SCRIPT = r"""
+import random, sys
+sys.path.insert(0, sys.argv[1])
+from ldaspark import load_result
+from ldaspark.core.errors import LdasparkError
+rng = random.Random(7)
+for ext in ("h5", "npz"):
+    raw = bytearray(open(f"{sys.argv[2]}/good.{ext}", "rb").read())
+    for i in range(60):
+        b = bytearray(raw)
+        for _ in range(rng.randint(1, 8)):
+            b[rng.randrange(len(b))] = rng.randrange(256)
+        p = f"{sys.argv[3]}/x{i}.{ext}"
+        open(p, "wb").write(b)
+        try:
+            load_result(p)
+        except LdasparkError as exc:
+            assert "\n" not in str(exc)
+print("done")
+"""
+
+
+def test_byte_flipped_files_are_one_error_and_never_hang(good, tmp_path):
+    """Random byte flips of a written .h5 and .npz: a Result or one InputError, never another
+    exception, a crash or a hang (a subprocess: a loop inside the HDF5 library cannot be
+    interrupted)."""
+    p = subprocess.run([sys.executable, "-c", _FLIP_SCRIPT, ROOT, str(good), str(tmp_path)],
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0 and p.stdout.strip() == "done", (p.stdout[-500:], p.stderr[-2000:])

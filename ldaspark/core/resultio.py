@@ -269,7 +269,12 @@ def save_result(result: Result, path: Union[str, os.PathLike]) -> None:
     with h5py.File(buf, "w") as f:
         for name, a in arrays.items():
             f.create_dataset(name, data=a.astype("S") if a.dtype.kind == "U" else a)
-        f.attrs["metadata"] = md
+        # what load_result reads: a scalar dataset of one fixed-length string, whose size is known
+        # and checked before it is read (a variable-length string lives in the global heap, and a
+        # corrupt heap entry makes the HDF5 library loop forever reading it; an attribute of a
+        # fixed length is limited to 64 KiB, less than an ensemble's metadata)
+        f.create_dataset("metadata", data=np.bytes_(md.encode("utf-8")))
+        f.attrs["metadata"] = md                 # the same text for other HDF5 tools (not read here)
         for k in ("scene", "method", "h", "dps", "version", "status"):
             v = json.loads(md)[k]
             f.attrs[k] = json.dumps(v) if not isinstance(v, (str, int, float)) else v
@@ -516,20 +521,35 @@ def _h5_check_tree(f) -> None:
                 raise InputError(f"{name} is an HDF5 {getattr(cls, '__name__', cls)}, not a group or dataset")
 
 
+#: longest metadata text read from an HDF5 file (an ensemble of 10^5 members needs ~2 MB)
+MAX_H5_METADATA = 64 * 2 ** 20
+
+
 def _h5_metadata(f) -> str:
-    """The root attribute ``metadata``: a scalar string of at most 1 MiB, checked before it is read."""
-    if "metadata" not in f.attrs:
-        raise InputError("no metadata attribute")
-    aid = f.attrs.get_id("metadata")
-    dt = aid.dtype
-    is_str = dt.kind in "SU" or _h5py().check_string_dtype(dt) is not None
-    if not is_str or aid.shape not in ((), None) or aid.get_storage_size() > 2 ** 20:
-        raise InputError("the metadata attribute is not a JSON string of at most 1 MiB")
-    raw = f.attrs["metadata"]
-    if isinstance(raw, bytes):
-        raw = raw.decode("utf-8")
-    if not isinstance(raw, str) or len(raw) > 2 ** 20:
-        raise InputError("the metadata attribute is not a JSON string of at most 1 MiB")
+    """The metadata text: the scalar dataset ``metadata`` of one fixed-length byte string (what
+    ``save_result`` writes), its size checked before it is read; files of earlier versions have
+    only the root attribute ``metadata`` (a variable-length string of at most 1 MiB, read as
+    before)."""
+    h5py = _h5py()
+    if "metadata" in f:
+        ds = f["metadata"]
+        if not isinstance(ds, h5py.Dataset) or ds.shape != () or ds.dtype.kind != "S" or \
+                not 0 < ds.dtype.itemsize <= MAX_H5_METADATA:
+            raise InputError("the metadata dataset is not one fixed-length JSON string")
+        raw = ds[()]
+    else:
+        if "metadata" not in f.attrs:
+            raise InputError("no metadata attribute")
+        aid = f.attrs.get_id("metadata")
+        dt = aid.dtype
+        is_str = dt.kind in "SU" or h5py.check_string_dtype(dt) is not None
+        if not is_str or aid.shape not in ((), None) or aid.get_storage_size() > 2 ** 20:
+            raise InputError("the metadata attribute is not a JSON string of at most 1 MiB")
+        raw = f.attrs["metadata"]
+    if isinstance(raw, (bytes, np.bytes_)):
+        raw = bytes(raw).decode("utf-8")
+    if not isinstance(raw, str) or len(raw) > MAX_H5_METADATA:
+        raise InputError("the metadata is not a JSON string")
     return raw
 
 
@@ -624,7 +644,10 @@ def _load(path, ext, fh, size) -> Result:
                                   for k, x in (d.get("extra_arrays") or {}).items()})
             return res
         if ext == ".npz":
-            with np.load(fh, allow_pickle=False) as z:
+            z = np.load(fh, allow_pickle=False)
+            if not hasattr(z, "files"):          # a bare .npy array under an .npz name
+                raise InputError("not an .npz archive")
+            with z:
                 arrays = _npz_arrays(path, z)
                 if "metadata" not in arrays:
                     raise InputError("no metadata array")
