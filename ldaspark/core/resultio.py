@@ -5,7 +5,8 @@
   run), plus engine, status, message, save_every, params, version.
 * ``.npz``: named arrays t, q, v, energy, constraint (and psi when the engine forms it) and
   the metadata as a JSON string in the array ``metadata``; no pickled objects.
-* ``.h5`` / ``.hdf5``: the same arrays as HDF5 datasets, metadata as attributes of the root
+* ``.h5`` / ``.hdf5``: the same arrays as HDF5 datasets, the metadata as the scalar dataset
+  ``metadata`` (one fixed-length JSON string) and, for other tools, as attributes of the root
   group (needs h5py: ``pip install ldaspark[h5]``).
 
 mpmath results are stored as decimal strings (full precision) in every format and read back as
