@@ -5,11 +5,24 @@
   run), plus engine, status, message, save_every, params, version.
 * ``.npz``: named arrays t, q, v, energy, constraint (and psi when the engine forms it) and
   the metadata as a JSON string in the array ``metadata``; no pickled objects.
-* ``.h5`` / ``.hdf5``: the same arrays as HDF5 datasets, metadata as attributes of the root
+* ``.h5`` / ``.hdf5``: the same arrays as HDF5 datasets, the metadata as the scalar dataset
+  ``metadata`` (one fixed-length JSON string) and, for other tools, as attributes of the root
   group (needs h5py: ``pip install ldaspark[h5]``).
 
 mpmath results are stored as decimal strings (full precision) in every format and read back as
 mpf at the stored ``dps``. Every file is written atomically (``ldaspark.core.io``).
+
+Reader policy, one for every format (docs/reliability.md, "Trust model for checkpoints and result
+files"): what ``save_result`` writes, ``load_result`` reads, and nothing else. A result file never
+reaches outside itself: in HDF5 only hard-linked groups and datasets are accepted (external and
+soft links, external raw storage, virtual datasets, committed datatypes and unknown filters are
+refused before any data is read, so a FIFO or device they name is never opened); every array
+has a whitelisted dtype (integer, float, or non-empty byte / unicode strings for the decimal
+strings of an mpmath run) with a non-zero item size, and its element count, from the header, is
+bounded by the bytes the file holds before anything is allocated; object arrays are never
+loaded. Non-finite numbers are refused at write time in every format (arrays, events, dense
+output, metadata and ``stats``: a file that one format's reader would refuse is never written),
+and at read time.
 
 Also kept (float64, as computed): ``stats`` (JSON key / metadata), the events (``t_events_e``,
 ``q_events_e``, ``v_events_e`` for event function e) and the dense output's data (``dense_t``,
@@ -43,6 +56,8 @@ def _ext(path) -> str:
 
 
 def _json_value(x: Any) -> Any:
+    if isinstance(x, np.bool_):
+        return bool(x)
     if isinstance(x, (np.integer,)):
         return int(x)
     if isinstance(x, (np.floating,)):
@@ -51,6 +66,8 @@ def _json_value(x: Any) -> Any:
         return {str(k): _json_value(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
         return [_json_value(v) for v in x]
+    if isinstance(x, np.ndarray) and x.dtype.kind in "biuf":     # an ensemble's counters
+        return [_json_value(v) for v in x.tolist()]
     if isinstance(x, (str, int, float, bool)) or x is None:
         return x
     return str(x)
@@ -113,18 +130,40 @@ def _restore_extras(res: Result, extra: dict) -> None:
     ne = 0
     while f"t_events_{ne}" in extra:
         ne += 1
+    res.t_events, res.q_events, res.v_events = [], [], []
     def grab(k):
         a = np.asarray(extra[k], float)
         if not np.all(np.isfinite(a)):
             raise InputError(f"{k} contains NaN or infinity")
         return a
-    res.t_events = [grab(f"t_events_{e}") for e in range(ne)]
-    res.q_events = [grab(f"q_events_{e}") for e in range(ne)]
-    res.v_events = [grab(f"v_events_{e}") for e in range(ne)]
-    if "dense_c" in extra:
-        res.sol = CollocationDense(grab("dense_t"), grab("dense_q"), grab("dense_c"), grab("dense_V"))
-    elif "dense_v" in extra:
-        res.sol = HermiteDense(grab("dense_t"), grab("dense_q"), grab("dense_v"))
+    def need(k, shape, what):
+        if k not in extra:
+            raise InputError(f"{k} is missing ({what})")
+        a = grab(k)
+        if a.ndim != len(shape) or any(want is not None and got != want for got, want in zip(a.shape, shape)):
+            raise InputError(f"{k} has shape {a.shape}, not {tuple('*' if w is None else w for w in shape)} ({what})")
+        return a
+    n = res.q.shape[-1]
+    if res.members is None and np.asarray(res.t).ndim == 1:
+        for e in range(ne):
+            te = need(f"t_events_{e}", (None,), "event times")
+            res.t_events.append(te)
+            res.q_events.append(need(f"q_events_{e}", (len(te), n), "event positions"))
+            res.v_events.append(need(f"v_events_{e}", (len(te), n), "event velocities"))
+        if "dense_c" in extra or "dense_v" in extra:
+            t = need("dense_t", (None,), "dense output nodes")
+            if len(t) < 2 or not np.all(np.diff(t) > 0):
+                raise InputError("dense_t is not an increasing sequence of at least two times")
+            q = need("dense_q", (len(t), n), "dense output")
+            if "dense_c" in extra:
+                c = need("dense_c", (None,), "collocation nodes")
+                if not len(c):
+                    raise InputError("dense_c is empty")
+                res.sol = CollocationDense(t, q, c, need("dense_V", (len(t) - 1, len(c), n), "stage velocities"))
+            else:
+                res.sol = HermiteDense(t, q, need("dense_v", (len(t), n), "dense output"))
+    elif ne or any(k.startswith("dense_") for k in extra):
+        raise InputError("events or dense output stored with an ensemble")
 
 
 def _check_finite_arrays(result: Result) -> None:
@@ -145,19 +184,81 @@ def _check_finite_arrays(result: Result) -> None:
             raise InputError(f"refusing to write a result whose {name} contains NaN, infinity or non-real values")
 
 
+def _check_finite_json(x, where: str) -> None:
+    """Every number in the JSON value ``x`` (metadata, stats) is finite: the .json writer would
+    refuse the rest, and the readers of every format do."""
+    if isinstance(x, float) and not np.isfinite(x):
+        raise InputError(f"refusing to write a result whose {where} is {x} (not finite: no format would read "
+                         "it back)")
+    if isinstance(x, dict):
+        for k, v in x.items():
+            _check_finite_json(v, f"{where}[{k!r}]")
+    elif isinstance(x, list):
+        for i, v in enumerate(x):
+            _check_finite_json(v, f"{where}[{i}]")
+
+
+def _check_writable(result: Result) -> dict:
+    """The checks every writer makes before touching the file, after ``_check_finite_arrays``;
+    returns the extra arrays."""
+    extra = _extra_arrays(result)
+    for k, a in extra.items():
+        a = np.asarray(a)
+        if a.dtype.kind not in "iuf" or not np.all(np.isfinite(a)):
+            raise InputError(f"refusing to write a result whose {k} contains NaN, infinity or non-real values")
+    # the reader's structural checks of events and dense output, on what is about to be written
+    import types
+    probe = types.SimpleNamespace(q=np.asarray(result.q), t=result.t, members=result.members, sol=None)
+    try:
+        _restore_extras(probe, extra)
+    except InputError as exc:
+        raise InputError(f"refusing to write a result that the reader would refuse: {exc}") from None
+    md = metadata(result)
+    for k, v in md.items():
+        _check_finite_json(v, k)
+    _check_finite_json(_json_value(result.stats), "stats")
+    return extra
+
+
+def check_path(path, what: str = "result file") -> str:
+    """``path`` as a str: a str or os.PathLike naming a file (not bytes, not an int file
+    descriptor, not empty, no NUL character); InputError otherwise."""
+    if isinstance(path, (bool, int)):
+        raise InputError(f"the {what} must be a path (str or os.PathLike), got the integer {path!r} "
+                         "(file descriptors are not accepted)")
+    if not isinstance(path, (str, os.PathLike)):
+        raise InputError(f"the {what} must be a path (str or os.PathLike), got {type(path).__name__}")
+    try:
+        p = os.fspath(path)
+    except TypeError as exc:
+        raise InputError(f"the {what} must be a path: {exc}") from None
+    if not isinstance(p, str):
+        raise InputError(f"the {what} must be a str path, got {type(p).__name__}")
+    if not p:
+        raise InputError(f"the {what} path is empty")
+    if "\0" in p:
+        raise InputError(f"the {what} path contains a NUL character")
+    return p
+
+
 def save_result(result: Result, path: Union[str, os.PathLike]) -> None:
     """Write ``result`` to ``path`` (format by extension; atomically). NaN, infinity and complex
-    values are refused in every format."""
+    values are refused in every format, in the arrays, the events, the dense output, the
+    metadata and ``stats`` alike (InputError; nothing is written)."""
+    if not isinstance(result, Result):
+        raise InputError(f"save_result needs a Result, got {type(result).__name__}")
+    path = check_path(path)
     if result.members is not None and _ext(path) == ".json":
         raise InputError("ensemble results are written as .npz or .h5")
     _check_finite_arrays(result)
     ext = _ext(path)
+    extra = _check_writable(result)
     if ext == ".json":
         atomic_write_json(path, _to_json(result))
         return
     arrays = {name: _numbers(getattr(result, name), result.dps) for name in ARRAYS
               if getattr(result, name) is not None}
-    arrays.update(_extra_arrays(result))
+    arrays.update(extra)
     md = json.dumps(dict(metadata(result), stats=_json_value(result.stats)))
     if ext == ".npz":
         buf = io.BytesIO()
@@ -169,7 +270,12 @@ def save_result(result: Result, path: Union[str, os.PathLike]) -> None:
     with h5py.File(buf, "w") as f:
         for name, a in arrays.items():
             f.create_dataset(name, data=a.astype("S") if a.dtype.kind == "U" else a)
-        f.attrs["metadata"] = md
+        # what load_result reads: a scalar dataset of one fixed-length string, whose size is known
+        # and checked before it is read (a variable-length string lives in the global heap, and a
+        # corrupt heap entry makes the HDF5 library loop forever reading it; an attribute of a
+        # fixed length is limited to 64 KiB, less than an ensemble's metadata)
+        f.create_dataset("metadata", data=np.bytes_(md.encode("utf-8")))
+        f.attrs["metadata"] = md                 # the same text for other HDF5 tools (not read here)
         for k in ("scene", "method", "h", "dps", "version", "status"):
             v = json.loads(md)[k]
             f.attrs[k] = json.dumps(v) if not isinstance(v, (str, int, float)) else v
@@ -242,6 +348,16 @@ def _check_metadata(md) -> dict:
     for key in ("scene", "method", "system", "engine", "message"):
         if md.get(key) is not None and not isinstance(md[key], (str, list)):
             raise InputError(f"metadata: {key} must be a string, got {type(md[key]).__name__}")
+    for key in ("nfev", "njev", "nlu", "newton_iterations"):
+        x = md.get(key)
+        if x is not None and not (isinstance(x, int) and not isinstance(x, bool) and x >= 0) and not (
+                isinstance(x, list) and all(isinstance(y, int) and not isinstance(y, bool) and y >= 0 for y in x)):
+            raise InputError(f"metadata: {key} must be a non-negative integer, got {str(x)[:40]}")
+    h = md.get("h")
+    if h is not None and (isinstance(h, bool) or not isinstance(h, (int, float, str))):
+        raise InputError(f"metadata: h must be a number or a decimal string, got {type(h).__name__}")
+    if md.get("version") is not None and not isinstance(md["version"], str):
+        raise InputError(f"metadata: version must be a string, got {type(md['version']).__name__}")
     se = md.get("save_every", 1)
     if se is not None and (isinstance(se, bool) or not isinstance(se, int) or se < 1):
         raise InputError(f"metadata: save_every must be a positive integer, got {str(se)[:40]}")
@@ -285,6 +401,9 @@ def _build(md: dict, arrays: dict) -> Result:
     m = np.asarray(got["constraint"]).shape[-1] if np.asarray(got["constraint"]).ndim > 1 else 0
     kw = {k: md[k] for k in ("scene", "method", "system", "engine", "h", "dps", "message", "save_every", "params",
                               "nfev", "njev", "nlu", "newton_iterations") if md.get(k) is not None}
+    for c in ("nfev", "njev", "nlu", "newton_iterations"):
+        if isinstance(kw.get(c), list):                 # an ensemble's counters, as written
+            kw[c] = np.asarray(kw[c], dtype=np.int64)
     status = md.get("status", 0)
     res = Result(t, got["q"].reshape(len(t), n) if t.ndim == 1 else got["q"], got["v"].reshape(got["q"].shape),
                  got["energy"], got["constraint"].reshape(len(t), m) if t.ndim == 1 else got["constraint"], psi,
@@ -304,9 +423,24 @@ def _finite_float(text):
     return x
 
 
+def _dtype_refusal(k: str, dtype, strings: bool) -> str:
+    """"" when ``dtype`` is one the writer writes for the array ``k`` (integer or float; for the
+    trajectory arrays also non-empty strings: an mpmath run's decimal digits), else why not."""
+    if dtype.hasobject:
+        return f"{k} is an object array (pickled data are never loaded)"
+    if dtype.fields is not None:
+        return f"{k} has a compound dtype: not a result array"
+    if dtype.kind not in ("iuf" + ("SU" if strings else "")) or dtype.subdtype is not None:
+        return f"{k} has dtype {dtype}: not a result array"
+    if dtype.itemsize == 0:                  # U0 / S0: 10^12 elements would cost nothing on disk
+        return f"{k} has dtype {dtype.str} with zero item size: not a result array"
+    return ""
+
+
 def _npz_arrays(path, z) -> dict:
     """The arrays of an open .npz, each header read (and bounded) before its data: a header
-    claiming 1e15 elements, a truncated member or a pickled object array is one InputError."""
+    claiming 1e15 elements, a zero-width dtype, a truncated member or a pickled object array is
+    one InputError."""
     out = {}
     names = set(z.files)
     for k in ARRAYS + ("metadata",) + tuple(sorted(n for n in names if _is_extra(n))):
@@ -319,10 +453,11 @@ def _npz_arrays(path, z) -> dict:
                    else np.lib.format.read_array_header_2_0)(f)
         shape, _, dtype = hdr
         n = int(np.prod(shape, dtype=object)) if shape else 1
-        if dtype.hasobject:
-            raise InputError(f"{k} is an object array (pickled data are never loaded)")
-        if dtype.fields is not None:
-            raise InputError(f"{k} has a compound dtype: not a result array")
+        why = _dtype_refusal(k, dtype, k in ARRAYS + ("metadata",))
+        if k == "metadata" and not why and (dtype.kind != "U" or shape != ()):
+            why = f"metadata is a {dtype} array of shape {shape}, not a JSON string"
+        if why:
+            raise InputError(why)
         if n * dtype.itemsize > info.file_size:
             raise InputError(f"{k}: the header claims {n:.3g} elements, more than the file holds (truncated?)")
         # a compressed member inflates by at most 64x (trajectories compress 1-3x; 1.4 MB of
@@ -333,9 +468,96 @@ def _npz_arrays(path, z) -> dict:
     return out
 
 
+#: objects visited in an HDF5 file (a result has ~20 datasets; hard links can make cycles)
+MAX_H5_OBJECTS = 4096
+MAX_H5_DEPTH = 16
+#: HDF5 filters accepted on a dataset (deflate, shuffle, fletcher32: built into the library);
+#: any other would make HDF5 search its plugin path for a shared library to load
+H5_FILTERS = (1, 2, 3)
+
+
+def _h5_check_dataset(name, ds) -> None:
+    """Refuse a dataset that reaches outside the file (external raw storage, a virtual dataset)
+    or needs a filter plugin, before any of its data is read."""
+    dcpl = ds.id.get_create_plist()
+    h5d = __import__("h5py").h5d
+    if ds.is_virtual or dcpl.get_layout() == h5d.VIRTUAL:
+        raise InputError(f"{name} is a virtual dataset (its data live in other files): refused")
+    if ds.external or dcpl.get_external_count():
+        raise InputError(f"{name} keeps its data in external files: refused")
+    for i in range(dcpl.get_nfilters()):
+        code = dcpl.get_filter(i)[0]
+        if code not in H5_FILTERS:
+            raise InputError(f"{name} needs the HDF5 filter {code} (only deflate, shuffle and fletcher32 are read)")
+
+
+def _h5_check_tree(f) -> None:
+    """Every link in the file is a hard link to a group or a dataset that stays inside the file
+    (``_h5_check_dataset``): external and soft links, user-defined links and committed datatypes
+    are refused, without resolving them (an external link to a FIFO is never opened)."""
+    h5py = _h5py()
+    seen, todo = 0, [(f, "", 0)]
+    while todo:
+        group, prefix, depth = todo.pop()
+        if depth > MAX_H5_DEPTH:
+            raise InputError(f"groups nested more than {MAX_H5_DEPTH} deep at {prefix}")
+        for key in group.keys():                      # link names only: nothing is resolved
+            name = f"{prefix}/{key}"
+            seen += 1
+            if seen > MAX_H5_OBJECTS:
+                raise InputError(f"more than {MAX_H5_OBJECTS} objects: not a result file")
+            link = group.get(key, getlink=True)
+            if isinstance(link, h5py.ExternalLink):
+                raise InputError(f"{name} is an external link (to {link.filename}): refused")
+            if isinstance(link, h5py.SoftLink):
+                raise InputError(f"{name} is a soft link (to {link.path}): refused")
+            if not isinstance(link, h5py.HardLink):
+                raise InputError(f"{name} is a {type(link).__name__}: refused")
+            cls = group.get(key, getclass=True)
+            if cls is h5py.Dataset:
+                _h5_check_dataset(name, group[key])
+            elif cls is h5py.Group:
+                todo.append((group[key], name, depth + 1))
+            else:
+                raise InputError(f"{name} is an HDF5 {getattr(cls, '__name__', cls)}, not a group or dataset")
+
+
+#: longest metadata text read from an HDF5 file (an ensemble of 10^5 members needs ~2 MB)
+MAX_H5_METADATA = 64 * 2 ** 20
+
+
+def _h5_metadata(f) -> str:
+    """The metadata text: the scalar dataset ``metadata`` of one fixed-length byte string (what
+    ``save_result`` writes), its size checked before it is read; files of earlier versions have
+    only the root attribute ``metadata`` (a variable-length string of at most 1 MiB, read as
+    before)."""
+    h5py = _h5py()
+    if "metadata" in f:
+        ds = f["metadata"]
+        if not isinstance(ds, h5py.Dataset) or ds.shape != () or ds.dtype.kind != "S" or \
+                not 0 < ds.dtype.itemsize <= MAX_H5_METADATA:
+            raise InputError("the metadata dataset is not one fixed-length JSON string")
+        raw = ds[()]
+    else:
+        if "metadata" not in f.attrs:
+            raise InputError("no metadata attribute")
+        aid = f.attrs.get_id("metadata")
+        dt = aid.dtype
+        is_str = dt.kind in "SU" or h5py.check_string_dtype(dt) is not None
+        if not is_str or aid.shape not in ((), None) or aid.get_storage_size() > 2 ** 20:
+            raise InputError("the metadata attribute is not a JSON string of at most 1 MiB")
+        raw = f.attrs["metadata"]
+    if isinstance(raw, (bytes, np.bytes_)):
+        raw = bytes(raw).decode("utf-8")
+    if not isinstance(raw, str) or len(raw) > MAX_H5_METADATA:
+        raise InputError("the metadata is not a JSON string")
+    return raw
+
+
 def _h5_arrays(f) -> dict:
-    """The datasets of an open HDF5 file: datasets only (no groups), not scalars, numeric or
-    string dtype, bounded size; read after these checks."""
+    """The datasets of an open HDF5 file (``_h5_check_tree`` passed): datasets only (no groups),
+    not scalars, numeric or string dtype of non-zero item size, bounded size; read after these
+    checks."""
     h5py = _h5py()
     out = {}
     for k in ARRAYS + tuple(sorted(n for n in f.keys() if _is_extra(n))):
@@ -346,8 +568,11 @@ def _h5_arrays(f) -> dict:
             raise InputError(f"{k} is an HDF5 {type(ds).__name__}, not a dataset")
         if ds.shape is None or ds.ndim == 0:
             raise InputError(f"{k} is a scalar, not an array")
-        if ds.dtype.fields is not None or ds.dtype.kind not in "iufS":
-            raise InputError(f"{k} has dtype {ds.dtype}: not a result array")
+        if ds.dtype.kind == "U" or h5py.check_string_dtype(ds.dtype) is not None and ds.dtype.kind == "O":
+            raise InputError(f"{k} has a variable-length string dtype: not a result array")
+        why = _dtype_refusal(k, ds.dtype, k in ARRAYS)
+        if why:
+            raise InputError(why.replace(" (pickled data are never loaded)", ""))
         need, held = int(ds.size) * ds.dtype.itemsize, int(ds.id.get_storage_size())
         # a chunked, compressed or fill-value dataset may claim far more than the file holds:
         # at most 64x what is stored (or 16 MiB) is read
@@ -357,20 +582,48 @@ def _h5_arrays(f) -> dict:
     return out
 
 
+def _open_regular(path: str, limit: int):
+    """A binary file object of ``path`` when it is a regular file of at most ``limit`` bytes:
+    ``os.stat`` before opening (a FIFO or device is never opened), then opened without blocking
+    and checked again on the descriptor (the same file, still regular): what is checked is what
+    is read. Returns (file object, size)."""
+    import stat
+    from .validate import regular_file
+    regular_file(path, limit, "result file")
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+    try:
+        fd = os.open(path, flags)
+    except OSError as exc:
+        raise InputError(f"cannot read result file {path}: {exc.strerror or exc}") from None
+    st = os.fstat(fd)
+    if not stat.S_ISREG(st.st_mode) or st.st_size > limit:
+        os.close(fd)
+        raise InputError(f"result file {path} is not a regular file of at most {limit} bytes")
+    return os.fdopen(fd, "rb"), st.st_size
+
+
 def load_result(path: Union[str, os.PathLike]) -> Result:
     """Read a result file written by ``save_result`` or ``ldaspark integrate --out`` (any format).
 
     Only regular files (checked by ``os.stat`` before opening: a FIFO, a device or a link to
-    /dev/zero is refused without blocking) of at most ``validate.MAX_RESULT_BYTES`` bytes;
-    array headers are bounded before the data are read; NaN, infinity, complex values, wrong
-    shapes and out-of-range metadata (dps outside [DPS_MIN, DPS_MAX]) are InputErrors."""
-    from .validate import MAX_RESULT_BYTES, regular_file
+    /dev/zero is refused without blocking; the descriptor read is checked again) of at most
+    ``validate.MAX_RESULT_BYTES`` bytes; array headers are bounded before the data are read; an
+    HDF5 file that links or stores data outside itself is refused before any is read (see the
+    module docstring); NaN, infinity, complex values, wrong shapes and out-of-range metadata
+    (dps outside [DPS_MIN, DPS_MAX]) are InputErrors. ``path``: a str or os.PathLike (not bytes,
+    not a file descriptor)."""
+    from .validate import MAX_RESULT_BYTES
+    path = check_path(path)
     ext = _ext(path)
-    size = regular_file(path, MAX_RESULT_BYTES, "result file")
+    fh, size = _open_regular(path, MAX_RESULT_BYTES)
+    with fh:
+        return _load(path, ext, fh, size)
+
+
+def _load(path, ext, fh, size) -> Result:
     try:
         if ext == ".json":
-            with open(path, "rb") as f:
-                raw = f.read(size + 1)
+            raw = fh.read(size + 1)
             d = json.loads(raw.decode("utf-8"), parse_constant=_no_constant, parse_float=_finite_float)
             if not isinstance(d, dict):
                 raise InputError(f"{os.fspath(path)}: not a result file")
@@ -392,7 +645,10 @@ def load_result(path: Union[str, os.PathLike]) -> Result:
                                   for k, x in (d.get("extra_arrays") or {}).items()})
             return res
         if ext == ".npz":
-            with np.load(path, allow_pickle=False) as z:
+            z = np.load(fh, allow_pickle=False)
+            if not hasattr(z, "files"):          # a bare .npy array under an .npz name
+                raise InputError("not an .npz archive")
+            with z:
                 arrays = _npz_arrays(path, z)
                 if "metadata" not in arrays:
                     raise InputError("no metadata array")
@@ -403,11 +659,9 @@ def load_result(path: Union[str, os.PathLike]) -> Result:
                 _restore_extras(res, extra)
                 return res
         h5py = _h5py()
-        with h5py.File(path, "r") as f:
-            raw = f.attrs["metadata"]
-            if not isinstance(raw, (str, bytes)) or len(raw) > 2 ** 20:
-                raise InputError("the metadata attribute is not a JSON string of at most 1 MiB")
-            md = json.loads(raw, parse_constant=_no_constant, parse_float=_finite_float)
+        with h5py.File(fh, "r") as f:
+            _h5_check_tree(f)                  # before anything is read
+            md = json.loads(_h5_metadata(f), parse_constant=_no_constant, parse_float=_finite_float)
             arrays = _h5_arrays(f)
             extra = {k: arrays.pop(k) for k in list(arrays) if _is_extra(k)}
             res = _build(md, arrays)

@@ -231,6 +231,31 @@ def run_mutant(mutant: Mutant | None, hints_only=False, project=PROJECT, timeout
         return rec
 
 
+STATUSES = ("killed", "survived", "invalid", "timeout")
+_TEXT_FIELDS = ("file", "description", "category")
+
+
+def check_record(name, rec):
+    """The schema of a mutant's record (``_record``, ``run_mutant``), for the checkpoint reader:
+    the mutant is the unit, status from STATUSES, killed a bool that says status == killed,
+    strings where ``_record`` puts strings, finite seconds >= 0. Raises LdasparkError."""
+    import math
+    keys = {"mutant", "file", "description", "category", "killed", "status", "first_failing_test", "seconds"}
+    if not isinstance(rec, dict) or not keys <= set(rec) or not set(rec) <= keys | {"output_tail"}:
+        raise LdasparkError(f"the record of {name} does not have a mutant record's keys")
+    if rec["mutant"] != name:
+        raise LdasparkError(f"the record of {name} names the mutant {str(rec['mutant'])[:40]}")
+    if rec["status"] not in STATUSES or not isinstance(rec["killed"], bool) or rec["killed"] != (rec["status"] == "killed"):
+        raise LdasparkError(f"the record of {name} has status {str(rec['status'])[:20]}, killed {rec['killed']!r}")
+    if not all(isinstance(rec[k], str) for k in _TEXT_FIELDS) or not isinstance(rec.get("output_tail", ""), str) \
+            or not (rec["first_failing_test"] is None or isinstance(rec["first_failing_test"], str)):
+        raise LdasparkError(f"the record of {name} has a text field that is not a string")
+    sec = rec["seconds"]
+    if isinstance(sec, bool) or not isinstance(sec, (int, float)) or not math.isfinite(sec) or sec < 0:
+        raise LdasparkError(f"the record of {name} has seconds {str(sec)[:30]}")
+    return True
+
+
 def _record(m: Mutant | None, status, first, seconds) -> dict:
     if m is None:
         m = Mutant("none", "", "", "", "unmutated package (control)", "control")
@@ -257,13 +282,16 @@ def run_catalogue(mutants, jobs=2, hints_only=False, progress=None, exclude=(), 
     def done(name, rec):
         if progress is not None:
             progress(rec)
+    if checkpoint is not None:      # a verdict depends on these, whatever the caller's fingerprint
+        checkpoint = checkpoint.bound_to("run_catalogue", hints_only, sorted(exclude), sorted(targets.items()),
+                                         TIMEOUT)
     if remote:
-        recs = run_resumable(units, checkpoint, where=where, on_done=done)
+        recs = run_resumable(units, checkpoint, where=where, on_done=done, validate=check_record)
     else:
         assert not is_address(where)
         with subprocess_guard() as guard, concurrent.futures.ThreadPoolExecutor(max_workers=max(1, jobs)) as ex:
             try:
-                recs = run_resumable(units, checkpoint, where=ex, on_done=done)
+                recs = run_resumable(units, checkpoint, where=ex, on_done=done, validate=check_record)
             except BaseException:
                 # stopped (a signal, an error): the threads' pytest processes are killed and no
                 # new one starts, so that leaving the pool does not wait for them to finish
@@ -355,7 +383,8 @@ def run(args) -> int:
     exclude = tuple(x.strip() for x in args.exclude.split(",") if x.strip())
     from ..core.workers import Checkpoint, UnitsFailed, source_fingerprint
     ck = Checkpoint(pathlib.Path(args.outdir) / "mutation.partial.jsonl",
-                    source_fingerprint("mutants", args.quick, exclude, dirs=(PROJECT / "tests", PROJECT / "verification")))
+                    source_fingerprint("mutants", args.quick, exclude,
+                                       paths=[PROJECT / name for name in COPY if name != "ldaspark"]))
     if getattr(args, "fresh", False):
         ck.discard()
     try:

@@ -84,6 +84,44 @@ def record(claim, method, scene, status, residual, expected, dps=None, wellposed
             "wellposed": wellposed, "seconds": round(float(seconds), 3), "note": note}
 
 
+RECORD_KEYS = frozenset(("claim", "method", "scene", "point", "status", "expected", "residual", "threshold", "dps",
+                         "wellposed", "seconds", "note"))
+_STATUSES = ("pass", "fail", "not-applicable")
+_WELLPOSED = (WELLPOSED, GAUGE, SINGULAR, "n/a")
+
+
+def _number_or_none(x, what, low=None):
+    if x is None:
+        return
+    if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x) or (low is not None and x < low):
+        raise LdasparkError(f"{what} is {str(x)[:30]}, not a finite number" + (f" >= {low}" if low is not None else ""))
+
+
+def check_unit_records(name, recs):
+    """The schema of a unit's records (what ``record`` builds), for the checkpoint reader: a list
+    of dicts with exactly RECORD_KEYS, strings where ``record`` puts strings, statuses and
+    well-posedness from their vocabularies, finite numbers (or None) for residual and threshold,
+    an integer dps (or None), finite seconds >= 0. Raises LdasparkError naming the first misfit."""
+    if not isinstance(recs, list):
+        raise LdasparkError(f"the records of {name} are a {type(recs).__name__}, not a list")
+    for i, r in enumerate(recs):
+        if not isinstance(r, dict) or set(r) != RECORD_KEYS:
+            raise LdasparkError(f"record {i} of {name} does not have the ledger's keys")
+        for k in ("claim", "method", "scene", "point", "note"):
+            if not isinstance(r[k], str):
+                raise LdasparkError(f"record {i}: {k} is not a string")
+        if r["status"] not in _STATUSES or r["expected"] not in _STATUSES or r["wellposed"] not in _WELLPOSED:
+            raise LdasparkError(f"record {i}: status, expected or wellposed outside their vocabularies")
+        _number_or_none(r["residual"], f"record {i}: residual")
+        _number_or_none(r["threshold"], f"record {i}: threshold")
+        if r["dps"] is not None and (isinstance(r["dps"], bool) or not isinstance(r["dps"], int) or r["dps"] < 1):
+            raise LdasparkError(f"record {i}: dps is {str(r['dps'])[:30]}, not a positive integer")
+        if r["seconds"] is None:
+            raise LdasparkError(f"record {i}: seconds is missing")
+        _number_or_none(r["seconds"], f"record {i}: seconds", 0)
+    return True
+
+
 def _status(residual, tol):
     return "pass" if residual is not None and residual <= tol else "fail"
 
@@ -420,7 +458,11 @@ def run_ledger(max_s=3, scenes=LEDGER_SCENES, perturbed=True, holonomic=True, co
     ctx = None
     if where is None:
         ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods() else None)
-    results = run_resumable(work, checkpoint, where=where, jobs=jobs, on_done=finished, mp_context=ctx, say=say)
+    if checkpoint is not None:      # the records depend on these settings, whatever the caller's fingerprint
+        checkpoint = checkpoint.bound_to("run_ledger", max_s, list(scenes), perturbed, holonomic, controls,
+                                         list(groups), quick)
+    results = run_resumable(work, checkpoint, where=where, jobs=jobs, on_done=finished, mp_context=ctx, say=say,
+                            validate=check_unit_records)
     return [r for u in units for r in results[unit_name(u, names)]]
 
 
