@@ -526,11 +526,11 @@ def _h5_check_tree(f) -> None:
 MAX_H5_METADATA = 64 * 2 ** 20
 
 
-def _h5_metadata(f) -> str:
+def _h5_metadata(f, fh) -> str:
     """The metadata text: the scalar dataset ``metadata`` of one fixed-length byte string (what
     ``save_result`` writes), its size checked before it is read; files of earlier versions have
-    only the root attribute ``metadata`` (a variable-length string of at most 1 MiB, read as
-    before)."""
+    only the root attribute ``metadata`` (a variable-length string of at most 1 MiB), read by
+    ``h5legacy`` in a child process with a time bound (``fh``: the open file)."""
     h5py = _h5py()
     if "metadata" in f:
         ds = f["metadata"]
@@ -539,14 +539,12 @@ def _h5_metadata(f) -> str:
             raise InputError("the metadata dataset is not one fixed-length JSON string")
         raw = ds[()]
     else:
+        # the earlier format's variable-length attribute: read in a child process with a time
+        # bound, since a corrupt heap entry hangs the HDF5 library inside the read
+        from .h5legacy import read_legacy_metadata
         if "metadata" not in f.attrs:
             raise InputError("no metadata attribute")
-        aid = f.attrs.get_id("metadata")
-        dt = aid.dtype
-        is_str = dt.kind in "SU" or h5py.check_string_dtype(dt) is not None
-        if not is_str or aid.shape not in ((), None) or aid.get_storage_size() > 2 ** 20:
-            raise InputError("the metadata attribute is not a JSON string of at most 1 MiB")
-        raw = f.attrs["metadata"]
+        raw = read_legacy_metadata(fh)
     if isinstance(raw, (bytes, np.bytes_)):
         raw = bytes(raw).decode("utf-8")
     if not isinstance(raw, str) or len(raw) > MAX_H5_METADATA:
@@ -661,7 +659,7 @@ def _load(path, ext, fh, size) -> Result:
         h5py = _h5py()
         with h5py.File(fh, "r") as f:
             _h5_check_tree(f)                  # before anything is read
-            md = json.loads(_h5_metadata(f), parse_constant=_no_constant, parse_float=_finite_float)
+            md = json.loads(_h5_metadata(f, fh), parse_constant=_no_constant, parse_float=_finite_float)
             arrays = _h5_arrays(f)
             extra = {k: arrays.pop(k) for k in list(arrays) if _is_extra(k)}
             res = _build(md, arrays)
