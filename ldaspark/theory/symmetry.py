@@ -19,7 +19,10 @@ def check_symmetry(system, tableau, t0, q0, v0, h, dps=40):
 
     all relative to the size of the compared quantities. For a rank-deficient J the f_d
     comparisons are restricted to directions in which the BVP stays solvable (their pairing
-    with other directions depends on the gauge-fixing)."""
+    with other directions depends on the gauge-fixing). ``system`` may also be a Scene or a
+    scene name (q0, v0 None: its initial data)."""
+    from ..core import validate
+    system, tableau, t0, q0, v0 = validate.theory_args(system, tableau, t0, q0, v0, h, dps, "check_symmetry")
     t_start = time.time()
     bk = Backend(dps)
     with bk.context():
