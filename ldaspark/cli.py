@@ -111,6 +111,55 @@ def _run_methods(args) -> int:
     return 0
 
 
+#: integer options that may be 0 (an index); every other integer option counts something (>= 1)
+_INDEX_OPTIONS = ("ic",)
+#: most worker processes an option may ask for (more is a typo, and would fork that many)
+_MAX_WORKERS = 1024
+
+
+def _count_type(dest: str):
+    """argparse type of an integer option: an integer, >= 1 (>= 0 for an index), bounded."""
+    lo = 0 if dest in _INDEX_OPTIONS else 1
+    hi = _MAX_WORKERS if dest in ("workers", "jobs") else 10 ** 9
+
+    def parse(text):
+        try:
+            val = int(text, 10)
+        except (TypeError, ValueError):
+            raise argparse.ArgumentTypeError(f"must be an integer, got {str(text)[:40]!r}") from None
+        if not lo <= val <= hi:
+            raise argparse.ArgumentTypeError(f"must be an integer between {lo} and {hi}, got {str(text)[:40]!r}")
+        return val
+    parse.__name__ = "integer"
+    return parse
+
+
+def _duration_type(text):
+    """argparse type of a real option (a time span): finite and positive (nan ran forever)."""
+    import math
+    try:
+        val = float(text)
+    except (TypeError, ValueError):
+        raise argparse.ArgumentTypeError(f"must be a number, got {str(text)[:40]!r}") from None
+    if not (math.isfinite(val) and val > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite positive number, got {str(text)[:40]!r}")
+    return val
+
+
+def _check_numeric_options(parser) -> None:
+    """Give every ``type=int`` / ``type=float`` option of ``parser`` and its subparsers (the
+    plugin modules' too) a checking type, so that a zero, negative, NaN or infinite count or time
+    is one argparse error (exit 2) before any work, whichever module declared the option."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                _check_numeric_options(sub)
+        elif action.type is int and action.choices is None:
+            action.type = _count_type(action.dest)
+        elif action.type is float:
+            action.type = _duration_type
+
+
 def build_parser(command: str | None = "*") -> argparse.ArgumentParser:
     """The parser; plugin modules are imported only for ``command`` ("*" = all of them)."""
     from . import __version__
@@ -126,6 +175,7 @@ def build_parser(command: str | None = "*") -> argparse.ArgumentParser:
         module = importlib.import_module(f"ldaspark.{mod}")
         module.add_arguments(p)
         p.set_defaults(func=module.run)
+    _check_numeric_options(parser)
     return parser
 
 
