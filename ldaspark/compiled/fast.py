@@ -76,8 +76,9 @@ def mechanical_parts(system) -> dict:
     q, v, t = list(system.q), list(system.v), system.t
     mech = system.mechanical
     if mech is not None:
-        from ..core.system import refuse_text
+        from ..core.system import check_mechanical, refuse_text
         refuse_text(mech, f"{system.name}: mechanical")     # set by hand after construction: never sympify text
+        check_mechanical(system, mech)                       # the generic engine's M (L_vv), symmetric
         M = sympy.Matrix(mech["M"])
         U = sympy.sympify(mech["U"], strict=True)
         K = sympy.Matrix(mech["K"])

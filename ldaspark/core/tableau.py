@@ -835,6 +835,8 @@ def check_stages(s: int, max_stages: int | None = None, what: str = "tableau") -
     like s^3 and beyond, so larger s must be asked for explicitly."""
     from .validate import MAX_STAGES_CEILING
     limit = MAX_STAGES if max_stages is None else max_stages
+    if type(limit).__module__ == "numpy" and hasattr(limit, "dtype") and limit.dtype.kind in "iu":
+        limit = int(limit)                   # np.int64(3) is an integer like 3
     if isinstance(limit, bool) or not isinstance(limit, int) or not 1 <= limit <= MAX_STAGES_CEILING:
         # --max-stages 10**6 was a MemoryError, 10**8 an OverflowError (issue 25, H)
         raise TableauError(f"max_stages must be an integer between 1 and {MAX_STAGES_CEILING}, got "
