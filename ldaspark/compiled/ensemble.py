@@ -70,7 +70,12 @@ class RunSpec:
         validate.check_choice(kernel, "RunSpec: kernel", ("auto", "spark"))
         validate.flag(compensated, "RunSpec: compensated")
         for nm, x in (("Q0", Q0), ("V0", V0)):
-            validate.real_vector(x, f"RunSpec: {nm}")
+            try:
+                size = np.asarray(x, dtype=object).size
+            except (ValueError, TypeError):
+                size = 1                       # ragged: real_vector says so
+            if size:                           # no rows: refused below with its own message
+                validate.real_vector(x, f"RunSpec: {nm}")
         validate.real_number(t0, "RunSpec: t0")
         validate.real_number(h, "RunSpec: h", nonzero=True)
         try:

@@ -70,6 +70,33 @@ class SparkTableau:
     decimal_digits_min: int | None = None
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
+    def __post_init__(self):
+        # constructed directly (it is exported), a tableau gets the checks of its readers: a
+        # bool or text s, no coefficients, or coefficients of another shape are one TableauError
+        from .validate import MAX_STAGES_CEILING
+        if not isinstance(self.name, str) or not 0 < len(self.name) <= 500:
+            raise TableauError(f"tableau name must be a non-empty string, got {type(self.name).__name__}")
+        s = self.s
+        if isinstance(s, (bool, np.bool_)) or not isinstance(s, (int, np.integer)) \
+                or not 1 <= s <= MAX_STAGES_CEILING:
+            raise TableauError(f"{self.name}: s must be an integer between 1 and {MAX_STAGES_CEILING}, "
+                               f"got {str(s)[:40]!r}")
+        self.s = int(s)
+        if (self.exact is None) == (self.builder is None):
+            raise TableauError(f"{self.name}: give exactly one of exact= (a dict of sympy matrices) and builder=")
+        if self.builder is not None and not callable(self.builder):
+            raise TableauError(f"{self.name}: builder must be callable (dps -> entries)")
+        if self.exact is not None:
+            if not isinstance(self.exact, dict) or set(NAMES) - set(self.exact):
+                raise TableauError(f"{self.name}: exact must be a dict with the keys {', '.join(NAMES)}")
+            want = {k: ((self.s, 1) if k in VECTOR_NAMES else (self.s - 1, self.s) if k == "omega"
+                        else (self.s, self.s)) for k in NAMES}
+            for k in NAMES:
+                shape = getattr(self.exact[k], "shape", None)
+                if not isinstance(self.exact[k], sympy.MatrixBase) or (shape != want[k] and self.exact[k].rows):
+                    raise TableauError(f"{self.name}: exact[{k!r}] must be a sympy Matrix of shape {want[k]}, "
+                                       f"got {type(self.exact[k]).__name__} {shape}")
+
     # --- numeric views ---------------------------------------------------------------
     def mp_entries(self, dps: int) -> dict:
         """Entries as nested lists of mpf, correct to ``dps`` digits (or to the input

@@ -289,7 +289,11 @@ def regular_file(path, limit: int, what: str = "file") -> int:
     follows symbolic links) before anything opens it, so a FIFO never blocks and /dev/zero, or a
     link to it, is never read."""
     import stat
+    if isinstance(path, bool) or not isinstance(path, (str, bytes, os.PathLike)):
+        raise InputError(f"a {what} path must be a string or os.PathLike, got {_describe(path)}")
     try:
+        if "\0" in (os.fsdecode(path) if not isinstance(path, str) else path):
+            raise InputError(f"a {what} path must not contain a NUL character")
         st = os.stat(path)
     except FileNotFoundError:
         raise InputError(f"no such {what}: {os.fspath(path)}") from None
