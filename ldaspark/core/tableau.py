@@ -938,6 +938,10 @@ def load_tableau(path, max_stages: int | None = None) -> SparkTableau:
     most ``max_file_bytes(max_stages)`` bytes are read (never /dev/zero, a FIFO or a directory)."""
     import os
     import stat
+    if isinstance(path, bool) or not isinstance(path, (str, bytes, os.PathLike)) \
+            or "\0" in (path if isinstance(path, str) else os.fsdecode(path)):
+        raise TableauError(f"a tableau path must be a file name (str or os.PathLike, no NUL), got "
+                           f"{type(path).__name__} {str(path)[:60]!r}")
     limit = max_file_bytes(max_stages)
     try:
         st = os.stat(path)

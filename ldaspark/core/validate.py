@@ -379,12 +379,12 @@ def point(system, t0, q0, v0, what: str = "", scene=None, dps=None):
         v0 = vs if v0 is None else v0
     if q0 is None or v0 is None:
         raise InputError(f"{what}give q0 and v0 (or a Scene / scene name for its initial data)")
-    real_number(0 if t0 is None else t0, f"{what}t0")
+    real_number(t0, f"{what}t0")
     for name, x in (("q0", q0), ("v0", v0)):
         real_vector(x, f"{what}{name}")
         if np.ndim(np.asarray(x, dtype=object)) != 1 or len(x) != system.n:
             raise InputError(f"{what}{name} must have n = {system.n} entries, got {_describe(x)}")
-    return (0 if t0 is None else t0), q0, v0
+    return t0, q0, v0
 
 
 def step_advances(t0, h, n_steps=1, dps=None, what: str = "h") -> None:

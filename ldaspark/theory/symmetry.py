@@ -80,7 +80,9 @@ def _tangent_projector(res, which):
     else:
         M = g.W_left.T.dot(res.extra["dG_dq"][which])
     n = M.shape[1]
-    Mp = bk.zeros((n, n))                     # pad to square: full right singular basis
+    # pad to at least square: the full right singular basis (a deficient J at a large h can give
+    # more conditions than coordinates)
+    Mp = bk.zeros((max(n, M.shape[0]), n))
     Mp[:M.shape[0]] = M
     U, sig, Vh = _svd(bk, Mp)
     k = sum(1 for x in sig if float(x) > 1e-8 * max(float(sig[0]), 1e-300))
