@@ -558,22 +558,26 @@ def _check_names(system, nonideal_exprs) -> None:
     (the micro sign and Greek mu, a fullwidth x and x) are one name to the expression parser
     and to Python, so a string L would bind one of them to the other."""
     seen: dict = {}
-    declared = list(system.q) + list(system.v) + [system.t] + list(system.params) + list(system.psi) \
-        + list(system.lam)
+    roles = [("q", system.q), ("v", system.v), ("t", [system.t]), ("params", system.params),
+             ("psi", system.psi), ("the multipliers lam0, lam1, ...", system.lam)]
+    declared = [(role, x) for role, xs in roles for x in xs]
     free = set(system.L.free_symbols) | set(system.k.free_symbols)
     for e in nonideal_exprs:
         free |= set(getattr(e, "free_symbols", ()))
-    for x in declared + sorted(free - set(declared), key=str):
+    known = {x for _, x in declared}
+    for role, x in declared + [("L, k or N", x) for x in sorted(free - known, key=str)]:
         if not isinstance(x, sympy.Symbol):
             continue
-        key = _nfkc(x.name)
-        other = seen.setdefault(key, x)
-        if other is not x and other != x:
-            how = ("are different symbols with the same name (their assumptions differ, or one is a Dummy)"
-                   if other.name == x.name else "are the same name after Unicode NFKC normalisation")
-            raise SystemDefinitionError(f"{other.name!r} and {x.name!r} {how}: rename one of them"
-                                        + (" (lam0, lam1, ... name the multipliers)" if x in system.lam
-                                           or other in system.lam else ""))
+        other, orole = seen.setdefault(_nfkc(x.name), (x, role))
+        if other is x and orole == role:
+            continue
+        if other == x and orole == role:
+            continue
+        if other == x:
+            raise SystemDefinitionError(f"the symbol {x.name!r} is used both in {orole} and in {role}: rename it")
+        how = ("are different symbols with the same name (their assumptions differ, or one is a Dummy)"
+               if other.name == x.name else "are the same name after Unicode NFKC normalisation")
+        raise SystemDefinitionError(f"{other.name!r} ({orole}) and {x.name!r} ({role}) {how}: rename one of them")
 
 
 #: the sympy functions every engine translates: numpy / math at float64 and mpmath at dps (the

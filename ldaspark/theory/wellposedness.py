@@ -22,7 +22,10 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
     ``system`` may also be a Scene or a scene name (q0, v0 None: its initial data)."""
     from ..core import validate
     from ..core.errors import InputError
-    if not isinstance(dps, (list, tuple)) or len(dps) < 2 or len(set(dps)) != len(dps):
+    if isinstance(dps, (list, tuple)):
+        for d in dps:
+            validate.check_dps(d)
+    if not isinstance(dps, (list, tuple)) or len(dps) < 2 or len(set(map(int, dps))) != len(dps):
         raise InputError(f"classify_wellposedness: dps must be two or more distinct precisions, got "
                          f"{validate._describe(dps)}")
     system, tableau, t0, q0, v0 = validate.theory_args(system, tableau, t0, q0, v0, h, dps, "classify_wellposedness")
