@@ -210,7 +210,14 @@ WORK_ARGS = {("integrate", "n_steps"), ("integrate", "save_every"), ("fast_integ
 WORK_BOUND = 1000
 
 
+#: arguments that are the caller's own callbacks: a callable drawn there runs as the caller's code
+#: (its own exceptions are the caller's); only non-callables are drawn
+USER_CALLBACKS = {("run_many", "progress")}
+
+
 def _long_valid_run(name, arg, value) -> bool:
+    if (name, arg) in USER_CALLBACKS and callable(value):
+        return True
     return ((name, arg) in WORK_ARGS and isinstance(value, (int, np.integer)) and not isinstance(value, bool)
             and WORK_BOUND < value <= 10 ** 9)
 

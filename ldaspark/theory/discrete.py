@@ -237,6 +237,9 @@ def _rank_info(bk, J, dps):
     the deficiency r decided relative to the precision, and float64 singular vectors, which
     are ample for pinning/bordering (any transversal choice works) and for the null support."""
     Jf = np.array([[float(v) for v in row] for row in J]) if bk.is_mp else J
+    if not np.all(np.isfinite(Jf)):     # a step far too large for the system: no rank to decide
+        raise DiscreteSolveError("the BVP Jacobian J has entries beyond float64 range or non-finite ones "
+                                 "(the step h is far too large for this system)")
     U, s64, Vh = np.linalg.svd(Jf)
     if bk.is_mp and s64[-1] <= 1e-9 * s64[0]:
         # candidate deficiency: decide at full precision, on the small block only
@@ -563,6 +566,11 @@ def theorem1_residuals(system, tableau, t0, q0, v0, h, dps=40, q1_shift=None, q0
             break
     if out is None:
         raise err
+    bad = [k for k, x in out.items() if isinstance(x, (float, mpmath.mpf)) and not mpmath.isfinite(x)]
+    if bad:                             # no NaN or infinity is returned as a residual
+        from ..core.errors import NonFiniteError
+        raise NonFiniteError(f"theorem1_residuals: {', '.join(bad[:4])} not finite at h = {str(h)[:30]} "
+                             "(the step is far too large for this system)")
     out["seconds"] = time.time() - t_start
     return out
 
