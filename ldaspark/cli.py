@@ -111,39 +111,49 @@ def _run_methods(args) -> int:
     return 0
 
 
-#: integer options that may be 0 (an index); every other integer option counts something (>= 1)
-_INDEX_OPTIONS = ("ic",)
+def _count_checker(dest: str):
+    """The check of an integer option, with the message of the API's own validator (the CLI and
+    ``ldaspark.integrate`` say the same thing about the same value)."""
+    from .core import validate as V
+    table = {
+        "dps": V.check_dps,
+        "every": lambda x: V.count(x, "save_every"),
+        "max_stages": V.check_max_stages,
+        "ic": lambda x: V.count(x, "ic (the initial condition index)", 0, 10 ** 6),
+        "jobs": lambda x: V.count(x, "--jobs", 1, _MAX_WORKERS),
+        "workers": lambda x: V.count(x, "--workers", 1, _MAX_WORKERS),
+    }
+    return table.get(dest, lambda x: V.count(x, f"--{dest.replace('_', '-')}", 1, V.MAX_STEPS))
+
+
 #: most worker processes an option may ask for (more is a typo, and would fork that many)
 _MAX_WORKERS = 1024
 
 
 def _count_type(dest: str):
-    """argparse type of an integer option: an integer, >= 1 (>= 0 for an index), bounded."""
-    lo = 0 if dest in _INDEX_OPTIONS else 1
-    hi = _MAX_WORKERS if dest in ("workers", "jobs") else 10 ** 9
-
+    """argparse type of an integer option: an integer (else argparse's "invalid int value"),
+    >= 1 (>= 0 for an index), bounded as the API bounds it."""
     def parse(text):
+        val = int(text, 10)                  # ValueError: argparse says "invalid int value"
         try:
-            val = int(text, 10)
-        except (TypeError, ValueError):
-            raise argparse.ArgumentTypeError(f"must be an integer, got {str(text)[:40]!r}") from None
-        if not lo <= val <= hi:
-            raise argparse.ArgumentTypeError(f"must be an integer between {lo} and {hi}, got {str(text)[:40]!r}")
+            _count_checker(dest)(val)
+        except LdasparkError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
         return val
-    parse.__name__ = "integer"
+    parse.__name__ = "int"
     return parse
 
 
 def _duration_type(text):
     """argparse type of a real option (a time span): finite and positive (nan ran forever)."""
     import math
-    try:
-        val = float(text)
-    except (TypeError, ValueError):
-        raise argparse.ArgumentTypeError(f"must be a number, got {str(text)[:40]!r}") from None
+    val = float(text)                        # ValueError: argparse says "invalid float value"
     if not (math.isfinite(val) and val > 0):
         raise argparse.ArgumentTypeError(f"must be a finite positive number, got {str(text)[:40]!r}")
     return val
+
+
+_duration_type.__name__ = "float"
 
 
 def _check_numeric_options(parser) -> None:

@@ -272,8 +272,7 @@ def _numeric_options():
             if isinstance(a, argparse._SubParsersAction):
                 for n, sp in a.choices.items():
                     walk(sp, path + [n])
-            elif a.option_strings and a.type is not None and getattr(a.type, "__name__", "") in (
-                    "integer", "_duration_type"):
+            elif a.option_strings and a.type is not None and getattr(a.type, "__module__", "") == "ldaspark.cli":
                 out.append((tuple(path), a.option_strings[0], a.dest))
     walk(build_parser("*"), [])
     return out

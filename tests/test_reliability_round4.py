@@ -146,7 +146,7 @@ def test_cli_bad_counts_and_times_exit_2_with_one_line(argv, capsys):
     with pytest.raises(SystemExit) as ei:
         main(argv)
     err = capsys.readouterr().err.strip()
-    assert ei.value.code == 2 and err.startswith("ldaspark: error: argument") and "\n" not in err
+    assert ei.value.code == 2 and err.startswith(f"ldaspark: error: argument {argv[-2]}") and "\n" not in err
 
 
 def test_cli_valid_counts_and_times_parse():
