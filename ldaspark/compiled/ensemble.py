@@ -77,7 +77,7 @@ class RunSpec:
             if size:                           # no rows: refused below with its own message
                 validate.real_vector(x, f"RunSpec: {nm}")
         validate.real_number(t0, "RunSpec: t0")
-        validate.real_number(h, "RunSpec: h", nonzero=True)
+        validate.real_number(h, "RunSpec: h")          # h = 0: refused below ("finite and nonzero")
         try:
             Q0 = np.atleast_2d(np.asarray(Q0, dtype=float))
             V0 = np.atleast_2d(np.asarray(V0, dtype=float))
