@@ -116,9 +116,7 @@ def _count_checker(dest: str):
     ``ldaspark.integrate`` say the same thing about the same value)."""
     from .core import validate as V
     table = {
-        "dps": V.check_dps,
         "every": lambda x: V.count(x, "save_every"),
-        "max_stages": V.check_max_stages,
         "ic": lambda x: V.count(x, "ic (the initial condition index)", 0, 10 ** 6),
         "jobs": lambda x: V.count(x, "--jobs", 1, _MAX_WORKERS),
         "workers": lambda x: V.count(x, "--workers", 1, _MAX_WORKERS),
@@ -128,6 +126,9 @@ def _count_checker(dest: str):
 
 #: most worker processes an option may ask for (more is a typo, and would fork that many)
 _MAX_WORKERS = 1024
+#: integer options left to their command's own range check (--dps is 16..2000 for integrate and
+#: 10..200 for audit; --max-stages is checked with the method it raises the limit of)
+_OWN_CHECK = ("dps", "max_stages")
 
 
 def _count_type(dest: str):
@@ -164,7 +165,7 @@ def _check_numeric_options(parser) -> None:
         if isinstance(action, argparse._SubParsersAction):
             for sub in action.choices.values():
                 _check_numeric_options(sub)
-        elif action.type is int and action.choices is None:
+        elif action.type is int and action.choices is None and action.dest not in _OWN_CHECK:
             action.type = _count_type(action.dest)
         elif action.type is float:
             action.type = _duration_type

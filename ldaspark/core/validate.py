@@ -453,7 +453,24 @@ def theory_args(system, tableau, t0, q0, v0, h, dps, what: str):
     tab = as_tableau(tableau, f"{what}: tableau")
     t0, q0, v0 = point(sysm, None if scene is not None and (q0 is None or v0 is None) else t0, q0, v0,
                        f"{what}: ", scene, max(dlist))
-    real_number(h, f"{what}: h", nonzero=True)
+    hf = _rational_string(h)           # "1/10": the mpmath checks take exact fractions as text
+    real_number(h if hf is None else hf, f"{what}: h", nonzero=True)
     for d in dlist:
-        step_advances(t0, h, 1, int(d), what=f"{what}: h")
+        step_advances(t0, h if hf is None else hf, 1, int(d), what=f"{what}: h")
     return sysm, tab, t0, q0, v0
+
+
+def _rational_string(x):
+    """A string "p/q" (integers, q nonzero, at most MAX_NUMBER_CHARS characters) as a Fraction,
+    else None."""
+    import re
+    from fractions import Fraction
+    if not isinstance(x, str) or len(x) > MAX_NUMBER_CHARS:
+        return None
+    m = re.fullmatch(r"\s*([+-]?\d+)\s*/\s*(\d+)\s*", x)
+    try:
+        if m is None or int(m.group(2)) == 0:
+            return None
+        return Fraction(int(m.group(1)), int(m.group(2)))
+    except ValueError:                  # more digits than int() converts
+        return None
