@@ -294,8 +294,9 @@ def test_cli_numeric_options_enumerated():
 
 
 @pytest.mark.parametrize("path,opt,dest", _numeric_options(), ids=lambda x: str(x))
-def test_cli_numeric_option_refuses_wrong_values(path, opt, dest, capsys):
+def test_cli_numeric_option_refuses_wrong_values(path, opt, dest, capsys, tmp_path, monkeypatch):
     from ldaspark.cli import main
+    monkeypatch.chdir(tmp_path)           # a value let through must not rewrite the repository's reports/
     base = _BASE_ARGV.get(path, list(path))
     for bad in BAD_NUMBERS:
         if dest == "ic" and bad == "0" or dest in ("t_end", "t_long") and bad in VALID_REALS:
@@ -311,12 +312,13 @@ def test_cli_numeric_option_refuses_wrong_values(path, opt, dest, capsys):
 
 @pytest.mark.parametrize("addr", ["x://y", "tcp://", "inproc://", "tcp://[::1", "tcp://:8786", "tcp://h:0",
                                   "tcp://h:99999", "tcp://h:abc", "tcp://a b:1", "tcp://h/x"])
-def test_cli_scheduler_refuses_malformed_addresses_at_once(addr, capsys):
+def test_cli_scheduler_refuses_malformed_addresses_at_once(addr, capsys, tmp_path, monkeypatch):
     import time
 
     from ldaspark.cli import main
+    monkeypatch.chdir(tmp_path)
     t = time.monotonic()
-    code = call_bounded(lambda: main(["report", "--scheduler", addr, "--outdir", "/tmp/ldaspark-harness-never"]), {})
+    code = call_bounded(lambda: main(["report", "--scheduler", addr, "--outdir", str(tmp_path)]), {})
     err = capsys.readouterr().err.strip()
     assert code == 2 and err.startswith("ldaspark: error:") and "\n" not in err, err
     assert time.monotonic() - t < TIME_BOUND

@@ -141,8 +141,9 @@ def test_get_scene_valid_neighbours():
                                   ["report", "convergence", "--t-end", "inf"],
                                   ["report", "convergence", "--t-end", "-1"],
                                   ["report", "convergence", "--workers", "0"]])
-def test_cli_bad_counts_and_times_exit_2_with_one_line(argv, capsys):
+def test_cli_bad_counts_and_times_exit_2_with_one_line(argv, capsys, tmp_path, monkeypatch):
     from ldaspark.cli import main
+    monkeypatch.chdir(tmp_path)           # a value let through must not rewrite the repository's reports/
     with pytest.raises(SystemExit) as ei:
         main(argv)
     err = capsys.readouterr().err.strip()
