@@ -322,3 +322,64 @@ def test_cli_scheduler_refuses_malformed_addresses_at_once(addr, capsys, tmp_pat
     err = capsys.readouterr().err.strip()
     assert code == 2 and err.startswith("ldaspark: error:") and "\n" not in err, err
     assert time.monotonic() - t < TIME_BOUND
+
+
+def _subcommands_and_choice_options():
+    import argparse
+
+    from ldaspark.cli import build_parser
+    cmds, choices = [], []
+
+    def walk(p, path):
+        for a in p._actions:
+            if isinstance(a, argparse._SubParsersAction):
+                for n, sp in a.choices.items():
+                    cmds.append(tuple(path + [n]))
+                    walk(sp, path + [n])
+            elif a.option_strings and a.choices is not None:
+                choices.append((tuple(path), a.option_strings[0]))
+    walk(build_parser("*"), [])
+    return cmds, choices
+
+
+def _exit_code(argv):
+    from ldaspark.cli import main
+    try:
+        return call_bounded(lambda: main(argv), {})
+    except SystemExit as exc:
+        return exc.code
+
+
+@pytest.mark.parametrize("path", _subcommands_and_choice_options()[0], ids=lambda p: " ".join(p))
+def test_cli_every_subcommand_refuses_an_unknown_option(path, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code = _exit_code(list(path) + ["--no-such-option", "1"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and err.startswith("ldaspark: error:") and "\n" not in err, (path, err)
+
+
+@pytest.mark.parametrize("path,opt", _subcommands_and_choice_options()[1], ids=lambda x: str(x))
+def test_cli_every_choice_option_refuses_an_unknown_value(path, opt, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    base = _BASE_ARGV.get(path, list(path))
+    for bad in ("no-such-choice", "", "0", "\u00b5"):
+        code = _exit_code(base + [opt, bad])
+        err = capsys.readouterr().err.strip()
+        assert code == 2 and err.startswith("ldaspark: error:") and "\n" not in err, (path, opt, bad, err)
+
+
+def test_cli_subcommands_enumerated():
+    cmds, choices = _subcommands_and_choice_options()
+    assert {("integrate",), ("report",), ("verify",), ("audit",), ("mutants",), ("report", "energy")} <= set(cmds)
+    assert (("integrate",), "--engine") in choices
+
+
+@pytest.mark.parametrize("pos", [1, 2])
+@pytest.mark.parametrize("bad", ["no-such", "", "\u00b5", "x" * 5000, "gauss-0", "gauss-99999999999999999999"])
+def test_cli_integrate_positionals_refuse_wrong_names(pos, bad, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    argv = list(_BASE_ARGV[("integrate",)])
+    argv[pos] = bad
+    code = _exit_code(argv)
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and err.startswith("ldaspark: error:") and "\n" not in err, (bad[:20], err)
