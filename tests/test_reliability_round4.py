@@ -397,3 +397,21 @@ def test_cli_out_with_a_long_name(length, tmp_path):
     assert main(["integrate", "skate", "gauss-1", "--h", "0.1", "--t-end", "0.2", "--engine", "generic",
                  "--out", str(out)]) == 0
     assert ldaspark.load_result(str(out)).q.shape == (3, 3)
+
+
+# --- found by the harness's sweeps ------------------------------------------------------------
+def test_check_symmetry_at_rest_and_at_a_huge_step():
+    at_rest = ldaspark.check_symmetry("skate", "gauss-1", 0, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], "0.1", dps=16)
+    assert at_rest["symmetry-fd-unrestricted"] == (0.0, 0.0)      # was a ZeroDivisionError
+    big = ldaspark.check_symmetry("skate", "gauss-1", 0, None, None, 6932, dps=16)   # was a broadcast ValueError
+    assert all(np.isfinite(big[k]) for k in ("symmetry-Ld", "symmetry-Phi"))
+
+
+def test_theory_checks_at_steps_beyond_range_are_errors_not_numbers():
+    q0, _ = _skate_point()
+    with pytest.raises(LdasparkError, match="not finite"):
+        ldaspark.theorem1_residuals("skate", "gauss-1", 0, None, None, -1.2e146, dps=16, max_refine=0)
+    with pytest.raises(LdasparkError, match="float64 range"):
+        ldaspark.discrete_lagrangian("skate", "gauss-1", 5e165, q0, "0.1", q0, dps=16)
+    ok = ldaspark.theorem1_residuals("skate", "gauss-1", 0, None, None, "1/10", dps=16, max_refine=0)
+    assert ok["theorem1-q0"] < 1e-10

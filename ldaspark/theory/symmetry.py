@@ -47,7 +47,8 @@ def check_symmetry(system, tableau, t0, q0, v0, h, dps=40):
         sfp = bk.norm_inf(a) / sc
         sfm = bk.norm_inf(b) / sc
         # the unrestricted covectors, to show the restriction matters
-        sc_full = max(bk.norm_inf(fwd.f_d_minus), bk.norm_inf(fwd.f_d_plus), bk.norm_inf(fwd.p0))
+        sc_full = max(bk.norm_inf(fwd.f_d_minus), bk.norm_inf(fwd.f_d_plus), bk.norm_inf(fwd.p0),
+                      1e-300)                 # a scene at rest: all of them zero
         full_p = bk.norm_inf(fwd.f_d_minus + rev.f_d_plus) / sc_full
         full_m = bk.norm_inf(fwd.f_d_plus + rev.f_d_minus) / sc_full
         # Phi_{-h} o Phi_h
