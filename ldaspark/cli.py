@@ -111,6 +111,66 @@ def _run_methods(args) -> int:
     return 0
 
 
+def _count_checker(dest: str):
+    """The check of an integer option, with the message of the API's own validator (the CLI and
+    ``ldaspark.integrate`` say the same thing about the same value)."""
+    from .core import validate as V
+    table = {
+        "every": lambda x: V.count(x, "save_every"),
+        "ic": lambda x: V.count(x, "ic (the initial condition index)", 0, 10 ** 6),
+        "jobs": lambda x: V.count(x, "--jobs", 1, _MAX_WORKERS),
+        "workers": lambda x: V.count(x, "--workers", 1, _MAX_WORKERS),
+    }
+    return table.get(dest, lambda x: V.count(x, f"--{dest.replace('_', '-')}", 1, V.MAX_STEPS))
+
+
+#: most worker processes an option may ask for (more is a typo, and would fork that many)
+_MAX_WORKERS = 1024
+#: integer options left to their command's own range check (--dps is 16..2000 for integrate and
+#: 10..200 for audit; --max-stages is checked with the method it raises the limit of)
+_OWN_CHECK = ("dps", "max_stages")
+
+
+def _count_type(dest: str):
+    """argparse type of an integer option: an integer (else argparse's "invalid int value"),
+    >= 1 (>= 0 for an index), bounded as the API bounds it."""
+    def parse(text):
+        val = int(text, 10)                  # ValueError: argparse says "invalid int value"
+        try:
+            _count_checker(dest)(val)
+        except LdasparkError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+        return val
+    parse.__name__ = "int"
+    return parse
+
+
+def _duration_type(text):
+    """argparse type of a real option (a time span): finite and positive (nan ran forever)."""
+    import math
+    val = float(text)                        # ValueError: argparse says "invalid float value"
+    if not (math.isfinite(val) and val > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite positive number, got {str(text)[:40]!r}")
+    return val
+
+
+_duration_type.__name__ = "float"
+
+
+def _check_numeric_options(parser) -> None:
+    """Give every ``type=int`` / ``type=float`` option of ``parser`` and its subparsers (the
+    plugin modules' too) a checking type, so that a zero, negative, NaN or infinite count or time
+    is one argparse error (exit 2) before any work, whichever module declared the option."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                _check_numeric_options(sub)
+        elif action.type is int and action.choices is None and action.dest not in _OWN_CHECK:
+            action.type = _count_type(action.dest)
+        elif action.type is float:
+            action.type = _duration_type
+
+
 def build_parser(command: str | None = "*") -> argparse.ArgumentParser:
     """The parser; plugin modules are imported only for ``command`` ("*" = all of them)."""
     from . import __version__
@@ -126,6 +186,7 @@ def build_parser(command: str | None = "*") -> argparse.ArgumentParser:
         module = importlib.import_module(f"ldaspark.{mod}")
         module.add_arguments(p)
         p.set_defaults(func=module.run)
+    _check_numeric_options(parser)
     return parser
 
 

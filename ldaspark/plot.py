@@ -17,6 +17,16 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
 
 
+def _check(result, ax, relative=True) -> None:
+    """The plots' arguments: a Result, an Axes (or None), a bool ``relative``."""
+    from .core.validate import _describe, flag
+    if not isinstance(result, Result):
+        raise InputError(f"result must be a Result (from ldaspark.integrate or load_result), got {_describe(result)}")
+    if ax is not None and not callable(getattr(ax, "plot", None)):
+        raise InputError(f"ax must be a matplotlib Axes (or None), got {_describe(ax)}")
+    flag(relative, "relative")
+
+
 def _axes(ax: Optional[Any]):
     if ax is not None:
         return ax
@@ -33,6 +43,7 @@ def _rows(result: Result, name: str):
 
 def energy(result: Result, ax: Optional[Any] = None, relative: bool = True) -> "Axes":
     """Energy error E(t) - E(t0) of (8) (divided by |E(t0)| when ``relative`` and E(t0) != 0)."""
+    _check(result, ax, relative)
     ax = _axes(ax)
     for t, E in _rows(result, "energy"):
         scale = abs(E[0]) if relative and E[0] != 0 else 1.0
@@ -45,6 +56,7 @@ def energy(result: Result, ax: Optional[Any] = None, relative: bool = True) -> "
 
 def constraint(result: Result, ax: Optional[Any] = None) -> "Axes":
     """|k(t, q, v)| of (1c) per constraint, log scale (zeros drawn at the smallest float)."""
+    _check(result, ax)
     ax = _axes(ax)
     for t, K in _rows(result, "constraint"):
         for j in range(K.shape[1]):
@@ -57,9 +69,10 @@ def constraint(result: Result, ax: Optional[Any] = None) -> "Axes":
 
 def trajectory(result: Result, i: int, j: int, ax: Optional[Any] = None) -> "Axes":
     """q_j against q_i (0-based indices), with the dense output when the Result has one."""
+    _check(result, ax)
+    from .core.validate import index_list
     n = result.n
-    if not (0 <= i < n and 0 <= j < n):
-        raise InputError(f"coordinate indices must be in 0..{n - 1}, got {i}, {j}")
+    i, j = index_list([i, j], n, "trajectory: the coordinate indices i, j", unique=False)
     ax = _axes(ax)
     for t, q in _rows(result, "q"):
         ax.plot(q[:, i], q[:, j], ".", markersize=2)

@@ -111,7 +111,8 @@ def _time_grid(t_span, t0, t_end, n_steps, h, default_t0):
     if t_span is not None:
         if t0 is not None or t_end is not None:
             raise InputError("give t_span or t0/t_end, not both")
-        if isinstance(t_span, (str, bytes)) or not hasattr(t_span, "__len__") or len(t_span) != 2:
+        if isinstance(t_span, (str, bytes)) or not isinstance(t_span, (list, tuple, np.ndarray)) \
+                or len(t_span) != 2:           # a dict or set "pair" would give its keys, in any order
             raise InputError(f"t_span must be a pair (t0, t_end), got {validate._describe(t_span)}")
         t0, t_end = t_span
         validate.real_number(t0, "t0")           # (None, 1) is not the default t0
@@ -126,7 +127,8 @@ def _time_grid(t_span, t0, t_end, n_steps, h, default_t0):
     if n_steps is None:
         from .core.spark import n_steps_for
         n_steps = n_steps_for(float(t0), float(validate.real_number(t_end, "t_end")), float(h))
-    return t0, validate.count(n_steps, "n_steps")
+    validate.count(n_steps, "n_steps")
+    return t0, n_steps
 
 
 def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, SparkTableau],
@@ -171,6 +173,7 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
     sysm, scene, init = _resolve_system(system, dps)
     kind, what, name = resolve_method(method, max_stages)
     t0, N = _time_grid(t_span, t0, t_end, n_steps, h, init[0] if init else None)
+    validate.step_advances(t0, h, N, dps)
     if q0 is None or v0 is None:
         if init is None:
             raise InputError("give q0 and v0 (or pass a Scene / scene name for its initial data)")

@@ -59,8 +59,24 @@ class RunSpec:
 
     def __init__(self, system, method, t0, Q0, V0, h, n_steps, every=1, compensated=True, tol=None,
                  kernel="auto"):
+        from ..core import validate
         from ..core.validate import check_newton_options, check_storage, count, real_number
         from .fast import n_samples
+        system, _ = validate.as_system(system, "RunSpec: system")     # a scene name as integrate takes it
+        from ..core.tableau import SparkTableau
+        if not isinstance(method, (str, SparkTableau)):
+            raise InputError(f"RunSpec: method must be a method name or a SparkTableau, got {validate._describe(method)}")
+        validate.check_choice(kernel, "RunSpec: kernel", ("auto", "spark"))
+        validate.flag(compensated, "RunSpec: compensated")
+        for nm, x in (("Q0", Q0), ("V0", V0)):
+            try:
+                size = np.asarray(x, dtype=object).size
+            except (ValueError, TypeError):
+                size = 1                       # ragged: real_vector says so
+            if size:                           # no rows: refused below with its own message
+                validate.real_vector(x, f"RunSpec: {nm}")
+        validate.real_number(t0, "RunSpec: t0")
+        validate.real_number(h, "RunSpec: h")          # h = 0: refused below ("finite and nonzero")
         try:
             Q0 = np.atleast_2d(np.asarray(Q0, dtype=float))
             V0 = np.atleast_2d(np.asarray(V0, dtype=float))
@@ -75,10 +91,13 @@ class RunSpec:
         count(every, "every")
         if not (np.isfinite(h) and h != 0 and np.isfinite(t0)):
             raise InputError(f"h must be finite and nonzero and t0 finite, got h = {h}, t0 = {t0}")
+        validate.step_advances(t0, h, n_steps, None, what="RunSpec: h")
         check_newton_options(tol, 1)
         check_storage(n_samples(int(n_steps), int(every)) * len(Q0), 2 + 2 * system.n + system.m,
                       what="the ensemble samples")
         self._check_members(system, t0, Q0, V0)
+        from .fast import kernel_spec
+        kernel_spec(method, kernel)          # an unknown method name here, not in run_many
         self.system, self.method, self.t0, self.Q0, self.V0 = system, method, t0, Q0, V0
         self.h, self.n_steps, self.every, self.compensated, self.tol, self.kernel = (
             h, int(n_steps), int(every), bool(compensated), tol, kernel)
@@ -126,11 +145,18 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
     ``where`` names where they run as in ``ldaspark.core.workers`` (a scheduler address, a
     ``distributed.Client``, an executor); ``executor`` is the same as ``where`` with an executor
     (kept for compatibility). Default: a local process pool of ``max_workers`` (all cores)."""
-    from ..core.validate import check_executor, count
+    from ..core.validate import _describe, callable_or_none, check_executor, count
+    from ..core.workers import check_where
     if executor is not None and where is not None:
         raise InputError("give executor or where, not both")
     check_executor(executor)
     count(chunk, "chunk", 1, 10 ** 9)
+    if max_workers is not None:
+        count(max_workers, "max_workers", 1, 1024)
+    callable_or_none(progress, "progress")
+    check_where(where)
+    if isinstance(specs, (str, bytes, dict, RunSpec)) or not hasattr(specs, "__iter__"):
+        raise InputError(f"run_many needs a list of RunSpec objects, got {_describe(specs)}")
     t_start = time.perf_counter()
     specs = list(specs)
     if not specs:
@@ -178,7 +204,7 @@ def ensemble_integrate(system, method, t0, Q0, V0, h, n_steps, every=1, compensa
     """Integrate ``system`` from every row of (Q0, V0) with the fast path (``ldaspark.compiled.fast``),
     in parallel over ``executor`` (default: a process pool over all cores). ``chunk`` initial
     data per task."""
-    if not isinstance(chunk, int) or chunk <= 0:
-        raise InputError(f"chunk must be a positive integer, got {chunk!r}")
+    from ..core.validate import count
+    count(chunk, "chunk", 1, 10 ** 9)
     spec = RunSpec(system, method, t0, Q0, V0, h, n_steps, every, compensated, tol, kernel)
     return run_many([spec], executor=executor, max_workers=max_workers, chunk=chunk, progress=progress)[0]

@@ -76,8 +76,9 @@ def mechanical_parts(system) -> dict:
     q, v, t = list(system.q), list(system.v), system.t
     mech = system.mechanical
     if mech is not None:
-        from ..core.system import refuse_text
+        from ..core.system import check_mechanical, refuse_text
         refuse_text(mech, f"{system.name}: mechanical")     # set by hand after construction: never sympify text
+        check_mechanical(system, mech)                       # the generic engine's M (L_vv), symmetric
         M = sympy.Matrix(mech["M"])
         U = sympy.sympify(mech["U"], strict=True)
         K = sympy.Matrix(mech["K"])
@@ -605,6 +606,9 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
     compensated: Kahan summation of the q and v updates. linear_solver: as ``run_compiled``.
     Falls back to the generic path, with one line on stderr, if the system cannot be compiled.
     Raises NewtonError, NonFiniteError (NaN/inf, naming step and time), InputError."""
+    if isinstance(scene_or_system, str):          # a scene name, as integrate takes it
+        from ..core.scenes import get_scene
+        scene_or_system = get_scene(scene_or_system)
     system = getattr(scene_or_system, "system", scene_or_system)
     if t0 is None or q0 is None or v0 is None:
         if not hasattr(scene_or_system, "initial"):

@@ -161,7 +161,13 @@ def stack(members: list) -> Result:
         psi = np.stack([pad(r.psi, S - 1) if len(r.psi) else np.zeros((S - 1,) + r.psi.shape[1:])
                         for r in members])
     first = members[0]
-    return Result(t=t, psi=psi, status=np.array([r.status for r in members], dtype=int),
+    # the members' events, per event function one list with each member's array: a terminal
+    # event that stopped a member is reported on the batched Result too (status 1 there)
+    n_ev = max((len(r.t_events) for r in members), default=0)
+    events = {name: [[(getattr(r, name)[i] if i < len(getattr(r, name)) else np.zeros((0,) if name == "t_events"
+                      else (0, np.shape(r.q)[-1]))) for r in members] for i in range(n_ev)]
+              for name in ("t_events", "q_events", "v_events")}
+    return Result(t=t, psi=psi, status=np.array([r.status for r in members], dtype=int), **events,
                   message=[r.message for r in members],
                   **{c: np.array([getattr(r, c) for r in members]) for c in COUNTERS},
                   method=first.method, system=first.system, scene=first.scene, engine=first.engine,

@@ -332,14 +332,17 @@ def get_scene(name: str, ic: int | None = None) -> Scene:
     system with sympy (0.25 s for the skate), which made 90% of a stability sweep's 39 one-step
     runs; a shared scene also shares its system's lambdified functions. Scenes and systems are
     not modified after construction (the scene builders above give a fresh, unshared one)."""
+    from .validate import _describe, count
+    if not isinstance(name, str):
+        raise InputError(f"scene must be a scene name (a string), got {_describe(name)}")
     if name not in SCENES:
-        raise InputError(f"unknown scene {name!r}; choose from {', '.join(SCENES)}")
+        raise InputError(f"unknown scene {name[:60]!r}; choose from {', '.join(SCENES)}")
+    if ic is not None:
+        ic = count(ic, "ic (the initial condition index)", 0, 10 ** 6)    # no bool, float or text
     mp = name in ("mp-particles", "mp-particles-nh")
     if not mp and ic not in (None, 0):
         raise InputError(f"--ic applies only to mp-particles, not {name}")
     build = (lambda: SCENES[name](j=ic or 0)) if mp else SCENES[name]
-    if mp and not (ic is None or (isinstance(ic, int) and not isinstance(ic, bool))):
-        return build()                       # the builder judges an odd ic (and says why)
     key = (name, ic or 0, SCENES[name])      # a replaced builder (SCENES is public) builds anew
     with _BUILT_LOCK:
         sc = _BUILT.get(key)

@@ -110,6 +110,16 @@ class LagrangianSystem:
             raise SystemDefinitionError(f"need m < n constraints, got m = {self.m}, n = {self.n}")
         _reject_dynamicsymbols(self.L, self.k)
         self.params, self._param_values = _parse_params(params)
+        clash = set(self.params) & (set(self.q) | set(self.v) | {self.t})
+        if clash:
+            raise SystemDefinitionError(f"{', '.join(sorted(map(str, clash)))} cannot be a parameter: it is a "
+                                        "coordinate, a velocity or the time")
+        self.lam = sympy.symbols(f"lam0:{self.m}")
+        self.psi = list(psi) if psi is not None else list(sympy.symbols(f"psi1:{self.m + 1}"))
+        nonideal_exprs = [] if nonideal is None else [sympy.sympify(e) for e in nonideal]
+        _check_names(self, nonideal_exprs)
+        _check_functions([("L", self.L)] + [(f"k[{i}]", e) for i, e in enumerate(self.k)]
+                         + [(f"nonideal[{i}]", e) for i, e in enumerate(nonideal_exprs)])
         allowed = set(self.q) | set(self.v) | {self.t} | set(self.params)
         extra = (self.L.free_symbols | self.k.free_symbols) - allowed
         if extra:
@@ -117,8 +127,6 @@ class LagrangianSystem:
                 f"L or k contain symbols other than t, q, v: {sorted(map(str, extra))}; "
                 "substitute them or declare them with params=[...]")
         self.mechanical = mechanical
-        self.lam = sympy.symbols(f"lam0:{self.m}")
-        self.psi = list(psi) if psi is not None else list(sympy.symbols(f"psi1:{self.m + 1}"))
         self.N = None
         if nonideal is not None:
             self.N = sympy.Matrix([sympy.sympify(e) for e in nonideal])
@@ -130,6 +138,10 @@ class LagrangianSystem:
                 raise SystemDefinitionError(f"nonideal term N contains symbols other than t, q, v, psi: "
                                             f"{sorted(map(str, extra))}")
         self._derive()
+        _check_functions([(key, getattr(self, key)) for key in _DERIVED if getattr(self, key, None) is not None],
+                         derived=True)
+        if self.mechanical is not None:
+            check_mechanical(self, self.mechanical)
         _check_build(self)
         self._compiled = {}
         self._fn_exprs = {}
@@ -179,7 +191,7 @@ class LagrangianSystem:
             if sym is None:
                 raise SystemDefinitionError(f"{self.name}: {key} is not a parameter "
                                             f"(parameters: {', '.join(map(str, self.params)) or 'none'})")
-            new._param_values[sym] = _param_value(val, sym) if isinstance(val, str) else val
+            new._param_values[sym] = _param_value(val, sym) if isinstance(val, str) else _checked_param(sym, val)
         return new
 
     def param_values(self) -> dict:
@@ -523,6 +535,12 @@ def _exprs(obj, names, where):
     else as it is."""
     from .tableau import parse_expression
     if isinstance(obj, str):
+        if _nfkc(obj) != obj:
+            odd = sorted({c for c in obj if _nfkc(c) != c})
+            raise SystemDefinitionError(f"{where}: the text has characters that Unicode NFKC normalisation changes "
+                                        f"({', '.join(f'U+{ord(c):04X}' for c in odd[:5])}): Python reads them as "
+                                        "other letters (the micro sign as Greek mu, fullwidth x as x); "
+                                        "type the names as declared, in their normal form")
         try:
             return parse_expression(obj, names, where, error=SystemDefinitionError)
         except SystemDefinitionError as exc:
@@ -550,6 +568,118 @@ def refuse_text(obj, where):
     elif isinstance(obj, (list, tuple)):
         for i, val in enumerate(obj):
             refuse_text(val, f"{where}[{i}]")
+
+
+def _checked_param(p, val):
+    """A parameter value given as a number: a finite real one (True is not 1)."""
+    from .errors import InputError
+    from .validate import real_number
+    try:
+        real_number(val, f"parameter {p}")
+    except InputError as exc:
+        raise SystemDefinitionError(str(exc)) from None
+    return val
+
+
+def _nfkc(name: str) -> str:
+    import unicodedata
+    return unicodedata.normalize("NFKC", name)
+
+
+def _check_names(system, nonideal_exprs) -> None:
+    """Every symbol of the system (declared or in L, k, N) has a name of its own: two different
+    symbols with one name (Symbol("x") and Symbol("x", real=True), a Dummy) cannot both be
+    arguments of the generated functions, and names equal after Unicode NFKC normalisation
+    (the micro sign and Greek mu, a fullwidth x and x) are one name to the expression parser
+    and to Python, so a string L would bind one of them to the other."""
+    seen: dict = {}
+    roles = [("q", system.q), ("v", system.v), ("t", [system.t]), ("params", system.params),
+             ("psi", system.psi), ("the multipliers lam0, lam1, ...", system.lam)]
+    declared = [(role, x) for role, xs in roles for x in xs]
+    free = set(system.L.free_symbols) | set(system.k.free_symbols)
+    for e in nonideal_exprs:
+        free |= set(getattr(e, "free_symbols", ()))
+    known = {x for _, x in declared}
+    for role, x in declared + [("L, k or N", x) for x in sorted(free - known, key=str)]:
+        if not isinstance(x, sympy.Symbol):
+            continue
+        other, orole = seen.setdefault(_nfkc(x.name), (x, role))
+        if other is x and orole == role:
+            continue
+        if other == x and orole == role:
+            continue
+        if other == x:
+            raise SystemDefinitionError(f"the symbol {x.name!r} is used both in {orole} and in {role}: rename it")
+        how = ("are different symbols with the same name (their assumptions differ, or one is a Dummy)"
+               if other.name == x.name else "are the same name after Unicode NFKC normalisation")
+        raise SystemDefinitionError(f"{other.name!r} ({orole}) and {x.name!r} ({role}) {how}: rename one of them")
+
+
+#: the sympy functions every engine translates: numpy / math at float64 and mpmath at dps (the
+#: lambdify modules of ``Backend``), and their derivatives (DiracDelta, from sign and Heaviside,
+#: is zero off its support). The compiled engine translates a subset and refuses the others with
+#: NotCompilableError (engine "auto" then runs the generic engine).
+SUPPORTED_FUNCTIONS = frozenset((
+    "sin", "cos", "tan", "cot", "sec", "csc", "asin", "acos", "atan", "acot", "asec", "acsc", "atan2",
+    "sinh", "cosh", "tanh", "coth", "sech", "csch", "asinh", "acosh", "atanh",
+    "exp", "log", "erf", "erfc", "sinc", "Abs", "sign", "re", "im", "Heaviside", "Piecewise", "Min", "Max"))
+
+
+def _check_functions(named_exprs, derived: bool = False) -> None:
+    """SystemDefinitionError naming the first function in the expressions that an engine cannot
+    translate (besselj, polygamma, LambertW, zeta, conjugate, floor, an unevaluated Derivative),
+    when the system is built, instead of a NameError or PrintMethodNotImplementedError at the
+    first evaluation."""
+    from sympy.core.function import AppliedUndef
+    for where, e in named_exprs:
+        if not isinstance(e, sympy.Basic):
+            continue
+        for node in sympy.preorder_traversal(e):
+            bad = None
+            if isinstance(node, (sympy.Derivative, sympy.Integral, sympy.Subs, sympy.Sum, sympy.Product)):
+                bad = type(node).__name__
+            elif isinstance(node, sympy.Function) and not isinstance(node, AppliedUndef):
+                name = type(node).__name__
+                if name not in SUPPORTED_FUNCTIONS and not (derived and name == "DiracDelta"):
+                    bad = name
+            if bad is not None:
+                what = (f"the derivatives of L and k ({where}) contain {bad}" if derived
+                        else f"{where} contains the function {bad}")
+                raise SystemDefinitionError(f"{what}, which the engines do not translate; supported: "
+                                            f"{', '.join(sorted(SUPPORTED_FUNCTIONS))} (and powers, sqrt)")
+
+
+def check_mechanical(system, mech) -> None:
+    """The mechanical form's M (used by the compiled engine and the semi-implicit comparators)
+    is square, symmetric and equal to L_vv (used by the generic engine): one mass matrix for
+    every engine. A non-symmetric M gave the compiled engine M and the generic one its
+    symmetric part, 4e-2 apart, without a word."""
+    if not isinstance(mech, dict) or "M" not in mech:
+        raise SystemDefinitionError(f"{system.name}: mechanical must be a dict with M, U, K (and b)")
+    refuse_text(mech, f"{system.name}: mechanical")
+    try:
+        M = sympy.Matrix(mech["M"])
+    except (TypeError, ValueError, sympy.SympifyError) as exc:
+        raise SystemDefinitionError(f"{system.name}: mechanical M is not a matrix ({str(exc)[:80]})") from None
+    if M.shape != (system.n, system.n):
+        raise SystemDefinitionError(f"{system.name}: mechanical M must be {system.n} x {system.n}, got {M.shape}")
+
+    def differs(a, b):
+        d = sympy.sympify(a) - sympy.sympify(b)
+        return d != 0 and sympy.expand(d) != 0 and sympy.simplify(d) != 0
+    for i in range(system.n):
+        for j in range(i + 1, system.n):
+            if differs(M[i, j], M[j, i]):
+                raise SystemDefinitionError(f"{system.name}: the mass matrix M is not symmetric (M[{i},{j}] = "
+                                            f"{str(M[i, j])[:40]}, M[{j},{i}] = {str(M[j, i])[:40]}): only its "
+                                            "symmetric part enters L = v^T M v / 2; give that")
+    L_vv = getattr(system, "L_vv", None)
+    if L_vv is not None:
+        for i in range(system.n):
+            for j in range(system.n):
+                if differs(M[i, j], L_vv[i, j]):
+                    raise SystemDefinitionError(f"{system.name}: mechanical M[{i},{j}] = {str(M[i, j])[:40]} is not "
+                                                f"L_vv[{i},{j}] = {str(L_vv[i, j])[:40]}: M must be the Hessian of L in v")
 
 
 def _param_value(x, p):
@@ -600,15 +730,20 @@ def _parse_params(params):
     """(tuple of parameter symbols, {symbol: default value})."""
     if params is None:
         return (), {}
+    if not isinstance(params, (dict, list, tuple)):
+        raise SystemDefinitionError(f"params must be a list of symbols (or names) or a dict, got "
+                                    f"{type(params).__name__}")
     items = list(params.items()) if isinstance(params, dict) else [(p, None) for p in params]
     syms, vals = [], {}
     for p, val in items:
         p = sympy.Symbol(p) if isinstance(p, str) else p
         if not isinstance(p, sympy.Symbol):
-            raise SystemDefinitionError(f"parameters must be sympy symbols, got {p!r}")
+            raise SystemDefinitionError(f"parameters must be sympy symbols, got {str(p)[:60]!r}")
+        if p in syms:
+            raise SystemDefinitionError(f"parameter {p} is listed twice")
         syms.append(p)
         if val is not None:
-            vals[p] = val
+            vals[p] = _checked_param(p, val)
     return tuple(syms), vals
 
 

@@ -70,6 +70,33 @@ class SparkTableau:
     decimal_digits_min: int | None = None
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
+    def __post_init__(self):
+        # constructed directly (it is exported), a tableau gets the checks of its readers: a
+        # bool or text s, no coefficients, or coefficients of another shape are one TableauError
+        from .validate import MAX_STAGES_CEILING
+        if not isinstance(self.name, str) or not 0 < len(self.name) <= 500:
+            raise TableauError(f"tableau name must be a non-empty string, got {type(self.name).__name__}")
+        s = self.s
+        if isinstance(s, (bool, np.bool_)) or not isinstance(s, (int, np.integer)) \
+                or not 1 <= s <= MAX_STAGES_CEILING:
+            raise TableauError(f"{self.name}: s must be an integer between 1 and {MAX_STAGES_CEILING}, "
+                               f"got {str(s)[:40]!r}")
+        self.s = int(s)
+        if (self.exact is None) == (self.builder is None):
+            raise TableauError(f"{self.name}: give exactly one of exact= (a dict of sympy matrices) and builder=")
+        if self.builder is not None and not callable(self.builder):
+            raise TableauError(f"{self.name}: builder must be callable (dps -> entries)")
+        if self.exact is not None:
+            if not isinstance(self.exact, dict) or set(NAMES) - set(self.exact):
+                raise TableauError(f"{self.name}: exact must be a dict with the keys {', '.join(NAMES)}")
+            want = {k: ((self.s, 1) if k in VECTOR_NAMES else (self.s - 1, self.s) if k == "omega"
+                        else (self.s, self.s)) for k in NAMES}
+            for k in NAMES:
+                shape = getattr(self.exact[k], "shape", None)
+                if not isinstance(self.exact[k], sympy.MatrixBase) or (shape != want[k] and self.exact[k].rows):
+                    raise TableauError(f"{self.name}: exact[{k!r}] must be a sympy Matrix of shape {want[k]}, "
+                                       f"got {type(self.exact[k]).__name__} {shape}")
+
     # --- numeric views ---------------------------------------------------------------
     def mp_entries(self, dps: int) -> dict:
         """Entries as nested lists of mpf, correct to ``dps`` digits (or to the input
@@ -835,6 +862,8 @@ def check_stages(s: int, max_stages: int | None = None, what: str = "tableau") -
     like s^3 and beyond, so larger s must be asked for explicitly."""
     from .validate import MAX_STAGES_CEILING
     limit = MAX_STAGES if max_stages is None else max_stages
+    if type(limit).__module__ == "numpy" and hasattr(limit, "dtype") and limit.dtype.kind in "iu":
+        limit = int(limit)                   # np.int64(3) is an integer like 3
     if isinstance(limit, bool) or not isinstance(limit, int) or not 1 <= limit <= MAX_STAGES_CEILING:
         # --max-stages 10**6 was a MemoryError, 10**8 an OverflowError (issue 25, H)
         raise TableauError(f"max_stages must be an integer between 1 and {MAX_STAGES_CEILING}, got "
@@ -909,6 +938,10 @@ def load_tableau(path, max_stages: int | None = None) -> SparkTableau:
     most ``max_file_bytes(max_stages)`` bytes are read (never /dev/zero, a FIFO or a directory)."""
     import os
     import stat
+    if isinstance(path, bool) or not isinstance(path, (str, bytes, os.PathLike)) \
+            or "\0" in (path if isinstance(path, str) else os.fsdecode(path)):
+        raise TableauError(f"a tableau path must be a file name (str or os.PathLike, no NUL), got "
+                           f"{type(path).__name__} {str(path)[:60]!r}")
     limit = max_file_bytes(max_stages)
     try:
         st = os.stat(path)

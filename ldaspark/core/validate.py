@@ -197,7 +197,11 @@ def check_choice(x, what: str, choices) -> str:
 
 
 def check_executor(executor):
-    """None or a concurrent.futures-style executor (``submit`` and ``map``)."""
+    """None or a concurrent.futures-style executor (``submit`` and ``map``): an instance, not
+    the class (whose unbound ``submit`` would take the first task for ``self``)."""
+    if isinstance(executor, type):
+        raise InputError(f"executor must be an executor object, got the class {executor.__name__} "
+                         f"(create one: {executor.__name__}(...))")
     if executor is not None and not (callable(getattr(executor, "submit", None))
                                      and callable(getattr(executor, "map", None))):
         raise InputError(f"executor must be a concurrent.futures Executor (submit, map), got {_describe(executor)}")
@@ -253,7 +257,9 @@ def check_max_stages(max_stages):
 
 
 def times(t, what: str = "t"):
-    """A real finite time, or a 1-D array of them (dense output): float64 array and its ndim."""
+    """A real finite time, or a 1-D array of them (dense output): float64 array and its ndim.
+    Entries as ``real_number`` takes them (mpmath ``mpf``, Fraction, Decimal, real sympy numbers:
+    a dps run's own times are mpf)."""
     import numpy as np
     if _is_bool(t) or t is None or isinstance(t, (str, bytes)):
         raise InputError(f"{what} must be a real number or a 1-D array of them, got {_describe(t)}")
@@ -261,6 +267,15 @@ def times(t, what: str = "t"):
         a = np.asarray(t)
     except (ValueError, TypeError):
         raise InputError(f"{what} must be a real number or a 1-D array of them, got {_describe(t)}") from None
+    if a.dtype.kind == "O" and a.ndim <= 1:
+        flat = a.reshape(-1)
+        vals = []
+        for e in flat:
+            if isinstance(e, str):
+                raise InputError(f"{what} must be a real number or a 1-D array of them, got {_describe(t)}")
+            real_number(e, what)
+            vals.append(float(e))
+        a = np.array(vals, dtype=float).reshape(a.shape)
     if a.dtype.kind not in "iuf" or a.ndim > 1:
         raise InputError(f"{what} must be a real number or a 1-D array of them, got {_describe(t)}")
     a = a.astype(float)
@@ -274,7 +289,11 @@ def regular_file(path, limit: int, what: str = "file") -> int:
     follows symbolic links) before anything opens it, so a FIFO never blocks and /dev/zero, or a
     link to it, is never read."""
     import stat
+    if isinstance(path, bool) or not isinstance(path, (str, bytes, os.PathLike)):
+        raise InputError(f"a {what} path must be a string or os.PathLike, got {_describe(path)}")
     try:
+        if "\0" in (os.fsdecode(path) if not isinstance(path, str) else path):
+            raise InputError(f"a {what} path must not contain a NUL character")
         st = os.stat(path)
     except FileNotFoundError:
         raise InputError(f"no such {what}: {os.fspath(path)}") from None
@@ -313,3 +332,145 @@ def finite_initial_point(system, bk, t, q, v, member: str = "") -> None:
             raise NonFiniteError(f"{member}{what} at the initial point t0 = {float(t):g} is {str(x)[:60]}, "
                                  "not a finite real number: q0, v0 lie outside the domain of L and k "
                                  "(or L has oo / zoo / I in it)", step=0, time=float(t))
+
+
+# --- the exported functions outside ``integrate`` ------------------------------------------------
+# ``flow_jacobian``, the Theorem 1 checks, ``RunSpec`` / ``run_many`` and ``get_scene`` take the
+# same kinds of values as ``integrate``; these helpers check them the same way, so that every
+# exported name refuses a wrong value with one InputError naming it, before any work.
+
+def as_system(system, what: str = "system"):
+    """(LagrangianSystem, Scene or None) from a LagrangianSystem, a Scene or a scene name (the
+    same three forms ``integrate`` takes)."""
+    from .scenes import Scene, get_scene
+    from .system import LagrangianSystem
+    if isinstance(system, str):
+        system = get_scene(system)
+    if isinstance(system, Scene):
+        return system.system, system
+    if isinstance(system, LagrangianSystem):
+        return system, None
+    raise InputError(f"{what} must be a LagrangianSystem, a Scene or a scene name, got {_describe(system)}")
+
+
+def as_tableau(method, what: str = "method", max_stages=None):
+    """A SparkTableau from a SparkTableau or a built-in SPARK method name (not a comparator)."""
+    from .families import get_method
+    from .tableau import SparkTableau
+    if isinstance(method, SparkTableau):
+        return method
+    if not isinstance(method, str) or len(method) > 100:
+        raise InputError(f"{what} must be a SPARK method name (gauss-S, ...) or a SparkTableau, got {_describe(method)}")
+    from .errors import TableauError
+    try:
+        return get_method(method, max_stages=check_max_stages(max_stages))
+    except TableauError as exc:
+        raise InputError(f"{what}: {exc}") from None
+
+
+def point(system, t0, q0, v0, what: str = "", scene=None, dps=None):
+    """(t0, q0, v0) checked: t0 a real number, q0 and v0 vectors of n real numbers; None takes
+    the scene's initial data (when ``scene`` is given)."""
+    import numpy as np
+    if scene is not None and (q0 is None or v0 is None or t0 is None):
+        ts, qs, vs = scene.initial(dps)
+        t0 = ts if t0 is None else t0
+        q0 = qs if q0 is None else q0
+        v0 = vs if v0 is None else v0
+    if q0 is None or v0 is None:
+        raise InputError(f"{what}give q0 and v0 (or a Scene / scene name for its initial data)")
+    real_number(t0, f"{what}t0")
+    for name, x in (("q0", q0), ("v0", v0)):
+        real_vector(x, f"{what}{name}")
+        if np.ndim(np.asarray(x, dtype=object)) != 1 or len(x) != system.n:
+            raise InputError(f"{what}{name} must have n = {system.n} entries, got {_describe(x)}")
+    return t0, q0, v0
+
+
+def step_advances(t0, h, n_steps=1, dps=None, what: str = "h") -> None:
+    """The times t0 + i h (i = 0..n_steps) are distinct at the working precision: float64 (dps
+    None) or ``dps`` digits. A step below the spacing of the numbers near t (t0 = 1e17, h = 1 in
+    float64) leaves t where it was, or rounds several output times to one, while the state moves
+    by h: refused, naming the smallest step that resolves."""
+    import numpy as np
+    h_, t_ = abs(float(h)), abs(float(t0))
+    T = max(t_, abs(float(t0) + int(n_steps) * float(h))) if math.isfinite(t_) else t_
+    if dps is None:
+        need = 2 * float(np.spacing(T)) if T > 0 else 0.0
+    else:
+        need = 2 * T * 10.0 ** (1 - int(dps))
+    if h_ < need or (dps is None and float(t0) + float(h) == float(t0)):
+        prec = "float64" if dps is None else f"{dps} digits"
+        raise InputError(f"{what} = {float(h):.3g} does not advance t near {T:.3g} in {prec} (times would repeat): "
+                         f"use |h| >= {need:.3g} or a t0 closer to 0")
+
+
+def index_list(x, size: int, what: str, unique: bool = True) -> list:
+    """A list of integer indices in [0, size) (numpy integers accepted; no bools, floats,
+    negative indices or, with ``unique``, repeats)."""
+    import numpy as np
+    if isinstance(x, (str, bytes, dict)) or not hasattr(x, "__iter__"):
+        raise InputError(f"{what} must be a list of indices, got {_describe(x)}")
+    out = []
+    for e in list(x):
+        if _is_bool(e) or not isinstance(e, (int, np.integer)):
+            raise InputError(f"{what}: indices must be integers, got {_describe(e)}")
+        if not 0 <= e < size:
+            raise InputError(f"{what}: index {_fmt_int(e)} out of range 0..{size - 1}")
+        out.append(int(e))
+    if unique and len(set(out)) != len(out):
+        raise InputError(f"{what} lists the same index twice: {out}")
+    return out
+
+
+def callable_or_none(f, what: str):
+    if f is not None and not callable(f):
+        raise InputError(f"{what} must be callable (or None), got {_describe(f)}")
+    return f
+
+
+def flag(x, what: str) -> bool:
+    """True or False (NumPy bools too); anything else (1, "yes", None) is refused."""
+    if not _is_bool(x):
+        raise InputError(f"{what} must be True or False, got {_describe(x)}")
+    return bool(x)
+
+
+def theory_args(system, tableau, t0, q0, v0, h, dps, what: str):
+    """The common arguments of the Theorem 1 checks (``theorem1_residuals``,
+    ``classify_wellposedness``, ``check_symmetry``, ``gauge_invariance``): system a
+    LagrangianSystem, a Scene or a scene name (q0, v0 None: the scene's initial data), tableau a
+    SparkTableau or a SPARK method name, t0 / h real (h nonzero, advancing t at every precision in
+    ``dps``), q0 / v0 n real numbers. Returns (system, tableau, t0, q0, v0)."""
+    dlist = list(dps) if isinstance(dps, (list, tuple)) else [dps]
+    if not dlist:
+        raise InputError(f"{what}: dps must name at least one precision")
+    for d in dlist:
+        if d is None:
+            raise InputError(f"{what}: dps must be an integer number of digits (these checks run in mpmath)")
+        check_dps(d)
+    sysm, scene = as_system(system, f"{what}: system")
+    tab = as_tableau(tableau, f"{what}: tableau")
+    t0, q0, v0 = point(sysm, None if scene is not None and (q0 is None or v0 is None) else t0, q0, v0,
+                       f"{what}: ", scene, max(dlist))
+    hf = _rational_string(h)           # "1/10": the mpmath checks take exact fractions as text
+    real_number(h if hf is None else hf, f"{what}: h", nonzero=True)
+    for d in dlist:
+        step_advances(t0, h if hf is None else hf, 1, int(d), what=f"{what}: h")
+    return sysm, tab, t0, q0, v0
+
+
+def _rational_string(x):
+    """A string "p/q" (integers, q nonzero, at most MAX_NUMBER_CHARS characters) as a Fraction,
+    else None."""
+    import re
+    from fractions import Fraction
+    if not isinstance(x, str) or len(x) > MAX_NUMBER_CHARS:
+        return None
+    m = re.fullmatch(r"\s*([+-]?\d+)\s*/\s*(\d+)\s*", x)
+    try:
+        if m is None or int(m.group(2)) == 0:
+            return None
+        return Fraction(int(m.group(1)), int(m.group(2)))
+    except ValueError:                  # more digits than int() converts
+        return None

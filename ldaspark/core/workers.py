@@ -83,6 +83,8 @@ class InlineExecutor(cf.Executor):
 
 
 def is_address(where) -> bool:
+    """``where`` is given as a scheduler address (``scheme://...``); ``check_where`` says whether
+    it is a well-formed one."""
     return isinstance(where, str) and "://" in where
 
 
@@ -101,15 +103,51 @@ def _is_client(obj) -> bool:
 
 
 def check_where(where, jobs=None):
-    """Refuse what cannot name a place to run work (before anything starts)."""
-    if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
-        raise InputError(f"jobs must be a positive integer, got {jobs!r}")
-    if where is None or where == "local" or is_address(where) or _is_client(where):
+    """Refuse what cannot name a place to run work (before anything starts). A scheduler address
+    is parsed here, strictly: ``tcp|tls|ws|wss|ucx://host[:port]`` with a non-empty host, a port in
+    1..65535 and nothing else, or ``inproc://`` of a scheduler in this process; a malformed one
+    (x://y, tcp://, tcp://[::1) is one InputError at once, never a Client that waits for its
+    connect timeout and then complains again when it is collected."""
+    import numpy as np
+    if jobs is not None and (isinstance(jobs, (bool, np.bool_)) or not isinstance(jobs, (int, np.integer))
+                             or jobs < 1):
+        raise InputError(f"jobs must be a positive integer, got {str(jobs)[:60]!r}")
+    if is_address(where):
+        import re
+        import urllib.parse
+        bad = f"malformed Dask scheduler address {where[:80]!r}"
+        if len(where) > 300 or not where.isprintable() or any(c.isspace() for c in where):
+            raise InputError(f"{bad}: expected tcp://host:port")
+        scheme = where.split("://", 1)[0].lower()
+        if scheme == "inproc":
+            parts = where.split("://", 1)[1].split("/")
+            if len(parts) != 3 or not parts[0] or parts[1] != str(os.getpid()) or not parts[2].isdigit():
+                raise InputError(f"{bad}: inproc:// names a scheduler inside this process "
+                                 "(inproc://IP/PID/N); pass that cluster's distributed.Client instead")
+            return
+        if scheme not in ("tcp", "tls", "ws", "wss", "ucx"):
+            raise InputError(f"{bad}: the scheme must be tcp, tls, ws, wss or ucx (as in tcp://host:8786)")
+        try:
+            u = urllib.parse.urlsplit(where)
+            host, port = u.hostname, u.port
+        except ValueError as exc:
+            raise InputError(f"{bad}: {exc}") from None
+        rest = where.split("://", 1)[1]
+        if not host or u.path not in ("", "/") or u.query or u.fragment or u.username is not None \
+                or rest.endswith(":") or not re.fullmatch(r"[A-Za-z0-9._\-]+|[0-9A-Fa-f:.]+", host):
+            raise InputError(f"{bad}: expected {scheme}://host:port with a host name or address")
+        if port is not None and not 1 <= port <= 65535:
+            raise InputError(f"{bad}: the port must be between 1 and 65535")
         return
+    if where is None or where == "local" or _is_client(where):
+        return
+    if isinstance(where, type):
+        raise InputError(f"where must be an executor object, got the class {where.__name__} "
+                         f"(create one: {where.__name__}(...))")
     if isinstance(where, cf.Executor) or (hasattr(where, "submit") and callable(where.submit)):
         return
     raise InputError(f"where work runs must be 'local', a scheduler address such as tcp://host:8786, "
-                     f"a distributed.Client or a concurrent.futures.Executor, got {where!r}")
+                     f"a distributed.Client or a concurrent.futures.Executor, got {str(where)[:80]!r}")
 
 
 class _Place:

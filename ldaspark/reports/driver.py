@@ -66,7 +66,9 @@ def run(args) -> int:
     if getattr(args, "section", None):
         return int(args.section_run(args) or 0)
     from ..core.errors import InputError
+    from ..core.workers import check_where
     from .jobs import run_sections
+    check_where(getattr(args, "scheduler", None))    # before the CPU probe and the section imports
     workers = args.workers or os.cpu_count() or 1
     if workers < 1:
         raise InputError(f"--workers must be positive, got {workers}")

@@ -50,7 +50,7 @@ import numpy as np
 import scipy.linalg
 
 from ..core.backend import Backend, SingularMatrixError
-from ..core.errors import LdasparkError
+from ..core.errors import InputError, LdasparkError
 from ..core.spark import SparkMethod
 from ..core.system import LagrangianSystem
 from ..core.tableau import SparkTableau
@@ -237,6 +237,9 @@ def _rank_info(bk, J, dps):
     the deficiency r decided relative to the precision, and float64 singular vectors, which
     are ample for pinning/bordering (any transversal choice works) and for the null support."""
     Jf = np.array([[float(v) for v in row] for row in J]) if bk.is_mp else J
+    if not np.all(np.isfinite(Jf)):     # a step far too large for the system: no rank to decide
+        raise DiscreteSolveError("the BVP Jacobian J has entries beyond float64 range or non-finite ones "
+                                 "(the step h is far too large for this system)")
     U, s64, Vh = np.linalg.svd(Jf)
     if bk.is_mp and s64[-1] <= 1e-9 * s64[0]:
         # candidate deficiency: decide at full precision, on the small block only
@@ -439,12 +442,24 @@ def discrete_lagrangian(system, tableau, t0, q0, t1, q1, dps=40, v0_guess=None, 
 
     ``x_guess`` (BVP layout) or ``v0_guess`` seed Newton; ``gauge_ref`` (a packed x) pins the
     gauge (default: the converged solution of a first unpinned pass, or x_guess)."""
+    from ..core import validate
+    system, _ = validate.as_system(system, "discrete_lagrangian: system")
+    tableau = validate.as_tableau(tableau, "discrete_lagrangian: tableau")
+    dps = validate.check_dps(dps)
+    if dps is None:
+        raise InputError("discrete_lagrangian: dps must be an integer number of digits (the BVP runs in mpmath)")
+    validate.point(system, t0, q0, q1, "discrete_lagrangian: ")     # q1 checked like v0
+    validate.real_number(t1, "discrete_lagrangian: t1")
+    if v0_guess is not None:
+        validate.real_vector(v0_guess, "discrete_lagrangian: v0_guess")
     bvp = DiscreteBVP(system, tableau, dps)
     bk = bvp.bk
     with bk.context():
         t0, t1 = bk.scalar(t0), bk.scalar(t1)
         q0, q1 = bk.array(q0), bk.array(q1)
         h = t1 - t0
+        if h == 0:
+            raise InputError("discrete_lagrangian: t1 must differ from t0")
         if x_guess is None:
             v0g = bk.array(v0_guess) if v0_guess is not None else (q1 - q0) / h
             _, _, x_guess = base_point(system, tableau, t0, q0, v0g, h, dps)
@@ -524,7 +539,17 @@ def theorem1_residuals(system, tableau, t0, q0, v0, h, dps=40, q1_shift=None, q0
     """Theorem 1 at the endpoints reached by one IVP step from (t0, q0, v0) (see
     ``_theorem1_once``). When the finite-difference error estimate exceeds ``fd_target``
     (an ill-conditioned J: L_d then has large higher derivatives), delta shrinks by 1e-5 and the
-    precision grows by 15 digits, up to ``max_refine`` times; the last attempt is returned."""
+    precision grows by 15 digits, up to ``max_refine`` times; the last attempt is returned.
+    ``system`` may also be a Scene or a scene name (q0, v0 None: its initial data)."""
+    from ..core import validate
+    system, tableau, t0, q0, v0 = validate.theory_args(system, tableau, t0, q0, v0, h, dps, "theorem1_residuals")
+    for nm, sh in (("q1_shift", q1_shift), ("q0_shift", q0_shift)):
+        if sh is not None:
+            validate.real_vector(sh, f"theorem1_residuals: {nm}")
+            if np.ndim(np.asarray(sh, dtype=object)) != 1 or len(sh) != system.n:
+                raise InputError(f"theorem1_residuals: {nm} must have n = {system.n} entries")
+    validate.real_number(fd_target, "theorem1_residuals: fd_target", positive=True)
+    validate.count(max_refine, "theorem1_residuals: max_refine", 0, 10)
     t_start = time.time()
     err = None
     out = None
@@ -541,6 +566,11 @@ def theorem1_residuals(system, tableau, t0, q0, v0, h, dps=40, q1_shift=None, q0
             break
     if out is None:
         raise err
+    bad = [k for k, x in out.items() if isinstance(x, (float, mpmath.mpf)) and not mpmath.isfinite(x)]
+    if bad:                             # no NaN or infinity is returned as a residual
+        from ..core.errors import NonFiniteError
+        raise NonFiniteError(f"theorem1_residuals: {', '.join(bad[:4])} not finite at h = {str(h)[:30]} "
+                             "(the step is far too large for this system)")
     out["seconds"] = time.time() - t_start
     return out
 

@@ -96,8 +96,11 @@ def _index(names, system, what):
         elif what == "v" and str(x) in plain:
             out.append(plain.index(str(x)))
         else:
-            raise InputError(f"flow_jacobian: {x!r} is not one of the {'coordinates' if what == 'q' else 'velocities'} "
+            raise InputError(f"flow_jacobian: {str(x)[:40]!r} is not one of the {'coordinates' if what == 'q' else 'velocities'} "
                              f"{', '.join(labels)}")
+    if len(set(out)) != len(out):
+        raise InputError(f"flow_jacobian: the {'coordinates' if what == 'q' else 'velocities'} {list(names)} "
+                         "name one of them twice")
     return out
 
 
@@ -114,27 +117,38 @@ def flow_jacobian(system, method, q0, v0, h, *, t0=0, dps=None, coords=None, rat
     explicit basis B (2n x r) and read-out indices into (q, v) instead; ``how``: "ift" (implicit
     function theorem, default) or "difference" (central differences; needs ``dps``).
     Returns a ``FlowJacobian``."""
-    from ..core.families import get_method
-    from ..core.scenes import Scene, get_scene
+    from ..core import validate as V
     from ..core.spark import SparkMethod
-    from ..core.tableau import SparkTableau
-    if isinstance(system, str):
-        system = get_scene(system)
-    if isinstance(system, Scene):
-        if q0 is None or v0 is None:       # a scene's own initial data (at the working precision)
-            t0, q_s, v_s = system.initial(dps)
-            q0 = q_s if q0 is None else q0
-            v0 = v_s if v0 is None else v0
-        system = system.system
-    if q0 is None or v0 is None:
-        raise InputError("flow_jacobian: give q0 and v0 (or a Scene / scene name for its initial data)")
+    dps = V.check_dps(dps)
+    V.check_choice(how, "flow_jacobian: how", ("ift", "difference"))
+    V.check_newton_options(tol, 1, what="flow_jacobian: tol")
+    V.real_number(t0, "flow_jacobian: t0")      # checked even when a scene's own t0 replaces it
+    system, scene = V.as_system(system, "flow_jacobian: system")
+    t0, q0, v0 = V.point(system, t0 if scene is None or (q0 is not None and v0 is not None) else None,
+                         q0, v0, "flow_jacobian: ", scene, dps)
+    V.real_number(h, "flow_jacobian: h", nonzero=True)
+    V.step_advances(t0, h, 1, dps, what="flow_jacobian: h")
+    if params is not None:
+        if not isinstance(params, dict):
+            raise InputError(f"flow_jacobian: params must be a dict, got {V._describe(params)}")
+        for key, val in params.items():
+            V.param_value(key, val)
     if params:
         system = system.with_params(params)
-    tab = method if isinstance(method, SparkTableau) else get_method(method)
-    if how not in ("ift", "difference"):
-        raise InputError(f"flow_jacobian: how must be 'ift' or 'difference', got {how!r}")
+    tab = V.as_tableau(method, "flow_jacobian: method")
     if how == "difference" and dps is None:
         raise InputError("flow_jacobian: how='difference' needs dps (differencing in float64 loses half the digits)")
+    n = system.n
+    if tangent is not None:
+        if coords is not None or rates is not None or dependent is not None:
+            raise InputError("flow_jacobian: give tangent and select, or coords / rates / dependent, not both")
+        tangent = _check_tangent(tangent, n, dps)
+        select = V.index_list(select, 2 * n, "flow_jacobian: select") if select is not None else None
+    elif select is not None:
+        raise InputError("flow_jacobian: select is read with tangent (for coordinates use coords= / rates=)")
+    for nm, val in (("coords", coords), ("rates", rates), ("dependent", dependent)):
+        if val is not None and (isinstance(val, (str, bytes, dict)) or not hasattr(val, "__iter__")):
+            raise InputError(f"flow_jacobian: {nm} must be a list of indices or names, got {V._describe(val)}")
     sm = SparkMethod(system, tab, dps=dps, tol=tol, newton="full")
     bk = sm.backend
     n = system.n
@@ -147,11 +161,40 @@ def flow_jacobian(system, method, q0, v0, h, *, t0=0, dps=None, coords=None, rat
             full, q1, v1 = _ift(sm, t0_, q0_, v0_, h_)
         else:
             full, q1, v1 = _difference(sm, t0_, q0_, v0_, h_)
+        _finite(full, t0)
         B, S = _restriction(system, bk, t0_, q0_, v0_, coords, rates, dependent, tangent, select)
         if B is None:
             return FlowJacobian(full, full, None, list(range(2 * n)), h_, dps, q1, v1)
         J = full[S, :].dot(B)
     return FlowJacobian(full, J, B, S, h_, dps, q1, v1)
+
+
+def _finite(full, t0):
+    """No NaN, infinity or complex entry is returned as a Jacobian."""
+    ok = all((mpmath.isfinite(x) and isinstance(x, mpmath.mpf)) if isinstance(x, (mpmath.mpf, mpmath.mpc))
+             else isinstance(x, (int, float, np.integer, np.floating)) and np.isfinite(x)
+             for x in np.asarray(full).reshape(-1))
+    if not ok:
+        from ..core.errors import NonFiniteError
+        raise NonFiniteError("flow_jacobian: the Jacobian of the step is not finite (L or k evaluated outside "
+                             "its domain, or the step's Newton matrix is singular)", step=0, time=float(t0))
+
+
+def _check_tangent(tangent, n, dps):
+    """B (2n x r): a matrix of finite real numbers with 1 <= r <= 2n columns."""
+    from ..core import validate as V
+    try:
+        B = np.asarray(tangent, dtype=object)
+    except (ValueError, TypeError):
+        B = None
+    if B is None or B.ndim != 2 or B.shape[0] != 2 * n or not 1 <= B.shape[1] <= 2 * n:
+        raise InputError(f"flow_jacobian: tangent must be a 2n x r matrix (2n = {2 * n}, 1 <= r <= 2n), "
+                         f"got {V._describe(tangent)}")
+    for i, e in enumerate(B.reshape(-1)):
+        if isinstance(e, str):
+            raise InputError(f"flow_jacobian: tangent entry {i} must be a number, got {V._describe(e)}")
+        V.real_number(e, f"flow_jacobian: tangent entry {i}")
+    return tangent
 
 
 def _step(sm, t0, q0, v0, h):
@@ -241,7 +284,7 @@ def _restriction(system, bk, t0, q0, v0, coords, rates, dependent, tangent, sele
             raise InputError(f"flow_jacobian: tangent must be a 2n x r matrix (2n = {2 * n})")
         if select is None or len(select) != B.shape[1]:
             raise InputError("flow_jacobian: give select (r indices into (q, v)) with tangent")
-        return B, [int(i) for i in select]
+        return B, list(select)
     if coords is None and rates is None:
         return None, None
     ci = _index(coords or [], system, "q")

@@ -427,7 +427,8 @@ def run_ledger(max_s=3, scenes=LEDGER_SCENES, perturbed=True, holonomic=True, co
     client), the longest first; each unit's records are computed independently of the others,
     so the output does not depend on the schedule. ``checkpoint`` (a ``workers.Checkpoint``):
     units finished by an interrupted run are resumed from it, each finished unit is appended."""
-    from ..core.workers import Unit, run_resumable
+    from ..core.workers import Unit, check_where, run_resumable
+    check_where(where)                  # a malformed address before the tableaux are built
     n_tabs = len(_ledger_tabs(max_s, controls))
     units = []
     for i in range(n_tabs):

@@ -19,7 +19,10 @@ def check_symmetry(system, tableau, t0, q0, v0, h, dps=40):
 
     all relative to the size of the compared quantities. For a rank-deficient J the f_d
     comparisons are restricted to directions in which the BVP stays solvable (their pairing
-    with other directions depends on the gauge-fixing)."""
+    with other directions depends on the gauge-fixing). ``system`` may also be a Scene or a
+    scene name (q0, v0 None: its initial data)."""
+    from ..core import validate
+    system, tableau, t0, q0, v0 = validate.theory_args(system, tableau, t0, q0, v0, h, dps, "check_symmetry")
     t_start = time.time()
     bk = Backend(dps)
     with bk.context():
@@ -44,7 +47,8 @@ def check_symmetry(system, tableau, t0, q0, v0, h, dps=40):
         sfp = bk.norm_inf(a) / sc
         sfm = bk.norm_inf(b) / sc
         # the unrestricted covectors, to show the restriction matters
-        sc_full = max(bk.norm_inf(fwd.f_d_minus), bk.norm_inf(fwd.f_d_plus), bk.norm_inf(fwd.p0))
+        sc_full = max(bk.norm_inf(fwd.f_d_minus), bk.norm_inf(fwd.f_d_plus), bk.norm_inf(fwd.p0),
+                      1e-300)                 # a scene at rest: all of them zero
         full_p = bk.norm_inf(fwd.f_d_minus + rev.f_d_plus) / sc_full
         full_m = bk.norm_inf(fwd.f_d_plus + rev.f_d_minus) / sc_full
         # Phi_{-h} o Phi_h
@@ -77,7 +81,9 @@ def _tangent_projector(res, which):
     else:
         M = g.W_left.T.dot(res.extra["dG_dq"][which])
     n = M.shape[1]
-    Mp = bk.zeros((n, n))                     # pad to square: full right singular basis
+    # pad to at least square: the full right singular basis (a deficient J at a large h can give
+    # more conditions than coordinates)
+    Mp = bk.zeros((max(n, M.shape[0]), n))
     Mp[:M.shape[0]] = M
     U, sig, Vh = _svd(bk, Mp)
     k = sum(1 for x in sig if float(x) > 1e-8 * max(float(sig[0]), 1e-300))

@@ -18,7 +18,28 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
     dps in ``dps`` and each step h*f, the singular values of J. A structurally zero sigma sits
     at the precision floor (sigma/sigma_max ~ 10^-dps: it moves with dps); a genuinely small one
     scales like a power of h and does not move with dps. Returns the class, the deficiency, the
-    smallest nonzero sigma per (dps, h), its observed power of h, and the floor per dps."""
+    smallest nonzero sigma per (dps, h), its observed power of h, and the floor per dps.
+    ``system`` may also be a Scene or a scene name (q0, v0 None: its initial data)."""
+    from ..core import validate
+    from ..core.errors import InputError
+    if isinstance(dps, (list, tuple)):
+        for d in dps:
+            validate.check_dps(d)
+    if not isinstance(dps, (list, tuple)) or len(dps) < 2 or len(set(map(int, dps))) != len(dps):
+        raise InputError(f"classify_wellposedness: dps must be two or more distinct precisions, got "
+                         f"{validate._describe(dps)}")
+    system, tableau, t0, q0, v0 = validate.theory_args(system, tableau, t0, q0, v0, h, dps, "classify_wellposedness")
+    if not isinstance(h_factors, (list, tuple)) or len(h_factors) < 2 or len(set(map(str, h_factors))) != len(h_factors):
+        raise InputError(f"classify_wellposedness: h_factors must be two or more distinct step factors, got "
+                         f"{validate._describe(h_factors)}")
+    for f in h_factors:
+        try:
+            fr = None if validate._is_bool(f) or isinstance(f, float) and not math.isfinite(f) else Fraction(str(f))
+        except (ValueError, ZeroDivisionError):
+            fr = None
+        if fr is None or fr <= 0 or fr.denominator > 10 ** 6 or fr.numerator > 10 ** 6:
+            raise InputError(f"classify_wellposedness: h_factors must be positive rationals such as 1 or \"1/2\", "
+                             f"got {validate._describe(f)}")
     out = {"sigma": {}, "deficiency": {}}
     floors = {}
     nz = {}
@@ -89,6 +110,9 @@ def gauge_invariance(system, tableau, t0, q0, v0, h, dps=40, shift="1e-3"):
     vector of J) and report how L_d, p0 + f_d^- and p1 - f_d^+ (= -dL_d/dq0, dL_d/dq1 by
     Theorem 1; gauge-invariant) move, next to how p0 itself moves (the gauge is real).
     Returns None when J has full rank."""
+    from ..core import validate
+    system, tableau, t0, q0, v0 = validate.theory_args(system, tableau, t0, q0, v0, h, dps, "gauge_invariance")
+    validate.real_number(shift, "gauge_invariance: shift", nonzero=True)
     bk = Backend(dps)
     with bk.context():
         t1, q1, xg = base_point(system, tableau, t0, q0, v0, h, dps)
