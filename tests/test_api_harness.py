@@ -130,7 +130,7 @@ NOT_DRIVEN = {
     "plot": "a module: its functions are driven as plot.energy, plot.constraint, plot.trajectory",
 }
 #: (name, argument) pairs that still fail in this branch for reasons owned elsewhere (result files)
-KNOWN = {("save_result", "path"), ("save_result", "result"), ("load_result", "path")}
+KNOWN: set = set()     # (name, argument) pairs known to fail; none left
 
 
 def test_every_exported_name_is_driven():

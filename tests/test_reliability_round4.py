@@ -395,8 +395,6 @@ def test_numpy_integers_wherever_ints_are_taken():
         ldaspark.integrate("skate", "gauss-2", h=0.1, n_steps=1, max_stages=np.bool_(True))
 
 
-@pytest.mark.xfail(strict=False, reason="the temporary name of an atomic write exceeds NAME_MAX (core/io.py: "
-                                        "fixed by the signal-handling work)")
 @pytest.mark.parametrize("length", [243, 255])
 def test_cli_out_with_a_long_name(length, tmp_path):
     from ldaspark.cli import main
