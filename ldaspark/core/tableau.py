@@ -45,10 +45,43 @@ def guard_digits(s: int) -> int:
 class SparkTableau:
     """Coefficients of an s-stage SPARK method (21).
 
-    ``exact`` maps each name in NAMES to a sympy Matrix (vectors as s x 1, omega as
-    (s-1) x s); it is None for tableaux known only numerically. ``builder(dps)`` returns the
-    same entries as nested lists of mpf correct to ``dps`` digits. ``source_digits`` is the
-    precision of the input entries (None when exact or computable to any precision).
+    The entries are c, b, A (21a), b_hat, A_hat (21b), b_tilde, A_tilde (21b, d) and the
+    (s-1) x s matrix omega of (21e).
+
+    Parameters
+    ----------
+    name : str
+        The method's name.
+    s : int
+        Number of stages.
+    exact : dict, optional
+        Each entry name mapped to a sympy Matrix (vectors as s x 1, omega as (s-1) x s); None
+        for tableaux known only numerically.
+    builder : callable, optional
+        ``builder(dps)`` returns the same entries as nested lists of mpf correct to ``dps``
+        digits.
+    source_digits : int, optional
+        The precision of the input entries (None when exact or computable to any precision).
+    claimed_order : int, optional
+        The order the source claims (checked by the audit, not trusted).
+    family : str, optional
+        The family name (``gauss``, ``lobatto-iiia-iiib``, ..., ``custom``).
+    sources : dict, optional
+        The entries as given in a file (kept for the audit report).
+    decimal_digits, decimal_digits_min : int, optional
+        Largest and smallest number of digits of decimal-literal entries.
+
+    See Also
+    --------
+    load_tableau : read a tableau file.
+    gauss : a built-in family.
+
+    Examples
+    --------
+    >>> import ldaspark
+    >>> t = ldaspark.gauss(2)
+    >>> t.arrays().A.shape
+    (2, 2)
     """
 
     name: str
