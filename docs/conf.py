@@ -28,7 +28,7 @@ myst_heading_anchors = 3
 numpydoc_show_class_members = False
 numpydoc_xref_param_type = False
 # every public docstring is checked for the sections a numpydoc reader expects
-numpydoc_validation_checks = {"PR01", "PR02", "RT01", "SS01", "GL08"}
+numpydoc_validation_checks = {"PR01", "PR02", "RT01", "SS01", "GL08", "EX01"}
 autodoc_typehints = "none"
 autodoc_default_options = {"members": False}
 html_theme = "pydata_sphinx_theme"

@@ -70,6 +70,8 @@ class SparkTableau:
         The entries as given in a file (kept for the audit report).
     decimal_digits, decimal_digits_min : int, optional
         Largest and smallest number of digits of decimal-literal entries.
+    _cache : dict
+        Internal memo of derived arrays (not compared, not printed).
 
     See Also
     --------
@@ -938,8 +940,40 @@ def max_file_bytes(max_stages: int | None = None) -> int:
 
 
 def load_tableau(path, max_stages: int | None = None) -> SparkTableau:
-    """Read a tableau JSON file; errors name the problem (TableauError). Only regular files of at
-    most ``max_file_bytes(max_stages)`` bytes are read (never /dev/zero, a FIFO or a directory)."""
+    """Read a tableau JSON file (the format of ``ldaspark audit``).
+
+    Entries may be exact strings ("1/2", "sqrt(3)/6", parsed by a whitelist, never evaluated),
+    decimal strings (their digits are recorded) or float64 numbers.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A regular file of at most ``max_file_bytes(max_stages)`` bytes (never /dev/zero, a
+        FIFO or a directory).
+    max_stages : int, optional
+        Stage limit (default 20).
+
+    Returns
+    -------
+    SparkTableau
+        The tableau, with ``precision_kind`` telling what its entries carry.
+
+    Raises
+    ------
+    TableauError
+        Naming the problem (a missing entry, a wrong shape, an unparsable string).
+
+    Examples
+    --------
+    >>> import json, os, tempfile, ldaspark
+    >>> midpoint = {"name": "midpoint", "c": ["1/2"], "A": [["1/2"]], "A_hat": [["1/2"]],
+    ...             "A_tilde": [["1/2"]], "b": ["1"], "b_hat": ["1"], "b_tilde": ["1"]}
+    >>> path = os.path.join(tempfile.mkdtemp(), "midpoint.json")
+    >>> with open(path, "w") as f:
+    ...     json.dump(midpoint, f)
+    >>> ldaspark.load_tableau(path).s
+    1
+    """
     import os
     import stat
     limit = max_file_bytes(max_stages)
