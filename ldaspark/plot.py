@@ -42,7 +42,30 @@ def _rows(result: Result, name: str):
 
 
 def energy(result: Result, ax: Optional[Any] = None, relative: bool = True) -> "Axes":
-    """Energy error E(t) - E(t0) of (8) (divided by |E(t0)| when ``relative`` and E(t0) != 0)."""
+    """Energy error E(t) - E(t0) of (8) (divided by |E(t0)| when ``relative`` and E(t0) != 0).
+
+    Parameters
+    ----------
+    result : Result
+        What `integrate` returned (one run or an ensemble: one line per member).
+    relative : bool, optional
+        Divide by |E(t0)| (when nonzero); default True.
+    ax : matplotlib.axes.Axes, optional
+        Where to draw (default: a new Figure, not pyplot).
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        The axes drawn on; ``ax.figure.savefig(...)`` writes it.
+
+    Examples
+    --------
+    >>> import ldaspark, ldaspark.plot
+    >>> res = ldaspark.integrate("skate", "gauss-2", t_span=(0, 1), h=0.1, engine="generic")
+    >>> ax = ldaspark.plot.energy(res)
+    >>> len(ax.lines) >= 1
+    True
+    """
     _check(result, ax, relative)
     ax = _axes(ax)
     for t, E in _rows(result, "energy"):
@@ -55,7 +78,28 @@ def energy(result: Result, ax: Optional[Any] = None, relative: bool = True) -> "
 
 
 def constraint(result: Result, ax: Optional[Any] = None) -> "Axes":
-    """|k(t, q, v)| of (1c) per constraint, log scale (zeros drawn at the smallest float)."""
+    """|k(t, q, v)| of (1c) per constraint, log scale (zeros drawn at the smallest float).
+
+    Parameters
+    ----------
+    result : Result
+        What `integrate` returned (one run or an ensemble: one line per member).
+    ax : matplotlib.axes.Axes, optional
+        Where to draw (default: a new Figure, not pyplot).
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        The axes drawn on; ``ax.figure.savefig(...)`` writes it.
+
+    Examples
+    --------
+    >>> import ldaspark, ldaspark.plot
+    >>> res = ldaspark.integrate("skate", "gauss-2", t_span=(0, 1), h=0.1, engine="generic")
+    >>> ax = ldaspark.plot.constraint(res)
+    >>> len(ax.lines) >= 1
+    True
+    """
     _check(result, ax)
     ax = _axes(ax)
     for t, K in _rows(result, "constraint"):
@@ -68,7 +112,30 @@ def constraint(result: Result, ax: Optional[Any] = None) -> "Axes":
 
 
 def trajectory(result: Result, i: int, j: int, ax: Optional[Any] = None) -> "Axes":
-    """q_j against q_i (0-based indices), with the dense output when the Result has one."""
+    """q_j against q_i (0-based indices), with the dense output when the Result has one.
+
+    Parameters
+    ----------
+    result : Result
+        What `integrate` returned (one run or an ensemble: one line per member).
+    i, j : int
+        0-based coordinate indices: q_j is drawn against q_i.
+    ax : matplotlib.axes.Axes, optional
+        Where to draw (default: a new Figure, not pyplot).
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        The axes drawn on; ``ax.figure.savefig(...)`` writes it.
+
+    Examples
+    --------
+    >>> import ldaspark, ldaspark.plot
+    >>> res = ldaspark.integrate("skate", "gauss-2", t_span=(0, 1), h=0.1, engine="generic")
+    >>> ax = ldaspark.plot.trajectory(res, 0, 1)
+    >>> len(ax.lines) >= 1
+    True
+    """
     _check(result, ax)
     from .core.validate import index_list
     n = result.n

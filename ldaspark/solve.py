@@ -139,22 +139,95 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
               raise_on_failure: bool = False, newton: str = "auto", project: bool = False,
               tol: Optional[float] = None, executor: Any = None, energy_jump: Optional[float] = None,
               max_stages: Optional[int] = None) -> Result:
-    """Integrate (1) from (t0, q0, v0) with constant step h; see the module docstring.
+    """Integrate the index-2 DAE (1) by an s-stage SPARK method (21a-f) with constant step h.
 
-    ``newton``: the generic engine's Newton variant (``SparkMethod``): "auto" (default: simplified
-    Newton with a fall-back to full Newton on slow contraction, full Newton's numbers to within
-    the Newton tolerance), "full" or "simplified".
-    ``params``: {symbol or name: value}, or a list of such dicts for an ensemble over parameters.
-    ``q0``/``v0`` with shape (B, n): an ensemble over initial data. Ensemble members run in a
-    loop, or through ``executor`` when given: compiled initial-data ensembles as pickled tasks
-    (``ldaspark.compiled.ensemble``, any executor), everything else by ``executor.map`` (a
-    ThreadPoolExecutor; the generic engine's compiled functions do not pickle).
-    ``energy_jump``: the opt-in monitor of ``ldaspark.core.spark.integrate`` (every engine: the
-    compiled kernels and comparators are checked on their step energies, and the run ends with
-    status -3 at the first step whose energy (8) changes by more than energy_jump (1 + |E|)).
-    ``max_stages``: raise the stage limit (20) of built-in method names.
-    Every argument is checked here (``ldaspark.core.validate``) before any work: a wrong value is
-    one InputError naming it."""
+    Each step solves the stage equations (21a-f) for (Q_i, V_i, Psi_i) by Newton with the
+    analytic Jacobian, then updates (q, v) by (21c, d); the multipliers enter (21b, d) through
+    A_tilde and b_tilde, the constraint (1c) is imposed at the stages by omega (21e) and at the
+    end point (21f).
+
+    Parameters
+    ----------
+    system : LagrangianSystem, Scene or str
+        The system (1); a Scene or a scene name (``get_scene``) also gives the initial data.
+    method : str or SparkTableau
+        A SPARK method name (``gauss-S``, ``lobatto-iiia-iiib-S``, ``lobatto-iiia-iiib-iiid-S``,
+        ``euler-i``, ``euler-ii``), a `SparkTableau`, or a comparator name of sections 7-8
+        (``ldaspark.core.comparators``).
+    t_span : (float, float), optional
+        Start and end time; alternatively ``t0`` with ``t_end`` or ``n_steps``.
+    q0, v0 : array_like, optional
+        Initial positions and velocities, shape (n,); shape (B, n) runs an ensemble of B
+        members. Default: the scene's initial data.
+    h : float
+        The constant step size; it must advance t in float64.
+    t0, t_end : float, optional
+        Start and end time (keywords), instead of ``t_span``.
+    n_steps : int, optional
+        Number of steps, instead of an end time.
+    engine : {"auto", "compiled", "generic"}, optional
+        ``"generic"`` steps (21) with the float64 / mpmath code; ``"compiled"`` runs the numba
+        kernels (float64); ``"auto"`` (default) is compiled whenever the system and method
+        qualify, else generic with a one-line notice on stderr.
+    dps : int, optional
+        Decimal digits of an mpmath run (16 to 2000); None: float64.
+    save_every : int, optional
+        Keep steps 0, k, 2k, ... and the last one; the computed numbers do not depend on k.
+    dense_output : bool, optional
+        Attach ``Result.sol(t) -> (q, v)`` (the stages' collocation polynomial between steps).
+    events : callable or list of callable, optional
+        ``g(t, q, v) -> float``; zeros are located on the dense output (attributes
+        ``terminal`` and ``direction`` as in scipy).
+    params : dict or list of dict, optional
+        ``{symbol or name: value}`` for the system's symbolic parameters; a list runs an
+        ensemble over parameter values.
+    raise_on_failure : bool, optional
+        Raise the step failure instead of returning a Result with negative ``status``.
+    newton : {"auto", "full", "simplified", "mixed"}, optional
+        The Newton variant: "auto" (simplified Newton continuing as full Newton when it
+        contracts slowly), "full", "simplified", and at mpmath precision "mixed" (Newton matrix
+        in float64, residual at full precision).
+    project : bool, optional
+        Project v0 onto the constraint k(t0, q0, v) = 0 (in the L_vv metric) before the first
+        step.
+    tol : float, optional
+        Newton tolerance; default: the round-off of the stage values.
+    executor : concurrent.futures.Executor, optional
+        Where ensemble members run (default: a loop in this process).
+    energy_jump : float, optional
+        End the run with status -3 at the first step whose energy (8) changes by more than
+        ``energy_jump (1 + |E|)``.
+    max_stages : int, optional
+        Raise the stage limit (20) of built-in method names.
+
+    Returns
+    -------
+    Result
+        t, q, v, psi, energy (8), constraint (1c), ``status`` (0 success, 1 terminal event,
+        negative on failure with the trajectory up to the last good step), ``message`` and the
+        counters ``nfev``, ``njev``, ``nlu``; batched arrays for an ensemble.
+
+    Raises
+    ------
+    InputError
+        When an argument is invalid: every argument is checked before any work.
+    NewtonError
+        On a step failure, only with ``raise_on_failure=True``.
+
+    See Also
+    --------
+    fast_integrate : the compiled path with its own statistics.
+    run_many : several ensembles through one executor.
+
+    Examples
+    --------
+    >>> import ldaspark
+    >>> res = ldaspark.integrate("skate", "gauss-2", t_span=(0, 1), h=0.1, engine="generic")
+    >>> res.status, len(res.t)
+    (0, 11)
+    >>> bool(abs(res.constraint).max() < 1e-12)
+    True
+    """
     # the API boundary: every user value checked once, for every engine (issue 25)
     validate.check_choice(engine, "engine", ENGINES)
     dps = validate.check_dps(dps)

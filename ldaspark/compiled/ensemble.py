@@ -141,10 +141,46 @@ def default_executor(max_workers=None):
 
 
 def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, where=None):
-    """Run several RunSpec's through one executor; returns one EnsembleResult per spec.
-    ``where`` names where they run as in ``ldaspark.core.workers`` (a scheduler address, a
-    ``distributed.Client``, an executor); ``executor`` is the same as ``where`` with an executor
-    (kept for compatibility). Default: a local process pool of ``max_workers`` (all cores)."""
+    """Run several ensembles (`RunSpec` objects) through one executor.
+
+    Parameters
+    ----------
+    specs : iterable of RunSpec
+        Each a (system, method) with rows of initial data, a step size and a step count.
+    executor : concurrent.futures.Executor, optional
+        Kept for compatibility: the same as ``where`` with an executor.
+    max_workers : int, optional
+        Size of the default local process pool (default: all cores).
+    chunk : int, optional
+        Initial-data rows per task.
+    progress : callable, optional
+        ``progress(done, total)`` after each finished task.
+    where : str, distributed.Client or Executor, optional
+        Where the tasks run: a Dask scheduler address, a ``distributed.Client``, or any
+        ``concurrent.futures.Executor`` (``ldaspark.core.workers``).
+
+    Returns
+    -------
+    list of EnsembleResult
+        One per spec: t (S,), q and v (R, S, n), energy (R, S), constraint (R, S, m), stats.
+
+    Raises
+    ------
+    InputError
+        For invalid specs or options.
+
+    Examples
+    --------
+    >>> from concurrent.futures import ThreadPoolExecutor
+    >>> import ldaspark
+    >>> from ldaspark.compiled.ensemble import RunSpec
+    >>> sc = ldaspark.get_scene("skate")
+    >>> spec = RunSpec(sc.system, "gauss-2", 0.0, [sc.q0, sc.q0], [sc.v0, sc.v0], 0.1, 10)
+    >>> with ThreadPoolExecutor(1) as ex:
+    ...     (out,) = ldaspark.run_many([spec], where=ex)
+    >>> out.q.shape
+    (2, 11, 3)
+    """
     from ..core.validate import _describe, callable_or_none, check_executor, count
     from ..core.workers import check_where
     if executor is not None and where is not None:

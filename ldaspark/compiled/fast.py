@@ -598,14 +598,64 @@ def _first_line(exc):
 def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n_steps=None,
                    every=1, compensated=True, tol=None, max_iter=50, kernel="auto", predictor=2,
                    linear_solver="auto") -> FastSolution:
-    """Integrate with the compiled float64 path; returns FastSolution (t, q, v, energy,
-    constraint, stats) sampled every ``every`` steps (and at the last step).
+    """Integrate with the compiled float64 path (numba kernels of (21)).
 
-    scene_or_system: a Scene (t0, q0, v0 default to its initial data) or a LagrangianSystem.
-    method: SPARK method name / SparkTableau, or one of ``LF2_VARIANTS`` (Fig. 4 comparators).
-    compensated: Kahan summation of the q and v updates. linear_solver: as ``run_compiled``.
+    Parameters
+    ----------
+    scene_or_system : Scene or LagrangianSystem
+        A Scene's initial data are the defaults of t0, q0, v0.
+    method : str or SparkTableau
+        A SPARK method name or tableau, or one of ``LF2_VARIANTS`` (the comparators of Fig. 4).
+    t0 : float, optional
+        Initial time.
+    q0, v0 : array_like, optional
+        Initial positions and velocities, shape (n,).
+    h : float
+        Step size.
+    n_steps : int
+        Number of steps.
+    every : int, optional
+        Keep every ``every``-th step (and the last one).
+    compensated : bool, optional
+        Kahan summation of the q and v updates (default True).
+    tol : float, optional
+        Newton tolerance (default: the round-off of the stage values).
+    max_iter : int, optional
+        Newton iterations per step.
+    kernel : {"auto", "spark"}, optional
+        "auto" runs lobatto-iiia-iiib-2 on mechanical systems with the semi-implicit kernel
+        (the same method, (25)); "spark" forces the general kernel.
+    predictor : {2, 1, 0}, optional
+        Stage predictor: linear extrapolation of the last two steps, the last step's
+        unknowns, or zero increments.
+    linear_solver : {"auto", "dense", "sparse"}, optional
+        The Newton matrix's factorisation (``run_compiled``).
+
+    Returns
+    -------
+    FastSolution
+        t, q, v, energy, constraint and ``stats`` (Newton counters, path).
+
+    Raises
+    ------
+    NewtonError
+        When a step's Newton iteration fails.
+    NonFiniteError
+        On NaN or infinity, naming step and time.
+    InputError
+        For invalid arguments.
+
+    Notes
+    -----
     Falls back to the generic path, with one line on stderr, if the system cannot be compiled.
-    Raises NewtonError, NonFiniteError (NaN/inf, naming step and time), InputError."""
+
+    Examples
+    --------
+    >>> import ldaspark
+    >>> sol = ldaspark.fast_integrate(ldaspark.get_scene("skate"), "gauss-2", h=0.1, n_steps=10)
+    >>> sol.q.shape
+    (11, 3)
+    """
     if isinstance(scene_or_system, str):          # a scene name, as integrate takes it
         from ..core.scenes import get_scene
         scene_or_system = get_scene(scene_or_system)

@@ -3,7 +3,21 @@ so the CLI can print one line and exit 2 without a traceback."""
 
 
 class LdasparkError(Exception):
-    """Base class of all ldaspark errors."""
+    """Base class of all ldaspark errors.
+
+    Every error the library raises on purpose derives from it (``InputError``,
+    ``TableauError``, ``NewtonError``, ``SingularSaddleError``, ...); its message is one line.
+    The CLI prints that line and exits with status 2.
+
+    Examples
+    --------
+    >>> import ldaspark
+    >>> try:
+    ...     ldaspark.get_method("gauss-x")
+    ... except ldaspark.LdasparkError as exc:
+    ...     print(type(exc).__name__)
+    TableauError
+    """
 
 
 class TableauError(LdasparkError):

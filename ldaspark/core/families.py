@@ -294,19 +294,111 @@ class _FamilyBuilder:
 # s <= MAX_STAGES (20) unless max_stages raises it: the mpmath builders cost grows steeply with s
 # (gauss-100 does not finish in minutes)
 def gauss(s: int, exact: bool = False, max_stages: int | None = None) -> SparkTableau:
-    """s-stage Gauss SPARK (SRK-DAE2) method [27]: A = A_hat = A_tilde Gauss, order 2s."""
+    """s-stage Gauss SPARK (SRK-DAE2) method: A = A_hat = A_tilde Gauss, order 2s.
+
+    All three matrices A, A_hat, A_tilde of (21) are the Gauss-Legendre collocation matrix; b = b_hat =
+    b_tilde and omega as in section 6. The method is symmetric (23) and of order 2s.
+
+    Parameters
+    ----------
+    s : int
+        Number of stages, 1 <= s <= ``max_stages``.
+    exact : bool, optional
+        True: the entries as exact sympy numbers (in one algebraic number field, so that (22)
+        and (23) are decided exactly); False (default): computed to any requested precision.
+    max_stages : int, optional
+        Stage limit (default 20): the mpmath builders' cost grows steeply with s.
+
+    Returns
+    -------
+    SparkTableau
+        The coefficients of (21), ``claimed_order`` = 2s.
+
+    Raises
+    ------
+    TableauError
+        When s is not an integer in range.
+
+    Examples
+    --------
+    >>> import ldaspark
+    >>> t = ldaspark.gauss(2)
+    >>> t.name, t.s, t.claimed_order
+    ('gauss-2', 2, 4)
+    """
     _check_s(s, max_stages, "gauss")
     return _family("gauss", s, exact, 2 * s, f"gauss-{s}")
 
 
 def lobatto_iiia_iiib(s: int, exact: bool = False, max_stages: int | None = None) -> SparkTableau:
-    """s-stage Lobatto IIIA-B SPARK method [26]: A = IIIA, A_hat = A_tilde = IIIB, order 2s-2."""
+    """s-stage Lobatto IIIA-B SPARK method: A = IIIA, A_hat = A_tilde = IIIB, order 2s-2.
+
+    A is the Lobatto IIIA matrix and A_hat = A_tilde the Lobatto IIIB matrix; order 2s-2, symmetric (23).
+
+    Parameters
+    ----------
+    s : int
+        Number of stages, 1 <= s <= ``max_stages`` (s >= 2).
+    exact : bool, optional
+        True: the entries as exact sympy numbers (in one algebraic number field, so that (22)
+        and (23) are decided exactly); False (default): computed to any requested precision.
+    max_stages : int, optional
+        Stage limit (default 20): the mpmath builders' cost grows steeply with s.
+
+    Returns
+    -------
+    SparkTableau
+        The coefficients of (21), ``claimed_order`` = 2s-2.
+
+    Raises
+    ------
+    TableauError
+        When s is not an integer in range.
+
+    Examples
+    --------
+    >>> import ldaspark
+    >>> t = ldaspark.lobatto_iiia_iiib(3)
+    >>> t.name, t.s, t.claimed_order
+    ('lobatto-iiia-iiib-3', 3, 4)
+    """
     _check_s(s, max_stages, "lobatto-iiia-iiib")
     return _family("lobatto-iiia-iiib", s, exact, 2 * s - 2, f"lobatto-iiia-iiib-{s}")
 
 
 def lobatto_iiia_iiib_iiid(s: int, exact: bool = False, max_stages: int | None = None) -> SparkTableau:
-    """s-stage Lobatto IIIA-B-D SPARK method: A = IIIA, A_hat = IIIB, A_tilde = IIID."""
+    """s-stage Lobatto IIIA-B-D SPARK method: A = IIIA, A_hat = IIIB, A_tilde = IIID.
+
+    A is the Lobatto IIIA matrix, A_hat the Lobatto IIIB matrix and A_tilde the Lobatto IIID
+    matrix; order 2s-2.
+
+    Parameters
+    ----------
+    s : int
+        Number of stages, 1 <= s <= ``max_stages`` (s >= 2).
+    exact : bool, optional
+        True: the entries as exact sympy numbers (in one algebraic number field, so that (22)
+        and (23) are decided exactly); False (default): computed to any requested precision.
+    max_stages : int, optional
+        Stage limit (default 20): the mpmath builders' cost grows steeply with s.
+
+    Returns
+    -------
+    SparkTableau
+        The coefficients of (21), ``claimed_order`` = 2s-2.
+
+    Raises
+    ------
+    TableauError
+        When s is not an integer in range.
+
+    Examples
+    --------
+    >>> import ldaspark
+    >>> t = ldaspark.lobatto_iiia_iiib_iiid(2)
+    >>> t.name, t.s, t.claimed_order
+    ('lobatto-iiia-iiib-iiid-2', 2, 2)
+    """
     _check_s(s, max_stages, "lobatto-iiia-iiib-iiid")
     return _family("lobatto-iiia-iiib-iiid", s, exact, 2 * s - 2, f"lobatto-iiia-iiib-iiid-{s}")
 
@@ -327,20 +419,85 @@ def _one_stage(name, c, a, ah):
 
 
 def euler_i(exact: bool = True) -> SparkTableau:
-    """"Symplectic" Euler SPARK method I (7.1): c = 0, A = 0, A_hat = A_tilde = 1."""
+    """The "symplectic" Euler SPARK method I (7.1): c = 0, A = 0, A_hat = A_tilde = 1.
+
+    The one-stage SPARK method (7.1) of section 7: c = 0, A = 0, A_hat = A_tilde = 1; order 1.
+
+    Parameters
+    ----------
+    exact : bool, optional
+        Kept for a uniform interface with the families: the entries are always exact.
+
+    Returns
+    -------
+    SparkTableau
+        The one-stage tableau, ``claimed_order`` = 1.
+
+    Examples
+    --------
+    >>> import ldaspark
+    >>> t = ldaspark.euler_i()
+    >>> t.name, t.s, t.claimed_order
+    ('euler-i', 1, 1)
+    """
     return _one_stage("euler-i", 0, 0, 1)
 
 
 def euler_ii(exact: bool = True) -> SparkTableau:
-    """"Symplectic" Euler SPARK method II (7.2): c = 1, A = 1, A_hat = A_tilde = 0."""
+    """The "symplectic" Euler SPARK method II (7.2): c = 1, A = 1, A_hat = A_tilde = 0.
+
+    The one-stage SPARK method (7.2) of section 7: c = 1, A = 1, A_hat = A_tilde = 0; order 1.
+
+    Parameters
+    ----------
+    exact : bool, optional
+        Kept for a uniform interface with the families: the entries are always exact.
+
+    Returns
+    -------
+    SparkTableau
+        The one-stage tableau, ``claimed_order`` = 1.
+
+    Examples
+    --------
+    >>> import ldaspark
+    >>> t = ldaspark.euler_ii()
+    >>> t.name, t.s, t.claimed_order
+    ('euler-ii', 1, 1)
+    """
     return _one_stage("euler-ii", 1, 1, 0)
 
 
 # --- method names ----------------------------------------------------------------------
 def get_method(name: str, exact: bool = False, max_stages: int | None = None) -> SparkTableau:
-    """Tableau for a built-in method name (``gauss-S``, ``lobatto-iiia-iiib-S``,
-    ``lobatto-iiia-iiib-iiid-S``, ``euler-i``, ``euler-ii``); S is at most ``max_stages``
-    (default 20)."""
+    """Tableau for a built-in method name.
+
+    Parameters
+    ----------
+    name : str
+        ``gauss-S``, ``lobatto-iiia-iiib-S``, ``lobatto-iiia-iiib-iiid-S``, ``euler-i`` or
+        ``euler-ii``, with S the number of stages in ASCII digits.
+    exact : bool, optional
+        Exact sympy entries (see `gauss`).
+    max_stages : int, optional
+        Upper bound of S (default 20).
+
+    Returns
+    -------
+    SparkTableau
+        The tableau of the named family.
+
+    Raises
+    ------
+    TableauError
+        For an unknown name or S beyond the stage limit.
+
+    Examples
+    --------
+    >>> import ldaspark
+    >>> ldaspark.get_method("gauss-3").claimed_order
+    6
+    """
     if not isinstance(name, str):
         raise TableauError(f"method name must be a string such as 'gauss-2', got {type(name).__name__}")
     if name == "euler-i":

@@ -41,7 +41,61 @@ COUNTERS = ("nfev", "njev", "nlu", "newton_iterations")
 
 @dataclass
 class Result:
-    """Trajectory, diagnostics and counters of one integration (or of an ensemble)."""
+    """Trajectory, diagnostics and counters of one integration (or of an ensemble).
+
+    Returned by `integrate` on every engine. For an ensemble of B members the arrays carry a
+    leading batch axis and ``n_valid`` gives each member's number of valid samples.
+
+    Parameters
+    ----------
+    t : ndarray, shape (S,)
+        Output times.
+    q, v : ndarray, shape (S, n)
+        Positions and velocities at the output times.
+    energy : ndarray, shape (S,)
+        The energy (8), E = L_v v - L.
+    constraint : ndarray, shape (S, m)
+        k(t, q, v) of (1c) at the output times.
+    psi : ndarray, optional
+        The multipliers Psi of (21) per step (stage values), when the engine returns them.
+    status : int
+        0: t_end reached; 1: a terminal event; negative: a step failed (-1 Newton, -2 singular
+        saddle matrix (4), -3 other, e.g. non-finite values or the energy monitor).
+    message : str
+        The reason for ``status`` in words.
+    nfev, njev, nlu, newton_iterations : int
+        Counters: residual evaluations, Jacobian evaluations, LU factorisations, Newton
+        iterations.
+    method, system, scene, engine : str
+        What ran: method name, system name, scene name (or None), engine.
+    h : float
+        The step size.
+    dps : int, optional
+        Decimal digits of an mpmath run; None for float64.
+    save_every : int
+        The output stride of `integrate`.
+    params : dict
+        The parameter values the run used.
+    stats : dict
+        Engine statistics (Newton path, fallbacks, timings).
+    sol : callable, optional
+        Dense output ``sol(t) -> (q, v)`` when asked for.
+    t_events, q_events, v_events : list
+        Per event function, the located event times and states.
+    n_valid : ndarray, optional
+        Per ensemble member, the number of valid samples.
+    members : list, optional
+        Per ensemble member, status and message.
+    error : Exception, optional
+        The failure that ended the run (re-raised by `raise_for_status`).
+
+    Examples
+    --------
+    >>> import ldaspark
+    >>> res = ldaspark.integrate("particle", "gauss-1", t_span=(0, 1), h=0.25, engine="generic")
+    >>> res.success, res.q.shape[0], res.engine
+    (True, 5, 'generic')
+    """
 
     t: np.ndarray
     q: np.ndarray

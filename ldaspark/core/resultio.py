@@ -242,9 +242,41 @@ def check_path(path, what: str = "result file") -> str:
 
 
 def save_result(result: Result, path: Union[str, os.PathLike]) -> None:
-    """Write ``result`` to ``path`` (format by extension; atomically). NaN, infinity and complex
-    values are refused in every format, in the arrays, the events, the dense output, the
-    metadata and ``stats`` alike (InputError; nothing is written)."""
+    """Write a Result to a file, atomically; the format follows the extension.
+
+    Parameters
+    ----------
+    result : Result
+        What `integrate` returned.
+    path : str or os.PathLike
+        ``.json``, ``.npz`` or ``.h5`` (h5py needed); the file is written to a temporary name
+        beside it and renamed, so an existing file is replaced whole or not at all.
+
+    Returns
+    -------
+    None
+
+    Raises
+    ------
+    InputError
+        For an unknown extension, a target that is not a regular file, a ``path`` that is not
+        a str or os.PathLike, or values no format holds: NaN, infinity and complex values are
+        refused in every format, in the arrays, the events, the dense output, the metadata and
+        ``stats`` alike (nothing is written).
+
+    See Also
+    --------
+    load_result : read it back.
+
+    Examples
+    --------
+    >>> import os, tempfile, ldaspark
+    >>> res = ldaspark.integrate("particle", "gauss-1", t_span=(0, 1), h=0.5, engine="generic")
+    >>> path = os.path.join(tempfile.mkdtemp(), "run.npz")
+    >>> ldaspark.save_result(res, path)
+    >>> ldaspark.load_result(path).q.shape
+    (3, 3)
+    """
     if not isinstance(result, Result):
         raise InputError(f"save_result needs a Result, got {type(result).__name__}")
     path = check_path(path)
@@ -601,15 +633,43 @@ def _open_regular(path: str, limit: int):
 
 
 def load_result(path: Union[str, os.PathLike]) -> Result:
-    """Read a result file written by ``save_result`` or ``ldaspark integrate --out`` (any format).
+    """Read a result file written by `save_result` or ``ldaspark integrate --out``.
 
-    Only regular files (checked by ``os.stat`` before opening: a FIFO, a device or a link to
-    /dev/zero is refused without blocking; the descriptor read is checked again) of at most
-    ``validate.MAX_RESULT_BYTES`` bytes; array headers are bounded before the data are read; an
-    HDF5 file that links or stores data outside itself is refused before any is read (see the
-    module docstring); NaN, infinity, complex values, wrong shapes and out-of-range metadata
-    (dps outside [DPS_MIN, DPS_MAX]) are InputErrors. ``path``: a str or os.PathLike (not bytes,
-    not a file descriptor)."""
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A ``.json``, ``.npz`` or ``.h5`` file (a str or os.PathLike, not bytes, not a file
+        descriptor). Only regular files (checked by ``os.stat`` before opening: a FIFO, a
+        device or a link to /dev/zero is refused without blocking; the descriptor read is
+        checked again) of at most ``validate.MAX_RESULT_BYTES`` bytes; array headers are
+        bounded before the data are read; an HDF5 file that links or stores data outside
+        itself is refused before any is read (module docstring).
+
+    Returns
+    -------
+    Result
+        The trajectory and metadata as written.
+
+    Raises
+    ------
+    InputError
+        For NaN, infinity, complex values, wrong shapes and out-of-range metadata (dps outside
+        [DPS_MIN, DPS_MAX]), or a file that is not a result file.
+
+    See Also
+    --------
+    save_result : write a Result.
+
+    Examples
+    --------
+    >>> import os, tempfile, ldaspark
+    >>> res = ldaspark.integrate("skate", "gauss-2", t_span=(0, 1), h=0.5, engine="generic")
+    >>> path = os.path.join(tempfile.mkdtemp(), "run.json")
+    >>> ldaspark.save_result(res, path)
+    >>> back = ldaspark.load_result(path)
+    >>> bool(abs(back.q - res.q).max() == 0)
+    True
+    """
     from .validate import MAX_RESULT_BYTES
     path = check_path(path)
     ext = _ext(path)

@@ -326,12 +326,39 @@ _BUILT_LOCK = threading.Lock()
 
 
 def get_scene(name: str, ic: int | None = None) -> Scene:
-    """Scene by name; ``ic`` selects the initial condition j of mp-particles.
+    """A scene of section 8 (or a general or classic scene) by name.
 
     Built once per process and shared: building a scene derives its closed-form solution and
-    system with sympy (0.25 s for the skate), which made 90% of a stability sweep's 39 one-step
-    runs; a shared scene also shares its system's lambdified functions. Scenes and systems are
-    not modified after construction (the scene builders above give a fresh, unshared one)."""
+    system with sympy, and a shared scene also shares its system's compiled functions. Scenes
+    and systems are not modified after construction.
+
+    Parameters
+    ----------
+    name : str
+        One of ``ldaspark.core.scenes.SCENES`` (``particle``, ``skate``, ``robot``,
+        ``mp-particles``, ``mp-particles-nh``, ``pendulum``, ``rolling-disk``, the general and
+        classic scenes, ``bicycle``).
+    ic : int, optional
+        The initial condition j of ``mp-particles`` / ``mp-particles-nh`` (default 0).
+
+    Returns
+    -------
+    Scene
+        ``system`` (a `LagrangianSystem`), initial data ``t0, q0, v0`` and, where known, the
+        exact solution.
+
+    Raises
+    ------
+    InputError
+        For an unknown name, or ``ic`` on a scene that has one initial condition.
+
+    Examples
+    --------
+    >>> import ldaspark
+    >>> sc = ldaspark.get_scene("skate")
+    >>> sc.name, len(sc.q0), len(sc.system.k)
+    ('skate', 3, 1)
+    """
     from .validate import _describe, count
     if not isinstance(name, str):
         raise InputError(f"scene must be a scene name (a string), got {_describe(name)}")

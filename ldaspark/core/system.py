@@ -75,20 +75,51 @@ def real_jacobian(exprs, wrt, symbols):
 class LagrangianSystem:
     """A Lagrangian system with ideal nonholonomic constraints (1a-d), or nonideal ones (3.3).
 
+    The library derives grad_q L, grad_v L, the Hessians, k_q, k_v, k_t, the energy (8) and
+    the saddle matrix (4) from L and k.
+
     Parameters
     ----------
-    L : sympy expression in t, q, v.
-    k : list of m sympy expressions (the constraints 0 = k(t, q, v)).
-    q, v : lists of n sympy symbols; t : the time symbol (optional when L, k are autonomous).
-    mechanical : optional dict with sympy M, U, K, b when the system is of the form
-        L = 1/2 v^T M v - U(q), k = K(q) v + b(q); the fast path uses it.
-    params : optional free symbols of L and k kept symbolic (a list, or a dict symbol -> default
-        value). Derivation and lambdify happen once with the parameters as extra arguments;
-        values are given later (``with_params`` or ``ldaspark.integrate(..., params=...)``).
-    nonideal : optional list of n sympy expressions N(t, q, v, psi) added to (1b) (section 3.3):
-        d/dt grad_v L = grad_q L - K^T psi + N; ``psi`` (m symbols, default psi1..psim) names the
-        multipliers in N. The SPARK stage equations take R_i = -K_i^T Psi_i + N(T_i, Q_i, V_i, Psi_i)
-        (N belongs to the constraint reaction, so it enters (21b, d) with A_tilde, b_tilde).
+    L : sympy expression or str
+        The Lagrangian L(t, q, v).
+    k : list of sympy expressions or str
+        The m constraints 0 = k(t, q, v) (1c).
+    q, v : list of sympy symbols
+        The n coordinates and their velocities.
+    t : sympy symbol, optional
+        The time symbol (optional when L and k are autonomous).
+    name : str, optional
+        A name for reports and messages.
+    mechanical : dict, optional
+        Sympy M, U, K, b when L = 1/2 v^T M v - U(q) and k = K(q) v + b(q) (M symmetric); the
+        compiled engine's block solver uses it.
+    params : list or dict, optional
+        Free symbols of L and k kept symbolic (a list, or a dict symbol -> default value):
+        derivation happens once; values are given later (`with_params` or
+        ``integrate(..., params=...)``).
+    nonideal : list of sympy expressions, optional
+        N(t, q, v, psi) added to (1b) (section 3.3): d/dt grad_v L = grad_q L - K^T psi + N;
+        the SPARK stages take R_i = -K_i^T Psi_i + N(T_i, Q_i, V_i, Psi_i), entering (21b, d)
+        with A_tilde, b_tilde.
+    psi : list of sympy symbols, optional
+        Names of the m multipliers in ``nonideal`` (default psi1..psim).
+
+    Raises
+    ------
+    InputError
+        When an expression, a symbol list or a parameter is invalid.
+
+    See Also
+    --------
+    integrate : integrate the system by a SPARK method.
+
+    Examples
+    --------
+    >>> import sympy, ldaspark
+    >>> x, y, vx, vy = sympy.symbols("x y vx vy")
+    >>> sysm = ldaspark.LagrangianSystem((vx**2 + vy**2) / 2, [vy - x * vx], [x, y], [vx, vy])
+    >>> sysm.n, sysm.m
+    (2, 1)
     """
 
     def __init__(self, L, k, q, v, t=None, name: str = "system", mechanical: dict | None = None,

@@ -45,10 +45,45 @@ def guard_digits(s: int) -> int:
 class SparkTableau:
     """Coefficients of an s-stage SPARK method (21).
 
-    ``exact`` maps each name in NAMES to a sympy Matrix (vectors as s x 1, omega as
-    (s-1) x s); it is None for tableaux known only numerically. ``builder(dps)`` returns the
-    same entries as nested lists of mpf correct to ``dps`` digits. ``source_digits`` is the
-    precision of the input entries (None when exact or computable to any precision).
+    The entries are c, b, A (21a), b_hat, A_hat (21b), b_tilde, A_tilde (21b, d) and the
+    (s-1) x s matrix omega of (21e).
+
+    Parameters
+    ----------
+    name : str
+        The method's name.
+    s : int
+        Number of stages.
+    exact : dict, optional
+        Each entry name mapped to a sympy Matrix (vectors as s x 1, omega as (s-1) x s); None
+        for tableaux known only numerically.
+    builder : callable, optional
+        ``builder(dps)`` returns the same entries as nested lists of mpf correct to ``dps``
+        digits.
+    source_digits : int, optional
+        The precision of the input entries (None when exact or computable to any precision).
+    claimed_order : int, optional
+        The order the source claims (checked by the audit, not trusted).
+    family : str, optional
+        The family name (``gauss``, ``lobatto-iiia-iiib``, ..., ``custom``).
+    sources : dict, optional
+        The entries as given in a file (kept for the audit report).
+    decimal_digits, decimal_digits_min : int, optional
+        Largest and smallest number of digits of decimal-literal entries.
+    _cache : dict
+        Internal memo of derived arrays (not compared, not printed).
+
+    See Also
+    --------
+    load_tableau : read a tableau file.
+    gauss : a built-in family.
+
+    Examples
+    --------
+    >>> import ldaspark
+    >>> t = ldaspark.gauss(2)
+    >>> t.arrays().A.shape
+    (2, 2)
     """
 
     name: str
@@ -934,8 +969,40 @@ def max_file_bytes(max_stages: int | None = None) -> int:
 
 
 def load_tableau(path, max_stages: int | None = None) -> SparkTableau:
-    """Read a tableau JSON file; errors name the problem (TableauError). Only regular files of at
-    most ``max_file_bytes(max_stages)`` bytes are read (never /dev/zero, a FIFO or a directory)."""
+    """Read a tableau JSON file (the format of ``ldaspark audit``).
+
+    Entries may be exact strings ("1/2", "sqrt(3)/6", parsed by a whitelist, never evaluated),
+    decimal strings (their digits are recorded) or float64 numbers.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A regular file of at most ``max_file_bytes(max_stages)`` bytes (never /dev/zero, a
+        FIFO or a directory).
+    max_stages : int, optional
+        Stage limit (default 20).
+
+    Returns
+    -------
+    SparkTableau
+        The tableau, with ``precision_kind`` telling what its entries carry.
+
+    Raises
+    ------
+    TableauError
+        Naming the problem (a missing entry, a wrong shape, an unparsable string).
+
+    Examples
+    --------
+    >>> import json, os, tempfile, ldaspark
+    >>> midpoint = {"name": "midpoint", "c": ["1/2"], "A": [["1/2"]], "A_hat": [["1/2"]],
+    ...             "A_tilde": [["1/2"]], "b": ["1"], "b_hat": ["1"], "b_tilde": ["1"]}
+    >>> path = os.path.join(tempfile.mkdtemp(), "midpoint.json")
+    >>> with open(path, "w") as f:
+    ...     json.dump(midpoint, f)
+    >>> ldaspark.load_tableau(path).s
+    1
+    """
     import os
     import stat
     if isinstance(path, bool) or not isinstance(path, (str, bytes, os.PathLike)) \

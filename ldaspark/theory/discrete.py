@@ -436,12 +436,52 @@ def ivp_step(meth, t0, q0, v0, h):
 
 def discrete_lagrangian(system, tableau, t0, q0, t1, q1, dps=40, v0_guess=None, x_guess=None,
                         gauge_ref=None) -> DiscreteResult:
-    """Solve (21b-f) with (21c) imposed for given (t0, q0, t1, q1); return L_d, p0, p1, f_d^-,
-    f_d^+ exactly as printed in Theorem 1, and dV/dq0, dV/dq1 by implicit differentiation
-    dx/dq = -J^{-1} dG/dq (bordered when J is rank deficient).
+    """The discrete Lagrangian (13) and the quantities of Theorem 1 at (t0, q0, t1, q1).
 
-    ``x_guess`` (BVP layout) or ``v0_guess`` seed Newton; ``gauge_ref`` (a packed x) pins the
-    gauge (default: the converged solution of a first unpinned pass, or x_guess)."""
+    Solves (21b-f) with (21c) imposed (q1 is data, v0 unknown) by Newton and returns
+    L_d = h sum b_i L(T_i, Q_i, V_i), p0, p1, f_d^- and f_d^+ exactly as printed in Theorem 1,
+    and dV/dq0, dV/dq1 by implicit differentiation dx/dq = -J^{-1} dG/dq (bordered when J is
+    rank deficient).
+
+    Parameters
+    ----------
+    system : LagrangianSystem
+        The system (1).
+    tableau : SparkTableau
+        The SPARK method (21).
+    t0, t1 : float
+        The endpoint times (h = t1 - t0).
+    q0, q1 : array_like
+        The endpoint positions.
+    dps : int, optional
+        Working digits (default 40; None: float64).
+    v0_guess : array_like, optional
+        Seed of Newton for v0.
+    x_guess : array_like, optional
+        Seed of Newton in the BVP layout (V, Lambda, v1, v0).
+    gauge_ref : array_like, optional
+        A packed x that pins the gauge of a rank-deficient J (default: the converged solution
+        of a first unpinned pass, or ``x_guess``).
+
+    Returns
+    -------
+    DiscreteResult
+        L_d, p0, p1, v0, v1, the stages V, Q, Psi, f_d_minus, f_d_plus, dV_dq0, dV_dq1, the
+        singular values of J, ``wellposed`` and the Newton residual.
+
+    Raises
+    ------
+    NewtonError
+        When the BVP does not converge.
+
+    Examples
+    --------
+    >>> import ldaspark
+    >>> sk = ldaspark.get_scene("skate").system
+    >>> d = ldaspark.discrete_lagrangian(sk, ldaspark.gauss(2), 0, [0, 0, 0], 0.1, [0.1, 0, 0.1], dps=30)
+    >>> d.wellposed, d.p0.shape
+    ('well-posed', (3,))
+    """
     from ..core import validate
     system, _ = validate.as_system(system, "discrete_lagrangian: system")
     tableau = validate.as_tableau(tableau, "discrete_lagrangian: tableau")
@@ -536,11 +576,52 @@ def _rel_residual(bk, a, b, scale):
 
 def theorem1_residuals(system, tableau, t0, q0, v0, h, dps=40, q1_shift=None, q0_shift=None,
                        fd_target=1e-26, max_refine=4):
-    """Theorem 1 at the endpoints reached by one IVP step from (t0, q0, v0) (see
-    ``_theorem1_once``). When the finite-difference error estimate exceeds ``fd_target``
-    (an ill-conditioned J: L_d then has large higher derivatives), delta shrinks by 1e-5 and the
-    precision grows by 15 digits, up to ``max_refine`` times; the last attempt is returned.
-    ``system`` may also be a Scene or a scene name (q0, v0 None: its initial data)."""
+    """Theorem 1 checked at the endpoints reached by one IVP step from (t0, q0, v0).
+
+    dL_d/dq0 = -p0^T - f_d^-^T and dL_d/dq1 = p1^T - f_d^+^T, with dL_d/dq measured by
+    Richardson-extrapolated central differences on the BVP solution at higher precision.
+
+    Parameters
+    ----------
+    system : LagrangianSystem, Scene or str
+        The system (1); a Scene or a scene name also gives the initial data (q0, v0 None).
+    tableau : SparkTableau
+        The SPARK method (21).
+    t0 : float
+        Initial time.
+    q0, v0 : array_like or None
+        The initial point (consistent: k(t0, q0, v0) = 0); None with a scene.
+    h : float
+        Step size (nonzero).
+    dps : int, optional
+        Working digits (default 40); the differences run at more.
+    q1_shift, q0_shift : array_like, optional
+        Small shifts of the endpoints (points off the IVP solution).
+    fd_target : float, optional
+        When the finite-difference error estimate exceeds it (an ill-conditioned J), delta
+        shrinks by 1e-5 and the precision grows by 15 digits, ...
+    max_refine : int, optional
+        ... up to ``max_refine`` times; the last attempt is returned.
+
+    Returns
+    -------
+    dict
+        ``theorem1-q0`` and ``theorem1-q1`` (relative residuals of the two identities),
+        ``fd_error`` (the difference estimate's error), ``wellposed``, ``rank_deficiency``,
+        ``L_d``, singular values of the BVP Jacobian and timings.
+
+    See Also
+    --------
+    discrete_lagrangian : the discrete Lagrangian (13) and the quantities of Theorem 1.
+
+    Examples
+    --------
+    >>> import ldaspark
+    >>> sc = ldaspark.get_scene("skate")
+    >>> r = ldaspark.theorem1_residuals(sc.system, ldaspark.gauss(2), sc.t0, sc.q0, sc.v0, 0.1, dps=30)
+    >>> bool(r["theorem1-q0"] < 1e-25 and r["theorem1-q1"] < 1e-25), r["wellposed"]
+    (True, 'well-posed')
+    """
     from ..core import validate
     system, tableau, t0, q0, v0 = validate.theory_args(system, tableau, t0, q0, v0, h, dps, "theorem1_residuals")
     for nm, sh in (("q1_shift", q1_shift), ("q0_shift", q0_shift)):

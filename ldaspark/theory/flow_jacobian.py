@@ -106,17 +106,60 @@ def _index(names, system, what):
 
 def flow_jacobian(system, method, q0, v0, h, *, t0=0, dps=None, coords=None, rates=None, dependent=None,
                   tangent=None, select=None, params=None, how="ift", tol=None):
-    """The Jacobian of one SPARK step at (t0, q0, v0), optionally restricted (module docstring).
+    """The Jacobian of one SPARK step map (q0, v0) -> (q1, v1), optionally restricted.
 
-    ``system``: LagrangianSystem, Scene or scene name (q0, v0 None: the scene's initial data);
-    ``method``: SPARK method name or tableau;
-    ``dps``: None (float64) or mpmath digits; ``coords``/``rates``: coordinates and velocities
-    (indices or names; a rate may be named after its coordinate) spanning the restriction;
-    ``dependent``: the m velocities solved from the linearised constraint (default: chosen by
-    column-pivoted QR of K among the velocities not in ``rates``); ``tangent``/``select``: an
-    explicit basis B (2n x r) and read-out indices into (q, v) instead; ``how``: "ift" (implicit
-    function theorem, default) or "difference" (central differences; needs ``dps``).
-    Returns a ``FlowJacobian``."""
+    By the implicit function theorem on (21) (module docstring), or by central differences at
+    high precision; restricted to chosen coordinates and rates on the constraint manifold.
+
+    Parameters
+    ----------
+    system : LagrangianSystem, Scene or str
+        The system; a Scene or scene name also gives the initial data.
+    method : str or SparkTableau
+        A SPARK method name or tableau.
+    q0, v0 : array_like or None
+        The initial point (None: the scene's initial data).
+    h : float
+        The step size (nonzero).
+    t0 : float, optional
+        Initial time.
+    dps : int, optional
+        None (float64) or mpmath digits.
+    coords, rates : list of int or str, optional
+        Coordinates and velocities (indices or names; a rate may be named after its
+        coordinate) spanning the restriction.
+    dependent : list of int or str, optional
+        The m velocities solved from the linearised constraint (default: chosen by
+        column-pivoted QR of K among the velocities not in ``rates``).
+    tangent : array_like, optional
+        An explicit basis B (2n x r) instead of ``coords``/``rates``.
+    select : list of int, optional
+        Read-out indices into (q, v), with ``tangent``.
+    params : dict, optional
+        Parameter values of a parameterised system.
+    how : {"ift", "difference"}, optional
+        Implicit function theorem (default) or central differences (needs ``dps``).
+    tol : float, optional
+        Newton tolerance of the step.
+
+    Returns
+    -------
+    FlowJacobian
+        ``full`` (2n x 2n), the restricted ``J``, ``tangent``, ``select``, the end point;
+        ``multipliers()`` gives the eigenvalues of J.
+
+    Raises
+    ------
+    InputError
+        For invalid arguments.
+
+    Examples
+    --------
+    >>> import ldaspark
+    >>> fj = ldaspark.flow_jacobian("skate", "gauss-2", None, None, 0.1)
+    >>> fj.full.shape
+    (6, 6)
+    """
     from ..core import validate as V
     from ..core.spark import SparkMethod
     dps = V.check_dps(dps)

@@ -14,12 +14,42 @@ NEWTON = "mixed"     # the IVP step to the point where J is classified
 
 
 def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_factors=(1, "1/2")):
-    """Rank of the BVP Jacobian at the IVP base point, decided at high precision: for each
-    dps in ``dps`` and each step h*f, the singular values of J. A structurally zero sigma sits
-    at the precision floor (sigma/sigma_max ~ 10^-dps: it moves with dps); a genuinely small one
-    scales like a power of h and does not move with dps. Returns the class, the deficiency, the
-    smallest nonzero sigma per (dps, h), its observed power of h, and the floor per dps.
-    ``system`` may also be a Scene or a scene name (q0, v0 None: its initial data)."""
+    """Rank of the BVP Jacobian at the IVP base point, decided at high precision.
+
+    For each dps in ``dps`` and each step h f, the singular values of J. A structurally zero
+    sigma sits at the precision floor (sigma / sigma_max ~ 10^-dps: it moves with dps); a
+    genuinely small one scales like a power of h and does not move with dps.
+
+    Parameters
+    ----------
+    system : LagrangianSystem, Scene or str
+        The system (1); a Scene or a scene name also gives the initial data (q0, v0 None).
+    tableau : SparkTableau
+        The SPARK method (21).
+    t0 : float
+        Initial time.
+    q0, v0 : array_like or None
+        The base point; None with a scene.
+    h : float
+        Step size (nonzero).
+    dps : tuple of int, optional
+        The precisions compared (default (30, 50)).
+    h_factors : tuple, optional
+        Factors f of the steps h f (default (1, "1/2")).
+
+    Returns
+    -------
+    dict
+        ``class`` ("well-posed" or the kind of deficiency), ``rank_deficiency``, the singular
+        values per (dps, h), the smallest nonzero one's observed power of h, the floor per dps.
+
+    Examples
+    --------
+    >>> import ldaspark
+    >>> sc = ldaspark.get_scene("skate")
+    >>> ldaspark.classify_wellposedness(sc.system, ldaspark.gauss(2), sc.t0, sc.q0, sc.v0, 0.1)["class"]
+    'well-posed'
+    """
     from ..core import validate
     from ..core.errors import InputError
     if isinstance(dps, (list, tuple)):
