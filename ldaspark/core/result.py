@@ -88,6 +88,8 @@ class Result:
         Per ensemble member, status and message.
     error : Exception, optional
         The failure that ended the run (re-raised by `raise_for_status`).
+    coordinate_names : list of str, optional
+        The names of q's coordinates (the system's symbols), in order.
 
     Examples
     --------
