@@ -97,7 +97,7 @@ _METHODS: dict = {}
 
 def _resolve_system(system, dps):
     """(LagrangianSystem, scene name or None, default (t0, q0, v0) or None)."""
-    from .core.scenes import Scene, get_scene
+    from .models.scenes import Scene, get_scene
     if isinstance(system, str):
         system = get_scene(system)
     if isinstance(system, Scene):
@@ -145,7 +145,7 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
     ``params``: {symbol or name: value}, or a list of such dicts for an ensemble over parameters.
     ``q0``/``v0`` with shape (B, n): an ensemble over initial data. Ensemble members run in a
     loop, or through ``executor`` when given: compiled initial-data ensembles as pickled tasks
-    (``ldaspark.compiled.ensemble``, any executor), everything else by ``executor.map`` (a
+    (``ldaspark.dist.ensemble``, any executor), everything else by ``executor.map`` (a
     ThreadPoolExecutor; the generic engine's compiled functions do not pickle).
     ``energy_jump``: the opt-in monitor of ``ldaspark.core.spark.integrate`` (every engine: the
     compiled kernels and comparators are checked on their step energies, and the run ends with
@@ -224,14 +224,14 @@ def _portable(system):
 
 def _compiled_ensemble(system, params, Q0, V0, executor, c) -> Optional[Result]:
     """Initial-data ensembles on the compiled engine go through
-    ``ldaspark.compiled.ensemble.ensemble_integrate`` (tasks that pickle, so any executor, process
+    ``ldaspark.dist.ensemble.ensemble_integrate`` (tasks that pickle, so any executor, process
     pools and clusters included); None when the run does not qualify (then the loop runs)."""
     if (c["engine"] == "generic" or c["dps"] is not None or c["dense"] or c["events"] or c["project"]
             or c["energy_jump"] is not None
             or params is not None or system.params
             or _compiled_reason(system, c["kind"], c["name"]) is not None):
         return None
-    from .compiled.ensemble import ensemble_integrate
+    from .dist.ensemble import ensemble_integrate
     from .core.result import from_ensemble
     method = c["what"] if c["kind"] == "spark" else c["name"]
     ens = ensemble_integrate(system, method, c["t0"], Q0, V0, c["h"], c["N"], every=c["every"], tol=c["tol"],

@@ -8,7 +8,7 @@ import sys
 import pytest
 import sympy
 
-import ldaspark.core.scenes as scenes
+import ldaspark.models.scenes as scenes
 from ldaspark.cli import main
 
 OK = ["integrate", "skate", "gauss-1", "--h", "0.5", "--t-end", "1"]

@@ -17,7 +17,7 @@ from ldaspark.compiled.fast import (NonFiniteError, NotCompilableError, can_comp
                                     fast_integrate, kernel_spec, run_compiled)
 from ldaspark.core.errors import InputError, LdasparkError, NewtonError
 from ldaspark.core.families import get_method
-from ldaspark.core.scenes import get_scene, mp_particles
+from ldaspark.models.scenes import get_scene, mp_particles
 from ldaspark.core.spark import integrate
 from ldaspark.core.system import LagrangianSystem
 

@@ -5,7 +5,7 @@ import pytest
 
 import ldaspark
 from ldaspark.core.errors import InputError
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 
 SK = get_scene("skate")
 TT = np.linspace(0, 2, 201)

@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 import sympy
 
-from ldaspark.compiled.ensemble import ensemble_integrate
+from ldaspark.dist.ensemble import ensemble_integrate
 from ldaspark.core.errors import InputError
 from ldaspark.compiled.fast import fast_integrate, precompile
 from ldaspark.reports.fig4 import FIG4_METHODS, figure4_data, fit_growth
-from ldaspark.core.scenes import mp_particles
+from ldaspark.models.scenes import mp_particles
 from ldaspark.core.system import LagrangianSystem
 
 N_STEPS = 2000

@@ -8,7 +8,7 @@ import sympy
 from ldaspark.core.comparators import integrate_comparator
 from ldaspark.core.errors import InputError
 from ldaspark.compiled.fast import compile_system, fast_integrate, mechanical_parts, NotCompilableError, precompile
-from ldaspark.core.scenes import get_scene, mp_particles
+from ldaspark.models.scenes import get_scene, mp_particles
 from ldaspark.core.spark import integrate
 from ldaspark.core.system import LagrangianSystem
 from ldaspark.core.families import get_method

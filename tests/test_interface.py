@@ -9,7 +9,7 @@ from ldaspark import LagrangianSystem
 from ldaspark.core.errors import InputError, NewtonError
 from ldaspark.core.families import get_method
 from ldaspark.core.result import Result
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 from ldaspark.core.spark import integrate as core_integrate
 
 

@@ -19,7 +19,7 @@ from ldaspark.compiled.newton import NOISE_FACTOR, RATE_KAPPA, newton_status
 from ldaspark.core.backend import Backend
 from ldaspark.core.errors import NewtonError
 from ldaspark.core.families import get_method
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 from ldaspark.core.spark import integrate
 
 EPS = 2.0 ** -52

@@ -6,7 +6,7 @@ import sympy
 
 from ldaspark.core.errors import InputError, LdasparkError, SystemDefinitionError, SingularSaddleError, TableauError
 from ldaspark.core.families import gauss, get_method, lobatto_iiia_iiib
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 from ldaspark.core.spark import SparkMethod, integrate
 from ldaspark.core.system import LagrangianSystem
 from ldaspark.core.validate import check_newton_options, check_storage

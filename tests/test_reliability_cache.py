@@ -416,7 +416,7 @@ def test_issue_reproducer_cli_particle_with_planted_index(tmp_path):
     __pycache__/ldaspark_model_<digest>.*.nbi (the digest of a built-in scene is the same on
     every install): the payload never runs and the run is compiled."""
     from ldaspark.compiled.fast import compile_system
-    from ldaspark.core.scenes import get_scene
+    from ldaspark.models.scenes import get_scene
     cs = compile_system(get_scene("particle").system)
     modname = "ldaspark_model_" + cs.key
     lines = cs.source.splitlines()
@@ -453,7 +453,7 @@ def test_cli_runs_compiled_after_the_model_cache_is_corrupted(tmp_path, monkeypa
     run is compiled (before: 'compilation failed (UnpicklingError); using the generic engine' on
     every later run) and leaves a cache the run after it loads (all hits)."""
     from ldaspark.compiled.fast import compile_system
-    from ldaspark.core.scenes import get_scene
+    from ldaspark.models.scenes import get_scene
     d = tmp_path / "c"
     monkeypatch.setenv("LDASPARK_CACHE_DIR", str(d))
     src = compile_system(get_scene("particle").system).source

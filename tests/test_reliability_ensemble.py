@@ -10,9 +10,9 @@ import time
 import numpy as np
 import pytest
 
-from ldaspark.compiled.ensemble import RunSpec, _run_plan, ensemble_integrate
+from ldaspark.dist.ensemble import RunSpec, _run_plan, ensemble_integrate
 from ldaspark.core.errors import InconsistentInitialDataError, InputError, SingularSaddleError
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 
 
 @pytest.fixture(scope="module")
@@ -79,7 +79,7 @@ _CTRL_C = """
 import sys, time
 sys.path.insert(0, sys.argv[1])
 from test_reliability_ensemble import _sleep_task
-from ldaspark.compiled.ensemble import _run_plan
+from ldaspark.dist.ensemble import _run_plan
 print("start", flush=True)
 try:
     _run_plan([(0, _sleep_task, (3.0,)) for _ in range(20)], 1, max_workers=2)   # 30 s of work

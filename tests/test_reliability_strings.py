@@ -86,8 +86,8 @@ def _m(marker):
         "mechanical set after construction (comparator)": lambda: ldaspark.integrate(
             _hand_set(p), "lobatto-iiia-iiib-2-leapfrog", t_span=(0, 0.1), q0=[0, 0, 0], v0=[0, 0, 0], h=0.05,
             engine="generic"),
-        "scene parameter": lambda: __import__("ldaspark.core.scenes", fromlist=["skate"]).skate(m=p + " or 1"),
-        "scene parameter B": lambda: __import__("ldaspark.core.scenes", fromlist=["x"]).relativistic(B=p),
+        "scene parameter": lambda: __import__("ldaspark.models.scenes", fromlist=["skate"]).skate(m=p + " or 1"),
+        "scene parameter B": lambda: __import__("ldaspark.models.scenes", fromlist=["x"]).relativistic(B=p),
         "tableau delta": lambda: ldaspark.core.families.get_method("gauss-2", exact=True).with_entry("A", 0, 0, p),
     }
 

@@ -13,7 +13,7 @@ import sympy
 from ldaspark.compiled import fast, sparse
 from ldaspark.compiled.fast import compile_system, run_compiled
 from ldaspark.core.errors import InputError, NewtonError
-from ldaspark.core.scenes import Scene, get_scene, mp_particles
+from ldaspark.models.scenes import Scene, get_scene, mp_particles
 from ldaspark.core.system import LagrangianSystem
 
 

@@ -11,7 +11,7 @@ import pytest
 
 from ldaspark.core.families import builtin_method_names, get_method
 from ldaspark.theory.definition1 import definition1_residuals
-from ldaspark.theory.ledger import negative_controls
+from ldaspark.claims.ledger import negative_controls
 
 TOL_15A = 1e-25
 TOL_15B = 1e-40

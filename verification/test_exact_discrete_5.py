@@ -33,7 +33,7 @@ def test_exact_flow_against_independent_references():
 def test_exact_flow_against_skate_closed_form():
     import mpmath
     import numpy as np
-    from ldaspark.core.scenes import get_scene
+    from ldaspark.models.scenes import get_scene
     from ldaspark.theory.exact_flow import ExactFlow
     sc = get_scene("skate")
     with mpmath.workdps(40):
@@ -97,7 +97,7 @@ def test_5_1_exact_forces_vanish_holonomic(offset):
 @pytest.mark.parametrize("scn", ["particle", "skate", "robot", "rolling-disk", "pendulum", "mp-particles-nh"])
 @pytest.mark.parametrize("offset", [None, "off"])
 def test_section5_exhaustive(scn, offset):
-    from ldaspark.core.scenes import get_scene
+    from ldaspark.models.scenes import get_scene
     n = get_scene(scn).system.n
     off = None if offset is None else tuple(f"{(-1) ** k}/1000" for k in range(n))
     r = exact_identities(scn, offset=off)

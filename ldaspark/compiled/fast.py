@@ -666,7 +666,7 @@ def warm_kernels(names=MAIN_KERNELS) -> float:
 
 def _warm(scene_name, method, kernel):
     import time as _time
-    from ..core.scenes import get_scene
+    from ..models.scenes import get_scene
     t = _time.perf_counter()
     if scene_name == "linear-3":
         from .roundoff import linear_test_system

@@ -52,7 +52,7 @@ def add_arguments(p):
                    help="main job: the exhaustive sweeps of the sections that have them (stability)")
     p.add_argument("--workers", type=int, default=None,
                    help="main job: worker processes (default: the number of cores)")
-    from ..core.workers import add_scheduler_argument
+    from ..dist.workers import add_scheduler_argument
     add_scheduler_argument(p)
     sub = p.add_subparsers(dest="section", parser_class=type(p))
     for name, mod in available_sections().items():

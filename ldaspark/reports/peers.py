@@ -342,7 +342,7 @@ def reference_final(scene, t_end):
 def scene_study(scene_name, quick=False, peers=None, progress=print):
     """Both comparisons on one scene: final error at t_end (T = 100) and the long run
     (T = 1e4: energy error and constraint drift); rows with their errors, and the speed-ups."""
-    from ..core.scenes import get_scene
+    from ..models.scenes import get_scene
     sc = get_scene(scene_name)
     P = plan(quick)
     peers, notes = available_peers(tuple(PEERS) if peers is None else peers)

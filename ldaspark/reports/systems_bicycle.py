@@ -1,6 +1,6 @@
 """The bicycle section of ``reports/systems.md``: the benchmark's linearised eigenvalues from the
 SPARK flow (``ldaspark.theory.bicycle_flow``) beside the benchmark's (Meijaard et al. 2007,
-``ldaspark.theory.bicycle_benchmark``), the weave and capsize speeds, and one nonlinear run.
+``ldaspark.models.bicycle_benchmark``), the weave and capsize speeds, and one nonlinear run.
 
 ``bicycle_section(outdir) -> (markdown, json)`` writes the figure ``figures/systems_bicycle.png``
 into ``outdir`` and returns the Markdown section and its numbers; the integrator's
@@ -42,7 +42,7 @@ def compiled_cost(model=None, n_steps=1000, h=0.01, method="gauss-2"):
     key: 21 s CPU measured with a warm cache, 36 s cold) and per step of a second run of ``n_steps``
     steps, beside the generic engine's per step (20 steps, after its lambdify)."""
     import ldaspark
-    from ..core import bicycle as bc
+    from ..models import bicycle as bc
     model = model or bc.build()
     sc = model.scene(5, 0.5)
     c0 = time.process_time()
@@ -62,8 +62,8 @@ def compiled_cost(model=None, n_steps=1000, h=0.01, method="gauss-2"):
 def bicycle_data(fig_speeds=FIG_SPEEDS, speeds=SPEEDS, nonlinear_t=NL_T, measure_compiled=False):
     """All numbers of the section (a dict); ``measure_compiled``: add ``compiled_cost`` (36 s CPU
     with a cold cache, measured: off by default, the main job's budget)."""
-    from ..core import bicycle as bc
-    from ..theory import bicycle_benchmark as bb
+    from ..models import bicycle as bc
+    from ..models import bicycle_benchmark as bb
     from ..theory import bicycle_flow as bf
     cpu0 = time.process_time()
     model = bc.build()
@@ -108,7 +108,7 @@ def _figure(data, path):
     ax, ax2 = axes[0]
     f = data["figure"]
     c = colours(2)
-    from ..theory import bicycle_benchmark as bb
+    from ..models import bicycle_benchmark as bb
     fine = np.linspace(0, 10, 201)         # the benchmark's real parts as points on a fine grid (cheap)
     for v in fine:
         ev = np.linalg.eigvals(np.array(bb.state_matrix(v, 15).tolist(), dtype=float))
@@ -149,7 +149,7 @@ def bicycle_section(outdir, data=None):
     lines = [
         "The benchmark of Meijaard, Papadopoulos, Ruina and Schwab (2007).",
         "",
-        "Scene `bicycle` (`ldaspark/core/bicycle.py`): four rigid bodies written with `sympy.physics.mechanics`, "
+        "Scene `bicycle` (`ldaspark/models/bicycle.py`): four rigid bodies written with `sympy.physics.mechanics`, "
         "n = 8 coordinates, m = 5 constraints (front contact height in its velocity form, rolling of both wheels), "
         "Table 1 parameters. Linearised dynamics about upright straight running from the SPARK flow itself: "
         f"eigenvalues log(mu)/h of the step map's Jacobian (`ldaspark.flow_jacobian`, implicit function theorem) "

@@ -136,7 +136,7 @@ def _theorem1_with_discrete(tab, hyp22, hyp23, dps, quick, scenes, entry_tol=Non
 def _theorem1_scene(tab, name, hyp22, d, quick, entry_tol=None):
     """One scene's Theorem 1 check (dL_d/dq0 = -p0 - f_d^-, dL_d/dq1 = p1 - f_d^+) and its facts."""
     from . import discrete, wellposedness
-    from ..core.scenes import get_scene
+    from ..models.scenes import get_scene
     sc = get_scene(name)
     t0, q0, v0 = sc.initial(d + 45)
     r, err = None, None
@@ -205,7 +205,7 @@ def _theorem1_summary(checks):
 def _symmetry_checks(tab, d, scenes, entry_tol=None):
     """The (23) symmetry identities per scene and their summary."""
     from . import symmetry
-    from ..core.scenes import get_scene
+    from ..models.scenes import get_scene
     checks, facts = [], {}
     keys = ("symmetry-Ld", "symmetry-fd-plus", "symmetry-fd-minus", "symmetry-Phi")
     for name in scenes:

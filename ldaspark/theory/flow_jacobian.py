@@ -115,7 +115,7 @@ def flow_jacobian(system, method, q0, v0, h, *, t0=0, dps=None, coords=None, rat
     function theorem, default) or "difference" (central differences; needs ``dps``).
     Returns a ``FlowJacobian``."""
     from ..core.families import get_method
-    from ..core.scenes import Scene, get_scene
+    from ..models.scenes import Scene, get_scene
     from ..core.spark import SparkMethod
     from ..core.tableau import SparkTableau
     if isinstance(system, str):

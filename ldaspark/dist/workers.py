@@ -39,7 +39,7 @@ import pathlib
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
 
-from .errors import InputError, LdasparkError
+from ..core.errors import InputError, LdasparkError
 
 
 class UnitsFailed(LdasparkError):

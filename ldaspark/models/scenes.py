@@ -17,8 +17,8 @@ import numpy as np
 import sympy
 from sympy import Rational as R
 
-from .errors import InputError
-from .system import LagrangianSystem
+from ..core.errors import InputError
+from ..core.system import LagrangianSystem
 
 
 @dataclass
@@ -67,7 +67,7 @@ class Scene:
 def _number(x):
     """A scene parameter as a sympy number: text through the tableau entry parser ("1/2",
     "sqrt(2)"), never sympify of text (which evaluates it); other values as sympy takes them."""
-    from .system import _param_value
+    from ..core.system import _param_value
     return _param_value(x, "of the scene")
 
 
@@ -292,16 +292,16 @@ SCENES: dict[str, Callable[..., Scene]] = {
     "relativistic": relativistic,
     "turntable": turntable,
     "friction-skate": friction_skate,
-    "bicycle": lambda **kw: __import__("ldaspark.core.bicycle", fromlist=["bicycle"]).bicycle(**kw),
+    "bicycle": lambda **kw: __import__("ldaspark.models.bicycle", fromlist=["bicycle"]).bicycle(**kw),
 }
 
-# classic nonholonomic systems (issue 24), built in ldaspark.core.systems_classic (imported at
+# classic nonholonomic systems (issue 24), built in ldaspark.models.systems_classic (imported at
 # first build: it subclasses Scene from this module)
 def _classic(builder, **fixed):
     def build(**kw):
         from . import systems_classic
         return getattr(systems_classic, builder)(**{**fixed, **kw})
-    build.__doc__ = f"ldaspark.core.systems_classic.{builder}"
+    build.__doc__ = f"ldaspark.models.systems_classic.{builder}"
     return build
 
 

@@ -26,14 +26,14 @@ import mpmath
 import numpy as np
 
 from ..core.backend import Backend
-from .discrete import (WELLPOSED, GAUGE, SINGULAR, base_point, discrete_lagrangian,
+from ..theory.discrete import (WELLPOSED, GAUGE, SINGULAR, base_point, discrete_lagrangian,
                        theorem1_residuals)
-from .memo import memoized
-from .symmetry import check_symmetry
-from .wellposedness import classify_wellposedness, gauge_invariance
+from ..theory.memo import memoized
+from ..theory.symmetry import check_symmetry
+from ..theory.wellposedness import classify_wellposedness, gauge_invariance
 from ..core.errors import LdasparkError
-from .conditions import check_22a, check_22b, check_23
-from ..core.scenes import PAPER_SCENES, get_scene
+from ..theory.conditions import check_22a, check_22b, check_23
+from ..models.scenes import PAPER_SCENES, get_scene
 from ..core.spark import integrate
 from ..core.families import builtin_method_names, get_method
 
@@ -384,12 +384,12 @@ def run_ledger(max_s=3, scenes=LEDGER_SCENES, perturbed=True, holonomic=True, co
                progress=None, jobs=None, groups=(), quick=False, where=None, checkpoint=None, say=None):
     """All records, in the same order for any ``jobs`` and any ``where``: the (tableau, scene)
     units, and then the pieces of the claim groups ``groups`` (specs as in ``CLAIM_GROUPS``, run
-    with ``quick``), run where ``where`` says (``ldaspark.core.workers``: default a local pool of
+    with ``quick``), run where ``where`` says (``ldaspark.dist.workers``: default a local pool of
     ``ledger_jobs(jobs)`` worker processes, 1: in this process; a Dask scheduler address or
     client), the longest first; each unit's records are computed independently of the others,
     so the output does not depend on the schedule. ``checkpoint`` (a ``workers.Checkpoint``):
     units finished by an interrupted run are resumed from it, each finished unit is appended."""
-    from ..core.workers import Unit, run_resumable
+    from ..dist.workers import Unit, run_resumable
     n_tabs = len(_ledger_tabs(max_s, controls))
     units = []
     for i in range(n_tabs):
@@ -460,7 +460,7 @@ def unit_cost(u, names=None):
 
 
 # extra claim groups: "module:function", each returning a list of records (see module docstring)
-CLAIM_GROUPS: tuple[str, ...] = ("ldaspark.theory.claims_general:records", "ldaspark.theory.claims_paper:records")
+CLAIM_GROUPS: tuple[str, ...] = ("ldaspark.claims.claims_general:records", "ldaspark.claims.claims_paper:records")
 
 
 def extra_records(quick=False, progress=None, groups=None):

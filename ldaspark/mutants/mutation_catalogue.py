@@ -2,7 +2,7 @@
 
 Each mutant replaces one exact source snippet of the package (which must occur exactly once, so
 that the catalogue breaks loudly when the code moves) and names the test files most likely to
-notice it (``hint``: run first, then the rest of the suite). ``ldaspark.reports.mutation`` applies
+notice it (``hint``: run first, then the rest of the suite). ``ldaspark.mutants.mutation`` applies
 them one at a time to a scratch copy of the package and runs the suite against it.
 
 Categories: spark-21 (the step (21a-f)), jacobian (Newton matrix and sensitivities),
@@ -269,7 +269,7 @@ QUICK = ("spark-Ahat-Atilde-swapped", "fdplus-index-order", "system-K-at-v0", "L
 
 
 def _area_catalogues() -> tuple[Mutant, ...]:
-    """Mutants of each area (``ldaspark/reports/catalogue/<area>.py``, each a ``MUTANTS`` tuple),
+    """Mutants of each area (``ldaspark/mutants/catalogue/<area>.py``, each a ``MUTANTS`` tuple),
     in module-name order, so that the areas' catalogues grow without editing one shared list."""
     import importlib
     import pkgutil

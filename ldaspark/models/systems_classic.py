@@ -34,9 +34,9 @@ import numpy as np
 import sympy
 from sympy import Rational as R
 
-from .errors import InputError
+from ..core.errors import InputError
 from .scenes import Scene
-from .system import LagrangianSystem
+from ..core.system import LagrangianSystem
 
 
 @dataclass

@@ -1,6 +1,6 @@
 """Ensembles: many initial conditions at once, in parallel over any ``concurrent.futures.Executor``.
 
-    from ldaspark.compiled.ensemble import ensemble_integrate
+    from ldaspark.dist.ensemble import ensemble_integrate
     res = ensemble_integrate(system, "lobatto-iiia-iiib-2", t0, Q0, V0, h=0.05, n_steps=10**6,
                              every=100)                      # process pool over all cores
     res.energy.shape                                         # (J + 1, samples)
@@ -42,7 +42,7 @@ class EnsembleResult:
 
 
 def _fast_task(cs, spec, t0, ics, h, n_steps, every, compensated, tol):
-    from .fast import run_compiled
+    from ..compiled.fast import run_compiled
     out = []
     for q0, v0 in ics:
         out.append(tuple(run_compiled(cs, spec, t0, q0, v0, h, n_steps, every, compensated, tol)))
@@ -50,7 +50,7 @@ def _fast_task(cs, spec, t0, ics, h, n_steps, every, compensated, tol):
 
 
 def _generic_task(system, method, t0, ics, h, n_steps, every, tol):
-    from .fast import generic_integrate
+    from ..compiled.fast import generic_integrate
     return [tuple(generic_integrate(system, method, t0, q0, v0, h, n_steps, every, tol)) for q0, v0 in ics]
 
 
@@ -61,7 +61,7 @@ class RunSpec:
     def __init__(self, system, method, t0, Q0, V0, h, n_steps, every=1, compensated=True, tol=None,
                  kernel="auto"):
         from ..core.validate import check_newton_options, check_storage, count, real_number
-        from .fast import n_samples
+        from ..compiled.fast import n_samples
         try:
             Q0 = np.atleast_2d(np.asarray(Q0, dtype=float))
             V0 = np.atleast_2d(np.asarray(V0, dtype=float))
@@ -90,7 +90,7 @@ class RunSpec:
         full rank, consistent v0 (an inconsistent v0 would otherwise run, its energy jumping in
         the first step); the error names the member."""
         from ..core.errors import LdasparkError
-        from .fast import _setup_checks
+        from ..compiled.fast import _setup_checks
         for j, (q0, v0) in enumerate(zip(Q0, V0)):
             try:
                 _setup_checks(system, t0, q0, v0)
@@ -99,7 +99,7 @@ class RunSpec:
 
     def tasks(self, chunk):
         """(callable, args) per chunk of initial data; compiles in this process first."""
-        from .fast import NotCompilableError, _notice, compile_system, kernel_spec, run_compiled
+        from ..compiled.fast import NotCompilableError, _notice, compile_system, kernel_spec, run_compiled
         spec = kernel_spec(self.method, self.kernel)
         rows = list(zip(self.Q0, self.V0))
         chunks = [rows[i:i + chunk] for i in range(0, len(rows), chunk)]
@@ -123,7 +123,7 @@ def default_executor(max_workers=None):
 
 def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, where=None):
     """Run several RunSpec's through one executor; returns one EnsembleResult per spec.
-    ``where`` names where they run as in ``ldaspark.core.workers`` (a scheduler address, a
+    ``where`` names where they run as in ``ldaspark.dist.workers`` (a scheduler address, a
     ``distributed.Client``, an executor); ``executor`` is the same as ``where`` with an executor
     (kept for compatibility). Default: a local process pool of ``max_workers`` (all cores)."""
     from ..core.validate import check_executor, count
@@ -153,10 +153,10 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
 
 
 def _run_plan(plan, n_specs, executor=None, max_workers=None, progress=None):
-    """Run the (k, fn, args) tasks where ``executor`` says (``ldaspark.core.workers.run_units``:
+    """Run the (k, fn, args) tasks where ``executor`` says (``ldaspark.dist.workers.run_units``:
     a worker that dies gets its task retried, Ctrl-C cancels what is pending and stops a pool
     created here); results grouped by k, in plan order whatever the order of completion."""
-    from ..core.workers import Unit, run_units
+    from .workers import Unit, run_units
     units = [Unit(str(i), fn, tuple(args)) for i, (k, fn, args) in enumerate(plan)]
     count = 0
 
