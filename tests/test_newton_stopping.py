@@ -129,10 +129,10 @@ def test_generic_step_is_the_last_fallback(monkeypatch, fail_at, every):
     of each iterate, so no test can rest on them), fast_integrate takes that step with the
     generic full Newton and goes on: the same run as without the failure to round-off (measured
     ~1e-16; tolerance 1e-13 = a few hundred eps over 20 steps), samples on the same grid."""
-    from ldaspark.compiled import fast
+    from ldaspark.compiled import fast, runner
     sc = get_scene("skate")
     ref = fast_integrate(sc, "gauss-2", h=0.1, n_steps=20, every=every)
-    real = fast._run_checked          # what fast_integrate and run_compiled call
+    real = runner._run_checked        # what fast_integrate and run_compiled call
     calls = []
 
     def failing(cs, method, t0, q0, v0, h, n, *a, **k):
@@ -140,7 +140,7 @@ def test_generic_step_is_the_last_fallback(monkeypatch, fail_at, every):
         if len(calls) == 1:
             raise NewtonError("simulated", step=fail_at, time=t0 + fail_at * h)
         return real(cs, method, t0, q0, v0, h, n, *a, **k)
-    monkeypatch.setattr(fast, "_run_checked", failing)
+    monkeypatch.setattr(runner, "_run_checked", failing)
     sol = fast_integrate(sc, "gauss-2", h=0.1, n_steps=20, every=every)
     assert sol.stats["generic_steps"] == 1 and sol.stats["steps"] == 20
     # the same grid; a segment's times are t_start + k h: a few ulps from t0 + (start + k) h

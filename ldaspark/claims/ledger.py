@@ -26,8 +26,8 @@ import mpmath
 import numpy as np
 
 from ..core.backend import Backend
-from ..theory.discrete import (WELLPOSED, GAUGE, SINGULAR, base_point, discrete_lagrangian,
-                       theorem1_residuals)
+from ..theory.discrete import (WELLPOSED, GAUGE, SINGULAR, base_point, discrete_lagrangian, perturbed_initial,
+                               theorem1_residuals)
 from ..theory.memo import memoized
 from ..theory.symmetry import check_symmetry
 from ..theory.wellposedness import classify_wellposedness, gauge_invariance
@@ -86,20 +86,6 @@ def record(claim, method, scene, status, residual, expected, dps=None, wellposed
 
 def _status(residual, tol):
     return "pass" if residual is not None and residual <= tol else "fail"
-
-
-def perturbed_initial(scene, dps, scale="1/20"):
-    """Consistent data near the scene's initial data: q0 + scale * pattern, v0 projected onto
-    k = 0 (a generic point, away from symmetric initial data)."""
-    bk = Backend(dps)
-    with bk.context():
-        t0, q0, v0 = scene.initial(dps)
-        n = len(q0)
-        sc = mpmath.mpf(1) / 20 if scale == "1/20" else mpmath.mpf(scale)
-        q0 = [q + sc * (k + 1) / n for k, q in enumerate(q0)]
-        v0 = [v + sc * (-1) ** k * (k + 2) / n for k, v in enumerate(v0)]
-        v0 = list(scene.system.project_velocity(bk, t0, q0, v0))
-    return t0, q0, v0
 
 
 # --- claim groups -----------------------------------------------------------------------------

@@ -39,7 +39,7 @@ def run_with_rescue(system, tab, cs, method, t0, q0, v0, h, n_steps, every, comp
     generic engine. Raises the generic step's NewtonError where that fails too."""
     from ..core.backend import Backend
     from ..core.spark import SparkMethod
-    from .fast import FastSolution, run_compiled
+    from .runner import FastSolution, run_compiled
 
     want = set(range(0, n_steps + 1, every)) | {n_steps}
     samples = {}                # global step -> (t, q, v, E, k)

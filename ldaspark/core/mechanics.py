@@ -62,10 +62,12 @@ def _refuse_strings(model, q, constraints):
 def from_mechanics(model: Any, q: Optional[Sequence] = None, constraints: Optional[Sequence] = None,
                    params: Optional[Sequence] = None, name: str = "system", cls: Optional[type] = None) -> Any:
     """A ``LagrangianSystem`` from a LagrangesMethod or a Lagrangian in dynamicsymbols (see the
-    module docstring); ``params`` defaults to every free symbol other than t."""
+    module docstring); ``params`` defaults to every free symbol other than t. ``cls``: the class
+    to build, ``LagrangianSystem`` or a subclass (``LagrangianSystem.from_mechanics`` passes its
+    own: this adapter sits below the system module and does not import it)."""
     from sympy.physics.mechanics import LagrangesMethod, dynamicsymbols
-    from .system import LagrangianSystem
-    cls = cls or LagrangianSystem
+    if cls is None:
+        raise SystemDefinitionError("from_mechanics: give cls (or call LagrangianSystem.from_mechanics)")
     _refuse_strings(model, q, constraints)
     t = dynamicsymbols._t
     if isinstance(model, LagrangesMethod):

@@ -234,7 +234,7 @@ class Bicycle:
         return q0, [_exactify(x) for x in v0]
 
     def scene(self, speed=5, lean_rate=R(1, 2)):
-        from .scenes import Scene
+        from .scene import Scene
         q0, v0 = self.upright(speed, lean_rate)
         return Scene("bicycle", self.system, sympy.Integer(0), q0, v0,
                      f"Whipple bicycle, benchmark of Meijaard et al. (2007), upright at {speed} m/s, lean rate {lean_rate} rad/s",

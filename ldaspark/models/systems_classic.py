@@ -35,7 +35,7 @@ import sympy
 from sympy import Rational as R
 
 from ..core.errors import InputError
-from .scenes import Scene
+from .scene import Scene
 from ..core.system import LagrangianSystem
 
 

@@ -14,18 +14,7 @@ orders (order estimates), fd (finite-difference stencil of the Theorem 1 check),
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
-
-@dataclass(frozen=True)
-class Mutant:
-    id: str
-    file: str            # path relative to ldaspark/ ('a|b': alternatives, exactly one holds the snippet)
-    snippet: str         # exact source text, occurring exactly once in the file
-    replacement: str
-    description: str
-    category: str
-    hint: tuple = field(default=())   # test files (or node ids) to run first
+from .mutant import Mutant, _m
 
 
 V21 = "verification/test_equations_21.py"
@@ -47,10 +36,6 @@ TORD = "tests/test_orders_estimates.py"
 TCONV = "tests/test_convergence_tools.py"
 # the compiled kernels live in a source string of fast.py or (after a planned move) in kernels.py
 KERNELS = "compiled/fast.py|compiled/kernels.py"
-
-
-def _m(id, file, snippet, replacement, description, category, *hint):
-    return Mutant(id, file, snippet, replacement, description, category, tuple(hint))
 
 
 CATALOGUE: tuple[Mutant, ...] = (

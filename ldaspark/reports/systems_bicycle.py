@@ -41,19 +41,19 @@ def compiled_cost(model=None, n_steps=1000, h=0.01, method="gauss-2"):
     generation, which runs even when numba's on-disk cache is warm because the source is the cache
     key: 21 s CPU measured with a warm cache, 36 s cold) and per step of a second run of ``n_steps``
     steps, beside the generic engine's per step (20 steps, after its lambdify)."""
-    import ldaspark
     from ..models import bicycle as bc
+    from ..solve import integrate
     model = model or bc.build()
     sc = model.scene(5, 0.5)
     c0 = time.process_time()
-    ldaspark.integrate(sc, method, n_steps=1, h=h, engine="compiled", raise_on_failure=True)
+    integrate(sc, method, n_steps=1, h=h, engine="compiled", raise_on_failure=True)
     first = time.process_time() - c0
     c0 = time.process_time()
-    res = ldaspark.integrate(sc, method, n_steps=n_steps, h=h, engine="compiled", raise_on_failure=True)
+    res = integrate(sc, method, n_steps=n_steps, h=h, engine="compiled", raise_on_failure=True)
     per_step = (time.process_time() - c0) / n_steps
-    ldaspark.integrate(sc, method, n_steps=1, h=h, engine="generic", raise_on_failure=True)   # lambdify first
+    integrate(sc, method, n_steps=1, h=h, engine="generic", raise_on_failure=True)   # lambdify first
     c0 = time.process_time()
-    ldaspark.integrate(sc, method, n_steps=20, h=h, engine="generic", raise_on_failure=True)
+    integrate(sc, method, n_steps=20, h=h, engine="generic", raise_on_failure=True)
     generic = (time.process_time() - c0) / 20
     return {"first_call_cpu_s": first, "compiled_step_cpu_s": per_step, "generic_step_cpu_s": generic,
             "max_abs_k": float(np.abs(np.asarray(res.constraint, float)).max()), "method": method, "h": h}

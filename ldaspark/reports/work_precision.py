@@ -20,6 +20,7 @@ import numpy as np
 
 from ..core.backend import Backend
 from ..core.io import atomic_save_figure, atomic_write_json, atomic_write_text
+from .envelope import cpu_at
 from .markdown import jsonable, sci, table, timing_line
 from .peer import peer_section
 from .plotting import colours, figure
@@ -236,18 +237,6 @@ def study_scene(scene_name, t_end, hs_fast, hs_generic, rtols, rtols_radau, prog
         rows += scene_runs(scene_name, t_end, kind, m, params)
         progress(f"  {scene_name}: {kind} {m} done")
     return finish_study(scene_name, t_end, ref, rows)
-
-
-def cpu_at(rows, target, key="error"):
-    """CPU time to reach ``target`` (log-log interpolation on the cheapest runs), None if out of range."""
-    pts = sorted((r[key], r["cpu"]) for r in rows if r[key] > 0 and np.isfinite(r[key]))
-    if not pts or target < pts[0][0] or target > pts[-1][0]:
-        return None
-    # C(e) = cheapest run with error <= e (non-increasing in e), interpolated log-log
-    errs = np.array([p[0] for p in pts])
-    cpus = np.array([p[1] for p in pts])
-    keep = cpus <= np.minimum.accumulate(cpus)                   # drop runs a more accurate one beats
-    return float(10 ** np.interp(np.log10(target), np.log10(errs[keep]), np.log10(cpus[keep])))
 
 
 def ratios(study, targets=TARGETS, key="error"):

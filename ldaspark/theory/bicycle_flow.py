@@ -91,10 +91,10 @@ def nonlinear_run(speed=5, lean_rate=0.5, t_end=5.0, h=0.01, method="gauss-2", e
     """The scene ``bicycle`` (upright at ``speed`` with a lean rate) integrated to t_end: returns
     a dict of arrays t, lean, steer, energy, max |k| per step, the front contact height f(q)
     (the holonomic constraint, kept only through its velocity form) and the Result."""
-    import ldaspark
+    from ..solve import integrate
     model = model or bc.build()
     sc = model.scene(speed, lean_rate)
-    res = ldaspark.integrate(sc, method, t_span=(0, t_end), h=h, engine=engine, raise_on_failure=True)
+    res = integrate(sc, method, t_span=(0, t_end), h=h, engine=engine, raise_on_failure=True)
     import sympy
     f = sympy.lambdify(model.q, model.f, "math")
     return {"t": np.asarray(res.t, float), "lean": np.asarray(res.q[:, bc.LEAN], float),

@@ -57,7 +57,7 @@ def initial_point(scene_name, point, dps):
     sc = get_scene(scene_name)
     if point == "base":
         return sc.initial(dps)
-    from ..claims.ledger import perturbed_initial
+    from .discrete import perturbed_initial
     return perturbed_initial(sc, dps)
 
 

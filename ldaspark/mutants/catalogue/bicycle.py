@@ -1,6 +1,6 @@
 """Mutants of the Whipple bicycle (models/bicycle.py), its benchmark reference
 (models/bicycle_benchmark.py) and the flow Jacobian (theory/flow_jacobian.py)."""
-from ..mutation_catalogue import _m
+from ..mutant import _m
 
 VBIC = "verification/test_systems_bicycle.py"
 TFJ = "tests/test_flow_jacobian.py"

@@ -1,5 +1,5 @@
 """Mutants of where work runs (``ldaspark.dist.workers``): retries, failures by name, checkpoints."""
-from ..mutation_catalogue import _m
+from ..mutant import _m
 
 TD = "tests/test_dist.py"
 KILLER = TD + "::test_a_unit_that_always_kills_its_worker_is_reported_by_name_and_the_rest_kept"

@@ -1,7 +1,7 @@
 """Mutants of the classic nonholonomic systems (``models/systems_classic.py``) and their report
 section (``reports/systems.py``): a sign in a scene's L or k, a wrong closed form or invariant, a
 wrong verdict of the report."""
-from ..mutation_catalogue import _m
+from ..mutant import _m
 
 SLE = "verification/test_systems_chaplygin_sleigh.py"
 DSK = "verification/test_systems_tilted_disk.py"

@@ -9,7 +9,7 @@ issue lists and further faults of the same class elsewhere. Categories:
 * roundtrip: result files (.json, .npz, .h5) x precision x field;
 * ledger-verdict: record builders of the claims ledger that only ``ldaspark verify`` ran.
 """
-from ..mutation_catalogue import _m
+from ..mutant import _m
 
 CV = "tests/test_claim_verdicts.py"
 OC = "tests/test_order_conditions.py"
@@ -141,7 +141,7 @@ MUTANTS = (
        "new.q, new.v, new.psi = self.q, self.v, self.psi",
        "with_params: the derived system shares its coordinate lists with its source", "shared-state",
        f"{PM}::test_with_params_copies_are_independent_of_the_source_and_of_each_other"),
-    _m("teeth-compiled-cache-keyed-by-name", "compiled/fast.py",
+    _m("teeth-compiled-cache-keyed-by-name", "compiled/runner.py",
        "key = (id(system), form)\n    hit = _COMPILED.get(key)\n    if hit is not None and hit[0] is system:",
        "key = (system.name, form)\n    hit = _COMPILED.get(key)\n    if hit is not None:",
        "compiled model cache keyed by the system's name (two parameter values, one model)", "shared-state",
