@@ -316,7 +316,7 @@ def _single(system, member, prob: _Problem, opts: IntegrationOptions, quiet=Fals
 
 
 def _check_initial_point(system, t0, q0, v0, dps) -> None:
-    """The energy (8) and k at the initial point are finite real numbers (issue 25, class F):
+    """The energy (8) and k at the initial point are finite real numbers, so that
     U = 1/x at x = 0, oo or zoo in L, v0 = 1e200, sqrt(x) at x = -1 (a math domain error in
     float64, a complex mpc at dps) are one error here, never a NaN, inf or complex energy[0] in
     a returned Result (nor a ZeroDivisionError printed by a compiled kernel)."""

@@ -1,4 +1,4 @@
-"""Bad input to the library API (issue 7): every user error is an LdasparkError subclass with a
+"""Bad input to the library API: every user error is an LdasparkError subclass with a
 message that names the problem, raised before any step is taken, and no NaN is ever returned."""
 import math
 

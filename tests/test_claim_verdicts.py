@@ -1,4 +1,4 @@
-"""Who checks the checker (issue 27, classes 1 and 6): every ledger record builder runs here at a
+"""Who checks the checker (one-sided verdicts, untested record builders): every ledger record builder runs here at a
 small size, every verdict rule is fed a failing value (the computation monkeypatched: the real
 result with one quantity replaced) and must give a "fail" record, and every order prediction is
 pinned per family and s with its source, so that a prediction raised or lowered by one fails.

@@ -1,4 +1,4 @@
-"""Issue 23 (part 2, kernels): the Newton matrix reused across steps while it contracts
+"""The Newton matrix reused across steps while it contracts
 (``run_compiled(reuse_matrix=True)``, kernels.REUSE_MATRIX). The counts are machine-independent:
 Jacobians per step fall where the matrix changes slowly per step, stay ~1 where it does not (the
 back-off), and the results agree with a fresh matrix per step to the Newton tolerance."""

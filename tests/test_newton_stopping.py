@@ -1,4 +1,4 @@
-"""Issue 22: the Newton stopping rule at the extremes.
+"""The Newton stopping rule at the extremes.
 
 Compiled engine: the limit is the round-off of the stage values, tol (|x| + |v0|), not a multiple
 of h (the rule before stopped 30000-step runs of the skate at h = 1e-5 at step 25808); RADAU5's
@@ -184,8 +184,8 @@ def test_dps_400_runs_and_agrees_with_dps_440(newton):
 
 
 def test_float_eps_at_400_digits_is_the_old_failure(monkeypatch):
-    """Negative control of the previous test: with the unit round-off computed as a float (the
-    code before issue 22: 10^-400 underflows to 0.0, and every tolerance with it) the same run
+    """Negative control of the previous test: with the unit round-off computed as a float (as the
+    code once did: 10^-400 underflows to 0.0, and every tolerance with it) the same run
     fails (ZeroDivisionError in the Newton cost rule, or a Newton iteration that cannot stop)."""
     monkeypatch.setattr(Backend, "eps", property(
         lambda self: 2.0 ** -52 if self.dps is None else float(mpmath.mpf(10) ** (-self.dps))))

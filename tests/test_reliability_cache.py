@@ -1,5 +1,5 @@
 """The kernel cache's trust model (docs/reliability.md, "The kernel cache: what is trusted";
-issue 25, classes B, C, J): numba's pickled index (.nbi) and data (.nbc) files of the generated
+and the tampered-cache cases): numba's pickled index (.nbi) and data (.nbc) files of the generated
 models are unpickled only when this user's process recorded their sha256 when writing them;
 planted, corrupt or foreign files are deleted and compiled again; nothing is written through a
 link; every component of the cache directory's path is checked; numba's own cache of the
@@ -449,7 +449,7 @@ def test_issue_reproducer_cli_particle_with_planted_index(tmp_path):
 
 
 def test_cli_runs_compiled_after_the_model_cache_is_corrupted(tmp_path, monkeypatch):
-    """Issue 25 J end to end: random bytes in every .nbi/.nbc of the particle's model; the next
+    """Tampered cache end to end: random bytes in every .nbi/.nbc of the particle's model; the next
     run is compiled (before: 'compilation failed (UnpicklingError); using the generic engine' on
     every later run) and leaves a cache the run after it loads (all hits)."""
     from ldaspark.compiled.fast import compile_system

@@ -51,7 +51,7 @@ def test_singular_member_is_named():
     (dict(h=float("nan")), "h must be finite"), (dict(h=0.0), "h must be finite"),
     (dict(n_steps=0), "n_steps"), (dict(n_steps=2.5), "n_steps"), (dict(every=0), "every"),
     (dict(tol=0.0), "tolerance"), (dict(tol=float("nan")), "tolerance"),
-    (dict(n_steps=10 ** 12), r"between 1 and 1e\+09"),   # the step bound of every run (issue 25, E)
+    (dict(n_steps=10 ** 12), r"between 1 and 1e\+09"),   # the step bound of every run
     (dict(n_steps=10 ** 9), "GiB"),
 ])
 def test_ensemble_options(skate, kw, match):

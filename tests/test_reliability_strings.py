@@ -1,4 +1,4 @@
-"""Strings given to the Python API are never executed (issue 25, class A): L, k, N, the
+"""Strings given to the Python API are never executed: L, k, N, the
 mechanical parts, parameter values, scene parameters and symbol names go through the bounded
 whitelist parser (``tableau.parse_expression`` / ``parse_number``, the tableau entry parser
 extended to the system's declared symbols) or are refused with an LdasparkError.

@@ -1,4 +1,4 @@
-"""Issue 25, classes E, F, G, H: every user value of ``ldaspark.integrate``, ``RunSpec`` /
+"""Every user value of ``ldaspark.integrate``, ``RunSpec`` /
 ``run_many`` and ``LagrangianSystem`` is checked at the API boundary (``ldaspark.core.validate``):
 a wrong value is one LdasparkError naming it, before any work; a right value near the bound still
 runs (the controls). Setup of the issue: x, y, z, vx, vy, vz = sympy.symbols("x y z vx vy vz")."""

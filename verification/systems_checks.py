@@ -1,4 +1,4 @@
-"""Checks shared by ``verification/test_systems_*.py`` (the classic systems of issue 24,
+"""Checks shared by ``verification/test_systems_*.py`` (the classic systems,
 ``ldaspark.models.systems_classic``).
 
 * ``ode_residual``: a closed-form solution against the underlying ODE (3a-b) at 30 digits: the

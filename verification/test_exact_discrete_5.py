@@ -107,7 +107,7 @@ def test_section5_exhaustive(scn, offset):
 
 
 def test_section5_on_a_time_dependent_scene():
-    """Distinguishing fixture (issue 27): every paper scene is autonomous, so a time argument
+    """Distinguishing fixture: every paper scene is autonomous, so a time argument
     shifted by h (t0 for t1, the second step of (20) on [t0, t0 + h] instead of [t1, t1 + h], the
     stage times) is invisible there. The rheonomic skate has L and k depending on t
     (g(t) = 1 + cos(t)/2, belt speed u(t) = (1 + sin t)/2): (16)-(20), the exact discrete EL

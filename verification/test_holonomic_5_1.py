@@ -37,7 +37,7 @@ def test_holonomic_exhaustive(name):
 
 
 def test_holonomic_rate_is_the_finest_pair_of_a_pre_asymptotic_sweep():
-    """Distinguishing fixture (issue 27): Gauss-1's tangential forces on the pendulum at h = 0.2,
+    """Distinguishing fixture: Gauss-1's tangential forces on the pendulum at h = 0.2,
     0.1, 0.05, 0.025 approach O(h^2) from below (pairwise slopes 1.3 .. 1.85, measured): the
     reported rate is the finest pair's."""
     import math

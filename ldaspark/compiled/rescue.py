@@ -1,4 +1,4 @@
-"""The last link of the compiled engine's Newton fallback chain (issue 22): a step where the
+"""The last link of the compiled engine's Newton fallback chain: a step where the
 kernel's simplified, fresh-matrix and full Newton all fail is taken by the generic engine's full
 Newton (``SparkMethod.step`` with newton="full", float64) from the same state, and the compiled
 run goes on from the step after. So the compiled engine fails only where the generic full Newton

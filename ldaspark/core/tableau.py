@@ -836,7 +836,7 @@ def check_stages(s: int, max_stages: int | None = None, what: str = "tableau") -
     from .validate import MAX_STAGES_CEILING
     limit = MAX_STAGES if max_stages is None else max_stages
     if isinstance(limit, bool) or not isinstance(limit, int) or not 1 <= limit <= MAX_STAGES_CEILING:
-        # --max-stages 10**6 was a MemoryError, 10**8 an OverflowError (issue 25, H)
+        # --max-stages 10**6 was a MemoryError, 10**8 an OverflowError
         raise TableauError(f"max_stages must be an integer between 1 and {MAX_STAGES_CEILING}, got "
                            f"{limit if abs(limit) < 10 ** 12 else f'{float(limit):.3g}'}"
                            if isinstance(limit, int) else f"max_stages must be an integer, got {type(limit).__name__}")

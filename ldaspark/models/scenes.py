@@ -252,7 +252,7 @@ SCENES: dict[str, Callable[..., Scene]] = {
     "bicycle": lambda **kw: __import__("ldaspark.models.bicycle", fromlist=["bicycle"]).bicycle(**kw),
 }
 
-# classic nonholonomic systems (issue 24), built in ldaspark.models.systems_classic (imported at
+# classic nonholonomic systems, built in ldaspark.models.systems_classic (imported at
 # first build: it subclasses Scene from this module)
 def _classic(builder, **fixed):
     def build(**kw):

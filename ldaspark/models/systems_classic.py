@@ -1,4 +1,4 @@
-"""Classic nonholonomic systems as named scenes (issue 24): a benchmark set with closed forms and
+"""Classic nonholonomic systems as named scenes: a benchmark set with closed forms and
 first integrals, each with its source.
 
 * ``chaplygin-sleigh``: the Chaplygin sleigh (Bloch, *Nonholonomic Mechanics and Control*, 1.7),

@@ -242,7 +242,7 @@ CATALOGUE: tuple[Mutant, ...] = (
 )
 
 # A fixed subset for ``--quick``: one per main area, each killed fast by its hint files.
-# The last four (issue 27) are one per class of faults the suite once missed: a pre-asymptotic
+# The last four are one per class of faults the suite once missed: a pre-asymptotic
 # sweep, an event direction, shared state between copies, HDF5 byte strings; their hints are
 # single tests, so the quick run (``.ci/run``) stays a few minutes on 2 cores. The block-sparse
 # Newton solver's fill (killed in ~2 s by tests/test_sparse_newton.py) closes the list.

@@ -1,4 +1,4 @@
-"""Issue 22 measurements for ``reports/stability.md``: stiff forces, tiny steps along whole runs,
+"""Measurements at the extremes for ``reports/stability.md``: stiff forces, tiny steps along whole runs,
 and the regimes table.
 
 * ``linear_stability(method, z)``: the SPARK step (21) on the unconstrained oscillator

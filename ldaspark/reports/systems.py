@@ -1,4 +1,4 @@
-"""``ldaspark report systems``: the classic nonholonomic systems of issue 24
+"""``ldaspark report systems``: the classic nonholonomic systems
 (``ldaspark.models.systems_classic``), one table row each, and their invariant errors vs time.
 
 Per system (one job each, on the compiled path):
@@ -15,7 +15,7 @@ Per system (one job each, on the compiled path):
 * max |k| along the run and the compiled cost per step (Gauss-2, best of 3 runs of 2000 steps,
   compile time excluded and reported apart).
 
-The Whipple bicycle (issue 24, item 3) is another helper's module: see ``BICYCLE_MODULE``.
+The Whipple bicycle has its own module: see ``BICYCLE_MODULE``.
 """
 from __future__ import annotations
 
@@ -56,7 +56,7 @@ BOUNDED_RATIO, DRIFT_RATIO = 1.5, 2.0
 EPS = 2.0 ** -52
 
 # --- the bicycle hook ---------------------------------------------------------------------------
-# The Whipple bicycle (issue 24) has its own module, ldaspark/reports/systems_bicycle.py, with
+# The Whipple bicycle has its own module, ldaspark/reports/systems_bicycle.py, with
 # ``bicycle_section(outdir) -> (markdown_str, json_dict)``: the section runs it as one more job
 # (``bicycle_job``) and appends its markdown after the table and its data under the key "bicycle"
 # of systems.json. A failure there is reported in systems.md and does not stop the main job.

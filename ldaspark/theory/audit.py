@@ -70,12 +70,12 @@ class AuditResult:
 
 # --- Theorem 1 -------------------------------------------------------------------------------
 def theorem1_checks(tab, hyp22, hyp23, dps, quick, scenes=PAPER_SCENES, entry_tol=None):
-    """Theorem 1 and the symmetry identities on the four paper scenes, via ldaspark.theory.discrete
-    (issue 3). ``entry_tol`` = (for Theorem 1, for the symmetry identities): how far the entries as
+    """Theorem 1 and the symmetry identities on the four paper scenes, via ldaspark.theory.discrete.
+    ``entry_tol`` = (for Theorem 1, for the symmetry identities): how far the entries as
     given miss (22), (23) (``entry_tolerances``); None: from ``tab.source_digits``. Returns (checks, facts)."""
     import importlib.util
     if importlib.util.find_spec("ldaspark.theory.discrete") is None:
-        return [Check("theorem1", SKIP, None, "ldaspark.theory.discrete (issue 3) is not available: "
+        return [Check("theorem1", SKIP, None, "ldaspark.theory.discrete is not available: "
                                               "Theorem 1 not checked numerically")], {}
     return _theorem1_with_discrete(tab, hyp22, hyp23, dps, quick, scenes, entry_tol)
 

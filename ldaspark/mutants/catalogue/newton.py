@@ -1,4 +1,4 @@
-"""Mutants of the Newton stopping rule and its fallback chain (issue 22): compiled/newton.py,
+"""Mutants of the Newton stopping rule and its fallback chain: compiled/newton.py,
 compiled/kernels.py, compiled/fast.py, core/backend.py; tests/test_newton_stopping.py."""
 from ..mutant import _m
 

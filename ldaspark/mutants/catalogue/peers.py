@@ -1,4 +1,4 @@
-"""Mutants of the peer harness and of the equal-error comparison (issue 23): the interpolation
+"""Mutants of the peer harness and of the equal-error comparison: the interpolation
 in log-log, the lower envelope, the best peer, the speed-up, IDA's index-1 residual, the README
 check of timings and residual classes."""
 from ..mutant import _m

@@ -1,5 +1,5 @@
 """Mutants of the trusted kernel cache (compiled/cache.py) and of the parsing of strings given to
-the Python API (core/system.py, compiled/codegen.py): issue 25, classes A, B, C, J. Each removes
+the Python API (core/system.py, compiled/codegen.py). Each removes
 one check of docs/reliability.md ("Strings given to the Python API", "The kernel cache: what is
 trusted"); the hints are the tests that keep that check."""
 from ..mutant import _m

@@ -1,4 +1,4 @@
-"""Mutants of the validation layer at the API boundary (issue 25: ``core/validate.py``, events
+"""Mutants of the validation layer at the API boundary (``core/validate.py``, events
 and dense output, the initial-point check, result files, chunked compiled runs): each removes
 one check, and the reliability test named in its hint must fail."""
 from ..mutant import _m

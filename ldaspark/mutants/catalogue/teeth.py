@@ -1,5 +1,6 @@
-"""Mutants of issue 27 ("who checks the checker", round 3): for each fault class, the instances the
-issue lists and further faults of the same class elsewhere. Categories:
+"""Mutants that check the checker: for each class of faults the suite once missed (a one-sided
+verdict, a pre-asymptotic sweep, an event direction, shared state between copies, ...), the
+instances found and further faults of the same class elsewhere. Categories:
 
 * claims-order: one-sided claim checks (a prediction off by one, a verdict that looks one way);
 * fixture: test data that cannot tell a quantity from its neighbour (time shifted by h, left vs
