@@ -1,5 +1,5 @@
-"""The kernel cache's trust model (docs/reliability.md, "The kernel cache: what is trusted";
-and the tampered-cache cases): numba's pickled index (.nbi) and data (.nbc) files of the generated
+"""The kernel cache's trust model (docs/reliability.md, "The kernel cache: what is trusted"):
+numba's pickled index (.nbi) and data (.nbc) files of the generated
 models are unpickled only when this user's process recorded their sha256 when writing them;
 planted, corrupt or foreign files are deleted and compiled again; nothing is written through a
 link; every component of the cache directory's path is checked; numba's own cache of the
