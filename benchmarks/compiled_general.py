@@ -43,7 +43,7 @@ def mark():
 import ldaspark.compiled.kernels
 mark()
 from ldaspark.compiled.fast import compile_system, run_compiled
-from ldaspark.core.scenes import mp_particles
+from ldaspark.models.scenes import mp_particles
 import sympy
 if {what!r} == "mp61":
     sc = mp_particles(m=30, J=100, j=3)
@@ -79,7 +79,7 @@ def overhead(n_calls=200):
     """Per-call overhead: CPU and wall time of a one-step call minus the marginal cost of a step
     (from a 101-step call), for fast_integrate (set-up checks included) and run_compiled."""
     from ldaspark.compiled.fast import compile_system, fast_integrate, run_compiled
-    from ldaspark.core.scenes import get_scene, mp_particles
+    from ldaspark.models.scenes import get_scene, mp_particles
     rows = []
     for sc in (get_scene("particle"), mp_particles(m=30, J=100, j=3)):
         cs = compile_system(sc.system)
@@ -154,7 +154,7 @@ def work_precision(quick):
 
 def general_vs_mechanical(n_steps):
     from ldaspark.compiled.fast import compile_system, run_compiled
-    from ldaspark.core.scenes import get_scene, mp_particles
+    from ldaspark.models.scenes import get_scene, mp_particles
     rows = []
     for sc in (get_scene("particle"), get_scene("robot"), mp_particles(m=3, j=3)):
         t0, q0, v0 = sc.initial()

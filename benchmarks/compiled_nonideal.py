@@ -12,7 +12,7 @@ import numpy as np
 
 from ldaspark.compiled.fast import compile_system, run_compiled
 from ldaspark.core.families import get_method
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 from ldaspark.core.spark import integrate
 from ldaspark.core.system import LagrangianSystem
 

@@ -34,7 +34,7 @@ def main():
               f"mean mu/h^4 per decade {', '.join(f'{b:.4f}' for b in blocks)}, Newton {d['newton'][m]:.2f}/step")
     # generic path speed on the same problem (short run), for the side-by-side ratio
     from ldaspark.core.comparators import integrate_comparator
-    from ldaspark.core.scenes import mp_particles
+    from ldaspark.models.scenes import mp_particles
     from ldaspark.core.spark import integrate
     from ldaspark.core.families import get_method
     sc = mp_particles(j=3)

@@ -34,7 +34,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 
 from ldaspark.core import backend as B                      # noqa: E402
 from ldaspark.core.families import get_method               # noqa: E402
-from ldaspark.core.scenes import get_scene                  # noqa: E402
+from ldaspark.models.scenes import get_scene                  # noqa: E402
 from ldaspark.core.spark import SparkMethod, integrate      # noqa: E402
 
 # the full ledger (ldaspark verify, 936 records) before these changes, same code as commit 87cb774:
@@ -118,7 +118,7 @@ def step_table(steps):
 
 
 def ledger(kind, jobs, compare=None):
-    from ldaspark.theory.ledger import CLAIM_GROUPS, run_ledger
+    from ldaspark.claims.ledger import CLAIM_GROUPS, run_ledger
     print(f"\n3. claims ledger ({kind}), {jobs or 'default'} worker process(es)")
     w, c = time.time(), cpu()
     if kind == "full":

@@ -24,7 +24,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 from ldaspark.core.backend import Backend                 # noqa: E402
 from ldaspark.core.errors import LdasparkError            # noqa: E402
 from ldaspark.core.families import get_method             # noqa: E402
-from ldaspark.core.scenes import SCENES, get_scene        # noqa: E402
+from ldaspark.models.scenes import SCENES, get_scene        # noqa: E402
 from ldaspark.core.spark import integrate                 # noqa: E402
 
 METHODS_F64 = ("gauss-1", "gauss-2", "gauss-3", "lobatto-iiia-iiib-2", "lobatto-iiia-iiib-3",

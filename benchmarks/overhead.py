@@ -33,7 +33,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 import ldaspark                                           # noqa: E402
 from ldaspark import solve                                # noqa: E402
 from ldaspark.compiled import fast                        # noqa: E402
-from ldaspark.core.scenes import get_scene, mp_particles  # noqa: E402
+from ldaspark.models.scenes import get_scene, mp_particles  # noqa: E402
 
 
 def _setup_checks_before(system, t0, q0, v0, cs=None):

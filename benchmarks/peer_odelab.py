@@ -18,7 +18,7 @@ The system. odelab's ``odelab.system.nonholonomic.rolling.Robot``: state u = (q,
 q = (x, y, phi, theta) = u[0:4], v = u[4:8], lambda = u[8:10]; identity mass matrix (the default
 ``momentum``), force f = (0, 0, 0, -10 cos q[3]), codistribution A(q) = [[1, 0, 0, -cos q[2]],
 [0, 1, 0, -sin q[2]]], constraint A(q) v = 0, equations v' = f + A^T lambda, energy
-|v|^2/2 + 10 sin q[3]. Here: the built-in robot of 8.3 (``ldaspark.core.scenes.robot``),
+|v|^2/2 + 10 sin q[3]. Here: the built-in robot of 8.3 (``ldaspark.models.scenes.robot``),
 L = m(v1^2 + v2^2)/2 + I v3^2/2 + 3 I_w v4^2/2 - 10 sin q4, k = (v1 - l cos(q3) v4,
 v2 - l sin(q3) v4), with m = I = l = 1 and I_w = 1/3 (the paper's I_w = 1 gives the wheel a
 mass 3, odelab's mass matrix is the identity): then M = I, grad U = -f, K(q) = A(q), b = 0 and
@@ -82,7 +82,7 @@ NOT_COMPARED = {
 def odelab_robot_scene(v0=INITIAL[0][1]):
     """odelab's Robot as a scene here: the built-in robot (8.3) with I_w = 1/3 (M = identity)."""
     from dataclasses import replace
-    from ldaspark.core.scenes import robot
+    from ldaspark.models.scenes import robot
     sc = robot(I_w=sympy.Rational(1, 3))
     return replace(sc, name="robot", v0=[sympy.nsimplify(x) for x in v0], _exact_fns={},
                    description="odelab's mobile robot: robot (8.3) with I_w = 1/3")

@@ -73,7 +73,7 @@ def operation_count(cs, s, stats):
 def child(n, method, h, dense_max):
     """One size in this process; prints one JSON line."""
     from ldaspark.compiled import fast
-    from ldaspark.core.scenes import mp_particles
+    from ldaspark.models.scenes import mp_particles
     for name in ("spark_run", "spark_sparse_run"):     # the kernels from numba's cache, off the clock
         fast._kernels().entry_point(name)
     m = (n - 1) // 2

@@ -18,7 +18,7 @@ def main():
     import time
     from ldaspark.core.comparators import integrate_comparator
     from ldaspark.compiled.fast import fast_integrate
-    from ldaspark.core.scenes import mp_particles
+    from ldaspark.models.scenes import mp_particles
     sc = mp_particles(j=3)
     t0, q0, v0 = sc.initial()
     for m in ("lobatto-iiia-iiib-2-modified", "mp-lobatto-iiib-a-2"):

@@ -18,7 +18,7 @@ PLUGIN_COMMANDS = {
     "report": ("reports.driver", "write the reports (main job; no arguments = everything)"),
     "verify": ("reports.claims", "run the theorem checks and write the claims ledger"),
     "audit": ("theory.audit", "audit a tableau against Theorem 1's hypotheses and the numerics"),
-    "mutants": ("reports.mutation", "plant catalogued faults one at a time and check the suite kills each"),
+    "mutants": ("mutants.mutation", "plant catalogued faults one at a time and check the suite kills each"),
 }
 
 
@@ -51,7 +51,7 @@ def _add_integrate(sub):
 
 def _run_integrate(args) -> int:
     from .core.resultio import save_result
-    from .core.scenes import get_scene
+    from .models.scenes import get_scene
     from .core.tableau import load_tableau
     from .core.errors import InputError
     from .solve import integrate

@@ -29,19 +29,19 @@ import functools
 import math
 import sys
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from typing import Any, Callable, Optional, Sequence, Union
 
 import numpy as np
 
 from .core import validate
-from .core.dense import CollocationDense, EventTracker, HermiteDense, check_events, step_piece
+from .core.dense import CollocationDense, EventTracker, HermiteDense, step_piece
 from .core.errors import InputError, LdasparkError, NewtonError, SingularSaddleError, TableauError
+from .core.options import ENGINES, IntegrationOptions
 from .core.result import (STATUS_EVENT, STATUS_NEWTON, STATUS_OTHER, STATUS_SADDLE, Result, float_array,
                           save_indices, stack)
 from .core.system import LagrangianSystem
 from .core.tableau import SparkTableau
-
-ENGINES = ("auto", "compiled", "generic")
 MSG_DONE = "The integration reached t_end."
 MSG_EVENT = "A termination event occurred."
 
@@ -97,7 +97,7 @@ _METHODS: dict = {}
 
 def _resolve_system(system, dps):
     """(LagrangianSystem, scene name or None, default (t0, q0, v0) or None)."""
-    from .core.scenes import Scene, get_scene
+    from .models.scenes import Scene, get_scene
     if isinstance(system, str):
         system = get_scene(system)
     if isinstance(system, Scene):
@@ -228,21 +228,12 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
     >>> bool(abs(res.constraint).max() < 1e-12)
     True
     """
-    # the API boundary: every user value checked once, for every engine (issue 25)
-    validate.check_choice(engine, "engine", ENGINES)
-    dps = validate.check_dps(dps)
-    validate.check_choice(newton, "newton", validate.NEWTON_VARIANTS)
-    validate.check_executor(executor)
-    validate.count(save_every, "save_every")
-    validate.check_max_stages(max_stages)
-    validate.check_newton_options(tol, 1)
-    if energy_jump is not None:
-        validate.check_newton_options(energy_jump, 1, what="energy_jump")
-    for flag, val in (("dense_output", dense_output), ("raise_on_failure", raise_on_failure), ("project", project)):
-        if not validate._is_bool(val):
-            raise InputError(f"{flag} must be True or False, got {validate._describe(val)}")
-    if dps is not None and engine == "compiled":
-        raise InputError("the compiled engine is float64 only; dps needs engine='generic' (or 'auto')")
+    # the API boundary: every user value checked once, for every engine, into one frozen
+    # options object that every engine path below reads (the engines check nothing again)
+    opts = IntegrationOptions.checked(engine=engine, dps=dps, newton=newton, tol=tol, save_every=save_every,
+                                      dense_output=dense_output, energy_jump=energy_jump, executor=executor,
+                                      max_stages=max_stages, project=project, raise_on_failure=raise_on_failure)
+    dps = opts.dps
     sysm, scene, init = _resolve_system(system, dps)
     kind, what, name = resolve_method(method, max_stages)
     t0, N = _time_grid(t_span, t0, t_end, n_steps, h, init[0] if init else None)
@@ -254,10 +245,8 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
         v0 = init[2] if v0 is None else v0
     validate.real_vector(q0, "q0")
     validate.real_vector(v0, "v0")
-    evs = check_events(events)
-    common = dict(kind=kind, what=what, name=name, t0=t0, h=h, N=N, engine=engine, dps=dps, every=save_every,
-                  dense=dense_output, events=evs, raise_on_failure=raise_on_failure, newton=newton,
-                  project=project, tol=tol, scene=scene, energy_jump=energy_jump, max_stages=max_stages)
+    opts = opts.with_events(events)
+    prob = _Problem(kind, what, name, t0, h, N, scene)
     batch_params = isinstance(params, (list, tuple))
     batch_ic = dps is None and np.ndim(np.asarray(q0, dtype=object)) == 2
     if batch_params and not params:
@@ -271,23 +260,45 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
         if executor is not None and batch_ic and not batch_params:
             if params is None:
                 _check_initial_point(_with_params(sysm, None), t0, q0, v0, dps)     # every member
-            fast = _compiled_ensemble(sysm, params, Q0, V0, executor, common)
+            fast = _compiled_ensemble(sysm, params, Q0, V0, prob, opts)
             if fast is not None:
                 return fast
         jobs = [(k, p, a, b) for k, (p, (a, b)) in enumerate((p, ab) for p in plist for ab in zip(Q0, V0))]
+        member_opts = opts.replace(executor=None)      # a member runs where it is (and the task pickles)
         if executor is None:
-            return stack([_member(sysm, common, j) for j in jobs])
+            return stack([_member(sysm, prob, member_opts, j) for j in jobs])
         # a module-level task over a system without its lambdified functions (rebuilt in the
         # worker), so that process pools and clusters can run the members as well as threads
-        run = functools.partial(_member, sysm if isinstance(executor, ThreadPoolExecutor) else _portable(sysm), common)
+        run = functools.partial(_member, sysm if isinstance(executor, ThreadPoolExecutor) else _portable(sysm),
+                                prob, member_opts)
         return stack(list(executor.map(run, jobs)))
-    return _single(sysm, params, q0, v0, quiet=False, **common)
+    return _single(sysm, (params, q0, v0), prob, opts)
 
 
-def _member(system, common, job) -> Result:
+@dataclass(frozen=True)
+class _Problem:
+    """What one ``integrate`` call integrates (its options are ``IntegrationOptions``): the
+    resolved method (kind "spark" with a SparkTableau, or "comparator" with its name), the name
+    it reports, the time grid t0 + i h for i <= N, and the scene's name (or None)."""
+
+    kind: str
+    what: Any
+    name: str
+    t0: Any
+    h: Any
+    N: int
+    scene: Optional[str]
+
+    @property
+    def method(self):
+        """What the compiled engine runs: the tableau of a SPARK method, else the comparator's name."""
+        return self.what if self.kind == "spark" else self.name
+
+
+def _member(system, prob: _Problem, opts: IntegrationOptions, job) -> Result:
     """One member of an ensemble over parameters or initial data (the fallback notice once per
     ensemble, not once per member)."""
-    return _single(system, job[1], job[2], job[3], quiet=job[0] > 0, **common)
+    return _single(system, job[1:], prob, opts, quiet=job[0] > 0)
 
 
 def _portable(system):
@@ -298,22 +309,21 @@ def _portable(system):
     return out
 
 
-def _compiled_ensemble(system, params, Q0, V0, executor, c) -> Optional[Result]:
+def _compiled_ensemble(system, params, Q0, V0, prob: _Problem, opts: IntegrationOptions) -> Optional[Result]:
     """Initial-data ensembles on the compiled engine go through
-    ``ldaspark.compiled.ensemble.ensemble_integrate`` (tasks that pickle, so any executor, process
+    ``ldaspark.dist.ensemble.ensemble_integrate`` (tasks that pickle, so any executor, process
     pools and clusters included); None when the run does not qualify (then the loop runs)."""
-    if (c["engine"] == "generic" or c["dps"] is not None or c["dense"] or c["events"] or c["project"]
-            or c["energy_jump"] is not None
+    if (opts.engine == "generic" or opts.dps is not None or opts.dense_output or opts.events or opts.project
+            or opts.energy_jump is not None
             or params is not None or system.params
-            or _compiled_reason(system, c["kind"], c["name"]) is not None):
+            or _compiled_reason(system, prob.kind, prob.name) is not None):
         return None
-    from .compiled.ensemble import ensemble_integrate
+    from .dist.ensemble import ensemble_integrate
     from .core.result import from_ensemble
-    method = c["what"] if c["kind"] == "spark" else c["name"]
-    ens = ensemble_integrate(system, method, c["t0"], Q0, V0, c["h"], c["N"], every=c["every"], tol=c["tol"],
-                             executor=executor)
-    return from_ensemble(ens, method=c["name"], system=system.name, scene=c["scene"], h=c["h"],
-                         save_every=c["every"])
+    ens = ensemble_integrate(system, prob.method, prob.t0, Q0, V0, prob.h, prob.N, every=opts.save_every,
+                             tol=opts.tol, executor=opts.executor)
+    return from_ensemble(ens, method=prob.name, system=system.name, scene=prob.scene, h=prob.h,
+                         save_every=opts.save_every)
 
 
 def _with_params(system: LagrangianSystem, params) -> LagrangianSystem:
@@ -344,8 +354,11 @@ def _compiled_reason(system: LagrangianSystem, kind: str, name: str) -> Optional
     return None
 
 
-def _single(system, params, q0, v0, *, kind, what, name, t0, h, N, engine, dps, every, dense, events,
-            raise_on_failure, newton, project, tol, scene, quiet, energy_jump, max_stages=None) -> Result:
+def _single(system, member, prob: _Problem, opts: IntegrationOptions, quiet=False) -> Result:
+    """One run of ``member`` = (params, q0, v0): parameters applied, the initial point checked, the
+    engine chosen (``opts.engine``; "auto" falls back to the generic engine with one notice unless
+    ``quiet``) and run."""
+    (params, q0, v0), kind, name, t0, engine, dps = member, prob.kind, prob.name, prob.t0, opts.engine, opts.dps
     system = _with_params(system, params)
     pvals = {str(k): v for k, v in system.param_values().items()}
     _check_initial_point(system, t0, q0, v0, dps)
@@ -366,24 +379,21 @@ def _single(system, params, q0, v0, *, kind, what, name, t0, h, N, engine, dps, 
                 if not quiet:
                     _notice(reason)
     if use == "compiled":
-        res = _run_compiled(system_c, what if kind == "spark" else name, t0, q0, v0, h, N, every, dense,
-                            events, tol, project, energy_jump)
+        res = _run_compiled(system_c, prob, q0, v0, opts)
     elif kind == "comparator":
-        res = _run_comparator(system.substituted(), name, t0, q0, v0, h, N, every, dense, events, dps, tol,
-                              project, energy_jump, max_stages)
+        res = _run_comparator(system.substituted(), prob, q0, v0, opts)
     else:
-        res = _run_generic(system, what, t0, q0, v0, h, N, every, dense, events, dps, tol, newton, project,
-                           energy_jump)
+        res = _run_generic(system, prob, q0, v0, opts)
     res.method, res.system, res.scene, res.h, res.dps, res.save_every, res.params = \
-        name, system.name, scene, h, dps, every, pvals
+        name, system.name, prob.scene, prob.h, dps, opts.save_every, pvals
     res.coordinate_names = [str(x) for x in system.q]
-    if raise_on_failure and res.status < 0:
+    if opts.raise_on_failure and res.status < 0:
         res.raise_for_status()
     return res
 
 
 def _check_initial_point(system, t0, q0, v0, dps) -> None:
-    """The energy (8) and k at the initial point are finite real numbers (issue 25, class F):
+    """The energy (8) and k at the initial point are finite real numbers, so that
     U = 1/x at x = 0, oo or zoo in L, v0 = 1e200, sqrt(x) at x = -1 (a math domain error in
     float64, a complex mpc at dps) are one error here, never a NaN, inf or complex energy[0] in
     a returned Result (nor a ZeroDivisionError printed by a compiled kernel)."""
@@ -440,8 +450,10 @@ def _failure(exc: BaseException) -> tuple:
     return STATUS_OTHER, str(exc)
 
 
-def _initial_checks(system, bk, t0, q0, v0, project, tol):
-    """The set-up checks of ``ldaspark.core.spark.integrate``: numbers, shapes, finite, (4), k = 0."""
+def _initial_checks(system, bk, start, opts: IntegrationOptions):
+    """The set-up checks of ``ldaspark.core.spark.integrate`` at ``start`` = (t0, q0, v0): numbers,
+    shapes, finite, (4), k = 0 (after the projection of v0 with ``opts.project``)."""
+    (t0, q0, v0), project, tol = start, opts.project, opts.tol
     try:
         t0_ = bk.scalar(t0)
         q, v = bk.array(q0), bk.array(v0)
@@ -458,11 +470,12 @@ def _initial_checks(system, bk, t0, q0, v0, project, tol):
     return t0_, q, v
 
 
-def _run_generic(system, tableau, t0, q0, v0, h, N, every, dense, events, dps, tol, newton, project,
-                 energy_jump=None) -> Result:
+def _run_generic(system, prob: _Problem, q0, v0, opts: IntegrationOptions) -> Result:
     """The loop of ``ldaspark.core.spark.integrate`` (``core.spark.march``: same predictor, same
     checks, so the same numbers), keeping every ``every``-th point, the stage values for dense
     output, events, and the prefix on a step failure."""
+    tableau, t0, h, N = prob.what, prob.t0, prob.h, prob.N
+    every, dense, events, dps = opts.save_every, opts.dense_output, opts.events, opts.dps
     from .compiled.fast import n_samples
     from .core.spark import SparkMethod, march
     # what this run stores: every ``every``-th point (t, q, v, E, k, psi), and with dense output or
@@ -472,7 +485,7 @@ def _run_generic(system, tableau, t0, q0, v0, h, N, every, dense, events, dps, t
     validate.check_storage(n_samples(N, every), 2 + 2 * n + m + s * m, mp=dps is not None)
     if dense or events:
         validate.check_storage(N + 1, n + s * n, what="the dense output")
-    method = SparkMethod(system, tableau, dps=dps, tol=tol, newton=newton, energy_jump=energy_jump)
+    method = SparkMethod(system, tableau, dps=dps, tol=opts.tol, newton=opts.newton, energy_jump=opts.energy_jump)
     bk = method.backend
     status, message, error = 0, MSG_DONE, None
     with bk.context():
@@ -482,7 +495,7 @@ def _run_generic(system, tableau, t0, q0, v0, h, N, every, dense, events, dps, t
             raise InputError(f"h must be a number: {exc}") from None
         if not math.isfinite(float(h_)) or h_ == 0:
             raise InputError(f"step size h must be finite and nonzero, got {h}")
-        t0_, q, v = _initial_checks(system, bk, t0, q0, v0, project, tol)
+        t0_, q, v = _initial_checks(system, bk, (t0, q0, v0), opts)
         c = np.asarray(float_array(tableau.arrays(None).c))
         tracker = EventTracker(events, t0_, q, v) if events else None
         saved_i, Qs, Vs, Ps = [0], [q], [v], []
@@ -582,13 +595,14 @@ def _prefix_run(run: Callable, N: int, every: int) -> tuple:
 COMPILED_CHUNK = 2 ** 18
 
 
-def _fast_chunked(system, method, t0, q0, v0, h, n, every, tol, chunk=None):
-    """``fast_integrate`` of n steps in calls of at most ``chunk`` steps whose ends fall on the
-    saved points (multiples of ``every``), so the saved samples are those of one call; a failure
-    names the step of the whole run. Between calls the predictor restarts (the numbers agree
-    with one call to the Newton tolerance)."""
+def _fast_chunked(system, method, start, h, steps, tol):
+    """``fast_integrate`` from ``start`` = (t0, q0, v0) of ``steps`` = (n, every): n steps in calls
+    of at most COMPILED_CHUNK steps whose ends fall on the saved points (multiples of ``every``), so the
+    saved samples are those of one call; a failure names the step of the whole run. Between calls
+    the predictor restarts (the numbers agree with one call to the Newton tolerance)."""
     from .compiled.fast import FastSolution, compile_system, fast_integrate, run_compiled
-    chunk = COMPILED_CHUNK if chunk is None else chunk
+    (t0, q0, v0), (n, every) = start, steps
+    chunk = COMPILED_CHUNK
     if n <= chunk:
         return fast_integrate(system, method, t0, q0, v0, h, n, every=every, tol=tol)
     hf, t0f = float(h), float(t0)
@@ -632,35 +646,41 @@ def _fast_chunked(system, method, t0, q0, v0, h, n, every, tol, chunk=None):
     return FastSolution(*(np.concatenate([p[i] for p in parts]) for i in range(5)), stats)
 
 
-def _run_compiled(system, method, t0, q0, v0, h, N, every, dense, events, tol, project, energy_jump=None) -> Result:
+def _run_compiled(system, prob: _Problem, q0, v0, opts: IntegrationOptions) -> Result:
+    """The compiled engine (numba kernels, in chunks), with the prefix of a failed run, the energy
+    monitor, dense output and events after the kernels; a kernel's Newton failure explained by
+    the generic step at the same state."""
     from .core.backend import Backend
-    if project:
+    method, t0, h, N = prob.method, prob.t0, prob.h, prob.N
+    every, tol, energy_jump = opts.save_every, opts.tol, opts.energy_jump
+    if opts.project:
         bk = Backend(None)
         v0 = system.project_velocity(bk, float(t0), bk.array(q0), bk.array(v0))
-    inner = 1 if (dense or events or energy_jump is not None) else every
+    inner = 1 if opts.every_step else every
 
     def run(n, e):
-        fs = _fast_chunked(system, method, t0, q0, v0, h, n, e, tol)
+        fs = _fast_chunked(system, method, (t0, q0, v0), h, (n, e), tol)
         st = dict(fs.stats)
         return Result(fs.t, fs.q, fs.v, fs.energy, fs.constraint, None, 0, MSG_DONE,
                       *(st.get(c, 0) for c in ("nfev", "njev", "nlu", "newton_iterations")),
                       engine="compiled" if st.get("path") == "fast" else "generic", stats=st)
     res, exc = _prefix_run(run, N, inner)
     if isinstance(exc, NewtonError):
-        exc = _generic_diagnosis(exc, system, method, res, t0, q0, v0, h, tol)
+        exc = _generic_diagnosis(exc, system, prob, res, (t0, q0, v0), tol)
     if exc is None:
         res, exc = _energy_jump_cut(res, energy_jump)
     # without dense output, events or an energy-jump watch the kernels kept every ``every``-th
     # point already (inner = every): nothing to post-process (with every = 1 too: re-slicing
     # would copy the arrays unchanged)
-    return _finish_prefix(res, exc, system, t0, q0, v0, every, dense, events, "compiled",
-                          sliced=not (dense or events or energy_jump is not None))
+    return _finish_prefix(res, exc, system, (t0, q0, v0), opts, "compiled")
 
 
-def _generic_diagnosis(exc, system, method, res, t0, q0, v0, h, tol) -> LdasparkError:
+def _generic_diagnosis(exc, system, prob: _Problem, res, start, tol) -> LdasparkError:
     """The kernels report only the failing step k: redo step k with the generic step from the
-    same state, whose error says why (singular matrix, divergence, domain error)."""
+    same state (the end of the prefix ``res``, or ``start`` = (t0, q0, v0)), whose error says why
+    (singular matrix, divergence, domain error)."""
     from .core.spark import SparkMethod
+    method, h, (t0, q0, v0) = prob.method, prob.h, start
     k = exc.step
     if not isinstance(method, SparkTableau):
         return exc
@@ -674,7 +694,12 @@ def _generic_diagnosis(exc, system, method, res, t0, q0, v0, h, tol) -> Ldaspark
                        "the generic full-Newton step converges there (engine='generic')", step=k, time=tk)
 
 
-def _finish_prefix(res, exc, system, t0, q0, v0, every, dense, events, engine, sliced=False) -> Result:
+def _finish_prefix(res, exc, system, start, opts: IntegrationOptions, engine) -> Result:
+    """The run's Result: the prefix ``res`` (None: the initial point ``start`` = (t0, q0, v0)
+    only) with the failure ``exc`` marked, then dense output, events and ``save_every``. A
+    compiled run without dense output, events or the energy monitor is already sliced."""
+    (t0, q0, v0), every, dense, events = start, opts.save_every, opts.dense_output, opts.events
+    sliced = engine == "compiled" and not opts.every_step
     if res is None:        # failure in the first step: the initial point only
         from .core.backend import Backend
         bk = Backend(None)
@@ -686,13 +711,16 @@ def _finish_prefix(res, exc, system, t0, q0, v0, every, dense, events, engine, s
     return _post_process(res, every, dense, events, sliced)
 
 
-def _run_comparator(system, name, t0, q0, v0, h, N, every, dense, events, dps, tol, project,
-                    energy_jump=None, max_stages=None) -> Result:
+def _run_comparator(system, prob: _Problem, q0, v0, opts: IntegrationOptions) -> Result:
+    """A comparator of sections 7-8 (every step kept, then post-processed as the compiled
+    engine's runs with dense output or events)."""
     from .core.backend import Backend
     from .core.comparators import integrate_comparator
+    name, t0, h, N = prob.name, prob.t0, prob.h, prob.N
+    dps, tol, max_stages = opts.dps, opts.tol, opts.max_stages
     bk = Backend(dps)
     with bk.context():
-        t0_, q0, v0 = _initial_checks(system, bk, t0, q0, v0, project, tol)
+        t0_, q0, v0 = _initial_checks(system, bk, (t0, q0, v0), opts)
 
     def run(n, e):
         sol = integrate_comparator(name, system, t0_, q0, v0, h, int(n), dps=dps, tol=tol, max_stages=max_stages)
@@ -704,5 +732,5 @@ def _run_comparator(system, name, t0, q0, v0, h, N, every, dense, events, dps, t
     validate.check_storage(N + 1, 2 + 2 * system.n + system.m, mp=dps is not None, what="the comparator's steps")
     res, exc = _prefix_run(run, N, 1)
     if exc is None:
-        res, exc = _energy_jump_cut(res, energy_jump)
-    return _finish_prefix(res, exc, system, t0_, q0, v0, every, dense, events, "generic")
+        res, exc = _energy_jump_cut(res, opts.energy_jump)
+    return _finish_prefix(res, exc, system, (t0_, q0, v0), opts, "generic")

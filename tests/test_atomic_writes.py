@@ -1,4 +1,4 @@
-"""Atomic writes (issue 7): a full disk or Ctrl-C at any point of a write leaves the previous file
+"""Atomic writes: a full disk or Ctrl-C at any point of a write leaves the previous file
 intact and no temporary file behind; the CLI turns the disk error into one line and exit 2."""
 import errno
 import json

@@ -1,4 +1,4 @@
-"""``ldaspark audit`` decides every algebraic condition at the precision the entries carry (issue 21):
+"""``ldaspark audit`` decides every algebraic condition at the precision the entries carry:
 decimals to the digits given, float64 to half an ulp, exact entries exactly when the decision is
 cheap and numerically (and saying so) otherwise. Each test has its negative control."""
 import json

@@ -1,4 +1,4 @@
-"""Bad input to the library API (issue 7): every user error is an LdasparkError subclass with a
+"""Bad input to the library API: every user error is an LdasparkError subclass with a
 message that names the problem, raised before any step is taken, and no NaN is ever returned."""
 import math
 
@@ -10,7 +10,7 @@ from hypothesis import given, settings, strategies as st
 from ldaspark.core.backend import Backend
 from ldaspark.core.errors import (InconsistentInitialDataError, InputError, LdasparkError, NewtonError,
                              SingularSaddleError, SystemDefinitionError)
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 from ldaspark.core.spark import SparkMethod, integrate, n_steps_for
 from ldaspark.core.system import LagrangianSystem
 from ldaspark.core.families import get_method

@@ -1,4 +1,4 @@
-"""Who checks the checker (issue 27, classes 1 and 6): every ledger record builder runs here at a
+"""Who checks the checker (one-sided verdicts, untested record builders): every ledger record builder runs here at a
 small size, every verdict rule is fed a failing value (the computation monkeypatched: the real
 result with one quantity replaced) and must give a "fail" record, and every order prediction is
 pinned per family and s with its source, so that a prediction raised or lowered by one fails.
@@ -13,9 +13,9 @@ import pytest
 
 from ldaspark.core.families import builtin_method_names, get_method
 from ldaspark.theory import audit_checks as ac
-from ldaspark.theory import claims_general as cg
-from ldaspark.theory import claims_paper as cp
-from ldaspark.theory import ledger as lg
+from ldaspark.claims import claims_general as cg
+from ldaspark.claims import claims_paper as cp
+from ldaspark.claims import ledger as lg
 from ldaspark.theory.energy_balance import predicted_mismatch_order
 from ldaspark.theory.orders import claimed_order_of
 from ldaspark.theory.variational import predicted_local_order
@@ -347,7 +347,7 @@ def test_audit_observed_order_comes_from_the_finest_pair(monkeypatch, scene_name
     import types
 
     import numpy as np
-    from ldaspark.core.scenes import get_scene
+    from ldaspark.models.scenes import get_scene
     ref = types.SimpleNamespace(name="ref")
     errs = {4: 1e-1, 8: 2e-2, 16: 1.25e-3}
     monkeypatch.setattr(ac, "_run", lambda tab, sc, N, t_end, dps: _FakeSol(0.0 if tab is ref else errs[N]))

@@ -1,4 +1,4 @@
-"""The CLI on user errors (issue 7): exit code 2, exactly one line on stderr starting with
+"""The CLI on user errors: exit code 2, exactly one line on stderr starting with
 "ldaspark: error:", no traceback, no warning lines, and no output file left behind."""
 import json
 import os
@@ -8,7 +8,7 @@ import sys
 import pytest
 import sympy
 
-import ldaspark.core.scenes as scenes
+import ldaspark.models.scenes as scenes
 from ldaspark.cli import main
 
 OK = ["integrate", "skate", "gauss-1", "--h", "0.5", "--t-end", "1"]

@@ -17,7 +17,7 @@ from ldaspark.compiled.fast import (NonFiniteError, NotCompilableError, can_comp
                                     fast_integrate, kernel_spec, run_compiled)
 from ldaspark.core.errors import InputError, LdasparkError, NewtonError
 from ldaspark.core.families import get_method
-from ldaspark.core.scenes import get_scene, mp_particles
+from ldaspark.models.scenes import get_scene, mp_particles
 from ldaspark.core.spark import integrate
 from ldaspark.core.system import LagrangianSystem
 
@@ -269,11 +269,11 @@ def test_untranslatable_systems_fall_back(capsys, monkeypatch):
     system = LagrangianSystem(base.L, list(base.k), q, v, base.t, name="nonideal",
                               nonideal=[q[1] * v[0], 0, 0])
     assert can_compile(system) == (True, "general")
-    import ldaspark.compiled.fast as fast
+    import ldaspark.compiled.runner as runner     # compile_system looks general_source up there
 
     def refuse(sysm):
         raise NotCompilableError(f"{sysm.name}: an expression has no numba translation (refused here)")
-    monkeypatch.setattr(fast, "general_source", refuse)
+    monkeypatch.setattr(runner, "general_source", refuse)
     system = LagrangianSystem(base.L, list(base.k), q, v, base.t, name="refused")   # compile_system caches per object
     assert can_compile(system)[0] is False and "no numba translation" in can_compile(system)[1]
     r = fast_integrate(system, "gauss-2", 0.0, q0, v0, 0.1, 20, every=10)

@@ -25,7 +25,7 @@ from ldaspark.compiled import kernels_general
 from ldaspark.compiled.fast import (CompiledSystem, NotCompilableError, can_compile, compile_system, kernel_spec,
                                     run_compiled)
 from ldaspark.core.families import get_method
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 from ldaspark.core.spark import SparkMethod, integrate
 from ldaspark.core.system import LagrangianSystem
 

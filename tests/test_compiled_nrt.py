@@ -13,7 +13,7 @@ import numpy as np
 import numba
 from numba.core.runtime import rtsys
 from ldaspark.compiled.fast import fast_integrate
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 
 def counts():
     st = rtsys.get_allocation_stats()

@@ -10,7 +10,7 @@ from hypothesis import given, strategies as st
 from ldaspark.theory.orders import (ExactReference, ODEReference, asymptotic_window, estimate_order,
                                   floor_for, make_reference, pairwise_orders, run_method, verdict)
 from ldaspark.core.errors import InputError, LdasparkError
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 
 HS = [2.0 ** -k for k in range(2, 8)]
 

@@ -5,7 +5,7 @@ import pytest
 
 import ldaspark
 from ldaspark.core.errors import InputError
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 
 SK = get_scene("skate")
 TT = np.linspace(0, 2, 201)
@@ -84,7 +84,7 @@ def test_terminal_event_stops_the_run():
         assert r.t[-1] == pytest.approx(0.9) and r.t[-2] == pytest.approx(0.6)
 
 
-# --- event direction (issue 27, class 3): the three directions, terminal or not, several events,
+# --- event direction: the three directions, terminal or not, several events,
 # both engines; crossings known exactly from the skate's closed form q1(t) = -sin(t)^2 / 2 and a
 # clock event g = t - 2.5 (upward only, exactly at 2.5)
 DOWN = np.array([T_STAR, np.pi + T_STAR])          # g = q1 + 0.3 decreasing through 0

@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 import sympy
 
-from ldaspark.compiled.ensemble import ensemble_integrate
+from ldaspark.dist.ensemble import ensemble_integrate
 from ldaspark.core.errors import InputError
 from ldaspark.compiled.fast import fast_integrate, precompile
 from ldaspark.reports.fig4 import FIG4_METHODS, figure4_data, fit_growth
-from ldaspark.core.scenes import mp_particles
+from ldaspark.models.scenes import mp_particles
 from ldaspark.core.system import LagrangianSystem
 
 N_STEPS = 2000
@@ -90,12 +90,12 @@ def test_generic_fallback_in_workers(capsys, monkeypatch):
     # a system the code generator refuses (as it does an expression without numba translation):
     # the workers run the generic path
     sysm = LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name="quartic", nonideal=[q[1] * v[0], 0, 0])
-    import ldaspark.compiled.fast as fast
+    import ldaspark.compiled.runner as runner     # compile_system looks general_source up there
     from ldaspark.compiled.codegen import NotCompilableError
 
     def refuse(system):
         raise NotCompilableError(f"{system.name}: an expression has no numba translation (refused here)")
-    monkeypatch.setattr(fast, "general_source", refuse)
+    monkeypatch.setattr(runner, "general_source", refuse)
     Q0 = [[1.0, 0.0, 0.0], [0.5, 0.0, 0.0]]
     V0 = [[0.0, 1.0, 0.0], [0.0, 0.5, 0.0]]
     with concurrent.futures.ProcessPoolExecutor(max_workers=2) as ex:

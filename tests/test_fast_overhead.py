@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import sympy
 
-from ldaspark.compiled import fast
+from ldaspark.compiled import fast, runner
 from ldaspark.core.backend import Backend
 from ldaspark.core.errors import InconsistentInitialDataError, SingularSaddleError
 from ldaspark.core.system import LagrangianSystem
@@ -92,7 +92,7 @@ def test_repeated_call_reuses_the_tableau_and_gives_the_same_numbers(monkeypatch
     from ldaspark.core.families import gauss
     made = []
     orig = fast._make_spec
-    monkeypatch.setattr(fast, "_make_spec", lambda *a: made.append(a[0]) or orig(*a))
+    monkeypatch.setattr(runner, "_make_spec", lambda *a: made.append(a[0]) or orig(*a))
     solve._METHODS.clear()
     fast._SPECS.clear()
     run = lambda m: ldaspark.integrate("skate", m, t_span=(0, 0.5), h=0.05)       # noqa: E731

@@ -8,7 +8,7 @@ import sympy
 from ldaspark.core.comparators import integrate_comparator
 from ldaspark.core.errors import InputError
 from ldaspark.compiled.fast import compile_system, fast_integrate, mechanical_parts, NotCompilableError, precompile
-from ldaspark.core.scenes import get_scene, mp_particles
+from ldaspark.models.scenes import get_scene, mp_particles
 from ldaspark.core.spark import integrate
 from ldaspark.core.system import LagrangianSystem
 from ldaspark.core.families import get_method
@@ -174,11 +174,11 @@ def test_fallback_notice_and_same_numbers(capsys, monkeypatch):
     assert compile_system(base).form == "general"           # non-quadratic L alone is compiled
     sysm = LagrangianSystem(base.L, list(base.k), base.q, base.v, base.t, name=base.name,
                             nonideal=[base.q[1] * base.v[0], 0, 0])
-    import ldaspark.compiled.fast as fast
+    import ldaspark.compiled.runner as runner     # compile_system looks general_source up there
 
     def refuse(system):
         raise NotCompilableError(f"{system.name}: an expression has no numba translation (refused here)")
-    monkeypatch.setattr(fast, "general_source", refuse)
+    monkeypatch.setattr(runner, "general_source", refuse)
     with pytest.raises(NotCompilableError):
         compile_system(sysm)
     r = fast_integrate(sysm, "gauss-2", 0.0, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], 0.1, 30, every=10)

@@ -9,7 +9,7 @@ from ldaspark import LagrangianSystem
 from ldaspark.core.errors import InputError, NewtonError
 from ldaspark.core.families import get_method
 from ldaspark.core.result import Result
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 from ldaspark.core.spark import integrate as core_integrate
 
 
@@ -95,7 +95,7 @@ def test_generic_failure_keeps_prefix():
 
 def test_compiled_failure_keeps_prefix():
     # h = 6 (measured: stops at step 9): at h = 2 the compiled engine used to fail where the generic
-    # full Newton converges; since issue 22 its fallback chain finishes that run, as the generic one
+    # full Newton converges; its fallback chain now finishes that run, as the generic one
     r = ldaspark.integrate("robot", "gauss-2", n_steps=40, h=6.0, engine="compiled")
     assert r.status == -1 and r.engine == "compiled" and 1 < len(r.t) < 41
     ok = ldaspark.integrate("robot", "gauss-2", n_steps=len(r.t) - 1, h=6.0, engine="compiled")

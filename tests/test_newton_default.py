@@ -11,7 +11,7 @@ import pytest
 import ldaspark
 from ldaspark.core.errors import NewtonError, SingularSaddleError
 from ldaspark.core.families import get_method
-from ldaspark.core.scenes import SCENES, get_scene
+from ldaspark.models.scenes import SCENES, get_scene
 from ldaspark.core.spark import integrate
 from ldaspark.reports import stability as S
 

@@ -6,7 +6,7 @@ import pytest
 
 from ldaspark.core.backend import Backend
 from ldaspark.core.families import get_method
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 from ldaspark.core.spark import SparkMethod, integrate
 
 CASES = [("skate", "gauss-3"), ("robot", "lobatto-iiia-iiib-3"), ("relativistic", "gauss-2"),

@@ -1,4 +1,4 @@
-"""Issue 23 (part 2, kernels): the Newton matrix reused across steps while it contracts
+"""The Newton matrix reused across steps while it contracts
 (``run_compiled(reuse_matrix=True)``, kernels.REUSE_MATRIX). The counts are machine-independent:
 Jacobians per step fall where the matrix changes slowly per step, stay ~1 where it does not (the
 back-off), and the results agree with a fresh matrix per step to the Newton tolerance."""
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from ldaspark.compiled.fast import compile_system, run_compiled
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 
 
 def _pair(scene, method, h, n, kernel="spark"):
@@ -59,7 +59,7 @@ def test_auto_reuses_the_matrix_from_REUSE_AUTO_MIN_N_on():
     per step, so their results do not change), on for mp-particles-nh at n = 41 (Jacobians per
     step well below 1), with results equal to a fresh matrix per step to 1e-12."""
     from ldaspark.compiled import fast
-    from ldaspark.core.scenes import mp_particles
+    from ldaspark.models.scenes import mp_particles
     assert 7 < fast.REUSE_AUTO_MIN_N <= 41
     small = get_scene("mp-particles-nh")
     cs = compile_system(small.system)

@@ -1,4 +1,4 @@
-"""Issue 22: the Newton stopping rule at the extremes.
+"""The Newton stopping rule at the extremes.
 
 Compiled engine: the limit is the round-off of the stage values, tol (|x| + |v0|), not a multiple
 of h (the rule before stopped 30000-step runs of the skate at h = 1e-5 at step 25808); RADAU5's
@@ -19,7 +19,7 @@ from ldaspark.compiled.newton import NOISE_FACTOR, RATE_KAPPA, newton_status
 from ldaspark.core.backend import Backend
 from ldaspark.core.errors import NewtonError
 from ldaspark.core.families import get_method
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 from ldaspark.core.spark import integrate
 
 EPS = 2.0 ** -52
@@ -129,10 +129,10 @@ def test_generic_step_is_the_last_fallback(monkeypatch, fail_at, every):
     of each iterate, so no test can rest on them), fast_integrate takes that step with the
     generic full Newton and goes on: the same run as without the failure to round-off (measured
     ~1e-16; tolerance 1e-13 = a few hundred eps over 20 steps), samples on the same grid."""
-    from ldaspark.compiled import fast
+    from ldaspark.compiled import fast, runner
     sc = get_scene("skate")
     ref = fast_integrate(sc, "gauss-2", h=0.1, n_steps=20, every=every)
-    real = fast._run_checked          # what fast_integrate and run_compiled call
+    real = runner._run_checked        # what fast_integrate and run_compiled call
     calls = []
 
     def failing(cs, method, t0, q0, v0, h, n, *a, **k):
@@ -140,7 +140,7 @@ def test_generic_step_is_the_last_fallback(monkeypatch, fail_at, every):
         if len(calls) == 1:
             raise NewtonError("simulated", step=fail_at, time=t0 + fail_at * h)
         return real(cs, method, t0, q0, v0, h, n, *a, **k)
-    monkeypatch.setattr(fast, "_run_checked", failing)
+    monkeypatch.setattr(runner, "_run_checked", failing)
     sol = fast_integrate(sc, "gauss-2", h=0.1, n_steps=20, every=every)
     assert sol.stats["generic_steps"] == 1 and sol.stats["steps"] == 20
     # the same grid; a segment's times are t_start + k h: a few ulps from t0 + (start + k) h
@@ -184,8 +184,8 @@ def test_dps_400_runs_and_agrees_with_dps_440(newton):
 
 
 def test_float_eps_at_400_digits_is_the_old_failure(monkeypatch):
-    """Negative control of the previous test: with the unit round-off computed as a float (the
-    code before issue 22: 10^-400 underflows to 0.0, and every tolerance with it) the same run
+    """Negative control of the previous test: with the unit round-off computed as a float (as the
+    code once did: 10^-400 underflows to 0.0, and every tolerance with it) the same run
     fails (ZeroDivisionError in the Newton cost rule, or a Newton iteration that cannot stop)."""
     monkeypatch.setattr(Backend, "eps", property(
         lambda self: 2.0 ** -52 if self.dps is None else float(mpmath.mpf(10) ** (-self.dps))))

@@ -8,7 +8,7 @@ import sympy
 from ldaspark.core.backend import Backend
 from ldaspark.core.errors import SystemDefinitionError
 from ldaspark.core.families import get_method
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 from ldaspark.core.spark import SparkMethod, integrate
 from ldaspark.core.system import LagrangianSystem
 

@@ -144,7 +144,7 @@ def test_explicit_and_implicit_euler_r_inf():
 
 
 def seven_array_tableau():
-    """Distinguishing fixture (issue 27): the seven coefficient arrays pairwise different, c not
+    """Distinguishing fixture: the seven coefficient arrays pairwise different, c not
     symmetric (c = (1/5, 1/2, 1)), every row sum = c, built so that each coefficient set has its
     own order, derived by hand:
     (A, b): B(3) (b c^k = 1/(k+1), k < 3) and b^T A c = 1/6, b c^3 = 4/15 != 1/4: order 3;

@@ -9,7 +9,7 @@ import pytest
 
 from ldaspark.core.backend import Backend
 from ldaspark.core.families import gauss
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 from ldaspark.core.spark import integrate
 from ldaspark.theory.orders import (ExactReference, asymptotic_window, estimate_order, floor_for,
                                     measure_errors, pairwise_orders, verdict)

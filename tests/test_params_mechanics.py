@@ -136,7 +136,7 @@ def test_from_mechanics_plain_lagrangian_and_refusals():
         LagrangianSystem.from_mechanics(L + x.diff().diff(), q=[x, y, z], constraints=[z.diff() - y * x.diff()])
 
 
-# --- derived systems are independent of their source (issue 27, class 4) ---------------------------
+# --- derived systems are independent of their source (no shared state) ---------------------------
 def test_with_params_copies_are_independent_of_the_source_and_of_each_other():
     src = _param_skate()
     a = src.with_params(m=1.0, I=1.0)

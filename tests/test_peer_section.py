@@ -14,7 +14,7 @@ from markdown_it import MarkdownIt
 from markdown_it.rules_block.table import escapedSplit
 
 from ldaspark.core.comparators import derive_mechanical
-from ldaspark.core.scenes import robot
+from ldaspark.models.scenes import robot
 from ldaspark.reports.peer import peer_section
 from ldaspark.reports.work_precision import write_report
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from ldaspark.reports import peers, work_precision
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 
 
 def _power_law(kind, method, c0, p, errors):

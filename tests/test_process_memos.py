@@ -3,7 +3,7 @@ closed-form solutions are the cost); a builder replaced in ``SCENES`` is used, n
 scene of the old one."""
 import pytest
 
-from ldaspark.core import scenes
+from ldaspark.models import scenes
 from ldaspark.core.errors import InputError
 
 

@@ -120,7 +120,7 @@ def test_readme_interface_example_runs(tmp_path, monkeypatch, capsys):
     assert (tmp_path / "energy.png").stat().st_size > 0 and (tmp_path / "skate.npz").exists()
 
 
-# --- the README's main job and then its tests on another machine (issue 23, part 4): timings and
+# --- the README's main job and then its tests on another machine: timings and
 # float64 round-off differ, verdicts and counts do not. Simulated on a copy of the reports.
 def _another_machine(tmp_path):
     """A copy of the committed reports as a run on another machine would leave them: every CPU

@@ -6,7 +6,7 @@ import sympy
 
 from ldaspark.core.errors import InputError, LdasparkError, SystemDefinitionError, SingularSaddleError, TableauError
 from ldaspark.core.families import gauss, get_method, lobatto_iiia_iiib
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 from ldaspark.core.spark import SparkMethod, integrate
 from ldaspark.core.system import LagrangianSystem
 from ldaspark.core.validate import check_newton_options, check_storage
@@ -111,7 +111,7 @@ def test_all_new_errors_are_ldaspark_errors():
 
 @pytest.mark.parametrize("kw, match", [(dict(max_iter=0), "max_iter"), (dict(tol=0.0), "tolerance"),
                                        (dict(tol=float("nan")), "tolerance"), (dict(n_steps=10 ** 9), "GiB"),
-                                       (dict(n_steps=10 ** 12), r"between 1 and 1e\+09"),   # issue 25, E
+                                       (dict(n_steps=10 ** 12), r"between 1 and 1e\+09"),   # a run that cannot end
                                        (dict(h=True), "bool")])
 def test_fast_path_options_are_input_errors(skate, kw, match):
     # before: UnboundLocalError (max_iter=0), 'Newton failed' (tol=0 / nan), MemoryError or a hang

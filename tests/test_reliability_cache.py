@@ -1,5 +1,5 @@
-"""The kernel cache's trust model (docs/reliability.md, "The kernel cache: what is trusted";
-issue 25, classes B, C, J): numba's pickled index (.nbi) and data (.nbc) files of the generated
+"""The kernel cache's trust model (docs/reliability.md, "The kernel cache: what is trusted"):
+numba's pickled index (.nbi) and data (.nbc) files of the generated
 models are unpickled only when this user's process recorded their sha256 when writing them;
 planted, corrupt or foreign files are deleted and compiled again; nothing is written through a
 link; every component of the cache directory's path is checked; numba's own cache of the
@@ -416,7 +416,7 @@ def test_issue_reproducer_cli_particle_with_planted_index(tmp_path):
     __pycache__/ldaspark_model_<digest>.*.nbi (the digest of a built-in scene is the same on
     every install): the payload never runs and the run is compiled."""
     from ldaspark.compiled.fast import compile_system
-    from ldaspark.core.scenes import get_scene
+    from ldaspark.models.scenes import get_scene
     cs = compile_system(get_scene("particle").system)
     modname = "ldaspark_model_" + cs.key
     lines = cs.source.splitlines()
@@ -449,11 +449,11 @@ def test_issue_reproducer_cli_particle_with_planted_index(tmp_path):
 
 
 def test_cli_runs_compiled_after_the_model_cache_is_corrupted(tmp_path, monkeypatch):
-    """Issue 25 J end to end: random bytes in every .nbi/.nbc of the particle's model; the next
+    """Tampered cache end to end: random bytes in every .nbi/.nbc of the particle's model; the next
     run is compiled (before: 'compilation failed (UnpicklingError); using the generic engine' on
     every later run) and leaves a cache the run after it loads (all hits)."""
     from ldaspark.compiled.fast import compile_system
-    from ldaspark.core.scenes import get_scene
+    from ldaspark.models.scenes import get_scene
     d = tmp_path / "c"
     monkeypatch.setenv("LDASPARK_CACHE_DIR", str(d))
     src = compile_system(get_scene("particle").system).source

@@ -1,4 +1,4 @@
-"""Issue 25, classes E, H, I at the command line: every attack is one line ``ldaspark: error:``
+"""Bounds and hostile values at the command line: every attack is one line ``ldaspark: error:``
 and exit 2 (never a traceback, a MemoryError, an OverflowError or a full ledger run); Ctrl-C
 stops a long compiled run; the interrupt message says whether the output was written."""
 import os

@@ -10,9 +10,9 @@ import time
 import numpy as np
 import pytest
 
-from ldaspark.compiled.ensemble import RunSpec, _run_plan, ensemble_integrate
+from ldaspark.dist.ensemble import RunSpec, _run_plan, ensemble_integrate
 from ldaspark.core.errors import InconsistentInitialDataError, InputError, SingularSaddleError
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 
 
 @pytest.fixture(scope="module")
@@ -51,7 +51,7 @@ def test_singular_member_is_named():
     (dict(h=float("nan")), "h must be finite"), (dict(h=0.0), "h must be finite"),
     (dict(n_steps=0), "n_steps"), (dict(n_steps=2.5), "n_steps"), (dict(every=0), "every"),
     (dict(tol=0.0), "tolerance"), (dict(tol=float("nan")), "tolerance"),
-    (dict(n_steps=10 ** 12), r"between 1 and 1e\+09"),   # the step bound of every run (issue 25, E)
+    (dict(n_steps=10 ** 12), r"between 1 and 1e\+09"),   # the step bound of every run
     (dict(n_steps=10 ** 9), "GiB"),
 ])
 def test_ensemble_options(skate, kw, match):
@@ -79,7 +79,7 @@ _CTRL_C = """
 import sys, time
 sys.path.insert(0, sys.argv[1])
 from test_reliability_ensemble import _sleep_task
-from ldaspark.compiled.ensemble import _run_plan
+from ldaspark.dist.ensemble import _run_plan
 print("start", flush=True)
 try:
     _run_plan([(0, _sleep_task, (3.0,)) for _ in range(20)], 1, max_workers=2)   # 30 s of work

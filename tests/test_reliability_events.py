@@ -1,4 +1,4 @@
-"""Issue 25, class D (events) and dense output: events are validated once for both engines
+"""Events and dense output: events are validated once for both engines
 (``ldaspark.core.dense.Event``): events that never fire give empty (0, n) arrays, a bad
 ``direction`` / ``terminal`` / return value is one InputError naming the event, and an event
 function that modifies its q argument cannot change the trajectory; ``sol(t)`` refuses NaN,

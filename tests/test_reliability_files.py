@@ -1,4 +1,4 @@
-"""Issue 25, classes E, F, G, H for result files: ``load_result`` checks the file type with
+"""Bounds, non-finite values, file types and sizes of result files: ``load_result`` checks the file type with
 os.stat before opening (a FIFO never blocks, /dev/zero behind a link is never read), bounds
 sizes and array headers before reading, refuses NaN, infinity, 1e999, complex and compound
 arrays, wrong shapes, metadata that is not a dict or has dps outside [DPS_MIN, DPS_MAX]; the

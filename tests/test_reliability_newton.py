@@ -13,7 +13,7 @@ import pytest
 
 from ldaspark.core.errors import NewtonError, SingularSaddleError
 from ldaspark.core.families import get_method
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 from ldaspark.core.spark import SparkMethod, integrate
 from ldaspark.reports import stability as S
 

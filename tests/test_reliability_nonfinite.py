@@ -9,7 +9,7 @@ import sympy
 
 from ldaspark.core.errors import LdasparkError, NonFiniteError
 from ldaspark.core.families import get_method
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 from ldaspark.core.spark import SparkMethod, integrate
 from ldaspark.core.system import LagrangianSystem
 

@@ -1,4 +1,4 @@
-"""Property-based harness of issue 25 (hypothesis, derandomized ``ci`` profile) over the public
+"""Property-based harness of the API boundary (hypothesis, derandomized ``ci`` profile) over the public
 API's arguments, the result-file readers and the command line. The properties:
 
 * ``ldaspark.integrate(...)`` returns a Result whose arrays are finite real numbers (status >= 0),

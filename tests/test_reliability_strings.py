@@ -1,4 +1,4 @@
-"""Strings given to the Python API are never executed (issue 25, class A): L, k, N, the
+"""Strings given to the Python API are never executed: L, k, N, the
 mechanical parts, parameter values, scene parameters and symbol names go through the bounded
 whitelist parser (``tableau.parse_expression`` / ``parse_number``, the tableau entry parser
 extended to the system's declared symbols) or are refused with an LdasparkError.
@@ -86,8 +86,8 @@ def _m(marker):
         "mechanical set after construction (comparator)": lambda: ldaspark.integrate(
             _hand_set(p), "lobatto-iiia-iiib-2-leapfrog", t_span=(0, 0.1), q0=[0, 0, 0], v0=[0, 0, 0], h=0.05,
             engine="generic"),
-        "scene parameter": lambda: __import__("ldaspark.core.scenes", fromlist=["skate"]).skate(m=p + " or 1"),
-        "scene parameter B": lambda: __import__("ldaspark.core.scenes", fromlist=["x"]).relativistic(B=p),
+        "scene parameter": lambda: __import__("ldaspark.models.scenes", fromlist=["skate"]).skate(m=p + " or 1"),
+        "scene parameter B": lambda: __import__("ldaspark.models.scenes", fromlist=["x"]).relativistic(B=p),
         "tableau delta": lambda: ldaspark.core.families.get_method("gauss-2", exact=True).with_entry("A", 0, 0, p),
     }
 

@@ -1,4 +1,4 @@
-"""Issue 25, classes E, F, G, H: every user value of ``ldaspark.integrate``, ``RunSpec`` /
+"""Every user value of ``ldaspark.integrate``, ``RunSpec`` /
 ``run_many`` and ``LagrangianSystem`` is checked at the API boundary (``ldaspark.core.validate``):
 a wrong value is one LdasparkError naming it, before any work; a right value near the bound still
 runs (the controls). Setup of the issue: x, y, z, vx, vy, vz = sympy.symbols("x y z vx vy vz")."""
@@ -75,7 +75,7 @@ def test_generic_engine_has_the_storage_check_of_the_compiled_one():
 
 
 def test_runspec_and_run_many_bound_the_steps_and_refuse_zero_rows():
-    from ldaspark.compiled.ensemble import RunSpec, run_many
+    from ldaspark.dist.ensemble import RunSpec, run_many
     skate = ldaspark.get_scene("skate")
     t0, q0, v0 = skate.initial()
     with pytest.raises(InputError, match="between 1 and 1e"):
@@ -98,16 +98,16 @@ def test_long_compiled_run_is_chunked_with_the_same_samples(monkeypatch):
     agrees with one call to the Newton tolerance (the predictor restarts at a chunk boundary;
     8 eps relative per step over 40 steps and an O(1) solution: 1e-12 is ample)."""
     from ldaspark import solve
-    from ldaspark.compiled import fast
+    from ldaspark.compiled import runner
     calls = []
-    real = fast._run_checked          # the kernel call behind fast_integrate and run_compiled
+    real = runner._run_checked        # the kernel call behind fast_integrate and run_compiled
 
     def spy(*a, **k):
         calls.append(a[6])
         return real(*a, **k)
     one = run(t_span=(0, 2), h=0.05, save_every=3)
     monkeypatch.setattr(solve, "COMPILED_CHUNK", 7)
-    monkeypatch.setattr(fast, "_run_checked", spy)
+    monkeypatch.setattr(runner, "_run_checked", spy)
     chunked = run(t_span=(0, 2), h=0.05, save_every=3)
     assert one.engine == chunked.engine == "compiled"
     assert len(calls) >= 40 // 7, calls             # several kernel calls ...

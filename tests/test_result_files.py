@@ -93,7 +93,7 @@ def test_cli_step_failure_is_one_line_and_no_file(tmp_path, capsys):
     """The CLI keeps its contract (exit 2, one line, no file); the library keeps the prefix."""
     out = tmp_path / "f.npz"
     # h = 6 (measured: fails at step 9 on both engines); at h = 2 the compiled engine's fallback
-    # chain now finishes the run, as the generic engine does (issue 22)
+    # chain now finishes the run, as the generic engine does
     rc = main(["integrate", "robot", "gauss-2", "--h", "6", "--t-end", "240", "--engine", "compiled",
                "--out", str(out)])
     err = capsys.readouterr().err.strip().splitlines()

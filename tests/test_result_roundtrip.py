@@ -1,4 +1,4 @@
-"""Round trips of result files (issue 27, class 5): every format (.json, .npz, .h5) x float64 and
+"""Round trips of result files: every format (.json, .npz, .h5) x float64 and
 mpmath precision x every field (t, q, v, psi, energy, constraint, stats, events, dense-output
 data) comes back digit for digit: float64 bit for bit; mpmath numbers as the same ``dps``
 significant digits the file contract stores (``nstr(x, dps)``), as mpf at that precision, also
@@ -120,7 +120,7 @@ def test_mpmath_strings_in_the_file_are_the_dps_digit_strings(runs, tmp_path):
     assert {k: v for k, v in d2.items() if k != "version"} == {k: v for k, v in d.items() if k != "version"}
 
 
-# --- a distinguishing fixture for the time origin (issue 27, class 2): every scene starts at t0 = 0,
+# --- a distinguishing fixture for the time origin: every scene starts at t0 = 0,
 # where t_n = n h and t_n = t0 + n h agree; a restart at t0 = 0.2 of a time-dependent system must
 # continue the run exactly (L and k of the rheonomic skate depend on t)
 @pytest.mark.parametrize("engine", ["generic", "compiled"])

@@ -5,7 +5,7 @@ import pytest
 import sympy
 
 from ldaspark.core.errors import InconsistentInitialDataError, InputError, SingularSaddleError
-from ldaspark.core.scenes import PAPER_SCENES, get_scene
+from ldaspark.models.scenes import PAPER_SCENES, get_scene
 from ldaspark.core.spark import SparkMethod, integrate
 from ldaspark.core.system import LagrangianSystem
 from ldaspark.core.families import builtin_method_names, gauss, get_method

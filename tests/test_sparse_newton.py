@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 import sympy
 
-from ldaspark.compiled import fast, sparse
+from ldaspark.compiled import fast, runner, sparse
 from ldaspark.compiled.fast import compile_system, run_compiled
 from ldaspark.core.errors import InputError, NewtonError
-from ldaspark.core.scenes import Scene, get_scene, mp_particles
+from ldaspark.models.scenes import Scene, get_scene, mp_particles
 from ldaspark.core.system import LagrangianSystem
 
 
@@ -210,7 +210,7 @@ def _indefinite():
 def test_small_block_pivot_falls_back_to_the_dense_lu(monkeypatch):
     """Forced: the block LU reports a singular matrix; auto (made to choose the blocks even at
     n = 2) repeats the run with the dense LU and returns its result."""
-    monkeypatch.setattr(fast, "SPARSE_MARGIN", 0.0)
+    monkeypatch.setattr(runner, "SPARSE_MARGIN", 0.0)
     sc = _indefinite()
     cs = compile_system(sc.system)
     assert cs.form == "mechanical"

@@ -1,4 +1,4 @@
-"""Issue 22, section 7 of reports/stability.md: stiff forces, h omega from 1e-2 to 1e4, against the
+"""Section 7 of reports/stability.md: stiff forces, h omega from 1e-2 to 1e4, against the
 linear stability function of the tableau; and the regimes table at the top of that report."""
 import math
 

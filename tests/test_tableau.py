@@ -195,7 +195,7 @@ def test_exact_beyond_radicals_is_a_clear_error():
     assert gauss(6).arrays(30).A.shape == (6, 6)
 
 
-# --- derived tableaux are independent of their source (issue 27, class 4) -------------------------
+# --- derived tableaux are independent of their source (no shared state) -------------------------
 @pytest.mark.parametrize("exact", [True, False])
 def test_with_entry_copies_are_independent_of_the_source(exact):
     """Two negative controls derived from one tableau: each carries only its own change, and the

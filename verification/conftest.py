@@ -4,7 +4,7 @@ import functools
 
 import pytest
 
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 from ldaspark.core.families import get_method
 
 

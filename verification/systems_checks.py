@@ -1,5 +1,5 @@
-"""Checks shared by ``verification/test_systems_*.py`` (the classic systems of issue 24,
-``ldaspark.core.systems_classic``).
+"""Checks shared by ``verification/test_systems_*.py`` (the classic systems,
+``ldaspark.models.systems_classic``).
 
 * ``ode_residual``: a closed-form solution against the underlying ODE (3a-b) at 30 digits: the
   acceleration by a central difference of the closed-form v (step d = 1e-10: truncation
@@ -117,7 +117,7 @@ def check_constraint_roundoff_and_engines(name):
     RK4 on (3a-b) over the same 20 steps leaves max |k| > 10 ``constraint_bound`` (k above the
     bound by a factor 10, not at round-off)."""
     import ldaspark
-    from ldaspark.core.scenes import get_scene
+    from ldaspark.models.scenes import get_scene
     sc = get_scene(name)
     res = ldaspark.integrate(name, "gauss-2", t_span=(0, 200), h=0.1)
     assert res.engine == "compiled" and res.success, (res.engine, res.success)

@@ -14,7 +14,7 @@ g(q1) = g(q0). The nonholonomic variant has no such g, and its solve is well-pos
 import numpy as np
 import pytest
 
-from ldaspark.core.scenes import mp_particles
+from ldaspark.models.scenes import mp_particles
 from ldaspark.core.families import gauss
 
 RNG = np.random.default_rng(7)

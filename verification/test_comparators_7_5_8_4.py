@@ -19,7 +19,7 @@ from ldaspark.core.backend import Backend
 from ldaspark.core.comparators import ModifiedLobatto2, derive_mechanical, integrate_comparator
 from ldaspark.theory.orders import estimate_order, floor_for
 from ldaspark.core.errors import InconsistentInitialDataError, InputError
-from ldaspark.core.scenes import PAPER_SCENES, get_scene
+from ldaspark.models.scenes import PAPER_SCENES, get_scene
 from ldaspark.core.spark import integrate
 from ldaspark.core.system import LagrangianSystem
 from ldaspark.core.families import get_method

@@ -6,7 +6,7 @@ import pytest
 from ldaspark.theory.discrete import base_point, discrete_lagrangian
 from ldaspark.core.backend import Backend
 from ldaspark.core.families import builtin_method_names
-from ldaspark.theory.ledger import constraint_residuals
+from ldaspark.claims.ledger import constraint_residuals
 
 SCENES = ["particle", "skate", "robot", "mp-particles"]
 

@@ -11,7 +11,7 @@ import pytest
 
 from ldaspark.theory.orders import (claimed_order_of, estimate_order, floor_for, make_reference,
                                   measure_errors, order_records)
-from ldaspark.core.scenes import PAPER_SCENES, get_scene
+from ldaspark.models.scenes import PAPER_SCENES, get_scene
 from ldaspark.core.spark import integrate
 from ldaspark.core.families import gauss
 

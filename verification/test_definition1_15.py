@@ -11,7 +11,7 @@ import pytest
 
 from ldaspark.core.families import builtin_method_names, get_method
 from ldaspark.theory.definition1 import definition1_residuals
-from ldaspark.theory.ledger import negative_controls
+from ldaspark.claims.ledger import negative_controls
 
 TOL_15A = 1e-25
 TOL_15B = 1e-40
@@ -62,8 +62,7 @@ def test_15_exhaustive(name, scn, scene):
 
 
 def inconsistent_start(scene, dv="1/10"):
-    """The scene's data with v0[0] shifted by ``dv``: off C_d, k(t0, q0, v0) != 0 (issue 27:
-    on C_d the constraint is 0 at both end points of every step, so a (15b) evaluated at the
+    """The scene's data with v0[0] shifted by ``dv``: off C_d, k(t0, q0, v0) != 0 (on C_d the constraint is 0 at both end points of every step, so a (15b) evaluated at the
     left end point instead of the right one is invisible)."""
     import mpmath
     t0, q0, v0 = scene.initial(60)

@@ -71,7 +71,7 @@ def test_energy_balance_exhaustive(name, method, exact_method):
 
 
 def test_discrete_order_is_the_finest_pair_of_a_pre_asymptotic_sweep(exact_method):
-    """Distinguishing fixture (issue 27): Euler I on time-L at h = 0.2 .. 0.025 is pre-asymptotic
+    """Distinguishing fixture: Euler I on time-L at h = 0.2 .. 0.025 is pre-asymptotic
     (pairwise slopes 2.63, 2.51, 2.35, measured): the reported order is the finest pair's, which
     differs from the coarsest by > 0.2."""
     import math

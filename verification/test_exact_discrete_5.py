@@ -33,7 +33,7 @@ def test_exact_flow_against_independent_references():
 def test_exact_flow_against_skate_closed_form():
     import mpmath
     import numpy as np
-    from ldaspark.core.scenes import get_scene
+    from ldaspark.models.scenes import get_scene
     from ldaspark.theory.exact_flow import ExactFlow
     sc = get_scene("skate")
     with mpmath.workdps(40):
@@ -97,7 +97,7 @@ def test_5_1_exact_forces_vanish_holonomic(offset):
 @pytest.mark.parametrize("scn", ["particle", "skate", "robot", "rolling-disk", "pendulum", "mp-particles-nh"])
 @pytest.mark.parametrize("offset", [None, "off"])
 def test_section5_exhaustive(scn, offset):
-    from ldaspark.core.scenes import get_scene
+    from ldaspark.models.scenes import get_scene
     n = get_scene(scn).system.n
     off = None if offset is None else tuple(f"{(-1) ** k}/1000" for k in range(n))
     r = exact_identities(scn, offset=off)
@@ -107,7 +107,7 @@ def test_section5_exhaustive(scn, offset):
 
 
 def test_section5_on_a_time_dependent_scene():
-    """Distinguishing fixture (issue 27): every paper scene is autonomous, so a time argument
+    """Distinguishing fixture: every paper scene is autonomous, so a time argument
     shifted by h (t0 for t1, the second step of (20) on [t0, t0 + h] instead of [t1, t1 + h], the
     stage times) is invisible there. The rheonomic skate has L and k depending on t
     (g(t) = 1 + cos(t)/2, belt speed u(t) = (1 + sin t)/2): (16)-(20), the exact discrete EL

@@ -10,9 +10,9 @@ import math
 import pytest
 
 from ldaspark.core.families import get_method
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 from ldaspark.theory.discrete import theorem1_residuals
-from ldaspark.theory.ledger import TOL_THEOREM1
+from ldaspark.claims.ledger import TOL_THEOREM1
 
 
 @pytest.fixture(scope="module")

@@ -22,7 +22,7 @@ from ldaspark.core.backend import Backend
 from ldaspark.core.spark import integrate
 from ldaspark.theory.conditions import check_22a, check_22b, check_23
 from ldaspark.theory.discrete import SINGULAR, base_point, discrete_lagrangian, theorem1_residuals
-from ldaspark.theory.ledger import TOL_NEGATIVE, TOL_SYMMETRY, TOL_THEOREM1
+from ldaspark.claims.ledger import TOL_NEGATIVE, TOL_SYMMETRY, TOL_THEOREM1
 from ldaspark.theory.symmetry import check_symmetry
 from ldaspark.theory.wellposedness import classify_wellposedness
 

@@ -8,7 +8,7 @@ from hypothesis import given, settings, strategies as st
 
 from ldaspark.theory.discrete import theorem1_residuals
 from ldaspark.theory.conditions import check_22a, check_22b
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 from ldaspark.core.tableau import from_json_dict
 
 SCENE = get_scene("particle")

@@ -11,7 +11,7 @@ import itertools
 import pytest
 import sympy
 
-from ldaspark.core.scenes import get_scene, mp_particles
+from ldaspark.models.scenes import get_scene, mp_particles
 
 
 def is_involutive(system):

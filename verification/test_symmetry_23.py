@@ -9,7 +9,7 @@ import pytest
 
 from ldaspark.theory.discrete import SINGULAR
 from ldaspark.theory.symmetry import check_symmetry
-from ldaspark.theory.ledger import TOL_SYMMETRY, perturbed_initial
+from ldaspark.claims.ledger import TOL_SYMMETRY, perturbed_initial
 
 H = "0.1"
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import ldaspark
-from ldaspark.core.scenes import get_scene
-from ldaspark.core.systems_classic import ball_turntable
+from ldaspark.models.scenes import get_scene
+from ldaspark.models.systems_classic import ball_turntable
 from ldaspark.theory.orders import ExactReference
 
 from systems_checks import (EXHAUSTIVE_PLAN, RESIDUAL_TOL, constraint_bound, long_run, observed_orders, ode_residual,

@@ -1,7 +1,7 @@
-"""The Whipple bicycle (scene ``bicycle``, ldaspark/core/bicycle.py) against the benchmark of
+"""The Whipple bicycle (scene ``bicycle``, ldaspark/models/bicycle.py) against the benchmark of
 Meijaard, Papadopoulos, Ruina and Schwab (2007): the linearised lean-and-steer eigenvalues from the
 SPARK flow (ldaspark/theory/bicycle_flow.py) against an independent implementation of the
-benchmark's Appendix A (ldaspark/theory/bicycle_benchmark.py), itself checked against the printed
+benchmark's Appendix A (ldaspark/models/bicycle_benchmark.py), itself checked against the printed
 matrices (eq. 5.4) and Table 2.
 
 Default: the reference, one speed with its order, a short nonlinear run (the model build, sympy
@@ -14,8 +14,8 @@ import mpmath
 import numpy as np
 import pytest
 
-from ldaspark.core import bicycle as bc
-from ldaspark.theory import bicycle_benchmark as bb
+from ldaspark.models import bicycle as bc
+from ldaspark.models import bicycle_benchmark as bb
 from ldaspark.theory import bicycle_flow as bf
 
 

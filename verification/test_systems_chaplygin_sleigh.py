@@ -1,4 +1,4 @@
-"""Chaplygin sleigh (Bloch 2003, 1.7; scene ``chaplygin-sleigh``, ``ldaspark.core.systems_classic``):
+"""Chaplygin sleigh (Bloch 2003, 1.7; scene ``chaplygin-sleigh``, ``ldaspark.models.systems_classic``):
 the closed form (speed ~ tanh, angular velocity ~ sech, the path), the orders 2s / 2s - 2 against
 it, the constraint at round-off, the long-time energy and asymptotic speed; each check with a
 negative control (a wrong sign in L or k, a non-symmetric method, RK4 on (3a-b)). Tolerances:
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import ldaspark
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 from ldaspark.theory.orders import ExactReference
 
 from systems_checks import (EXHAUSTIVE_PLAN, RESIDUAL_TOL, constraint_bound, long_run, observed_orders, ode_residual,

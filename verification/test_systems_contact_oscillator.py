@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import ldaspark
-from ldaspark.core.scenes import get_scene
+from ldaspark.models.scenes import get_scene
 from ldaspark.core.system import LagrangianSystem
 from ldaspark.theory.orders import make_reference
 

@@ -8,9 +8,9 @@ import pytest
 import sympy
 
 import ldaspark
-from ldaspark.core.scenes import get_scene
-from ldaspark.core.systems_classic import suslov
-from ldaspark.theory.claims_general import DOP853Reference
+from ldaspark.models.scenes import get_scene
+from ldaspark.models.systems_classic import suslov
+from ldaspark.claims.claims_general import DOP853Reference
 from ldaspark.theory.orders import make_reference
 
 from systems_checks import (EXHAUSTIVE_PLAN, ORDER_PLAN, check_constraint_roundoff_and_engines, long_run,

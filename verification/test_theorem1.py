@@ -16,7 +16,7 @@ from ldaspark.theory.discrete import GAUGE, SINGULAR, WELLPOSED, base_point, dis
 from ldaspark.theory.wellposedness import classify_wellposedness, gauge_invariance
 from ldaspark.core.families import builtin_method_names
 from ldaspark.reports.claims import write_markdown
-from ldaspark.theory.ledger import TOL_NEGATIVE, TOL_THEOREM1, negative_controls, perturbed_initial, run_ledger
+from ldaspark.claims.ledger import TOL_NEGATIVE, TOL_THEOREM1, negative_controls, perturbed_initial, run_ledger
 
 H = "0.1"
 DEFAULT_METHODS = builtin_method_names(3)

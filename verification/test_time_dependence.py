@@ -18,7 +18,7 @@ from ldaspark.core.backend import Backend
 from ldaspark.core.families import get_method
 from ldaspark.core.spark import integrate
 from ldaspark.theory.discrete import theorem1_residuals
-from ldaspark.theory.ledger import TOL_NEGATIVE, TOL_THEOREM1, negative_controls
+from ldaspark.claims.ledger import TOL_NEGATIVE, TOL_THEOREM1, negative_controls
 from ldaspark.theory.orders import ODEReference, estimate_order, floor_for
 
 H = "0.1"

@@ -12,7 +12,7 @@ Control: a (22b)-breaking tableau (Gauss-2 with A_hat perturbed) loses the order
 Default cost ~10 s (skate only); every family on skate and particle with --exhaustive."""
 import pytest
 
-from ldaspark.theory.ledger import negative_controls
+from ldaspark.claims.ledger import negative_controls
 from ldaspark.theory.variational import variational_errors
 
 CHEAP = dict(dps=24, stages=8)

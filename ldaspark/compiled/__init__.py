@@ -7,7 +7,8 @@ the SPARK step (21a-f) and the semi-implicit comparators, ensembles on any Execu
   source compiled once for every system (``modeltypes``: the types that make this possible);
 * ``cache``: the private, content-verified directory of the generated modules;
 * ``ode``: the underlying ODE (3a-b) as a compiled right-hand side (for scipy comparisons);
-* ``ensemble``: many initial data over an executor; ``roundoff``: the Kahan summation study.
+* ``rescue``: the generic full-Newton step as the last link of the Newton fallback chain;
+* ``roundoff``: the Kahan summation study. (Ensembles over an executor: ``ldaspark.dist.ensemble``.)
 
-Imports ``ldaspark.core`` only.
+Imports ``ldaspark.core`` and ``ldaspark.models`` only.
 """

@@ -35,436 +35,25 @@ to the generic path`` to stderr and runs ``ldaspark.core.spark.integrate`` /
 """
 from __future__ import annotations
 
-import functools
 import math
 import sys
-from dataclasses import dataclass
 
 import numpy as np
-import sympy
 
 from ..core.errors import InputError, LdasparkError, NewtonError, NonFiniteError
-from . import modeltypes as mt
+from . import runner
 from .cache import CacheDirectoryError, load_source, source_key
 from .codegen import NotCompilableError, general_source, mechanical_source, nonideal_term
+# the kernel runner's names stay importable from here (``fast`` is the compiled path's entry point)
+from .runner import (FAST_METHODS, LF2_VARIANTS, LINEAR_SOLVERS, MAIN_KERNELS, REUSE_AUTO_MIN_N, SPARSE_MARGIN,
+                     STAT_NAMES, _COMPILED, _ENTRIES, _MODELS, _OPTIONS_OK, _SPECS, _STRUCTURES, _TOL_DEFAULT,
+                     CompiledSystem, FastSolution, _check_options, _check_options_now, _entry, _failure, _kernels,
+                     _make_spec, _mechanical, _resolve, _run_checked, _sparse_structure, can_compile, compile_system,
+                     kernel_spec, mechanical_parts, n_samples, run_compiled)
 
 __all__ = ["fast_integrate", "FastSolution", "compile_system", "CompiledSystem", "mechanical_parts",
            "kernel_spec", "run_compiled", "generic_integrate", "FAST_METHODS", "NotCompilableError",
            "NonFiniteError", "can_compile", "load_source"]
-
-# comparator names with a specialised kernel: name -> lf2 variant
-LF2_VARIANTS = {
-    "lobatto-iiia-iiib-2-leapfrog": 0,
-    "lobatto-iiia-iiib-2-modified": 1,
-    "lobatto-iiia-iiib-2-modified-leapfrog": 1,
-    "mp-lobatto-iiib-a-2": 2,
-}
-FAST_METHODS = ("any SPARK tableau (gauss-S, lobatto-iiia-iiib-S, lobatto-iiia-iiib-iiid-S, euler-i, euler-ii)",
-                ) + tuple(LF2_VARIANTS)
-STAT_NAMES = ("steps", "newton_iterations", "nfev", "njev", "nlu", "max_iterations", "failed_step", "failure",
-              "full_newton_steps", "failed_iterations")
-
-
-# --- mechanical form ---------------------------------------------------------------------
-def mechanical_parts(system) -> dict:
-    """(M, U, K, b) as sympy objects with L = 1/2 v^T M v - U, k = K v + b, M constant.
-
-    Uses ``system.mechanical`` when set, else detects the form: L_vv free of t, q, v;
-    grad_v L - M v = 0 (no gyroscopic terms); k_v free of v. Raises NotCompilableError."""
-    if nonideal_term(system) is not None:
-        raise NotCompilableError(f"{system.name}: a nonideal term (3.3) needs the general form")
-    q, v, t = list(system.q), list(system.v), system.t
-    mech = system.mechanical
-    if mech is not None:
-        from ..core.system import check_mechanical, refuse_text
-        refuse_text(mech, f"{system.name}: mechanical")     # set by hand after construction: never sympify text
-        check_mechanical(system, mech)                       # the generic engine's M (L_vv), symmetric
-        M = sympy.Matrix(mech["M"])
-        U = sympy.sympify(mech["U"], strict=True)
-        K = sympy.Matrix(mech["K"])
-        b = sympy.Matrix(mech.get("b") if mech.get("b") is not None else sympy.zeros(K.rows, 1))
-        b = b.reshape(K.rows, 1)
-    else:
-        M = system.L_vv
-        if M.free_symbols & (set(q) | set(v) | {t}):
-            raise NotCompilableError(f"{system.name}: L_vv depends on (t, q, v); not mechanical form")
-        zero_v = {x: 0 for x in v}
-        gyro = (system.L_v - M * sympy.Matrix(v)).applyfunc(sympy.simplify)
-        if gyro != sympy.zeros(system.n, 1):
-            raise NotCompilableError(f"{system.name}: grad_v L is not M v (terms linear in v); not mechanical form")
-        U = -system.L.subs(zero_v)
-        K = system.k_v
-        if K.free_symbols & set(v):
-            raise NotCompilableError(f"{system.name}: k is not affine in v; not mechanical form")
-        b = system.k.subs(zero_v)
-    if M.free_symbols:
-        raise NotCompilableError(f"{system.name}: mass matrix M is not constant")
-    return {"M": M, "U": U, "K": K, "b": b}
-
-
-@dataclass
-class CompiledSystem:
-    """A system's generated model (source text, loaded lazily), its form ("mechanical" or
-    "general") and, for the mechanical form, the constant M and M^-1. Picklable: a worker
-    process rebuilds the module from the source text."""
-
-    name: str
-    n: int
-    m: int
-    source: str
-    M: np.ndarray
-    Minv: np.ndarray
-    form: str = "mechanical"
-
-    @functools.cached_property
-    def digest(self) -> str:
-        return source_key(self.source)
-
-    @property
-    def module(self):
-        return load_source(self.source, digest=self.digest)
-
-    @property
-    def model(self):
-        """The model tuple (n, functions...) as the kernels take it: each function as the address
-        of its compiled code (numba's wrapper address protocol), looked up once per process;
-        passing the dispatchers themselves costs their type conversion at every call."""
-        hit = _MODELS.get(self.digest)
-        if hit is None:
-            from numba.core.types.function_type import CompileResultWAP
-            mod = self.module.MODEL
-            hit = (mod[0],) + tuple(f if isinstance(f, bool) else CompileResultWAP(f.overloads[f.signatures[0]])
-                                    for f in mod[1:])      # a general model ends with its flag has_N
-            _MODELS[self.digest] = hit
-        return hit
-
-    @property
-    def key(self) -> str:
-        return self.digest[:20]
-
-    def newton_structure(self):
-        """The block structure of the Newton matrix (``sparse.NewtonStructure``) of a mechanical
-        system, or None (general form, or a pattern too dense for the symbolic elimination's
-        budget). Computed once per process and model."""
-        if self.form != "mechanical":
-            return None
-        if self.digest not in _STRUCTURES:
-            from .sparse import newton_structure
-            pairs = getattr(self.module, "HESS_PATTERN", None)
-            _STRUCTURES[self.digest] = None if pairs is None else newton_structure(self.n, pairs, self.M)
-        return _STRUCTURES[self.digest]
-
-
-_MODELS: dict[str, tuple] = {}
-_STRUCTURES: dict[str, object] = {}
-#: ``linear_solver="auto"`` factors by blocks when the dense LU costs more than SPARSE_MARGIN
-#: times the block factorisation's multiply-adds (the block code does more bookkeeping per flop;
-#: measured: at a ratio dense/blocks of 2.1 (robot, n = 4) the dense LU was 2-20% faster, at 3.8
-#: (mp-particles-nh, n = 7) the blocks 10-40% faster, gauss-2 to gauss-4)
-SPARSE_MARGIN = 2.5
-LINEAR_SOLVERS = ("auto", "dense", "sparse")
-#: ``reuse_matrix="auto"`` reuses the Newton matrix across steps from this n on: measured on
-#: mp-particles-nh (h = 0.01 at n = 7, 0.001 at n = 121, block solver), reuse saved 5-8% of a step
-#: at n = 7 and 23-33% at n = 121 (gauss-2, gauss-3), with results equal to 6e-14; below this
-#: size the saving is within noise and the paper's scenes keep one fresh matrix per step
-REUSE_AUTO_MIN_N = 32
-
-
-def _sparse_structure(cs, s, linear_solver):
-    """The structure to factor by blocks with, or None for the dense LU."""
-    if linear_solver not in LINEAR_SOLVERS:
-        raise InputError(f"linear_solver must be one of {LINEAR_SOLVERS}, got {linear_solver!r}")
-    if linear_solver == "dense" or cs.form != "mechanical":
-        if linear_solver == "sparse":
-            raise InputError(f"{cs.name}: linear_solver='sparse' needs a system in mechanical form")
-        return None
-    st = cs.newton_structure()
-    if st is None:
-        if linear_solver == "sparse":
-            raise InputError(f"{cs.name}: the Newton matrix's pattern is too dense to factor by blocks")
-        return None
-    if linear_solver == "sparse":
-        return st
-    from .sparse import dense_flops
-    return st if SPARSE_MARGIN * st.factor_flops(s, cs.m) < dense_flops(s, cs.n, cs.m) else None
-
-
-_COMPILED: dict[tuple, tuple] = {}
-
-
-def compile_system(system, form: str = "auto") -> CompiledSystem:
-    """Generate (and cache per system object) the compiled model: the mechanical form where the
-    system has it (``form="auto"`` or "mechanical"), else the general form (always for a
-    nonideal term N(t, q, v, psi) of 3.3). The module itself
-    is compiled at first use (``CompiledSystem.module``). Raises NotCompilableError."""
-    if form not in ("auto", "mechanical", "general"):
-        raise InputError(f"form must be 'auto', 'mechanical' or 'general', got {form!r}")
-    key = (id(system), form)
-    hit = _COMPILED.get(key)
-    if hit is not None and hit[0] is system:
-        return hit[1]
-    cs = None
-    if form in ("auto", "mechanical"):
-        try:
-            cs = _mechanical(system)
-        except NotCompilableError:
-            if form == "mechanical":
-                raise
-    if cs is None:
-        eye = np.eye(system.n)
-        cs = CompiledSystem(system.name, system.n, system.m, general_source(system), eye, eye, "general")
-    _COMPILED[key] = (system, cs)
-    return cs
-
-
-def _mechanical(system):
-    parts = mechanical_parts(system)
-    M = np.array(parts["M"].tolist(), dtype=float)
-    try:
-        Minv = np.linalg.inv(M)
-    except np.linalg.LinAlgError:
-        raise NotCompilableError(f"{system.name}: mass matrix M is singular") from None
-    return CompiledSystem(system.name, system.n, parts["K"].rows, mechanical_source(system, parts),
-                          np.ascontiguousarray(M), np.ascontiguousarray(Minv), "mechanical")
-
-
-def can_compile(system) -> tuple[bool, str]:
-    """(True, form) when the compiled path takes the system, else (False, reason). Generates the
-    model source (a few tenths of a second for small systems) but compiles nothing."""
-    try:
-        cs = compile_system(system)
-    except NotCompilableError as exc:
-        return False, str(exc)
-    return True, cs.form
-
-
-@dataclass
-class FastSolution:
-    """Samples at steps 0, every, 2 every, ..., and the last step. Unpacks as
-    (t, q, v, energy, constraint, stats)."""
-
-    t: np.ndarray
-    q: np.ndarray
-    v: np.ndarray
-    energy: np.ndarray
-    constraint: np.ndarray
-    stats: dict
-
-    def __iter__(self):
-        return iter((self.t, self.q, self.v, self.energy, self.constraint, self.stats))
-
-
-def n_samples(n_steps: int, every: int) -> int:
-    return n_steps // every + 1 + (1 if n_steps % every else 0)
-
-
-def _resolve(method):
-    """method name or SparkTableau -> ("lf2", variant, name) or ("spark", tableau, name)."""
-    from ..core.tableau import SparkTableau
-    from ..core.families import get_method
-    if isinstance(method, SparkTableau):
-        return "spark", method, method.name
-    if isinstance(method, str) and method in LF2_VARIANTS:
-        return "lf2", LF2_VARIANTS[method], method
-    try:
-        return "spark", get_method(method), method
-    except LdasparkError:
-        raise InputError(f"unknown method {method!r} for the fast path; choose a SPARK name "
-                         f"or one of {', '.join(LF2_VARIANTS)}") from None
-
-
-_SPECS: dict = {}
-
-
-def kernel_spec(method, kernel="auto"):
-    """Picklable description of the kernel to run: ("lf2", variant, name) or
-    ("spark", (c, A, A_hat, A_tilde, b, b_hat, b_tilde, omega) float64 arrays, name).
-    ``kernel`` "auto" runs lobatto-iiia-iiib-2 with the semi-implicit kernel (the same method,
-    (25)) on mechanical systems; "spark" forces the general kernel. Cached: the coefficients of a
-    method name (or tableau object) are computed once per process."""
-    if kernel not in ("auto", "spark"):
-        raise InputError(f"kernel must be 'auto' or 'spark', got {kernel!r}")
-    ck = (method if isinstance(method, str) else id(method), kernel)
-    hit = _SPECS.get(ck)
-    if hit is not None and (isinstance(method, str) or hit[0] is method):
-        return hit[1]
-    spec = _make_spec(method, kernel)
-    _SPECS[ck] = (method, spec)
-    return spec
-
-
-def _make_spec(method, kernel):
-    kind, what, name = _resolve(method)
-    if kind == "spark" and kernel == "auto" and what.name == "lobatto-iiia-iiib-2":
-        return "lf2", 0, name
-    if kind == "lf2":
-        return "lf2", what, name
-    ta = what.arrays(None)
-    arr = [np.ascontiguousarray(np.asarray(getattr(ta, k), dtype=float)) for k in
-           ("c", "A", "A_hat", "A_tilde", "b", "b_hat", "b_tilde")]
-    arr.append(np.ascontiguousarray(np.asarray(ta.omega, dtype=float).reshape(max(what.s - 1, 0), what.s)))
-    return "spark", tuple(arr), name
-
-
-def _check_options(n_steps, every, predictor, tol, max_iter, n_dof, n_con):
-    key = (type(n_steps), n_steps, type(every), every, type(predictor), predictor, type(tol), tol,
-           type(max_iter), max_iter, n_dof, n_con)
-    try:
-        if key in _OPTIONS_OK:           # a repeated call's options passed already (types in the key:
-            return                       # True == 1, but predictor=True must still be refused)
-    except TypeError:                    # unhashable option: the checks below say what is wrong
-        key = None
-    _check_options_now(n_steps, every, predictor, tol, max_iter, n_dof, n_con)
-    if key is not None:
-        if len(_OPTIONS_OK) >= 256:
-            _OPTIONS_OK.clear()
-        _OPTIONS_OK.add(key)
-
-
-#: option tuples (with their types) that passed ``_check_options_now``
-_OPTIONS_OK: set = set()
-
-
-def _check_options_now(n_steps, every, predictor, tol, max_iter, n_dof, n_con):
-    from ..core.validate import MAX_STEPS, check_newton_options, check_storage, count
-    if predictor not in (0, 1, 2) or isinstance(predictor, bool):
-        raise InputError(f"predictor must be 0, 1 or 2, got {predictor!r}")
-    count(n_steps, "n_steps", 1, MAX_STEPS)     # 10**12 steps with a large every never end
-    count(every, "every", 1, MAX_STEPS)
-    check_newton_options(tol, max_iter)
-    check_storage(n_samples(int(n_steps), int(every)), 2 + 2 * n_dof + n_con, what="the samples")
-
-
-def _kernels():
-    from . import kernels       # cheap: a kernel compiles (or loads) on its first use, in _entry
-    from . import kernels_general, kernels_mech, newton
-    from .cache import check_kernel_cache
-    check_kernel_cache((kernels, kernels_general, kernels_mech, newton))   # numba unpickles from there
-    return kernels
-
-
-# the kernels the main job's compiled-path jobs run (``reports.jobs.PRELUDE`` compiles them first)
-MAIN_KERNELS = ("spark_run", "spark_sparse_run", "lf2_run")
-
-_ENTRIES: dict[str, object] = {}
-
-
-def _entry(name):
-    """The compiled entry point of kernel ``name`` (one signature), compiled or loaded from
-    numba's cache on first use. Calling it skips the dispatcher's typeof of every argument, which
-    for the model tuple of function addresses costs ~0.3 ms per call; run_compiled builds every
-    argument with exactly the signature's types."""
-    ep = _ENTRIES.get(name)
-    if ep is None:
-        import warnings
-        from numba.core.errors import NumbaExperimentalFeatureWarning
-        with warnings.catch_warnings():
-            # first-class function types are how the kernels take any system's model (see
-            # kernels.py); numba flags them as experimental at compile time: noise for a user
-            warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
-            ep = _kernels().entry_point(name)
-        _ENTRIES[name] = ep
-    return ep
-
-
-def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, compensated=True,
-                 tol=None, max_iter=50, kernel="auto", predictor=2, reuse_matrix="auto", linear_solver="auto"):
-    """Run a compiled kernel (no fallback); ``method`` a name, a SparkTableau or a kernel_spec.
-    predictor: 2 = linear extrapolation of the last two steps' unknowns, 1 = last step's,
-    0 = zero increments (V_i = v1 = v0, Psi = 0). linear_solver (SPARK kernels, mechanical
-    form): "dense" LU of the whole Newton matrix, "sparse" block LU in a minimum-degree order
-    with a Schur complement for the multipliers (``sparse``), "auto" the sparse one where its
-    operation count is below 1/SPARSE_MARGIN of the dense one (large n with sparse Hess U and K),
-    and the dense one when a block pivot is too small (the run is repeated with it).
-    stats["linear_solver"] says which ran. reuse_matrix (SPARK kernels): start a step from the
-    previous step's factored Newton matrix while it contracts fast (``kernels.REUSE_MATRIX``);
-    "auto" = from n >= REUSE_AUTO_MIN_N. stats["reuse_matrix"] says whether it was on.
-    Raises NewtonError, NonFiniteError."""
-    _check_options(n_steps, every, predictor, tol, max_iter, cs.n, cs.m)
-    return _run_checked(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, kernel, predictor,
-                        reuse_matrix, linear_solver)
-
-
-_TOL_DEFAULT = 8 * float(np.finfo(float).eps)
-
-
-def _run_checked(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, kernel, predictor,
-                 reuse_matrix="auto", linear_solver="auto"):
-    """``run_compiled`` after ``_check_options`` passed (fast_integrate checks them once, before
-    compiling; checking twice was ~3 us of a repeated short call's overhead)."""
-    spec = method if isinstance(method, tuple) else kernel_spec(method, kernel)
-    kind, what, name = spec
-    if kind == "lf2" and cs.form != "mechanical":
-        if name in LF2_VARIANTS:
-            raise NotCompilableError(f"{cs.name}: {name} needs a system in mechanical form")
-        kind, what, name = kernel_spec(name, "spark")        # (25) is lobatto-iiia-iiib-2
-    q0 = np.array(q0, dtype=float)          # a fresh contiguous copy: the kernel may not alias the caller's
-    v0 = np.array(v0, dtype=float)
-    if q0.shape != (cs.n,) or v0.shape != (cs.n,):
-        raise InputError(f"initial data must have n = {cs.n} entries")
-    h = float(h)
-    if not (math.isfinite(h) and h != 0 and np.isfinite(q0).all() and np.isfinite(v0).all()):
-        raise InputError("initial data or step size contain NaN/inf, or h = 0")
-    tol = _TOL_DEFAULT if tol is None else float(tol)
-    S = n_samples(int(n_steps), int(every))
-    outs = (np.zeros(S), np.zeros((S, cs.n)), np.zeros((S, cs.n)), np.zeros(S), np.zeros((S, cs.m)))
-    stats = np.zeros(len(STAT_NAMES), dtype=np.int64)
-    # reuse_matrix (SPARK kernels): the previous step's Newton matrix (kernels.REUSE_MATRIX)
-    if isinstance(reuse_matrix, str) and reuse_matrix == "auto":
-        reuse_matrix = cs.n >= REUSE_AUTO_MIN_N
-    elif not isinstance(reuse_matrix, (bool, np.bool_)):
-        raise InputError(f"reuse_matrix must be True, False or 'auto', got {reuse_matrix!r:.60}")
-    pflag = int(predictor) + (4 if reuse_matrix else 0)
-    run = (float(t0), q0, v0, h, int(n_steps), int(every), bool(compensated), tol, int(max_iter), pflag)
-    model = cs.model
-    solver = "dense"
-    if kind == "lf2":
-        _entry("lf2_run")(model, int(what), cs.M, cs.Minv, *run, *outs, stats)
-    else:
-        out_x = np.zeros(what[1].shape[0] * (cs.n + cs.m) + cs.n)
-        structure = _sparse_structure(cs, what[1].shape[0], linear_solver)
-        if structure is not None:
-            solver = "sparse"
-            _entry("spark_sparse_run")(model, what, cs.M, *run, *outs, stats, out_x, *structure.arrays())
-            if linear_solver == "auto" and stats[mt.FAILED_STEP] >= 0 and stats[mt.FAILURE] == mt.FAIL_SINGULAR:
-                # a block pivot too small for the unpivoted block order: the dense LU pivots freely
-                solver = "dense"
-                for arr in outs + (stats, out_x):
-                    arr[...] = 0
-        if solver == "dense":
-            _entry("spark_run" if cs.form == "mechanical" else "general_run")(model, what, cs.M, *run, *outs,
-                                                                               stats, out_x)
-    st = dict(zip(STAT_NAMES, (int(x) for x in stats)))
-    if st["failed_step"] >= 0:
-        # the SPARK kernels leave the residual at the last iterate in out_x[0] (kernels.spark_loop)
-        raise _failure(st, name, float(t0), h, None if kind == "lf2" else float(out_x[0]))
-    st.pop("failed_step")
-    st.pop("failure")
-    st.pop("failed_iterations")
-    st["mean_iterations"] = st["newton_iterations"] / max(st["steps"], 1)
-    st["path"] = "fast"
-    st["kernel"] = "lf2" if kind == "lf2" else ("spark" if cs.form == "mechanical" else "general")
-    st["form"] = cs.form
-    st["compensated"] = bool(compensated)
-    st["linear_solver"] = solver
-    st["reuse_matrix"] = bool(reuse_matrix) and kind != "lf2"
-    return FastSolution(*outs, st)
-
-
-def _failure(st, name, t0, h, residual=None):
-    k = st["failed_step"]
-    tk = t0 + k * h
-    where = f"step {k}, t = {tk:.6g}, h = {h:.3g}"
-    if st["failure"] == mt.FAIL_NONFINITE:
-        return NonFiniteError(f"fast path ({name}): NaN or inf at {where} (L or k evaluated outside "
-                              "their domain, or overflow)", step=k, time=tk)
-    why = "singular Newton matrix" if st["failure"] == mt.FAIL_SINGULAR else "Newton failed"
-    it = st["failed_iterations"]
-    # SPARK kernels: simplified Newton, fresh matrices, then full Newton all failed at this step
-    chain = "" if residual is None else " (simplified, fresh-matrix and full Newton)"
-    res = "" if residual is None else f"residual {residual:.3e} after "
-    return NewtonError(f"fast path ({name}): {why} at {where}: {res}{it} iterations{chain}", step=k, time=tk,
-                       residual=residual, iterations=it)
 
 
 def _diagnose_newton_failure(exc, system, cs, method, t0, q0, v0, h, compensated, tol, max_iter, kernel,
@@ -657,7 +246,7 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
     (11, 3)
     """
     if isinstance(scene_or_system, str):          # a scene name, as integrate takes it
-        from ..core.scenes import get_scene
+        from ..models.scenes import get_scene
         scene_or_system = get_scene(scene_or_system)
     system = getattr(scene_or_system, "system", scene_or_system)
     if t0 is None or q0 is None or v0 is None:
@@ -689,8 +278,8 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
         _notice(f"{system.name}: compilation failed ({_first_line(exc)})")
         return generic_integrate(system, method, t0, q0, v0, h, n_steps, every, tol)
     try:
-        return _run_checked(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, kernel,
-                            predictor, linear_solver=linear_solver)
+        return runner._run_checked(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, kernel,
+                                   predictor, linear_solver=linear_solver)
     except NotCompilableError as exc:
         _notice(str(exc))
         return generic_integrate(system, method, t0, q0, v0, h, n_steps, every, tol)
@@ -720,7 +309,7 @@ def warm_kernels(names=MAIN_KERNELS) -> float:
 
 def _warm(scene_name, method, kernel):
     import time as _time
-    from ..core.scenes import get_scene
+    from ..models.scenes import get_scene
     t = _time.perf_counter()
     if scene_name == "linear-3":
         from .roundoff import linear_test_system

@@ -37,7 +37,7 @@ from . import modeltypes as mt
 # it compiles in live in sibling modules. Their digest is written here so that editing a helper
 # changes this file too (tests/test_compiled_general.py checks it; update it after an edit).
 HELPERS = ("newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py", "modeltypes.py")
-HELPERS_SHA256 = "fd6191b2cc5949a16428a945dfc8524260724010a553cb6d8b9edfc51c6958be"
+HELPERS_SHA256 = "69a046fe65741d39112daddfbbe3091ba4d91492e47e8c91f1d3e90058ecaf8d"
 
 from .newton import (FAIL_NONFINITE, FAIL_SINGULAR, accept_step, advance, end_newton, factor_newton,  # noqa: E402
                      fail, lu_factor, lu_solve, newton_increment, newton_status, norm_inf, predict, record, shift)

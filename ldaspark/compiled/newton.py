@@ -164,7 +164,7 @@ NOISE_FACTOR = 1e3
 #: RADAU5's kappa: the rate test accepts an estimated remaining error of kappa lim ~ 1 unit
 #: round-off of the stage values (lim = 8 eps (|x| + |v0|)), so that stopping on the estimate
 #: leaves the step as accurate as one more increment would (the estimate alone at kappa = 1 moved
-#: 1000-step runs by ~1e-12, against ~3e-14 between the engines before, issue 22)
+#: 1000-step runs by ~1e-12, against ~3e-14 between the engines with a plain |dx| test)
 RATE_KAPPA = 0.1
 
 
@@ -175,7 +175,7 @@ def newton_status(dn, prev, theta_prev, xn, scale, tol, exact):
     stage values V_i = v0 + Z_i carry eps (|v0| + |Z_i|) of rounding, so ``scale`` = |v0|_inf
     (the caller's; the semi-implicit kernel converts it to multiplier units). The limit scales
     with the state and does not depend on h (an h-proportional limit, tol (|x| + h (1 + |v0|)),
-    fell below the rounding of V_i at h <= 1e-5 and failed runs spuriously, issue 22).
+    fell below the rounding of V_i at h <= 1e-5 and failed runs spuriously).
     Converged: |dx| <= lim; or the estimate theta/(1 - theta) |dx| <= lim of the remaining error
     of a contracting iteration (Hairer-Wanner IV.8, RADAU5's stopping rule with kappa tol = RATE_KAPPA lim),
     with RADAU5's rate theta = sqrt(theta_k theta_k-1), theta_k = |dx_k| / |dx_k-1| (theta_prev

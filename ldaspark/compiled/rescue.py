@@ -1,4 +1,4 @@
-"""The last link of the compiled engine's Newton fallback chain (issue 22): a step where the
+"""The last link of the compiled engine's Newton fallback chain: a step where the
 kernel's simplified, fresh-matrix and full Newton all fail is taken by the generic engine's full
 Newton (``SparkMethod.step`` with newton="full", float64) from the same state, and the compiled
 run goes on from the step after. So the compiled engine fails only where the generic full Newton
@@ -39,7 +39,7 @@ def run_with_rescue(system, tab, cs, method, t0, q0, v0, h, n_steps, every, comp
     generic engine. Raises the generic step's NewtonError where that fails too."""
     from ..core.backend import Backend
     from ..core.spark import SparkMethod
-    from .fast import FastSolution, run_compiled
+    from .runner import FastSolution, run_compiled
 
     want = set(range(0, n_steps + 1, every)) | {n_steps}
     samples = {}                # global step -> (t, q, v, E, k)

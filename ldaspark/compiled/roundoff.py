@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import sympy
 
-from .fast import compile_system, run_compiled
+from .runner import compile_system, run_compiled
 
 
 def linear_test_system():

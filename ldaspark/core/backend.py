@@ -60,7 +60,7 @@ class Backend:
         """Unit round-off of the working precision: float64's, or 10^-dps from mpmath: a float
         where float64 holds it as a normal number (dps <= EPS_FLOAT_DPS: the same value to 16
         digits, and the type the reports and JSON files expect), the mpf beyond (a float
-        underflowed to 0 at dps >= 324 and zeroed every tolerance derived from it, issue 22)."""
+        underflowed to 0 at dps >= 324 and zeroed every tolerance derived from it)."""
         if self.dps is None:
             return 2.0 ** -52
         e = mpmath.mpf(10) ** (-self.dps)
@@ -164,7 +164,7 @@ class Backend:
             with self.context():
                 # the residual scaled to 1 before it is rounded to float64 (and the solution scaled
                 # back): a residual below float64's range (1e-330 at 400 digits) would round to 0
-                # and stall the refinement there (issue 22)
+                # and stall the refinement there
                 r = np.asarray(r)
                 sc = max((abs(mpmath.mpf(v)) for v in r.reshape(-1)), default=mpmath.mpf(0))
                 if not sc:

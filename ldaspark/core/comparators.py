@@ -123,7 +123,7 @@ def derive_mechanical(system: LagrangianSystem) -> dict:
 def _newton(fun, x0, bk: Backend, tol, max_iter, step_index, t):
     """Newton on fun(x) -> (G, J); same stopping rule as SparkMethod.step."""
     x = x0.copy()
-    # round-off of the unknowns' values (invariant under the scale of h and of the state, issue 22)
+    # round-off of the unknowns' values (invariant under the scale of h and of the state)
     tol_abs = tol * bk.norm_inf(x)
     prev = None
     res = float("inf")

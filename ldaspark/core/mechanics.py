@@ -485,10 +485,12 @@ def from_mechanics(model: Any, q: Optional[Sequence] = None, constraints: Option
                    params: Optional[Sequence] = None, name: str = "system", cls: Optional[type] = None) -> Any:
     """A ``LagrangianSystem`` from a KanesMethod, LagrangesMethod, System or a Lagrangian in
     dynamicsymbols (see the module docstring); ``params`` defaults to every free symbol other
-    than t."""
+    than t. ``cls``: the class to build, ``LagrangianSystem`` or a subclass
+    (``LagrangianSystem.from_mechanics`` passes its own: this adapter sits below the system
+    module and does not import it)."""
     import sympy.physics.mechanics as me
-    from .system import LagrangianSystem
-    cls = cls or LagrangianSystem
+    if cls is None:
+        raise SystemDefinitionError("from_mechanics: give cls (or call LagrangianSystem.from_mechanics)")
     _refuse_strings(model, q, constraints)
     t = me.dynamicsymbols._t
     readers = [(me.KanesMethod, _read_kane), (me.LagrangesMethod, _read_lagranges)]

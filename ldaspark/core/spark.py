@@ -99,7 +99,7 @@ class SparkMethod:
     def __init__(self, system: LagrangianSystem, tableau: SparkTableau, dps: int | None = None,
                  tol: float | None = None, newton: str = "full", max_iter: int = 50, energy_jump=None):
         from .validate import check_dps, check_newton_options, check_system_and_tableau
-        check_dps(dps)          # [DPS_MIN, DPS_MAX] for every entry point (issue 25)
+        check_dps(dps)          # [DPS_MIN, DPS_MAX] for every entry point
         if newton not in ("auto", "full", "simplified", "mixed"):
             raise InputError(f"newton must be 'auto', 'full', 'simplified' or 'mixed', got {newton!r}")
         check_system_and_tableau(system, tableau)
@@ -290,7 +290,7 @@ class SparkMethod:
             p0 = self.system.momentum(bk, t0, q0, v0)
             x = (self.initial_guess(v0) if x0 is None else x0).copy()
             # the round-off of the stage values (V_i, Lambda_i, v1 are the unknowns; v0 for a
-            # guess of zeros): invariant under the scale of h and of the state (issue 22)
+            # guess of zeros): invariant under the scale of h and of the state
             v_scale = bk.norm_inf(v0)
             tol_abs = self.tol * (bk.norm_inf(x) + v_scale)
             fac = None
@@ -365,7 +365,7 @@ class SparkMethod:
                 if self.newton == "simplified" and prev is not None:
                     # contracting, but too slowly to reach the tolerance within max_iter: a new
                     # matrix at this iterate (at 200-2000 digits simplified Newton gains ~3.6
-                    # digits per iteration on the particle, 50 iterations are not enough, issue 22)
+                    # digits per iteration on the particle, 50 iterations are not enough)
                     renew = _budget_short(dn, prev, tol_abs, self.max_iter - it)
                 x = x_new
                 prev = dn
@@ -477,7 +477,7 @@ def _magnitudes(a):
 #: RADAU5's kappa in the rate test theta / (1 - theta) |dx| <= kappa tol (Hairer-Wanner IV.8): the
 #: estimated remaining error 0.1 unit round-off of the unknowns (tol = 10 eps). Measured on the
 #: non-quadratic system of tests/test_compiled_general.py (gauss-2, h = 0.1, 1000 steps) against
-#: the same map at 30 digits: kappa = 0.1 left 2.5e-13 in q (the rule before issue 22: 7.8e-14),
+#: the same map at 30 digits: kappa = 0.1 left 2.5e-13 in q (the plain |dx| rule: 7.8e-14),
 #: kappa = 0.01 6.5e-14, with 5% fewer iterations than before (5298 against 5579)
 RATE_KAPPA = 0.01
 

@@ -900,7 +900,7 @@ def check_stages(s: int, max_stages: int | None = None, what: str = "tableau") -
     if type(limit).__module__ == "numpy" and hasattr(limit, "dtype") and limit.dtype.kind in "iu":
         limit = int(limit)                   # np.int64(3) is an integer like 3
     if isinstance(limit, bool) or not isinstance(limit, int) or not 1 <= limit <= MAX_STAGES_CEILING:
-        # --max-stages 10**6 was a MemoryError, 10**8 an OverflowError (issue 25, H)
+        # --max-stages 10**6 was a MemoryError, 10**8 an OverflowError
         raise TableauError(f"max_stages must be an integer between 1 and {MAX_STAGES_CEILING}, got "
                            f"{limit if abs(limit) < 10 ** 12 else f'{float(limit):.3g}'}"
                            if isinstance(limit, int) else f"max_stages must be an integer, got {type(limit).__name__}")

@@ -61,13 +61,13 @@ def check_storage(n_points: int, floats_per_point: int, mp: bool = False, what: 
                          "(a larger h or a shorter t_end)")
 
 
-# --- the API boundary: one check per kind of user value (issue 25) ------------------------------
+# --- the API boundary: one check per kind of user value ------------------------------------
 # ``ldaspark.integrate``, the CLI (through it), ``RunSpec`` / ``run_many`` and the result-file
 # readers call these, so that a wrong value is one InputError naming the argument, before any work.
 
 #: mpmath precision range accepted by ``dps``. Below 16 digits mpmath is less precise than float64
 #: (whose unit round-off the tolerances of the float64 path are derived from), so a smaller dps is a
-#: mistake; 2000 digits is the bound of issue 22: one gauss-2 step on a 3-dof scene costs ~1 s there
+#: mistake; 2000 digits is the bound where one gauss-2 step on a 3-dof scene costs ~1 s there
 #: (Newton's LU at O(dps^1.6) per operation), and beyond it a run cannot finish in reasonable time
 #: (dps = 10**6 ran for minutes before this bound; the audit had its own bound).
 DPS_MIN = 16
@@ -308,7 +308,7 @@ def regular_file(path, limit: int, what: str = "file") -> int:
 
 def finite_initial_point(system, bk, t, q, v, member: str = "") -> None:
     """The energy (8) and k at (t, q, v) (converted by ``bk``) are finite real numbers, else one
-    NonFiniteError (issue 25, class F): U = 1/x at x = 0, oo / zoo in L, v0 = 1e200, sqrt(x) at
+    NonFiniteError (rather than a NaN, inf or complex result): U = 1/x at x = 0, oo / zoo in L, v0 = 1e200, sqrt(x) at
     x = -1 (math domain error in float64, mpc at dps). Call inside ``bk.context()``."""
     import warnings
 

@@ -4,5 +4,6 @@ stability_figures), the driver and its job runner (jobs), and shared helpers: ma
 with escaped cells, number formats), plotting (constrained layout, distinct colours), timing
 (wall and CPU time), summary (the values README quotes).
 
-Imports ``ldaspark.core``, ``ldaspark.theory`` and ``ldaspark.compiled``; never ``ldaspark.cli``.
+Imports every layer below it (core, models, compiled, dist, solve, theory, claims); never
+``ldaspark.cli``. The mutation catalogue is ``ldaspark.mutants``.
 """

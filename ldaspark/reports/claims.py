@@ -1,5 +1,5 @@
 """``ldaspark verify`` / ``ldaspark report claims``: run the claims ledger
-(``ldaspark.theory.ledger``) and write reports/claims.md and a JSON list of records."""
+(``ldaspark.claims.ledger``) and write reports/claims.md and a JSON list of records."""
 from __future__ import annotations
 
 import os
@@ -7,10 +7,10 @@ import sys
 
 from ..core.io import atomic_write_json, atomic_write_text
 from ..core.families import builtin_method_names
-from ..theory import ledger as _ledger
-from ..theory.claims_index import claims_index_markdown
-from ..core.workers import add_scheduler_argument
-from ..theory.ledger import extra_records, negative_controls, run_ledger, summarize  # noqa: F401 (re-exported)
+from ..claims import ledger as _ledger
+from ..claims.claims_index import claims_index_markdown
+from ..dist.workers import add_scheduler_argument
+from ..claims.ledger import extra_records, negative_controls, run_ledger, summarize  # noqa: F401 (re-exported)
 from .markdown import table
 from .timing import Clock
 
@@ -94,12 +94,12 @@ def file_names(quick=False):
 
 def run_verify(outdir=REPORT_DIR, quick=False, json_path=None, command="ldaspark verify", jobs=None,
                where=None, resume=True):
-    """Run the ledger where ``where`` says (``ldaspark.core.workers``) and write its files. Each
+    """Run the ledger where ``where`` says (``ldaspark.dist.workers``) and write its files. Each
     finished unit is appended to ``OUTDIR/claims[-quick].partial.jsonl`` as it comes in; a run
     that is interrupted or loses units keeps it, and the next run resumes from it (same code and
     options only: the file carries a fingerprint of both); it is removed once the ledger is
     written. ``resume=False`` starts afresh."""
-    from ..core.workers import Checkpoint, UnitsFailed, source_fingerprint
+    from ..dist.workers import Checkpoint, UnitsFailed, source_fingerprint
     clock = Clock()
     # the claim groups' pieces run in the same worker processes as the ledger's units
     groups = _ledger.CLAIM_GROUPS

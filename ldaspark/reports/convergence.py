@@ -15,7 +15,7 @@ import time
 from ..theory.orders import claimed_order_of, verdict, make_reference, measure_errors, order_records
 from ..core.errors import InputError
 from ..core.io import atomic_save_figure, atomic_write_json, atomic_write_text
-from ..core.scenes import GENERAL_SCENES, PAPER_SCENES, get_scene
+from ..models.scenes import GENERAL_SCENES, PAPER_SCENES, get_scene
 from .markdown import sci, table, timing_line
 from .plotting import colours, figure
 from .timing import Clock

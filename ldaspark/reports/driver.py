@@ -52,7 +52,7 @@ def add_arguments(p):
                    help="main job: the exhaustive sweeps of the sections that have them (stability)")
     p.add_argument("--workers", type=int, default=None,
                    help="main job: worker processes (default: the number of cores)")
-    from ..core.workers import add_scheduler_argument
+    from ..dist.workers import add_scheduler_argument
     add_scheduler_argument(p)
     sub = p.add_subparsers(dest="section", parser_class=type(p))
     for name, mod in available_sections().items():
@@ -66,7 +66,7 @@ def run(args) -> int:
     if getattr(args, "section", None):
         return int(args.section_run(args) or 0)
     from ..core.errors import InputError
-    from ..core.workers import check_where
+    from ..dist.workers import check_where
     from .jobs import run_sections
     check_where(getattr(args, "scheduler", None))    # before the CPU probe and the section imports
     workers = args.workers or os.cpu_count() or 1

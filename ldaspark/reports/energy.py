@@ -65,7 +65,7 @@ def figure_data(fig, t_end=None):
     (``ldaspark.compiled.fast``; the generic path if the scene cannot be compiled); returns a
     JSON-able dict."""
     from ..compiled.fast import fast_integrate
-    from ..core.scenes import get_scene
+    from ..models.scenes import get_scene
     if fig not in FIGURES:
         raise InputError(f"figure must be 1, 2, 3 or 4, got {fig}")
     spec = FIGURES[fig]

@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from ..compiled.ensemble import RunSpec, run_many
+from ..dist.ensemble import RunSpec, run_many
 from ..core.errors import InputError
 
 FIG4_METHODS = ("lobatto-iiia-iiib-2", "lobatto-iiia-iiib-2-modified", "mp-lobatto-iiib-a-2")
@@ -42,7 +42,7 @@ def figure4_data(t_end=50000.0, h=0.05, J=9, every=100, executor=None, methods=F
     "window"}}, "seconds": wall time, "n_steps", "h", "J", "every", "newton": {name: mean
     iterations}}. ``window`` defaults to [t_end / 100, t_end]. ``constraint`` picks the scene
     variant of ``scenes.mp_particles``: "printed" (as in 8.4; integrable) or "nonholonomic"."""
-    from ..core.scenes import mp_particles
+    from ..models.scenes import mp_particles
     t0_wall = time.perf_counter()
     from ..core.spark import MAX_STEPS
     if not all(isinstance(x, (int, float)) and math.isfinite(x) and x > 0 for x in (t_end, h)):

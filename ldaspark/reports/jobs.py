@@ -79,9 +79,9 @@ def plan(modules, outdir, full=False):
 
 def run_sections(modules, outdir, full=False, workers=2, say=print, where=None):
     """Run every section's jobs over ``workers`` processes (or where ``where`` says, e.g. a Dask
-    scheduler: ``ldaspark.core.workers``); write each section when complete.
+    scheduler: ``ldaspark.dist.workers``); write each section when complete.
     Returns {section: {"jobs", "cpu", "wall"}} (wall = seconds from the start until written)."""
-    from ..core.workers import describe, open_executor
+    from ..dist.workers import describe, open_executor
     clock = Clock()
     jobs = plan(modules, outdir, full)
     left = {name: sum(1 for p in jobs if p[1] == name) for name in modules}

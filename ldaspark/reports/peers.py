@@ -15,7 +15,7 @@ sympy expressions as the SPARK model and compiled by numba):
 For each run: CPU seconds (``time.process_time``, the minimum of repeats for short runs),
 the final q, the largest energy error |E - E0| (8) and constraint |k| over the output times.
 A solver's cost at an accuracy is read off its lower envelope by interpolation in log-log
-(``work_precision.cpu_at``); the best peer at a target is the cheapest peer there, and the
+(``envelope.cpu_at``); the best peer at a target is the cheapest peer there, and the
 figure quoted is the speed-up of the best compiled SPARK method over it,
 cpu(best peer) / cpu(best SPARK) (> 1: SPARK is faster).
 """
@@ -207,7 +207,7 @@ def run_spark(scene, method, h, t_end, n_out=1, repeats=3):
 def envelope_cpu(rows, target, key="error"):
     """CPU time to reach ``target`` on the lower envelope of ``rows`` (log-log interpolation);
     None outside the range the runs cover."""
-    from .work_precision import cpu_at
+    from .envelope import cpu_at
     return cpu_at(rows, target, key)
 
 
@@ -342,7 +342,7 @@ def reference_final(scene, t_end):
 def scene_study(scene_name, quick=False, peers=None, progress=print):
     """Both comparisons on one scene: final error at t_end (T = 100) and the long run
     (T = 1e4: energy error and constraint drift); rows with their errors, and the speed-ups."""
-    from ..core.scenes import get_scene
+    from ..models.scenes import get_scene
     sc = get_scene(scene_name)
     P = plan(quick)
     peers, notes = available_peers(tuple(PEERS) if peers is None else peers)

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..core.errors import LdasparkError
 from ..core.families import get_method
-from ..core.scenes import get_scene
+from ..models.scenes import get_scene
 from ..core.spark import SparkMethod, integrate
 
 SWEEP_METHODS = ("euler-i", "gauss-1", "gauss-2", "gauss-3", "lobatto-iiia-iiib-2", "lobatto-iiia-iiib-3",

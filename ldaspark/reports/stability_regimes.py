@@ -1,4 +1,4 @@
-"""Sections of ``reports/stability.md`` added by issue 22: the regimes table (top of the report),
+"""Sections of ``reports/stability.md`` on the extremes of h: the regimes table (top of the report),
 the stiffness sweep (section 7) and whole runs at tiny h with the error curve's round-off floor
 (section 8). Data from ``stability_stiff`` through the jobs of ``stability``."""
 from __future__ import annotations

@@ -15,7 +15,7 @@ import sympy
 from ..core.backend import Backend
 from ..core.errors import LdasparkError, SingularSaddleError
 from ..core.families import get_method
-from ..core.scenes import get_scene
+from ..models.scenes import get_scene
 from ..core.spark import integrate
 from ..core.system import LagrangianSystem
 

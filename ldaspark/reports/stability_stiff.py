@@ -1,4 +1,4 @@
-"""Issue 22 measurements for ``reports/stability.md``: stiff forces, tiny steps along whole runs,
+"""Measurements at the extremes for ``reports/stability.md``: stiff forces, tiny steps along whole runs,
 and the regimes table.
 
 * ``linear_stability(method, z)``: the SPARK step (21) on the unconstrained oscillator
@@ -142,7 +142,7 @@ def stiff_sweep(scene, method, hws=HW, n=N_STIFF):
 def tiny_step_run(scene, method, h, n):
     """A whole run of n steps of h on the compiled engine from the scene's initial data."""
     from ..compiled.fast import fast_integrate
-    from ..core.scenes import get_scene
+    from ..models.scenes import get_scene
     t = time.perf_counter()
     row = {"scene": scene, "method": method, "h": h, "N": n}
     try:
@@ -163,7 +163,7 @@ def tiny_step_grid(n=100_000, methods=TINY_METHODS, hs=TINY_H, scenes=("particle
 
 
 def _skate_exact(t):
-    from ..core.scenes import get_scene
+    from ..models.scenes import get_scene
     ex = get_scene("skate").exact
     tt = sympy.Rational(str(t))
     return (np.array([float(e.subs(ex["t"], tt)) for e in ex["q"]]),
@@ -174,7 +174,7 @@ def error_floor(method, hs=FLOOR_H, T=FLOOR_T):
     """Global error max |(q, v)(T) - exact| on the skate for h in hs (N = T / h steps), plain
     and compensated summation, compiled engine: {method, h, N, plain, kahan}."""
     from ..compiled.fast import fast_integrate
-    from ..core.scenes import get_scene
+    from ..models.scenes import get_scene
     qe, ve = _skate_exact(T)
     out = {"method": method, "h": [], "N": [], "plain": [], "kahan": []}
     for h in hs:
@@ -227,7 +227,7 @@ def dps_extreme(dpss=(400, 2000), n=3):
     that run's error, and both runs work)."""
     import mpmath
     from ..core.families import get_method
-    from ..core.scenes import get_scene
+    from ..models.scenes import get_scene
     from ..core.spark import integrate
     from ..core.validate import DPS_MAX
     sc = get_scene("skate")

@@ -108,7 +108,7 @@ def claims_values(recs):
     return out
 
 
-# claim groups of ldaspark.theory.claims_general / claims_paper quoted in README: records whose
+# claim groups of ldaspark.claims.claims_general / claims_paper quoted in README: records whose
 # outcome is what the paper predicts, and the largest residual of the passing identities
 ORDER_CLAIMS = ("order-general-scenes", "variational-order", "nonideal-3.3", "energy-balance-2.2")
 CLAIM_GROUP_KEYS = {

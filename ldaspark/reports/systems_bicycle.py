@@ -1,6 +1,6 @@
 """The bicycle section of ``reports/systems.md``: the benchmark's linearised eigenvalues from the
 SPARK flow (``ldaspark.theory.bicycle_flow``) beside the benchmark's (Meijaard et al. 2007,
-``ldaspark.theory.bicycle_benchmark``), the weave and capsize speeds, and one nonlinear run.
+``ldaspark.models.bicycle_benchmark``), the weave and capsize speeds, and one nonlinear run.
 
 ``bicycle_section(outdir) -> (markdown, json)`` writes the figure ``figures/systems_bicycle.png``
 into ``outdir`` and returns the Markdown section and its numbers; the integrator's
@@ -41,19 +41,19 @@ def compiled_cost(model=None, n_steps=1000, h=0.01, method="gauss-2"):
     generation, which runs even when numba's on-disk cache is warm because the source is the cache
     key: 21 s CPU measured with a warm cache, 36 s cold) and per step of a second run of ``n_steps``
     steps, beside the generic engine's per step (20 steps, after its lambdify)."""
-    import ldaspark
-    from ..core import bicycle as bc
+    from ..models import bicycle as bc
+    from ..solve import integrate
     model = model or bc.build()
     sc = model.scene(5, 0.5)
     c0 = time.process_time()
-    ldaspark.integrate(sc, method, n_steps=1, h=h, engine="compiled", raise_on_failure=True)
+    integrate(sc, method, n_steps=1, h=h, engine="compiled", raise_on_failure=True)
     first = time.process_time() - c0
     c0 = time.process_time()
-    res = ldaspark.integrate(sc, method, n_steps=n_steps, h=h, engine="compiled", raise_on_failure=True)
+    res = integrate(sc, method, n_steps=n_steps, h=h, engine="compiled", raise_on_failure=True)
     per_step = (time.process_time() - c0) / n_steps
-    ldaspark.integrate(sc, method, n_steps=1, h=h, engine="generic", raise_on_failure=True)   # lambdify first
+    integrate(sc, method, n_steps=1, h=h, engine="generic", raise_on_failure=True)   # lambdify first
     c0 = time.process_time()
-    ldaspark.integrate(sc, method, n_steps=20, h=h, engine="generic", raise_on_failure=True)
+    integrate(sc, method, n_steps=20, h=h, engine="generic", raise_on_failure=True)
     generic = (time.process_time() - c0) / 20
     return {"first_call_cpu_s": first, "compiled_step_cpu_s": per_step, "generic_step_cpu_s": generic,
             "max_abs_k": float(np.abs(np.asarray(res.constraint, float)).max()), "method": method, "h": h}
@@ -62,8 +62,8 @@ def compiled_cost(model=None, n_steps=1000, h=0.01, method="gauss-2"):
 def bicycle_data(fig_speeds=FIG_SPEEDS, speeds=SPEEDS, nonlinear_t=NL_T, measure_compiled=False):
     """All numbers of the section (a dict); ``measure_compiled``: add ``compiled_cost`` (36 s CPU
     with a cold cache, measured: off by default, the main job's budget)."""
-    from ..core import bicycle as bc
-    from ..theory import bicycle_benchmark as bb
+    from ..models import bicycle as bc
+    from ..models import bicycle_benchmark as bb
     from ..theory import bicycle_flow as bf
     cpu0 = time.process_time()
     model = bc.build()
@@ -108,7 +108,7 @@ def _figure(data, path):
     ax, ax2 = axes[0]
     f = data["figure"]
     c = colours(2)
-    from ..theory import bicycle_benchmark as bb
+    from ..models import bicycle_benchmark as bb
     fine = np.linspace(0, 10, 201)         # the benchmark's real parts as points on a fine grid (cheap)
     for v in fine:
         ev = np.linalg.eigvals(np.array(bb.state_matrix(v, 15).tolist(), dtype=float))
@@ -149,7 +149,7 @@ def bicycle_section(outdir, data=None):
     lines = [
         "The benchmark of Meijaard, Papadopoulos, Ruina and Schwab (2007).",
         "",
-        "Scene `bicycle` (`ldaspark/core/bicycle.py`): four rigid bodies written with `sympy.physics.mechanics`, "
+        "Scene `bicycle` (`ldaspark/models/bicycle.py`): four rigid bodies written with `sympy.physics.mechanics`, "
         "n = 8 coordinates, m = 5 constraints (front contact height in its velocity form, rolling of both wheels), "
         "Table 1 parameters. Linearised dynamics about upright straight running from the SPARK flow itself: "
         f"eigenvalues log(mu)/h of the step map's Jacobian (`ldaspark.flow_jacobian`, implicit function theorem) "

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..core.backend import Backend
 from ..core.io import atomic_save_figure, atomic_write_json, atomic_write_text
+from .envelope import cpu_at
 from .markdown import jsonable, sci, table, timing_line
 from .peer import peer_section
 from .plotting import colours, figure
@@ -167,7 +168,7 @@ def _row(kind, method, param, cpu, q, E, K, E0, nfev=None):
 
 def scene_runs(scene_name, t_end, kind, method, params):
     """The runs of one (kind, method) on a scene: h values for the SPARK paths, rtol values for scipy."""
-    from ..core.scenes import get_scene
+    from ..models.scenes import get_scene
     scene = get_scene(scene_name)
     E0 = _E0(scene)
     rows = []
@@ -192,7 +193,7 @@ def scene_runs(scene_name, t_end, kind, method, params):
 
 def scene_reference(scene_name, t_end):
     """(q_ref at t_end, label, DOP853 rtol 1e-13 final q or None for a closed-form reference)."""
-    from ..core.scenes import get_scene
+    from ..models.scenes import get_scene
     scene = get_scene(scene_name)
     q_ref, label = reference_final(scene_name, scene, t_end)
     check = None
@@ -214,7 +215,7 @@ def study_plan(scene_name, t_end, hs_fast, hs_generic, rtols, rtols_radau):
 
 def finish_study(scene_name, t_end, reference, rows):
     """The study dict of one scene: final errors against the reference, the reference check."""
-    from ..core.scenes import get_scene
+    from ..models.scenes import get_scene
     q_ref, label, check_q = reference[:3]
     q_ref = np.asarray(q_ref, float)
     out = []
@@ -236,18 +237,6 @@ def study_scene(scene_name, t_end, hs_fast, hs_generic, rtols, rtols_radau, prog
         rows += scene_runs(scene_name, t_end, kind, m, params)
         progress(f"  {scene_name}: {kind} {m} done")
     return finish_study(scene_name, t_end, ref, rows)
-
-
-def cpu_at(rows, target, key="error"):
-    """CPU time to reach ``target`` (log-log interpolation on the cheapest runs), None if out of range."""
-    pts = sorted((r[key], r["cpu"]) for r in rows if r[key] > 0 and np.isfinite(r[key]))
-    if not pts or target < pts[0][0] or target > pts[-1][0]:
-        return None
-    # C(e) = cheapest run with error <= e (non-increasing in e), interpolated log-log
-    errs = np.array([p[0] for p in pts])
-    cpus = np.array([p[1] for p in pts])
-    keep = cpus <= np.minimum.accumulate(cpus)                   # drop runs a more accurate one beats
-    return float(10 ** np.interp(np.log10(target), np.log10(errs[keep]), np.log10(cpus[keep])))
 
 
 def ratios(study, targets=TARGETS, key="error"):
@@ -283,7 +272,7 @@ def steps_per_second(scenes=("particle", "skate", "robot", "mp-particles"),
     """Steps per second generic vs fast path, measured side by side in one run."""
     from ..core.errors import NewtonError, NonFiniteError
     from ..compiled.fast import fast_integrate
-    from ..core.scenes import get_scene
+    from ..models.scenes import get_scene
     from ..core.spark import integrate
     from ..core.families import get_method
     rows = []
@@ -308,7 +297,7 @@ def steps_per_second(scenes=("particle", "skate", "robot", "mp-particles"),
 def dps_cost(dps_list=(16, 30, 50, 100, 200), n_steps=8, method="gauss-2", scene_name="particle", h="0.1"):
     """Time per step of the mpmath path against dps, with float64 generic and fast for scale."""
     from ..compiled.fast import fast_integrate
-    from ..core.scenes import get_scene
+    from ..models.scenes import get_scene
     from ..core.spark import integrate
     from ..core.families import get_method
     sc = get_scene(scene_name)
@@ -343,7 +332,7 @@ LONG_RUNS = ("spark", "dop853", "dop853_projected")
 def long_part(which, t_long=2500.0, h=0.1, rtol=1e-6, every=10):
     """One run of ``long_energy``: "spark" (gauss-2 SPARK fast), "dop853" or "dop853_projected"."""
     from ..compiled.fast import fast_integrate
-    from ..core.scenes import get_scene
+    from ..models.scenes import get_scene
     sc = get_scene("particle")
     E0 = _E0(sc)
     if which == "spark":

@@ -3,9 +3,9 @@
 discrete (discrete Lagrangian L_d(t0, q0, t1, q1) (13) as a function of the endpoints, Theorem 1
 residuals, well-posedness of the boundary-value solve, symmetry (23)), conditions (exact (22),
 (23)), order_conditions (trees), orders (observed orders, references), audit (``ldaspark audit``),
-ledger (the claims ledger's records), flow_jacobian (Jacobian of the step map, ``ldaspark.flow_jacobian``),
-bicycle_benchmark (the linearised benchmark bicycle of Meijaard et al. 2007, Appendix A) and
-bicycle_flow (its eigenvalues from the SPARK flow).
+flow_jacobian (Jacobian of the step map, ``ldaspark.flow_jacobian``), bicycle_flow (the benchmark
+bicycle's eigenvalues from the SPARK flow), definition1, section5, section7, variational and
+energy_balance (the computations behind the claim groups of ``ldaspark.claims``).
 
-Imports ``ldaspark.core`` only.
+Imports ``ldaspark.core``, ``ldaspark.models`` and ``ldaspark.solve`` (and what they import).
 """

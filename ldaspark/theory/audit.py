@@ -70,12 +70,12 @@ class AuditResult:
 
 # --- Theorem 1 -------------------------------------------------------------------------------
 def theorem1_checks(tab, hyp22, hyp23, dps, quick, scenes=PAPER_SCENES, entry_tol=None):
-    """Theorem 1 and the symmetry identities on the four paper scenes, via ldaspark.theory.discrete
-    (issue 3). ``entry_tol`` = (for Theorem 1, for the symmetry identities): how far the entries as
+    """Theorem 1 and the symmetry identities on the four paper scenes, via ldaspark.theory.discrete.
+    ``entry_tol`` = (for Theorem 1, for the symmetry identities): how far the entries as
     given miss (22), (23) (``entry_tolerances``); None: from ``tab.source_digits``. Returns (checks, facts)."""
     import importlib.util
     if importlib.util.find_spec("ldaspark.theory.discrete") is None:
-        return [Check("theorem1", SKIP, None, "ldaspark.theory.discrete (issue 3) is not available: "
+        return [Check("theorem1", SKIP, None, "ldaspark.theory.discrete is not available: "
                                               "Theorem 1 not checked numerically")], {}
     return _theorem1_with_discrete(tab, hyp22, hyp23, dps, quick, scenes, entry_tol)
 
@@ -136,7 +136,7 @@ def _theorem1_with_discrete(tab, hyp22, hyp23, dps, quick, scenes, entry_tol=Non
 def _theorem1_scene(tab, name, hyp22, d, quick, entry_tol=None):
     """One scene's Theorem 1 check (dL_d/dq0 = -p0 - f_d^-, dL_d/dq1 = p1 - f_d^+) and its facts."""
     from . import discrete, wellposedness
-    from ..core.scenes import get_scene
+    from ..models.scenes import get_scene
     sc = get_scene(name)
     t0, q0, v0 = sc.initial(d + 45)
     r, err = None, None
@@ -205,7 +205,7 @@ def _theorem1_summary(checks):
 def _symmetry_checks(tab, d, scenes, entry_tol=None):
     """The (23) symmetry identities per scene and their summary."""
     from . import symmetry
-    from ..core.scenes import get_scene
+    from ..models.scenes import get_scene
     checks, facts = [], {}
     keys = ("symmetry-Ld", "symmetry-fd-plus", "symmetry-fd-minus", "symmetry-Phi")
     for name in scenes:

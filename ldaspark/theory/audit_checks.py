@@ -286,7 +286,7 @@ def order_checks(ar, e) -> tuple[list, dict]:
 # --- numerical checks ------------------------------------------------------------------------
 def probe_step(tab: SparkTableau) -> None:
     """One float64 step on the skate and the particle; unusable tableau -> InputError."""
-    from ..core.scenes import get_scene
+    from ..models.scenes import get_scene
     from ..core.spark import SparkMethod
     for name in ("skate", "particle"):
         sc = get_scene(name)
@@ -323,7 +323,7 @@ def _reference_tableau(tab):
 
 def observed_order(tab, scene_name, Ns, t_end, dps, floor):
     """Errors at t_end for N in Ns and the slope of the finest pair above the error floor."""
-    from ..core.scenes import get_scene
+    from ..models.scenes import get_scene
     sc = get_scene(scene_name)
     if sc.exact is not None:
         qref, vref, _ = sc.exact_solution(t_end, dps)
@@ -423,7 +423,7 @@ def _entry_floor(tab) -> float:
 def energy_check(tab, quick):
     """Energy error of the particle scene (E conserved, 8.1) on a short float64 run at h and
     h/2; information (the theorem says nothing quantitative about energy)."""
-    from ..core.scenes import get_scene
+    from ..models.scenes import get_scene
     sc = get_scene("particle")
     T = 5.0 if quick else 10.0
     out = []

@@ -1,6 +1,6 @@
 """The benchmark bicycle's linearised dynamics from the SPARK flow itself.
 
-About upright straight running at forward speed v (``ldaspark.core.bicycle``: all angles 0,
+About upright straight running at forward speed v (``ldaspark.models.bicycle``: all angles 0,
 x' = v, theta_R' = -v / r_R, theta_F' = -v / r_F) the coordinates x, y, psi, theta_R, theta_F
 are cyclic and the pitch is fixed by the front contact, so lean, steer and their rates evolve
 as a closed system to first order (the forward speed decouples: it is even under the lateral
@@ -9,7 +9,7 @@ under). ``ldaspark.flow_jacobian`` restricted to (phi, delta, phi', delta') with
 velocities (x', y', psi', theta', theta_F') solved from the linearised constraints gives
 J(h) = exp(h A(v)) + O(h^(2s+1)) for the s-stage Gauss methods, so lambda = log(mu) / h of its
 eigenvalues mu converge to the eigenvalues of the benchmark's A(v) (eq. 5.3 of Meijaard et al.
-2007) with order 2s. ``ldaspark.theory.bicycle_benchmark`` computes A(v) independently from the
+2007) with order 2s. ``ldaspark.models.bicycle_benchmark`` computes A(v) independently from the
 appendix formulas. The front contact height f(phi, theta, delta) has zero lean and steer
 derivatives at upright (it is even in (phi, delta)), so perturbing lean and steer alone stays on
 f = 0 to first order (``check_tangent`` verifies it).
@@ -20,8 +20,8 @@ import itertools
 
 import numpy as np
 
-from ..core import bicycle as bc
-from . import bicycle_benchmark as bb
+from ..models import bicycle as bc
+from ..models import bicycle_benchmark as bb
 from .flow_jacobian import flow_jacobian
 
 LATERAL = ("phi", "delta")
@@ -91,10 +91,10 @@ def nonlinear_run(speed=5, lean_rate=0.5, t_end=5.0, h=0.01, method="gauss-2", e
     """The scene ``bicycle`` (upright at ``speed`` with a lean rate) integrated to t_end: returns
     a dict of arrays t, lean, steer, energy, max |k| per step, the front contact height f(q)
     (the holonomic constraint, kept only through its velocity form) and the Result."""
-    import ldaspark
+    from ..solve import integrate
     model = model or bc.build()
     sc = model.scene(speed, lean_rate)
-    res = ldaspark.integrate(sc, method, t_span=(0, t_end), h=h, engine=engine, raise_on_failure=True)
+    res = integrate(sc, method, t_span=(0, t_end), h=h, engine=engine, raise_on_failure=True)
     import sympy
     f = sympy.lambdify(model.q, model.f, "math")
     return {"t": np.asarray(res.t, float), "lean": np.asarray(res.q[:, bc.LEAN], float),

@@ -426,6 +426,20 @@ def base_point(system, tableau, t0, q0, v0, h, dps=40, newton="full"):
         return r.t1, r.q1.copy(), x
 
 
+def perturbed_initial(scene, dps, scale="1/20"):
+    """Consistent data near the scene's initial data: q0 + scale * pattern, v0 projected onto
+    k = 0 (a generic point, away from symmetric initial data)."""
+    bk = Backend(dps)
+    with bk.context():
+        t0, q0, v0 = scene.initial(dps)
+        n = len(q0)
+        sc = mpmath.mpf(1) / 20 if scale == "1/20" else mpmath.mpf(scale)
+        q0 = [q + sc * (k + 1) / n for k, q in enumerate(q0)]
+        v0 = [v + sc * (-1) ** k * (k + 2) / n for k, v in enumerate(v0)]
+        v0 = list(scene.system.project_velocity(bk, t0, q0, v0))
+    return t0, q0, v0
+
+
 def ivp_step(meth, t0, q0, v0, h):
     """``meth.step(t0, q0, v0, h)`` (a ``SparkMethod``), memoized within ``memoized()``: the
     base point and the forward step of Phi_{-h} o Phi_h in ``check_symmetry`` are the same step.

@@ -1,5 +1,5 @@
 """Memo of the boundary-value and IVP solves within one unit of the claims ledger
-(``ldaspark.theory.ledger``): the checks of one (tableau, scene) unit solve the same base point
+(``ldaspark.claims.ledger``): the checks of one (tableau, scene) unit solve the same base point
 several times. Active only inside ``memoized()``; results are returned as first computed."""
 from __future__ import annotations
 

@@ -28,7 +28,7 @@ import numpy as np
 
 from ..core.backend import Backend
 from ..core.errors import InputError
-from ..core.scenes import get_scene
+from ..models.scenes import get_scene
 from ..core.spark import integrate
 from ..core.families import get_method
 

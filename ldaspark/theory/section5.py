@@ -13,7 +13,7 @@ import mpmath
 import numpy as np
 
 from ..core.backend import Backend
-from ..core.scenes import get_scene
+from ..models.scenes import get_scene
 from .exact_flow import ExactFlow, f_minus_17, f_minus_20b_printed, f_plus_19, fd_gradient
 
 DPS = 32          # working precision of the exact flow; finite differences at DPS + 20

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..core.backend import Backend
 from ..core.families import get_method
-from ..core.scenes import get_scene
+from ..models.scenes import get_scene
 from .discrete import base_point, discrete_lagrangian
 from .exact_flow import ExactFlow
 from .orders import estimate_order
@@ -57,7 +57,7 @@ def initial_point(scene_name, point, dps):
     sc = get_scene(scene_name)
     if point == "base":
         return sc.initial(dps)
-    from .ledger import perturbed_initial
+    from .discrete import perturbed_initial
     return perturbed_initial(sc, dps)
 
 

@@ -1,7 +1,7 @@
-"""Mutants of the peer harness and of the equal-error comparison (issue 23): the interpolation
+"""Mutants of the peer harness and of the equal-error comparison: the interpolation
 in log-log, the lower envelope, the best peer, the speed-up, IDA's index-1 residual, the README
 check of timings and residual classes."""
-from ..mutation_catalogue import _m
+from ..mutant import _m
 
 TP = "tests/test_peers.py"
 # test_readme.py's checks of the committed reports fail in the mutants' scratch copy (it has no
@@ -9,11 +9,11 @@ TP = "tests/test_peers.py"
 TR = "tests/test_readme_kinds.py"
 
 MUTANTS = (
-    _m("peers-interp-lin-lin", "reports/work_precision.py",
+    _m("peers-interp-lin-lin", "reports/envelope.py",
        "return float(10 ** np.interp(np.log10(target), np.log10(errs[keep]), np.log10(cpus[keep])))",
        "return float(np.interp(target, errs[keep], cpus[keep]))",
        "equal-error CPU time interpolated in lin-lin instead of log-log", "peers", TP),
-    _m("peers-no-envelope", "reports/work_precision.py",
+    _m("peers-no-envelope", "reports/envelope.py",
        "keep = cpus <= np.minimum.accumulate(cpus)", "keep = cpus == cpus",
        "equal-error cost from every run, not the lower envelope (a dominated run counts)", "peers", TP),
     _m("peers-best-is-worst", "reports/peers.py",

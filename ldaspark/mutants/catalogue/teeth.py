@@ -1,5 +1,6 @@
-"""Mutants of issue 27 ("who checks the checker", round 3): for each fault class, the instances the
-issue lists and further faults of the same class elsewhere. Categories:
+"""Mutants that check the checker: for each class of faults the suite once missed (a one-sided
+verdict, a pre-asymptotic sweep, an event direction, shared state between copies, ...), the
+instances found and further faults of the same class elsewhere. Categories:
 
 * claims-order: one-sided claim checks (a prediction off by one, a verdict that looks one way);
 * fixture: test data that cannot tell a quantity from its neighbour (time shifted by h, left vs
@@ -9,7 +10,7 @@ issue lists and further faults of the same class elsewhere. Categories:
 * roundtrip: result files (.json, .npz, .h5) x precision x field;
 * ledger-verdict: record builders of the claims ledger that only ``ldaspark verify`` ran.
 """
-from ..mutation_catalogue import _m
+from ..mutant import _m
 
 CV = "tests/test_claim_verdicts.py"
 OC = "tests/test_order_conditions.py"
@@ -31,12 +32,12 @@ MUTANTS = (
        '"lobatto-iiia-iiib": lambda s: 2 * s - 1', '"lobatto-iiia-iiib": lambda s: 2 * s',
        "variational order predicted 2s instead of 2s-1 for Lobatto IIIA-B", "claims-order",
        f"{CV}::test_variational_order_predictions_pinned"),
-    _m("teeth-variational-verdict-one-sided", "theory/claims_paper.py",
+    _m("teeth-variational-verdict-one-sided", "claims/claims_paper.py",
        "gap = None if o is None or o == math.inf else abs(o - pred)",
        "gap = None if o is None or o == math.inf else max(0.0, pred - o)",
        "ledger variational-order verdict accepts any order above the prediction", "claims-order",
        f"{CV}::test_variational_verdict_is_two_sided"),
-    _m("teeth-energy-verdict-one-sided", "theory/claims_paper.py",
+    _m("teeth-energy-verdict-one-sided", "claims/claims_paper.py",
        "gap = None if o is None else abs(o - pred)", "gap = None if o is None else max(0.0, pred - o)",
        "ledger energy-balance-2.2 verdict accepts any order above p+1", "claims-order",
        f"{CV}::test_energy_discrete_verdict_is_two_sided"),
@@ -45,7 +46,7 @@ MUTANTS = (
        "elif obs > predicted + ORDER_SLACK:\n            status, what = PASS,",
        "audit: an observed order above the tree prediction passes (a prediction too low goes unseen)",
        "claims-order", f"{CV}::test_audit_convergence_verdict_is_two_sided"),
-    _m("teeth-general-order-one-sided", "theory/claims_general.py",
+    _m("teeth-general-order-one-sided", "claims/claims_general.py",
        "ok = o is not None and abs(o - c) <= TOL_ORDER", "ok = o is not None and o - c >= -TOL_ORDER",
        "general-scene / nonideal order records accept any order above the claim", "claims-order",
        f"{CV}::test_general_order_record_is_two_sided"),
@@ -89,7 +90,7 @@ MUTANTS = (
        "T, Q, V = self._nodes(t1, q0, h, x[:s * n].reshape(s, n), x[s * n:])",
        "exact L_d^E of the finite differences (16), (18) with L at T_i + h (time argument shifted by h)",
        "fixture", "verification/test_exact_discrete_5.py::test_section5_on_a_time_dependent_scene"),
-    _m("teeth-holonomic-rate-coarsest-pair", "theory/ledger.py",
+    _m("teeth-holonomic-rate-coarsest-pair", "claims/ledger.py",
        "p = (math.log(tang[-2] / tang[-1]) / math.log(hf[-2] / hf[-1])",
        "p = (math.log(tang[0] / tang[1]) / math.log(hf[0] / hf[1])",
        "5.1 tangential rate from the coarsest pair of the h-sweep", "fixture",
@@ -141,7 +142,7 @@ MUTANTS = (
        "new.q, new.v, new.psi = self.q, self.v, self.psi",
        "with_params: the derived system shares its coordinate lists with its source", "shared-state",
        f"{PM}::test_with_params_copies_are_independent_of_the_source_and_of_each_other"),
-    _m("teeth-compiled-cache-keyed-by-name", "compiled/fast.py",
+    _m("teeth-compiled-cache-keyed-by-name", "compiled/runner.py",
        "key = (id(system), form)\n    hit = _COMPILED.get(key)\n    if hit is not None and hit[0] is system:",
        "key = (system.name, form)\n    hit = _COMPILED.get(key)\n    if hit is not None:",
        "compiled model cache keyed by the system's name (two parameter values, one model)", "shared-state",
@@ -172,29 +173,29 @@ MUTANTS = (
        "with mpmath.workdps(15):\n                try:\n                    out = np.vectorize(mpmath.mpf",
        "decimal strings of an mpmath result parsed at 15 digits", "roundtrip", RT),
     # --- class 6: ledger verdict rules ---------------------------------------------------------------
-    _m("teeth-energy-exact-verdict-loose", "theory/claims_paper.py",
+    _m("teeth-energy-exact-verdict-loose", "claims/claims_paper.py",
        'res = max(r["pointwise"], r["integral"])', 'res = min(r["pointwise"], r["integral"])',
        "energy-balance-2.2 records: the exact balance passes when either residual is small (a reported instance: "
        "a verdict rule only `ldaspark verify` ran)", "ledger-verdict",
        f"{CV}::test_energy_exact_verdicts"),
-    _m("teeth-control-threshold-loose", "theory/claims_paper.py",
+    _m("teeth-control-threshold-loose", "claims/claims_paper.py",
        'return "fail" if res is not None and res >= NEG else "pass"',
        'return "fail" if res is not None and res >= TOL_EXACT else "pass"',
        "paper-claims negative controls count any residual above 1e-22 as the expected failure",
        "ledger-verdict", f"{CV}::test_definition1_verdicts"),
-    _m("teeth-holonomic-rate-loose", "theory/ledger.py",
+    _m("teeth-holonomic-rate-loose", "claims/ledger.py",
        'ok = vanish or r["p_tangential"] >= HOLONOMIC_RATE', 'ok = vanish or r["p_tangential"] >= 0.5',
        "5.1-holonomic record passes a tangential rate of 0.5", "ledger-verdict", f"{CV}::test_holonomic_verdict"),
-    _m("teeth-general-symmetry-phi-ignored", "theory/claims_general.py",
+    _m("teeth-general-symmetry-phi-ignored", "claims/claims_general.py",
        'res = max(r["symmetry-Ld"], r["symmetry-Phi"])', 'res = r["symmetry-Ld"]',
        "symmetry-general record ignores Phi_-h o Phi_h - id", "ledger-verdict",
        f"{CV}::test_general_checks_verdicts"),
-    _m("teeth-summarize-counts-failures", "theory/ledger.py",
+    _m("teeth-summarize-counts-failures", "claims/ledger.py",
        'return r["status"] == "not-applicable" or r["status"] == r["expected"]',
        'return r["status"] != "fail"',
        "ledger summary counts failed records (the negative controls) instead of outcomes other than predicted",
        "ledger-verdict", f"{CV}::test_summarize_counts_outcomes_other_than_the_papers"),
-    _m("teeth-ledger-fd-symmetry-threshold", "theory/ledger.py",
+    _m("teeth-ledger-fd-symmetry-threshold", "claims/ledger.py",
        "st = _status(r[c], TOL_SYMMETRY)", "st = _status(r[c], TOL_THEOREM1)",
        "symmetry-fd records judged at Theorem 1's 1e-20 instead of 1e-25", "ledger-verdict",
        f"{CV}::test_ledger_verdicts"),

@@ -26,14 +26,14 @@ import mpmath
 import numpy as np
 
 from ..core.backend import Backend
-from .discrete import (WELLPOSED, GAUGE, SINGULAR, base_point, discrete_lagrangian,
-                       theorem1_residuals)
-from .memo import memoized
-from .symmetry import check_symmetry
-from .wellposedness import classify_wellposedness, gauge_invariance
+from ..theory.discrete import (WELLPOSED, GAUGE, SINGULAR, base_point, discrete_lagrangian, perturbed_initial,
+                               theorem1_residuals)
+from ..theory.memo import memoized
+from ..theory.symmetry import check_symmetry
+from ..theory.wellposedness import classify_wellposedness, gauge_invariance
 from ..core.errors import LdasparkError
-from .conditions import check_22a, check_22b, check_23
-from ..core.scenes import PAPER_SCENES, get_scene
+from ..theory.conditions import check_22a, check_22b, check_23
+from ..models.scenes import PAPER_SCENES, get_scene
 from ..core.spark import integrate
 from ..core.families import builtin_method_names, get_method
 
@@ -124,20 +124,6 @@ def check_unit_records(name, recs):
 
 def _status(residual, tol):
     return "pass" if residual is not None and residual <= tol else "fail"
-
-
-def perturbed_initial(scene, dps, scale="1/20"):
-    """Consistent data near the scene's initial data: q0 + scale * pattern, v0 projected onto
-    k = 0 (a generic point, away from symmetric initial data)."""
-    bk = Backend(dps)
-    with bk.context():
-        t0, q0, v0 = scene.initial(dps)
-        n = len(q0)
-        sc = mpmath.mpf(1) / 20 if scale == "1/20" else mpmath.mpf(scale)
-        q0 = [q + sc * (k + 1) / n for k, q in enumerate(q0)]
-        v0 = [v + sc * (-1) ** k * (k + 2) / n for k, v in enumerate(v0)]
-        v0 = list(scene.system.project_velocity(bk, t0, q0, v0))
-    return t0, q0, v0
 
 
 # --- claim groups -----------------------------------------------------------------------------
@@ -422,12 +408,12 @@ def run_ledger(max_s=3, scenes=LEDGER_SCENES, perturbed=True, holonomic=True, co
                progress=None, jobs=None, groups=(), quick=False, where=None, checkpoint=None, say=None):
     """All records, in the same order for any ``jobs`` and any ``where``: the (tableau, scene)
     units, and then the pieces of the claim groups ``groups`` (specs as in ``CLAIM_GROUPS``, run
-    with ``quick``), run where ``where`` says (``ldaspark.core.workers``: default a local pool of
+    with ``quick``), run where ``where`` says (``ldaspark.dist.workers``: default a local pool of
     ``ledger_jobs(jobs)`` worker processes, 1: in this process; a Dask scheduler address or
     client), the longest first; each unit's records are computed independently of the others,
     so the output does not depend on the schedule. ``checkpoint`` (a ``workers.Checkpoint``):
     units finished by an interrupted run are resumed from it, each finished unit is appended."""
-    from ..core.workers import Unit, check_where, run_resumable
+    from ..dist.workers import Unit, check_where, run_resumable
     check_where(where)                  # a malformed address before the tableaux are built
     n_tabs = len(_ledger_tabs(max_s, controls))
     units = []
@@ -503,7 +489,7 @@ def unit_cost(u, names=None):
 
 
 # extra claim groups: "module:function", each returning a list of records (see module docstring)
-CLAIM_GROUPS: tuple[str, ...] = ("ldaspark.theory.claims_general:records", "ldaspark.theory.claims_paper:records")
+CLAIM_GROUPS: tuple[str, ...] = ("ldaspark.claims.claims_general:records", "ldaspark.claims.claims_paper:records")
 
 
 def extra_records(quick=False, progress=None, groups=None):

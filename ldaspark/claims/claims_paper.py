@@ -13,13 +13,13 @@ import time
 import mpmath
 
 from ..core.families import get_method
-from ..core.scenes import get_scene
-from .definition1 import definition1_residuals
-from .energy_balance import discrete_balance, exact_balance, predicted_mismatch_order
+from ..models.scenes import get_scene
+from ..theory.definition1 import definition1_residuals
+from ..theory.energy_balance import discrete_balance, exact_balance, predicted_mismatch_order
 from .ledger import negative_controls, record
-from .section5 import antisymmetry, exact_del, exact_identities, holonomic_exact
-from .section7 import one_newton_iteration, reduction
-from .variational import predicted_local_order, variational_errors
+from ..theory.section5 import antisymmetry, exact_del, exact_identities, holonomic_exact
+from ..theory.section7 import one_newton_iteration, reduction
+from ..theory.variational import predicted_local_order, variational_errors
 
 TOL_15A, TOL_15B, TOL_EXACT, TOL_S7, NEG = 1e-25, 1e-40, 1e-22, 1e-35, 1e-6
 OFF_CD = ("1/1000", "-2/1000", "1/1000")

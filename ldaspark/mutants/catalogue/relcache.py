@@ -1,8 +1,8 @@
 """Mutants of the trusted kernel cache (compiled/cache.py) and of the parsing of strings given to
-the Python API (core/system.py, compiled/codegen.py): issue 25, classes A, B, C, J. Each removes
+the Python API (core/system.py, compiled/codegen.py). Each removes
 one check of docs/reliability.md ("Strings given to the Python API", "The kernel cache: what is
 trusted"); the hints are the tests that keep that check."""
-from ..mutation_catalogue import _m
+from ..mutant import _m
 
 TC = "tests/test_reliability_cache.py"
 TS = "tests/test_reliability_strings.py"

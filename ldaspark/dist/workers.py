@@ -40,9 +40,9 @@ import re
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
 
-from .errors import InputError, LdasparkError
-from .io import atomic_write_text
-from .lifecycle import make_process_pool
+from ..core.errors import InputError, LdasparkError
+from ..core.io import atomic_write_text
+from ..core.lifecycle import make_process_pool
 
 
 class UnitsFailed(LdasparkError):

@@ -1,6 +1,6 @@
 """Mutation testing of the verification suite: ``ldaspark mutants [--quick] [--outdir DIR] [--jobs N]``.
 
-Each mutant of ``ldaspark.reports.mutation_catalogue.CATALOGUE`` (a semantic fault a developer
+Each mutant of ``ldaspark.mutants.mutation_catalogue.CATALOGUE`` (a semantic fault a developer
 of the method could plausibly make) is applied in isolation to a scratch copy of the project
 (package, tests, verification suite), and pytest runs against that copy, stopping at the first
 failure (``-x``), with the mutant's hint files first. A mutant is
@@ -269,9 +269,9 @@ def run_catalogue(mutants, jobs=2, hints_only=False, progress=None, exclude=(), 
     """Run mutants, ``jobs`` at a time on this machine (threads, each driving a pytest process), or
     as work units on a Dask cluster (``where``: a scheduler address or client; each unit carries
     a snapshot of the project); records in catalogue order. ``checkpoint``
-    (``ldaspark.core.workers.Checkpoint``): mutants finished by an interrupted run are resumed
+    (``ldaspark.dist.workers.Checkpoint``): mutants finished by an interrupted run are resumed
     from it. ``targets``: {mutant id: test node ids} to run instead of the suite."""
-    from ..core.workers import Unit, check_where, is_address, run_resumable
+    from ..dist.workers import Unit, check_where, is_address, run_resumable
     check_where(where, jobs)
     targets = targets or {}
     remote = where is not None and where != "local"
@@ -317,7 +317,7 @@ def write_reports(recs, outdir, command, seconds):
         "# Mutation catalogue: does the suite notice plausible faults?",
         "",
         "Each row is one semantic fault a developer of the method could plausibly make, planted alone in a",
-        "scratch copy of the package (`ldaspark/reports/mutation_catalogue.py`); the unit tests and the",
+        "scratch copy of the package (`ldaspark/mutants/mutation_catalogue.py`); the unit tests and the",
         "verification suite then run against the copy and stop at the first failure. A killed mutant names",
         "the first test that failed; a surviving one would be a fault no check can see.",
         "",
@@ -356,7 +356,7 @@ def add_arguments(parser):
     parser.add_argument("--only", default=None, help="comma-separated mutant ids (default: the whole catalogue)")
     parser.add_argument("--exclude", default="",
                         help="comma-separated test files to leave out (which mutants would the rest miss?)")
-    from ..core.workers import add_scheduler_argument
+    from ..dist.workers import add_scheduler_argument
     add_scheduler_argument(parser)
     parser.add_argument("--fresh", action="store_true",
                         help="do not resume from the checkpoint of an interrupted run (OUTDIR/mutation.partial.jsonl)")
@@ -381,7 +381,7 @@ def run(args) -> int:
         print(f"{r['mutant']:32s} {r['status']:9s} {r['seconds']:7.1f}s  {r['first_failing_test'] or ''}",
               flush=True)
     exclude = tuple(x.strip() for x in args.exclude.split(",") if x.strip())
-    from ..core.workers import Checkpoint, UnitsFailed, source_fingerprint
+    from ..dist.workers import Checkpoint, UnitsFailed, source_fingerprint
     ck = Checkpoint(pathlib.Path(args.outdir) / "mutation.partial.jsonl",
                     source_fingerprint("mutants", args.quick, exclude,
                                        paths=[PROJECT / name for name in COPY if name != "ldaspark"]))

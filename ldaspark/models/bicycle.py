@@ -36,7 +36,7 @@ to the front frame). Constraints (m = 5, all linear in the velocities, (1c)):
 Upright straight running at speed v0 (all angles 0, x' = v0, theta_R' = -v0 / r_R,
 theta_F' = -v0 / r_F) is a steady motion for every v0; its lean-and-steer linearisation is the
 benchmark's M q'' + v C1 q' + (g K0 + v^2 K2) q = 0 (eq. 5.3 of the benchmark), which
-``ldaspark.theory.bicycle_benchmark`` evaluates independently from the appendix formulas.
+``ldaspark.models.bicycle_benchmark`` evaluates independently from the appendix formulas.
 
 The scene ``bicycle`` starts at v0 = 5 m/s (inside the self-stable range 4.29 .. 6.02 m/s)
 with a lean rate of 1/2 rad/s: the lean angle, the lean rate and the steer decay while the
@@ -48,7 +48,7 @@ import mpmath
 import sympy
 from sympy import Rational as R
 
-from .errors import InputError
+from ..core.errors import InputError
 
 #: Table 1 of the benchmark, exact (lengths in m, masses in kg, inertias in kg m^2, g in N/kg)
 TABLE1 = {
@@ -201,8 +201,8 @@ class Bicycle:
 
     def __init__(self, **overrides):
         from sympy.physics.mechanics import dynamicsymbols
-        from .mechanics import _to_symbols
-        from .system import LagrangianSystem
+        from ..core.mechanics import _to_symbols
+        from ..core.system import LagrangianSystem
         self.params = parameters(**overrides)
         L, q, cons, extra = whipple_model(self.params)
         name = "bicycle" if not overrides else "bicycle(" + ", ".join(f"{k}={v}" for k, v in overrides.items()) + ")"
@@ -234,7 +234,7 @@ class Bicycle:
         return q0, [_exactify(x) for x in v0]
 
     def scene(self, speed=5, lean_rate=R(1, 2)):
-        from .scenes import Scene
+        from .scene import Scene
         q0, v0 = self.upright(speed, lean_rate)
         return Scene("bicycle", self.system, sympy.Integer(0), q0, v0,
                      f"Whipple bicycle, benchmark of Meijaard et al. (2007), upright at {speed} m/s, lean rate {lean_rate} rad/s",

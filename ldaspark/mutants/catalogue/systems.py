@@ -1,7 +1,7 @@
-"""Mutants of the classic nonholonomic systems (``core/systems_classic.py``) and their report
+"""Mutants of the classic nonholonomic systems (``models/systems_classic.py``) and their report
 section (``reports/systems.py``): a sign in a scene's L or k, a wrong closed form or invariant, a
 wrong verdict of the report."""
-from ..mutation_catalogue import _m
+from ..mutant import _m
 
 SLE = "verification/test_systems_chaplygin_sleigh.py"
 DSK = "verification/test_systems_tilted_disk.py"
@@ -10,7 +10,7 @@ SUS = "verification/test_systems_suslov.py"
 COS = "verification/test_systems_contact_oscillator.py"
 BAL = "verification/test_systems_ball_turntable.py"
 REP = "tests/test_systems_report.py"
-SC = "core/systems_classic.py"
+SC = "models/systems_classic.py"
 
 MUTANTS = (
     _m("systems-sleigh-com-behind", SC, 'G = P.locatenew("G", a * B.x)', 'G = P.locatenew("G", -a * B.x)',

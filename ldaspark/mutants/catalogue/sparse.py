@@ -1,7 +1,7 @@
 """Mutants of the block-sparse Newton linear algebra of the compiled SPARK kernel:
 compiled/sparse.py (ordering and fill), compiled/kernels_sparse.py (assembly, block LU, Schur
-complement), compiled/fast.py (the dense fallback); tests/test_sparse_newton.py."""
-from ..mutation_catalogue import _m
+complement), compiled/runner.py (the dense fallback); tests/test_sparse_newton.py."""
+from ..mutant import _m
 
 TSN = "tests/test_sparse_newton.py"
 
@@ -29,7 +29,7 @@ MUTANTS = (
        "if not (abs(piv) > PIVOT_RTOL * big):", "if False:",
        "no small-pivot test in the diagonal blocks (a zero block pivot gives inf, not a dense fallback)",
        "compiled", TSN),
-    _m("sparse-dense-fallback-skipped", "compiled/fast.py",
+    _m("sparse-dense-fallback-skipped", "compiled/runner.py",
        "if linear_solver == \"auto\" and stats[mt.FAILED_STEP] >= 0 and stats[mt.FAILURE] == mt.FAIL_SINGULAR:",
        "if False:",
        "auto keeps the block LU's singular-matrix failure instead of repeating the run with the dense LU",

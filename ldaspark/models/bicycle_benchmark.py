@@ -1,6 +1,6 @@
 """The linearised benchmark bicycle of Meijaard, Papadopoulos, Ruina and Schwab (2007), from the
 formulas of its Appendix A: an independent reference for the SPARK flow of the Whipple bicycle
-(``ldaspark.core.bicycle``), which it shares nothing with but Table 1.
+(``ldaspark.models.bicycle``), which it shares nothing with but Table 1.
 
 Source: J. P. Meijaard, J. M. Papadopoulos, A. Ruina and A. L. Schwab, "Linearized dynamics
 equations for the balance and steer of a bicycle: a benchmark and review", Proc. R. Soc. A 463

@@ -1,6 +1,6 @@
-"""Mutants of the Newton stopping rule and its fallback chain (issue 22): compiled/newton.py,
+"""Mutants of the Newton stopping rule and its fallback chain: compiled/newton.py,
 compiled/kernels.py, compiled/fast.py, core/backend.py; tests/test_newton_stopping.py."""
-from ..mutation_catalogue import _m
+from ..mutant import _m
 
 TNS = "tests/test_newton_stopping.py"
 

@@ -1,7 +1,7 @@
-"""Mutants of the validation layer at the API boundary (issue 25: ``core/validate.py``, events
+"""Mutants of the validation layer at the API boundary (``core/validate.py``, events
 and dense output, the initial-point check, result files, chunked compiled runs): each removes
 one check, and the reliability test named in its hint must fail."""
-from ..mutation_catalogue import _m
+from ..mutant import _m
 
 TV = "tests/test_reliability_validate.py"
 TE = "tests/test_reliability_events.py"

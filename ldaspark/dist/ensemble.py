@@ -1,6 +1,6 @@
 """Ensembles: many initial conditions at once, in parallel over any ``concurrent.futures.Executor``.
 
-    from ldaspark.compiled.ensemble import ensemble_integrate
+    from ldaspark.dist.ensemble import ensemble_integrate
     res = ensemble_integrate(system, "lobatto-iiia-iiib-2", t0, Q0, V0, h=0.05, n_steps=10**6,
                              every=100)                      # process pool over all cores
     res.energy.shape                                         # (J + 1, samples)
@@ -41,7 +41,7 @@ class EnsembleResult:
 
 
 def _fast_task(cs, spec, t0, ics, h, n_steps, every, compensated, tol):
-    from .fast import run_compiled
+    from ..compiled.fast import run_compiled
     out = []
     for q0, v0 in ics:
         out.append(tuple(run_compiled(cs, spec, t0, q0, v0, h, n_steps, every, compensated, tol)))
@@ -49,7 +49,7 @@ def _fast_task(cs, spec, t0, ics, h, n_steps, every, compensated, tol):
 
 
 def _generic_task(system, method, t0, ics, h, n_steps, every, tol):
-    from .fast import generic_integrate
+    from ..compiled.fast import generic_integrate
     return [tuple(generic_integrate(system, method, t0, q0, v0, h, n_steps, every, tol)) for q0, v0 in ics]
 
 
@@ -61,7 +61,7 @@ class RunSpec:
                  kernel="auto"):
         from ..core import validate
         from ..core.validate import check_newton_options, check_storage, count, real_number
-        from .fast import n_samples
+        from ..compiled.fast import n_samples
         system, _ = validate.as_system(system, "RunSpec: system")     # a scene name as integrate takes it
         from ..core.tableau import SparkTableau
         if not isinstance(method, (str, SparkTableau)):
@@ -108,7 +108,7 @@ class RunSpec:
         full rank, consistent v0 (an inconsistent v0 would otherwise run, its energy jumping in
         the first step); the error names the member."""
         from ..core.errors import LdasparkError
-        from .fast import _setup_checks
+        from ..compiled.fast import _setup_checks
         for j, (q0, v0) in enumerate(zip(Q0, V0)):
             try:
                 _setup_checks(system, t0, q0, v0)
@@ -117,7 +117,7 @@ class RunSpec:
 
     def tasks(self, chunk):
         """(callable, args) per chunk of initial data; compiles in this process first."""
-        from .fast import NotCompilableError, _notice, compile_system, kernel_spec, run_compiled
+        from ..compiled.fast import NotCompilableError, _notice, compile_system, kernel_spec, run_compiled
         spec = kernel_spec(self.method, self.kernel)
         rows = list(zip(self.Q0, self.V0))
         chunks = [rows[i:i + chunk] for i in range(0, len(rows), chunk)]
@@ -157,7 +157,7 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
         ``progress(done, total)`` after each finished task.
     where : str, distributed.Client or Executor, optional
         Where the tasks run: a Dask scheduler address, a ``distributed.Client``, or any
-        ``concurrent.futures.Executor`` (``ldaspark.core.workers``).
+        ``concurrent.futures.Executor`` (``ldaspark.dist.workers``).
 
     Returns
     -------
@@ -173,7 +173,7 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
     --------
     >>> from concurrent.futures import ThreadPoolExecutor
     >>> import ldaspark
-    >>> from ldaspark.compiled.ensemble import RunSpec
+    >>> from ldaspark.dist.ensemble import RunSpec
     >>> sc = ldaspark.get_scene("skate")
     >>> spec = RunSpec(sc.system, "gauss-2", 0.0, [sc.q0, sc.q0], [sc.v0, sc.v0], 0.1, 10)
     >>> with ThreadPoolExecutor(1) as ex:
@@ -182,7 +182,7 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
     (2, 11, 3)
     """
     from ..core.validate import _describe, callable_or_none, check_executor, count
-    from ..core.workers import check_where
+    from .workers import check_where
     if executor is not None and where is not None:
         raise InputError("give executor or where, not both")
     check_executor(executor)
@@ -215,10 +215,10 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
 
 
 def _run_plan(plan, n_specs, executor=None, max_workers=None, progress=None):
-    """Run the (k, fn, args) tasks where ``executor`` says (``ldaspark.core.workers.run_units``:
+    """Run the (k, fn, args) tasks where ``executor`` says (``ldaspark.dist.workers.run_units``:
     a worker that dies gets its task retried, Ctrl-C cancels what is pending and stops a pool
     created here); results grouped by k, in plan order whatever the order of completion."""
-    from ..core.workers import Unit, run_units
+    from .workers import Unit, run_units
     units = [Unit(str(i), fn, tuple(args)) for i, (k, fn, args) in enumerate(plan)]
     count = 0
 

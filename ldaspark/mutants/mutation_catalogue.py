@@ -2,7 +2,7 @@
 
 Each mutant replaces one exact source snippet of the package (which must occur exactly once, so
 that the catalogue breaks loudly when the code moves) and names the test files most likely to
-notice it (``hint``: run first, then the rest of the suite). ``ldaspark.reports.mutation`` applies
+notice it (``hint``: run first, then the rest of the suite). ``ldaspark.mutants.mutation`` applies
 them one at a time to a scratch copy of the package and runs the suite against it.
 
 Categories: spark-21 (the step (21a-f)), jacobian (Newton matrix and sensitivities),
@@ -14,18 +14,7 @@ orders (order estimates), fd (finite-difference stencil of the Theorem 1 check),
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
-
-@dataclass(frozen=True)
-class Mutant:
-    id: str
-    file: str            # path relative to ldaspark/ ('a|b': alternatives, exactly one holds the snippet)
-    snippet: str         # exact source text, occurring exactly once in the file
-    replacement: str
-    description: str
-    category: str
-    hint: tuple = field(default=())   # test files (or node ids) to run first
+from .mutant import Mutant, _m
 
 
 V21 = "verification/test_equations_21.py"
@@ -47,10 +36,6 @@ TORD = "tests/test_orders_estimates.py"
 TCONV = "tests/test_convergence_tools.py"
 # the compiled kernels live in a source string of fast.py or (after a planned move) in kernels.py
 KERNELS = "compiled/fast.py|compiled/kernels.py"
-
-
-def _m(id, file, snippet, replacement, description, category, *hint):
-    return Mutant(id, file, snippet, replacement, description, category, tuple(hint))
 
 
 CATALOGUE: tuple[Mutant, ...] = (
@@ -257,7 +242,7 @@ CATALOGUE: tuple[Mutant, ...] = (
 )
 
 # A fixed subset for ``--quick``: one per main area, each killed fast by its hint files.
-# The last four (issue 27) are one per class of faults the suite once missed: a pre-asymptotic
+# The last four are one per class of faults the suite once missed: a pre-asymptotic
 # sweep, an event direction, shared state between copies, HDF5 byte strings; their hints are
 # single tests, so the quick run (``.ci/run``) stays a few minutes on 2 cores. The block-sparse
 # Newton solver's fill (killed in ~2 s by tests/test_sparse_newton.py) closes the list.
@@ -269,7 +254,7 @@ QUICK = ("spark-Ahat-Atilde-swapped", "fdplus-index-order", "system-K-at-v0", "L
 
 
 def _area_catalogues() -> tuple[Mutant, ...]:
-    """Mutants of each area (``ldaspark/reports/catalogue/<area>.py``, each a ``MUTANTS`` tuple),
+    """Mutants of each area (``ldaspark/mutants/catalogue/<area>.py``, each a ``MUTANTS`` tuple),
     in module-name order, so that the areas' catalogues grow without editing one shared list."""
     import importlib
     import pkgutil

@@ -9,7 +9,6 @@ initial data are exact sympy numbers so that the mpmath path carries full precis
 from __future__ import annotations
 
 import threading
-from dataclasses import dataclass, field
 from typing import Callable
 
 import mpmath
@@ -17,57 +16,15 @@ import numpy as np
 import sympy
 from sympy import Rational as R
 
-from .errors import InputError
-from .system import LagrangianSystem
-
-
-@dataclass
-class Scene:
-    """A system with initial data. ``exact`` (optional) maps t (sympy symbol) to sympy
-    expressions for q(t), v(t), psi(t)."""
-
-    name: str
-    system: LagrangianSystem
-    t0: object
-    q0: list
-    v0: list
-    description: str = ""
-    exact: dict | None = None
-    params: dict = field(default_factory=dict)
-    _exact_fns: dict = field(default_factory=dict, repr=False)
-
-    def initial(self, dps=None):
-        """(t0, q0, v0) as floats (dps None) or mpf at dps digits."""
-        if dps is None:
-            return float(self.t0), [float(x) for x in self.q0], [float(x) for x in self.v0]
-        with mpmath.workdps(dps):
-            cv = lambda e: mpmath.mpf(str(sympy.N(e, dps + 10)))
-            return cv(self.t0), [cv(x) for x in self.q0], [cv(x) for x in self.v0]
-
-    def exact_solution(self, t, dps=None):
-        """(q(t), v(t), psi(t)) of the closed-form solution, at float64 or dps digits."""
-        if self.exact is None:
-            raise InputError(f"scene {self.name} has no closed-form solution")
-        mod = "mpmath" if dps is not None else "math"
-        if mod not in self._exact_fns:
-            ts = self.exact["t"]
-            self._exact_fns[mod] = sympy.lambdify([ts], [self.exact["q"], self.exact["v"], self.exact["psi"]],
-                                                  modules=mod)
-        f = self._exact_fns[mod]
-        if dps is None:
-            q, v, p = f(float(t))
-            return np.array(q, float), np.array(v, float), np.array(p, float)
-        with mpmath.workdps(dps):
-            q, v, p = f(mpmath.mpf(t) if not isinstance(t, str) else mpmath.mpf(t))
-            return (np.array([mpmath.mpf(x) for x in q], dtype=object),
-                    np.array([mpmath.mpf(x) for x in v], dtype=object),
-                    np.array([mpmath.mpf(x) for x in p], dtype=object))
+from ..core.errors import InputError
+from ..core.system import LagrangianSystem
+from .scene import Scene
 
 
 def _number(x):
     """A scene parameter as a sympy number: text through the tableau entry parser ("1/2",
     "sqrt(2)"), never sympify of text (which evaluates it); other values as sympy takes them."""
-    from .system import _param_value
+    from ..core.system import _param_value
     return _param_value(x, "of the scene")
 
 
@@ -292,16 +249,16 @@ SCENES: dict[str, Callable[..., Scene]] = {
     "relativistic": relativistic,
     "turntable": turntable,
     "friction-skate": friction_skate,
-    "bicycle": lambda **kw: __import__("ldaspark.core.bicycle", fromlist=["bicycle"]).bicycle(**kw),
+    "bicycle": lambda **kw: __import__("ldaspark.models.bicycle", fromlist=["bicycle"]).bicycle(**kw),
 }
 
-# classic nonholonomic systems (issue 24), built in ldaspark.core.systems_classic (imported at
+# classic nonholonomic systems, built in ldaspark.models.systems_classic (imported at
 # first build: it subclasses Scene from this module)
 def _classic(builder, **fixed):
     def build(**kw):
         from . import systems_classic
         return getattr(systems_classic, builder)(**{**fixed, **kw})
-    build.__doc__ = f"ldaspark.core.systems_classic.{builder}"
+    build.__doc__ = f"ldaspark.models.systems_classic.{builder}"
     return build
 
 
@@ -335,7 +292,7 @@ def get_scene(name: str, ic: int | None = None) -> Scene:
     Parameters
     ----------
     name : str
-        One of ``ldaspark.core.scenes.SCENES`` (``particle``, ``skate``, ``robot``,
+        One of ``ldaspark.models.scenes.SCENES`` (``particle``, ``skate``, ``robot``,
         ``mp-particles``, ``mp-particles-nh``, ``pendulum``, ``rolling-disk``, the general and
         classic scenes, ``bicycle``).
     ic : int, optional

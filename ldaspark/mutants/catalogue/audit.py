@@ -1,7 +1,7 @@
-"""Mutants of the audit's precision logic (issue 21): how the precision the entries carry is
+"""Mutants of the audit's precision logic: how the precision the entries carry is
 read (decimals, float64), how a condition is decided against it (balls, exact budget), zero
 denominators and the verdict's disagreement sentence."""
-from ..mutation_catalogue import _m
+from ..mutant import _m
 
 TPREC = "tests/test_audit_precision.py"
 TAUD = "tests/test_audit.py"

@@ -1,4 +1,4 @@
-"""Classic nonholonomic systems as named scenes (issue 24): a benchmark set with closed forms and
+"""Classic nonholonomic systems as named scenes: a benchmark set with closed forms and
 first integrals, each with its source.
 
 * ``chaplygin-sleigh``: the Chaplygin sleigh (Bloch, *Nonholonomic Mechanics and Control*, 1.7),
@@ -34,9 +34,9 @@ import numpy as np
 import sympy
 from sympy import Rational as R
 
-from .errors import InputError
-from .scenes import Scene
-from .system import LagrangianSystem
+from ..core.errors import InputError
+from .scene import Scene
+from ..core.system import LagrangianSystem
 
 
 @dataclass

@@ -2,7 +2,7 @@
 section 7 on the general scenes (rheonomic L and k, k nonlinear in v, b != 0, L not quadratic
 in v), and the nonideal constraints of section 3.3 (``friction-skate``).
 
-``records(quick=False, progress=None)`` returns ledger records (``ldaspark.theory.ledger.record``):
+``records(quick=False, progress=None)`` returns ledger records (``ldaspark.claims.ledger.record``):
 
 * ``theorem1-general-q0`` / ``theorem1-general-q1``: Theorem 1 at 40 digits (<= 1e-20) on each
   general scene with Gauss 2 and Lobatto IIIA-B 3 (IIIA-B-D 2 in the full run), and a
@@ -27,12 +27,12 @@ from scipy.integrate import solve_ivp
 from ..core.backend import Backend
 from ..core.errors import LdasparkError
 from ..core.families import get_method
-from ..core.scenes import GENERAL_SCENES, get_scene
+from ..models.scenes import GENERAL_SCENES, get_scene
 from ..core.spark import integrate
-from .discrete import theorem1_residuals
+from ..theory.discrete import theorem1_residuals
 from .ledger import TOL_NEGATIVE, TOL_SYMMETRY, TOL_THEOREM1, record
-from .orders import estimate_order, floor_for, make_reference, measure_errors, order_records
-from .symmetry import check_symmetry
+from ..theory.orders import estimate_order, floor_for, make_reference, measure_errors, order_records
+from ..theory.symmetry import check_symmetry
 
 H = "0.1"
 DPS = 40

@@ -1,0 +1,83 @@
+"""The integration options of ``ldaspark.integrate`` as one frozen object, checked once at the API
+boundary (``IntegrationOptions.checked``, with the checks of ``ldaspark.core.validate``) and then
+carried unchanged to every engine path (generic, compiled, comparators, ensembles): the engine
+functions read their options from it instead of a dozen loose arguments.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, Optional
+
+from . import validate
+from .errors import InputError
+
+ENGINES = ("auto", "compiled", "generic")
+
+
+@dataclass(frozen=True)
+class IntegrationOptions:
+    """How to integrate (not what): engine, arithmetic, Newton, output, monitors, where members run.
+
+    engine: "auto", "compiled" or "generic"; dps: mpmath digits (None: float64); newton: the
+    generic engine's Newton variant; tol: Newton tolerance (None: the engine's default);
+    save_every: keep every k-th step and the last; dense_output; events: the checked events
+    (``ldaspark.core.dense.Event``); energy_jump: the energy monitor's relative jump (None: off);
+    executor: where ensemble members run (None: a loop here); max_stages: the stage limit of
+    built-in method names; project: project v0 onto k = 0; raise_on_failure."""
+
+    engine: str = "auto"
+    dps: Optional[int] = None
+    newton: str = "auto"
+    tol: Optional[float] = None
+    save_every: int = 1
+    dense_output: bool = False
+    events: tuple = ()
+    energy_jump: Optional[float] = None
+    executor: Any = None
+    max_stages: Optional[int] = None
+    project: bool = False
+    raise_on_failure: bool = False
+
+    @classmethod
+    def checked(cls, *, engine="auto", dps=None, newton="auto", tol=None, save_every=1, dense_output=False,
+                energy_jump=None, executor=None, max_stages=None, project=False,
+                raise_on_failure=False) -> "IntegrationOptions":
+        """The options after the checks of ``ldaspark.core.validate`` (one InputError naming the
+        first wrong value, in this order: engine, dps, newton, executor, save_every, max_stages,
+        tol, energy_jump, the flags, dps with the compiled engine). Events are checked apart
+        (``with_events``), after the system and the method, as ``integrate`` always has."""
+        validate.check_choice(engine, "engine", ENGINES)
+        dps = validate.check_dps(dps)
+        validate.check_choice(newton, "newton", validate.NEWTON_VARIANTS)
+        validate.check_executor(executor)
+        validate.count(save_every, "save_every")
+        validate.check_max_stages(max_stages)
+        validate.check_newton_options(tol, 1)
+        if energy_jump is not None:
+            validate.check_newton_options(energy_jump, 1, what="energy_jump")
+        for flag, val in (("dense_output", dense_output), ("raise_on_failure", raise_on_failure),
+                          ("project", project)):
+            if not validate._is_bool(val):
+                raise InputError(f"{flag} must be True or False, got {validate._describe(val)}")
+        if dps is not None and engine == "compiled":
+            raise InputError("the compiled engine is float64 only; dps needs engine='generic' (or 'auto')")
+        return cls(engine=engine, dps=dps, newton=newton, tol=tol, save_every=save_every,
+                   dense_output=dense_output, energy_jump=energy_jump, executor=executor,
+                   max_stages=max_stages, project=project, raise_on_failure=raise_on_failure)
+
+    def with_events(self, events) -> "IntegrationOptions":
+        """These options with ``events`` (None, a callable or a sequence of them) checked and
+        normalised (``ldaspark.core.dense.check_events``)."""
+        from .dense import check_events
+        return dataclasses.replace(self, events=tuple(check_events(events)))
+
+    def replace(self, **changes) -> "IntegrationOptions":
+        """A copy with ``changes`` (values already checked by the caller)."""
+        return dataclasses.replace(self, **changes)
+
+    @property
+    def every_step(self) -> bool:
+        """Whether an engine that can keep every ``save_every``-th point must keep every step
+        instead: dense output, events and the energy monitor look at each step."""
+        return bool(self.dense_output or self.events or self.energy_jump is not None)
