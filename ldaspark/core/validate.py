@@ -339,35 +339,6 @@ def finite_initial_point(system, bk, t, q, v, member: str = "") -> None:
 # same kinds of values as ``integrate``; these helpers check them the same way, so that every
 # exported name refuses a wrong value with one InputError naming it, before any work.
 
-def as_system(system, what: str = "system"):
-    """(LagrangianSystem, Scene or None) from a LagrangianSystem, a Scene or a scene name (the
-    same three forms ``integrate`` takes)."""
-    from .scenes import Scene, get_scene
-    from .system import LagrangianSystem
-    if isinstance(system, str):
-        system = get_scene(system)
-    if isinstance(system, Scene):
-        return system.system, system
-    if isinstance(system, LagrangianSystem):
-        return system, None
-    raise InputError(f"{what} must be a LagrangianSystem, a Scene or a scene name, got {_describe(system)}")
-
-
-def as_tableau(method, what: str = "method", max_stages=None):
-    """A SparkTableau from a SparkTableau or a built-in SPARK method name (not a comparator)."""
-    from .families import get_method
-    from .tableau import SparkTableau
-    if isinstance(method, SparkTableau):
-        return method
-    if not isinstance(method, str) or len(method) > 100:
-        raise InputError(f"{what} must be a SPARK method name (gauss-S, ...) or a SparkTableau, got {_describe(method)}")
-    from .errors import TableauError
-    try:
-        return get_method(method, max_stages=check_max_stages(max_stages))
-    except TableauError as exc:
-        raise InputError(f"{what}: {exc}") from None
-
-
 def point(system, t0, q0, v0, what: str = "", scene=None, dps=None):
     """(t0, q0, v0) checked: t0 a real number, q0 and v0 vectors of n real numbers; None takes
     the scene's initial data (when ``scene`` is given)."""
@@ -434,30 +405,6 @@ def flag(x, what: str) -> bool:
     if not _is_bool(x):
         raise InputError(f"{what} must be True or False, got {_describe(x)}")
     return bool(x)
-
-
-def theory_args(system, tableau, t0, q0, v0, h, dps, what: str):
-    """The common arguments of the Theorem 1 checks (``theorem1_residuals``,
-    ``classify_wellposedness``, ``check_symmetry``, ``gauge_invariance``): system a
-    LagrangianSystem, a Scene or a scene name (q0, v0 None: the scene's initial data), tableau a
-    SparkTableau or a SPARK method name, t0 / h real (h nonzero, advancing t at every precision in
-    ``dps``), q0 / v0 n real numbers. Returns (system, tableau, t0, q0, v0)."""
-    dlist = list(dps) if isinstance(dps, (list, tuple)) else [dps]
-    if not dlist:
-        raise InputError(f"{what}: dps must name at least one precision")
-    for d in dlist:
-        if d is None:
-            raise InputError(f"{what}: dps must be an integer number of digits (these checks run in mpmath)")
-        check_dps(d)
-    sysm, scene = as_system(system, f"{what}: system")
-    tab = as_tableau(tableau, f"{what}: tableau")
-    t0, q0, v0 = point(sysm, None if scene is not None and (q0 is None or v0 is None) else t0, q0, v0,
-                       f"{what}: ", scene, max(dlist))
-    hf = _rational_string(h)           # "1/10": the mpmath checks take exact fractions as text
-    real_number(h if hf is None else hf, f"{what}: h", nonzero=True)
-    for d in dlist:
-        step_advances(t0, h if hf is None else hf, 1, int(d), what=f"{what}: h")
-    return sysm, tab, t0, q0, v0
 
 
 def _rational_string(x):

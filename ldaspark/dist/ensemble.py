@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.errors import InputError
+from ..models import arguments
 
 
 @dataclass
@@ -62,7 +63,7 @@ class RunSpec:
         from ..core import validate
         from ..core.validate import check_newton_options, check_storage, count, real_number
         from ..compiled.fast import n_samples
-        system, _ = validate.as_system(system, "RunSpec: system")     # a scene name as integrate takes it
+        system, _ = arguments.as_system(system, "RunSpec: system")     # a scene name as integrate takes it
         from ..core.tableau import SparkTableau
         if not isinstance(method, (str, SparkTableau)):
             raise InputError(f"RunSpec: method must be a method name or a SparkTableau, got {validate._describe(method)}")
@@ -96,7 +97,7 @@ class RunSpec:
         check_storage(n_samples(int(n_steps), int(every)) * len(Q0), 2 + 2 * system.n + system.m,
                       what="the ensemble samples")
         self._check_members(system, t0, Q0, V0)
-        from .fast import kernel_spec
+        from ..compiled.fast import kernel_spec
         kernel_spec(method, kernel)          # an unknown method name here, not in run_many
         self.system, self.method, self.t0, self.Q0, self.V0 = system, method, t0, Q0, V0
         self.h, self.n_steps, self.every, self.compensated, self.tol, self.kernel = (

@@ -316,7 +316,7 @@ def get_scene(name: str, ic: int | None = None) -> Scene:
     >>> sc.name, len(sc.q0), len(sc.system.k)
     ('skate', 3, 1)
     """
-    from .validate import _describe, count
+    from ..core.validate import _describe, count
     if not isinstance(name, str):
         raise InputError(f"scene must be a scene name (a string), got {_describe(name)}")
     if name not in SCENES:

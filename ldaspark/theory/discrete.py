@@ -55,6 +55,7 @@ from ..core.spark import SparkMethod
 from ..core.system import LagrangianSystem
 from ..core.tableau import SparkTableau
 from .memo import cached
+from ..models import arguments
 
 WELLPOSED = "well-posed"
 GAUGE = "gauge-deficient"
@@ -497,8 +498,8 @@ def discrete_lagrangian(system, tableau, t0, q0, t1, q1, dps=40, v0_guess=None, 
     ('well-posed', (3,))
     """
     from ..core import validate
-    system, _ = validate.as_system(system, "discrete_lagrangian: system")
-    tableau = validate.as_tableau(tableau, "discrete_lagrangian: tableau")
+    system, _ = arguments.as_system(system, "discrete_lagrangian: system")
+    tableau = arguments.as_tableau(tableau, "discrete_lagrangian: tableau")
     dps = validate.check_dps(dps)
     if dps is None:
         raise InputError("discrete_lagrangian: dps must be an integer number of digits (the BVP runs in mpmath)")
@@ -637,7 +638,7 @@ def theorem1_residuals(system, tableau, t0, q0, v0, h, dps=40, q1_shift=None, q0
     (True, 'well-posed')
     """
     from ..core import validate
-    system, tableau, t0, q0, v0 = validate.theory_args(system, tableau, t0, q0, v0, h, dps, "theorem1_residuals")
+    system, tableau, t0, q0, v0 = arguments.theory_args(system, tableau, t0, q0, v0, h, dps, "theorem1_residuals")
     for nm, sh in (("q1_shift", q1_shift), ("q0_shift", q0_shift)):
         if sh is not None:
             validate.real_vector(sh, f"theorem1_residuals: {nm}")

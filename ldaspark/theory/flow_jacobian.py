@@ -44,6 +44,7 @@ import mpmath
 import numpy as np
 
 from ..core.errors import InputError
+from ..models import arguments
 
 
 @dataclass
@@ -166,7 +167,7 @@ def flow_jacobian(system, method, q0, v0, h, *, t0=0, dps=None, coords=None, rat
     V.check_choice(how, "flow_jacobian: how", ("ift", "difference"))
     V.check_newton_options(tol, 1, what="flow_jacobian: tol")
     V.real_number(t0, "flow_jacobian: t0")      # checked even when a scene's own t0 replaces it
-    system, scene = V.as_system(system, "flow_jacobian: system")
+    system, scene = arguments.as_system(system, "flow_jacobian: system")
     t0, q0, v0 = V.point(system, t0 if scene is None or (q0 is not None and v0 is not None) else None,
                          q0, v0, "flow_jacobian: ", scene, dps)
     V.real_number(h, "flow_jacobian: h", nonzero=True)
@@ -178,7 +179,7 @@ def flow_jacobian(system, method, q0, v0, h, *, t0=0, dps=None, coords=None, rat
             V.param_value(key, val)
     if params:
         system = system.with_params(params)
-    tab = V.as_tableau(method, "flow_jacobian: method")
+    tab = arguments.as_tableau(method, "flow_jacobian: method")
     if how == "difference" and dps is None:
         raise InputError("flow_jacobian: how='difference' needs dps (differencing in float64 loses half the digits)")
     n = system.n

@@ -7,6 +7,7 @@ import time
 from ..core.backend import Backend
 from ..core.spark import SparkMethod
 from .discrete import DiscreteBVP, _svd, base_point, discrete_lagrangian, ivp_step
+from ..models import arguments
 
 
 def check_symmetry(system, tableau, t0, q0, v0, h, dps=40):
@@ -49,7 +50,7 @@ def check_symmetry(system, tableau, t0, q0, v0, h, dps=40):
     True
     """
     from ..core import validate
-    system, tableau, t0, q0, v0 = validate.theory_args(system, tableau, t0, q0, v0, h, dps, "check_symmetry")
+    system, tableau, t0, q0, v0 = arguments.theory_args(system, tableau, t0, q0, v0, h, dps, "check_symmetry")
     t_start = time.time()
     bk = Backend(dps)
     with bk.context():

@@ -7,6 +7,7 @@ import math
 from fractions import Fraction
 
 from ..core.backend import Backend
+from ..models import arguments
 from .discrete import (GAUGE, SINGULAR, WELLPOSED, DiscreteBVP, _null_support, _rank_info, _svd, base_point,
                        discrete_lagrangian)
 
@@ -58,7 +59,7 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
     if not isinstance(dps, (list, tuple)) or len(dps) < 2 or len(set(map(int, dps))) != len(dps):
         raise InputError(f"classify_wellposedness: dps must be two or more distinct precisions, got "
                          f"{validate._describe(dps)}")
-    system, tableau, t0, q0, v0 = validate.theory_args(system, tableau, t0, q0, v0, h, dps, "classify_wellposedness")
+    system, tableau, t0, q0, v0 = arguments.theory_args(system, tableau, t0, q0, v0, h, dps, "classify_wellposedness")
     if not isinstance(h_factors, (list, tuple)) or len(h_factors) < 2 or len(set(map(str, h_factors))) != len(h_factors):
         raise InputError(f"classify_wellposedness: h_factors must be two or more distinct step factors, got "
                          f"{validate._describe(h_factors)}")
@@ -141,7 +142,7 @@ def gauge_invariance(system, tableau, t0, q0, v0, h, dps=40, shift="1e-3"):
     Theorem 1; gauge-invariant) move, next to how p0 itself moves (the gauge is real).
     Returns None when J has full rank."""
     from ..core import validate
-    system, tableau, t0, q0, v0 = validate.theory_args(system, tableau, t0, q0, v0, h, dps, "gauge_invariance")
+    system, tableau, t0, q0, v0 = arguments.theory_args(system, tableau, t0, q0, v0, h, dps, "gauge_invariance")
     validate.real_number(shift, "gauge_invariance: shift", nonzero=True)
     bk = Backend(dps)
     with bk.context():

@@ -1,0 +1,64 @@
+"""Arguments that name a model: the resolution of a system given as a LagrangianSystem, a Scene
+or a scene name, and of a method given as a SparkTableau or a built-in name, for the exported
+functions outside ``integrate`` (``flow_jacobian``, the Theorem 1 checks, ``RunSpec``).
+
+They sit with the models, not in ``core.validate``: resolving a scene name needs the scenes,
+and a method name the tableau families, which themselves use the validation layer.
+"""
+from __future__ import annotations
+
+from ..core.errors import InputError
+from ..core.validate import _describe, _rational_string, check_dps, check_max_stages, point, real_number, step_advances
+
+
+def as_system(system, what: str = "system"):
+    """(LagrangianSystem, Scene or None) from a LagrangianSystem, a Scene or a scene name (the
+    same three forms ``integrate`` takes)."""
+    from .scenes import Scene, get_scene
+    from ..core.system import LagrangianSystem
+    if isinstance(system, str):
+        system = get_scene(system)
+    if isinstance(system, Scene):
+        return system.system, system
+    if isinstance(system, LagrangianSystem):
+        return system, None
+    raise InputError(f"{what} must be a LagrangianSystem, a Scene or a scene name, got {_describe(system)}")
+
+
+def as_tableau(method, what: str = "method", max_stages=None):
+    """A SparkTableau from a SparkTableau or a built-in SPARK method name (not a comparator)."""
+    from ..core.families import get_method
+    from ..core.tableau import SparkTableau
+    if isinstance(method, SparkTableau):
+        return method
+    if not isinstance(method, str) or len(method) > 100:
+        raise InputError(f"{what} must be a SPARK method name (gauss-S, ...) or a SparkTableau, got {_describe(method)}")
+    from ..core.errors import TableauError
+    try:
+        return get_method(method, max_stages=check_max_stages(max_stages))
+    except TableauError as exc:
+        raise InputError(f"{what}: {exc}") from None
+
+
+def theory_args(system, tableau, t0, q0, v0, h, dps, what: str):
+    """The common arguments of the Theorem 1 checks (``theorem1_residuals``,
+    ``classify_wellposedness``, ``check_symmetry``, ``gauge_invariance``): system a
+    LagrangianSystem, a Scene or a scene name (q0, v0 None: the scene's initial data), tableau a
+    SparkTableau or a SPARK method name, t0 / h real (h nonzero, advancing t at every precision in
+    ``dps``), q0 / v0 n real numbers. Returns (system, tableau, t0, q0, v0)."""
+    dlist = list(dps) if isinstance(dps, (list, tuple)) else [dps]
+    if not dlist:
+        raise InputError(f"{what}: dps must name at least one precision")
+    for d in dlist:
+        if d is None:
+            raise InputError(f"{what}: dps must be an integer number of digits (these checks run in mpmath)")
+        check_dps(d)
+    sysm, scene = as_system(system, f"{what}: system")
+    tab = as_tableau(tableau, f"{what}: tableau")
+    t0, q0, v0 = point(sysm, None if scene is not None and (q0 is None or v0 is None) else t0, q0, v0,
+                       f"{what}: ", scene, max(dlist))
+    hf = _rational_string(h)           # "1/10": the mpmath checks take exact fractions as text
+    real_number(h if hf is None else hf, f"{what}: h", nonzero=True)
+    for d in dlist:
+        step_advances(t0, h if hf is None else hf, 1, int(d), what=f"{what}: h")
+    return sysm, tab, t0, q0, v0
