@@ -749,6 +749,12 @@ def _s(v):
     return "-" if v is None else f"{v * 1e3:.3g} ms"
 
 
+def _label(r):
+    """A run's method as the tables show it: SPARK's internal fast path marked (kind "spark" is the
+    public ``ldaspark.integrate``)."""
+    return r["method"] + (" (fast path)" if r.get("kind") == "spark-fast" else "")
+
+
 def speedup_text(sp):
     """'0.45x / 0.92x / 1.1x': the speed-ups of a study at its targets, as README quotes them."""
     return " / ".join(_x(r["speedup"], r.get("speedup_at_least"), r.get("speedup_at_most")) for r in sp)
@@ -763,18 +769,28 @@ def section(d):
     """Lines of the "Strongest peers" section of reports/work_precision.md from the peers.json
     dict ``d`` (written by ``benchmarks/peers.py``)."""
     from .markdown import sci, table
-    L = ["", "## Strongest peers: Fortran DOP853, LSODA, SUNDIALS CVODE and IDA", "",
+    L = ["", "## Strongest peers: CyRK's compiled loops, Fortran DOP853, LSODA, SUNDIALS CVODE and IDA", "",
          f"From `{d['command']}` run on {d['date']} ({d['cpu_count']} CPUs, load average "
-         f"{d['load_average_1min_at_end']} at the end"
+         + (f"{d['load_average_1min_at_start']} at the start, " if d.get("load_average_1min_at_start") is not None
+            else "")
+         + f"{d['load_average_1min_at_end']} at the end"
          + (": **a loaded machine**, other jobs ran at the same time" if _loaded(d) else "")
-         + "; the ratios are measured side by side in one run, CPU time `time.process_time`, the minimum of up to 3 "
-         f"repeats for runs under 0.5 s; versions {', '.join(f'{k} {v}' for k, v in d['versions'].items())}). "
+         + "; the ratios are measured side by side in one run, CPU time `time.process_time`, "
+         + (f"every run repeated in {d['rounds']} interleaved rounds (SPARK and peer runs alternating) and its "
+            "minimum taken, runs over 0.5 s (1 s in the long runs) not repeated"
+            if d.get("rounds") else "the minimum of up to 3 repeats for runs under 0.5 s")
+         + f"; versions {', '.join(f'{k} {v}' for k, v in d['versions'].items())}). "
          f"Every peer solves the index-reduced ODE (3a-b) (IDA its index-1 form with psi) with a right-hand side "
-         f"compiled by numba from the same sympy expressions as the SPARK model; atol = {d['atol']}. "
+         f"compiled by numba from the same sympy expressions as the SPARK model"
+         + (" (the faster, measured per scene, of the closed form of the saddle system (4) and its numeric solve "
+            "into a preallocated work array)" if any("rhs" in st for st in d["studies"]) else "")
+         + f"; atol = {d['atol']}. "
          "Speed-up = CPU time of the best peer / CPU time of the best compiled SPARK method (gauss-2/3/4, and "
          "Lobatto IIIA-B 2 in its semi-implicit form (25)) at equal "
          "final error max|q - q_ref| at t = 100 (log-log interpolation on each solver's lower envelope; > 1: "
-         "SPARK is faster), and at equal energy error max|E - E0| over t in [0, 1e4] for the long runs. "
+         "SPARK is faster, < 1: the peer is), and at equal energy error max|E - E0| over t in [0, 1e4] for the long "
+         "runs; SPARK called through the public `ldaspark.integrate(..., engine=\"compiled\")`, and through the "
+         "internal fast path (`fast_integrate`) in the last column. "
          "'>= x': the cheapest SPARK method's runs are all more accurate than the target (its largest step "
          "already beats it), so its cheapest run bounds SPARK's cost there and the speed-up from below ('<= x': "
          "the same on the peer's side); '-': a side does not reach the "
@@ -787,12 +803,26 @@ def section(d):
     L.append("")
     rows = []
     for st in d["studies"]:
-        for key, sp in (("final error, T = 100", st["speedups"]), ("energy error, T = 1e4", st["long_speedups"])):
-            for r in sp:
+        parts = [(f"final error, T = {st['t_end']:g}", st["speedups"], st.get("speedups_fast")),
+                 (f"energy error, T = {st['t_long']:g}", st["long_speedups"], st.get("long_speedups_fast"))]
+        if st.get("t_vlong"):
+            parts.append((f"energy error, T = {st['t_vlong']:g}", st["vlong_speedups"], st.get("vlong_speedups_fast")))
+        for key, sp, fast in parts:
+            for i, r in enumerate(sp):
+                f = (fast or [None] * len(sp))[i]
                 rows.append([f"{st['scene']} (n = {st['n']})", key, f"{r['target']:.0e}",
                              f"{r['spark'] or '-'} {_s(r['spark_cpu'])}", f"{r['peer'] or '-'} {_s(r['peer_cpu'])}",
-                             _x(r["speedup"], r.get("speedup_at_least"), r.get("speedup_at_most"))])
-    L += table(["scene", "accuracy", "target", "best SPARK", "best peer", "speed-up of SPARK"], rows)
+                             _x(r["speedup"], r.get("speedup_at_least"), r.get("speedup_at_most")),
+                             "-" if f is None else f"{f['spark'] or '-'} {_s(f['spark_cpu'])}: "
+                             + _x(f["speedup"], f.get("speedup_at_least"), f.get("speedup_at_most"))])
+    L += table(["scene", "accuracy", "target", "best SPARK (integrate)", "best peer", "speed-up of SPARK",
+                "fast path: best SPARK, speed-up"], rows)
+    rhs = [f"{st['scene']}: {st['rhs']['form']} ("
+           + ", ".join(f"{k} {v:g} ns" for k, v in st["rhs"]["ns_per_call"].items()) + " per call)"
+           for st in d["studies"] if st.get("rhs")]
+    if rhs:
+        L += ["", "The peers' right-hand side per scene (the faster form, measured in a numba loop): "
+              + "; ".join(rhs) + ".", ""]
     crow = []
     for st in d["studies"]:
         for key, sp in (("final error, T = 100", st.get("comparators")),
@@ -812,12 +842,13 @@ def section(d):
               + (f", differs from ode('dop853') rtol 1e-13 by {sci(st['reference_check'])}"
                  if st.get("reference_check") is not None else "") + ")</summary>", ""]
         L += table(["run", "method", "h or rtol", "CPU [s]", "final error", "max abs(E - E0)", "max abs k", "nfev"],
-                   [[f"T = {st['t_end']:g}", r["method"], f"{r['param']:g}", f"{r['cpu']:.3g}", sci(r["error"], 2),
+                   [[f"T = {st['t_end']:g}", _label(r), f"{r['param']:g}", f"{r['cpu']:.3g}", sci(r["error"], 2),
                      sci(r["energy_error"], 2), sci(r["constraint"]), r["nfev"] if r["nfev"] is not None else "-"]
                     for r in st["rows"]]
-                   + [[f"T = {st['t_long']:g}", r["method"], f"{r['param']:g}", f"{r['cpu']:.3g}", "-",
+                   + [[f"T = {T:g}", _label(r), f"{r['param']:g}", f"{r['cpu']:.3g}", "-",
                        sci(r["energy_error"], 2), sci(r["constraint"]), r["nfev"] if r["nfev"] is not None else "-"]
-                      for r in st["long_rows"]])
+                      for T, part in ((st["t_long"], st["long_rows"]), (st.get("t_vlong"), st.get("vlong_rows", [])))
+                      for r in part])
         extra = st.get("notes", []) + st.get("failed", [])
         L += [""] + [f"- {x}" for x in extra] + ["", "</details>"]
     return L + [""]
