@@ -705,18 +705,19 @@ def run_study(scenes=SCENES, quick=False, peers=None, progress=print, on_scene=N
         studies.append(scene_study(s, quick=quick, peers=peers, progress=progress, rounds=rounds,
                                    very_long=s in very_long))
         if on_scene is not None:
-            on_scene(_study_dict(studies, quick, peers, clock, rounds, load0))
-    return _study_dict(studies, quick, peers, clock, rounds, load0)
+            on_scene(_study_dict(studies, quick, peers, clock, rounds, load0, very_long))
+    return _study_dict(studies, quick, peers, clock, rounds, load0, very_long)
 
 
-def _study_dict(studies, quick, peers, clock, rounds=3, load0=None):
+def _study_dict(studies, quick, peers, clock, rounds=3, load0=None, very_long=()):
     import datetime
     import platform
     import numba
     import scipy
     sk, cy = sundials(), cyrk()
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
-    return {"command": "python benchmarks/peers.py" + (" --quick" if quick else ""),
+    cmd = "python benchmarks/peers.py" + (" --quick" if quick else "") + (f" --rounds {rounds}" if rounds != 3 else "")
+    return {"command": cmd + (f" --very-long {','.join(very_long)}" if very_long else ""),
             "date": datetime.date.today().isoformat(), "cpu_count": os.cpu_count(),
             "load_average_1min_at_end": None if load is None else round(load, 2),
             "load_average_1min_at_start": None if load0 is None else round(load0, 2),
