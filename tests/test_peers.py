@@ -71,6 +71,8 @@ def skate():
 def test_every_peer_follows_the_skate_closed_form(skate, peer):
     if peer in peers.SUNDIALS_PEERS and peers.sundials() is None:
         pytest.skip("scikit-sundae is not installed (the bench extra)")
+    if peer in peers.CYRK_PEERS and peers.cyrk() is None:
+        pytest.skip("CyRK is not installed (the bench extra)")
     # T = 10, rtol 1e-8, atol 1e-11: a tolerance-controlled solver's global error on this smooth,
     # non-chaotic problem is a modest multiple of rtol (observed 4e-10 .. 4e-8): bounded by
     # 1e3 rtol = 1e-5; and it responds to the tolerance: rtol 1e-4 is at least 10x worse (the
@@ -107,6 +109,7 @@ def test_ida_residual_vanishes_at_the_consistent_point_only(skate):
 
 
 def test_peers_are_optional(monkeypatch, skate):
+    monkeypatch.setattr(peers, "cyrk", lambda: object())          # CyRK's own absence: test_peers_compiled_loop
     monkeypatch.setattr(peers, "sundials", lambda: None)
     ok, notes = peers.available_peers()
     assert set(ok) == set(peers.PEERS) - set(peers.SUNDIALS_PEERS)

@@ -9,6 +9,12 @@ sympy expressions as the SPARK model and compiled by numba):
 * ``solve_ivp-DOP853``: ``scipy.integrate.solve_ivp(method="DOP853")`` (the Python step loop);
 * ``cvode-adams``, ``cvode-bdf``: SUNDIALS CVODE through ``scikit-sundae`` (optional: ``pip
   install -e ".[bench]"``; without it these peers are skipped with a note);
+* ``cyrk-nbsolve2-DOP853``, ``cyrk-nbsolve2-Vern8``: CyRK's C++ step loop (``nbsolve2_ivp``)
+  calling the right-hand side as a numba ``cfunc``, no Python in the loop: the strongest
+  baseline in Python a user would set up (a compiled loop and a compiled right-hand side);
+  ``cyrk-nbsolve-DOP853``: CyRK's numba step loop (``nbsolve_ivp``); ``cyrk-pysolve-DOP853``:
+  the C++ loop calling the numba function through Python (``pysolve_ivp``); optional like
+  SUNDIALS (the bench extra);
 * ``ida``: SUNDIALS IDA on the index-1 form (L_vv v' + K^T psi = L_q - L_vt - L_vq v,
   K v' = -k_t - k_q v, psi algebraic and excluded from the error test).
 
@@ -17,10 +23,20 @@ the final q, the largest energy error |E - E0| (8) and constraint |k| over the o
 A solver's cost at an accuracy is read off its lower envelope by interpolation in log-log
 (``envelope.cpu_at``); the best peer at a target is the cheapest peer there, and the
 figure quoted is the speed-up of the best compiled SPARK method over it,
-cpu(best peer) / cpu(best SPARK) (> 1: SPARK is faster).
+cpu(best peer) / cpu(best SPARK) (> 1: SPARK is faster). SPARK runs through the public
+``ldaspark.integrate(..., engine="compiled")`` (kind "spark", what a user calls) and through the
+internal ``fast_integrate`` (kind "spark-fast", reported beside it). Every run of a study is
+repeated in rounds, each round running every configuration once in turn (interleaved), and a
+run's CPU time is its minimum over the rounds: the load of a shared machine only adds time, and
+interleaving spreads it over all solvers alike.
+
+Every peer's right-hand side is the faster of two forms, measured per scene (``rhs_choice``):
+the closed form (the saddle system (4) solved symbolically, cse) or the numeric solve into a
+preallocated work array (``ldaspark.compiled.ode``).
 """
 from __future__ import annotations
 
+import os
 import time
 
 import numpy as np
@@ -34,8 +50,13 @@ PEERS = {
     "cvode-adams": "SUNDIALS CVODE, Adams-Moulton (scikit-sundae)",
     "cvode-bdf": "SUNDIALS CVODE, BDF (scikit-sundae)",
     "ida": "SUNDIALS IDA on the index-1 form (q, v, psi) (scikit-sundae)",
+    "cyrk-nbsolve2-DOP853": "CyRK nbsolve2_ivp DOP853 (C++ step loop, numba cfunc right-hand side)",
+    "cyrk-nbsolve2-Vern8": "CyRK nbsolve2_ivp Vern8 (Verner 8(7); C++ step loop, numba cfunc right-hand side)",
+    "cyrk-nbsolve-DOP853": "CyRK nbsolve_ivp DOP853 (numba step loop, numba right-hand side)",
+    "cyrk-pysolve-DOP853": "CyRK pysolve_ivp DOP853 (C++ step loop, the numba right-hand side called through Python)",
 }
 SUNDIALS_PEERS = ("cvode-adams", "cvode-bdf", "ida")
+CYRK_PEERS = ("cyrk-nbsolve2-DOP853", "cyrk-nbsolve2-Vern8", "cyrk-nbsolve-DOP853", "cyrk-pysolve-DOP853")
 #: atol = ATOL_FACTOR * rtol for every peer (as the solve_ivp baseline of work_precision)
 ATOL_FACTOR = 1e-3
 
@@ -53,13 +74,25 @@ def sundials():
     return sksundae
 
 
+def cyrk():
+    """The ``CyRK`` module, or None when CyRK is not installed (or does not import here)."""
+    try:
+        import CyRK
+    except Exception:            # noqa: BLE001 (an ImportError, or CyRK's own check of the CPU)
+        return None
+    return CyRK
+
+
 def available_peers(peers=tuple(PEERS)):
     """(the peers of ``peers`` that can run here, notes on the ones that cannot)."""
-    have = sundials() is not None
-    ok = [p for p in peers if have or p not in SUNDIALS_PEERS]
-    missing = [p for p in peers if p not in ok]
-    notes = [f"{', '.join(missing)} skipped: scikit-sundae is not installed (pip install -e \".[bench]\")"
-             ] if missing else []
+    notes = []
+    ok = list(peers)
+    for group, have, what in ((SUNDIALS_PEERS, sundials() is not None, "scikit-sundae"),
+                              (CYRK_PEERS, cyrk() is not None, "CyRK")):
+        missing = [p for p in ok if p in group and not have]
+        if missing:
+            ok = [p for p in ok if p not in missing]
+            notes.append(f"{', '.join(missing)} skipped: {what} is not installed (pip install -e \".[bench]\")")
     return ok, notes
 
 
@@ -83,21 +116,133 @@ def _module(system):
     return compiled_ode_module(system)
 
 
-def peer_solver(system, peer, rtol, t0, y0, times):
+#: {system name: rhs_choice's answer}: measured once per scene and process
+_RHS_CHOICE = {}
+
+
+def _time_rhs(g, y, W, calls=100000, repeats=5):
+    """Nanoseconds per call of ``g(t, y, yp, W)`` in a numba loop (the minimum of ``repeats``)."""
+    import numba
+
+    @numba.njit
+    def loop(N, y, yp, W):
+        acc = 0.0
+        for k in range(N):
+            g(0.25 + 1e-9 * k, y, yp, W)
+            acc += yp[-1]
+        return acc
+    yp = np.zeros_like(y)
+    loop(2, y, yp, W)
+    best = float("inf")
+    for _ in range(repeats):
+        t = time.process_time()
+        loop(calls, y, yp, W)
+        best = min(best, time.process_time() - t)
+    return best / calls * 1e9
+
+
+def rhs_choice(system, y0):
+    """{"form": "closed" or "solve", "ns_per_call": {form: ns}, "closed_info"}: the faster of the
+    closed-form right-hand side and the numeric solve into a work array on this system, measured
+    at ``y0`` (both give the same numbers to round-off: ``tests/test_peers_compiled_loop.py``)."""
+    hit = _RHS_CHOICE.get(system.name)
+    if hit is not None:
+        return hit
+    from ..compiled.ode import n_work
+    mod = _module(system)
+    W = np.zeros(n_work(system.n, system.m))
+    y = np.asarray(y0, float).copy()
+    forms = ("solve", "closed") if mod.HAS_CLOSED else ("solve",)
+    ns = {f: round(_time_rhs(getattr(mod, f"rhs_into_{f}"), y, W), 1) for f in forms}
+    out = {"form": min(ns, key=ns.get), "ns_per_call": ns, "closed_info": mod.CLOSED_INFO}
+    _RHS_CHOICE[system.name] = out
+    return out
+
+
+def _cyrk_driver():
+    """An njit function running CyRK's nbsolve2_ivp from a cfunc address and returning (success,
+    copy of y at t_eval), the C++ result freed (CyRK's numba result object does not free itself)."""
+    global _NB2
+    if _NB2 is None:
+        import numba
+        from CyRK import nbsolve2_ivp
+
+        @numba.njit
+        def run(addr, t0, t1, y0, teval, rtol, atol, W, method):
+            r = nbsolve2_ivp(addr, (t0, t1), y0, method=method, t_eval=teval, args=W, rtol=rtol, atol=atol,
+                             max_num_steps=1000000000)
+            ok = r.success
+            out = r.y.T.copy() if ok else np.empty((0, y0.size))
+            r.free()
+            return ok, out
+        _NB2 = run
+    return _NB2
+
+
+_NB2 = None
+#: {(system name, form): (cfunc, njit (dy, t, y, W) wrapper)}: compiled once per process
+_CYRK_FUNCS = {}
+
+
+def _cyrk_funcs(system, mod, form):
+    key = (system.name, form)
+    if key not in _CYRK_FUNCS:
+        import numba
+        from numba import carray
+        from CyRK import cyjit
+        from ..compiled.ode import n_work
+        g = getattr(mod, f"rhs_into_{form}")
+        N2, NW = 2 * system.n, n_work(system.n, system.m)
+
+        @cyjit
+        def cf(dy, t, y, args):
+            g(t, carray(y, (N2,)), carray(dy, (N2,)), carray(args, (NW,)))
+
+        @numba.njit
+        def dy_first(dy, t, y, W):
+            g(t, y, dy, W)
+        _CYRK_FUNCS[key] = (cf, dy_first)
+    return _CYRK_FUNCS[key]
+
+
+_CVODE_FUNCS = {}
+
+
+def _cvode_func(system, fi):
+    """CVODE's rhsfn(t, y, yp, userdata) around ``fi(t, y, yp, W)``, userdata = (W,)."""
+    key = (system.name, fi)
+    if key not in _CVODE_FUNCS:
+        import numba
+
+        @numba.njit
+        def cv(t, y, yp, ud):
+            fi(t, y, yp, ud[0])
+        _CVODE_FUNCS[key] = cv
+    return _CVODE_FUNCS[key]
+
+
+def peer_solver(system, peer, rtol, t0, y0, times, form=None):
     """A function running ``peer`` from (t0, y0) through the output times ``times`` (increasing,
     the last is t_end) and returning (array of y = (q, v) at ``times``, number of right-hand
-    side / residual evaluations or None). Raises PeerFailure."""
+    side / residual evaluations or None). ``form``: the right-hand side, "closed" or "solve"
+    (default: ``rhs_choice``'s). Raises PeerFailure."""
+    from ..compiled.ode import n_work
     mod = _module(system)
     n = system.n
     atol = ATOL_FACTOR * rtol
     times = np.asarray(times, float)
-    f = mod.rhs
-    f(float(t0), np.asarray(y0, float))              # compile / load outside the clock
+    y0 = np.asarray(y0, float)
+    form = form or rhs_choice(system, y0)["form"]
+    W = np.zeros(n_work(n, system.m))
+    f = getattr(mod, f"rhs_{form}")
+    fi = getattr(mod, f"rhs_into_{form}")
+    f(float(t0), y0, W)                              # compile / load outside the clock
+    fi(float(t0), y0, np.zeros(2 * n), W)
     if peer == "solve_ivp-DOP853":
         from scipy.integrate import solve_ivp
 
         def go():
-            r = solve_ivp(f, (t0, times[-1]), y0, method="DOP853", rtol=rtol, atol=atol, t_eval=times)
+            r = solve_ivp(f, (t0, times[-1]), y0, method="DOP853", rtol=rtol, atol=atol, t_eval=times, args=(W,))
             if r.status != 0:
                 raise PeerFailure(r.message)
             return r.y.T, r.nfev
@@ -109,7 +254,7 @@ def peer_solver(system, peer, rtol, t0, y0, times):
         def go():
             import warnings
             r = ode(f).set_integrator(name, rtol=rtol, atol=atol, nsteps=10 ** 9)
-            r.set_initial_value(y0, t0)
+            r.set_initial_value(y0, t0).set_f_params(W)
             out = np.empty((len(times), 2 * n))
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", UserWarning)   # ode reports failure by successful()
@@ -119,6 +264,44 @@ def peer_solver(system, peer, rtol, t0, y0, times):
                         raise PeerFailure(f"{peer} failed at t = {r.t:g} (rtol {rtol:g})")
             return out, None
         return go
+    if peer in CYRK_PEERS:
+        if cyrk() is None:
+            raise PeerFailure(f"{peer} needs CyRK (pip install -e \".[bench]\")")
+        method = peer.rsplit("-", 1)[1]
+        cf, dy_first = _cyrk_funcs(system, mod, form)
+        if peer.startswith("cyrk-nbsolve2-"):
+            run = _cyrk_driver()
+            addr = cf.address
+            run(addr, float(t0), float(times[-1]), y0, times, rtol, atol, W, method)    # compile
+
+            def go():
+                ok, out = run(addr, float(t0), float(times[-1]), y0, times, rtol, atol, W, method)
+                if not ok or len(out) != len(times):
+                    raise PeerFailure(f"{peer} failed (rtol {rtol:g})")
+                return out, None
+            return go
+        if peer == "cyrk-nbsolve-DOP853":
+            from CyRK import nbsolve_ivp
+
+            def go():
+                r = nbsolve_ivp(f, (float(t0), float(times[-1])), y0, args=(W,), rtol=rtol, atol=atol, rk_method=2,
+                                t_eval=times, warnings=False)
+                if not r.success or r.y.shape[1] != len(times):
+                    raise PeerFailure(f"{peer}: {r.message}")
+                return r.y.T, None
+            go()                                         # numba specialises the loop to f: compile
+            return go
+        from CyRK import pysolve_ivp
+        dy_first(np.zeros(2 * n), float(t0), y0, W)
+
+        def go():
+            r = pysolve_ivp(dy_first, (float(t0), float(times[-1])), y0, method=method, t_eval=times, args=(W,),
+                            rtol=rtol, atol=atol, pass_dy_as_arg=True)
+            if not r.success or r.y.shape[1] != len(times):
+                raise PeerFailure(f"{peer}: {r.message}")
+            return r.y.T, None
+        go()                                             # any compilation on the first call: not timed
+        return go
     sk = sundials()
     if sk is None:
         raise PeerFailure(f"{peer} needs scikit-sundae (pip install -e \".[bench]\")")
@@ -127,13 +310,14 @@ def peer_solver(system, peer, rtol, t0, y0, times):
     tspan = np.concatenate([[t0], times] if len(times) > 1 else [[t0, 0.5 * (t0 + times[0])], times])
     skip = len(tspan) - len(times)
     if peer in ("cvode-adams", "cvode-bdf"):
-        g = mod.rhs_into
-        g(float(t0), np.asarray(y0, float), np.zeros(2 * n))
         method = "Adams" if peer == "cvode-adams" else "BDF"
+        cv = _cvode_func(system, fi)
+        cv(float(t0), y0, np.zeros(2 * n), (W,))
 
         def go():
-            s = sk.cvode.CVODE(g, method=method, rtol=rtol, atol=atol, max_num_steps=10 ** 8)
-            r = s.solve(tspan, np.asarray(y0, float))
+            # userdata a tuple: scikit-sundae tests it for truth, which an array has not
+            s = sk.cvode.CVODE(cv, method=method, rtol=rtol, atol=atol, max_num_steps=10 ** 8, userdata=(W,))
+            r = s.solve(tspan, y0)
             if not r.success or len(r.t) != len(tspan):
                 raise PeerFailure(f"{peer}: {r.message}")
             return r.y[skip:], r.nfev
@@ -141,9 +325,9 @@ def peer_solver(system, peer, rtol, t0, y0, times):
     if peer == "ida":
         m = system.m
         res = mod.dae_residual
-        psi0 = mod.psi_of(float(t0), np.asarray(y0, float))
+        psi0 = mod.psi_of(float(t0), y0)
         z0 = np.concatenate([y0, psi0])
-        zp0 = np.concatenate([f(float(t0), np.asarray(y0, float)), np.zeros(m)])   # consistent: res = 0
+        zp0 = np.concatenate([mod.rhs(float(t0), y0), np.zeros(m)])   # consistent: res = 0
         res(float(t0), z0, zp0, np.zeros(2 * n + m))
         # psi is algebraic: excluded from the error test by a huge absolute tolerance, so that IDA
         # controls the same variables (q, v) to the same tolerances as the ODE peers
@@ -156,23 +340,38 @@ def peer_solver(system, peer, rtol, t0, y0, times):
             if not r.success or len(r.t) != len(tspan):
                 raise PeerFailure(f"ida: {r.message}")
             return r.y[skip:, :2 * n], r.nfev
+        # IDA calls the residual with arrays of other layouts than the call above: numba compiles
+        # those on the first run, which must not be timed
+        s0 = sk.ida.IDA(res, rtol=1e-3, atol=atols, algebraic_idx=list(range(2 * n, 2 * n + m)))
+        s0.solve(np.array([t0, t0 + 1e-3 * (times[-1] - t0), t0 + 2e-3 * (times[-1] - t0)]), z0, zp0)
         return go
     raise ValueError(f"unknown peer {peer!r}; choose from {', '.join(PEERS)}")
 
 
-def run_peer(scene, peer, rtol, t_end, n_out=1, repeats=3):
+def _initial(scene):
+    t0, q0, v0 = scene.initial()
+    return float(t0), np.array([float(x) for x in q0] + [float(x) for x in v0])
+
+
+def prepare_peer(scene, peer, rtol, t_end, n_out=1, form=None):
+    """(go, finish) of one peer run on ``scene`` over [t0, t_end] with ``n_out`` equally spaced
+    output times: ``go()`` runs it (compiled outside, raises PeerFailure), ``finish(cpu, out)``
+    makes its row (``run_peer``)."""
+    system = scene.system
+    t0, y0 = _initial(scene)
+    times = t0 + (t_end - t0) * np.arange(1, n_out + 1) / n_out
+    go = peer_solver(system, peer, rtol, t0, y0, times, form=form)
+    return go, lambda cpu, out: _row("peer", peer, rtol, cpu, system, t0, y0, times, out[0], out[1])
+
+
+def run_peer(scene, peer, rtol, t_end, n_out=1, repeats=3, form=None):
     """One peer run on ``scene`` over [t0, t_end] with ``n_out`` equally spaced output times:
     {"kind": "peer", "method", "param" (rtol), "cpu", "q_final", "energy_error",
     "constraint", "nfev"}; the energy and constraint errors are the largest over the output
     times and t0. Raises PeerFailure."""
-    system = scene.system
-    t0, q0, v0 = scene.initial()
-    t0 = float(t0)
-    y0 = np.array([float(x) for x in q0] + [float(x) for x in v0])
-    times = t0 + (t_end - t0) * np.arange(1, n_out + 1) / n_out
-    go = peer_solver(system, peer, rtol, t0, y0, times)
-    cpu, (ys, nfev) = _cpu_min(go, repeats)
-    return _row("peer", peer, rtol, cpu, system, t0, y0, times, ys, nfev)
+    go, finish = prepare_peer(scene, peer, rtol, t_end, n_out, form)
+    cpu, out = _cpu_min(go, repeats)
+    return finish(cpu, out)
 
 
 def _row(kind, method, param, cpu, system, t0, y0, times, ys, nfev=None):
@@ -186,21 +385,69 @@ def _row(kind, method, param, cpu, system, t0, y0, times, ys, nfev=None):
             "constraint": float(np.max(np.abs(K))), "nfev": None if nfev is None else int(nfev)}
 
 
-def run_spark(scene, method, h, t_end, n_out=1, repeats=3):
-    """One compiled SPARK run (``fast_integrate``, compiled outside the clock), sampled at about
-    ``n_out`` equally spaced times: the same row as ``run_peer`` with ``param`` = h; kind
-    "comparator" for the semi-explicit comparators that are not SPARK methods (``COMPARATORS``)."""
+def prepare_spark(scene, method, h, t_end, n_out=1, public=False):
+    """(go, finish) of one compiled SPARK run, sampled at about ``n_out`` equally spaced times:
+    through the public ``ldaspark.integrate(..., engine="compiled")`` (``public``, kind "spark")
+    or the internal ``fast_integrate`` (kind "spark-fast"; "comparator" for the semi-explicit
+    comparators that are not SPARK methods, ``COMPARATORS``, always internal). Compiled (one
+    short run) outside the clock."""
     from ..compiled.fast import fast_integrate
-    kind = "comparator" if method in COMPARATORS else "spark"
+    kind = "comparator" if method in COMPARATORS else ("spark" if public else "spark-fast")
     t0 = float(scene.initial()[0])
     n = int(round((t_end - t0) / h))
     every = max(n // n_out, 1)
-    fast_integrate(scene, method, h=h, n_steps=2)
-    cpu, r = _cpu_min(lambda: fast_integrate(scene, method, h=h, n_steps=n, every=every), repeats)
-    E0 = float(r.energy[0])
-    return {"kind": kind, "method": method, "param": float(h), "cpu": float(cpu),
-            "q_final": [float(x) for x in r.q[-1]], "energy_error": float(np.max(np.abs(r.energy - E0))),
-            "constraint": float(np.max(np.abs(r.constraint))), "nfev": None}
+    if kind == "spark":
+        from ..solve import integrate      # ldaspark.integrate, what a user calls
+
+        def go():
+            return integrate(scene, method, h=h, n_steps=n, engine="compiled", save_every=every)
+        integrate(scene, method, h=h, n_steps=2, engine="compiled")
+    else:
+        def go():
+            return fast_integrate(scene, method, h=h, n_steps=n, every=every)
+        fast_integrate(scene, method, h=h, n_steps=2)
+
+    def finish(cpu, r):
+        E0 = float(r.energy[0])
+        return {"kind": kind, "method": method, "param": float(h), "cpu": float(cpu),
+                "q_final": [float(x) for x in r.q[-1]], "energy_error": float(np.max(np.abs(r.energy - E0))),
+                "constraint": float(np.max(np.abs(r.constraint))), "nfev": None}
+    return go, finish
+
+
+def run_spark(scene, method, h, t_end, n_out=1, repeats=3, public=False):
+    """One compiled SPARK run (``prepare_spark``): the same row as ``run_peer`` with ``param`` = h."""
+    go, finish = prepare_spark(scene, method, h, t_end, n_out, public)
+    cpu, r = _cpu_min(go, repeats)
+    return finish(cpu, r)
+
+
+def run_interleaved(tasks, rounds=3, short=0.5, failed=None):
+    """Rows of ``tasks`` ([(label, go, finish)]) run in ``rounds`` rounds, each running every task
+    once in turn, so that a change of the machine's load falls on all solvers alike; a run's CPU
+    time is its minimum over the rounds, and a run longer than ``short`` seconds is not repeated.
+    A task that raises PeerFailure or an LdasparkError is dropped (its label and the message
+    appended to ``failed``)."""
+    from ..core.errors import LdasparkError
+    best = [float("inf")] * len(tasks)
+    outs = [None] * len(tasks)
+    dead = [False] * len(tasks)
+    for k in range(rounds):
+        for i, (label, go, _) in enumerate(tasks):
+            if dead[i] or (k > 0 and best[i] > short):
+                continue
+            t = time.process_time()
+            try:
+                out = go()
+            except (PeerFailure, LdasparkError) as exc:
+                dead[i] = True
+                if failed is not None:
+                    failed.append(f"{label}: {type(exc).__name__}: {str(exc).splitlines()[0][:100]}")
+                continue
+            c = time.process_time() - t
+            if c < best[i]:
+                best[i], outs[i] = c, out
+    return [fin(best[i], outs[i]) for i, (_, _, fin) in enumerate(tasks) if not dead[i]]
 
 
 # --- equal-error comparison -----------------------------------------------------------------
@@ -253,10 +500,11 @@ def best_cost(rows, kind, target, key="error"):
     return m, costs[m][0], costs[m][1]
 
 
-def speedups(rows, targets, key="error", other="peer"):
+def speedups(rows, targets, key="error", other="peer", spark="spark"):
     """Per target: the best SPARK method and peer (``best_cost``), their CPU times and the
     speed-up cpu(best peer) / cpu(best SPARK); ``other="comparator"``: the best semi-explicit
-    comparator in the place of the peers (the keys stay "peer", "peer_cpu").
+    comparator in the place of the peers (the keys stay "peer", "peer_cpu"); ``spark``: the kind
+    of the SPARK rows ("spark": the public ``ldaspark.integrate``, "spark-fast": the internal path).
 
     Where the cheaper side's cost is a bound (every run of that method more accurate than the
     target), the ratio is one-sided: SPARK's cost bounded from above makes the speed-up a lower
@@ -264,7 +512,7 @@ def speedups(rows, targets, key="error", other="peer"):
     or a side that does not reach the target: no figure."""
     out = []
     for tgt in targets:
-        sm, sc, sb = best_cost(rows, "spark", tgt, key)
+        sm, sc, sb = best_cost(rows, spark, tgt, key)
         pm, pc, pb = best_cost(rows, other, tgt, key)
         ratio = (pc / sc) if (sc and pc) else None
         out.append({"target": tgt, "spark": sm, "spark_cpu": sc, "peer": pm, "peer_cpu": pc,
@@ -282,6 +530,10 @@ def recompute_speedups(d, note=None):
     for st in d["studies"]:
         st["speedups"] = speedups(st["rows"], d["targets"])
         st["long_speedups"] = speedups(st["long_rows"], d["energy_targets"], key="energy_error")
+        if any(r["kind"] == "spark-fast" for r in st["rows"]):
+            st["speedups_fast"] = speedups(st["rows"], d["targets"], spark="spark-fast")
+            st["long_speedups_fast"] = speedups(st["long_rows"], d["energy_targets"], key="energy_error",
+                                                spark="spark-fast")
     return d
 
 
@@ -299,8 +551,16 @@ SPARK_METHODS = ("gauss-2", "gauss-3", "gauss-4", "lobatto-iiia-iiib-2")
 COMPARATORS = ("mp-lobatto-iiib-a-2",)
 TARGETS = (1e-3, 1e-6, 1e-9)
 #: the peers of the long runs: solve_ivp's DOP853 is ode('dop853')'s method with a Python step loop,
-#: CVODE BDF and IDA are slower than CVODE Adams at every T = 100 point (too costly over 1e4)
-LONG_PEERS = ("ode-dop853", "ode-lsoda", "cvode-adams")
+#: CVODE BDF and IDA are slower than CVODE Adams at every T = 100 point (too costly over 1e4), and
+#: pysolve_ivp is CyRK's C++ loop with the right-hand side called through Python (nbsolve2_ivp's
+#: loop without its compiled call)
+LONG_PEERS = ("ode-dop853", "ode-lsoda", "cvode-adams", "cyrk-nbsolve2-DOP853", "cyrk-nbsolve2-Vern8",
+              "cyrk-nbsolve-DOP853")
+#: the peers and SPARK methods of the very long runs (T = 1e5, ``very_long``): the strongest of
+#: the T = 1e4 runs only (a run of ode('dop853') there costs seconds)
+VLONG_PEERS = ("cyrk-nbsolve2-DOP853", "cyrk-nbsolve2-Vern8")
+VLONG_METHODS = {"gauss-3": (0.2, 0.1), "gauss-4": (0.8, 0.4, 0.2)}
+VLONG_RTOLS = (1e-8, 1e-10, 1e-12)
 ENERGY_TARGETS = (1e-4, 1e-6, 1e-8)
 
 
@@ -339,56 +599,90 @@ def reference_final(scene, t_end):
     return q_ref, "gauss-4 SPARK, h = 0.005", float(np.max(np.abs(np.asarray(chk["q_final"]) - q_ref)))
 
 
-def scene_study(scene_name, quick=False, peers=None, progress=print):
+def scene_study(scene_name, quick=False, peers=None, progress=print, rounds=3, very_long=False):
     """Both comparisons on one scene: final error at t_end (T = 100) and the long run
-    (T = 1e4: energy error and constraint drift); rows with their errors, and the speed-ups."""
+    (T = 1e4: energy error and constraint drift), and with ``very_long`` a run to T = 1e5
+    (``VLONG_*``); rows with their errors, and the speed-ups. Every part's runs are interleaved
+    in ``rounds`` rounds (``run_interleaved``); SPARK both through ``ldaspark.integrate`` (kind
+    "spark", the speed-ups) and the internal path (kind "spark-fast", ``speedups_fast``)."""
     from ..models.scenes import get_scene
     sc = get_scene(scene_name)
     P = plan(quick)
     peers, notes = available_peers(tuple(PEERS) if peers is None else peers)
+    t0, y0 = _initial(sc)
+    choice = rhs_choice(sc.system, y0)
     q_ref, label, check = reference_final(sc, P["t_end"])
-    rows, failed = [], []
-
-    def spark(m, h, t_end, *a, **k):
-        from ..core.errors import LdasparkError
-        try:
-            return [run_spark(sc, m, h, t_end, *a, **k)]
-        except LdasparkError as exc:       # e.g. a step too long for L's domain: no point at this h
-            failed.append(f"{m} h = {h:g} (T = {t_end:g}): {type(exc).__name__}: {str(exc).splitlines()[0][:100]}")
-            return []
+    failed = []
     methods = SPARK_METHODS + (COMPARATORS if _mechanical(sc) else ())
-    for m in methods:
-        rows += [r for h in P["hs"][m] for r in spark(m, h, P["t_end"])]
-    for p in peers:
-        for tol in P["rtols"]:
-            try:
-                rows.append(run_peer(sc, p, tol, P["t_end"]))
-            except PeerFailure as exc:
-                failed.append(f"{p} rtol {tol:g}: {exc}")
-        progress(f"  {scene_name}: {p} done")
+
+    def spark_tasks(hs, t_end, n_out=1):
+        out = []
+        for m in methods:
+            for h in hs[m]:
+                for public in ((False,) if m in COMPARATORS else (True, False)):
+                    lab = f"{m}{' (integrate)' if public else ''} h = {h:g} (T = {t_end:g})"
+                    try:
+                        out.append((lab, *prepare_spark(sc, m, h, t_end, n_out, public)))
+                    except Exception as exc:            # noqa: BLE001 (LdasparkError: no point at this h)
+                        failed.append(f"{lab}: {type(exc).__name__}: {str(exc).splitlines()[0][:100]}")
+        return out
+
+    def peer_tasks(ps, rtols, t_end, n_out=1):
+        out = []
+        for p in ps:
+            for tol in rtols:
+                lab = f"{p} rtol {tol:g} (T = {t_end:g})"
+                try:
+                    out.append((lab, *prepare_peer(sc, p, tol, t_end, n_out)))
+                except PeerFailure as exc:
+                    failed.append(f"{lab}: {exc}")
+        return out
+
+    def interleave(a, b):
+        """SPARK and peer runs alternating, so that neither side runs in one block."""
+        res = []
+        for i in range(max(len(a), len(b))):
+            res += a[i:i + 1] + b[i:i + 1]
+        return res
+
+    tasks = interleave(spark_tasks(P["hs"], P["t_end"]), peer_tasks(peers, P["rtols"], P["t_end"]))
+    rows = run_interleaved(tasks, rounds=rounds, short=0.5, failed=failed)
     for r in rows:
         r["error"] = float(np.max(np.abs(np.asarray(r.pop("q_final")) - q_ref)))
-    long_rows = []
-    for m in methods:
-        long_rows += [r for h in P["hs_long"][m] for r in spark(m, h, P["t_long"], P["n_out_long"], repeats=1)]
-    for p in peers:
-        if p not in LONG_PEERS:
-            continue
-        for tol in P["rtols_long"]:
-            try:
-                long_rows.append(run_peer(sc, p, tol, P["t_long"], P["n_out_long"], repeats=1))
-            except PeerFailure as exc:
-                failed.append(f"{p} rtol {tol:g} (long run): {exc}")
+    progress(f"  {scene_name}: T = {P['t_end']:g} done ({len(rows)} runs)")
+    lp = [p for p in peers if p in LONG_PEERS]
+    tasks = interleave(spark_tasks(P["hs_long"], P["t_long"], P["n_out_long"]),
+                       peer_tasks(lp, P["rtols_long"], P["t_long"], P["n_out_long"]))
+    long_rows = run_interleaved(tasks, rounds=max(rounds - 1, 1), short=1.0, failed=failed)
     for r in long_rows:
         r.pop("q_final")
-    progress(f"  {scene_name}: long runs done")
-    return {"scene": scene_name, "n": sc.system.n, "m": sc.system.m, "t_end": P["t_end"], "t_long": P["t_long"],
-            "reference": label, "reference_check": check, "rows": rows, "long_rows": long_rows,
-            "peers": list(peers), "notes": notes, "failed": failed,
-            "speedups": speedups(rows, TARGETS),
-            "long_speedups": speedups(long_rows, ENERGY_TARGETS, key="energy_error"),
-            "comparators": speedups(rows, TARGETS, other="comparator"),
-            "long_comparators": speedups(long_rows, ENERGY_TARGETS, key="energy_error", other="comparator")}
+    progress(f"  {scene_name}: T = {P['t_long']:g} done ({len(long_rows)} runs)")
+    out = {"scene": scene_name, "n": sc.system.n, "m": sc.system.m, "t_end": P["t_end"], "t_long": P["t_long"],
+           "reference": label, "reference_check": check, "rows": rows, "long_rows": long_rows,
+           "peers": list(peers), "notes": notes, "failed": failed, "rhs": choice,
+           "speedups": speedups(rows, TARGETS),
+           "long_speedups": speedups(long_rows, ENERGY_TARGETS, key="energy_error"),
+           "speedups_fast": speedups(rows, TARGETS, spark="spark-fast"),
+           "long_speedups_fast": speedups(long_rows, ENERGY_TARGETS, key="energy_error", spark="spark-fast"),
+           "comparators": speedups(rows, TARGETS, other="comparator", spark="spark-fast"),
+           "long_comparators": speedups(long_rows, ENERGY_TARGETS, key="energy_error", other="comparator",
+                                        spark="spark-fast")}
+    if very_long:
+        T = 10 * P["t_long"]
+        vm = {m: hs for m, hs in VLONG_METHODS.items()}
+        keep = methods
+        methods = tuple(vm)
+        tasks = interleave(spark_tasks(vm, T, P["n_out_long"]),
+                           peer_tasks([p for p in peers if p in VLONG_PEERS], VLONG_RTOLS, T, P["n_out_long"]))
+        methods = keep
+        vrows = run_interleaved(tasks, rounds=1, failed=failed)
+        for r in vrows:
+            r.pop("q_final")
+        out.update({"t_vlong": T, "vlong_rows": vrows,
+                    "vlong_speedups": speedups(vrows, ENERGY_TARGETS, key="energy_error"),
+                    "vlong_speedups_fast": speedups(vrows, ENERGY_TARGETS, key="energy_error", spark="spark-fast")})
+        progress(f"  {scene_name}: T = {T:g} done ({len(vrows)} runs)")
+    return out
 
 
 def _mechanical(scene):
@@ -398,34 +692,46 @@ def _mechanical(scene):
     return ok and form == "mechanical"
 
 
-def run_study(scenes=SCENES, quick=False, peers=None, progress=print, on_scene=None):
+def run_study(scenes=SCENES, quick=False, peers=None, progress=print, on_scene=None, rounds=3, very_long=()):
     """Every scene's study, with the versions and the load of the machine; ``on_scene(d)`` is
     called with the study so far after each scene (the benchmark saves it: a long run that
     stops keeps the scenes it finished)."""
     from .timing import Clock
     clock = Clock()
+    load0 = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
     studies = []
     for s in scenes:
         progress(f"[peers] {s} ...")
-        studies.append(scene_study(s, quick=quick, peers=peers, progress=progress))
+        studies.append(scene_study(s, quick=quick, peers=peers, progress=progress, rounds=rounds,
+                                   very_long=s in very_long))
         if on_scene is not None:
-            on_scene(_study_dict(studies, quick, peers, clock))
-    return _study_dict(studies, quick, peers, clock)
+            on_scene(_study_dict(studies, quick, peers, clock, rounds, load0, very_long))
+    return _study_dict(studies, quick, peers, clock, rounds, load0, very_long)
 
 
-def _study_dict(studies, quick, peers, clock):
+def _study_dict(studies, quick, peers, clock, rounds=3, load0=None, very_long=()):
     import datetime
-    import os
     import platform
+    import numba
     import scipy
-    sk = sundials()
+    sk, cy = sundials(), cyrk()
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
-    return {"command": "python benchmarks/peers.py" + (" --quick" if quick else ""),
+    cmd = "python benchmarks/peers.py" + (" --quick" if quick else "") + (f" --rounds {rounds}" if rounds != 3 else "")
+    return {"command": cmd + (f" --very-long {','.join(very_long)}" if very_long else ""),
             "date": datetime.date.today().isoformat(), "cpu_count": os.cpu_count(),
             "load_average_1min_at_end": None if load is None else round(load, 2),
+            "load_average_1min_at_start": None if load0 is None else round(load0, 2),
+            "rounds": rounds,
+            "timing": "CPU time (time.process_time); every part's runs interleaved in rounds (SPARK and peer runs "
+                      "alternating), each run's CPU time the minimum over the rounds (runs over 0.5 s at T = 100, "
+                      "1 s in the long runs, not repeated); SPARK through ldaspark.integrate(..., "
+                      "engine='compiled') (kind spark: the speed-ups) and fast_integrate (kind spark-fast: the "
+                      "*_fast speed-ups)",
             "versions": {"python": platform.python_version(), "scipy": scipy.__version__,
                          "scikit-sundae": None if sk is None else sk.__version__,
-                         "sundials": None if sk is None else getattr(sk, "SUNDIALS_VERSION", None)},
+                         "sundials": None if sk is None else getattr(sk, "SUNDIALS_VERSION", None),
+                         "CyRK": None if cy is None else cy.__version__, "numba": numba.__version__,
+                         "numpy": np.__version__},
             "peers": {p: PEERS[p] for p in (PEERS if peers is None else peers)},
             "atol": f"{ATOL_FACTOR:g} * rtol", "targets": list(TARGETS), "energy_targets": list(ENERGY_TARGETS),
             "cpu_seconds": round(clock.cpu, 1), "studies": studies}
@@ -444,6 +750,12 @@ def _s(v):
     return "-" if v is None else f"{v * 1e3:.3g} ms"
 
 
+def _label(r):
+    """A run's method as the tables show it: SPARK's internal fast path marked (kind "spark" is the
+    public ``ldaspark.integrate``)."""
+    return r["method"] + (" (fast path)" if r.get("kind") == "spark-fast" else "")
+
+
 def speedup_text(sp):
     """'0.45x / 0.92x / 1.1x': the speed-ups of a study at its targets, as README quotes them."""
     return " / ".join(_x(r["speedup"], r.get("speedup_at_least"), r.get("speedup_at_most")) for r in sp)
@@ -458,18 +770,28 @@ def section(d):
     """Lines of the "Strongest peers" section of reports/work_precision.md from the peers.json
     dict ``d`` (written by ``benchmarks/peers.py``)."""
     from .markdown import sci, table
-    L = ["", "## Strongest peers: Fortran DOP853, LSODA, SUNDIALS CVODE and IDA", "",
+    L = ["", "## Strongest peers: CyRK's compiled loops, Fortran DOP853, LSODA, SUNDIALS CVODE and IDA", "",
          f"From `{d['command']}` run on {d['date']} ({d['cpu_count']} CPUs, load average "
-         f"{d['load_average_1min_at_end']} at the end"
+         + (f"{d['load_average_1min_at_start']} at the start, " if d.get("load_average_1min_at_start") is not None
+            else "")
+         + f"{d['load_average_1min_at_end']} at the end"
          + (": **a loaded machine**, other jobs ran at the same time" if _loaded(d) else "")
-         + "; the ratios are measured side by side in one run, CPU time `time.process_time`, the minimum of up to 3 "
-         f"repeats for runs under 0.5 s; versions {', '.join(f'{k} {v}' for k, v in d['versions'].items())}). "
+         + "; the ratios are measured side by side in one run, CPU time `time.process_time`, "
+         + (f"every run repeated in {d['rounds']} interleaved rounds (SPARK and peer runs alternating) and its "
+            "minimum taken, runs over 0.5 s (1 s in the long runs) not repeated"
+            if d.get("rounds") else "the minimum of up to 3 repeats for runs under 0.5 s")
+         + f"; versions {', '.join(f'{k} {v}' for k, v in d['versions'].items())}). "
          f"Every peer solves the index-reduced ODE (3a-b) (IDA its index-1 form with psi) with a right-hand side "
-         f"compiled by numba from the same sympy expressions as the SPARK model; atol = {d['atol']}. "
+         f"compiled by numba from the same sympy expressions as the SPARK model"
+         + (" (the faster, measured per scene, of the closed form of the saddle system (4) and its numeric solve "
+            "into a preallocated work array)" if any("rhs" in st for st in d["studies"]) else "")
+         + f"; atol = {d['atol']}. "
          "Speed-up = CPU time of the best peer / CPU time of the best compiled SPARK method (gauss-2/3/4, and "
          "Lobatto IIIA-B 2 in its semi-implicit form (25)) at equal "
          "final error max|q - q_ref| at t = 100 (log-log interpolation on each solver's lower envelope; > 1: "
-         "SPARK is faster), and at equal energy error max|E - E0| over t in [0, 1e4] for the long runs. "
+         "SPARK is faster, < 1: the peer is), and at equal energy error max|E - E0| over t in [0, 1e4] for the long "
+         "runs; SPARK called through the public `ldaspark.integrate(..., engine=\"compiled\")`, and through the "
+         "internal fast path (`fast_integrate`) in the last column. "
          "'>= x': the cheapest SPARK method's runs are all more accurate than the target (its largest step "
          "already beats it), so its cheapest run bounds SPARK's cost there and the speed-up from below ('<= x': "
          "the same on the peer's side); '-': a side does not reach the "
@@ -482,12 +804,26 @@ def section(d):
     L.append("")
     rows = []
     for st in d["studies"]:
-        for key, sp in (("final error, T = 100", st["speedups"]), ("energy error, T = 1e4", st["long_speedups"])):
-            for r in sp:
+        parts = [(f"final error, T = {st['t_end']:g}", st["speedups"], st.get("speedups_fast")),
+                 (f"energy error, T = {st['t_long']:g}", st["long_speedups"], st.get("long_speedups_fast"))]
+        if st.get("t_vlong"):
+            parts.append((f"energy error, T = {st['t_vlong']:g}", st["vlong_speedups"], st.get("vlong_speedups_fast")))
+        for key, sp, fast in parts:
+            for i, r in enumerate(sp):
+                f = (fast or [None] * len(sp))[i]
                 rows.append([f"{st['scene']} (n = {st['n']})", key, f"{r['target']:.0e}",
                              f"{r['spark'] or '-'} {_s(r['spark_cpu'])}", f"{r['peer'] or '-'} {_s(r['peer_cpu'])}",
-                             _x(r["speedup"], r.get("speedup_at_least"), r.get("speedup_at_most"))])
-    L += table(["scene", "accuracy", "target", "best SPARK", "best peer", "speed-up of SPARK"], rows)
+                             _x(r["speedup"], r.get("speedup_at_least"), r.get("speedup_at_most")),
+                             "-" if f is None else f"{f['spark'] or '-'} {_s(f['spark_cpu'])}: "
+                             + _x(f["speedup"], f.get("speedup_at_least"), f.get("speedup_at_most"))])
+    L += table(["scene", "accuracy", "target", "best SPARK (integrate)", "best peer", "speed-up of SPARK",
+                "fast path: best SPARK, speed-up"], rows)
+    rhs = [f"{st['scene']}: {st['rhs']['form']} ("
+           + ", ".join(f"{k} {v:g} ns" for k, v in st["rhs"]["ns_per_call"].items()) + " per call)"
+           for st in d["studies"] if st.get("rhs")]
+    if rhs:
+        L += ["", "The peers' right-hand side per scene (the faster form, measured in a numba loop): "
+              + "; ".join(rhs) + ".", ""]
     crow = []
     for st in d["studies"]:
         for key, sp in (("final error, T = 100", st.get("comparators")),
@@ -507,12 +843,13 @@ def section(d):
               + (f", differs from ode('dop853') rtol 1e-13 by {sci(st['reference_check'])}"
                  if st.get("reference_check") is not None else "") + ")</summary>", ""]
         L += table(["run", "method", "h or rtol", "CPU [s]", "final error", "max abs(E - E0)", "max abs k", "nfev"],
-                   [[f"T = {st['t_end']:g}", r["method"], f"{r['param']:g}", f"{r['cpu']:.3g}", sci(r["error"], 2),
+                   [[f"T = {st['t_end']:g}", _label(r), f"{r['param']:g}", f"{r['cpu']:.3g}", sci(r["error"], 2),
                      sci(r["energy_error"], 2), sci(r["constraint"]), r["nfev"] if r["nfev"] is not None else "-"]
                     for r in st["rows"]]
-                   + [[f"T = {st['t_long']:g}", r["method"], f"{r['param']:g}", f"{r['cpu']:.3g}", "-",
+                   + [[f"T = {T:g}", _label(r), f"{r['param']:g}", f"{r['cpu']:.3g}", "-",
                        sci(r["energy_error"], 2), sci(r["constraint"]), r["nfev"] if r["nfev"] is not None else "-"]
-                      for r in st["long_rows"]])
+                      for T, part in ((st["t_long"], st["long_rows"]), (st.get("t_vlong"), st.get("vlong_rows", [])))
+                      for r in part])
         extra = st.get("notes", []) + st.get("failed", [])
         L += [""] + [f"- {x}" for x in extra] + ["", "</details>"]
     return L + [""]

@@ -215,6 +215,29 @@ def peers_values(d):
                                                          for r in st["speedups"])
         out[f"peers.{st['scene']}.long"] = " / ".join(_r(r["speedup"], r.get("speedup_at_least"), r.get("speedup_at_most"))
                                                      for r in st["long_speedups"])
+        # the same against SPARK's internal fast path, the strongest peer's name, and T = 1e5
+        for key, part in (("speedups_fast", "speedups_fast"), ("long_fast", "long_speedups_fast"),
+                          ("vlong", "vlong_speedups"), ("vlong_fast", "vlong_speedups_fast")):
+            if st.get(part):
+                out[f"peers.{st['scene']}.{key}"] = " / ".join(
+                    _r(r["speedup"], r.get("speedup_at_least"), r.get("speedup_at_most")) for r in st[part])
+        for key, part in (("best_peer", "speedups"), ("long_best_peer", "long_speedups")):
+            names = list(dict.fromkeys(r["peer"] for r in st[part] if r["peer"]))
+            out[f"peers.{st['scene']}.{key}"] = ", ".join(names) or "-"
+        if st.get("t_vlong"):
+            out[f"peers.{st['scene']}.t_vlong"] = f"{st['t_vlong']:.0e}"
+        # the floors of the long runs: the smallest energy error each side reaches, and the largest
+        # constraint error |k| of the runs at that floor ("SPARK / best of the peers")
+        for key, part in (("long_floor", "long_rows"), ("vlong_floor", "vlong_rows")):
+            rows = st.get(part) or []
+            sides = [[r for r in rows if r["kind"] == "spark"], [r for r in rows if r["kind"] == "peer"]]
+            if all(sides):
+                best = [min(x, key=lambda r: r["energy_error"]) for x in sides]
+                out[f"peers.{st['scene']}.{key}"] = " / ".join(f"{r['energy_error']:.1e}" for r in best)
+                out[f"peers.{st['scene']}.{key}_k"] = " / ".join(f"{r['constraint']:.0e}" for r in best)
+    for k in ("load_average_1min_at_start", "load_average_1min_at_end"):
+        if d.get(k) is not None:
+            out[f"peers.{k.replace('load_average_1min_', 'load_')}"] = f"{d[k]:g}"
     return out
 
 
@@ -257,7 +280,8 @@ MARK = re.compile(r"<!--([\w.:+\-]+)-->(.*?)<!--/-->")
 # --- what a mark is checked against -----------------------------------------------------------
 TIMING = re.compile(r"^(run\.(wall|cpu|probe_ratio)|energy\.fig4\.\w+\.seconds|wp\.sps\.\w+"
                     r"|wp\.[\w-]+\.(ratios|peer_ratios|rhs)|peer\.(spark2|ratios)"
-                    r"|peers\.[\w-]+\.(speedups|long)|scaling\.(step|first_call)\.\d+)$")
+                    r"|peers\.[\w-]+\.(speedups|long|speedups_fast|long_fast|vlong|vlong_fast|best_peer|long_best_peer)"
+                    r"|peers\.load_(at_start|at_end)|scaling\.(step|first_call)\.\d+)$")
 RESIDUAL = re.compile(r"^claims\.[\w.-]+\.(max|negctl_min)$")
 #: the report file each key's value comes from (its first dotted part)
 SOURCE = {"convergence": "convergence.json", "claims": "claims.json", "energy": "energy.json",
