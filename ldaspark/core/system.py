@@ -208,45 +208,17 @@ class LagrangianSystem:
 
     # --- symbolic derivation ----------------------------------------------------------------
     def _derive(self):
-        reps = _real_dummies(self)
-        if reps:        # Abs, sign, re, im: differentiate as functions of real variables
-            saved = self.q, self.v, self.t, self.L, self.k, self.N
-            self.q, self.v = [reps.get(x, x) for x in self.q], [reps.get(x, x) for x in self.v]
-            self.t = reps.get(self.t, self.t)
-            self.L, self.k = self.L.xreplace(reps), self.k.xreplace(reps)
-            self.N = None if self.N is None else self.N.xreplace(reps)
-            try:
-                self._derive_exprs()
-            finally:
-                self.q, self.v, self.t, self.L, self.k, self.N = saved
-            back = {d: x for x, d in reps.items()}
-            for key in _DERIVED:
-                val = getattr(self, key, None)
-                if val is not None:
-                    setattr(self, key, val.xreplace(back))
-            return
-        self._derive_exprs()
+        # sparse derivatives (symengine where it differentiates every node), kept in
+        # self._derived and made sympy attributes (self.L_vv, ...) at first use by __getattr__
+        from .derive import install
+        install(self)
 
-    def _derive_exprs(self):
-        q, v, t = self.q, self.v, self.t
-        L = self.L
-        self.L_q = sympy.Matrix([sympy.diff(L, x) for x in q])
-        self.L_v = sympy.Matrix([sympy.diff(L, x) for x in v])
-        self.L_vv = self.L_v.jacobian(v)
-        self.L_vq = self.L_v.jacobian(q)          # d(grad_v L)/dq
-        self.L_qq = self.L_q.jacobian(q)
-        self.L_vt = self.L_v.diff(t)
-        self.L_t = sympy.diff(L, t)
-        self.k_q = self.k.jacobian(q)
-        self.k_v = self.k.jacobian(v)             # K of (1d)
-        self.k_t = self.k.diff(t)
-        lam = sympy.Matrix(self.lam)
-        self.R_lam = -self.k_v.T * lam            # h R_i = -K_i^T (h Psi_i)
-        self.R_q = self.R_lam.jacobian(q)
-        self.R_v = self.R_lam.jacobian(v)
-        self.energy_expr = (self.L_v.T * sympy.Matrix(v))[0, 0] - L  # (8)
-        if self.N is not None:
-            self.N_q, self.N_v, self.N_psi = self.N.jacobian(q), self.N.jacobian(v), self.N.jacobian(self.psi)
+    def __getattr__(self, name):
+        d = self.__dict__.get("_derived")
+        if d is None or name not in _DERIVED or name not in d:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        val = self.__dict__[name] = d.get(name)
+        return val
 
     def _fn(self, key, exprs, backend: Backend, with_lam=False):
         self._fn_exprs.setdefault(key, exprs)
