@@ -46,7 +46,10 @@ FORM = {form!r}
 def header(name, form, n, m) -> str:
     """The module header; the system's name appears only as a quoted, escaped literal made of
     printable ASCII without quotes or backslashes (a name is user text: it must not be able to
-    end the docstring and become code)."""
+    end the docstring and become code). ``name`` None: no name, as in the model modules, which
+    every system with the same expressions shares (``model_key``)."""
+    if name is None:
+        return HEADER.replace(" for system {name}", "").format(form=form, n=int(n), m=int(m))
     safe = "".join(ch if (" " <= ch <= "~" and ch not in "\"'\\") else "?" for ch in str(name))[:80]
     return HEADER.format(name=repr(safe), form=form, n=int(n), m=int(m))
 
@@ -191,7 +194,12 @@ def _named(fn):
 
 @_named
 def mechanical_source(system, parts) -> str:
-    """The mechanical model module (section 7) from M, U, K, b (``fast.mechanical_parts``)."""
+    """The mechanical model module (section 7) from M, U, K, b (``fast.mechanical_parts``),
+    generated once per content (``model_key``) and then served from the model cache."""
+    return _source_by_content(_key_or_none(system, "mechanical", parts), lambda: _mechanical_source(system, parts))
+
+
+def _mechanical_source(system, parts) -> str:
     n, m = system.n, parts["K"].rows
     S = _Symbols(system, m)
     U = S(parts["U"])
@@ -214,7 +222,7 @@ def mechanical_source(system, parts) -> str:
         _emit("kq_of", "MATX_SIG", ["t", "q", "v", "out"], tq + S.uv, _mat_outputs("out", kq), pr),
         _emit("KTlam_q", "MATX_SIG", ["t", "q", "lam", "out"], tq + S.ul, _mat_outputs("out", KTl_q), pr),
     ]
-    head = header(system.name, "mechanical", n, m)
+    head = header(None, "mechanical", n, m)
     src = head + "\n\n" + "\n\n\n".join(fns) + "\n\n\nMODEL = (N_DOF, grad_U, hess_U, K_of, b_of, kq_of, KTlam_q, U_of)\n" \
         + _pattern_literal("HESS_PATTERN", (H, KTl_q))
     return _check(src, system.name)
@@ -233,7 +241,12 @@ def _pattern_literal(name, mats):
 def general_source(system) -> str:
     """The general model module: grad_v L, grad_q L, k, K = k_v (point_val), the Jacobian blocks
     L_vv, L_vq, L_qq, k_q, d(K^T lam)/dq, d(K^T lam)/dv (point_jac) and the energy (8), all from
-    the expressions ``LagrangianSystem`` derived (so the same equations as the generic path)."""
+    the expressions ``LagrangianSystem`` derived (so the same equations as the generic path);
+    generated once per content (``model_key``) and then served from the model cache."""
+    return _source_by_content(_key_or_none(system, "general"), lambda: _general_source(system))
+
+
+def _general_source(system) -> str:
     n, m = system.n, system.m
     S = _Symbols(system, m)
     S.sub |= dict(zip(system.lam, S.lam))
@@ -255,12 +268,94 @@ def general_source(system) -> str:
               tqv + S.ul, jac, pr),
         _emit("energy", "E_SIG", ["t", "q", "v"], tqv, [], pr, ret=E),
     ]
-    head = header(system.name, "general", n, m)
+    head = header(None, "general", n, m)
     fns += _nonideal_functions(system, S, pr)
     src = head + "\n\n" + "\n\n\n".join(fns) + \
         f"\n\n\nHAS_N = {nonideal_term(system) is not None}\n" \
         "MODEL = (N_DOF, point_val, point_jac, energy, nonideal, nonideal_jac, HAS_N)\n"
     return _check(src, system.name)
+
+
+# --- the model's content key ----------------------------------------------------------------------
+_GENERATOR: list = []
+
+
+def _generator_id() -> str:
+    """What else the generated text depends on: the code of this generator and of the derivation,
+    and the versions of sympy (its printer, its cse) and symengine."""
+    if not _GENERATOR:
+        import hashlib
+        import os
+
+        import symengine
+        h = hashlib.sha256()
+        here = os.path.dirname(os.path.abspath(__file__))
+        for path in (os.path.join(here, "codegen.py"), os.path.join(here, "..", "core", "derive.py")):
+            with open(path, "rb") as f:
+                h.update(f.read())
+        h.update(f"sympy {sympy.__version__} symengine {symengine.__version__}".encode())
+        _GENERATOR.append(h.hexdigest())
+    return _GENERATOR[0]
+
+
+def model_key(system, form: str, parts: dict | None = None) -> str:
+    """sha256 of a canonical text of everything the generated source is a function of: the form,
+    n and m, L, k, the nonideal term N, the parameters, the mechanical parts (``parts``, else the
+    system's own), with the system's symbols renamed by position (_t, _q<i>, _v<i>, _p<i>, keeping
+    their assumptions, which derivatives depend on), and the generator (``_generator_id``); not
+    the system's name nor its symbols' names, so that a renamed system is the same model."""
+    import hashlib
+    n, m = system.n, system.m
+    ren = {system.t: sympy.Symbol("_t", **system.t.assumptions0)}
+    ren |= {x: sympy.Symbol(f"_q{i}", **x.assumptions0) for i, x in enumerate(system.q)}
+    ren |= {x: sympy.Symbol(f"_v{i}", **x.assumptions0) for i, x in enumerate(system.v)}
+    ren |= {x: sympy.Symbol(f"_p{i}", **x.assumptions0) for i, x in enumerate(system.psi)}
+    ren |= {x: sympy.Symbol(f"_k{i}", **x.assumptions0) for i, x in enumerate(getattr(system, "params", ()))}
+
+    def canon(e):
+        if e is None:
+            return "None"
+        if isinstance(e, dict):
+            return "{" + ", ".join(f"{k!r}: {canon(v)}" for k, v in sorted(e.items(), key=lambda kv: str(kv[0]))) + "}"
+        if isinstance(e, (list, tuple, sympy.MatrixBase)):
+            e = sympy.ImmutableMatrix(e)
+        if not isinstance(e, sympy.Basic):
+            raise TypeError(type(e).__name__)
+        return sympy.srepr(e.xreplace(ren))
+    N = nonideal_term(system)
+    text = "\n".join([_generator_id(), str(form), str(int(n)), str(int(m)), canon(system.L), canon(system.k),
+                      canon(None if N is None else sympy.Matrix(N)), canon(list(getattr(system, "params", ()))),
+                      canon(parts if parts is not None else system.mechanical)])
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _key_or_none(system, form, parts=None):
+    """``model_key``, or None for a system whose parts have no canonical text (numpy arrays in
+    ``system.mechanical``, say): such a model is generated every time, as before."""
+    try:
+        return model_key(system, form, parts)
+    except (TypeError, ValueError, AttributeError, sympy.SympifyError):
+        return None
+
+
+def _source_by_content(key, generate) -> str:
+    """The model source of content ``key``: from this process's memory, else from the model cache
+    (``cache.stored_source``: only the bytes this user's process recorded), else generated and
+    stored (``key`` None: generated)."""
+    from . import cache
+    if key is None:
+        return generate()
+    src = _SOURCES.get(key)
+    if src is None:
+        src = cache.stored_source(key)
+        if src is None:
+            src = generate()
+            cache.store_source(key, src)
+        _SOURCES[key] = src
+    return src
+
+
+_SOURCES: dict[str, str] = {}
 
 
 def _nonideal_functions(system, S, pr):
