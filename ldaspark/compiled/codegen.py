@@ -84,7 +84,7 @@ def nonideal_term(system):
 def _emit(name, sig, args, unpack, outputs, printer, ret=None):
     """Source of one eagerly compiled function: ``outputs`` = [(target, expr)] (zeros dropped),
     after CSE; ``ret`` an expression to return instead (a str: returned as written)."""
-    outputs = [(tg, e) for tg, e in outputs if not (isinstance(e, str) or e.is_zero)] + \
+    outputs = [(tg, e) for tg, e in outputs if not (isinstance(e, str) or e == 0)] + \
         [(tg, e) for tg, e in outputs if isinstance(e, str)]
     literal = ret if isinstance(ret, str) else None
     ret = None if literal is not None else ret
@@ -120,35 +120,56 @@ def _only_generated_symbols(name, exprs):
         raise NotCompilableError(f"{name}: symbols other than t, q, v, lam, psi in the model ({shown})")
 
 
+class Sparse(dict):
+    """The structurally nonzero entries {(i, j): expr} of a rows x cols matrix (``shape``)."""
+
+    def __init__(self, shape, entries=()):
+        super().__init__(entries)
+        self.shape = shape
+
+    @property
+    def free_symbols(self):
+        return set().union(*(e.free_symbols for e in self.values()))
+
+
+def _nonzero(A):
+    """[((i, j), expr)] of the structurally nonzero entries of A (a Matrix, a list or a Sparse),
+    row by row."""
+    if isinstance(A, Sparse):
+        return sorted(((k, e) for k, e in A.items() if e != 0), key=lambda ke: ke[0])
+    if not isinstance(A, sympy.MatrixBase):
+        A = sympy.Matrix(A)
+    # structural zeros (``is_zero`` would ask the assumptions of every entry: seconds at n = 121)
+    return [((i, j), A[i, j]) for i in range(A.rows) for j in range(A.cols) if A[i, j] != 0]
+
+
 def _sym_outputs(out, H, n):
     """Entries of a symmetric n x n matrix: upper triangle computed, lower copied."""
     res, copies = [], []
-    for i in range(n):
-        for j in range(i, n):
-            e = H[i, j]
-            if e.is_zero:
-                continue
-            res.append((f"{out}[{i}, {j}]", e))
-            if i != j:
-                copies.append((f"{out}[{j}, {i}]", f"{out}[{i}, {j}]"))
+    for (i, j), e in _nonzero(H):
+        if j < i:
+            continue
+        res.append((f"{out}[{i}, {j}]", e))
+        if i != j:
+            copies.append((f"{out}[{j}, {i}]", f"{out}[{i}, {j}]"))
     return res + copies
 
 
-def _jacobian(f, xs):
-    """d f_i / d x_j, differentiating only where x_j occurs in f_i (n^2 -> nonzeros sympy diffs)."""
-    J = sympy.zeros(len(f), len(xs))
-    pos = {x: j for j, x in enumerate(xs)}
-    for i, e in enumerate(f):
-        for x in e.free_symbols & pos.keys():
-            J[i, pos[x]] = sympy.diff(e, x)
-    return J
+def _jacobian(f, xs, symmetric=False):
+    """d f_i / d x_j (a Sparse), differentiating only where x_j occurs in f_i, by terms
+    (``derive.sparse_jacobian``: symengine where it takes every node)."""
+    from ..core.derive import sparse_jacobian
+    f = list(f)
+    return Sparse((len(f), len(xs)), sparse_jacobian(f, xs, symmetric=symmetric))
 
 
 def _mat_outputs(out, A):
-    return [(f"{out}[{i}, {j}]", A[i, j]) for i in range(A.rows) for j in range(A.cols)]
+    return [(f"{out}[{i}, {j}]", e) for (i, j), e in _nonzero(A)]
 
 
 def _vec_outputs(out, a):
+    if isinstance(a, Sparse):
+        return [(f"{out}[{i}]", e) for (i, _), e in _nonzero(a)]
     return [(f"{out}[{i}]", a[i]) for i in range(len(a))]
 
 
@@ -207,8 +228,9 @@ def _mechanical_source(system, parts) -> str:
     b = sympy.Matrix(parts["b"]).xreplace(S.sub)
     if (K.free_symbols | b.free_symbols | U.free_symbols) & set(S.v):
         raise NotCompilableError(f"{system.name}: U, K or b depend on v")
-    gU = sympy.Matrix([sympy.diff(U, x) if x in U.free_symbols else 0 for x in S.q])
-    H = _jacobian(gU, S.q)
+    from ..core.derive import sparse_gradient_hessian
+    g, h = sparse_gradient_hessian(U, S.q)
+    gU, H = Sparse((n, 1), {(j, 0): e for j, e in g.items()}), Sparse((n, n), h)
     kq = _jacobian(K * sympy.Matrix(S.v) + b, S.q)
     KTl_q = _jacobian(K.T * sympy.Matrix(S.lam), S.q)
     pr = _Printer({"fully_qualified_modules": True})
@@ -232,7 +254,7 @@ def _pattern_literal(name, mats):
     """``name = ((i, j), ...)``: the structurally nonzero entries of the union of ``mats`` (n x n),
     the pattern of the q-blocks of the Newton matrix that ``compiled.sparse`` factors by blocks;
     integers only, printed by us."""
-    pairs = sorted({(i, j) for A in mats for i in range(A.rows) for j in range(A.cols) if not A[i, j].is_zero})
+    pairs = sorted({ij for A in mats for ij, _ in _nonzero(A)})
     body = ", ".join(f"({int(i)}, {int(j)})" for i, j in pairs)
     return f"{name} = ({body}{',' if len(pairs) == 1 else ''})\n"
 
@@ -250,10 +272,10 @@ def _general_source(system) -> str:
     n, m = system.n, system.m
     S = _Symbols(system, m)
     S.sub |= dict(zip(system.lam, S.lam))
-    X = lambda M: sympy.Matrix(M).xreplace(S.sub)          # noqa: E731
-    Lv, Lq, k, kv = X(system.L_v), X(system.L_q), X(system.k), X(system.k_v)
-    Lvv, Lvq, Lqq, kq = X(system.L_vv), X(system.L_vq), X(system.L_qq), X(system.k_q)
-    KTl_q, KTl_v = -X(system.R_q), -X(system.R_v)           # R = -K^T lam
+    X = lambda name: _derived_entries(system, name, S.sub)  # noqa: E731
+    Lv, Lq, k, kv = X("L_v"), X("L_q"), sympy.Matrix(system.k).xreplace(S.sub), X("k_v")
+    Lvv, Lvq, Lqq, kq = X("L_vv"), X("L_vq"), X("L_qq"), X("k_q")
+    KTl_q, KTl_v = _neg(X("R_q")), _neg(X("R_v"))           # R = -K^T lam
     E = S(system.energy_expr)
     pr = _Printer({"fully_qualified_modules": True})
     tqv = S.ut + S.uq + S.uv
@@ -356,6 +378,28 @@ def _source_by_content(key, generate) -> str:
 
 
 _SOURCES: dict[str, str] = {}
+
+
+def _derived_entries(system, name, sub) -> Sparse:
+    """The nonzero entries of the system's derived matrix ``name`` in the generated symbols:
+    from the sparse derivation (``system._derived``) unless the attribute was replaced since."""
+    d = system.__dict__.get("_derived")
+    own = system.__dict__.get(name)
+    if d is not None and name in d and (own is None or own is d._sympy.get(name)):
+        nz, shape = d.nonzeros(name), d.shapes[name]
+    else:
+        A = sympy.Matrix(getattr(system, name))
+        nz, shape = dict(_nonzero(A)), A.shape
+    conv, out = {}, {}
+    for key, e in nz.items():
+        if id(e) not in conv:
+            conv[id(e)] = e.xreplace(sub)
+        out[key] = conv[id(e)]
+    return Sparse(shape, out)
+
+
+def _neg(A: Sparse) -> Sparse:
+    return Sparse(A.shape, {k: -e for k, e in A.items()})
 
 
 def _nonideal_functions(system, S, pr):

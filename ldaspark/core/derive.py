@@ -308,6 +308,37 @@ def derive(L, k, q, v, t, lam, N=None, psi=None, engine: str = "auto") -> Derive
     return Derived(eng, shapes, entries)
 
 
+def sparse_jacobian(f, xs, symmetric=False) -> dict:
+    """{(i, j): d f_i / d x_j} (sympy) of the nonzero entries, for sympy expressions f and
+    symbols xs, with the algorithm and engine of ``derive``; ``symmetric``: f is a gradient in
+    xs, only j >= i is differentiated and (j, i) is the same object."""
+    f = [sympy.sympify(e) for e in f]
+    eng, conv = _engine_for([e for e in f if not e.is_zero] or [sympy.S.Zero], xs)
+    X = {conv(x): j for j, x in enumerate(xs)}
+    J = _jacobian({i: conv(e) for i, e in enumerate(f) if not e.is_zero}, X, eng, symmetric)
+    return _back(J, eng)
+
+
+def sparse_gradient_hessian(U, xs) -> tuple[dict, dict]:
+    """({j: dU/dx_j}, {(i, j): d^2 U / dx_i dx_j}) (sympy, nonzero entries only) of a sympy
+    expression U."""
+    U = sympy.sympify(U)
+    eng, conv = _engine_for([U], xs)
+    X = {conv(x): j for j, x in enumerate(xs)}
+    g = _partials(conv(U), X, eng)
+    H = _jacobian(g, X, eng, symmetric=True)
+    return _back(g, eng), _back(H, eng)
+
+
+def _back(entries: dict, eng) -> dict:
+    conv, out = {}, {}
+    for key, e in entries.items():
+        if id(e) not in conv:
+            conv[id(e)] = eng.to_sympy(e)
+        out[key] = conv[id(e)]
+    return out
+
+
 def install(system, engine: str = "auto") -> Derived:
     """Derive the expressions of ``system`` (a LagrangianSystem: L, k, q, v, t, lam, N, psi) and
     keep them in ``system._derived``; ``LagrangianSystem`` turns each into its sympy attribute
