@@ -90,7 +90,7 @@ def _emit(name, sig, args, unpack, outputs, printer, ret=None):
     ret = None if literal is not None else ret
     exprs = [e for _, e in outputs if not isinstance(e, str)] + ([ret] if ret is not None else [])
     _only_generated_symbols(name, exprs)
-    reps, red = sympy.cse(exprs, symbols=sympy.numbered_symbols("_x"), optimizations="basic") if exprs else ([], [])
+    reps, red = _cse(exprs) if exprs else ([], [])
     used = set().union(*(e.free_symbols for e in exprs)) if exprs else set()
     # _jit: numba.njit(sig, cache=True) with the trusted cache of ldaspark.compiled.cache
     lines = [f"@_jit(_mt.{sig}, nogil=True, _nrt=False)", f"def {name}({', '.join(args)}):"]
@@ -105,6 +105,24 @@ def _emit(name, sig, args, unpack, outputs, printer, ret=None):
             k += 1
     lines.append(f"    return {printer.doprint(red[k])}" if ret is not None else f"    return {literal or ''}".rstrip())
     return "\n".join(lines)
+
+
+def _cse(exprs):
+    """Common subexpressions: (replacements [(_x<i>, expr)], reduced expressions), sympy objects.
+    By symengine's cse where the derivation's engine takes every node (the bicycle's model: seconds
+    instead of a minute; sympy's "basic" preprocessing, factor_terms, was most of its time), else
+    by sympy's."""
+    from ..core.derive import _engine_for
+    eng, conv = _engine_for(exprs, [])
+    if eng.name != "symengine":
+        return sympy.cse(exprs, symbols=sympy.numbered_symbols("_x"), optimizations="basic")
+    import symengine
+    se_reps, se_red = symengine.cse([conv(e) for e in exprs])
+    rule = dict(eng.back)
+    for i, (x, _) in enumerate(se_reps):
+        rule[x._sympy_()] = sympy.Symbol(f"_x{i}")
+    back = lambda e: e._sympy_().xreplace(rule)          # noqa: E731
+    return [(rule[x._sympy_()], back(e)) for x, e in se_reps], [back(e) for e in se_red]
 
 
 _GENERATED = re.compile(r"^_(t|[qvlp][0-9]+)$")
