@@ -538,6 +538,46 @@ def check_kernel_cache(modules) -> None:
         _KERNEL_CACHE_OK.append(path)
 
 
+# --- generated sources by the model's content ------------------------------------------------------
+_SOURCE_STORE = "ldaspark_sources"
+_KEY = re.compile(r"^[0-9a-f]{64}$")
+
+
+def _source_store():
+    d = cache_dir()
+    return TrustedStore(d, _SOURCE_STORE, "")
+
+
+def stored_source(key: str) -> str | None:
+    """The generated model source recorded under the content key ``key`` (``codegen.model_key``),
+    or None: a file ``__pycache__/ldaspark_sources.<key>.py`` of the cache directory, returned
+    only if its bytes are the ones this user's process recorded (``TrustedStore.read``: read once
+    without following links, owner checked, sha256 compared with the record; anything else is
+    deleted), so that a renamed or rebuilt system skips code generation, and nothing another user
+    could write is ever executed."""
+    if not _KEY.match(str(key)):
+        return None
+    try:
+        raw = _source_store().read(f"{_SOURCE_STORE}.{key}.py")
+    except (OSError, CacheDirectoryError):
+        return None
+    if raw is None:
+        return None
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return None
+
+
+def store_source(key: str, source: str) -> None:
+    """Record ``source`` under the content key ``key`` (written atomically, never through a link,
+    its digest recorded); a cache that cannot be written only costs the code generation again."""
+    if not _KEY.match(str(key)):
+        return
+    with contextlib.suppress(OSError, CacheDirectoryError):
+        _source_store().write(f"{_SOURCE_STORE}.{key}.py", source.encode("utf-8"))
+
+
 # --- loading a generated module ---------------------------------------------------------------
 _MODULES: dict[str, types.ModuleType] = {}
 

@@ -46,7 +46,10 @@ FORM = {form!r}
 def header(name, form, n, m) -> str:
     """The module header; the system's name appears only as a quoted, escaped literal made of
     printable ASCII without quotes or backslashes (a name is user text: it must not be able to
-    end the docstring and become code)."""
+    end the docstring and become code). ``name`` None: no name, as in the model modules, which
+    every system with the same expressions shares (``model_key``)."""
+    if name is None:
+        return HEADER.replace(" for system {name}", "").format(form=form, n=int(n), m=int(m))
     safe = "".join(ch if (" " <= ch <= "~" and ch not in "\"'\\") else "?" for ch in str(name))[:80]
     return HEADER.format(name=repr(safe), form=form, n=int(n), m=int(m))
 
@@ -81,13 +84,13 @@ def nonideal_term(system):
 def _emit(name, sig, args, unpack, outputs, printer, ret=None):
     """Source of one eagerly compiled function: ``outputs`` = [(target, expr)] (zeros dropped),
     after CSE; ``ret`` an expression to return instead (a str: returned as written)."""
-    outputs = [(tg, e) for tg, e in outputs if not (isinstance(e, str) or e.is_zero)] + \
+    outputs = [(tg, e) for tg, e in outputs if not (isinstance(e, str) or e == 0)] + \
         [(tg, e) for tg, e in outputs if isinstance(e, str)]
     literal = ret if isinstance(ret, str) else None
     ret = None if literal is not None else ret
     exprs = [e for _, e in outputs if not isinstance(e, str)] + ([ret] if ret is not None else [])
     _only_generated_symbols(name, exprs)
-    reps, red = sympy.cse(exprs, symbols=sympy.numbered_symbols("_x"), optimizations="basic") if exprs else ([], [])
+    reps, red = _cse(exprs) if exprs else ([], [])
     used = set().union(*(e.free_symbols for e in exprs)) if exprs else set()
     # _jit: numba.njit(sig, cache=True) with the trusted cache of ldaspark.compiled.cache
     lines = [f"@_jit(_mt.{sig}, nogil=True, _nrt=False)", f"def {name}({', '.join(args)}):"]
@@ -104,6 +107,24 @@ def _emit(name, sig, args, unpack, outputs, printer, ret=None):
     return "\n".join(lines)
 
 
+def _cse(exprs):
+    """Common subexpressions: (replacements [(_x<i>, expr)], reduced expressions), sympy objects.
+    By symengine's cse where the derivation's engine takes every node (the bicycle's model: seconds
+    instead of a minute; sympy's "basic" preprocessing, factor_terms, was most of its time), else
+    by sympy's."""
+    from ..core.derive import _engine_for
+    eng, conv = _engine_for(exprs, [])
+    if eng.name != "symengine":
+        return sympy.cse(exprs, symbols=sympy.numbered_symbols("_x"), optimizations="basic")
+    import symengine
+    se_reps, se_red = symengine.cse([conv(e) for e in exprs])
+    rule = dict(eng.back)
+    for i, (x, _) in enumerate(se_reps):
+        rule[x._sympy_()] = sympy.Symbol(f"_x{i}")
+    back = lambda e: e._sympy_().xreplace(rule)          # noqa: E731
+    return [(rule[x._sympy_()], back(e)) for x, e in se_reps], [back(e) for e in se_red]
+
+
 _GENERATED = re.compile(r"^_(t|[qvlp][0-9]+)$")
 
 
@@ -117,35 +138,56 @@ def _only_generated_symbols(name, exprs):
         raise NotCompilableError(f"{name}: symbols other than t, q, v, lam, psi in the model ({shown})")
 
 
+class Sparse(dict):
+    """The structurally nonzero entries {(i, j): expr} of a rows x cols matrix (``shape``)."""
+
+    def __init__(self, shape, entries=()):
+        super().__init__(entries)
+        self.shape = shape
+
+    @property
+    def free_symbols(self):
+        return set().union(*(e.free_symbols for e in self.values()))
+
+
+def _nonzero(A):
+    """[((i, j), expr)] of the structurally nonzero entries of A (a Matrix, a list or a Sparse),
+    row by row."""
+    if isinstance(A, Sparse):
+        return sorted(((k, e) for k, e in A.items() if e != 0), key=lambda ke: ke[0])
+    if not isinstance(A, sympy.MatrixBase):
+        A = sympy.Matrix(A)
+    # structural zeros (``is_zero`` would ask the assumptions of every entry: seconds at n = 121)
+    return [((i, j), A[i, j]) for i in range(A.rows) for j in range(A.cols) if A[i, j] != 0]
+
+
 def _sym_outputs(out, H, n):
     """Entries of a symmetric n x n matrix: upper triangle computed, lower copied."""
     res, copies = [], []
-    for i in range(n):
-        for j in range(i, n):
-            e = H[i, j]
-            if e.is_zero:
-                continue
-            res.append((f"{out}[{i}, {j}]", e))
-            if i != j:
-                copies.append((f"{out}[{j}, {i}]", f"{out}[{i}, {j}]"))
+    for (i, j), e in _nonzero(H):
+        if j < i:
+            continue
+        res.append((f"{out}[{i}, {j}]", e))
+        if i != j:
+            copies.append((f"{out}[{j}, {i}]", f"{out}[{i}, {j}]"))
     return res + copies
 
 
-def _jacobian(f, xs):
-    """d f_i / d x_j, differentiating only where x_j occurs in f_i (n^2 -> nonzeros sympy diffs)."""
-    J = sympy.zeros(len(f), len(xs))
-    pos = {x: j for j, x in enumerate(xs)}
-    for i, e in enumerate(f):
-        for x in e.free_symbols & pos.keys():
-            J[i, pos[x]] = sympy.diff(e, x)
-    return J
+def _jacobian(f, xs, symmetric=False):
+    """d f_i / d x_j (a Sparse), differentiating only where x_j occurs in f_i, by terms
+    (``derive.sparse_jacobian``: symengine where it takes every node)."""
+    from ..core.derive import sparse_jacobian
+    f = list(f)
+    return Sparse((len(f), len(xs)), sparse_jacobian(f, xs, symmetric=symmetric))
 
 
 def _mat_outputs(out, A):
-    return [(f"{out}[{i}, {j}]", A[i, j]) for i in range(A.rows) for j in range(A.cols)]
+    return [(f"{out}[{i}, {j}]", e) for (i, j), e in _nonzero(A)]
 
 
 def _vec_outputs(out, a):
+    if isinstance(a, Sparse):
+        return [(f"{out}[{i}]", e) for (i, _), e in _nonzero(a)]
     return [(f"{out}[{i}]", a[i]) for i in range(len(a))]
 
 
@@ -191,7 +233,12 @@ def _named(fn):
 
 @_named
 def mechanical_source(system, parts) -> str:
-    """The mechanical model module (section 7) from M, U, K, b (``fast.mechanical_parts``)."""
+    """The mechanical model module (section 7) from M, U, K, b (``fast.mechanical_parts``),
+    generated once per content (``model_key``) and then served from the model cache."""
+    return _source_by_content(_key_or_none(system, "mechanical", parts), lambda: _mechanical_source(system, parts))
+
+
+def _mechanical_source(system, parts) -> str:
     n, m = system.n, parts["K"].rows
     S = _Symbols(system, m)
     U = S(parts["U"])
@@ -199,8 +246,9 @@ def mechanical_source(system, parts) -> str:
     b = sympy.Matrix(parts["b"]).xreplace(S.sub)
     if (K.free_symbols | b.free_symbols | U.free_symbols) & set(S.v):
         raise NotCompilableError(f"{system.name}: U, K or b depend on v")
-    gU = sympy.Matrix([sympy.diff(U, x) if x in U.free_symbols else 0 for x in S.q])
-    H = _jacobian(gU, S.q)
+    from ..core.derive import sparse_gradient_hessian
+    g, h = sparse_gradient_hessian(U, S.q)
+    gU, H = Sparse((n, 1), {(j, 0): e for j, e in g.items()}), Sparse((n, n), h)
     kq = _jacobian(K * sympy.Matrix(S.v) + b, S.q)
     KTl_q = _jacobian(K.T * sympy.Matrix(S.lam), S.q)
     pr = _Printer({"fully_qualified_modules": True})
@@ -214,7 +262,7 @@ def mechanical_source(system, parts) -> str:
         _emit("kq_of", "MATX_SIG", ["t", "q", "v", "out"], tq + S.uv, _mat_outputs("out", kq), pr),
         _emit("KTlam_q", "MATX_SIG", ["t", "q", "lam", "out"], tq + S.ul, _mat_outputs("out", KTl_q), pr),
     ]
-    head = header(system.name, "mechanical", n, m)
+    head = header(None, "mechanical", n, m)
     src = head + "\n\n" + "\n\n\n".join(fns) + "\n\n\nMODEL = (N_DOF, grad_U, hess_U, K_of, b_of, kq_of, KTlam_q, U_of)\n" \
         + _pattern_literal("HESS_PATTERN", (H, KTl_q))
     return _check(src, system.name)
@@ -224,7 +272,7 @@ def _pattern_literal(name, mats):
     """``name = ((i, j), ...)``: the structurally nonzero entries of the union of ``mats`` (n x n),
     the pattern of the q-blocks of the Newton matrix that ``compiled.sparse`` factors by blocks;
     integers only, printed by us."""
-    pairs = sorted({(i, j) for A in mats for i in range(A.rows) for j in range(A.cols) if not A[i, j].is_zero})
+    pairs = sorted({ij for A in mats for ij, _ in _nonzero(A)})
     body = ", ".join(f"({int(i)}, {int(j)})" for i, j in pairs)
     return f"{name} = ({body}{',' if len(pairs) == 1 else ''})\n"
 
@@ -233,14 +281,19 @@ def _pattern_literal(name, mats):
 def general_source(system) -> str:
     """The general model module: grad_v L, grad_q L, k, K = k_v (point_val), the Jacobian blocks
     L_vv, L_vq, L_qq, k_q, d(K^T lam)/dq, d(K^T lam)/dv (point_jac) and the energy (8), all from
-    the expressions ``LagrangianSystem`` derived (so the same equations as the generic path)."""
+    the expressions ``LagrangianSystem`` derived (so the same equations as the generic path);
+    generated once per content (``model_key``) and then served from the model cache."""
+    return _source_by_content(_key_or_none(system, "general"), lambda: _general_source(system))
+
+
+def _general_source(system) -> str:
     n, m = system.n, system.m
     S = _Symbols(system, m)
     S.sub |= dict(zip(system.lam, S.lam))
-    X = lambda M: sympy.Matrix(M).xreplace(S.sub)          # noqa: E731
-    Lv, Lq, k, kv = X(system.L_v), X(system.L_q), X(system.k), X(system.k_v)
-    Lvv, Lvq, Lqq, kq = X(system.L_vv), X(system.L_vq), X(system.L_qq), X(system.k_q)
-    KTl_q, KTl_v = -X(system.R_q), -X(system.R_v)           # R = -K^T lam
+    X = lambda name: _derived_entries(system, name, S.sub)  # noqa: E731
+    Lv, Lq, k, kv = X("L_v"), X("L_q"), sympy.Matrix(system.k).xreplace(S.sub), X("k_v")
+    Lvv, Lvq, Lqq, kq = X("L_vv"), X("L_vq"), X("L_qq"), X("k_q")
+    KTl_q, KTl_v = _neg(X("R_q")), _neg(X("R_v"))           # R = -K^T lam
     E = S(system.energy_expr)
     pr = _Printer({"fully_qualified_modules": True})
     tqv = S.ut + S.uq + S.uv
@@ -255,12 +308,116 @@ def general_source(system) -> str:
               tqv + S.ul, jac, pr),
         _emit("energy", "E_SIG", ["t", "q", "v"], tqv, [], pr, ret=E),
     ]
-    head = header(system.name, "general", n, m)
+    head = header(None, "general", n, m)
     fns += _nonideal_functions(system, S, pr)
     src = head + "\n\n" + "\n\n\n".join(fns) + \
         f"\n\n\nHAS_N = {nonideal_term(system) is not None}\n" \
         "MODEL = (N_DOF, point_val, point_jac, energy, nonideal, nonideal_jac, HAS_N)\n"
     return _check(src, system.name)
+
+
+# --- the model's content key ----------------------------------------------------------------------
+_GENERATOR: list = []
+
+
+def _generator_id() -> str:
+    """What else the generated text depends on: the code of this generator and of the derivation,
+    and the versions of sympy (its printer, its cse) and symengine."""
+    if not _GENERATOR:
+        import hashlib
+        import os
+
+        import symengine
+        h = hashlib.sha256()
+        here = os.path.dirname(os.path.abspath(__file__))
+        for path in (os.path.join(here, "codegen.py"), os.path.join(here, "..", "core", "derive.py")):
+            with open(path, "rb") as f:
+                h.update(f.read())
+        h.update(f"sympy {sympy.__version__} symengine {symengine.__version__}".encode())
+        _GENERATOR.append(h.hexdigest())
+    return _GENERATOR[0]
+
+
+def model_key(system, form: str, parts: dict | None = None) -> str:
+    """sha256 of a canonical text of everything the generated source is a function of: the form,
+    n and m, L, k, the nonideal term N, the parameters, the mechanical parts (``parts``, else the
+    system's own), with the system's symbols renamed by position (_t, _q<i>, _v<i>, _p<i>, keeping
+    their assumptions, which derivatives depend on), and the generator (``_generator_id``); not
+    the system's name nor its symbols' names, so that a renamed system is the same model."""
+    import hashlib
+    n, m = system.n, system.m
+    ren = {system.t: sympy.Symbol("_t", **system.t.assumptions0)}
+    ren |= {x: sympy.Symbol(f"_q{i}", **x.assumptions0) for i, x in enumerate(system.q)}
+    ren |= {x: sympy.Symbol(f"_v{i}", **x.assumptions0) for i, x in enumerate(system.v)}
+    ren |= {x: sympy.Symbol(f"_p{i}", **x.assumptions0) for i, x in enumerate(system.psi)}
+    ren |= {x: sympy.Symbol(f"_k{i}", **x.assumptions0) for i, x in enumerate(getattr(system, "params", ()))}
+
+    def canon(e):
+        if e is None:
+            return "None"
+        if isinstance(e, dict):
+            return "{" + ", ".join(f"{k!r}: {canon(v)}" for k, v in sorted(e.items(), key=lambda kv: str(kv[0]))) + "}"
+        if isinstance(e, (list, tuple, sympy.MatrixBase)):
+            e = sympy.ImmutableMatrix(e)
+        if not isinstance(e, sympy.Basic):
+            raise TypeError(type(e).__name__)
+        return sympy.srepr(e.xreplace(ren))
+    N = nonideal_term(system)
+    text = "\n".join([_generator_id(), str(form), str(int(n)), str(int(m)), canon(system.L), canon(system.k),
+                      canon(None if N is None else sympy.Matrix(N)), canon(list(getattr(system, "params", ()))),
+                      canon(parts if parts is not None else system.mechanical)])
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _key_or_none(system, form, parts=None):
+    """``model_key``, or None for a system whose parts have no canonical text (numpy arrays in
+    ``system.mechanical``, say): such a model is generated every time, as before."""
+    try:
+        return model_key(system, form, parts)
+    except (TypeError, ValueError, AttributeError, sympy.SympifyError):
+        return None
+
+
+def _source_by_content(key, generate) -> str:
+    """The model source of content ``key``: from this process's memory, else from the model cache
+    (``cache.stored_source``: only the bytes this user's process recorded), else generated and
+    stored (``key`` None: generated)."""
+    from . import cache
+    if key is None:
+        return generate()
+    src = _SOURCES.get(key)
+    if src is None:
+        src = cache.stored_source(key)
+        if src is None:
+            src = generate()
+            cache.store_source(key, src)
+        _SOURCES[key] = src
+    return src
+
+
+_SOURCES: dict[str, str] = {}
+
+
+def _derived_entries(system, name, sub) -> Sparse:
+    """The nonzero entries of the system's derived matrix ``name`` in the generated symbols:
+    from the sparse derivation (``system._derived``) unless the attribute was replaced since."""
+    d = system.__dict__.get("_derived")
+    own = system.__dict__.get(name)
+    if d is not None and name in d and (own is None or own is d._sympy.get(name)):
+        nz, shape = d.nonzeros(name), d.shapes[name]
+    else:
+        A = sympy.Matrix(getattr(system, name))
+        nz, shape = dict(_nonzero(A)), A.shape
+    conv, out = {}, {}
+    for key, e in nz.items():
+        if id(e) not in conv:
+            conv[id(e)] = e.xreplace(sub)
+        out[key] = conv[id(e)]
+    return Sparse(shape, out)
+
+
+def _neg(A: Sparse) -> Sparse:
+    return Sparse(A.shape, {k: -e for k, e in A.items()})
 
 
 def _nonideal_functions(system, S, pr):

@@ -39,7 +39,8 @@ import sympy
 from .backend import Backend, SingularMatrixError, fmt
 from .errors import InputError, NewtonError
 from .spark import Solution, SparkMethod
-from .system import _NONSMOOTH, LagrangianSystem, _arr, real_jacobian
+from .derive import real_jacobian
+from .system import _NONSMOOTH, LagrangianSystem, _arr
 from .families import euler_i, euler_ii, gauss, lobatto_iiia_iiib
 
 FIXED_NAMES = ("lobatto-iiia-iiib-2-leapfrog", "lobatto-iiia-iiib-2-modified",

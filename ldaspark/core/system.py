@@ -15,6 +15,7 @@ import numpy as np
 import sympy
 
 from .backend import Backend, fmt
+from .derive import install, real_jacobian  # noqa: F401 (real_jacobian: its old home)
 from .errors import InconsistentInitialDataError, SingularSaddleError, SystemDefinitionError
 
 
@@ -46,30 +47,6 @@ _DERIVED = ("L_q", "L_v", "L_vv", "L_vq", "L_qq", "L_vt", "L_t", "k_q", "k_v", "
 #: DiracDelta) are evaluated almost everywhere: DiracDelta is 0 off its support, which is what
 #: Newton's matrix needs (the Jacobian of a piecewise-smooth residual)
 _NONSMOOTH = {"DiracDelta": lambda *a: 0, "Heaviside": lambda x, *a: 0 if x < 0 else (1 if x > 0 else 0.5)}
-
-
-def _real_dummies(system) -> dict:
-    """{symbol: real Dummy} when L, k or N contain Abs, sign, re, im or arg (whose derivatives
-    with respect to a complex symbol are unprintable Derivative(re(x), x) terms), else {}."""
-    fns = (sympy.Abs, sympy.sign, sympy.re, sympy.im, sympy.arg)
-    exprs = [system.L, system.k] + ([system.N] if system.N is not None else [])
-    if not any(e.has(*fns) for e in exprs):
-        return {}
-    syms = [x for x in list(system.q) + list(system.v) + [system.t]
-            if isinstance(x, sympy.Symbol) and not x.is_real]
-    return {x: sympy.Dummy(x.name, real=True) for x in syms}
-
-
-def real_jacobian(exprs, wrt, symbols):
-    """``exprs.jacobian(wrt)`` with Abs, sign, re, im, arg differentiated as functions of real
-    variables (``symbols``: every symbol of exprs that is a coordinate), as ``_derive`` does."""
-    exprs = sympy.Matrix(exprs)
-    fns = (sympy.Abs, sympy.sign, sympy.re, sympy.im, sympy.arg)
-    if not exprs.has(*fns):
-        return exprs.jacobian(list(wrt))
-    reps = {x: sympy.Dummy(x.name, real=True) for x in symbols if isinstance(x, sympy.Symbol) and not x.is_real}
-    J = exprs.xreplace(reps).jacobian([reps.get(x, x) for x in wrt])
-    return J.xreplace({d: x for x, d in reps.items()})
 
 
 class LagrangianSystem:
@@ -169,8 +146,12 @@ class LagrangianSystem:
                 raise SystemDefinitionError(f"nonideal term N contains symbols other than t, q, v, psi: "
                                             f"{sorted(map(str, extra))}")
         self._derive()
-        _check_functions([(key, getattr(self, key)) for key in _DERIVED if getattr(self, key, None) is not None],
-                         derived=True)
+        d = self._derived
+        if d.engine == "sympy":
+            # symengine differentiates only the functions of _SE_NODES, whose derivatives stay
+            # among them; sympy's (Abs, sign, sinc, ...) are checked, sparse, not made attributes
+            _check_functions([(f"{key}{ij}", e) for key in _DERIVED if key in d
+                              for ij, e in d.nonzeros(key).items()], derived=True)
         if self.mechanical is not None:
             check_mechanical(self, self.mechanical)
         _check_build(self)
@@ -252,45 +233,16 @@ class LagrangianSystem:
 
     # --- symbolic derivation ----------------------------------------------------------------
     def _derive(self):
-        reps = _real_dummies(self)
-        if reps:        # Abs, sign, re, im: differentiate as functions of real variables
-            saved = self.q, self.v, self.t, self.L, self.k, self.N
-            self.q, self.v = [reps.get(x, x) for x in self.q], [reps.get(x, x) for x in self.v]
-            self.t = reps.get(self.t, self.t)
-            self.L, self.k = self.L.xreplace(reps), self.k.xreplace(reps)
-            self.N = None if self.N is None else self.N.xreplace(reps)
-            try:
-                self._derive_exprs()
-            finally:
-                self.q, self.v, self.t, self.L, self.k, self.N = saved
-            back = {d: x for x, d in reps.items()}
-            for key in _DERIVED:
-                val = getattr(self, key, None)
-                if val is not None:
-                    setattr(self, key, val.xreplace(back))
-            return
-        self._derive_exprs()
+        # sparse derivatives (symengine where it differentiates every node), kept in
+        # self._derived and made sympy attributes (self.L_vv, ...) at first use by __getattr__
+        install(self)
 
-    def _derive_exprs(self):
-        q, v, t = self.q, self.v, self.t
-        L = self.L
-        self.L_q = sympy.Matrix([sympy.diff(L, x) for x in q])
-        self.L_v = sympy.Matrix([sympy.diff(L, x) for x in v])
-        self.L_vv = self.L_v.jacobian(v)
-        self.L_vq = self.L_v.jacobian(q)          # d(grad_v L)/dq
-        self.L_qq = self.L_q.jacobian(q)
-        self.L_vt = self.L_v.diff(t)
-        self.L_t = sympy.diff(L, t)
-        self.k_q = self.k.jacobian(q)
-        self.k_v = self.k.jacobian(v)             # K of (1d)
-        self.k_t = self.k.diff(t)
-        lam = sympy.Matrix(self.lam)
-        self.R_lam = -self.k_v.T * lam            # h R_i = -K_i^T (h Psi_i)
-        self.R_q = self.R_lam.jacobian(q)
-        self.R_v = self.R_lam.jacobian(v)
-        self.energy_expr = (self.L_v.T * sympy.Matrix(v))[0, 0] - L  # (8)
-        if self.N is not None:
-            self.N_q, self.N_v, self.N_psi = self.N.jacobian(q), self.N.jacobian(v), self.N.jacobian(self.psi)
+    def __getattr__(self, name):
+        d = self.__dict__.get("_derived")
+        if d is None or name not in _DERIVED or name not in d:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        val = self.__dict__[name] = d.get(name)
+        return val
 
     def _fn(self, key, exprs, backend: Backend, with_lam=False):
         self._fn_exprs.setdefault(key, exprs)
@@ -531,7 +483,8 @@ def _check_build(system) -> None:
             f"{system.name}: L or k contain physical units ({', '.join(units[:6])}); the integrator works on "
             "numbers: substitute the quantities by their values in one consistent unit system")
     system.lvv_problem = None
-    flat = [v for i, v in enumerate(system.v) if all(e == 0 for e in system.L_vv.row(i))]
+    rows = {i for i, _ in system._derived.positions("L_vv")}     # sparse: L_vv is not made here
+    flat = [v for i, v in enumerate(system.v) if i not in rows]
     if flat:
         absent = [v for v in flat if v not in system.L.free_symbols]
         which = (f"L does not contain the velocities {', '.join(map(str, absent))}" if len(absent) == len(flat)
