@@ -191,13 +191,16 @@ def run_mutant(mutant: Mutant | None, hints_only=False, project=PROJECT, timeout
     ``targets``), return its record."""
     t = time.time()
     label = mutant.id if mutant is not None else "none"
-    with tempfile.TemporaryDirectory(prefix=f"ldaspark-mut-{label}-") as tmp:
+    import re
+    safe = re.sub(r"[^A-Za-z0-9_.-]", "_", label)[:60]      # generated ids hold '/', ':', '>'
+    with tempfile.TemporaryDirectory(prefix=f"ldaspark-mut-{safe}-") as tmp:
         if snapshot is not None:
             root = _unpack_snapshot(snapshot, pathlib.Path(tmp) / "proj")
         else:
             root = copy_project(pathlib.Path(tmp) / "proj", project)
         if mutant is not None:
-            path = apply_mutant(root, mutant)
+            # a generated mutant (``mutgen.GenMutant``) splices itself in at a fixed offset
+            path = mutant.apply(root) if hasattr(mutant, "apply") else apply_mutant(root, mutant)
             try:
                 compile(path.read_text(), str(path), "exec")
             except SyntaxError as exc:
@@ -238,7 +241,7 @@ def _record(m: Mutant | None, status, first, seconds) -> dict:
 
 
 def run_catalogue(mutants, jobs=2, hints_only=False, progress=None, exclude=(), where=None,
-                  checkpoint=None, targets=None) -> list[dict]:
+                  checkpoint=None, targets=None, timeout=TIMEOUT) -> list[dict]:
     """Run mutants, ``jobs`` at a time on this machine (threads, each driving a pytest process), or
     as work units on a Dask cluster (``where``: a scheduler address or client; each unit carries
     a snapshot of the project); records in catalogue order. ``checkpoint``
@@ -249,7 +252,7 @@ def run_catalogue(mutants, jobs=2, hints_only=False, progress=None, exclude=(), 
     targets = targets or {}
     remote = where is not None and where != "local"
     snapshot = project_snapshot() if remote else None
-    units = [Unit(m.id, run_mutant, (m, hints_only, PROJECT, TIMEOUT, targets.get(m.id), tuple(exclude), snapshot))
+    units = [Unit(m.id, run_mutant, (m, hints_only, PROJECT, timeout, targets.get(m.id), tuple(exclude), snapshot))
              for m in mutants]
 
     def done(name, rec):
@@ -262,6 +265,16 @@ def run_catalogue(mutants, jobs=2, hints_only=False, progress=None, exclude=(), 
         with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, jobs)) as ex:
             recs = run_resumable(units, checkpoint, where=ex, on_done=done)
     return [recs[m.id] for m in mutants]
+
+
+def require_tests(project=PROJECT):
+    """Refuse at once (one line, exit 2) when the project's tests are not beside the package: an
+    installed wheel has ``ldaspark/`` only, and every mutant would fail after minutes."""
+    have = [d for d in ("tests", "verification") if any((pathlib.Path(project) / d).glob("test_*.py"))]
+    if len(have) < 2:
+        raise CatalogueError(f"ldaspark mutants needs the repository's tests (tests/ and verification/ beside the "
+                             f"ldaspark package; none under {project}): run it from a git checkout or an unpacked "
+                             "source distribution")
 
 
 # --- reports ----------------------------------------------------------------------------------
@@ -324,9 +337,24 @@ def add_arguments(parser):
     add_scheduler_argument(parser)
     parser.add_argument("--fresh", action="store_true",
                         help="do not resume from the checkpoint of an interrupted run (OUTDIR/mutation.partial.jsonl)")
+    parser.add_argument("--generated", nargs="+", default=None, metavar="MODULE",
+                        help="generated operator mutants of these modules (ldaspark/core/validate.py or "
+                             "ldaspark.core.validate) instead of the catalogue; writes mutation-generated.md/json")
+    parser.add_argument("--tests", default=None,
+                        help="with --generated: comma-separated test files to map by coverage (default: those "
+                             "importing the modules, plus the verdict-rule tests)")
+    parser.add_argument("--limit", type=int, default=None, help="with --generated: run only the first N mutants")
+    parser.add_argument("--mutant-timeout", type=float, default=None,
+                        help="with --generated: seconds per mutant (default 300)")
 
 
 def run(args) -> int:
+    require_tests()
+    if getattr(args, "generated", None):
+        from .mutgen import run_generated
+        if args.jobs < 1:
+            raise CatalogueError("--jobs must be >= 1")
+        return run_generated(args)
     problems = snippet_problems()
     if problems:
         raise CatalogueError("mutation catalogue out of date: " + "; ".join(problems))
