@@ -344,6 +344,8 @@ def add_arguments(parser):
                         help="with --generated: comma-separated test files to map by coverage (default: those "
                              "importing the modules, plus the verdict-rule tests)")
     parser.add_argument("--limit", type=int, default=None, help="with --generated: run only the first N mutants")
+    parser.add_argument("--sample", type=int, default=None,
+                        help="with --generated: a fixed, evenly spaced sample of N mutants per module")
     parser.add_argument("--mutant-timeout", type=float, default=None,
                         help="with --generated: seconds per mutant (default 300)")
 

@@ -299,7 +299,7 @@ import sys, coverage, pytest
 data, source, *files = sys.argv[1:]
 cov = coverage.Coverage(data_file=data, source=[source], branch=True)
 import json
-dur = {}
+dur, bad = {}, {}
 class Ctx:
     def pytest_runtest_setup(self, item):
         cov.switch_context(item.nodeid)
@@ -307,12 +307,14 @@ class Ctx:
         cov.switch_context("")
     def pytest_runtest_logreport(self, report):
         dur[report.nodeid] = dur.get(report.nodeid, 0.0) + report.duration
+        if report.failed:
+            bad[report.nodeid] = report.when
 cov.start()
 rc = pytest.main(["-q", "-p", "no:cacheprovider", *files], plugins=[Ctx()])
 cov.stop()
 cov.save()
 with open(data + ".durations.json", "w") as fh:
-    json.dump(dur, fh)
+    json.dump({"durations": dur, "failed": bad}, fh)
 sys.exit(int(rc))
 '''
 
@@ -406,25 +408,32 @@ def run_generated(args) -> int:
         cmap, cstats, rc, csec, tail = coverage_map(files, tests, cfile, reuse=True)
     else:
         cmap, cstats, rc, csec, tail = coverage_map(files, tests, cfile)
-        if rc in (0, 5):
-            kfile.write_text(key + "\n")
-    if rc not in (0, 5):
-        last = tail.strip().splitlines()[-1] if tail.strip() else ""
-        raise MutgenError(f"the mapped tests do not pass on the unmutated package (pytest exit {rc}): {last}")
-    print(f"[mutgen] coverage map in {csec:.0f} s", flush=True)
     dpath = pathlib.Path(str(cfile) + ".durations.json")
-    durations = json.loads(dpath.read_text()) if dpath.is_file() else {}
+    runinfo = json.loads(dpath.read_text()) if dpath.is_file() else {}
+    durations, failed = runinfo.get("durations", {}), runinfo.get("failed", {})
+    if rc not in (0, 1, 5) or (rc == 1 and not failed):
+        last = tail.strip().splitlines()[-1] if tail.strip() else ""
+        raise MutgenError(f"the mapped tests could not run on the unmutated package (pytest exit {rc}): {last}")
+    if failed:
+        # a test that fails (or errors) without any mutant cannot tell a mutant: left out
+        print(f"[mutgen] {len(failed)} mapped tests fail on the unmutated package and are not used: "
+              + ", ".join(sorted(failed)[:5]) + (" ..." if len(failed) > 5 else ""), flush=True)
+    if rc in (0, 1):
+        kfile.write_text(key + "\n")
+    print(f"[mutgen] coverage map in {csec:.0f} s", flush=True)
     todo, recs_fixed, targets = [], {}, {}
     for m in mutants:
         if m.id in equivalent:
             recs_fixed[m.id] = _rec(m, "equivalent", None, 0.0, equivalent[m.id])
             continue
-        ids = cmap.get(m.file, {}).get(m.line, [])
+        ids = [i for i in cmap.get(m.file, {}).get(m.line, []) if i not in failed]
         if not ids:
             recs_fixed[m.id] = _rec(m, "not-covered", None, 0.0)
             continue
         targets[m.id] = _order_tests(ids, durations)
         todo.append(m)
+    if getattr(args, "sample", None):
+        todo = sample(todo, files, args.sample)
     if getattr(args, "limit", None):
         todo = todo[:args.limit]
     ck = Checkpoint(outdir / "mutation-generated.partial.jsonl",
@@ -459,6 +468,19 @@ def run_generated(args) -> int:
     return 0 if not surv else 1
 
 
+def sample(mutants, files, n):
+    """A fixed sample of at most ``n`` mutants per module, evenly spaced in source order (the same
+    for the same source: a partial run that can be repeated and extended)."""
+    out = []
+    for f in files:
+        ms = [m for m in mutants if m.file == f]
+        if len(ms) <= n:
+            out += ms
+            continue
+        out += [ms[(i * len(ms)) // n] for i in range(n)]
+    return out
+
+
 def _rec(m, status, first, seconds, why=None):
     r = {"mutant": m.id, "file": f"ldaspark/{m.file}", "description": m.description, "category": m.category,
          "killed": status == "killed", "status": status, "first_failing_test": first, "seconds": seconds}
@@ -491,14 +513,15 @@ def write_reports(recs, files, cstats, outdir, command, seconds, tests):
     atomic_write_json(pathlib.Path(outdir) / "mutation-generated.json", doc)
     lines = ["# Generated mutants", "", f"Tool: {TOOL}, version {VERSION}. Reproduce: `{command}`; "
              f"wall time {seconds / 60:.1f} min.", "",
-             "| module | generated | killed | equivalent | surviving | not covered | invalid | score | lines | branches |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             "| module | generated | run | killed | equivalent | surviving | not covered | invalid | not run | score | lines | branches |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for f, c in per.items():
         cv = c.get("coverage", {"lines": [0, 0], "branches": [0, 0]})
         pct = lambda a, b: f"{100 * a / b:.0f}% ({a}/{b})" if b else "-"  # noqa: E731
         sc = "-" if c["score"] is None else f"{100 * c['score']:.1f}%"
-        lines.append(f"| {f} | {c['generated']} | {c['killed']} | {c['equivalent']} | {c['survived'] + c['timeout']} | "
-                     f"{c['not-covered']} | {c['invalid']} | {sc} | {pct(*cv['lines'])} | {pct(*cv['branches'])} |")
+        run = c["killed"] + c["survived"] + c["timeout"] + c["invalid"]
+        lines.append(f"| {f} | {c['generated']} | {run} | {c['killed']} | {c['equivalent']} | {c['survived'] + c['timeout']} | "
+                     f"{c['not-covered']} | {c['invalid']} | {c['not-run']} | {sc} | {pct(*cv['lines'])} | {pct(*cv['branches'])} |")
     lines += ["", "Score: killed / (killed + surviving + not covered); equivalent and invalid mutants excluded.",
               "", "## Surviving and not covered", ""]
     for r in recs:
