@@ -128,3 +128,12 @@ def test_mutants_without_the_repositorys_tests_refuse_at_once(tmp_path, extra):
     require_tests(ROOT)
     with pytest.raises(CatalogueError):
         require_tests(tmp_path)
+
+
+def test_the_quick_generated_mutants_still_exist_and_name_a_test():
+    ms, targets = mutgen.quick_generated()
+    assert len(ms) == len(mutgen.QUICK_GENERATED) >= 3
+    for m in ms:
+        (test,) = targets[m.id]
+        assert (ROOT / test.split("::")[0]).is_file()
+        assert m.original != m.replacement

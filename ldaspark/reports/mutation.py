@@ -14,7 +14,8 @@ failure (``-x``), with the mutant's hint files first. A mutant is
 Writes ``mutation.md`` (table and the command that reproduces it) and ``mutation.json`` (list of
 {mutant, file, description, category, killed, status, first_failing_test, seconds}) to
 ``--outdir`` (default ``reports``). ``--quick`` runs the fixed subset ``QUICK`` with the hint
-files only. The catalogue checks its own snippets first (each must occur exactly once).
+files only, and the generated mutants ``mutgen.QUICK_GENERATED`` against their one test each.
+``--generated MODULE...``: generated operator mutants instead (``ldaspark.reports.mutgen``). The catalogue checks its own snippets first (each must occur exactly once).
 """
 from __future__ import annotations
 
@@ -367,6 +368,12 @@ def run(args) -> int:
             raise CatalogueError(f"unknown mutant id {exc.args[0]!r}") from None
     else:
         mutants = [by_id(x) for x in QUICK] if args.quick else list(CATALOGUE)
+    targets = {}
+    if args.quick and not args.only:
+        # a fixed sample of generated mutants, each run against the one test that must kill it
+        from .mutgen import quick_generated
+        gen, targets = quick_generated()
+        mutants += gen
     if args.jobs < 1:
         raise CatalogueError("--jobs must be >= 1")
     t = time.time()
@@ -382,7 +389,7 @@ def run(args) -> int:
         ck.discard()
     try:
         recs = run_catalogue(mutants, args.jobs, hints_only=args.quick, progress=progress, exclude=exclude,
-                             where=getattr(args, "scheduler", None), checkpoint=ck)
+                             where=getattr(args, "scheduler", None), checkpoint=ck, targets=targets)
     except UnitsFailed as exc:
         raise UnitsFailed(exc.failed, exc.results, kept=ck.path) from None
     cmd = "ldaspark mutants" + (" --quick" if args.quick else "") + (f" --only {args.only}" if args.only else "") \

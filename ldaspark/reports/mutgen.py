@@ -481,6 +481,33 @@ def sample(mutants, files, n):
     return out
 
 
+#: generated mutants that join ``ldaspark mutants --quick`` (and so ``.ci/run``), each with the one
+#: test that must kill it: a fault of each kind the verdict-rule tests were written for
+VT = "tests/test_verdict_rules.py::"
+QUICK_GENERATED = (
+    ("reports/stability_stiff.py::stiff_run::arithmetic::/->*#3",
+     VT + "test_the_growth_ratio_is_second_half_over_first_half"),
+    ("theory/audit.py::_theorem1_summary::call-swap::max->min#1", VT + "test_theorem1_summary_rule_directly"),
+    ("theory/claims_paper.py::section5_records::call-swap::max->min#1",
+     VT + "test_the_antisymmetry_record_fails_when_one_identity_fails[f_minus]"),
+    ("core/workers.py::source_fingerprint::compare::in->not in#1",
+     VT + "test_the_files_under_dirs_change_the_fingerprint"),
+)
+
+
+def quick_generated() -> tuple[list, dict]:
+    """(mutants, {id: [test]}) of ``QUICK_GENERATED``; an id no longer generated is an error
+    (the code moved: update the list)."""
+    out, targets = [], {}
+    for mid, test in QUICK_GENERATED:
+        found = [m for m in generate(mid.split("::")[0]) if m.id == mid]
+        if not found:
+            raise MutgenError(f"quick generated mutant {mid} is no longer generated (update QUICK_GENERATED)")
+        out.append(found[0])
+        targets[mid] = [test]
+    return out, targets
+
+
 def _rec(m, status, first, seconds, why=None):
     r = {"mutant": m.id, "file": f"ldaspark/{m.file}", "description": m.description, "category": m.category,
          "killed": status == "killed", "status": status, "first_failing_test": first, "seconds": seconds}
