@@ -345,6 +345,9 @@ def add_arguments(parser):
                         help="with --generated: comma-separated test files to map by coverage (default: those "
                              "importing the modules, plus the verdict-rule tests)")
     parser.add_argument("--limit", type=int, default=None, help="with --generated: run only the first N mutants")
+    parser.add_argument("--keep-killed", default=None, metavar="JSON",
+                        help="with --generated: take the mutants killed in this earlier mutation-generated.json "
+                             "as killed (their killing test still exists) and run the others")
     parser.add_argument("--sample", type=int, default=None,
                         help="with --generated: a fixed, evenly spaced sample of N mutants per module")
     parser.add_argument("--mutant-timeout", type=float, default=None,

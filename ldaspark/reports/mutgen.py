@@ -434,6 +434,15 @@ def run_generated(args) -> int:
         todo.append(m)
     if getattr(args, "sample", None):
         todo = sample(todo, files, args.sample)
+    if getattr(args, "keep_killed", None):
+        # adding tests cannot revive a killed mutant while its killing test is still there:
+        # reuse those records, run the rest (the survivors and the mutants not yet run)
+        prev = json.loads(pathlib.Path(args.keep_killed).read_text())
+        for r in prev.get("mutants", []):
+            test = (r.get("first_failing_test") or "").split("::")[0]
+            if r["status"] == "killed" and test and (PROJECT / test).is_file() and r["mutant"] in {m.id for m in todo}:
+                recs_fixed[r["mutant"]] = dict(r, previous_run=True)
+        todo = [m for m in todo if m.id not in recs_fixed]
     if getattr(args, "limit", None):
         todo = todo[:args.limit]
     ck = Checkpoint(outdir / "mutation-generated.partial.jsonl",
@@ -451,10 +460,12 @@ def run_generated(args) -> int:
     except UnitsFailed as exc:
         raise UnitsFailed(exc.failed, exc.results, kept=ck.path) from None
     ran = {r["mutant"]: r for r in recs}
+    keep_order = {m.id for m in mutants}
+    ran.update({k: v for k, v in recs_fixed.items() if k in keep_order and k not in ran})
     allrecs = []
     for m in mutants:
-        r = ran.get(m.id) or recs_fixed.get(m.id)
-        if r is None:               # left out by --limit
+        r = ran.get(m.id)
+        if r is None:               # left out by --sample / --limit
             r = _rec(m, "not-run", None, 0.0)
         r = dict(r)
         r.update(line=m.line, original=m.original, replacement=m.replacement)
