@@ -377,6 +377,16 @@ def coverage_map(files: list[str], test_files: list[str], datafile, timeout=1800
     return out, stats, rc, time.time() - t, tail
 
 
+def coverage_key(files, tests) -> str:
+    import hashlib
+    h = hashlib.sha256()
+    for rel in sorted(files):
+        h.update(rel.encode() + b"\0" + (PACKAGE / rel).read_bytes())
+    for t in sorted(tests):
+        h.update(t.encode() + b"\0" + (PROJECT / t).read_bytes())
+    return h.hexdigest()
+
+
 def _order_tests(ids, durations=None):
     """The covering tests, fastest first (their durations in the coverage run): a killed mutant
     stops at its first failure, so the cheap tests decide most of them."""
@@ -400,9 +410,9 @@ def run_generated(args) -> int:
         tests = [x.strip() for x in args.tests.split(",") if x.strip()]
     print(f"[mutgen] {len(mutants)} mutants in {len(files)} modules; coverage of {len(tests)} test files ...",
           flush=True)
-    # the coverage map is reused while the package, the tests and the list of test files are
-    # unchanged (it is the run's most expensive single step)
-    key = source_fingerprint("mutgen-coverage", tests, dirs=(PROJECT / "tests", PROJECT / "verification"))
+    # the coverage map is reused while the modules under test and the mapped test files are
+    # unchanged (it is the run's most expensive single step; lines elsewhere do not move)
+    key = coverage_key(files, tests)
     cfile, kfile = outdir / ".mutgen.coverage", outdir / ".mutgen.coverage.key"
     if cfile.is_file() and kfile.is_file() and kfile.read_text().strip() == key:
         cmap, cstats, rc, csec, tail = coverage_map(files, tests, cfile, reuse=True)
@@ -431,14 +441,17 @@ def run_generated(args) -> int:
             recs_fixed[m.id] = _rec(m, "not-covered", None, 0.0)
             continue
         targets[m.id] = _order_tests(ids, durations)
+        if getattr(args, "keep_killed", None):
+            # a rerun after kills were written: the kill files run whole after the selection
+            # (tests newer than the coverage map are not in it)
+            targets[m.id] += [f for f in ALWAYS_MAPPED if (PROJECT / f).is_file() and f not in tests]
         todo.append(m)
     if getattr(args, "sample", None):
         todo = sample(todo, files, args.sample)
     if getattr(args, "keep_killed", None):
         # adding tests cannot revive a killed mutant while its killing test is still there:
         # reuse those records, run the rest (the survivors and the mutants not yet run)
-        prev = json.loads(pathlib.Path(args.keep_killed).read_text())
-        for r in prev.get("mutants", []):
+        for r in _previous_records(args.keep_killed):
             test = (r.get("first_failing_test") or "").split("::")[0]
             if r["status"] == "killed" and test and (PROJECT / test).is_file() and r["mutant"] in {m.id for m in todo}:
                 recs_fixed[r["mutant"]] = dict(r, previous_run=True)
@@ -477,6 +490,21 @@ def run_generated(args) -> int:
     print(f"[mutgen] {sum(r['status'] == 'killed' for r in allrecs)} killed, {len(surv)} surviving, "
           f"{sum(r['status'] == 'equivalent' for r in allrecs)} equivalent -> {outdir}/mutation-generated.md")
     return 0 if not surv else 1
+
+
+def _previous_records(path) -> list:
+    """The records of an earlier run: its mutation-generated.json, or the checkpoint
+    (``*.partial.jsonl``) of an interrupted one."""
+    text = pathlib.Path(path).read_text()
+    if str(path).endswith(".jsonl"):
+        out = []
+        for line in text.splitlines()[1:]:
+            try:
+                out.append(json.loads(line)["value"])
+            except (ValueError, KeyError, TypeError):
+                break
+        return out
+    return json.loads(text).get("mutants", [])
 
 
 def sample(mutants, files, n):
