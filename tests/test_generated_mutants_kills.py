@@ -225,3 +225,28 @@ def test_the_stiff_scenes_are_the_documented_models():
         assert float(k.subs(dict(zip(q + v, q0w + v0w)))) == 0.0
     with pytest.raises(ValueError):
         stiff_scene("stiff-nothing", 7)
+
+
+def test_a_short_stiff_record_splits_at_two_and_missing_stats_count_zero(monkeypatch):
+    """Four energies (n = 3): the halves are the first two and the last two (the minimum half
+    length 2); fallback counts absent from the engine's stats are 0."""
+    from ldaspark.compiled import fast
+    from ldaspark.reports import stability_stiff as st
+    import types
+    import numpy as np
+    rel = [0.0, 1e-6, 1e-5, 1e-5]
+    sol = types.SimpleNamespace(energy=np.array([2 * (1 + x) for x in rel]), constraint=np.zeros(4),
+                                stats={"mean_iterations": 2.0, "max_iterations": 3})
+    monkeypatch.setattr(fast, "fast_integrate", lambda *a, **k: sol)
+    row = st.stiff_run("stiff-particle", "gauss-2", 0.5, n=3)
+    assert row["dE_growth"] == pytest.approx(10.0, rel=1e-6)
+    assert row["full_newton_steps"] == 0 and row["generic_steps"] == 0
+
+
+def test_units_failed_names_five_and_counts_the_rest():
+    from ldaspark.core.workers import UnitsFailed
+    e = UnitsFailed({f"u{i}": "boom" for i in range(7)}, {"ok": 1}, kept="ck.jsonl")
+    msg = str(e)
+    assert msg.startswith("7 work unit(s) failed (1 finished): ")
+    assert "u4: boom" in msg and "u5" not in msg and "(and 2 more)" in msg and "ck.jsonl" in msg
+    assert "more" not in str(UnitsFailed({f"u{i}": "x" for i in range(5)}, {}))
