@@ -250,3 +250,39 @@ def test_units_failed_names_five_and_counts_the_rest():
     assert msg.startswith("7 work unit(s) failed (1 finished): ")
     assert "u4: boom" in msg and "u5" not in msg and "(and 2 more)" in msg and "ck.jsonl" in msg
     assert "more" not in str(UnitsFailed({f"u{i}": "x" for i in range(5)}, {}))
+
+
+# core/workers.py: the executor behind ``where``
+def _plus_one(x):
+    return x + 1
+
+
+def test_a_given_executor_is_used_as_is():
+    """A thread pool passed as ``where`` runs the units itself (a closure, which a process pool
+    could not pickle, runs); "local" with one job runs inline."""
+    import concurrent.futures as cf
+    from ldaspark.core.workers import Unit, run_units
+    k = 41
+    units = [Unit("a", lambda: k + 1)]
+    with cf.ThreadPoolExecutor(1) as ex:
+        assert run_units(units, where=ex) == {"a": 42}
+    assert run_units([Unit("b", _plus_one, (1,))], where="local", jobs=1) == {"b": 2}
+
+
+def test_a_renewed_pool_keeps_its_size_and_close_waits(monkeypatch):
+    import concurrent.futures as cf
+    import time as _time
+    from ldaspark.core import workers
+    made = []
+    real = cf.ProcessPoolExecutor
+
+    def fake(n, mp_context=None):
+        made.append(n)
+        return real(n, mp_context=mp_context)
+    monkeypatch.setattr(workers.cf, "ProcessPoolExecutor", fake)
+    place = workers._Place(None, 1, None, inline_single=False)
+    place.renew()
+    assert made == [1, 1]
+    f = place.executor.submit(_time.sleep, 0.5)
+    place.close()
+    assert f.done()                   # close waits for what was submitted
