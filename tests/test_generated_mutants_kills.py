@@ -286,3 +286,26 @@ def test_a_renewed_pool_keeps_its_size_and_close_waits(monkeypatch):
     f = place.executor.submit(_time.sleep, 0.5)
     place.close()
     assert f.done()                   # close waits for what was submitted
+
+
+def test_a_lost_worker_is_retried_exactly_retries_times():
+    """An executor whose worker is lost on every try of unit "bad": 1 + retries submissions,
+    named with the count; the good unit once."""
+    import concurrent.futures as cf
+    from concurrent.futures.process import BrokenProcessPool
+    from ldaspark.core.workers import Unit, UnitsFailed, run_units
+    calls = []
+
+    class Losing(cf.Executor):
+        def submit(self, fn, /, *args, **kwargs):
+            f = cf.Future()
+            calls.append(args[0] if args else None)
+            if args and args[0] == "bad":
+                f.set_exception(BrokenProcessPool("worker died"))
+            else:
+                f.set_result(fn(*args))
+            return f
+    with pytest.raises(UnitsFailed) as ei:
+        run_units([Unit("bad", str, ("bad",)), Unit("good", str, ("good",))], where=Losing(), retries=2)
+    assert calls.count("bad") == 3 and calls.count("good") == 1
+    assert "worker lost 3 times" in ei.value.failed["bad"] and ei.value.results == {"good": "good"}
