@@ -562,7 +562,8 @@ def summarize(recs, files):
         c = {k: sum(r["status"] == k for r in rs) for k in
              ("killed", "survived", "timeout", "invalid", "equivalent", "not-covered", "not-run")}
         c["generated"] = len(rs)
-        judged = c["killed"] + c["survived"] + c["timeout"] + c["not-covered"]
+        # over the mutants run (the sample); mutants no mapped test executes are counted apart
+        judged = c["killed"] + c["survived"] + c["timeout"]
         c["score"] = round(c["killed"] / judged, 4) if judged else None
         per[f"ldaspark/{f}"] = c
     return per
@@ -588,7 +589,8 @@ def write_reports(recs, files, cstats, outdir, command, seconds, tests):
         run = c["killed"] + c["survived"] + c["timeout"] + c["invalid"]
         lines.append(f"| {f} | {c['generated']} | {run} | {c['killed']} | {c['equivalent']} | {c['survived'] + c['timeout']} | "
                      f"{c['not-covered']} | {c['invalid']} | {c['not-run']} | {sc} | {pct(*cv['lines'])} | {pct(*cv['branches'])} |")
-    lines += ["", "Score: killed / (killed + surviving + not covered); equivalent and invalid mutants excluded.",
+    lines += ["", "Score: killed / (killed + surviving) over the mutants run; equivalent, invalid and not covered "
+              "mutants counted apart.",
               "", "## Surviving and not covered", ""]
     for r in recs:
         if r["status"] in ("survived", "timeout", "not-covered"):
