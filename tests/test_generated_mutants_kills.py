@@ -309,3 +309,36 @@ def test_a_lost_worker_is_retried_exactly_retries_times():
         run_units([Unit("bad", str, ("bad",)), Unit("good", str, ("good",))], where=Losing(), retries=2)
     assert calls.count("bad") == 3 and calls.count("good") == 1
     assert "worker lost 3 times" in ei.value.failed["bad"] and ei.value.results == {"good": "good"}
+
+
+# core/validate.py
+def test_a_system_missing_one_method_is_refused_at_once():
+    import types
+    from ldaspark.core.errors import InputError
+    from ldaspark.core.families import get_method
+    from ldaspark.core.validate import check_system_and_tableau
+    full = dict(n=1, m=0, stage=None, momentum=None, energy=None, saddle_matrix=None)
+    tab = get_method("gauss-1")
+    check_system_and_tableau(types.SimpleNamespace(**full), tab)            # control: all there
+    for a in full:
+        part = {k: v for k, v in full.items() if k != a}
+        with pytest.raises(InputError, match="system must be"):
+            check_system_and_tableau(types.SimpleNamespace(**part), tab)
+    with pytest.raises(InputError, match="tableau must be"):
+        check_system_and_tableau(types.SimpleNamespace(**full), types.SimpleNamespace(arrays=None, s=1.0))
+
+
+def test_storage_size_is_points_times_numbers_times_bytes(monkeypatch):
+    from ldaspark.core import validate as va
+    from ldaspark.core.errors import InputError
+    monkeypatch.setattr(va, "physical_memory", lambda: 2 * 10 ** 9)         # limit 1e9 bytes
+    va.check_storage(10 ** 6, 24)                         # 1e6 * 24 * 40 = 0.96e9: fits
+    with pytest.raises(InputError, match="GiB"):
+        va.check_storage(10 ** 6, 26)                     # 1.04e9: refused
+    va.check_storage(10 ** 6, 8, mp=True)                 # 1e6 * 8 * 120 = 0.96e9
+    with pytest.raises(InputError):
+        va.check_storage(10 ** 6, 9, mp=True)
+    monkeypatch.setattr(va, "physical_memory", lambda: None)            # unknown: 64 GiB
+    va.check_storage(10 ** 8, 17)
+    with pytest.raises(InputError):
+        va.check_storage(10 ** 8, 18)                     # 7.2e10 > 64 * 2**30 = 6.87e10

@@ -442,9 +442,9 @@ def run_generated(args) -> int:
             continue
         targets[m.id] = _order_tests(ids, durations)
         if getattr(args, "keep_killed", None):
-            # a rerun after kills were written: the kill files run whole after the selection
-            # (tests newer than the coverage map are not in it)
-            targets[m.id] += [f for f in ALWAYS_MAPPED if (PROJECT / f).is_file() and f not in tests]
+            # a rerun after kills were written: the kill files run whole, first (tests newer
+            # than the coverage map are not in it; they are written for these survivors)
+            targets[m.id] = [f for f in ALWAYS_MAPPED if (PROJECT / f).is_file() and f not in tests] + targets[m.id]
         todo.append(m)
     if getattr(args, "sample", None):
         todo = sample(todo, files, args.sample)
