@@ -333,8 +333,8 @@ def test_storage_size_is_points_times_numbers_times_bytes(monkeypatch):
     from ldaspark.core.errors import InputError
     monkeypatch.setattr(va, "physical_memory", lambda: 2 * 10 ** 9)         # limit 1e9 bytes
     va.check_storage(10 ** 6, 24)                         # 1e6 * 24 * 40 = 0.96e9: fits
-    with pytest.raises(InputError, match="GiB"):
-        va.check_storage(10 ** 6, 26)                     # 1.04e9: refused
+    with pytest.raises(InputError, match=r"needs about 0\.969 GiB, more than 0\.931 GiB"):
+        va.check_storage(10 ** 6, 26)                     # 1.04e9: refused, sizes in GiB
     va.check_storage(10 ** 6, 8, mp=True)                 # 1e6 * 8 * 120 = 0.96e9
     with pytest.raises(InputError):
         va.check_storage(10 ** 6, 9, mp=True)
@@ -342,3 +342,17 @@ def test_storage_size_is_points_times_numbers_times_bytes(monkeypatch):
     va.check_storage(10 ** 8, 17)
     with pytest.raises(InputError):
         va.check_storage(10 ** 8, 18)                     # 7.2e10 > 64 * 2**30 = 6.87e10
+
+
+def test_positive_and_nonzero_options_of_real_number():
+    from ldaspark.core.errors import InputError
+    from ldaspark.core.validate import real_number
+    assert real_number(0.1, "h", positive=True) == 0.1
+    assert real_number("1e-400", "h", positive=True) == "1e-400"      # below float64, still positive
+    for bad in (0, -0.1, "-1"):
+        with pytest.raises(InputError, match="must be positive"):
+            real_number(bad, "h", positive=True)
+    assert real_number(-2, "h", nonzero=True) == -2
+    with pytest.raises(InputError, match="must be nonzero"):
+        real_number(0.0, "h", nonzero=True)
+    assert real_number(-3, "h") == -3                                  # control: no option, no check
