@@ -356,3 +356,13 @@ def test_positive_and_nonzero_options_of_real_number():
     with pytest.raises(InputError, match="must be nonzero"):
         real_number(0.0, "h", nonzero=True)
     assert real_number(-3, "h") == -3                                  # control: no option, no check
+
+
+def test_bad_values_are_described_briefly():
+    from ldaspark.core.errors import InputError
+    from ldaspark.core.validate import _describe, count
+    assert _describe("x") == "str 'x'"
+    long = _describe("y" * 100)
+    assert long.startswith("str 'yyy") and long.endswith("...") and len(long) == len("str ") + 60 + 3
+    with pytest.raises(InputError, match=r"n must be an integer, got float 2\.5"):
+        count(2.5, "n")
