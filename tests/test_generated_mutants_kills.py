@@ -366,3 +366,23 @@ def test_bad_values_are_described_briefly():
     assert long.startswith("str 'yyy") and long.endswith("...") and len(long) == len("str ") + 60 + 3
     with pytest.raises(InputError, match=r"n must be an integer, got float 2\.5"):
         count(2.5, "n")
+
+
+def test_a_one_step_stiff_record_has_no_second_half(monkeypatch):
+    from ldaspark.compiled import fast
+    from ldaspark.reports import stability_stiff as st
+    import types
+    import numpy as np
+    sol = types.SimpleNamespace(energy=np.array([2.0, 2.0 * (1 + 1e-6)]), constraint=np.zeros(2),
+                                stats={"mean_iterations": 2.0, "max_iterations": 3})
+    monkeypatch.setattr(fast, "fast_integrate", lambda *a, **k: sol)
+    row = st.stiff_run("stiff-particle", "gauss-2", 0.5, n=1)
+    assert row["dE_growth"] == 0.0 and row["max_rel_dE"] == pytest.approx(1e-6)
+
+
+def test_an_unknown_cpu_count_means_one_worker(monkeypatch):
+    from ldaspark.core import workers
+    monkeypatch.setattr(workers.os, "cpu_count", lambda: None)
+    place = workers._Place(None, None, None)
+    assert isinstance(place.executor, workers.InlineExecutor) and not place.own_pool
+    place.close()
