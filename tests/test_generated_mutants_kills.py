@@ -386,3 +386,12 @@ def test_an_unknown_cpu_count_means_one_worker(monkeypatch):
     place = workers._Place(None, None, None)
     assert isinstance(place.executor, workers.InlineExecutor) and not place.own_pool
     place.close()
+
+
+def test_check_choice_returns_the_choice_and_refuses_others():
+    from ldaspark.core.errors import InputError
+    from ldaspark.core.validate import NEWTON_VARIANTS, check_choice
+    assert check_choice("full", "newton", NEWTON_VARIANTS) == "full"
+    for bad in ("Full", 1, None):
+        with pytest.raises(InputError, match="newton must be one of"):
+            check_choice(bad, "newton", NEWTON_VARIANTS)
