@@ -395,3 +395,17 @@ def test_check_choice_returns_the_choice_and_refuses_others():
     for bad in ("Full", 1, None):
         with pytest.raises(InputError, match="newton must be one of"):
             check_choice(bad, "newton", NEWTON_VARIANTS)
+
+
+def test_real_vector_takes_vectors_and_ensembles_only():
+    from ldaspark.core.errors import InputError
+    from ldaspark.core.validate import real_vector
+    rows = [[1, "2"], [3.0, 4]]
+    assert real_vector(rows, "q0") is rows and real_vector([1, 2], "q0") == [1, 2]
+    for bad in ([[[1]]], 1.0, []):
+        with pytest.raises(InputError, match="non-empty vector"):
+            real_vector(bad, "q0")
+    with pytest.raises(InputError, match=r"q0 entry 3"):
+        real_vector([[1, 2], [3, "x"]], "q0")
+    with pytest.raises(InputError, match=r"q0\[1\]"):
+        real_vector([1, "x"], "q0")
