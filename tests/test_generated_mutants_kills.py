@@ -409,3 +409,13 @@ def test_real_vector_takes_vectors_and_ensembles_only():
         real_vector([[1, 2], [3, "x"]], "q0")
     with pytest.raises(InputError, match=r"q0\[1\]"):
         real_vector([1, "x"], "q0")
+
+
+def test_a_repeated_symbol_is_named_alone():
+    import sympy
+    from ldaspark.core.errors import SystemDefinitionError
+    from ldaspark.core.validate import check_symbols
+    x, z, a, b, c = sympy.symbols("x z a b c")
+    with pytest.raises(SystemDefinitionError, match=r"q lists the same symbol twice: x$"):
+        check_symbols([x, x, z], [a, b, c])
+    check_symbols([x, z], [a, b])                      # control
