@@ -419,3 +419,22 @@ def test_a_repeated_symbol_is_named_alone():
     with pytest.raises(SystemDefinitionError, match=r"q lists the same symbol twice: x$"):
         check_symbols([x, x, z], [a, b, c])
     check_symbols([x, z], [a, b])                      # control
+
+
+def test_a_non_finite_initial_point_is_step_zero():
+    import types
+    from ldaspark.core.backend import Backend
+    from ldaspark.core.errors import NonFiniteError
+    from ldaspark.core.validate import finite_initial_point
+    bk = Backend(None)
+
+    def boom(*a):
+        raise ZeroDivisionError("1/x at x = 0")
+    for energy in (boom, lambda *a: float("inf")):
+        sysm = types.SimpleNamespace(energy=energy, constraint=lambda *a: [0.0])
+        with bk.context(), pytest.raises(NonFiniteError) as ei:
+            finite_initial_point(sysm, bk, 0.0, [0.0], [0.0])
+        assert ei.value.step == 0 and ei.value.time == 0.0
+    ok = types.SimpleNamespace(energy=lambda *a: 1.0, constraint=lambda *a: [0.0])
+    with bk.context():
+        finite_initial_point(ok, bk, 0.0, [0.0], [0.0])          # control
