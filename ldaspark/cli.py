@@ -18,7 +18,7 @@ PLUGIN_COMMANDS = {
     "report": ("reports.driver", "write the reports (main job; no arguments = everything)"),
     "verify": ("reports.claims", "run the theorem checks and write the claims ledger"),
     "audit": ("theory.audit", "audit a tableau against Theorem 1's hypotheses and the numerics"),
-    "mutants": ("mutants.mutation", "plant catalogued faults one at a time and check the suite kills each"),
+    "mutants": ("mutants.command", "plant catalogued faults one at a time and check the suite kills each"),
 }
 
 

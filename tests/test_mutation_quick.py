@@ -78,7 +78,7 @@ def test_mutants_exits_nonzero_when_a_mutant_survives(monkeypatch, tmp_path):
     (the runs replaced by fixed records)."""
     import argparse
 
-    from ldaspark.mutants import mutation
+    from ldaspark.mutants import command, mutation
     from ldaspark.mutants.mutation_catalogue import Mutant
 
     def fake(status):
@@ -87,8 +87,8 @@ def test_mutants_exits_nonzero_when_a_mutant_survives(monkeypatch, tmp_path):
             for i, m in enumerate(ms)]
     args = argparse.Namespace(quick=True, outdir=str(tmp_path), jobs=1, only=None, exclude="")
     for status, rc in (("survived", 1), ("timeout", 1), ("invalid", 1), ("killed", 0)):
-        monkeypatch.setattr(mutation, "run_catalogue", fake(status))
-        assert mutation.run(args) == rc, status
+        monkeypatch.setattr(command, "run_catalogue", fake(status))
+        assert command.run(args) == rc, status
     assert "teeth-audit-coarsest-pair" in QUICK and len(QUICK) >= 10
     assert isinstance(by_id(QUICK[-1]), Mutant)
 

@@ -14,7 +14,8 @@ failure (``-x``), with the mutant's hint files first. A mutant is
 Writes ``mutation.md`` (table and the command that reproduces it) and ``mutation.json`` (list of
 {mutant, file, description, category, killed, status, first_failing_test, seconds}) to
 ``--outdir`` (default ``reports``). ``--quick`` runs the fixed subset ``QUICK`` with the hint
-files only. The catalogue checks its own snippets first (each must occur exactly once).
+files only, and the generated mutants ``mutgen.QUICK_GENERATED`` against their one test each.
+``--generated MODULE...``: generated operator mutants instead (``ldaspark.mutants.mutgen``). The catalogue checks its own snippets first (each must occur exactly once).
 """
 from __future__ import annotations
 
@@ -193,13 +194,16 @@ def run_mutant(mutant: Mutant | None, hints_only=False, project=PROJECT, timeout
     ``targets``), return its record."""
     t = time.time()
     label = mutant.id if mutant is not None else "none"
-    with tempfile.TemporaryDirectory(prefix=f"ldaspark-mut-{label}-") as tmp:
+    import re
+    safe = re.sub(r"[^A-Za-z0-9_.-]", "_", label)[:60]      # generated ids hold '/', ':', '>'
+    with tempfile.TemporaryDirectory(prefix=f"ldaspark-mut-{safe}-") as tmp:
         if snapshot is not None:
             root = _unpack_snapshot(snapshot, pathlib.Path(tmp) / "proj")
         else:
             root = copy_project(pathlib.Path(tmp) / "proj", project)
         if mutant is not None:
-            path = apply_mutant(root, mutant)
+            # a generated mutant (``mutgen.GenMutant``) splices itself in at a fixed offset
+            path = mutant.apply(root) if hasattr(mutant, "apply") else apply_mutant(root, mutant)
             try:
                 compile(path.read_text(), str(path), "exec")
             except SyntaxError as exc:
@@ -265,7 +269,7 @@ def _record(m: Mutant | None, status, first, seconds) -> dict:
 
 
 def run_catalogue(mutants, jobs=2, hints_only=False, progress=None, exclude=(), where=None,
-                  checkpoint=None, targets=None) -> list[dict]:
+                  checkpoint=None, targets=None, timeout=TIMEOUT) -> list[dict]:
     """Run mutants, ``jobs`` at a time on this machine (threads, each driving a pytest process), or
     as work units on a Dask cluster (``where``: a scheduler address or client; each unit carries
     a snapshot of the project); records in catalogue order. ``checkpoint``
@@ -276,7 +280,7 @@ def run_catalogue(mutants, jobs=2, hints_only=False, progress=None, exclude=(), 
     targets = targets or {}
     remote = where is not None and where != "local"
     snapshot = project_snapshot() if remote else None
-    units = [Unit(m.id, run_mutant, (m, hints_only, PROJECT, TIMEOUT, targets.get(m.id), tuple(exclude), snapshot))
+    units = [Unit(m.id, run_mutant, (m, hints_only, PROJECT, timeout, targets.get(m.id), tuple(exclude), snapshot))
              for m in mutants]
 
     def done(name, rec):
@@ -298,6 +302,16 @@ def run_catalogue(mutants, jobs=2, hints_only=False, progress=None, exclude=(), 
                 guard.stop()
                 raise
     return [recs[m.id] for m in mutants]
+
+
+def require_tests(project=PROJECT):
+    """Refuse at once (one line, exit 2) when the project's tests are not beside the package: an
+    installed wheel has ``ldaspark/`` only, and every mutant would fail after minutes."""
+    have = [d for d in ("tests", "verification") if any((pathlib.Path(project) / d).glob("test_*.py"))]
+    if len(have) < 2:
+        raise CatalogueError(f"ldaspark mutants needs the repository's tests (tests/ and verification/ beside the "
+                             f"ldaspark package; none under {project}): run it from a git checkout or an unpacked "
+                             "source distribution")
 
 
 # --- reports ----------------------------------------------------------------------------------
@@ -345,68 +359,3 @@ def write_reports(recs, outdir, command, seconds):
         lines.append(f"| {_cell(r['mutant'])} | {_cell(r['file'])} | {_cell(r['description'])} | {k} | "
                      f"{_cell(r['first_failing_test'])} | {r['seconds']:.1f} |")
     atomic_write_text(outdir / "mutation.md", "\n".join(lines) + "\n")
-
-
-# --- CLI ----------------------------------------------------------------------------------------
-def add_arguments(parser):
-    parser.add_argument("--quick", action="store_true",
-                        help=f"only the fixed subset {', '.join(QUICK)}, with their hint files")
-    parser.add_argument("--outdir", default="reports", help="directory for mutation.md and mutation.json")
-    parser.add_argument("--jobs", type=int, default=2, help="mutants run in parallel (default 2)")
-    parser.add_argument("--only", default=None, help="comma-separated mutant ids (default: the whole catalogue)")
-    parser.add_argument("--exclude", default="",
-                        help="comma-separated test files to leave out (which mutants would the rest miss?)")
-    from ..dist.workers import add_scheduler_argument
-    add_scheduler_argument(parser)
-    parser.add_argument("--fresh", action="store_true",
-                        help="do not resume from the checkpoint of an interrupted run (OUTDIR/mutation.partial.jsonl)")
-
-
-def run(args) -> int:
-    problems = snippet_problems()
-    if problems:
-        raise CatalogueError("mutation catalogue out of date: " + "; ".join(problems))
-    if args.only:
-        try:
-            mutants = [by_id(x.strip()) for x in args.only.split(",") if x.strip()]
-        except KeyError as exc:
-            raise CatalogueError(f"unknown mutant id {exc.args[0]!r}") from None
-    else:
-        mutants = [by_id(x) for x in QUICK] if args.quick else list(CATALOGUE)
-    if args.jobs < 1:
-        raise CatalogueError("--jobs must be >= 1")
-    t = time.time()
-
-    def progress(r):
-        print(f"{r['mutant']:32s} {r['status']:9s} {r['seconds']:7.1f}s  {r['first_failing_test'] or ''}",
-              flush=True)
-    exclude = tuple(x.strip() for x in args.exclude.split(",") if x.strip())
-    from ..dist.workers import Checkpoint, UnitsFailed, source_fingerprint
-    ck = Checkpoint(pathlib.Path(args.outdir) / "mutation.partial.jsonl",
-                    source_fingerprint("mutants", args.quick, exclude,
-                                       paths=[PROJECT / name for name in COPY if name != "ldaspark"]))
-    if getattr(args, "fresh", False):
-        ck.discard()
-    try:
-        recs = run_catalogue(mutants, args.jobs, hints_only=args.quick, progress=progress, exclude=exclude,
-                             where=getattr(args, "scheduler", None), checkpoint=ck)
-    except UnitsFailed as exc:
-        raise UnitsFailed(exc.failed, exc.results, kept=ck.path) from None
-    cmd = "ldaspark mutants" + (" --quick" if args.quick else "") + (f" --only {args.only}" if args.only else "") \
-        + (f" --exclude {args.exclude}" if exclude else "") + f" --jobs {args.jobs}"
-    write_reports(recs, args.outdir, cmd, time.time() - t)
-    ck.discard()
-    n_k = sum(r["killed"] for r in recs)
-    print(f"{n_k} of {len(recs)} mutants killed -> {args.outdir}/mutation.md")
-    return 0 if n_k == len(recs) else 1
-
-
-def main(argv=None) -> int:
-    import argparse
-    p = argparse.ArgumentParser(prog="mutants", description=__doc__.splitlines()[0])
-    add_arguments(p)
-    try:
-        return run(p.parse_args(argv))
-    except LdasparkError as exc:
-        print(f"mutants: error: {exc}", file=sys.stderr)
-        return 2

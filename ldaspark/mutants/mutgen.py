@@ -1,0 +1,606 @@
+"""Generated mutants: ``ldaspark mutants --generated MODULE... [--outdir DIR] [--jobs N]``.
+
+Where ``mutation_catalogue`` lists faults chosen by hand, this module generates the standard
+operator mutants of the given modules from their syntax tree, one per site:
+
+* comparisons: ``<`` <-> ``<=``, ``>`` <-> ``>=``, ``==`` <-> ``!=``, ``is`` <-> ``is not``,
+  ``in`` <-> ``not in``;
+* boolean ``and`` <-> ``or``; ``not x`` -> ``x``; unary ``-x`` -> ``x``;
+* arithmetic ``+`` <-> ``-``, ``*`` <-> ``/``, ``//`` -> ``/``, ``**`` -> ``*``, ``%`` -> ``*``;
+* integer constants ``c`` -> ``c + 1`` and ``0`` (``c = 0``: ``-1``); float constants -> ``0.0``
+  (``0.0`` -> ``1.0``); ``True`` <-> ``False``;
+* ``return X`` -> ``return None``;
+* ``all`` <-> ``any``, ``min`` <-> ``max`` (calls by name);
+* slice bounds ``a[i:j]`` -> ``a[i + 1:j]``, ``a[i:j + 1]``.
+
+A mutant is a splice of one token (or one sub-expression) in the file's text, so everything
+else in the file, comments and the catalogue's snippets included, stays byte for byte. Its id
+names the file, the enclosing function, the operator and the text replaced, and a running
+number among identical ones in the function: it survives edits elsewhere in the file.
+
+Per-mutant test selection: the mapped test files (``--tests``; default: every test file that
+imports the module, plus the verdict-rule tests) run once under ``coverage`` with the test's
+node id as dynamic context; each mutant then runs only the tests that execute its line (none:
+not covered, reported as such without a run). Docstrings and ``if __name__ ...`` blocks are
+not mutated. The runner, the checkpoint (``OUTDIR/mutation-generated.partial.jsonl``: resumable)
+and the ``--jobs`` / ``--scheduler`` distribution are those of ``ldaspark.mutants.mutation``.
+
+Equivalent mutants are listed in ``verification/mutants_equivalent.json`` ({id: one-line
+argument}); a run reads it and does not run them. Writes ``mutation-generated.md`` and
+``mutation-generated.json`` to ``--outdir``.
+"""
+from __future__ import annotations
+
+import ast
+import json
+import pathlib
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+
+from ..core.errors import LdasparkError
+from ..core.io import atomic_write_json, atomic_write_text
+from ..dist.workers import Checkpoint, UnitsFailed, source_fingerprint
+from .mutation import TIMEOUT, all_test_files, require_tests, run_catalogue
+
+PACKAGE = pathlib.Path(__file__).resolve().parents[1]
+PROJECT = PACKAGE.parent
+EQUIVALENT = PROJECT / "verification" / "mutants_equivalent.json"
+ALWAYS_MAPPED = ("tests/test_verdict_rules.py", "tests/test_generated_mutants_kills.py")
+BOOKKEEPING = ("tests/test_generated_mutants_kills.py::test_the_equivalents_list_names_existing_mutants_with_an_argument",
+               "tests/test_generated_mutants_kills.py::test_the_quick_generated_mutants_still_exist_and_name_a_test")
+TOOL = "ldaspark.mutants.mutgen (AST operator mutants)"
+VERSION = "1"
+
+
+class MutgenError(LdasparkError):
+    """A module to mutate does not exist or cannot be parsed; coverage is not installed."""
+
+
+@dataclass(frozen=True)
+class GenMutant:
+    id: str
+    file: str                    # relative to ldaspark/
+    line: int
+    start: int                   # character offsets into the file's text
+    end: int
+    original: str
+    replacement: str
+    description: str
+    category: str = "generated"
+    hint: tuple = field(default=())
+
+    def apply(self, root) -> pathlib.Path:
+        path = pathlib.Path(root) / "ldaspark" / self.file
+        text = path.read_text()
+        if text[self.start:self.end] != self.original:
+            raise MutgenError(f"mutant {self.id}: source moved (expected {self.original!r} at line {self.line})")
+        path.write_text(text[:self.start] + self.replacement + text[self.end:])
+        return path
+
+    def mutated_source(self, text: str) -> str:
+        return text[:self.start] + self.replacement + text[self.end:]
+
+
+# --- generation --------------------------------------------------------------------------------
+CMP_SWAP = {ast.Lt: [("<", "<=")], ast.LtE: [("<=", "<")], ast.Gt: [(">", ">=")], ast.GtE: [(">=", ">")],
+            ast.Eq: [("==", "!=")], ast.NotEq: [("!=", "==")]}
+BIN_SWAP = {ast.Add: ("+", "-"), ast.Sub: ("-", "+"), ast.Mult: ("*", "/"), ast.Div: ("/", "*"),
+            ast.FloorDiv: ("//", "/"), ast.Pow: ("**", "*"), ast.Mod: ("%", "*")}
+NAME_SWAP = {"all": "any", "any": "all", "min": "max", "max": "min"}
+
+
+class _Offsets:
+    def __init__(self, text):
+        self.text = text
+        self.starts = [0]
+        for line in text.splitlines(keepends=True):
+            self.starts.append(self.starts[-1] + len(line))
+
+    def at(self, line, col_bytes):
+        # ast columns are UTF-8 byte offsets
+        lt = self.text[self.starts[line - 1]:self.starts[line] if line < len(self.starts) else None]
+        return self.starts[line - 1] + len(lt.encode()[:col_bytes].decode(errors="ignore"))
+
+    def span(self, node):
+        return self.at(node.lineno, node.col_offset), self.at(node.end_lineno, node.end_col_offset)
+
+
+def _docstring_nodes(tree):
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)) and node.body:
+            first = node.body[0]
+            if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant) and isinstance(first.value.value, str):
+                out.add(id(first.value))
+    return out
+
+
+def _gap_token(text, a, b, token):
+    """Offset of ``token`` in text[a:b] outside comments (the operator between two operands)."""
+    gap = text[a:b]
+    i = 0
+    while i < len(gap):
+        if gap[i] == "#":
+            j = gap.find("\n", i)
+            i = len(gap) if j < 0 else j
+            continue
+        if gap.startswith(token, i):
+            # whole-token match: "<" must not be the start of "<=", "*" of "**", "/" of "//"
+            nxt = gap[i + len(token):i + len(token) + 1]
+            prv = gap[i - 1:i] if i else ""
+            if token in ("<", ">") and nxt == "=":
+                i += 1
+                continue
+            if token in ("*", "/") and (nxt == token or prv == token):
+                i += 1
+                continue
+            if token in ("and", "or", "is", "in", "not") and ((nxt.isalnum() or nxt == "_") or (prv.isalnum() or prv == "_")):
+                i += 1
+                continue
+            return a + i
+        i += 1
+    return None
+
+
+def generate(relfile: str, text: str | None = None) -> list[GenMutant]:
+    """The operator mutants of ``ldaspark/relfile`` (module docstring), in source order."""
+    path = PACKAGE / relfile
+    if text is None:
+        if not path.is_file():
+            raise MutgenError(f"no module ldaspark/{relfile}")
+        text = path.read_text()
+    try:
+        tree = ast.parse(text)
+    except SyntaxError as exc:
+        raise MutgenError(f"ldaspark/{relfile} does not parse: {exc}") from None
+    off = _Offsets(text)
+    docs = _docstring_nodes(tree)
+    out: list[GenMutant] = []
+    counts: dict = {}
+
+    def add(scope, line, start, end, repl, what):
+        orig = text[start:end]
+        key = (scope, what, orig, repl)
+        counts[key] = counts.get(key, 0) + 1
+        mid = f"{relfile}::{scope}::{what}::{orig.strip()}->{repl.strip()}#{counts[key]}"
+        out.append(GenMutant(mid, relfile, line, start, end, orig, repl, f"line {line}: {what} {orig.strip()!r} -> {repl.strip()!r}"))
+
+    def skip_main(node):
+        t = node.test
+        return (isinstance(t, ast.Compare) and isinstance(t.left, ast.Name) and t.left.id == "__name__")
+
+    def visit(node, scope):
+        if isinstance(node, ast.If) and skip_main(node):
+            return
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            scope = node.name if scope == "<module>" else f"{scope}.{node.name}"
+            # decorators and defaults belong to the enclosing scope, but keep it simple: the body
+        handle(node, scope)
+        for child in ast.iter_child_nodes(node):
+            visit(child, scope)
+
+    def handle(node, scope):
+        if isinstance(node, ast.Compare):
+            prev = node.left
+            for op, right in zip(node.ops, node.comparators):
+                a, b = off.span(prev)[1], off.span(right)[0]
+                if type(op) in CMP_SWAP:
+                    for tok, rep in CMP_SWAP[type(op)]:
+                        i = _gap_token(text, a, b, tok)
+                        if i is not None:
+                            add(scope, node.lineno, i, i + len(tok), rep, "compare")
+                elif isinstance(op, (ast.Is, ast.IsNot)):
+                    i = _gap_token(text, a, b, "is")
+                    if i is not None:
+                        if isinstance(op, ast.Is):
+                            add(scope, node.lineno, i, i + 2, "is not", "compare")
+                        else:
+                            j = _gap_token(text, i + 2, b, "not")
+                            if j is not None:
+                                add(scope, node.lineno, i, j + 3, "is", "compare")
+                elif isinstance(op, (ast.In, ast.NotIn)):
+                    if isinstance(op, ast.In):
+                        i = _gap_token(text, a, b, "in")
+                        if i is not None:
+                            add(scope, node.lineno, i, i + 2, "not in", "compare")
+                    else:
+                        i = _gap_token(text, a, b, "not")
+                        j = _gap_token(text, i + 3, b, "in") if i is not None else None
+                        if j is not None:
+                            add(scope, node.lineno, i, j + 2, "in", "compare")
+                prev = right
+        elif isinstance(node, ast.BoolOp):
+            tok, rep = ("and", "or") if isinstance(node.op, ast.And) else ("or", "and")
+            for x, y in zip(node.values, node.values[1:]):
+                i = _gap_token(text, off.span(x)[1], off.span(y)[0], tok)
+                if i is not None:
+                    add(scope, node.lineno, i, i + len(tok), rep, "boolean")
+        elif isinstance(node, ast.BinOp) and type(node.op) in BIN_SWAP:
+            tok, rep = BIN_SWAP[type(node.op)]
+            i = _gap_token(text, off.span(node.left)[1], off.span(node.right)[0], tok)
+            if i is not None:
+                add(scope, node.lineno, i, i + len(tok), rep, "arithmetic")
+        elif isinstance(node, ast.AugAssign) and type(node.op) in BIN_SWAP:
+            tok, rep = BIN_SWAP[type(node.op)]
+            i = _gap_token(text, off.span(node.target)[1], off.span(node.value)[0], tok + "=")
+            if i is not None:
+                add(scope, node.lineno, i, i + len(tok) + 1, rep + "=", "arithmetic")
+        elif isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.Not, ast.USub)):
+            s, _ = off.span(node)
+            e = off.span(node.operand)[0]
+            add(scope, node.lineno, s, e, "", "not-removal" if isinstance(node.op, ast.Not) else "negation-removal")
+        elif isinstance(node, ast.Constant) and id(node) not in docs:
+            v = node.value
+            s, e = off.span(node)
+            if isinstance(v, bool):
+                add(scope, node.lineno, s, e, str(not v), "constant")
+            elif isinstance(v, int):
+                src = text[s:e]
+                add(scope, node.lineno, s, e, f"({src} + 1)", "constant")
+                add(scope, node.lineno, s, e, "0" if v != 0 else f"({src} - 1)", "constant")
+            elif isinstance(v, float):
+                # one per float: tolerances and factors are rarely off by one, but 0 disables them
+                add(scope, node.lineno, s, e, "0.0" if v != 0 else "1.0", "constant")
+        elif isinstance(node, ast.Return) and node.value is not None:
+            if not (isinstance(node.value, ast.Constant) and node.value.value is None):
+                s, e = off.span(node.value)
+                add(scope, node.lineno, s, e, "None", "return")
+        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in NAME_SWAP:
+            s, e = off.span(node.func)
+            add(scope, node.lineno, s, e, NAME_SWAP[node.func.id], "call-swap")
+        elif isinstance(node, ast.Slice):
+            for bound in (node.lower, node.upper):
+                if bound is not None:
+                    s, e = off.span(bound)
+                    add(scope, node.lineno if hasattr(node, "lineno") else bound.lineno, s, e,
+                        f"({text[s:e]}) + 1", "slice")
+
+    visit(tree, "<module>")
+    # a splice that does not compile (e.g. "not" removed from "not in" by accident) is dropped
+    good = []
+    for m in out:
+        try:
+            compile(m.mutated_source(text), m.file, "exec")
+        except SyntaxError:
+            continue
+        good.append(m)
+    return good
+
+
+def module_file(name: str) -> str:
+    """'ldaspark/core/validate.py', 'core/validate.py' or 'ldaspark.core.validate' -> 'core/validate.py'."""
+    n = name.strip()
+    if n.endswith(".py"):
+        p = pathlib.Path(n)
+        parts = p.parts[1:] if p.parts and p.parts[0] == "ldaspark" else p.parts
+        rel = str(pathlib.Path(*parts))
+    else:
+        parts = n.split(".")
+        parts = parts[1:] if parts[0] == "ldaspark" else parts
+        rel = "/".join(parts) + ".py"
+    if not (PACKAGE / rel).is_file():
+        raise MutgenError(f"no module ldaspark/{rel}")
+    return rel
+
+
+# --- equivalents ---------------------------------------------------------------------------------
+def load_equivalent(path=EQUIVALENT) -> dict:
+    p = pathlib.Path(path)
+    if not p.is_file():
+        return {}
+    data = json.loads(p.read_text())
+    if not isinstance(data, dict) or not all(isinstance(k, str) and isinstance(v, str) and v.strip()
+                                             for k, v in data.items()):
+        raise MutgenError(f"{p}: must map each mutant id to a one-line argument")
+    return data
+
+
+# --- coverage: which tests execute which lines ----------------------------------------------------
+_COV_DRIVER = r'''
+import sys, coverage, pytest
+data, source, *files = sys.argv[1:]
+cov = coverage.Coverage(data_file=data, source=[source], branch=True)
+import json
+dur, bad = {}, {}
+class Ctx:
+    def pytest_runtest_setup(self, item):
+        cov.switch_context(item.nodeid)
+    def pytest_runtest_teardown(self, item):
+        cov.switch_context("")
+    def pytest_runtest_logreport(self, report):
+        dur[report.nodeid] = dur.get(report.nodeid, 0.0) + report.duration
+        if report.failed:
+            bad[report.nodeid] = report.when
+cov.start()
+rc = pytest.main(["-q", "-p", "no:cacheprovider", *files], plugins=[Ctx()])
+cov.stop()
+cov.save()
+with open(data + ".durations.json", "w") as fh:
+    json.dump({"durations": dur, "failed": bad}, fh)
+sys.exit(int(rc))
+'''
+
+
+def mapped_tests(relfile: str, project=PROJECT) -> list[str]:
+    """Test files that import the module (by its dotted name or a relative import of it)."""
+    dotted = "ldaspark." + relfile[:-3].replace("/", ".")
+    mod = dotted.rsplit(".", 1)
+    pats = (dotted, f"from {mod[0]} import {mod[1]}", f"import {mod[1]}")
+    out = []
+    for f in all_test_files(project):
+        src = (pathlib.Path(project) / f).read_text(errors="ignore")
+        if any(p in src for p in pats[:2]) or (pats[2] in src and mod[0] in src):
+            out.append(f)
+    for f in ALWAYS_MAPPED:
+        if (pathlib.Path(project) / f).is_file() and f not in out:
+            out.append(f)
+    return out
+
+
+def coverage_map(files: list[str], test_files: list[str], datafile, timeout=1800, reuse=False):
+    """Run ``test_files`` once under coverage with per-test contexts; returns
+    ({relfile: {line: [node ids]}}, {relfile: (lines covered, lines, branches covered, branches)},
+    pytest's return code, seconds)."""
+    try:
+        import coverage  # noqa: F401
+    except ImportError:
+        raise MutgenError("per-mutant test selection needs coverage (pip install coverage)") from None
+    import os
+    t = time.time()
+    rc, tail = 0, ""
+    if not reuse:
+        with tempfile.NamedTemporaryFile("w", suffix=".py", delete=False) as fh:
+            fh.write(_COV_DRIVER)
+            driver = fh.name
+        env = dict(os.environ, PYTHONPATH=str(PROJECT))
+        try:
+            p = subprocess.run([sys.executable, driver, str(datafile), str(PACKAGE), *test_files], cwd=PROJECT,
+                               env=env, capture_output=True, text=True, timeout=timeout)
+        finally:
+            os.remove(driver)
+        rc, tail = p.returncode, p.stdout[-3000:]
+    import coverage
+    cov = coverage.Coverage(data_file=str(datafile))
+    cov.load()
+    data = cov.get_data()
+    out, stats = {}, {}
+    for rel in files:
+        fn = str(PACKAGE / rel)
+        by = data.contexts_by_lineno(fn) if fn in data.measured_files() else {}
+        out[rel] = {int(k): sorted(c for c in v if c) for k, v in by.items()}
+        try:
+            an = cov._analyze(fn)            # coverage's own numbers: statements and branches
+            nums = an.numbers
+            stats[rel] = (nums.n_statements - nums.n_missing, nums.n_statements,
+                          nums.n_branches - nums.n_missing_branches, nums.n_branches)
+        except Exception:                    # noqa: BLE001 - not measured
+            stats[rel] = (0, 0, 0, 0)
+    return out, stats, rc, time.time() - t, tail
+
+
+def coverage_key(files, tests) -> str:
+    import hashlib
+    h = hashlib.sha256()
+    for rel in sorted(files):
+        h.update(rel.encode() + b"\0" + (PACKAGE / rel).read_bytes())
+    for t in sorted(tests):
+        h.update(t.encode() + b"\0" + (PROJECT / t).read_bytes())
+    return h.hexdigest()
+
+
+def _order_tests(ids, durations=None):
+    """The covering tests, fastest first (their durations in the coverage run): a killed mutant
+    stops at its first failure, so the cheap tests decide most of them."""
+    d = durations or {}
+    return sorted(ids, key=lambda i: (d.get(i, 1e9), i))
+
+
+# --- running ---------------------------------------------------------------------------------------
+def run_generated(args) -> int:
+    require_tests()
+    files = [module_file(m) for m in args.generated]
+    t0 = time.time()
+    equivalent = load_equivalent()
+    mutants = [m for f in files for m in generate(f)]
+    outdir = pathlib.Path(args.outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    tests = sorted({t for f in files for t in mapped_tests(f)})
+    if getattr(args, "tests", None):
+        tests = [x.strip() for x in args.tests.split(",") if x.strip()]
+    print(f"[mutgen] {len(mutants)} mutants in {len(files)} modules; coverage of {len(tests)} test files ...",
+          flush=True)
+    # the coverage map is reused while the modules under test and the mapped test files are
+    # unchanged (it is the run's most expensive single step; lines elsewhere do not move)
+    key = coverage_key(files, tests)
+    cfile, kfile = outdir / ".mutgen.coverage", outdir / ".mutgen.coverage.key"
+    if cfile.is_file() and kfile.is_file() and kfile.read_text().strip() == key:
+        cmap, cstats, rc, csec, tail = coverage_map(files, tests, cfile, reuse=True)
+    else:
+        cmap, cstats, rc, csec, tail = coverage_map(files, tests, cfile)
+    dpath = pathlib.Path(str(cfile) + ".durations.json")
+    runinfo = json.loads(dpath.read_text()) if dpath.is_file() else {}
+    durations, failed = runinfo.get("durations", {}), runinfo.get("failed", {})
+    if rc not in (0, 1, 5) or (rc == 1 and not failed):
+        last = tail.strip().splitlines()[-1] if tail.strip() else ""
+        raise MutgenError(f"the mapped tests could not run on the unmutated package (pytest exit {rc}): {last}")
+    if failed:
+        # a test that fails (or errors) without any mutant cannot tell a mutant: left out
+        print(f"[mutgen] {len(failed)} mapped tests fail on the unmutated package and are not used: "
+              + ", ".join(sorted(failed)[:5]) + (" ..." if len(failed) > 5 else ""), flush=True)
+    if rc in (0, 1):
+        kfile.write_text(key + "\n")
+    print(f"[mutgen] coverage map in {csec:.0f} s", flush=True)
+    todo, recs_fixed, targets = [], {}, {}
+    for m in mutants:
+        if m.id in equivalent:
+            recs_fixed[m.id] = _rec(m, "equivalent", None, 0.0, equivalent[m.id])
+            continue
+        ids = [i for i in cmap.get(m.file, {}).get(m.line, []) if i not in failed]
+        if not ids:
+            recs_fixed[m.id] = _rec(m, "not-covered", None, 0.0)
+            continue
+        targets[m.id] = _order_tests(ids, durations)
+        if getattr(args, "keep_killed", None):
+            # a rerun after kills were written: the kill files run whole, first (tests newer
+            # than the coverage map are not in it; they are written for these survivors)
+            targets[m.id] = [f for f in ALWAYS_MAPPED if (PROJECT / f).is_file() and f not in tests] + targets[m.id]
+        # the bookkeeping tests (do the listed ids still exist?) fail on any mutant that touches
+        # a listed site: a verdict on the lists, not on the mutant
+        targets[m.id] += [f"--deselect={t}" for t in BOOKKEEPING]
+        todo.append(m)
+    if getattr(args, "sample", None):
+        todo = sample(todo, files, args.sample)
+    if getattr(args, "keep_killed", None):
+        # adding tests cannot revive a killed mutant while its killing test is still there:
+        # reuse those records, run the rest (the survivors and the mutants not yet run)
+        for r in _previous_records(args.keep_killed):
+            test = (r.get("first_failing_test") or "").split("::")[0]
+            if r["status"] == "killed" and test and (PROJECT / test).is_file() and r["mutant"] in {m.id for m in todo}:
+                recs_fixed[r["mutant"]] = dict(r, previous_run=True)
+        todo = [m for m in todo if m.id not in recs_fixed]
+    if getattr(args, "limit", None):
+        todo = todo[:args.limit]
+    ck = Checkpoint(outdir / "mutation-generated.partial.jsonl",
+                    source_fingerprint("mutants-generated", files, tests, getattr(args, "tests", None),
+                                       dirs=(PROJECT / "tests", PROJECT / "verification")))
+    if getattr(args, "fresh", False):
+        ck.discard()
+
+    def progress(r):
+        print(f"{r['status']:9s} {r['seconds']:6.1f}s  {r['mutant']}  {r['first_failing_test'] or ''}", flush=True)
+    timeout = getattr(args, "mutant_timeout", None) or min(TIMEOUT, 300)
+    try:
+        recs = run_catalogue(todo, args.jobs, progress=progress, where=getattr(args, "scheduler", None),
+                             checkpoint=ck, targets=targets, timeout=timeout)
+    except UnitsFailed as exc:
+        raise UnitsFailed(exc.failed, exc.results, kept=ck.path) from None
+    ran = {r["mutant"]: r for r in recs}
+    keep_order = {m.id for m in mutants}
+    ran.update({k: v for k, v in recs_fixed.items() if k in keep_order and k not in ran})
+    allrecs = []
+    for m in mutants:
+        r = ran.get(m.id)
+        if r is None:               # left out by --sample / --limit
+            r = _rec(m, "not-run", None, 0.0)
+        r = dict(r)
+        r.update(line=m.line, original=m.original, replacement=m.replacement)
+        allrecs.append(r)
+    cmd = "ldaspark mutants --generated " + " ".join(args.generated) + f" --jobs {args.jobs}"
+    write_reports(allrecs, files, cstats, outdir, cmd, time.time() - t0, tests)
+    ck.discard()
+    surv = [r for r in allrecs if r["status"] in ("survived", "timeout")]
+    print(f"[mutgen] {sum(r['status'] == 'killed' for r in allrecs)} killed, {len(surv)} surviving, "
+          f"{sum(r['status'] == 'equivalent' for r in allrecs)} equivalent -> {outdir}/mutation-generated.md")
+    return 0 if not surv else 1
+
+
+def _previous_records(path) -> list:
+    """The records of an earlier run: its mutation-generated.json, or the checkpoint
+    (``*.partial.jsonl``) of an interrupted one."""
+    text = pathlib.Path(path).read_text()
+    if str(path).endswith(".jsonl"):
+        out = []
+        for line in text.splitlines()[1:]:
+            try:
+                out.append(json.loads(line)["value"])
+            except (ValueError, KeyError, TypeError):
+                break
+        return out
+    return json.loads(text).get("mutants", [])
+
+
+def sample(mutants, files, n):
+    """A fixed sample of at most ``n`` mutants per module, evenly spaced in source order (the same
+    for the same source: a partial run that can be repeated and extended)."""
+    out = []
+    for f in files:
+        ms = [m for m in mutants if m.file == f]
+        if len(ms) <= n:
+            out += ms
+            continue
+        out += [ms[(i * len(ms)) // n] for i in range(n)]
+    return out
+
+
+#: generated mutants that join ``ldaspark mutants --quick`` (and so ``.ci/run``), each with the one
+#: test that must kill it: a fault of each kind the verdict-rule tests were written for
+VT = "tests/test_verdict_rules.py::"
+QUICK_GENERATED = (
+    ("reports/stability_stiff.py::stiff_run::arithmetic::/->*#3",
+     VT + "test_the_growth_ratio_is_second_half_over_first_half"),
+    ("theory/audit.py::_theorem1_summary::call-swap::max->min#1", VT + "test_theorem1_summary_rule_directly"),
+    ("claims/claims_paper.py::section5_records::call-swap::max->min#1",
+     VT + "test_the_antisymmetry_record_fails_when_one_identity_fails[f_minus]"),
+    ("dist/workers.py::_hash_tree::compare::in->not in#1",
+     VT + "test_the_files_under_dirs_change_the_fingerprint"),
+)
+
+
+def quick_generated() -> tuple[list, dict]:
+    """(mutants, {id: [test]}) of ``QUICK_GENERATED``; an id no longer generated is an error
+    (the code moved: update the list)."""
+    out, targets = [], {}
+    for mid, test in QUICK_GENERATED:
+        found = [m for m in generate(mid.split("::")[0]) if m.id == mid]
+        if not found:
+            raise MutgenError(f"quick generated mutant {mid} is no longer generated (update QUICK_GENERATED)")
+        out.append(found[0])
+        targets[mid] = [test]
+    return out, targets
+
+
+def _rec(m, status, first, seconds, why=None):
+    r = {"mutant": m.id, "file": f"ldaspark/{m.file}", "description": m.description, "category": m.category,
+         "killed": status == "killed", "status": status, "first_failing_test": first, "seconds": seconds}
+    if why:
+        r["equivalent_because"] = why
+    return r
+
+
+def summarize(recs, files):
+    per = {}
+    for f in files:
+        rs = [r for r in recs if r["file"] == f"ldaspark/{f}"]
+        c = {k: sum(r["status"] == k for r in rs) for k in
+             ("killed", "survived", "timeout", "invalid", "equivalent", "not-covered", "not-run")}
+        c["generated"] = len(rs)
+        # over the mutants run (the sample); mutants no mapped test executes are counted apart
+        judged = c["killed"] + c["survived"] + c["timeout"]
+        c["score"] = round(c["killed"] / judged, 4) if judged else None
+        per[f"ldaspark/{f}"] = c
+    return per
+
+
+def write_reports(recs, files, cstats, outdir, command, seconds, tests):
+    per = summarize(recs, files)
+    for f, (lc, ln, bc, bn) in cstats.items():
+        per[f"ldaspark/{f}"]["coverage"] = {"lines": [lc, ln], "branches": [bc, bn]}
+    doc = {"tool": TOOL, "version": VERSION, "command": command, "seconds": round(seconds, 1),
+           "modules": per, "test_files_mapped": tests,
+           "mutants": recs}
+    atomic_write_json(pathlib.Path(outdir) / "mutation-generated.json", doc)
+    lines = ["# Generated mutants", "", f"Tool: {TOOL}, version {VERSION}. Reproduce: `{command}`; "
+             f"wall time {seconds / 60:.1f} min.", "",
+             "| module | generated | run | killed | equivalent | surviving | not covered | invalid | not run | score | lines | branches |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for f, c in per.items():
+        cv = c.get("coverage", {"lines": [0, 0], "branches": [0, 0]})
+        pct = lambda a, b: f"{100 * a / b:.0f}% ({a}/{b})" if b else "-"  # noqa: E731
+        sc = "-" if c["score"] is None else f"{100 * c['score']:.1f}%"
+        run = c["killed"] + c["survived"] + c["timeout"] + c["invalid"]
+        lines.append(f"| {f} | {c['generated']} | {run} | {c['killed']} | {c['equivalent']} | {c['survived'] + c['timeout']} | "
+                     f"{c['not-covered']} | {c['invalid']} | {c['not-run']} | {sc} | {pct(*cv['lines'])} | {pct(*cv['branches'])} |")
+    lines += ["", "Score: killed / (killed + surviving) over the mutants run; equivalent, invalid and not covered "
+              "mutants counted apart.",
+              "", "## Surviving and not covered", ""]
+    for r in recs:
+        if r["status"] in ("survived", "timeout", "not-covered"):
+            lines.append(f"- `{r['mutant']}` ({r['status']}): {r['description']}")
+    lines += ["", "## Equivalent (verification/mutants_equivalent.json)", ""]
+    for r in recs:
+        if r["status"] == "equivalent":
+            lines.append(f"- `{r['mutant']}`: {r.get('equivalent_because', '')}")
+    atomic_write_text(pathlib.Path(outdir) / "mutation-generated.md", "\n".join(lines) + "\n")
