@@ -120,6 +120,7 @@ def _count_checker(dest: str):
         "ic": lambda x: V.count(x, "ic (the initial condition index)", 0, 10 ** 6),
         "jobs": lambda x: V.count(x, "--jobs", 1, _MAX_WORKERS),
         "workers": lambda x: V.count(x, "--workers", 1, _MAX_WORKERS),
+        "mutant_timeout": lambda x: V.count(x, "--mutant-timeout (seconds)", 1, 86400),
     }
     return table.get(dest, lambda x: V.count(x, f"--{dest.replace('_', '-')}", 1, V.MAX_STEPS))
 

@@ -139,6 +139,7 @@ def test_verify_cli_with_a_scheduler_writes_the_local_report(client, tmp_path, m
     assert not (tmp_path / "dask" / "claims-quick.partial.jsonl").exists()   # removed once written
 
 
+@pytest.mark.exhaustive
 def test_three_catalogue_faults_killed_on_the_cluster(client, tmp_path):
     from ldaspark.mutants.mutation import by_id, run_catalogue
     targets = {

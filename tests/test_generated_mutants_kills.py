@@ -92,7 +92,7 @@ def test_module_names_and_errors():
 def test_the_equivalents_list_names_existing_mutants_with_an_argument():
     eq = mutgen.load_equivalent()
     files = {k.split("::")[0] for k in eq}
-    ids = {m.id for f in files for m in mutgen.generate(f)}
+    ids = {m.id for f in files for m in mutgen.generate(f, check=False)}
     stale = sorted(set(eq) - ids)
     assert not stale, f"equivalent mutants no longer generated (update verification/mutants_equivalent.json): {stale}"
     assert all(len(v.strip()) > 10 and "\n" not in v for v in eq.values())

@@ -61,11 +61,16 @@ def runs():
         return {k: f.result() for k, f in futs.items()}
 
 
+# the scratch-copy runs (~60 s) are what ``.ci/run``'s ``ldaspark mutants --quick`` does, with its
+# control (``run_control``) first; here they are an exhaustive sweep so the default run is not
+# the same minute twice
+@pytest.mark.exhaustive
 def test_unmutated_copy_passes_the_targeted_tests(runs):
     rec = runs["none"]
     assert rec["status"] == "survived", rec        # nothing to kill: every targeted test passes
 
 
+@pytest.mark.exhaustive
 @pytest.mark.parametrize("mutant_id", list(CASES))
 def test_quick_mutant_is_killed_by_its_targeted_test(mutant_id, runs):
     rec = runs[mutant_id]
@@ -88,6 +93,7 @@ def test_mutants_exits_nonzero_when_a_mutant_survives(monkeypatch, tmp_path):
     args = argparse.Namespace(quick=True, outdir=str(tmp_path), jobs=1, only=None, exclude="")
     for status, rc in (("survived", 1), ("timeout", 1), ("invalid", 1), ("killed", 0)):
         monkeypatch.setattr(command, "run_catalogue", fake(status))
+        monkeypatch.setattr(command, "run_control", lambda *a, **k: {})
         assert command.run(args) == rc, status
     assert "teeth-audit-coarsest-pair" in QUICK and len(QUICK) >= 10
     assert isinstance(by_id(QUICK[-1]), Mutant)
@@ -100,3 +106,25 @@ def test_ci_runs_the_quick_catalogue_after_the_tests():
     i_test = next(i for i, x in enumerate(lines) if x.startswith("python -m pytest"))
     i_mut = next(i for i, x in enumerate(lines) if "ldaspark mutants --quick" in x)
     assert i_mut > i_test and "set -euo pipefail" in text          # a survivor (exit 1) fails CI
+
+
+def test_quick_run_stops_when_the_unmutated_package_fails_its_tests(monkeypatch, tmp_path):
+    """The control of ``mutants --quick``: a failing unmutated run is one error before any mutant
+    (every mutant would otherwise count as killed); a passing one lets the run go on."""
+    from ldaspark.mutants import command
+    from ldaspark.mutants.mutation import CatalogueError
+    seen = {}
+
+    def fake_run_mutant(m, targets=None, **kw):
+        seen["m"], seen["targets"] = m, targets
+        return {"status": status, "first_failing_test": "tests/test_x.py::t", "seconds": 0.0}
+    monkeypatch.setattr(command, "run_mutant", fake_run_mutant)
+    mutants = [by_id(x) for x in QUICK]
+    status = "killed"
+    with pytest.raises(CatalogueError, match="unmutated package fails"):
+        command.run_control(mutants, {"gen-1": ["tests/test_verdict_rules.py::t"]})
+    assert seen["m"] is None
+    assert "tests/test_verdict_rules.py::t" in seen["targets"]
+    assert set(by_id(QUICK[0]).hint) & set(seen["targets"])
+    status = "survived"
+    assert command.run_control(mutants, {})["status"] == "survived"

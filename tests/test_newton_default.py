@@ -31,7 +31,9 @@ def _run(name, **kw):
     return integrate(sc.system, get_method("gauss-2"), t0, q0, v0, 0.05, n_steps=STEPS, **kw)
 
 
-@pytest.mark.parametrize("name", list(SCENES))
+# the bicycle derives and compiles the Whipple model (~30 s): --exhaustive
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.exhaustive) if n == "bicycle" else n
+                                  for n in SCENES])
 def test_default_newton_gives_full_newton_numbers(name):
     default, full = _run(name), _run(name, newton="full")
     assert _gap(default, full) <= 10

@@ -67,7 +67,13 @@ def skate():
     return get_scene("skate")
 
 
-@pytest.mark.parametrize("peer", list(peers.PEERS))
+# CyRK's numba loop (nbsolve) compiles CyRK itself (~14 s) and IDA costs ~14 s: --exhaustive; the
+# C++ loop (nbsolve2, the strongest peer) and the other SUNDIALS peers stay in the default run
+_SLOW_PEERS = ("cyrk-nbsolve-DOP853", "ida")
+
+
+@pytest.mark.parametrize("peer", [pytest.param(p, marks=pytest.mark.exhaustive) if p in _SLOW_PEERS else p
+                                  for p in peers.PEERS])
 def test_every_peer_follows_the_skate_closed_form(skate, peer):
     if peer in peers.SUNDIALS_PEERS and peers.sundials() is None:
         pytest.skip("scikit-sundae is not installed (the bench extra)")

@@ -153,7 +153,9 @@ def test_cyrk_is_optional(monkeypatch):
     assert set(peers.CYRK_PEERS) <= set(peers.available_peers()[0])
 
 
-@pytest.mark.parametrize("peer", peers.CYRK_PEERS)
+# CyRK's numba loop compiles CyRK itself (~10 s): --exhaustive; nbsolve2 and pysolve stay
+@pytest.mark.parametrize("peer", [pytest.param(p, marks=pytest.mark.exhaustive) if p == "cyrk-nbsolve-DOP853" else p
+                                  for p in peers.CYRK_PEERS])
 @pytest.mark.parametrize("form", ["closed", "solve"])
 def test_cyrk_peer_follows_the_skate_closed_form(peer, form):
     if peers.cyrk() is None:

@@ -121,6 +121,7 @@ def _mutants_identity(monkeypatch, tmp_path, **over):
         seen["fp"], seen["hints_only"], seen["exclude"] = checkpoint.fingerprint, hints_only, k.get("exclude")
         raise _Stop
     monkeypatch.setattr(mutation, "run_catalogue", fake_run_catalogue)
+    monkeypatch.setattr(mutation, "run_control", lambda *a, **k: {})
     # the identity only: the catalogue's own snippet check is another test's business
     monkeypatch.setattr(mutation, "snippet_problems", lambda *a, **k: [])
     args = dict(quick=False, outdir=str(tmp_path), jobs=1, only=None, exclude="", scheduler=None, fresh=False,

@@ -9,8 +9,8 @@ import time
 
 from ..core.errors import LdasparkError
 from ..dist.workers import Checkpoint, UnitsFailed, add_scheduler_argument, source_fingerprint
-from .mutation import (COPY, PROJECT, QUICK, CATALOGUE, CatalogueError, by_id, require_tests, run_catalogue,
-                       snippet_problems, write_reports)
+from .mutation import (COPY, PROJECT, QUICK, CATALOGUE, TIMEOUT, CatalogueError, by_id, ordered_targets,
+                       require_tests, run_catalogue, run_mutant, snippet_problems, write_reports)
 from .mutgen import quick_generated, run_generated
 
 
@@ -38,12 +38,31 @@ def add_arguments(parser):
                              "as killed (their killing test still exists) and run the others")
     parser.add_argument("--sample", type=int, default=None,
                         help="with --generated: a fixed, evenly spaced sample of N mutants per module")
-    parser.add_argument("--mutant-timeout", type=float, default=None,
-                        help="with --generated: seconds per mutant (default 300)")
+    parser.add_argument("--mutant-timeout", type=int, default=None,
+                        help="with --generated: whole seconds per mutant, 1..86400 (default 300)")
+
+
+def run_control(mutants, targets, exclude=()) -> dict:
+    """The unmutated package against every test a quick mutant is judged by (its hint files, or
+    its one target): they must all pass, else a "killed" verdict says nothing about the mutant
+    (a committed report or a fixture that fails without any fault would kill them all)."""
+    tests = sorted({h for m in mutants if m.id not in targets for h in ordered_targets(m, PROJECT, True, exclude)}
+                   | {x for ts in targets.values() for x in ts})
+    rec = run_mutant(None, targets=tests, timeout=TIMEOUT)
+    print(f"{'control (unmutated)':32s} {'passes' if rec['status'] == 'survived' else rec['status']:9s} "
+          f"{rec['seconds']:7.1f}s  {len(tests)} test files and node ids", flush=True)
+    if rec["status"] != "survived":
+        raise CatalogueError(f"the unmutated package fails the quick set's own tests ({rec['status']}: "
+                             f"{rec['first_failing_test'] or 'no test named'}), so no mutant verdict would mean anything")
+    return rec
 
 
 def run(args) -> int:
     require_tests()
+    only_generated = [f"--{k.replace('_', '-')}" for k in ("tests", "limit", "keep_killed", "sample", "mutant_timeout")
+                      if getattr(args, k, None) is not None]
+    if only_generated and not getattr(args, "generated", None):
+        raise CatalogueError(f"{', '.join(only_generated)}: only with --generated MODULE...")
     if getattr(args, "generated", None):
         if args.jobs < 1:
             raise CatalogueError("--jobs must be >= 1")
@@ -76,6 +95,8 @@ def run(args) -> int:
                                        paths=[PROJECT / name for name in COPY if name != "ldaspark"]))
     if getattr(args, "fresh", False):
         ck.discard()
+    if args.quick:
+        run_control(mutants, targets, exclude)
     try:
         recs = run_catalogue(mutants, args.jobs, hints_only=args.quick, progress=progress, exclude=exclude,
                              where=getattr(args, "scheduler", None), checkpoint=ck, targets=targets)
