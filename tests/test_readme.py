@@ -24,6 +24,9 @@ def test_readme_commands_match_ci():
     ci = (README.parent / ".ci" / "run").read_text()
     assert "ldaspark report" in text
     assert "python -m pytest -q" in text and "python -m pytest -q" in ci
+    # the same test command, options included (the two workers of -n 2 are part of its timing)
+    cmd = next(line.strip() for line in ci.splitlines() if line.strip().startswith("python -m pytest"))
+    assert f"&& {cmd}\n" in text, cmd
     assert 'pip install -q -e ".[test]"' in ci and 'pip install -e ".[test]"' in text
 
 
