@@ -35,17 +35,13 @@ WARM_MIN_TESTS = 300
 WARM_GROUPS = (("spark_run", "lf2_run"), ("general_run", "spark_sparse_run"))
 
 
-def _warm_group(names):
-    from ldaspark.compiled import fast
-    return fast.warm_kernels(names)
-
-
 def _warm_kernels_in_parallel():
     if os.environ.get("LDASPARK_TEST_NO_WARM"):
         return
+    from ldaspark.compiled.fast import warm_kernels      # a package function: the pool pickles it
     from ldaspark.core.lifecycle import make_process_pool
     with make_process_pool(max_workers=len(WARM_GROUPS)) as ex:
-        list(ex.map(_warm_group, WARM_GROUPS))
+        list(ex.map(warm_kernels, WARM_GROUPS))
 
 
 @pytest.hookimpl(optionalhook=True)
