@@ -151,12 +151,7 @@ class Derived:
         hit = self._nz.get(name)
         if hit is not None:
             return hit
-        conv, out = {}, {}
-        for key, e in self._entries[name].items():
-            k = id(e)
-            if k not in conv:
-                conv[k] = self._engine.to_sympy(e)
-            out[key] = conv[k]
+        out = _back(self._entries[name], self._engine)
         with self._lock:
             return self._nz.setdefault(name, out)
 
