@@ -25,3 +25,18 @@ def test_quote_kinds_residual_class_and_timing_snapshot():
     assert "snapshot" in quote_problem("wp.particle.ratios", "14x / 19x / 16x", {"wp.particle.ratios": "14x / 19x / 16x"},
                                        snap=snap)
     assert "no snapshot" in quote_problem("wp.particle.ratios", "9x / 8x / 7x", {}, snap={"values": {}})
+
+
+def test_roundoff_driven_fig4_exponents_are_checked_against_the_snapshot():
+    """The Fig. 4 drift exponents are a random walk of round-off (a fresh run moved 1.31 to 0.64):
+    README's values must equal the committed run's snapshot, not a new run's; the printed
+    scene's verdict (exponents ~0.01, far from 1) and the counts of other reports stay exact."""
+    from ldaspark.reports.summary import quote_kind, quote_problem
+    assert [quote_kind(k) for k in ("energy.fig4.nh.exponents", "energy.fig4.nh.near1", "energy.fig4.nh.verdict",
+                                    "energy.fig4.printed.exponents", "energy.fig4.printed.verdict",
+                                    "energy.fig4.printed.near1", "energy.figs13.bounded")] == \
+        ["timing"] * 4 + ["exact"] * 3
+    snap = {"values": {"energy.fig4.nh.exponents": "1.310, 1.148, 0.393"}}
+    fresh = {"energy.fig4.nh.exponents": "0.643, 1.066, 0.717"}
+    assert quote_problem("energy.fig4.nh.exponents", "1.310, 1.148, 0.393", fresh, snap=snap) is None
+    assert "snapshot" in quote_problem("energy.fig4.nh.exponents", "0.643, 1.066, 0.717", fresh, snap=snap)

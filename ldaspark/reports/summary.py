@@ -13,7 +13,8 @@ and then the tests passes on any machine:
 * residual (``claims.*.max``, ``claims.*.negctl_min``: largest identity residuals, some of them
   float64 round-off whose last digits depend on the machine's libm and BLAS): the same order of
   magnitude as the reports' value (within a factor 10; a fault moves them by many decades);
-* timing (CPU and wall times and their ratios): equal to the snapshot in the committed
+* timing (CPU and wall times and their ratios, and the round-off-driven Fig. 4 exponents,
+  ``ROUNDOFF_DRIVEN``): equal to the snapshot in the committed
   ``reports/report_timing.json`` ("readme": the timing values of the run README was filled from,
   and the sha256 of each report file then), and equal to the reports' value too while a report
   file is the one of the snapshot (same sha256). ``--fill`` writes README's marks and the snapshot;
@@ -282,6 +283,13 @@ TIMING = re.compile(r"^(run\.(wall|cpu|probe_ratio)|energy\.fig4\.\w+\.seconds|w
                     r"|wp\.[\w-]+\.(ratios|peer_ratios|rhs)|peer\.(spark2|ratios)"
                     r"|peers\.[\w-]+\.(speedups|long|speedups_fast|long_fast|vlong|vlong_fast|best_peer|long_best_peer)"
                     r"|peers\.load_(at_start|at_end)|scaling\.(step|first_call)\.\d+)$")
+#: values that float64 round-off decides, checked as timings are (against the snapshot): the
+#: Fig. 4 drift exponents fit mu((E - E0)^2) over 1e6 steps, where the energy error is a random
+#: walk of round-off; a fresh main job on the same machine after a change of the generated
+#: model code's operation order moved the nonholonomic ones from 1.31 / 1.15 / 0.39 to
+#: 0.64 / 1.07 / 0.72 (and the count near 1 from 1 to 2). The printed scene's verdict stays exact:
+#: its exponents are ~0.01 whatever the round-off, far from 1.
+ROUNDOFF_DRIVEN = re.compile(r"^energy\.fig4\.(printed\.exponents|nh\.(exponents|near1|verdict))$")
 RESIDUAL = re.compile(r"^claims\.[\w.-]+\.(max|negctl_min)$")
 #: the report file each key's value comes from (its first dotted part)
 SOURCE = {"convergence": "convergence.json", "claims": "claims.json", "energy": "energy.json",
@@ -291,7 +299,8 @@ SOURCE = {"convergence": "convergence.json", "claims": "claims.json", "energy": 
 
 def quote_kind(key: str) -> str:
     """"timing", "residual" or "exact" (see the module docstring)."""
-    return "timing" if TIMING.match(key) else "residual" if RESIDUAL.match(key) else "exact"
+    return "timing" if TIMING.match(key) or ROUNDOFF_DRIVEN.match(key) else \
+        "residual" if RESIDUAL.match(key) else "exact"
 
 
 def same_magnitude(a: str, b: str) -> bool:
