@@ -221,6 +221,7 @@ class LinkedProcessPool(cf.ProcessPoolExecutor):
     def terminate_workers(self):
         """Cancel what is queued and end the workers now (SIGTERM, SIGKILL after 2 s)."""
         procs = list((getattr(self, "_processes", None) or {}).values())
+        manager = getattr(self, "_executor_manager_thread", None)      # shutdown drops it
         with contextlib.suppress(Exception):
             self.shutdown(wait=False, cancel_futures=True)
         for p in procs:
@@ -235,6 +236,13 @@ class LinkedProcessPool(cf.ProcessPoolExecutor):
                 if p.is_alive():
                     p.kill()
                     p.join(timeout=1.0)
+        # the executor's manager thread closes its wakeup pipe when it ends; left running, it
+        # races CPython 3.11's exit hook (concurrent.futures.process._python_exit), which then
+        # writes to the closed pipe: "Exception ignored ... OSError: Bad file descriptor" on
+        # stderr after the stop line
+        if manager is not None and manager is not threading.current_thread():
+            with contextlib.suppress(RuntimeError):
+                manager.join(timeout=2.0)
 
     def __exit__(self, typ, exc, tb):
         if typ is not None:
