@@ -55,7 +55,7 @@ else:
 mark()
 cs = compile_system(system, form={form!r})
 mark()
-cs.module
+cs.model
 mark()
 run_compiled(cs, "gauss-2", t0, q0, v0, 0.01, 10)
 mark()

@@ -345,7 +345,7 @@ def _compiled_reason(system: LagrangianSystem, kind: str, name: str) -> Optional
         return f"comparator {name} has no compiled kernel"
     try:
         cs = fast.compile_system(system)
-        cs.module  # noqa: B018  (import / compile now so that failures fall back)
+        cs.model  # noqa: B018  (build the model now so that failures fall back)
         fast._kernels()     # checks the directory numba loads the kernels from (compiled.cache)
     except (fast.NotCompilableError, fast.CacheDirectoryError) as exc:
         return str(exc)

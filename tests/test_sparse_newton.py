@@ -118,7 +118,7 @@ def test_assembled_matrix_and_solve_equal_the_dense_ones(method):
     t0, q0, v0 = _initial(sc)
     spec = fast.kernel_spec(method, "spark")[1]
     s, n, m = spec[1].shape[0], cs.n, cs.m
-    st = sparse.newton_structure(n, cs.module.HESS_PATTERN, cs.M)
+    st = sparse.newton_structure(n, cs.hess_pattern, cs.M)
     NN = s * (n + m) + n
     x = np.random.default_rng(1).normal(scale=1e-2, size=NN)
     h = 0.05

@@ -136,7 +136,7 @@ _CHECKED: dict[int, tuple] = {}
 
 def _saddle_and_k(cs, t, q, v):
     """(4) = [[M, K^T], [K, 0]] and k = K v + b at (t, q, v) from a mechanical-form model."""
-    n, m, mod = cs.n, cs.m, cs.module
+    n, m, mod = cs.n, cs.m, cs.functions
     K, b = np.zeros((m, n)), np.zeros(m)
     mod.K_of(t, q, K)
     mod.b_of(t, q, b)
@@ -270,7 +270,7 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
     _setup_checks(system, t0, q0, v0, _loaded(system))
     try:
         cs = compile_system(system)
-        cs.module  # noqa: B018  (import / compile now so that failures fall back)
+        cs.model  # noqa: B018  (build the model now so that failures fall back)
     except (NotCompilableError, CacheDirectoryError) as exc:
         _notice(str(exc))
         return generic_integrate(system, method, t0, q0, v0, h, n_steps, every, tol)

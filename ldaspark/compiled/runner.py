@@ -15,6 +15,7 @@ import sympy
 
 from ..core.errors import InputError, LdasparkError, NewtonError, NonFiniteError
 from . import modeltypes as mt
+from . import native
 from .cache import CacheDirectoryError, load_source, source_key
 from .codegen import NotCompilableError, general_source, mechanical_source, nonideal_term
 
@@ -93,16 +94,46 @@ class CompiledSystem:
     @property
     def model(self):
         """The model tuple (n, functions...) as the kernels take it: each function as the address
-        of its compiled code (numba's wrapper address protocol), looked up once per process;
-        passing the dispatchers themselves costs their type conversion at every call."""
+        of its compiled code (numba's wrapper address protocol), built once per process: native
+        code straight from LLVM (``native``: a fraction of a second) where the translator takes
+        the source, else numba's compilation of the module; passing the dispatchers themselves
+        would cost their type conversion at every call."""
         hit = _MODELS.get(self.digest)
         if hit is None:
-            from numba.core.types.function_type import CompileResultWAP
-            mod = self.module.MODEL
-            hit = (mod[0],) + tuple(f if isinstance(f, bool) else CompileResultWAP(f.overloads[f.signatures[0]])
-                                    for f in mod[1:])      # a general model ends with its flag has_N
+            if native.enabled():
+                try:
+                    hit = native.compile_model(self.source)
+                except native.NotNativeError:
+                    hit = None
+            if hit is None:
+                from numba.core.types.function_type import CompileResultWAP
+                mod = self.module.MODEL
+                hit = (mod[0],) + tuple(f if isinstance(f, bool) else CompileResultWAP(f.overloads[f.signatures[0]])
+                                        for f in mod[1:])      # a general model ends with its flag has_N
             _MODELS[self.digest] = hit
         return hit
+
+    @property
+    def is_native(self) -> bool:
+        """True when this process runs the model as native code (``native``), False for numba's
+        compilation; loads the model."""
+        return isinstance(self.model[1], native.NativeFunction)
+
+    @property
+    def functions(self):
+        """The model's functions callable from Python (the set-up checks): numba's module where
+        this process compiled it, else the source as plain Python (nothing compiled)."""
+        if self.digest in _MODELS and not self.is_native:
+            return self.module
+        hit = _PYTHON.get(self.digest)
+        if hit is None:
+            hit = _PYTHON[self.digest] = native.python_module(self.source)
+        return hit
+
+    @functools.cached_property
+    def hess_pattern(self):
+        """The structurally nonzero (i, j) of the Newton matrix's q-blocks (mechanical form), or None."""
+        return native.module_constants(self.source).get("HESS_PATTERN")
 
     @property
     def key(self) -> str:
@@ -116,12 +147,13 @@ class CompiledSystem:
             return None
         if self.digest not in _STRUCTURES:
             from .sparse import newton_structure
-            pairs = getattr(self.module, "HESS_PATTERN", None)
+            pairs = self.hess_pattern
             _STRUCTURES[self.digest] = None if pairs is None else newton_structure(self.n, pairs, self.M)
         return _STRUCTURES[self.digest]
 
 
 _MODELS: dict[str, tuple] = {}
+_PYTHON: dict[str, object] = {}
 _STRUCTURES: dict[str, object] = {}
 #: ``linear_solver="auto"`` factors by blocks when the dense LU costs more than SPARSE_MARGIN
 #: times the block factorisation's multiply-adds (the block code does more bookkeeping per flop;
