@@ -29,6 +29,7 @@ import math
 import os
 
 from ..core.errors import LdasparkError
+import numba.experimental.function_type  # noqa: F401  (registers typeof/unboxing of the protocol)
 from numba.core.types.function_type import WrapperAddressProtocol
 from numba.core.typing.templates import Signature
 

@@ -1,0 +1,269 @@
+"""Native model functions (``ldaspark.compiled.native``): the generated model translated to LLVM
+without numba computes what the source says, on every scene and both model forms; the kernels
+run it with results bitwise equal to numba's compilation of the same source; what the translator
+does not take goes to numba (nothing refused that ran before); a planted mistranslation is seen.
+
+Tolerance of the per-function comparison with the source run as plain Python: the two evaluate
+the same operations in the same order in IEEE double, except ``x**k`` (Python: libm's pow, one
+rounding; native: square-and-multiply as numba, up to ~log2(k) roundings), so entries agree to a
+few ulps of the largest term, amplified by the cancellations of a sum: 1e-11 * (1 + max |entry|)
+over an output array leaves two orders of margin on the scenes' sizes (|terms| <= 1e2), and
+a wrong operation (the control: sin read as cos) differs at O(1e-2) or more.
+"""
+import math
+
+import numpy as np
+import pytest
+import sympy
+
+from ldaspark.compiled import modeltypes as mt
+from ldaspark.compiled import native
+from ldaspark.compiled.fast import compile_system, run_compiled
+from ldaspark.compiled.runner import _MODELS
+from ldaspark.core.system import LagrangianSystem
+from ldaspark.models.scenes import SCENES, get_scene
+
+SCENE_NAMES = [s for s in SCENES if s != "bicycle"]
+REL = 1e-11
+
+numba = pytest.importorskip("numba")
+
+
+# one caller per first-class signature, compiled once (the model functions are its arguments)
+@numba.njit
+def _call_vec(f, t, q, out):
+    f(t, q, out)
+
+
+@numba.njit
+def _call_matx(f, t, q, v, out):
+    f(t, q, v, out)
+
+
+@numba.njit
+def _call_u(f, t, q):
+    return f(t, q)
+
+
+@numba.njit
+def _call_val(f, t, q, v, a, b, c, d):
+    f(t, q, v, a, b, c, d)
+
+
+@numba.njit
+def _call_jac(f, t, q, v, lam, a, b, c, d, e, g):
+    f(t, q, v, lam, a, b, c, d, e, g)
+
+
+@numba.njit
+def _call_e(f, t, q, v):
+    return f(t, q, v)
+
+
+@numba.njit
+def _call_ni(f, t, q, v, psi, out):
+    return f(t, q, v, psi, out)
+
+
+@numba.njit
+def _call_nij(f, t, q, v, psi, a, b, c):
+    return f(t, q, v, psi, a, b, c)
+
+
+def _outputs(fn_native, fn_python, sig, n, m, point):
+    """[(name, native value, python value)] of one model function at ``point`` = (t, q, v, lam, psi)."""
+    t, q, v, lam, psi = point
+    z = lambda *shape: np.zeros(shape)  # noqa: E731
+    res = []
+    if sig is mt.VEC_SIG:
+        for f, caller in ((fn_native, _call_vec), (fn_python, None)):
+            out = z(n if fn_native.name != "b_of" else m)
+            (caller(f, t, q, out) if caller else f(t, q, out))
+            res.append([out])
+    elif sig is mt.MAT_SIG:
+        shape = (n, n) if fn_native.name == "hess_U" else (m, n)
+        for f, caller in ((fn_native, _call_vec), (fn_python, None)):
+            out = z(*shape)
+            (caller(f, t, q, out) if caller else f(t, q, out))
+            res.append([out])
+    elif sig is mt.MATX_SIG:
+        shape, x = ((m, n), v) if fn_native.name == "kq_of" else ((n, n), lam)
+        for f, caller in ((fn_native, _call_matx), (fn_python, None)):
+            out = z(*shape)
+            (caller(f, t, q, x, out) if caller else f(t, q, x, out))
+            res.append([out])
+    elif sig is mt.U_SIG:
+        res = [[np.array([_call_u(fn_native, t, q)])], [np.array([fn_python(t, q)])]]
+    elif sig is mt.VAL_SIG:
+        for f, caller in ((fn_native, _call_val), (fn_python, None)):
+            outs = [z(n), z(n), z(m), z(m, n)]
+            (caller(f, t, q, v, *outs) if caller else f(t, q, v, *outs))
+            res.append(outs)
+    elif sig is mt.JAC_SIG:
+        for f, caller in ((fn_native, _call_jac), (fn_python, None)):
+            outs = [z(n, n), z(n, n), z(n, n), z(m, n), z(n, n), z(n, n)]
+            (caller(f, t, q, v, lam, *outs) if caller else f(t, q, v, lam, *outs))
+            res.append(outs)
+    elif sig is mt.E_SIG:
+        res = [[np.array([_call_e(fn_native, t, q, v)])], [np.array([fn_python(t, q, v)])]]
+    elif sig is mt.NI_SIG:
+        for f, caller in ((fn_native, _call_ni), (fn_python, None)):
+            out = z(n)
+            flag = caller(f, t, q, v, psi, out) if caller else f(t, q, v, psi, out)
+            res.append([out, np.array([float(flag)])])
+    elif sig is mt.NIJ_SIG:
+        for f, caller in ((fn_native, _call_nij), (fn_python, None)):
+            outs = [z(n, n), z(n, n), z(n, m)]
+            flag = caller(f, t, q, v, psi, *outs) if caller else f(t, q, v, psi, *outs)
+            res.append(outs + [np.array([float(flag)])])
+    else:
+        raise AssertionError(sig)
+    return res
+
+
+def _points(sc, count=3, seed=0):
+    t0, q0, v0 = sc.initial()
+    rng = np.random.default_rng(seed)
+    n, m = sc.system.n, sc.system.m
+    for _ in range(count):
+        yield (float(t0) + 0.3 * rng.random(), np.asarray(q0, float) + 1e-2 * rng.standard_normal(n),
+               np.asarray(v0, float) + 1e-2 * rng.standard_normal(n), rng.standard_normal(m), rng.standard_normal(m))
+
+
+def _worst(source, n, m, points):
+    """max over functions, outputs and points of |native - python| / (1 + max |python|)."""
+    model = native.compile_model(source)
+    py = native.python_module(source)
+    worst = 0.0
+    for f in model[1:]:
+        if not isinstance(f, native.NativeFunction):
+            continue
+        for p in points:
+            got, ref = _outputs(f, getattr(py, f.name), f.signature(), n, m, p)
+            for a, b in zip(got, ref):
+                assert np.all(np.isfinite(b)), f"{f.name}: the reference is not finite at the test point"
+                worst = max(worst, float(np.max(np.abs(a - b))) / (1.0 + float(np.max(np.abs(b)))))
+    return worst
+
+
+@pytest.mark.parametrize("form", ["auto", "general"])
+@pytest.mark.parametrize("name", SCENE_NAMES)
+def test_native_functions_compute_what_the_source_says(name, form):
+    sc = get_scene(name)
+    cs = compile_system(sc.system, form)
+    assert _worst(cs.source, cs.n, cs.m, list(_points(sc))) <= REL
+
+
+def test_a_mistranslated_function_is_seen(monkeypatch):
+    """Negative control: sin translated as cos (one table entry) breaks the comparison above."""
+    sc = get_scene("tilted-disk")
+    cs = compile_system(sc.system, "general")
+    assert "math.sin" in cs.source
+    monkeypatch.setitem(native._INTRINSIC1, "sin", "llvm.cos")
+    assert _worst(cs.source, cs.n, cs.m, list(_points(sc))) > 1e-3
+
+
+def test_a_wrong_power_sequence_is_seen(monkeypatch):
+    """Negative control: x**k computed as x**(k-1) for k >= 3 (a square-and-multiply off by one)."""
+    q, v = list(sympy.symbols("q1:4")), list(sympy.symbols("v1:4"))
+    L = (v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 - q[0] ** 5 / 5 - q[1] ** 4 / 4 - q[0] ** 2 * q[2] ** 3
+    system = LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name="powers")
+    cs = compile_system(system, "general")
+    pts = [(0.1, np.array([0.7, -1.3, 0.4]), np.array([0.2, 0.1, -0.5]), np.array([0.3]), np.array([0.0]))]
+    assert _worst(cs.source, 3, 1, pts) <= REL
+    orig = native._Function._int_exponent
+
+    def off_by_one(self, node):
+        k = orig(self, node)
+        return k - 1 if (k is not None and k >= 3) else k
+    monkeypatch.setattr(native._Function, "_int_exponent", off_by_one)
+    assert _worst(cs.source, 3, 1, pts) > 1e-3
+
+
+@pytest.mark.parametrize("name,form", [("skate", "auto"), ("chaplygin-sphere", "general"),
+                                       ("friction-skate", "general")])
+def test_kernels_give_the_same_bits_with_native_and_numba_models(name, form):
+    """One kernel run of 30 steps, the model once native and once numba's compilation of the
+    same source: every number equal (the same operations in the same order)."""
+    sc = get_scene(name)
+    cs = compile_system(sc.system, form)
+    t0, q0, v0 = sc.initial()
+    runs = {}
+    saved = _MODELS.pop(cs.digest, None)
+    try:
+        for kind in ("native", "numba"):
+            _MODELS.pop(cs.digest, None)
+            if kind == "native":
+                _MODELS[cs.digest] = native.compile_model(cs.source)
+            else:
+                from numba.core.types.function_type import CompileResultWAP
+                mod = cs.module.MODEL
+                _MODELS[cs.digest] = (mod[0],) + tuple(
+                    f if isinstance(f, bool) else CompileResultWAP(f.overloads[f.signatures[0]]) for f in mod[1:])
+            r = run_compiled(cs, "gauss-2", float(t0), [float(x) for x in q0], [float(x) for x in v0], 0.05, 30)
+            runs[kind] = (np.asarray(r.q), np.asarray(r.v))
+    finally:
+        _MODELS.pop(cs.digest, None)
+        if saved is not None:
+            _MODELS[cs.digest] = saved
+    assert np.array_equal(runs["native"][0], runs["numba"][0])
+    assert np.array_equal(runs["native"][1], runs["numba"][1])
+    assert np.all(np.isfinite(runs["native"][0]))
+
+
+def test_the_compiled_engine_runs_native_where_it_can_and_numba_elsewhere():
+    """A scene's model is native; a model with a function the translator does not take
+    (erf) is compiled by numba and still agrees with the generic engine."""
+    from ldaspark.core.spark import integrate
+    from ldaspark.core.families import get_method
+    sc = get_scene("skate")
+    cs = compile_system(sc.system)
+    if not native.enabled():
+        pytest.skip("LDASPARK_NATIVE=0")
+    assert cs.is_native
+    q, v = list(sympy.symbols("q1:4")), list(sympy.symbols("v1:4"))
+    L = (v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 - (q[0] ** 2 + q[1] ** 2) / 2 * (2 + sympy.erf(q[2] / 3))
+    system = LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name="erf-particle")
+    cg = compile_system(system)
+    with pytest.raises(native.NotNativeError, match="math.erf"):
+        native.compile_model(cg.source)
+    assert not cg.is_native
+    q0, v0 = [1.0, 0.0, 0.1], [0.0, 1.0, 0.0]
+    fast = run_compiled(cg, "gauss-2", 0.0, q0, v0, 0.05, 20)
+    ref = integrate(system, get_method("gauss-2"), 0.0, q0, v0, 0.05, n_steps=20)
+    assert np.max(np.abs(np.asarray(fast.q) - np.asarray(ref.q, dtype=float))) < 1e-12
+
+
+@pytest.mark.parametrize("text,why", [
+    ("import os", "neither a function"),
+    ("def f(t, q):\n    return os.system('x')", "not a generated model function"),
+    ("@_jit(_mt.U_SIG)\ndef f(t, q):\n    return os.system(1.0)", "call of os.system"),
+    ("@_jit(_mt.U_SIG)\ndef f(t, q):\n    while True:\n        pass", "statement While"),
+    ("@_jit(_mt.U_SIG)\ndef f(t, q):\n    return q[-1]", "index"),
+])
+def test_the_translator_takes_only_its_whitelist(text, why):
+    src = "MODEL = (1, f)\n" + text
+    with pytest.raises(native.NotNativeError, match=why):
+        native.compile_model(src)
+
+
+def test_a_source_with_a_foreign_call_is_refused_before_any_code_is_built():
+    sc = get_scene("skate")
+    cs = compile_system(sc.system, "general")
+    bad = cs.source.replace("math.sin(", "os.system(", 1) if "math.sin(" in cs.source else \
+        cs.source.replace("return ", "return os.getpid() + ", 1)
+    with pytest.raises(native.NotNativeError):
+        native.compile_model(bad)
+
+
+def test_a_thousand_term_sum_is_translated_without_recursion():
+    n = 1200
+    q = list(sympy.symbols(f"q0:{n}"))
+    v = list(sympy.symbols(f"v0:{n}"))
+    L = sum(x ** 2 for x in v) / 2 - sum(x ** 2 for x in q) / 2
+    system = LagrangianSystem(L, [v[0] - q[1] * v[2]], q, v, name="long-sum")
+    cs = compile_system(system)
+    model = native.compile_model(cs.source)
+    U = next(f for f in model[1:] if f.name == "U_of")
+    qq = np.linspace(-1, 1, n)
+    assert math.isclose(_call_u(U, 0.0, qq), float(np.sum(qq ** 2) / 2), rel_tol=1e-13)
