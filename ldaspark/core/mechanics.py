@@ -112,6 +112,7 @@ class _Model:
         self.added = {}                      # coordinate added by the adapter -> why
         self.added_rows = []                 # constraint rows added by the adapter (after cons), why
         self.free = []                       # speeds that no kinematic equation ties to a coordinate
+        self.tidy = True                     # cancel removable 0/0 in the mapped constraints
 
 
 def _add_speed_coordinates(m: _Model, free):
@@ -202,6 +203,10 @@ def _read_kane(model):
                                     "kanes_equations(bodies, loads) first)")
     m = _Model("KanesMethod", model._inertial, q, u_map, None, model.bodies, model.loads or [], cons,
                config=list(getattr(model, "_f_h", None) or []))
+    # sympy writes the constraints with q' -> u of its own solve of the kinematics; only a solve
+    # with denominators (1/cos of inverted kinematics) leaves removable 0/0 to cancel
+    qu = getattr(model, "_qdot_u_map", None) or {}
+    m.tidy = any(not sympy.denom(sympy.together(e)).is_number for e in qu.values())
     _add_speed_coordinates(m, free)
     return m
 
@@ -291,11 +296,7 @@ class _Kin:
             # point there (a load applied at it does no work on motions that obey the rolling rows)
             return root["material"]
         if O is not None and O is not P:
-            # differentiated in components of N (direction cosines only): Vector.dt would use the
-            # angular velocities set in the model, which may be written in speeds
-            t = sympy.physics.mechanics.dynamicsymbols._t
-            comps = r.to_matrix(self.N).diff(t)
-            derived = comps[0] * self.N.x + comps[1] * self.N.y + comps[2] * self.N.z
+            derived = self._dt(r)
             if set_v is not None:
                 self.checks.append((f"point {_name(P)}", derived, self._sub(set_v)))
             return derived
@@ -306,6 +307,25 @@ class _Kin:
         except ValueError:
             raise SystemDefinitionError(f"{self.m.kind}: the velocity of point {_name(P)} in {_name(self.N)} is "
                                         "not defined (set it, or locate the point from a fixed point)") from None
+
+    def _dt(self, r):
+        """d r / dt in N with the angular velocities derived from the orientations (Vector.dt
+        would use the ones set in the model, which may be written in speeds): each frame's part
+        c . e as c' . e + w x (c . e), which stays in the frames the position is written in
+        (far smaller than the derivative of its components in N)."""
+        t = sympy.physics.mechanics.dynamicsymbols._t
+        out = sympy.physics.vector.Vector(0)
+        for comps, F in r.args:
+            part = sympy.physics.vector.Vector([(comps, F)])
+            dc = comps.diff(t)
+            if any(c != 0 for c in dc):
+                out += sympy.physics.vector.Vector([(dc, F)])
+            if F is not self.N:
+                if not _oriented(F, self.N):
+                    raise SystemDefinitionError(f"{self.m.kind}: a position is given in frame {_name(F)}, which has "
+                                                f"no orientation relative to {_name(self.N)}")
+                out += self.angular_velocity(F).cross(part)
+        return out
 
     def angular_velocity(self, B):
         if B is self.N:
@@ -339,11 +359,16 @@ class _Kin:
                                         f"{_name(self.N)} is not defined") from None
 
 
+#: components larger than this are not trigsimp'd: taken in the body's frame they are compact
+#: already (trigsimp of the bicycle's 100-op components saves nothing and costs seconds each)
+_TRIGSIMP_OPS = 40
+
+
 def _components(vec, frame):
-    """Components of a vector in ``frame``, each trigonometrically simplified."""
+    """Components of a vector in ``frame``, the small ones trigonometrically simplified."""
     if vec == 0:
         return sympy.zeros(3, 1)
-    return sympy.Matrix([sympy.trigsimp(c) if sympy.count_ops(c) <= _SIMPLIFY_OPS else c
+    return sympy.Matrix([sympy.trigsimp(c) if sympy.count_ops(c) <= _TRIGSIMP_OPS else c
                          for c in vec.to_matrix(frame)])
 
 
@@ -408,7 +433,8 @@ def _kinetic_minus_potential(m: _Model, kin: _Kin, num):
         # of (1) differentiates L twice, and its cost grows with the size of L
         if isinstance(body, me.RigidBody):
             F = body.frame if _oriented(body.frame, m.frame) else _spin_frame(body, m, num)
-            v = _components(kin.point_velocity(body.masscenter), m.frame)
+            # |v|^2 in the body's frame: the positions that locate it are written in frames near it
+            v = _components(kin.point_velocity(body.masscenter), F)
             w = _components(kin.angular_velocity(body.frame), F)
             Ic = body.central_inertia.to_matrix(F)
             T += body.mass * (v.T * v)[0, 0] / 2 + (w.T * Ic * w)[0, 0] / 2
@@ -703,7 +729,8 @@ def _convert_model(m: _Model, name):
                 for e in ks]
 
     ks, qsym, vsym = conv(cons, "velocity constraints")
-    ks = tidy(ks)
+    if m.tidy:
+        ks = tidy(ks)
     rolling = _root_contacts(m, kin, conv, _Numeric(qsym, vsym, tsym, ks))
     if rolling:
         extra, qsym, vsym = conv(rolling, "rolling constraints")
