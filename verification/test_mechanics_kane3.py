@@ -303,3 +303,89 @@ def test_control_a_dropped_rolling_row_disagrees():
     bad = _error(_run(dropped, "gauss-2", h, q0, v0, t_end), qT, vT)
     print(f"\nrolling row dropped: error {bad:.3g} against {good:.3g}")
     assert bad > 1e-4 and bad > 1e4 * good, (bad, good)
+
+
+# --- sympy's test_kane rolling disc (built from its contact point, the Kane way) against the
+# test_kane5 disc (contact located by coordinates q4, q5, rolling as velocity constraints); both
+# copied from sympy/physics/mechanics/tests/test_kane.py and test_kane5.py (sympy 1.14, BSD) ----
+def _disc_from_contact():
+    q1, q2, q3, u1, u2, u3 = me.dynamicsymbols('q1 q2 q3 u1 u2 u3')
+    r, m, g = sympy.symbols('r m g')
+    N = me.ReferenceFrame('N')
+    Y = N.orientnew('Y', 'Axis', [q1, N.z])
+    L = Y.orientnew('L', 'Axis', [q2, Y.x])
+    R = L.orientnew('R', 'Axis', [q3, L.y])
+    w_R_N_qd = R.ang_vel_in(N)
+    R.set_ang_vel(N, u1 * L.x + u2 * L.y + u3 * L.z)
+    C = me.Point('C')
+    C.set_vel(N, 0)
+    Dmc = C.locatenew('Dmc', r * L.z)
+    Dmc.v2pt_theory(C, N, R)
+    I = me.inertia(L, m / 4 * r**2, m / 2 * r**2, m / 4 * r**2)
+    kd = [me.dot(R.ang_vel_in(N) - w_R_N_qd, uv) for uv in L]
+    ForceList = [(Dmc, - m * g * Y.z)]
+    BodyD = me.RigidBody('BodyD', Dmc, R, m, (I, Dmc))
+    return me.KanesMethod(N, q_ind=[q1, q2, q3], u_ind=[u1, u2, u3], kd_eqs=kd, bodies=[BodyD],
+                          forcelist=ForceList)
+
+
+def _disc_kane5():
+    t = me.dynamicsymbols._t
+    q1, q2, q3, q4, q5, u1, u2, u3, u4, u5 = me.dynamicsymbols('q1:6 u1:6')
+    g, r, m = sympy.symbols('g r m')
+    ground = me.RigidBody('ground')
+    disc = me.RigidBody('disk', mass=m)
+    disc.inertia = (m * r ** 2 / 4 * me.inertia(disc.frame, 1, 2, 1), disc.masscenter)
+    ground.masscenter.set_vel(ground.frame, 0)
+    disc.masscenter.set_vel(disc.frame, 0)
+    int_frame = me.ReferenceFrame('int_frame')
+    int_frame.orient_body_fixed(ground.frame, (q1, q2, 0), 'zxy')
+    disc.frame.orient_axis(int_frame, int_frame.y, q3)
+    g_w_d = disc.frame.ang_vel_in(ground.frame)
+    disc.frame.set_ang_vel(ground.frame, u1 * disc.x + u2 * disc.y + u3 * disc.z)
+    cp = ground.masscenter.locatenew('contact_point', q4 * ground.x + q5 * ground.y)
+    cp.set_vel(ground.frame, u4 * ground.x + u5 * ground.y)
+    disc.masscenter.set_pos(cp, r * int_frame.z)
+    disc.masscenter.set_vel(ground.frame, me.cross(disc.frame.ang_vel_in(ground.frame),
+                                                   disc.masscenter.pos_from(cp)))
+    kdes = [g_w_d.dot(disc.x) - u1, g_w_d.dot(disc.y) - u2, g_w_d.dot(disc.z) - u3,
+            q4.diff(t) - u4, q5.diff(t) - u5]
+    v0 = cp.vel(ground.frame) + me.cross(disc.frame.ang_vel_in(int_frame), cp.pos_from(disc.masscenter))
+    fnh = [v0.dot(ground.x), v0.dot(ground.y)]
+    return me.KanesMethod(ground.frame, [q1, q2, q3, q4, q5], [u1, u2, u3], kdes, u_dependent=[u4, u5],
+                          velocity_constraints=fnh, bodies=[disc],
+                          forcelist=[(disc.masscenter, -disc.mass * g * ground.z)], explicit_kinematics=False)
+
+
+def test_kane_way_disc_equals_the_disc_with_contact_coordinates():
+    """sympy's test_kane disc has no coordinates for its contact C and no velocity constraints
+    (the rolling is inside its kinematics): the reader adds x_C, y_C and two rolling rows, and
+    the result is test_kane5's disc -- the same L at random states (x_C, y_C for q4, q5), and
+    gauss-2 runs from the same state agree to 1e-11 (k differ in form, not in their zero set or
+    their span). Control: the test_kane disc with r = 0.27 instead of 0.26 differs by > 1e-4."""
+    a = LagrangianSystem.from_mechanics(_disc_from_contact(), name="disc-test_kane")
+    b = LagrangianSystem.from_mechanics(_disc_kane5(), name="disc-test_kane5")
+    assert [str(x) for x in a.q] == ["q1", "q2", "q3", "x_C", "y_C"] and a.m == 2 == b.m
+    ren = dict(zip(a.q + a.v, b.q + b.v))
+    rng = np.random.default_rng(5)
+    pars = {sympy.Symbol("r"): 0.26, sympy.Symbol("m"): 3.43, sympy.Symbol("g"): 9.81}
+    for _ in range(3):
+        pt = {x: float(rng.uniform(0.2, 1.1)) for x in b.q + b.v}
+        pt.update(pars)
+        la, lb = float(a.L.xreplace(ren).xreplace(pt)), float(b.L.xreplace(pt))
+        assert abs(la - lb) <= 1e-12 * (1 + abs(lb)), (la, lb)
+    P = {"g": 9.81, "r": 0.26, "m": 3.43}
+    q0 = np.array([0.3, 0.1, 1.97, -0.35, 2.27])
+    # velocities on b's constraints: the rates of q1..q3 given, those of q4, q5 solved from k = 0
+    vb = sympy.Matrix(b.k).xreplace({sympy.Symbol(k): v for k, v in P.items()}).xreplace(dict(zip(b.q, q0)))
+    v13 = [-0.2, 1.3, 0.15]
+    sol = sympy.solve(vb.xreplace(dict(zip(b.v[:3], v13))), b.v[3:])
+    v0 = np.array(v13 + [float(sol[b.v[3]]), float(sol[b.v[4]])])
+    kw = dict(t_span=(0, 0.2), q0=q0, v0=v0, h=0.01, params=P, engine="generic")
+    ra, rb = ldaspark.integrate(a, "gauss-2", **kw), ldaspark.integrate(b, "gauss-2", **kw)
+    assert ra.success and rb.success
+    diff = max(np.abs(ra.q - rb.q).max(), np.abs(ra.v - rb.v).max())
+    assert diff < 1e-11, diff
+    assert np.abs(ra.constraint).max() < K_TOL
+    rc = ldaspark.integrate(a, "gauss-2", **dict(kw, params=dict(P, r=0.27), project=True))
+    assert rc.success and np.abs(rc.q - rb.q).max() > 1e-4
