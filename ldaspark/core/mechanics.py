@@ -25,6 +25,16 @@ cosine matrix when it has one; the velocities set in the model must agree with t
 constraint manifold (checked at random points), otherwise the model is refused with the name of
 the point or frame.
 
+Coordinate-less speeds and Kane-way contacts. A speed that no kinematic equation ties to a
+coordinate (an ignorable angle left out, as sympy's bicycle leaves out its wheel angles) gets a
+coordinate q_<speed> with q_<speed>' = speed (``_add_speed_coordinates``; a body whose frame has no
+orientation must spin about an axis of symmetry of its inertia, ``_spin_frame``). A point given
+zero velocity and located from no fixed point while the model is located from it (a rolling
+contact written the Kane way) is rebuilt as part of an unconstrained model: new coordinates for
+its position in its plane, the rolling condition of its wheel as two velocity constraints after
+the model's own (``_root_contacts``, which says why the constrained Lagrangian would be wrong).
+The system's ``added_coordinates`` (name -> why) and ``added_constraints`` list what was added.
+
 Loads. Forces (Point, Vector) and torques (ReferenceFrame, Vector) enter through their
 generalized forces Q_i = F . d v_P / d q'_i (T . d w_B / d q'_i). A load is accepted when it
 has a potential: Q independent of the velocities and curl free (dQ_i/dq_j = dQ_j/dq_i, checked
