@@ -245,6 +245,8 @@ def test_bicycle_agrees_with_sympys_kane_equations_at_the_claimed_orders():
         runs = [_run(s, method, h, q0, v0) for h in hs]
         errs = [_error(r, qT, vT) for r in runs]
         obs = [math.log(errs[i] / errs[i + 1]) / math.log(2) for i in range(2)]
+        print(f"\n{method}: errors {', '.join(f'{e:.3g}' for e in errs)}, observed orders "
+              f"{', '.join(f'{o:.3f}' for o in obs)}")
         assert all(abs(o - p) <= 0.3 for o in obs), (method, errs, obs)
         est = max(np.abs(runs[-1].q[-1] - runs[-2].q[-1]).max(),
                   np.abs(runs[-1].v[-1] - runs[-2].v[-1]).max()) / (2 ** p - 1)
@@ -389,3 +391,30 @@ def test_kane_way_disc_equals_the_disc_with_contact_coordinates():
     assert np.abs(ra.constraint).max() < K_TOL
     rc = ldaspark.integrate(a, "gauss-2", **dict(kw, params=dict(P, r=0.27), project=True))
     assert rc.success and np.abs(rc.q - rb.q).max() > 1e-4
+
+
+def test_configuration_constraints_must_be_implied_by_the_velocity_constraints():
+    """A KanesMethod's configuration constraint enters (1) through its time derivative, which
+    sympy has the user give among the velocity constraints (one per dependent speed): the
+    pendulum with q2 dependent is accepted with q1 u1 + q2 u2 = 0, and refused in one line, naming
+    the constraint, when the velocity constraint given is not that derivative."""
+    q1, q2, u1, u2 = me.dynamicsymbols("q1 q2 u1 u2")
+    Lp, m = sympy.symbols("L m")
+    N = me.ReferenceFrame("N")
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    P = O.locatenew("P", q1 * N.x + q2 * N.y)
+    P.set_vel(N, u1 * N.x + u2 * N.y)
+
+    def km(vel):
+        return me.KanesMethod(N, [q1], [u1], kd_eqs=[q1.diff() - u1, q2.diff() - u2], q_dependent=[q2],
+                              configuration_constraints=[q1 ** 2 + q2 ** 2 - Lp ** 2], u_dependent=[u2],
+                              velocity_constraints=[vel], bodies=[me.Particle("p", P, m)],
+                              forcelist=[(P, m * 9.8 * N.x)])
+    ok = LagrangianSystem.from_mechanics(km(q1 * u1 + q2 * u2))
+    assert ok.n == 2 and ok.m == 1
+    from ldaspark.core.errors import SystemDefinitionError
+    with pytest.raises(SystemDefinitionError) as err:
+        LagrangianSystem.from_mechanics(km(q2 * u1 - q1 * u2))
+    msg = str(err.value)
+    assert "\n" not in msg and "configuration constraint 0" in msg, msg

@@ -90,7 +90,9 @@ def _to_symbols(exprs, qs, t):
         e = sympy.sympify(e)
         if any(d.derivative_count > 1 for d in e.atoms(sympy.Derivative)):
             raise SystemDefinitionError("L or a constraint contains second time derivatives")
-        e = e.subs(dsub).subs(qsub)
+        # xreplace (structural, linear in the size) where subs would rewrite the tree at each
+        # pattern: q'(t) first, then q(t)
+        e = e.xreplace(dsub).xreplace(qsub)
         if e.atoms(AppliedUndef) or e.has(sympy.Derivative):
             rest = sorted(map(str, e.atoms(AppliedUndef) | e.atoms(sympy.Derivative)))
             raise SystemDefinitionError(f"L or a constraint contains functions of t that are not coordinates: {rest}")
@@ -548,6 +550,17 @@ def _potential(i, load, m: _Model, kin: _Kin, qs, conv, num: _Numeric):
         raise SystemDefinitionError(f"{m.kind}: {what} depends on the velocities ({', '.join(moving)}): it has no "
                                     "potential, and loads without a potential (generalized forces) are not "
                                     "supported yet")
+    V = None
+    if isinstance(loc, me.Point):
+        O, r = kin.position(loc)
+        comps = vec.to_matrix(m.frame)
+        if O is not None and O is not loc and not any(c.has(t) or c.atoms(sympy.core.function.AppliedUndef)
+                                                      for c in comps):
+            V = conv([-vec.dot(r)], what)[0][0]
+    if V is not None and all(_is_zero(-V.diff(x) - e, num) for x, e in zip(qsym, Qs)):
+        # a constant force on a located point: Q = -grad(-F . r) holds, so Q is curl free
+        return V
+    V = None
     n = len(qsym)
     for a in range(n):
         for b in range(a + 1, n):
@@ -556,13 +569,6 @@ def _potential(i, load, m: _Model, kin: _Kin, qs, conv, num: _Numeric):
                 raise SystemDefinitionError(f"{m.kind}: {what} is not conservative: its generalized force has "
                                             f"dQ_{qsym[a]}/d{qsym[b]} != dQ_{qsym[b]}/d{qsym[a]} (no potential "
                                             "V(q) with Q = -grad V); loads without a potential are not supported yet")
-    V = None
-    if isinstance(loc, me.Point):
-        O, r = kin.position(loc)
-        comps = vec.to_matrix(m.frame)
-        if O is not None and O is not loc and not any(c.has(t) or c.atoms(sympy.core.function.AppliedUndef)
-                                                      for c in comps):
-            V = conv([-vec.dot(r)], what)[0][0]
     if V is None:
         V = sympy.S.Zero
         for j, x in enumerate(qsym):
