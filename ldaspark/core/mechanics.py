@@ -258,6 +258,7 @@ class _Kin:
         self.m = m
         self.N = m.frame
         self.checks = []          # (what, derived vector, set vector): compared on the manifold
+        self._checked = set()
         self.roots = {}           # id(point) -> {"offset", "material"}: rolling contacts given coordinates
 
     def _sub(self, vec):
@@ -289,6 +290,13 @@ class _Kin:
                 return cands[-1]
         return cands[0] if cands else None
 
+    def _check(self, what, obj, derived, given):
+        # once per point or frame: velocities are asked for again and again (every position
+        # differentiated needs its frames' angular velocities)
+        if id(obj) not in self._checked:
+            self._checked.add(id(obj))
+            self.checks.append((what, derived, self._sub(given)))
+
     def position(self, P):
         """(O, r): P's position r from a fixed point O (a rolling contact reconstructed by
         ``_root_contacts`` is located at its added coordinates), or (None, None)."""
@@ -310,7 +318,7 @@ class _Kin:
         if O is not None and O is not P:
             derived = self._dt(r)
             if set_v is not None:
-                self.checks.append((f"point {_name(P)}", derived, self._sub(set_v)))
+                self._check(f"point {_name(P)}", P, derived, set_v)
             return derived
         if O is P:
             return set_v
@@ -362,7 +370,7 @@ class _Kin:
                     derived += a._w_diff_dcm(b)
         if derived is not None:
             if set_w is not None:
-                self.checks.append((f"frame {_name(B)}", derived, self._sub(set_w)))
+                self._check(f"frame {_name(B)}", B, derived, set_w)
             return derived
         try:
             return self._sub(B.ang_vel_in(self.N))
