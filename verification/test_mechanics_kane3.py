@@ -20,7 +20,8 @@ Checks: agreement within the method's own error estimate (a derived tolerance), 
 constrained Lagrangian (Kane-way velocities, no reconstruction) and the reconstruction with one
 rolling row dropped both miss the reference by orders of magnitude more. Also sympy's test_kane
 rolling disc (built from its contact point the same way) equals the test_kane5 disc.
-Cost ~60-80 s in all (generic engine; the bicycle build ~10-15 s once)."""
+Cost ~90 s in all (generic engine; the bicycle build ~9-13 s CPU once); the compiled-engine
+check is exhaustive."""
 import functools
 import math
 import time
