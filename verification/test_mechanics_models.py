@@ -465,28 +465,40 @@ def test_kane_way_kinematics_named_and_other_refusals():
     with pytest.raises(SystemDefinitionError) as err:
         LagrangianSystem.from_mechanics(props['bodies'][0])
     _one_line(err, "not a RigidBody")
-    # sympy's test_kane rolling disc: built from the contact point C up (C given zero velocity, no
-    # position coordinates); the mass centre's set velocity is not the derivative of its position
-    # from C even where the (here: no) constraints hold
-    q1, q2, q3, w1, w2, w3 = me.dynamicsymbols('q1 q2 q3 u1 u2 u3')
-    r, m, g = symbols('r m g')
-    N3 = me.ReferenceFrame('N')
-    Y = N3.orientnew('Y', 'Axis', [q1, N3.z])
-    L3 = Y.orientnew('L', 'Axis', [q2, Y.x])
-    R = L3.orientnew('R', 'Axis', [q3, L3.y])
-    w_R_N_qd = R.ang_vel_in(N3)
-    R.set_ang_vel(N3, w1 * L3.x + w2 * L3.y + w3 * L3.z)
-    C = me.Point('C')
-    C.set_vel(N3, 0)
-    Dmc = C.locatenew('Dmc', r * L3.z)
-    Dmc.v2pt_theory(C, N3, R)
-    I3 = me.inertia(L3, m / 4 * r ** 2, m / 2 * r ** 2, m / 4 * r ** 2)
-    kd = [me.dot(R.ang_vel_in(N3) - w_R_N_qd, uv) for uv in L3]
-    KM = me.KanesMethod(N3, q_ind=[q1, q2, q3], u_ind=[w1, w2, w3], kd_eqs=kd,
-                        bodies=[me.RigidBody('BodyD', Dmc, R, m, (I3, Dmc))], forcelist=[(Dmc, - m * g * Y.z)])
+    # sympy's test_kane rolling disc is built from the contact point C up (C given zero velocity, no
+    # position coordinates): accepted now, C located by added coordinates with its rolling rows
+    # (verification/test_mechanics_kane3.py checks it against test_kane5's disc). A Kane-way
+    # contact whose plane or rolling body cannot be found is refused, naming the point
+    def kane_way_disc(variant):
+        q1, q2, q3, w1, w2, w3 = me.dynamicsymbols('q1 q2 q3 u1 u2 u3')
+        r, m, g = symbols('r m g')
+        N3 = me.ReferenceFrame('N')
+        Y = N3.orientnew('Y', 'Axis', [q1, N3.z])
+        L3 = Y.orientnew('L', 'Axis', [q2, Y.x])
+        R = L3.orientnew('R', 'Axis', [q3, L3.y])
+        w_R_N_qd = R.ang_vel_in(N3)
+        R.set_ang_vel(N3, w1 * L3.x + w2 * L3.y + w3 * L3.z)
+        C = me.Point('C')
+        C.set_vel(N3, 0)
+        Dmc = C.locatenew('Dmc', r * (R.z if variant == "off-plane" else L3.z))
+        if variant == "no-wheel":
+            # moves C along the ground (Y.x), but as no frame's w x r(C -> Dmc)
+            Dmc.set_vel(N3, L3.ang_vel_in(N3).cross(r * L3.z) + w1 * Y.x)
+        else:
+            Dmc.v2pt_theory(C, N3, L3 if variant == "off-plane" else R)
+        I3 = me.inertia(L3, m / 4 * r ** 2, m / 2 * r ** 2, m / 4 * r ** 2)
+        kd = [me.dot(R.ang_vel_in(N3) - w_R_N_qd, uv) for uv in L3]
+        return me.KanesMethod(N3, q_ind=[q1, q2, q3], u_ind=[w1, w2, w3], kd_eqs=kd,
+                              bodies=[me.RigidBody('BodyD', Dmc, R, m, (I3, Dmc))],
+                              forcelist=[(Dmc, - m * g * Y.z)])
+    ok = LagrangianSystem.from_mechanics(kane_way_disc("as written"))
+    assert list(ok.added_coordinates) == ["x_C", "y_C"] and ok.m == 2 and len(ok.added_constraints) == 2
     with pytest.raises(SystemDefinitionError) as err:
-        LagrangianSystem.from_mechanics(KM)
-    _one_line(err, "point Dmc", "rolling contact")
+        LagrangianSystem.from_mechanics(kane_way_disc("off-plane"))
+    _one_line(err, "point C is given zero velocity but moves", "rolling plane cannot be determined")
+    with pytest.raises(SystemDefinitionError) as err:
+        LagrangianSystem.from_mechanics(kane_way_disc("no-wheel"))
+    _one_line(err, "point C is given zero velocity but moves", "rolling body cannot be identified")
     # a contact point located from the origin by coordinates but given zero velocity (the Kane
     # way): the mass centre's set velocity lacks the contact's motion -- refused, naming it
     xc, yc, thc, c1, c2, c3 = me.dynamicsymbols("xc yc thc c1 c2 c3")
@@ -504,22 +516,34 @@ def test_kane_way_kinematics_named_and_other_refusals():
     with pytest.raises(SystemDefinitionError) as err:
         LagrangianSystem.from_mechanics(kc)
     _one_line(err, "point Gc", "rolling contact")
-    # a speed without a coordinate (sympy's test_kane3 bicycle leaves its wheel angles out this way)
-    x, y, th, u1, u2, u3, u4 = me.dynamicsymbols("x y theta u1 u2 u3 u4")
-    B = N.orientnew("B", "Axis", [th, N.z])
-    W = me.ReferenceFrame("W")
-    W.set_ang_vel(B, u4 * B.y)
-    O = me.Point("O")
-    O.set_vel(N, 0)
-    P = O.locatenew("P", x * N.x + y * N.y)
-    P.set_vel(N, u1 * N.x + u2 * N.y)
-    B.set_ang_vel(N, u3 * N.z)
-    wheel = me.RigidBody("wheel", P, W, 1, (me.inertia(B, 1, 1, 1), P))
-    km = me.KanesMethod(N, [x, y, th], [u1, u3, u4], kd_eqs=[x.diff() - u1, y.diff() - u2, th.diff() - u3],
-                        u_dependent=[u2], velocity_constraints=[P.vel(N).dot(B.y)], bodies=[wheel])
+    # a speed without a coordinate (sympy's test_kane3 bicycle leaves its wheel angles out this way):
+    # the wheel's spin angle is added (nothing depends on it: the inertia is symmetric about the
+    # spin axis); an inertia that is not, or kinematic equations that leave a speed they contain
+    # undetermined, are refused
+    def spinning(inertia, kd_extra=False):
+        x, y, th, u1, u2, u3, u4 = me.dynamicsymbols("x y theta u1 u2 u3 u4")
+        B = N.orientnew("B", "Axis", [th, N.z])
+        W = me.ReferenceFrame("W")
+        W.set_ang_vel(B, u4 * B.y)
+        O = me.Point("O")
+        O.set_vel(N, 0)
+        P = O.locatenew("P", x * N.x + y * N.y)
+        P.set_vel(N, u1 * N.x + u2 * N.y)
+        B.set_ang_vel(N, u3 * N.z)
+        wheel = me.RigidBody("wheel", P, W, 1, (me.inertia(B, *inertia), P))
+        kd = [x.diff() - u1 - (u4 if kd_extra else 0), y.diff() - u2, th.diff() - u3]
+        return me.KanesMethod(N, [x, y, th], [u1, u3, u4], kd_eqs=kd, u_dependent=[u2],
+                              velocity_constraints=[P.vel(N).dot(B.y)], bodies=[wheel])
+    sp = LagrangianSystem.from_mechanics(spinning((1, 2, 1)))
+    assert [str(x) for x in sp.q] == ["x", "y", "theta", "q_u4"] and "q_u4" in sp.added_coordinates
+    vth, vw = symbols("v_theta v_q_u4")
+    assert sympy.simplify(sp.L - (symbols("v_x") ** 2 / 2 + symbols("v_y") ** 2 / 2 + vth ** 2 / 2 + vw ** 2)) == 0
     with pytest.raises(SystemDefinitionError) as err:
-        LagrangianSystem.from_mechanics(km)
-    _one_line(err, "4 generalized speeds but 3 kinematic", "(u4 appears in none)")
+        LagrangianSystem.from_mechanics(spinning((1, 1, 2)))
+    _one_line(err, "body wheel", "frame W has no orientation", "not symmetric about its spin axis")
+    with pytest.raises(SystemDefinitionError) as err:
+        LagrangianSystem.from_mechanics(spinning((1, 2, 1), kd_extra=True))
+    _one_line(err, "4 generalized speeds but 3 kinematic")
     bare = me.KanesMethod(N, props['q_ind'], props['u_ind'], props['kdes'], u_dependent=props['u_dep'],
                           velocity_constraints=props['fnh'])
     with pytest.raises(SystemDefinitionError) as err:

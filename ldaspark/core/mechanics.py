@@ -25,6 +25,16 @@ cosine matrix when it has one; the velocities set in the model must agree with t
 constraint manifold (checked at random points), otherwise the model is refused with the name of
 the point or frame.
 
+Coordinate-less speeds and Kane-way contacts. A speed that no kinematic equation ties to a
+coordinate (an ignorable angle left out, as sympy's bicycle leaves out its wheel angles) gets a
+coordinate q_<speed> with q_<speed>' = speed (``_add_speed_coordinates``; a body whose frame has no
+orientation must spin about an axis of symmetry of its inertia, ``_spin_frame``). A point given
+zero velocity and located from no fixed point while the model is located from it (a rolling
+contact written the Kane way) is rebuilt as part of an unconstrained model: new coordinates for
+its position in its plane, the rolling condition of its wheel as two velocity constraints after
+the model's own (``_root_contacts``, which says why the constrained Lagrangian would be wrong).
+The system's ``added_coordinates`` (name -> why) and ``added_constraints`` list what was added.
+
 Loads. Forces (Point, Vector) and torques (ReferenceFrame, Vector) enter through their
 generalized forces Q_i = F . d v_P / d q'_i (T . d w_B / d q'_i). A load is accepted when it
 has a potential: Q independent of the velocities and curl free (dQ_i/dq_j = dQ_j/dq_i, checked
@@ -80,7 +90,9 @@ def _to_symbols(exprs, qs, t):
         e = sympy.sympify(e)
         if any(d.derivative_count > 1 for d in e.atoms(sympy.Derivative)):
             raise SystemDefinitionError("L or a constraint contains second time derivatives")
-        e = e.subs(dsub).subs(qsub)
+        # xreplace (structural, linear in the size) where subs would rewrite the tree at each
+        # pattern: q'(t) first, then q(t)
+        e = e.xreplace(dsub).xreplace(qsub)
         if e.atoms(AppliedUndef) or e.has(sympy.Derivative):
             rest = sorted(map(str, e.atoms(AppliedUndef) | e.atoms(sympy.Derivative)))
             raise SystemDefinitionError(f"L or a constraint contains functions of t that are not coordinates: {rest}")
@@ -105,27 +117,68 @@ class _Model:
     the map u -> u(q, q'), the Lagrangian (given, or None: from the bodies), bodies, loads,
     velocity constraints (in q, q', u) and a fixed point when the model names one."""
 
-    def __init__(self, kind, frame, q, u_map, L, bodies, loads, cons, fixed=None):
+    def __init__(self, kind, frame, q, u_map, L, bodies, loads, cons, fixed=None, config=None):
         self.kind, self.frame, self.q, self.u_map = kind, frame, list(q), u_map
         self.L, self.bodies, self.loads, self.cons, self.fixed = L, list(bodies or []), list(loads or []), cons, fixed
+        self.config = list(config or [])     # configuration constraints (their derivatives must be in cons)
+        self.added = {}                      # coordinate added by the adapter -> why
+        self.added_rows = []                 # constraint rows added by the adapter (after cons), why
+        self.free = []                       # speeds that no kinematic equation ties to a coordinate
+        self.tidy = True                     # cancel removable 0/0 in the mapped constraints
+
+
+def _add_speed_coordinates(m: _Model, free):
+    """A speed u that no kinematic differential equation ties to a coordinate (sympy's models leave
+    out ignorable angles this way, e.g. the spin of a wheel whose inertia is symmetric about its
+    axis) gets a coordinate q_u(t) with q_u' = u: (1) needs a coordinate for every velocity, and
+    nothing in L or k depends on the added angle itself (a body whose frame has no orientation is
+    accepted only as such a spin, see ``_spin_frame``)."""
+    from sympy.physics.mechanics import dynamicsymbols
+    t = dynamicsymbols._t
+    m.free = list(free)
+    for x in free:
+        nm = _fresh_name(m, f"q_{getattr(x, 'func', x)}")
+        th = dynamicsymbols(nm)
+        m.q.append(th)
+        m.u_map[x] = th.diff(t)
+        m.added[nm] = (f"{nm}' = {getattr(x, 'func', x)} (a speed in no kinematic differential equation; "
+                       "nothing depends on the angle itself)")
+
+
+def _fresh_name(m: _Model, base):
+    import re
+    base = re.sub(r"\W", "_", base)
+    if not base.isidentifier():
+        base = "c_" + base
+    taken = {str(getattr(x, "func", x)) for x in m.q}
+    nm = base
+    while nm in taken:
+        nm += "_"
+    return nm
 
 
 def _speed_map(kind, q, u, kdes):
-    """{u_j: u_j(q, q')} from kinematic equations linear in u and q' (solved for u)."""
+    """({u_j: u_j(q, q')}, free) from kinematic equations linear in u and q' (solved for u);
+    ``free``: the speeds that appear in no kinematic equation (they get coordinates of their own,
+    ``_add_speed_coordinates``)."""
     u = list(u)
     if not u:
-        return {}
-    if not kdes or len(kdes) != len(u):
-        free = [str(getattr(x, "func", x)) for x in u if not any(sympy.sympify(e).has(x) for e in kdes or [])]
-        which = f" ({', '.join(free)} {'appears' if len(free) == 1 else 'appear'} in none)" if free else ""
+        return {}, []
+    kdes = [sympy.sympify(e) for e in (kdes or [])]
+    free = [x for x in u if not any(e.has(x) for e in kdes)]
+    tied = [x for x in u if x not in free]
+    if len(kdes) != len(tied):
+        which = f" (in them: {len(tied)} of the speeds)" if free else ""
         raise SystemDefinitionError(
-            f"{kind}: {len(u)} generalized speeds but {len(kdes or [])} kinematic differential equations{which}: "
-            "(1) needs a coordinate for every speed (add the ignored coordinates, e.g. wheel angles with q' = u, "
-            "and for a rolling contact point its position and the rolling condition as velocity constraints)")
-    kd = sympy.Matrix(list(kdes))
-    A = kd.jacobian(u)
-    rest = kd.xreplace(dict.fromkeys(u, 0))
-    if A.has(*u):
+            f"{kind}: {len(u)} generalized speeds but {len(kdes)} kinematic differential equations{which}: "
+            "(1) needs the equations to determine every speed they contain from q' (a speed in none of them "
+            "gets a coordinate of its own)")
+    if not tied:
+        return {}, free
+    kd = sympy.Matrix(kdes)
+    A = kd.jacobian(tied)
+    rest = kd.xreplace(dict.fromkeys(tied, 0))
+    if A.has(*tied):
         raise SystemDefinitionError(f"{kind}: the kinematic differential equations are not linear in u")
     if A.is_diagonal() and all(A[i, i] != 0 for i in range(A.rows)):
         sol = [-rest[i] / A[i, i] for i in range(A.rows)]
@@ -138,10 +191,10 @@ def _speed_map(kind, q, u, kdes):
     if any(e.has(sympy.nan, sympy.zoo, sympy.oo, -sympy.oo) for e in sol):
         raise SystemDefinitionError(f"{kind}: the kinematic differential equations cannot be solved for "
                                     "the generalized speeds u (their u-coefficient matrix is singular)")
-    out = dict(zip(u, sol))
+    out = dict(zip(tied, sol))
     if any(e.has(*u) for e in sol):
         raise SystemDefinitionError(f"{kind}: the kinematic differential equations do not determine u from q'")
-    return out
+    return out, free
 
 
 def _read_kane(model):
@@ -153,14 +206,21 @@ def _read_kane(model):
                                     "u cannot be mapped to q'")
     qd = sympy.Matrix([x.diff(t) for x in q])
     kdes = list(model._k_ku_implicit * model.u + model._k_kqdot_implicit * qd + model._f_k_implicit)
-    u_map = _speed_map("KanesMethod", q, u, kdes)
+    u_map, free = _speed_map("KanesMethod", q, u, kdes)
     cons = []
     if len(model._k_nh):
         cons = list(model._k_nh * model.u + model._f_nh)
     if not model.bodies:
         raise SystemDefinitionError("KanesMethod has no bodies: give bodies=[...] (or call "
                                     "kanes_equations(bodies, loads) first)")
-    return _Model("KanesMethod", model._inertial, q, u_map, None, model.bodies, model.loads or [], cons)
+    m = _Model("KanesMethod", model._inertial, q, u_map, None, model.bodies, model.loads or [], cons,
+               config=list(getattr(model, "_f_h", None) or []))
+    # sympy writes the constraints with q' -> u of its own solve of the kinematics; only a solve
+    # with denominators (1/cos of inverted kinematics) leaves removable 0/0 to cancel
+    qu = getattr(model, "_qdot_u_map", None) or {}
+    m.tidy = any(not sympy.denom(sympy.together(e)).is_number for e in qu.values())
+    _add_speed_coordinates(m, free)
+    return m
 
 
 def _read_lagranges(model):
@@ -174,14 +234,16 @@ def _read_lagranges(model):
 
 def _read_system(model):
     q, u = list(model.q), list(model.u)
-    u_map = _speed_map("System", q, u, list(model.kdes))
+    u_map, free = _speed_map("System", q, u, list(model.kdes))
     loads = list(model.loads or [])
     for act in getattr(model, "actuators", None) or []:
         loads.extend(act.to_loads())
     cons = list(model.velocity_constraints)
     if not model.bodies:
         raise SystemDefinitionError("System has no bodies: add them with add_bodies(...)")
-    return _Model("System", model.frame, q, u_map, None, model.bodies, loads, cons, fixed=model.fixed_point)
+    m = _Model("System", model.frame, q, u_map, None, model.bodies, loads, cons, fixed=model.fixed_point)
+    _add_speed_coordinates(m, free)
+    return m
 
 
 def _name(obj) -> str:
@@ -196,6 +258,8 @@ class _Kin:
         self.m = m
         self.N = m.frame
         self.checks = []          # (what, derived vector, set vector): compared on the manifold
+        self._checked = set()
+        self.roots = {}           # id(point) -> {"offset", "material"}: rolling contacts given coordinates
 
     def _sub(self, vec):
         return vec.xreplace(self.m.u_map) if self.m.u_map else vec
@@ -226,17 +290,35 @@ class _Kin:
                 return cands[-1]
         return cands[0] if cands else None
 
+    def _check(self, what, obj, derived, given):
+        # once per point or frame: velocities are asked for again and again (every position
+        # differentiated needs its frames' angular velocities)
+        if id(obj) not in self._checked:
+            self._checked.add(id(obj))
+            self.checks.append((what, derived, self._sub(given)))
+
+    def position(self, P):
+        """(O, r): P's position r from a fixed point O (a rolling contact reconstructed by
+        ``_root_contacts`` is located at its added coordinates), or (None, None)."""
+        O = self._fixed_origin(P)
+        if O is None:
+            return None, None
+        r = P.pos_from(O) if O is not P else sympy.physics.vector.Vector(0)
+        root = self.roots.get(id(O))
+        return (O, r + root["offset"]) if root is not None else (O, r)
+
     def point_velocity(self, P):
         set_v = P._vel_dict.get(self.N)
-        O = self._fixed_origin(P)
+        O, r = self.position(P)
+        root = self.roots.get(id(O)) if O is not None else None
+        if root is not None and O is P:
+            # the contact point itself: the model's zero velocity is that of the wheel's material
+            # point there (a load applied at it does no work on motions that obey the rolling rows)
+            return root["material"]
         if O is not None and O is not P:
-            # differentiated in components of N (direction cosines only): Vector.dt would use the
-            # angular velocities set in the model, which may be written in speeds
-            t = sympy.physics.mechanics.dynamicsymbols._t
-            comps = P.pos_from(O).to_matrix(self.N).diff(t)
-            derived = comps[0] * self.N.x + comps[1] * self.N.y + comps[2] * self.N.z
+            derived = self._dt(r)
             if set_v is not None:
-                self.checks.append((f"point {_name(P)}", derived, self._sub(set_v)))
+                self._check(f"point {_name(P)}", P, derived, set_v)
             return derived
         if O is P:
             return set_v
@@ -245,6 +327,25 @@ class _Kin:
         except ValueError:
             raise SystemDefinitionError(f"{self.m.kind}: the velocity of point {_name(P)} in {_name(self.N)} is "
                                         "not defined (set it, or locate the point from a fixed point)") from None
+
+    def _dt(self, r):
+        """d r / dt in N with the angular velocities derived from the orientations (Vector.dt
+        would use the ones set in the model, which may be written in speeds): each frame's part
+        c . e as c' . e + w x (c . e), which stays in the frames the position is written in
+        (far smaller than the derivative of its components in N)."""
+        t = sympy.physics.mechanics.dynamicsymbols._t
+        out = sympy.physics.vector.Vector(0)
+        for comps, F in r.args:
+            part = sympy.physics.vector.Vector([(comps, F)])
+            dc = comps.diff(t)
+            if any(c != 0 for c in dc):
+                out += sympy.physics.vector.Vector([(dc, F)])
+            if F is not self.N:
+                if not _oriented(F, self.N):
+                    raise SystemDefinitionError(f"{self.m.kind}: a position is given in frame {_name(F)}, which has "
+                                                f"no orientation relative to {_name(self.N)}")
+                out += self.angular_velocity(F).cross(part)
+        return out
 
     def angular_velocity(self, B):
         if B is self.N:
@@ -269,7 +370,7 @@ class _Kin:
                     derived += a._w_diff_dcm(b)
         if derived is not None:
             if set_w is not None:
-                self.checks.append((f"frame {_name(B)}", derived, self._sub(set_w)))
+                self._check(f"frame {_name(B)}", B, derived, set_w)
             return derived
         try:
             return self._sub(B.ang_vel_in(self.N))
@@ -278,15 +379,71 @@ class _Kin:
                                         f"{_name(self.N)} is not defined") from None
 
 
+#: components larger than this are not trigsimp'd: taken in the body's frame they are compact
+#: already (trigsimp of the bicycle's 100-op components saves nothing and costs seconds each)
+_TRIGSIMP_OPS = 40
+
+
 def _components(vec, frame):
-    """Components of a vector in ``frame``, each trigonometrically simplified."""
+    """Components of a vector in ``frame``, the small ones trigonometrically simplified."""
     if vec == 0:
         return sympy.zeros(3, 1)
-    return sympy.Matrix([sympy.trigsimp(c) if sympy.count_ops(c) <= _SIMPLIFY_OPS else c
+    return sympy.Matrix([sympy.trigsimp(c) if sympy.count_ops(c) <= _TRIGSIMP_OPS else c
                          for c in vec.to_matrix(frame)])
 
 
-def _kinetic_minus_potential(m: _Model, kin: _Kin):
+def _oriented(F, N) -> bool:
+    """F has direction cosines relative to N (a chain of orientations)."""
+    if F is N:
+        return True
+    try:
+        F._dict_list(N, 0)
+    except ValueError:
+        return False
+    return True
+
+
+def _spin_frame(body, m: _Model, num):
+    """The frame in which to take the angular velocity and inertia of a body whose own frame B has
+    no orientation (sympy's wheels, given only an angular velocity): a frame F with one, relative to
+    which B spins as w_B/F = s e, s a speed that no kinematic equation ties (its added angle is the
+    spin angle), e constant in F, and the central inertia given in F and symmetric about e. Then
+    the kinetic energy is that of the rotated body whatever the spin angle, which is why nothing
+    depends on the added angle. Anything else is refused: B needs an orientation."""
+    import sympy.physics.mechanics as me
+    B, N = body.frame, m.frame
+    why = "its angular velocity relative to an oriented frame is not a spin u*e about a fixed axis"
+    for F, w in B._ang_vel_dict.items():
+        if F is B or not _oriented(F, N):
+            continue
+        comps = w.to_matrix(F)
+        dyn = me.find_dynamicsymbols(comps)
+        if len(dyn) != 1 or next(iter(dyn)) not in set(m.free):
+            why = (f"its angular velocity relative to {_name(F)} is not one speed that no kinematic equation "
+                   "ties to a coordinate")
+            continue
+        s = next(iter(dyn))
+        e = comps.diff(s)
+        if me.find_dynamicsymbols(e) or any(not _is_zero(c, num) for c in comps - e * s):
+            why = f"its spin {s} relative to {_name(F)} is not about a fixed axis"
+            continue
+        try:
+            Ic = body.central_inertia.to_matrix(F)
+        except ValueError:
+            why = f"its inertia is not given in a frame oriented relative to {_name(F)}"
+            continue
+        n2 = (e.T * e)[0, 0]
+        lam = (e.T * Ic * e)[0, 0] / n2
+        mu = (Ic.trace() - lam) / 2
+        D = Ic - lam * e * e.T / n2 - mu * (sympy.eye(3) - e * e.T / n2)
+        if all(_is_zero(d, num) for d in D):
+            return F
+        why = f"its inertia is not symmetric about its spin axis (the rate {s}) in {_name(F)}"
+    raise SystemDefinitionError(f"{m.kind}: body {_name(body)}: its frame {_name(B)} has no orientation and {why}; "
+                                f"orient {_name(B)} (e.g. orient_axis) and give its angle a kinematic equation")
+
+
+def _kinetic_minus_potential(m: _Model, kin: _Kin, num):
     """T - V of the bodies (V: their ``potential_energy``)."""
     import sympy.physics.mechanics as me
     T = sympy.S.Zero
@@ -295,9 +452,11 @@ def _kinetic_minus_potential(m: _Model, kin: _Kin):
         # components simplified one by one (cheap) before they are multiplied out: the derivation
         # of (1) differentiates L twice, and its cost grows with the size of L
         if isinstance(body, me.RigidBody):
-            v = _components(kin.point_velocity(body.masscenter), m.frame)
-            w = _components(kin.angular_velocity(body.frame), body.frame)
-            Ic = body.central_inertia.to_matrix(body.frame)
+            F = body.frame if _oriented(body.frame, m.frame) else _spin_frame(body, m, num)
+            # |v|^2 in the body's frame: the positions that locate it are written in frames near it
+            v = _components(kin.point_velocity(body.masscenter), F)
+            w = _components(kin.angular_velocity(body.frame), F)
+            Ic = body.central_inertia.to_matrix(F)
             T += body.mass * (v.T * v)[0, 0] / 2 + (w.T * Ic * w)[0, 0] / 2
         elif isinstance(body, me.Particle):
             v = _components(kin.point_velocity(body.point), m.frame)
@@ -399,6 +558,17 @@ def _potential(i, load, m: _Model, kin: _Kin, qs, conv, num: _Numeric):
         raise SystemDefinitionError(f"{m.kind}: {what} depends on the velocities ({', '.join(moving)}): it has no "
                                     "potential, and loads without a potential (generalized forces) are not "
                                     "supported yet")
+    V = None
+    if isinstance(loc, me.Point):
+        O, r = kin.position(loc)
+        comps = vec.to_matrix(m.frame)
+        if O is not None and O is not loc and not any(c.has(t) or c.atoms(sympy.core.function.AppliedUndef)
+                                                      for c in comps):
+            V = conv([-vec.dot(r)], what)[0][0]
+    if V is not None and all(_is_zero(-V.diff(x) - e, num) for x, e in zip(qsym, Qs)):
+        # a constant force on a located point: Q = -grad(-F . r) holds, so Q is curl free
+        return V
+    V = None
     n = len(qsym)
     for a in range(n):
         for b in range(a + 1, n):
@@ -407,13 +577,6 @@ def _potential(i, load, m: _Model, kin: _Kin, qs, conv, num: _Numeric):
                 raise SystemDefinitionError(f"{m.kind}: {what} is not conservative: its generalized force has "
                                             f"dQ_{qsym[a]}/d{qsym[b]} != dQ_{qsym[b]}/d{qsym[a]} (no potential "
                                             "V(q) with Q = -grad V); loads without a potential are not supported yet")
-    V = None
-    if isinstance(loc, me.Point):
-        O = kin._fixed_origin(loc)
-        comps = vec.to_matrix(m.frame)
-        if O is not None and O is not loc and not any(c.has(t) or c.atoms(sympy.core.function.AppliedUndef)
-                                                      for c in comps):
-            V = conv([-vec.dot(loc.pos_from(O))], what)[0][0]
     if V is None:
         V = sympy.S.Zero
         for j, x in enumerate(qsym):
@@ -439,6 +602,129 @@ def _potential(i, load, m: _Model, kin: _Kin, qs, conv, num: _Numeric):
     return V
 
 
+def _breadth_first(start, step):
+    seen, order, todo = set(), [], list(start)
+    while todo:
+        x = todo.pop(0)
+        if x is None or id(x) in seen:
+            continue
+        seen.add(id(x))
+        order.append(x)
+        todo.extend(step(x))
+    return order
+
+
+def _model_points(m: _Model):
+    """The points of the bodies and loads and every point their positions are given from."""
+    import sympy.physics.mechanics as me
+    start = [b.masscenter if isinstance(b, me.RigidBody) else getattr(b, "point", None) for b in m.bodies]
+    for load in m.loads:
+        loc = load[0] if isinstance(load, (tuple, list)) and len(load) == 2 else None
+        start.append(loc if isinstance(loc, me.Point) else None)
+    return _breadth_first(start, lambda x: list(x._pos_dict.keys()))
+
+
+def _model_frames(m: _Model):
+    """The bodies' frames first, then every frame their orientations or angular velocities link."""
+    import sympy.physics.mechanics as me
+    start = [b.frame for b in m.bodies if isinstance(b, me.RigidBody)] + [m.frame]
+    return _breadth_first(start, lambda F: list(F._dcm_dict.keys()) + list(F._ang_vel_dict.keys()))
+
+
+def _root_contacts(m: _Model, kin: _Kin, conv, num):
+    """Rolling contacts set "the Kane way", made part of an unconstrained model.
+
+    A point Z given zero velocity in N, located from no fixed point (the root of its positions:
+    sympy's test_kane3 bicycle builds everything from the rear contact WR_cont this way), whose
+    children's set velocities are not the time derivatives of their positions from Z even where
+    the model's constraints hold, is a moving contact point whose zero velocity is that of the
+    wheel's material point. Its velocities obey the rolling condition by construction, so L formed
+    from them is the *constrained* Lagrangian, and (1) with it lacks the reduction (Chaplygin)
+    terms: it is not the model's dynamics. Reconstructed instead: Z is located at new coordinates
+    along the two axes of N spanning the plane in which the model moves it (the components of its
+    implied velocity v_Z = v_P(set) - d/dt r_ZP that vanish identically name the normal); every
+    velocity is the derivative of positions from the fixed origin then; and the rolling condition
+    of the wheel B (the frame with v_P(set) = w_B x r_ZP) becomes two velocity constraints, the
+    in-plane components of the material point's velocity v_P + w_B x r_PZ (its normal component is
+    - v_Z . n = 0 identically). The model's own velocity constraints are kept: written with the
+    Kane-way velocities, each is the true one minus a combination of the rolling rows (every Kane-
+    way velocity is the true one minus the material velocity at Z), so with the rolling rows they
+    span the same constraint distribution, everywhere. Returns the rows (dynamicsymbols)."""
+    import sympy.physics.mechanics as me
+    t = me.dynamicsymbols._t
+    N = m.frame
+    if N is None:
+        return []
+    pts = _model_points(m)
+    zero = {id(P) for P in pts if P._vel_dict.get(N) is not None and P._vel_dict[N] == 0}
+    axes, letters = [N.x, N.y, N.z], "xyz"
+    rows = []
+    for Z in [P for P in pts if id(P) in zero]:
+        tree = _breadth_first([Z], lambda x: list(x._pos_dict.keys()))
+        if any(x is m.fixed for x in tree) or sum(id(x) in zero for x in tree) > 1:
+            continue              # located from a fixed point: the set velocities are checked as usual
+        moving = None
+        for P in Z._pos_dict:
+            if N not in P._vel_dict:
+                continue
+            vz = kin._sub(P._vel_dict[N]).to_matrix(N) - P.pos_from(Z).to_matrix(N).diff(t)
+            vzs = conv(list(vz), f"point {_name(Z)}")[0]
+            if not all(_is_zero(c, num, on_manifold=True) for c in vzs):
+                moving = (P, vzs)
+                break
+        if moving is None:
+            continue              # a fixed point: its children's velocities are those of its positions
+        P, vzs = moving
+        head = (f"{m.kind}: point {_name(Z)} is given zero velocity but moves (the velocity set for {_name(P)} "
+                f"is not the derivative of its position from {_name(Z)})")
+        flat = [i for i, c in enumerate(vzs) if _is_zero(c, num)]
+        if len(flat) != 1:
+            where = "in no coordinate plane" if not flat else "on a line or not at all"
+            raise SystemDefinitionError(f"{head}, and it moves {where} of {_name(N)}: its rolling plane cannot be "
+                                        f"determined; locate {_name(Z)} by coordinates and give its rolling "
+                                        "condition as velocity constraints")
+        wheel = None
+        vset = kin._sub(P._vel_dict[N])
+        for B in _model_frames(m):
+            if B is N:
+                continue
+            try:
+                wB = kin._sub(B.ang_vel_in(N))
+            except ValueError:
+                continue
+            d = conv(list((vset - wB.cross(P.pos_from(Z))).to_matrix(N)), f"point {_name(Z)}")[0]
+            if all(_is_zero(c, num) for c in d):
+                wheel = B
+                break
+        if wheel is None:
+            raise SystemDefinitionError(f"{head}, and no frame B gives it as w_B x r({_name(Z)}->{_name(P)}): the "
+                                        "rolling body cannot be identified; locate it by coordinates and give its "
+                                        "rolling condition as velocity constraints")
+        inplane = [i for i in range(3) if i != flat[0]]
+        newq = []
+        for i in inplane:
+            nm = _fresh_name(m, f"{letters[i]}_{_name(Z)}")
+            c = me.dynamicsymbols(nm)
+            m.q.append(c)
+            newq.append(c)
+            m.added[nm] = (f"position of the rolling contact {_name(Z)} along {_name(N)}.{letters[i]} (the model "
+                           f"gives it zero velocity: the material point of {_name(wheel)})")
+        kin.roots[id(Z)] = {"offset": sum((c * axes[i] for c, i in zip(newq, inplane)), sympy.physics.vector.Vector(0)),
+                            "material": None}
+        vmat = kin.point_velocity(P) + kin.angular_velocity(wheel).cross(Z.pos_from(P))
+        kin.roots[id(Z)]["material"] = vmat
+        comps = _components(vmat, N)
+        if not _is_zero(conv([comps[flat[0]]], f"point {_name(Z)}")[0][0], num):
+            raise SystemDefinitionError(f"{head}, and the velocity of {_name(wheel)}'s material point there has a "
+                                        f"component along {_name(N)}.{letters[flat[0]]}: not a rolling contact on "
+                                        "a plane")
+        for i in inplane:
+            rows.append(comps[i])
+            m.added_rows.append(f"rolling of {_name(wheel)} at {_name(Z)}: the {_name(N)}.{letters[i]} velocity of "
+                                "its material point is 0")
+    return rows
+
+
 def _convert_model(m: _Model, name):
     """(L, k, qsym, vsym) in plain symbols from a read model."""
     import sympy.physics.mechanics as me
@@ -452,21 +738,36 @@ def _convert_model(m: _Model, name):
         raise SystemDefinitionError(f"{m.kind}: the velocity constraints still contain speeds {left} after u -> q'")
 
     def conv(exprs, what):
+        # m.q as it is at the call: rolling contacts add coordinates on the way
         try:
             ex, qsym, vsym = _to_symbols(exprs, m.q, t)
         except SystemDefinitionError as exc:
             raise SystemDefinitionError(f"{m.kind}: {what}: {exc}") from None
         return [e.subs(t, tsym) for e in ex], qsym, vsym
 
+    def tidy(ks):
+        # the Kane form stores the constraints with q' -> u(q, q') of its own solve: mapped back they
+        # carry removable 0/0 (1/sin, 1/cos of the inverted kinematics), which cancel out here
+        return [sympy.simplify(sympy.cancel(e))
+                if not e.as_numer_denom()[1].is_number and sympy.count_ops(e) <= 4 * _SIMPLIFY_OPS else e
+                for e in ks]
+
     ks, qsym, vsym = conv(cons, "velocity constraints")
-    # the Kane form stores the constraints with q' -> u(q, q') of its own solve: mapped back they
-    # carry removable 0/0 (1/sin, 1/cos of the inverted kinematics), which cancel out here
-    ks = [sympy.simplify(sympy.cancel(e))
-          if not e.as_numer_denom()[1].is_number and sympy.count_ops(e) <= 4 * _SIMPLIFY_OPS else e for e in ks]
+    if m.tidy:
+        ks = tidy(ks)
+    rolling = _root_contacts(m, kin, conv, _Numeric(qsym, vsym, tsym, ks))
+    if rolling:
+        extra, qsym, vsym = conv(rolling, "rolling constraints")
+        ks = ks + extra
     num = _Numeric(qsym, vsym, tsym, ks)
-    L = m.L if m.L is not None else _kinetic_minus_potential(m, kin)
+    L = m.L if m.L is not None else _kinetic_minus_potential(m, kin, num)
     Ls = conv([L], "the Lagrangian")[0][0]
     for i, load in enumerate(m.loads):
+        loc = load[0] if isinstance(load, (tuple, list)) and len(load) == 2 else None
+        if loc is not None and id(loc) in kin.roots:
+            # applied at a rolling contact's material point: its generalized force is a combination
+            # of the rolling rows' gradients, so it does no work on any motion (1) admits
+            continue
         Ls = Ls - _potential(i, load, m, kin, m.q, conv, num)
     # the velocities set in the model must be the derived ones where the constraints hold
     for what, derived, given in kin.checks:
@@ -476,8 +777,17 @@ def _convert_model(m: _Model, name):
             raise SystemDefinitionError(
                 f"{m.kind}: the velocity set for {what} differs from the time derivative of its position / "
                 "orientation even where the constraints hold; give velocities consistent with the kinematics "
-                "(a point given zero velocity that moves, such as a rolling contact, needs coordinates for its "
-                "position and the rolling condition among the velocity constraints)")
+                "(a point given zero velocity that moves, such as a rolling contact located by coordinates, needs "
+                "its true velocity and the rolling condition among the velocity constraints)")
+    # configuration constraints: (1) keeps them through their time derivatives, which (as sympy
+    # requires of a KanesMethod's dependent speeds) must be among the velocity constraints
+    for i, c in enumerate(m.config):
+        dc = conv([sympy.sympify(c).diff(t).xreplace(m.u_map) if m.u_map else sympy.sympify(c).diff(t)],
+                  f"configuration constraint {i}")[0][0]
+        if not _is_zero(dc, num, on_manifold=True):
+            raise SystemDefinitionError(f"{m.kind}: the time derivative of configuration constraint {i} does not "
+                                        "vanish where the velocity constraints hold: add it to the velocity "
+                                        "constraints (with a dependent speed)")
     return Ls, ks, qsym, vsym, tsym
 
 
@@ -500,6 +810,7 @@ def from_mechanics(model: Any, q: Optional[Sequence] = None, constraints: Option
     if reader is not None:
         if q is not None or constraints is not None:
             raise SystemDefinitionError("give q and constraints only with a plain Lagrangian")
+        mdl = None
         try:
             mdl = reader(model)
             Ls, ks, qsym, vsym, tsym = _convert_model(mdl, name)
@@ -535,6 +846,10 @@ def from_mechanics(model: Any, q: Optional[Sequence] = None, constraints: Option
         found = set().union(*(e.free_symbols for e in exprs)) - set(qsym) - set(vsym) - {tsym}
         params = sorted(found, key=str) or None
     system = cls(Ls, ks, qsym, vsym, t=tsym, name=name, params=params)
+    # what the adapter added to the model (empty when nothing): coordinate name -> why, and the
+    # constraint rows appended after the model's own
+    system.added_coordinates = dict(mdl.added) if reader is not None else {}
+    system.added_constraints = list(mdl.added_rows) if reader is not None else []
     if getattr(system, "lvv_problem", None):
         # a model read from sympy.physics.mechanics: refused at once (the usual cause, kinematics
         # with the rolling condition built in, is a modelling choice the user can change)
