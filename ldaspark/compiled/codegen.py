@@ -15,7 +15,9 @@ nonzero entries of its outputs (a symmetric Hessian's lower triangle is copied f
 so that the generated code grows with the number of nonzeros, not with n^2; the kernels hand in
 zero-initialised arrays and never write into them. Functions are compiled eagerly with their
 explicit signatures and numba's on-disk cache next to the generated file, read only where this
-user's process recorded it (``cache.model_jit``, ``cache.TrustedStore``).
+user's process recorded it (``cache.model_jit``, ``cache.TrustedStore``). The kernels normally run
+the same source as native code built by LLVM directly (``native``); numba compiles the module only
+when the translator does not take it.
 """
 from __future__ import annotations
 
