@@ -24,6 +24,7 @@ K0 = [vz - x * vy]
 def cdir(tmp_path, monkeypatch):
     d = tmp_path / "cache"
     monkeypatch.setenv("LDASPARK_CACHE_DIR", str(d))
+    monkeypatch.setenv("LDASPARK_NATIVE", "0")      # numba's path: the one that stores a module on disk
     monkeypatch.setattr(codegen, "_SOURCES", {})
     return d
 
@@ -61,6 +62,26 @@ def test_same_content_other_names_share_one_entry(cdir, monkeypatch):
     assert codegen.model_key(a, "general") == codegen.model_key(b, "general") == codegen.model_key(c, "general")
     for r in runs[1:]:
         assert np.array_equal(r.q, runs[0].q) and np.array_equal(r.v, runs[0].v)
+
+
+def test_native_models_of_same_content_share_one_compilation(cdir, monkeypatch):
+    """The default path (native model code): a renamed copy is generated and compiled once."""
+    monkeypatch.setenv("LDASPARK_NATIVE", "1")
+    from ldaspark.compiled import native, runner
+    calls = _count_generation(monkeypatch)
+    compiled = []
+    monkeypatch.setattr(native, "compile_model", lambda src, _o=native.compile_model: (compiled.append(1), _o(src))[1])
+    monkeypatch.setattr(runner, "_MODELS", {})
+    L1 = L0 + x ** 4 / 7                                     # content no other test of this process compiles
+    a = LagrangianSystem(L1, K0, [x, y, z], [vx, vy, vz], name="first")
+    b = LagrangianSystem(L1, K0, [x, y, z], [vx, vy, vz], name="a renamed copy")
+    runs = []
+    for s in (a, b):
+        cs = fast.compile_system(s, form="general")
+        runs.append(fast.run_compiled(cs, "gauss-2", 0.0, [0.1, 0.2, 0.0], [0.0, 0.1, 0.0], 0.05, 4))
+        assert cs.is_native
+    assert calls == ["_general_source"] and compiled == [1]
+    assert np.array_equal(runs[1].q, runs[0].q)
 
 
 def test_different_content_never_shares_an_entry(cdir, monkeypatch):

@@ -43,6 +43,13 @@ def payload_bytes(marker) -> bytes:
     return pickle.dumps(Payload(marker))
 
 
+@pytest.fixture(autouse=True)
+def _numba_models(monkeypatch):
+    """The model functions take numba's path here (LDASPARK_NATIVE=0, inherited by the CLI runs):
+    numba's cache is what these tests attack; native model code (compiled/native.py) writes none."""
+    monkeypatch.setenv("LDASPARK_NATIVE", "0")
+
+
 def model_source(c: float) -> str:
     """A generated module of the form codegen writes, with one model function (compiles in
     a fraction of a second); ``c`` makes it a new system (a new digest)."""
