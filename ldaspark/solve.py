@@ -367,11 +367,11 @@ def _single(system, member, prob: _Problem, opts: IntegrationOptions, quiet=Fals
         if dps is not None:
             use = "generic"
         else:
-            csys = system.substituted() if (system.params and engine == "compiled") else system
-            reason = ("parameters are applied without code generation only by the generic engine"
-                      if system.params and engine == "auto" else _compiled_reason(csys, kind, name))
+            # parameters are the model's run-time values (compiled.codegen.fill_params, native
+            # wrappers): the model is generated and compiled once for every value
+            reason = _compiled_reason(system, kind, name)
             if reason is None:
-                use, system_c = "compiled", csys
+                use, system_c = "compiled", system
             elif engine == "compiled":
                 raise InputError(f"engine 'compiled' cannot run this: {reason}")
             else:

@@ -70,7 +70,7 @@ def test_native_models_of_same_content_share_one_compilation(cdir, monkeypatch):
     from ldaspark.compiled import native, runner
     calls = _count_generation(monkeypatch)
     compiled = []
-    monkeypatch.setattr(native, "compile_model", lambda src, _o=native.compile_model: (compiled.append(1), _o(src))[1])
+    monkeypatch.setattr(native, "compile_model", lambda *a, _o=native.compile_model: (compiled.append(1), _o(*a))[1])
     monkeypatch.setattr(runner, "_MODELS", {})
     L1 = L0 + x ** 4 / 7                                     # content no other test of this process compiles
     a = LagrangianSystem(L1, K0, [x, y, z], [vx, vy, vz], name="first")

@@ -62,12 +62,23 @@ def test_compiled_equals_generic():
     assert np.abs(g2.q[-1] - g.q[-1]).max() > 1e-12
 
 
-def test_auto_falls_back_with_one_line(capsys):
+def test_auto_falls_back_with_one_line(capsys, monkeypatch):
+    """A system the code generator refuses runs on the generic engine with one notice line; a
+    system with parameters stays compiled (tests/test_params_compiled.py)."""
+    from ldaspark.compiled import runner
+    from ldaspark.compiled.codegen import NotCompilableError
     m = sympy.Symbol("m")
     q, v = sympy.symbols("q1:4"), sympy.symbols("v1:4")
     sysm = LagrangianSystem(m * sum(x ** 2 for x in v) / 2 - (q[0] ** 2 + q[1] ** 2), [v[2] - q[1] * v[0]],
                             q, v, params=[m])
     r = ldaspark.integrate(sysm, "gauss-2", n_steps=3, h=0.1, q0=[1, 0, 0], v0=[0, 1, 0], params={"m": 1})
+    assert r.engine == "compiled" and capsys.readouterr().err == ""
+
+    def refuse(system, parts=None):
+        raise NotCompilableError(f"{system.name}: an expression has no numba translation (refused here)")
+    monkeypatch.setattr(runner, "mechanical_source", refuse)
+    monkeypatch.setattr(runner, "general_source", refuse)
+    r = ldaspark.integrate(sysm, "gauss-2", n_steps=3, h=0.1, q0=[1, 0, 0], v0=[0, 1, 0], params={"m": 2})
     err = capsys.readouterr().err.strip().splitlines()
     assert r.engine == "generic" and len(err) == 1 and "generic engine" in err[0]
 

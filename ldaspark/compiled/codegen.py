@@ -21,6 +21,7 @@ when the translator does not take it.
 """
 from __future__ import annotations
 
+import math
 import re
 
 import sympy
@@ -127,7 +128,7 @@ def _cse(exprs):
     return [(rule[x._sympy_()], back(e)) for x, e in se_reps], [back(e) for e in se_red]
 
 
-_GENERATED = re.compile(r"^_(t|[qvlp][0-9]+)$")
+_GENERATED = re.compile(r"^_(t|[qvlpc][0-9]+)$")
 
 
 def _only_generated_symbols(name, exprs):
@@ -209,6 +210,13 @@ class _Symbols:
         self.ul = [(f"_l{i}", f"lam[{i}]") for i in range(m)]
         self.psi = [sympy.Symbol(f"_p{i}", real=True) for i in range(m)]
         self.up = [(f"_p{i}", f"psi[{i}]") for i in range(m)]
+        # the system's parameters stay symbols: the module reads them from PARAMS, so that one
+        # model serves every parameter value (``fill_params``; natively a pointer argument)
+        params = list(getattr(system, "params", ()))
+        self.c = [sympy.Symbol(f"_c{i}", real=True) for i in range(len(params))]
+        self.sub |= dict(zip(params, self.c))
+        self.uc = [(f"_c{i}", f"PARAMS[{i}]") for i in range(len(params))]
+        self.uq = self.uq + self.uc           # every function unpacks q: the parameters go with them
 
     def __call__(self, e):
         return sympy.sympify(e).xreplace(self.sub)
@@ -264,10 +272,37 @@ def _mechanical_source(system, parts) -> str:
         _emit("kq_of", "MATX_SIG", ["t", "q", "v", "out"], tq + S.uv, _mat_outputs("out", kq), pr),
         _emit("KTlam_q", "MATX_SIG", ["t", "q", "lam", "out"], tq + S.ul, _mat_outputs("out", KTl_q), pr),
     ]
-    head = header(None, "mechanical", n, m)
+    head = header(None, "mechanical", n, m) + _params_block(S)
     src = head + "\n\n" + "\n\n\n".join(fns) + "\n\n\nMODEL = (N_DOF, grad_U, hess_U, K_of, b_of, kq_of, KTlam_q, U_of)\n" \
         + _pattern_literal("HESS_PATTERN", (H, KTl_q))
     return _check(src, system.name)
+
+
+def _params_block(S) -> str:
+    """``N_PARAMS``/``PARAMS`` lines of a model with parameters (none without): PARAMS is None in the
+    stored source, the values are filled in per run (``fill_params``)."""
+    return f"N_PARAMS = {len(S.c)}\nPARAMS = None\n" if S.c else ""
+
+
+_PARAMS_LINE = "\nPARAMS = None\n"
+
+
+def fill_params(source: str, values) -> str:
+    """The model source with its parameter values: ``PARAMS = None`` replaced by a tuple of float
+    literals (repr: the exact doubles), for numba's compilation (which takes a global tuple as a
+    constant) and for the source run as Python. ``values`` () for a model without parameters."""
+    vals = tuple(float(x) for x in values)
+    if not vals:
+        if _PARAMS_LINE in source:
+            raise NotCompilableError("the model has parameters and no values were given")
+        return source
+    if source.count(_PARAMS_LINE) != 1:
+        raise NotCompilableError("values given for a model without parameters")
+    from .native import module_constants
+    if module_constants(source).get("N_PARAMS") != len(vals) or not all(math.isfinite(x) for x in vals):
+        raise NotCompilableError(f"the model takes {module_constants(source).get('N_PARAMS')} finite parameter "
+                                 f"values, got {vals!r}")
+    return source.replace(_PARAMS_LINE, f"\nPARAMS = ({', '.join(repr(x) for x in vals)},)\n", 1)
 
 
 def _pattern_literal(name, mats):
@@ -310,7 +345,7 @@ def _general_source(system) -> str:
               tqv + S.ul, jac, pr),
         _emit("energy", "E_SIG", ["t", "q", "v"], tqv, [], pr, ret=E),
     ]
-    head = header(None, "general", n, m)
+    head = header(None, "general", n, m) + _params_block(S)
     fns += _nonideal_functions(system, S, pr)
     src = head + "\n\n" + "\n\n\n".join(fns) + \
         f"\n\n\nHAS_N = {nonideal_term(system) is not None}\n" \

@@ -152,7 +152,7 @@ def _loaded(system):
     model in this process, else None (a first call checks before compiling, so that bad data
     fail fast)."""
     hit = _COMPILED.get((id(system), "auto"))
-    if hit is None or hit[0] is not system or hit[1].digest not in _MODELS:
+    if hit is None or hit[0] is not system or hit[1].model_id not in _MODELS:
         return None
     return hit[1]
 

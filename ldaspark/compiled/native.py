@@ -68,7 +68,7 @@ def _ctx():
 class _Function:
     """IR of one model function from its ``ast.FunctionDef``."""
 
-    def __init__(self, module, fdef: ast.FunctionDef, sig):
+    def __init__(self, module, fdef: ast.FunctionDef, sig, n_params=0):
         from llvmlite import ir
         self.ir, self.ctx, self.sig, self.module = ir, _ctx(), sig, module
         self.double = ir.DoubleType()
@@ -76,11 +76,14 @@ class _Function:
         names = [a.arg for a in fdef.args.args]
         if len(names) != len(sig.args) or fdef.args.vararg or fdef.args.kwarg:
             raise NotNativeError(f"{fdef.name}: arguments do not match its signature")
+        # a model with parameters: one more argument, a pointer to the n_params values (PARAMS[i])
+        extra = [self.double.as_pointer()] if n_params else []
         fnty = ir.FunctionType(self.ctx.get_value_type(sig.return_type),
-                               [self.ctx.get_value_type(a) for a in sig.args])
-        self.fn = ir.Function(module, fnty, name=fdef.name)
+                               [self.ctx.get_value_type(a) for a in sig.args] + extra)
+        self.fn = ir.Function(module, fnty, name=fdef.name + ("__params" if n_params else ""))
         self.builder = ir.IRBuilder(self.fn.append_basic_block("entry"))
         self.scalars, self.arrays = {}, {}
+        self.params = (self.fn.args[-1], n_params) if n_params else None
         for name, ty, arg in zip(names, sig.args, self.fn.args):
             if isinstance(ty, type(mt.a1)):
                 # numba's array struct by value: its data pointer and shape, by the data model's field
@@ -134,10 +137,16 @@ class _Function:
     def element(self, node):
         """Pointer to ``array[i]`` / ``array[i, j]`` with constant indices, bounds checked here."""
         from numba.core import cgutils
+        idx = node.slice.elts if isinstance(node.slice, ast.Tuple) else [node.slice]
+        if isinstance(node.value, ast.Name) and node.value.id == "PARAMS" and self.params is not None:
+            ptr, k = self.params
+            if len(idx) != 1 or not (isinstance(idx[0], ast.Constant) and type(idx[0].value) is int
+                                     and 0 <= idx[0].value < k):
+                raise NotNativeError("a parameter index out of range")
+            return self.builder.gep(ptr, [self.ir.Constant(self.ctx.get_value_type(mt.i8), idx[0].value)])
         if not (isinstance(node.value, ast.Name) and node.value.id in self.arrays):
             raise NotNativeError("subscript of something other than an argument array")
         ty, data, shape = self.arrays[node.value.id]
-        idx = node.slice.elts if isinstance(node.slice, ast.Tuple) else [node.slice]
         if len(idx) != ty.ndim or not all(isinstance(i, ast.Constant) and type(i.value) is int and i.value >= 0
                                           for i in idx):
             raise NotNativeError("an index that is not a non-negative integer constant")
@@ -331,39 +340,27 @@ def module_constants(source: str) -> dict:
     return out
 
 
-def compile_model(source: str) -> tuple:
+def compile_model(source: str, params=()) -> tuple:
     """The model tuple (n, functions..., [has_N]) of a generated model module as the kernels take
-    it, each function native code behind the wrapper address protocol. Raises NotNativeError when
-    the source has a construct this translator does not take."""
-    import llvmlite.binding as llvm
-    from llvmlite import ir
-    try:
-        tree = ast.parse(source)
-    except SyntaxError as exc:
-        raise NotNativeError(f"model source does not parse ({exc.msg})") from None
+    it, each function native code behind the wrapper address protocol. A model with parameters
+    (``N_PARAMS``) is compiled once per source with the values behind a pointer argument; each
+    set of ``params`` (floats, in the system's order) then costs only small wrappers that pass a
+    pointer to its own constant copy of the values (so that runs with different values can share
+    the process, threads included). Raises NotNativeError when the source has a construct this
+    translator does not take."""
     consts = module_constants(source)
-    fns, model = _model_functions(tree)
-    module = ir.Module(name="ldaspark_native_model")
-    module.triple = llvm.get_process_triple()
-    built, size = [], 0
-    for name, (fdef, sig) in fns.items():
-        fn = _Function(module, fdef, sig)
-        built.append((name, sig))
-        size += fn.count
-    _init_llvm()
-    try:
-        mod = llvm.parse_assembly(str(module))
-        mod.verify()
-    except RuntimeError as exc:
-        raise NotNativeError(f"LLVM refused the model's IR ({str(exc).splitlines()[0][:80]})") from None
-    tm = llvm.Target.from_triple(module.triple).create_target_machine(
-        cpu=llvm.get_host_cpu_name(), features=llvm.get_host_cpu_features().flatten(),
-        opt=0 if size > _O0_FROM else 2, jit=True)
-    engine = llvm.create_mcjit_compiler(mod, tm)
-    engine.finalize_object()
-    funcs = {name: NativeFunction(name, engine.get_function_address(name), sig, engine) for name, sig in built}
-    if any(f._addr == 0 for f in funcs.values()):
-        raise NotNativeError("LLVM gave no address for a model function")
+    k = consts.get("N_PARAMS", 0)
+    vals = tuple(float(x) for x in params)
+    if type(k) is not int or k < 0 or len(vals) != k or not all(math.isfinite(x) for x in vals):
+        raise NotNativeError(f"the model takes {k} finite parameter values, got {len(vals)}")
+    from .cache import source_key
+    key = source_key(source)
+    base = _BASES.get(key)
+    if base is None:
+        base = _BASES[key] = _compile_functions(source, consts, k)
+    engine, funcs, model = base
+    if k:
+        funcs = _bind(funcs, vals, engine)
     out = []
     for e in model:
         if isinstance(e, ast.Name) and e.id in funcs:
@@ -373,6 +370,80 @@ def compile_model(source: str) -> tuple:
         else:
             raise NotNativeError("MODEL tuple entry that is neither a function nor a constant")
     return tuple(out)
+
+
+#: source digest -> (engine, {name: NativeFunction}, MODEL names): a process compiles a model once
+_BASES: dict = {}
+
+
+def _target_machine(triple, opt):
+    import llvmlite.binding as llvm
+    return llvm.Target.from_triple(triple).create_target_machine(
+        cpu=llvm.get_host_cpu_name(), features=llvm.get_host_cpu_features().flatten(), opt=opt, jit=True)
+
+
+def _jit(module, opt):
+    import llvmlite.binding as llvm
+    _init_llvm()
+    try:
+        mod = llvm.parse_assembly(str(module))
+        mod.verify()
+    except RuntimeError as exc:
+        raise NotNativeError(f"LLVM refused the model's IR ({str(exc).splitlines()[0][:80]})") from None
+    engine = llvm.create_mcjit_compiler(mod, _target_machine(module.triple, opt))
+    engine.finalize_object()
+    return engine
+
+
+def _compile_functions(source, consts, k):
+    import llvmlite.binding as llvm
+    from llvmlite import ir
+    try:
+        tree = ast.parse(source)
+    except SyntaxError as exc:
+        raise NotNativeError(f"model source does not parse ({exc.msg})") from None
+    fns, model = _model_functions(tree)
+    module = ir.Module(name="ldaspark_native_model")
+    module.triple = llvm.get_process_triple()
+    built, size = [], 0
+    for name, (fdef, sig) in fns.items():
+        fn = _Function(module, fdef, sig, k)
+        built.append((name, fn.fn.name, sig))
+        size += fn.count
+    engine = _jit(module, 0 if size > _O0_FROM else 2)
+    funcs = {name: NativeFunction(name, engine.get_function_address(sym), sig, engine) for name, sym, sig in built}
+    if any(f._addr == 0 for f in funcs.values()):
+        raise NotNativeError("LLVM gave no address for a model function")
+    return engine, funcs, model
+
+
+def _bind(funcs, vals, base_engine):
+    """Wrappers with the kernels' signatures around the parametric functions (called by their
+    addresses), each passing a pointer to one constant copy of ``vals``."""
+    import llvmlite.binding as llvm
+    from llvmlite import ir
+    ctx, double = _ctx(), ir.DoubleType()
+    module = ir.Module(name="ldaspark_native_params")
+    module.triple = llvm.get_process_triple()
+    arr = ir.ArrayType(double, len(vals))
+    g = ir.GlobalVariable(module, arr, name="ldaspark_params")
+    g.global_constant, g.linkage = True, "internal"
+    g.initializer = ir.Constant(arr, [ir.Constant(double, x) for x in vals])
+    i64 = ir.IntType(64)
+    for name, f in funcs.items():
+        sig = f.signature()
+        ret, args = ctx.get_value_type(sig.return_type), [ctx.get_value_type(a) for a in sig.args]
+        wrapper = ir.Function(module, ir.FunctionType(ret, args), name=name)
+        b = ir.IRBuilder(wrapper.append_basic_block("entry"))
+        target = b.inttoptr(ir.Constant(i64, f._addr), ir.FunctionType(ret, args + [double.as_pointer()]).as_pointer())
+        r = b.call(target, list(wrapper.args) + [b.gep(g, [ir.Constant(ir.IntType(32), 0)] * 2)])
+        b.ret(r)                       # numba gives void a value type too (what the kernels expect)
+    engine = _jit(module, 2)
+    out = {name: NativeFunction(name, engine.get_function_address(name), f.signature(), (engine, base_engine))
+           for name, f in funcs.items()}
+    if any(f._addr == 0 for f in out.values()):
+        raise NotNativeError("LLVM gave no address for a model function")
+    return out
 
 
 _LLVM_READY: list = []

@@ -17,7 +17,7 @@ from ..core.errors import InputError, LdasparkError, NewtonError, NonFiniteError
 from . import modeltypes as mt
 from . import native
 from .cache import CacheDirectoryError, load_source, source_key
-from .codegen import NotCompilableError, general_source, mechanical_source, nonideal_term
+from .codegen import NotCompilableError, fill_params, general_source, mechanical_source, nonideal_term
 
 # comparator names with a specialised kernel: name -> lf2 variant
 LF2_VARIANTS = {
@@ -64,9 +64,19 @@ def mechanical_parts(system) -> dict:
         if K.free_symbols & set(v):
             raise NotCompilableError(f"{system.name}: k is not affine in v; not mechanical form")
         b = system.k.subs(zero_v)
-    if M.free_symbols:
+    if M.free_symbols - set(getattr(system, "params", ())):
         raise NotCompilableError(f"{system.name}: mass matrix M is not constant")
     return {"M": M, "U": U, "K": K, "b": b}
+
+
+def _param_floats(system) -> tuple:
+    """The system's parameter values as floats, in its ``params`` order (() without parameters)."""
+    if not getattr(system, "params", ()):
+        return ()
+    vals = tuple(float(x) for x in system._param_arg_values(None))
+    if not all(math.isfinite(x) for x in vals):
+        raise NotCompilableError(f"{system.name}: a parameter value is not a finite float64 number")
+    return vals
 
 
 @dataclass
@@ -82,14 +92,28 @@ class CompiledSystem:
     M: np.ndarray
     Minv: np.ndarray
     form: str = "mechanical"
+    #: the values of the system's parameters (its ``params`` order) as floats: the source keeps
+    #: the parameters symbolic (one model for all values), the run passes these
+    params: tuple = ()
 
     @functools.cached_property
     def digest(self) -> str:
         return source_key(self.source)
 
     @property
+    def model_id(self) -> tuple:
+        """What identifies the model a run calls: the source's digest and the parameter values."""
+        return (self.digest, self.params)
+
+    @functools.cached_property
+    def run_source(self) -> str:
+        """The source with the parameter values filled in (the source itself without parameters):
+        what numba compiles and the set-up checks run as Python."""
+        return fill_params(self.source, self.params)
+
+    @property
     def module(self):
-        return load_source(self.source, digest=self.digest)
+        return load_source(self.run_source, digest=None if self.params else self.digest)
 
     @property
     def model(self):
@@ -98,11 +122,11 @@ class CompiledSystem:
         code straight from LLVM (``native``: a fraction of a second) where the translator takes
         the source, else numba's compilation of the module; passing the dispatchers themselves
         would cost their type conversion at every call."""
-        hit = _MODELS.get(self.digest)
+        hit = _MODELS.get(self.model_id)
         if hit is None:
             if native.enabled():
                 try:
-                    hit = native.compile_model(self.source)
+                    hit = native.compile_model(self.source, self.params)
                 except native.NotNativeError:
                     hit = None
             if hit is None:
@@ -110,7 +134,7 @@ class CompiledSystem:
                 mod = self.module.MODEL
                 hit = (mod[0],) + tuple(f if isinstance(f, bool) else CompileResultWAP(f.overloads[f.signatures[0]])
                                         for f in mod[1:])      # a general model ends with its flag has_N
-            _MODELS[self.digest] = hit
+            _MODELS[self.model_id] = hit
         return hit
 
     @property
@@ -123,11 +147,11 @@ class CompiledSystem:
     def functions(self):
         """The model's functions callable from Python (the set-up checks): numba's module where
         this process compiled it, else the source as plain Python (nothing compiled)."""
-        if self.digest in _MODELS and not self.is_native:
+        if self.model_id in _MODELS and not self.is_native:
             return self.module
-        hit = _PYTHON.get(self.digest)
+        hit = _PYTHON.get(self.model_id)
         if hit is None:
-            hit = _PYTHON[self.digest] = native.python_module(self.source)
+            hit = _PYTHON[self.model_id] = native.python_module(self.run_source)
         return hit
 
     @functools.cached_property
@@ -145,11 +169,12 @@ class CompiledSystem:
         budget). Computed once per process and model."""
         if self.form != "mechanical":
             return None
-        if self.digest not in _STRUCTURES:
+        key = (self.digest, self.M.tobytes())       # M may hold parameter values
+        if key not in _STRUCTURES:
             from .sparse import newton_structure
             pairs = self.hess_pattern
-            _STRUCTURES[self.digest] = None if pairs is None else newton_structure(self.n, pairs, self.M)
-        return _STRUCTURES[self.digest]
+            _STRUCTURES[key] = None if pairs is None else newton_structure(self.n, pairs, self.M)
+        return _STRUCTURES[key]
 
 
 _MODELS: dict[str, tuple] = {}
@@ -210,20 +235,25 @@ def compile_system(system, form: str = "auto") -> CompiledSystem:
                 raise
     if cs is None:
         eye = np.eye(system.n)
-        cs = CompiledSystem(system.name, system.n, system.m, general_source(system), eye, eye, "general")
+        cs = CompiledSystem(system.name, system.n, system.m, general_source(system), eye, eye, "general",
+                            _param_floats(system))
     _COMPILED[key] = (system, cs)
     return cs
 
 
 def _mechanical(system):
     parts = mechanical_parts(system)
-    M = np.array(parts["M"].tolist(), dtype=float)
+    params = _param_floats(system)
+    Msym = parts["M"]
+    if Msym.free_symbols:                        # the mass matrix at this run's parameter values
+        Msym = Msym.subs(dict(zip(system.params, system._param_arg_values(None))))
+    M = np.array(Msym.tolist(), dtype=float)
     try:
         Minv = np.linalg.inv(M)
     except np.linalg.LinAlgError:
         raise NotCompilableError(f"{system.name}: mass matrix M is singular") from None
     return CompiledSystem(system.name, system.n, parts["K"].rows, mechanical_source(system, parts),
-                          np.ascontiguousarray(M), np.ascontiguousarray(Minv), "mechanical")
+                          np.ascontiguousarray(M), np.ascontiguousarray(Minv), "mechanical", params)
 
 
 def can_compile(system) -> tuple[bool, str]:
