@@ -78,7 +78,8 @@ def test_auto_falls_back_with_one_line(capsys, monkeypatch):
         raise NotCompilableError(f"{system.name}: an expression has no numba translation (refused here)")
     monkeypatch.setattr(runner, "mechanical_source", refuse)
     monkeypatch.setattr(runner, "general_source", refuse)
-    r = ldaspark.integrate(sysm, "gauss-2", n_steps=3, h=0.1, q0=[1, 0, 0], v0=[0, 1, 0], params={"m": 2})
+    fresh = LagrangianSystem(sysm.L, sysm.k, q, v, params=[m])    # the first one's model is kept with it
+    r = ldaspark.integrate(fresh, "gauss-2", n_steps=3, h=0.1, q0=[1, 0, 0], v0=[0, 1, 0], params={"m": 2})
     err = capsys.readouterr().err.strip().splitlines()
     assert r.engine == "generic" and len(err) == 1 and "generic engine" in err[0]
 

@@ -25,6 +25,7 @@ source in each process, so there is no new artefact to authenticate.
 from __future__ import annotations
 
 import ast
+import functools
 import math
 import os
 
@@ -329,7 +330,12 @@ def _model_functions(tree):
 
 def module_constants(source: str) -> dict:
     """The integer/bool/tuple constants of a model module (N_DOF, N_CON, FORM, HAS_N,
-    HESS_PATTERN), read without executing it."""
+    HESS_PATTERN), read without executing it (a copy: the parse is kept per source)."""
+    return dict(_constants(source))
+
+
+@functools.lru_cache(maxsize=64)
+def _constants(source: str) -> dict:
     out = {}
     for node in ast.parse(source).body:
         if isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name):
@@ -419,31 +425,52 @@ def _compile_functions(source, consts, k):
 
 def _bind(funcs, vals, base_engine):
     """Wrappers with the kernels' signatures around the parametric functions (called by their
-    addresses), each passing a pointer to one constant copy of ``vals``."""
+    addresses), each passing a pointer to one constant copy of ``vals``. All wrappers live in one
+    engine of this process (a module added per value: ~1 ms, where an engine of its own cost ~10 ms)."""
     import llvmlite.binding as llvm
     from llvmlite import ir
     ctx, double = _ctx(), ir.DoubleType()
-    module = ir.Module(name="ldaspark_native_params")
+    tag = f"p{len(_WRAPPERS)}"
+    module = ir.Module(name=f"ldaspark_native_params_{tag}")
     module.triple = llvm.get_process_triple()
     arr = ir.ArrayType(double, len(vals))
-    g = ir.GlobalVariable(module, arr, name="ldaspark_params")
+    g = ir.GlobalVariable(module, arr, name=f"ldaspark_params_{tag}")
     g.global_constant, g.linkage = True, "internal"
     g.initializer = ir.Constant(arr, [ir.Constant(double, x) for x in vals])
     i64 = ir.IntType(64)
     for name, f in funcs.items():
         sig = f.signature()
         ret, args = ctx.get_value_type(sig.return_type), [ctx.get_value_type(a) for a in sig.args]
-        wrapper = ir.Function(module, ir.FunctionType(ret, args), name=name)
+        wrapper = ir.Function(module, ir.FunctionType(ret, args), name=f"{name}__{tag}")
         b = ir.IRBuilder(wrapper.append_basic_block("entry"))
         target = b.inttoptr(ir.Constant(i64, f._addr), ir.FunctionType(ret, args + [double.as_pointer()]).as_pointer())
         r = b.call(target, list(wrapper.args) + [b.gep(g, [ir.Constant(ir.IntType(32), 0)] * 2)])
         b.ret(r)                       # numba gives void a value type too (what the kernels expect)
-    engine = _jit(module, 2)
-    out = {name: NativeFunction(name, engine.get_function_address(name), f.signature(), (engine, base_engine))
+    _init_llvm()
+    try:
+        mod = llvm.parse_assembly(str(module))
+        mod.verify()
+    except RuntimeError as exc:
+        raise NotNativeError(f"LLVM refused the wrappers' IR ({str(exc).splitlines()[0][:80]})") from None
+    if not _WRAPPERS:
+        empty = ir.Module(name="ldaspark_native_wrappers")
+        empty.triple = module.triple
+        _WRAPPERS.append(_jit(empty, 0))
+    engine = _WRAPPERS[0]
+    engine.add_module(mod)
+    engine.finalize_object()
+    _WRAPPERS.append(mod)
+    out = {name: NativeFunction(name, engine.get_function_address(f"{name}__{tag}"), f.signature(),
+                                (engine, base_engine))
            for name, f in funcs.items()}
     if any(f._addr == 0 for f in out.values()):
         raise NotNativeError("LLVM gave no address for a model function")
     return out
+
+
+#: [the engine of every wrapper module, the modules added to it] (the modules' code lives as
+#: long as the engine, i.e. the process)
+_WRAPPERS: list = []
 
 
 _LLVM_READY: list = []
