@@ -387,9 +387,28 @@ def _single(system, member, prob: _Problem, opts: IntegrationOptions, quiet=Fals
     res.method, res.system, res.scene, res.h, res.dps, res.save_every, res.params = \
         name, system.name, prob.scene, prob.h, dps, opts.save_every, pvals
     res.coordinate_names = [str(x) for x in system.q]
+    if opts.project and len(res.t):
+        _note_projection(res, v0)
     if opts.raise_on_failure and res.status < 0:
         res.raise_for_status()
     return res
+
+
+def _note_projection(res: Result, v0) -> None:
+    """``project=True`` replaced the user's v0 by its projection onto k = 0: the change is
+    recorded (``stats["projected_v0_change"]``, max abs over the components) and, where it is
+    above the rounding of v0 (64 ulps of its largest component: the projection of consistent data
+    moves it by a few), said in one LdasparkWarning, so the run never starts silently from other
+    speeds than the ones given."""
+    import warnings
+
+    from .core.errors import LdasparkWarning
+    given = float_array(np.asarray(v0, dtype=object))
+    change = float(np.max(np.abs(float_array(res.v[0]) - given), initial=0.0))
+    res.stats["projected_v0_change"] = change
+    if change > 64 * np.finfo(float).eps * max(1.0, float(np.max(np.abs(given), initial=0.0))):
+        warnings.warn(f"project=True changed v0 by up to {change:.3g} (to {np.array2string(float_array(res.v[0]), precision=6)}) "
+                      "so that k(t0, q0, v0) = 0", LdasparkWarning, stacklevel=3)
 
 
 def _check_initial_point(system, t0, q0, v0, dps) -> None:
@@ -632,7 +651,11 @@ def _fast_chunked(system, method, start, h, steps, tol):
             rows += list(range(1, len(fs.t)))        # its samples fall on multiples of every
         elif (done + L) % every == 0 or done + L == n:
             rows.append(len(fs.t) - 1)               # the chunk's end is a saved point
-        parts.append(tuple(np.asarray(a)[rows] for a in (fs.t, fs.q, fs.v, fs.energy, fs.constraint)))
+        # the psi rows of the steps that start at this chunk's saved samples: all of them when
+        # the samples fall inside the chunk, else its one step row if the chunk starts at a sample
+        psi = None if fs.psi is None else (fs.psi if every <= chunk else fs.psi[:1] if done % every == 0
+                                           else fs.psi[:0])
+        parts.append(tuple(np.asarray(a)[rows] for a in (fs.t, fs.q, fs.v, fs.energy, fs.constraint)) + (psi,))
         st = fs.stats
         if stats is None:
             stats = dict(st)
@@ -643,7 +666,8 @@ def _fast_chunked(system, method, start, h, steps, tol):
         q, v = fs.q[-1], fs.v[-1]
         done += L
     stats["mean_iterations"] = stats.get("newton_iterations", 0) / max(stats.get("steps", 1), 1)
-    return FastSolution(*(np.concatenate([p[i] for p in parts]) for i in range(5)), stats)
+    psi = None if any(p[5] is None for p in parts) else np.concatenate([p[5] for p in parts])
+    return FastSolution(*(np.concatenate([p[i] for p in parts]) for i in range(5)), stats, psi)
 
 
 def _run_compiled(system, prob: _Problem, q0, v0, opts: IntegrationOptions) -> Result:
@@ -661,7 +685,7 @@ def _run_compiled(system, prob: _Problem, q0, v0, opts: IntegrationOptions) -> R
     def run(n, e):
         fs = _fast_chunked(system, method, (t0, q0, v0), h, (n, e), tol)
         st = dict(fs.stats)
-        return Result(fs.t, fs.q, fs.v, fs.energy, fs.constraint, None, 0, MSG_DONE,
+        return Result(fs.t, fs.q, fs.v, fs.energy, fs.constraint, fs.psi, 0, MSG_DONE,
                       *(st.get(c, 0) for c in ("nfev", "njev", "nlu", "newton_iterations")),
                       engine="compiled" if st.get("path") == "fast" else "generic", stats=st)
     res, exc = _prefix_run(run, N, inner)

@@ -54,8 +54,9 @@ def test_compiled_equals_generic():
     1e4 steps of gauss-2 on the particle); 200 steps here."""
     g = ldaspark.integrate("particle", "gauss-2", n_steps=200, h=0.01, engine="generic")
     c = ldaspark.integrate("particle", "gauss-2", n_steps=200, h=0.01, engine="compiled")
-    assert c.engine == "compiled" and g.engine == "generic" and c.psi is None
+    assert c.engine == "compiled" and g.engine == "generic"
     assert np.abs(c.q - g.q).max() < 1e-12 and np.abs(c.v - g.v).max() < 1e-12
+    assert c.psi.shape == g.psi.shape and np.abs(c.psi - g.psi).max() < 1e-10
     assert np.abs(c.energy - g.energy).max() < 1e-12
     # negative control: a different step size is not "the same numbers"
     g2 = ldaspark.integrate("particle", "gauss-2", n_steps=100, h=0.02, engine="generic")

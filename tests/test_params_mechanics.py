@@ -6,7 +6,7 @@ import sympy
 
 import ldaspark
 from ldaspark import LagrangianSystem
-from ldaspark.core.errors import SystemDefinitionError
+from ldaspark.core.errors import LdasparkWarning, SystemDefinitionError
 
 M, I = sympy.symbols("m I", positive=True)
 
@@ -51,8 +51,17 @@ def test_missing_and_unknown_parameters():
     sysm = _param_skate()
     with pytest.raises(SystemDefinitionError, match="no value for parameter"):
         ldaspark.integrate(sysm, "gauss-2", n_steps=2, h=0.1, q0=[0, 0, 0], v0=[0, 0, 1], params={"m": 1})
-    with pytest.raises(SystemDefinitionError, match="not a parameter"):
-        sysm.with_params({"g": 1})
+    # a value for a symbol the model does not have is ignored with a note, not refused ...
+    with pytest.warns(LdasparkWarning, match="g is not a parameter"):
+        view = sysm.with_params({"g": 1, "m": 2})
+    assert {str(p): v for p, v in view.param_values().items()} == {"m": 2}
+    kw = dict(n_steps=2, h=0.1, q0=[0, 0, 0], v0=[0, 0, 1])
+    with pytest.warns(LdasparkWarning, match="g is not a parameter"):
+        noted = ldaspark.integrate(sysm, "gauss-2", params={"m": 1, "I": 1, "g": 9.81}, **kw)
+    assert np.array_equal(noted.q, ldaspark.integrate(sysm, "gauss-2", params={"m": 1, "I": 1}, **kw).q)
+    # ... and a misspelled name still fails, as the real parameter's missing value
+    with pytest.warns(LdasparkWarning), pytest.raises(SystemDefinitionError, match="no value for parameter.*I"):
+        ldaspark.integrate(sysm, "gauss-2", params={"m": 1, "i": 1}, **kw)
     q, v = sympy.symbols("q1:3"), sympy.symbols("v1:3")
     with pytest.raises(SystemDefinitionError, match="params"):
         LagrangianSystem(M * v[0] ** 2 / 2 + v[1] ** 2 / 2, [v[1] - q[0] * v[0]], q, v)

@@ -201,7 +201,9 @@ def spark_loop(model, tab, M, ws, J, piv, t0, q0, v0, h, n_steps, every, compens
     increment), full Newton from the generic engine's starting guess (V_i = v1 = v0, Psi = 0),
     as ``SparkMethod.step`` with newton="full", counted in stats[FULL_NEWTON_STEPS]; if that
     fails too, the failure (step, code, iterations of both phases) is recorded and out_x[0]
-    receives the residual |G|_inf at the last iterate. J, piv: the Newton matrix's storage, a
+    receives the residual |G|_inf at the last iterate. out_x[:NN] receives the last step's
+    unknowns; where out_x is longer, out_x[NN + j s m:NN + (j + 1) s m] receives the multipliers
+    Psi_1..Psi_s (m each) of the step starting at sample j. J, piv: the Newton matrix's storage, a
     dense matrix and its pivots, or the sparse workspace (``sparse_workspace``) and a dummy."""
     s = tab[1].shape[0]
     n = q0.shape[0]
@@ -272,6 +274,11 @@ def spark_loop(model, tab, M, ws, J, piv, t0, q0, v0, h, n_steps, every, compens
             dv[a] = x[sn + sm + a]
         if not accept_step(q, v, cq, cv, dq, dv, compensated, x, x_last, x_prev, stats, step):
             return
+        if step % every == 0 and out_x.shape[0] > NN:
+            # the stage multipliers Psi_i = Lambda_i / h of the step that starts at a saved sample
+            o = NN + (step // every) * sm
+            for r in range(sm):
+                out_x[o + r] = x[sn + r] / h
         if (step + 1) % every == 0 or step + 1 == n_steps:
             if not store(model, j_out, t0 + (step + 1) * h, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
                 fail(stats, step, FAIL_NONFINITE)

@@ -43,6 +43,7 @@ def run_with_rescue(system, tab, cs, method, t0, q0, v0, h, n_steps, every, comp
 
     want = set(range(0, n_steps + 1, every)) | {n_steps}
     samples = {}                # global step -> (t, q, v, E, k)
+    psis = {}                   # global step at a sample -> Psi (s, m) of the step starting there
     totals = dict.fromkeys(("steps", "newton_iterations", "nfev", "njev", "nlu", "max_iterations",
                             "full_newton_steps"), 0)
     rescues = 0
@@ -58,6 +59,8 @@ def run_with_rescue(system, tab, cs, method, t0, q0, v0, h, n_steps, every, comp
         for j, loc in enumerate(_local_indices(n, e)):
             if start + loc in want:
                 samples[start + loc] = (sol.t[j], sol.q[j], sol.v[j], sol.energy[j], sol.constraint[j])
+                if j < len(sol.t) - 1 and sol.psi is not None:
+                    psis[start + loc] = sol.psi[j]
         for key, val in sol.stats.items():
             if isinstance(val, (int, np.integer)) and not isinstance(val, bool):
                 totals[key] = max(totals.get(key, 0), val) if key == "max_iterations" else totals.get(key, 0) + val
@@ -107,6 +110,8 @@ def run_with_rescue(system, tab, cs, method, t0, q0, v0, h, n_steps, every, comp
         if res is None:
             res = generic.step(t, q, v, h, step_index=start)
         last = (start + 1, res, v.copy())
+        if start in want:
+            psis[start] = np.asarray(res.Psi, float)
         rescues += 1
         start += 1
         t, q, v = float(t0) + start * h, np.asarray(res.q1, float), np.asarray(res.v1, float)
@@ -122,4 +127,6 @@ def run_with_rescue(system, tab, cs, method, t0, q0, v0, h, n_steps, every, comp
               form=cs.form, compensated=bool(compensated))
     return FastSolution(np.array([samples[i][0] for i in order]), np.array([samples[i][1] for i in order]),
                         np.array([samples[i][2] for i in order]), np.array([samples[i][3] for i in order]),
-                        np.array([samples[i][4] for i in order]), st)
+                        np.array([samples[i][4] for i in order]), st,
+                        np.array([psis[i] for i in order[:-1]]).reshape(len(order) - 1, tab.s, cs.m)
+                        if all(i in psis for i in order[:-1]) else None)

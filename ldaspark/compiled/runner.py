@@ -10,6 +10,7 @@ import dataclasses
 import functools
 import math
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 import sympy
@@ -309,6 +310,9 @@ class FastSolution:
     energy: np.ndarray
     constraint: np.ndarray
     stats: dict
+    #: (samples - 1, s, m): the stage multipliers Psi_i of (21) of the step starting at each
+    #: sample (None where the path does not form them: the semi-implicit kernel)
+    psi: Optional[np.ndarray] = None
 
     def __iter__(self):
         return iter((self.t, self.q, self.v, self.energy, self.constraint, self.stats))
@@ -481,7 +485,9 @@ def _run_checked(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, ma
     if kind == "lf2":
         _entry("lf2_run")(model, int(what), cs.M, cs.Minv, *run, *outs, stats)
     else:
-        out_x = np.zeros(what[1].shape[0] * (cs.n + cs.m) + cs.n)
+        s_ = what[1].shape[0]
+        NN = s_ * (cs.n + cs.m) + cs.n
+        out_x = np.zeros(NN + (S - 1) * s_ * cs.m)          # the last unknowns, then psi per sample
         structure = _sparse_structure(cs, what[1].shape[0], linear_solver)
         if structure is not None:
             solver = "sparse"
@@ -508,7 +514,8 @@ def _run_checked(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, ma
     st["compensated"] = bool(compensated)
     st["linear_solver"] = solver
     st["reuse_matrix"] = bool(reuse_matrix) and kind != "lf2"
-    return FastSolution(*outs, st)
+    psi = None if kind == "lf2" else out_x[NN:].reshape(S - 1, s_, cs.m)
+    return FastSolution(*outs, st, psi)
 
 
 def _failure(st, name, t0, h, residual=None):

@@ -59,3 +59,9 @@ class NonFiniteError(LdasparkError):
         super().__init__(message)
         self.step = step
         self.time = time
+
+
+class LdasparkWarning(UserWarning):
+    """Something was accepted with a note (``warnings.simplefilter("error", LdasparkWarning)``
+    turns these notes into errors): a parameter value for a symbol the model does not have, an
+    initial velocity changed by ``project=True``."""

@@ -5,7 +5,11 @@ Shapes for one run with S saved points (S = N + 1 for ``save_every = 1``):
 
 * ``t`` (S,), ``q`` and ``v`` (S, n), ``energy`` (S,) = E of (8), ``constraint`` (S, m) = k(t, q, v)
   of (1c), ``psi`` (S - 1, s, m): the stage multipliers Psi_i of (21b) of the step starting at
-  ``t[j]`` (``None`` when the engine does not form them: compiled kernels, leapfrog comparators).
+  ``t[j]``, on the generic, mpmath and compiled engines alike (``None`` only where the method does
+  not form SPARK stage multipliers: the semi-implicit kernel of (25), which runs
+  lobatto-iiia-iiib-2 on mechanical systems, and the comparators). Sign: psi is the multiplier of
+  (1), d/dt grad_v L = grad_q L - K^T psi; sympy.physics.mechanics' ``LagrangesMethod`` writes the
+  same equations with +K^T lam, so for the same constraint expressions psi = -lam.
 * ``status``: 0 success, 1 a terminal event stopped the run, negative failure (scipy's
   convention): -1 the Newton iteration of (21) failed, -2 the saddle matrix (4) became singular
   or changed sign, -3 another step failure (non-finite values). On failure the arrays hold the
@@ -56,8 +60,11 @@ class Result:
         The energy (8), E = L_v v - L.
     constraint : ndarray, shape (S, m)
         k(t, q, v) of (1c) at the output times.
-    psi : ndarray, optional
-        The multipliers Psi of (21) per step (stage values), when the engine returns them.
+    psi : ndarray, shape (S - 1, s, m), optional
+        The stage multipliers Psi_i of (21) of the step starting at each output time, in the
+        sign of (1) (d/dt grad_v L = grad_q L - K^T psi: the negative of sympy's
+        ``LagrangesMethod`` multipliers); None only for the semi-implicit kernel of (25) and the
+        comparators.
     status : int
         0: t_end reached; 1: a terminal event; negative: a step failed (-1 Newton, -2 singular
         saddle matrix (4), -3 other, e.g. non-finite values or the energy monitor).
@@ -238,8 +245,9 @@ def from_ensemble(ens: Any, **meta: Any) -> Result:
     ...; one stats dict per run); ``meta`` sets method, system, h, ... ."""
     R = len(ens.stats)
     counters = {c: np.array([int(st.get(c, 0)) for st in ens.stats]) for c in COUNTERS}
+    psi = getattr(ens, "psi", None)
     members = [Result(np.asarray(ens.t), ens.q[r], ens.v[r], ens.energy[r], ens.constraint[r],
-                      **{c: int(counters[c][r]) for c in COUNTERS}, stats=ens.stats[r],
+                      None if psi is None else psi[r], **{c: int(counters[c][r]) for c in COUNTERS}, stats=ens.stats[r],
                       engine="compiled" if ens.stats[r].get("path") == "fast" else "generic", **meta)
                for r in range(R)]
     res = stack(members)

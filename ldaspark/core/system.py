@@ -8,6 +8,7 @@ number type ("math" for float64, "mpmath" for arbitrary precision).
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import mpmath
@@ -16,7 +17,7 @@ import sympy
 
 from .backend import Backend, fmt
 from .derive import install, real_jacobian  # noqa: F401 (real_jacobian: its old home)
-from .errors import InconsistentInitialDataError, SingularSaddleError, SystemDefinitionError
+from .errors import InconsistentInitialDataError, LdasparkWarning, SingularSaddleError, SystemDefinitionError
 
 
 @dataclass
@@ -201,8 +202,13 @@ class LagrangianSystem:
         for key, val in items:
             sym = key if key in self.params else names.get(str(key))
             if sym is None:
-                raise SystemDefinitionError(f"{self.name}: {key} is not a parameter "
-                                            f"(parameters: {', '.join(map(str, self.params)) or 'none'})")
+                # a value for a symbol the model does not use changes nothing, so it is accepted
+                # with a note (a shared params dict over several models is the usual cause); a
+                # misspelled name still fails, as the missing value of the real parameter
+                warnings.warn(f"{self.name}: {key} is not a parameter "
+                              f"(parameters: {', '.join(map(str, self.params)) or 'none'}); its value is ignored",
+                              LdasparkWarning, stacklevel=2)
+                continue
             new._param_values[sym] = _param_value(val, sym) if isinstance(val, str) else _checked_param(sym, val)
         return new
 

@@ -20,6 +20,7 @@ import copy
 import os
 import time
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -39,19 +40,26 @@ class EnsembleResult:
     constraint: np.ndarray
     stats: list
     seconds: float
+    #: (R, S - 1, s, m) stage multipliers of (21) of each run's saved steps (None: the semi-implicit kernel)
+    psi: Optional[np.ndarray] = None
 
 
 def _fast_task(cs, spec, t0, ics, h, n_steps, every, compensated, tol):
     from ..compiled.fast import run_compiled
     out = []
     for q0, v0 in ics:
-        out.append(tuple(run_compiled(cs, spec, t0, q0, v0, h, n_steps, every, compensated, tol)))
+        fs = run_compiled(cs, spec, t0, q0, v0, h, n_steps, every, compensated, tol)
+        out.append(tuple(fs) + (fs.psi,))
     return out
 
 
 def _generic_task(system, method, t0, ics, h, n_steps, every, tol):
     from ..compiled.fast import generic_integrate
-    return [tuple(generic_integrate(system, method, t0, q0, v0, h, n_steps, every, tol)) for q0, v0 in ics]
+    out = []
+    for q0, v0 in ics:
+        fs = generic_integrate(system, method, t0, q0, v0, h, n_steps, every, tol)
+        out.append(tuple(fs) + (fs.psi,))
+    return out
 
 
 class RunSpec:
@@ -211,7 +219,8 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
         t = rs[0][0]
         out.append(EnsembleResult(t, np.array([r[1] for r in rs]), np.array([r[2] for r in rs]),
                                   np.array([r[3] for r in rs]), np.array([r[4] for r in rs]),
-                                  [r[5] for r in rs], seconds))
+                                  [r[5] for r in rs], seconds,
+                                  None if any(r[6] is None for r in rs) else np.array([r[6] for r in rs])))
     return out
 
 
