@@ -137,7 +137,8 @@ CLAIMS: tuple[tuple[str, str, str, tuple[str, ...], str, str], ...] = (
     ("5-del", "5", "the exact forces satisfy the forced discrete Euler-Lagrange equations",
      (f"{E5}::test_20_exact_discrete_euler_lagrange",), CHECKED, "two exact steps, D2/D4 by FD"),
     ("5-generating", "5", "for unconstrained systems L_d^E is a type I generating function", (), NOT_CHECKED,
-     "unconstrained systems are outside the library (m >= 1)"),
+     "L_d^E itself not; its discrete analogue, the SPARK L_d (13) at m = 0, is checked as a type I generating "
+     "function by verification/test_unconstrained_prk.py"),
     ("5.1", "5.1", "holonomic constraints: f_d^{E+} = f_d^{E-} = 0",
      (f"{E5}::test_5_1_exact_forces_vanish_holonomic", f"{HO}::test_holonomic_forces_small"), CHECKED,
      "on variations tangent to g = 0 (the derivation's d_q0 g(q(t)) = 0); the full covectors are normal reactions"),

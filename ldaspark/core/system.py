@@ -256,7 +256,12 @@ class LagrangianSystem:
         if ck not in self._compiled:
             args = [self.t] + self.q + self.v + (list(self.lam) if with_lam else []) + list(self.params)
             lists = [e.tolist() if isinstance(e, sympy.MatrixBase) else e for e in exprs]
-            self._compiled[ck] = sympy.lambdify(args, lists, modules=[_NONSMOOTH, backend.lambdify_module], cse=True)
+            f = sympy.lambdify(args, lists, modules=[_NONSMOOTH, backend.lambdify_module], cse=True)
+            empty = [e.shape if isinstance(e, sympy.MatrixBase) and 0 in e.shape else None for e in exprs]
+            if any(empty):
+                # an m = 0 system's k, K, ... print as [] and would come back without their shape
+                f = _keep_empty_shapes(f, empty)
+            self._compiled[ck] = f
         f = self._compiled[ck]
         if not self.params:
             return f
@@ -381,11 +386,12 @@ class LagrangianSystem:
         d = 1 / np.sqrt(rowmax)
         Ss = d[:, None] * Sf * d[None, :]
         kv = Sf[self.n:, :self.n]
-        kv = kv / np.max(np.abs(kv), axis=1, keepdims=True).clip(min=1e-300)
+        kv = kv / np.max(np.abs(kv), axis=1, keepdims=True, initial=0.0).clip(min=1e-300)
         sv = np.linalg.svd(Ss, compute_uv=False)
-        ksv = np.linalg.svd(kv, compute_uv=False)
         r = float(sv[-1] / sv[0])
         tol = rcond if rcond is not None else 1e3 * 2.0 ** -52
+        # m = 0: no K to lose rank; (4) is L_vv alone
+        ksv = np.linalg.svd(kv, compute_uv=False) if self.m else np.ones(1)
         kr = float(ksv[-1] / max(ksv[0], 1e-300))
         if kr <= tol:
             raise SingularSaddleError(
@@ -749,7 +755,7 @@ def _reject_dynamicsymbols(L, k):
 
 
 def _sympify_L_k(L, k):
-    """L as a scalar sympy expression and k as an m x 1 Matrix with m >= 1, or a
+    """L as a scalar sympy expression and k as an m x 1 Matrix (m = 0: a 0 x 1 Matrix), or a
     SystemDefinitionError saying what is wrong (not a TypeError from inside sympy)."""
     if L is None or k is None:
         raise SystemDefinitionError(f"L and k must be sympy expressions, got L = {L!r}, k = {k!r}")
@@ -763,10 +769,9 @@ def _sympify_L_k(L, k):
         return isinstance(e, sympy.Expr) and not getattr(e, "is_Matrix", False)
     if not scalar(Ls) or not all(scalar(e) for e in ks):
         raise SystemDefinitionError("L must be a scalar expression and k a list of scalar expressions")
-    if not ks:
-        raise SystemDefinitionError("k is empty: the SPARK methods (21) need m >= 1 constraints "
-                                    "(for an unconstrained system use a partitioned Runge-Kutta method)")
-    return Ls, sympy.Matrix(ks)
+    # m = 0 is allowed: (21) without its multipliers is the symplectic partitioned RK method
+    # (A, A_hat) of the Lagrangian, which the same suite checks
+    return Ls, sympy.Matrix(ks) if ks else sympy.zeros(0, 1)
 
 
 _MPF_ONLY = {mpmath.mpf}
@@ -781,6 +786,14 @@ def _integer_entries(exprs):
         plan.append([(i, mpmath.mpf(int(x))) for i, x in enumerate(map(sympy.sympify, flat))
                      if x.is_Integer and abs(int(x)) < 2 ** 53])
     return plan
+
+
+def _keep_empty_shapes(f, shapes):
+    """``f`` with its outputs of the given empty shapes (m = 0: k, K, ...) returned as empty
+    arrays of that shape (lambdify prints them as [])."""
+    def g(*args):
+        return [np.zeros(sh) if sh is not None else out for out, sh in zip(f(*args), shapes)]
+    return g
 
 
 def _arr(x, backend):
