@@ -139,8 +139,11 @@ def test_from_mechanics_plain_lagrangian_and_refusals():
     r = ldaspark.integrate(sysm, "gauss-2", n_steps=5, h=0.1, q0=[1, 0, 0], v0=[0, 1, 0], engine="generic")
     ref = ldaspark.integrate("particle", "gauss-2", n_steps=5, h=0.1, engine="generic")
     assert np.abs(r.q - ref.q).max() < 1e-14
-    with pytest.raises(SystemDefinitionError, match="no constraints"):
-        LagrangianSystem.from_mechanics(L, q=[x, y, z])
+    free = LagrangianSystem.from_mechanics(L, q=[x, y, z])   # no constraints: m = 0, a PRK method
+    assert free.m == 0
+    rf = ldaspark.integrate(free, "gauss-2", n_steps=5, h=0.1, q0=[1, 0, 0], v0=[0, 1, 0], engine="generic")
+    assert np.abs(rf.q - r.q).max() > 1e-4    # the constraint changed the motion; without it z stays 0
+    assert np.abs(rf.q[:, 2]).max() == 0.0
     with pytest.raises(SystemDefinitionError, match="second time derivatives"):
         LagrangianSystem.from_mechanics(L + x.diff().diff(), q=[x, y, z], constraints=[z.diff() - y * x.diff()])
 

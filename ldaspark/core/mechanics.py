@@ -41,7 +41,11 @@ has a potential: Q independent of the velocities and curl free (dQ_i/dq_j = dQ_j
 symbolically, numerically where simplification does not decide), and V with Q = -grad V is
 found (V = -F . r for a constant force on a point with a position from a fixed point, else by
 integrating coordinate by coordinate and checking the gradient). L becomes T - V. A load without
-a potential is refused in one line naming it: generalized forces are not part of (1) here.
+a potential (depending on the velocities, not curl free, or with a potential not found) enters
+(1b) through its generalized force F(t, q, v), as the Lagrange-d'Alembert principle with forces
+has it: d/dt grad_v L = grad_q L - K^T psi + F. F is the system's ``N`` (the slot of the nonideal
+term of section 3.3, which every engine integrates, R_i = -K_i^T Psi_i + F(T_i, Q_i, V_i) in (21b,
+d)); ``system.force_loads`` names those loads. A model without velocity constraints has m = 0.
 
 Each q_i(t) becomes a plain symbol named after it and q_i'(t) a symbol ``v_<name>``; the time
 ``dynamicsymbols._t`` becomes the system's t. Free symbols other than t are the system's
@@ -534,7 +538,9 @@ class _Numeric:
 
 
 def _potential(i, load, m: _Model, kin: _Kin, qs, conv, num: _Numeric):
-    """V of one load (plain symbols), or SystemDefinitionError saying why it has none."""
+    """(V, None) for a load with a potential (plain symbols), else (None, Q): its generalized
+    force Q(t, q, v), which enters (1) beside the constraint forces as in the Lagrange-d'Alembert
+    principle; SystemDefinitionError for a load that cannot be read at all."""
     import sympy.physics.mechanics as me
     t = me.dynamicsymbols._t
     loc, vec = _load_parts(load, m.kind)
@@ -542,7 +548,7 @@ def _potential(i, load, m: _Model, kin: _Kin, qs, conv, num: _Numeric):
     if m.frame is None:
         raise SystemDefinitionError(f"{m.kind}: {what}: no inertial frame to form its generalized force")
     if vec == 0:
-        return sympy.S.Zero
+        return sympy.S.Zero, None
     from sympy.physics.units import Quantity
     units = sorted({str(x) for c in vec.to_matrix(m.frame) for x in sympy.sympify(c).atoms(Quantity)})
     if units:
@@ -553,11 +559,8 @@ def _potential(i, load, m: _Model, kin: _Kin, qs, conv, num: _Numeric):
     vel = kin.point_velocity(loc) if isinstance(loc, me.Point) else kin.angular_velocity(loc)
     Q = [vec.dot(vel.diff(d, m.frame)) for d in qd]
     Qs, qsym, vsym = conv(Q, what)
-    moving = sorted({str(x) for e in Qs for x in e.free_symbols if x in set(vsym)})
-    if moving:
-        raise SystemDefinitionError(f"{m.kind}: {what} depends on the velocities ({', '.join(moving)}): it has no "
-                                    "potential, and loads without a potential (generalized forces) are not "
-                                    "supported yet")
+    if any(x in set(vsym) for e in Qs for x in e.free_symbols):
+        return None, Qs             # depends on the velocities: no potential
     V = None
     if isinstance(loc, me.Point):
         O, r = kin.position(loc)
@@ -567,39 +570,35 @@ def _potential(i, load, m: _Model, kin: _Kin, qs, conv, num: _Numeric):
             V = conv([-vec.dot(r)], what)[0][0]
     if V is not None and all(_is_zero(-V.diff(x) - e, num) for x, e in zip(qsym, Qs)):
         # a constant force on a located point: Q = -grad(-F . r) holds, so Q is curl free
-        return V
+        return V, None
     V = None
     n = len(qsym)
     for a in range(n):
         for b in range(a + 1, n):
             d = Qs[a].diff(qsym[b]) - Qs[b].diff(qsym[a])
             if not _is_zero(d, num):
-                raise SystemDefinitionError(f"{m.kind}: {what} is not conservative: its generalized force has "
-                                            f"dQ_{qsym[a]}/d{qsym[b]} != dQ_{qsym[b]}/d{qsym[a]} (no potential "
-                                            "V(q) with Q = -grad V); loads without a potential are not supported yet")
+                return None, Qs     # not curl free: no potential
     if V is None:
         V = sympy.S.Zero
         for j, x in enumerate(qsym):
             rest = -Qs[j] - V.diff(x)
             if _is_zero(rest, num):
                 continue
+            # a curl-free force whose potential is not found here (too large to simplify, an
+            # integral sympy does not do) is as exact as a generalized force: only L differs
             if sympy.count_ops(rest) > _SIMPLIFY_OPS:
-                raise SystemDefinitionError(f"{m.kind}: {what}: its generalized force is too large to integrate to "
-                                            "a potential here; give the potential as a body's potential_energy")
+                return None, Qs
             rest = sympy.simplify(rest)
-            others = rest.free_symbols & set(qsym[:j])
-            if others:
-                raise SystemDefinitionError(f"{m.kind}: {what}: no potential found (integrating its generalized "
-                                            f"force left terms in {sorted(map(str, others))})")
+            if rest.free_symbols & set(qsym[:j]):
+                return None, Qs
             part = sympy.integrate(rest, x)
             if part.has(sympy.Integral):
-                raise SystemDefinitionError(f"{m.kind}: {what}: its generalized force could not be integrated "
-                                            "to a potential")
+                return None, Qs
             V = V + part
     grad = [-V.diff(x) - e for x, e in zip(qsym, Qs)]
     if not all(_is_zero(g, num) for g in grad):
-        raise SystemDefinitionError(f"{m.kind}: {what}: no potential V(q) with Q = -grad V found")
-    return V
+        return None, Qs
+    return V, None
 
 
 def _breadth_first(start, step):
@@ -762,13 +761,21 @@ def _convert_model(m: _Model, name):
     num = _Numeric(qsym, vsym, tsym, ks)
     L = m.L if m.L is not None else _kinetic_minus_potential(m, kin, num)
     Ls = conv([L], "the Lagrangian")[0][0]
+    forces, named = [sympy.S.Zero] * len(qsym), []
     for i, load in enumerate(m.loads):
         loc = load[0] if isinstance(load, (tuple, list)) and len(load) == 2 else None
         if loc is not None and id(loc) in kin.roots:
             # applied at a rolling contact's material point: its generalized force is a combination
             # of the rolling rows' gradients, so it does no work on any motion (1) admits
             continue
-        Ls = Ls - _potential(i, load, m, kin, m.q, conv, num)
+        V, Q = _potential(i, load, m, kin, m.q, conv, num)
+        if Q is None:
+            Ls = Ls - V
+        else:
+            forces = [f + e for f, e in zip(forces, Q)]
+            named.append(f"loads[{i}] ({'force on point' if isinstance(loc, me.Point) else 'torque on frame'} "
+                         f"{_name(loc)})")
+    m.forces, m.force_loads = (forces if named else None), named
     # the velocities set in the model must be the derived ones where the constraints hold
     for what, derived, given in kin.checks:
         diff = list((derived - given).to_matrix(m.frame))
@@ -814,6 +821,7 @@ def from_mechanics(model: Any, q: Optional[Sequence] = None, constraints: Option
         try:
             mdl = reader(model)
             Ls, ks, qsym, vsym, tsym = _convert_model(mdl, name)
+            forces = mdl.forces
         except SystemDefinitionError:
             raise
         except (sympy.SympifyError, sympy.polys.polyerrors.PolynomialError, TypeError, ValueError, KeyError,
@@ -821,10 +829,8 @@ def from_mechanics(model: Any, q: Optional[Sequence] = None, constraints: Option
             msg = str(exc).splitlines()[0][:160] if str(exc) else type(exc).__name__
             raise SystemDefinitionError(f"{type(model).__name__}: cannot map the model to (1): {msg}") from None
         exprs = [Ls] + ks
-        if not ks:
-            raise SystemDefinitionError(f"{type(model).__name__}: the model has no velocity constraints; (1) needs "
-                                        "1 <= m < n velocity constraints")
     else:
+        forces = None
         if isinstance(model, (me.RigidBody, me.Particle, me.ReferenceFrame, me.Point)) or \
                 type(model).__module__.startswith("sympy.physics"):
             raise SystemDefinitionError(f"from_mechanics takes a KanesMethod, LagrangesMethod, System or a "
@@ -836,16 +842,17 @@ def from_mechanics(model: Any, q: Optional[Sequence] = None, constraints: Option
         except (sympy.SympifyError, TypeError, ValueError):
             raise SystemDefinitionError(f"from_mechanics: {type(model).__name__} is not a sympy expression") from None
         qs, cons = list(q), list(constraints or [])
-        if not cons:
-            raise SystemDefinitionError("the model has no constraints; (1) needs 1 <= m < n velocity constraints")
         exprs, qsym, vsym = _to_symbols([L] + cons, qs, t)
         tsym = sympy.Symbol("t")
         exprs = [e.subs(t, tsym) for e in exprs]
     Ls, ks = exprs[0], exprs[1:]
     if params is None:
-        found = set().union(*(e.free_symbols for e in exprs)) - set(qsym) - set(vsym) - {tsym}
+        found = set().union(*(e.free_symbols for e in exprs + list(forces or []))) - set(qsym) - set(vsym) - {tsym}
         params = sorted(found, key=str) or None
-    system = cls(Ls, ks, qsym, vsym, t=tsym, name=name, params=params)
+    # loads without a potential: their generalized forces F(t, q, v) enter (1b) as the nonideal
+    # term does, d/dt grad_v L = grad_q L - K^T psi + F, on every engine
+    system = cls(Ls, ks, qsym, vsym, t=tsym, name=name, params=params, nonideal=forces)
+    system.force_loads = list(mdl.force_loads) if reader is not None else []
     # what the adapter added to the model (empty when nothing): coordinate name -> why, and the
     # constraint rows appended after the model's own
     system.added_coordinates = dict(mdl.added) if reader is not None else {}
