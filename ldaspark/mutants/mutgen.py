@@ -455,6 +455,10 @@ def run_generated(args) -> int:
         # a listed site: a verdict on the lists, not on the mutant
         targets[m.id] += [f"--deselect={t}" for t in BOOKKEEPING]
         todo.append(m)
+    if getattr(args, "kinds", None):
+        # one kind of fault across many modules (all <-> any, min <-> max: the one-sided verdicts)
+        kinds = {k.strip() for k in args.kinds.split(",") if k.strip()}
+        todo = [m for m in todo if mutant_kind(m.id) in kinds]
     if getattr(args, "sample", None):
         todo = sample(todo, files, args.sample)
     if getattr(args, "keep_killed", None):
@@ -514,6 +518,12 @@ def _previous_records(path) -> list:
                 break
         return out
     return json.loads(text).get("mutants", [])
+
+
+def mutant_kind(mid: str) -> str:
+    """The operator kind of a generated mutant id ('file::scope::kind::text#k')."""
+    parts = mid.split("::")
+    return parts[2] if len(parts) > 3 else ""
 
 
 def sample(mutants, files, n):

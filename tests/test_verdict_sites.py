@@ -1,0 +1,249 @@
+"""Every any/all, worst-case and ratio rule of the checking code, fed an input on which the rule
+and its plausible neighbour differ (one of several items fails; two sides of a pair differ; a
+ratio that is not 1 and not symmetric under inversion).
+
+The rules are small pure functions or take constructed records, so the whole file runs in about
+a second: a fault planted in one of these rules (``any`` for ``all``, one side of a pair, a ratio
+upside down, the best item for the worst) fails here without running a computation."""
+import math
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from ldaspark.core.errors import InputError
+from ldaspark.theory import audit as au
+from ldaspark.theory import orders
+
+
+# --- orders: step sizes, method-scope verdicts --------------------------------------------------------
+def test_step_sizes_must_decrease_at_every_step():
+    errs = [1e-2, 1e-3, 1e-4]
+    orders.estimate_order([0.1, 0.05, 0.025], errs, 1e-15)                 # strictly decreasing: accepted
+    for hs in ([0.1, 0.05, 0.1], [0.1, 0.2, 0.05], [0.1, 0.1, 0.05], [0.1, 0.05, 0.05]):
+        # one bad pair among two (any, not all), equal steps too (>=, not >)
+        with pytest.raises(InputError):
+            orders.estimate_order(hs, errs, 1e-15)
+
+
+def _rec(method, scene, variable, observed, claimed=2, scope="variable"):
+    return {"method": method, "scene": scene, "variable": variable, "observed_order": observed,
+            "claimed_order": claimed, "claim_scope": scope}
+
+
+def test_a_method_scope_verdict_takes_the_worse_of_q_and_v():
+    rec = _rec("m", "s", "q", 2.0, scope="method")
+    # q at 2, v at 4: the method's order is min = 2 (max would say HIGHER than claimed)
+    recs = [rec, _rec("m", "s", "v", 4.0), _rec("m", "other", "v", 1.0), _rec("n", "s", "v", 1.0)]
+    assert orders.verdict(rec, recs) == "holds"
+    # the worse one fails: the verdict fails although q alone holds
+    recs = [rec, _rec("m", "s", "v", 1.2)]
+    assert orders.verdict(rec, recs) == "FAILS"
+    # one of the two has no window: no window (not: the other decides)
+    recs = [rec, _rec("m", "s", "v", None)]
+    assert orders.verdict(rec, recs) == "NO WINDOW"
+    # both above the claim by more than tol: higher
+    recs = [_rec("m", "s", "q", 3.0, scope="method"), _rec("m", "s", "v", 3.5)]
+    assert orders.verdict(recs[0], recs) == "HIGHER than claimed"
+
+
+@settings(deadline=None)
+@given(o=st.floats(0.5, 6.0), c=st.integers(1, 5))
+def test_an_order_verdict_is_two_sided(o, c):
+    rec = _rec("m", "s", "q", o, claimed=c)
+    assert orders.verdict(rec) == ("holds" if abs(o - c) <= 0.3 else "FAILS")
+
+
+# --- the audit's aggregate rules -------------------------------------------------------------------------
+C = au.Check
+P, F, S, I = au.PASS, au.FAIL, au.SKIP, au.INFO
+
+
+def _result(*statuses):
+    return au.AuditResult("t", 2, True, 30, True, checks=[C(f"c{i}", x, None, "") for i, x in enumerate(statuses)])
+
+
+def test_the_exit_code_is_one_when_any_check_fails():
+    assert _result(P, P, I, S).exit_code == 0
+    assert _result(P, F, P).exit_code == 1
+    assert _result(F).exit_code == 1
+    assert _result(P, P, F).as_dict()["exit_code"] == 1
+
+
+def test_entry_tolerances_need_every_condition_to_hold_and_take_the_largest_residual():
+    good = [C("22a", P, 1e-20, ""), C("22b", P, 3e-20, ""), C("23a", P, 2e-18, ""), C("23b", P, 1e-18, ""),
+            C("23c", P, 0.0, ""), C("23d", P, None, ""), C("theorem1", F, 1.0, "")]
+    t22, t23 = au.entry_tolerances(good)
+    assert t22 == pytest.approx(au.ENTRY_TOL_FACTOR * 3e-20)          # the larger, not the first
+    assert t23 == pytest.approx(au.ENTRY_TOL_FACTOR * 2e-18)
+    for k in range(6):
+        bad = list(good)
+        bad[k] = C(bad[k].name, F if k < 2 else I, 1e-3, "")
+        t22b, t23b = au.entry_tolerances(bad)
+        # one condition missed: its group is judged at full strength (0), the other keeps its tolerance
+        assert (t22b, t23b) == ((0.0, t23) if k < 2 else (t22, 0.0)), k
+    assert au.entry_tolerances([C("23a", P, 1e-9, "")]) == (0.0, pytest.approx(au.ENTRY_TOL_FACTOR * 1e-9))
+
+
+def test_the_symmetry_fact_needs_all_four_of_23_and_22_needs_both(monkeypatch):
+    import ldaspark.theory.audit as mod
+    from ldaspark.core.families import get_method
+
+    tab = get_method("gauss-2")
+    ar, e, _ = au.decide_arith(tab, 30)
+    for k in range(6):
+        cs = [C("22a", P, 0.0, ""), C("22b", P, 0.0, "")] + [C(f"23{x}", P, 0.0, "") for x in "abcd"]
+        cs[k] = C(cs[k].name, F if k < 2 else I, 1.0, "")
+        monkeypatch.setattr(mod, "check_22a", lambda ar, e, c=cs[0]: c)
+        monkeypatch.setattr(mod, "check_22b", lambda ar, e, c=cs[1]: c)
+        monkeypatch.setattr(mod, "check_23", lambda ar, e, c=cs[2:]: list(c))
+        _, facts = au.algebraic_checks(tab, ar, e, 30)
+        assert (facts["22"], facts["23"]) == ((False, True) if k < 2 else (True, False)), k
+
+
+# --- the ledger's proof conditions: every entry, both sides ------------------------------------------------
+def test_the_proof_conditions_need_every_entry():
+    """q0 and q1 of the proof of Theorem 1 hold when every (i, j) entry vanishes: on gauss-2 with one
+    entry of A_hat (resp. b_hat) moved, some entries vanish and others do not (all, not any);
+    moving b_hat changes q1 only (its own side of the pair)."""
+    from ldaspark.claims.ledger import proof_conditions
+    from ldaspark.core.families import get_method
+    tab = get_method("gauss-2", exact=True)
+
+    def zeros(t):
+        K, e = t.field_entries()
+        b, bh, A, Ah = e["b"], e["b_hat"], e["A"], e["A_hat"]
+        rng = range(t.s)
+        return ([b[j] * A[j][i] + b[i] * Ah[i][j] - b[j] * b[i] == K.zero for i in rng for j in rng],
+                [b[j] * A[j][i] + b[i] * Ah[i][j] - bh[j] * b[i] == K.zero for i in rng for j in rng])
+    assert proof_conditions(tab) == (True, True)
+    t_ah = tab.with_entry("A_hat", 0, 1, "1/10")
+    z0, z1 = zeros(t_ah)
+    assert any(z0) and not all(z0) and any(z1) and not all(z1)        # the input separates all from any
+    assert proof_conditions(t_ah) == (False, False)
+    t_bh = tab.with_entry("b_hat", 1, None, "1/10")
+    z0, z1 = zeros(t_bh)
+    assert all(z0) and any(z1) and not all(z1)
+    assert proof_conditions(t_bh) == (True, False)
+
+
+# --- ratios: the right way up ---------------------------------------------------------------------------
+@settings(deadline=None)
+@given(p=st.floats(0.5, 8.0), c=st.floats(1e-3, 1e3), h0=st.floats(0.01, 1.0), k=st.integers(2, 5))
+def test_pairwise_orders_recover_the_power(p, c, h0, k):
+    # errors c h^p at h0 / 2^j: every pairwise order is p (either quotient upside down gives -p)
+    hs = [h0 / 2 ** j for j in range(k)]
+    out = orders.pairwise_orders(hs, [c * h ** p for h in hs])
+    assert out == pytest.approx([p] * (k - 1), rel=1e-9, abs=1e-9)
+    # a zero error has no order; the neighbouring pairs keep theirs
+    out = orders.pairwise_orders(hs, [c * h ** p for h in hs[:-1]] + [0.0])
+    assert out[-1] is None and all(o == pytest.approx(p, rel=1e-9) for o in out[:-1])
+
+
+def _cost_rows(kind, method, pairs):
+    return [{"kind": kind, "method": method, "error": e, "cpu": c} for e, c in pairs]
+
+
+def test_the_speedup_is_peer_cost_over_spark_cost():
+    from ldaspark.reports import peers
+    # SPARK reaches 1e-6 at 1 s, the peer at 4 s (both bracket the target, log-interpolated on the envelope)
+    rows = (_cost_rows("spark", "s1", [(1e-4, 0.5), (1e-8, 2.0)]) + _cost_rows("spark", "s2", [(1e-4, 3.0), (1e-8, 9.0)])
+            + _cost_rows("peer", "p1", [(1e-4, 2.0), (1e-8, 8.0)]) + _cost_rows("peer", "p2", [(1e-4, 7.0), (1e-8, 30.0)]))
+    (r,) = peers.speedups(rows, [1e-6])
+    assert r["spark"] == "s1" and r["peer"] == "p1"                   # the cheapest of each side
+    assert r["speedup"] == pytest.approx(r["peer_cpu"] / r["spark_cpu"]) and r["speedup"] > 1
+    assert r["speedup"] == pytest.approx(4.0, rel=1e-9)
+    # the sides swapped: the reciprocal
+    sw = [dict(x, kind={"spark": "peer", "peer": "spark"}[x["kind"]]) for x in rows]
+    assert peers.speedups(sw, [1e-6])[0]["speedup"] == pytest.approx(0.25, rel=1e-9)
+
+
+@settings(deadline=None)
+@given(first=st.floats(1e-8, 1e-3), factor=st.floats(0.05, 20.0))
+def test_boundedness_is_last_quarter_over_first(first, factor):
+    import numpy as np
+
+    from ldaspark.reports.energy import boundedness
+    from ldaspark.reports.systems import _bounded, BOUNDED_RATIO, DRIFT_RATIO
+    n = 401
+    t = np.linspace(0.0, 1.0, n)
+    e = np.full(n, first)
+    e[3 * n // 4 + 2:] = first * factor                               # only the last quarter changes
+    e[0] = 0.0
+    b = boundedness(t, e)
+    # the last quarter's slice starts two samples before the change: its max is max(factor, 1) x first
+    assert b["last_over_first_quarter"] == pytest.approx(max(factor, 1.0), rel=1e-12)
+    r = _bounded(t, e, n - 1, 0.0)          # round-off threshold 100 eps sqrt(400) ~ 4e-13 < first
+    assert not r["roundoff"]
+    assert r["bounded"] == (b["last_over_first_quarter"] <= BOUNDED_RATIO)
+    assert r["drift"] == (b["last_over_first_quarter"] >= DRIFT_RATIO)
+
+
+def test_the_energy_rate_is_log2_of_coarse_over_fine(monkeypatch):
+    import types
+
+    import numpy as np
+
+    from ldaspark.theory import audit_checks as ac
+    runs = iter([4e-6, 1e-6])                                         # h then h/2: errors fall 4x: rate 2
+
+    def fake_run(tab, sc, N, T, dps):
+        m = next(runs)
+        return types.SimpleNamespace(energy=np.array([1.0, 1.0 + m, 1.0 - m / 2]))
+    monkeypatch.setattr(ac, "_run", fake_run)
+    chk, facts = ac.energy_check(None, True)
+    # |E - E0| of 1 + 4e-6 carries a rounding of eps / 4e-6 ~ 6e-11 relative
+    assert facts["energy_rate"] == pytest.approx(2.0, rel=1e-9)
+    assert chk.residual == pytest.approx(1e-6) and chk.status == au.INFO
+    assert [h for h, _ in facts["energy"]] == [0.1, 0.05]
+
+
+# --- summary verdicts: all of them, not one -----------------------------------------------------------------
+def test_the_convergence_summary_holds_only_when_every_record_holds():
+    from ldaspark.reports.summary import convergence_values
+    recs = [_rec("gauss-2", "skate", "q", 4.0, 4), _rec("gauss-2", "skate", "v", 4.1, 4),
+            _rec("gauss-irk-1", "skate", "q", 2.0, 2), _rec("gauss-irk-2", "skate", "q", 4.0, 4)]
+    v = convergence_values(recs)
+    assert v["convergence.spark"] == "4 of 4" and v["convergence.spark.verdict"] == "hold"
+    recs[1] = _rec("gauss-2", "skate", "v", 3.0, 4)                   # one of four fails
+    v = convergence_values(recs)
+    assert v["convergence.spark"] == "3 of 4" and v["convergence.spark.verdict"] == "do not all hold"
+
+
+def _claim(claim, method, status, expected, residual, wellposed="well-posed"):
+    return {"claim": claim, "method": method, "scene": "s", "status": status, "expected": expected,
+            "residual": residual, "wellposed": wellposed}
+
+
+def test_the_claims_summary_counts_agreement_and_takes_the_worst_residual():
+    from ldaspark.reports.summary import claims_values
+    recs = [_claim("22a", "m", "pass", "pass", 0.0), _claim("23", "m", "fail", "pass", 1.0),
+            _claim("theorem1-q0", "m", "pass", "pass", 1e-30), _claim("theorem1-q1", "m", "pass", "pass", 3e-28),
+            _claim("theorem1-q0", "n", "fail", "pass", 1e-3),
+            _claim("theorem1-q0", "negctl-a", "fail", "fail", 2e-2), _claim("theorem1-q1", "negctl-b", "fail", "fail", 5e-4),
+            _claim("symmetry-x", "m", "pass", "pass", 2e-25), _claim("symmetry-y", "m", "pass", "pass", 7e-26),
+            _claim("16", "m", "pass", "pass", 1e-20), _claim("18", "m", "pass", "pass", 4e-19),
+            _claim("antisymmetry-exact", "m", "fail", "pass", 1e-10),
+            _claim("antisymmetry-exact", "m", "not-applicable", "pass", None)]
+    v = claims_values(recs)
+    assert v["claims.conditions"] == "1 of 2"
+    assert v["claims.theorem1.max"] == "3.0e-28"                     # the worst passing residual
+    assert v["claims.theorem1.negctl_min"] == "5.0e-04"              # the least convincing control
+    assert v["claims.theorem1.unexpected"] == "1"
+    assert v["claims.symmetry.max"] == "2.0e-25"
+    assert v["claims.paper"] == "2 of 3"                              # not-applicable not decided
+    assert v["claims.paper.max"] == "4.0e-19"
+
+
+def test_the_peer_floor_needs_both_sides(monkeypatch):
+    from ldaspark.reports import summary
+    st_ = {"scene": "sc", "speedups": [], "long_speedups": [],
+           "long_rows": [{"kind": "spark", "energy_error": 3e-12, "constraint": 1e-15},
+                         {"kind": "spark", "energy_error": 1e-12, "constraint": 2e-15},
+                         {"kind": "peer", "energy_error": 5e-9, "constraint": 1e-10},
+                         {"kind": "peer", "energy_error": 2e-9, "constraint": 3e-10}],
+           "vlong_rows": [{"kind": "spark", "energy_error": 1e-12, "constraint": 1e-15}]}
+    out = summary.peers_values({"targets": [], "energy_targets": [], "studies": [st_]})
+    assert out["peers.sc.long_floor"] == "1.0e-12 / 2.0e-09"          # the smallest of each side
+    assert out["peers.sc.long_floor_k"] == "2e-15 / 3e-10"
+    assert "peers.sc.vlong_floor" not in out                          # one side only: no floor
