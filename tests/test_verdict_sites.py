@@ -247,3 +247,72 @@ def test_the_peer_floor_needs_both_sides(monkeypatch):
     assert out["peers.sc.long_floor"] == "1.0e-12 / 2.0e-09"          # the smallest of each side
     assert out["peers.sc.long_floor_k"] == "2e-15 / 3e-10"
     assert "peers.sc.vlong_floor" not in out                          # one side only: no floor
+
+
+# --- fingerprints: every component of a run's identity ---------------------------------------------------
+def _binding(monkeypatch, call):
+    from ldaspark.dist import workers
+    seen = []
+
+    def fake(work, checkpoint, **kw):
+        seen.append(checkpoint.fingerprint)
+        return {u.name: [] for u in work}
+    monkeypatch.setattr(workers, "run_resumable", fake)
+    call(workers.Checkpoint("unused.partial.jsonl", "caller-fp"))
+    return seen[-1]
+
+
+def test_the_ledger_binds_every_setting_that_changes_its_records(monkeypatch):
+    from ldaspark.claims import ledger
+    base = dict(max_s=1, scenes=("particle",), perturbed=False, holonomic=False, controls=False, groups=(),
+                quick=False, jobs=1)
+    other = dict(max_s=2, scenes=("skate",), perturbed=True, holonomic=True, controls=True,
+                 groups=("ldaspark.claims.claims_general:records",), quick=True)
+    fp0 = _binding(monkeypatch, lambda ck: ledger.run_ledger(**base, checkpoint=ck))
+    assert fp0 == _binding(monkeypatch, lambda ck: ledger.run_ledger(**base, checkpoint=ck))
+    for k, v in other.items():
+        fp = _binding(monkeypatch, lambda ck: ledger.run_ledger(**dict(base, **{k: v}), checkpoint=ck))
+        assert fp != fp0, k
+
+
+def test_the_catalogue_binds_every_setting_that_changes_a_verdict(monkeypatch):
+    from ldaspark.mutants import mutation
+    m = [mutation.by_id(mutation.QUICK[0])]
+    base = dict(hints_only=False, exclude=(), targets=None, timeout=300)
+    fp0 = _binding(monkeypatch, lambda ck: mutation.run_catalogue(m, 1, checkpoint=ck, **base))
+    for k, v in dict(hints_only=True, exclude=("tests/test_spark.py",), targets={m[0].id: ["tests/test_x.py"]},
+                     timeout=60).items():
+        fp = _binding(monkeypatch, lambda ck: mutation.run_catalogue(m, 1, checkpoint=ck, **dict(base, **{k: v})))
+        assert fp != fp0, k       # a shorter timeout turns slow kills into timeouts: another verdict
+
+
+def test_the_package_source_and_each_library_version_enter_the_fingerprint(tmp_path, monkeypatch):
+    import importlib.metadata
+    import sys
+
+    from ldaspark.dist import workers
+    pkg = tmp_path / "pkg"
+    (pkg / "dist").mkdir(parents=True)
+    (pkg / "core.py").write_text("A = 1\n")
+    (pkg / "notes.txt").write_text("not source\n")
+    monkeypatch.setattr(workers, "__file__", str(pkg / "dist" / "workers.py"))
+    f0 = workers.source_fingerprint("r")
+    (pkg / "notes.txt").write_text("changed\n")
+    assert workers.source_fingerprint("r") == f0                          # *.py only under the package
+    (pkg / "core.py").write_text("A = 2\n")
+    f1 = workers.source_fingerprint("r")
+    assert f1 != f0                                                        # the package's own source
+    ident = workers._environment_identity()
+    assert ident[0] == sys.version and len(ident) == 2 + len(workers._FINGERPRINT_DISTS)
+    real = importlib.metadata.version
+    for name in workers._FINGERPRINT_DISTS:
+        def version(n, name=name):
+            if n == name:
+                return "0.0.0-other"
+            return real(n)
+        monkeypatch.setattr(importlib.metadata, "version", version)
+        assert workers.source_fingerprint("r") != f1, name
+    monkeypatch.setattr(importlib.metadata, "version", real)
+    assert workers.source_fingerprint("r") == f1
+    monkeypatch.setattr(sys, "version", sys.version + " other")
+    assert workers.source_fingerprint("r") != f1
