@@ -7,6 +7,7 @@ a second: a fault planted in one of these rules (``any`` for ``all``, one side o
 upside down, the best item for the worst) fails here without running a computation."""
 import math
 
+import mpmath
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -316,3 +317,91 @@ def test_the_package_source_and_each_library_version_enter_the_fingerprint(tmp_p
     assert workers.source_fingerprint("r") == f1
     monkeypatch.setattr(sys, "version", sys.version + " other")
     assert workers.source_fingerprint("r") != f1
+
+
+# --- the paper's claim group: both quantities of a record, and records that describe their run -------------
+def test_a_section7_record_fails_when_either_of_its_two_quantities_fails(monkeypatch):
+    from ldaspark.claims import claims_paper as cp
+    good, bad = 1e-40, 1e-20                                          # around TOL_S7 = 1e-35
+    for diff, stage in ((good, good), (bad, good), (good, bad)):
+        monkeypatch.setattr(cp, "reduction", lambda kind, tab, constant_K, d=diff, s=stage:
+                            {"diff": d if tab.name != "lobatto-iiia-iiib-2" and kind != "euler-ii" or tab.name !=
+                             "euler-i" else 1.0, "stage": s})
+        monkeypatch.setattr(cp, "one_newton_iteration", lambda tab, ck, guess: {"after_one": 1e-40 if ck or
+                                                                                 tab.name == "euler-ii" else 1.0})
+        recs = [r for r in cp.section7_records(True) if r["expected"] == "pass" and r["claim"] != "linearly-implicit-7"]
+        assert len(recs) == 3
+        assert {r["status"] for r in recs} == {"pass" if (diff, stage) == (good, good) else "fail"}, (diff, stage)
+        assert all(r["residual"] == pytest.approx(max(diff, stage)) for r in recs)
+
+
+def test_an_energy_balance_record_takes_the_worse_of_pointwise_and_integral(monkeypatch):
+    from ldaspark.claims import claims_paper as cp
+    from ldaspark.claims.ledger import check_unit_records
+    pred = {}
+
+    def discrete(name, tab, hs):
+        pred[tab.name] = cp.predicted_mismatch_order(tab)
+        return {"order_mismatch": pred[tab.name] + 0.1, "order_delta_E": 1.0}
+    monkeypatch.setattr(cp, "discrete_balance", discrete)
+    for pw, it in ((1e-30, 1e-30), (1e-10, 1e-30), (1e-30, 1e-10)):
+        monkeypatch.setattr(cp, "exact_balance", lambda name, dps, stages, a=pw, b=it:
+                            {"pointwise": a, "integral": b, "delta_E": 0.1, "without_L_t": 1.0,
+                             "without_psi_term": 1.0})
+        recs = cp.energy_records(True)
+        check_unit_records("energy-2.2", recs)
+        exact = [r for r in recs if r["method"] == "exact-flow"]
+        assert len(exact) == 2 and all(r["residual"] == pytest.approx(max(pw, it)) for r in exact)
+        assert {r["status"] for r in exact} == {"pass" if max(pw, it) < 1e-22 else "fail"}
+        d = [r for r in recs if r["point"] == "one-step h-sweep"]
+        assert [r["status"] for r in d] == ["pass"] and d[0]["residual"] == pytest.approx(0.1)
+
+
+def test_definition1_records_describe_the_runs_they_come_from(monkeypatch):
+    """Each record names its step count and digits; the run must use them, from initial values
+    accurate to those digits."""
+    from ldaspark.claims import claims_paper as cp
+    from ldaspark.claims.ledger import check_unit_records
+    from ldaspark.models.scenes import get_scene
+    calls = []
+
+    def fake(system, tab, t0, q0, v0, h, n_steps, dps):
+        calls.append((n_steps, dps, q0, system))
+        return {"15a": 1e-30, "15b": 1e-45, "15a_without_forces": 1.0, "15b_secant": 1.0, "15b_left_end": 1.0,
+                "wellposed": "well-posed", "seconds": 0.5}
+    monkeypatch.setattr(cp, "definition1_residuals", fake)
+    recs = cp.definition1_records(True)
+    check_unit_records("definition-1", recs)
+    runs = [r for r in recs if "control: left" not in r["method"] and not (r["claim"] == "15b" and r["point"] ==
+                                                                           "ivp-10-steps")]
+    assert len(runs) == len(calls) == 3
+    for rec, (n, dps, q0, system) in zip(runs, calls):
+        assert rec["point"].endswith(f"-{n}-steps") and rec["dps"] == dps, rec
+        with mpmath.workdps(100):
+            ref = get_scene(rec["scene"]).initial(80)[1]
+            # the initial point to more digits than the run works with (10 guard digits)
+            assert max(abs(mpmath.mpf(a) - b) for a, b in zip(q0, ref)) <= mpmath.mpf(10) ** (-dps - 10), rec
+
+
+def test_section5_control_records_carry_no_time_of_their_own(monkeypatch):
+    """A control is computed with its identity (same call): its time is in the identity's record."""
+    from ldaspark.claims.ledger import check_unit_records
+    recs = _fake_section5_all(monkeypatch)
+    check_unit_records("section-5", recs)
+    ctl = [r for r in recs if "control" in r["method"] or "printed" in r["method"]]
+    assert ctl and all(r["seconds"] == 0 for r in ctl)
+
+
+def _fake_section5_all(monkeypatch):
+    from ldaspark.claims import claims_paper as cp
+    ident = {k: 1e-30 for k in ("16", "18", "17", "19", "20b-corrected")}
+    ident.update({"16-without-force": 1e-3, "18-without-force": 1e-3, "20b-printed": 1e-3, "f_d_minus": 1.0,
+                  "k0": 0.0})
+    clock = iter(range(0, 10 ** 6, 7))
+    monkeypatch.setattr(cp.time, "time", lambda: float(next(clock)))      # every timed call "takes" 7 s
+    monkeypatch.setattr(cp, "exact_identities", lambda scn, **k: dict(ident))
+    monkeypatch.setattr(cp, "antisymmetry", lambda scn, **k: {"L": 1e-30, "f_plus": 1e-30, "f_minus": 1e-30,
+                                                                "wrong-pairing": 1.0})
+    monkeypatch.setattr(cp, "holonomic_exact",
+                        lambda scn, **k: {"tangential": 1e-30 if scn == "pendulum" else 1e-3, "full": 1.0})
+    return cp.section5_records(quick=True)
