@@ -8,7 +8,6 @@ import pathlib
 import shutil
 import subprocess
 import sys
-import time
 
 import mpmath
 import pytest
@@ -117,14 +116,12 @@ def test_mutants_without_the_repositorys_tests_refuse_at_once(tmp_path, extra):
     shutil.copytree(ROOT / "ldaspark", tmp_path / "ldaspark",
                     ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
     env = dict(os.environ, PYTHONPATH=str(tmp_path))
-    t = time.time()
     p = subprocess.run([sys.executable, "-m", "ldaspark", "mutants", "--quick", "--outdir", str(tmp_path / "out"),
                         *extra], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
     assert p.returncode == 2, p.stderr
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and "needs the repository's tests" in lines[0], p.stderr
-    assert not (tmp_path / "out").exists()              # nothing done
-    assert time.time() - t < 60
+    assert not (tmp_path / "out").exists()              # nothing done (no timing asserted: CI's CPUs differ)
     # negative control: with the tests beside it the check passes
     from ldaspark.mutants.mutation import CatalogueError, require_tests
     require_tests(ROOT)
