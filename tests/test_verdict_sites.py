@@ -405,3 +405,57 @@ def _fake_section5_all(monkeypatch):
     monkeypatch.setattr(cp, "holonomic_exact",
                         lambda scn, **k: {"tangential": 1e-30 if scn == "pendulum" else 1e-3, "full": 1.0})
     return cp.section5_records(quick=True)
+
+
+# --- exact conditions, pairs of covectors, skipped caches: one item of many -------------------------------
+def test_the_exact_conditions_need_every_index():
+    from ldaspark.core.families import get_method
+    from ldaspark.theory import conditions as cd
+    g2, g3 = get_method("gauss-2", exact=True), get_method("gauss-3", exact=True)
+    assert cd.check_22a(g2) and cd.check_22b(g2) and cd.check_23(g3)
+    assert not cd.check_22a(g2.with_entry("b_hat", 1, None, "1/10"))      # b_hat_1 = b_1 still holds
+    assert not cd.check_22b(g2.with_entry("A_hat", 0, 1, "1/10"))
+    # c_2 + c_2 = 1 still holds, c_1 + c_3 does not
+    assert not cd.check_23(g3.with_entry("c", 0, None, "1/10"))
+
+
+def test_the_holonomic_tangential_residual_is_the_worse_endpoint(monkeypatch):
+    import types
+
+    import numpy as np
+
+    from ldaspark.theory import section5
+    # n = 2, m = 1, K = (1, 0): the tangential part of a covector is its second entry
+    system = types.SimpleNamespace(n=2, saddle_matrix=lambda bk, t, q, v: np.array(
+        [[1, 0, 1], [0, 1, 0], [1, 0, 0]], dtype=object))
+    mp = mpmath.mpf
+    for fm, fp, want in (((5, 0), (7, 2), 2), ((5, 3), (7, 0), 3)):
+        r = types.SimpleNamespace(v0=None, v1=None, k0=np.array([mp(0)], dtype=object),
+                                  f_d_minus=np.array([mp(x) for x in fm], dtype=object),
+                                  f_d_plus=np.array([mp(x) for x in fp], dtype=object))
+        monkeypatch.setattr(section5, "endpoints", lambda *a, **k: (0, None, 1, None))
+        monkeypatch.setattr(section5, "flow_for", lambda *a, r=r, **k: types.SimpleNamespace(
+            system=system, bvp=lambda *b: r))
+        out = section5.holonomic_exact.__wrapped__("pendulum") if hasattr(section5.holonomic_exact, "__wrapped__") \
+            else section5.holonomic_exact("pendulum")
+        assert float(out["tangential"]) == pytest.approx(want) and float(out["full"]) == pytest.approx(7)
+
+
+def test_a_cache_directory_anywhere_below_is_left_out_of_the_fingerprint(tmp_path):
+    from ldaspark.dist import workers
+    d = tmp_path / "tests"
+    (d / "sub" / "__pycache__").mkdir(parents=True)
+    (d / "test_a.py").write_text("x = 1\n")
+    f0 = workers.source_fingerprint("r", dirs=(d,))
+    (d / "sub" / "__pycache__" / "stale.py").write_text("y = 2\n")       # one part of three is a cache
+    assert workers.source_fingerprint("r", dirs=(d,)) == f0
+    (d / "sub" / "test_b.py").write_text("")
+    assert workers.source_fingerprint("r", dirs=(d,)) != f0
+
+
+def test_peer_ratios_are_quoted_when_any_target_has_one():
+    from ldaspark.reports.summary import work_precision_values
+    st_ = {"scene": "sc", "ratios": {"error": [{"target": 1e-6, "scipy/spark-fast": 2.0},
+                                               {"target": 1e-8, "scipy/spark-fast": None, "peer/spark-fast": 3.0}]}}
+    out = work_precision_values({"studies": [st_], "dps": []})
+    assert out["wp.sc.peer_ratios"] == "- / 3x"

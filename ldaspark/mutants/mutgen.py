@@ -48,7 +48,7 @@ from .mutation import TIMEOUT, all_test_files, require_tests, run_catalogue
 PACKAGE = pathlib.Path(__file__).resolve().parents[1]
 PROJECT = PACKAGE.parent
 EQUIVALENT = PROJECT / "verification" / "mutants_equivalent.json"
-ALWAYS_MAPPED = ("tests/test_verdict_rules.py", "tests/test_generated_mutants_kills.py")
+ALWAYS_MAPPED = ("tests/test_verdict_rules.py", "tests/test_generated_mutants_kills.py", "tests/test_verdict_sites.py")
 BOOKKEEPING = ("tests/test_generated_mutants_kills.py::test_the_equivalents_list_names_existing_mutants_with_an_argument",
                "tests/test_generated_mutants_kills.py::test_the_quick_generated_mutants_still_exist_and_name_a_test")
 TOOL = "ldaspark.mutants.mutgen (AST operator mutants)"
