@@ -459,3 +459,18 @@ def test_peer_ratios_are_quoted_when_any_target_has_one():
                                                {"target": 1e-8, "scipy/spark-fast": None, "peer/spark-fast": 3.0}]}}
     out = work_precision_values({"studies": [st_], "dps": []})
     assert out["wp.sc.peer_ratios"] == "- / 3x"
+
+
+def test_a_general_symmetry_record_fails_when_either_identity_fails(monkeypatch):
+    import types
+
+    from ldaspark.claims import claims_general as cg
+    scn = types.SimpleNamespace(system=None, name="scene")
+    tab = types.SimpleNamespace(name="tab")
+    assert 1e-40 < cg.TOL_SYMMETRY < 1e-10                             # the inputs straddle the tolerance
+    for ld, phi in ((1e-40, 1e-40), (1e-10, 1e-40), (1e-40, 1e-10)):
+        monkeypatch.setattr(cg, "check_symmetry", lambda *a, ld=ld, phi=phi, **k: {
+            "symmetry-Ld": ld, "symmetry-Phi": phi, "wellposed": "well-posed", "seconds": 0.1})
+        rec = cg._symmetry_record(scn, tab, "pass", 0, [0], [0])
+        assert rec["residual"] == pytest.approx(max(ld, phi))
+        assert rec["status"] == ("pass" if max(ld, phi) <= cg.TOL_SYMMETRY else "fail")
