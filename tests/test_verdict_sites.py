@@ -474,3 +474,12 @@ def test_a_general_symmetry_record_fails_when_either_identity_fails(monkeypatch)
         rec = cg._symmetry_record(scn, tab, "pass", 0, [0], [0])
         assert rec["residual"] == pytest.approx(max(ld, phi))
         assert rec["status"] == ("pass" if max(ld, phi) <= cg.TOL_SYMMETRY else "fail")
+
+
+def test_ledger_jobs_floor_at_one_and_follow_the_environment(monkeypatch):
+    from ldaspark.claims.ledger import ledger_jobs
+    assert ledger_jobs(3) == 3 and ledger_jobs(0) == 1
+    monkeypatch.setenv("LDASPARK_JOBS", "0")
+    assert ledger_jobs() == 1
+    monkeypatch.setenv("LDASPARK_JOBS", "5")
+    assert ledger_jobs() == 5
