@@ -438,17 +438,22 @@ def test_a_non_finite_initial_point_is_step_zero():
         finite_initial_point(ok, bk, 0.0, [0.0], [0.0])          # control
 
 
+def _close(x, rel=1e-9, abs=0.0):
+    """pytest.approx without its absolute default of 1e-12, which would equate any two tiny residuals."""
+    return pytest.approx(x, rel=rel, abs=abs)
+
+
 # --- the audit: tolerances, step counts, floors, references (generated mutants of audit*.py) ---------------
 def test_the_theorem1_tolerance_is_the_largest_of_its_three_parts():
     import types
 
     from ldaspark.theory import audit as au
     tab = types.SimpleNamespace(source_digits=None)
-    assert au._theorem1_tol(tab, 30, 0.0) == pytest.approx(1e-15)                 # 10^(-dps/2)
-    assert au._theorem1_tol(tab, 40, 1e-19) == pytest.approx(1e-18)               # 10 x FD error
+    assert au._theorem1_tol(tab, 30, 0.0) == _close(1e-15)                 # 10^(-dps/2)
+    assert au._theorem1_tol(tab, 40, 1e-19) == _close(1e-18)               # 10 x FD error
     tab20 = types.SimpleNamespace(source_digits=20)
-    assert au._theorem1_tol(tab20, 60, 0.0) == pytest.approx(1e-17)               # 10^(3 - 20 digits given)
-    assert au._theorem1_tol(tab20, 60, 0.0, entry_tol=2e-25) == pytest.approx(2e-25)   # given: replaces it
+    assert au._theorem1_tol(tab20, 60, 0.0) == _close(1e-17)               # 10^(3 - 20 digits given)
+    assert au._theorem1_tol(tab20, 60, 0.0, entry_tol=2e-25) == _close(2e-25)   # given: replaces it
 
 
 def test_theorem1_is_computed_from_initial_values_accurate_beyond_the_working_digits(monkeypatch):
@@ -514,12 +519,12 @@ def test_the_convergence_floor_and_constraint_tolerance(monkeypatch):
                 "observed": 4.0, "reference": "fake", "max_constraint": 1e3 * 2.0 ** -52}
     monkeypatch.setattr(ac, "observed_order", fake)
     checks, _ = ac.convergence_checks(get_method("gauss-2"), 4, 30, True)
-    assert seen[0] == (None, pytest.approx(1e-11))                 # float64: 10^(4 - 15)
+    assert seen[0] == (None, _close(1e-11))                 # float64: 10^(4 - 15)
     assert {c.name: c.status for c in checks}["constraint"] == ac.PASS   # exactly at 1e3 eps
     seen.clear()
     monkeypatch.setattr(ac, "observed_order", lambda *a: dict(fake(*a), max_constraint=1e3 * 1e-30 * 1.5))
     checks, _ = ac.convergence_checks(get_method("gauss-4"), 8, 30, True)
-    assert seen[0] == (30, pytest.approx(1e-26))                   # at 30 digits: 10^(4 - 30)
+    assert seen[0] == (30, _close(1e-26))                   # at 30 digits: 10^(4 - 30)
     assert {c.name: c.status for c in checks}["constraint"] == ac.FAIL   # above 1e3 x 10^-30
 
 

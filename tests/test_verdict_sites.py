@@ -17,6 +17,11 @@ from ldaspark.theory import audit as au
 from ldaspark.theory import orders
 
 
+def _close(x, rel=1e-9, abs=0.0):
+    """pytest.approx without its absolute default of 1e-12, which would equate any two tiny residuals."""
+    return pytest.approx(x, rel=rel, abs=abs)
+
+
 # --- orders: step sizes, method-scope verdicts --------------------------------------------------------
 def test_step_sizes_must_decrease_at_every_step():
     errs = [1e-2, 1e-3, 1e-4]
@@ -75,15 +80,15 @@ def test_entry_tolerances_need_every_condition_to_hold_and_take_the_largest_resi
     good = [C("22a", P, 1e-20, ""), C("22b", P, 3e-20, ""), C("23a", P, 2e-18, ""), C("23b", P, 1e-18, ""),
             C("23c", P, 0.0, ""), C("23d", P, None, ""), C("theorem1", F, 1.0, "")]
     t22, t23 = au.entry_tolerances(good)
-    assert t22 == pytest.approx(au.ENTRY_TOL_FACTOR * 3e-20)          # the larger, not the first
-    assert t23 == pytest.approx(au.ENTRY_TOL_FACTOR * 2e-18)
+    assert t22 == _close(au.ENTRY_TOL_FACTOR * 3e-20)          # the larger, not the first
+    assert t23 == _close(au.ENTRY_TOL_FACTOR * 2e-18)
     for k in range(6):
         bad = list(good)
         bad[k] = C(bad[k].name, F if k < 2 else I, 1e-3, "")
         t22b, t23b = au.entry_tolerances(bad)
         # one condition missed: its group is judged at full strength (0), the other keeps its tolerance
         assert (t22b, t23b) == ((0.0, t23) if k < 2 else (t22, 0.0)), k
-    assert au.entry_tolerances([C("23a", P, 1e-9, "")]) == (0.0, pytest.approx(au.ENTRY_TOL_FACTOR * 1e-9))
+    assert au.entry_tolerances([C("23a", P, 1e-9, "")]) == (0.0, _close(au.ENTRY_TOL_FACTOR * 1e-9))
 
 
 def test_the_symmetry_fact_needs_all_four_of_23_and_22_needs_both(monkeypatch):
@@ -135,10 +140,10 @@ def test_pairwise_orders_recover_the_power(p, c, h0, k):
     # errors c h^p at h0 / 2^j: every pairwise order is p (either quotient upside down gives -p)
     hs = [h0 / 2 ** j for j in range(k)]
     out = orders.pairwise_orders(hs, [c * h ** p for h in hs])
-    assert out == pytest.approx([p] * (k - 1), rel=1e-9, abs=1e-9)
+    assert out == _close([p] * (k - 1), rel=1e-9, abs=1e-9)
     # a zero error has no order; the neighbouring pairs keep theirs
     out = orders.pairwise_orders(hs, [c * h ** p for h in hs[:-1]] + [0.0])
-    assert out[-1] is None and all(o == pytest.approx(p, rel=1e-9) for o in out[:-1])
+    assert out[-1] is None and all(o == _close(p, rel=1e-9) for o in out[:-1])
 
 
 def _cost_rows(kind, method, pairs):
@@ -152,11 +157,11 @@ def test_the_speedup_is_peer_cost_over_spark_cost():
             + _cost_rows("peer", "p1", [(1e-4, 2.0), (1e-8, 8.0)]) + _cost_rows("peer", "p2", [(1e-4, 7.0), (1e-8, 30.0)]))
     (r,) = peers.speedups(rows, [1e-6])
     assert r["spark"] == "s1" and r["peer"] == "p1"                   # the cheapest of each side
-    assert r["speedup"] == pytest.approx(r["peer_cpu"] / r["spark_cpu"]) and r["speedup"] > 1
-    assert r["speedup"] == pytest.approx(4.0, rel=1e-9)
+    assert r["speedup"] == _close(r["peer_cpu"] / r["spark_cpu"]) and r["speedup"] > 1
+    assert r["speedup"] == _close(4.0, rel=1e-9)
     # the sides swapped: the reciprocal
     sw = [dict(x, kind={"spark": "peer", "peer": "spark"}[x["kind"]]) for x in rows]
-    assert peers.speedups(sw, [1e-6])[0]["speedup"] == pytest.approx(0.25, rel=1e-9)
+    assert peers.speedups(sw, [1e-6])[0]["speedup"] == _close(0.25, rel=1e-9)
 
 
 @settings(deadline=None)
@@ -173,7 +178,7 @@ def test_boundedness_is_last_quarter_over_first(first, factor):
     e[0] = 0.0
     b = boundedness(t, e)
     # the last quarter's slice starts two samples before the change: its max is max(factor, 1) x first
-    assert b["last_over_first_quarter"] == pytest.approx(max(factor, 1.0), rel=1e-12)
+    assert b["last_over_first_quarter"] == _close(max(factor, 1.0), rel=1e-12)
     r = _bounded(t, e, n - 1, 0.0)          # round-off threshold 100 eps sqrt(400) ~ 4e-13 < first
     assert not r["roundoff"]
     assert r["bounded"] == (b["last_over_first_quarter"] <= BOUNDED_RATIO)
@@ -194,8 +199,8 @@ def test_the_energy_rate_is_log2_of_coarse_over_fine(monkeypatch):
     monkeypatch.setattr(ac, "_run", fake_run)
     chk, facts = ac.energy_check(None, True)
     # |E - E0| of 1 + 4e-6 carries a rounding of eps / 4e-6 ~ 6e-11 relative
-    assert facts["energy_rate"] == pytest.approx(2.0, rel=1e-9)
-    assert chk.residual == pytest.approx(1e-6) and chk.status == au.INFO
+    assert facts["energy_rate"] == _close(2.0, rel=1e-9)
+    assert chk.residual == _close(1e-6) and chk.status == au.INFO
     assert [h for h, _ in facts["energy"]] == [0.1, 0.05]
 
 
@@ -332,7 +337,7 @@ def test_a_section7_record_fails_when_either_of_its_two_quantities_fails(monkeyp
         recs = [r for r in cp.section7_records(True) if r["expected"] == "pass" and r["claim"] != "linearly-implicit-7"]
         assert len(recs) == 3
         assert {r["status"] for r in recs} == {"pass" if (diff, stage) == (good, good) else "fail"}, (diff, stage)
-        assert all(r["residual"] == pytest.approx(max(diff, stage)) for r in recs)
+        assert all(r["residual"] == _close(max(diff, stage)) for r in recs)
 
 
 def test_an_energy_balance_record_takes_the_worse_of_pointwise_and_integral(monkeypatch):
@@ -351,10 +356,10 @@ def test_an_energy_balance_record_takes_the_worse_of_pointwise_and_integral(monk
         recs = cp.energy_records(True)
         check_unit_records("energy-2.2", recs)
         exact = [r for r in recs if r["method"] == "exact-flow"]
-        assert len(exact) == 2 and all(r["residual"] == pytest.approx(max(pw, it)) for r in exact)
+        assert len(exact) == 2 and all(r["residual"] == _close(max(pw, it)) for r in exact)
         assert {r["status"] for r in exact} == {"pass" if max(pw, it) < 1e-22 else "fail"}
         d = [r for r in recs if r["point"] == "one-step h-sweep"]
-        assert [r["status"] for r in d] == ["pass"] and d[0]["residual"] == pytest.approx(0.1)
+        assert [r["status"] for r in d] == ["pass"] and d[0]["residual"] == _close(0.1)
 
 
 def test_definition1_records_describe_the_runs_they_come_from(monkeypatch):
@@ -438,7 +443,7 @@ def test_the_holonomic_tangential_residual_is_the_worse_endpoint(monkeypatch):
             system=system, bvp=lambda *b: r))
         out = section5.holonomic_exact.__wrapped__("pendulum") if hasattr(section5.holonomic_exact, "__wrapped__") \
             else section5.holonomic_exact("pendulum")
-        assert float(out["tangential"]) == pytest.approx(want) and float(out["full"]) == pytest.approx(7)
+        assert float(out["tangential"]) == _close(want) and float(out["full"]) == _close(7)
 
 
 def test_a_cache_directory_anywhere_below_is_left_out_of_the_fingerprint(tmp_path):
@@ -472,7 +477,7 @@ def test_a_general_symmetry_record_fails_when_either_identity_fails(monkeypatch)
         monkeypatch.setattr(cg, "check_symmetry", lambda *a, ld=ld, phi=phi, **k: {
             "symmetry-Ld": ld, "symmetry-Phi": phi, "wellposed": "well-posed", "seconds": 0.1})
         rec = cg._symmetry_record(scn, tab, "pass", 0, [0], [0])
-        assert rec["residual"] == pytest.approx(max(ld, phi))
+        assert rec["residual"] == _close(max(ld, phi))
         assert rec["status"] == ("pass" if max(ld, phi) <= cg.TOL_SYMMETRY else "fail")
 
 
