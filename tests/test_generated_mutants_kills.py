@@ -492,7 +492,7 @@ def test_a_tolerance_exactly_at_the_teeth_bound_is_decided(monkeypatch):
     # dps 12: 10^(-dps/2) = 1e-6 = TEETH exactly
     checks, _ = au.theorem1_checks(get_method("gauss-1"), True, False, 12, False, ("particle",), entry_tol=(0.0, 0.0))
     assert calls == [12]
-    assert checks[0].status == au.PASS
+    assert checks[0].status == au.PASS and "decided at dps 12, 32 and h, h/2" in checks[0].detail
     checks, _ = au.theorem1_checks(get_method("gauss-1"), True, False, 20, True, ("particle",),
                                    entry_tol=(au.TEETH, 0.0))
     assert checks[0].status == au.PASS and "precision of the entries" not in checks[0].detail
