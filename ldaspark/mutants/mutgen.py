@@ -447,6 +447,10 @@ def run_generated(args) -> int:
             recs_fixed[m.id] = _rec(m, "not-covered", None, 0.0)
             continue
         targets[m.id] = _order_tests(ids, durations)
+        if m.id.split("::")[1] == "<module>":
+            # a module constant runs at import (collection), in no test's context: the tests that
+            # read it are not in the map, so the kill files run whole, first
+            targets[m.id] = [f for f in ALWAYS_MAPPED if (PROJECT / f).is_file()] + targets[m.id]
         if getattr(args, "keep_killed", None):
             # a rerun after kills were written: the kill files run whole, first (tests newer
             # than the coverage map are not in it; they are written for these survivors)
