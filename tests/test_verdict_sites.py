@@ -488,3 +488,15 @@ def test_ledger_jobs_floor_at_one_and_follow_the_environment(monkeypatch):
     assert ledger_jobs() == 1
     monkeypatch.setenv("LDASPARK_JOBS", "5")
     assert ledger_jobs() == 5
+
+
+def test_a_condition_within_the_uncertainty_reports_its_largest_residual():
+    import types
+
+    from ldaspark.theory.audit_checks import _worst
+    ball = types.SimpleNamespace(exact=False, radius=lambda v: 1e-28, is_zero=lambda v: abs(v) <= 1e-28,
+                                 to_float=float)
+    assert _worst(ball, [(1e-30, "a"), (-3e-30, "b"), (2e-30, "c")]) == (3e-30, None, True, 1e-28)
+    # one item beyond the uncertainty: that one, and the largest of those beyond
+    w, lab, ok, _ = _worst(ball, [(1e-30, "a"), (5e-20, "b"), (-7e-20, "c"), (6e-20, "d")])
+    assert (w, lab, ok) == (7e-20, "c", False)
