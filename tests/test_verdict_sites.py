@@ -500,3 +500,20 @@ def test_a_condition_within_the_uncertainty_reports_its_largest_residual():
     # one item beyond the uncertainty: that one, and the largest of those beyond
     w, lab, ok, _ = _worst(ball, [(1e-30, "a"), (5e-20, "b"), (-7e-20, "c"), (6e-20, "d")])
     assert (w, lab, ok) == (7e-20, "c", False)
+
+
+def test_omega_rank_is_decided_by_the_smallest_singular_value_relative_to_the_largest():
+    import types
+
+    from ldaspark.core.errors import TableauError
+    from ldaspark.theory import audit_checks as ac
+
+    def tab(om, src=None):
+        return types.SimpleNamespace(s=3, source_digits=src, mp_entries=lambda dps: {"omega": om})
+    c = ac.check_omega(tab([[2, 0, 0], [0, 0.5, 0]]), None, None, 30)
+    assert c.status == ac.PASS and c.residual == _close(0.5)
+    assert c.tolerance == _close(10.0 ** -27 * 3 * 2)                  # relative to the largest (2 > 1)
+    c = ac.check_omega(tab([[2, 0, 0], [0, 0.5, 0]], src=20), None, None, 30)
+    assert c.tolerance == _close(10.0 ** -17 * 3 * 2)                  # the fewer digits given decide
+    with pytest.raises(TableauError):
+        ac.check_omega(tab([[2, 0, 0], [0, 1e-30, 0]]), None, None, 30)  # one small singular value of two
