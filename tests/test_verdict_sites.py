@@ -517,3 +517,11 @@ def test_omega_rank_is_decided_by_the_smallest_singular_value_relative_to_the_la
     assert c.tolerance == _close(10.0 ** -17 * 3 * 2)                  # the fewer digits given decide
     with pytest.raises(TableauError):
         ac.check_omega(tab([[2, 0, 0], [0, 1e-30, 0]]), None, None, 30)  # one small singular value of two
+
+
+def test_a_section7_reduction_difference_is_the_worst_of_q_v_and_psi():
+    from ldaspark.core.families import get_method
+    from ldaspark.theory.section7 import reduction
+    r = reduction("euler-ii", get_method("euler-i", exact=True), constant_K=False)     # the control: differs
+    parts = [r["q1"], r["v1"], r["Psi1"]]
+    assert len(set(parts)) > 1 and r["diff"] == max(parts)
