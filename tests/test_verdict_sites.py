@@ -525,3 +525,9 @@ def test_a_section7_reduction_difference_is_the_worst_of_q_v_and_psi():
     r = reduction("euler-ii", get_method("euler-i", exact=True), constant_K=False)     # the control: differs
     parts = [r["q1"], r["v1"], r["Psi1"]]
     assert len(set(parts)) > 1 and r["diff"] == max(parts)
+
+
+def test_the_least_squares_slope_uses_the_window_only():
+    # the window is the first two points (the third is below the floor): slope log2(10)
+    est = orders.estimate_order([0.1, 0.05, 0.025], [1e-2, 1e-3, 1e-20], 1e-12)
+    assert est.window == (0, 1) and est.observed_order == _close(math.log2(10))
