@@ -514,6 +514,7 @@ def test_the_convergence_floor_and_constraint_tolerance(monkeypatch):
     seen = []
 
     def fake(tab, scn, Ns, t_end, dps, floor):
+        assert t_end == 1                                          # both scenes on [0, 1]
         seen.append((dps, floor))
         return {"scene": scn, "N": Ns, "t_end": t_end, "errors": [1e-3] * len(Ns), "slopes": [4.0],
                 "observed": 4.0, "reference": "fake", "max_constraint": 1e3 * 2.0 ** -52}

@@ -531,3 +531,26 @@ def test_the_least_squares_slope_uses_the_window_only():
     # the window is the first two points (the third is below the floor): slope log2(10)
     est = orders.estimate_order([0.1, 0.05, 0.025], [1e-2, 1e-3, 1e-20], 1e-12)
     assert est.window == (0, 1) and est.observed_order == _close(math.log2(10))
+
+
+def test_the_audit_error_is_the_worst_component_of_q_and_v():
+    import types
+
+    import numpy as np
+
+    from ldaspark.theory.audit_checks import _err
+    sol = types.SimpleNamespace(q=[np.array([1.0, 2.5])], v=[np.array([0.0, 5.0])])
+    assert _err(sol, [1.0, 2.0], [0.0, 0.0]) == 5.0                    # v's second component
+    assert _err(sol, [1.0, -4.0], [0.0, 5.0]) == 6.5                   # q's second component
+
+
+def test_equal_errors_end_the_asymptotic_window():
+    assert orders.asymptotic_window([0.1, 0.05, 0.025], [1e-2, 1e-3, 1e-3], 1e-12) == (0, 1)
+
+
+def test_mp_arithmetic_asked_for_is_used_even_for_exact_entries():
+    from ldaspark.core.families import get_method
+    ar, _, _ = au.decide_arith(get_method("gauss-2", exact=True), 30, "mp")
+    assert not ar.exact
+    ar, _, _ = au.decide_arith(get_method("gauss-2", exact=True), 30, "auto")
+    assert ar.exact
