@@ -554,3 +554,15 @@ def test_mp_arithmetic_asked_for_is_used_even_for_exact_entries():
     assert not ar.exact
     ar, _, _ = au.decide_arith(get_method("gauss-2", exact=True), 30, "auto")
     assert ar.exact
+
+
+def test_growth_below_the_round_off_threshold_is_bounded_at_the_threshold():
+    from ldaspark.reports.stability_stiff import classify
+    row = {"outcome": "ok", "dE_growth": 10.0}
+    assert classify(dict(row, max_rel_dE=1e-8)) == "bounded"           # strictly above 1e-8 is judged
+    assert classify(dict(row, max_rel_dE=1.01e-8)) == "growing"
+
+
+def test_a_dict_option_fingerprints_the_same_in_any_key_order():
+    from ldaspark.dist import workers
+    assert workers.source_fingerprint({"a": 1, "b": 2}) == workers.source_fingerprint({"b": 2, "a": 1})
