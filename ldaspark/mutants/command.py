@@ -38,6 +38,9 @@ def add_arguments(parser):
                              "as killed (their killing test still exists) and run the others")
     parser.add_argument("--sample", type=int, default=None,
                         help="with --generated: a fixed, evenly spaced sample of N mutants per module")
+    parser.add_argument("--kinds", default=None,
+                        help="with --generated: comma-separated operator kinds to run (call-swap, compare, boolean, "
+                             "not-removal, arithmetic, constant, return, slice, unary; default: all)")
     parser.add_argument("--mutant-timeout", type=int, default=None,
                         help="with --generated: whole seconds per mutant, 1..86400 (default 300)")
 
@@ -59,7 +62,8 @@ def run_control(mutants, targets, exclude=()) -> dict:
 
 def run(args) -> int:
     require_tests()
-    only_generated = [f"--{k.replace('_', '-')}" for k in ("tests", "limit", "keep_killed", "sample", "mutant_timeout")
+    only_generated = [f"--{k.replace('_', '-')}" for k in ("tests", "limit", "keep_killed", "sample", "mutant_timeout",
+                                                                 "kinds")
                       if getattr(args, k, None) is not None]
     if only_generated and not getattr(args, "generated", None):
         raise CatalogueError(f"{', '.join(only_generated)}: only with --generated MODULE...")

@@ -288,7 +288,7 @@ def run_catalogue(mutants, jobs=2, hints_only=False, progress=None, exclude=(), 
             progress(rec)
     if checkpoint is not None:      # a verdict depends on these, whatever the caller's fingerprint
         checkpoint = checkpoint.bound_to("run_catalogue", hints_only, sorted(exclude), sorted(targets.items()),
-                                         TIMEOUT)
+                                         timeout)
     if remote:
         recs = run_resumable(units, checkpoint, where=where, on_done=done, validate=check_record)
     else:

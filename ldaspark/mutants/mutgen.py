@@ -48,7 +48,7 @@ from .mutation import TIMEOUT, all_test_files, require_tests, run_catalogue
 PACKAGE = pathlib.Path(__file__).resolve().parents[1]
 PROJECT = PACKAGE.parent
 EQUIVALENT = PROJECT / "verification" / "mutants_equivalent.json"
-ALWAYS_MAPPED = ("tests/test_verdict_rules.py", "tests/test_generated_mutants_kills.py")
+ALWAYS_MAPPED = ("tests/test_verdict_rules.py", "tests/test_generated_mutants_kills.py", "tests/test_verdict_sites.py")
 BOOKKEEPING = ("tests/test_generated_mutants_kills.py::test_the_equivalents_list_names_existing_mutants_with_an_argument",
                "tests/test_generated_mutants_kills.py::test_the_quick_generated_mutants_still_exist_and_name_a_test")
 TOOL = "ldaspark.mutants.mutgen (AST operator mutants)"
@@ -447,6 +447,10 @@ def run_generated(args) -> int:
             recs_fixed[m.id] = _rec(m, "not-covered", None, 0.0)
             continue
         targets[m.id] = _order_tests(ids, durations)
+        if m.id.split("::")[1] == "<module>":
+            # a module constant runs at import (collection), in no test's context: the tests that
+            # read it are not in the map, so the kill files run whole, first
+            targets[m.id] = [f for f in ALWAYS_MAPPED if (PROJECT / f).is_file()] + targets[m.id]
         if getattr(args, "keep_killed", None):
             # a rerun after kills were written: the kill files run whole, first (tests newer
             # than the coverage map are not in it; they are written for these survivors)
@@ -455,6 +459,10 @@ def run_generated(args) -> int:
         # a listed site: a verdict on the lists, not on the mutant
         targets[m.id] += [f"--deselect={t}" for t in BOOKKEEPING]
         todo.append(m)
+    if getattr(args, "kinds", None):
+        # one kind of fault across many modules (all <-> any, min <-> max: the one-sided verdicts)
+        kinds = {k.strip() for k in args.kinds.split(",") if k.strip()}
+        todo = [m for m in todo if mutant_kind(m.id) in kinds]
     if getattr(args, "sample", None):
         todo = sample(todo, files, args.sample)
     if getattr(args, "keep_killed", None):
@@ -514,6 +522,12 @@ def _previous_records(path) -> list:
                 break
         return out
     return json.loads(text).get("mutants", [])
+
+
+def mutant_kind(mid: str) -> str:
+    """The operator kind of a generated mutant id ('file::scope::kind::text#k')."""
+    parts = mid.split("::")
+    return parts[2] if len(parts) > 3 else ""
 
 
 def sample(mutants, files, n):
