@@ -184,8 +184,11 @@ def count(x, what: str, lo: int = 1, hi: int = MAX_STEPS) -> int:
 
 
 def _fmt_int(x) -> str:
-    s = str(int(x)) if abs(int(x)) < 10 ** 30 else f"{float(x):.3g}"
-    return s
+    x = int(x)
+    if abs(x) < 10 ** 30:
+        return str(x)
+    # float() of an integer beyond 1e308 overflows and str() beyond 4300 digits raises: the size
+    return f"{'-' if x < 0 else ''}about 10^{int((abs(x).bit_length() - 1) * 0.30103)}"
 
 
 def check_dps(dps):

@@ -57,8 +57,8 @@ def theory_args(system, tableau, t0, q0, v0, h, dps, what: str, several: bool = 
         check_dps(d)
     sysm, scene = as_system(system, f"{what}: system")
     tab = as_tableau(tableau, f"{what}: tableau")
-    t0, q0, v0 = point(sysm, None if scene is not None and (q0 is None or v0 is None) else t0, q0, v0,
-                       f"{what}: ", scene, max(dlist))
+    # a t0 given with a scene's initial data is used (the scene's own t0 only for t0 = None)
+    t0, q0, v0 = point(sysm, t0, q0, v0, f"{what}: ", scene, max(dlist))
     hf = _rational_string(h)           # "1/10": the mpmath checks take exact fractions as text
     real_number(h if hf is None else hf, f"{what}: h", nonzero=True)
     for d in dlist:
