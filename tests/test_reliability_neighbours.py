@@ -204,3 +204,18 @@ def test_addresses_with_text_urlsplit_ignores_are_refused(addr):
 def test_well_formed_addresses_still_pass(addr):
     from ldaspark.dist.workers import check_where
     check_where(addr)
+
+
+# --- SparkTableau.with_entry: a coefficient, indices in range, a finite real delta ---------------
+@pytest.mark.parametrize("exact", [True, False])
+@pytest.mark.parametrize("args", [("Z", 0, 0, "1"), ("A", 5, 0, "1"), ("A", -1, 0, "1"), ("A", 0.0, 0, "1"),
+                                  ("A", 0, None, "1"), ("b", 0, 0, "1"), ("A", 0, 0, float("nan")), ("A", 0, 0, 1j),
+                                  ("A", True, 0, "1")])
+def test_with_entry_refuses_what_would_wrap_or_raise(exact, args):
+    from ldaspark.core.errors import TableauError
+    g = ldaspark.gauss(2, exact=exact)
+    with pytest.raises(TableauError):
+        g.with_entry(*args)
+    # valid neighbours: an index of NumPy's type, a vector entry, a Fraction delta
+    assert g.with_entry("A", np.int64(1), 0, Fraction(1, 10)).s == 2
+    assert g.with_entry("b", 0, None, "1/10").s == 2
