@@ -165,12 +165,16 @@ def test_codegen_prints_only_its_own_symbols():
     from ldaspark.compiled.codegen import NotCompilableError, mechanical_source
     from ldaspark.compiled.fast import mechanical_parts
     evil = sympy.Symbol("__import__('os').getpid()")
-    sysm = ldaspark.LagrangianSystem(L0, K0, Q, V, mechanical={"M": sympy.eye(3), "U": evil * x,
-                                                               "K": sympy.Matrix([[0, -x, 1]]), "b": None})
+    parts = {"M": sympy.eye(3), "U": evil * x, "K": sympy.Matrix([[0, -x, 1]]), "b": None}
+    # the system refuses such parts when it is built (they do not match L) ...
+    with pytest.raises(SystemDefinitionError, match="mechanical parts do not match"):
+        ldaspark.LagrangianSystem(L0, K0, Q, V, mechanical=parts)
+    # ... and the code generator, given them directly, never prints the foreign symbol
+    sysm = ldaspark.LagrangianSystem(L0, K0, Q, V)
     with pytest.raises(NotCompilableError, match="symbols other than"):
-        mechanical_source(sysm, mechanical_parts(sysm))
+        mechanical_source(sysm, dict(parts, b=sympy.zeros(1, 1)))
     # control: the same system with its own symbols generates a model
-    ok = ldaspark.LagrangianSystem(L0, K0, Q, V, mechanical={"M": sympy.eye(3), "U": x ** 2,
+    ok = ldaspark.LagrangianSystem(L0 - x ** 2, K0, Q, V, mechanical={"M": sympy.eye(3), "U": x ** 2,
                                                              "K": sympy.Matrix([[0, -x, 1]]), "b": None})
     assert "def U_of" in mechanical_source(ok, mechanical_parts(ok))
 

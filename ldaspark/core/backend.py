@@ -47,7 +47,9 @@ class Backend:
     """Arithmetic context. ``dps`` None is float64; an int is mpmath at that many digits."""
 
     def __init__(self, dps: int | None = None):
-        if dps is not None and (not isinstance(dps, int) or dps < 5):
+        if isinstance(dps, np.integer) and not isinstance(dps, np.bool_):
+            dps = int(dps)          # numpy's integers are integers (dps=np.int64(30) from an array)
+        if dps is not None and (not isinstance(dps, int) or isinstance(dps, bool) or dps < 5):
             raise LdasparkError(f"dps must be an integer >= 5, got {dps!r}")
         self.dps = dps
 

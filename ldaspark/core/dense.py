@@ -151,21 +151,31 @@ class Event:
             raise InputError(f"event {index}: terminal must be True or False, got {_describe(term)}")
         self.terminal = bool(term)
         d = getattr(g, "direction", 0)
+        if not isinstance(d, (int, float, np.integer, np.floating, np.ndarray, str, bytes)) and not _is_bool(d):
+            from .validate import real_value
+            try:                # an mpf, Fraction or Decimal direction is a real number too
+                d = real_value(d, f"event {index}: direction")
+            except InputError:
+                pass            # refused below, in the words of the other types
         if _is_bool(d) or not isinstance(d, (int, float, np.integer, np.floating)) or not np.isfinite(d):
             raise InputError(f"event {index}: direction must be a finite real number (> 0 upward, < 0 "
                              f"downward, 0 both), got {_describe(d)}")
         self.direction = float(d)
 
     def __call__(self, t, q, v) -> float:
-        from .validate import _describe, _is_bool
+        from .validate import _describe
         qc, vc = np.array(q, dtype=float), np.array(v, dtype=float)    # copies: g may modify them
         val = self.g(float(t), qc, vc)
-        if _is_bool(val) or not (isinstance(val, (int, float, np.integer, np.floating))
-                                or (isinstance(val, np.ndarray) and val.shape == () and val.dtype.kind in "iuf")):
+        from .validate import real_value
+        # an mpf, Fraction or Decimal is a real number too (an event computed at dps returns mpf)
+        if isinstance(val, np.ndarray) and val.shape != ():
             raise InputError(f"event {self.index} must return a real number, got {_describe(val)}")
-        val = float(val)
-        if not np.isfinite(val):
-            raise InputError(f"event {self.index} returned NaN or infinity at t = {float(t):g}")
+        try:
+            val = real_value(val, f"event {self.index} return value")
+        except InputError as exc:
+            if "finite" in str(exc):
+                raise InputError(f"event {self.index} returned NaN or infinity at t = {float(t):g}") from None
+            raise InputError(f"event {self.index} must return a real number, got {_describe(val)}") from None
         return val
 
 

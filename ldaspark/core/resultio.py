@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import io
 import json
+import math
 import os
 from typing import Any, Union
 
@@ -122,6 +123,33 @@ def _extra_arrays(result: Result) -> dict:
 
 def _is_extra(name: str) -> bool:
     return name.startswith(("t_events_", "q_events_", "v_events_", "dense_"))
+
+
+def _json_extras(ex) -> dict:
+    """The ``extra_arrays`` of a .json file, {name: {shape, data}}, as arrays: checked like
+    every other field (a dict of names, shapes of non-negative integers matching the data's
+    length, numbers), never an AttributeError or a reshape error."""
+    if ex is None:
+        return {}
+    if not isinstance(ex, dict):
+        raise InputError(f"extra_arrays must be a dict of arrays, got {type(ex).__name__}")
+    out = {}
+    for k, x in ex.items():
+        if not isinstance(x, dict) or set(x) != {"shape", "data"}:
+            raise InputError(f"extra_arrays[{str(k)[:40]!r}] must be {{shape, data}}")
+        shape, data = x["shape"], x["data"]
+        if not isinstance(shape, list) or len(shape) > 4 or not all(
+                isinstance(e, int) and not isinstance(e, bool) and 0 <= e <= 2 ** 31 for e in shape):
+            raise InputError(f"extra_arrays[{str(k)[:40]!r}]: shape must be a list of non-negative integers")
+        if not isinstance(data, list) or len(data) != math.prod(shape):
+            raise InputError(f"extra_arrays[{str(k)[:40]!r}]: data must be a flat list of {math.prod(shape)} numbers")
+        if not all(isinstance(e, (int, float)) and not isinstance(e, bool) for e in data):
+            raise InputError(f"extra_arrays[{str(k)[:40]!r}]: data must hold numbers only")
+        try:
+            out[k] = np.asarray(data, float).reshape(shape)
+        except OverflowError:
+            raise InputError(f"extra_arrays[{str(k)[:40]!r}]: a number beyond float64") from None
+    return out
 
 
 def _restore_extras(res: Result, extra: dict) -> None:
@@ -699,8 +727,7 @@ def _load(path, ext, fh, size) -> Result:
                 if k in arrays and d.get("dps"):
                     arrays[k] = np.asarray(arrays[k]).astype(str)
             res = _build(d, arrays)
-            _restore_extras(res, {k: np.asarray(x["data"], float).reshape(x["shape"])
-                                  for k, x in (d.get("extra_arrays") or {}).items()})
+            _restore_extras(res, _json_extras(d.get("extra_arrays")))
             return res
         if ext == ".npz":
             z = np.load(fh, allow_pickle=False)

@@ -168,10 +168,20 @@ class LagrangianSystem:
         v = [_symbol(x, "v") for x in v] if v else list(sympy.symbols(f"v0:{n}"))
         names = _names(q, v)
         M, U, K, b = (_exprs(x, names, what) for x, what in ((M, "M"), (U, "U"), (K, "K"), (b, "b")))
-        M = sympy.Matrix(M)
-        K = sympy.Matrix(K)
+        try:
+            M = sympy.Matrix(M)
+            K = sympy.Matrix(K)
+            b = sympy.zeros(K.rows, 1) if b is None else sympy.Matrix(b)
+        except (TypeError, ValueError, sympy.SympifyError) as exc:
+            raise SystemDefinitionError(f"{name}: M, K and b must be matrices ({str(exc)[:80]})") from None
         n = M.rows
-        b = sympy.zeros(K.rows, 1) if b is None else sympy.Matrix(b)
+        if M.shape != (n, n) or len(q) != n or len(v) != n:
+            raise SystemDefinitionError(f"{name}: M must be n x n with n = len(q) = len(v), got M {M.shape}, "
+                                        f"{len(q)} coordinates")
+        if K.cols != n or b.shape != (K.rows, 1):
+            raise SystemDefinitionError(f"{name}: K must be m x n (n = {n}) and b m x 1, got K {K.shape}, b {b.shape}")
+        if isinstance(U, (list, tuple, np.ndarray, sympy.MatrixBase)):
+            raise SystemDefinitionError(f"{name}: U must be one scalar expression, got {type(U).__name__}")
         vv = sympy.Matrix(v)
         L = (vv.T * M * vv)[0, 0] / 2 - sympy.sympify(U)
         k = list(K * vv + b)
@@ -197,6 +207,9 @@ class LagrangianSystem:
         new._param_values = dict(self._param_values)
         new.q, new.v, new.psi = list(self.q), list(self.v), list(self.psi)
         new.mechanical = None if self.mechanical is None else dict(self.mechanical)
+        if values is not None and not isinstance(values, dict):
+            raise SystemDefinitionError(f"{self.name}: with_params takes a dict {{parameter: value}} (or "
+                                        f"keywords), got {type(values).__name__}")
         items = list((values or {}).items()) + list(by_name.items())
         names = {str(p): p for p in self.params}
         for key, val in items:
@@ -676,6 +689,69 @@ def check_mechanical(system, mech) -> None:
                 if differs(M[i, j], L_vv[i, j]):
                     raise SystemDefinitionError(f"{system.name}: mechanical M[{i},{j}] = {str(M[i, j])[:40]} is not "
                                                 f"L_vv[{i},{j}] = {str(L_vv[i, j])[:40]}: M must be the Hessian of L in v")
+    _check_mechanical_parts(system, mech, M)
+
+
+def _check_mechanical_parts(system, mech, M) -> None:
+    """U, K and b of the mechanical form (the compiled engine and the semi-implicit comparators
+    build their equations from them, the generic engine from L and k) describe the same system:
+    U, K, b free of v, L = v^T M v / 2 - U and k = K v + b. The identities are tested at random
+    points in 40 digits (a wrong part differs at almost every point; symbolic simplification
+    of a large L can take minutes): a residual above 1e-25 of the terms' size at two points
+    where both sides are finite is a mismatch, which would make the engines integrate two
+    different systems without a word."""
+    import random
+    try:
+        U = sympy.sympify(mech.get("U", 0), strict=True)
+        K = sympy.Matrix(mech["K"]) if mech.get("K") is not None else None
+        b = sympy.Matrix(mech["b"]) if mech.get("b") is not None else None
+    except (TypeError, ValueError, sympy.SympifyError) as exc:
+        raise SystemDefinitionError(f"{system.name}: mechanical U, K, b are not expressions ({str(exc)[:80]})") from None
+    if K is None:
+        return
+    if b is None:
+        b = sympy.zeros(K.rows, 1)
+    if b.rows * b.cols == K.rows:
+        b = b.reshape(K.rows, 1)        # a row b is read as the column (as the compiled engine does)
+    if K.shape != (system.m, system.n) or b.shape != (system.m, 1) or not isinstance(U, sympy.Expr) \
+            or getattr(U, "is_Matrix", False):
+        raise SystemDefinitionError(f"{system.name}: mechanical K must be {system.m} x {system.n}, b {system.m} x 1 "
+                                    f"and U a scalar, got K {K.shape}, b {b.shape}")
+    vs = set(system.v)
+    known = set(system.q) | vs | {system.t} | set(system.params)
+    for nm, e in [("U", U)] + [("K", x) for x in K] + [("b", x) for x in b]:
+        if getattr(e, "free_symbols", set()) - known:
+            raise SystemDefinitionError(f"{system.name}: the mechanical parts do not match L and k ({nm} contains "
+                                        f"symbols other than t, q and the parameters: "
+                                        f"{sorted(map(str, e.free_symbols - known))[:3]})")
+        if getattr(e, "free_symbols", set()) & vs:
+            raise SystemDefinitionError(f"{system.name}: mechanical {nm} depends on the velocities; U, K, b are "
+                                        "functions of t and q")
+    vv = sympy.Matrix(system.v)
+    checks = [("L = v^T M v / 2 - U", system.L, (vv.T * M * vv)[0, 0] / 2 - U)]
+    checks += [(f"k[{i}] = (K v + b)[{i}]", system.k[i], (K * vv + b)[i]) for i in range(system.m)]
+    rng = random.Random(12345)
+    syms = list(system.q) + list(system.v) + [system.t] + list(system.params)
+    for what, lhs, rhs in checks:
+        tested = 0
+        for _ in range(6):
+            pt = {x: sympy.Rational(rng.randint(300, 700), 1000) for x in syms}
+            pt.update({p: sympy.sympify(val) for p, val in system._param_values.items()
+                       if not isinstance(val, str)})
+            try:
+                a, c = (sympy.N(e.xreplace(pt), 40) for e in (lhs, rhs))
+                fa, fc = complex(a), complex(c)
+            except (TypeError, ValueError, ZeroDivisionError, ArithmeticError):
+                continue
+            if not all(math.isfinite(z.real) and math.isfinite(z.imag) and z.imag == 0 for z in (fa, fc)):
+                continue
+            if abs(a - c) > 1e-25 * (1 + abs(fa) + abs(fc)):
+                raise SystemDefinitionError(f"{system.name}: the mechanical parts do not match L and k ({what} "
+                                            f"fails at a test point: {str(sympy.N(a, 6))} vs {str(sympy.N(c, 6))}); "
+                                            "the engines would integrate different systems")
+            tested += 1
+            if tested == 2:
+                break
 
 
 def _param_value(x, p):

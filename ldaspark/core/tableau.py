@@ -28,7 +28,7 @@ import numpy as np
 import sympy
 from sympy import QQ
 
-from .errors import TableauError
+from .errors import InputError, TableauError
 
 NAMES = ("c", "A", "A_hat", "A_tilde", "b", "b_hat", "b_tilde", "omega")
 MATRIX_NAMES = ("A", "A_hat", "A_tilde", "omega")
@@ -260,8 +260,33 @@ class SparkTableau:
             self._cache[key] = out
         return self._cache[key]
 
+    def _check_entry_change(self, name, i, j, delta) -> None:
+        """``with_entry``'s arguments: a coefficient of the tableau, indices in its range (no
+        negative ones: they would silently wrap to the last entry), a finite real delta."""
+        from . import validate
+        ent = self.exact if self.exact is not None else (self.builder(16) if self.builder is not None else None)
+        if not isinstance(name, str) or ent is None or name not in ent:
+            raise TableauError(f"with_entry: name must be one of {', '.join(sorted(ent or {}))}, got "
+                               f"{validate._describe(name)}")
+        shape = np.shape(np.asarray(sympy.Matrix(ent[name]).tolist() if self.exact is not None else ent[name],
+                                    dtype=object))
+        matrix = len(shape) == 2 and shape[1] > 1
+        if (j is None) == matrix:
+            raise TableauError(f"with_entry: {name} is a {'matrix: give i and j' if matrix else 'vector: give j=None'}")
+        for nm, x, size in (("i", i, shape[0]), ("j", j, shape[1] if matrix else 1)):
+            if nm == "j" and not matrix:
+                continue
+            if validate._is_bool(x) or not isinstance(x, (int, np.integer)) or not 0 <= x < size:
+                raise TableauError(f"with_entry: {nm} must be an index in 0..{size - 1}, got {validate._describe(x)}")
+        if not isinstance(delta, str):
+            try:
+                validate.real_number(delta, f"with_entry: delta of {name}")
+            except InputError as exc:
+                raise TableauError(str(exc)) from None
+
     def with_entry(self, name: str, i: int, j: int | None, delta) -> "SparkTableau":
         """A copy with one entry changed by ``delta`` (negative controls)."""
+        self._check_entry_change(name, i, j, delta)
         if self.exact is not None:
             if isinstance(delta, str):          # text is parsed (bounded), never nsimplify'd or evaluated
                 delta = parse_exact_string(delta, f"delta of {name}")

@@ -145,6 +145,16 @@ def real_number(x, what: str, *, positive: bool = False, nonzero: bool = False):
     return x
 
 
+def real_value(x, what: str) -> float:
+    """A real number computed by user code (an event function's value) as a float: int, float,
+    NumPy scalars and 0-d arrays, Fraction, Decimal, mpmath ``mpf``, real sympy numbers (what
+    ``real_number`` takes, but no strings and no bools). NaN and infinity are refused."""
+    if isinstance(x, (str, bytes)):
+        raise InputError(f"{what} must be a real number, got {_describe(x)}")
+    real_number(x, what)
+    return float(x)
+
+
 def _nonzero(x) -> bool:
     """x is not zero in its own number type (a decimal string, mpf, sympy number)."""
     try:
@@ -158,7 +168,7 @@ def _nonzero(x) -> bool:
 
 def _describe(x) -> str:
     """A short description of a bad value for an error message (never its full repr)."""
-    r = repr(x)
+    r = " ".join(repr(x).split())       # one line: the repr of an array or a dict spans several
     return f"{type(x).__name__} {r[:60]}{'...' if len(r) > 60 else ''}"
 
 
@@ -174,8 +184,11 @@ def count(x, what: str, lo: int = 1, hi: int = MAX_STEPS) -> int:
 
 
 def _fmt_int(x) -> str:
-    s = str(int(x)) if abs(int(x)) < 10 ** 30 else f"{float(x):.3g}"
-    return s
+    x = int(x)
+    if abs(x) < 10 ** 30:
+        return str(x)
+    # float() of an integer beyond 1e308 overflows and str() beyond 4300 digits raises: the size
+    return f"{'-' if x < 0 else ''}about 10^{int((abs(x).bit_length() - 1) * 0.30103)}"
 
 
 def check_dps(dps):

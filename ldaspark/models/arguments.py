@@ -40,12 +40,14 @@ def as_tableau(method, what: str = "method", max_stages=None):
         raise InputError(f"{what}: {exc}") from None
 
 
-def theory_args(system, tableau, t0, q0, v0, h, dps, what: str):
+def theory_args(system, tableau, t0, q0, v0, h, dps, what: str, several: bool = False):
     """The common arguments of the Theorem 1 checks (``theorem1_residuals``,
     ``classify_wellposedness``, ``check_symmetry``, ``gauge_invariance``): system a
     LagrangianSystem, a Scene or a scene name (q0, v0 None: the scene's initial data), tableau a
     SparkTableau or a SPARK method name, t0 / h real (h nonzero, advancing t at every precision in
     ``dps``), q0 / v0 n real numbers. Returns (system, tableau, t0, q0, v0)."""
+    if isinstance(dps, (list, tuple)) and not several:
+        raise InputError(f"{what}: dps must be one integer number of digits, got {_describe(dps)}")
     dlist = list(dps) if isinstance(dps, (list, tuple)) else [dps]
     if not dlist:
         raise InputError(f"{what}: dps must name at least one precision")
@@ -55,8 +57,8 @@ def theory_args(system, tableau, t0, q0, v0, h, dps, what: str):
         check_dps(d)
     sysm, scene = as_system(system, f"{what}: system")
     tab = as_tableau(tableau, f"{what}: tableau")
-    t0, q0, v0 = point(sysm, None if scene is not None and (q0 is None or v0 is None) else t0, q0, v0,
-                       f"{what}: ", scene, max(dlist))
+    # a t0 given with a scene's initial data is used (the scene's own t0 only for t0 = None)
+    t0, q0, v0 = point(sysm, t0, q0, v0, f"{what}: ", scene, max(dlist))
     hf = _rational_string(h)           # "1/10": the mpmath checks take exact fractions as text
     real_number(h if hf is None else hf, f"{what}: h", nonzero=True)
     for d in dlist:

@@ -505,7 +505,18 @@ def discrete_lagrangian(system, tableau, t0, q0, t1, q1, dps=40, v0_guess=None, 
     validate.real_number(t1, "discrete_lagrangian: t1")
     if v0_guess is not None:
         validate.real_vector(v0_guess, "discrete_lagrangian: v0_guess")
+        if np.ndim(np.asarray(v0_guess, dtype=object)) != 1 or len(v0_guess) != system.n:
+            raise InputError(f"discrete_lagrangian: v0_guess must have n = {system.n} entries, got "
+                             f"{validate._describe(v0_guess)}")
+    for nm, g in (("x_guess", x_guess), ("gauge_ref", gauge_ref)):
+        if g is not None:
+            validate.real_vector(g, f"discrete_lagrangian: {nm}")
+            if np.ndim(np.asarray(g, dtype=object)) != 1:
+                raise InputError(f"discrete_lagrangian: {nm} must be a vector, got {validate._describe(g)}")
     bvp = DiscreteBVP(system, tableau, dps)
+    for nm, g in (("x_guess", x_guess), ("gauge_ref", gauge_ref)):
+        if g is not None and len(g) != bvp.size:
+            raise InputError(f"discrete_lagrangian: {nm} must have the BVP's {bvp.size} unknowns, got {len(g)}")
     bk = bvp.bk
     with bk.context():
         t0, t1 = bk.scalar(t0), bk.scalar(t1)

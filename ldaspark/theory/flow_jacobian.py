@@ -105,7 +105,7 @@ def _index(names, system, what):
     return out
 
 
-def flow_jacobian(system, method, q0, v0, h, *, t0=0, dps=None, coords=None, rates=None, dependent=None,
+def flow_jacobian(system, method, q0, v0, h, *, t0=None, dps=None, coords=None, rates=None, dependent=None,
                   tangent=None, select=None, params=None, how="ift", tol=None):
     """The Jacobian of one SPARK step map (q0, v0) -> (q1, v1), optionally restricted.
 
@@ -123,7 +123,8 @@ def flow_jacobian(system, method, q0, v0, h, *, t0=0, dps=None, coords=None, rat
     h : float
         The step size (nonzero).
     t0 : float, optional
-        Initial time.
+        Initial time (default: the scene's t0 for a scene, else 0); a t0 given with a scene's
+        initial data is used, never replaced by the scene's.
     dps : int, optional
         None (float64) or mpmath digits.
     coords, rates : list of int or str, optional
@@ -166,10 +167,10 @@ def flow_jacobian(system, method, q0, v0, h, *, t0=0, dps=None, coords=None, rat
     dps = V.check_dps(dps)
     V.check_choice(how, "flow_jacobian: how", ("ift", "difference"))
     V.check_newton_options(tol, 1, what="flow_jacobian: tol")
-    V.real_number(t0, "flow_jacobian: t0")      # checked even when a scene's own t0 replaces it
+    if t0 is not None:
+        V.real_number(t0, "flow_jacobian: t0")
     system, scene = arguments.as_system(system, "flow_jacobian: system")
-    t0, q0, v0 = V.point(system, t0 if scene is None or (q0 is not None and v0 is not None) else None,
-                         q0, v0, "flow_jacobian: ", scene, dps)
+    t0, q0, v0 = V.point(system, 0 if scene is None and t0 is None else t0, q0, v0, "flow_jacobian: ", scene, dps)
     V.real_number(h, "flow_jacobian: h", nonzero=True)
     V.step_advances(t0, h, 1, dps, what="flow_jacobian: h")
     if params is not None:
@@ -330,6 +331,9 @@ def _restriction(system, bk, t0, q0, v0, coords, rates, dependent, tangent, sele
             raise InputError("flow_jacobian: give select (r indices into (q, v)) with tangent")
         return B, list(select)
     if coords is None and rates is None:
+        if dependent is not None:       # would be ignored: the full Jacobian has no dependent rates
+            raise InputError("flow_jacobian: dependent is read with coords / rates (the velocities solved "
+                             "from k = 0 along them); without them the full Jacobian is returned")
         return None, None
     ci = _index(coords or [], system, "q")
     ri = _index(rates or [], system, "v")

@@ -59,7 +59,8 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
     if not isinstance(dps, (list, tuple)) or len(dps) < 2 or len(set(map(int, dps))) != len(dps):
         raise InputError(f"classify_wellposedness: dps must be two or more distinct precisions, got "
                          f"{validate._describe(dps)}")
-    system, tableau, t0, q0, v0 = arguments.theory_args(system, tableau, t0, q0, v0, h, dps, "classify_wellposedness")
+    system, tableau, t0, q0, v0 = arguments.theory_args(system, tableau, t0, q0, v0, h, dps, "classify_wellposedness",
+                                                         several=True)
     if not isinstance(h_factors, (list, tuple)) or len(h_factors) < 2 or len(set(map(str, h_factors))) != len(h_factors):
         raise InputError(f"classify_wellposedness: h_factors must be two or more distinct step factors, got "
                          f"{validate._describe(h_factors)}")
