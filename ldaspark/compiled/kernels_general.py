@@ -139,22 +139,30 @@ def general_jacobian(tab, h, ws, J):
     sn = s * n
     J[:, :] = 0.0
     h2 = h * h
+    # the sum over j accumulated in J block by block, h a~_ij and h^2 a^_ij formed once per
+    # (i, k, j) instead of once per entry: the same products and sums in the same order
     for i in range(s + 1):
         for k in range(s):
             wk_h = Ah[i, k] if i < s else bh[k]
             wk_t = At[i, k] if i < s else bt[k]
+            r0, c0 = i * n, k * n
             for a in range(n):
                 for b in range(n):
                     if i < s:
                         acc = h * A[i, k] * Lvq[i, a, b] + (Lvv[i, a, b] if i == k else 0.0)
                     else:
                         acc = h * bw[k] * Lvq1[a, b]
-                    acc += wk_t * KRv[k, a, b] - h * wk_h * Lvq[k, b, a]
-                    for j in range(s):
-                        wh = Ah[i, j] if i < s else bh[j]
-                        wt = At[i, j] if i < s else bt[j]
-                        acc += A[j, k] * (h * wt * KRq[j, a, b] - h2 * wh * Lqq[j, a, b])
-                    J[i * n + a, k * n + b] = acc
+                    J[r0 + a, c0 + b] = acc + (wk_t * KRv[k, a, b] - h * wk_h * Lvq[k, b, a])
+            for j in range(s):
+                wh = Ah[i, j] if i < s else bh[j]
+                wt = At[i, j] if i < s else bt[j]
+                ct = h * wt
+                ch = h2 * wh
+                ajk = A[j, k]
+                for a in range(n):
+                    for b in range(n):
+                        J[r0 + a, c0 + b] += ajk * (ct * KRq[j, a, b] - ch * Lqq[j, a, b])
+            for a in range(n):
                 for l in range(m):
                     J[i * n + a, sn + k * m + l] = wk_t * kv[k, l, a]
     constraint_rows(tab, h, kv, kq, kv1, kq1, Lvv1, J)

@@ -259,14 +259,18 @@ def constraint_rows(tab, h, Kst, kq, K1, kq1, P1v, J):
     for a in range(n):
         for b in range(n):
             J[sn + a, sn + sm + b] = P1v[a, b]
+    # accumulated in J over j in order, the coefficient formed once per (l, k, j): the same
+    # products and sums as a sum per entry
     for l in range(s - 1):
-        for mm in range(m):
-            for k in range(s):
+        for k in range(s):
+            for mm in range(m):
                 for b in range(n):
-                    acc = om[l, k] * Kst[k, mm, b]
-                    for j in range(s):
-                        acc += h * om[l, j] * A[j, k] * kq[j, mm, b]
-                    J[re0 + l * m + mm, k * n + b] = acc
+                    J[re0 + l * m + mm, k * n + b] = om[l, k] * Kst[k, mm, b]
+            for j in range(s):
+                cj = h * om[l, j] * A[j, k]
+                for mm in range(m):
+                    for b in range(n):
+                        J[re0 + l * m + mm, k * n + b] += cj * kq[j, mm, b]
     for mm in range(m):
         for k in range(s):
             for b in range(n):
