@@ -47,9 +47,9 @@ def mechanical_parts(system) -> dict:
         from ..core.system import check_mechanical, refuse_text
         refuse_text(mech, f"{system.name}: mechanical")     # set by hand after construction: never sympify text
         check_mechanical(system, mech)                       # the generic engine's M (L_vv), symmetric
-        M = sympy.Matrix(mech["M"])
+        M = _matrix(mech["M"])
         U = sympy.sympify(mech["U"], strict=True)
-        K = sympy.Matrix(mech["K"])
+        K = _matrix(mech["K"])
         b = sympy.Matrix(mech.get("b") if mech.get("b") is not None else sympy.zeros(K.rows, 1))
         b = b.reshape(K.rows, 1)
     else:
@@ -65,9 +65,19 @@ def mechanical_parts(system) -> dict:
         if K.free_symbols & set(v):
             raise NotCompilableError(f"{system.name}: k is not affine in v; not mechanical form")
         b = system.k.subs(zero_v)
-    if M.free_symbols - set(getattr(system, "params", ())):
+    if _entry_symbols(M) - set(getattr(system, "params", ())):
         raise NotCompilableError(f"{system.name}: mass matrix M is not constant")
     return {"M": M, "U": U, "K": K, "b": b}
+
+
+def _matrix(x):
+    """A sympy matrix as it is (no copy: copying a dense 1001 x 1001 M cost 0.2 s), else Matrix(x)."""
+    return x if isinstance(x, sympy.MatrixBase) else sympy.Matrix(x)
+
+
+def _entry_symbols(M) -> set:
+    """The free symbols of a sympy matrix's nonzero entries (MatrixBase.free_symbols visits all n^2)."""
+    return set().union(*(e.free_symbols for e in M.todok().values()))
 
 
 def _param_floats(system) -> tuple:
@@ -255,7 +265,7 @@ def compile_system(system, form: str = "auto") -> CompiledSystem:
 
 def _with_values(system, tpl):
     cs, Msym = tpl
-    if Msym is None or not Msym.free_symbols:
+    if Msym is None or not _entry_symbols(Msym):
         return dataclasses.replace(cs, name=system.name, params=_param_floats(system))
     M, Minv = _numeric_mass(system, Msym)
     return dataclasses.replace(cs, name=system.name, M=M, Minv=Minv, params=_param_floats(system))
@@ -266,14 +276,15 @@ def _mechanical_matrix(system):
 
 
 def _numeric_mass(system, Msym):
-    if Msym.free_symbols:                        # the mass matrix at this run's parameter values
+    M = np.zeros(Msym.shape)
+    if _entry_symbols(Msym):                     # the mass matrix at this run's parameter values
         # xreplace of the nonzero entries (subs of the whole matrix cost 1.5 ms per run)
         vals = {p: sympy.sympify(x, strict=True) for p, x in zip(system.params, system._param_arg_values(None))}
-        M = np.zeros(Msym.shape)
         for (i, j), e in Msym.todok().items():
             M[i, j] = float(e.xreplace(vals))
-    else:
-        M = np.array(Msym.tolist(), dtype=float)
+    else:                                        # the nonzero entries (tolist of a 1001 x 1001 M: 1 s)
+        for (i, j), e in Msym.todok().items():
+            M[i, j] = float(e)
     try:
         Minv = np.linalg.inv(M)
     except np.linalg.LinAlgError:
