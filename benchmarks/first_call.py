@@ -10,6 +10,9 @@ prepared Lagrangian).
 
     python benchmarks/first_call.py [--n 21,121,1001] [--bicycle] [--no-call] [--timeout 900]
 
+A size with a trailing "a" (``--n 121a``) leaves ``system.mechanical`` unset, as a user would: the
+compiled engine then detects the mechanical form from the derived expressions.
+
 Prints one JSON object per model: build_cpu, build_wall, first_call_cpu, first_call_wall (s).
 """
 from __future__ import annotations
@@ -59,7 +62,8 @@ def child(model: str, call: bool) -> dict:
         system = sc.system
         t0, q0, v0 = sc.initial()
     else:
-        n = int(model)
+        auto = model.endswith("a")          # "121a": the mechanical form detected, not given
+        n = int(model.rstrip("a"))
         m = (n - 1) // 2
         q = list(sympy.symbols(f"q0:{n}"))
         v = list(sympy.symbols(f"v0:{n}"))
@@ -70,7 +74,9 @@ def child(model: str, call: bool) -> dict:
         c = _clock()
         system = LagrangianSystem(L, k, q, v, name="mp-particles-nh")
         out["build_cpu"], out["build_wall"] = _since(c)
-        system.mechanical = {"M": sympy.eye(n), "U": U, "K": sympy.Matrix([k]).jacobian(v), "b": sympy.zeros(1, 1)}
+        if not auto:
+            system.mechanical = {"M": sympy.eye(n), "U": U, "K": sympy.Matrix([k]).jacobian(v),
+                                 "b": sympy.zeros(1, 1)}
         t0 = 0
         q0 = [1.0] + [2 * (m - i) / 10 for i in range(m)] + [1.0] * m
         v0 = [0.0] * n

@@ -517,6 +517,18 @@ def _derived_entries(system, name, sub) -> Sparse:
     d = system.__dict__.get("_derived")
     own = system.__dict__.get(name)
     if d is not None and name in d and (own is None or own is d._sympy.get(name)):
+        if d.engine == "symengine" and name not in d._nz:
+            # from symengine straight to the generated symbols: one xreplace (placeholder -> the
+            # symbol's generated name or the Float) instead of one back to the system's symbols
+            # and a second to the generated ones
+            back = d._engine.back
+            rule = dict(sub) | {p: sub.get(x, x) for p, x in back.items()}
+            conv, out = {}, {}
+            for key, e in d._entries[name].items():
+                if id(e) not in conv:
+                    conv[id(e)] = e._sympy_().xreplace(rule)
+                out[key] = conv[id(e)]
+            return Sparse(d.shapes[name], out)
         nz, shape = d.nonzeros(name), d.shapes[name]
     else:
         A = sympy.Matrix(getattr(system, name))
