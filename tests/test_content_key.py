@@ -149,3 +149,27 @@ def test_the_generated_module_carries_no_name():
     head = codegen.header(None, "general", 3, 1)
     compile(head, "h", "exec")
     assert head.count('"""') == 2 and "system" not in head.splitlines()[0]
+
+
+def test_key_ignores_the_order_sympy_gives_renamed_terms():
+    """Names whose sort order is reversed make sympy order the terms of L and k differently; the
+    key hashes a sum's terms as a multiset, so the renamed copy still shares it."""
+    Q, V = [x, y, z], [vx, vy, vz]
+    ren = dict(zip(Q + V, sympy.symbols("z9 y9 x9 c b a")))
+    a = LagrangianSystem(L0, K0, Q, V)
+    b = LagrangianSystem(L0.xreplace(ren), [e.xreplace(ren) for e in K0], [ren[s] for s in Q], [ren[s] for s in V])
+    assert [str(t) for t in sympy.Add.make_args(b.L)] != [str(t.xreplace(ren)) for t in sympy.Add.make_args(a.L)]
+    assert codegen.model_key(a, "general") == codegen.model_key(b, "general")
+
+
+def test_key_sees_every_digit_and_the_kind_of_a_number():
+    """Negative control: a Float one unit in the last place away, a Float instead of the equal
+    Rational, a symbol's position swapped: each its own key."""
+    Q, V = [x, y, z], [vx, vy, vz]
+    base = L0 + sympy.Float(0.1) * x ** 3
+    ulp = L0 + sympy.Float(float(np.nextafter(0.1, 1.0))) * x ** 3
+    rat = L0 + sympy.Rational(1, 2) * x ** 3
+    flo = L0 + sympy.Float(0.5) * x ** 3
+    swapped = LagrangianSystem(L0, K0, [y, x, z], [vy, vx, vz])
+    systems = [LagrangianSystem(e, K0, Q, V) for e in (base, ulp, rat, flo)] + [swapped]
+    assert len({codegen.model_key(s, "general") for s in systems}) == len(systems)

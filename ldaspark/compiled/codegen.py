@@ -21,6 +21,7 @@ when the translator does not take it.
 """
 from __future__ import annotations
 
+import hashlib
 import math
 import re
 
@@ -361,7 +362,6 @@ def _generator_id() -> str:
     """What else the generated text depends on: the code of this generator and of the derivation,
     and the versions of sympy (its printer, its cse) and symengine."""
     if not _GENERATOR:
-        import hashlib
         import os
 
         import symengine
@@ -376,34 +376,110 @@ def _generator_id() -> str:
 
 
 def model_key(system, form: str, parts: dict | None = None) -> str:
-    """sha256 of a canonical text of everything the generated source is a function of: the form,
+    """sha256 of a canonical form of everything the generated source is a function of: the form,
     n and m, L, k, the nonideal term N, the parameters, the mechanical parts (``parts``, else the
     system's own), with the system's symbols renamed by position (_t, _q<i>, _v<i>, _p<i>, keeping
     their assumptions, which derivatives depend on), and the generator (``_generator_id``); not
-    the system's name nor its symbols' names, so that a renamed system is the same model."""
-    import hashlib
-    n, m = system.n, system.m
-    ren = {system.t: sympy.Symbol("_t", **system.t.assumptions0)}
-    ren |= {x: sympy.Symbol(f"_q{i}", **x.assumptions0) for i, x in enumerate(system.q)}
-    ren |= {x: sympy.Symbol(f"_v{i}", **x.assumptions0) for i, x in enumerate(system.v)}
-    ren |= {x: sympy.Symbol(f"_p{i}", **x.assumptions0) for i, x in enumerate(system.psi)}
-    ren |= {x: sympy.Symbol(f"_k{i}", **x.assumptions0) for i, x in enumerate(getattr(system, "params", ()))}
+    the system's name nor its symbols' names, so that a renamed system is the same model.
 
-    def canon(e):
-        if e is None:
-            return "None"
-        if isinstance(e, dict):
-            return "{" + ", ".join(f"{k!r}: {canon(v)}" for k, v in sorted(e.items(), key=lambda kv: str(kv[0]))) + "}"
-        if isinstance(e, (list, tuple, sympy.MatrixBase)):
-            e = sympy.ImmutableMatrix(e)
-        if not isinstance(e, sympy.Basic):
-            raise TypeError(type(e).__name__)
-        return sympy.srepr(e.xreplace(ren))
+    The canonical form is a hash tree (``_ContentHasher``): each node's digest from its type and
+    its children's digests (the arguments of a sum or a commutative product as a sorted multiset,
+    so that the order sympy gives them under the original names does not matter), a matrix by its
+    shape and nonzero entries; sha256 throughout, so keys of different content differ unless
+    sha256 collides. (sympy's srepr of the renamed expressions was a third of the first call.)"""
+    n, m = system.n, system.m
+    ren = {system.t: ("_t", system.t)}
+    ren |= {x: (f"_q{i}", x) for i, x in enumerate(system.q)}
+    ren |= {x: (f"_v{i}", x) for i, x in enumerate(system.v)}
+    ren |= {x: (f"_p{i}", x) for i, x in enumerate(system.psi)}
+    ren |= {x: (f"_k{i}", x) for i, x in enumerate(getattr(system, "params", ()))}
+    hasher = _ContentHasher(ren)
     N = nonideal_term(system)
-    text = "\n".join([_generator_id(), str(form), str(int(n)), str(int(m)), canon(system.L), canon(system.k),
-                      canon(None if N is None else sympy.Matrix(N)), canon(list(getattr(system, "params", ()))),
-                      canon(parts if parts is not None else system.mechanical)])
-    return hashlib.sha256(text.encode()).hexdigest()
+    h = hashlib.sha256()
+    for part in (_generator_id().encode(), str(form).encode(), str(int(n)).encode(), str(int(m)).encode()):
+        h.update(hashlib.sha256(part).digest())
+    for obj in (system.L, system.k, None if N is None else sympy.Matrix(N), list(getattr(system, "params", ())),
+                parts if parts is not None else system.mechanical):
+        h.update(hasher.digest(obj))
+    return h.hexdigest()
+
+
+class _ContentHasher:
+    """Digests (sha256, 32 bytes) of sympy expressions, matrices, lists and dicts of them, with the
+    symbols of ``ren`` ({symbol: (position name, symbol)}) named by position; anything else
+    raises TypeError (the model then has no key and is generated every time).
+
+    Each digest hashes a tag for the node's kind and the digests of its parts, so that different
+    structures never give the same bytes to hash: numbers by their exact value (a Float by its
+    mpf tuple and precision), symbols by name and assumptions, functions by class, sums and
+    commutative products by the sorted digests of their terms; nodes of other kinds (a Dummy, a
+    user function, Piecewise, ...) by sympy's srepr of the renamed node, as before."""
+
+    _ORDERED = (sympy.Pow,)
+
+    def __init__(self, ren):
+        self.ren = ren
+        self.memo: dict = {}
+        from ..core.derive import SE_FUNCTIONS
+        known = set(SE_FUNCTIONS) | {sympy.Abs, sympy.sign, sympy.erf, sympy.erfc, sympy.Heaviside, sympy.sinc,
+                                     sympy.asec, sympy.acsc, sympy.sech, sympy.csch}
+        self.functions = {f: f.__name__ for f in known}
+
+    @staticmethod
+    def _h(*parts) -> bytes:
+        # each part length-prefixed: no two sequences of parts give the same bytes
+        return hashlib.sha256(b"".join(len(p).to_bytes(8, "little") + p for p in parts)).digest()
+
+    def digest(self, obj) -> bytes:
+        if obj is None:
+            return self._h(b"None")
+        if isinstance(obj, dict):
+            items = sorted(obj.items(), key=lambda kv: str(kv[0]))
+            return self._h(b"dict", *(self._h(repr(k).encode(), self.digest(v)) for k, v in items))
+        if isinstance(obj, (list, tuple)):
+            obj = sympy.ImmutableMatrix(obj)
+        if isinstance(obj, sympy.MatrixBase):
+            nz = sorted((ij, e) for ij, e in obj.todok().items() if e != 0)
+            return self._h(b"matrix", f"{obj.rows}x{obj.cols}".encode(),
+                           *(self._h(f"{i},{j}".encode(), self.expr(sympy.sympify(e))) for (i, j), e in nz))
+        if not isinstance(obj, sympy.Basic):
+            raise TypeError(type(obj).__name__)
+        return self.expr(obj)
+
+    def expr(self, e) -> bytes:
+        hit = self.memo.get(id(e))
+        if hit is not None and hit[0] is e:
+            return hit[1]
+        d = self._expr(e)
+        self.memo[id(e)] = (e, d)
+        return d
+
+    def _expr(self, e) -> bytes:
+        t = type(e)
+        if t is sympy.Symbol:
+            name, orig = self.ren.get(e, (None, e))
+            tag = b"sym" if name is not None else b"free"
+            return self._h(tag, (name or e.name).encode(), repr(sorted(orig.assumptions0.items())).encode())
+        if e.is_Number:
+            if e.is_Integer:
+                return self._h(b"int", str(int(e)).encode())
+            if e.is_Rational:
+                return self._h(b"rat", f"{e.p}/{e.q}".encode())
+            if e.is_Float:
+                return self._h(b"float", repr(e._mpf_).encode(), str(e._prec).encode())
+            return self._h(b"number", t.__name__.encode())   # oo, -oo, nan, zoo: singletons
+        if e.is_NumberSymbol or e is sympy.I:
+            return self._h(b"constant", t.__name__.encode())
+        if t is sympy.Add or (t is sympy.Mul and e.is_commutative):
+            return self._h(t.__name__.encode(), *sorted(self.expr(a) for a in e.args))
+        if t is sympy.Pow:
+            return self._h(b"Pow", self.expr(e.args[0]), self.expr(e.args[1]))
+        name = self.functions.get(t)
+        if name is not None:
+            return self._h(b"fn", name.encode(), *(self.expr(a) for a in e.args))
+        # rare kinds: sympy's canonical text of the renamed node
+        rule = {x: sympy.Symbol(nm, **x.assumptions0) for x, (nm, _) in self.ren.items()}
+        return self._h(b"srepr", sympy.srepr(e.xreplace(rule)).encode())
 
 
 def _key_or_none(system, form, parts=None):
@@ -441,6 +517,18 @@ def _derived_entries(system, name, sub) -> Sparse:
     d = system.__dict__.get("_derived")
     own = system.__dict__.get(name)
     if d is not None and name in d and (own is None or own is d._sympy.get(name)):
+        if d.engine == "symengine" and name not in d._nz:
+            # from symengine straight to the generated symbols: one xreplace (placeholder -> the
+            # symbol's generated name or the Float) instead of one back to the system's symbols
+            # and a second to the generated ones
+            back = d._engine.back
+            rule = dict(sub) | {p: sub.get(x, x) for p, x in back.items()}
+            conv, out = {}, {}
+            for key, e in d._entries[name].items():
+                if id(e) not in conv:
+                    conv[id(e)] = e._sympy_().xreplace(rule)
+                out[key] = conv[id(e)]
+            return Sparse(d.shapes[name], out)
         nz, shape = d.nonzeros(name), d.shapes[name]
     else:
         A = sympy.Matrix(getattr(system, name))

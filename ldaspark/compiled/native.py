@@ -59,6 +59,20 @@ _MAX_STATIC_POWER = 0x10000
 #: functions with more IR instructions than this are compiled at LLVM's -O0 (measured: codegen
 #: at -O2 grows faster than linearly with the size of one straight-line function)
 _O0_FROM = 20000
+#: models with fewer emitted operations per coordinate than this are compiled at -O0 too: their
+#: evaluation is a small part of a step (the kernel's linear algebra dominates), and -O2 bought
+#: nothing measurable there (mp-particles-nh n = 21, 121: 25 operations per coordinate, steps
+#: equally fast, codegen 0.23 s -> 0.06 s at n = 121), while the bicycle's general model (1660
+#: per coordinate) ran its steps 1.5x slower at -O0. Same results at every level (no fast-math:
+#: LLVM may not reorder floating-point operations), only the machine code's speed differs.
+_O2_PER_DOF = 100
+
+
+def _opt_level(size: int, n_dof) -> int:
+    """LLVM's optimisation level for a model of ``size`` emitted operations and n coordinates."""
+    if size > _O0_FROM or not isinstance(n_dof, int) or n_dof <= 0 or size < _O2_PER_DOF * n_dof:
+        return 0
+    return 2
 
 
 def _ctx():
@@ -337,13 +351,20 @@ def module_constants(source: str) -> dict:
 @functools.lru_cache(maxsize=64)
 def _constants(source: str) -> dict:
     out = {}
-    for node in ast.parse(source).body:
+    for node in _tree(source).body:
         if isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name):
             try:
                 out[node.targets[0].id] = ast.literal_eval(node.value)
             except ValueError:
                 pass
     return out
+
+
+@functools.lru_cache(maxsize=4)
+def _tree(source: str):
+    """The syntax tree of a model source, parsed once for its constants and its translation (a
+    large model's parse is a tenth of a second); read only."""
+    return ast.parse(source)
 
 
 def compile_model(source: str, params=()) -> tuple:
@@ -405,7 +426,7 @@ def _compile_functions(source, consts, k):
     import llvmlite.binding as llvm
     from llvmlite import ir
     try:
-        tree = ast.parse(source)
+        tree = _tree(source)
     except SyntaxError as exc:
         raise NotNativeError(f"model source does not parse ({exc.msg})") from None
     fns, model = _model_functions(tree)
@@ -416,7 +437,7 @@ def _compile_functions(source, consts, k):
         fn = _Function(module, fdef, sig, k)
         built.append((name, fn.fn.name, sig))
         size += fn.count
-    engine = _jit(module, 0 if size > _O0_FROM else 2)
+    engine = _jit(module, _opt_level(size, consts.get("N_DOF")))
     funcs = {name: NativeFunction(name, engine.get_function_address(sym), sig, engine) for name, sym, sig in built}
     if any(f._addr == 0 for f in funcs.values()):
         raise NotNativeError("LLVM gave no address for a model function")

@@ -48,27 +48,48 @@ def mechanical_parts(system) -> dict:
         from ..core.system import check_mechanical, refuse_text
         refuse_text(mech, f"{system.name}: mechanical")     # set by hand after construction: never sympify text
         check_mechanical(system, mech)                       # the generic engine's M (L_vv), symmetric
-        M = sympy.Matrix(mech["M"])
+        M = _matrix(mech["M"])
         U = sympy.sympify(mech["U"], strict=True)
-        K = sympy.Matrix(mech["K"])
+        K = _matrix(mech["K"])
         b = sympy.Matrix(mech.get("b") if mech.get("b") is not None else sympy.zeros(K.rows, 1))
         b = b.reshape(K.rows, 1)
     else:
-        M = system.L_vv
-        if M.free_symbols & (set(q) | set(v) | {t}):
+        # on the nonzero entries of the sparse derivation: the dense L_vv, M v and simplify of
+        # every row cost 2.7 s at n = 121 (what a first integrate of such a system waited)
+        from ..core.system import _derived_nonzeros
+        Mnz = _derived_nonzeros(system, "L_vv")
+        if any(e.free_symbols & (set(q) | set(v) | {t}) for e in Mnz.values()):
             raise NotCompilableError(f"{system.name}: L_vv depends on (t, q, v); not mechanical form")
         zero_v = {x: 0 for x in v}
-        gyro = (system.L_v - M * sympy.Matrix(v)).applyfunc(sympy.simplify)
-        if gyro != sympy.zeros(system.n, 1):
-            raise NotCompilableError(f"{system.name}: grad_v L is not M v (terms linear in v); not mechanical form")
-        U = -system.L.subs(zero_v)
+        Lv = _derived_nonzeros(system, "L_v")
+        rows: dict = {}
+        for (i, j), e in Mnz.items():
+            rows.setdefault(i, []).append(e * v[j])
+        for i in sorted(set(rows) | {i for i, _ in Lv}):
+            gyro = Lv.get((i, 0), sympy.S.Zero) - sympy.Add(*rows.get(i, ()))
+            if gyro != 0 and sympy.simplify(gyro) != 0:
+                raise NotCompilableError(f"{system.name}: grad_v L is not M v (terms linear in v); not mechanical "
+                                         "form")
+        M = sympy.SparseMatrix(system.n, system.n, Mnz)
+        # xreplace, not subs: subs of n symbols walks L n times (2.3 s at n = 121)
+        U = -system.L.xreplace(zero_v)
         K = system.k_v
         if K.free_symbols & set(v):
             raise NotCompilableError(f"{system.name}: k is not affine in v; not mechanical form")
-        b = system.k.subs(zero_v)
-    if M.free_symbols - set(getattr(system, "params", ())):
+        b = system.k.xreplace(zero_v)
+    if _entry_symbols(M) - set(getattr(system, "params", ())):
         raise NotCompilableError(f"{system.name}: mass matrix M is not constant")
     return {"M": M, "U": U, "K": K, "b": b}
+
+
+def _matrix(x):
+    """A sympy matrix as it is (no copy: copying a dense 1001 x 1001 M cost 0.2 s), else Matrix(x)."""
+    return x if isinstance(x, sympy.MatrixBase) else sympy.Matrix(x)
+
+
+def _entry_symbols(M) -> set:
+    """The free symbols of a sympy matrix's nonzero entries (MatrixBase.free_symbols visits all n^2)."""
+    return set().union(*(e.free_symbols for e in M.todok().values()))
 
 
 def _param_floats(system) -> tuple:
@@ -256,7 +277,7 @@ def compile_system(system, form: str = "auto") -> CompiledSystem:
 
 def _with_values(system, tpl):
     cs, Msym = tpl
-    if Msym is None or not Msym.free_symbols:
+    if Msym is None or not _entry_symbols(Msym):
         return dataclasses.replace(cs, name=system.name, params=_param_floats(system))
     M, Minv = _numeric_mass(system, Msym)
     return dataclasses.replace(cs, name=system.name, M=M, Minv=Minv, params=_param_floats(system))
@@ -267,14 +288,15 @@ def _mechanical_matrix(system):
 
 
 def _numeric_mass(system, Msym):
-    if Msym.free_symbols:                        # the mass matrix at this run's parameter values
+    M = np.zeros(Msym.shape)
+    if _entry_symbols(Msym):                     # the mass matrix at this run's parameter values
         # xreplace of the nonzero entries (subs of the whole matrix cost 1.5 ms per run)
         vals = {p: sympy.sympify(x, strict=True) for p, x in zip(system.params, system._param_arg_values(None))}
-        M = np.zeros(Msym.shape)
         for (i, j), e in Msym.todok().items():
             M[i, j] = float(e.xreplace(vals))
-    else:
-        M = np.array(Msym.tolist(), dtype=float)
+    else:                                        # the nonzero entries (tolist of a 1001 x 1001 M: 1 s)
+        for (i, j), e in Msym.todok().items():
+            M[i, j] = float(e)
     try:
         Minv = np.linalg.inv(M)
     except np.linalg.LinAlgError:

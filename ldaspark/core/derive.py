@@ -201,13 +201,14 @@ def _engine_for(exprs, symbols):
     """(engine, convert) for the sympy ``exprs`` in the ``symbols`` the derivatives are taken
     in: symengine when every node of every expression is in ``_SE_NODES`` or a constant pi, E,
     else sympy. ``convert`` maps a sympy expression (and a symbol) to the engine's."""
-    if _se is None or not _all_se_nodes(exprs):
+    scan = _scan(exprs) if _se is not None else None
+    if scan is None:
         return _SympyEngine(), (lambda e: e)
-    free = set().union(*(e.free_symbols for e in exprs)) | set(symbols)
+    free, floats = scan
+    free |= set(symbols)
     names = [getattr(s, "name", None) for s in free]
     plain = all(type(s) is sympy.Symbol and s.assumptions0 == {"commutative": True} for s in free) \
         and len(set(names)) == len(names)
-    floats = set().union(*(e.atoms(sympy.Float) for e in exprs))
     rep = {}
     taken = set(names)
 
@@ -236,20 +237,32 @@ def _engine_for(exprs, symbols):
 
 
 def _all_se_nodes(exprs) -> bool:
-    seen, todo = set(), list(exprs)
+    return _scan(exprs) is not None
+
+
+def _scan(exprs):
+    """(free symbols, Floats) of sympy expressions whose every node is in ``_SE_NODES`` or a
+    constant pi, E, else None: one walk of the expression graph (free_symbols and atoms(Float)
+    walked it twice more: a second of the bicycle's code generation). Such expressions bind no
+    variables, so their Symbol nodes are their free symbols."""
+    seen, todo, syms, floats = set(), list(exprs), set(), set()
     while todo:
         e = todo.pop()
         if e in seen:
             continue
         seen.add(e)
         if not isinstance(e, _SE_NODES) and e not in _SE_CONSTANTS:
-            return False
-        if isinstance(e, sympy.Float) and not e.is_finite:
-            return False
-        if isinstance(e, sympy.Function) and len(e.args) != (2 if isinstance(e, sympy.atan2) else 1):
-            return False
+            return None
+        if isinstance(e, sympy.Symbol):
+            syms.add(e)
+        elif isinstance(e, sympy.Float):
+            if not e.is_finite:
+                return None
+            floats.add(e)
+        elif isinstance(e, sympy.Function) and len(e.args) != (2 if isinstance(e, sympy.atan2) else 1):
+            return None
         todo.extend(e.args)
-    return True
+    return syms, floats
 
 
 def derive(L, k, q, v, t, lam, N=None, psi=None, engine: str = "auto") -> Derived:

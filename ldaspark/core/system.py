@@ -8,6 +8,7 @@ number type ("math" for float64, "mpmath" for arbitrary precision).
 from __future__ import annotations
 
 import math
+import sys
 import warnings
 from dataclasses import dataclass
 
@@ -500,9 +501,11 @@ def _check_build(system) -> None:
       P_i = grad_v L(Q_i, V_i) of (21) do not determine those components of V_i, and Newton's
       matrix is singular at the first step. Found here, named in ``lvv_problem`` and raised by
       ``check_saddle`` (the set-up check of every engine) as SingularSaddleError."""
-    from sympy.physics.units import Quantity
+    # a Quantity exists only once sympy.physics.units is imported: not importing it here saves
+    # ~0.1 s of every build (the package defines hundreds of units when it is loaded)
+    qmod = sys.modules.get("sympy.physics.units.quantities")
     exprs = [system.L, *system.k] + ([*system.N] if system.N is not None else [])
-    units = sorted({str(u) for e in exprs for u in e.atoms(Quantity)})
+    units = sorted({str(u) for e in exprs for u in e.atoms(qmod.Quantity)}) if qmod is not None else []
     if units:
         raise SystemDefinitionError(
             f"{system.name}: L or k contain physical units ({', '.join(units[:6])}); the integrator works on "
@@ -667,7 +670,7 @@ def check_mechanical(system, mech) -> None:
         raise SystemDefinitionError(f"{system.name}: mechanical must be a dict with M, U, K (and b)")
     refuse_text(mech, f"{system.name}: mechanical")
     try:
-        M = sympy.Matrix(mech["M"])
+        M = mech["M"] if isinstance(mech["M"], sympy.MatrixBase) else sympy.Matrix(mech["M"])
     except (TypeError, ValueError, sympy.SympifyError) as exc:
         raise SystemDefinitionError(f"{system.name}: mechanical M is not a matrix ({str(exc)[:80]})") from None
     if M.shape != (system.n, system.n):
@@ -676,23 +679,24 @@ def check_mechanical(system, mech) -> None:
     def differs(a, b):
         d = sympy.sympify(a) - sympy.sympify(b)
         return d != 0 and sympy.expand(d) != 0 and sympy.simplify(d) != 0
-    for i in range(system.n):
-        for j in range(i + 1, system.n):
-            if differs(M[i, j], M[j, i]):
-                raise SystemDefinitionError(f"{system.name}: the mass matrix M is not symmetric (M[{i},{j}] = "
-                                            f"{str(M[i, j])[:40]}, M[{j},{i}] = {str(M[j, i])[:40]}): only its "
-                                            "symmetric part enters L = v^T M v / 2; give that")
-    L_vv = getattr(system, "L_vv", None)
-    if L_vv is not None:
-        for i in range(system.n):
-            for j in range(system.n):
-                if differs(M[i, j], L_vv[i, j]):
-                    raise SystemDefinitionError(f"{system.name}: mechanical M[{i},{j}] = {str(M[i, j])[:40]} is not "
-                                                f"L_vv[{i},{j}] = {str(L_vv[i, j])[:40]}: M must be the Hessian of L in v")
-    _check_mechanical_parts(system, mech, M)
+    # compared where either side is structurally nonzero (zero against zero needs no test):
+    # n^2 comparisons of a dense L_vv cost seconds at n = 121 and minutes at n = 1001
+    Mnz = _nonzero_entries(M)
+    for i, j in sorted({(min(i, j), max(i, j)) for i, j in Mnz if i != j}):
+        if differs(Mnz.get((i, j), 0), Mnz.get((j, i), 0)):
+            raise SystemDefinitionError(f"{system.name}: the mass matrix M is not symmetric (M[{i},{j}] = "
+                                        f"{str(M[i, j])[:40]}, M[{j},{i}] = {str(M[j, i])[:40]}): only its "
+                                        "symmetric part enters L = v^T M v / 2; give that")
+    Lnz = _derived_nonzeros(system, "L_vv")
+    if Lnz is not None:
+        for i, j in sorted(set(Mnz) | set(Lnz)):
+            if differs(Mnz.get((i, j), 0), Lnz.get((i, j), 0)):
+                raise SystemDefinitionError(f"{system.name}: mechanical M[{i},{j}] = {str(M[i, j])[:40]} is not "
+                                            f"L_vv[{i},{j}] = {str(Lnz.get((i, j), 0))[:40]}: M must be the "
+                                            "Hessian of L in v")
+    _check_mechanical_parts(system, mech, M, Mnz)
 
-
-def _check_mechanical_parts(system, mech, M) -> None:
+def _check_mechanical_parts(system, mech, M, Mnz) -> None:
     """U, K and b of the mechanical form (the compiled engine and the semi-implicit comparators
     build their equations from them, the generic engine from L and k) describe the same system:
     U, K, b free of v, L = v^T M v / 2 - U and k = K v + b. The identities are tested at random
@@ -719,7 +723,8 @@ def _check_mechanical_parts(system, mech, M) -> None:
                                     f"and U a scalar, got K {K.shape}, b {b.shape}")
     vs = set(system.v)
     known = set(system.q) | vs | {system.t} | set(system.params)
-    for nm, e in [("U", U)] + [("K", x) for x in K] + [("b", x) for x in b]:
+    Knz = _nonzero_entries(K)           # K is mostly zeros for large models: its m x n scan costs seconds
+    for nm, e in [("U", U)] + [("K", x) for x in Knz.values()] + [("b", x) for x in b]:
         if getattr(e, "free_symbols", set()) - known:
             raise SystemDefinitionError(f"{system.name}: the mechanical parts do not match L and k ({nm} contains "
                                         f"symbols other than t, q and the parameters: "
@@ -727,17 +732,23 @@ def _check_mechanical_parts(system, mech, M) -> None:
         if getattr(e, "free_symbols", set()) & vs:
             raise SystemDefinitionError(f"{system.name}: mechanical {nm} depends on the velocities; U, K, b are "
                                         "functions of t and q")
-    vv = sympy.Matrix(system.v)
-    checks = [("L = v^T M v / 2 - U", system.L, (vv.T * M * vv)[0, 0] / 2 - U)]
-    checks += [(f"k[{i}] = (K v + b)[{i}]", system.k[i], (K * vv + b)[i]) for i in range(system.m)]
+    vv = list(system.v)
+    # v^T M v and K v over the nonzero entries (dense products are n^2 and m n terms)
+    quad = sympy.Add(*[e * vv[i] * vv[j] for (i, j), e in Mnz.items()])
+    Kv = [[] for _ in range(system.m)]
+    for (i, j), e in Knz.items():
+        Kv[i].append(e * vv[j])
+    rows = [(f"k[{i}] = (K v + b)[{i}]", system.k[i], sympy.Add(*Kv[i]) + b[i]) for i in range(system.m)]
     rng = random.Random(12345)
     syms = list(system.q) + list(system.v) + [system.t] + list(system.params)
-    for what, lhs, rhs in checks:
+    fixed = {p: sympy.sympify(val) for p, val in system._param_values.items() if not isinstance(val, str)}
+
+    def mismatch(lhs, rhs):
+        """(lhs, rhs) at a test point where they differ, None when they agree at two points."""
         tested = 0
         for _ in range(6):
             pt = {x: sympy.Rational(rng.randint(300, 700), 1000) for x in syms}
-            pt.update({p: sympy.sympify(val) for p, val in system._param_values.items()
-                       if not isinstance(val, str)})
+            pt.update(fixed)
             try:
                 a, c = (sympy.N(e.xreplace(pt), 40) for e in (lhs, rhs))
                 fa, fc = complex(a), complex(c)
@@ -746,12 +757,47 @@ def _check_mechanical_parts(system, mech, M) -> None:
             if not all(math.isfinite(z.real) and math.isfinite(z.imag) and z.imag == 0 for z in (fa, fc)):
                 continue
             if abs(a - c) > 1e-25 * (1 + abs(fa) + abs(fc)):
-                raise SystemDefinitionError(f"{system.name}: the mechanical parts do not match L and k ({what} "
-                                            f"fails at a test point: {str(sympy.N(a, 6))} vs {str(sympy.N(c, 6))}); "
-                                            "the engines would integrate different systems")
+                return a, c
             tested += 1
             if tested == 2:
-                break
+                return None
+        return None
+
+    def refuse(what, ac):
+        raise SystemDefinitionError(f"{system.name}: the mechanical parts do not match L and k ({what} fails at a "
+                                    f"test point: {str(sympy.N(ac[0], 6))} vs {str(sympy.N(ac[1], 6))}); "
+                                    "the engines would integrate different systems")
+    bad = mismatch(system.L, quad / 2 - U)
+    if bad is not None:
+        refuse("L = v^T M v / 2 - U", bad)
+    if len(rows) > 8:
+        # many rows: one random combination of them first (a wrong row changes it at almost every
+        # point and weight); the rows one by one only to name the wrong one
+        w = [sympy.Rational(rng.randint(1, 997), 997) for _ in rows]
+        if mismatch(sympy.Add(*[wi * r[1] for wi, r in zip(w, rows)]),
+                    sympy.Add(*[wi * r[2] for wi, r in zip(w, rows)])) is None:
+            return
+    for what, lhs, rhs in rows:
+        bad = mismatch(lhs, rhs)
+        if bad is not None:
+            refuse(what, bad)
+
+
+def _nonzero_entries(A) -> dict:
+    """{(i, j): entry} of the structurally nonzero entries of a sympy matrix."""
+    return {ij: e for ij, e in A.todok().items() if e != 0}
+
+
+def _derived_nonzeros(system, name):
+    """{(i, j): sympy entry} of the nonzero entries of the derived matrix ``name`` (``L_vv``, ...):
+    from the sparse derivation unless the attribute was replaced since (then from the attribute);
+    None when the system has neither."""
+    d = system.__dict__.get("_derived")
+    own = system.__dict__.get(name)
+    if d is not None and name in d and (own is None or own is d._sympy.get(name)):
+        return d.nonzeros(name)
+    val = getattr(system, name, None)
+    return None if val is None else _nonzero_entries(sympy.Matrix(val))
 
 
 def _param_value(x, p):
