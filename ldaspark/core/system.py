@@ -701,8 +701,8 @@ def _check_mechanical_parts(system, mech, M, Mnz) -> None:
     build their equations from them, the generic engine from L and k) describe the same system:
     U, K, b free of v, L = v^T M v / 2 - U and k = K v + b. The identities are tested at random
     points in 40 digits (a wrong part differs at almost every point; symbolic simplification
-    of a large L can take minutes): a residual above 1e-25 of the terms' size at two points
-    where both sides are finite is a mismatch, which would make the engines integrate two
+    of a large L can take minutes): a residual above 1e-25 of the terms' size (Floats: their
+    own precision) at two points where both sides are finite is a mismatch, which would make the engines integrate two
     different systems without a word."""
     import random
     try:
@@ -744,7 +744,16 @@ def _check_mechanical_parts(system, mech, M, Mnz) -> None:
     fixed = {p: sympy.sympify(val) for p, val in system._param_values.items() if not isinstance(val, str)}
 
     def mismatch(lhs, rhs):
-        """(lhs, rhs) at a test point where they differ, None when they agree at two points."""
+        """(lhs, rhs) at a test point where they differ, None when they agree at two points.
+
+        Exact data must agree to 1e-25 of the terms' size (40 digits evaluated). A Float in the
+        data carries its own precision (53 bits from Python floats), and the two sides may sum
+        its terms in different orders: then the tolerance is 2^-prec times 16 per term."""
+        floats = [f for e in (lhs, rhs) for f in e.atoms(sympy.Float)]
+        tol = 1e-25
+        if floats:
+            nterms = len(sympy.Add.make_args(lhs)) + len(sympy.Add.make_args(rhs))
+            tol = max(tol, 16.0 * nterms * 2.0 ** -min(f._prec for f in floats))
         tested = 0
         for _ in range(6):
             pt = {x: sympy.Rational(rng.randint(300, 700), 1000) for x in syms}
@@ -756,7 +765,7 @@ def _check_mechanical_parts(system, mech, M, Mnz) -> None:
                 continue
             if not all(math.isfinite(z.real) and math.isfinite(z.imag) and z.imag == 0 for z in (fa, fc)):
                 continue
-            if abs(a - c) > 1e-25 * (1 + abs(fa) + abs(fc)):
+            if abs(a - c) > tol * (1 + abs(fa) + abs(fc)):
                 return a, c
             tested += 1
             if tested == 2:

@@ -270,7 +270,8 @@ class SparkTableau:
                                f"{validate._describe(name)}")
         shape = np.shape(np.asarray(sympy.Matrix(ent[name]).tolist() if self.exact is not None else ent[name],
                                     dtype=object))
-        matrix = len(shape) == 2 and shape[1] > 1
+        # the A family is s x s (1 x 1 at s = 1, where the shape alone cannot tell it from a vector)
+        matrix = name in ("A", "A_hat", "A_tilde") or (len(shape) == 2 and shape[1] > 1)
         if (j is None) == matrix:
             raise TableauError(f"with_entry: {name} is a {'matrix: give i and j' if matrix else 'vector: give j=None'}")
         for nm, x, size in (("i", i, shape[0]), ("j", j, shape[1] if matrix else 1)):
