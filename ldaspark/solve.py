@@ -131,6 +131,16 @@ def _time_grid(t_span, t0, t_end, n_steps, h, default_t0):
     return t0, n_steps
 
 
+def _refuse_unknown_options(unknown: dict) -> None:
+    import difflib
+    import inspect
+    known = [p for p, par in inspect.signature(integrate).parameters.items() if par.kind != par.VAR_KEYWORD]
+    key = sorted(map(str, unknown))[0]
+    close = difflib.get_close_matches(key, known, n=1)
+    hint = f" (did you mean {close[0]}?)" if close else ""
+    raise InputError(f"integrate: unknown option {key[:40]!r}{hint}; the options are {', '.join(known)}")
+
+
 def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, SparkTableau],
               t_span: Optional[Sequence] = None, q0: Optional[Sequence] = None, v0: Optional[Sequence] = None,
               h: Any = None, *, t0: Any = None, t_end: Any = None, n_steps: Optional[int] = None,
@@ -138,7 +148,7 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
               events: Union[None, Callable, Sequence[Callable]] = None, params: Union[None, dict, list] = None,
               raise_on_failure: bool = False, newton: str = "auto", project: bool = False,
               tol: Optional[float] = None, executor: Any = None, energy_jump: Optional[float] = None,
-              max_stages: Optional[int] = None) -> Result:
+              max_stages: Optional[int] = None, **unknown: Any) -> Result:
     """Integrate the index-2 DAE (1) by an s-stage SPARK method (21a-f) with constant step h.
 
     Each step solves the stage equations (21a-f) for (Q_i, V_i, Psi_i) by Newton with the
@@ -199,6 +209,9 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
         ``energy_jump (1 + |E|)``.
     max_stages : int, optional
         Raise the stage limit (20) of built-in method names.
+    **unknown
+        Any other keyword is refused with an `InputError` naming the closest option (a
+        misspelt option must not be a raw TypeError, nor silently ignored).
 
     Returns
     -------
@@ -228,6 +241,8 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
     >>> bool(abs(res.constraint).max() < 1e-12)
     True
     """
+    if unknown:
+        _refuse_unknown_options(unknown)
     # the API boundary: every user value checked once, for every engine, into one frozen
     # options object that every engine path below reads (the engines check nothing again)
     opts = IntegrationOptions.checked(engine=engine, dps=dps, newton=newton, tol=tol, save_every=save_every,
@@ -271,7 +286,11 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
         # worker), so that process pools and clusters can run the members as well as threads
         run = functools.partial(_member, sysm if isinstance(executor, ThreadPoolExecutor) else _portable(sysm),
                                 prob, member_opts)
-        return stack(list(executor.map(run, jobs)))
+        try:
+            members = executor.map(run, jobs)       # submits every member now
+        except RuntimeError as exc:
+            raise validate.executor_shut_down(exc) from exc
+        return stack(list(members))
     return _single(sysm, (params, q0, v0), prob, opts)
 
 

@@ -219,3 +219,71 @@ def test_with_entry_refuses_what_would_wrap_or_raise(exact, args):
     # valid neighbours: an index of NumPy's type, a vector entry, a Fraction delta
     assert g.with_entry("A", np.int64(1), 0, Fraction(1, 10)).s == 2
     assert g.with_entry("b", 0, None, "1/10").s == 2
+
+
+# --- the last neighbours: a misspelt option, the user's own event code, a flag's type, an
+# executor that was shut down, a URL's trailing slash -----------------------------------------
+def test_a_misspelt_integrate_option_is_one_line_naming_the_closest():
+    with pytest.raises(InputError, match=r"unknown option 'tole' \(did you mean tol\?\)") as ei:
+        ldaspark.integrate("skate", "gauss-1", h=0.1, n_steps=1, tole=1e-10)
+    assert "\n" not in str(ei.value)
+    r = ldaspark.integrate("skate", "gauss-1", h=0.1, n_steps=1, tol=1e-10)     # the neighbour
+    assert r.status == 0
+
+
+@pytest.mark.parametrize("engine", ["generic", "compiled"])
+def test_an_event_that_raises_is_named_with_its_error_kept_as_cause(engine):
+    def g(t, q, v):
+        raise ZeroDivisionError("inside the user's event")
+    with pytest.raises(InputError, match=r"event 0 raised ZeroDivisionError at t = 0: inside the user's event") as ei:
+        ldaspark.integrate("skate", "gauss-1", h=0.1, n_steps=2, engine=engine, events=g)
+    assert isinstance(ei.value.__cause__, ZeroDivisionError)
+
+
+@pytest.mark.parametrize("bad", ["yes", "no", 1, 0.0, None])
+def test_get_method_exact_must_be_a_bool(bad):
+    with pytest.raises(LdasparkError, match="exact must be True or False"):
+        ldaspark.get_method("gauss-2", exact=bad)
+    assert ldaspark.get_method("gauss-2", exact=np.True_).exact is not None
+    assert ldaspark.get_method("gauss-2", exact=False).s == 2
+
+
+def test_an_executor_that_was_shut_down_is_refused_before_any_work():
+    from concurrent.futures import ThreadPoolExecutor
+    from ldaspark.dist.ensemble import RunSpec
+    q0, v0 = _point()
+    Q, V = np.array([q0, q0]), np.array([v0, v0])
+    ex = ThreadPoolExecutor(1)
+    ex.shutdown()
+    with pytest.raises(InputError, match="shut down"):
+        ldaspark.integrate("skate", "gauss-1", h=0.1, n_steps=2, q0=Q, v0=V, executor=ex)
+
+    class Refusing:     # an executor of another kind: its RuntimeError at submit is named
+        def submit(self, *a, **k):
+            raise RuntimeError("cannot schedule new futures after shutdown")
+
+        def map(self, *a, **k):
+            raise RuntimeError("cannot schedule new futures after shutdown")
+    for engine in ("generic", "compiled"):
+        with pytest.raises(InputError, match="refused new work") as ei:
+            ldaspark.integrate("skate", "gauss-1", h=0.1, n_steps=2, q0=Q, v0=V, executor=Refusing(), engine=engine)
+        assert isinstance(ei.value.__cause__, RuntimeError)
+    with pytest.raises(InputError, match="refused new work"):
+        ldaspark.run_many([RunSpec("skate", "gauss-1", 0.0, Q, V, 0.1, 2)], executor=Refusing())
+    with ThreadPoolExecutor(1) as live:     # the neighbour: a live pool runs
+        assert ldaspark.integrate("skate", "gauss-1", h=0.1, n_steps=2, q0=Q, v0=V, executor=live).success
+
+
+def test_a_scheduler_address_with_a_trailing_slash_reaches_dask_without_it(monkeypatch):
+    distributed = pytest.importorskip("distributed")
+    from ldaspark.dist import workers
+    seen = []
+
+    def fake_client(addr, **kw):
+        seen.append(addr)
+        raise OSError("no scheduler here")
+    monkeypatch.setattr(distributed, "Client", fake_client)
+    for where in ("tcp://127.0.0.1:1/", "tcp://127.0.0.1:1"):
+        with pytest.raises(InputError, match="cannot reach"):
+            workers._Place(where, None, None)
+    assert seen == ["tcp://127.0.0.1:1", "tcp://127.0.0.1:1"]

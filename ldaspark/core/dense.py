@@ -165,7 +165,11 @@ class Event:
     def __call__(self, t, q, v) -> float:
         from .validate import _describe
         qc, vc = np.array(q, dtype=float), np.array(v, dtype=float)    # copies: g may modify them
-        val = self.g(float(t), qc, vc)
+        try:
+            val = self.g(float(t), qc, vc)
+        except Exception as exc:    # the user's code: its error named in one line, the original kept as __cause__
+            raise InputError(f"event {self.index} raised {type(exc).__name__} at t = {float(t):g}: "
+                             f"{' '.join(str(exc).split())[:120]}") from exc
         from .validate import real_value
         # an mpf, Fraction or Decimal is a real number too (an event computed at dps returns mpf)
         if isinstance(val, np.ndarray) and val.shape != ():

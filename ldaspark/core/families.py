@@ -500,6 +500,9 @@ def get_method(name: str, exact: bool = False, max_stages: int | None = None) ->
     """
     if not isinstance(name, str):
         raise TableauError(f"method name must be a string such as 'gauss-2', got {type(name).__name__}")
+    if not isinstance(exact, (bool, np.bool_)):     # 'yes' or 'no' would both be truthy
+        raise TableauError(f"exact must be True or False, got {type(exact).__name__} {str(exact)[:40]!r}")
+    exact = bool(exact)
     if name == "euler-i":
         return euler_i()
     if name == "euler-ii":

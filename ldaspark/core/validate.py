@@ -218,7 +218,18 @@ def check_executor(executor):
     if executor is not None and not (callable(getattr(executor, "submit", None))
                                      and callable(getattr(executor, "map", None))):
         raise InputError(f"executor must be a concurrent.futures Executor (submit, map), got {_describe(executor)}")
+    # the standard library's pools mark shutdown privately (_shutdown: threads, _shutdown_thread:
+    # processes); other executors' RuntimeError at submit is caught where work is submitted
+    if executor is not None and (getattr(executor, "_shutdown", False) is True
+                                 or getattr(executor, "_shutdown_thread", False) is True):
+        raise InputError(f"executor {type(executor).__name__} is shut down: it cannot run new work")
     return executor
+
+
+def executor_shut_down(exc: BaseException) -> InputError:
+    """The one-line error for an executor that refused new work at submit (RuntimeError
+    'cannot schedule new futures after shutdown' and the like)."""
+    return InputError(f"the executor refused new work ({type(exc).__name__}: {' '.join(str(exc).split())[:100]})")
 
 
 def real_vector(x, what: str):

@@ -190,7 +190,10 @@ class _Place:
                 except ImportError:
                     raise InputError("a Dask scheduler needs the dist extra: pip install \"ldaspark[dist]\"") from None
                 try:
-                    self.client = distributed.Client(w, timeout="20s", set_as_default=False)
+                    # check_where admits one trailing '/' (as URLs carry it); distributed's
+                    # parser would read it as part of the port
+                    addr = w[:-1] if w.endswith("/") and not w.endswith("://") else w
+                    self.client = distributed.Client(addr, timeout="20s", set_as_default=False)
                 except (OSError, TimeoutError) as exc:
                     raise InputError(f"cannot reach the Dask scheduler {w}: {exc}") from None
                 client = self.client
@@ -327,7 +330,11 @@ def run_units_partial(units: Iterable[Unit], where=None, jobs=None, retries: int
                         handle(place.executor.submit(u.fn, *u.args), u)
                     continue
                 for u in batch:
-                    futs[place.executor.submit(u.fn, *u.args)] = u
+                    try:
+                        futs[place.executor.submit(u.fn, *u.args)] = u
+                    except RuntimeError as exc:     # a user's executor that was shut down
+                        from ..core.validate import executor_shut_down
+                        raise executor_shut_down(exc) from exc
                 for f in cf.as_completed(futs):
                     broken = handle(f, futs[f]) or broken
             except BaseException:
