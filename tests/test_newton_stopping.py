@@ -135,11 +135,11 @@ def test_generic_step_is_the_last_fallback(monkeypatch, fail_at, every):
     real = runner._run_checked        # what fast_integrate and run_compiled call
     calls = []
 
-    def failing(cs, method, t0, q0, v0, h, n, *a, **k):
-        calls.append(n)
+    def failing(cs, method, start, grid, opts):
+        calls.append(grid[1])
         if len(calls) == 1:
-            raise NewtonError("simulated", step=fail_at, time=t0 + fail_at * h)
-        return real(cs, method, t0, q0, v0, h, n, *a, **k)
+            raise NewtonError("simulated", step=fail_at, time=start[0] + fail_at * grid[0])
+        return real(cs, method, start, grid, opts)
     monkeypatch.setattr(runner, "_run_checked", failing)
     sol = fast_integrate(sc, "gauss-2", h=0.1, n_steps=20, every=every)
     assert sol.stats["generic_steps"] == 1 and sol.stats["steps"] == 20

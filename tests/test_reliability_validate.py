@@ -103,7 +103,7 @@ def test_long_compiled_run_is_chunked_with_the_same_samples(monkeypatch):
     real = runner._run_checked        # the kernel call behind fast_integrate and run_compiled
 
     def spy(*a, **k):
-        calls.append(a[6])
+        calls.append(a[3][1])          # grid = (h, n_steps, every)
         return real(*a, **k)
     one = run(t_span=(0, 2), h=0.05, save_every=3)
     monkeypatch.setattr(solve, "COMPILED_CHUNK", 7)

@@ -281,8 +281,9 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
         _notice(f"{system.name}: compilation failed ({_first_line(exc)})")
         return generic_integrate(system, method, t0, q0, v0, h, n_steps, every, tol)
     try:
-        return runner._run_checked(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, kernel,
-                                   predictor, linear_solver=linear_solver)
+        return runner._run_checked(cs, method, (t0, q0, v0), (h, n_steps, every),
+                                   runner.KernelOptions(compensated, tol, max_iter, kernel, predictor,
+                                                        linear_solver=linear_solver))
     except NotCompilableError as exc:
         _notice(str(exc))
         return generic_integrate(system, method, t0, q0, v0, h, n_steps, every, tol)

@@ -467,17 +467,34 @@ def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, co
     "auto" = from n >= REUSE_AUTO_MIN_N. stats["reuse_matrix"] says whether it was on.
     Raises NewtonError, NonFiniteError."""
     _check_options(n_steps, every, predictor, tol, max_iter, cs.n, cs.m)
-    return _run_checked(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, kernel, predictor,
-                        reuse_matrix, linear_solver)
+    return _run_checked(cs, method, (t0, q0, v0), (h, n_steps, every),
+                        KernelOptions(compensated, tol, max_iter, kernel, predictor, reuse_matrix, linear_solver))
 
 
 _TOL_DEFAULT = 8 * float(np.finfo(float).eps)
 
 
-def _run_checked(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, kernel, predictor,
-                 reuse_matrix="auto", linear_solver="auto"):
+@dataclass(frozen=True)
+class KernelOptions:
+    """How a compiled kernel runs (``run_compiled``'s keywords, checked by ``_check_options``):
+    carried as one object to the kernel call."""
+    compensated: bool = True
+    tol: Optional[float] = None
+    max_iter: int = 50
+    kernel: str = "auto"
+    predictor: int = 2
+    reuse_matrix: object = "auto"
+    linear_solver: str = "auto"
+
+
+def _run_checked(cs, method, start, grid, opts: KernelOptions):
     """``run_compiled`` after ``_check_options`` passed (fast_integrate checks them once, before
-    compiling; checking twice was ~3 us of a repeated short call's overhead)."""
+    compiling; checking twice was ~3 us of a repeated short call's overhead): ``start`` =
+    (t0, q0, v0), ``grid`` = (h, n_steps, every)."""
+    (t0, q0, v0), (h, n_steps, every) = start, grid
+    compensated, tol, max_iter, kernel, predictor = (opts.compensated, opts.tol, opts.max_iter, opts.kernel,
+                                                     opts.predictor)
+    reuse_matrix, linear_solver = opts.reuse_matrix, opts.linear_solver
     spec = method if isinstance(method, tuple) else kernel_spec(method, kernel)
     kind, what, name = spec
     if kind == "lf2" and cs.form != "mechanical":
