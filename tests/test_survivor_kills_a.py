@@ -285,8 +285,11 @@ def test_rhs_choice_takes_the_faster_form(monkeypatch):
 
 def test_peer_section_names_the_rhs_choice_when_any_study_measured_it():
     d = json.loads((ROOT / "reports" / "peers.json").read_text())
-    assert len(d["studies"]) >= 2 and all("rhs" in st for st in d["studies"])
-    del d["studies"][0]["rhs"]
+    with_rhs = [i for i, st in enumerate(d["studies"]) if "rhs" in st]
+    assert len(d["studies"]) >= 2 and with_rhs
+    for i, st in enumerate(d["studies"]):
+        if i != with_rhs[0]:
+            st.pop("rhs", None)                 # one study measured the choice, the others not
     text = "\n".join(P.section(d))
     assert "the faster, measured per scene, of the closed form" in text
     for st in d["studies"]:
