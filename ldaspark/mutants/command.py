@@ -20,7 +20,9 @@ def add_arguments(parser):
                         help=f"only the fixed subset {', '.join(QUICK)}, with their hint files")
     parser.add_argument("--outdir", default="reports", help="directory for mutation.md and mutation.json")
     parser.add_argument("--jobs", type=int, default=2, help="mutants run in parallel (default 2)")
-    parser.add_argument("--only", default=None, help="comma-separated mutant ids (default: the whole catalogue)")
+    parser.add_argument("--only", default=None, help="comma-separated mutant ids (default: the whole catalogue); "
+                        "with --generated also @FILE (one id per line), and with --keep-killed an update of that "
+                        "report: these mutants run again, every other one keeps its earlier record")
     parser.add_argument("--exclude", default="",
                         help="comma-separated test files to leave out (which mutants would the rest miss?)")
     add_scheduler_argument(parser)

@@ -48,7 +48,8 @@ from .mutation import TIMEOUT, all_test_files, require_tests, run_catalogue
 PACKAGE = pathlib.Path(__file__).resolve().parents[1]
 PROJECT = PACKAGE.parent
 EQUIVALENT = PROJECT / "verification" / "mutants_equivalent.json"
-ALWAYS_MAPPED = ("tests/test_verdict_rules.py", "tests/test_generated_mutants_kills.py", "tests/test_verdict_sites.py")
+ALWAYS_MAPPED = ("tests/test_verdict_rules.py", "tests/test_generated_mutants_kills.py", "tests/test_verdict_sites.py",
+                 "tests/test_survivor_kills_a.py", "tests/test_survivor_kills_b.py")
 BOOKKEEPING = ("tests/test_generated_mutants_kills.py::test_the_equivalents_list_names_existing_mutants_with_an_argument",
                "tests/test_generated_mutants_kills.py::test_the_quick_generated_mutants_still_exist_and_name_a_test")
 TOOL = "ldaspark.mutants.mutgen (AST operator mutants)"
@@ -465,14 +466,27 @@ def run_generated(args) -> int:
         todo = [m for m in todo if mutant_kind(m.id) in kinds]
     if getattr(args, "sample", None):
         todo = sample(todo, files, args.sample)
-    if getattr(args, "keep_killed", None):
+    only = _only_ids(args, mutants)
+    previous = _previous_records(args.keep_killed) if getattr(args, "keep_killed", None) else []
+    if previous:
         # adding tests cannot revive a killed mutant while its killing test is still there:
         # reuse those records, run the rest (the survivors and the mutants not yet run)
-        for r in _previous_records(args.keep_killed):
+        for r in previous:
             test = (r.get("first_failing_test") or "").split("::")[0]
             if r["status"] == "killed" and test and (PROJECT / test).is_file() and r["mutant"] in {m.id for m in todo}:
                 recs_fixed[r["mutant"]] = dict(r, previous_run=True)
+        if only is not None:
+            # an update of the earlier report: the listed mutants run again, every other
+            # mutant keeps its earlier record (whatever its status), so the report stays whole
+            # (over this run's verdict of "not covered" too: a narrower --tests must not erase them)
+            for r in previous:
+                mine = recs_fixed.get(r["mutant"])
+                if r["mutant"] not in only and r.get("status") != "equivalent" \
+                        and (mine is None or mine["status"] != "equivalent"):
+                    recs_fixed[r["mutant"]] = dict(r, previous_run=True)
         todo = [m for m in todo if m.id not in recs_fixed]
+    if only is not None:
+        todo = [m for m in todo if m.id in only]
     if getattr(args, "limit", None):
         todo = todo[:args.limit]
     ck = Checkpoint(outdir / "mutation-generated.partial.jsonl",
@@ -501,12 +515,51 @@ def run_generated(args) -> int:
         r.update(line=m.line, original=m.original, replacement=m.replacement)
         allrecs.append(r)
     cmd = "ldaspark mutants --generated " + " ".join(args.generated) + f" --jobs {args.jobs}"
-    write_reports(allrecs, files, cstats, outdir, cmd, time.time() - t0, tests)
+    if only is not None:
+        cmd += f" --only <{len(only)} ids>"
+    if getattr(args, "keep_killed", None):
+        cmd += f" --keep-killed {args.keep_killed}"
+    history = _previous_runs(args.keep_killed) if getattr(args, "keep_killed", None) else {}
+    write_reports(allrecs, files, cstats, outdir, cmd, time.time() - t0, tests, history)
     ck.discard()
     surv = [r for r in allrecs if r["status"] in ("survived", "timeout")]
     print(f"[mutgen] {sum(r['status'] == 'killed' for r in allrecs)} killed, {len(surv)} surviving, "
           f"{sum(r['status'] == 'equivalent' for r in allrecs)} equivalent -> {outdir}/mutation-generated.md")
     return 0 if not surv else 1
+
+
+def _only_ids(args, mutants):
+    """The set of ``--only`` ids (comma-separated, or @FILE with one id per line) for a generated
+    run, None without ``--only``; an id that is not generated is an error (a typo would run
+    nothing and look like success)."""
+    spec = getattr(args, "only", None)
+    if not spec:
+        return None
+    if spec.startswith("@"):
+        ids = [x.strip() for x in pathlib.Path(spec[1:]).read_text().splitlines() if x.strip()]
+    else:
+        ids = [x.strip() for x in spec.split(",") if x.strip()]
+    known = {m.id for m in mutants}
+    unknown = [x for x in ids if x not in known]
+    if unknown:
+        raise MutgenError(f"--only: {len(unknown)} ids are not generated from these modules, e.g. {unknown[0]}")
+    return set(ids)
+
+
+def _previous_runs(path) -> dict:
+    """The run history (``runs``) and ``modules_not_run`` of an earlier report, carried into
+    an update of it (empty for a checkpoint)."""
+    if str(path).endswith(".jsonl"):
+        return {}
+    try:
+        doc = json.loads(pathlib.Path(path).read_text())
+    except (OSError, ValueError):
+        return {}
+    runs = doc.get("runs")
+    if not isinstance(runs, list):     # a report of one run: its own command is its history
+        runs = [{k: doc[k] for k in ("command", "seconds", "test_files_mapped") if k in doc}] if "command" in doc else []
+    nr = doc.get("modules_not_run")
+    return {"runs": runs, "modules_not_run": nr if isinstance(nr, list) else []}
 
 
 def _previous_records(path) -> list:
@@ -597,16 +650,32 @@ def summarize(recs, files):
     return per
 
 
-def write_reports(recs, files, cstats, outdir, command, seconds, tests):
+def write_reports(recs, files, cstats, outdir, command, seconds, tests, history=None):
+    """mutation-generated.json / .md. ``history`` (an update of an earlier report): its ``runs``,
+    to which this run is appended, and its ``modules_not_run``."""
     per = summarize(recs, files)
     for f, (lc, ln, bc, bn) in cstats.items():
         per[f"ldaspark/{f}"]["coverage"] = {"lines": [lc, ln], "branches": [bc, bn]}
+    history = history or {}
+    runs = list(history.get("runs", [])) + [{"command": command, "seconds": round(seconds, 1),
+                                             "test_files_mapped": tests}]
+    by = lambda *st: [r["mutant"] for r in recs if r["status"] in st]  # noqa: E731
     doc = {"tool": TOOL, "version": VERSION, "command": command, "seconds": round(seconds, 1),
-           "modules": per, "test_files_mapped": tests,
+           "runs": runs, "modules_not_run": history.get("modules_not_run", []),
+           "equivalent": by("equivalent"), "surviving": by("survived", "timeout"),
+           "not_covered": by("not-covered"), "modules": per, "test_files_mapped": tests,
            "mutants": recs}
     atomic_write_json(pathlib.Path(outdir) / "mutation-generated.json", doc)
     lines = ["# Generated mutants", "", f"Tool: {TOOL}, version {VERSION}. Reproduce: `{command}`; "
-             f"wall time {seconds / 60:.1f} min.", "",
+             f"wall time {seconds / 60:.1f} min.", ""]
+    if len(runs) > 1:
+        lines += ["Runs that made this report (the records of each mutant are from the last run that ran it):", ""]
+        lines += [f"- `{r.get('command', '?')}` ({r.get('seconds', 0) / 60:.1f} min)"
+                  + (f": {r['what']}" if r.get("what") else "") for r in runs]
+        lines += [""]
+    if doc["modules_not_run"]:
+        lines += [f"Not yet run: {', '.join(doc['modules_not_run'])}.", ""]
+    lines += [
              "| module | generated | run | killed | equivalent | surviving | not covered | invalid | not run | score | lines | branches |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for f, c in per.items():
