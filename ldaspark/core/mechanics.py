@@ -371,7 +371,7 @@ class _Kin:
                 if stored is not None and not (speeds and stored.free_dynamicsymbols(b) & speeds):
                     derived += stored
                 else:
-                    derived += a._w_diff_dcm(b)
+                    derived += _w_from_dcm(a, b)
         if derived is not None:
             if set_w is not None:
                 self._check(f"frame {_name(B)}", B, derived, set_w)
@@ -383,16 +383,42 @@ class _Kin:
                                         f"{_name(self.N)} is not defined") from None
 
 
-#: components larger than this are not trigsimp'd: taken in the body's frame they are compact
-#: already (trigsimp of the bicycle's 100-op components saves nothing and costs seconds each)
+#: components larger than this are not reduced: taken in the body's frame they are compact
+#: already, and expanding a large product costs more than it saves
 _TRIGSIMP_OPS = 40
 
 
+def _trig_normal(e):
+    """``e`` with every sin(x)^k (k >= 2) written as sin(x)^(k mod 2) (1 - cos(x)^2)^(k // 2),
+    expanded: a polynomial in sin(x), cos(x) has one such form modulo sin^2 + cos^2 = 1, so the
+    identities that make angular velocities and velocity components compact cancel exactly.
+    Used instead of ``trigsimp`` (its search over rewrite rules was more than half of building the
+    KanesMethod bicycle: ~5 s of a ~10 s build); the value is the same expression."""
+    e = sympy.expand(e)
+    rep = {}
+    for p in e.atoms(sympy.Pow):
+        b, k = p.args
+        if isinstance(b, sympy.sin) and k.is_Integer and k >= 2:
+            rep[p] = b ** (k % 2) * (1 - sympy.cos(b.args[0]) ** 2) ** (k // 2)
+    return sympy.expand(e.xreplace(rep)) if rep else e
+
+
+def _w_from_dcm(a, b):
+    """The angular velocity of frame ``a`` in its parent ``b`` from the time derivative of their
+    direction cosine matrix (the skew matrix C' C^T), reduced by ``_trig_normal``: what sympy's
+    ``_w_diff_dcm`` computes, without its recursive trigsimp."""
+    t = sympy.physics.vector.dynamicsymbols._t
+    C = b.dcm(a)
+    W = C.diff(t) * C.T
+    w = [_trig_normal(W[7]), _trig_normal(W[2]), _trig_normal(W[3])]
+    return sympy.physics.vector.Vector([(sympy.Matrix(w), b)])
+
+
 def _components(vec, frame):
-    """Components of a vector in ``frame``, the small ones trigonometrically simplified."""
+    """Components of a vector in ``frame``, the small ones reduced by ``_trig_normal``."""
     if vec == 0:
         return sympy.zeros(3, 1)
-    return sympy.Matrix([sympy.trigsimp(c) if sympy.count_ops(c) <= _TRIGSIMP_OPS else c
+    return sympy.Matrix([_trig_normal(c) if sympy.count_ops(c) <= _TRIGSIMP_OPS else c
                          for c in vec.to_matrix(frame)])
 
 
