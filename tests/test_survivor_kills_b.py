@@ -1,0 +1,180 @@
+"""Rules of ldaspark.theory that generated mutants showed untested: each test feeds an input on
+which the rule and its neighbour (the best item for the worst, any for all, another tolerance
+scale) give different numbers or verdicts.
+
+Most inputs are constructed (duck-typed tableaux, fake solutions, monkeypatched inner computations
+that plant one large deviation among small ones), so the file runs in a few seconds; where the
+real computation is cheap it is run at low precision."""
+import math
+from types import SimpleNamespace
+
+import mpmath
+import numpy as np
+import pytest
+
+from ldaspark.core.errors import TableauError
+from ldaspark.theory import audit as au
+from ldaspark.theory import audit_checks as ac
+
+
+
+def _close(x, rel=1e-9):
+    """pytest.approx without its absolute default of 1e-12, which would equate any two tiny numbers."""
+    return pytest.approx(x, rel=rel, abs=0.0)
+
+
+C = au.Check
+P, F, S, I = au.PASS, au.FAIL, au.SKIP, au.INFO
+
+
+# --- audit_checks: omega (21e), entry precision, convergence --------------------------------------
+def _omega_tab(omega, s, source_digits=15, b=None, c=None):
+    ent = {"omega": [[mpmath.mpf(x) for x in row] for row in omega]}
+    if b is not None:
+        ent["b"] = [mpmath.mpf(x) for x in b]
+        ent["c"] = [mpmath.mpf(x) for x in c]
+    return SimpleNamespace(s=s, source_digits=source_digits, mp_entries=lambda dps: ent)
+
+
+def test_omega_rank_21e_tolerance_scales_with_the_largest_singular_value():
+    # singular values 1e6 and 1e-8; tol = 10^(3-15) * 3 = 3e-12: relative to smax (3e-6) omega is
+    # singular, relative to min(smax, 1) (3e-12) it would pass
+    tab = _omega_tab([["1e6", 0, 0], [0, "1e-8", 0]], 3)
+    with pytest.raises(TableauError, match="omega is singular"):
+        ac.check_omega(tab, None, None, 30)
+    # smax < 1: the floor 1 applies, so smin = 1e-13 < tol = 3e-12 is singular as well
+    tab = _omega_tab([["1e-1", 0, 0], [0, "1e-13", 0]], 3)
+    with pytest.raises(TableauError):
+        ac.check_omega(tab, None, None, 30)
+    ok = ac.check_omega(_omega_tab([["1e-1", 0, 0], [0, "1e-9", 0]], 3), None, None, 30)
+    assert ok.status == P and ok.tolerance == _close(3e-12, rel=1e-9)
+
+
+def test_omega_span_tolerance_uses_the_entries_digits_and_the_largest_singular_value():
+    # s = 2: omega (one row) stacked on (b_j c_j^0) = b; singular values ~1e6 and 1e-8
+    b, c = ["1e6", "0"], ["0.5", "0.5"]
+    tab = _omega_tab([["1e6", "1e-8"]], 2, source_digits=16, b=b, c=c)
+    chk = ac.check_omega_default(tab, 30)
+    # tol = 10^(3 - min(30, 16)) * 2 * max(sv0, 1), sv0 = sqrt(2) 1e6 (not 10^(3-30), not * 1)
+    assert chk.tolerance == _close(2e-13 * math.sqrt(2) * 1e6, rel=1e-6)
+    assert chk.status == P          # 1e-8 is below 2e-7: the rows span the default choice
+    # sv0 < 1: the floor 1 applies
+    tab = _omega_tab([["0.5", "1e-15"]], 2, source_digits=16, b=["0.5", "0"], c=c)
+    assert ac.check_omega_default(tab, 30).tolerance == _close(2e-13, rel=1e-9)
+
+
+def test_convergence_error_is_the_worst_component_of_q_and_v():
+    sol = SimpleNamespace(q=[np.array([1.0 + 1e-3, 2.0 + 1e-6])], v=[np.array([0.0, 1e-9])])
+    assert ac._err(sol, [1.0, 2.0], [0.0, 0.0]) == _close(1e-3, rel=1e-9)
+
+
+def test_entry_floor_uses_the_fewest_digits_given():
+    tab = SimpleNamespace(source_digits=10, decimal_digits_min=None, decimal_digits=12)
+    assert ac._entry_floor(tab) == _close(1e3 * 1e-10, rel=1e-12)
+    tab = SimpleNamespace(source_digits=None, decimal_digits_min=13, decimal_digits=11)
+    assert ac._entry_floor(tab) == _close(1e3 * 1e-11, rel=1e-12)
+
+
+def test_observed_order_reports_the_largest_constraint_violation(monkeypatch):
+    import ldaspark.models.scenes as scenes
+    fake_scene = SimpleNamespace(exact=True, exact_solution=lambda t, dps: ([0.0, 0.0], [0.0, 0.0], None))
+    monkeypatch.setattr(scenes, "get_scene", lambda name: fake_scene)
+
+    def run(tab, sc, N, t_end, dps):
+        return SimpleNamespace(q=[np.array([1.0 / N ** 2, 0.0])], v=[np.array([0.0, 0.0])],
+                               constraint=np.array([[1e-3 / N, 1e-12], [1e-9, 0.0]]))
+    monkeypatch.setattr(ac, "_run", run)
+    res = ac.observed_order(None, "skate", [4, 8, 16], 1, None, 1e-14)
+    assert res["max_constraint"] == _close(1e-3 / 4, rel=1e-12)
+    assert res["observed"] == _close(2.0, rel=1e-9)
+
+
+def _conv_tab(source_digits):
+    return SimpleNamespace(source_digits=source_digits, decimal_digits_min=None, decimal_digits=None)
+
+
+def test_convergence_floor_uses_the_fewer_of_dps_and_the_entries_digits(monkeypatch):
+    floors = []
+
+    def obs(tab, scene_name, Ns, t_end, wdps, floor):
+        floors.append(floor)
+        return {"errors": [1e-6, 1e-8], "observed": 6.0, "N": Ns, "reference": "fake", "max_constraint": 0.0}
+    monkeypatch.setattr(ac, "observed_order", obs)
+    checks, facts = ac.convergence_checks(_conv_tab(20), 6, 30, True)
+    # predicted 6 > 4: runs at dps 30; entries known to 20 digits: floor 10^(4 - 20)
+    assert floors == [_close(1e-16, rel=1e-12)] * 2
+    assert [c.status for c in checks if c.name.startswith("convergence:")] == [P, P]
+
+
+def test_convergence_above_prediction_passes_only_when_the_finest_error_nears_the_entry_floor(monkeypatch):
+    # observed 8 > predicted 4 + slack; errors 1e-2 (coarse) and 1e-9 (finest); entries of 10
+    # digits: floor 1e3 * 1e-10 = 1e-7 > the finest error, so only the lower bound is decided
+    monkeypatch.setattr(ac, "observed_order", lambda tab, sc, Ns, t, w, fl: {
+        "errors": [1e-2, 1e-9], "observed": 8.0, "N": Ns, "reference": "fake", "max_constraint": 0.0})
+    checks, _ = ac.convergence_checks(_conv_tab(10), 4, 30, True)
+    conv = [c for c in checks if c.name.startswith("convergence:")]
+    assert [c.status for c in conv] == [P, P]
+    assert "only the lower bound is decided" in conv[0].detail
+
+
+# --- audit: Theorem 1 / symmetry summaries, the verdict text, the disagreement sentence ----------
+def test_symmetry_23_summary_quotes_the_largest_scene_residual(monkeypatch):
+    from ldaspark.theory import symmetry
+    vals = {"particle": 1e-30, "skate": 2e-20}
+
+    def fake(system, tab, t0, q0, v0, h, dps):
+        x = vals[fake.names.pop(0)]
+        return {"symmetry-Ld": x, "symmetry-fd-plus": x / 2, "symmetry-fd-minus": x / 4, "symmetry-Phi": x / 8,
+                "wellposed": "well-posed"}
+    fake.names = ["particle", "skate"]
+    monkeypatch.setattr(symmetry, "check_symmetry", fake)
+    tab = SimpleNamespace(source_digits=None)
+    checks, _ = au._symmetry_checks(tab, 30, ("particle", "skate"))
+    summ = checks[-1]
+    assert summ.name == "symmetry" and summ.status == P
+    assert summ.residual == _close(2e-20, rel=1e-12)
+
+
+def _audit_result(t1_residuals=(1e-20, 3e-12), conv=(P, P), hyp22=True, c22=((0.0, 0.0), (0.0, 0.0)),
+                  t1_status=(P, P), exact=True):
+    checks = [C("22a", P if hyp22 else F, c22[0][0], "b_hat = b", tolerance=c22[0][1]),
+              C("22b", P if hyp22 else F, c22[1][0], "a_hat", tolerance=c22[1][1])]
+    for name, r, st in zip(("skate", "particle"), t1_residuals, t1_status):
+        checks.append(C(f"theorem1:{name}", st, r, "", tolerance=1e-10))
+    checks.append(C("theorem1", F if F in t1_status else P, max(t1_residuals), ""))
+    for name, st in zip(("skate", "particle"), conv):
+        checks.append(C(f"convergence:{name}", st, 0.01, ""))
+    checks += [C("constraint", P, 1e-16, ""), C("energy", I, 1e-6, "")]
+    facts = {"22": hyp22, "23": True, "predicted_order": 2, "order:pair": 2,
+             "convergence:skate": {"observed": 2.0}, "convergence:particle": {"observed": 2.0}}
+    return au.AuditResult("fake", 1, exact, 30, True, checks=checks, facts=facts)
+
+
+def test_verdict_quotes_the_largest_theorem1_residual():
+    text = au.verdict(_audit_result(t1_residuals=(1e-20, 3e-12)))
+    assert "largest residual 3.0e-12" in text
+
+
+def test_verdict_says_the_orders_agree_only_when_both_scenes_pass():
+    assert "agree with it." in au.verdict(_audit_result(conv=(P, P)))
+    assert "do NOT agree with it." in au.verdict(_audit_result(conv=(P, F)))
+    assert "do NOT agree with it." in au.verdict(_audit_result(conv=(F, P)))
+
+
+def test_disagreement_quotes_the_largest_22_residual():
+    # (22) violated (22a by 5e-11, 22b by 1e-13) but Theorem 1 passes (tolerance 1e-10): the
+    # violation is below the numerical resolution, and the sentence quotes the larger residual
+    res = _audit_result(hyp22=False, c22=((5e-11, 0.0), (1e-13, 0.0)), t1_status=(P, P))
+    d = au.disagreement(res)
+    assert "|residual| 5.0e-11" in d
+    # a violation above the tolerance in one of the two is called unexpected
+    res = _audit_result(hyp22=False, c22=((1e-13, 0.0), (1e-3, 0.0)), t1_status=(P, P))
+    assert "larger than the numerical tolerance" in au.disagreement(res)
+
+
+def test_disagreement_quotes_the_largest_22_uncertainty():
+    # (22) holds to the entries' precision: residuals 1e-12, 0 and uncertainties 1e-9, 1e-11
+    res = _audit_result(hyp22=True, c22=((1e-12, 1e-9), (0.0, 1e-11)), t1_status=(F, P),
+                        t1_residuals=(1e-5, 1e-20), exact=False)
+    d = au.disagreement(res)
+    assert "holds only to 1.0e-12 (uncertainty 1.0e-09)" in d
