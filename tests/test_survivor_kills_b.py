@@ -178,3 +178,59 @@ def test_disagreement_quotes_the_largest_22_uncertainty():
                         t1_residuals=(1e-5, 1e-20), exact=False)
     d = au.disagreement(res)
     assert "holds only to 1.0e-12 (uncertainty 1.0e-09)" in d
+
+
+# --- Definition 1 (15a-b) along a trajectory: the reported residual is the worst k ----------------
+def _v(x, y=0.0):
+    return np.array([x, y], dtype=object)
+
+
+#: per IVP step j: D2 L_d, D4 L_d, f_d^-, f_d^+, c(u = v1), c(secant), c(left end), |mu|
+_DEF1_STEPS = [
+    dict(D2=_v(0.0), D4=_v(1e-3), fm=_v(5.0), fp=_v(-1e-3), c=1e-3, c_sec=1e-12, c_left=1e-5, mu=4.0),
+    dict(D2=_v(0.0), D4=_v(1e-9), fm=_v(0.0), fp=_v(1e-6), c=1e-12, c_sec=1e-4, c_left=0.0, mu=1.0),
+    dict(D2=_v(0.0), D4=_v(0.0), fm=_v(0.0), fp=_v(2.0), c=1e-14, c_sec=1e-13, c_left=1e-14, mu=2.0),
+]
+
+
+def _fake_definition1(monkeypatch):
+    from ldaspark.theory import definition1 as d1
+    state = {"step": -1, "calls": []}
+
+    def base_point(system, tableau, t, q, v, h, dps):
+        return t + h, q + v * h, v
+
+    def discrete_lagrangian(system, tableau, t, q, t1, q1, dps, x_guess):
+        state["step"] += 1
+        st = _DEF1_STEPS[state["step"]]
+        return SimpleNamespace(wellposed="well-posed", f_d_minus=st["fm"], f_d_plus=st["fp"], p0=_v(1.0), p1=_v(1.0),
+                               v1=_v(0.0), v0=_v(0.0), mu_norm=st["mu"], step=st)
+
+    def constraint(bk, t, q, v):
+        st = _DEF1_STEPS[state["step"]]
+        i = len(state["calls"]) % 3
+        state["calls"].append(i)
+        return np.array([st[("c", "c_sec", "c_left")[i]]], dtype=object)
+
+    monkeypatch.setattr(d1, "base_point", base_point)
+    monkeypatch.setattr(d1, "discrete_lagrangian", discrete_lagrangian)
+    monkeypatch.setattr(d1, "_fd_gradient", lambda bvp, r, t, q, t1, q1, delta: (r.step["D2"], r.step["D4"]))
+    monkeypatch.setattr(d1, "DiscreteBVP", lambda system, tableau, dps: SimpleNamespace(unpack=lambda x: (None, None, x)))
+    system = SimpleNamespace(constraint=constraint)
+    return d1.definition1_residuals(system, None, 0, [0.0, 0.0], [1.0, 0.0], "0.1", n_steps=3, dps=16)
+
+
+def test_definition1_15a_15b_report_the_worst_interior_point(monkeypatch):
+    out = _fake_definition1(monkeypatch)
+    # (15a) at k = 1: D4 + D2 = 1e-3 cancelled by f_d^+ + f_d^- = -1e-3; at k = 2: 1e-9 + 1e-6
+    assert out["15a_per_k"] == [0.0, _close(1e-9 + 1e-6)]
+    assert out["15a"] == _close(1e-9 + 1e-6)
+    assert out["15a_without_forces"] == _close(1e-3)
+    # (15b): the worst c over the steps, with u = v1 and with the secant velocity
+    assert out["15b"] == _close(1e-3)
+    assert out["15b_secant"] == _close(1e-4)
+    assert out["15b_left_end"] == _close(1e-5)
+    # the force scale is the largest |f_d^-| or |f_d^+| of any step; mu the largest multiplier
+    assert out["f_scale"] == _close(5.0)
+    assert out["mu"] == 4.0
+    assert out["wellposed"] == "well-posed"
