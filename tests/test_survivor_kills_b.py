@@ -234,3 +234,24 @@ def test_definition1_15a_15b_report_the_worst_interior_point(monkeypatch):
     assert out["f_scale"] == _close(5.0)
     assert out["mu"] == 4.0
     assert out["wellposed"] == "well-posed"
+
+
+# --- section 2.2, the energy balance (8) along the exact flow: worst node, floor 1 of the scale ----
+def test_energy_balance_8_reports_the_worst_collocation_node(monkeypatch):
+    from ldaspark.theory import energy_balance as eb
+    real, calls = eb.rhs_terms, []
+
+    def planted(f, t, q, v, psi):
+        # one node's -L_t off by 1e-3, another node's -psi^T K v off by 1e-4; the rest exact
+        ps, lt = real(f, t, q, v, psi)
+        i = len(calls)
+        calls.append(i)
+        return ps + (1e-4 if i == 1 else 0), lt + (1e-3 if i == 0 else 0)
+    monkeypatch.setattr(eb, "rhs_terms", planted)
+    out = eb.exact_balance("particle", dps=20, stages=3)
+    assert len(calls) == 3
+    # E is conserved on the particle: |dE/dt| << 1, so the scale is its floor 1
+    assert out["max_dEdt"] == 1.0
+    assert out["pointwise"] == _close(1e-3, rel=1e-3)       # node 0 (node 1: 1e-4, node 2: ~1e-21)
+    assert out["without_L_t"] == _close(1e-4, rel=1e-3)     # node 1 (the others ~1e-21)
+    assert out["without_psi_term"] == _close(1e-3, rel=1e-2)   # node 0 (the others |psi^T K v| < 1e-5)
