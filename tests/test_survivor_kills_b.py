@@ -255,3 +255,22 @@ def test_energy_balance_8_reports_the_worst_collocation_node(monkeypatch):
     assert out["pointwise"] == _close(1e-3, rel=1e-3)       # node 0 (node 1: 1e-4, node 2: ~1e-21)
     assert out["without_L_t"] == _close(1e-4, rel=1e-3)     # node 1 (the others ~1e-21)
     assert out["without_psi_term"] == _close(1e-3, rel=1e-2)   # node 0 (the others |psi^T K v| < 1e-5)
+
+
+# --- orders: the scales of the round-off floors are the largest reference components -------------
+def test_order_measurement_scales_are_the_largest_reference_components(monkeypatch):
+    from ldaspark.theory import orders
+
+    def reference(t):
+        # q, v at t_end; psi at the stage times of the last step: one large, one tiny component
+        return [2.0, -5.0, 1e-3], [0.5, -1e-4], [3.0 + float(t), 1e-3]
+    sol = SimpleNamespace(q=[[2.0, -5.0, 1e-3]], v=[[0.5, -1e-4]], psi=[[[3.0, 1e-3], [3.0, 1e-3]]], stats={})
+    monkeypatch.setattr(orders, "run_method", lambda *a, **k: sol)
+    monkeypatch.setattr(orders, "stage_nodes", lambda name, dps: [0.25, 0.75])
+    scene = SimpleNamespace(initial=lambda dps: (0.0, [0.0] * 3, [0.0] * 3), system=None)
+    out = orders.measure_errors("fake", scene, reference, 1.0, [2, 4])
+    assert out["scale"]["q"] == 5.0
+    assert out["scale"]["v"] == 0.5
+    # the largest |psi| over the stage times of every run: 3 + t at the last node of the N = 4 run,
+    # t = 3/4 + 0.75/4 (N = 2: 3 + 0.875; the tiny component: 1e-3)
+    assert out["scale"]["psi"] == _close(3.0 + 0.75 + 0.1875)
