@@ -274,3 +274,66 @@ def test_order_measurement_scales_are_the_largest_reference_components(monkeypat
     # the largest |psi| over the stage times of every run: 3 + t at the last node of the N = 4 run,
     # t = 3/4 + 0.75/4 (N = 2: 3 + 0.875; the tiny component: 1e-3)
     assert out["scale"]["psi"] == _close(3.0 + 0.75 + 0.1875)
+
+
+# --- section 4.1, the symmetry identities under (23): the scales of the relative residuals --------
+def _mpv(*xs):
+    return np.array([mpmath.mpf(x) for x in xs], dtype=object)
+
+
+def _fake_symmetry(monkeypatch, rev_fp, rev_fm):
+    """check_symmetry on constructed forward / reversed BVP results (n = 2): the projector of the
+    forward BVP keeps direction 1 (k depends on q_2 only), that of the reversed one direction 2;
+    the round trip Phi_-h(Phi_h(y)) misses q0 by 1e-6 and v0 by 1e-9."""
+    from ldaspark.models import arguments
+    from ldaspark.theory import symmetry
+    dps = 20
+
+    def res(fm, fp, M):
+        return SimpleNamespace(L_d=mpmath.mpf(2), f_d_minus=_mpv(*fm), f_d_plus=_mpv(*fp), p0=_mpv(0, 0),
+                               p1=_mpv(0, 0), x=None, wellposed="well-posed", rank_deficiency=0, dps=dps,
+                               extra={"gauge": None, "dk0_dq": [np.array([[mpmath.mpf(x) for x in M]], dtype=object)] * 2})
+    fwd = res((1, 0), (0, 2), (0, 1))
+    rev = res(rev_fm, rev_fp, (1, 0))
+    bvps = [fwd, rev]
+    q0, v0 = _mpv("0.5", 0), _mpv("0.25", 0)
+    monkeypatch.setattr(arguments, "theory_args", lambda *a: a[:5])
+    monkeypatch.setattr(symmetry, "base_point", lambda system, tab, t0, q0, v0, h, dps: (t0 + mpmath.mpf(h), q0, None))
+    monkeypatch.setattr(symmetry, "discrete_lagrangian", lambda *a, **k: bvps.pop(0))
+    monkeypatch.setattr(symmetry, "DiscreteBVP", lambda *a: SimpleNamespace(
+        unpack=lambda x: (np.zeros(1), np.zeros(1), None, None), pack=lambda *a: None))
+    r1 = SimpleNamespace(t1=1, q1=q0, v1=v0)
+    r2 = SimpleNamespace(q1=q0 + _mpv("1e-6", 0), v1=v0 + _mpv("1e-9", 0))
+    monkeypatch.setattr(symmetry, "ivp_step", lambda meth, t0, q0, v0, h: r1)
+    monkeypatch.setattr(symmetry, "SparkMethod", lambda *a, **k: SimpleNamespace(step=lambda *a: r2))
+    return symmetry.check_symmetry(None, None, 0, q0, v0, "0.1", dps=dps)
+
+
+def test_symmetry_fd_plus_is_relative_to_the_larger_of_its_two_covectors(monkeypatch):
+    # P0 f_d^+(rev) = 100 dominates P0 f_d^-(fwd) = 1: the scale is 100, |P0 (f^- + f^+(rev))| = 101
+    r = _fake_symmetry(monkeypatch, rev_fp=(100, 0), rev_fm=(0, 0))
+    assert r["fd_plus_identity_norms"] == (1.0, 100.0)
+    assert r["symmetry-fd-plus"] == _close(101 / 100)
+    # the unrestricted comparison is relative to max(|f_d^-|, |f_d^+|, |p0|) of the forward BVP = 2
+    assert r["symmetry-fd-unrestricted"] == (_close(101 / 2), _close(2 / 2))
+    # Phi_-h(Phi_h(y)) - y: the worse of q (1e-6) and v (1e-9), relative to max(|y|, 1) = 1
+    assert r["symmetry-Phi"] == _close(1e-6)
+    assert r["tangent_dim"] == (1, 1)
+
+
+def test_symmetry_fd_minus_is_relative_to_the_larger_of_its_two_covectors(monkeypatch):
+    # P1 f_d^-(rev) = 200 dominates P1 f_d^+(fwd) = 2: the scale is 200, |P1 (f^+ + f^-(rev))| = 202
+    r = _fake_symmetry(monkeypatch, rev_fp=(0, 0), rev_fm=(0, 200))
+    assert r["fd_minus_identity_norms"] == (2.0, 200.0)
+    assert r["symmetry-fd-minus"] == _close(202 / 200)
+    assert r["symmetry-fd-plus"] == _close(1 / 200)
+
+
+def test_symmetry_tangent_projector_drops_singular_values_below_1e8_relative():
+    from ldaspark.theory import symmetry
+    # dk0/dq with singular values 1 and 1e-12: numerically rank 1, so one tangent direction
+    M = np.array([[mpmath.mpf(1), 0], [0, mpmath.mpf("1e-12")]], dtype=object)
+    res = SimpleNamespace(extra={"gauge": None, "dk0_dq": [M, M]}, dps=20)
+    P, dim = symmetry._tangent_projector(res, 0)
+    assert dim == 1
+    assert float(abs(P[1, 1] - 1)) < 1e-15 and float(abs(P[0, 0])) < 1e-15
