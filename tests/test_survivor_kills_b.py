@@ -337,3 +337,24 @@ def test_symmetry_tangent_projector_drops_singular_values_below_1e8_relative():
     P, dim = symmetry._tangent_projector(res, 0)
     assert dim == 1
     assert float(abs(P[1, 1] - 1)) < 1e-15 and float(abs(P[0, 0])) < 1e-15
+
+
+# --- flow_jacobian: the default start time, and no non-finite entry returned ---------------------
+def test_flow_jacobian_of_a_bare_system_starts_at_t0_zero_by_default():
+    from ldaspark.models.scenes import get_scene
+    from ldaspark.theory.flow_jacobian import flow_jacobian
+    sc = get_scene("skate")
+    _, q0, v0 = sc.initial(None)
+    a = flow_jacobian(sc.system, "gauss-1", q0, v0, 0.1)            # a bare system, no t0: t0 = 0
+    b = flow_jacobian(sc.system, "gauss-1", q0, v0, 0.1, t0=0)
+    assert a.full.shape == (2 * sc.system.n, 2 * sc.system.n)
+    assert np.array_equal(np.asarray(a.full, dtype=float), np.asarray(b.full, dtype=float))
+
+
+@pytest.mark.parametrize("bad", [float("nan"), float("inf"), mpmath.mpf("nan"), mpmath.mpc(1, 1)])
+def test_flow_jacobian_refuses_one_non_finite_entry_among_finite_ones(bad):
+    from ldaspark.core.errors import NonFiniteError
+    from ldaspark.theory.flow_jacobian import _finite
+    _finite(np.array([[1.0, 2.0], [3.0, 4.0]]), 0)                          # finite: accepted
+    with pytest.raises(NonFiniteError):
+        _finite(np.array([[1.0, 2.0], [3.0, bad]], dtype=object), 0)
