@@ -358,3 +358,73 @@ def test_flow_jacobian_refuses_one_non_finite_entry_among_finite_ones(bad):
     _finite(np.array([[1.0, 2.0], [3.0, 4.0]]), 0)                          # finite: accepted
     with pytest.raises(NonFiniteError):
         _finite(np.array([[1.0, 2.0], [3.0, bad]], dtype=object), 0)
+
+
+# --- section 5: (16), (18) relative to the largest covector; k a first integral at every node -----
+def test_exact_identities_16_18_scale_and_the_first_integral_take_the_largest(monkeypatch):
+    from ldaspark.theory import section5 as s5
+    real, rec = s5.fd_gradient, {}
+
+    def recording(fl, r, *a, **k):
+        g0, g1 = real(fl, r, *a, **k)
+        rec.update(r=r, g0=g0, g1=g1)
+        # plant a velocity error at the first collocation node only: k(T_1, Q_1, V_1) - k0 = O(1e-3)
+        # there, O(1e-30) at the other nodes
+        r.V[0] = r.V[0] + mpmath.mpf("1e-3")
+        return g0, g1
+    monkeypatch.setattr(s5, "fd_gradient", recording)
+    out = s5.exact_identities.__wrapped__("particle", dps=20, stages=3)      # not memoized: planted
+    r, g0, g1 = rec["r"], rec["g0"], rec["g1"]
+    norms = [s5._nrm(x) for x in (r.p0, r.p1, g0, g1)]
+    assert max(norms) > 1.005 * min(norms)          # the four sizes differ (by ~1% on the particle)
+    with mpmath.workdps(40):
+        assert out["16-without-force"] == _close(s5._nrm(g0 + r.p0) / max(norms))
+        assert out["18-without-force"] == _close(s5._nrm(g1 - r.p1) / max(norms))
+    assert 1e-4 < out["first_integral"] < 1e-2
+
+
+# --- section 7.3: the midpoint statement needs both V_1 and Q_1 at the midpoint -------------------
+def test_section7_3_midpoint_stage_statement_is_the_worse_of_V1_and_Q1(monkeypatch):
+    import dataclasses
+
+    from ldaspark.core.families import get_method
+    from ldaspark.theory import section7 as s7
+    real = s7.spark_step
+
+    def planted(*a, **k):
+        r = real(*a, **k)            # Gauss-1 is the midpoint rule: V_1, Q_1 at the midpoint to ~1e-40
+        return dataclasses.replace(r, Q=np.array([r.Q[0] + mpmath.mpf("1e-3")] + list(r.Q[1:]), dtype=object))
+    monkeypatch.setattr(s7, "spark_step", planted)
+    out = s7.reduction("midpoint", get_method("gauss-1", exact=True))
+    assert out["stage"] == _close(1e-3, rel=1e-6)
+    assert out["diff"] < 1e-30
+
+
+# --- variational error analysis: orders per quantity, "zero at every h" only if every error is -----
+def test_variational_errors_order_unless_zero_at_every_step(monkeypatch):
+    from ldaspark.theory import variational as va
+    hs = ("0.2", "0.1", "0.05")
+    z = np.array([mpmath.mpf(0), mpmath.mpf(0)], dtype=object)
+    ex = SimpleNamespace(L_d=mpmath.mpf(0), f_d_minus=z, f_d_plus=z, p0=z, p1=z, v0=z, v1=z)
+    # |L_d - L_d^E| = 1e-3, 1e-6 and exactly 0 at the smallest h; |f_d^- - f^E-| ~ h^2 in one component
+    Ld = [mpmath.mpf("1e-3"), mpmath.mpf("1e-6"), mpmath.mpf(0)]
+    fm = [np.array([mpmath.mpf(h) ** 2, mpmath.mpf(0)], dtype=object) for h in hs]
+    calls = []
+
+    def dl(S, tab, t0, q0, t1, q1, dps, x_guess):
+        i = len(calls)
+        calls.append(i)
+        return SimpleNamespace(L_d=Ld[i], f_d_minus=fm[i], f_d_plus=z, p0=z, p1=z)
+    monkeypatch.setattr(va, "get_scene", lambda name: SimpleNamespace(system=None))
+    monkeypatch.setattr(va, "initial_point", lambda name, point, dps: (0, [0, 0], [0, 0]))
+    monkeypatch.setattr(va, "_exact", lambda name, h, dps, stages, point: (z, ex))
+    monkeypatch.setattr(va, "base_point", lambda *a: (None, None, None))
+    monkeypatch.setattr(va, "discrete_lagrangian", dl)
+    monkeypatch.setattr(va, "_tangent", lambda S, bk, t, q, v: np.eye(2, dtype=object))
+    tab = SimpleNamespace(name="fake", family="gauss", s=1, claimed_order=2)
+    out = va.variational_errors(tab, "fake", hs=hs, dps=20)
+    assert out["errors"]["f_minus"] == [_close(0.04), _close(0.01), _close(0.0025)]
+    assert out["orders"]["f_minus"] == _close(2.0, rel=1e-6)
+    # L_d is zero at h = 0.05 only: an order from the two larger h, not "zero at every h"
+    assert out["orders"]["L_d"] == _close(math.log2(1e3), rel=1e-6)
+    assert out["orders"]["f_plus"] == math.inf          # zero at every h
