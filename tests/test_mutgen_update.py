@@ -31,7 +31,7 @@ def test_an_update_appends_its_run_and_lists_the_verdicts(tmp_path):
     prev.write_text(json.dumps({"runs": [{"command": "first", "seconds": 60.0}], "modules_not_run": ["m"],
                                 "mutants": []}))
     hist = mutgen._previous_runs(prev)
-    assert hist == {"runs": [{"command": "first", "seconds": 60.0}], "modules_not_run": ["m"]}
+    assert hist == {"runs": [{"command": "first", "seconds": 60.0}], "modules_not_run": ["m"], "coverage": {}}
     m0, m1, m2 = _mutants()[:3]
     recs = [mutgen._rec(m0, "killed", "t::x", 1.0), mutgen._rec(m1, "survived", None, 1.0),
             mutgen._rec(m2, "equivalent", None, 0.0, "because")]

@@ -520,6 +520,10 @@ def run_generated(args) -> int:
     if getattr(args, "keep_killed", None):
         cmd += f" --keep-killed {args.keep_killed}"
     history = _previous_runs(args.keep_killed) if getattr(args, "keep_killed", None) else {}
+    if only is not None and getattr(args, "tests", None):
+        # an update with a narrower --tests: its coverage is of those files only; the report keeps
+        # the coverage measured by the earlier runs' mapped tests
+        cstats = dict(cstats, **{f: c for f, c in history.get("coverage", {}).items() if f in cstats})
     write_reports(allrecs, files, cstats, outdir, cmd, time.time() - t0, tests, history)
     ck.discard()
     surv = [r for r in allrecs if r["status"] in ("survived", "timeout")]
@@ -559,7 +563,13 @@ def _previous_runs(path) -> dict:
     if not isinstance(runs, list):     # a report of one run: its own command is its history
         runs = [{k: doc[k] for k in ("command", "seconds", "test_files_mapped") if k in doc}] if "command" in doc else []
     nr = doc.get("modules_not_run")
-    return {"runs": runs, "modules_not_run": nr if isinstance(nr, list) else []}
+    cov = {}
+    for f, c in (doc.get("modules") or {}).items():
+        lines, branches = (c.get("coverage") or {}).get("lines"), (c.get("coverage") or {}).get("branches")
+        if isinstance(f, str) and f.startswith("ldaspark/") and isinstance(lines, list) and isinstance(branches, list) \
+                and len(lines) == len(branches) == 2:
+            cov[f[len("ldaspark/"):]] = (*lines, *branches)
+    return {"runs": runs, "modules_not_run": nr if isinstance(nr, list) else [], "coverage": cov}
 
 
 def _previous_records(path) -> list:
