@@ -41,7 +41,7 @@ import sys
 import numpy as np
 
 from ..core.errors import InputError, LdasparkError, NewtonError, NonFiniteError
-from . import runner
+from . import native, runner
 from .cache import CacheDirectoryError, load_source, source_key
 from .codegen import NotCompilableError, general_source, mechanical_source, nonideal_term
 # the kernel runner's names stay importable from here (``fast`` is the compiled path's entry point)
@@ -114,8 +114,13 @@ def _setup_checks(system, t0, q0, v0, cs=None):
     bk = Backend(None)
     from ..core.validate import finite_initial_point
     finite_initial_point(system, bk, t, q, v)     # before a kernel divides by zero at it
+    S = None
     if cs is not None and cs.form == "mechanical":
-        S, k = _saddle_and_k(cs, t, np.ascontiguousarray(q, float), np.ascontiguousarray(v, float))
+        try:
+            S, k = _saddle_and_k(cs, t, np.ascontiguousarray(q, float), np.ascontiguousarray(v, float))
+        except native.NotNativeError:       # no Python form of the model: the lambdified checks
+            S = None
+    if S is not None:
         system.check_saddle(bk, t, q, v, S=S)
         system.check_consistent(bk, t, q, v, k=k)
     else:
