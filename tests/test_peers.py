@@ -72,8 +72,10 @@ def skate():
 _SLOW_PEERS = ("cyrk-nbsolve-DOP853", "ida")
 
 
-@pytest.mark.parametrize("peer", [pytest.param(p, marks=pytest.mark.exhaustive) if p in _SLOW_PEERS else p
-                                  for p in peers.PEERS])
+# the CyRK peers are checked the same way, in both right-hand-side forms, by
+# tests/test_peers_compiled_loop.py::test_cyrk_peer_follows_the_skate_closed_form: here --exhaustive
+@pytest.mark.parametrize("peer", [pytest.param(p, marks=pytest.mark.exhaustive)
+                                  if p in _SLOW_PEERS or p in peers.CYRK_PEERS else p for p in peers.PEERS])
 def test_every_peer_follows_the_skate_closed_form(skate, peer):
     if peer in peers.SUNDIALS_PEERS and peers.sundials() is None:
         pytest.skip("scikit-sundae is not installed (the bench extra)")
