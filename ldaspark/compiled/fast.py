@@ -35,6 +35,7 @@ to the generic path`` to stderr and runs ``ldaspark.core.spark.integrate`` /
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 
@@ -56,22 +57,24 @@ __all__ = ["fast_integrate", "FastSolution", "compile_system", "CompiledSystem",
            "NonFiniteError", "can_compile", "load_source"]
 
 
-def _diagnose_newton_failure(exc, system, cs, method, t0, q0, v0, h, compensated, tol, max_iter, kernel,
-                             predictor):
+def _diagnose_newton_failure(exc, system, cs, method, start, h, opts):
     """The kernels report only the failing step; for SPARK methods, recompute the state there
-    (the same compiled arithmetic, k steps) and let the generic step report residual and
-    iterations. Returns the NewtonError to raise."""
+    (the same compiled arithmetic, k steps from ``start`` = (t0, q0, v0) with the kernel options
+    ``opts``) and let the generic step report residual and iterations. Returns the NewtonError
+    to raise."""
     from ..core.spark import SparkMethod
     from ..core.tableau import SparkTableau
     from ..core.families import get_method
     k = exc.step
+    t0, q0, v0 = start
     try:
         tab = method if isinstance(method, SparkTableau) else get_method(method)
     except LdasparkError:
         return exc                      # a comparator kernel: no generic step to ask
     try:
         if k:
-            pre = run_compiled(cs, method, t0, q0, v0, h, k, k, compensated, tol, max_iter, kernel, predictor)
+            pre = runner._run_checked(cs, method, start, (h, k, k), dataclasses.replace(opts, reuse_matrix="auto",
+                                                                                          linear_solver="auto"))
             qk, vk = pre.q[-1], pre.v[-1]
         else:
             qk, vk = np.asarray(q0, float), np.asarray(v0, float)
@@ -79,7 +82,7 @@ def _diagnose_newton_failure(exc, system, cs, method, t0, q0, v0, h, compensated
         return exc
     tk = float(t0) + k * float(h)
     try:
-        SparkMethod(system, tab, max_iter=max_iter).step(tk, qk, vk, float(h), step_index=k)
+        SparkMethod(system, tab, max_iter=opts.max_iter).step(tk, qk, vk, float(h), step_index=k)
     except NewtonError as gen:
         return NewtonError(f"{exc} (generic step at the same state: residual {gen.residual:.3e} after "
                            f"{gen.iterations} iterations)", step=k, time=tk, residual=gen.residual,
@@ -285,18 +288,16 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
     except Exception as exc:  # numba typing/lowering errors of generated code
         _notice(f"{system.name}: compilation failed ({_first_line(exc)})")
         return generic_integrate(system, method, t0, q0, v0, h, n_steps, every, tol)
+    kopts = runner.KernelOptions(compensated, tol, max_iter, kernel, predictor, linear_solver=linear_solver)
     try:
-        return runner._run_checked(cs, method, (t0, q0, v0), (h, n_steps, every),
-                                   runner.KernelOptions(compensated, tol, max_iter, kernel, predictor,
-                                                        linear_solver=linear_solver))
+        return runner._run_checked(cs, method, (t0, q0, v0), (h, n_steps, every), kopts)
     except NotCompilableError as exc:
         _notice(str(exc))
         return generic_integrate(system, method, t0, q0, v0, h, n_steps, every, tol)
     except NewtonError as exc:
         kind, what, name = _resolve(method)
         if name in LF2_VARIANTS:        # a comparator: no generic SPARK step to take over
-            raise _diagnose_newton_failure(exc, system, cs, method, t0, q0, v0, h, compensated, tol, max_iter,
-                                           kernel, predictor) from None
+            raise _diagnose_newton_failure(exc, system, cs, method, (t0, q0, v0), h, kopts) from None
         # the last link of the fallback chain: the generic full-Newton step (``rescue``)
         from .rescue import run_with_rescue
         return run_with_rescue(system, what, cs, method, t0, q0, v0, h, int(n_steps), int(every), compensated,
