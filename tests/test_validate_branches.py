@@ -29,6 +29,13 @@ def _refused(match, f, *a, **kw):
 
 # --- check_newton_options ---------------------------------------------------------------------
 
+@pytest.mark.parametrize("tol", [np.True_, True])
+def test_newton_tol_of_a_bool_type_is_refused(tol):
+    # np.True_ was read as tol = 1.0 (only Python's bool was refused); real_number refuses both
+    _refused("Newton tolerance must be a finite positive number", V.check_newton_options, tol, 10)
+    _refused("max_iter must be an integer", V.check_newton_options, 1e-10, tol)
+
+
 @pytest.mark.parametrize("tol", [object(), [1e-10], 10 ** 400])
 def test_newton_tol_that_float_cannot_convert_is_refused(tol):
     # TypeError (object, list) and OverflowError (int beyond float64) inside the check: not ok

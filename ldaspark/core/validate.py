@@ -19,12 +19,12 @@ def check_newton_options(tol, max_iter, what: str = "Newton tolerance") -> None:
     """tol: None or a finite positive real number; max_iter: an integer in [1, MAX_NEWTON_ITER]."""
     if tol is not None:
         try:
-            ok = not isinstance(tol, (bool, str, bytes)) and math.isfinite(float(tol)) and float(tol) > 0
+            ok = not (_is_bool(tol) or isinstance(tol, (str, bytes))) and math.isfinite(float(tol)) and float(tol) > 0
         except (TypeError, ValueError, OverflowError):
             ok = False
         if not ok:
             raise InputError(f"{what} must be a finite positive number, got {tol!r}")
-    if isinstance(max_iter, bool) or not isinstance(max_iter, numbers.Integral) or not 1 <= max_iter <= MAX_NEWTON_ITER:
+    if _is_bool(max_iter) or not isinstance(max_iter, numbers.Integral) or not 1 <= max_iter <= MAX_NEWTON_ITER:
         raise InputError(f"max_iter must be an integer between 1 and {MAX_NEWTON_ITER}, got {max_iter!r}")
 
 
