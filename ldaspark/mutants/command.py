@@ -32,8 +32,12 @@ def add_arguments(parser):
                         help="generated operator mutants of these modules (ldaspark/core/validate.py or "
                              "ldaspark.core.validate) instead of the catalogue; writes mutation-generated.md/json")
     parser.add_argument("--tests", default=None,
-                        help="with --generated: comma-separated test files to map by coverage (default: those "
-                             "importing the modules, plus the verdict-rule tests)")
+                        help="with --generated: comma-separated test files to map by coverage, or 'suite' for the "
+                             "whole default suite (default: those importing the modules, plus the verdict-rule "
+                             "tests)")
+    parser.add_argument("--coverage-only", action="store_true",
+                        help="with --generated: measure the branch coverage of the modules by the mapped tests and "
+                             "write coverage-checking.md/json, without running mutants")
     parser.add_argument("--limit", type=int, default=None, help="with --generated: run only the first N mutants")
     parser.add_argument("--keep-killed", default=None, metavar="JSON",
                         help="with --generated: take the mutants killed in this earlier mutation-generated.json "
@@ -67,6 +71,8 @@ def run(args) -> int:
     only_generated = [f"--{k.replace('_', '-')}" for k in ("tests", "limit", "keep_killed", "sample", "mutant_timeout",
                                                                  "kinds")
                       if getattr(args, k, None) is not None]
+    if getattr(args, "coverage_only", False):
+        only_generated.append("--coverage-only")
     if only_generated and not getattr(args, "generated", None):
         raise CatalogueError(f"{', '.join(only_generated)}: only with --generated MODULE...")
     if getattr(args, "generated", None):

@@ -48,6 +48,10 @@ from .mutation import TIMEOUT, all_test_files, require_tests, run_catalogue
 PACKAGE = pathlib.Path(__file__).resolve().parents[1]
 PROJECT = PACKAGE.parent
 EQUIVALENT = PROJECT / "verification" / "mutants_equivalent.json"
+HELPERS_DIR = "verification"     # its non-test modules (strategies, fixtures) are checking code too
+#: ``--tests suite``: every test file the default ``pytest`` runs (the coverage the report gives is then
+#: the default suite's)
+SUITE = "suite"
 ALWAYS_MAPPED = ("tests/test_verdict_rules.py", "tests/test_generated_mutants_kills.py", "tests/test_verdict_sites.py",
                  "tests/test_survivor_kills_a.py", "tests/test_survivor_kills_b.py")
 BOOKKEEPING = ("tests/test_generated_mutants_kills.py::test_the_equivalents_list_names_existing_mutants_with_an_argument",
@@ -63,7 +67,7 @@ class MutgenError(LdasparkError):
 @dataclass(frozen=True)
 class GenMutant:
     id: str
-    file: str                    # relative to ldaspark/
+    file: str                    # relative to ldaspark/, or verification/NAME.py (a helper)
     line: int
     start: int                   # character offsets into the file's text
     end: int
@@ -74,7 +78,7 @@ class GenMutant:
     hint: tuple = field(default=())
 
     def apply(self, root) -> pathlib.Path:
-        path = pathlib.Path(root) / "ldaspark" / self.file
+        path = pathlib.Path(root) / label(self.file)
         text = path.read_text()
         if text[self.start:self.end] != self.original:
             raise MutgenError(f"mutant {self.id}: source moved (expected {self.original!r} at line {self.line})")
@@ -147,18 +151,19 @@ def _gap_token(text, a, b, token):
 
 
 def generate(relfile: str, text: str | None = None, check: bool = True) -> list[GenMutant]:
-    """The operator mutants of ``ldaspark/relfile`` (module docstring), in source order.
+    """The operator mutants of ``ldaspark/relfile`` (or a verification helper
+    ``verification/NAME.py``; module docstring), in source order.
     ``check=False``: without compiling each (~20 ms a mutant); ids do not depend on it (the
     running number counts every splice, compiling or not)."""
-    path = PACKAGE / relfile
+    path = source_path(relfile)
     if text is None:
         if not path.is_file():
-            raise MutgenError(f"no module ldaspark/{relfile}")
+            raise MutgenError(f"no module {label(relfile)}")
         text = path.read_text()
     try:
         tree = ast.parse(text)
     except SyntaxError as exc:
-        raise MutgenError(f"ldaspark/{relfile} does not parse: {exc}") from None
+        raise MutgenError(f"{label(relfile)} does not parse: {exc}") from None
     off = _Offsets(text)
     docs = _docstring_nodes(tree)
     out: list[GenMutant] = []
@@ -275,9 +280,24 @@ def generate(relfile: str, text: str | None = None, check: bool = True) -> list[
     return good
 
 
+def label(rel: str) -> str:
+    """The project-relative path of a module to mutate: ``ldaspark/REL`` or ``verification/NAME.py``."""
+    return rel if rel.startswith(HELPERS_DIR + "/") else f"ldaspark/{rel}"
+
+
+def source_path(rel: str) -> pathlib.Path:
+    return PROJECT / label(rel)
+
+
 def module_file(name: str) -> str:
-    """'ldaspark/core/validate.py', 'core/validate.py' or 'ldaspark.core.validate' -> 'core/validate.py'."""
+    """'ldaspark/core/validate.py', 'core/validate.py' or 'ldaspark.core.validate' -> 'core/validate.py';
+    a verification helper (not a test file) as 'verification/strategies.py' stays so."""
     n = name.strip()
+    hp = pathlib.Path(n)
+    if n.endswith(".py") and len(hp.parts) == 2 and hp.parts[0] == HELPERS_DIR:
+        if hp.name.startswith("test_") or hp.name == "conftest.py" or not (PROJECT / hp).is_file():
+            raise MutgenError(f"no verification helper {n} (test files and conftest.py are not mutated)")
+        return str(hp)
     if n.endswith(".py"):
         p = pathlib.Path(n)
         parts = p.parts[1:] if p.parts and p.parts[0] == "ldaspark" else p.parts
@@ -306,8 +326,8 @@ def load_equivalent(path=EQUIVALENT) -> dict:
 # --- coverage: which tests execute which lines ----------------------------------------------------
 _COV_DRIVER = r'''
 import sys, coverage, pytest
-data, source, *files = sys.argv[1:]
-cov = coverage.Coverage(data_file=data, source=[source], branch=True)
+data, sources, *files = sys.argv[1:]
+cov = coverage.Coverage(data_file=data, source=sources.split(","), branch=True)
 import json
 dur, bad = {}, {}
 class Ctx:
@@ -330,11 +350,20 @@ sys.exit(int(rc))
 
 
 def mapped_tests(relfile: str, project=PROJECT) -> list[str]:
-    """Test files that import the module (by its dotted name or a relative import of it)."""
+    """Test files that import the module (by its dotted name or a relative import of it; a
+    verification helper by its bare name, as the tests beside it import it)."""
+    out = []
+    if relfile.startswith(HELPERS_DIR + "/"):
+        name = pathlib.Path(relfile).stem
+        pats = (f"from {name} import", f"import {name}", f"{HELPERS_DIR}.{name}")
+        for f in all_test_files(project):
+            src = (pathlib.Path(project) / f).read_text(errors="ignore")
+            if any(p in src for p in pats):
+                out.append(f)
+        return out + [f for f in ALWAYS_MAPPED if (pathlib.Path(project) / f).is_file() and f not in out]
     dotted = "ldaspark." + relfile[:-3].replace("/", ".")
     mod = dotted.rsplit(".", 1)
     pats = (dotted, f"from {mod[0]} import {mod[1]}", f"import {mod[1]}")
-    out = []
     for f in all_test_files(project):
         src = (pathlib.Path(project) / f).read_text(errors="ignore")
         if any(p in src for p in pats[:2]) or (pats[2] in src and mod[0] in src):
@@ -345,10 +374,32 @@ def mapped_tests(relfile: str, project=PROJECT) -> list[str]:
     return out
 
 
-def coverage_map(files: list[str], test_files: list[str], datafile, timeout=1800, reuse=False):
-    """Run ``test_files`` once under coverage with per-test contexts; returns
+def _shards(test_files, n):
+    """``test_files`` in ``n`` groups of about equal size in bytes (a proxy for their time)."""
+    groups, load = [[] for _ in range(max(1, n))], [0] * max(1, n)
+    for f in sorted(test_files, key=lambda f: (-(PROJECT / f).stat().st_size if (PROJECT / f).is_file() else 0, f)):
+        i = load.index(min(load))
+        groups[i].append(f)
+        load[i] += (PROJECT / f).stat().st_size if (PROJECT / f).is_file() else 0
+    return [g for g in groups if g]
+
+
+def _combined_rc(rcs):
+    """pytest's exit status of the shards as one: an error beats a test failure beats success;
+    'no tests collected' (5) only when every shard says so."""
+    bad = [r for r in rcs if r not in (0, 1, 5)]
+    if bad:
+        return bad[0]
+    if 1 in rcs:
+        return 1
+    return 5 if rcs and all(r == 5 for r in rcs) else 0
+
+
+def coverage_map(files: list[str], test_files: list[str], datafile, timeout=3600, reuse=False, jobs=1):
+    """Run ``test_files`` under coverage with per-test contexts, in ``jobs`` processes (each a
+    share of the files; their data combined); returns
     ({relfile: {line: [node ids]}}, {relfile: (lines covered, lines, branches covered, branches)},
-    pytest's return code, seconds)."""
+    pytest's return code, seconds, the tail of pytest's output)."""
     try:
         import coverage  # noqa: F401
     except ImportError:
@@ -356,24 +407,70 @@ def coverage_map(files: list[str], test_files: list[str], datafile, timeout=1800
     import os
     t = time.time()
     rc, tail = 0, ""
+    sources = [str(PACKAGE)] + ([str(PROJECT / HELPERS_DIR)] if any(f.startswith(HELPERS_DIR + "/") for f in files) else [])
     if not reuse:
+        from coverage import CoverageData
         with tempfile.NamedTemporaryFile("w", suffix=".py", delete=False) as fh:
             fh.write(_COV_DRIVER)
             driver = fh.name
         env = dict(os.environ, PYTHONPATH=str(PROJECT))
+        shards = _shards(test_files, jobs)
+        parts = [f"{datafile}.shard{i}" for i in range(len(shards))]
+        procs, outs = [], []
         try:
-            p = subprocess.run([sys.executable, driver, str(datafile), str(PACKAGE), *test_files], cwd=PROJECT,
-                               env=env, capture_output=True, text=True, timeout=timeout)
+            for part, group in zip(parts, shards):
+                out = tempfile.TemporaryFile("w+")
+                outs.append(out)
+                procs.append(subprocess.Popen([sys.executable, driver, part, ",".join(sources), *group], cwd=PROJECT,
+                                              env=env, stdout=out, stderr=subprocess.STDOUT, text=True))
+            rcs = []
+            for pr in procs:
+                try:
+                    rcs.append(pr.wait(timeout=max(1.0, timeout - (time.time() - t))))
+                except subprocess.TimeoutExpired:
+                    for q in procs:
+                        q.kill()
+                    raise MutgenError(f"the coverage run of the mapped tests took over {timeout} s") from None
+            rc = _combined_rc(rcs)
+            for out in outs:
+                out.seek(0)
+                tail += out.read()[-3000:]
+            # one data file (contexts kept) and one durations file, as one process would write them
+            if pathlib.Path(datafile).exists():
+                pathlib.Path(datafile).unlink()
+            whole = CoverageData(basename=str(datafile))
+            runinfo = {"durations": {}, "failed": {}}
+            for part in parts:
+                if pathlib.Path(part).is_file():
+                    d = CoverageData(basename=part)
+                    d.read()
+                    whole.update(d)
+                dpath = pathlib.Path(part + ".durations.json")
+                if dpath.is_file():
+                    info = json.loads(dpath.read_text())
+                    for k in runinfo:
+                        runinfo[k].update(info.get(k, {}))
+            whole.write()
+            atomic_write_json(pathlib.Path(str(datafile) + ".durations.json"), runinfo)
         finally:
             os.remove(driver)
-        rc, tail = p.returncode, p.stdout[-3000:]
+            for pr in procs:
+                if pr.poll() is None:
+                    pr.kill()
+                    pr.wait()
+            for out in outs:
+                out.close()
+            for part in parts:
+                for q in (pathlib.Path(part), pathlib.Path(part + ".durations.json")):
+                    if q.is_file():
+                        q.unlink()
     import coverage
     cov = coverage.Coverage(data_file=str(datafile))
     cov.load()
     data = cov.get_data()
     out, stats = {}, {}
     for rel in files:
-        fn = str(PACKAGE / rel)
+        fn = str(source_path(rel))
         by = data.contexts_by_lineno(fn) if fn in data.measured_files() else {}
         out[rel] = {int(k): sorted(c for c in v if c) for k, v in by.items()}
         try:
@@ -390,7 +487,7 @@ def coverage_key(files, tests) -> str:
     import hashlib
     h = hashlib.sha256()
     for rel in sorted(files):
-        h.update(rel.encode() + b"\0" + (PACKAGE / rel).read_bytes())
+        h.update(rel.encode() + b"\0" + source_path(rel).read_bytes())
     for t in sorted(tests):
         h.update(t.encode() + b"\0" + (PROJECT / t).read_bytes())
     return h.hexdigest()
@@ -413,7 +510,9 @@ def run_generated(args) -> int:
     outdir = pathlib.Path(args.outdir)
     outdir.mkdir(parents=True, exist_ok=True)
     tests = sorted({t for f in files for t in mapped_tests(f)})
-    if getattr(args, "tests", None):
+    if getattr(args, "tests", None) == SUITE:
+        tests = all_test_files(PROJECT)
+    elif getattr(args, "tests", None):
         tests = [x.strip() for x in args.tests.split(",") if x.strip()]
     print(f"[mutgen] {len(mutants)} mutants in {len(files)} modules; coverage of {len(tests)} test files ...",
           flush=True)
@@ -424,7 +523,7 @@ def run_generated(args) -> int:
     if cfile.is_file() and kfile.is_file() and kfile.read_text().strip() == key:
         cmap, cstats, rc, csec, tail = coverage_map(files, tests, cfile, reuse=True)
     else:
-        cmap, cstats, rc, csec, tail = coverage_map(files, tests, cfile)
+        cmap, cstats, rc, csec, tail = coverage_map(files, tests, cfile, jobs=max(1, int(args.jobs or 1)))
     dpath = pathlib.Path(str(cfile) + ".durations.json")
     runinfo = json.loads(dpath.read_text()) if dpath.is_file() else {}
     durations, failed = runinfo.get("durations", {}), runinfo.get("failed", {})
@@ -438,6 +537,12 @@ def run_generated(args) -> int:
     if rc in (0, 1):
         kfile.write_text(key + "\n")
     print(f"[mutgen] coverage map in {csec:.0f} s", flush=True)
+    if getattr(args, "coverage_only", False):
+        write_coverage_report(files, cfile, outdir, tests, failed, csec,
+                              "ldaspark mutants --coverage-only --generated " + " ".join(args.generated)
+                              + _tests_flag(args) + f" --jobs {args.jobs}")
+        print(f"[mutgen] coverage of {len(files)} modules -> {outdir}/coverage-checking.md")
+        return 0
     todo, recs_fixed, targets = [], {}, {}
     for m in mutants:
         if m.id in equivalent:
@@ -514,7 +619,11 @@ def run_generated(args) -> int:
         r = dict(r)
         r.update(line=m.line, original=m.original, replacement=m.replacement)
         allrecs.append(r)
-    cmd = "ldaspark mutants --generated " + " ".join(args.generated) + f" --jobs {args.jobs}"
+    cmd = "ldaspark mutants --generated " + " ".join(args.generated) + _tests_flag(args) + f" --jobs {args.jobs}"
+    if getattr(args, "sample", None):
+        cmd += f" --sample {args.sample}"
+    if getattr(args, "kinds", None):
+        cmd += f" --kinds {args.kinds}"
     if only is not None:
         cmd += f" --only <{len(only)} ids>"
     if getattr(args, "keep_killed", None):
@@ -530,6 +639,58 @@ def run_generated(args) -> int:
     print(f"[mutgen] {sum(r['status'] == 'killed' for r in allrecs)} killed, {len(surv)} surviving, "
           f"{sum(r['status'] == 'equivalent' for r in allrecs)} equivalent -> {outdir}/mutation-generated.md")
     return 0 if not surv else 1
+
+
+def _tests_flag(args) -> str:
+    t = getattr(args, "tests", None)
+    return f" --tests {t}" if t else ""
+
+
+def _arc_text(arcs) -> str:
+    """Missed branch arcs {line: [destinations]} as 'L->D' (D < 0: the exit of the function)."""
+    out = []
+    for a in sorted(arcs):
+        out += [f"{a}->{'exit' if d < 0 else d}" for d in sorted(arcs[a])]
+    return ", ".join(out)
+
+
+def write_coverage_report(files, datafile, outdir, tests, failed, seconds, command):
+    """coverage-checking.md / .json: statements and branches per module over ``tests`` (with
+    ``--tests suite``: the default suite), and the branch arcs no test takes."""
+    import coverage
+    cov = coverage.Coverage(data_file=str(datafile))
+    cov.load()
+    suite = sorted(tests) == sorted(all_test_files(PROJECT))
+    mods = {}
+    for rel in files:
+        fn = str(source_path(rel))
+        try:
+            an = cov._analyze(fn)
+        except Exception:                    # noqa: BLE001 - not measured: nothing covered
+            mods[label(rel)] = {"lines": [0, None], "branches": [0, None], "missed_branches": "not measured"}
+            continue
+        n = an.numbers
+        mods[label(rel)] = {"lines": [n.n_statements - n.n_missing, n.n_statements],
+                            "branches": [n.n_branches - n.n_missing_branches, n.n_branches],
+                            "missed_branches": _arc_text(an.missing_branch_arcs()),
+                            "missed_lines": an.missing_formatted()}
+    doc = {"command": command, "seconds": round(seconds, 1), "tests": "default suite" if suite else tests,
+           "tests_failing_unmutated": sorted(failed), "modules": mods}
+    atomic_write_json(pathlib.Path(outdir) / "coverage-checking.json", doc)
+    pct = lambda a, b: f"{100 * a / b:.0f}% ({a}/{b})" if b else "-"  # noqa: E731
+    lines = ["# Coverage of the checking code", "",
+             f"Statements and branches of each module executed by "
+             f"{'the default suite (`pytest`, every file under tests/ and verification/)' if suite else f'{len(tests)} test files'}"
+             f", measured by coverage.py {coverage.__version__} with branch coverage. Reproduce: `{command}` "
+             f"({seconds / 60:.1f} min).", "",
+             "| module | lines | branches | branch arcs no test takes |", "|---|---|---|---|"]
+    for f, c in mods.items():
+        miss = c["missed_branches"].replace("|", "\\|") or "none"
+        lines.append(f"| {f} | {pct(*c['lines']) if c['lines'][1] else '-'} | "
+                     f"{pct(*c['branches']) if c['branches'][1] else '-'} | {miss} |")
+    if failed:
+        lines += ["", f"Tests failing on the unmutated code (left out): {', '.join(sorted(failed))}"]
+    atomic_write_text(pathlib.Path(outdir) / "coverage-checking.md", "\n".join(lines) + "\n")
 
 
 def _only_ids(args, mutants):
@@ -566,9 +727,9 @@ def _previous_runs(path) -> dict:
     cov = {}
     for f, c in (doc.get("modules") or {}).items():
         lines, branches = (c.get("coverage") or {}).get("lines"), (c.get("coverage") or {}).get("branches")
-        if isinstance(f, str) and f.startswith("ldaspark/") and isinstance(lines, list) and isinstance(branches, list) \
+        if isinstance(f, str) and isinstance(lines, list) and isinstance(branches, list) \
                 and len(lines) == len(branches) == 2:
-            cov[f[len("ldaspark/"):]] = (*lines, *branches)
+            cov[f[len("ldaspark/"):] if f.startswith("ldaspark/") else f] = (*lines, *branches)
     return {"runs": runs, "modules_not_run": nr if isinstance(nr, list) else [], "coverage": cov}
 
 
@@ -628,7 +789,7 @@ def quick_generated() -> tuple[list, dict]:
         found = [m for m in generate(mid.split("::")[0], check=False) if m.id == mid]
         if found:
             try:
-                compile(found[0].mutated_source((PACKAGE / found[0].file).read_text()), found[0].file, "exec")
+                compile(found[0].mutated_source(source_path(found[0].file).read_text()), found[0].file, "exec")
             except SyntaxError:
                 found = []
         if not found:
@@ -639,7 +800,7 @@ def quick_generated() -> tuple[list, dict]:
 
 
 def _rec(m, status, first, seconds, why=None):
-    r = {"mutant": m.id, "file": f"ldaspark/{m.file}", "description": m.description, "category": m.category,
+    r = {"mutant": m.id, "file": label(m.file), "description": m.description, "category": m.category,
          "killed": status == "killed", "status": status, "first_failing_test": first, "seconds": seconds}
     if why:
         r["equivalent_because"] = why
@@ -649,14 +810,14 @@ def _rec(m, status, first, seconds, why=None):
 def summarize(recs, files):
     per = {}
     for f in files:
-        rs = [r for r in recs if r["file"] == f"ldaspark/{f}"]
+        rs = [r for r in recs if r["file"] == label(f)]
         c = {k: sum(r["status"] == k for r in rs) for k in
              ("killed", "survived", "timeout", "invalid", "equivalent", "not-covered", "not-run")}
         c["generated"] = len(rs)
         # over the mutants run (the sample); mutants no mapped test executes are counted apart
         judged = c["killed"] + c["survived"] + c["timeout"]
         c["score"] = round(c["killed"] / judged, 4) if judged else None
-        per[f"ldaspark/{f}"] = c
+        per[label(f)] = c
     return per
 
 
@@ -665,7 +826,7 @@ def write_reports(recs, files, cstats, outdir, command, seconds, tests, history=
     to which this run is appended, and its ``modules_not_run``."""
     per = summarize(recs, files)
     for f, (lc, ln, bc, bn) in cstats.items():
-        per[f"ldaspark/{f}"]["coverage"] = {"lines": [lc, ln], "branches": [bc, bn]}
+        per[label(f)]["coverage"] = {"lines": [lc, ln], "branches": [bc, bn]}
     history = history or {}
     runs = list(history.get("runs", [])) + [{"command": command, "seconds": round(seconds, 1),
                                              "test_files_mapped": tests}]
