@@ -350,3 +350,14 @@ def test_rational_string():
     assert V._rational_string("1/" + "1" * V.MAX_NUMBER_CHARS) is None          # too long
     # within MAX_NUMBER_CHARS but beyond int()'s 4300-digit limit: ValueError, None
     assert V._rational_string("1" * 4500 + "/3") is None
+
+
+@pytest.mark.parametrize("x, text", [(10 ** 99, "about 10^99"), (10 ** 99 - 1, "about 10^98"),
+                                     (-10 ** 30, "-about 10^30"), (10 ** 30 - 1, str(10 ** 30 - 1)),
+                                     (2 ** 1000, "about 10^301"), (10 ** 5000 + 7, "about 10^5000")],
+                         ids=["1e99", "1e99-1", "-1e30", "1e30-1", "2^1000", "1e5000+7"])
+def test_a_huge_integer_is_named_by_its_power_of_ten(x, text):
+    """floor(log10 |x|): an exact power of ten is that power (the bit-length estimate alone
+    names 10^99 as 10^98)."""
+    from ldaspark.core.validate import _fmt_int
+    assert _fmt_int(x) == text

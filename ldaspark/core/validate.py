@@ -115,11 +115,9 @@ def real_number(x, what: str, *, positive: bool = False, nonzero: bool = False):
         except (TypeError, ValueError, OverflowError):
             val, ok = float("inf"), True
     else:
+        # (mpmath's mpf is registered as numbers.Real: it takes the branch above)
         mod = type(x).__module__ or ""
-        if mod.startswith("mpmath") and type(x).__name__ == "mpf":
-            import mpmath
-            ok, val = True, float(x) if mpmath.isfinite(x) else float("nan")
-        elif mod.startswith("sympy"):
+        if mod.startswith("sympy"):
             import sympy
             if isinstance(x, sympy.Expr) and x.is_number and not x.free_symbols:
                 try:
@@ -187,8 +185,16 @@ def _fmt_int(x) -> str:
     x = int(x)
     if abs(x) < 10 ** 30:
         return str(x)
-    # float() of an integer beyond 1e308 overflows and str() beyond 4300 digits raises: the size
-    return f"{'-' if x < 0 else ''}about 10^{int((abs(x).bit_length() - 1) * 0.30103)}"
+    # float() of an integer beyond 1e308 overflows and str() beyond 4300 digits raises: the size,
+    # floor(log10 |x|) from the bit length, corrected by exact integer comparisons (an exact power
+    # of ten is 10^e, not 10^(e - 1))
+    ax = abs(x)
+    e = int((ax.bit_length() - 1) * 0.30102999566398120)
+    while 10 ** (e + 1) <= ax:
+        e += 1
+    while 10 ** e > ax:
+        e -= 1
+    return f"{'-' if x < 0 else ''}about 10^{e}"
 
 
 def check_dps(dps):
