@@ -325,27 +325,37 @@ def load_equivalent(path=EQUIVALENT) -> dict:
 
 # --- coverage: which tests execute which lines ----------------------------------------------------
 _COV_DRIVER = r'''
-import sys, coverage, pytest
-data, sources, *files = sys.argv[1:]
-cov = coverage.Coverage(data_file=data, source=sources.split(","), branch=True)
-import json
-dur, bad = {}, {}
+import sys, json, coverage, pytest
+
+
 class Ctx:
+    def __init__(self, cov):
+        self.cov, self.dur, self.bad = cov, {}, {}
+
     def pytest_runtest_setup(self, item):
-        cov.switch_context(item.nodeid)
+        self.cov.switch_context(item.nodeid)
+
     def pytest_runtest_teardown(self, item):
-        cov.switch_context("")
+        self.cov.switch_context("")
+
     def pytest_runtest_logreport(self, report):
-        dur[report.nodeid] = dur.get(report.nodeid, 0.0) + report.duration
+        self.dur[report.nodeid] = self.dur.get(report.nodeid, 0.0) + report.duration
         if report.failed:
-            bad[report.nodeid] = report.when
-cov.start()
-rc = pytest.main(["-q", "-p", "no:cacheprovider", *files], plugins=[Ctx()])
-cov.stop()
-cov.save()
-with open(data + ".durations.json", "w") as fh:
-    json.dump({"durations": dur, "failed": bad}, fh)
-sys.exit(int(rc))
+            self.bad[report.nodeid] = report.when
+
+
+# guarded: a test that starts processes by spawn (a Dask LocalCluster) imports this script again
+if __name__ == "__main__":
+    data, sources, *files = sys.argv[1:]
+    cov = coverage.Coverage(data_file=data, source=sources.split(","), branch=True)
+    ctx = Ctx(cov)
+    cov.start()
+    rc = pytest.main(["-q", "-p", "no:cacheprovider", *files], plugins=[ctx])
+    cov.stop()
+    cov.save()
+    with open(data + ".durations.json", "w") as fh:
+        json.dump({"durations": ctx.dur, "failed": ctx.bad}, fh)
+    sys.exit(int(rc))
 '''
 
 
