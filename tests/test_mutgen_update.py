@@ -100,28 +100,109 @@ def test_the_suite_option_maps_every_default_test_file():
 
 
 def test_a_coverage_run_in_two_shards_is_combined_with_its_contexts(tmp_path):
-    """Two small test files, one per shard: the combined map has the node ids of both and the
-    coverage report lists what no test executes."""
-    files = ["theory/symmetry.py"]
-    tests = ["verification/test_symmetry_23.py", "tests/test_kahan.py"]
-    cmap, stats, rc, _, _ = mutgen.coverage_map(files, tests, tmp_path / "cov", jobs=2)
+    """Two small test files, one per shard: the combined map has the node ids of both (each
+    line with the tests that run it) and the coverage report lists what no test executes."""
+    a, b = tmp_path / "test_a.py", tmp_path / "test_b.py"
+    a.write_text("from ldaspark.theory import memo\n\n\ndef test_outside():\n"
+                 "    assert memo.cached('k', 1, 2, None, (1,), lambda: 5) == 5\n")
+    b.write_text("import numpy as np\nfrom ldaspark.theory import memo\n\n\ndef test_inside():\n"
+                 "    with memo.memoized():\n"
+                 "        assert memo.cached('k', 1, 2, None, (np.ones(2),), lambda: 5) == 5\n"
+                 "        assert memo.cached('k', 1, 2, None, (np.ones(2),), lambda: 6) == 5\n")
+    files = ["theory/memo.py"]
+    cmap, stats, rc, _, _ = mutgen.coverage_map(files, [str(a), str(b)], tmp_path / "cov", jobs=2)
     assert rc == 0
-    ids = {i for ls in cmap["theory/symmetry.py"].values() for i in ls}
-    assert any(i.startswith("verification/test_symmetry_23.py::") for i in ids)
-    lc, ln, bc, bn = stats["theory/symmetry.py"]
-    assert 0 < lc <= ln and 0 <= bc <= bn
+    src = (mutgen.PACKAGE / "theory/memo.py").read_text().splitlines()
+    line = lambda text: next(i + 1 for i, t in enumerate(src) if text in t)  # noqa: E731
+    ran = lambda text: {i.split("::")[-1] for i in cmap["theory/memo.py"].get(line(text), [])}  # noqa: E731
+    assert ran("return compute()") == {"test_outside"}          # one shard's test
+    assert ran("hit = _MEMO.get(k)") == {"test_inside"}          # the other's
+    assert ran("return v._mpf_") == set()                        # no test
+    lc, ln, bc, bn = stats["theory/memo.py"]
+    assert 0 < lc < ln and 0 < bc < bn
     assert not list(tmp_path.glob("cov.shard*"))                  # the shards' files are gone
     durations = json.loads((tmp_path / "cov.durations.json").read_text())["durations"]
-    assert any(k.startswith("tests/test_kahan.py::") for k in durations)
-    mutgen.write_coverage_report(files + ["verification/general_fixtures.py"], tmp_path / "cov", tmp_path, tests,
-                                 {}, 1.0, "cmd")
+    assert {k.split("::")[-1] for k in durations} == {"test_outside", "test_inside"}
+    mutgen.write_coverage_report(files + ["verification/general_fixtures.py"], tmp_path / "cov", tmp_path,
+                                 [str(a), str(b)], {}, 1.0, "cmd")
     doc = json.loads((tmp_path / "coverage-checking.json").read_text())
-    assert doc["modules"]["ldaspark/theory/symmetry.py"]["lines"] == [lc, ln]
+    assert doc["modules"]["ldaspark/theory/memo.py"]["lines"] == [lc, ln]
+    assert f"{line('isinstance(v, mpmath.mpf)')}->{line('return v._mpf_')}" in \
+        doc["modules"]["ldaspark/theory/memo.py"]["missed_branches"]
     assert doc["modules"]["verification/general_fixtures.py"]["lines"][0] == 0
     md = (tmp_path / "coverage-checking.md").read_text()
-    assert "| ldaspark/theory/symmetry.py |" in md and "2 test files" in md
+    assert "| ldaspark/theory/memo.py |" in md and "2 test files" in md
 
 
 def test_arcs_are_written_line_to_line_and_exits_named():
     assert mutgen._arc_text({12: [13, -10], 4: [7]}) == "4->7, 12->exit, 12->13"
     assert mutgen._arc_text({}) == ""
+
+
+def _fake_run(monkeypatch, tmp_path, cmap, tests, ran):
+    """run_generated with the coverage run and the mutant runs replaced: ``ran`` gets the
+    targets of each mutant run; every mutant run is reported killed by its first target."""
+    def fake_map(files, test_files, datafile, timeout=3600, reuse=False, jobs=1):
+        return cmap, {f: (1, 1, 1, 1) for f in files}, 0, 0.0, ""
+
+    def fake_catalogue(todo, jobs, progress=None, where=None, checkpoint=None, targets=None, timeout=None):
+        out = []
+        for m in todo:
+            ran[m.id] = targets[m.id]
+            out.append(mutgen._rec(m, "killed", targets[m.id][0], 0.1))
+        return out
+    monkeypatch.setattr(mutgen, "coverage_map", fake_map)
+    monkeypatch.setattr(mutgen, "run_catalogue", fake_catalogue)
+    monkeypatch.setattr(mutgen, "load_equivalent", lambda: {})
+
+
+def test_a_module_constant_executed_at_import_is_run_against_the_files_importing_it(monkeypatch, tmp_path):
+    rel = "claims/claims_general.py"
+    ms = mutgen.generate(rel, check=False)
+    const = next(m for m in ms if m.id.split("::")[1] == "<module>")
+    inner = next(m for m in ms if m.id.split("::")[1] != "<module>")
+    mapped = [f for f in mutgen.mapped_tests(rel) if f not in mutgen.ALWAYS_MAPPED]
+    assert mapped
+    # the constant's line ran at import only (no test context); the other line in one test
+    cmap = {rel: {const.line: [], inner.line: ["tests/test_x.py::test_y"]}}
+    ran = {}
+    _fake_run(monkeypatch, tmp_path, cmap, mapped, ran)
+    args = types.SimpleNamespace(generated=[rel], outdir=str(tmp_path), tests=",".join(mapped), jobs=1,
+                                 only=f"{const.id},{inner.id}", keep_killed=None, sample=None, kinds=None,
+                                 limit=None, fresh=True, mutant_timeout=None, coverage_only=False, scheduler=None)
+    assert mutgen.run_generated(args) == 0
+    files_run = [t for t in ran[const.id] if not t.startswith("--deselect")]
+    assert set(mapped) <= set(files_run)                       # the importing files, run whole
+    assert [t for t in ran[inner.id] if not t.startswith("--")] == ["tests/test_x.py::test_y"]
+    doc = json.loads((tmp_path / "mutation-generated.json").read_text())
+    status = {r["mutant"]: r["status"] for r in doc["mutants"]}
+    assert status[const.id] == status[inner.id] == "killed"
+    # a line that never ran is not covered, at module level too
+    other = next(m for m in ms if m.id.split("::")[1] == "<module>" and m.line != const.line)
+    assert status[other.id] == "not-covered"
+
+
+def test_kills_of_several_earlier_reports_are_kept_outside_the_sample(monkeypatch, tmp_path):
+    rel = "theory/symmetry.py"
+    ms = mutgen.generate(rel, check=False)
+    cmap = {rel: {m.line: ["tests/test_kahan.py::test_x"] for m in ms}}
+    a, b = tmp_path / "a.json", tmp_path / "b.json"
+    a.write_text(json.dumps({"runs": [{"command": "first", "seconds": 1.0}], "mutants": [
+        dict(mutgen._rec(ms[-1], "killed", "tests/test_kahan.py::test_x", 1.0))]}))
+    b.write_text(json.dumps({"mutants": [dict(mutgen._rec(ms[-2], "killed", "tests/test_kahan.py::test_x", 1.0)),
+                                         dict(mutgen._rec(ms[-3], "killed", "tests/no_such_file.py::t", 1.0))]}))
+    ran = {}
+    _fake_run(monkeypatch, tmp_path, cmap, ["tests/test_kahan.py"], ran)
+    args = types.SimpleNamespace(generated=[rel], outdir=str(tmp_path / "out"), tests="tests/test_kahan.py", jobs=1,
+                                 only=None, keep_killed=f"{a},{b}", sample=2, kinds=None, limit=None, fresh=True,
+                                 mutant_timeout=None, coverage_only=False, scheduler=None)
+    assert mutgen.run_generated(args) == 0
+    doc = json.loads((tmp_path / "out" / "mutation-generated.json").read_text())
+    rec = {r["mutant"]: r for r in doc["mutants"]}
+    # both files' kills kept (outside the sample of 2 too), not run again; a kill whose test is gone is not
+    assert rec[ms[-1].id].get("previous_run") and rec[ms[-2].id].get("previous_run")
+    assert ms[-1].id not in ran and ms[-2].id not in ran
+    assert rec[ms[-3].id]["status"] in ("not-run", "killed") and not rec[ms[-3].id].get("previous_run")
+    assert len(ran) == 2                                          # the sample ran
+    assert [r["command"] for r in doc["runs"]][0] == "first"      # the history is the first file's
+    assert "--sample 2" in doc["command"] and "--tests tests/test_kahan.py" in doc["command"]

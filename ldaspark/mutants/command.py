@@ -41,7 +41,8 @@ def add_arguments(parser):
     parser.add_argument("--limit", type=int, default=None, help="with --generated: run only the first N mutants")
     parser.add_argument("--keep-killed", default=None, metavar="JSON",
                         help="with --generated: take the mutants killed in this earlier mutation-generated.json "
-                             "as killed (their killing test still exists) and run the others")
+                             "(or these, comma-separated; the first is the report an update continues) as killed "
+                             "(their killing test still exists) and run the others")
     parser.add_argument("--sample", type=int, default=None,
                         help="with --generated: a fixed, evenly spaced sample of N mutants per module")
     parser.add_argument("--kinds", default=None,

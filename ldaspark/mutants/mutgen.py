@@ -547,11 +547,13 @@ def run_generated(args) -> int:
     if rc in (0, 1):
         kfile.write_text(key + "\n")
     print(f"[mutgen] coverage map in {csec:.0f} s", flush=True)
-    if getattr(args, "coverage_only", False):
+    if getattr(args, "coverage_only", False) or getattr(args, "tests", None) == SUITE:
+        # the default suite's coverage of the checking code, beside the mutants' report
         write_coverage_report(files, cfile, outdir, tests, failed, csec,
                               "ldaspark mutants --coverage-only --generated " + " ".join(args.generated)
                               + _tests_flag(args) + f" --jobs {args.jobs}")
         print(f"[mutgen] coverage of {len(files)} modules -> {outdir}/coverage-checking.md")
+    if getattr(args, "coverage_only", False):
         return 0
     todo, recs_fixed, targets = [], {}, {}
     for m in mutants:
@@ -559,11 +561,16 @@ def run_generated(args) -> int:
             recs_fixed[m.id] = _rec(m, "equivalent", None, 0.0, equivalent[m.id])
             continue
         ids = [i for i in cmap.get(m.file, {}).get(m.line, []) if i not in failed]
+        module_level = m.id.split("::")[1] == "<module>"
+        if not ids and module_level and m.line in cmap.get(m.file, {}):
+            # executed at import (collection) only, in no test's context: the mapped test files
+            # that import the module decide it, run whole
+            ids = [f for f in mapped_tests(m.file) if f in tests and f not in ALWAYS_MAPPED]
         if not ids:
             recs_fixed[m.id] = _rec(m, "not-covered", None, 0.0)
             continue
         targets[m.id] = _order_tests(ids, durations)
-        if m.id.split("::")[1] == "<module>":
+        if module_level:
             # a module constant runs at import (collection), in no test's context: the tests that
             # read it are not in the map, so the kill files run whole, first
             targets[m.id] = [f for f in ALWAYS_MAPPED if (PROJECT / f).is_file()] + targets[m.id]
@@ -575,6 +582,7 @@ def run_generated(args) -> int:
         # a listed site: a verdict on the lists, not on the mutant
         targets[m.id] += [f"--deselect={t}" for t in BOOKKEEPING]
         todo.append(m)
+    covered = {m.id for m in todo}
     if getattr(args, "kinds", None):
         # one kind of fault across many modules (all <-> any, min <-> max: the one-sided verdicts)
         kinds = {k.strip() for k in args.kinds.split(",") if k.strip()}
@@ -582,19 +590,22 @@ def run_generated(args) -> int:
     if getattr(args, "sample", None):
         todo = sample(todo, files, args.sample)
     only = _only_ids(args, mutants)
-    previous = _previous_records(args.keep_killed) if getattr(args, "keep_killed", None) else []
+    keep = [x.strip() for x in (getattr(args, "keep_killed", None) or "").split(",") if x.strip()]
+    previous = [r for path in keep for r in _previous_records(path)]
     if previous:
         # adding tests cannot revive a killed mutant while its killing test is still there:
-        # reuse those records, run the rest (the survivors and the mutants not yet run)
+        # reuse those records (of any covered mutant, in the sample or not: an earlier run's
+        # kills stay in the report), run the rest (the survivors and the mutants not yet run)
         for r in previous:
             test = (r.get("first_failing_test") or "").split("::")[0]
-            if r["status"] == "killed" and test and (PROJECT / test).is_file() and r["mutant"] in {m.id for m in todo}:
+            if r.get("status") == "killed" and test and (PROJECT / test).is_file() and r.get("mutant") in covered \
+                    and r["mutant"] not in recs_fixed:
                 recs_fixed[r["mutant"]] = dict(r, previous_run=True)
         if only is not None:
             # an update of the earlier report: the listed mutants run again, every other
             # mutant keeps its earlier record (whatever its status), so the report stays whole
             # (over this run's verdict of "not covered" too: a narrower --tests must not erase them)
-            for r in previous:
+            for r in _previous_records(keep[0]):
                 mine = recs_fixed.get(r["mutant"])
                 if r["mutant"] not in only and r.get("status") != "equivalent" \
                         and (mine is None or mine["status"] != "equivalent"):
@@ -638,7 +649,7 @@ def run_generated(args) -> int:
         cmd += f" --only <{len(only)} ids>"
     if getattr(args, "keep_killed", None):
         cmd += f" --keep-killed {args.keep_killed}"
-    history = _previous_runs(args.keep_killed) if getattr(args, "keep_killed", None) else {}
+    history = _previous_runs(keep[0]) if keep else {}
     if only is not None and getattr(args, "tests", None):
         # an update with a narrower --tests: its coverage is of those files only; the report keeps
         # the coverage measured by the earlier runs' mapped tests
