@@ -206,3 +206,24 @@ def test_kills_of_several_earlier_reports_are_kept_outside_the_sample(monkeypatc
     assert len(ran) == 2                                          # the sample ran
     assert [r["command"] for r in doc["runs"]][0] == "first"      # the history is the first file's
     assert "--sample 2" in doc["command"] and "--tests tests/test_kahan.py" in doc["command"]
+
+
+def test_the_sample_is_drawn_from_every_mutant_whatever_the_coverage(monkeypatch, tmp_path):
+    rel = "theory/symmetry.py"
+    ms = mutgen.generate(rel, check=False)
+    picked = [m.id for m in mutgen.sample(ms, [rel], 6)]
+    assert len(picked) == 6 and len(set(picked)) == 6
+    runs = []
+    for covered_lines in ({m.line for m in ms}, {m.line for m in ms[: len(ms) // 2]}):
+        cmap = {rel: {ln: ["tests/test_kahan.py::test_x"] for ln in covered_lines}}
+        ran = {}
+        _fake_run(monkeypatch, tmp_path, cmap, ["tests/test_kahan.py"], ran)
+        args = types.SimpleNamespace(generated=[rel], outdir=str(tmp_path / f"o{len(runs)}"), tests="tests/test_kahan.py",
+                                     jobs=1, only=None, keep_killed=None, sample=6, kinds=None, limit=None, fresh=True,
+                                     mutant_timeout=None, coverage_only=False, scheduler=None)
+        mutgen.run_generated(args)
+        doc = json.loads((tmp_path / f"o{len(runs)}" / "mutation-generated.json").read_text())
+        runs.append((set(ran), {r["mutant"] for r in doc["mutants"] if r["status"] == "not-covered"}))
+    assert runs[0][0] == set(picked)                               # all covered: the whole sample runs
+    part = {m.id for m in ms if m.line in {x.line for x in ms[: len(ms) // 2]}}
+    assert runs[1][0] == set(picked) & part and runs[1][0] < runs[0][0]   # the same sample, its covered part

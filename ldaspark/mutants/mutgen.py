@@ -588,7 +588,10 @@ def run_generated(args) -> int:
         kinds = {k.strip() for k in args.kinds.split(",") if k.strip()}
         todo = [m for m in todo if mutant_kind(m.id) in kinds]
     if getattr(args, "sample", None):
-        todo = sample(todo, files, args.sample)
+        # drawn from every generated mutant (not only the covered ones): the same sample whatever
+        # the tests, so runs against other test sets or after new tests extend one another
+        picked = {m.id for m in sample([m for m in mutants if m.id not in equivalent], files, args.sample)}
+        todo = [m for m in todo if m.id in picked]
     only = _only_ids(args, mutants)
     keep = [x.strip() for x in (getattr(args, "keep_killed", None) or "").split(",") if x.strip()]
     previous = [r for path in keep for r in _previous_records(path)]
@@ -777,7 +780,7 @@ def mutant_kind(mid: str) -> str:
 
 def sample(mutants, files, n):
     """A fixed sample of at most ``n`` mutants per module, evenly spaced in source order (the same
-    for the same source: a partial run that can be repeated and extended)."""
+    for the same source and list of equivalents: a partial run that can be repeated and extended)."""
     out = []
     for f in files:
         ms = [m for m in mutants if m.file == f]
