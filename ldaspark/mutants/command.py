@@ -44,7 +44,8 @@ def add_arguments(parser):
                              "(or these, comma-separated; the first is the report an update continues) as killed "
                              "(their killing test still exists) and run the others")
     parser.add_argument("--sample", type=int, default=None,
-                        help="with --generated: a fixed, evenly spaced sample of N mutants per module")
+                        help="with --generated: a fixed, evenly spaced sample of N mutants per module, drawn "
+                             "from all its mutants (the same whatever the tests)")
     parser.add_argument("--kinds", default=None,
                         help="with --generated: comma-separated operator kinds to run (call-swap, compare, boolean, "
                              "not-removal, arithmetic, constant, return, slice, unary; default: all)")
