@@ -257,6 +257,35 @@ def scaling_values(d):
     return out
 
 
+def mutgen_values(d):
+    """The generated mutants' report (``mutation-generated.json``): counts over every listed
+    module, and the lowest per-module score among the modules with mutants run."""
+    mods = d.get("modules", {})
+    tot = lambda k: sum(c.get(k, 0) for c in mods.values())  # noqa: E731
+    scores = [(c["score"], f) for f, c in mods.items() if c.get("score") is not None]
+    run = tot("killed") + tot("survived") + tot("timeout")
+    out = {"mutgen.modules": str(len(mods)), "mutgen.generated": str(tot("generated")), "mutgen.run": str(run),
+           "mutgen.killed": str(tot("killed")), "mutgen.equivalent": str(tot("equivalent")),
+           "mutgen.surviving": str(tot("survived") + tot("timeout")), "mutgen.not_covered": str(tot("not-covered"))}
+    if scores:
+        low = min(scores)
+        out["mutgen.min_score"] = f"{100 * low[0]:.1f}% ({low[1]})"
+    return out
+
+
+def coverage_values(d):
+    """The default suite's coverage of the checking code (``coverage-checking.json``): the
+    lowest branch coverage among the modules and how many are at 90% or more."""
+    rows = [(c["branches"][0] / c["branches"][1], f) for f, c in d.get("modules", {}).items()
+            if c.get("branches") and c["branches"][1]]
+    if not rows:
+        return {}
+    low = min(rows)
+    return {"coverage.modules": str(len(d["modules"])),
+            "coverage.at90": f"{sum(r >= 0.9 for r, _ in rows)} of {len(rows)}",
+            "coverage.min_branches": f"{100 * low[0]:.0f}% ({low[1]})"}
+
+
 def _us(x):
     """Microseconds as README quotes them: '51 us', '1.2 ms', '0.13 s' (two significant digits)."""
     return f"{float(f'{x:.2g}'):g} us" if x < 1e3 else (f"{float(f'{x / 1e3:.2g}'):g} ms" if x < 1e6
@@ -269,7 +298,8 @@ def readme_values(reports_dir="reports") -> dict:
     for name, fn in (("convergence.json", convergence_values), ("claims.json", claims_values),
                      ("energy.json", energy_values), ("work_precision.json", work_precision_values),
                      ("report_timing.json", run_values), ("peer_odelab.json", peer_values),
-                     ("peers.json", peers_values), ("scaling.json", scaling_values)):
+                     ("peers.json", peers_values), ("scaling.json", scaling_values),
+                     ("mutation-generated.json", mutgen_values), ("coverage-checking.json", coverage_values)):
         d = _load(reports_dir, name)
         if d is not None:
             out.update(fn(d))
@@ -294,7 +324,8 @@ RESIDUAL = re.compile(r"^claims\.[\w.-]+\.(max|negctl_min)$")
 #: the report file each key's value comes from (its first dotted part)
 SOURCE = {"convergence": "convergence.json", "claims": "claims.json", "energy": "energy.json",
           "wp": "work_precision.json", "run": "report_timing.json", "peer": "peer_odelab.json",
-          "peers": "peers.json", "scaling": "scaling.json"}
+          "peers": "peers.json", "scaling": "scaling.json", "mutgen": "mutation-generated.json",
+          "coverage": "coverage-checking.json"}
 
 
 def quote_kind(key: str) -> str:
