@@ -910,16 +910,38 @@ def test_thin_plot_markdown_and_json(tmp_path):
     assert "_Written by `cmd`: 3 s wall, 4 s CPU" in md
     assert "(L and k)" in md and "via `LagrangianSystem.from_mechanics`" in md
     assert "_Written" not in systems.markdown(res)
-    path = tmp_path / "f.png"
-    systems.plot(res, str(path))
-    assert path.stat().st_size > 0
+    figs = []
+    import pytest as _pt
+    mp = _pt.MonkeyPatch()
+    mp.setattr(systems, "atomic_save_figure", lambda fig, path, dpi: figs.append((fig, path)))
+    try:
+        systems.plot(res, "p1.png")
+        systems.plot({"suslov": rec}, "p2.png")
+    finally:
+        mp.undo()
+    (two, p2), (one, p1) = figs
+    assert p2 == "p1.png" and len(two.axes) == 2 and len(one.axes) == 1
+    # one panel per system, each as tall: the figure grows with the number of systems
+    assert two.get_size_inches()[1] == 2 * one.get_size_inches()[1]
+    ax = one.axes[0]
+    assert "suslov" in ax.get_title() and ax.get_xlabel() == "t" and ax.get_yscale() == "log"
+    lines = ax.get_lines()
+    assert len(lines) == 3 and [ln.get_linestyle() for ln in lines] == ["-", "--", ":"]
+    # |I - I0| floored at 1e-17 for the log axis (the zero at t = 0 is drawn at the floor, not dropped)
+    y = lines[1].get_ydata()
+    assert y[0] == 1e-17 and y[-1] == 1e-6 and list(lines[1].get_xdata()) == [0.0, 1.0, 2.0]
 
 
 def test_jobs_build_and_the_command_line(monkeypatch, tmp_path):
+    here = os.path.join(os.path.dirname(systems.__file__), "systems_bicycle.py")
+    assert systems.bicycle_available() == os.path.exists(here)
     monkeypatch.setattr(systems, "bicycle_available", lambda: False)
     assert systems.jobs(systems=("suslov",), t_long=7.0) == [(("suslov",), "system_job", ("suslov", 7.0), 4.0)]
     monkeypatch.setattr(systems, "bicycle_available", lambda: True)
-    assert systems.jobs(systems=())[-1][:2] == (("bicycle",), "bicycle_job")
+    both = systems.jobs(systems=("suslov",))
+    assert both[-1][:2] == (("bicycle",), "bicycle_job")
+    # the scheduler's cost estimates: positive, the bicycle section the longest job
+    assert all(c > 0 for *_, c in both) and both[-1][3] > both[0][3]
     ran = []
 
     def job(name, t_long):
