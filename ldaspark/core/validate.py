@@ -188,12 +188,13 @@ def _fmt_int(x) -> str:
     # float() of an integer beyond 1e308 overflows and str() beyond 4300 digits raises: the size,
     # floor(log10 |x|) from the bit length, corrected by exact integer comparisons (an exact power
     # of ten is 10^e, not 10^(e - 1))
+    # 2^(b-1) <= |x| < 2^b puts log10 |x| within 0.302 above (b - 1) log10 2, so the estimate is
+    # floor(log10 |x|) or, by the float product's rounding, one off either way: one step each way
+    # (bounded: no loop)
     ax = abs(x)
     e = int((ax.bit_length() - 1) * 0.30102999566398120)
-    while 10 ** (e + 1) <= ax:
-        e += 1
-    while 10 ** e > ax:
-        e -= 1
+    e -= int(10 ** e > ax)
+    e += int(10 ** (e + 1) <= ax)
     return f"{'-' if x < 0 else ''}about 10^{e}"
 
 
