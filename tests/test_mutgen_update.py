@@ -187,7 +187,9 @@ def test_kills_of_several_earlier_reports_are_kept_outside_the_sample(monkeypatc
     ms = mutgen.generate(rel, check=False)
     cmap = {rel: {m.line: ["tests/test_kahan.py::test_x"] for m in ms}}
     a, b = tmp_path / "a.json", tmp_path / "b.json"
-    a.write_text(json.dumps({"runs": [{"command": "first", "seconds": 1.0}], "mutants": [
+    a.write_text(json.dumps({"runs": [{"command": "first", "seconds": 1.0}],
+                             "modules_not_run": ["theory (symmetry.py, variational.py)", "models (bicycle.py)"],
+                             "mutants": [
         dict(mutgen._rec(ms[-1], "killed", "tests/test_kahan.py::test_x", 1.0))]}))
     b.write_text(json.dumps({"mutants": [dict(mutgen._rec(ms[-2], "killed", "tests/test_kahan.py::test_x", 1.0)),
                                          dict(mutgen._rec(ms[-3], "killed", "tests/no_such_file.py::t", 1.0))]}))
@@ -205,6 +207,7 @@ def test_kills_of_several_earlier_reports_are_kept_outside_the_sample(monkeypatc
     assert rec[ms[-3].id]["status"] in ("not-run", "killed") and not rec[ms[-3].id].get("previous_run")
     assert len(ran) == 2                                          # the sample ran
     assert [r["command"] for r in doc["runs"]][0] == "first"      # the history is the first file's
+    assert doc["modules_not_run"] == ["models (bicycle.py)"]       # symmetry.py ran: no longer listed
     assert "--sample 2" in doc["command"] and "--tests tests/test_kahan.py" in doc["command"]
 
 

@@ -653,6 +653,10 @@ def run_generated(args) -> int:
     if getattr(args, "keep_killed", None):
         cmd += f" --keep-killed {args.keep_killed}"
     history = _previous_runs(keep[0]) if keep else {}
+    if history.get("modules_not_run"):
+        # a module this run mutates is no longer "not yet run"
+        names = {pathlib.Path(f).name for f in files}
+        history["modules_not_run"] = [x for x in history["modules_not_run"] if not any(n in x for n in names)]
     if only is not None and getattr(args, "tests", None):
         # an update with a narrower --tests: its coverage is of those files only; the report keeps
         # the coverage measured by the earlier runs' mapped tests
