@@ -177,6 +177,15 @@ def test_a_module_constant_executed_at_import_is_run_against_the_files_importing
     doc = json.loads((tmp_path / "mutation-generated.json").read_text())
     status = {r["mutant"]: r["status"] for r in doc["mutants"]}
     assert status[const.id] == status[inner.id] == "killed"
+    # a default value on a def line runs at import too: the importing files decide it
+    default = next((m for m in ms if m.id.split("::")[1] != "<module>" and m.line != inner.line
+                    and m.line != const.line), None)
+    assert default is not None
+    cmap[rel][default.line] = []
+    ran.clear()
+    args.only, args.outdir = default.id, str(tmp_path / "d")
+    assert mutgen.run_generated(args) == 0
+    assert set(mapped) <= set(ran[default.id])
     # a line that never ran is not covered, at module level too
     other = next(m for m in ms if m.id.split("::")[1] == "<module>" and m.line != const.line)
     assert status[other.id] == "not-covered"

@@ -562,15 +562,17 @@ def run_generated(args) -> int:
             continue
         ids = [i for i in cmap.get(m.file, {}).get(m.line, []) if i not in failed]
         module_level = m.id.split("::")[1] == "<module>"
-        if not ids and module_level and m.line in cmap.get(m.file, {}):
-            # executed at import (collection) only, in no test's context: the mapped test files
-            # that import the module decide it, run whole
+        at_import = not ids and m.line in cmap.get(m.file, {})
+        if at_import:
+            # executed at import (collection) only, in no test's context: a module constant, a
+            # default value or a decorator on a def line. The mapped test files that import the
+            # module decide it, run whole
             ids = [f for f in mapped_tests(m.file) if f in tests and f not in ALWAYS_MAPPED]
         if not ids:
             recs_fixed[m.id] = _rec(m, "not-covered", None, 0.0)
             continue
         targets[m.id] = _order_tests(ids, durations)
-        if module_level:
+        if module_level or at_import:
             # a module constant runs at import (collection), in no test's context: the tests that
             # read it are not in the map, so the kill files run whole, first
             targets[m.id] = [f for f in ALWAYS_MAPPED if (PROJECT / f).is_file()] + targets[m.id]
@@ -806,6 +808,10 @@ QUICK_GENERATED = (
      VT + "test_the_antisymmetry_record_fails_when_one_identity_fails[f_minus]"),
     ("dist/workers.py::_hash_tree::compare::in->not in#1",
      VT + "test_the_files_under_dirs_change_the_fingerprint"),
+    ("reports/systems.py::_row::call-swap::all->any#1",
+     "tests/test_checking_rep1.py::test_row_verdict_needs_both_symmetric_methods"),
+    ("theory/definition1.py::definition1_residuals::call-swap::max->min#5",
+     "tests/test_checking_theory2.py::test_definition1_aggregates_the_right_neighbours"),
 )
 
 
