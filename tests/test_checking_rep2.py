@@ -16,7 +16,7 @@ import types
 import numpy as np
 import pytest
 
-from ldaspark.core.errors import LdasparkError, NewtonError
+from ldaspark.core.errors import NewtonError
 from ldaspark.reports import stability as st
 from ldaspark.reports import stability_checks as sc_
 from ldaspark.reports import stability_regimes as rg
@@ -239,15 +239,17 @@ def test_stiff_run_growth_ratio_and_failure_context(monkeypatch):
         if n > 100:
             raise NewtonError("Newton failed at step 7\nsecond line", step=7)
         E = np.ones(n + 1)
-        E[2] = 1.1            # first half: max rel dE 0.1
-        E[-1] = 0.7           # second half: 0.3 -> growth 3
+        E[1] = 1.02           # relative to E[0] = 1, not to E[1]
+        E[2] = 1.1            # first half (samples 0 .. half - 1): max rel dE 0.1
+        E[(n + 1) // 2] = 0.5  # second half starts at sample half: 0.5 -> growth 5
+        E[-1] = 0.7
         return _Sol(E, np.array([[1e-16], [-3e-16]]), {"mean_iterations": 2.5, "max_iterations": 4,
                                                       "generic_steps": 1})
     _fake_fast(monkeypatch, fast_integrate=fake)
     r = ss.stiff_run("stiff-particle", "gauss-1", 2.0, n=10, omega=100)
     assert n_calls[-1] == ("gauss-1", 0.02, 10)
-    assert r["outcome"] == "ok" and r["max_rel_dE"] == pytest.approx(0.3, rel=1e-12)
-    assert r["dE_growth"] == pytest.approx(3.0, rel=1e-12)                   # second / first, not first / second
+    assert r["outcome"] == "ok" and r["max_rel_dE"] == pytest.approx(0.5, rel=1e-12)
+    assert r["dE_growth"] == pytest.approx(5.0, rel=1e-12)                   # second / first, not first / second
     assert r["max_k"] == 3e-16 and r["iterations"] == 2.5 and r["max_iterations"] == 4
     assert r["generic_steps"] == 1 and r["full_newton_steps"] == 0
     # a constant energy in the first half: no ratio
@@ -268,7 +270,7 @@ def test_stiff_run_growth_ratio_and_failure_context(monkeypatch):
     _fake_fast(monkeypatch, fast_integrate=fake)
     # the context reruns the same scene, method and h omega up to the step before the failure
     n_calls.clear()
-    assert ss.failure_context(bad) == pytest.approx(0.3, rel=1e-12) and n_calls == [("gauss-1", 0.02, 7)]
+    assert ss.failure_context(bad) == pytest.approx(0.5, rel=1e-12) and n_calls == [("gauss-1", 0.02, 7)]
     assert ss.failure_context(dict(bad, step=0)) is None and ss.failure_context(r) is None and len(n_calls) == 1
 
 
@@ -298,7 +300,8 @@ def test_tiny_step_run_and_grid(monkeypatch):
         if method == "euler-i":
             raise NewtonError("stopped\nmore")
         return _Sol(np.array([2.0, 2.5, 1.0, 2.0]), np.array([[1e-17, -4e-17], [0.0, 0.0]]),
-                    {"kernel": "spark", "mean_iterations": 2.0, "full_newton_steps": 3})
+                    {"kernel": "spark", "mean_iterations": 2.0, "full_newton_steps": 3} if h > 1e-6
+                    else {"kernel": "spark", "mean_iterations": 2.0})
     _fake_fast(monkeypatch, fast_integrate=fake)
     r = ss.tiny_step_run("skate", "gauss-2", 1e-5, 50)
     assert seen[-1] == ("gauss-2", 1e-5, 50, 1)                 # every = max(1, n // 100)
@@ -306,6 +309,10 @@ def test_tiny_step_run_and_grid(monkeypatch):
     assert r["generic_steps"] == 0 and r["kernel"] == "spark" and r["seconds"] >= 0
     ss.tiny_step_run("skate", "gauss-2", 1e-5, 1000)
     assert seen[-1][3] == 10
+    ss.tiny_step_run("skate", "gauss-2", 1e-5, 150)
+    assert seen[-1][3] == 1 and type(seen[-1][3]) is int           # n // 100, not n / 100 = 1.5
+    r0 = ss.tiny_step_run("skate", "gauss-2", 1e-7, 50)
+    assert r0["full_newton_steps"] == 0 and r0["generic_steps"] == 0       # counters absent: none taken
     f = ss.tiny_step_run("skate", "euler-i", 1e-5, 50)
     assert f["outcome"] == "NewtonError" and f["message"] == "stopped" and "max_dE" not in f
     grid = ss.tiny_step_grid(7, methods=("gauss-1", "euler-i"), hs=(1e-4, 1e-6), scenes=("skate", "robot"))
@@ -320,7 +327,8 @@ def test_error_floor_steps_and_error_measure(monkeypatch):
 
     def fake(scene, method, h, n_steps, every, compensated):
         seen.append((h, n_steps, every, compensated))
-        q = np.tile(qe, (2, 1)); v = np.tile(ve, (2, 1))
+        q = np.tile(qe, (3, 1)) + 1.0; v = np.tile(ve, (3, 1)) + 1.0     # only the last row is at T
+        q[-1], v[-1] = qe, ve
         q[-1, 0] += 1e-6 if compensated else 3e-6       # position error
         v[-1, 2] -= 2e-6                                 # velocity error: larger than Kahan's q error
         return _Sol(None, None, q=q, v=v)
@@ -431,14 +439,16 @@ def _floor_rows():
 
 def _dps_rows():
     return [{"dps": 400, "N": 3, "seconds": 1.5, "iterations": 3.0, "log10_diff": -398.2, "ref_dps": 440},
-            {"dps": 2000, "N": 3, "seconds": 9.0, "iterations": 3.0, "log10_diff": None, "ref_dps": 1960}]
+            {"dps": 2000, "N": 3, "seconds": 9.0, "iterations": 3.0, "log10_diff": None, "ref_dps": 1960},
+            {"dps": 100, "N": 2, "seconds": 0.5, "iterations": 2.0, "log10_diff": -120.4},      # older rows: no ref_dps
+            {"dps": 60, "N": 2, "seconds": 0.5, "iterations": 2.0, "log10_diff": None}]
 
 
 def test_section_tiny_table_and_floor():
     d = {"tiny": _tiny_rows(), "floor": _floor_rows(), "dps": _dps_rows()}
     L = "\n".join(rg.section_tiny(d))
     n = len(d["tiny"])
-    assert f"whole runs of N = 1e+05 steps" in L                     # the largest N, not the smallest
+    assert "whole runs of N = 1e+05 steps" in L                     # the largest N, not the smallest
     assert f"{n - 1} of {n} runs finish" in L
     assert "| skate | gauss-2 | 2.00 it., 2 full, dE 1.0e-17 |" in L
     assert "2.00 it., 1 generic, dE 1.0e-15 |" in L
@@ -448,6 +458,8 @@ def test_section_tiny_table_and_floor():
     assert "| gauss-2 | 4.0e-14 (0.01) | 3.0e-15 (0.001) | 9.0e-13 / 4.0e-15 |" in L
     assert "dps = 400: 3 steps in 1.50 s, 3.0 Newton it./step, difference to the run at 440 digits 1e-398" in L
     assert "dps = 2000: identical to the run at 1960 digits" in L
+    assert "dps = 100: 2 steps in 0.50 s, 2.0 Newton it./step, difference to the run at 140 digits 1e-120" in L
+    assert "dps = 60: identical to the run at 100 digits" in L
     d["tiny"].append({"scene": "robot", "method": "euler-i", "h": 1e-6, "N": 10, "outcome": "NonFiniteError",
                       "message": "nan at step 3"})
     assert "NonFiniteError: `nan at step 3`" in "\n".join(rg.section_tiny(d))
@@ -759,6 +771,9 @@ def test_weave_and_capsize_picks():
     assert math.isnan(bf.weave_real_part([complex(3, 5e-10)]))
     assert bf.weave_real_part([complex(3, 2e-9), complex(-1, 1)]) == 3
     assert bf.capsize_eigenvalue([complex(3, 5e-10), complex(7, 2e-9)]) == 3
+    # exactly 1e-9 is still "real" for both rules
+    assert bf.capsize_eigenvalue([complex(3, 1e-9), complex(-1, 0)]) == 3
+    assert math.isnan(bf.weave_real_part([complex(3, 1e-9), complex(-1, 0)]))
     assert bf.match_error([1, 2j, -1, 5], [5, -1, 2j, 1.5]) == pytest.approx(0.5)
 
 
@@ -779,6 +794,16 @@ def test_critical_speeds_secant_on_synthetic_modes(monkeypatch):
     assert set(calls) == {("gauss-2", 0.02, model)}
     # the stopping test: a loose xtol stops after fewer evaluations than a tight one
     n_tight = len(calls)
+    calls.clear()
+    # the default tolerance 1e-9 stops the secant on a smooth root well before its 30 steps
+    spy = []
+    monkeypatch.setattr(bf, "spark_eigenvalues", lambda v, *a, **k: spy.append(v) or fake(v, *a, **k))
+    a, b = bf.critical_speeds("gauss-2", 0.02, model=model)
+    assert a == pytest.approx(vw, abs=1e-8) and b == pytest.approx(vc, abs=1e-8) and len(spy) < 2 * 32
+    for seq in ([v for v in spy if v < 5], [v for v in spy if v > 5]):
+        # it stops at the first secant step <= 1e-9: the step before was larger
+        assert abs(seq[-1] - seq[-2]) <= 1e-9 < abs(seq[-2] - seq[-3])
+    monkeypatch.setattr(bf, "spark_eigenvalues", fake)
     calls.clear()
     bf.critical_speeds("gauss-2", 0.02, model=model, xtol=1e-2)
     assert len(calls) < n_tight
@@ -919,6 +944,9 @@ def test_stiff_scenes_are_the_documented_oscillators(name):
     assert sympy.expand(T - sum(x ** 2 for x in v) / 2) == 0
     pot = q[:3] if name == "stiff-skate" else q[:2]
     assert sympy.expand(U - w ** 2 * sum(x ** 2 for x in pot) / 2) == 0
+    # the constraints of 8.2 (blade direction q3) and 8.1
+    want_k = (sympy.cos(q[2]) * v[1] - sympy.sin(q[2]) * v[0] if name == "stiff-skate" else v[2] - q[1] * v[0])
+    assert len(system.k) == 1 and sympy.simplify(system.k[0] - want_k) == 0
     if name == "stiff-skate":
         assert (q0, v0) == ([1.0, 0.0, 0.5], [0.0, 0.0, w / 2])
     else:
@@ -927,3 +955,92 @@ def test_stiff_scenes_are_the_documented_oscillators(name):
     assert all(abs(float(kk.subs(subs))) < 1e-15 for kk in system.k) and t0 == 0.0
     with pytest.raises(ValueError):
         ss.stiff_scene("stiff-robot", w)
+
+
+@pytest.mark.parametrize("z", [0.5, 1.9, 3.0])
+def test_linear_stability_against_closed_forms(z):
+    """Stormer-Verlet (lobatto-iiia-iiib-2) on the oscillator: trace M = 2 - z^2, det M = 1, so
+    rho = 1 for z < 2 and rho = |1 - z^2/2| + sqrt((1 - z^2/2)^2 - 1) beyond; implicit midpoint
+    (gauss-1): R(i z) = (1 + i z/2) / (1 - i z/2), modulus 1, rho = 1."""
+    rho, R = ss.linear_stability("lobatto-iiia-iiib-2", z)
+    a = 1 - z * z / 2
+    want = 1.0 if abs(a) <= 1 else abs(a) + math.sqrt(a * a - 1)
+    assert R is None and rho == pytest.approx(want, rel=1e-7)
+    rho, R = ss.linear_stability("gauss-1", z)
+    assert rho == pytest.approx(1.0, abs=1e-12) and R == pytest.approx(1.0, abs=1e-12)
+
+
+def test_spark_eigenvalues_passes_the_lateral_restriction(monkeypatch):
+    import sympy
+    from ldaspark.models import bicycle as bc
+    from ldaspark.theory import bicycle_flow as bf
+    seen = {}
+
+    def fj(system, method, q0, v0, h, dps=None, coords=None, rates=None, dependent=None):
+        seen.update(system=system, method=method, q0=q0, v0=v0, h=h, dps=dps, coords=coords, rates=rates,
+                    dependent=dependent)
+        return types.SimpleNamespace(eigenvalues=lambda: [np.complex128(1 + 2j), -3.0])
+    monkeypatch.setattr(bf, "flow_jacobian", fj)
+    model = types.SimpleNamespace(system="S", upright=lambda v: ([sympy.Rational(1, 3), sympy.Integer(0)],
+                                                                 [sympy.Integer(v), -sympy.Rational(v, 3)]))
+    ev = bf.spark_eigenvalues(5, model=model)
+    assert ev == [1 + 2j, -3 + 0j] and all(type(z) is complex for z in ev)
+    assert seen["h"] == 0.01 and seen["method"] == "gauss-2" and seen["dps"] is None and seen["system"] == "S"
+    assert seen["q0"] == [1 / 3, 0.0] and seen["v0"] == [5.0, -5 / 3]
+    assert seen["coords"] == bf.LATERAL == seen["rates"] and seen["dependent"] == list(bc.DEPENDENT_V)
+    bf.spark_eigenvalues(5, "gauss-3", 0.02, dps=30, model=model)
+    assert seen["q0"][0].startswith("0.33333333333333333333333333333333333333") and seen["dps"] == 30
+    assert seen["h"] == 0.02 and seen["method"] == "gauss-3"
+
+
+def test_secant_brackets_and_inclusive_tolerance(monkeypatch):
+    """The documented brackets 4 - 4.5 and 6 - 6.1; a linear weave function is solved by the first
+    secant step (c = 4.25 exactly), whose length 0.25 then meets xtol = 0.25 (<=): 3 evaluations."""
+    from ldaspark.theory import bicycle_flow as bf
+    calls = []
+
+    def fake(v, method, h, model=None):
+        calls.append(v)
+        w, c = 4.25 - v, v - 6.0625
+        return [complex(w, 1.0), complex(w, -1.0), complex(c, 0.0)]
+    monkeypatch.setattr(bf, "spark_eigenvalues", fake)
+    a, b = bf.critical_speeds(model=object(), xtol=0.25)
+    weave = [v for v in calls if v < 5]
+    assert weave == [4.0, 4.5, 4.25] and a == 4.25
+    assert [v for v in calls if v > 5][:2] == [6.0, 6.1]
+
+
+def test_nonlinear_run_defaults_and_outputs(monkeypatch):
+    import sympy
+    import ldaspark.solve
+    from ldaspark.models import bicycle as bc
+    from ldaspark.theory import bicycle_flow as bf
+    seen = {}
+    n = len(bc.COORDS)
+    qs = sympy.symbols(f"x0:{n}")
+
+    def integrate(sc, method, t_span, h, engine, raise_on_failure):
+        seen.update(sc=sc, method=method, t_span=t_span, h=h, engine=engine, raise_on_failure=raise_on_failure)
+        q = np.zeros((2, n)); q[1, bc.LEAN] = 0.1; q[1, bc.STEER] = -0.2; q[1, 0] = 3.0
+        return types.SimpleNamespace(t=[0.0, 0.01], q=q, energy=[1.0, 1.0], constraint=np.array([[1e-16, -2e-16], [0.0, 3e-16]]))
+    monkeypatch.setattr(ldaspark.solve, "integrate", integrate)
+    model = types.SimpleNamespace(q=list(qs), f=qs[0] ** 2, scene=lambda speed, lean_rate: ("scene", speed, lean_rate))
+    out = bf.nonlinear_run(model=model)
+    assert seen == {"sc": ("scene", 5, 0.5), "method": "gauss-2", "t_span": (0, 5.0), "h": 0.01, "engine": "auto",
+                    "raise_on_failure": True}
+    assert list(out["lean"]) == [0.0, 0.1] and list(out["steer"]) == [0.0, -0.2]
+    assert list(out["k"]) == [2e-16, 3e-16] and list(out["f"]) == [0.0, 9.0] and list(out["t"]) == [0.0, 0.01]
+
+
+def test_benchmark_total_mass_is_the_sum_of_the_four_bodies():
+    """mT enters M, K0, K2, C1 only through mT xT and mT zT (the centre of mass times the mass), so
+    a wrong sign in the sum shows only where it makes mT vanish: with mF = mR + mB + mH = 91 kg the
+    sum is 182 kg and the matrices are finite, and equal to those with the mass moment written out."""
+    import mpmath
+    from ldaspark.models import bicycle_benchmark as bb
+    with mpmath.workdps(25):
+        M, C1, K0, K2, g = bb.matrices(15, mF="91")
+        # K0[0, 0] = mT zT = -rR mR + zB mB + zH mH - rF mF (Table 1 values, mF = 91)
+        want = -mpmath.mpf("0.3") * 2 + mpmath.mpf("-0.9") * 85 + mpmath.mpf("-0.7") * 4 - mpmath.mpf("0.35") * 91
+        assert abs(K0[0, 0] - want) < mpmath.mpf(10) ** -20
+        assert all(mpmath.isfinite(x) for A in (M, C1, K0, K2) for x in A)
