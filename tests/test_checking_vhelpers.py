@@ -554,6 +554,8 @@ def test_observed_orders_of_q_v_and_of_a_quantity(monkeypatch):
         e = 0.5 * h ** tab.claimed_order
         return type("Sol", (), {"q": [np.array([9.0]), np.array([1.0 + e])], "v": [None, np.array([-e])]})()
     monkeypatch.setattr(spark_mod, "integrate", fake_integrate)
+    hs_seen, real_estimate = [], SC.estimate_order
+    monkeypatch.setattr(SC, "estimate_order", lambda hs, errs, floor: hs_seen.append(list(hs)) or real_estimate(hs, errs, floor))
     sc2 = type("Sc", (), {"system": "own", "initial": lambda self: (0.25, [0.0], [0.0])})()
     refq = lambda t: np.array([1.0, 0.0]) if t == 1.0 else np.array([np.nan, np.nan])
     out = SC.observed_orders(sc2, refq, plan=plan, quantity=lambda q, v: np.array([q[0], v[0]]))
@@ -562,6 +564,8 @@ def test_observed_orders_of_q_v_and_of_a_quantity(monkeypatch):
         assert claimed == p and abs(obs["quantity"] - p) < 1e-9, out
     assert all(S == "own" and abs(h * N - 0.75) < 1e-15 for S, _, _, h, N in calls)
     assert [N for *_, N in calls] == [8, 16, 32, 64, 4, 8, 16, 32]
+    # the step sizes the order is fitted on are those of the runs, (t_end - t0) / N
+    assert hs_seen == [[0.75 / N for N in nl] for _, nl in plan], hs_seen
     SC.observed_orders(sc2, refq, plan=plan[:1], quantity=lambda q, v: np.array([q[0], v[0]]), system="wrong")
     assert calls[-1][0] == "wrong"
 
