@@ -552,7 +552,9 @@ def test_observed_orders_of_q_v_and_of_a_quantity(monkeypatch):
     def fake_integrate(S, tab, t0, q0, v0, h, n_steps=None, newton=None):
         calls.append((S, tab.name, t0, h, n_steps))
         e = 0.5 * h ** tab.claimed_order
-        return type("Sol", (), {"q": [np.array([9.0]), np.array([1.0 + e])], "v": [None, np.array([-e])]})()
+        # the last step is the one measured: earlier rows are far off
+        return type("Sol", (), {"q": [np.array([9.0]), np.array([7.0]), np.array([1.0 + e])],
+                                "v": [None, np.array([5.0]), np.array([-e])]})()
     monkeypatch.setattr(spark_mod, "integrate", fake_integrate)
     hs_seen, real_estimate = [], SC.estimate_order
     monkeypatch.setattr(SC, "estimate_order", lambda hs, errs, floor: hs_seen.append(list(hs)) or real_estimate(hs, errs, floor))
