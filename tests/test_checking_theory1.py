@@ -1285,6 +1285,13 @@ def test_tangent_projector_null_space_and_rank_threshold():
         M2 = np.array([[1.0, 1.0, 0.0], [0.0, 0.0, eps]])
         res = types.SimpleNamespace(extra={"gauge": None, "dk0_dq": [None, M2]}, dps=None)
         assert sy._tangent_projector(res, 1)[1] == want
+    # relative to the largest singular value: 1e-6 under 1e-8 x 1414 is below the threshold
+    M3 = np.array([[1000.0, 1000.0, 0.0], [0.0, 0.0, 1e-6]])
+    assert sy._tangent_projector(types.SimpleNamespace(extra={"gauge": None, "dk0_dq": [M3]}, dps=None), 0)[1] == 2
+    # never relative to less than 1e-300: a subnormal 5e-309 is not a condition even next to 1e-301
+    M4 = np.array([[1e-301, 0.0], [0.0, 5e-309]])
+    assert np.linalg.svd(M4)[1][1] == 5e-309
+    assert sy._tangent_projector(types.SimpleNamespace(extra={"gauge": None, "dk0_dq": [M4]}, dps=None), 0)[1] == 1
     # a gauge: the conditions are W^T dG/dq, and more rows than coordinates are padded
     W = np.array([[1.0], [0.0], [0.0]])
     G = np.array([[0.0, 2.0], [5.0, 5.0], [7.0, 7.0]])
@@ -1297,7 +1304,7 @@ def test_tangent_projector_null_space_and_rank_threshold():
 
 
 # ==== variational: the error table and its orders on synthetic solves =========================
-def _variational_with(monkeypatch, ld_scale=1.0):
+def _variational_with(monkeypatch, ld_scale=1.0, ld_const=None, method=None):
     mk = lambda **kw: types.SimpleNamespace(**kw)
     tab = mk(name="T", claimed_order=2, family="gauss", s=1)
     monkeypatch.setattr(var, "get_scene", lambda name: mk(system="S"))
@@ -1305,18 +1312,21 @@ def _variational_with(monkeypatch, ld_scale=1.0):
     V = lambda *x: np.array(x, dtype=float)
 
     def exact(name, h, dps, stages, point):
-        return "Q1", mk(L_d=1.0, f_d_minus=V(0.0, 0.5), f_d_plus=V(2.0, 0.0), p0=V(0.0, 0.0), p1=V(1.0, 1.0),
+        return "Q1", mk(L_d=1.0, f_d_minus=V(0.3, 0.5), f_d_plus=V(2.0, 0.0), p0=V(0.2, -0.1), p1=V(1.0, 1.0),
                        v0="V0", v1="V1")
     monkeypatch.setattr(var, "_exact", exact)
     monkeypatch.setattr(var, "base_point", lambda S, tab, t0, q0, v0, h, dps: (None, None, "XG"))
 
     def dl(S, tab, t0, q0, t1, q1, dps=None, x_guess=None):
         h = t1 - t0
-        return mk(L_d=1.0 + ld_scale * h ** 3, f_d_minus=V(h ** 2, 0.5 + h), f_d_plus=V(2.0 + h, h ** 3),
-                  p0=V(0.0, -h + h ** 5), p1=V(1.0 + h, 1.0))
+        return mk(L_d=1.0 + ld_scale * h ** 3 if ld_const is None else 1.0 + ld_const, f_d_minus=V(0.3 + h ** 2, 0.5 + h), f_d_plus=V(2.0 + h, h ** 3),
+                  p0=V(0.2, -0.1 - h + h ** 5), p1=V(1.0 + h, 1.0))
     monkeypatch.setattr(var, "discrete_lagrangian", dl)
     monkeypatch.setattr(var, "_tangent", lambda S, bk, t, q, v: {"V0": np.diag([1.0, 0.0]),
                                                                  "V1": np.diag([0.0, 1.0])}[v])
+    if method is not None:
+        monkeypatch.setattr(var, "get_method", lambda name, exact=False: method.append((name, exact)) or tab)
+        return var.variational_errors("meth", "sc", dps=None)
     return var.variational_errors(tab, "sc", dps=None)
 
 
@@ -1523,3 +1533,12 @@ def test_simplifying_assumptions_start_at_k_1():
     assert sa["B"] == 0 and sa["C"] == 0
     assert oc.check_C(ex, [[Q(1, 4)]], [Q(1, 2)], 1) == (False, (0.25, "k=1, i=1"))
     assert oc.check_B(ex, [Q(1, 2)], [Q(1, 2)], 1) == (False, (0.5, "k=1"))
+
+
+def test_variational_errors_floor_is_inclusive_and_names_are_exact_tableaux(monkeypatch):
+    floor = 1e3 * 2.0 ** -52
+    out = _variational_with(monkeypatch, ld_const=floor)        # |L_d - L_d^E| = floor exactly at every h
+    assert out["errors"]["L_d"] == [floor] * 3 and out["orders"]["L_d"] == math.inf
+    seen = []
+    out = _variational_with(monkeypatch, method=seen)
+    assert seen == [("meth", True)] and out["method"] == "T"
