@@ -62,8 +62,10 @@ def test_estimate_order_rejects_unsorted_steps():
 
 
 def test_floor_scales_with_precision():
-    assert floor_for(None, 1.0) == pytest.approx(1e3 * 2.0 ** -52)
-    assert floor_for(30, 10.0) == pytest.approx(1e3 * 1e-30 * 10)
+    # abs=0: pytest.approx's default absolute tolerance (1e-12) would pass anything below 1e-12
+    assert floor_for(None, 1.0) == pytest.approx(1e3 * 2.0 ** -52, rel=1e-12, abs=0)
+    assert floor_for(30, 10.0) == pytest.approx(1e3 * 1e-30 * 10, rel=1e-12, abs=0)
+    assert floor_for(30, 0.5) == pytest.approx(1e3 * 1e-30, rel=1e-12, abs=0)      # max(1, |reference|)
 
 
 def test_ode_reference_matches_skate_closed_form():
