@@ -160,7 +160,8 @@ def test_a_module_constant_executed_at_import_is_run_against_the_files_importing
     rel = "claims/claims_general.py"
     ms = mutgen.generate(rel, check=False)
     const = next(m for m in ms if m.id.split("::")[1] == "<module>")
-    inner = next(m for m in ms if m.id.split("::")[1] != "<module>")
+    deftime = mutgen.definition_time_lines(rel)
+    inner = next(m for m in ms if m.id.split("::")[1] != "<module>" and m.line not in deftime)
     mapped = [f for f in mutgen.mapped_tests(rel) if f not in mutgen.ALWAYS_MAPPED]
     assert mapped
     # the constant's line ran at import only (no test context); the other line in one test
@@ -178,7 +179,7 @@ def test_a_module_constant_executed_at_import_is_run_against_the_files_importing
     status = {r["mutant"]: r["status"] for r in doc["mutants"]}
     assert status[const.id] == status[inner.id] == "killed"
     # a default value on a def line runs at import too: the importing files decide it
-    default = next((m for m in ms if m.id.split("::")[1] != "<module>" and m.line != inner.line
+    default = next((m for m in ms if m.id.split("::")[1] != "<module>" and m.line in deftime
                     and m.line != const.line), None)
     assert default is not None
     cmap[rel][default.line] = []
@@ -239,3 +240,32 @@ def test_the_sample_is_drawn_from_every_mutant_whatever_the_coverage(monkeypatch
     assert runs[0][0] == set(picked)                               # all covered: the whole sample runs
     part = {m.id for m in ms if m.line in {x.line for x in ms[: len(ms) // 2]}}
     assert runs[1][0] == set(picked) & part and runs[1][0] < runs[0][0]   # the same sample, its covered part
+
+
+def test_definition_time_lines_are_those_import_evaluates(tmp_path, monkeypatch):
+    src = ('"""doc."""\nimport math\nX = 3\n\n\n@decor(2)\ndef f(a, b=0.5, *, c=[1,\n      2], d: int = 4) -> "T":\n'
+           '    y = a + 1\n    return y\n\n\nclass K:\n    Z = 7\n\n    def g(self, e=9):\n        return e\n')
+    (tmp_path / "verification").mkdir()
+    (tmp_path / "verification" / "mod.py").write_text(src)
+    monkeypatch.setattr(mutgen, "PROJECT", tmp_path)
+    lines = mutgen.definition_time_lines("verification/mod.py")
+    assert {1, 2, 3, 6, 7, 8, 14, 16} <= lines            # module code, decorator, defaults, class body
+    assert not {9, 10, 17} & lines                         # function bodies run when called
+
+
+def test_a_default_value_is_decided_by_the_importing_files_even_when_a_test_imported_it(monkeypatch, tmp_path):
+    """A test that imports the module inside its body records the def line in its context; that
+    test alone need not call the function with its default."""
+    rel = "theory/bicycle_flow.py"
+    ms = mutgen.generate(rel, check=False)
+    m = next(x for x in ms if x.id == "theory/bicycle_flow.py::spark_eigenvalues::constant::0.01->0.0#1")
+    assert m.line in mutgen.definition_time_lines(rel)
+    mapped = [f for f in mutgen.mapped_tests(rel) if f not in mutgen.ALWAYS_MAPPED]
+    cmap = {rel: {m.line: ["tests/test_x.py::test_imports_it"]}}
+    ran = {}
+    _fake_run(monkeypatch, tmp_path, cmap, mapped, ran)
+    args = types.SimpleNamespace(generated=[rel], outdir=str(tmp_path), tests=",".join(mapped), jobs=1, only=m.id,
+                                 keep_killed=None, sample=None, kinds=None, limit=None, fresh=True,
+                                 mutant_timeout=None, coverage_only=False, scheduler=None)
+    mutgen.run_generated(args)
+    assert "tests/test_x.py::test_imports_it" in ran[m.id] and set(mapped) <= set(ran[m.id])

@@ -37,8 +37,9 @@ PROJECT = PACKAGE.parent
 # what a test run needs from the project tree (tests read examples/, README.md, .ci/run)
 # reports/: README's marks and the report tests read the committed reports; without them those
 # tests fail in every copy and would "kill" a mutant that the rest of the suite lets survive
-COPY = ("ldaspark", "tests", "verification", "examples", "reports", "conftest.py", "pyproject.toml", "README.md",
-        ".ci")
+#: what a test run reads: the tests collect the docs' tutorials and read the benchmarks' sources
+COPY = ("ldaspark", "tests", "verification", "examples", "reports", "docs", "benchmarks", "conftest.py",
+        "pyproject.toml", "README.md", ".ci")
 EXCLUDED_TESTS = ("tests/test_mutation_quick.py",)          # would recurse into this runner
 TIMEOUT = 1500
 

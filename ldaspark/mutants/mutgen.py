@@ -280,6 +280,41 @@ def generate(relfile: str, text: str | None = None, check: bool = True) -> list[
     return good
 
 
+def definition_time_lines(rel: str) -> set:
+    """Lines evaluated when the module is imported rather than when a function runs: module-level
+    statements outside functions, class bodies, decorators, default values and annotations of
+    ``def``. A test that imports the module inside its body records them in its context, but a
+    test that calls the function does not run them again: their mutants are decided by the files
+    that import the module, run whole."""
+    tree = ast.parse(source_path(rel).read_text())
+    out = set()
+
+    def span(node):
+        out.update(range(node.lineno, (node.end_lineno or node.lineno) + 1))
+
+    def walk(body):
+        for node in body:
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                for d in node.decorator_list:
+                    span(d)
+                a = node.args
+                for d in [*a.defaults, *(x for x in a.kw_defaults if x is not None)]:
+                    span(d)
+                for x in [*a.posonlyargs, *a.args, *a.kwonlyargs, a.vararg, a.kwarg]:
+                    if x is not None and x.annotation is not None:
+                        span(x.annotation)
+                if node.returns is not None:
+                    span(node.returns)
+            elif isinstance(node, ast.ClassDef):
+                for d in node.decorator_list:
+                    span(d)
+                walk(node.body)
+            else:
+                span(node)
+    walk(tree.body)
+    return out
+
+
 def label(rel: str) -> str:
     """The project-relative path of a module to mutate: ``ldaspark/REL`` or ``verification/NAME.py``."""
     return rel if rel.startswith(HELPERS_DIR + "/") else f"ldaspark/{rel}"
@@ -555,19 +590,21 @@ def run_generated(args) -> int:
         print(f"[mutgen] coverage of {len(files)} modules -> {outdir}/coverage-checking.md")
     if getattr(args, "coverage_only", False):
         return 0
-    todo, recs_fixed, targets = [], {}, {}
+    todo, recs_fixed, targets, deftime = [], {}, {}, {}
     for m in mutants:
         if m.id in equivalent:
             recs_fixed[m.id] = _rec(m, "equivalent", None, 0.0, equivalent[m.id])
             continue
         ids = [i for i in cmap.get(m.file, {}).get(m.line, []) if i not in failed]
         module_level = m.id.split("::")[1] == "<module>"
-        at_import = not ids and m.line in cmap.get(m.file, {})
+        if m.file not in deftime:
+            deftime[m.file] = definition_time_lines(m.file)
+        at_import = m.line in cmap.get(m.file, {}) and (not ids or m.line in deftime[m.file])
         if at_import:
-            # executed at import (collection) only, in no test's context: a module constant, a
-            # default value or a decorator on a def line. The mapped test files that import the
-            # module decide it, run whole
-            ids = [f for f in mapped_tests(m.file) if f in tests and f not in ALWAYS_MAPPED]
+            # evaluated at import: a module constant, a default value, a decorator. The contexts
+            # name only a test that happened to import the module first; the mapped test files
+            # that import it decide it, run whole (after the tests of the contexts)
+            ids = ids + [f for f in mapped_tests(m.file) if f in tests and f not in ALWAYS_MAPPED]
         if not ids:
             recs_fixed[m.id] = _rec(m, "not-covered", None, 0.0)
             continue
@@ -690,7 +727,11 @@ def write_coverage_report(files, datafile, outdir, tests, failed, seconds, comma
     import coverage
     cov = coverage.Coverage(data_file=str(datafile))
     cov.load()
-    suite = sorted(tests) == sorted(all_test_files(PROJECT))
+    every = all_test_files(PROJECT)
+    suite = sorted(tests) == sorted(every)
+    within = not suite and set(tests) <= set(every)
+    which = "the default suite (`pytest`, every file under tests/ and verification/)" if suite else \
+        f"{len(tests)} of the default suite's {len(every)} test files" if within else f"{len(tests)} test files"
     mods = {}
     for rel in files:
         fn = str(source_path(rel))
@@ -710,7 +751,7 @@ def write_coverage_report(files, datafile, outdir, tests, failed, seconds, comma
     pct = lambda a, b: f"{100 * a / b:.0f}% ({a}/{b})" if b else "-"  # noqa: E731
     lines = ["# Coverage of the checking code", "",
              f"Statements and branches of each module executed by "
-             f"{'the default suite (`pytest`, every file under tests/ and verification/)' if suite else f'{len(tests)} test files'}"
+             f"{which}"
              f", measured by coverage.py {coverage.__version__} with branch coverage. Reproduce: `{command}` "
              f"({seconds / 60:.1f} min).", "",
              "| module | lines | branches | branch arcs no test takes |", "|---|---|---|---|"]
