@@ -47,6 +47,9 @@ from ..core.families import gauss
 from ..core.system import LagrangianSystem
 
 DEFAULT_STAGES = 24
+#: the reference flow's own bound on s (above the 20 a SPARK tableau may have by default: the
+#: default of 24 stages was refused by that limit), still bounding the work of one construction
+MAX_STAGES = 48
 
 
 class ExactFlowError(LdasparkError):
@@ -88,7 +91,7 @@ class ExactFlow:
         self.dps = dps
         self.s = stages
         self.bk = Backend(dps)
-        tab = gauss(stages).arrays(dps)
+        tab = gauss(stages, max_stages=MAX_STAGES).arrays(dps)
         self.c, self.A, self.b = tab.c, tab.A, tab.b
         with mpmath.workdps(dps):
             self.A2 = self.A.dot(self.A)

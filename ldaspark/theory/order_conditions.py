@@ -175,9 +175,16 @@ class Arith:
         return 0.0 if self.exact else float(self.tol)
 
     def to_float(self, x) -> float:
+        """The double nearest x. Exact values: a rational by Python's correctly rounded int / int
+        (rounding first to 20 digits, then to a double, rounds twice: 1.00000000000000011103 gave
+        1.0); an algebraic one through 40 digits (a double rounding needs x within 1e-40
+        relative of a midpoint between two doubles)."""
         if self.exact:
             from sympy import N
-            return float(N(self.K.to_sympy(x), 20))
+            v = self.K.to_sympy(x)
+            if v.is_Rational:
+                return int(v.p) / int(v.q)
+            return float(N(v, 40))
         if self.ball:
             return float(x.mid())
         return float(x)

@@ -73,7 +73,6 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
             raise InputError(f"classify_wellposedness: h_factors must be positive rationals such as 1 or \"1/2\", "
                              f"got {validate._describe(f)}")
     out = {"sigma": {}, "deficiency": {}}
-    floors = {}
     nz = {}
     sig_rel = {}
     support = None
@@ -96,7 +95,6 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
                 key = f"dps={d},h={float(hf):.4g}"
                 out["sigma"][key] = rel[-min(len(rel), 3):]
                 out["deficiency"][key] = r
-                floors.setdefault(d, []).append(rel[-1] if r else None)
                 nz[(d, f)] = (float(hf), rel[len(rel) - 1 - r])
                 if d == dps[-1] and f == h_factors[0]:
                     keep = (bvp, J, Vh, bk)

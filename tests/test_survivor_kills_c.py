@@ -1,0 +1,220 @@
+"""Survivors of the generated mutants' final sample (reports/mutation-generated.md), each killed by
+an input on which the right computation and the mutated one differ."""
+from __future__ import annotations
+
+from ldaspark.theory import audit as au
+
+
+def test_a_disagreement_names_the_scene_after_the_first_colon_only():
+    """The scene part of 'theorem1:SCENE' is everything after the first colon (a scene named
+    'ring:2' is 'ring:2', not 'ring')."""
+    res = au.AuditResult("t", 2, False, 30, True)
+    res.facts = {"22": False}
+    res.checks = [au.Check("22a", au.FAIL, 1e-20, "", "balls", 1e-25), au.Check("22b", au.PASS, 0.0, "", "balls", 1e-25),
+                  au.Check("theorem1:ring:2", au.PASS, 1e-30, "", None, 1e-15), au.Check("theorem1", au.PASS, 1e-30, "")]
+    text = au.disagreement(res)
+    assert "DISAGREEMENT" in text and "passes on ring:2." in text
+
+
+def test_omega_is_refused_below_the_absolute_tolerance_when_its_scale_is_below_one():
+    """The rank tolerance scales with max(largest singular value, 1): for omega with singular
+    values 0.5 and 2e-7 at 10 source digits (tol = 3e-7), 2e-7 is singular (scaling by 0.5 alone
+    would pass it); 4e-7 passes."""
+    import types
+
+    import mpmath
+    import pytest
+
+    from ldaspark.core.errors import TableauError
+    from ldaspark.theory import audit_checks as ac
+
+    def tab(omega):
+        with mpmath.workdps(30):
+            om = [[mpmath.mpf(x) for x in row] for row in omega]
+        return types.SimpleNamespace(s=3, source_digits=10, mp_entries=lambda dps: {"omega": om})
+    with pytest.raises(TableauError, match="singular"):
+        ac.check_omega(tab([[0.5, 0, 0], [0, 2e-7, 0]]), None, None, 30)
+    c = ac.check_omega(tab([[0.5, 0, 0], [0, 4e-7, 0]]), None, None, 30)
+    assert c.status == ac.PASS and c.tolerance == pytest.approx(3e-7, rel=1e-12, abs=0)
+
+
+def test_the_method_table_lists_the_builtin_methods_up_to_four_stages(monkeypatch):
+    from ldaspark.theory import conditions as cond
+    asked = []
+    monkeypatch.setattr(cond, "builtin_method_names", lambda max_s: asked.append(max_s) or [])
+    assert cond.method_table() == [] and asked == [4]
+
+
+def test_the_discrete_bvp_works_at_40_digits_unless_told():
+    from ldaspark.core.families import get_method
+    from ldaspark.models.scenes import particle
+    from ldaspark.theory.discrete import DiscreteBVP
+    sysm = particle().system
+    bvp = DiscreteBVP(sysm, get_method("gauss-2", exact=True))
+    assert bvp.dps == 40 and bvp.method.backend.dps == 40
+    assert DiscreteBVP(sysm, get_method("gauss-2", exact=True), dps=None).dps is None
+
+
+def test_the_exact_flow_bvp_starts_from_the_secant_and_counts_from_one():
+    """A free particle under k = v2: the straight line is the solution, and the secant velocity
+    (q1 - q0)/h with zero accelerations solves the collocation system at once: one Newton
+    iteration (the first increment is zero). A guess (q1 - q0) * h needs a second; so does a count
+    that starts at 2."""
+    import mpmath
+    import sympy
+
+    from ldaspark.core.system import LagrangianSystem
+    from ldaspark.theory import exact_flow as EF
+    q, v = sympy.symbols("q1:3"), sympy.symbols("v1:3")
+    free = LagrangianSystem((v[0] ** 2 + v[1] ** 2) / 2, [v[1]], q, v, name="free")
+    with mpmath.workdps(25):
+        r = EF.ExactFlow(free, dps=25, stages=2).bvp(0, ["0.3", "0"], "0.5", ["1.3", "0"], sensitivities=False)
+        assert r.iterations == 1
+        assert abs(r.v0[0] - 2) < mpmath.mpf(10) ** -20 and abs(r.v0[1]) < mpmath.mpf(10) ** -20
+
+
+def test_the_classical_order_is_searched_up_to_eight():
+    """Gauss with 5 stages has order 10: the tree conditions hold through order 8, the cap
+    (MAX_ORDER), so the reported order is 8, not more."""
+    import mpmath
+
+    from ldaspark.core.families import get_method
+    from ldaspark.theory import order_conditions as oc
+    tab = get_method("gauss-5")
+    with mpmath.workdps(30):
+        e = tab.mp_entries(30)
+        ar = oc.Arith("mp", dps=30, tol=1e-20)
+        r = oc.rk_order(ar, e["A"], e["b"])
+    assert oc.MAX_ORDER == 8 and r.order == 8
+
+
+# --- documented defaults and the precision the ledger reports ------------------------------------
+def _documented_defaults(doc):
+    """{parameter: text} for numpydoc parameters whose description says '(default X' (X up to the
+    first ';' or ')' that closes it)."""
+    import re
+    out, name = {}, None
+    for line in (doc or "").splitlines():
+        m = re.match(r"^(\w+)(?:, (\w+))* : ", line)
+        if m and not line.startswith(" "):
+            name = [n.strip() for n in line.split(" : ")[0].split(",")]
+            continue
+        if name and line.startswith(" "):
+            d = re.search(r"\(default ([^;]*?)(?:;|\)$|\)\.|\)\s*$)", line.strip())
+            if d:
+                for n in name:
+                    out[n] = d.group(1).strip()
+        elif not line.strip():
+            continue
+        else:
+            name = None
+    return out
+
+
+def test_documented_defaults_are_the_signatures_defaults():
+    """Where a docstring states a parameter's default, it is the one the signature has (a working
+    precision or a step factor changed in one place and not the other misreports what ran)."""
+    import ast
+    import importlib
+    import inspect
+    import pkgutil
+
+    import ldaspark
+    seen, bad = 0, []
+    for info in pkgutil.walk_packages(ldaspark.__path__, "ldaspark."):
+        if info.name.startswith(("ldaspark.mutants.catalogue", "ldaspark.__main__")):
+            continue
+        mod = importlib.import_module(info.name)
+        for fname, obj in vars(mod).items():
+            if not inspect.isfunction(obj) or obj.__module__ != mod.__name__:
+                continue
+            try:
+                params = inspect.signature(obj).parameters
+            except (TypeError, ValueError):
+                continue
+            for p, text in _documented_defaults(inspect.getdoc(obj)).items():
+                if p not in params or params[p].default in (inspect.Parameter.empty, None):
+                    continue          # None: the docstring names the value it stands for
+                try:
+                    want = ast.literal_eval(text)
+                except (ValueError, SyntaxError):
+                    continue
+                seen += 1
+                if params[p].default != want:
+                    bad.append(f"{info.name}.{fname}({p}): documented {text}, signature {params[p].default!r}")
+    assert seen >= 4 and not bad, bad
+
+
+def test_the_documented_default_parser():
+    doc = "Parameters\n----------\nh : float\n    Step.\ndps : int, optional\n    Working digits (default 40).\n" \
+          "h_factors : tuple\n    Factors (default (1, \"1/2\")).\nx : int\n    Bound (default 20; more is slow).\n"
+    assert _documented_defaults(doc) == {"dps": "40", "h_factors": "(1, \"1/2\")", "x": "20"}
+
+
+def test_the_section_5_and_7_records_report_the_precision_their_computations_ran_at(monkeypatch):
+    """The ledger's records of sections 5 and 7 state their working precision (32 and 40 digits);
+    the computations take it from their modules' defaults: the two agree."""
+    import inspect
+
+    from ldaspark.claims import claims_paper as cp
+    from ldaspark.theory import section5 as S5
+    from ldaspark.theory import section7 as S7
+    ran = {}
+
+    def spy(name, fn, result):
+        def f(*a, **k):
+            ran[name] = k.get("dps", inspect.signature(fn).parameters["dps"].default)
+            return result
+        return f
+    r5 = {k: 0.0 for k in ("16", "18", "16-without-force", "18-without-force", "17", "19", "20b-printed",
+                           "20b-corrected", "f_d_minus", "k0")}
+    monkeypatch.setattr(cp, "exact_identities", spy("s5", S5.exact_identities, r5))
+    monkeypatch.setattr(cp, "reduction", spy("s7", S7.reduction, {"diff": 0.0, "stage": 0.0}))
+    monkeypatch.setattr(cp, "one_newton_iteration", spy("s7n", S7.one_newton_iteration, {"after_one": 0.0}))
+    recs5 = [r for r in cp.section5_records(True) if r["claim"] in ("16", "18", "17-integral")]
+    recs7 = cp.section7_records(True)
+    assert recs5 and {r["dps"] for r in recs5} == {ran["s5"]} == {32}
+    assert recs7 and {r["dps"] for r in recs7} == {ran["s7"]} == {ran["s7n"]} == {40}
+
+
+def test_the_null_vectors_are_recomputed_only_under_a_genuine_sigma_below_float64(monkeypatch):
+    """With one structural zero (at the precision floor), the float64 null vectors serve unless
+    the smallest *genuine* sigma (the one above the structural zeros) is below 1e-12; the
+    structural zero itself always is, and must not decide."""
+    from test_checking_theory2 import GOOD, _classify, _fake_wellposed
+    calls = []
+    seen = _fake_wellposed(monkeypatch, lambda d, h: [1, 2 * h, 10.0 ** -d], GOOD, svd_calls=calls)
+    assert _classify()["rank_deficiency"] == 1 and seen["Vh"] == "Vh-float" and calls == []
+    seen = _fake_wellposed(monkeypatch, lambda d, h: [1, 1e-14 * h, 10.0 ** -d], GOOD, svd_calls=calls)
+    assert _classify()["rank_deficiency"] == 1 and seen["Vh"] == "Vh-full" and len(calls) == 1
+
+
+def test_an_exact_value_is_reported_as_the_nearest_double():
+    """1.00000000000000011103 lies above the midpoint 1 + 2^-53 of 1 and 1 + 2^-52: the nearest
+    double is 1 + 2^-52. Rounding to 20 digits first lands below the midpoint (1.0): a double rounding."""
+    import sympy
+    from sympy.polys.domains import QQ
+
+    from ldaspark.theory import order_conditions as oc
+    ar = oc.Arith("exact", K=QQ)
+    x = QQ(100000000000000011103, 10 ** 20)
+    assert ar.to_float(x) == 1 + 2.0 ** -52
+    assert ar.to_float(QQ(1, 3)) == 1 / 3
+    alg = oc.Arith("exact", K=QQ.algebraic_field(sympy.sqrt(2)))
+    assert alg.to_float(alg.K.from_sympy(sympy.sqrt(2))) == 2 ** 0.5
+
+
+def test_the_exact_flow_takes_24_gauss_stages_unless_told():
+    """The module's docstring: s = 24 by default (order 48)."""
+    import sympy
+
+    from ldaspark.core.system import LagrangianSystem
+    from ldaspark.theory import exact_flow as EF
+    q, v = sympy.symbols("q1:3"), sympy.symbols("v1:3")
+    free = LagrangianSystem((v[0] ** 2 + v[1] ** 2) / 2, [v[1]], q, v, name="free")
+    assert EF.ExactFlow(free, dps=20).s == 24 and EF.ExactFlow(free, dps=20, stages=3).s == 3
+    import pytest
+
+    from ldaspark.core.errors import TableauError
+    with pytest.raises(TableauError, match="limit 48"):               # still bounded
+        EF.ExactFlow(free, dps=20, stages=49)
