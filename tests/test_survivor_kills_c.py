@@ -218,3 +218,28 @@ def test_the_exact_flow_takes_24_gauss_stages_unless_told():
     from ldaspark.core.errors import TableauError
     with pytest.raises(TableauError, match="limit 48"):               # still bounded
         EF.ExactFlow(free, dps=20, stages=49)
+
+
+def test_an_order_record_quotes_the_first_and_last_errors():
+    from ldaspark.claims import claims_general as cg
+    r = {"observed_order": 3.98, "claimed_order": 4, "pairwise_orders": [3.9, None], "method": "gauss-2",
+         "scene": "particle", "dps": None, "variable": "q", "errors": [1e-2, 1e-3, 1e-4], "reference": "closed form"}
+    rec = cg._order_record("order", r, 0.5)
+    assert rec["status"] == "pass" and "errors 1.0e-02 .. 1.0e-04" in rec["note"] and "(pairwise 3.90, -)" in rec["note"]
+
+
+def test_the_general_records_are_computed_and_reported_at_40_digits(monkeypatch):
+    """README quotes the general Theorem 1 and symmetry records 'at 40 digits'."""
+    from ldaspark.claims import claims_general as cg
+    asked = []
+
+    def stop(*a, dps=None, **k):
+        asked.append(dps)
+        raise cg.LdasparkError("stop")
+    monkeypatch.setattr(cg, "theorem1_residuals", stop)
+    monkeypatch.setattr(cg, "check_symmetry", stop)
+    import types
+    scn = types.SimpleNamespace(name="sc", system=None)
+    tab = types.SimpleNamespace(name="tab")
+    recs = cg._theorem1_records(scn, tab, "pass", 0, [0], [0]) + [cg._symmetry_record(scn, tab, "pass", 0, [0], [0])]
+    assert asked == [40, 40] and {r["dps"] for r in recs} == {40}

@@ -139,7 +139,16 @@ def gauge_invariance(system, tableau, t0, q0, v0, h, dps=40, shift="1e-3"):
     """For a rank-deficient J: re-solve with the gauge pinned at x + shift * n (n a right null
     vector of J) and report how L_d, p0 + f_d^- and p1 - f_d^+ (= -dL_d/dq0, dL_d/dq1 by
     Theorem 1; gauge-invariant) move, next to how p0 itself moves (the gauge is real).
-    Returns None when J has full rank."""
+    Returns None when J has full rank.
+
+    Parameters
+    ----------
+    system, tableau, t0, q0, v0, h
+        As for ``classify_wellposedness``.
+    dps : int, optional
+        Working digits (default 40).
+    shift : str or float, optional
+        The gauge shift along the null vector (default "1e-3"; nonzero)."""
     from ..core import validate
     system, tableau, t0, q0, v0 = arguments.theory_args(system, tableau, t0, q0, v0, h, dps, "gauge_invariance")
     validate.real_number(shift, "gauge_invariance: shift", nonzero=True)
