@@ -243,3 +243,43 @@ def test_the_general_records_are_computed_and_reported_at_40_digits(monkeypatch)
     tab = types.SimpleNamespace(name="tab")
     recs = cg._theorem1_records(scn, tab, "pass", 0, [0], [0]) + [cg._symmetry_record(scn, tab, "pass", 0, [0], [0])]
     assert asked == [40, 40] and {r["dps"] for r in recs} == {40}
+
+
+def test_the_section_5_records_split_the_time_of_a_four_claim_run_and_state_32_digits(monkeypatch):
+    import collections
+
+    from ldaspark.claims import claims_paper as cp
+    stub = lambda *a, **k: collections.defaultdict(float)  # noqa: E731
+    for name in ("exact_identities", "exact_del", "antisymmetry", "holonomic_exact"):
+        monkeypatch.setattr(cp, name, stub)
+    monkeypatch.setattr(cp, "_timed", lambda fn, *a, **k: (fn(*a, **k), 8.0))
+    recs = cp.section5_records(False)
+    four = [r for r in recs if r["claim"] in ("16", "18", "17-integral", "19-integral") and "control" not in r["method"]]
+    assert four and {r["seconds"] for r in four} == {2.0}          # one run timed, four claims
+    exact = [r for r in recs if r["method"].startswith("exact-flow")]
+    assert any(r["claim"] == "20-integral" for r in exact) and {r["dps"] for r in exact} == {32}
+
+
+def test_a_bad_number_names_its_bound_only_when_there_is_one():
+    import pytest
+
+    from ldaspark.claims import ledger
+    with pytest.raises(ledger.LdasparkError, match=r"not a finite number >= 0$"):
+        ledger._number_or_none(-1.0, "seconds", low=0)
+    with pytest.raises(ledger.LdasparkError, match=r"not a finite number$"):
+        ledger._number_or_none(float("nan"), "residual")
+    assert ledger._number_or_none(None, "x") is None and ledger._number_or_none(0.0, "x", low=0) is None
+
+
+def test_a_wellposedness_record_takes_the_time_of_its_classification(monkeypatch):
+    import types
+
+    from ldaspark.claims import ledger
+    clock = iter([100.0, 103.5, 200.0, 200.0])
+    monkeypatch.setattr(ledger.time, "time", lambda: next(clock))
+    c = {"class": ledger.WELLPOSED, "sigma_min_nonzero_rel": 0.1, "rank_deficiency": 0, "floor_tracks_precision": False,
+         "sigma_min_power_of_h": 1.0, "sigma_stable_across_dps": True, "null_support": {"V": 0, "Lambda": 0, "v0": 0}}
+    monkeypatch.setattr(ledger, "classify_wellposedness", lambda *a, **k: c)
+    recs, cls = ledger.wellposed_records(types.SimpleNamespace(system=None, name="sc"), types.SimpleNamespace(name="t"),
+                                         0, [0], [0], "base")
+    assert cls == ledger.WELLPOSED and recs[0]["seconds"] == 3.5 and recs[0]["status"] == "pass"

@@ -215,7 +215,14 @@ def piece_cost(piece):
 
 
 def piece_records(piece, quick=False):
-    """Records of one piece of ``pieces(quick)``."""
+    """Records of one piece of ``pieces(quick)``.
+
+    Parameters
+    ----------
+    piece : tuple
+        One of ``pieces(quick)``.
+    quick : bool, optional
+        The quick ledger's smaller runs (default False)."""
     if piece[0] == "checks":
         return _scene_checks(piece[1], quick)
     if piece[0] == "orders":
