@@ -691,7 +691,9 @@ def run_generated(args) -> int:
         cmd += f" --only <{len(only)} ids>"
     if getattr(args, "keep_killed", None):
         cmd += f" --keep-killed {args.keep_killed}"
-    history = _previous_runs(keep[0]) if keep else {}
+    # the history (earlier runs' commands) is that of the first report among them (a checkpoint
+    # of an interrupted run has none: it contributes its records only)
+    history = _previous_runs(next((k for k in keep if not k.endswith(".jsonl")), keep[0])) if keep else {}
     if history.get("modules_not_run"):
         # a module this run mutates is no longer "not yet run"
         names = {pathlib.Path(f).name for f in files}
