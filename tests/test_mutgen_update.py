@@ -269,3 +269,10 @@ def test_a_default_value_is_decided_by_the_importing_files_even_when_a_test_impo
                                  mutant_timeout=None, coverage_only=False, scheduler=None)
     mutgen.run_generated(args)
     assert "tests/test_x.py::test_imports_it" in ran[m.id] and set(mapped) <= set(ran[m.id])
+
+
+def test_whole_test_files_are_ordered_by_their_tests_total_time():
+    d = {"tests/a.py::t1": 5.0, "tests/a.py::t2": 6.0, "tests/b.py::t": 2.0, "tests/c.py::x": 0.5}
+    ids = ["tests/a.py", "tests/b.py", "tests/c.py::x", "tests/new.py", "tests/c.py::y"]
+    assert mutgen._order_tests(ids, d) == ["tests/c.py::x", "tests/b.py", "tests/a.py", "tests/c.py::y", "tests/new.py"]
+    assert mutgen._file_costs(d) == {"tests/a.py": 11.0, "tests/b.py": 2.0, "tests/c.py": 0.5}

@@ -283,3 +283,23 @@ def test_a_wellposedness_record_takes_the_time_of_its_classification(monkeypatch
     recs, cls = ledger.wellposed_records(types.SimpleNamespace(system=None, name="sc"), types.SimpleNamespace(name="t"),
                                          0, [0], [0], "base")
     assert cls == ledger.WELLPOSED and recs[0]["seconds"] == 3.5 and recs[0]["status"] == "pass"
+
+
+def test_the_exact_flow_newton_stops_after_max_iter_iterations():
+    """From a wrong start the free particle needs two iterations (one to solve the linear system,
+    one to see a zero increment): max_iter = 1 is refused, 2 converges."""
+    import mpmath
+    import pytest
+    import sympy
+
+    from ldaspark.core.system import LagrangianSystem
+    from ldaspark.theory import exact_flow as EF
+    q, v = sympy.symbols("q1:3"), sympy.symbols("v1:3")
+    free = LagrangianSystem((v[0] ** 2 + v[1] ** 2) / 2, [v[1]], q, v, name="free")
+    fl = EF.ExactFlow(free, dps=25, stages=2)
+    with mpmath.workdps(25):
+        guess = [0] * 4 + [mpmath.mpf(1), mpmath.mpf(0)]
+        with pytest.raises(EF.ExactFlowError, match="did not converge in 1 iterations"):
+            fl.bvp(0, ["0.3", "0"], "0.5", ["1.3", "0"], x_guess=guess, max_iter=1, sensitivities=False)
+        r = fl.bvp(0, ["0.3", "0"], "0.5", ["1.3", "0"], x_guess=guess, max_iter=2, sensitivities=False)
+        assert r.iterations == 2 and abs(r.v0[0] - 2) < mpmath.mpf(10) ** -20

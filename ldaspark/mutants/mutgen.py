@@ -53,7 +53,7 @@ HELPERS_DIR = "verification"     # its non-test modules (strategies, fixtures) a
 #: the default suite's)
 SUITE = "suite"
 ALWAYS_MAPPED = ("tests/test_verdict_rules.py", "tests/test_generated_mutants_kills.py", "tests/test_verdict_sites.py",
-                 "tests/test_survivor_kills_a.py", "tests/test_survivor_kills_b.py")
+                 "tests/test_survivor_kills_a.py", "tests/test_survivor_kills_b.py", "tests/test_survivor_kills_c.py")
 BOOKKEEPING = ("tests/test_generated_mutants_kills.py::test_the_equivalents_list_names_existing_mutants_with_an_argument",
                "tests/test_generated_mutants_kills.py::test_the_quick_generated_mutants_still_exist_and_name_a_test")
 TOOL = "ldaspark.mutants.mutgen (AST operator mutants)"
@@ -538,11 +538,22 @@ def coverage_key(files, tests) -> str:
     return h.hexdigest()
 
 
-def _order_tests(ids, durations=None):
-    """The covering tests, fastest first (their durations in the coverage run): a killed mutant
-    stops at its first failure, so the cheap tests decide most of them."""
+def _file_costs(durations) -> dict:
+    """{test file: the sum of its tests' durations in the coverage run}."""
+    out = {}
+    for k, v in durations.items():
+        f = k.split("::")[0]
+        out[f] = out.get(f, 0.0) + v
+    return out
+
+
+def _order_tests(ids, durations=None, file_costs=None):
+    """The covering tests, fastest first (their durations in the coverage run; a whole test file
+    by the sum of its tests'): a killed mutant stops at its first failure, so the cheap tests
+    decide most of them."""
     d = durations or {}
-    return sorted(ids, key=lambda i: (d.get(i, 1e9), i))
+    fc = file_costs if file_costs is not None else _file_costs(d)
+    return sorted(ids, key=lambda i: (d.get(i, fc.get(i, 1e9) if "::" not in i else 1e9), i))
 
 
 # --- running ---------------------------------------------------------------------------------------
@@ -591,6 +602,7 @@ def run_generated(args) -> int:
     if getattr(args, "coverage_only", False):
         return 0
     todo, recs_fixed, targets, deftime = [], {}, {}, {}
+    fcost = _file_costs(durations)
     for m in mutants:
         if m.id in equivalent:
             recs_fixed[m.id] = _rec(m, "equivalent", None, 0.0, equivalent[m.id])
@@ -608,7 +620,7 @@ def run_generated(args) -> int:
         if not ids:
             recs_fixed[m.id] = _rec(m, "not-covered", None, 0.0)
             continue
-        targets[m.id] = _order_tests(ids, durations)
+        targets[m.id] = _order_tests(ids, durations, fcost)
         if module_level or at_import:
             # a module constant runs at import (collection), in no test's context: the tests that
             # read it are not in the map, so the kill files run whole, first
