@@ -303,3 +303,32 @@ def test_the_exact_flow_newton_stops_after_max_iter_iterations():
             fl.bvp(0, ["0.3", "0"], "0.5", ["1.3", "0"], x_guess=guess, max_iter=1, sensitivities=False)
         r = fl.bvp(0, ["0.3", "0"], "0.5", ["1.3", "0"], x_guess=guess, max_iter=2, sensitivities=False)
         assert r.iterations == 2 and abs(r.v0[0] - 2) < mpmath.mpf(10) ** -20
+
+
+def test_the_null_vectors_and_their_recomputation_are_those_of_the_highest_precision(monkeypatch):
+    """With three precisions the null space is read at the last (highest) one, and whether a
+    genuine sigma is below float64 resolution is decided there too."""
+    from test_checking_theory2 import GOOD, _classify, _fake_wellposed
+
+    from ldaspark.theory import wellposedness as W
+    _fake_wellposed(monkeypatch, lambda d, h: [1, 2 * h, 10.0 ** -d], GOOD)
+    got = {}
+    monkeypatch.setattr(W, "_null_support", lambda bvp, Vh, r: got.update(d=bvp.d) or dict(GOOD))
+    assert _classify(dps=(30, 40, 50))["rank_deficiency"] == 1 and got["d"] == 50
+    calls = []
+    seen = _fake_wellposed(monkeypatch, lambda d, h: [1, 1e-14 if d == 30 else 1e-11, 10.0 ** -d], GOOD,
+                           svd_calls=calls)
+    assert _classify()["rank_deficiency"] == 1 and seen["Vh"] == "Vh-float" and calls == []
+
+
+def test_the_full_variational_records_take_the_first_negative_control(monkeypatch):
+    from ldaspark.claims import claims_paper as cp
+    from ldaspark.claims.ledger import negative_controls
+    r = {"orders": {"L_d": 3.0, "f_minus": 2.0, "f_minus_tangential": 2.0}, "predicted_local_order": 3,
+         "global_order": 2, "h": "0.1"}
+    monkeypatch.setattr(cp, "_timed", lambda fn, *a, **k: (r, 1.0))
+    monkeypatch.setattr(cp, "predicted_local_order", lambda tab: 5)
+    recs = cp.variational_records(False)
+    controls = [x for x in recs if x["method"].startswith("negctl")]
+    assert [x["method"] for x in controls] == [negative_controls()[0][0].name]
+    assert controls[0]["expected"] == "fail" and controls[0]["status"] == "fail"      # 3 vs the prediction 5
