@@ -22,6 +22,8 @@ def test_mutgen_totals_and_the_lowest_score():
     # a: 38/40 = 95.0%, b: 20/21 = 95.2%: the lowest is a's (c has no mutant run: no score)
     assert v["mutgen.min_score"] == "95.0% (ldaspark/a.py)"
     assert "mutgen.min_score" not in S.mutgen_values({"modules": {"x": _mod(3, 0)}})
+    same = {"modules": {"ldaspark/a.py": _mod(10, 10), "ldaspark/b.py": _mod(5, 5)}}
+    assert S.mutgen_values(same)["mutgen.min_score"] == "100.0% (every module)"
 
 
 def test_coverage_the_lowest_module_and_the_ninety_percent_line():

@@ -710,7 +710,7 @@ def run_generated(args) -> int:
         # a module this run mutates is no longer "not yet run"
         names = {pathlib.Path(f).name for f in files}
         history["modules_not_run"] = [x for x in history["modules_not_run"] if not any(n in x for n in names)]
-    if only is not None and getattr(args, "tests", None):
+    if only is not None and getattr(args, "tests", None) and args.tests != SUITE:
         # an update with a narrower --tests: its coverage is of those files only; the report keeps
         # the coverage measured by the earlier runs' mapped tests
         cstats = dict(cstats, **{f: c for f, c in history.get("coverage", {}).items() if f in cstats})

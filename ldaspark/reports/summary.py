@@ -269,7 +269,8 @@ def mutgen_values(d):
            "mutgen.surviving": str(tot("survived") + tot("timeout")), "mutgen.not_covered": str(tot("not-covered"))}
     if scores:
         low = min(scores)
-        out["mutgen.min_score"] = f"{100 * low[0]:.1f}% ({low[1]})"
+        where = "every module" if all(sc == low[0] for sc, _ in scores) else low[1]
+        out["mutgen.min_score"] = f"{100 * low[0]:.1f}% ({where})"
     return out
 
 
