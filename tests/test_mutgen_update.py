@@ -276,3 +276,20 @@ def test_whole_test_files_are_ordered_by_their_tests_total_time():
     ids = ["tests/a.py", "tests/b.py", "tests/c.py::x", "tests/new.py", "tests/c.py::y"]
     assert mutgen._order_tests(ids, d) == ["tests/c.py::x", "tests/b.py", "tests/a.py", "tests/c.py::y", "tests/new.py"]
     assert mutgen._file_costs(d) == {"tests/a.py": 11.0, "tests/b.py": 2.0, "tests/c.py": 0.5}
+
+
+def test_a_continuation_line_is_looked_up_at_its_statements_first_line(monkeypatch, tmp_path):
+    """coverage.py records a multi-line statement at its first line: a mutant on its second line
+    runs the tests of the first (it was reported not covered)."""
+    rel = "reports/summary.py"
+    st = mutgen.statement_lines(rel)
+    ms = mutgen.generate(rel, check=False)
+    m = next(x for x in ms if x.id.startswith("reports/summary.py::_us::") and st[x.line] != x.line)
+    cmap = {rel: {st[m.line]: ["tests/test_x.py::test_us"]}}
+    ran = {}
+    _fake_run(monkeypatch, tmp_path, cmap, ["tests/test_readme.py"], ran)
+    args = types.SimpleNamespace(generated=[rel], outdir=str(tmp_path), tests="tests/test_readme.py", jobs=1,
+                                 only=m.id, keep_killed=None, sample=None, kinds=None, limit=None, fresh=True,
+                                 mutant_timeout=None, coverage_only=False, scheduler=None)
+    mutgen.run_generated(args)
+    assert ran[m.id][0] == "tests/test_x.py::test_us"

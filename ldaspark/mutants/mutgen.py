@@ -315,6 +315,18 @@ def definition_time_lines(rel: str) -> set:
     return out
 
 
+def statement_lines(rel: str) -> dict:
+    """{line: the first line of the innermost statement containing it}: coverage.py records a
+    statement that spans lines at its first line only, so a mutant on a continuation line is
+    looked up there."""
+    out = {}
+    for node in ast.walk(ast.parse(source_path(rel).read_text())):   # parents before children
+        if isinstance(node, ast.stmt):
+            for ln in range(node.lineno, (node.end_lineno or node.lineno) + 1):
+                out[ln] = node.lineno
+    return out
+
+
 def label(rel: str) -> str:
     """The project-relative path of a module to mutate: ``ldaspark/REL`` or ``verification/NAME.py``."""
     return rel if rel.startswith(HELPERS_DIR + "/") else f"ldaspark/{rel}"
@@ -601,17 +613,19 @@ def run_generated(args) -> int:
         print(f"[mutgen] coverage of {len(files)} modules -> {outdir}/coverage-checking.md")
     if getattr(args, "coverage_only", False):
         return 0
-    todo, recs_fixed, targets, deftime = [], {}, {}, {}
+    todo, recs_fixed, targets, deftime, stmts = [], {}, {}, {}, {}
     fcost = _file_costs(durations)
     for m in mutants:
         if m.id in equivalent:
             recs_fixed[m.id] = _rec(m, "equivalent", None, 0.0, equivalent[m.id])
             continue
-        ids = [i for i in cmap.get(m.file, {}).get(m.line, []) if i not in failed]
-        module_level = m.id.split("::")[1] == "<module>"
         if m.file not in deftime:
             deftime[m.file] = definition_time_lines(m.file)
-        at_import = m.line in cmap.get(m.file, {}) and (not ids or m.line in deftime[m.file])
+            stmts[m.file] = statement_lines(m.file)
+        line = m.line if m.line in cmap.get(m.file, {}) else stmts[m.file].get(m.line, m.line)
+        ids = [i for i in cmap.get(m.file, {}).get(line, []) if i not in failed]
+        module_level = m.id.split("::")[1] == "<module>"
+        at_import = line in cmap.get(m.file, {}) and (not ids or m.line in deftime[m.file])
         if at_import:
             # evaluated at import: a module constant, a default value, a decorator. The contexts
             # name only a test that happened to import the module first; the mapped test files
