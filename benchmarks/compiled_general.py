@@ -115,7 +115,7 @@ def work_precision(quick):
     from ldaspark.compiled.ode import compiled_rhs
     from ldaspark.core.families import get_method
     from ldaspark.core.spark import integrate
-    from ldaspark.reports.work_precision import cpu_at
+    from ldaspark.lab.reports.work_precision import cpu_at
     system = gyroscopic()
     T = 20.0
     q0, v0 = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])

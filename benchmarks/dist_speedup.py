@@ -22,7 +22,7 @@ def main():
     ap.add_argument("--repeat", type=int, default=1)
     a = ap.parse_args()
     import distributed
-    from ldaspark.claims.ledger import CLAIM_GROUPS, run_ledger
+    from ldaspark.lab.claims.ledger import CLAIM_GROUPS, run_ledger
     kw = dict(max_s=2, scenes=("particle", "skate"), perturbed=False, holonomic=False, groups=CLAIM_GROUPS,
               quick=True)
     t = time.perf_counter()

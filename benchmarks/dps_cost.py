@@ -1,6 +1,6 @@
 """The cost of precision: CPU time per step of the mpmath path at dps 16, 30, 50, 100 against
 float64 (generic and fast path), particle, gauss-2, h = 0.1. Usage: python benchmarks/dps_cost.py"""
-from ldaspark.reports.work_precision import dps_cost
+from ldaspark.lab.reports.work_precision import dps_cost
 
 
 def main():

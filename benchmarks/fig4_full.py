@@ -8,7 +8,7 @@ import time
 
 import numpy as np
 
-from ldaspark.reports.fig4 import FIG4_METHODS, figure4_data
+from ldaspark.lab.reports.fig4 import FIG4_METHODS, figure4_data
 
 
 def main():

@@ -118,7 +118,7 @@ def step_table(steps):
 
 
 def ledger(kind, jobs, compare=None):
-    from ldaspark.claims.ledger import CLAIM_GROUPS, run_ledger
+    from ldaspark.lab.claims.ledger import CLAIM_GROUPS, run_ledger
     print(f"\n3. claims ledger ({kind}), {jobs or 'default'} worker process(es)")
     w, c = time.time(), cpu()
     if kind == "full":

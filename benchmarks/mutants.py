@@ -3,7 +3,7 @@ write reports/mutation.md and reports/mutation.json (same as ``ldaspark mutants`
 Usage: python benchmarks/mutants.py [--quick] [--outdir reports] [--jobs 2] [--only ID,ID]"""
 import sys
 
-from ldaspark.mutants.command import main
+from ldaspark.lab.mutants.command import main
 
 if __name__ == "__main__":
     sys.exit(main())

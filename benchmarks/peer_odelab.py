@@ -276,7 +276,7 @@ def main(argv=None):
               file=sys.stderr)
         return 2
     from ldaspark.core.io import atomic_write_json
-    from ldaspark.reports.markdown import jsonable
+    from ldaspark.lab.reports.markdown import jsonable
     load = list(os.getloadavg()) if hasattr(os, "getloadavg") else None
     cache, runs = {}, []
     for label, v0 in INITIAL:

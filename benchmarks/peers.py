@@ -4,7 +4,7 @@ nbsolve_ivp DOP853, pysolve_ivp), scipy's ode('dop853') (Hairer's Fortran) and o
 solve_ivp DOP853, SUNDIALS CVODE (Adams, BDF) and IDA on the index-1 form (CyRK and
 scikit-sundae: pip install -e ".[bench]"; skipped with a note without them), every one with the
 faster of a closed-form and a buffered numeric right-hand side compiled by numba from the same
-sympy expressions as the SPARK model (``ldaspark.reports.peers``).
+sympy expressions as the SPARK model (``ldaspark.lab.reports.peers``).
 
 Scenes: particle, skate, robot, mp-particles-nh (n = 7), relativistic (a general scene).
 T = 100: CPU time at equal final error in q; T = 1e4: energy error and constraint drift vs CPU;
@@ -26,8 +26,8 @@ import sys
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
 from ldaspark.core.io import atomic_write_json                 # noqa: E402
-from ldaspark.reports.markdown import jsonable                 # noqa: E402
-from ldaspark.reports.peers import SCENES, run_study, speedup_text   # noqa: E402
+from ldaspark.lab.reports.markdown import jsonable                 # noqa: E402
+from ldaspark.lab.reports.peers import SCENES, run_study, speedup_text   # noqa: E402
 
 
 def main(argv=None):

@@ -18,9 +18,9 @@ import time
 
 import mpmath
 
-from ldaspark.reports import claims
-from ldaspark.theory import discrete as D
-from ldaspark.theory import wellposedness as W
+from ldaspark.lab.reports import claims
+from ldaspark.analysis import discrete as D
+from ldaspark.analysis import wellposedness as W
 
 
 def main(argv=None):

@@ -2,7 +2,7 @@
 side by side in one run (h = 0.05). Usage: python benchmarks/steps_per_second.py [--quick]"""
 import argparse
 
-from ldaspark.reports.work_precision import steps_per_second
+from ldaspark.lab.reports.work_precision import steps_per_second
 
 METHODS = ("gauss-1", "gauss-2", "gauss-3", "lobatto-iiia-iiib-2", "lobatto-iiia-iiib-3",
            "lobatto-iiia-iiib-iiid-2", "lobatto-iiia-iiib-iiid-3", "euler-i", "euler-ii")

@@ -6,7 +6,7 @@ CPU-time ratios at equal accuracy.
 Usage: python benchmarks/work_precision.py [--quick] [--outdir reports]"""
 import argparse
 
-from ldaspark.reports.work_precision import ratios, run_study
+from ldaspark.lab.reports.work_precision import ratios, run_study
 
 
 def main():

@@ -4,7 +4,9 @@ with a suite that machine-checks the paper's claims.
 Layers (a module imports only from its own room or from the layers to its left; rooms in one
 layer do not import each other; ``tests/test_layers.py`` checks this on every import statement):
 
-    core  <  models  <  compiled  <  dist  <  solve, plot  <  theory  <  claims, mutants  <  reports  <  cli
+    core  <  models  <  compiled  <  executors  <  ensemble  <  solve, plot  <  analysis  <  cli  <  lab
+
+(the paper lab ``ldaspark.lab`` sits above the library and is not imported by it)
 
 * ``ldaspark.core``: errors, arithmetic backend, tableaux (21) and their families, the system (1)
   and its adapter from sympy.physics.mechanics, the SPARK step and loop (21a-f), comparators of
@@ -12,14 +14,17 @@ layer do not import each other; ``tests/test_layers.py`` checks this on every im
 * ``ldaspark.models``: the scenes of section 8 and more, the classic nonholonomic systems, the
   Whipple bicycle and its linearised benchmark.
 * ``ldaspark.compiled``: code generation from a scene's sympy expressions, numba kernels.
-* ``ldaspark.dist``: where work runs (local pool, Dask, any Executor) and ensembles.
+* ``ldaspark.executors``: where work runs (local pool, Dask, any Executor); ``ldaspark.ensemble``:
+  many initial data or parameters of one system over an executor.
 * ``ldaspark.solve``: ``integrate`` (one entry point for every engine) returning ``Result``;
   ``ldaspark.plot``: energy, constraint and trajectory plots of a Result.
-* ``ldaspark.theory``: discrete Lagrangian (13), Theorem 1 residuals, well-posedness, symmetry (23),
-  order conditions, the tableau audit, observed orders, the step map's Jacobian.
-* ``ldaspark.claims``: the claims ledger (``ldaspark verify``); ``ldaspark.mutants``: the
-  mutation catalogue (``ldaspark mutants``).
-* ``ldaspark.reports``: one module per section of ``ldaspark report``; ``ldaspark.cli``: the command line.
+* ``ldaspark.analysis``: discrete Lagrangian (13), Theorem 1 residuals, well-posedness, symmetry (23),
+  the exact conditions (22)/(23), order conditions, the step map's Jacobian.
+* ``ldaspark.cli``: the command line (``integrate``, ``methods``; other packages add commands
+  through the entry-point group ``ldaspark.commands``).
+* ``ldaspark.lab`` (the paper lab, above the library): the theory behind the claims and the tableau
+  audit (``lab.theory``), the claims ledger (``lab.claims``, ``ldaspark verify``), the mutation
+  tools (``lab.mutants``), one module per section of ``ldaspark report`` (``lab.reports``).
 
 The names below are imported lazily (sympy, numba, scipy and matplotlib load on first use).
 Modules that moved to another room keep their old dotted names (``MOVED``, docs/changelog.md):
@@ -32,34 +37,49 @@ import importlib.abc
 import importlib.util
 import sys
 
-__version__ = "0.2.0"
+from ._version import __version__
 
 #: old dotted name -> new one, for the modules that moved to another room (a package maps its
-#: submodules too: ``ldaspark.reports.catalogue.systems`` -> ``ldaspark.mutants.catalogue.systems``)
+#: submodules too: ``ldaspark.reports.catalogue.systems`` -> ``ldaspark.lab.mutants.catalogue.systems``)
 MOVED = {
     "ldaspark.core.scenes": "ldaspark.models.scenes",
     "ldaspark.core.systems_classic": "ldaspark.models.systems_classic",
     "ldaspark.core.bicycle": "ldaspark.models.bicycle",
     "ldaspark.theory.bicycle_benchmark": "ldaspark.models.bicycle_benchmark",
-    "ldaspark.core.workers": "ldaspark.dist.workers",
-    "ldaspark.compiled.ensemble": "ldaspark.dist.ensemble",
-    "ldaspark.theory.ledger": "ldaspark.claims.ledger",
-    "ldaspark.theory.claims_general": "ldaspark.claims.claims_general",
-    "ldaspark.theory.claims_paper": "ldaspark.claims.claims_paper",
-    "ldaspark.theory.claims_index": "ldaspark.claims.claims_index",
-    "ldaspark.reports.mutation": "ldaspark.mutants.mutation",
-    "ldaspark.reports.mutation_catalogue": "ldaspark.mutants.mutation_catalogue",
-    "ldaspark.reports.catalogue": "ldaspark.mutants.catalogue",
+    "ldaspark.core.workers": "ldaspark.executors",
+    "ldaspark.compiled.ensemble": "ldaspark.ensemble",
+    "ldaspark.theory.ledger": "ldaspark.lab.claims.ledger",
+    "ldaspark.theory.claims_general": "ldaspark.lab.claims.claims_general",
+    "ldaspark.theory.claims_paper": "ldaspark.lab.claims.claims_paper",
+    "ldaspark.theory.claims_index": "ldaspark.lab.claims.claims_index",
+    "ldaspark.reports.mutation": "ldaspark.lab.mutants.mutation",
+    "ldaspark.reports.mutation_catalogue": "ldaspark.lab.mutants.mutation_catalogue",
+    "ldaspark.reports.catalogue": "ldaspark.lab.mutants.catalogue",
+    # round 5: the paper lab apart from the library (docs/changelog.md)
+    "ldaspark.dist": None,            # an emptied package: only its modules moved
+    "ldaspark.dist.workers": "ldaspark.executors",
+    "ldaspark.dist.ensemble": "ldaspark.ensemble",
+    "ldaspark.theory.flow_jacobian": "ldaspark.analysis.flow_jacobian",
+    "ldaspark.theory.discrete": "ldaspark.analysis.discrete",
+    "ldaspark.theory.memo": "ldaspark.analysis.memo",
+    "ldaspark.theory.symmetry": "ldaspark.analysis.symmetry",
+    "ldaspark.theory.wellposedness": "ldaspark.analysis.wellposedness",
+    "ldaspark.theory.order_conditions": "ldaspark.analysis.order_conditions",
+    "ldaspark.theory.conditions": "ldaspark.analysis.conditions",
+    "ldaspark.theory": "ldaspark.lab.theory",
+    "ldaspark.claims": "ldaspark.lab.claims",
+    "ldaspark.reports": "ldaspark.lab.reports",
+    "ldaspark.mutants": "ldaspark.lab.mutants",
 }
 
 
 def _moved_to(fullname: str):
     """The new dotted name of a moved module (or of a submodule of a moved package), else None."""
     if fullname in MOVED:
-        return MOVED[fullname]
+        return MOVED[fullname] or ""
     head, dot, tail = fullname.rpartition(".")
     while dot:
-        if head in MOVED:
+        if MOVED.get(head):
             return f"{MOVED[head]}.{fullname[len(head) + 1:]}"
         head, dot, tail = head.rpartition(".")
     return None
@@ -73,7 +93,7 @@ class _MovedModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
 
     def find_spec(self, fullname, path=None, target=None):
         new = _moved_to(fullname) if fullname.startswith("ldaspark.") else None
-        if new is None:
+        if new is None:                   # "" (an emptied package) is found here too
             return None
         return importlib.util.spec_from_loader(fullname, self)
 
@@ -81,8 +101,12 @@ class _MovedModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
         return None                          # a placeholder; exec_module puts the real module in its place
 
     def exec_module(self, module):
+        new = _moved_to(module.__name__)
+        if not new:                       # an emptied package (MOVED value None): a namespace for its old modules
+            module.__path__ = []
+            return
         # importlib returns sys.modules[name] after exec_module: the moved module itself
-        sys.modules[module.__name__] = importlib.import_module(_moved_to(module.__name__))
+        sys.modules[module.__name__] = importlib.import_module(new)
 
 
 if not any(isinstance(f, _MovedModules) for f in sys.meta_path):
@@ -104,12 +128,12 @@ _EXPORTS = {
     "load_tableau": "ldaspark.core.tableau",
     "get_method": "ldaspark.core.families",
     "get_scene": "ldaspark.models.scenes",
-    "discrete_lagrangian": "ldaspark.theory.discrete",
-    "theorem1_residuals": "ldaspark.theory.discrete",
-    "check_symmetry": "ldaspark.theory.symmetry",
-    "classify_wellposedness": "ldaspark.theory.wellposedness",
-    "flow_jacobian": "ldaspark.theory.flow_jacobian",
-    "run_many": "ldaspark.dist.ensemble",
+    "discrete_lagrangian": "ldaspark.analysis.discrete",
+    "theorem1_residuals": "ldaspark.analysis.discrete",
+    "check_symmetry": "ldaspark.analysis.symmetry",
+    "classify_wellposedness": "ldaspark.analysis.wellposedness",
+    "flow_jacobian": "ldaspark.analysis.flow_jacobian",
+    "run_many": "ldaspark.ensemble",
     "LdasparkError": "ldaspark.core.errors",
 }
 

@@ -14,12 +14,20 @@ import sys
 
 from .core.errors import LdasparkError
 
-PLUGIN_COMMANDS = {
-    "report": ("reports.driver", "write the reports (main job; no arguments = everything)"),
-    "verify": ("reports.claims", "run the theorem checks and write the claims ledger"),
-    "audit": ("theory.audit", "audit a tableau against Theorem 1's hypotheses and the numerics"),
-    "mutants": ("mutants.command", "plant catalogued faults one at a time and check the suite kills each"),
-}
+#: entry-point group through which other packages add commands; the paper lab
+#: (``ldaspark.lab.commands``) adds report, verify, audit and mutants. The library never imports
+#: the lab: the commands are found in the installed metadata (pyproject's entry points).
+COMMAND_GROUP = "ldaspark.commands"
+
+
+def plugin_commands() -> dict:
+    """name -> (module, help) of the commands registered under ``COMMAND_GROUP``; each entry point
+    names a mapping of that form (loading it imports one light module, not the commands)."""
+    from importlib.metadata import entry_points
+    out = {}
+    for ep in sorted(entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
+        out.update(ep.load())
+    return out
 
 
 class _Parser(argparse.ArgumentParser):
@@ -96,7 +104,7 @@ def _add_methods(sub):
 
 
 def _run_methods(args) -> int:
-    from .theory.conditions import method_table
+    from .analysis.conditions import method_table
     from .core.errors import InputError
     if not 1 <= args.max_s <= 5:    # the table is exact; exact Gauss nodes exist up to s = 5
         raise InputError(f"--max-s must be between 1 and 5 (exact coefficients), got {args.max_s}")
@@ -174,17 +182,17 @@ def _check_numeric_options(parser) -> None:
 
 def build_parser(command: str | None = "*") -> argparse.ArgumentParser:
     """The parser; plugin modules are imported only for ``command`` ("*" = all of them)."""
-    from . import __version__
+    from ._version import __version__
     parser = _Parser(prog="ldaspark", description="Lagrange-d'Alembert SPARK integrators (Jay)")
     parser.add_argument("--version", action="version", version=f"ldaspark {__version__}")
     sub = parser.add_subparsers(dest="command", parser_class=_Parser)
     _add_integrate(sub)
     _add_methods(sub)
-    for name, (mod, helptext) in PLUGIN_COMMANDS.items():
+    for name, (mod, helptext) in plugin_commands().items():
         p = sub.add_parser(name, help=helptext)
         if command not in ("*", name):
             continue
-        module = importlib.import_module(f"ldaspark.{mod}")
+        module = importlib.import_module(mod)
         module.add_arguments(p)
         p.set_defaults(func=module.run)
     _check_numeric_options(parser)

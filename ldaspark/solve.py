@@ -330,14 +330,14 @@ def _portable(system):
 
 def _compiled_ensemble(system, params, Q0, V0, prob: _Problem, opts: IntegrationOptions) -> Optional[Result]:
     """Initial-data ensembles on the compiled engine go through
-    ``ldaspark.dist.ensemble.ensemble_integrate`` (tasks that pickle, so any executor, process
+    ``ldaspark.ensemble.ensemble_integrate`` (tasks that pickle, so any executor, process
     pools and clusters included); None when the run does not qualify (then the loop runs)."""
     if (opts.engine == "generic" or opts.dps is not None or opts.dense_output or opts.events or opts.project
             or opts.energy_jump is not None
             or params is not None or system.params
             or _compiled_reason(system, prob.kind, prob.name) is not None):
         return None
-    from .dist.ensemble import ensemble_integrate
+    from .ensemble import ensemble_integrate
     from .core.result import from_ensemble
     ens = ensemble_integrate(system, prob.method, prob.t0, Q0, V0, prob.h, prob.N, every=opts.save_every,
                              tol=opts.tol, executor=opts.executor)

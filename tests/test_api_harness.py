@@ -61,7 +61,7 @@ def _result():
 
 
 def _runspec():
-    from ldaspark.dist.ensemble import RunSpec
+    from ldaspark.ensemble import RunSpec
     q0, v0 = _point()
     return RunSpec(_skate().system, "gauss-2", 0.0, [q0], [v0], 0.1, 2)
 

@@ -168,7 +168,7 @@ def test_cli_ctrl_c_mid_write_keeps_previous_output(target, monkeypatch, capsys)
 def test_report_interrupted_leaves_previous_report(tmp_path, monkeypatch, capsys):
     # `ldaspark report stability` writes the markdown once, at the end, atomically: Ctrl-C during
     # a section leaves the previous report as it was (exit 130, one line)
-    import ldaspark.reports.stability as S
+    import ldaspark.lab.reports.stability as S
     rep = tmp_path / S.REPORT
     rep.write_bytes(OLD)
 
@@ -185,7 +185,7 @@ def test_report_figure_disk_full_leaves_previous_figure(tmp_path, monkeypatch):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    import ldaspark.reports.stability as S
+    import ldaspark.lab.reports.stability as S
     png = tmp_path / "stability_x.png"
     png.write_bytes(OLD)
     fig = plt.figure()

@@ -4,10 +4,10 @@ import pathlib
 
 import pytest
 
-from ldaspark.theory import audit as au
+from ldaspark.lab.theory import audit as au
 from ldaspark.cli import main
 from ldaspark.core.errors import TableauError
-from ldaspark.theory.conditions import check_23
+from ldaspark.analysis.conditions import check_23
 from ldaspark.core.tableau import load_tableau
 from ldaspark.core.families import builtin_method_names, get_method
 
@@ -177,7 +177,7 @@ def _fake_t1(**over):
 
 def _raising(msg):
     def boom(*a, **k):
-        from ldaspark.theory.discrete import DiscreteSolveError
+        from ldaspark.analysis.discrete import DiscreteSolveError
         raise DiscreteSolveError(msg)
     return boom
 
@@ -189,14 +189,14 @@ def _statuses(hyp23):
 
 def test_undecided_theorem1_scenes_cannot_pass_silently(monkeypatch):
     """Negative control of the skip rule: when every BVP solve fails, the summary check fails."""
-    from ldaspark.theory import discrete, symmetry
+    from ldaspark.analysis import discrete, symmetry
     monkeypatch.setattr(discrete, "theorem1_residuals", _raising("BVP Newton did not converge"))
     by = _statuses(hyp23=False)
     assert by["theorem1:skate"] == au.SKIP and by["theorem1"] == au.FAIL
 
 
 def test_theorem1_residual_above_tolerance_fails_and_coarse_fd_is_not_a_pass(monkeypatch):
-    from ldaspark.theory import discrete, symmetry
+    from ldaspark.analysis import discrete, symmetry
     monkeypatch.setattr(discrete, "theorem1_residuals", lambda *a, **k: _fake_t1(**{"theorem1-q1": 1e-3}))
     checks, _ = au.theorem1_checks(get_method("gauss-1"), True, False, 30, True, ("skate", "particle"))
     assert {c.status for c in checks if c.name.startswith("theorem1")} == {au.FAIL}
@@ -206,7 +206,7 @@ def test_theorem1_residual_above_tolerance_fails_and_coarse_fd_is_not_a_pass(mon
 
 
 def test_symmetry_fd_parts_judged_only_for_nonsingular_bvp(monkeypatch):
-    from ldaspark.theory import discrete, symmetry
+    from ldaspark.analysis import discrete, symmetry
     monkeypatch.setattr(discrete, "theorem1_residuals", lambda *a, **k: _fake_t1())
     sym = {"symmetry-Ld": 0.0, "symmetry-fd-plus": 1e-3, "symmetry-fd-minus": 1e-3, "symmetry-Phi": 1e-30}
     for cls, want in (("well-posed", au.FAIL), ("gauge-deficient", au.FAIL), ("singular", au.PASS)):
@@ -267,7 +267,7 @@ def test_inconsistent_tableau_fails_although_22_and_theorem1_hold():
 
 
 def test_symmetry_summary_fails_when_nothing_is_decided(monkeypatch):
-    from ldaspark.theory import discrete, symmetry
+    from ldaspark.analysis import discrete, symmetry
     monkeypatch.setattr(discrete, "theorem1_residuals", lambda *a, **k: _fake_t1())
     monkeypatch.setattr(symmetry, "check_symmetry", _raising("reverse BVP failed"))
     by = _statuses(hyp23=True)

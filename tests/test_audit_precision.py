@@ -11,8 +11,8 @@ from ldaspark.cli import main
 from ldaspark.core.errors import TableauError
 from ldaspark.core.families import builtin_method_names, get_method
 from ldaspark.core.tableau import VECTOR_NAMES, from_json_dict, load_tableau
-from ldaspark.theory import audit as au
-from ldaspark.theory import order_conditions as oc
+from ldaspark.lab.theory import audit as au
+from ldaspark.analysis import order_conditions as oc
 
 from reliability_helpers import time_bound
 
@@ -377,7 +377,7 @@ def test_six_digit_entries_theorem1_decided_to_their_precision():
 def test_entry_floor_only_for_entries_known_to_few_digits():
     """The finest-slope allowance of convergence_checks applies near 1e3 x 10^-d for entries of d
     digits only: exact and float64-precision tableaux keep the two-sided order check."""
-    from ldaspark.theory.audit_checks import _entry_floor
+    from ldaspark.lab.theory.audit_checks import _entry_floor
     six = from_json_dict(printed(get_method("lobatto-iiia-iiib-3", exact=True), 6))
     assert _entry_floor(six) == pytest.approx(1e-3)
     assert _entry_floor(get_method("lobatto-iiia-iiib-3", exact=True)) == 0.0

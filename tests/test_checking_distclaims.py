@@ -17,13 +17,13 @@ import mpmath
 import numpy as np
 import pytest
 
-from ldaspark.claims import claims_general as cg
-from ldaspark.claims import claims_index as ci
-from ldaspark.claims import claims_paper as cp
-from ldaspark.claims import ledger
+from ldaspark.lab.claims import claims_general as cg
+from ldaspark.lab.claims import claims_index as ci
+from ldaspark.lab.claims import claims_paper as cp
+from ldaspark.lab.claims import ledger
 from ldaspark.core.errors import InputError, LdasparkError
-from ldaspark.dist import workers
-from ldaspark.dist.workers import Checkpoint, InlineExecutor, Unit
+from ldaspark import executors as workers
+from ldaspark.executors import Checkpoint, InlineExecutor, Unit
 
 
 def _tab(name="tab-x"):
@@ -502,8 +502,8 @@ def test_unit_cost_and_names():
     assert ledger.unit_cost((0, "robot"), names) == pytest.approx(12.0 * 0.19)
     assert ledger.unit_cost((1, "nowhere"), names) == pytest.approx(10.0 * 0.2)
     assert ledger.unit_cost((0, "skate")) == pytest.approx(10.0 * 0.07)
-    assert ledger.unit_cost(("group", "ldaspark.claims.claims_paper:records", "energy-2.2")) == 0.8
-    assert ledger.unit_cost(("group", "ldaspark.claims.claims_index:x", None)) == 5.0
+    assert ledger.unit_cost(("group", "ldaspark.lab.claims.claims_paper:records", "energy-2.2")) == 0.8
+    assert ledger.unit_cost(("group", "ldaspark.lab.claims.claims_index:x", None)) == 5.0
     assert ledger.unit_name((1, None), names) == "other on tableau [1]"
     assert ledger.unit_name((0, "robot"), names) == "gauss-2 on robot [0]"
     assert ledger.unit_name(("group", "a.b.mod:f", ("x", "y")), names) == "group mod x y [a.b.mod:f|('x', 'y')]"

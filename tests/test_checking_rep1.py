@@ -1,5 +1,5 @@
-"""Verdict rules and bookkeeping of ``ldaspark.reports.peers``, ``ldaspark.reports.summary`` and
-``ldaspark.reports.systems`` on small synthetic inputs chosen so that the rule and its plausible
+"""Verdict rules and bookkeeping of ``ldaspark.lab.reports.peers``, ``ldaspark.lab.reports.summary`` and
+``ldaspark.lab.reports.systems`` on small synthetic inputs chosen so that the rule and its plausible
 neighbours (< vs <=, all vs any, min vs max, a/b vs b/a, one field dropped) give different answers
 (issue #31). The expensive parts (the compiled models, the solvers of the optional peers, the long
 runs) are replaced by small pure-Python stand-ins that record what they are given; the rules and the
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from ldaspark.core.errors import InputError, LdasparkError
-from ldaspark.reports import peers, summary, systems
+from ldaspark.lab.reports import peers, summary, systems
 
 
 # =============================================================================================
@@ -885,8 +885,8 @@ def test_observables_series_and_initial_state(monkeypatch):
 
 
 def test_order_reference_is_the_closed_form_when_there_is_one(monkeypatch):
-    import ldaspark.claims.claims_general as cg
-    import ldaspark.theory.orders as orders
+    import ldaspark.lab.claims.claims_general as cg
+    import ldaspark.lab.theory.orders as orders
     monkeypatch.setattr(orders, "ExactReference", lambda sc, dps: ("exact", dps))
     monkeypatch.setattr(cg, "DOP853Reference", lambda system, t0, q0, v0, t_end: ("dop", t_end))
     assert systems._reference("x", SimpleNamespace(exact=object()), 1.0) == (("exact", 30), "closed form")

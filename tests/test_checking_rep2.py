@@ -1,6 +1,6 @@
 """Issue #31 (generated mutants): the verdict rules of the stability report's modules
-(``ldaspark.reports.stability``, ``stability_checks``, ``stability_stiff``, ``stability_regimes``)
-and of the bicycle references (``ldaspark.theory.bicycle_flow``, ``ldaspark.models.bicycle_benchmark``)
+(``ldaspark.lab.reports.stability``, ``stability_checks``, ``stability_stiff``, ``stability_regimes``)
+and of the bicycle references (``ldaspark.lab.theory.bicycle_flow``, ``ldaspark.models.bicycle_benchmark``)
 fed inputs on which the right rule and its plausible neighbours (< vs <=, min vs max, all vs any,
 a ratio upside down, one field of a pair) give different answers.
 
@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 
 from ldaspark.core.errors import NewtonError
-from ldaspark.reports import stability as st
-from ldaspark.reports import stability_checks as sc_
-from ldaspark.reports import stability_regimes as rg
-from ldaspark.reports import stability_stiff as ss
+from ldaspark.lab.reports import stability as st
+from ldaspark.lab.reports import stability_checks as sc_
+from ldaspark.lab.reports import stability_regimes as rg
+from ldaspark.lab.reports import stability_stiff as ss
 
 
 # ================================================================================================
@@ -762,7 +762,7 @@ def test_run_jobs_here_calls_every_job_once(monkeypatch):
 # bicycle_flow and bicycle_benchmark
 # ================================================================================================
 def test_weave_and_capsize_picks():
-    from ldaspark.theory import bicycle_flow as bf
+    from ldaspark.lab.theory import bicycle_flow as bf
     eigs = [complex(-14, 0), complex(-0.8, 4.5), complex(-0.8, -4.5), complex(-0.3, 0)]
     assert bf.weave_real_part(eigs) == -0.8
     assert bf.capsize_eigenvalue(eigs) == -0.3                 # the largest real one, not the most negative
@@ -778,7 +778,7 @@ def test_weave_and_capsize_picks():
 
 
 def test_critical_speeds_secant_on_synthetic_modes(monkeypatch):
-    from ldaspark.theory import bicycle_flow as bf
+    from ldaspark.lab.theory import bicycle_flow as bf
     vw, vc = 4.29238253634111, 6.02426201538837
     calls = []
 
@@ -824,7 +824,7 @@ def test_benchmark_unknown_parameter_and_max_real_part():
 def test_critical_speeds_stops_after_thirty_secant_steps(monkeypatch):
     """A triple root: the secant iteration converges only linearly; with xtol < 0 it never stops
     early and takes its 30 steps (2 starting values + 30 evaluations per speed)."""
-    from ldaspark.theory import bicycle_flow as bf
+    from ldaspark.lab.theory import bicycle_flow as bf
     calls = []
 
     def fake(v, method, h, model=None):
@@ -840,7 +840,7 @@ def test_critical_speeds_stops_after_thirty_secant_steps(monkeypatch):
 def test_write_without_a_clock_has_no_timing_line(monkeypatch, tmp_path):
     for name in ("_fig_step_sweep", "_fig_stage", "_fig_long", "_fig_stiff", "_fig_floor"):
         monkeypatch.setattr(st, name, lambda *a: None)
-    from ldaspark.reports.timing import Clock
+    from ldaspark.lab.reports.timing import Clock
     st.write(_results(), str(tmp_path / "a"))
     st.write(_results(), str(tmp_path / "b"), clock=Clock(), command="ldaspark report stability --x")
     a, b = (tmp_path / "a" / "stability.md").read_text(), (tmp_path / "b" / "stability.md").read_text()
@@ -973,7 +973,7 @@ def test_linear_stability_against_closed_forms(z):
 def test_spark_eigenvalues_passes_the_lateral_restriction(monkeypatch):
     import sympy
     from ldaspark.models import bicycle as bc
-    from ldaspark.theory import bicycle_flow as bf
+    from ldaspark.lab.theory import bicycle_flow as bf
     seen = {}
 
     def fj(system, method, q0, v0, h, dps=None, coords=None, rates=None, dependent=None):
@@ -996,7 +996,7 @@ def test_spark_eigenvalues_passes_the_lateral_restriction(monkeypatch):
 def test_secant_brackets_and_inclusive_tolerance(monkeypatch):
     """The documented brackets 4 - 4.5 and 6 - 6.1; a linear weave function is solved by the first
     secant step (c = 4.25 exactly), whose length 0.25 then meets xtol = 0.25 (<=): 3 evaluations."""
-    from ldaspark.theory import bicycle_flow as bf
+    from ldaspark.lab.theory import bicycle_flow as bf
     calls = []
 
     def fake(v, method, h, model=None):
@@ -1014,7 +1014,7 @@ def test_nonlinear_run_defaults_and_outputs(monkeypatch):
     import sympy
     import ldaspark.solve
     from ldaspark.models import bicycle as bc
-    from ldaspark.theory import bicycle_flow as bf
+    from ldaspark.lab.theory import bicycle_flow as bf
     seen = {}
     n = len(bc.COORDS)
     qs = sympy.symbols(f"x0:{n}")

@@ -1,4 +1,4 @@
-"""Verdict rules of the audit (ldaspark.theory.audit, audit_checks), the order estimates and claim
+"""Verdict rules of the audit (ldaspark.lab.theory.audit, audit_checks), the order estimates and claim
 verdicts (orders), the exact (22)/(23) checks (conditions), the tree-order machinery
 (order_conditions), the symmetry summary and the variational prediction, each fed an input on
 which the right rule and its plausible neighbours (<= vs <, all vs any, min vs max, a/b vs b/a,
@@ -21,12 +21,12 @@ import sympy
 from ldaspark.core.errors import InputError, LdasparkError, TableauError
 from ldaspark.core.families import gauss, get_method
 from ldaspark.core.tableau import from_json_dict
-from ldaspark.theory import audit as au
-from ldaspark.theory import audit_checks as ac
-from ldaspark.theory import conditions as cond
-from ldaspark.theory import order_conditions as oc
-from ldaspark.theory import orders as orr
-from ldaspark.theory import variational as var
+from ldaspark.lab.theory import audit as au
+from ldaspark.lab.theory import audit_checks as ac
+from ldaspark.analysis import conditions as cond
+from ldaspark.analysis import order_conditions as oc
+from ldaspark.lab.theory import orders as orr
+from ldaspark.lab.theory import variational as var
 
 def approx(expected, rel=1e-9, abs=0.0):
     """pytest.approx without its default absolute tolerance 1e-12, which would let every residual
@@ -136,7 +136,7 @@ def _r(q0=1e-30, q1=3e-30, fd=1e-35, dps=30):
 @pytest.fixture
 def t1env(monkeypatch):
     from ldaspark.models import scenes
-    from ldaspark.theory import discrete, wellposedness
+    from ldaspark.analysis import discrete, wellposedness
     env = types.SimpleNamespace(results=[], calls=[], classify=None, scene=_Scene())
     monkeypatch.setattr(scenes, "get_scene", lambda name: env.scene)
 
@@ -236,7 +236,7 @@ def test_theorem1_checks_skip_without_discrete(monkeypatch):
     import importlib.util
     real = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec",
-                        lambda name, *a: None if name == "ldaspark.theory.discrete" else real(name, *a))
+                        lambda name, *a: None if name == "ldaspark.analysis.discrete" else real(name, *a))
     checks, facts = au.theorem1_checks(TAB0, True, True, 30, True)
     assert [c.name for c in checks] == ["theorem1"] and checks[0].status == SKIP and facts == {}
 
@@ -273,7 +273,7 @@ def _sym(ld=1e-20, fp=1e-20, fm=1e-20, phi=1e-20, wp="regular"):
 @pytest.fixture
 def symenv(monkeypatch):
     from ldaspark.models import scenes
-    from ldaspark.theory import symmetry
+    from ldaspark.analysis import symmetry
     env = types.SimpleNamespace(results={}, scene=_Scene())
     monkeypatch.setattr(scenes, "get_scene", lambda name: env.scene)
 
@@ -1119,7 +1119,7 @@ def test_predicted_local_order_per_family():
 
 def test_initial_point_base_and_perturbed():
     from ldaspark.models.scenes import get_scene
-    from ldaspark.theory.discrete import perturbed_initial
+    from ldaspark.analysis.discrete import perturbed_initial
     sc = get_scene("skate")
     t0, q0, v0 = var.initial_point("skate", "base", 30)
     assert (t0, list(q0), list(v0)) == (sc.initial(30)[0], list(sc.initial(30)[1]), list(sc.initial(30)[2]))
@@ -1190,7 +1190,7 @@ def test_measure_errors_compares_psi_at_the_last_steps_stage_times(monkeypatch):
 def _symmetry_with(monkeypatch, d):
     """check_symmetry with the BVP solves, projectors and steps replaced by the records in d."""
     from ldaspark.models import arguments
-    from ldaspark.theory import symmetry as sy
+    from ldaspark.analysis import symmetry as sy
     seen = {"dl": [], "steps": []}
     mk = lambda **kw: types.SimpleNamespace(**kw)
     fwd = mk(L_d=d["L"][0], f_d_minus=np.array(d["fm"][0]), f_d_plus=np.array(d["fp"][0]), p0=np.array(d["p0"]),
@@ -1274,7 +1274,7 @@ def test_check_symmetry_identities_and_scales(monkeypatch, d):
 
 
 def test_tangent_projector_null_space_and_rank_threshold():
-    from ldaspark.theory import symmetry as sy
+    from ldaspark.analysis import symmetry as sy
     M = np.array([[1.0, 1.0, 0.0]])
     res = types.SimpleNamespace(extra={"gauge": None, "dk0_dq": [M, None]}, dps=None)
     P, dim = sy._tangent_projector(res, 0)

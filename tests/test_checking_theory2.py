@@ -16,11 +16,11 @@ import ldaspark
 from ldaspark.core.backend import Backend
 from ldaspark.core.errors import InputError, NonFiniteError
 from ldaspark.core.system import LagrangianSystem
-from ldaspark.theory import discrete as D
-from ldaspark.theory import energy_balance as EB
-from ldaspark.theory import exact_flow as EF
-from ldaspark.theory import flow_jacobian as FJ
-from ldaspark.theory import wellposedness as W
+from ldaspark.analysis import discrete as D
+from ldaspark.lab.theory import energy_balance as EB
+from ldaspark.lab.theory import exact_flow as EF
+from ldaspark.analysis import flow_jacobian as FJ
+from ldaspark.analysis import wellposedness as W
 
 
 # ---------------------------------------------------------------------------------------------
@@ -650,7 +650,7 @@ def test_exact_flow_newton_refreshes_a_stale_matrix(monkeypatch):
 # ---------------------------------------------------------------------------------------------
 # definition1: the aggregation of (15a), (15b) over a trajectory, on synthetic per-step data
 def test_definition1_aggregates_the_right_neighbours(monkeypatch):
-    from ldaspark.theory import definition1 as D1
+    from ldaspark.lab.theory import definition1 as D1
     N = 5
     rng = np.random.default_rng(7)
     tab = {key: rng.uniform(-1, 1, size=(N, 2)) for key in ("p0", "p1", "fm", "fp", "D2", "D4", "v0", "v1")}
@@ -972,7 +972,7 @@ def _ns(**kw):
 
 
 def _section5_stubs(monkeypatch):
-    from ldaspark.theory import section5 as S5
+    from ldaspark.lab.theory import section5 as S5
     A = lambda *x: np.array(x, dtype=float)
     fw = _ns(p0=A(100.0, -3.0), p1=A(-50.0, 2.0), f_d_minus=A(0.5, 0.25), f_d_plus=A(-0.75, 0.5),
              k0=A(0.125), residual=1e-30, L_d=2.5, v0=A(1.0, 2.0), v1=A(3.0, -1.0),
@@ -1060,7 +1060,7 @@ def test_section5_del_and_antisymmetry_on_stubs(monkeypatch):
 def test_definition1_fd_gradient_predicts_and_extrapolates(monkeypatch):
     """definition1's differences: each shifted solve starts from the first-order predictor
     x + dx/dq_k eps, and Richardson over delta, delta/2 is exact on quartic L_d."""
-    from ldaspark.theory import definition1 as D1
+    from ldaspark.lab.theory import definition1 as D1
     starts = []
 
     class Solver:
@@ -1092,7 +1092,7 @@ def test_definition1_fd_gradient_predicts_and_extrapolates(monkeypatch):
 
 
 def test_section7_test_systems_are_the_documented_ones():
-    from ldaspark.theory import section7 as S7
+    from ldaspark.lab.theory import section7 as S7
     q = sympy.symbols("q1:4")
     R = sympy.Rational
     spec = {True: (sympy.diag(1, 2, 3), sympy.cos(q[0]) + q[1] ** 4 / 4 + q[0] * q[2], [1, -1, 2], R(1, 2)),
@@ -1115,7 +1115,7 @@ def test_section7_test_systems_are_the_documented_ones():
 
 
 def test_section7_printed_solution_has_m_multipliers_and_solves_the_system():
-    from ldaspark.theory import section7 as S7
+    from ldaspark.lab.theory import section7 as S7
     sysm, q0, v0 = S7.affine_system(False)
     with mpmath.workdps(30):
         q0m = np.array([mpmath.mpf(x.p) / x.q if hasattr(x, "p") else mpmath.mpf(x) for x in map(sympy.Rational, q0)],

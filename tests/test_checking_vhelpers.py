@@ -26,7 +26,7 @@ from ldaspark.core.backend import Backend
 from ldaspark.core.errors import InconsistentInitialDataError, SingularSaddleError
 from ldaspark.core.families import get_method
 from ldaspark.core.system import LagrangianSystem
-from ldaspark.theory.conditions import check_22a, check_22b, check_23
+from ldaspark.analysis.conditions import check_22a, check_22b, check_23
 
 from verification import general_fixtures as GF
 from verification import strategies as ST

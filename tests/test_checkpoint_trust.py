@@ -13,7 +13,7 @@ from hypothesis import given, strategies as st
 
 from ldaspark.core import workers
 from ldaspark.core.errors import LdasparkError
-from ldaspark.dist.workers import Checkpoint, CheckpointKeyError, Unit, checkpoint_key, run_resumable, \
+from ldaspark.executors import Checkpoint, CheckpointKeyError, Unit, checkpoint_key, run_resumable, \
     source_fingerprint
 
 
@@ -337,7 +337,7 @@ def test_the_fingerprint_covers_the_environment_and_the_files_a_run_reads(tmp_pa
 
 
 def test_run_ledger_binds_the_checkpoint_to_its_own_settings(monkeypatch):
-    from ldaspark.theory import ledger
+    from ldaspark.lab.theory import ledger
     seen = []
 
     def fake(work, checkpoint, **kw):
@@ -353,7 +353,7 @@ def test_run_ledger_binds_the_checkpoint_to_its_own_settings(monkeypatch):
 
 
 def test_run_catalogue_binds_the_checkpoint_to_its_own_settings(monkeypatch):
-    from ldaspark.reports import mutation
+    from ldaspark.lab.reports import mutation
     seen = []
 
     def fake(units, checkpoint, **kw):
@@ -370,7 +370,7 @@ def test_run_catalogue_binds_the_checkpoint_to_its_own_settings(monkeypatch):
 
 # --- the callers' schemas --------------------------------------------------------------------
 def _ledger_record(**change):
-    from ldaspark.claims.ledger import record
+    from ldaspark.lab.claims.ledger import record
     return dict(record("22a", "gauss-1", "-", "pass", 0.0, "pass", 40, "n/a", 0.5), **change)
 
 
@@ -378,7 +378,7 @@ def _ledger_record(**change):
                                     dict(seconds=None), dict(dps=True), dict(dps=2.5), dict(status="ok"),
                                     dict(wellposed="maybe"), dict(note=3), dict(extra=1), dict(threshold=[1e-20])])
 def test_the_ledger_schema(change):
-    from ldaspark.claims.ledger import check_unit_records
+    from ldaspark.lab.claims.ledger import check_unit_records
     assert check_unit_records("u", [_ledger_record(), _ledger_record(residual=None, threshold=1e-20, dps=None)])
     with pytest.raises(LdasparkError):
         check_unit_records("u", [_ledger_record(), _ledger_record(**change)])
@@ -390,7 +390,7 @@ def test_the_ledger_schema(change):
 
 
 def test_the_mutation_schema():
-    from ldaspark.mutants.mutation import _record, by_id, check_record, QUICK
+    from ldaspark.lab.mutants.mutation import _record, by_id, check_record, QUICK
     m = by_id(QUICK[0])
     rec = _record(m, "killed", "tests/test_x.py::test_y", 2.0)
     assert check_record(m.id, rec) and check_record(m.id, dict(_record(m, "timeout", None, 3.0), output_tail="..."))

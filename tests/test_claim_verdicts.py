@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 
 from ldaspark.core.families import builtin_method_names, get_method
-from ldaspark.theory import audit_checks as ac
-from ldaspark.claims import claims_general as cg
-from ldaspark.claims import claims_paper as cp
-from ldaspark.claims import ledger as lg
-from ldaspark.theory.energy_balance import predicted_mismatch_order
-from ldaspark.theory.orders import claimed_order_of
-from ldaspark.theory.variational import predicted_local_order
+from ldaspark.lab.theory import audit_checks as ac
+from ldaspark.lab.claims import claims_general as cg
+from ldaspark.lab.claims import claims_paper as cp
+from ldaspark.lab.claims import ledger as lg
+from ldaspark.lab.theory.energy_balance import predicted_mismatch_order
+from ldaspark.lab.theory.orders import claimed_order_of
+from ldaspark.lab.theory.variational import predicted_local_order
 
 
 _REAL = {}          # the real computations' results, shared by the tests of this module (cost)
@@ -93,7 +93,7 @@ def test_energy_balance_predictions_pinned():
 @pytest.mark.parametrize("name", builtin_method_names(3))
 def test_audit_tree_prediction_pinned(name):
     """The audit's prediction (forced-ODE trees, exact) is the paper's order for every built-in."""
-    from ldaspark.theory import audit as au
+    from ldaspark.lab.theory import audit as au
     ar, e = au.oc.arith_for(get_method(name, exact=True), 30)
     _, facts = au.order_checks(ar, e)
     assert au.predicted_order(None, facts) == GLOBAL[name]
@@ -258,7 +258,7 @@ def test_general_checks_verdicts(monkeypatch):
 
 
 def lg_real_t1(*a, **k):
-    from ldaspark.theory.discrete import theorem1_residuals
+    from ldaspark.analysis.discrete import theorem1_residuals
     return theorem1_residuals(*a, **k)
 
 

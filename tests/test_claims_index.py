@@ -1,11 +1,11 @@
-"""The claims index (ldaspark.claims.claims_index): every referenced test exists (collected by
+"""The claims index (ldaspark.lab.claims.claims_index): every referenced test exists (collected by
 parsing the test files with ast, not by importing them), every numbered equation of sections
 2-8 has an entry, statuses are valid, and the markdown escapes pipes. Cost < 1 s."""
 import ast
 import os
 
 
-from ldaspark.claims import claims_index as ci
+from ldaspark.lab.claims import claims_index as ci
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -68,7 +68,7 @@ def test_claims_paper_records_judge_residuals(monkeypatch):
     """The ledger group's record assembly on its section 7 part, with the computations replaced
     by fixed residuals (the computations themselves are verification/test_section7_reductions.py):
     small residuals pass, controls are expected to fail, a broken reduction is reported."""
-    from ldaspark.claims import claims_paper as cp
+    from ldaspark.lab.claims import claims_paper as cp
     good = {"diff": 1e-40, "stage": 0.0, "printed_residual": 1e-40}
     bad = {"diff": 1e-2, "stage": 1e-2, "printed_residual": 1e-2}
     monkeypatch.setattr(cp, "reduction", lambda kind, tab, constant_K: good if (kind, tab.name) in (
@@ -86,8 +86,8 @@ def test_claims_paper_records_judge_residuals(monkeypatch):
 
 
 def test_claims_md_has_the_index(tmp_path):
-    from ldaspark.reports.claims import write_markdown
-    from ldaspark.claims.ledger import record
+    from ldaspark.lab.reports.claims import write_markdown
+    from ldaspark.lab.claims.ledger import record
     write_markdown([record("15a", "gauss-2", "particle", "pass", 1e-30, "pass")], tmp_path / "c.md", 1.0, "test")
     text = (tmp_path / "c.md").read_text()
     assert "## Claims index (sections 2-8)" in text and "| (15a) |" in text

@@ -1,4 +1,4 @@
-"""Units of ldaspark.theory.orders: order estimation (LS over the asymptotic window, pairwise),
+"""Units of ldaspark.lab.theory.orders: order estimation (LS over the asymptotic window, pairwise),
 the references, and the claim verdicts. Each check has a negative control."""
 import math
 
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from hypothesis import given, strategies as st
 
-from ldaspark.theory.orders import (ExactReference, ODEReference, asymptotic_window, estimate_order,
+from ldaspark.lab.theory.orders import (ExactReference, ODEReference, asymptotic_window, estimate_order,
                                   floor_for, make_reference, pairwise_orders, run_method, verdict)
 from ldaspark.core.errors import InputError, LdasparkError
 from ldaspark.models.scenes import get_scene
@@ -141,7 +141,7 @@ def test_report_convergence_json_contract(tmp_path):
 
 
 def test_boundedness_measure_separates_bounded_from_drift():
-    from ldaspark.reports.energy import boundedness
+    from ldaspark.lab.reports.energy import boundedness
     t = np.linspace(0, 100, 2001)
     assert boundedness(t, 1e-3 * np.sin(3 * t))["bounded"]
     drift = boundedness(t, 1e-3 * np.sin(3 * t) + 1e-4 * t)     # negative control: linear drift
@@ -161,14 +161,14 @@ def test_report_energy_figure_json(tmp_path):
     r = d["methods"]["lobatto-iiia-iiib-2"]
     assert len(r["t"]) == len(r["dE"]) == 31 and r["max_abs_dE"] == max(abs(x) for x in r["dE"])
     with pytest.raises(InputError):
-        from ldaspark.reports.energy import figure_data
+        from ldaspark.lab.reports.energy import figure_data
         figure_data(7)
 
 
 def test_report_energy_figure4_through_fast_path(tmp_path):
-    from ldaspark.reports.energy import fig4_available, figure4, plot_fig4
+    from ldaspark.lab.reports.energy import fig4_available, figure4, plot_fig4
     if not fig4_available():
-        pytest.fail("ldaspark.reports.fig4 is part of the package and must be importable")
+        pytest.fail("ldaspark.lab.reports.fig4 is part of the package and must be importable")
     d = figure4(t_end=50.0)
     assert d["E0_matches_paper"] and abs(d["E0"] - 3.06) < 1e-12
     assert set(d["methods"]) == {"lobatto-iiia-iiib-2", "lobatto-iiia-iiib-2-modified", "mp-lobatto-iiib-a-2"}

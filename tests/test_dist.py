@@ -1,5 +1,5 @@
 """Work on a real Dask cluster (``distributed.LocalCluster``, 2 worker processes) and on the local
-pool: one way to name where work runs (``ldaspark.dist.workers``), shared by ensembles, the
+pool: one way to name where work runs (``ldaspark.executors``), shared by ensembles, the
 claims ledger, the mutation catalogue and the main job. Results must equal the serial run's
 (records field by field, trajectories bit for bit), a killed worker must lose nothing, and a
 rerun resumes from what an interrupted run finished. Skipped only without the ``dist`` extra
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from ldaspark.core.errors import InputError, LdasparkError
-from ldaspark.dist.workers import (Checkpoint, InlineExecutor, Unit, UnitsFailed, run_resumable, run_units,
+from ldaspark.executors import (Checkpoint, InlineExecutor, Unit, UnitsFailed, run_resumable, run_units,
                                    source_fingerprint)
 
 distributed = pytest.importorskip("distributed")
@@ -71,7 +71,7 @@ def _sleep(x):
 
 # --- ensembles -------------------------------------------------------------------------------------
 def test_ensemble_on_the_cluster_equals_the_serial_run_bit_for_bit(client):
-    from ldaspark.dist.ensemble import RunSpec, run_many
+    from ldaspark.ensemble import RunSpec, run_many
     from ldaspark.models.scenes import get_scene
     sc = get_scene("skate")
     Q0 = np.array([np.asarray(sc.q0, dtype=float) + 0.01 * j for j in range(4)])
@@ -114,7 +114,7 @@ def _strip(recs):
 
 
 def test_ledger_slice_on_the_cluster_equals_the_serial_run(client):
-    from ldaspark.claims.ledger import run_ledger
+    from ldaspark.lab.claims.ledger import run_ledger
     kw = dict(max_s=1, scenes=("particle",), perturbed=False, holonomic=False, controls=False)
     serial = run_ledger(jobs=1, **kw)
     dist = run_ledger(where=client, **kw)
@@ -126,7 +126,7 @@ def test_verify_cli_with_a_scheduler_writes_the_local_report(client, tmp_path, m
     # the CLI path of `ldaspark verify --scheduler`, on a slice of the quick ledger (the units
     # carry their options to the workers, so the slice is the same there)
     from ldaspark import cli
-    from ldaspark.reports import claims
+    from ldaspark.lab.reports import claims
     small = functools.partial(claims.run_ledger, max_s=1, scenes=("particle",), groups=())
     monkeypatch.setattr(claims, "run_ledger", lambda **kw: small(**{k: v for k, v in kw.items()
                                                                     if k not in ("max_s", "scenes", "groups")}))
@@ -141,7 +141,7 @@ def test_verify_cli_with_a_scheduler_writes_the_local_report(client, tmp_path, m
 
 @pytest.mark.exhaustive
 def test_three_catalogue_faults_killed_on_the_cluster(client, tmp_path):
-    from ldaspark.mutants.mutation import by_id, run_catalogue
+    from ldaspark.lab.mutants.mutation import by_id, run_catalogue
     targets = {
         "cond-22b-index-order": ["verification/test_conditions_22_23.py::test_22a_22b_23_families[gauss-2]"],
         "orders-pairwise-log2": ["tests/test_orders_estimates.py::test_pairwise_orders_with_step_ratio_3"],
@@ -251,7 +251,7 @@ def test_where_is_validated():
 def test_ctrl_c_in_verify_says_where_the_finished_units_are(monkeypatch, capsys):
     # the ledger and the catalogue keep a checkpoint: "no partial output" would be wrong there
     from ldaspark import cli
-    from ldaspark.reports import claims
+    from ldaspark.lab.reports import claims
 
     def interrupted(*a, **k):
         raise KeyboardInterrupt

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 import sympy
 
-from ldaspark.dist.ensemble import ensemble_integrate
+from ldaspark.ensemble import ensemble_integrate
 from ldaspark.core.errors import InputError
 from ldaspark.compiled.fast import fast_integrate, precompile
-from ldaspark.reports.fig4 import FIG4_METHODS, figure4_data, fit_growth
+from ldaspark.lab.reports.fig4 import FIG4_METHODS, figure4_data, fit_growth
 from ldaspark.models.scenes import mp_particles
 from ldaspark.core.system import LagrangianSystem
 

@@ -4,7 +4,7 @@ regresses, and each detector has a negative control."""
 import numpy as np
 import pytest
 
-from ldaspark.reports import stability as S
+from ldaspark.lab.reports import stability as S
 from ldaspark.core.errors import SingularSaddleError
 from ldaspark.core.families import get_method
 

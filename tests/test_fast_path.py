@@ -210,7 +210,7 @@ def test_bad_inputs(particle):
 
 def test_cpu_at_equal_accuracy_interpolation():
     """Work-precision ratios read the cheapest run reaching an error (log-log interpolation)."""
-    from ldaspark.reports.work_precision import cpu_at
+    from ldaspark.lab.reports.work_precision import cpu_at
     rows = [{"error": e, "cpu": c} for e, c in [(1e-2, 1.0), (1e-4, 2.0), (1e-6, 4.0), (1e-8, 8.0), (1e-5, 9.0)]]
     assert cpu_at(rows, 1e-4) == pytest.approx(2.0)
     assert cpu_at(rows, 1e-5) == pytest.approx(2 * 2 ** 0.5)       # the dominated 9 s run is ignored

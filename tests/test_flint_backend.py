@@ -81,7 +81,7 @@ def _matrix_with_sigmas(sig, dps, seed=3):
 def test_small_singular_values_by_schur_complement(dps):
     """Backend.small_singular_values against mpmath's SVD: the genuinely small values to many
     digits, a structural zero at the precision floor, the deficiency decided as before."""
-    from ldaspark.theory.discrete import _deficiency, _rank_info
+    from ldaspark.analysis.discrete import _deficiency, _rank_info
     bk = B.Backend(dps)
     sig = ["3", "1", "0.5", "0.02", "1e-11", "3e-13", "0"]
     J = _matrix_with_sigmas(sig, dps)

@@ -1,5 +1,5 @@
 """ldaspark.flow_jacobian: the Jacobian of the SPARK step map by the implicit function theorem
-(ldaspark/theory/flow_jacobian.py), on linear systems whose flow exp(h A) is known in closed form."""
+(ldaspark/analysis/flow_jacobian.py), on linear systems whose flow exp(h A) is known in closed form."""
 import mpmath
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""The generated-mutant runner (ldaspark/mutants/mutgen.py): each operator kind is generated where
+"""The generated-mutant runner (ldaspark/lab/mutants/mutgen.py): each operator kind is generated where
 it should be and nowhere else, a mutant changes exactly the text it names, ids survive edits
 elsewhere in the file, the committed equivalents list names existing mutants with an argument
 each, and ``ldaspark mutants`` refuses in one line, at once, where the repository's tests are
@@ -13,7 +13,7 @@ import mpmath
 import pytest
 
 from ldaspark.core.families import get_method
-from ldaspark.mutants import mutgen
+from ldaspark.lab.mutants import mutgen
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
@@ -123,7 +123,7 @@ def test_mutants_without_the_repositorys_tests_refuse_at_once(tmp_path, extra):
     assert len(lines) == 1 and "needs the repository's tests" in lines[0], p.stderr
     assert not (tmp_path / "out").exists()              # nothing done (no timing asserted: CI's CPUs differ)
     # negative control: with the tests beside it the check passes
-    from ldaspark.mutants.mutation import CatalogueError, require_tests
+    from ldaspark.lab.mutants.mutation import CatalogueError, require_tests
     require_tests(ROOT)
     with pytest.raises(CatalogueError):
         require_tests(tmp_path)
@@ -147,7 +147,7 @@ def _stability():
 
 
 def test_the_stiff_report_was_computed_with_the_modules_grids():
-    from ldaspark.reports import stability_stiff as st
+    from ldaspark.lab.reports import stability_stiff as st
     d = _stability()
     rows = d["stiff"]
     assert {(r["scene"], r["method"]) for r in rows} == {(s, m) for s in st.STIFF_SCENES for m in st.STIFF_METHODS}
@@ -165,7 +165,7 @@ def test_the_stiff_report_was_computed_with_the_modules_grids():
 def test_the_stiff_reports_classes_and_linear_predictions_recomputed():
     """classify, why and linear_stability on the stored rows give the stored verdicts (a changed
     threshold or a changed stability matrix disagrees with the committed report somewhere)."""
-    from ldaspark.reports import stability_stiff as st
+    from ldaspark.lab.reports import stability_stiff as st
     rows = _stability()["stiff"]
     for r in rows:
         assert st.classify(r) == r["class"], r
@@ -208,7 +208,7 @@ def test_the_stiff_scenes_are_the_documented_models():
     """The skate (8.2) and the particle (8.1) in U = omega^2 |q|^2 / 2 (resp. omega^2 (q1^2 + q2^2)
     / 2), with consistent initial data and the energy the report's relative errors divide by."""
     import sympy
-    from ldaspark.reports.stability_stiff import stiff_scene
+    from ldaspark.lab.reports.stability_stiff import stiff_scene
     q = sympy.symbols("q1:4")
     v = sympy.symbols("v1:4")
     w2 = 7 ** 2
@@ -230,7 +230,7 @@ def test_a_short_stiff_record_splits_at_two_and_missing_stats_count_zero(monkeyp
     """Four energies (n = 3): the halves are the first two and the last two (the minimum half
     length 2); fallback counts absent from the engine's stats are 0."""
     from ldaspark.compiled import fast
-    from ldaspark.reports import stability_stiff as st
+    from ldaspark.lab.reports import stability_stiff as st
     import types
     import numpy as np
     rel = [0.0, 1e-6, 1e-5, 1e-5]
@@ -243,7 +243,7 @@ def test_a_short_stiff_record_splits_at_two_and_missing_stats_count_zero(monkeyp
 
 
 def test_units_failed_names_five_and_counts_the_rest():
-    from ldaspark.dist.workers import UnitsFailed
+    from ldaspark.executors import UnitsFailed
     e = UnitsFailed({f"u{i}": "boom" for i in range(7)}, {"ok": 1}, kept="ck.jsonl")
     msg = str(e)
     assert msg.startswith("7 work unit(s) failed (1 finished): ")
@@ -260,7 +260,7 @@ def test_a_given_executor_is_used_as_is():
     """A thread pool passed as ``where`` runs the units itself (a closure, which a process pool
     could not pickle, runs); "local" with one job runs inline."""
     import concurrent.futures as cf
-    from ldaspark.dist.workers import Unit, run_units
+    from ldaspark.executors import Unit, run_units
     k = 41
     units = [Unit("a", lambda: k + 1)]
     with cf.ThreadPoolExecutor(1) as ex:
@@ -270,7 +270,7 @@ def test_a_given_executor_is_used_as_is():
 
 def test_a_renewed_pool_keeps_its_size_and_close_waits(monkeypatch):
     import time as _time
-    from ldaspark.dist import workers
+    from ldaspark import executors as workers
     made = []
     real = workers.make_process_pool
 
@@ -291,7 +291,7 @@ def test_a_lost_worker_is_retried_exactly_retries_times():
     named with the count; the good unit once."""
     import concurrent.futures as cf
     from concurrent.futures.process import BrokenProcessPool
-    from ldaspark.dist.workers import Unit, UnitsFailed, run_units
+    from ldaspark.executors import Unit, UnitsFailed, run_units
     calls = []
 
     class Losing(cf.Executor):
@@ -368,7 +368,7 @@ def test_bad_values_are_described_briefly():
 
 def test_a_one_step_stiff_record_has_no_second_half(monkeypatch):
     from ldaspark.compiled import fast
-    from ldaspark.reports import stability_stiff as st
+    from ldaspark.lab.reports import stability_stiff as st
     import types
     import numpy as np
     sol = types.SimpleNamespace(energy=np.array([2.0, 2.0 * (1 + 1e-6)]), constraint=np.zeros(2),
@@ -379,7 +379,7 @@ def test_a_one_step_stiff_record_has_no_second_half(monkeypatch):
 
 
 def test_an_unknown_cpu_count_means_one_worker(monkeypatch):
-    from ldaspark.dist import workers
+    from ldaspark import executors as workers
     monkeypatch.setattr(workers.os, "cpu_count", lambda: None)
     place = workers._Place(None, None, None)
     assert isinstance(place.executor, workers.InlineExecutor) and not place.own_pool
@@ -447,7 +447,7 @@ def _close(x, rel=1e-9, abs=0.0):
 def test_the_theorem1_tolerance_is_the_largest_of_its_three_parts():
     import types
 
-    from ldaspark.theory import audit as au
+    from ldaspark.lab.theory import audit as au
     tab = types.SimpleNamespace(source_digits=None)
     assert au._theorem1_tol(tab, 30, 0.0) == _close(1e-15)                 # 10^(-dps/2)
     assert au._theorem1_tol(tab, 40, 1e-19) == _close(1e-18)               # 10 x FD error
@@ -457,8 +457,8 @@ def test_the_theorem1_tolerance_is_the_largest_of_its_three_parts():
 
 
 def test_theorem1_is_computed_from_initial_values_accurate_beyond_the_working_digits(monkeypatch):
-    from ldaspark.theory import audit as au
-    from ldaspark.theory import discrete
+    from ldaspark.lab.theory import audit as au
+    from ldaspark.analysis import discrete
     from ldaspark.models.scenes import get_scene
     seen = []
 
@@ -478,8 +478,8 @@ def test_theorem1_is_computed_from_initial_values_accurate_beyond_the_working_di
 def test_a_tolerance_exactly_at_the_teeth_bound_is_decided(monkeypatch):
     """TEETH is the largest tolerance that still has teeth: at exactly TEETH the scene is decided
     (the full audit does not retry at +20 digits) and no entries' precision note is added."""
-    from ldaspark.theory import audit as au
-    from ldaspark.theory import discrete, wellposedness
+    from ldaspark.lab.theory import audit as au
+    from ldaspark.analysis import discrete, wellposedness
     calls = []
 
     def fake(system, tab, t0, q0, v0, H, dps):
@@ -502,7 +502,7 @@ def test_a_tolerance_exactly_at_the_teeth_bound_is_decided(monkeypatch):
 
 
 def test_the_step_counts_of_the_convergence_runs():
-    from ldaspark.theory import audit_checks as ac
+    from ldaspark.lab.theory import audit_checks as ac
     assert [ac._step_counts(p, False) for p in (1, 2, 3, 4, 6)] == [[16, 32, 64], [8, 16, 32], [4, 8, 16],
                                                                    [4, 8, 16], [4, 8, 16]]
     # quick drops the finest run only where the order is high enough (p >= 3) to see it from two
@@ -510,7 +510,7 @@ def test_the_step_counts_of_the_convergence_runs():
 
 
 def test_the_convergence_floor_and_constraint_tolerance(monkeypatch):
-    from ldaspark.theory import audit_checks as ac
+    from ldaspark.lab.theory import audit_checks as ac
     seen = []
 
     def fake(tab, scn, Ns, t_end, dps, floor):
@@ -532,7 +532,7 @@ def test_the_convergence_floor_and_constraint_tolerance(monkeypatch):
 def test_the_particle_reference_runs_twice_the_finest_steps(monkeypatch):
     import numpy as np
 
-    from ldaspark.theory import audit_checks as ac
+    from ldaspark.lab.theory import audit_checks as ac
     runs = []
 
     class Sol:
@@ -548,8 +548,8 @@ def test_the_particle_reference_runs_twice_the_finest_steps(monkeypatch):
 
 
 def test_the_order_checks_name_the_first_failing_tree():
-    from ldaspark.theory import audit as au
-    from ldaspark.theory import audit_checks as ac
+    from ldaspark.lab.theory import audit as au
+    from ldaspark.lab.theory import audit_checks as ac
     tab = get_method("gauss-1")
     ar, e, _ = au.decide_arith(tab, 30)
     checks, facts = ac.order_checks(ar, e)
@@ -558,8 +558,8 @@ def test_the_order_checks_name_the_first_failing_tree():
 
 
 def test_an_exact_decision_asked_for_allows_larger_fields_than_auto():
-    from ldaspark.theory import audit as au
-    from ldaspark.theory import order_conditions as oc
+    from ldaspark.lab.theory import audit as au
+    from ldaspark.analysis import order_conditions as oc
     tab = get_method("gauss-3", exact=True)
     ok, why = oc.exact_budget(tab, max_degree=au.EXACT_FORCED_MAX_DEGREE)
     assert ok, why
@@ -569,14 +569,14 @@ def test_an_exact_decision_asked_for_allows_larger_fields_than_auto():
 
 # --- orders ---------------------------------------------------------------------------------------------------
 def test_the_asymptotic_window_may_start_at_the_coarsest_step():
-    from ldaspark.theory.orders import asymptotic_window
+    from ldaspark.lab.theory.orders import asymptotic_window
     assert asymptotic_window([0.1, 0.05, 0.025], [1e-2, 1e-3, 1e-4], 1e-12) == (0, 2)
     assert asymptotic_window([0.1, 0.05, 0.025, 0.0125], [1e-2, 1e-3, 1e-15, 1e-15], 1e-12) == (0, 1)
 
 
 def test_the_ode_reference_counts_exactly_its_evaluations():
     from ldaspark.models.scenes import get_scene
-    from ldaspark.theory.orders import ODEReference
+    from ldaspark.lab.theory.orders import ODEReference
 
     class Counting(ODEReference):
         calls = 0
@@ -596,7 +596,7 @@ def test_flow_jacobian_indices_by_number():
 
     from ldaspark.core.errors import InputError
     from ldaspark.models.scenes import get_scene
-    from ldaspark.theory.flow_jacobian import _index
+    from ldaspark.analysis.flow_jacobian import _index
     system = get_scene("skate").system                                 # n = 3
     assert _index([0, 2], system, "q") == [0, 2]
     assert _index([np.int64(1), 0], system, "v") == [1, 0]
@@ -615,7 +615,7 @@ def test_flow_jacobian_tangent_and_select_are_read_as_given():
 
     from ldaspark.core.errors import InputError
     from ldaspark.models.scenes import get_scene
-    from ldaspark.theory.flow_jacobian import _restriction
+    from ldaspark.analysis.flow_jacobian import _restriction
     system = get_scene("skate").system                                 # 2n = 6
     bk = types.SimpleNamespace(is_mp=False)
     B = np.arange(12.0).reshape(6, 2)

@@ -25,12 +25,10 @@ PACKAGE = pathlib.Path(ldaspark.__file__).resolve().parent
 
 #: left to right: a room imports only from itself and from the layers to its left; the rooms of
 #: one layer do not import each other. ``ldaspark`` itself (the lazy facade) is the top.
-LAYERS = (("core",), ("models",), ("compiled",), ("dist",), ("solve", "plot"), ("theory",),
-          ("claims", "mutants"), ("reports",), ("cli",), ("__main__",), ("ldaspark",))
-
-#: what a module may take from the root package at import: its version string (set before
-#: anything else is imported), nothing from the lazy facade
-ROOT_NAMES_ALLOWED = {"__version__"}
+LAYERS = (("_version",), ("core",), ("models",), ("compiled",), ("executors",), ("ensemble",),
+          ("solve", "plot"), ("analysis",), ("cli",), ("__main__",), ("ldaspark",),
+          # the paper lab, above the whole library (which never imports it)
+          ("lab.theory",), ("lab.claims", "lab.mutants"), ("lab.reports",), ("lab.commands",), ("lab",))
 
 
 def _module_name(path: pathlib.Path) -> tuple[str, bool]:
@@ -100,8 +98,7 @@ def import_graph(modules=None) -> dict[str, set]:
     modules = package_modules() if modules is None else modules
     graph = {}
     for name, path in modules.items():
-        graph[name] = {t for t, names, _ in module_imports(name, path, modules)
-                       if not (t == "ldaspark" and names and set(names) <= ROOT_NAMES_ALLOWED)}
+        graph[name] = {t for t, names, _ in module_imports(name, path, modules)}
     return graph
 
 
@@ -147,7 +144,11 @@ def cycles(graph: dict[str, set]) -> list[list[str]]:
 
 
 def room(module: str) -> str:
+    """The room of a module: the package's first level (``core``), in the lab its second
+    (``lab.claims``)."""
     parts = module.split(".")
+    if len(parts) > 2 and parts[1] == "lab":
+        return f"lab.{parts[2]}"
     return parts[1] if len(parts) > 1 else parts[0]
 
 
@@ -191,7 +192,22 @@ def test_root_package_states_the_same_order():
     # the docstring's line names the layers in the order of LAYERS (without the facade itself)
     line = next(x for x in ldaspark.__doc__.splitlines() if x.strip().startswith("core"))
     stated = [tuple(r.strip() for r in part.split(",")) for part in line.split("<")]
-    assert stated == [rooms for rooms in LAYERS if rooms not in (("__main__",), ("ldaspark",))]
+    library = LAYERS[1:LAYERS.index(("__main__",))]
+    assert stated == [rooms for rooms in library] + [("lab",)]
+
+
+def test_library_never_imports_the_lab():
+    # the paper lab (ldaspark.lab) imports the library, never the reverse: no module outside
+    # the lab has an edge into it (the layer order says so too; this names the contract)
+    g = import_graph()
+    bad = [f"{src} -> {dst}" for src, dsts in g.items() if not src.startswith("ldaspark.lab")
+           for dst in dsts if dst.startswith("ldaspark.lab")]
+    assert not bad, bad
+
+
+def test_negative_control_library_to_lab_edge_is_upward():
+    g = {"ldaspark.solve": {"ldaspark.lab.reports.peers"}}
+    assert layer_violations(g) and "upward" in layer_violations(g)[0]
 
 
 def test_package_imports_moved_modules_by_their_new_names():
@@ -224,13 +240,13 @@ def test_negative_control_cycle_is_reported():
 
 def test_negative_control_upward_and_sideways_edges_are_reported():
     g = {"ldaspark.core.system": {"ldaspark.models.scenes"},          # upward
-         "ldaspark.claims.ledger": {"ldaspark.mutants.mutation"},      # sideways
-         "ldaspark.reports.x": {"ldaspark.core.errors"},               # fine: downward
+         "ldaspark.lab.claims.ledger": {"ldaspark.lab.mutants.mutation"},      # sideways
+         "ldaspark.lab.reports.x": {"ldaspark.core.errors"},               # fine: downward
          "ldaspark.models.scenes": {"ldaspark.models.scene"}}          # fine: same room
     bad = layer_violations(g)
     assert len(bad) == 2
-    assert "upward" in bad[1] and bad[1].startswith("ldaspark.core.system")
-    assert "sideways" in bad[0] and bad[0].startswith("ldaspark.claims.ledger")
+    assert "upward" in bad[0] and bad[0].startswith("ldaspark.core.system")
+    assert "sideways" in bad[1] and bad[1].startswith("ldaspark.lab.claims.ledger")
 
 
 def test_negative_control_hidden_lazy_import_is_an_edge(tmp_path):
@@ -261,10 +277,10 @@ def test_old_paths_in_from_imports_and_submodules():
     from ldaspark.core.scenes import get_scene as old_get_scene
     from ldaspark.models.scenes import get_scene
     assert old_get_scene is get_scene
-    from ldaspark.theory import claims_general as old_cg
-    from ldaspark.claims import claims_general
+    from ldaspark.lab.theory import claims_general as old_cg
+    from ldaspark.lab.claims import claims_general
     assert old_cg is claims_general
-    import ldaspark.mutants.catalogue.systems as new_area
-    import ldaspark.reports.catalogue.systems as old_area
+    import ldaspark.lab.mutants.catalogue.systems as new_area
+    import ldaspark.lab.reports.catalogue.systems as old_area
     assert old_area is new_area
     assert ldaspark._moved_to("ldaspark.core.spark") is None          # unmoved names are left alone

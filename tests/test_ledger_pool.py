@@ -1,8 +1,8 @@
 """The claims ledger's worker pool: ledger units and claim-group pieces (``ledger.group_pieces``)
 run in one pool, longest first, and the records come back in the serial order for any number of
 workers. A fake claim group (this module) keeps it cheap: ~1 s (exact conditions only)."""
-from ldaspark.claims import ledger
-from ldaspark.claims.ledger import extra_records, group_pieces, record, run_ledger
+from ldaspark.lab.claims import ledger
+from ldaspark.lab.claims.ledger import extra_records, group_pieces, record, run_ledger
 
 SPEC = f"{__name__}:records"
 PIECES = ["first", "second", "third"]

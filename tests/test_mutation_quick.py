@@ -7,8 +7,8 @@ import concurrent.futures
 
 import pytest
 
-from ldaspark.mutants.mutation import CATALOGUE, apply_mutant, by_id, run_mutant, snippet_problems
-from ldaspark.mutants.mutation_catalogue import QUICK
+from ldaspark.lab.mutants.mutation import CATALOGUE, apply_mutant, by_id, run_mutant, snippet_problems
+from ldaspark.lab.mutants.mutation_catalogue import QUICK
 
 CASES = {
     "cond-22b-index-order": "verification/test_conditions_22_23.py::test_22a_22b_23_families[gauss-2]",
@@ -20,7 +20,7 @@ CASES = {
 
 def test_every_snippet_occurs_exactly_once_in_the_current_source():
     problems = snippet_problems()
-    assert not problems, "mutation catalogue out of date (update ldaspark/mutants/mutation_catalogue.py):\n" \
+    assert not problems, "mutation catalogue out of date (update ldaspark/lab/mutants/mutation_catalogue.py):\n" \
         + "\n".join(problems)
     assert len(CATALOGUE) >= 30
     assert set(QUICK) <= {m.id for m in CATALOGUE}
@@ -28,7 +28,7 @@ def test_every_snippet_occurs_exactly_once_in_the_current_source():
 
 
 def test_apply_refuses_an_ambiguous_or_missing_snippet(tmp_path):
-    from ldaspark.mutants.mutation import CatalogueError, Mutant
+    from ldaspark.lab.mutants.mutation import CatalogueError, Mutant
     (tmp_path / "ldaspark").mkdir()
     (tmp_path / "ldaspark" / "f.py").write_text("a = 1\na = 1\n")
     with pytest.raises(CatalogueError, match="occurs 2 in"):
@@ -39,7 +39,7 @@ def test_apply_refuses_an_ambiguous_or_missing_snippet(tmp_path):
 
 
 def test_alternative_files_for_code_that_moves(tmp_path):
-    from ldaspark.mutants.mutation import Mutant, resolve_file
+    from ldaspark.lab.mutants.mutation import Mutant, resolve_file
     pkg = tmp_path / "ldaspark"
     pkg.mkdir()
     (pkg / "new.py").write_text("x = h * acc\n")
@@ -83,8 +83,8 @@ def test_mutants_exits_nonzero_when_a_mutant_survives(monkeypatch, tmp_path):
     (the runs replaced by fixed records)."""
     import argparse
 
-    from ldaspark.mutants import command, mutation
-    from ldaspark.mutants.mutation_catalogue import Mutant
+    from ldaspark.lab.mutants import command, mutation
+    from ldaspark.lab.mutants.mutation_catalogue import Mutant
 
     def fake(status):
         return lambda ms, jobs, hints_only=False, progress=None, exclude=(), **kw: [
@@ -111,8 +111,8 @@ def test_ci_runs_the_quick_catalogue_after_the_tests():
 def test_quick_run_stops_when_the_unmutated_package_fails_its_tests(monkeypatch, tmp_path):
     """The control of ``mutants --quick``: a failing unmutated run is one error before any mutant
     (every mutant would otherwise count as killed); a passing one lets the run go on."""
-    from ldaspark.mutants import command
-    from ldaspark.mutants.mutation import CatalogueError
+    from ldaspark.lab.mutants import command
+    from ldaspark.lab.mutants.mutation import CatalogueError
     seen = {}
 
     def fake_run_mutant(m, targets=None, **kw):

@@ -7,7 +7,7 @@ import types
 
 import pytest
 
-from ldaspark.mutants import mutgen
+from ldaspark.lab.mutants import mutgen
 
 
 def _mutants():
@@ -103,9 +103,9 @@ def test_a_coverage_run_in_two_shards_is_combined_with_its_contexts(tmp_path):
     """Two small test files, one per shard: the combined map has the node ids of both (each
     line with the tests that run it) and the coverage report lists what no test executes."""
     a, b = tmp_path / "test_a.py", tmp_path / "test_b.py"
-    a.write_text("from ldaspark.theory import memo\n\n\ndef test_outside():\n"
+    a.write_text("from ldaspark.analysis import memo\n\n\ndef test_outside():\n"
                  "    assert memo.cached('k', 1, 2, None, (1,), lambda: 5) == 5\n")
-    b.write_text("import numpy as np\nfrom ldaspark.theory import memo\n\n\ndef test_inside():\n"
+    b.write_text("import numpy as np\nfrom ldaspark.analysis import memo\n\n\ndef test_inside():\n"
                  "    with memo.memoized():\n"
                  "        assert memo.cached('k', 1, 2, None, (np.ones(2),), lambda: 5) == 5\n"
                  "        assert memo.cached('k', 1, 2, None, (np.ones(2),), lambda: 6) == 5\n")
@@ -126,12 +126,12 @@ def test_a_coverage_run_in_two_shards_is_combined_with_its_contexts(tmp_path):
     mutgen.write_coverage_report(files + ["verification/general_fixtures.py"], tmp_path / "cov", tmp_path,
                                  [str(a), str(b)], {}, 1.0, "cmd")
     doc = json.loads((tmp_path / "coverage-checking.json").read_text())
-    assert doc["modules"]["ldaspark/theory/memo.py"]["lines"] == [lc, ln]
+    assert doc["modules"]["ldaspark/analysis/memo.py"]["lines"] == [lc, ln]
     assert f"{line('isinstance(v, mpmath.mpf)')}->{line('return v._mpf_')}" in \
-        doc["modules"]["ldaspark/theory/memo.py"]["missed_branches"]
+        doc["modules"]["ldaspark/analysis/memo.py"]["missed_branches"]
     assert doc["modules"]["verification/general_fixtures.py"]["lines"][0] == 0
     md = (tmp_path / "coverage-checking.md").read_text()
-    assert "| ldaspark/theory/memo.py |" in md and "2 test files" in md
+    assert "| ldaspark/analysis/memo.py |" in md and "2 test files" in md
 
 
 def test_arcs_are_written_line_to_line_and_exits_named():

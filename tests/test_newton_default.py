@@ -13,7 +13,7 @@ from ldaspark.core.errors import NewtonError, SingularSaddleError
 from ldaspark.core.families import get_method
 from ldaspark.models.scenes import SCENES, get_scene
 from ldaspark.core.spark import integrate
-from ldaspark.reports import stability as S
+from ldaspark.lab.reports import stability as S
 
 TOL = 10 * 2.0 ** -52          # SparkMethod's default Newton tolerance in float64
 STEPS = 10

@@ -218,7 +218,7 @@ def test_every_family_up_to_3_stages_finishes_whole_runs_at_tiny_h(scene):
     """Every family with s <= 3, h = 1e-4 .. 1e-7, 1e5 steps on the compiled engine: each run
     finishes, with the constraint at round-off (|k| <= 64 eps, the largest seen 1e-15) and no step
     left to the generic engine."""
-    from ldaspark.reports.stability_stiff import tiny_step_grid
+    from ldaspark.lab.reports.stability_stiff import tiny_step_grid
     rows = tiny_step_grid(100_000, scenes=(scene,))
     assert len(rows) == 36
     bad = [r for r in rows if r["outcome"] != "ok"]
@@ -230,6 +230,6 @@ def test_every_family_up_to_3_stages_finishes_whole_runs_at_tiny_h(scene):
 @pytest.mark.parametrize("scene,method", [("skate", "gauss-2"), ("skate", "lobatto-iiia-iiib-2"),
                                           ("particle", "gauss-2"), ("particle", "lobatto-iiia-iiib-2")])
 def test_million_steps_at_h_1e_7(scene, method):
-    from ldaspark.reports.stability_stiff import tiny_step_run
+    from ldaspark.lab.reports.stability_stiff import tiny_step_run
     r = tiny_step_run(scene, method, 1e-7, 1_000_000)
     assert r["outcome"] == "ok" and r["max_k"] <= 64 * EPS

@@ -90,7 +90,7 @@ def test_nonideal_definition_errors_and_refusals():
     with pytest.raises(SystemDefinitionError):
         LagrangianSystem(sk.system.L, list(sk.system.k), q, v, nonideal=[sympy.Symbol("mu"), 0, 0])
     from ldaspark.compiled.fast import NotCompilableError, mechanical_parts
-    from ldaspark.theory.discrete import DiscreteBVP, DiscreteSolveError
+    from ldaspark.analysis.discrete import DiscreteBVP, DiscreteSolveError
     fr = get_scene("friction-skate").system
     with pytest.raises(NotCompilableError):
         mechanical_parts(fr)

@@ -1,11 +1,11 @@
-"""Trees, elementary weights, B/C/D and the stability function (ldaspark.theory.order_conditions),
+"""Trees, elementary weights, B/C/D and the stability function (ldaspark.analysis.order_conditions),
 against textbook facts and independent sympy computations; each with a negative control."""
 import pytest
 import sympy
 from hypothesis import given, strategies as st
 from sympy import Rational as R
 
-from ldaspark.theory import order_conditions as oc
+from ldaspark.analysis import order_conditions as oc
 from ldaspark.core.tableau import SparkTableau
 from ldaspark.core.families import get_method
 
@@ -188,8 +188,8 @@ def test_audit_order_facts_and_22_on_the_seven_array_tableau():
     arrays: the expected residuals are computed here from the definitions."""
     from fractions import Fraction as Fr
 
-    from ldaspark.theory import audit_checks as ac
-    from ldaspark.theory.conditions import check_22a, check_22b
+    from ldaspark.lab.theory import audit_checks as ac
+    from ldaspark.analysis.conditions import check_22a, check_22b
     tab = seven_array_tableau()
     ar, e = oc.exact_arith(tab)
     _, facts = ac.order_checks(ar, e)
@@ -226,8 +226,8 @@ def _lobatto3_with_own_tilde(b_tilde, a_from=None):
 def test_23d_reads_b_tilde_not_b_hat():
     """(23d) A_tilde_(s+1-i,s+1-j) + A_tilde_ij = b_tilde_j holds here with b_tilde = (1/4, 1/2, 1/4)
     != b_hat; checked with b_hat it would fail (control: the same A_tilde with b_tilde = b_hat)."""
-    from ldaspark.theory import audit_checks as ac
-    from ldaspark.theory.conditions import check_22a, check_22b, check_23
+    from ldaspark.lab.theory import audit_checks as ac
+    from ldaspark.analysis.conditions import check_22a, check_22b, check_23
     tab = _lobatto3_with_own_tilde(["1/4", "1/2", "1/4"])
     ar, e = oc.exact_arith(tab)
     assert e["b_tilde"] != e["b_hat"] and e["A_tilde"] != e["A_hat"]

@@ -1,4 +1,4 @@
-"""Order estimation (ldaspark.theory.orders) on synthetic data where the right answer is known
+"""Order estimation (ldaspark.lab.theory.orders) on synthetic data where the right answer is known
 independently: step ratios other than 2, ties between candidate windows, least squares over the
 whole window, the scaled round-off floor, and the stage times at which Psi is compared.
 Cost: ~2 s."""
@@ -11,7 +11,7 @@ from ldaspark.core.backend import Backend
 from ldaspark.core.families import gauss
 from ldaspark.models.scenes import get_scene
 from ldaspark.core.spark import integrate
-from ldaspark.theory.orders import (ExactReference, asymptotic_window, estimate_order, floor_for,
+from ldaspark.lab.theory.orders import (ExactReference, asymptotic_window, estimate_order, floor_for,
                                     measure_errors, pairwise_orders, verdict)
 
 

@@ -15,8 +15,8 @@ from markdown_it.rules_block.table import escapedSplit
 
 from ldaspark.core.comparators import derive_mechanical
 from ldaspark.models.scenes import robot
-from ldaspark.reports.peer import peer_section
-from ldaspark.reports.work_precision import write_report
+from ldaspark.lab.reports.peer import peer_section
+from ldaspark.lab.reports.work_precision import write_report
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 

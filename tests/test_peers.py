@@ -1,10 +1,10 @@
-"""The peer harness (``ldaspark.reports.peers``): equal-error interpolation, the best peer, the
+"""The peer harness (``ldaspark.lab.reports.peers``): equal-error interpolation, the best peer, the
 speed-up, every peer's solution against the skate's closed form, IDA's index-1 residual, and the
 peers being optional (scikit-sundae missing: skipped with a note)."""
 import numpy as np
 import pytest
 
-from ldaspark.reports import peers, work_precision
+from ldaspark.lab.reports import peers, work_precision
 from ldaspark.models.scenes import get_scene
 
 
@@ -146,7 +146,7 @@ def test_peer_section_renders_a_study():
                                          "peer_cpu": None, "speedup": None}]}]}
     text = "\n".join(peers.section(d))
     assert "0.45x" in text and "a loaded machine" in text and "ode-dop853 1.8 ms" in text
-    from ldaspark.reports.summary import peers_values
+    from ldaspark.lab.reports.summary import peers_values
     v = peers_values(d)
     assert v["peers.skate.speedups"] == "0.45x" and v["peers.skate.long"] == "-"
 

@@ -1,7 +1,7 @@
 """The peers' strongest right-hand sides (``ldaspark.compiled.ode``: the closed form of the saddle
 system (4) and the numeric solve into a work array) against the LAPACK saddle solve on every
 scene of the peer study, and the compiled-loop peers (CyRK, skipped without it) and the study's
-interleaved rounds (``ldaspark.reports.peers``).
+interleaved rounds (``ldaspark.lab.reports.peers``).
 Cost: ~30 s (five generated ODE modules compiled, CyRK's loops compiled)."""
 import numpy as np
 import pytest
@@ -10,7 +10,7 @@ import sympy
 from ldaspark.compiled import ode
 from ldaspark.compiled.codegen import _Symbols
 from ldaspark.models.scenes import get_scene
-from ldaspark.reports import peers
+from ldaspark.lab.reports import peers
 
 SCENES = peers.SCENES
 

@@ -31,9 +31,9 @@ def test_readme_commands_match_ci():
 
 
 # --- README quotes the reports: every number in the findings and speed tables is marked with the
-# key it comes from (<!--KEY-->text<!--/-->, see ldaspark.reports.summary) and equals the value
+# key it comes from (<!--KEY-->text<!--/-->, see ldaspark.lab.reports.summary) and equals the value
 # computed from the committed reports' JSON; verdict words are marked the same way.
-from ldaspark.reports.summary import MARK  # noqa: E402
+from ldaspark.lab.reports.summary import MARK  # noqa: E402
 # numbers that are not measurements: equation references "(22a)", "(23a-d)", "(3a-b)", stage
 # counts "s = 2", section numbers "8.4"
 NOT_MEASURED = re.compile(
@@ -64,7 +64,7 @@ def check_readme_quotes(text, values, reports_dir=None, snap=None):
     """Problems: marked values that differ from the reports (by the key's kind: exact, residual
     class, timing against the committed snapshot; ``summary.quote_problem``), unknown keys,
     unmarked numbers."""
-    from ldaspark.reports.summary import quote_problem
+    from ldaspark.lab.reports.summary import quote_problem
     problems = []
     for heading, cells in _quoted_tables(text):
         for row in cells:
@@ -79,8 +79,8 @@ def check_readme_quotes(text, values, reports_dir=None, snap=None):
 
 
 def test_readme_numbers_and_verdicts_come_from_the_reports():
-    from ldaspark.reports.summary import readme_values
-    from ldaspark.reports.summary import quote_problem
+    from ldaspark.lab.reports.summary import readme_values
+    from ldaspark.lab.reports.summary import quote_problem
     reports = str(README.parent / "reports")
     values = readme_values(reports)
     text = README.read_text()
@@ -140,7 +140,7 @@ def _another_machine(tmp_path):
         for j, r in enumerate(st["rows"]):
             r["cpu"] *= 1.0 + 0.5 * ((i + j) % 3)
         st.pop("ratios", None)
-    from ldaspark.reports.work_precision import ratios
+    from ldaspark.lab.reports.work_precision import ratios
     for st in wp["studies"]:
         st["ratios"] = {"error": ratios(st, key="error"), "energy_error": ratios(st, key="energy_error")}
     wp["steps_per_second_summary"]["median"] *= 0.6
@@ -150,7 +150,7 @@ def _another_machine(tmp_path):
 
 
 def _rewrite_timing(out):
-    from ldaspark.reports import driver
+    from ldaspark.lab.reports import driver
 
     class _Clock:
         wall, cpu = 301.0, 569.0
@@ -163,7 +163,7 @@ def _write_claims(out, recs):
 
 
 def _general_max_record(recs):
-    from ldaspark.reports.summary import CLAIM_GROUP_KEYS, ORDER_CLAIMS
+    from ldaspark.lab.reports.summary import CLAIM_GROUP_KEYS, ORDER_CLAIMS
     rs = [r for r in recs if CLAIM_GROUP_KEYS["claims.general"](r["claim"]) and r["status"] != "not-applicable"
           and r["expected"] == "pass" and r["status"] == "pass" and r["residual"] is not None
           and r["claim"] not in ORDER_CLAIMS]
@@ -171,7 +171,7 @@ def _general_max_record(recs):
 
 
 def _problems(out):
-    from ldaspark.reports.summary import quote_problem, readme_values
+    from ldaspark.lab.reports.summary import quote_problem, readme_values
     values = readme_values(str(out))
     text = README.read_text()
     return [p for p in (quote_problem(k, v, values, str(out)) for k, v in MARK.findall(text)) if p]
@@ -179,7 +179,7 @@ def _problems(out):
 
 def test_readme_holds_after_the_main_job_on_another_machine(tmp_path):
     import json
-    from ldaspark.reports.summary import readme_values
+    from ldaspark.lab.reports.summary import readme_values
     out, recs = _another_machine(tmp_path)
     _general_max_record(recs)["residual"] *= 9.9 / 6.3
     _write_claims(out, recs)
@@ -226,13 +226,13 @@ def test_readme_timings_are_strict_while_the_reports_are_the_snapshots(tmp_path)
     out = tmp_path / "reports"
     shutil.copytree(README.parent / "reports", out, ignore=shutil.ignore_patterns("figures"))
     # the copy's own snapshot, so that this holds also after the main job rewrote reports/ here
-    from ldaspark.reports.summary import write_snapshot
+    from ldaspark.lab.reports.summary import write_snapshot
     write_snapshot(str(out))
     d = json.loads((out / "report_timing.json").read_text())
     key = "wp.sps.median"
     d["readme"]["values"][key] = "999x"
     (out / "report_timing.json").write_text(json.dumps(d))
-    from ldaspark.reports.summary import quote_problem, readme_values
+    from ldaspark.lab.reports.summary import quote_problem, readme_values
     values = readme_values(str(out))
     assert quote_problem(key, "999x", values, str(out)) is not None      # the reports give another value
     assert quote_problem(key, values[key], values, str(out)) is not None  # the snapshot gives another value

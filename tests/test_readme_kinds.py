@@ -1,11 +1,11 @@
-"""What each kind of README mark is checked against (``ldaspark.reports.summary.quote_kind``), on
+"""What each kind of README mark is checked against (``ldaspark.lab.reports.summary.quote_kind``), on
 synthetic values: no reports needed (so this file, unlike test_readme.py, runs in the mutants'
 scratch copy, which has no reports/)."""
 
 
 def test_quote_kinds_residual_class_and_timing_snapshot():
     """What each kind of mark is checked against, on synthetic values (no reports needed)."""
-    from ldaspark.reports.summary import quote_kind, quote_problem, same_magnitude
+    from ldaspark.lab.reports.summary import quote_kind, quote_problem, same_magnitude
     assert [quote_kind(k) for k in ("run.wall", "wp.particle.ratios", "wp.skate.peer_ratios", "peers.robot.long",
                                     "energy.fig4.nh.seconds", "claims.general.max", "claims.theorem1.negctl_min",
                                     "claims.general", "convergence.spark", "wp.long.spark")] == \
@@ -31,7 +31,7 @@ def test_roundoff_driven_fig4_exponents_are_checked_against_the_snapshot():
     """The Fig. 4 drift exponents are a random walk of round-off (a fresh run moved 1.31 to 0.64):
     README's values must equal the committed run's snapshot, not a new run's; the printed
     scene's verdict (exponents ~0.01, far from 1) and the counts of other reports stay exact."""
-    from ldaspark.reports.summary import quote_kind, quote_problem
+    from ldaspark.lab.reports.summary import quote_kind, quote_problem
     assert [quote_kind(k) for k in ("energy.fig4.nh.exponents", "energy.fig4.nh.near1", "energy.fig4.nh.verdict",
                                     "energy.fig4.printed.exponents", "energy.fig4.printed.verdict",
                                     "energy.fig4.printed.near1", "energy.figs13.bounded")] == \

@@ -3,7 +3,7 @@
 coverage named with their module, the 90% line counted inclusively."""
 from __future__ import annotations
 
-from ldaspark.reports import summary as S
+from ldaspark.lab.reports import summary as S
 
 
 def _mod(generated, killed, survived=0, timeout=0, equivalent=0, not_covered=0):

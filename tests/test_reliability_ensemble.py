@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 
-from ldaspark.dist.ensemble import RunSpec, _run_plan, ensemble_integrate
+from ldaspark.ensemble import RunSpec, _run_plan, ensemble_integrate
 from ldaspark.core.errors import InconsistentInitialDataError, InputError, SingularSaddleError
 from ldaspark.models.scenes import get_scene
 
@@ -39,7 +39,7 @@ def test_consistent_members_pass_the_checks(skate):
 
 
 def test_singular_member_is_named():
-    from ldaspark.reports.stability import soft_system
+    from ldaspark.lab.reports.stability import soft_system
     sysm = soft_system()
     Q0 = np.zeros((2, 3))
     V0 = np.array([[0.5, 0, 0], [1.0, 0, 0]])   # v1 = 1: (4) fails
@@ -79,7 +79,7 @@ _CTRL_C = """
 import sys, time
 sys.path.insert(0, sys.argv[1])
 from test_reliability_ensemble import _sleep_task
-from ldaspark.dist.ensemble import _run_plan
+from ldaspark.ensemble import _run_plan
 print("start", flush=True)
 try:
     _run_plan([(0, _sleep_task, (3.0,)) for _ in range(20)], 1, max_workers=2)   # 30 s of work

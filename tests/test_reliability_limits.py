@@ -143,7 +143,7 @@ def test_ctrl_c_in_a_lazy_import_is_one_line(monkeypatch):
     real = importlib.import_module
 
     def interrupted(name, *a, **k):
-        if name == "ldaspark.theory.audit":
+        if name == "ldaspark.lab.theory.audit":
             try:
                 signal.raise_signal(signal.SIGINT)
             except KeyboardInterrupt:
@@ -165,7 +165,7 @@ def test_import_error_without_ctrl_c_is_not_hidden(monkeypatch):
     real = importlib.import_module
 
     def broken(name, *a, **k):
-        if name == "ldaspark.theory.audit":
+        if name == "ldaspark.lab.theory.audit":
             raise ImportError("genuinely missing")
         return real(name, *a, **k)
     monkeypatch.setattr(importlib, "import_module", broken)

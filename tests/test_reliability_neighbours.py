@@ -149,7 +149,7 @@ def test_with_params_takes_a_dict():
 # --- checkpoints: the reader's depth check is linear in the line ----------------------------------
 def test_checkpoint_depth_check_is_linear_on_a_forged_line():
     import time
-    from ldaspark.dist.workers import _json_depth
+    from ldaspark.executors import _json_depth
     # an unclosed string of escaped quotes: the former regular expression retried it at every
     # quote (quadratic: 18 s at 80 kB, hours at the 8 MiB line bound); now one pass
     forged = '"' + '\\"' * 400_000
@@ -194,7 +194,7 @@ def test_a_huge_integer_in_a_message_is_its_size():
 @pytest.mark.parametrize("addr", ["tcp://[::1]x", "tcp://[::1]x:1", "tcp://1.2.3.4.5:1", "tcp://[zz]:1",
                                   "tcp://999.1.1.1:8786"])
 def test_addresses_with_text_urlsplit_ignores_are_refused(addr):
-    from ldaspark.dist.workers import check_where
+    from ldaspark.executors import check_where
     with pytest.raises(InputError, match="malformed"):
         check_where(addr)
 
@@ -202,7 +202,7 @@ def test_addresses_with_text_urlsplit_ignores_are_refused(addr):
 @pytest.mark.parametrize("addr", ["tcp://[::1]:8786", "tcp://127.0.0.1:8786", "tls://h.example:1", "tcp://h",
                                   "TCP://h:1", "tcp://h:1/"])
 def test_well_formed_addresses_still_pass(addr):
-    from ldaspark.dist.workers import check_where
+    from ldaspark.executors import check_where
     check_where(addr)
 
 
@@ -250,7 +250,7 @@ def test_get_method_exact_must_be_a_bool(bad):
 
 def test_an_executor_that_was_shut_down_is_refused_before_any_work():
     from concurrent.futures import ThreadPoolExecutor
-    from ldaspark.dist.ensemble import RunSpec
+    from ldaspark.ensemble import RunSpec
     q0, v0 = _point()
     Q, V = np.array([q0, q0]), np.array([v0, v0])
     ex = ThreadPoolExecutor(1)
@@ -276,7 +276,7 @@ def test_an_executor_that_was_shut_down_is_refused_before_any_work():
 
 def test_a_scheduler_address_with_a_trailing_slash_reaches_dask_without_it(monkeypatch):
     distributed = pytest.importorskip("distributed")
-    from ldaspark.dist import workers
+    from ldaspark import executors as workers
     seen = []
 
     def fake_client(addr, **kw):

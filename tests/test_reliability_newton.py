@@ -15,7 +15,7 @@ from ldaspark.core.errors import NewtonError, SingularSaddleError
 from ldaspark.core.families import get_method
 from ldaspark.models.scenes import get_scene
 from ldaspark.core.spark import SparkMethod, integrate
-from ldaspark.reports import stability as S
+from ldaspark.lab.reports import stability as S
 
 
 def _near_limit(v1, n_steps=215):
@@ -72,7 +72,7 @@ _SCRIPT = """
 import re
 from ldaspark.core.families import get_method
 from ldaspark.core.spark import integrate
-from ldaspark.reports import stability as S
+from ldaspark.lab.reports import stability as S
 for newton in NEWTON:
     try:
         integrate(S.soft_system(), get_method("gauss-2"), 0.0, [0.0] * 3, [1 - 1e-6, 0.0, 0.0], 0.01, n_steps=215,

@@ -100,7 +100,7 @@ def test_theorem1_and_wellposedness_refuse_h0_and_take_a_scene_name():
 
 
 def test_runspec_and_run_many_check_their_arguments():
-    from ldaspark.dist.ensemble import RunSpec
+    from ldaspark.ensemble import RunSpec
     q0, v0 = _skate_point()
     with pytest.raises(InputError, match="system"):
         RunSpec(3, "gauss-2", 0, [q0], [v0], 0.1, 2)
@@ -195,7 +195,7 @@ def test_steps_that_do_not_advance_t_are_refused():
     _one_line(ei)
     with pytest.raises(InputError, match="does not advance t"):
         ldaspark.integrate("skate", "gauss-1", t0=1.0, h=1e-17, n_steps=2, engine="generic")
-    from ldaspark.dist.ensemble import RunSpec
+    from ldaspark.ensemble import RunSpec
     q0, v0 = _skate_point()
     with pytest.raises(InputError, match="does not advance t"):
         RunSpec("skate", "gauss-2", 1e17, [q0], [v0], 1.0, 4)
@@ -322,8 +322,8 @@ def no_client(monkeypatch):
 
 @pytest.mark.parametrize("addr", BAD_ADDRESSES)
 def test_malformed_addresses_refused_at_once(addr, no_client):
-    from ldaspark.dist.ensemble import RunSpec
-    from ldaspark.dist.workers import check_where
+    from ldaspark.ensemble import RunSpec
+    from ldaspark.executors import check_where
     with pytest.raises(InputError, match="malformed Dask scheduler address") as ei:
         check_where(addr)
     _one_line(ei)
@@ -335,14 +335,14 @@ def test_malformed_addresses_refused_at_once(addr, no_client):
 
 
 def test_well_formed_addresses_pass_the_check():
-    from ldaspark.dist.workers import check_where
+    from ldaspark.executors import check_where
     for addr in ("tcp://127.0.0.1:8786", "tcp://scheduler", "tls://host.example:8786", "tcp://[::1]:8786",
                  "ws://h:1", f"inproc://10.0.0.1/{os.getpid()}/3"):
         check_where(addr)
 
 
 def test_ledger_refuses_a_malformed_address_before_work(no_client, monkeypatch):
-    from ldaspark.theory import ledger
+    from ldaspark.lab.theory import ledger
     built = []
     monkeypatch.setattr(ledger, "_ledger_tabs", lambda *a: built.append(a) or [])
     with pytest.raises(InputError, match="malformed"):

@@ -75,7 +75,7 @@ def test_generic_engine_has_the_storage_check_of_the_compiled_one():
 
 
 def test_runspec_and_run_many_bound_the_steps_and_refuse_zero_rows():
-    from ldaspark.dist.ensemble import RunSpec, run_many
+    from ldaspark.ensemble import RunSpec, run_many
     skate = ldaspark.get_scene("skate")
     t0, q0, v0 = skate.initial()
     with pytest.raises(InputError, match="between 1 and 1e"):

@@ -7,9 +7,9 @@ import types
 import pytest
 
 from ldaspark.cli import build_parser, main
-from ldaspark.reports import claims, jobs
-from ldaspark.reports.driver import available_sections
-from ldaspark.claims.ledger import record
+from ldaspark.lab.reports import claims, jobs
+from ldaspark.lab.reports.driver import available_sections
+from ldaspark.lab.claims.ledger import record
 
 
 def _fake_ledger(monkeypatch):
@@ -103,7 +103,7 @@ def test_claims_jobs_give_the_serial_ledger(tmp_path, monkeypatch):
     # (s = 1, particle only, and the claim groups: ~45 s)
     import functools
     import json
-    from ldaspark.claims import ledger
+    from ldaspark.lab.claims import ledger
     monkeypatch.setattr(claims, "MAX_S", 1)
     monkeypatch.setattr(ledger, "LEDGER_SCENES", ("particle",))
     if not hasattr(ledger, "_ledger_task"):

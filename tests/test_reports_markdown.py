@@ -9,7 +9,7 @@ import pytest
 from markdown_it import MarkdownIt
 from markdown_it.rules_block.table import escapedSplit
 
-from ldaspark.reports.markdown import cell, jsonable, num, table
+from ldaspark.lab.reports.markdown import cell, jsonable, num, table
 
 REPORTS = pathlib.Path(__file__).resolve().parents[1] / "reports"
 MD_FILES = sorted(REPORTS.glob("*.md"))

@@ -116,9 +116,9 @@ def test_plots_never_touch_the_backend(res):
     with pytest.raises(InputError):
         lp.trajectory(res, 0, 5)
     import inspect
-    import ldaspark.reports as reports
+    import ldaspark.lab.reports as reports
     for name in ("convergence", "energy", "stability", "work_precision", "fig4"):
-        src = inspect.getsource(__import__(f"ldaspark.reports.{name}", fromlist=["x"]))
+        src = inspect.getsource(__import__(f"ldaspark.lab.reports.{name}", fromlist=["x"]))
         assert "matplotlib.use(" not in src, name
 
 
@@ -126,7 +126,7 @@ def test_packaging(capsys):
     assert open(os.path.join(ROOT, "LICENSE")).read().startswith("MIT License")
     import importlib.resources as ir
     assert (ir.files("ldaspark") / "py.typed").is_file()
-    from ldaspark.theory.audit import example_names, example_path
+    from ldaspark.lab.theory.audit import example_names, example_path
     assert "gauss2" in example_names() and example_path("gauss2").is_file()
     shipped = os.listdir(os.path.join(ROOT, "examples", "tableaux"))
     assert sorted(n[:-5] for n in shipped if n.endswith(".json")) == example_names()

@@ -4,8 +4,8 @@ import math
 
 import pytest
 
-from ldaspark.reports.stability_regimes import regimes
-from ldaspark.reports.stability_stiff import (DE_BOUND, DE_GROWTH, HW, classify, linear_stability, stiff_job,
+from ldaspark.lab.reports.stability_regimes import regimes
+from ldaspark.lab.reports.stability_stiff import (DE_BOUND, DE_GROWTH, HW, classify, linear_stability, stiff_job,
                                               stiff_run)
 
 
@@ -91,7 +91,7 @@ def test_dps_extreme_runs_at_the_bound_without_exceeding_it():
     """The stability report's extreme-precision rows run at DPS_MAX itself; its reference is then
     the run at DPS_MAX - 40 (the API refuses more digits: the main job failed on dps = 2040)."""
     from ldaspark.core.validate import DPS_MAX
-    from ldaspark.reports.stability_stiff import dps_extreme
+    from ldaspark.lab.reports.stability_stiff import dps_extreme
     (row,) = dps_extreme((DPS_MAX,), n=1)
     assert row["dps"] == DPS_MAX and row["ref_dps"] == DPS_MAX - 40
     # the difference is the lower-precision run's error: about 10^-(DPS_MAX - 40), not O(1)

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from ldaspark.core.errors import InputError
-from ldaspark.dist import workers
-from ldaspark.dist.workers import MAX_CHECKPOINT_DEPTH, MAX_CHECKPOINT_LINE, Checkpoint
+from ldaspark import executors as workers
+from ldaspark.executors import MAX_CHECKPOINT_DEPTH, MAX_CHECKPOINT_LINE, Checkpoint
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 KEY = bytes(range(32))
@@ -196,7 +196,7 @@ def test_step_advances_in_digits_needs_two_units_of_the_last_digit():
 
 
 # --- reports/stability_stiff.py -----------------------------------------------------------------
-from ldaspark.reports import stability_stiff as SS  # noqa: E402
+from ldaspark.lab.reports import stability_stiff as SS  # noqa: E402
 
 
 def test_stiff_sweep_grids_are_positive_and_strictly_monotone():
@@ -238,7 +238,7 @@ def test_dps_extreme_reports_the_largest_component_difference(monkeypatch):
 
 
 # --- reports/peers.py ---------------------------------------------------------------------------
-from ldaspark.reports import peers as P  # noqa: E402
+from ldaspark.lab.reports import peers as P  # noqa: E402
 
 
 class _Clock:
@@ -298,7 +298,7 @@ def test_peer_section_names_the_rhs_choice_when_any_study_measured_it():
 
 
 # --- claims/ledger.py ---------------------------------------------------------------------------
-from ldaspark.claims import ledger as LG  # noqa: E402
+from ldaspark.lab.claims import ledger as LG  # noqa: E402
 
 
 def _symmetry_result(minus, plus):
@@ -356,7 +356,7 @@ def test_holonomic_order_takes_the_larger_of_the_two_covectors(monkeypatch):
 
 # --- claims/claims_general.py -------------------------------------------------------------------
 def test_order_records_share_the_piece_time_per_record(monkeypatch):
-    from ldaspark.claims import claims_general as CG
+    from ldaspark.lab.claims import claims_general as CG
     clock = iter([100.0, 106.0])
     monkeypatch.setattr(CG, "time", types.SimpleNamespace(time=lambda: next(clock)))
 

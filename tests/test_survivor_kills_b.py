@@ -1,4 +1,4 @@
-"""Rules of ldaspark.theory that generated mutants showed untested: each test feeds an input on
+"""Rules of ldaspark.lab.theory that generated mutants showed untested: each test feeds an input on
 which the rule and its neighbour (the best item for the worst, any for all, another tolerance
 scale) give different numbers or verdicts.
 
@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from ldaspark.core.errors import TableauError
-from ldaspark.theory import audit as au
-from ldaspark.theory import audit_checks as ac
+from ldaspark.lab.theory import audit as au
+from ldaspark.lab.theory import audit_checks as ac
 
 
 
@@ -119,7 +119,7 @@ def test_convergence_above_prediction_passes_only_when_the_finest_error_nears_th
 
 # --- audit: Theorem 1 / symmetry summaries, the verdict text, the disagreement sentence ----------
 def test_symmetry_23_summary_quotes_the_largest_scene_residual(monkeypatch):
-    from ldaspark.theory import symmetry
+    from ldaspark.analysis import symmetry
     vals = {"particle": 1e-30, "skate": 2e-20}
 
     def fake(system, tab, t0, q0, v0, h, dps):
@@ -194,7 +194,7 @@ _DEF1_STEPS = [
 
 
 def _fake_definition1(monkeypatch):
-    from ldaspark.theory import definition1 as d1
+    from ldaspark.lab.theory import definition1 as d1
     state = {"step": -1, "calls": []}
 
     def base_point(system, tableau, t, q, v, h, dps):
@@ -238,7 +238,7 @@ def test_definition1_15a_15b_report_the_worst_interior_point(monkeypatch):
 
 # --- section 2.2, the energy balance (8) along the exact flow: worst node, floor 1 of the scale ----
 def test_energy_balance_8_reports_the_worst_collocation_node(monkeypatch):
-    from ldaspark.theory import energy_balance as eb
+    from ldaspark.lab.theory import energy_balance as eb
     real, calls = eb.rhs_terms, []
 
     def planted(f, t, q, v, psi):
@@ -259,7 +259,7 @@ def test_energy_balance_8_reports_the_worst_collocation_node(monkeypatch):
 
 # --- orders: the scales of the round-off floors are the largest reference components -------------
 def test_order_measurement_scales_are_the_largest_reference_components(monkeypatch):
-    from ldaspark.theory import orders
+    from ldaspark.lab.theory import orders
 
     def reference(t):
         # q, v at t_end; psi at the stage times of the last step: one large, one tiny component
@@ -286,7 +286,7 @@ def _fake_symmetry(monkeypatch, rev_fp, rev_fm):
     forward BVP keeps direction 1 (k depends on q_2 only), that of the reversed one direction 2;
     the round trip Phi_-h(Phi_h(y)) misses q0 by 1e-6 and v0 by 1e-9."""
     from ldaspark.models import arguments
-    from ldaspark.theory import symmetry
+    from ldaspark.analysis import symmetry
     dps = 20
 
     def res(fm, fp, M):
@@ -330,7 +330,7 @@ def test_symmetry_fd_minus_is_relative_to_the_larger_of_its_two_covectors(monkey
 
 
 def test_symmetry_tangent_projector_drops_singular_values_below_1e8_relative():
-    from ldaspark.theory import symmetry
+    from ldaspark.analysis import symmetry
     # dk0/dq with singular values 1 and 1e-12: numerically rank 1, so one tangent direction
     M = np.array([[mpmath.mpf(1), 0], [0, mpmath.mpf("1e-12")]], dtype=object)
     res = SimpleNamespace(extra={"gauge": None, "dk0_dq": [M, M]}, dps=20)
@@ -342,7 +342,7 @@ def test_symmetry_tangent_projector_drops_singular_values_below_1e8_relative():
 # --- flow_jacobian: the default start time, and no non-finite entry returned ---------------------
 def test_flow_jacobian_of_a_bare_system_starts_at_t0_zero_by_default():
     from ldaspark.models.scenes import get_scene
-    from ldaspark.theory.flow_jacobian import flow_jacobian
+    from ldaspark.analysis.flow_jacobian import flow_jacobian
     sc = get_scene("skate")
     _, q0, v0 = sc.initial(None)
     a = flow_jacobian(sc.system, "gauss-1", q0, v0, 0.1)            # a bare system, no t0: t0 = 0
@@ -354,7 +354,7 @@ def test_flow_jacobian_of_a_bare_system_starts_at_t0_zero_by_default():
 @pytest.mark.parametrize("bad", [float("nan"), float("inf"), mpmath.mpf("nan"), mpmath.mpc(1, 1)])
 def test_flow_jacobian_refuses_one_non_finite_entry_among_finite_ones(bad):
     from ldaspark.core.errors import NonFiniteError
-    from ldaspark.theory.flow_jacobian import _finite
+    from ldaspark.analysis.flow_jacobian import _finite
     _finite(np.array([[1.0, 2.0], [3.0, 4.0]]), 0)                          # finite: accepted
     with pytest.raises(NonFiniteError):
         _finite(np.array([[1.0, 2.0], [3.0, bad]], dtype=object), 0)
@@ -362,7 +362,7 @@ def test_flow_jacobian_refuses_one_non_finite_entry_among_finite_ones(bad):
 
 # --- section 5: (16), (18) relative to the largest covector; k a first integral at every node -----
 def test_exact_identities_16_18_scale_and_the_first_integral_take_the_largest(monkeypatch):
-    from ldaspark.theory import section5 as s5
+    from ldaspark.lab.theory import section5 as s5
     real, rec = s5.fd_gradient, {}
 
     def recording(fl, r, *a, **k):
@@ -388,7 +388,7 @@ def test_section7_3_midpoint_stage_statement_is_the_worse_of_V1_and_Q1(monkeypat
     import dataclasses
 
     from ldaspark.core.families import get_method
-    from ldaspark.theory import section7 as s7
+    from ldaspark.lab.theory import section7 as s7
     real = s7.spark_step
 
     def planted(*a, **k):
@@ -402,7 +402,7 @@ def test_section7_3_midpoint_stage_statement_is_the_worse_of_V1_and_Q1(monkeypat
 
 # --- variational error analysis: orders per quantity, "zero at every h" only if every error is -----
 def test_variational_errors_order_unless_zero_at_every_step(monkeypatch):
-    from ldaspark.theory import variational as va
+    from ldaspark.lab.theory import variational as va
     hs = ("0.2", "0.1", "0.05")
     z = np.array([mpmath.mpf(0), mpmath.mpf(0)], dtype=object)
     ex = SimpleNamespace(L_d=mpmath.mpf(0), f_d_minus=z, f_d_plus=z, p0=z, p1=z, v0=z, v1=z)

@@ -2,7 +2,7 @@
 an input on which the right computation and the mutated one differ."""
 from __future__ import annotations
 
-from ldaspark.theory import audit as au
+from ldaspark.lab.theory import audit as au
 
 
 def test_a_disagreement_names_the_scene_after_the_first_colon_only():
@@ -26,7 +26,7 @@ def test_omega_is_refused_below_the_absolute_tolerance_when_its_scale_is_below_o
     import pytest
 
     from ldaspark.core.errors import TableauError
-    from ldaspark.theory import audit_checks as ac
+    from ldaspark.lab.theory import audit_checks as ac
 
     def tab(omega):
         with mpmath.workdps(30):
@@ -39,7 +39,7 @@ def test_omega_is_refused_below_the_absolute_tolerance_when_its_scale_is_below_o
 
 
 def test_the_method_table_lists_the_builtin_methods_up_to_four_stages(monkeypatch):
-    from ldaspark.theory import conditions as cond
+    from ldaspark.analysis import conditions as cond
     asked = []
     monkeypatch.setattr(cond, "builtin_method_names", lambda max_s: asked.append(max_s) or [])
     assert cond.method_table() == [] and asked == [4]
@@ -48,7 +48,7 @@ def test_the_method_table_lists_the_builtin_methods_up_to_four_stages(monkeypatc
 def test_the_discrete_bvp_works_at_40_digits_unless_told():
     from ldaspark.core.families import get_method
     from ldaspark.models.scenes import particle
-    from ldaspark.theory.discrete import DiscreteBVP
+    from ldaspark.analysis.discrete import DiscreteBVP
     sysm = particle().system
     bvp = DiscreteBVP(sysm, get_method("gauss-2", exact=True))
     assert bvp.dps == 40 and bvp.method.backend.dps == 40
@@ -64,7 +64,7 @@ def test_the_exact_flow_bvp_starts_from_the_secant_and_counts_from_one():
     import sympy
 
     from ldaspark.core.system import LagrangianSystem
-    from ldaspark.theory import exact_flow as EF
+    from ldaspark.lab.theory import exact_flow as EF
     q, v = sympy.symbols("q1:3"), sympy.symbols("v1:3")
     free = LagrangianSystem((v[0] ** 2 + v[1] ** 2) / 2, [v[1]], q, v, name="free")
     with mpmath.workdps(25):
@@ -79,7 +79,7 @@ def test_the_classical_order_is_searched_up_to_eight():
     import mpmath
 
     from ldaspark.core.families import get_method
-    from ldaspark.theory import order_conditions as oc
+    from ldaspark.analysis import order_conditions as oc
     tab = get_method("gauss-5")
     with mpmath.workdps(30):
         e = tab.mp_entries(30)
@@ -122,7 +122,7 @@ def test_documented_defaults_are_the_signatures_defaults():
     import ldaspark
     seen, bad = 0, []
     for info in pkgutil.walk_packages(ldaspark.__path__, "ldaspark."):
-        if info.name.startswith(("ldaspark.mutants.catalogue", "ldaspark.__main__")):
+        if info.name.startswith(("ldaspark.lab.mutants.catalogue", "ldaspark.__main__")):
             continue
         mod = importlib.import_module(info.name)
         for fname, obj in vars(mod).items():
@@ -156,9 +156,9 @@ def test_the_section_5_and_7_records_report_the_precision_their_computations_ran
     the computations take it from their modules' defaults: the two agree."""
     import inspect
 
-    from ldaspark.claims import claims_paper as cp
-    from ldaspark.theory import section5 as S5
-    from ldaspark.theory import section7 as S7
+    from ldaspark.lab.claims import claims_paper as cp
+    from ldaspark.lab.theory import section5 as S5
+    from ldaspark.lab.theory import section7 as S7
     ran = {}
 
     def spy(name, fn, result):
@@ -195,7 +195,7 @@ def test_an_exact_value_is_reported_as_the_nearest_double():
     import sympy
     from sympy.polys.domains import QQ
 
-    from ldaspark.theory import order_conditions as oc
+    from ldaspark.analysis import order_conditions as oc
     ar = oc.Arith("exact", K=QQ)
     x = QQ(100000000000000011103, 10 ** 20)
     assert ar.to_float(x) == 1 + 2.0 ** -52
@@ -209,7 +209,7 @@ def test_the_exact_flow_takes_24_gauss_stages_unless_told():
     import sympy
 
     from ldaspark.core.system import LagrangianSystem
-    from ldaspark.theory import exact_flow as EF
+    from ldaspark.lab.theory import exact_flow as EF
     q, v = sympy.symbols("q1:3"), sympy.symbols("v1:3")
     free = LagrangianSystem((v[0] ** 2 + v[1] ** 2) / 2, [v[1]], q, v, name="free")
     assert EF.ExactFlow(free, dps=20).s == 24 and EF.ExactFlow(free, dps=20, stages=3).s == 3
@@ -221,7 +221,7 @@ def test_the_exact_flow_takes_24_gauss_stages_unless_told():
 
 
 def test_an_order_record_quotes_the_first_and_last_errors():
-    from ldaspark.claims import claims_general as cg
+    from ldaspark.lab.claims import claims_general as cg
     r = {"observed_order": 3.98, "claimed_order": 4, "pairwise_orders": [3.9, None], "method": "gauss-2",
          "scene": "particle", "dps": None, "variable": "q", "errors": [1e-2, 1e-3, 1e-4], "reference": "closed form"}
     rec = cg._order_record("order", r, 0.5)
@@ -230,7 +230,7 @@ def test_an_order_record_quotes_the_first_and_last_errors():
 
 def test_the_general_records_are_computed_and_reported_at_40_digits(monkeypatch):
     """README quotes the general Theorem 1 and symmetry records 'at 40 digits'."""
-    from ldaspark.claims import claims_general as cg
+    from ldaspark.lab.claims import claims_general as cg
     asked = []
 
     def stop(*a, dps=None, **k):
@@ -248,7 +248,7 @@ def test_the_general_records_are_computed_and_reported_at_40_digits(monkeypatch)
 def test_the_section_5_records_split_the_time_of_a_four_claim_run_and_state_32_digits(monkeypatch):
     import collections
 
-    from ldaspark.claims import claims_paper as cp
+    from ldaspark.lab.claims import claims_paper as cp
     stub = lambda *a, **k: collections.defaultdict(float)  # noqa: E731
     for name in ("exact_identities", "exact_del", "antisymmetry", "holonomic_exact"):
         monkeypatch.setattr(cp, name, stub)
@@ -263,7 +263,7 @@ def test_the_section_5_records_split_the_time_of_a_four_claim_run_and_state_32_d
 def test_a_bad_number_names_its_bound_only_when_there_is_one():
     import pytest
 
-    from ldaspark.claims import ledger
+    from ldaspark.lab.claims import ledger
     with pytest.raises(ledger.LdasparkError, match=r"not a finite number >= 0$"):
         ledger._number_or_none(-1.0, "seconds", low=0)
     with pytest.raises(ledger.LdasparkError, match=r"not a finite number$"):
@@ -274,7 +274,7 @@ def test_a_bad_number_names_its_bound_only_when_there_is_one():
 def test_a_wellposedness_record_takes_the_time_of_its_classification(monkeypatch):
     import types
 
-    from ldaspark.claims import ledger
+    from ldaspark.lab.claims import ledger
     clock = iter([100.0, 103.5, 200.0, 200.0])
     monkeypatch.setattr(ledger.time, "time", lambda: next(clock))
     c = {"class": ledger.WELLPOSED, "sigma_min_nonzero_rel": 0.1, "rank_deficiency": 0, "floor_tracks_precision": False,
@@ -293,7 +293,7 @@ def test_the_exact_flow_newton_stops_after_max_iter_iterations():
     import sympy
 
     from ldaspark.core.system import LagrangianSystem
-    from ldaspark.theory import exact_flow as EF
+    from ldaspark.lab.theory import exact_flow as EF
     q, v = sympy.symbols("q1:3"), sympy.symbols("v1:3")
     free = LagrangianSystem((v[0] ** 2 + v[1] ** 2) / 2, [v[1]], q, v, name="free")
     fl = EF.ExactFlow(free, dps=25, stages=2)
@@ -310,7 +310,7 @@ def test_the_null_vectors_and_their_recomputation_are_those_of_the_highest_preci
     genuine sigma is below float64 resolution is decided there too."""
     from test_checking_theory2 import GOOD, _classify, _fake_wellposed
 
-    from ldaspark.theory import wellposedness as W
+    from ldaspark.analysis import wellposedness as W
     _fake_wellposed(monkeypatch, lambda d, h: [1, 2 * h, 10.0 ** -d], GOOD)
     got = {}
     monkeypatch.setattr(W, "_null_support", lambda bvp, Vh, r: got.update(d=bvp.d) or dict(GOOD))
@@ -322,8 +322,8 @@ def test_the_null_vectors_and_their_recomputation_are_those_of_the_highest_preci
 
 
 def test_the_full_variational_records_take_the_first_negative_control(monkeypatch):
-    from ldaspark.claims import claims_paper as cp
-    from ldaspark.claims.ledger import negative_controls
+    from ldaspark.lab.claims import claims_paper as cp
+    from ldaspark.lab.claims.ledger import negative_controls
     r = {"orders": {"L_d": 3.0, "f_minus": 2.0, "f_minus_tangential": 2.0}, "predicted_local_order": 3,
          "global_order": 2, "h": "0.1"}
     monkeypatch.setattr(cp, "_timed", lambda fn, *a, **k: (r, 1.0))

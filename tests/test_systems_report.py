@@ -1,12 +1,12 @@
-"""The ``systems`` report section (ldaspark/reports/systems.py): its boundedness / drift verdicts on
+"""The ``systems`` report section (ldaspark/lab/reports/systems.py): its boundedness / drift verdicts on
 synthetic series with known behaviour, and one cheap system job rendered into the table."""
 import math
 
 import numpy as np
 import pytest
 
-from ldaspark.reports import systems
-from ldaspark.reports.markdown import table
+from ldaspark.lab.reports import systems
+from ldaspark.lab.reports.markdown import table
 
 
 def test_bounded_and_drift_verdicts_on_known_series():
@@ -42,7 +42,7 @@ def test_system_job_row_and_markdown(job):
 
 
 def test_bicycle_hook_appends_the_section_or_its_failure(job, monkeypatch):
-    """The hook for ``ldaspark.reports.systems_bicycle.bicycle_section(outdir) -> (md, json)``: its
+    """The hook for ``ldaspark.lab.reports.systems_bicycle.bicycle_section(outdir) -> (md, json)``: its
     markdown lands under "The Whipple bicycle" and its data under "bicycle"; a failure of that module
     is reported, not raised (control: without the module the section says it is pending)."""
     import sys

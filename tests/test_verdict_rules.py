@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 import sympy
 
-from ldaspark.dist import workers
+from ldaspark import executors as workers
 from ldaspark.core.families import get_method
 from ldaspark.core.system import LagrangianSystem
 
@@ -86,7 +86,7 @@ class _Stop(Exception):
 
 
 def _ledger_identity(monkeypatch, tmp_path, quick, groups=None):
-    from ldaspark.reports import claims
+    from ldaspark.lab.reports import claims
     seen = {}
 
     def fake_run_ledger(*a, checkpoint=None, **k):
@@ -109,12 +109,12 @@ def test_the_ledgers_run_identity_has_every_option_that_changes_its_records(monk
     # the claim groups run: another list, another identity
     # negative control: the same options give the same identity (a resumed run is possible)
     assert _ledger_identity(monkeypatch, tmp_path, False)["fp"] == full["fp"]
-    other = _ledger_identity(monkeypatch, tmp_path, False, groups=("ldaspark.claims.claims_general:records",))
+    other = _ledger_identity(monkeypatch, tmp_path, False, groups=("ldaspark.lab.claims.claims_general:records",))
     assert other["fp"] != full["fp"]
 
 
 def _mutants_identity(monkeypatch, tmp_path, **over):
-    from ldaspark.mutants import command as mutation
+    from ldaspark.lab.mutants import command as mutation
     seen = {}
 
     def fake_run_catalogue(mutants, jobs=2, hints_only=False, checkpoint=None, **k):
@@ -148,7 +148,7 @@ def test_the_mutation_runs_identity_has_every_option_that_changes_its_records(mo
 def _fake_section5(monkeypatch, anti):
     """section5_records on constructed results: every identity holds (1e-30) and every control
     fails (1e-3), except the anti-symmetry results ``anti(scene)``."""
-    from ldaspark.claims import claims_paper as cp
+    from ldaspark.lab.claims import claims_paper as cp
     ident = {k: 1e-30 for k in ("16", "18", "17", "19", "20b-corrected")}
     ident.update({"16-without-force": 1e-3, "18-without-force": 1e-3, "20b-printed": 1e-3, "f_d_minus": 1.0,
                   "k0": 0.0})
@@ -190,7 +190,7 @@ def _fake_bvp(Ld, fm, fp):
 
 def _antisymmetry_on(monkeypatch, fw, rv):
     """section5.antisymmetry on a fake exact flow whose forward and reverse solves are given."""
-    from ldaspark.theory import section5
+    from ldaspark.lab.theory import section5
     monkeypatch.setattr(section5, "endpoints", lambda *a, **k: ("t0", "q0", "t1", "q1"))
     flow = types.SimpleNamespace(bvp=lambda t0, q0, t1, q1: fw if t0 == "t0" else rv)
     monkeypatch.setattr(section5, "flow_for", lambda *a, **k: flow)
@@ -228,8 +228,8 @@ def _fake_t1(**over):
 
 
 def _theorem1(monkeypatch, per_scene):
-    from ldaspark.theory import audit as au
-    from ldaspark.theory import discrete
+    from ldaspark.lab.theory import audit as au
+    from ldaspark.analysis import discrete
     monkeypatch.setattr(discrete, "theorem1_residuals", lambda system, *a, **k: per_scene(system.name))
     checks, _ = au.theorem1_checks(get_method("gauss-1"), True, False, 30, True, SCENES4)
     return {c.name: c for c in checks}
@@ -238,7 +238,7 @@ def _theorem1(monkeypatch, per_scene):
 @pytest.mark.parametrize("bad", SCENES4)
 @pytest.mark.parametrize("side", ["theorem1-q0", "theorem1-q1"])
 def test_theorem1_fails_when_exactly_one_scene_fails(monkeypatch, bad, side):
-    from ldaspark.theory import audit as au
+    from ldaspark.lab.theory import audit as au
     by = _theorem1(monkeypatch, lambda scn: _fake_t1(**({side: 1e-3} if scn == bad else {})))
     assert [by[f"theorem1:{s}"].status for s in SCENES4] == [au.FAIL if s == bad else au.PASS for s in SCENES4]
     assert by["theorem1"].status == au.FAIL
@@ -247,7 +247,7 @@ def test_theorem1_fails_when_exactly_one_scene_fails(monkeypatch, bad, side):
 
 
 def test_theorem1_passes_only_when_every_decided_scene_passes(monkeypatch):
-    from ldaspark.theory import audit as au
+    from ldaspark.lab.theory import audit as au
     by = _theorem1(monkeypatch, lambda scn: _fake_t1())
     assert by["theorem1"].status == au.PASS and "0 failing" in by["theorem1"].detail
     # one undecided scene (tolerance without teeth) and three passing: still decided, passes
@@ -266,7 +266,7 @@ def test_theorem1_passes_only_when_every_decided_scene_passes(monkeypatch):
 
 
 def test_theorem1_summary_rule_directly():
-    from ldaspark.theory import audit as au
+    from ldaspark.lab.theory import audit as au
     C = au.Check
 
     def summary(*st):
@@ -288,7 +288,7 @@ def test_theorem1_summary_rule_directly():
 # --- the stiffness study's growth ratio --------------------------------------------------------------
 def _stiff_row(monkeypatch, energy):
     from ldaspark.compiled import fast
-    from ldaspark.reports import stability_stiff as st
+    from ldaspark.lab.reports import stability_stiff as st
     sol = types.SimpleNamespace(energy=np.asarray(energy, float), constraint=np.zeros(len(energy)),
                                 stats={"mean_iterations": 2.0, "max_iterations": 3})
     monkeypatch.setattr(fast, "fast_integrate", lambda *a, **k: sol)
@@ -296,7 +296,7 @@ def _stiff_row(monkeypatch, energy):
 
 
 def test_the_growth_ratio_is_second_half_over_first_half(monkeypatch):
-    from ldaspark.reports.stability_stiff import DE_GROWTH, classify
+    from ldaspark.lab.reports.stability_stiff import DE_GROWTH, classify
     # E0 = 2: relative errors 0, 1e-6, 2e-6, 1e-6, | 5e-6, 1e-5, 4e-6, 3e-6  (half = 4)
     rel = [0, 1e-6, 2e-6, 1e-6, 5e-6, 1e-5, 4e-6, 3e-6]
     row = _stiff_row(monkeypatch, [2 * (1 + x) for x in rel])
@@ -314,7 +314,7 @@ def test_the_growth_ratio_is_second_half_over_first_half(monkeypatch):
 
 
 def test_the_growth_classification_thresholds():
-    from ldaspark.reports.stability_stiff import DE_GROWTH, classify
+    from ldaspark.lab.reports.stability_stiff import DE_GROWTH, classify
     ok = {"outcome": "ok", "max_rel_dE": 1e-3}
     assert classify(dict(ok, dE_growth=DE_GROWTH * 1.01)) == "growing"
     assert classify(dict(ok, dE_growth=DE_GROWTH)) == "bounded"         # strictly above

@@ -13,8 +13,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ldaspark.core.errors import InputError
-from ldaspark.theory import audit as au
-from ldaspark.theory import orders
+from ldaspark.lab.theory import audit as au
+from ldaspark.lab.theory import orders
 
 
 def _close(x, rel=1e-9, abs=0.0):
@@ -92,7 +92,7 @@ def test_entry_tolerances_need_every_condition_to_hold_and_take_the_largest_resi
 
 
 def test_the_symmetry_fact_needs_all_four_of_23_and_22_needs_both(monkeypatch):
-    import ldaspark.theory.audit as mod
+    import ldaspark.lab.theory.audit as mod
     from ldaspark.core.families import get_method
 
     tab = get_method("gauss-2")
@@ -112,7 +112,7 @@ def test_the_proof_conditions_need_every_entry():
     """q0 and q1 of the proof of Theorem 1 hold when every (i, j) entry vanishes: on gauss-2 with one
     entry of A_hat (resp. b_hat) moved, some entries vanish and others do not (all, not any);
     moving b_hat changes q1 only (its own side of the pair)."""
-    from ldaspark.claims.ledger import proof_conditions
+    from ldaspark.lab.claims.ledger import proof_conditions
     from ldaspark.core.families import get_method
     tab = get_method("gauss-2", exact=True)
 
@@ -151,7 +151,7 @@ def _cost_rows(kind, method, pairs):
 
 
 def test_the_speedup_is_peer_cost_over_spark_cost():
-    from ldaspark.reports import peers
+    from ldaspark.lab.reports import peers
     # SPARK reaches 1e-6 at 1 s, the peer at 4 s (both bracket the target, log-interpolated on the envelope)
     rows = (_cost_rows("spark", "s1", [(1e-4, 0.5), (1e-8, 2.0)]) + _cost_rows("spark", "s2", [(1e-4, 3.0), (1e-8, 9.0)])
             + _cost_rows("peer", "p1", [(1e-4, 2.0), (1e-8, 8.0)]) + _cost_rows("peer", "p2", [(1e-4, 7.0), (1e-8, 30.0)]))
@@ -169,8 +169,8 @@ def test_the_speedup_is_peer_cost_over_spark_cost():
 def test_boundedness_is_last_quarter_over_first(first, factor):
     import numpy as np
 
-    from ldaspark.reports.energy import boundedness
-    from ldaspark.reports.systems import _bounded, BOUNDED_RATIO, DRIFT_RATIO
+    from ldaspark.lab.reports.energy import boundedness
+    from ldaspark.lab.reports.systems import _bounded, BOUNDED_RATIO, DRIFT_RATIO
     n = 401
     t = np.linspace(0.0, 1.0, n)
     e = np.full(n, first)
@@ -190,7 +190,7 @@ def test_the_energy_rate_is_log2_of_coarse_over_fine(monkeypatch):
 
     import numpy as np
 
-    from ldaspark.theory import audit_checks as ac
+    from ldaspark.lab.theory import audit_checks as ac
     runs = iter([4e-6, 1e-6])                                         # h then h/2: errors fall 4x: rate 2
 
     def fake_run(tab, sc, N, T, dps):
@@ -206,7 +206,7 @@ def test_the_energy_rate_is_log2_of_coarse_over_fine(monkeypatch):
 
 # --- summary verdicts: all of them, not one -----------------------------------------------------------------
 def test_the_convergence_summary_holds_only_when_every_record_holds():
-    from ldaspark.reports.summary import convergence_values
+    from ldaspark.lab.reports.summary import convergence_values
     recs = [_rec("gauss-2", "skate", "q", 4.0, 4), _rec("gauss-2", "skate", "v", 4.1, 4),
             _rec("gauss-irk-1", "skate", "q", 2.0, 2), _rec("gauss-irk-2", "skate", "q", 4.0, 4)]
     v = convergence_values(recs)
@@ -222,7 +222,7 @@ def _claim(claim, method, status, expected, residual, wellposed="well-posed"):
 
 
 def test_the_claims_summary_counts_agreement_and_takes_the_worst_residual():
-    from ldaspark.reports.summary import claims_values
+    from ldaspark.lab.reports.summary import claims_values
     recs = [_claim("22a", "m", "pass", "pass", 0.0), _claim("23", "m", "fail", "pass", 1.0),
             _claim("theorem1-q0", "m", "pass", "pass", 1e-30), _claim("theorem1-q1", "m", "pass", "pass", 3e-28),
             _claim("theorem1-q0", "n", "fail", "pass", 1e-3),
@@ -242,7 +242,7 @@ def test_the_claims_summary_counts_agreement_and_takes_the_worst_residual():
 
 
 def test_the_peer_floor_needs_both_sides(monkeypatch):
-    from ldaspark.reports import summary
+    from ldaspark.lab.reports import summary
     st_ = {"scene": "sc", "speedups": [], "long_speedups": [],
            "long_rows": [{"kind": "spark", "energy_error": 3e-12, "constraint": 1e-15},
                          {"kind": "spark", "energy_error": 1e-12, "constraint": 2e-15},
@@ -257,7 +257,7 @@ def test_the_peer_floor_needs_both_sides(monkeypatch):
 
 # --- fingerprints: every component of a run's identity ---------------------------------------------------
 def _binding(monkeypatch, call):
-    from ldaspark.dist import workers
+    from ldaspark import executors as workers
     seen = []
 
     def fake(work, checkpoint, **kw):
@@ -269,11 +269,11 @@ def _binding(monkeypatch, call):
 
 
 def test_the_ledger_binds_every_setting_that_changes_its_records(monkeypatch):
-    from ldaspark.claims import ledger
+    from ldaspark.lab.claims import ledger
     base = dict(max_s=1, scenes=("particle",), perturbed=False, holonomic=False, controls=False, groups=(),
                 quick=False, jobs=1)
     other = dict(max_s=2, scenes=("skate",), perturbed=True, holonomic=True, controls=True,
-                 groups=("ldaspark.claims.claims_general:records",), quick=True)
+                 groups=("ldaspark.lab.claims.claims_general:records",), quick=True)
     fp0 = _binding(monkeypatch, lambda ck: ledger.run_ledger(**base, checkpoint=ck))
     assert fp0 == _binding(monkeypatch, lambda ck: ledger.run_ledger(**base, checkpoint=ck))
     for k, v in other.items():
@@ -282,7 +282,7 @@ def test_the_ledger_binds_every_setting_that_changes_its_records(monkeypatch):
 
 
 def test_the_catalogue_binds_every_setting_that_changes_a_verdict(monkeypatch):
-    from ldaspark.mutants import mutation
+    from ldaspark.lab.mutants import mutation
     m = [mutation.by_id(mutation.QUICK[0])]
     base = dict(hints_only=False, exclude=(), targets=None, timeout=300)
     fp0 = _binding(monkeypatch, lambda ck: mutation.run_catalogue(m, 1, checkpoint=ck, **base))
@@ -296,7 +296,7 @@ def test_the_package_source_and_each_library_version_enter_the_fingerprint(tmp_p
     import importlib.metadata
     import sys
 
-    from ldaspark.dist import workers
+    from ldaspark import executors as workers
     pkg = tmp_path / "pkg"
     (pkg / "dist").mkdir(parents=True)
     (pkg / "core.py").write_text("A = 1\n")
@@ -326,7 +326,7 @@ def test_the_package_source_and_each_library_version_enter_the_fingerprint(tmp_p
 
 # --- the paper's claim group: both quantities of a record, and records that describe their run -------------
 def test_a_section7_record_fails_when_either_of_its_two_quantities_fails(monkeypatch):
-    from ldaspark.claims import claims_paper as cp
+    from ldaspark.lab.claims import claims_paper as cp
     good, bad = 1e-40, 1e-20                                          # around TOL_S7 = 1e-35
     for diff, stage in ((good, good), (bad, good), (good, bad)):
         monkeypatch.setattr(cp, "reduction", lambda kind, tab, constant_K, d=diff, s=stage:
@@ -341,8 +341,8 @@ def test_a_section7_record_fails_when_either_of_its_two_quantities_fails(monkeyp
 
 
 def test_an_energy_balance_record_takes_the_worse_of_pointwise_and_integral(monkeypatch):
-    from ldaspark.claims import claims_paper as cp
-    from ldaspark.claims.ledger import check_unit_records
+    from ldaspark.lab.claims import claims_paper as cp
+    from ldaspark.lab.claims.ledger import check_unit_records
     pred = {}
 
     def discrete(name, tab, hs):
@@ -365,8 +365,8 @@ def test_an_energy_balance_record_takes_the_worse_of_pointwise_and_integral(monk
 def test_definition1_records_describe_the_runs_they_come_from(monkeypatch):
     """Each record names its step count and digits; the run must use them, from initial values
     accurate to those digits."""
-    from ldaspark.claims import claims_paper as cp
-    from ldaspark.claims.ledger import check_unit_records
+    from ldaspark.lab.claims import claims_paper as cp
+    from ldaspark.lab.claims.ledger import check_unit_records
     from ldaspark.models.scenes import get_scene
     calls = []
 
@@ -390,7 +390,7 @@ def test_definition1_records_describe_the_runs_they_come_from(monkeypatch):
 
 def test_section5_control_records_carry_no_time_of_their_own(monkeypatch):
     """A control is computed with its identity (same call): its time is in the identity's record."""
-    from ldaspark.claims.ledger import check_unit_records
+    from ldaspark.lab.claims.ledger import check_unit_records
     recs = _fake_section5_all(monkeypatch)
     check_unit_records("section-5", recs)
     ctl = [r for r in recs if "control" in r["method"] or "printed" in r["method"]]
@@ -398,7 +398,7 @@ def test_section5_control_records_carry_no_time_of_their_own(monkeypatch):
 
 
 def _fake_section5_all(monkeypatch):
-    from ldaspark.claims import claims_paper as cp
+    from ldaspark.lab.claims import claims_paper as cp
     ident = {k: 1e-30 for k in ("16", "18", "17", "19", "20b-corrected")}
     ident.update({"16-without-force": 1e-3, "18-without-force": 1e-3, "20b-printed": 1e-3, "f_d_minus": 1.0,
                   "k0": 0.0})
@@ -415,7 +415,7 @@ def _fake_section5_all(monkeypatch):
 # --- exact conditions, pairs of covectors, skipped caches: one item of many -------------------------------
 def test_the_exact_conditions_need_every_index():
     from ldaspark.core.families import get_method
-    from ldaspark.theory import conditions as cd
+    from ldaspark.analysis import conditions as cd
     g2, g3 = get_method("gauss-2", exact=True), get_method("gauss-3", exact=True)
     assert cd.check_22a(g2) and cd.check_22b(g2) and cd.check_23(g3)
     assert not cd.check_22a(g2.with_entry("b_hat", 1, None, "1/10"))      # b_hat_1 = b_1 still holds
@@ -429,7 +429,7 @@ def test_the_holonomic_tangential_residual_is_the_worse_endpoint(monkeypatch):
 
     import numpy as np
 
-    from ldaspark.theory import section5
+    from ldaspark.lab.theory import section5
     # n = 2, m = 1, K = (1, 0): the tangential part of a covector is its second entry
     system = types.SimpleNamespace(n=2, saddle_matrix=lambda bk, t, q, v: np.array(
         [[1, 0, 1], [0, 1, 0], [1, 0, 0]], dtype=object))
@@ -447,7 +447,7 @@ def test_the_holonomic_tangential_residual_is_the_worse_endpoint(monkeypatch):
 
 
 def test_a_cache_directory_anywhere_below_is_left_out_of_the_fingerprint(tmp_path):
-    from ldaspark.dist import workers
+    from ldaspark import executors as workers
     d = tmp_path / "tests"
     (d / "sub" / "__pycache__").mkdir(parents=True)
     (d / "test_a.py").write_text("x = 1\n")
@@ -459,7 +459,7 @@ def test_a_cache_directory_anywhere_below_is_left_out_of_the_fingerprint(tmp_pat
 
 
 def test_peer_ratios_are_quoted_when_any_target_has_one():
-    from ldaspark.reports.summary import work_precision_values
+    from ldaspark.lab.reports.summary import work_precision_values
     st_ = {"scene": "sc", "ratios": {"error": [{"target": 1e-6, "scipy/spark-fast": 2.0},
                                                {"target": 1e-8, "scipy/spark-fast": None, "peer/spark-fast": 3.0}]}}
     out = work_precision_values({"studies": [st_], "dps": []})
@@ -469,7 +469,7 @@ def test_peer_ratios_are_quoted_when_any_target_has_one():
 def test_a_general_symmetry_record_fails_when_either_identity_fails(monkeypatch):
     import types
 
-    from ldaspark.claims import claims_general as cg
+    from ldaspark.lab.claims import claims_general as cg
     scn = types.SimpleNamespace(system=None, name="scene")
     tab = types.SimpleNamespace(name="tab")
     assert 1e-40 < cg.TOL_SYMMETRY < 1e-10                             # the inputs straddle the tolerance
@@ -482,7 +482,7 @@ def test_a_general_symmetry_record_fails_when_either_identity_fails(monkeypatch)
 
 
 def test_ledger_jobs_floor_at_one_and_follow_the_environment(monkeypatch):
-    from ldaspark.claims.ledger import ledger_jobs
+    from ldaspark.lab.claims.ledger import ledger_jobs
     assert ledger_jobs(3) == 3 and ledger_jobs(0) == 1
     monkeypatch.setenv("LDASPARK_JOBS", "0")
     assert ledger_jobs() == 1
@@ -493,7 +493,7 @@ def test_ledger_jobs_floor_at_one_and_follow_the_environment(monkeypatch):
 def test_a_condition_within_the_uncertainty_reports_its_largest_residual():
     import types
 
-    from ldaspark.theory.audit_checks import _worst
+    from ldaspark.lab.theory.audit_checks import _worst
     ball = types.SimpleNamespace(exact=False, radius=lambda v: 1e-28, is_zero=lambda v: abs(v) <= 1e-28,
                                  to_float=float)
     assert _worst(ball, [(1e-30, "a"), (-3e-30, "b"), (2e-30, "c")]) == (3e-30, None, True, 1e-28)
@@ -506,7 +506,7 @@ def test_omega_rank_is_decided_by_the_smallest_singular_value_relative_to_the_la
     import types
 
     from ldaspark.core.errors import TableauError
-    from ldaspark.theory import audit_checks as ac
+    from ldaspark.lab.theory import audit_checks as ac
 
     def tab(om, src=None):
         return types.SimpleNamespace(s=3, source_digits=src, mp_entries=lambda dps: {"omega": om})
@@ -521,7 +521,7 @@ def test_omega_rank_is_decided_by_the_smallest_singular_value_relative_to_the_la
 
 def test_a_section7_reduction_difference_is_the_worst_of_q_v_and_psi():
     from ldaspark.core.families import get_method
-    from ldaspark.theory.section7 import reduction
+    from ldaspark.lab.theory.section7 import reduction
     r = reduction("euler-ii", get_method("euler-i", exact=True), constant_K=False)     # the control: differs
     parts = [r["q1"], r["v1"], r["Psi1"]]
     assert len(set(parts)) > 1 and r["diff"] == max(parts)
@@ -538,7 +538,7 @@ def test_the_audit_error_is_the_worst_component_of_q_and_v():
 
     import numpy as np
 
-    from ldaspark.theory.audit_checks import _err
+    from ldaspark.lab.theory.audit_checks import _err
     sol = types.SimpleNamespace(q=[np.array([1.0, 2.5])], v=[np.array([0.0, 5.0])])
     assert _err(sol, [1.0, 2.0], [0.0, 0.0]) == 5.0                    # v's second component
     assert _err(sol, [1.0, -4.0], [0.0, 5.0]) == 6.5                   # q's second component
@@ -557,12 +557,12 @@ def test_mp_arithmetic_asked_for_is_used_even_for_exact_entries():
 
 
 def test_growth_below_the_round_off_threshold_is_bounded_at_the_threshold():
-    from ldaspark.reports.stability_stiff import classify
+    from ldaspark.lab.reports.stability_stiff import classify
     row = {"outcome": "ok", "dE_growth": 10.0}
     assert classify(dict(row, max_rel_dE=1e-8)) == "bounded"           # strictly above 1e-8 is judged
     assert classify(dict(row, max_rel_dE=1.01e-8)) == "growing"
 
 
 def test_a_dict_option_fingerprints_the_same_in_any_key_order():
-    from ldaspark.dist import workers
+    from ldaspark import executors as workers
     assert workers.source_fingerprint({"a": 1, "b": 2}) == workers.source_fingerprint({"b": 2, "a": 1})

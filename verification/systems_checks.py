@@ -32,8 +32,8 @@ import numpy as np
 
 from ldaspark.core.backend import Backend
 from ldaspark.core.families import get_method
-from ldaspark.reports.energy import BOUNDED_RATIO, boundedness
-from ldaspark.theory.orders import estimate_order, floor_for, measure_errors
+from ldaspark.lab.reports.energy import BOUNDED_RATIO, boundedness
+from ldaspark.lab.theory.orders import estimate_order, floor_for, measure_errors
 
 EPS = 2.0 ** -52
 RESIDUAL_TOL = 1e-15

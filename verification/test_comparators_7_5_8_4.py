@@ -17,7 +17,7 @@ import sympy
 from ldaspark.core import comparators
 from ldaspark.core.backend import Backend
 from ldaspark.core.comparators import ModifiedLobatto2, derive_mechanical, integrate_comparator
-from ldaspark.theory.orders import estimate_order, floor_for
+from ldaspark.lab.theory.orders import estimate_order, floor_for
 from ldaspark.core.errors import InconsistentInitialDataError, InputError
 from ldaspark.models.scenes import PAPER_SCENES, get_scene
 from ldaspark.core.spark import integrate

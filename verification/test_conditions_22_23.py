@@ -2,8 +2,8 @@
 on every built-in family; the Euler methods satisfy (22) but not (23); perturbed tableaux fail."""
 import pytest
 
-from ldaspark.theory.conditions import check_22a, check_22b, check_23
-from ldaspark.claims.ledger import negative_controls, proof_conditions
+from ldaspark.analysis.conditions import check_22a, check_22b, check_23
+from ldaspark.lab.claims.ledger import negative_controls, proof_conditions
 
 FAMILIES = ["gauss-%d" % s for s in range(1, 6)] + \
     ["lobatto-iiia-iiib-%d" % s for s in range(2, 6)] + \

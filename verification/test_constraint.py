@@ -3,10 +3,10 @@ and mpmath, for every built-in method on every paper scene. Negative control: th
 velocity (q1 - q0)/h is not constrained by (21), so k at it is far from zero."""
 import pytest
 
-from ldaspark.theory.discrete import base_point, discrete_lagrangian
+from ldaspark.analysis.discrete import base_point, discrete_lagrangian
 from ldaspark.core.backend import Backend
 from ldaspark.core.families import builtin_method_names
-from ldaspark.claims.ledger import constraint_residuals
+from ldaspark.lab.claims.ledger import constraint_residuals
 
 SCENES = ["particle", "skate", "robot", "mp-particles"]
 

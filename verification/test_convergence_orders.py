@@ -9,7 +9,7 @@ Psi has no claim; we check only that the stage multipliers converge and record t
 """
 import pytest
 
-from ldaspark.theory.orders import (claimed_order_of, estimate_order, floor_for, make_reference,
+from ldaspark.lab.theory.orders import (claimed_order_of, estimate_order, floor_for, make_reference,
                                   measure_errors, order_records)
 from ldaspark.models.scenes import PAPER_SCENES, get_scene
 from ldaspark.core.spark import integrate

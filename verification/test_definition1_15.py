@@ -10,8 +10,8 @@ Default cost ~10 s; all built-in methods on all ledger scenes behind --exhaustiv
 import pytest
 
 from ldaspark.core.families import builtin_method_names, get_method
-from ldaspark.theory.definition1 import definition1_residuals
-from ldaspark.claims.ledger import negative_controls
+from ldaspark.lab.theory.definition1 import definition1_residuals
+from ldaspark.lab.claims.ledger import negative_controls
 
 TOL_15A = 1e-25
 TOL_15B = 1e-40
@@ -38,7 +38,7 @@ def test_15a_15b_along_trajectory(name, scn, exact_method, scene):
 def test_15a_15b_time_dependent_L_and_nonlinear_k(system, exact_method):
     """Assumption (2) (k affine in v) is not needed, nor an autonomous L: Euler II on the test
     systems of section 2.2 (L(t, q, v) and k = v3 - q2 v1 + v1^2/4)."""
-    from ldaspark.theory.energy_balance import energy_system
+    from ldaspark.lab.theory.energy_balance import energy_system
     sysm, q0, v0 = energy_system(system)
     r = definition1_residuals(sysm, exact_method("euler-ii"), 0, q0, v0, "0.1", n_steps=10, dps=30)
     assert r["15a"] < TOL_15A and r["15b"] < TOL_15B, r

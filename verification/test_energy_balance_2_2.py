@@ -12,7 +12,7 @@ conservative particle Delta E is O(h^{p+1}). Gauss methods satisfy the discrete 
 when L_t = 0 and E is quadratic (measured 1e-31). Cost ~8 s."""
 import pytest
 
-from ldaspark.theory.energy_balance import discrete_balance, exact_balance, predicted_mismatch_order
+from ldaspark.lab.theory.energy_balance import discrete_balance, exact_balance, predicted_mismatch_order
 
 TOL = 1e-22
 NEG = 1e-6

@@ -23,7 +23,7 @@ from general_fixtures import general_tableau, rheonomic_initial, rheonomic_syste
 from ldaspark.core.backend import Backend
 from ldaspark.core.families import get_method
 from ldaspark.core.spark import SparkMethod
-from ldaspark.theory.discrete import DiscreteBVP, base_point, discrete_lagrangian
+from ldaspark.analysis.discrete import DiscreteBVP, base_point, discrete_lagrangian
 
 DPS = 30
 H = "0.1"

@@ -1,6 +1,6 @@
 """Section 5: the exact discrete Lagrangian L_d^E and the exact discrete forces f_d^{E+-}.
 
-The exact flow between (t0, q0) and (t1, q1) comes from ``ldaspark.theory.exact_flow``
+The exact flow between (t0, q0) and (t1, q1) comes from ``ldaspark.lab.theory.exact_flow``
 (shooting on v0 through a 10-node Gauss collocation step of the underlying ODE (3a-b) at 32
 digits; 52 digits where finite differences are taken). Checked:
 
@@ -16,7 +16,7 @@ digits; 52 digits where finite differences are taken). Checked:
 Each has a negative control that fails. Cost: ~15 s."""
 import pytest
 
-from ldaspark.theory.section5 import antisymmetry, exact_del, exact_identities, holonomic_exact, reference_accuracy
+from ldaspark.lab.theory.section5 import antisymmetry, exact_del, exact_identities, holonomic_exact, reference_accuracy
 
 TOL = 1e-22          # identities at 32 digits (finite differences at 52)
 NEG = 1e-6           # a broken claim leaves at least this much
@@ -34,7 +34,7 @@ def test_exact_flow_against_skate_closed_form():
     import mpmath
     import numpy as np
     from ldaspark.models.scenes import get_scene
-    from ldaspark.theory.exact_flow import ExactFlow
+    from ldaspark.lab.theory.exact_flow import ExactFlow
     sc = get_scene("skate")
     with mpmath.workdps(40):
         h = mpmath.mpf("0.1")

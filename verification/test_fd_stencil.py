@@ -11,8 +11,8 @@ import pytest
 
 from ldaspark.core.families import get_method
 from ldaspark.models.scenes import get_scene
-from ldaspark.theory.discrete import theorem1_residuals
-from ldaspark.claims.ledger import TOL_THEOREM1
+from ldaspark.analysis.discrete import theorem1_residuals
+from ldaspark.lab.claims.ledger import TOL_THEOREM1
 
 
 @pytest.fixture(scope="module")

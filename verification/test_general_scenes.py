@@ -17,8 +17,8 @@ from ldaspark.core.errors import SingularSaddleError
 from ldaspark.core.families import get_method
 from ldaspark.models.scenes import GENERAL_SCENES, get_scene
 from ldaspark.core.spark import integrate
-from ldaspark.claims.claims_general import ideal_control_error, nonideal_orders, order_plan, scene_orders
-from ldaspark.theory.orders import estimate_order, floor_for, make_reference, measure_errors, order_records
+from ldaspark.lab.claims.claims_general import ideal_control_error, nonideal_orders, order_plan, scene_orders
+from ldaspark.lab.theory.orders import estimate_order, floor_for, make_reference, measure_errors, order_records
 
 TOL = 0.3
 
@@ -183,8 +183,8 @@ def test_nonideal_orders_exhaustive_mpmath_reference():
 @pytest.mark.exhaustive
 def test_claims_general_ledger_outcomes_as_predicted():
     """The ledger group (quick): every record has the outcome the paper predicts (controls fail)."""
-    from ldaspark.claims.claims_general import records
-    from ldaspark.claims.ledger import summarize
+    from ldaspark.lab.claims.claims_general import records
+    from ldaspark.lab.claims.ledger import summarize
     recs = records(quick=True)
     assert {"theorem1-general-q0", "theorem1-general-q1", "symmetry-general", "constraint-general",
             "order-general-scenes", "nonideal-3.3"} <= {r["claim"] for r in recs}

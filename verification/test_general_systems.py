@@ -20,11 +20,11 @@ from hypothesis import Phase, event, given, note, settings, strategies as st
 
 from ldaspark.core.backend import Backend
 from ldaspark.core.spark import integrate
-from ldaspark.theory.conditions import check_22a, check_22b, check_23
-from ldaspark.theory.discrete import SINGULAR, base_point, discrete_lagrangian, theorem1_residuals
-from ldaspark.claims.ledger import TOL_NEGATIVE, TOL_SYMMETRY, TOL_THEOREM1
-from ldaspark.theory.symmetry import check_symmetry
-from ldaspark.theory.wellposedness import classify_wellposedness
+from ldaspark.analysis.conditions import check_22a, check_22b, check_23
+from ldaspark.analysis.discrete import SINGULAR, base_point, discrete_lagrangian, theorem1_residuals
+from ldaspark.lab.claims.ledger import TOL_NEGATIVE, TOL_SYMMETRY, TOL_THEOREM1
+from ldaspark.analysis.symmetry import check_symmetry
+from ldaspark.analysis.wellposedness import classify_wellposedness
 
 from strategies import builtin_tableaux, general_systems, spark_tableaux
 

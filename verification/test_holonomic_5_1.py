@@ -7,7 +7,7 @@ Lobatto IIIA-IIIB-3 p ~ 4, Lobatto IIIA-IIIB-2 and Euler I/II: zero to working p
 The full covectors (normal part) are O(h) and do not vanish: the restriction is what 5.1 says."""
 import pytest
 
-from ldaspark.claims.ledger import holonomic_order
+from ldaspark.lab.claims.ledger import holonomic_order
 
 EXPECTED_P = {"gauss-1": 1.7, "gauss-2": 1.7, "gauss-3": 2.7, "lobatto-iiia-iiib-3": 3.4}
 
@@ -43,7 +43,7 @@ def test_holonomic_rate_is_the_finest_pair_of_a_pre_asymptotic_sweep():
     import math
 
     from ldaspark.core.families import get_method
-    from ldaspark.claims.ledger import holonomic_order
+    from ldaspark.lab.claims.ledger import holonomic_order
     r = holonomic_order(get_method("gauss-1", exact=True), hs=("0.2", "0.1", "0.05", "0.025"))
     e, h = r["tangential"], r["h"]
     slopes = [math.log(e[i] / e[i + 1]) / math.log(h[i] / h[i + 1]) for i in range(3)]

@@ -15,9 +15,9 @@ import pytest
 from general_fixtures import nonlinear_constraint_system, nonlinear_initial
 from ldaspark.core.families import get_method
 from ldaspark.core.spark import integrate
-from ldaspark.theory.discrete import theorem1_residuals
-from ldaspark.claims.ledger import TOL_NEGATIVE, TOL_SYMMETRY, TOL_THEOREM1, negative_controls
-from ldaspark.theory.symmetry import check_symmetry
+from ldaspark.analysis.discrete import theorem1_residuals
+from ldaspark.lab.claims.ledger import TOL_NEGATIVE, TOL_SYMMETRY, TOL_THEOREM1, negative_controls
+from ldaspark.analysis.symmetry import check_symmetry
 
 H = "0.1"
 

@@ -12,7 +12,7 @@ import pytest
 
 from ldaspark.core.backend import Backend
 from ldaspark.core.comparators import GaussIRK, integrate_comparator
-from ldaspark.theory.orders import claimed_order_of, make_reference, measure_errors, order_records
+from ldaspark.lab.theory.orders import claimed_order_of, make_reference, measure_errors, order_records
 from ldaspark.models.scenes import get_scene
 from ldaspark.core.spark import integrate
 from ldaspark.core.families import gauss, get_method

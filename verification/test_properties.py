@@ -6,8 +6,8 @@ from fractions import Fraction
 
 from hypothesis import given, settings, strategies as st
 
-from ldaspark.theory.discrete import theorem1_residuals
-from ldaspark.theory.conditions import check_22a, check_22b
+from ldaspark.analysis.discrete import theorem1_residuals
+from ldaspark.analysis.conditions import check_22a, check_22b
 from ldaspark.models.scenes import get_scene
 from ldaspark.core.tableau import from_json_dict
 

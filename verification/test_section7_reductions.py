@@ -13,7 +13,7 @@ symmetric, order 2) does not solve the midpoint system; Euler I with K(q) and th
 rule need more than one Newton iteration. All at 40 digits. Cost ~6 s."""
 import pytest
 
-from ldaspark.theory.section7 import one_newton_iteration, reduction
+from ldaspark.lab.theory.section7 import one_newton_iteration, reduction
 
 TOL = 1e-35
 NEG = 1e-6

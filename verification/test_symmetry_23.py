@@ -7,9 +7,9 @@ C_d (consistent v0); as covectors on all of R^n they fail (off C_d the forward B
 inconsistent while the reversed one imposes k = 0 there), which the last test shows."""
 import pytest
 
-from ldaspark.theory.discrete import SINGULAR
-from ldaspark.theory.symmetry import check_symmetry
-from ldaspark.claims.ledger import TOL_SYMMETRY, perturbed_initial
+from ldaspark.analysis.discrete import SINGULAR
+from ldaspark.analysis.symmetry import check_symmetry
+from ldaspark.lab.claims.ledger import TOL_SYMMETRY, perturbed_initial
 
 H = "0.1"
 

@@ -10,7 +10,7 @@ import pytest
 import ldaspark
 from ldaspark.models.scenes import get_scene
 from ldaspark.models.systems_classic import ball_turntable
-from ldaspark.theory.orders import ExactReference
+from ldaspark.lab.theory.orders import ExactReference
 
 from systems_checks import (EXHAUSTIVE_PLAN, RESIDUAL_TOL, constraint_bound, long_run, observed_orders, ode_residual,
                             orders_hold, rk4_constraint_drift, wrong_sign)

@@ -1,6 +1,6 @@
 """The Whipple bicycle (scene ``bicycle``, ldaspark/models/bicycle.py) against the benchmark of
 Meijaard, Papadopoulos, Ruina and Schwab (2007): the linearised lean-and-steer eigenvalues from the
-SPARK flow (ldaspark/theory/bicycle_flow.py) against an independent implementation of the
+SPARK flow (ldaspark/lab/theory/bicycle_flow.py) against an independent implementation of the
 benchmark's Appendix A (ldaspark/models/bicycle_benchmark.py), itself checked against the printed
 matrices (eq. 5.4) and Table 2.
 
@@ -16,7 +16,7 @@ import pytest
 
 from ldaspark.models import bicycle as bc
 from ldaspark.models import bicycle_benchmark as bb
-from ldaspark.theory import bicycle_flow as bf
+from ldaspark.lab.theory import bicycle_flow as bf
 
 
 @functools.lru_cache(maxsize=None)
@@ -128,7 +128,7 @@ def test_nonlinear_run_is_self_stable_and_engines_agree():
 def test_report_section(tmp_path):
     """The report section on a reduced grid: a table row per speed beside the benchmark, the
     weave and capsize speeds, the figure written."""
-    from ldaspark.reports import systems_bicycle as R
+    from ldaspark.lab.reports import systems_bicycle as R
     data = R.bicycle_data(fig_speeds=(0.0, 5.0), speeds=(5.0,), nonlinear_t=0.2)
     md, js = R.bicycle_section(str(tmp_path), data)
     assert (tmp_path / "figures" / "systems_bicycle.png").stat().st_size > 1000

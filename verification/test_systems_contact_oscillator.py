@@ -11,7 +11,7 @@ import pytest
 import ldaspark
 from ldaspark.models.scenes import get_scene
 from ldaspark.core.system import LagrangianSystem
-from ldaspark.theory.orders import make_reference
+from ldaspark.lab.theory.orders import make_reference
 
 from systems_checks import (EXHAUSTIVE_PLAN, ORDER_PLAN, check_constraint_roundoff_and_engines, long_run,
                             observed_orders, orders_hold)

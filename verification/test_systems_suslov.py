@@ -10,8 +10,8 @@ import sympy
 import ldaspark
 from ldaspark.models.scenes import get_scene
 from ldaspark.models.systems_classic import suslov
-from ldaspark.claims.claims_general import DOP853Reference
-from ldaspark.theory.orders import make_reference
+from ldaspark.lab.claims.claims_general import DOP853Reference
+from ldaspark.lab.theory.orders import make_reference
 
 from systems_checks import (EXHAUSTIVE_PLAN, ORDER_PLAN, check_constraint_roundoff_and_engines, long_run,
                             observed_orders, orders_hold)

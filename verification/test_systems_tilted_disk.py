@@ -10,7 +10,7 @@ import ldaspark
 from ldaspark.core.backend import Backend
 from ldaspark.models.scenes import get_scene
 from ldaspark.models.systems_classic import disk_steady_exists, disk_steady_spin, tilted_disk
-from ldaspark.theory.orders import ExactReference
+from ldaspark.lab.theory.orders import ExactReference
 
 from systems_checks import (EXHAUSTIVE_PLAN, RESIDUAL_TOL, constraint_bound, long_run, observed_orders, ode_residual,
                             orders_hold, rk4_constraint_drift)

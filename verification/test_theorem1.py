@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 from ldaspark.core.backend import Backend
-from ldaspark.theory.discrete import GAUGE, SINGULAR, WELLPOSED, base_point, discrete_lagrangian, theorem1_residuals
-from ldaspark.theory.wellposedness import classify_wellposedness, gauge_invariance
+from ldaspark.analysis.discrete import GAUGE, SINGULAR, WELLPOSED, base_point, discrete_lagrangian, theorem1_residuals
+from ldaspark.analysis.wellposedness import classify_wellposedness, gauge_invariance
 from ldaspark.core.families import builtin_method_names
-from ldaspark.reports.claims import write_markdown
-from ldaspark.claims.ledger import TOL_NEGATIVE, TOL_THEOREM1, negative_controls, perturbed_initial, run_ledger
+from ldaspark.lab.reports.claims import write_markdown
+from ldaspark.lab.claims.ledger import TOL_NEGATIVE, TOL_THEOREM1, negative_controls, perturbed_initial, run_ledger
 
 H = "0.1"
 DEFAULT_METHODS = builtin_method_names(3)

@@ -17,9 +17,9 @@ from general_fixtures import general_tableau, rheonomic_initial, rheonomic_syste
 from ldaspark.core.backend import Backend
 from ldaspark.core.families import get_method
 from ldaspark.core.spark import integrate
-from ldaspark.theory.discrete import theorem1_residuals
-from ldaspark.claims.ledger import TOL_NEGATIVE, TOL_THEOREM1, negative_controls
-from ldaspark.theory.orders import ODEReference, estimate_order, floor_for
+from ldaspark.analysis.discrete import theorem1_residuals
+from ldaspark.lab.claims.ledger import TOL_NEGATIVE, TOL_THEOREM1, negative_controls
+from ldaspark.lab.theory.orders import ODEReference, estimate_order, floor_for
 
 H = "0.1"
 

@@ -11,7 +11,7 @@ import sympy
 
 import ldaspark
 from ldaspark.core.families import get_method
-from ldaspark.theory.orders import estimate_order
+from ldaspark.lab.theory.orders import estimate_order
 
 q1, q2, v1, v2 = sympy.symbols("q1 q2 v1 v2")
 R2 = q1 ** 2 + q2 ** 2

@@ -1,5 +1,5 @@
 """Variational order: |L_d - L_d^E| and |f_d^{+-} - f_d^{E+-}| against h (0.2, 0.1, 0.05) at a
-generic consistent point (q0, v0), q1 = exact flow after h (``ldaspark.theory.variational``).
+generic consistent point (q0, v0), q1 = exact flow after h (``ldaspark.lab.theory.variational``).
 
 Variational error analysis predicts |L_d - L_d^E| = O(h^{r+1}) for global order r: 2s+1 for
 Gauss, 2s-1 for Lobatto. Measured (skate and particle, see docs/verification.md): Gauss-1 2.96,
@@ -12,8 +12,8 @@ Control: a (22b)-breaking tableau (Gauss-2 with A_hat perturbed) loses the order
 Default cost ~10 s (skate only); every family on skate and particle with --exhaustive."""
 import pytest
 
-from ldaspark.claims.ledger import negative_controls
-from ldaspark.theory.variational import variational_errors
+from ldaspark.lab.claims.ledger import negative_controls
+from ldaspark.lab.theory.variational import variational_errors
 
 CHEAP = dict(dps=24, stages=8)
 

@@ -8,7 +8,7 @@ the SPARK step (21a-f) and the semi-implicit comparators, ensembles on any Execu
 * ``cache``: the private, content-verified directory of the generated modules;
 * ``ode``: the underlying ODE (3a-b) as a compiled right-hand side (for scipy comparisons);
 * ``rescue``: the generic full-Newton step as the last link of the Newton fallback chain;
-* ``roundoff``: the Kahan summation study. (Ensembles over an executor: ``ldaspark.dist.ensemble``.)
+* ``roundoff``: the Kahan summation study. (Ensembles over an executor: ``ldaspark.ensemble``.)
 
 Imports ``ldaspark.core`` and ``ldaspark.models`` only.
 """

@@ -241,7 +241,7 @@ def stack(members: list) -> Result:
 
 
 def from_ensemble(ens: Any, **meta: Any) -> Result:
-    """A batched Result from ``ldaspark.dist.ensemble.EnsembleResult`` (t (S,), q (R, S, n),
+    """A batched Result from ``ldaspark.ensemble.EnsembleResult`` (t (S,), q (R, S, n),
     ...; one stats dict per run); ``meta`` sets method, system, h, ... ."""
     R = len(ens.stats)
     counters = {c: np.array([int(st.get(c, 0)) for st in ens.stats]) for c in COUNTERS}

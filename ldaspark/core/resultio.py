@@ -75,7 +75,7 @@ def _json_value(x: Any) -> Any:
 
 
 def metadata(result: Result) -> dict:
-    from .. import __version__
+    from .._version import __version__
     md = {k: getattr(result, k, None) for k in META if k != "version"}
     md["version"] = __version__
     if result.members is not None:

@@ -1,0 +1,171 @@
+"""Well-posedness of Theorem 1's boundary-value solve (t0, q0, t1, q1) -> (V, Lambda, v0, v1):
+rank decided at two precisions and two step sizes; gauge directions and the gauge invariance of
+L_d (see ``ldaspark.analysis.discrete`` for the bordered gauge-fixed solve)."""
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+
+from ..core.backend import Backend
+from ..models import arguments
+from .discrete import (GAUGE, SINGULAR, WELLPOSED, DiscreteBVP, _null_support, _rank_info, _svd, base_point,
+                       discrete_lagrangian)
+
+NEWTON = "mixed"     # the IVP step to the point where J is classified
+
+
+def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_factors=(1, "1/2")):
+    """Rank of the BVP Jacobian at the IVP base point, decided at high precision.
+
+    For each dps in ``dps`` and each step h f, the singular values of J. A structurally zero
+    sigma sits at the precision floor (sigma / sigma_max ~ 10^-dps: it moves with dps); a
+    genuinely small one scales like a power of h and does not move with dps.
+
+    Parameters
+    ----------
+    system : LagrangianSystem, Scene or str
+        The system (1); a Scene or a scene name also gives the initial data (q0, v0 None).
+    tableau : SparkTableau
+        The SPARK method (21).
+    t0 : float
+        Initial time.
+    q0, v0 : array_like or None
+        The base point; None with a scene.
+    h : float
+        Step size (nonzero).
+    dps : tuple of int, optional
+        The precisions compared (default (30, 50)).
+    h_factors : tuple, optional
+        Factors f of the steps h f (default (1, "1/2")).
+
+    Returns
+    -------
+    dict
+        ``class`` ("well-posed" or the kind of deficiency), ``rank_deficiency``, the singular
+        values per (dps, h), the smallest nonzero one's observed power of h, the floor per dps.
+
+    Examples
+    --------
+    >>> import ldaspark
+    >>> sc = ldaspark.get_scene("skate")
+    >>> ldaspark.classify_wellposedness(sc.system, ldaspark.gauss(2), sc.t0, sc.q0, sc.v0, 0.1)["class"]
+    'well-posed'
+    """
+    from ..core import validate
+    from ..core.errors import InputError
+    if isinstance(dps, (list, tuple)):
+        for d in dps:
+            validate.check_dps(d)
+    if not isinstance(dps, (list, tuple)) or len(dps) < 2 or len(set(map(int, dps))) != len(dps):
+        raise InputError(f"classify_wellposedness: dps must be two or more distinct precisions, got "
+                         f"{validate._describe(dps)}")
+    system, tableau, t0, q0, v0 = arguments.theory_args(system, tableau, t0, q0, v0, h, dps, "classify_wellposedness",
+                                                         several=True)
+    if not isinstance(h_factors, (list, tuple)) or len(h_factors) < 2 or len(set(map(str, h_factors))) != len(h_factors):
+        raise InputError(f"classify_wellposedness: h_factors must be two or more distinct step factors, got "
+                         f"{validate._describe(h_factors)}")
+    for f in h_factors:
+        try:
+            fr = None if validate._is_bool(f) or isinstance(f, float) and not math.isfinite(f) else Fraction(str(f))
+        except (ValueError, ZeroDivisionError):
+            fr = None
+        if fr is None or fr <= 0 or fr.denominator > 10 ** 6 or fr.numerator > 10 ** 6:
+            raise InputError(f"classify_wellposedness: h_factors must be positive rationals such as 1 or \"1/2\", "
+                             f"got {validate._describe(f)}")
+    out = {"sigma": {}, "deficiency": {}}
+    nz = {}
+    sig_rel = {}
+    support = None
+    for d in dps:
+        for f in h_factors:
+            bk = Backend(d)
+            with bk.context():
+                fr = Fraction(str(f))
+                hf = bk.scalar(h) * fr.numerator / fr.denominator
+                # mixed Newton (float64 Newton matrix, residual at d digits): the same point to
+                # the step's tolerance; only J there is used (its rank and sigma to a few digits)
+                t1, q1, xg = base_point(system, tableau, t0, q0, v0, hf, d, newton=NEWTON)
+                bvp = DiscreteBVP(system, tableau, d)
+                t0_ = bk.scalar(t0)
+                G, J, _, _ = bvp.evaluate(t0_, bk.array(q0), t1, q1, xg)
+                sig, r, U, Vh = _rank_info(bk, J, d)
+                smax = float(sig[0])
+                rel = [float(x) / smax for x in sig]
+                sig_rel[(d, f)] = rel
+                key = f"dps={d},h={float(hf):.4g}"
+                out["sigma"][key] = rel[-min(len(rel), 3):]
+                out["deficiency"][key] = r
+                nz[(d, f)] = (float(hf), rel[len(rel) - 1 - r])
+                if d == dps[-1] and f == h_factors[0]:
+                    keep = (bvp, J, Vh, bk)
+    # structural zeros follow the precision: index-wise (from the bottom), sigma at the higher dps
+    # is more than 8 orders below sigma at the lower dps; genuine small sigma agree to many digits
+    struct = {}
+    for f in h_factors:
+        lo, hi = sig_rel[(dps[0], f)][::-1], sig_rel[(dps[1], f)][::-1]   # ascending
+        k = 0
+        while k < len(lo) and hi[k] < 1e-8 * lo[k]:
+            k += 1
+        struct[f] = k
+    out["structural"] = {str(f): k for f, k in struct.items()}
+    r = max(struct.values())
+    for f in h_factors:   # the smallest genuine sigma per h
+        nz[(dps[0], f)] = (nz[(dps[0], f)][0], sig_rel[(dps[0], f)][len(sig_rel[(dps[0], f)]) - 1 - r])
+        nz[(dps[1], f)] = (nz[(dps[1], f)][0], sig_rel[(dps[1], f)][len(sig_rel[(dps[1], f)]) - 1 - r])
+    (h1, s1), (h2, s2) = nz[(dps[0], h_factors[0])], nz[(dps[0], h_factors[1])]
+    p = math.log(s1 / s2) / math.log(h1 / h2) if s1 > 0 and s2 > 0 else float("nan")
+    stable = abs(nz[(dps[0], h_factors[0])][1] / nz[(dps[1], h_factors[0])][1] - 1) < 1e-10
+    tracks = r > 0
+    bvp, J, Vh, bk = keep
+    if r and r < len(sig_rel[(dps[-1], h_factors[0])]) and sig_rel[(dps[-1], h_factors[0])][-1 - r] < 1e-12:
+        # a genuine sigma below float64 resolution: float64 vectors would mix it into the null space
+        with bk.context():
+            Vh = _svd(bk, J)[2]
+    support = _null_support(bvp, Vh, r)
+    if len(set(struct.values())) > 1:
+        cls = SINGULAR      # structural rank changes with h: not a clean property
+    elif r == 0:
+        cls = WELLPOSED
+    else:
+        small = 1e-8
+        cls = GAUGE if support["V"] <= small and support["v1"] <= small else SINGULAR
+    out.update({"class": cls, "rank_deficiency": r, "sigma_min_nonzero_rel": s1,
+                "sigma_min_power_of_h": p, "sigma_stable_across_dps": stable,
+                "floor_tracks_precision": tracks, "null_support": support})
+    return out
+
+
+def gauge_invariance(system, tableau, t0, q0, v0, h, dps=40, shift="1e-3"):
+    """For a rank-deficient J: re-solve with the gauge pinned at x + shift * n (n a right null
+    vector of J) and report how L_d, p0 + f_d^- and p1 - f_d^+ (= -dL_d/dq0, dL_d/dq1 by
+    Theorem 1; gauge-invariant) move, next to how p0 itself moves (the gauge is real).
+    Returns None when J has full rank.
+
+    Parameters
+    ----------
+    system, tableau, t0, q0, v0, h
+        As for ``classify_wellposedness``.
+    dps : int, optional
+        Working digits (default 40).
+    shift : str or float, optional
+        The gauge shift along the null vector (default "1e-3"; nonzero)."""
+    from ..core import validate
+    system, tableau, t0, q0, v0 = arguments.theory_args(system, tableau, t0, q0, v0, h, dps, "gauge_invariance")
+    validate.real_number(shift, "gauge_invariance: shift", nonzero=True)
+    bk = Backend(dps)
+    with bk.context():
+        t1, q1, xg = base_point(system, tableau, t0, q0, v0, h, dps)
+        t0_, q0_ = bk.scalar(t0), bk.array(q0)
+        a = discrete_lagrangian(system, tableau, t0_, q0_, t1, q1, dps=dps, x_guess=xg)
+        if a.rank_deficiency == 0:
+            return None
+        xs = a.x + bk.scalar(shift) * a.extra["gauge"].C[0]
+        b = discrete_lagrangian(system, tableau, t0_, q0_, t1, q1, dps=dps, x_guess=xs, gauge_ref=xs)
+        sc = max(bk.norm_inf(a.p0), bk.norm_inf(a.p1), 1e-300)
+        return {"wellposed": a.wellposed,
+                "dL_d": float(abs(a.L_d - b.L_d) / max(abs(a.L_d), 1e-300)),
+                "d(p0+f_d_minus)": float(bk.norm_inf((a.p0 + a.f_d_minus) - (b.p0 + b.f_d_minus)) / sc),
+                "d(p1-f_d_plus)": float(bk.norm_inf((a.p1 - a.f_d_plus) - (b.p1 - b.f_d_plus)) / sc),
+                "dp0": float(bk.norm_inf(a.p0 - b.p0) / sc),
+                "dV": float(bk.norm_inf(a.V - b.V)),
+                "shift": float(shift), "dps": dps}

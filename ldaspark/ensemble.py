@@ -1,0 +1,256 @@
+"""Ensembles: many initial conditions at once, in parallel over any ``concurrent.futures.Executor``.
+
+    from ldaspark.ensemble import ensemble_integrate
+    res = ensemble_integrate(system, "lobatto-iiia-iiib-2", t0, Q0, V0, h=0.05, n_steps=10**6,
+                             every=100)                      # process pool over all cores
+    res.energy.shape                                         # (J + 1, samples)
+
+Any executor works (``executor=``): the default is a ``ProcessPoolExecutor`` over all cores,
+created and shut down here; a thread pool, or a cluster's executor, are passed the same way,
+e.g. Dask: ``client = distributed.Client(...); ensemble_integrate(..., executor=client.get_executor())``.
+A task carries the compiled system's generated source text (``ldaspark.compiled.fast.CompiledSystem``),
+not a file path, so a remote worker builds (or loads from its numba cache) the same kernels.
+The parent compiles first, so local workers load the cached machine code instead of compiling.
+
+Systems the fast path cannot compile run the generic path in the workers (one notice line).
+"""
+from __future__ import annotations
+
+import copy
+import os
+import time
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from .core.errors import InputError
+from .models import arguments
+
+
+@dataclass
+class EnsembleResult:
+    """Samples of every run: t (S,), q and v (R, S, n), energy (R, S), constraint (R, S, m);
+    stats: one dict per run (Newton counters, path); seconds: wall time of the whole ensemble."""
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    energy: np.ndarray
+    constraint: np.ndarray
+    stats: list
+    seconds: float
+    #: (R, S - 1, s, m) stage multipliers of (21) of each run's saved steps (None: the semi-implicit kernel)
+    psi: Optional[np.ndarray] = None
+
+
+def _fast_task(cs, spec, t0, ics, h, n_steps, every, compensated, tol):
+    from .compiled.fast import run_compiled
+    out = []
+    for q0, v0 in ics:
+        fs = run_compiled(cs, spec, t0, q0, v0, h, n_steps, every, compensated, tol)
+        out.append(tuple(fs) + (fs.psi,))
+    return out
+
+
+def _generic_task(system, method, t0, ics, h, n_steps, every, tol):
+    from .compiled.fast import generic_integrate
+    out = []
+    for q0, v0 in ics:
+        fs = generic_integrate(system, method, t0, q0, v0, h, n_steps, every, tol)
+        out.append(tuple(fs) + (fs.psi,))
+    return out
+
+
+class RunSpec:
+    """One ensemble member set: (system, method) with initial data rows; used by ``run_many``
+    to put several methods' runs into one executor (Fig. 4: 3 methods x 10 initial data)."""
+
+    def __init__(self, system, method, t0, Q0, V0, h, n_steps, every=1, compensated=True, tol=None,
+                 kernel="auto"):
+        from .core import validate
+        from .core.validate import check_newton_options, check_storage, count, real_number
+        from .compiled.fast import n_samples
+        system, _ = arguments.as_system(system, "RunSpec: system")     # a scene name as integrate takes it
+        from .core.tableau import SparkTableau
+        if not isinstance(method, (str, SparkTableau)):
+            raise InputError(f"RunSpec: method must be a method name or a SparkTableau, got {validate._describe(method)}")
+        validate.check_choice(kernel, "RunSpec: kernel", ("auto", "spark"))
+        validate.flag(compensated, "RunSpec: compensated")
+        for nm, x in (("Q0", Q0), ("V0", V0)):
+            try:
+                size = np.asarray(x, dtype=object).size
+            except (ValueError, TypeError):
+                size = 1                       # ragged: real_vector says so
+            if size:                           # no rows: refused below with its own message
+                validate.real_vector(x, f"RunSpec: {nm}")
+        validate.real_number(t0, "RunSpec: t0")
+        validate.real_number(h, "RunSpec: h")          # h = 0: refused below ("finite and nonzero")
+        try:
+            Q0 = np.atleast_2d(np.asarray(Q0, dtype=float))
+            V0 = np.atleast_2d(np.asarray(V0, dtype=float))
+            t0, h = float(real_number(t0, "t0")), float(real_number(h, "h"))
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"t0, h, Q0 and V0 must be numbers: {exc}") from None
+        if Q0.ndim != 2 or Q0.shape != V0.shape or Q0.shape[1] != system.n:
+            raise InputError(f"Q0 and V0 must both have shape (runs, {system.n}), got {Q0.shape}, {V0.shape}")
+        if len(Q0) == 0:
+            raise InputError("Q0 and V0 have no rows: an ensemble needs at least one initial point")
+        count(n_steps, "n_steps")          # bounded as every run (10**12 steps would never end)
+        count(every, "every")
+        if not (np.isfinite(h) and h != 0 and np.isfinite(t0)):
+            raise InputError(f"h must be finite and nonzero and t0 finite, got h = {h}, t0 = {t0}")
+        validate.step_advances(t0, h, n_steps, None, what="RunSpec: h")
+        check_newton_options(tol, 1)
+        check_storage(n_samples(int(n_steps), int(every)) * len(Q0), 2 + 2 * system.n + system.m,
+                      what="the ensemble samples")
+        self._check_members(system, t0, Q0, V0)
+        from .compiled.fast import kernel_spec
+        kernel_spec(method, kernel)          # an unknown method name here, not in run_many
+        self.system, self.method, self.t0, self.Q0, self.V0 = system, method, t0, Q0, V0
+        self.h, self.n_steps, self.every, self.compensated, self.tol, self.kernel = (
+            h, int(n_steps), int(every), bool(compensated), tol, kernel)
+
+    @staticmethod
+    def _check_members(system, t0, Q0, V0):
+        """The set-up checks of ``integrate`` for every member: finite data, (4) regular with K of
+        full rank, consistent v0 (an inconsistent v0 would otherwise run, its energy jumping in
+        the first step); the error names the member."""
+        from .core.errors import LdasparkError
+        from .compiled.fast import _setup_checks
+        for j, (q0, v0) in enumerate(zip(Q0, V0)):
+            try:
+                _setup_checks(system, t0, q0, v0)
+            except LdasparkError as exc:
+                raise type(exc)(f"ensemble member {j}: {exc}") from None
+
+    def tasks(self, chunk):
+        """(callable, args) per chunk of initial data; compiles in this process first."""
+        from .compiled.fast import NotCompilableError, _notice, compile_system, kernel_spec, run_compiled
+        spec = kernel_spec(self.method, self.kernel)
+        rows = list(zip(self.Q0, self.V0))
+        chunks = [rows[i:i + chunk] for i in range(0, len(rows), chunk)]
+        try:
+            cs = compile_system(self.system)
+            # warm the numba cache here so that local workers load instead of compile
+            run_compiled(cs, spec, self.t0, self.Q0[0], self.V0[0], self.h, 1, 1, self.compensated, self.tol)
+        except NotCompilableError as exc:
+            _notice(str(exc))
+            sysm = copy.copy(self.system)
+            sysm._compiled = {}          # lambdified functions do not pickle; rebuilt in the worker
+            return [(_generic_task, (sysm, self.method, self.t0, c, self.h, self.n_steps, self.every, self.tol))
+                    for c in chunks]
+        return [(_fast_task, (cs, spec, self.t0, c, self.h, self.n_steps, self.every, self.compensated, self.tol))
+                for c in chunks]
+
+
+def default_executor(max_workers=None):
+    from .core.lifecycle import make_process_pool
+    return make_process_pool(max_workers=max_workers or os.cpu_count() or 1)
+
+
+def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, where=None):
+    """Run several ensembles (`RunSpec` objects) through one executor.
+
+    Parameters
+    ----------
+    specs : iterable of RunSpec
+        Each a (system, method) with rows of initial data, a step size and a step count.
+    executor : concurrent.futures.Executor, optional
+        Kept for compatibility: the same as ``where`` with an executor.
+    max_workers : int, optional
+        Size of the default local process pool (default: all cores).
+    chunk : int, optional
+        Initial-data rows per task.
+    progress : callable, optional
+        ``progress(done, total)`` after each finished task.
+    where : str, distributed.Client or Executor, optional
+        Where the tasks run: a Dask scheduler address, a ``distributed.Client``, or any
+        ``concurrent.futures.Executor`` (``ldaspark.executors``).
+
+    Returns
+    -------
+    list of EnsembleResult
+        One per spec: t (S,), q and v (R, S, n), energy (R, S), constraint (R, S, m), stats.
+
+    Raises
+    ------
+    InputError
+        For invalid specs or options.
+
+    Examples
+    --------
+    >>> from concurrent.futures import ThreadPoolExecutor
+    >>> import ldaspark
+    >>> from ldaspark.ensemble import RunSpec
+    >>> sc = ldaspark.get_scene("skate")
+    >>> spec = RunSpec(sc.system, "gauss-2", 0.0, [sc.q0, sc.q0], [sc.v0, sc.v0], 0.1, 10)
+    >>> with ThreadPoolExecutor(1) as ex:
+    ...     (out,) = ldaspark.run_many([spec], where=ex)
+    >>> out.q.shape
+    (2, 11, 3)
+    """
+    from .core.validate import _describe, callable_or_none, check_executor, count
+    from .executors import check_where
+    if executor is not None and where is not None:
+        raise InputError("give executor or where, not both")
+    check_executor(executor)
+    count(chunk, "chunk", 1, 10 ** 9)
+    if max_workers is not None:
+        count(max_workers, "max_workers", 1, 1024)
+    callable_or_none(progress, "progress")
+    check_where(where)
+    if isinstance(specs, (str, bytes, dict, RunSpec)) or not hasattr(specs, "__iter__"):
+        raise InputError(f"run_many needs a list of RunSpec objects, got {_describe(specs)}")
+    t_start = time.perf_counter()
+    specs = list(specs)
+    if not specs:
+        raise InputError("run_many needs at least one RunSpec")
+    plan = []
+    for k, sp in enumerate(specs):
+        if not isinstance(sp, RunSpec):
+            raise InputError(f"run_many needs RunSpec objects, got {type(sp).__name__} at position {k}")
+        for fn, args in sp.tasks(chunk):
+            plan.append((k, fn, args))
+    results = _run_plan(plan, len(specs), executor if executor is not None else where, max_workers, progress)
+    seconds = time.perf_counter() - t_start
+    out = []
+    for rs in results:
+        t = rs[0][0]
+        out.append(EnsembleResult(t, np.array([r[1] for r in rs]), np.array([r[2] for r in rs]),
+                                  np.array([r[3] for r in rs]), np.array([r[4] for r in rs]),
+                                  [r[5] for r in rs], seconds,
+                                  None if any(r[6] is None for r in rs) else np.array([r[6] for r in rs])))
+    return out
+
+
+def _run_plan(plan, n_specs, executor=None, max_workers=None, progress=None):
+    """Run the (k, fn, args) tasks where ``executor`` says (``ldaspark.executors.run_units``:
+    a worker that dies gets its task retried, Ctrl-C cancels what is pending and stops a pool
+    created here); results grouped by k, in plan order whatever the order of completion."""
+    from .executors import Unit, run_units
+    units = [Unit(str(i), fn, tuple(args)) for i, (k, fn, args) in enumerate(plan)]
+    count = 0
+
+    def done(name, val):
+        nonlocal count
+        count += 1
+        if progress is not None:
+            progress(count, len(units))
+    res = run_units(units, executor, None if executor is not None else (max_workers or os.cpu_count() or 1),
+                    on_done=done)
+    results = [[] for _ in range(n_specs)]
+    for i, (k, _, _) in enumerate(plan):
+        results[k].extend(res[str(i)])
+    return results
+
+
+def ensemble_integrate(system, method, t0, Q0, V0, h, n_steps, every=1, compensated=True, tol=None,
+                       executor=None, max_workers=None, chunk=1, kernel="auto", progress=None) -> EnsembleResult:
+    """Integrate ``system`` from every row of (Q0, V0) with the fast path (``ldaspark.compiled.fast``),
+    in parallel over ``executor`` (default: a process pool over all cores). ``chunk`` initial
+    data per task."""
+    from .core.validate import count
+    count(chunk, "chunk", 1, 10 ** 9)
+    spec = RunSpec(system, method, t0, Q0, V0, h, n_steps, every, compensated, tol, kernel)
+    return run_many([spec], executor=executor, max_workers=max_workers, chunk=chunk, progress=progress)[0]

@@ -1,0 +1,118 @@
+"""``ldaspark report``: the main job.
+
+``ldaspark report`` with no section writes every section's default report into reports/ (or
+``--outdir``); ``ldaspark report SECTION [options]`` runs one section with its own options. Each
+section lives in its own module (listed in SECTION_MODULES) exposing
+
+* ``add_arguments(parser)``: options of ``ldaspark report SECTION``;
+* ``run(args) -> int``: run with parsed options;
+* ``run_default(outdir) -> None``: what the no-argument main job does for this section;
+* optionally ``jobs(full)`` and ``write(results, outdir, ...)`` (see ``ldaspark.lab.reports.jobs``):
+  the main job then spreads the section's independent pieces over the worker processes
+  together with the other sections' pieces.
+
+The main job prints each section's CPU time and the wall time at which it was written; every
+report file ends with the numbers of the run that wrote it. Sections whose module is not
+installed are skipped (and not offered on the command line).
+"""
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import os
+
+from .timing import Clock
+
+
+REPORT_DIR = "reports"
+
+# order = order of the main job
+SECTION_MODULES = {
+    "convergence": "ldaspark.lab.reports.convergence",
+    "energy": "ldaspark.lab.reports.energy",
+    "claims": "ldaspark.lab.reports.claims",
+    "work-precision": "ldaspark.lab.reports.work_precision",
+    "stability": "ldaspark.lab.reports.stability",
+    "systems": "ldaspark.lab.reports.systems",
+}
+
+
+def available_sections():
+    out = {}
+    for name, mod in SECTION_MODULES.items():
+        if importlib.util.find_spec(mod) is not None:
+            out[name] = mod
+    return out
+
+
+# --- dispatcher -----------------------------------------------------------------------------
+def add_arguments(p):
+    p.add_argument("--outdir", default=REPORT_DIR, help="directory of the reports (main job)")
+    p.add_argument("--full", action="store_true",
+                   help="main job: the exhaustive sweeps of the sections that have them (stability)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="main job: worker processes (default: the number of cores)")
+    from ...executors import add_scheduler_argument
+    add_scheduler_argument(p)
+    sub = p.add_subparsers(dest="section", parser_class=type(p))
+    for name, mod in available_sections().items():
+        sp = sub.add_parser(name, help=f"{name} report")
+        module = importlib.import_module(mod)
+        module.add_arguments(sp)
+        sp.set_defaults(section_run=module.run)
+
+
+def run(args) -> int:
+    if getattr(args, "section", None):
+        return int(args.section_run(args) or 0)
+    from ...core.errors import InputError
+    from ...executors import check_where
+    from .jobs import run_sections
+    check_where(getattr(args, "scheduler", None))    # before the CPU probe and the section imports
+    workers = args.workers or os.cpu_count() or 1
+    if workers < 1:
+        raise InputError(f"--workers must be positive, got {workers}")
+    from .timing import probe_cpu
+    probe = probe_cpu()                  # before the workers start: the machine's speed, not the job's
+    clock = Clock()
+    modules = {name: importlib.import_module(mod) for name, mod in available_sections().items()}
+    stats = run_sections(modules, args.outdir, full=getattr(args, "full", False), workers=workers,
+                         where=getattr(args, "scheduler", None))
+    print("[report] section      CPU [s]  written at [s wall]", flush=True)
+    for name, st in stats.items():
+        print(f"[report] {name:14s} {st['cpu']:7.1f}  {st['wall']:7.1f}", flush=True)
+    print(f"[report] all sections: {clock.summary()} -> {args.outdir}", flush=True)
+    write_run_timing(args.outdir, stats, clock, workers, full=getattr(args, "full", False), probe=probe)
+    return 0
+
+
+def write_run_timing(outdir, stats, clock, workers, full=False, probe=None):
+    """``OUTDIR/report_timing.json``: the wall and CPU time of this run of the main job, per
+    section and in all (README quotes it), with the machine's core count and load, and the CPU
+    time of the fixed probe (``timing.probe_cpu``) so that ``cpu_over_probe`` compares machines.
+    The "readme" block of the file it replaces (the snapshot of the timings README quotes,
+    ``summary.write_snapshot``) is kept: README's timing marks are checked against it."""
+    import datetime
+    import json
+    import platform
+    from ...core.io import atomic_write_json
+    path = os.path.join(outdir, "report_timing.json")
+    keep = {}
+    try:
+        with open(path) as f:
+            old = json.load(f)
+        if isinstance(old, dict) and isinstance(old.get("readme"), dict):
+            keep["readme"] = old["readme"]
+    except (OSError, ValueError):
+        pass
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
+    extra = {} if probe is None else {
+        "probe": {"cpu": round(probe, 4), "what": "ldaspark.lab.reports.timing.probe_cpu (min of 3)"},
+        "cpu_over_probe": round(clock.cpu / probe)}
+    atomic_write_json(path, {
+        "command": f"ldaspark report{' --full' if full else ''}", "wall": round(clock.wall, 1),
+        "cpu": round(clock.cpu, 1), "workers": workers, "cpu_count": os.cpu_count(),
+        "load_average_1min_at_end": None if load is None else round(load, 2),
+        "date": datetime.date.today().isoformat(), "python": platform.python_version(),
+        "sections": {k: {"cpu": round(v["cpu"], 1), "written_at_wall": round(v["wall"], 1), "jobs": v["jobs"]}
+                     for k, v in stats.items()}, **extra, **keep})

@@ -1,0 +1,589 @@
+"""``ldaspark audit``: a new tableau against the hypotheses of Theorem 1 and the numerics.
+
+    ldaspark audit FILE [--dps D] [--json OUT] [--out MD] [--quick]
+    ldaspark audit --method NAME [...]
+
+Checks (each a ``Check``: name, status pass/fail/info/skip, residual, detail):
+
+* shapes, row sums sum_j a_ij = c_i of A, A_hat, A_tilde (information: Theorem 1 does not
+  need them, Euler I has A_hat 1 = 1 != c = 0), the rank of omega in (21e);
+* (22a), (22b) (hypotheses of Theorem 1) and (23a-d) (symmetry), like every algebraic check,
+  decided at the precision the entries carry (``decide_arith``): exact in an algebraic number
+  field when the entries are exact and the decision is cheap (degree bound, time budget), else
+  in ball arithmetic on balls enclosing what the entries stand for (decimals to the digits given,
+  float64 to half an ulp, exact entries to twice the working digits): a condition holds when its
+  ball contains 0 and is violated only when it excludes 0 (docs/audit.md);
+* tree conditions (order_conditions): A, A_hat, A_tilde as RK methods, the pair (A, A_hat)
+  on bi-coloured trees, (A; A_hat, A_tilde) on the forced ODE (6) (the prediction), B/C/D,
+  R(inf);
+* Theorem 1 on the four paper scenes and the symmetry identities (ldaspark.analysis.discrete);
+* observed convergence order on the skate (exact solution) and the particle (reference by a
+  different, higher-order Gauss SPARK method), the constraint residual, the energy error. The
+  observed order (finest usable pair) must lie within ORDER_SLACK (0.45) of the prediction on
+  both sides; only a prediction at the tree cap (">= p") is a lower bound.
+
+Exit code 0 when (22) holds and every numerical check agrees with the theory, 1 when a check
+fails, 2 (LdasparkError) for unusable input.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass, field
+
+from ...analysis import order_conditions as oc
+from .audit_checks import (FAIL, INFO, ORDER_SLACK, PASS, SKIP, Check, _coefficient_strings, _fmt, _jsonable,  # noqa: F401
+                           check_22a, check_22b, check_23, check_omega, check_omega_default, check_row_sums,
+                           check_shapes, convergence_checks, energy_check, observed_order, order_checks, probe_step)
+from ...core.errors import InputError, LdasparkError
+from ...core.tableau import SparkTableau, load_tableau
+from ...core.families import get_method
+
+PAPER_SCENES = ("particle", "skate", "robot", "mp-particles")
+
+
+@dataclass
+class AuditResult:
+    tableau: str
+    s: int
+    exact: bool
+    dps: int
+    quick: bool
+    checks: list = field(default_factory=list)
+    facts: dict = field(default_factory=dict)
+    verdict: str = ""
+    seconds: float = 0.0
+
+    @property
+    def exit_code(self) -> int:
+        return 1 if any(c.status == FAIL for c in self.checks) else 0
+
+    def get(self, name) -> Check | None:
+        return next((c for c in self.checks if c.name == name), None)
+
+    def as_dict(self) -> dict:
+        return {"tableau": self.tableau, "s": self.s, "exact": self.exact, "dps": self.dps,
+                "quick": self.quick, "exit_code": self.exit_code, "verdict": self.verdict,
+                "facts": _jsonable(self.facts), "seconds": round(self.seconds, 2),
+                "checks": [c.as_dict() for c in self.checks]}
+
+
+# --- Theorem 1 -------------------------------------------------------------------------------
+def theorem1_checks(tab, hyp22, hyp23, dps, quick, scenes=PAPER_SCENES, entry_tol=None):
+    """Theorem 1 and the symmetry identities on the four paper scenes, via ldaspark.analysis.discrete.
+    ``entry_tol`` = (for Theorem 1, for the symmetry identities): how far the entries as
+    given miss (22), (23) (``entry_tolerances``); None: from ``tab.source_digits``. Returns (checks, facts)."""
+    import importlib.util
+    if importlib.util.find_spec("ldaspark.analysis.discrete") is None:
+        return [Check("theorem1", SKIP, None, "ldaspark.analysis.discrete is not available: "
+                                              "Theorem 1 not checked numerically")], {}
+    return _theorem1_with_discrete(tab, hyp22, hyp23, dps, quick, scenes, entry_tol)
+
+
+TEETH = 1e-6        # a Theorem 1 tolerance above this could not tell (22) from its violation
+THEOREM_H = "1/10"   # step of the base point (t0, q0) -> (t1, q1) for Theorem 1 and symmetry
+#: Theorem 1's identities are computed with the entries as given; when these satisfy (22) only to
+#: a residual r (decimals, float64) the identities hold to about r times a factor of the size of
+#: the scene's derivatives; 1e3 covers it (measured, --quick: float64 Lobatto IIIA-B-3, (22b) to
+#: 1.4e-17, Theorem 1 residuals up to 2.8e-17; the 40-digit Radau IIA pair, (22b) to 1.6e-41, particle
+#: and skate residuals 1.3e-40: ratios 2 and 8)
+ENTRY_TOL_FACTOR = 1e3
+
+
+def _theorem1_tol(tab, dps, fd_error, entry_tol=None):
+    """Relative tolerance of the Theorem 1 identities: above the finite-difference error
+    estimate, the working precision and what the entries as given contribute (``entry_tol``:
+    ENTRY_TOL_FACTOR times their residual in (22) or (23) when these hold to the entries'
+    precision; without it 10^(3 - source digits))."""
+    if entry_tol is None:
+        src = tab.source_digits
+        entry_tol = 10.0 ** (3 - src) if src else 0.0
+    return max(10 * fd_error, 10.0 ** (-dps / 2), entry_tol)
+
+
+def entry_tolerances(checks) -> tuple[float, float]:
+    """(for Theorem 1, for the symmetry identities): ENTRY_TOL_FACTOR times the largest residual of
+    (22a, b), resp. (23a-d), of the entries as given when those hold to the entries' precision
+    (exact decisions: 0); 0 when they are violated, so that a violation is seen at full strength."""
+    def tol(names):
+        cs = [c for c in checks if c.name in names]
+        if not cs or any(c.status != PASS for c in cs):
+            return 0.0
+        return ENTRY_TOL_FACTOR * max((c.residual or 0.0) for c in cs)
+    return tol(("22a", "22b")), tol(("23a", "23b", "23c", "23d"))
+
+
+def _theorem1_with_discrete(tab, hyp22, hyp23, dps, quick, scenes, entry_tol=None):
+    """Theorem 1 per scene, its summary, then the symmetry identities under (23)."""
+    checks, facts = [], {}
+    tol22, tol23 = entry_tol if entry_tol is not None else (None, None)
+    for name in scenes:
+        check, fact = _theorem1_scene(tab, name, hyp22, dps, quick, tol22)
+        checks.append(check)
+        if fact is not None:
+            facts[f"theorem1:{name}"] = fact
+    checks.append(_theorem1_summary(checks))
+    if hyp23:
+        sym_scenes = [x for x in scenes if x in ("skate", "particle")] if quick else scenes
+        sym_checks, sym_facts = _symmetry_checks(tab, dps, sym_scenes, tol23)
+        checks += sym_checks
+        facts.update(sym_facts)
+    else:
+        checks.append(Check("symmetry", SKIP, None, "(23) does not hold: Theorem 1 claims no symmetry"))
+    return checks, facts
+
+
+def _theorem1_scene(tab, name, hyp22, d, quick, entry_tol=None):
+    """One scene's Theorem 1 check (dL_d/dq0 = -p0 - f_d^-, dL_d/dq1 = p1 - f_d^+) and its facts."""
+    from ...analysis import discrete, wellposedness
+    from ...models.scenes import get_scene
+    sc = get_scene(name)
+    t0, q0, v0 = sc.initial(d + 45)
+    r, err = None, None
+    # an ill-conditioned BVP (tiny sigma_min) can stall Newton at the precision floor or
+    # make the finite differences too coarse: the full audit retries once at +20 digits
+    for dd in (d,) if quick else (d, d + 20):
+        try:
+            r = discrete.theorem1_residuals(sc.system, tab, t0, q0, v0, THEOREM_H, dps=dd)
+            err = None
+        except LdasparkError as exc:
+            r, err = None, str(exc).splitlines()[0]
+            continue
+        if _theorem1_tol(tab, dd, r["fd_error"], 0.0 if entry_tol is not None else None) <= TEETH:
+            break
+    if r is None:
+        return Check(f"theorem1:{name}", SKIP, None,
+                     f"not decided: boundary-value solve of (21) failed ({err}) at dps "
+                     f"{d}{'' if quick else f' and {d + 20}'}; the implicit functions of Theorem 1 "
+                     "are not established numerically here"), None
+    wp = r["wellposed"]
+    if not quick:
+        try:
+            wpc = wellposedness.classify_wellposedness(sc.system, tab, t0, q0, v0, THEOREM_H, dps=(d, d + 20))
+            wp = f"{wpc['class']} (rank deficiency {wpc['rank_deficiency']}, decided at dps {d}, {d + 20} and h, h/2)"
+        except LdasparkError as exc:
+            wp = f"{wp} (classification failed: {exc})"
+    else:
+        wp = f"{wp} (rank deficiency {r['rank_deficiency']} at dps {r['dps_fd']})"
+    res = max(r["theorem1-q0"], r["theorem1-q1"])
+    tol = _theorem1_tol(tab, r["dps"], r["fd_error"], entry_tol)
+    # the numerical part of the tolerance (finite differences, working precision) must have teeth;
+    # a larger tolerance that comes from the entries themselves ((22) holds only to the digits
+    # given) is the sharpest check those entries allow: decided against it, and said so
+    tol_num = _theorem1_tol(tab, r["dps"], r["fd_error"], 0.0 if entry_tol is not None else None)
+    ok = res <= tol
+    claim = ("agrees with Theorem 1" if hyp22 else
+             "holds although (22) fails" if ok else "fails, as expected without (22)")
+    status = PASS if ok else FAIL
+    if tol_num > TEETH:
+        status, claim = SKIP, f"not decided (tolerance {tol_num:.0e} above {TEETH:.0e} at dps {r['dps']})"
+    elif tol > TEETH:
+        claim += (f" to the precision of the entries (tolerance {tol:.0e} = {ENTRY_TOL_FACTOR:g} x their "
+                  "residual in (22): no sharper check is possible with these entries)")
+    check = Check(
+        f"theorem1:{name}", status, res,
+        f"{claim}: |dL_d/dq0 + p0 + f_d^-|, |dL_d/dq1 - p1 + f_d^+| relative = "
+        f"{r['theorem1-q0']:.1e}, {r['theorem1-q1']:.1e} (tolerance {tol:.0e}; FD error {r['fd_error']:.0e}; "
+        f"without the forces {r['without_forces_q0']:.1e}); h = {THEOREM_H}, dps {r['dps']}; BVP {wp}",
+        tolerance=tol)
+    return check, {k: v for k, v in r.items() if k != "null_support"}
+
+
+def _theorem1_summary(checks):
+    """Theorem 1 overall: decided on at least two scenes (or all, if fewer), none failing."""
+    th = [c for c in checks if c.name.startswith("theorem1:")]
+    decided = [c for c in th if c.status != SKIP]
+    nfail = sum(c.status == FAIL for c in decided)
+    need = min(2, len(th))
+    if len(decided) < need:
+        return Check("theorem1", FAIL, None, f"decided on only {len(decided)} of {len(th)} scenes "
+                                             f"(at least {need} needed)")
+    return Check("theorem1", FAIL if nfail else PASS, max((c.residual or 0.0) for c in decided),
+                 f"decided on {len(decided)} of {len(th)} scenes, {nfail} failing")
+
+
+def _symmetry_checks(tab, d, scenes, entry_tol=None):
+    """The (23) symmetry identities per scene and their summary."""
+    from ...analysis import symmetry
+    from ...models.scenes import get_scene
+    checks, facts = [], {}
+    keys = ("symmetry-Ld", "symmetry-fd-plus", "symmetry-fd-minus", "symmetry-Phi")
+    for name in scenes:
+        sc = get_scene(name)
+        t0, q0, v0 = sc.initial(d + 5)
+        try:
+            r = symmetry.check_symmetry(sc.system, tab, t0, q0, v0, THEOREM_H, dps=d)
+        except LdasparkError as exc:
+            checks.append(Check(f"symmetry:{name}", SKIP, None,
+                                f"not decided: forward/reverse BVP solve failed ({str(exc).splitlines()[0]})"))
+            continue
+        # With a singular (non-gauge) BVP Jacobian the implicit functions of Theorem 1 are
+        # not unique, so f_d^+- (built from dV/dq) depend on the gauge fixing: only L_d and
+        # the map Phi_h are then decidable; the f_d parts are reported, not judged.
+        judged = keys if r["wellposed"] != "singular" else ("symmetry-Ld", "symmetry-Phi")
+        res = max(r[k] for k in judged)
+        tol = _theorem1_tol(tab, d, 0.0, entry_tol)
+        facts[f"symmetry:{name}"] = {k: v for k, v in r.items() if isinstance(v, (int, float, str))}
+        note = "" if judged == keys else "; f_d parts not judged: BVP singular, f_d not unique"
+        checks.append(Check(
+            f"symmetry:{name}", PASS if res <= tol else FAIL, res,
+            "L_d(t1,q1,t0,q0) + L_d, f_d^+(rev) + f_d^-, f_d^-(rev) + f_d^+, Phi_-h(Phi_h(y)) - y: "
+            + ", ".join(f"{r[k]:.1e}" for k in keys) + f" (tolerance {tol:.0e}; BVP {r['wellposed']}{note})"))
+    dec = [c for c in checks if c.status != SKIP]
+    if checks:
+        nf = sum(c.status == FAIL for c in dec)
+        checks.append(Check("symmetry", FAIL if (nf or not dec) else PASS,
+                            max([(c.residual or 0.0) for c in dec] or [0.0]),
+                            f"decided on {len(dec)} of {len(checks)} scenes, {nf} failing"
+                            + ("" if dec else " (at least one needed)")))
+    return checks, facts
+
+
+# --- the audit -------------------------------------------------------------------------------
+def predicted_order(tab, facts) -> int:
+    """The order the conditions predict: the forced-ODE order (3-coloured trees)."""
+    return int(facts["order:forced-ode"])
+
+
+def decide_arith(tab: SparkTableau, dps: int, arith: str = "auto", exact_seconds: float | None = None):
+    """The arithmetic of the algebraic checks: (Arith, entries, reason). ``auto``: exact when the
+    entries are known exactly (no decimal literal, no float64) and the exact decision is cheap
+    (``oc.exact_budget``: algebraic entries, number field degree <= EXACT_MAX_DEGREE; the
+    deadline ``exact_seconds`` guards the rest), else arb balls at ``oc.ball_digits`` digits on
+    what the entries stand for. ``exact``: exact, decimals read as exact rationals (InputError for
+    float64 or transcendental entries). ``mp``: balls, whatever the entries."""
+    import time as _time
+    if exact_seconds is None:
+        exact_seconds = EXACT_FORCED_SECONDS if arith == "exact" else oc.EXACT_SECONDS
+    if arith == "exact":
+        if not tab.is_exact:
+            raise InputError(f"tableau {tab.name} has inexact entries: --arith exact is not possible")
+        ok, why = oc.exact_budget(tab, max_degree=EXACT_FORCED_MAX_DEGREE)
+        reason = ("exact by request (--arith exact)" + ("; decimal literals read as exact rationals, "
+                  "not as the digits given" if tab.decimal_digits else "")) if ok else \
+            f"--arith exact was asked for, but {why}"
+    elif arith == "auto" and tab.known_exactly:
+        ok, why = oc.exact_budget(tab)
+        reason = f"the entries are exact and the decision is cheap ({why})" if ok else why
+    else:
+        ok = False
+        reason = ("numerical by request (--arith mp)" if arith == "mp" else
+                  f"the entries carry {tab.precision_text()}")
+    if ok:
+        ar, e = oc.exact_arith(tab)
+        if oc._decidable(ar.K):
+            ar.deadline = _time.monotonic() + exact_seconds
+            return ar, e, reason
+        ok, reason = False, f"sympy puts the entries in {ar.K}, where equality is not decidable exactly"
+    return _ball(tab, dps, reason) + (reason,)
+
+
+#: an exact decision asked for with --arith exact: a larger field than auto allows (Gauss-4: bound
+#: 32), still bounded so that sympy's primitive element cannot run for hours
+EXACT_FORCED_MAX_DEGREE = 64
+#: and a longer time budget (the tree conditions of Gauss-4 take ~30 s exactly)
+EXACT_FORCED_SECONDS = 120.0
+
+
+def _ball(tab, dps, reason):
+    """Ball arithmetic for ``tab`` at ``oc.ball_digits`` digits, labelled with ``reason``."""
+    return oc.ball_arith(tab, oc.ball_digits(tab, dps), reason)
+
+
+def algebraic_checks(tab, ar, e, dps):
+    """Every check on the coefficients alone, in the arithmetic ``ar``. Returns (checks, facts)."""
+    C, facts = [], {}
+    C.append(check_shapes(tab))
+    for M in ("A", "A_hat", "A_tilde"):
+        C.append(check_row_sums(ar, e, M))
+    C.append(check_omega(tab, ar, e, dps))
+    C.append(check_omega_default(tab, dps))
+    C.append(check_22a(ar, e))
+    C.append(check_22b(ar, e))
+    C.extend(check_23(ar, e))
+    facts["22"] = C[-6].status == PASS and C[-5].status == PASS
+    facts["23"] = all(c.status == PASS for c in C[-4:])
+    chk, f = order_checks(ar, e)
+    C.extend(chk)
+    facts.update(f)
+    p = predicted_order(tab, facts)
+    facts["predicted_order"] = p
+    how = "exactly" if ar.exact else f"to {ar.scope}"
+    C.append(Check("consistent", PASS if p >= 1 else FAIL, None,
+                   f"the conditions predict order {p} ({how})" + (
+                       " >= 1: the method converges" if p >= 1 else
+                       ": sum b != 1 or similar by more than the entries' precision, the method cannot converge"),
+                   ar.label))
+    return C, facts
+
+
+def audit(tab: SparkTableau, dps: int = 30, quick: bool = False, arith: str = "auto",
+          progress=None, theorem_scenes=PAPER_SCENES, exact_seconds: float | None = None) -> AuditResult:
+    """Run every check on ``tab``; see the module docstring. ``theorem_scenes`` restricts the
+    Theorem 1 scenes (the CLI always uses the four paper scenes; tests use fewer);
+    ``exact_seconds`` the time budget of an exact decision (default oc.EXACT_SECONDS)."""
+    t_start = time.time()
+    _say = progress or (lambda msg: None)
+    say = lambda msg: _say(f"{msg} (t = {time.time() - t_start:.1f} s)")
+    say("coefficients")
+    ar, e, reason = decide_arith(tab, dps, arith, exact_seconds)
+    try:
+        C, facts = algebraic_checks(tab, ar, e, dps)
+    except oc.ExactBudgetExceeded:
+        budget = ((EXACT_FORCED_SECONDS if arith == "exact" else oc.EXACT_SECONDS)
+                  if exact_seconds is None else exact_seconds)
+        reason = f"the exact decision ({ar.label}) ran past its {budget:g} s budget"
+        say("exact decision over budget: deciding numerically")
+        ar, e = _ball(tab, dps, reason)
+        C, facts = algebraic_checks(tab, ar, e, dps)
+    res = AuditResult(tab.name, tab.s, ar.exact, dps, quick)
+    res.facts["arithmetic"] = ar.label
+    res.facts["arithmetic_reason"] = reason
+    res.facts["decided_to"] = "exactly" if ar.exact else ar.scope
+    res.facts["entries"] = tab.precision_text()
+    res.facts["digits_given"] = tab.decimal_digits
+    res.facts["claimed_order"] = tab.claimed_order
+    res.facts["coefficients"] = _coefficient_strings(tab)
+    res.checks = C
+    res.facts.update(facts)
+    hyp22, hyp23 = facts["22"], facts["23"]
+    p = facts["predicted_order"]
+    say("probe step")
+    probe_step(tab)
+    say("Theorem 1")
+    chk, facts = theorem1_checks(tab, hyp22, hyp23, dps, quick, tuple(theorem_scenes), entry_tolerances(C))
+    C.extend(chk)
+    res.facts.update(facts)
+    say("convergence")
+    chk, facts = convergence_checks(tab, p, dps, quick, bool(res.facts.get("order:forced-ode-capped")))
+    C.extend(chk)
+    res.facts.update(facts)
+    say("energy")
+    chk, facts = energy_check(tab, quick)
+    C.append(chk)
+    res.facts.update(facts)
+    res.verdict = verdict(res)
+    res.seconds = time.time() - t_start
+    return res
+
+
+def verdict(res: AuditResult) -> str:
+    f = res.facts
+    s = res.s
+    parts = []
+    c22a, c22b = res.get("22a"), res.get("22b")
+    how = ("exactly" if res.exact else f"to {f.get('decided_to') or 'the precision the entries carry'} "
+           f"({f.get('arithmetic')})")
+    if f["22"]:
+        parts.append(f"{res.tableau} ({s} stage{'s' if s > 1 else ''}) satisfies (22a) and (22b) {how}, "
+                     "so Theorem 1 applies: the SPARK method is a nonholonomically constrained discrete "
+                     "Lagrange-d'Alembert integrator.")
+    else:
+        bad = [c for c in (c22a, c22b) if c.status == FAIL]
+        parts.append(f"{res.tableau} ({s} stage{'s' if s > 1 else ''}) violates "
+                     + " and ".join(f"({c.name}) ({c.detail})" for c in bad)
+                     + ", so Theorem 1 does not apply.")
+    th = [c for c in res.checks if c.name.startswith("theorem1:")]
+    summ = res.get("theorem1")
+    if summ is not None and summ.status == SKIP:
+        parts.append("Theorem 1 was not checked numerically (ldaspark.analysis.discrete missing).")
+    elif th:
+        decided = [c for c in th if c.status != SKIP]
+        nfail = sum(c.status == FAIL for c in decided)
+        worst = max([(c.residual or 0.0) for c in decided] or [0.0])
+        undecided = [c.name.split(":", 1)[1] for c in th if c.status == SKIP]
+        parts.append("The numerical check of Theorem 1 on the paper scenes "
+                     + ("agrees" if nfail == 0 and summ.status == PASS
+                        else f"fails on {nfail} of {len(decided)} decided scenes" if nfail
+                        else "is decided on too few scenes")
+                     + f" (largest residual {worst:.1e})"
+                     + (f"; not decided on {', '.join(undecided)} (see the checks)" if undecided else "")
+                     + ".")
+        d = disagreement(res)
+        if d:
+            parts.append(d)
+    if f["23"]:
+        parts.append("It satisfies the symmetry conditions (23), so the method is symmetric.")
+    else:
+        parts.append("It does not satisfy (23): no symmetry is claimed.")
+    p = f["predicted_order"]
+    cap = "+" if f.get("order:forced-ode-capped") else ""
+    obs = []
+    for sc in ("skate", "particle"):
+        r = f.get(f"convergence:{sc}")
+        if r:
+            obs.append(f"{r['observed']:.2f} on the {sc}")
+    parts.append(f"The tree conditions give order {f['order:pair']} for the pair (A, A_hat) and {p}{cap} for "
+                 f"(A; A_hat, A_tilde) on the forced ODE (6); observed orders {', '.join(obs) or '(none: runs failed)'} "
+                 + ("agree with it." if all(res.get(f'convergence:{sc}').status == PASS for sc in ("skate", "particle"))
+                    else "do NOT agree with it.")
+                 + " This prediction ignores the index-2 coupling through psi: Jay proved order 2s for Gauss"
+                 " and 2s-2 for Lobatto SPARK methods [26, 27]; for other tableaux, order reduction below the"
+                 " tree prediction is possible and only the measurement decides.")
+    fo = res.get("order:forced-ode")
+    if fo is not None and fo.residual and 0 < fo.residual < TINY_DEFECT:
+        parts.append(f"The condition that limits the prediction misses by only {fo.residual:.1e}: its "
+                     "contribution to the error is of that size, below what the step sizes here can "
+                     "measure, so a measured order above the prediction is expected.")
+    if p == 0:
+        parts.append("Order 0 means the method is not even consistent (e.g. sum b_i != 1"
+                     + ("" if res.exact else ", by more than the precision the entries carry")
+                     + "): it does not converge, whatever Theorem 1 says about its geometry; the audit counts "
+                     "that as a failure.")
+    if f.get("claimed_order") is not None:
+        parts.append(f"(Claimed order of this built-in: {f['claimed_order']}.)")
+    k, en = res.get("constraint"), res.get("energy")
+    parts.append(f"The constraint is satisfied to {_fmt(k.residual)} at the step points; the energy error on a "
+                 f"short particle run is {_fmt(en.residual if en else None)}.")
+    fails = [c.name for c in res.checks if c.status == FAIL]
+    parts.append("Result: all checks agree with the theory." if not fails
+                 else f"Result: {len(fails)} check(s) failed: {', '.join(fails)}.")
+    return " ".join(parts)
+
+
+#: a first failing order condition smaller than this cannot show in errors measured at h >= 1/64
+#: (their error floors are >= 1e-13 in float64): the verdict says so
+TINY_DEFECT = 1e-8
+
+
+def disagreement(res: AuditResult) -> str:
+    """A sentence naming a disagreement between the algebraic (22) decision and the numerical
+    Theorem 1 check, with its likely cause; "" when they agree (or Theorem 1 was not decided)."""
+    summ = res.get("theorem1")
+    if summ is None or summ.status == SKIP:
+        return ""
+    decided = [c for c in res.checks if c.name.startswith("theorem1:") and c.status != SKIP]
+    if not decided:
+        return ""
+    c22 = [c for c in (res.get("22a"), res.get("22b")) if c is not None]
+    r22 = max((c.residual or 0.0) for c in c22)
+    u22 = max((c.tolerance or 0.0) for c in c22)
+    passing = [c for c in decided if c.status == PASS]
+    failing = [c for c in decided if c.status == FAIL]
+    if not res.facts["22"] and passing:
+        tol = min(_tol_of(c) for c in passing)
+        cause = (f"the violation of (22) (|residual| {r22:.1e}) is below the resolution of the numerical "
+                 f"check (relative tolerance {tol:.0e} at dps {res.dps}), which cannot see it; the algebraic "
+                 "decision is the finer one" if r22 < tol else
+                 "the violation of (22) is larger than the numerical tolerance, so this is unexpected: "
+                 "look at the scenes' BVP classes and residuals")
+        return (f"DISAGREEMENT: (22) is violated but the numerical Theorem 1 check passes on "
+                f"{', '.join(c.name.split(':', 1)[1] for c in passing)}. Likely cause: {cause}.")
+    if res.facts["22"] and failing:
+        worst = max((c.residual or 0.0) for c in failing)
+        cause = ("the entries carry limited precision: (22) holds only to "
+                 f"{r22:.1e} (uncertainty {u22:.1e}), and Theorem 1 is checked with the entries as given"
+                 if not res.exact and r22 > 0 else
+                 "numerical: the boundary-value problem of (21) or its finite differences at this dps "
+                 "(see each scene's BVP class and FD error); (22) itself holds exactly")
+        return (f"DISAGREEMENT: (22) holds but the numerical Theorem 1 check fails on "
+                f"{', '.join(c.name.split(':', 1)[1] for c in failing)} (largest residual {worst:.1e}). "
+                f"Likely cause: {cause}.")
+    return ""
+
+
+def _tol_of(check) -> float:
+    """The tolerance of a Theorem 1 scene check."""
+    return check.tolerance or 0.0
+
+
+# --- report ----------------------------------------------------------------------------------
+def to_markdown(res: AuditResult, command: str | None = None) -> str:
+    L = [f"# ldaspark audit: {res.tableau}", ""]
+    L.append(f"- stages s = {res.s}; arithmetic: {res.facts.get('arithmetic')}; working dps {res.dps}; "
+             f"{'quick' if res.quick else 'full'} mode; {res.seconds:.1f} s")
+    if res.facts.get("arithmetic_reason"):
+        L.append(f"- entries: {res.facts.get('entries')}; the algebraic checks are decided "
+                 + ("exactly" if res.exact else "in ball arithmetic") + f" because {res.facts['arithmetic_reason']} "
+                 "(each check's arithmetic is in the JSON key `arithmetic`)")
+    if command:
+        L.append(f"- reproduce: `{command}`")
+    L.append(f"- exit code {res.exit_code}")
+    L += ["", "## Verdict", "", res.verdict, "", "## Checks", "",
+          "| check | status | residual | detail |", "|---|---|---|---|"]
+    for c in res.checks:
+        L.append(f"| {c.name} | {c.status} | {_fmt(c.residual)} | {c.detail.replace('|', chr(92) + '|')} |")
+    if res.facts.get("coefficients"):
+        L += ["", "## Coefficients", "", "```"]
+        L += [f"{k} = {v}" for k, v in res.facts["coefficients"].items()]
+        L += ["```"]
+    L.append("")
+    return "\n".join(L)
+
+
+# --- CLI -------------------------------------------------------------------------------------
+def add_arguments(parser) -> None:
+    parser.add_argument("file", nargs="?", default=None, help="tableau JSON file (keys c, A, A_hat, "
+                        "A_tilde, b, b_hat, b_tilde, optional omega, name)")
+    parser.add_argument("--method", default=None, help="audit a built-in method instead (gauss-S, ...)")
+    parser.add_argument("--example", default=None, help="audit a shipped example tableau by name "
+                        f"({', '.join(example_names())})")
+    parser.add_argument("--dps", type=int, default=30, help="working digits of the numerical checks (default 30)")
+    parser.add_argument("--json", default=None, help="write the checks as JSON to this file")
+    parser.add_argument("--out", default=None, help="write the markdown report to this file instead of stdout")
+    parser.add_argument("--quick", action="store_true", help="fewer step sizes and shorter runs")
+    parser.add_argument("--max-stages", type=int, default=None, help="allow tableaux with more than 20 stages")
+    parser.add_argument("--arith", choices=("auto", "exact", "mp"), default="auto",
+                        help="arithmetic of the algebraic checks (auto: exact when the entries are exact; "
+                             "built-ins are exact up to s = 3)")
+
+
+def safe_load_tableau(path, max_stages=None) -> SparkTableau:
+    """The core loader: string entries go through ``tableau.parse_exact_string``, an AST
+    whitelist (numbers, + - * / **, sqrt, Rational, pi) that never evaluates Python; the file
+    is read only if regular and bounded in size, s <= max_stages (default 20)."""
+    return load_tableau(path, max_stages=max_stages)
+
+
+def example_names() -> list[str]:
+    """Names of the example tableaux shipped in ldaspark/data/tableaux (without .json)."""
+    from importlib import resources
+    d = resources.files("ldaspark") / "data" / "tableaux"
+    return sorted(p.name[:-5] for p in d.iterdir() if p.name.endswith(".json")) if d.is_dir() else []
+
+
+def example_path(name: str):
+    """Path of a shipped example tableau."""
+    from importlib import resources
+    if name not in example_names():
+        raise InputError(f"unknown example tableau {name!r}; choose from {', '.join(example_names())}")
+    return resources.files("ldaspark") / "data" / "tableaux" / f"{name}.json"
+
+
+def load_for_args(args) -> SparkTableau:
+    example = getattr(args, "example", None)
+    if example is not None:
+        if args.file is not None or args.method is not None:
+            raise InputError("give exactly one of FILE, --method NAME or --example NAME")
+        args.file = str(example_path(example))
+    if (args.file is None) == (args.method is None):
+        raise InputError("give exactly one of FILE or --method NAME (or --example NAME)")
+    if args.dps is not None and not (10 <= args.dps <= 200):
+        raise InputError(f"--dps must be between 10 and 200, got {args.dps}")
+    if args.method is not None:
+        ms = getattr(args, "max_stages", None)
+        tab = get_method(args.method, max_stages=ms)
+        want_exact = args.arith == "exact" or (args.arith == "auto" and tab.s <= 3)
+        if want_exact and tab.exact is None:
+            tab = get_method(args.method, exact=True, max_stages=ms)
+        return tab
+    return safe_load_tableau(args.file, getattr(args, "max_stages", None))
+
+
+def run(args) -> int:
+    tab = load_for_args(args)
+    progress = (lambda msg: print(f"[audit] {msg}", file=sys.stderr, flush=True))
+    res = audit(tab, dps=args.dps, quick=args.quick, arith=args.arith, progress=progress)
+    cmd = "ldaspark audit " + (f"--method {args.method}" if args.method else str(args.file)) \
+        + f" --dps {args.dps}" + (" --quick" if args.quick else "") \
+        + (f" --arith {args.arith}" if args.arith != "auto" else "")
+    md = to_markdown(res, cmd)
+    if args.out:
+        from ...core.io import atomic_write_text
+        atomic_write_text(args.out, md)
+    else:
+        print(md)
+    if args.json:
+        from ...core.io import atomic_write_json
+        atomic_write_json(args.json, dict(res.as_dict(), command=cmd))
+    return res.exit_code
