@@ -403,7 +403,7 @@ def source_fingerprint(*config, dirs=(), paths=()) -> str:
     configuration is never resumed from. The fingerprint is an identity, not a secret: anyone
     can recompute it, so ``Checkpoint`` authenticates its records with a key of its own."""
     h = hashlib.sha256()
-    pkg = pathlib.Path(__file__).resolve().parents[1]
+    pkg = pathlib.Path(__file__).resolve().parent   # the package ldaspark
     for root in (pkg, *map(pathlib.Path, dirs)):
         h.update(b"dir\0")
         _hash_tree(h, root, "*.py")

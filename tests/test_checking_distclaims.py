@@ -1,5 +1,5 @@
-"""Issue #31: the verdict rules and fault paths of dist/workers.py, claims/ledger.py,
-claims/claims_general.py, claims/claims_index.py and claims/claims_paper.py on inputs where
+"""Issue #31: the verdict rules and fault paths of executors.py, lab/claims/ledger.py,
+lab/claims/claims_general.py, lab/claims/claims_index.py and lab/claims/claims_paper.py on inputs where
 the right rule and its plausible neighbours (<= vs <, all vs any, min vs max, one side of a
 pair, a field left out of a fingerprint) give different answers. The expensive inner
 computations (BVP solves, integrations) are replaced by synthetic results: what is checked is

@@ -139,7 +139,7 @@ def test_the_quick_generated_mutants_still_exist_and_name_a_test():
 
 
 # --- kills of generated mutants that survived the first run ------------------------------------------
-# reports/stability_stiff.py: the committed report was computed with the module's grids and rules;
+# lab/reports/stability_stiff.py: the committed report was computed with the module's grids and rules;
 # recomputing the cheap parts from the stored rows ties the constants and the verdicts to it
 def _stability():
     import json
@@ -178,7 +178,7 @@ def test_the_stiff_reports_classes_and_linear_predictions_recomputed():
     assert {"linear instability", "energy growth", ""} <= {r["why"] for r in rows}
 
 
-# theory/flow_jacobian.py
+# analysis/flow_jacobian.py
 def test_a_rate_may_be_named_after_its_coordinate():
     import ldaspark
     from tests.test_flow_jacobian import V0, Q0, gyroscopic
@@ -251,7 +251,7 @@ def test_units_failed_names_five_and_counts_the_rest():
     assert "more" not in str(UnitsFailed({f"u{i}": "x" for i in range(5)}, {}))
 
 
-# dist/workers.py: the executor behind ``where``
+# executors.py: the executor behind ``where``
 def _plus_one(x):
     return x + 1
 

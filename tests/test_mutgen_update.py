@@ -11,7 +11,7 @@ from ldaspark.lab.mutants import mutgen
 
 
 def _mutants():
-    return mutgen.generate("claims/claims_general.py")
+    return mutgen.generate("lab/claims/claims_general.py")
 
 
 def test_only_ids_from_a_list_or_a_file_and_unknown_ids_refused(tmp_path):
@@ -35,7 +35,7 @@ def test_an_update_appends_its_run_and_lists_the_verdicts(tmp_path):
     m0, m1, m2 = _mutants()[:3]
     recs = [mutgen._rec(m0, "killed", "t::x", 1.0), mutgen._rec(m1, "survived", None, 1.0),
             mutgen._rec(m2, "equivalent", None, 0.0, "because")]
-    mutgen.write_reports(recs, ["claims/claims_general.py"], {}, tmp_path, "second", 30.0, [], hist)
+    mutgen.write_reports(recs, ["lab/claims/claims_general.py"], {}, tmp_path, "second", 30.0, [], hist)
     doc = json.loads((tmp_path / "mutation-generated.json").read_text())
     assert [r["command"] for r in doc["runs"]] == ["first", "second"]
     assert doc["surviving"] == [m1.id] and doc["equivalent"] == [m2.id] and doc["modules_not_run"] == ["m"]
@@ -109,16 +109,16 @@ def test_a_coverage_run_in_two_shards_is_combined_with_its_contexts(tmp_path):
                  "    with memo.memoized():\n"
                  "        assert memo.cached('k', 1, 2, None, (np.ones(2),), lambda: 5) == 5\n"
                  "        assert memo.cached('k', 1, 2, None, (np.ones(2),), lambda: 6) == 5\n")
-    files = ["theory/memo.py"]
+    files = ["analysis/memo.py"]
     cmap, stats, rc, _, _ = mutgen.coverage_map(files, [str(a), str(b)], tmp_path / "cov", jobs=2)
     assert rc == 0
-    src = (mutgen.PACKAGE / "theory/memo.py").read_text().splitlines()
+    src = (mutgen.PACKAGE / "analysis/memo.py").read_text().splitlines()
     line = lambda text: next(i + 1 for i, t in enumerate(src) if text in t)  # noqa: E731
-    ran = lambda text: {i.split("::")[-1] for i in cmap["theory/memo.py"].get(line(text), [])}  # noqa: E731
+    ran = lambda text: {i.split("::")[-1] for i in cmap["analysis/memo.py"].get(line(text), [])}  # noqa: E731
     assert ran("return compute()") == {"test_outside"}          # one shard's test
     assert ran("hit = _MEMO.get(k)") == {"test_inside"}          # the other's
     assert ran("return v._mpf_") == set()                        # no test
-    lc, ln, bc, bn = stats["theory/memo.py"]
+    lc, ln, bc, bn = stats["analysis/memo.py"]
     assert 0 < lc < ln and 0 < bc < bn
     assert not list(tmp_path.glob("cov.shard*"))                  # the shards' files are gone
     durations = json.loads((tmp_path / "cov.durations.json").read_text())["durations"]
@@ -157,7 +157,7 @@ def _fake_run(monkeypatch, tmp_path, cmap, tests, ran):
 
 
 def test_a_module_constant_executed_at_import_is_run_against_the_files_importing_it(monkeypatch, tmp_path):
-    rel = "claims/claims_general.py"
+    rel = "lab/claims/claims_general.py"
     ms = mutgen.generate(rel, check=False)
     const = next(m for m in ms if m.id.split("::")[1] == "<module>")
     deftime = mutgen.definition_time_lines(rel)
@@ -193,7 +193,7 @@ def test_a_module_constant_executed_at_import_is_run_against_the_files_importing
 
 
 def test_kills_of_several_earlier_reports_are_kept_outside_the_sample(monkeypatch, tmp_path):
-    rel = "theory/symmetry.py"
+    rel = "analysis/symmetry.py"
     ms = mutgen.generate(rel, check=False)
     cmap = {rel: {m.line: ["tests/test_kahan.py::test_x"] for m in ms}}
     a, b = tmp_path / "a.json", tmp_path / "b.json"
@@ -222,7 +222,7 @@ def test_kills_of_several_earlier_reports_are_kept_outside_the_sample(monkeypatc
 
 
 def test_the_sample_is_drawn_from_every_mutant_whatever_the_coverage(monkeypatch, tmp_path):
-    rel = "theory/symmetry.py"
+    rel = "analysis/symmetry.py"
     ms = mutgen.generate(rel, check=False)
     picked = [m.id for m in mutgen.sample(ms, [rel], 6)]
     assert len(picked) == 6 and len(set(picked)) == 6
@@ -256,9 +256,9 @@ def test_definition_time_lines_are_those_import_evaluates(tmp_path, monkeypatch)
 def test_a_default_value_is_decided_by_the_importing_files_even_when_a_test_imported_it(monkeypatch, tmp_path):
     """A test that imports the module inside its body records the def line in its context; that
     test alone need not call the function with its default."""
-    rel = "theory/bicycle_flow.py"
+    rel = "lab/theory/bicycle_flow.py"
     ms = mutgen.generate(rel, check=False)
-    m = next(x for x in ms if x.id == "theory/bicycle_flow.py::spark_eigenvalues::constant::0.01->0.0#1")
+    m = next(x for x in ms if x.id == "lab/theory/bicycle_flow.py::spark_eigenvalues::constant::0.01->0.0#1")
     assert m.line in mutgen.definition_time_lines(rel)
     mapped = [f for f in mutgen.mapped_tests(rel) if f not in mutgen.ALWAYS_MAPPED]
     cmap = {rel: {m.line: ["tests/test_x.py::test_imports_it"]}}
@@ -281,10 +281,10 @@ def test_whole_test_files_are_ordered_by_their_tests_total_time():
 def test_a_continuation_line_is_looked_up_at_its_statements_first_line(monkeypatch, tmp_path):
     """coverage.py records a multi-line statement at its first line: a mutant on its second line
     runs the tests of the first (it was reported not covered)."""
-    rel = "reports/summary.py"
+    rel = "lab/reports/summary.py"
     st = mutgen.statement_lines(rel)
     ms = mutgen.generate(rel, check=False)
-    m = next(x for x in ms if x.id.startswith("reports/summary.py::_us::") and st[x.line] != x.line)
+    m = next(x for x in ms if x.id.startswith("lab/reports/summary.py::_us::") and st[x.line] != x.line)
     cmap = {rel: {st[m.line]: ["tests/test_x.py::test_us"]}}
     ran = {}
     _fake_run(monkeypatch, tmp_path, cmap, ["tests/test_readme.py"], ran)

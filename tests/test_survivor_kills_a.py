@@ -1,6 +1,6 @@
 """Tests answering surviving generated mutants (``ldaspark mutants --generated``) in
-dist/workers.py, core/validate.py, reports/stability_stiff.py, reports/peers.py,
-claims/ledger.py and claims/claims_general.py: each checks one rule on an input where the
+executors.py, core/validate.py, lab/reports/stability_stiff.py, lab/reports/peers.py,
+lab/claims/ledger.py and lab/claims/claims_general.py: each checks one rule on an input where the
 mutated computation gives another verdict or number. The expensive computations (integrations,
 BVP solves, timed loops) are replaced by stand-ins (monkeypatch) where the rule under test is
 the reduction or choice made on their results. Cost: ~2 s."""
@@ -22,7 +22,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 KEY = bytes(range(32))
 
 
-# --- dist/workers.py ----------------------------------------------------------------------------
+# --- executors.py ----------------------------------------------------------------------------
 def test_local_place_with_two_jobs_is_a_process_pool_of_two():
     place = workers._Place("local", 2, None)
     try:
@@ -195,7 +195,7 @@ def test_step_advances_in_digits_needs_two_units_of_the_last_digit():
     V.step_advances(1e30, 100.0, n_steps=1, dps=30)
 
 
-# --- reports/stability_stiff.py -----------------------------------------------------------------
+# --- lab/reports/stability_stiff.py -----------------------------------------------------------------
 from ldaspark.lab.reports import stability_stiff as SS  # noqa: E402
 
 
@@ -237,7 +237,7 @@ def test_dps_extreme_reports_the_largest_component_difference(monkeypatch):
     assert row["log10_diff"] == pytest.approx(-12.0, abs=1e-9)
 
 
-# --- reports/peers.py ---------------------------------------------------------------------------
+# --- lab/reports/peers.py ---------------------------------------------------------------------------
 from ldaspark.lab.reports import peers as P  # noqa: E402
 
 
@@ -297,7 +297,7 @@ def test_peer_section_names_the_rhs_choice_when_any_study_measured_it():
     assert "the faster, measured per scene, of the closed form" not in "\n".join(P.section(d))
 
 
-# --- claims/ledger.py ---------------------------------------------------------------------------
+# --- lab/claims/ledger.py ---------------------------------------------------------------------------
 from ldaspark.lab.claims import ledger as LG  # noqa: E402
 
 
@@ -354,7 +354,7 @@ def test_holonomic_order_takes_the_larger_of_the_two_covectors(monkeypatch):
     assert out["p_tangential"] == pytest.approx(3.0)
 
 
-# --- claims/claims_general.py -------------------------------------------------------------------
+# --- lab/claims/claims_general.py -------------------------------------------------------------------
 def test_order_records_share_the_piece_time_per_record(monkeypatch):
     from ldaspark.lab.claims import claims_general as CG
     clock = iter([100.0, 106.0])

@@ -32,7 +32,7 @@ from ...core.errors import LdasparkError
 from ...core.lifecycle import run_linked, subprocess_guard
 from .mutation_catalogue import CATALOGUE, QUICK, Mutant, by_id
 
-PACKAGE = pathlib.Path(__file__).resolve().parents[1]          # .../ldaspark
+PACKAGE = pathlib.Path(__file__).resolve().parents[2]          # .../ldaspark
 PROJECT = PACKAGE.parent
 # what a test run needs from the project tree (tests read examples/, README.md, .ci/run)
 # reports/: README's marks and the report tests read the committed reports; without them those

@@ -45,7 +45,7 @@ from ...core.io import atomic_write_json, atomic_write_text
 from ...executors import Checkpoint, UnitsFailed, source_fingerprint
 from .mutation import TIMEOUT, all_test_files, require_tests, run_catalogue
 
-PACKAGE = pathlib.Path(__file__).resolve().parents[1]
+PACKAGE = pathlib.Path(__file__).resolve().parents[2]   # ./ldaspark
 PROJECT = PACKAGE.parent
 EQUIVALENT = PROJECT / "verification" / "mutants_equivalent.json"
 HELPERS_DIR = "verification"     # its non-test modules (strategies, fixtures) are checking code too
@@ -870,16 +870,16 @@ def sample(mutants, files, n):
 #: test that must kill it: a fault of each kind the verdict-rule tests were written for
 VT = "tests/test_verdict_rules.py::"
 QUICK_GENERATED = (
-    ("reports/stability_stiff.py::stiff_run::arithmetic::/->*#3",
+    ("lab/reports/stability_stiff.py::stiff_run::arithmetic::/->*#3",
      VT + "test_the_growth_ratio_is_second_half_over_first_half"),
-    ("theory/audit.py::_theorem1_summary::call-swap::max->min#1", VT + "test_theorem1_summary_rule_directly"),
-    ("claims/claims_paper.py::section5_records::call-swap::max->min#1",
+    ("lab/theory/audit.py::_theorem1_summary::call-swap::max->min#1", VT + "test_theorem1_summary_rule_directly"),
+    ("lab/claims/claims_paper.py::section5_records::call-swap::max->min#1",
      VT + "test_the_antisymmetry_record_fails_when_one_identity_fails[f_minus]"),
-    ("dist/workers.py::_hash_tree::compare::in->not in#1",
+    ("executors.py::_hash_tree::compare::in->not in#1",
      VT + "test_the_files_under_dirs_change_the_fingerprint"),
-    ("reports/systems.py::_row::call-swap::all->any#1",
+    ("lab/reports/systems.py::_row::call-swap::all->any#1",
      "tests/test_checking_rep1.py::test_row_verdict_needs_both_symmetric_methods"),
-    ("theory/definition1.py::definition1_residuals::call-swap::max->min#5",
+    ("lab/theory/definition1.py::definition1_residuals::call-swap::max->min#5",
      "tests/test_checking_theory2.py::test_definition1_aggregates_the_right_neighbours"),
 )
 

@@ -4,7 +4,7 @@ SPARK flow (``ldaspark.lab.theory.bicycle_flow``) beside the benchmark's (Meijaa
 
 ``bicycle_section(outdir) -> (markdown, json)`` writes the figure ``figures/systems_bicycle.png``
 into ``outdir`` and returns the Markdown section and its numbers; the integrator's
-``reports/systems.py`` places it. Cost (loaded 2-core machine; the JSON's ``cpu_s``): building the
+``lab/reports/systems.py`` places it. Cost (loaded 2-core machine; the JSON's ``cpu_s``): building the
 model (sympy derives the Whipple Lagrangian's partials once, 8-9 s CPU), the generic engine's first
 stage evaluation (lambdify, ~6 s), then ~0.12-0.17 s CPU per flow Jacobian (~60 of them) and the
 nonlinear run (200 generic steps): 21.6 s CPU in all, measured (6 s of it deriving the model). The compiled engine is not used here: its first call alone (code

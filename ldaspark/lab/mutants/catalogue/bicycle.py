@@ -1,5 +1,5 @@
 """Mutants of the Whipple bicycle (models/bicycle.py), its benchmark reference
-(models/bicycle_benchmark.py) and the flow Jacobian (theory/flow_jacobian.py)."""
+(models/bicycle_benchmark.py) and the flow Jacobian (analysis/flow_jacobian.py)."""
 from ..mutant import _m
 
 VBIC = "verification/test_systems_bicycle.py"
@@ -19,13 +19,13 @@ MUTANTS = (
     _m("benchmark-IAlx-zT", "models/bicycle_benchmark.py",
        "IAlx = -mA * uA * zA + ", "IAlx = -mA * uA * zT + ",
        "Appendix A: I_A lambda x with the whole bicycle's z_T instead of the front assembly's z_A", "system", VBIC),
-    _m("flow-jacobian-transposed", "theory/flow_jacobian.py",
+    _m("flow-jacobian-transposed", "analysis/flow_jacobian.py",
        "return np.concatenate([dq1, dv1]), r.q1, r.v1", "return np.concatenate([dq1, dv1]).T, r.q1, r.v1",
        "flow Jacobian d(q1, v1)/d(q0, v0) transposed", "jacobian", TFJ),
-    _m("flow-jacobian-no-p0-term", "theory/flow_jacobian.py",
+    _m("flow-jacobian-no-p0-term", "analysis/flow_jacobian.py",
        "blk = st[i].L_vq - ini.L_vq", "blk = st[i].L_vq",
        "IFT: the dependence of p0 = grad_v L(q0, v0) on q0 left out of (21b)", "jacobian", TFJ),
-    _m("flow-jacobian-tangent-sign", "theory/flow_jacobian.py",
+    _m("flow-jacobian-tangent-sign", "analysis/flow_jacobian.py",
        "corr = bk.solve(Kd, -kv[:, j])", "corr = bk.solve(Kd, kv[:, j])",
        "restriction: dependent velocities moved against the linearised constraint", "jacobian", TFJ, VBIC),
 )

@@ -1,5 +1,5 @@
 """Mutants of the classic nonholonomic systems (``models/systems_classic.py``) and their report
-section (``reports/systems.py``): a sign in a scene's L or k, a wrong closed form or invariant, a
+section (``lab/reports/systems.py``): a sign in a scene's L or k, a wrong closed form or invariant, a
 wrong verdict of the report."""
 from ..mutant import _m
 
@@ -35,7 +35,7 @@ MUTANTS = (
     _m("systems-ball-table-sign", SC, "table = Om_t * N.z.cross(x * N.x + y * N.y)",
        "table = -Om_t * N.z.cross(x * N.x + y * N.y)",
        "ball on a turntable: the table turning the other way in k", "system", BAL),
-    _m("systems-report-bounded-verdict", "reports/systems.py", '"bounded": bool(rnd or r <= BOUNDED_RATIO)',
+    _m("systems-report-bounded-verdict", "lab/reports/systems.py", '"bounded": bool(rnd or r <= BOUNDED_RATIO)',
        '"bounded": bool(rnd or r >= BOUNDED_RATIO)',
        "systems report: bounded when the error grows", "orders", REP),
 )
