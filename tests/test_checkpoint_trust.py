@@ -337,7 +337,7 @@ def test_the_fingerprint_covers_the_environment_and_the_files_a_run_reads(tmp_pa
 
 
 def test_run_ledger_binds_the_checkpoint_to_its_own_settings(monkeypatch):
-    from ldaspark.lab.theory import ledger
+    from ldaspark.lab.claims import ledger
     seen = []
 
     def fake(work, checkpoint, **kw):
@@ -353,7 +353,7 @@ def test_run_ledger_binds_the_checkpoint_to_its_own_settings(monkeypatch):
 
 
 def test_run_catalogue_binds_the_checkpoint_to_its_own_settings(monkeypatch):
-    from ldaspark.lab.reports import mutation
+    from ldaspark.lab.mutants import mutation
     seen = []
 
     def fake(units, checkpoint, **kw):

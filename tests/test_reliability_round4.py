@@ -342,7 +342,7 @@ def test_well_formed_addresses_pass_the_check():
 
 
 def test_ledger_refuses_a_malformed_address_before_work(no_client, monkeypatch):
-    from ldaspark.lab.theory import ledger
+    from ldaspark.lab.claims import ledger
     built = []
     monkeypatch.setattr(ledger, "_ledger_tabs", lambda *a: built.append(a) or [])
     with pytest.raises(InputError, match="malformed"):

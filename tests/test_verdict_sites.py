@@ -301,7 +301,7 @@ def test_the_package_source_and_each_library_version_enter_the_fingerprint(tmp_p
     (pkg / "dist").mkdir(parents=True)
     (pkg / "core.py").write_text("A = 1\n")
     (pkg / "notes.txt").write_text("not source\n")
-    monkeypatch.setattr(workers, "__file__", str(pkg / "dist" / "workers.py"))
+    monkeypatch.setattr(workers, "__file__", str(pkg / "executors.py"))
     f0 = workers.source_fingerprint("r")
     (pkg / "notes.txt").write_text("changed\n")
     assert workers.source_fingerprint("r") == f0                          # *.py only under the package
