@@ -5,6 +5,7 @@ cache: on a fresh checkout they cost ~170 s CPU (spark_run, general_run and spar
 ~50 s each, lf2_run ~11 s), which the test that happens to need each first would otherwise pay,
 and under xdist every worker would pay for the same kernel at the same time."""
 import os
+import sys
 
 import pytest
 from hypothesis import HealthCheck, settings
@@ -13,6 +14,9 @@ settings.register_profile("ci", derandomize=True, deadline=None, max_examples=25
                           suppress_health_check=[HealthCheck.too_slow])
 settings.register_profile("dev", deadline=None, max_examples=100)
 settings.load_profile("ci")
+
+# tests/ mirrors the package in folders; their shared helpers (reliability_helpers) live in tests/
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "tests"))
 
 
 def pytest_addoption(parser):

@@ -2,7 +2,7 @@
 with a suite that machine-checks the paper's claims.
 
 Layers (a module imports only from its own room or from the layers to its left; rooms in one
-layer do not import each other; ``tests/test_layers.py`` checks this on every import statement):
+layer do not import each other; ``tests/project/test_layers.py`` checks this on every import statement):
 
     core  <  models  <  compiled  <  executors  <  ensemble  <  solve, plot  <  analysis  <  cli  <  lab
 

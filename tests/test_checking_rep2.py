@@ -671,7 +671,7 @@ def test_sections_render_the_data():
     assert "| gauss-1 | yes | robot |" in s5
     s6 = "\n".join(st.section_bad_input(d))
     assert s6.count("\n| ") == 1 + len(st.BAD_INPUT) and "SingularSaddleError" in s6
-    assert "tests/test_extremes.py" in "\n".join(st.section_header(d)) and "--full" not in st.section_header(d)[2]
+    assert "tests/lab/reports/test_extremes.py" in "\n".join(st.section_header(d)) and "--full" not in st.section_header(d)[2]
     assert "report stability --full" in st.section_header(dict(d, full=True))[2]
     assert st._e(None) == "-" and st._e(2.5) == "2.5e+00" and st._e(3) == "3"
 

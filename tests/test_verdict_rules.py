@@ -137,8 +137,8 @@ def test_the_mutation_runs_identity_has_every_option_that_changes_its_records(mo
     quick = _mutants_identity(monkeypatch, tmp_path, quick=True)
     assert quick["hints_only"] and not base["hints_only"]          # quick changes what runs...
     assert quick["fp"] != base["fp"]                               # ...so it changes the identity
-    excl = _mutants_identity(monkeypatch, tmp_path, exclude="tests/test_spark.py")
-    assert excl["exclude"] == ("tests/test_spark.py",)
+    excl = _mutants_identity(monkeypatch, tmp_path, exclude="tests/core/test_spark.py")
+    assert excl["exclude"] == ("tests/core/test_spark.py",)
     assert excl["fp"] != base["fp"]
     # options that do not change a record keep it (a resumed run with more jobs is possible)
     assert _mutants_identity(monkeypatch, tmp_path, jobs=2)["fp"] == base["fp"]

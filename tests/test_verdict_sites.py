@@ -286,7 +286,7 @@ def test_the_catalogue_binds_every_setting_that_changes_a_verdict(monkeypatch):
     m = [mutation.by_id(mutation.QUICK[0])]
     base = dict(hints_only=False, exclude=(), targets=None, timeout=300)
     fp0 = _binding(monkeypatch, lambda ck: mutation.run_catalogue(m, 1, checkpoint=ck, **base))
-    for k, v in dict(hints_only=True, exclude=("tests/test_spark.py",), targets={m[0].id: ["tests/test_x.py"]},
+    for k, v in dict(hints_only=True, exclude=("tests/core/test_spark.py",), targets={m[0].id: ["tests/test_x.py"]},
                      timeout=60).items():
         fp = _binding(monkeypatch, lambda ck: mutation.run_catalogue(m, 1, checkpoint=ck, **dict(base, **{k: v})))
         assert fp != fp0, k       # a shorter timeout turns slow kills into timeouts: another verdict

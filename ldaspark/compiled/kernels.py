@@ -35,7 +35,7 @@ from . import modeltypes as mt
 
 # numba keys a cached kernel on the content of the file that defines it (this one); the helpers
 # it compiles in live in sibling modules. Their digest is written here so that editing a helper
-# changes this file too (tests/test_compiled_general.py checks it; update it after an edit).
+# changes this file too (tests/compiled/test_compiled_general.py checks it; update it after an edit).
 HELPERS = ("newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py", "modeltypes.py")
 HELPERS_SHA256 = "cabc65c38f3aa8c90e29c3c7f2fa8ecac9f93c712037676ec32f919639152eb9"
 

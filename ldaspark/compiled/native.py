@@ -17,7 +17,7 @@ Same numbers: each operation is the one numba emits for the same source (IEEE do
 fast-math, no contraction into FMA; ``x**k`` for an integer constant k by the same
 square-and-multiply sequence as numba's constant-exponent power, a float exponent by
 ``llvm.pow``; ``math.sin`` etc. by the same LLVM intrinsics or the same libm functions).
-``tests/test_native_model.py`` compares native and numba model functions on every scene.
+``tests/compiled/test_native_model.py`` compares native and numba model functions on every scene.
 
 Nothing is stored on disk: the machine code is built from the (trusted, content-keyed) model
 source in each process, so there is no new artefact to authenticate.

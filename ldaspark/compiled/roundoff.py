@@ -1,6 +1,6 @@
 """Round-off study of the compensated summation of the compiled path (GNI VIII.5): the float64
 kernels against the same discrete map in mpmath, on a linear test system where the 2-stage
-Lobatto IIIA-B SPARK step is a linear map. Used by ``tests/test_kahan.py``,
+Lobatto IIIA-B SPARK step is a linear map. Used by ``tests/compiled/test_kahan.py``,
 ``benchmarks/kahan_long_run.py`` and the stability report.
 """
 from __future__ import annotations

@@ -5,7 +5,7 @@ through the stage velocities (T_i, V_i) and q(t) = q_n + int_{t_n}^t v. For a co
 A (Gauss, Lobatto IIIA) q is the collocation polynomial through (t_n, q_n) and the stage points
 (T_i, Q_i) of (21a), and v = q'.
 Measured orders of the maximal error over [0, 2] on the skate (exact solution, h = 0.2 .. 0.05,
-``tests/test_dense_events.py``), all below the nodal order:
+``tests/api/test_dense_events.py``), all below the nodal order:
 
     method                 nodal   q(t)  v(t)
     gauss-2                  4       3     2

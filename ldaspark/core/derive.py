@@ -19,7 +19,7 @@ The results stay in the engine's objects until someone asks for them: ``Derived.
 one whole matrix into a sympy Matrix (what the generic mpmath engine, the audit and the claims use,
 exact as before), ``Derived.nonzeros(name)`` only its nonzero entries (what code generation
 needs). The symengine results equal sympy's derivatives up to simplification;
-``tests/test_derive.py`` checks that numerically on every scene and on random systems.
+``tests/core/test_derive.py`` checks that numerically on every scene and on random systems.
 """
 from __future__ import annotations
 
@@ -33,7 +33,7 @@ except ImportError:    # pragma: no cover - symengine is a dependency
     _se = None
 
 #: sympy functions that symengine converts, differentiates and converts back as sympy does
-#: (checked against sympy's derivatives at random points in tests/test_derive.py)
+#: (checked against sympy's derivatives at random points in tests/core/test_derive.py)
 SE_FUNCTIONS = tuple(getattr(sympy, f) for f in (
     "sin", "cos", "tan", "cot", "sec", "csc", "asin", "acos", "atan", "acot", "sinh", "cosh", "tanh", "coth",
     "asinh", "acosh", "atanh", "exp", "log", "atan2"))

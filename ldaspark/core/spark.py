@@ -83,7 +83,7 @@ class SparkMethod:
         steps (the per-step tolerance accumulated; 0-2 tol on most scenes), at a median 1.15x (0.74-1.99x) the
         steps/s of full Newton in float64 and a median 1.31x (0.78-1.75x) at 30 digits; near the
         limit of (4) the det (4) monitor stops it at the same step as full Newton on every
-        OpenBLAS kernel (tests/test_newton_default.py, tests/test_reliability_newton.py).
+        OpenBLAS kernel (tests/core/test_newton_default.py, tests/core/test_newton_failures.py).
         "simplified" alone diverges there at step 0: the fall-back is what makes "auto" safe.
         "mixed" (mpmath precision; float64: "full"): the Newton matrix at every iterate
         assembled and factorised in float64, the residual at full precision (iterative
@@ -476,7 +476,7 @@ def _magnitudes(a):
 
 #: RADAU5's kappa in the rate test theta / (1 - theta) |dx| <= kappa tol (Hairer-Wanner IV.8): the
 #: estimated remaining error 0.1 unit round-off of the unknowns (tol = 10 eps). Measured on the
-#: non-quadratic system of tests/test_compiled_general.py (gauss-2, h = 0.1, 1000 steps) against
+#: non-quadratic system of tests/compiled/test_compiled_general.py (gauss-2, h = 0.1, 1000 steps) against
 #: the same map at 30 digits: kappa = 0.1 left 2.5e-13 in q (the plain |dx| rule: 7.8e-14),
 #: kappa = 0.01 6.5e-14, with 5% fewer iterations than before (5298 against 5579)
 RATE_KAPPA = 0.01

@@ -303,7 +303,7 @@ class LagrangianSystem:
         an int from a Piecewise branch) sends that output through ``_arr``, which converts or
         raises as before. The per-entry conversion loop was most of a stage evaluation
         (40 digits, with Jacobians, best of 5 x 200 in one run: mp-particles 401 -> 157 us,
-        robot 283 -> 150 us, relativistic 430 -> 352 us; tests/test_process_memos.py checks
+        robot 283 -> 150 us, relativistic 430 -> 352 us; tests/models/test_process_memos.py checks
         the arrays entry by entry against ``_arr``)."""
         if not backend.is_mp:
             return [_arr(x, backend) for x in values]

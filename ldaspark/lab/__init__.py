@@ -5,5 +5,5 @@ balance, the exact flow, variational orders, observed orders, the tableau audit)
 claims ledger, ``ldaspark verify``), mutants (the mutation catalogue and generated mutants,
 ``ldaspark mutants``), reports (the main job, ``ldaspark report``) and commands (how these join
 the command line). The lab imports the library; the library never imports the lab
-(``tests/test_layers.py``).
+(``tests/project/test_layers.py``).
 """

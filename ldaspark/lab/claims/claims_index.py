@@ -5,7 +5,7 @@ Status: ``checked`` (a test with a negative control measures it), ``not checkabl
 definition, an assumption on the data, a continuous functional principle, a statement about
 other papers, ...; the reason says which), ``not checked`` (checkable, not measured here; the
 reason says why). ``claims_index_markdown()`` renders the table (written into
-reports/claims.md by ``ldaspark.lab.reports.claims``); ``tests/test_claims_index.py`` verifies that
+reports/claims.md by ``ldaspark.lab.reports.claims``); ``tests/lab/claims/test_claims_index.py`` verifies that
 every referenced test exists.
 """
 from __future__ import annotations
@@ -26,11 +26,11 @@ RD = "verification/test_order_reduction_7_3_7_4.py"
 CM = "verification/test_comparators_7_5_8_4.py"
 SC = "verification/test_scenes_section_8.py"
 HO = "verification/test_holonomic_5_1.py"
-SP = "tests/test_spark.py"
-TB = "tests/test_tableau.py"
-BI = "tests/test_bad_input.py"
-EX = "tests/test_extremes.py"
-EL = "tests/test_ensemble.py"
+SP = "tests/core/test_spark.py"
+TB = "tests/core/test_tableau.py"
+BI = "tests/api/test_bad_input.py"
+EX = "tests/lab/reports/test_extremes.py"
+EL = "tests/ensemble/test_ensemble.py"
 
 # (ref, section, claim, tests, status, note)
 CLAIMS: tuple[tuple[str, str, str, tuple[str, ...], str, str], ...] = (
@@ -84,7 +84,7 @@ CLAIMS: tuple[tuple[str, str, str, tuple[str, ...], str, str], ...] = (
      "a continuous functional identity; its discrete form (11)/(14) is checked as (13)/(15a)"),
     ("3.3", "3.3", "SPARK methods deal with nonideal constraints without difficulty",
      ("verification/test_general_scenes.py::test_nonideal_orders_every_family_friction_skate",
-      "tests/test_nonideal.py::test_newton_matrix_with_nonideal_term_matches_differences"), CHECKED,
+      "tests/core/test_nonideal.py::test_newton_matrix_with_nonideal_term_matches_differences"), CHECKED,
      "friction skate: every family keeps its order with R = -K^T psi + N (ledger claim nonideal-3.3)"),
     ("(11)", "4.1", "forced discrete Lagrange-d'Alembert principle, equivalent to (13)",
      (f"{D1}::test_15a_15b_along_trajectory",), CHECKED, "(13) is (15a); variations by finite differences"),

@@ -28,12 +28,12 @@ VCMP = "verification/test_comparators_7_5_8_4.py"
 VRED = "verification/test_order_reduction_7_3_7_4.py"
 VCND = "verification/test_conditions_22_23.py"
 VORD = "verification/test_convergence_orders.py"
-TSP = "tests/test_spark.py"
-TTAB = "tests/test_tableau.py"
-TFAST = "tests/test_fast_path.py"
-TCNI = "tests/test_compiled_nonideal.py"
-TORD = "tests/test_orders_estimates.py"
-TCONV = "tests/test_convergence_tools.py"
+TSP = "tests/core/test_spark.py"
+TTAB = "tests/core/test_tableau.py"
+TFAST = "tests/compiled/test_fast_path.py"
+TCNI = "tests/compiled/test_compiled_nonideal.py"
+TORD = "tests/lab/theory/test_orders_estimates.py"
+TCONV = "tests/lab/theory/test_convergence_tools.py"
 # the compiled kernels live in a source string of fast.py or (after a planned move) in kernels.py
 KERNELS = "compiled/fast.py|compiled/kernels.py"
 
@@ -238,14 +238,14 @@ CATALOGUE: tuple[Mutant, ...] = (
     _m("rank-small-sigmas-float64", "analysis/discrete.py",
        "[max(x, floor) for x in small]", "[max(mpmath.mpf(float(v)), floor) for v in s64[k:]]",
        "rank decision: the candidate singular values taken from the float64 SVD instead of the "
-       "full-precision Schur complement", "theorem1", "tests/test_flint_backend.py", VT1),
+       "full-precision Schur complement", "theorem1", "tests/core/test_flint_backend.py", VT1),
 )
 
 # A fixed subset for ``--quick``: one per main area, each killed fast by its hint files.
 # The last four are one per class of faults the suite once missed: a pre-asymptotic
 # sweep, an event direction, shared state between copies, HDF5 byte strings; their hints are
 # single tests, so the quick run (``.ci/run``) stays a few minutes on 2 cores. The block-sparse
-# Newton solver's fill (killed in ~2 s by tests/test_sparse_newton.py) closes the list.
+# Newton solver's fill (killed in ~2 s by tests/compiled/test_sparse_newton.py) closes the list.
 QUICK = ("spark-Ahat-Atilde-swapped", "fdplus-index-order", "system-K-at-v0", "Ld-time-frozen",
          "orders-pairwise-log2", "cond-22b-index-order", "teeth-audit-coarsest-pair",
          "teeth-event-direction-negative-swapped", "teeth-with-params-shared-store",

@@ -52,10 +52,10 @@ HELPERS_DIR = "verification"     # its non-test modules (strategies, fixtures) a
 #: ``--tests suite``: every test file the default ``pytest`` runs (the coverage the report gives is then
 #: the default suite's)
 SUITE = "suite"
-ALWAYS_MAPPED = ("tests/test_verdict_rules.py", "tests/test_generated_mutants_kills.py", "tests/test_verdict_sites.py",
+ALWAYS_MAPPED = ("tests/test_verdict_rules.py", "tests/lab/mutants/test_generated_mutants_kills.py", "tests/test_verdict_sites.py",
                  "tests/test_survivor_kills_a.py", "tests/test_survivor_kills_b.py", "tests/test_survivor_kills_c.py")
-BOOKKEEPING = ("tests/test_generated_mutants_kills.py::test_the_equivalents_list_names_existing_mutants_with_an_argument",
-               "tests/test_generated_mutants_kills.py::test_the_quick_generated_mutants_still_exist_and_name_a_test")
+BOOKKEEPING = ("tests/lab/mutants/test_generated_mutants_kills.py::test_the_equivalents_list_names_existing_mutants_with_an_argument",
+               "tests/lab/mutants/test_generated_mutants_kills.py::test_the_quick_generated_mutants_still_exist_and_name_a_test")
 TOOL = "ldaspark.lab.mutants.mutgen (AST operator mutants)"
 VERSION = "1"
 

@@ -4,7 +4,7 @@ meaningful digits, and the run-time line each report carries.
 A GitHub-flavoured Markdown table splits a row at every unescaped ``|``, also inside code spans,
 so a cell holding ``|k|`` or ``a | b`` must escape it (``\\|``) or the row is cut (the renderer
 drops the cells beyond the header's count). ``table`` is the only place reports build table
-rows; ``tests/test_reports_markdown.py`` renders every committed report and checks the counts.
+rows; ``tests/lab/reports/test_reports_markdown.py`` renders every committed report and checks the counts.
 """
 from __future__ import annotations
 

@@ -144,7 +144,7 @@ def _time_rhs(g, y, W, calls=100000, repeats=5):
 def rhs_choice(system, y0):
     """{"form": "closed" or "solve", "ns_per_call": {form: ns}, "closed_info"}: the faster of the
     closed-form right-hand side and the numeric solve into a work array on this system, measured
-    at ``y0`` (both give the same numbers to round-off: ``tests/test_peers_compiled_loop.py``)."""
+    at ``y0`` (both give the same numbers to round-off: ``tests/lab/reports/test_peers_compiled_loop.py``)."""
     hit = _RHS_CHOICE.get(system.name)
     if hit is not None:
         return hit

@@ -1,5 +1,5 @@
 """Measurements of the stability report, sections 1-3 (plain data, reused by the report in
-``ldaspark.lab.reports.stability`` and by tests/test_extremes.py).
+``ldaspark.lab.reports.stability`` and by tests/lab/reports/test_extremes.py).
 
 * ``step_size_sweep``: one step of (21) from a point of the skate's closed-form solution,
   error against h from 1e-6 up, in float64 and mpmath (30, 50 digits); ``float64_floor_h`` names

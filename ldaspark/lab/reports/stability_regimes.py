@@ -180,7 +180,7 @@ def section_tiny(d):
          f"Every family with s <= 3 on the paper scenes, whole runs of N = {N:.0e} steps at h = "
          + ", ".join(f"{h:g}" for h in TINY_H) + " on the compiled engine (`fast_integrate`; "
          "lobatto-iiia-iiib-2 on the semi-implicit kernel of (25)); 1e5 steps with `--full` and in "
-         "tests/test_newton_stopping.py --exhaustive. Before this rule the kernels' Newton limit was a multiple of h, "
+         "tests/core/test_newton_stopping.py --exhaustive. Before this rule the kernels' Newton limit was a multiple of h, "
          "below the rounding of the stage values V_i = v0 + Z_i at small h: the skate with gauss-2 stopped at step "
          "25808 at h = 1e-5 and 88513 at h = 1e-6. Now the limit is tol (abs(x) + abs(v0)), and: "
          f"{len(tiny) - len(fails)} of {len(tiny)} runs finish.", ""]

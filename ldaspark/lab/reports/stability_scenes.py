@@ -1,5 +1,5 @@
 """Ill-conditioned scenes and time reversal, sections 4-5 of the stability report (plain data,
-reused by ``ldaspark.lab.reports.stability`` and tests/test_extremes.py).
+reused by ``ldaspark.lab.reports.stability`` and tests/lab/reports/test_extremes.py).
 
 * ``mass_ratio_scene``, ``rank_loss_scene``, ``soft_scene``: ill-conditioned scenes built here,
   with what the user gets (error class and message, or silence); ``saddle_crossings`` is a

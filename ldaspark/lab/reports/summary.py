@@ -1,7 +1,7 @@
 """The numbers and verdict words README.md quotes, computed from the committed reports' JSON.
 
 README's findings and speed tables mark every quoted value as ``<!--KEY-->text<!--/-->`` (the
-comment is invisible when rendered); ``tests/test_readme.py`` checks that ``text`` equals
+comment is invisible when rendered); ``tests/project/test_readme.py`` checks that ``text`` equals
 ``readme_values(reports)[KEY]``, so README and reports cannot disagree. ``python -m
 ldaspark.lab.reports.summary`` prints every key with its current text; ``--fill README.md`` rewrites
 the marked values after the reports were regenerated.

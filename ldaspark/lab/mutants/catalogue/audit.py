@@ -3,8 +3,8 @@ read (decimals, float64), how a condition is decided against it (balls, exact bu
 denominators and the verdict's disagreement sentence."""
 from ..mutant import _m
 
-TPREC = "tests/test_audit_precision.py"
-TAUD = "tests/test_audit.py"
+TPREC = "tests/lab/theory/test_audit_precision.py"
+TAUD = "tests/lab/theory/test_audit.py"
 T = TPREC + "::"
 
 MUTANTS = (

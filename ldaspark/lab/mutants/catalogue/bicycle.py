@@ -3,7 +3,7 @@
 from ..mutant import _m
 
 VBIC = "verification/test_systems_bicycle.py"
-TFJ = "tests/test_flow_jacobian.py"
+TFJ = "tests/analysis/test_flow_jacobian.py"
 
 MUTANTS = (
     _m("bicycle-trail-sign", "models/bicycle.py",

@@ -1,7 +1,7 @@
 """Mutants of where work runs (``ldaspark.executors``): retries, failures by name, checkpoints."""
 from ..mutant import _m
 
-TD = "tests/test_dist.py"
+TD = "tests/ensemble/test_executors_dask.py"
 KILLER = TD + "::test_a_unit_that_always_kills_its_worker_is_reported_by_name_and_the_rest_kept"
 POOL = TD + "::test_a_worker_killed_mid_run_loses_nothing_on_the_local_pool"
 RESUME = TD + "::test_a_rerun_resumes_from_the_checkpoint_of_a_failed_run"

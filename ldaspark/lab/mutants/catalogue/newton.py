@@ -1,8 +1,8 @@
 """Mutants of the Newton stopping rule and its fallback chain: compiled/newton.py,
-compiled/kernels.py, compiled/fast.py, core/backend.py; tests/test_newton_stopping.py."""
+compiled/kernels.py, compiled/fast.py, core/backend.py; tests/core/test_newton_stopping.py."""
 from ..mutant import _m
 
-TNS = "tests/test_newton_stopping.py"
+TNS = "tests/core/test_newton_stopping.py"
 
 MUTANTS = (
     _m("newton-lim-absolute", "compiled/newton.py",
@@ -45,10 +45,10 @@ MUTANTS = MUTANTS + (
        "    model[1](t0, q0, v0, ws[27], ws[17], ws[18], ws[19])\n",
        "    return\n",
        "a step that reuses the Newton matrix keeps the previous step's p0 (general form)", "compiled",
-       "tests/test_newton_reuse.py"),
+       "tests/compiled/test_newton_reuse.py"),
     _m("newton-reuse-no-theta-bound", "compiled/kernels.py",
        "have = status == 1 and stats[3] - nj <= 1 and worst <= REUSE_THETA",
        "have = status == 1 and stats[3] - nj <= 1",
        "the previous step's Newton matrix kept however slowly it contracts", "compiled",
-       "tests/test_newton_reuse.py"),
+       "tests/compiled/test_newton_reuse.py"),
 )

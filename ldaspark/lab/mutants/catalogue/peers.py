@@ -3,10 +3,10 @@ in log-log, the lower envelope, the best peer, the speed-up, IDA's index-1 resid
 check of timings and residual classes."""
 from ..mutant import _m
 
-TP = "tests/test_peers.py"
+TP = "tests/lab/reports/test_peers.py"
 # test_readme.py's checks of the committed reports fail in the mutants' scratch copy (it has no
 # reports/): the README-check mutants are hinted at the synthetic tests, which need none
-TR = "tests/test_readme_kinds.py"
+TR = "tests/lab/reports/test_readme_kinds.py"
 
 MUTANTS = (
     _m("peers-interp-lin-lin", "lab/reports/envelope.py",

@@ -4,8 +4,8 @@ one check of docs/reliability.md ("Strings given to the Python API", "The kernel
 trusted"); the hints are the tests that keep that check."""
 from ..mutant import _m
 
-TC = "tests/test_reliability_cache.py"
-TS = "tests/test_reliability_strings.py"
+TC = "tests/compiled/test_cache.py"
+TS = "tests/api/test_strings.py"
 
 MUTANTS = (
     _m("relcache-parent-writable-skipped", "compiled/cache.py",

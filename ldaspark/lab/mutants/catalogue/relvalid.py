@@ -3,10 +3,10 @@ and dense output, the initial-point check, result files, chunked compiled runs):
 one check, and the reliability test named in its hint must fail."""
 from ..mutant import _m
 
-TV = "tests/test_reliability_validate.py"
-TE = "tests/test_reliability_events.py"
-TF = "tests/test_reliability_files.py"
-TC = "tests/test_reliability_cli_bounds.py"
+TV = "tests/api/test_validate.py"
+TE = "tests/api/test_events.py"
+TF = "tests/io/test_files.py"
+TC = "tests/cli/test_cli_bounds.py"
 
 MUTANTS = (
     _m("relvalid-dps-no-upper-bound", "core/validate.py",

@@ -1,9 +1,9 @@
 """Mutants of the block-sparse Newton linear algebra of the compiled SPARK kernel:
 compiled/sparse.py (ordering and fill), compiled/kernels_sparse.py (assembly, block LU, Schur
-complement), compiled/runner.py (the dense fallback); tests/test_sparse_newton.py."""
+complement), compiled/runner.py (the dense fallback); tests/compiled/test_sparse_newton.py."""
 from ..mutant import _m
 
-TSN = "tests/test_sparse_newton.py"
+TSN = "tests/compiled/test_sparse_newton.py"
 
 MUTANTS = (
     _m("sparse-assemble-Rq-dropped", "compiled/kernels_sparse.py",

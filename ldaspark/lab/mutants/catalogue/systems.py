@@ -9,7 +9,7 @@ SPH = "verification/test_systems_chaplygin_sphere.py"
 SUS = "verification/test_systems_suslov.py"
 COS = "verification/test_systems_contact_oscillator.py"
 BAL = "verification/test_systems_ball_turntable.py"
-REP = "tests/test_systems_report.py"
+REP = "tests/lab/reports/test_systems_report.py"
 SC = "models/systems_classic.py"
 
 MUTANTS = (

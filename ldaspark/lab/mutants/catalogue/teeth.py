@@ -12,11 +12,11 @@ instances found and further faults of the same class elsewhere. Categories:
 """
 from ..mutant import _m
 
-CV = "tests/test_claim_verdicts.py"
-OC = "tests/test_order_conditions.py"
-EV = "tests/test_dense_events.py"
-PM = "tests/test_params_mechanics.py"
-RT = "tests/test_result_roundtrip.py"
+CV = "tests/lab/claims/test_claim_verdicts.py"
+OC = "tests/analysis/test_order_conditions.py"
+EV = "tests/api/test_dense_events.py"
+PM = "tests/models/test_params_mechanics.py"
+RT = "tests/io/test_result_roundtrip.py"
 
 MUTANTS = (
     # --- class 1: one-sided claim checks --------------------------------------------------------
@@ -150,12 +150,12 @@ MUTANTS = (
     _m("teeth-with-entry-shares-exact-matrices", "core/tableau.py",
        "ex = {k: sympy.Matrix(v) for k, v in self.exact.items()}", "ex = dict(self.exact)",
        "with_entry: the derived tableau changes the source's exact matrices in place", "shared-state",
-       "tests/test_tableau.py::test_with_entry_copies_are_independent_of_the_source"),
+       "tests/core/test_tableau.py::test_with_entry_copies_are_independent_of_the_source"),
     _m("teeth-with-entry-shares-numeric-rows", "core/tableau.py",
        "ent = {k: [list(r) if isinstance(r, list) else r for r in v] for k, v in base(dps).items()}",
        "ent = base(dps)",
        "with_entry (numeric): the derived builder changes the rows the source's builder returns", "shared-state",
-       "tests/test_tableau.py::test_with_entry_copies_are_independent_of_the_source"),
+       "tests/core/test_tableau.py::test_with_entry_copies_are_independent_of_the_source"),
     # --- class 5: round trips --------------------------------------------------------------------------
     _m("teeth-h5-byte-strings-as-float", "core/resultio.py",
        'if a.dtype.kind in "SUO":', 'if a.dtype.kind in "UO":',

@@ -73,7 +73,7 @@ _SLOW_PEERS = ("cyrk-nbsolve-DOP853", "ida")
 
 
 # the CyRK peers are checked the same way, in both right-hand-side forms, by
-# tests/test_peers_compiled_loop.py::test_cyrk_peer_follows_the_skate_closed_form: here --exhaustive
+# tests/lab/reports/test_peers_compiled_loop.py::test_cyrk_peer_follows_the_skate_closed_form: here --exhaustive
 @pytest.mark.parametrize("peer", [pytest.param(p, marks=pytest.mark.exhaustive)
                                   if p in _SLOW_PEERS or p in peers.CYRK_PEERS else p for p in peers.PEERS])
 def test_every_peer_follows_the_skate_closed_form(skate, peer):

@@ -16,7 +16,7 @@ from ldaspark.analysis import order_conditions as oc
 
 from reliability_helpers import time_bound
 
-EX = pathlib.Path(__file__).resolve().parents[1] / "examples" / "tableaux"
+EX = pathlib.Path(__file__).resolve().parents[3] / "examples" / "tableaux"
 PRIMES = (2, 3, 5, 7, 11, 13, 17, 19, 23, 29)
 
 

@@ -11,7 +11,7 @@ from markdown_it.rules_block.table import escapedSplit
 
 from ldaspark.lab.reports.markdown import cell, jsonable, num, table
 
-REPORTS = pathlib.Path(__file__).resolve().parents[1] / "reports"
+REPORTS = pathlib.Path(__file__).resolve().parents[3] / "reports"
 MD_FILES = sorted(REPORTS.glob("*.md"))
 
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 import ast
 import pathlib
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
+ROOT = pathlib.Path(__file__).resolve().parents[2]
 #: below this magnitude the default absolute tolerance (1e-12) exceeds 1% of the value
 SMALL = 1e-10
 

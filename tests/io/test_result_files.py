@@ -12,7 +12,7 @@ from ldaspark.cli import main
 from ldaspark.core.errors import InputError
 from ldaspark.core.resultio import load_result, save_result
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 @pytest.fixture(scope="module")

@@ -161,7 +161,7 @@ def test_cyrk_peer_follows_the_skate_closed_form(peer, form):
     if peers.cyrk() is None:
         pytest.skip("CyRK is not installed (the bench extra)")
     sk = get_scene("skate")
-    # as tests/test_peers.py for the other peers: T = 10, the global error of a tolerance-
+    # as tests/lab/reports/test_peers.py for the other peers: T = 10, the global error of a tolerance-
     # controlled solver on this smooth problem is a modest multiple of rtol (bounded by 1e3
     # rtol), and it responds to the tolerance (the control that the error is the solver's)
     q_ref = np.asarray(sk.exact_solution(10.0)[0], float)

@@ -11,7 +11,7 @@ from ldaspark.analysis.conditions import check_23
 from ldaspark.core.tableau import load_tableau
 from ldaspark.core.families import builtin_method_names, get_method
 
-EX = pathlib.Path(__file__).resolve().parents[1] / "examples" / "tableaux"
+EX = pathlib.Path(__file__).resolve().parents[3] / "examples" / "tableaux"
 BAD = sorted(p.name for p in EX.glob("bad-*.json"))
 
 

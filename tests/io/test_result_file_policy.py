@@ -30,7 +30,7 @@ from reliability_helpers import time_bound
 
 h5py = pytest.importorskip("h5py")
 FORMATS = ("json", "npz", "h5")
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 def _down(t, q, v):

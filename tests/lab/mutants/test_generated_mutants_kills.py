@@ -15,7 +15,7 @@ import pytest
 from ldaspark.core.families import get_method
 from ldaspark.lab.mutants import mutgen
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
+ROOT = pathlib.Path(__file__).resolve().parents[3]
 
 SRC = '''"""doc 1"""
 X = 3

@@ -7,7 +7,7 @@ import os
 
 from ldaspark.lab.claims import claims_index as ci
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
 
 
 def _test_names(path):

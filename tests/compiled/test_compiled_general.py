@@ -263,7 +263,7 @@ def test_kernel_spec_is_cached():
 def test_untranslatable_systems_fall_back(capsys, monkeypatch):
     """An expression without numba translation gives NotCompilableError from compile_system, and
     a system the code generator refuses one notice line from fast_integrate (a nonideal term
-    (3.3) is compiled: tests/test_compiled_nonideal.py)."""
+    (3.3) is compiled: tests/compiled/test_compiled_nonideal.py)."""
     base, q0, v0 = non_quadratic()
     q, v = base.q, base.v
     system = LagrangianSystem(base.L, list(base.k), q, v, base.t, name="nonideal",
@@ -322,7 +322,7 @@ _H = {"turntable": 0.01}
 def test_general_scenes_compiled_agree_with_generic_1000_steps(scene_name):
     """Every named general scene (time-dependent L and k, k nonlinear in v, L not quadratic in v,
     b(q) != 0) on the general kernel: 1000 steps, <= 1e-12 in q, v, E, k against the generic path
-    (friction-skate: tests/test_compiled_nonideal.py; other families: --exhaustive)."""
+    (friction-skate: tests/compiled/test_compiled_nonideal.py; other families: --exhaustive)."""
     assert _scene_agreement(scene_name, "gauss-2", _H.get(scene_name, 0.05), N) <= AGREE
 
 

@@ -12,7 +12,7 @@ from ldaspark.lab.mutants.mutation_catalogue import QUICK
 
 CASES = {
     "cond-22b-index-order": "verification/test_conditions_22_23.py::test_22a_22b_23_families[gauss-2]",
-    "orders-pairwise-log2": "tests/test_orders_estimates.py::test_pairwise_orders_with_step_ratio_3",
+    "orders-pairwise-log2": "tests/lab/theory/test_orders_estimates.py::test_pairwise_orders_with_step_ratio_3",
     "system-K-at-v0": "verification/test_equations_21.py::test_ivp_step_solves_21_as_printed[general-2]",
     "fdplus-index-order": "verification/test_theorem1.py::test_theorem1_builtin[particle-gauss-2]",
 }
@@ -54,7 +54,7 @@ def runs():
     """The control and the quick mutants, two scratch copies at a time (one per core)."""
     # the unmutated copy also passes the README test, which reads the committed reports: a copy
     # without them would "kill" every mutant that reaches it
-    jobs = {"none": (None, list(CASES.values()) + ["tests/test_readme.py"])}
+    jobs = {"none": (None, list(CASES.values()) + ["tests/project/test_readme.py"])}
     jobs.update({k: (by_id(k), [v]) for k, v in CASES.items()})
     with concurrent.futures.ThreadPoolExecutor(max_workers=2) as ex:
         futs = {k: ex.submit(run_mutant, m, targets=t, timeout=600) for k, (m, t) in jobs.items()}
@@ -101,7 +101,7 @@ def test_mutants_exits_nonzero_when_a_mutant_survives(monkeypatch, tmp_path):
 
 def test_ci_runs_the_quick_catalogue_after_the_tests():
     import pathlib
-    text = (pathlib.Path(__file__).resolve().parents[1] / ".ci" / "run").read_text()
+    text = (pathlib.Path(__file__).resolve().parents[3] / ".ci" / "run").read_text()
     lines = [x.strip() for x in text.splitlines() if x.strip() and not x.strip().startswith("#")]
     i_test = next(i for i, x in enumerate(lines) if x.startswith("python -m pytest"))
     i_mut = next(i for i, x in enumerate(lines) if "ldaspark mutants --quick" in x)

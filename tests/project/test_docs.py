@@ -13,7 +13,7 @@ import pytest
 import ldaspark
 import ldaspark.plot
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
+ROOT = pathlib.Path(__file__).resolve().parents[2]
 DOCS = ROOT / "docs"
 TUTORIALS = sorted((DOCS / "tutorials").glob("*.md"))
 #: the sections a numpydoc reader expects: every parameter documented (PR01) and no phantom one

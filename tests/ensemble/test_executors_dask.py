@@ -144,7 +144,7 @@ def test_three_catalogue_faults_killed_on_the_cluster(client, tmp_path):
     from ldaspark.lab.mutants.mutation import by_id, run_catalogue
     targets = {
         "cond-22b-index-order": ["verification/test_conditions_22_23.py::test_22a_22b_23_families[gauss-2]"],
-        "orders-pairwise-log2": ["tests/test_orders_estimates.py::test_pairwise_orders_with_step_ratio_3"],
+        "orders-pairwise-log2": ["tests/lab/theory/test_orders_estimates.py::test_pairwise_orders_with_step_ratio_3"],
         "system-K-at-v0": ["verification/test_equations_21.py::test_ivp_step_solves_21_as_printed[general-2]"],
     }
     recs = run_catalogue([by_id(k) for k in targets], where=client, targets=targets)

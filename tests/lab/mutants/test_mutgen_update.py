@@ -95,7 +95,7 @@ def test_the_exit_status_of_the_shards_as_one(rcs, whole):
 def test_the_suite_option_maps_every_default_test_file():
     assert mutgen.SUITE == "suite"
     files = mutgen.all_test_files()
-    assert "tests/test_mutation_quick.py" not in files           # it would recurse into the runner
+    assert "tests/lab/mutants/test_mutation_quick.py" not in files           # it would recurse into the runner
     assert any(f.startswith("verification/") for f in files) and any(f.startswith("tests/") for f in files)
 
 
@@ -195,17 +195,17 @@ def test_a_module_constant_executed_at_import_is_run_against_the_files_importing
 def test_kills_of_several_earlier_reports_are_kept_outside_the_sample(monkeypatch, tmp_path):
     rel = "analysis/symmetry.py"
     ms = mutgen.generate(rel, check=False)
-    cmap = {rel: {m.line: ["tests/test_kahan.py::test_x"] for m in ms}}
+    cmap = {rel: {m.line: ["tests/compiled/test_kahan.py::test_x"] for m in ms}}
     a, b = tmp_path / "a.json", tmp_path / "b.json"
     a.write_text(json.dumps({"runs": [{"command": "first", "seconds": 1.0}],
                              "modules_not_run": ["theory (symmetry.py, variational.py)", "models (bicycle.py)"],
                              "mutants": [
-        dict(mutgen._rec(ms[-1], "killed", "tests/test_kahan.py::test_x", 1.0))]}))
-    b.write_text(json.dumps({"mutants": [dict(mutgen._rec(ms[-2], "killed", "tests/test_kahan.py::test_x", 1.0)),
+        dict(mutgen._rec(ms[-1], "killed", "tests/compiled/test_kahan.py::test_x", 1.0))]}))
+    b.write_text(json.dumps({"mutants": [dict(mutgen._rec(ms[-2], "killed", "tests/compiled/test_kahan.py::test_x", 1.0)),
                                          dict(mutgen._rec(ms[-3], "killed", "tests/no_such_file.py::t", 1.0))]}))
     ran = {}
-    _fake_run(monkeypatch, tmp_path, cmap, ["tests/test_kahan.py"], ran)
-    args = types.SimpleNamespace(generated=[rel], outdir=str(tmp_path / "out"), tests="tests/test_kahan.py", jobs=1,
+    _fake_run(monkeypatch, tmp_path, cmap, ["tests/compiled/test_kahan.py"], ran)
+    args = types.SimpleNamespace(generated=[rel], outdir=str(tmp_path / "out"), tests="tests/compiled/test_kahan.py", jobs=1,
                                  only=None, keep_killed=f"{a},{b}", sample=2, kinds=None, limit=None, fresh=True,
                                  mutant_timeout=None, coverage_only=False, scheduler=None)
     assert mutgen.run_generated(args) == 0
@@ -218,7 +218,7 @@ def test_kills_of_several_earlier_reports_are_kept_outside_the_sample(monkeypatc
     assert len(ran) == 2                                          # the sample ran
     assert [r["command"] for r in doc["runs"]][0] == "first"      # the history is the first file's
     assert doc["modules_not_run"] == ["models (bicycle.py)"]       # symmetry.py ran: no longer listed
-    assert "--sample 2" in doc["command"] and "--tests tests/test_kahan.py" in doc["command"]
+    assert "--sample 2" in doc["command"] and "--tests tests/compiled/test_kahan.py" in doc["command"]
 
 
 def test_the_sample_is_drawn_from_every_mutant_whatever_the_coverage(monkeypatch, tmp_path):
@@ -228,10 +228,10 @@ def test_the_sample_is_drawn_from_every_mutant_whatever_the_coverage(monkeypatch
     assert len(picked) == 6 and len(set(picked)) == 6
     runs = []
     for covered_lines in ({m.line for m in ms}, {m.line for m in ms[: len(ms) // 2]}):
-        cmap = {rel: {ln: ["tests/test_kahan.py::test_x"] for ln in covered_lines}}
+        cmap = {rel: {ln: ["tests/compiled/test_kahan.py::test_x"] for ln in covered_lines}}
         ran = {}
-        _fake_run(monkeypatch, tmp_path, cmap, ["tests/test_kahan.py"], ran)
-        args = types.SimpleNamespace(generated=[rel], outdir=str(tmp_path / f"o{len(runs)}"), tests="tests/test_kahan.py",
+        _fake_run(monkeypatch, tmp_path, cmap, ["tests/compiled/test_kahan.py"], ran)
+        args = types.SimpleNamespace(generated=[rel], outdir=str(tmp_path / f"o{len(runs)}"), tests="tests/compiled/test_kahan.py",
                                      jobs=1, only=None, keep_killed=None, sample=6, kinds=None, limit=None, fresh=True,
                                      mutant_timeout=None, coverage_only=False, scheduler=None)
         mutgen.run_generated(args)
@@ -287,8 +287,8 @@ def test_a_continuation_line_is_looked_up_at_its_statements_first_line(monkeypat
     m = next(x for x in ms if x.id.startswith("lab/reports/summary.py::_us::") and st[x.line] != x.line)
     cmap = {rel: {st[m.line]: ["tests/test_x.py::test_us"]}}
     ran = {}
-    _fake_run(monkeypatch, tmp_path, cmap, ["tests/test_readme.py"], ran)
-    args = types.SimpleNamespace(generated=[rel], outdir=str(tmp_path), tests="tests/test_readme.py", jobs=1,
+    _fake_run(monkeypatch, tmp_path, cmap, ["tests/project/test_readme.py"], ran)
+    args = types.SimpleNamespace(generated=[rel], outdir=str(tmp_path), tests="tests/project/test_readme.py", jobs=1,
                                  only=m.id, keep_killed=None, sample=None, kinds=None, limit=None, fresh=True,
                                  mutant_timeout=None, coverage_only=False, scheduler=None)
     mutgen.run_generated(args)

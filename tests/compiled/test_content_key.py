@@ -14,7 +14,7 @@ import sympy
 from ldaspark.compiled import cache, codegen, fast
 from ldaspark.core.system import LagrangianSystem
 
-REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 x, y, z, vx, vy, vz = sympy.symbols("x y z vx vy vz")
 L0 = (vx ** 2 + vy ** 2 + vz ** 2) / 2 - x ** 2 / 2 - sympy.cos(y) / 3
 K0 = [vz - x * vy]

@@ -3,7 +3,7 @@ every test it names exists (``file.py::name``; ``::name`` refers to the last fil
 import os
 import re
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 def _named_tests(text):

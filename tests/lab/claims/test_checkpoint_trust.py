@@ -364,7 +364,7 @@ def test_run_catalogue_binds_the_checkpoint_to_its_own_settings(monkeypatch):
     m = [mutation.by_id(mutation.QUICK[0])]
     mutation.run_catalogue(m, 1, hints_only=True, checkpoint=ck)
     mutation.run_catalogue(m, 1, hints_only=False, checkpoint=ck)
-    mutation.run_catalogue(m, 1, hints_only=False, checkpoint=ck, exclude=("tests/test_spark.py",))
+    mutation.run_catalogue(m, 1, hints_only=False, checkpoint=ck, exclude=("tests/core/test_spark.py",))
     assert len({s[0] for s in seen}) == 3 and seen[0][1] is mutation.check_record
 
 

@@ -11,7 +11,7 @@ import pytest
 from ldaspark.compiled.kernels_mech import mech_workspace, spark_jacobian
 from ldaspark.compiled.runner import kernel_spec
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "benchmarks"))
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "benchmarks"))
 
 
 def _per_entry(tab, h, M, KK, H, Rq, kq, K1, kq1):

@@ -65,7 +65,7 @@ def test_compiled_equals_generic():
 
 def test_auto_falls_back_with_one_line(capsys, monkeypatch):
     """A system the code generator refuses runs on the generic engine with one notice line; a
-    system with parameters stays compiled (tests/test_params_compiled.py)."""
+    system with parameters stays compiled (tests/compiled/test_params_compiled.py)."""
     from ldaspark.compiled import runner
     from ldaspark.compiled.codegen import NotCompilableError
     m = sympy.Symbol("m")

@@ -18,7 +18,7 @@ from ldaspark.models.scenes import robot
 from ldaspark.lab.reports.peer import peer_section
 from ldaspark.lab.reports.work_precision import write_report
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
+ROOT = pathlib.Path(__file__).resolve().parents[3]
 
 
 def _bench():

@@ -25,7 +25,7 @@ from ldaspark.compiled.codegen import header
 
 ROOT = os.getuid() == 0 if hasattr(os, "getuid") else False
 OTHER_UID = 54321                    # a user id that is not ours (tests that chown need root)
-REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 PYPATH = os.pathsep.join([REPO] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p])
 
 
