@@ -108,7 +108,7 @@ def copy_project(dest, project=PROJECT) -> pathlib.Path:
 
 def all_test_files(project=PROJECT) -> list[str]:
     files = sorted(str(p.relative_to(project)) for d in ("verification", "tests")
-                   for p in (pathlib.Path(project) / d).glob("test_*.py"))
+                   for p in (pathlib.Path(project) / d).rglob("test_*.py"))
     return [f for f in files if f not in EXCLUDED_TESTS]
 
 
@@ -308,7 +308,7 @@ def run_catalogue(mutants, jobs=2, hints_only=False, progress=None, exclude=(), 
 def require_tests(project=PROJECT):
     """Refuse at once (one line, exit 2) when the project's tests are not beside the package: an
     installed wheel has ``ldaspark/`` only, and every mutant would fail after minutes."""
-    have = [d for d in ("tests", "verification") if any((pathlib.Path(project) / d).glob("test_*.py"))]
+    have = [d for d in ("tests", "verification") if any((pathlib.Path(project) / d).rglob("test_*.py"))]
     if len(have) < 2:
         raise CatalogueError(f"ldaspark mutants needs the repository's tests (tests/ and verification/ beside the "
                              f"ldaspark package; none under {project}): run it from a git checkout or an unpacked "

@@ -181,7 +181,7 @@ def test_the_stiff_reports_classes_and_linear_predictions_recomputed():
 # analysis/flow_jacobian.py
 def test_a_rate_may_be_named_after_its_coordinate():
     import ldaspark
-    from tests.test_flow_jacobian import V0, Q0, gyroscopic
+    from tests.analysis.test_flow_jacobian import V0, Q0, gyroscopic
     sysm = gyroscopic()
     a = ldaspark.flow_jacobian(sysm, "gauss-1", Q0, V0, "0.1", dps=20, coords=["q1"], rates=["v1", "v2"])
     b = ldaspark.flow_jacobian(sysm, "gauss-1", Q0, V0, "0.1", dps=20, coords=["q1"], rates=["q1", "q2"])

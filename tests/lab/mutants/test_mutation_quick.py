@@ -122,9 +122,9 @@ def test_quick_run_stops_when_the_unmutated_package_fails_its_tests(monkeypatch,
     mutants = [by_id(x) for x in QUICK]
     status = "killed"
     with pytest.raises(CatalogueError, match="unmutated package fails"):
-        command.run_control(mutants, {"gen-1": ["tests/test_verdict_rules.py::t"]})
+        command.run_control(mutants, {"gen-1": ["tests/lab/theory/test_audit_rules.py::t"]})
     assert seen["m"] is None
-    assert "tests/test_verdict_rules.py::t" in seen["targets"]
+    assert "tests/lab/theory/test_audit_rules.py::t" in seen["targets"]
     assert set(by_id(QUICK[0]).hint) & set(seen["targets"])
     status = "survived"
     assert command.run_control(mutants, {})["status"] == "survived"

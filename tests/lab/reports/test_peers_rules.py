@@ -1,21 +1,20 @@
-"""Verdict rules and bookkeeping of ``ldaspark.lab.reports.peers``, ``ldaspark.lab.reports.summary`` and
-``ldaspark.lab.reports.systems`` on small synthetic inputs chosen so that the rule and its plausible
-neighbours (< vs <=, all vs any, min vs max, a/b vs b/a, one field dropped) give different answers
-(issue #31). The expensive parts (the compiled models, the solvers of the optional peers, the long
-runs) are replaced by small pure-Python stand-ins that record what they are given; the rules and the
-wiring around them are the library's own."""
-import json
+"""Rules of ``ldaspark.lab.reports.peers`` fed inputs on which the right rule and a plausible neighbour give
+different answers (a wrong comparison, one side of a pair, a ratio upside down, a field left
+out, a mutated computation). The expensive inner computations are replaced by small
+stand-ins where the rule under test is what is applied to their results."""
 import math
 import os
 import sys
 import types
 from types import SimpleNamespace
-
 import numpy as np
 import pytest
-
 from ldaspark.core.errors import InputError, LdasparkError
 from ldaspark.lab.reports import peers, summary, systems
+import json
+import pathlib
+# --- lab/reports/peers.py ---------------------------------------------------------------------------
+from ldaspark.lab.reports import peers as P  # noqa: E402
 
 
 # =============================================================================================
@@ -74,22 +73,6 @@ def osc(monkeypatch):
 Y0 = np.array([1.0, 0.0])
 
 
-# =============================================================================================
-# peers: availability, the CPU clock, the interleaved rounds
-# =============================================================================================
-def test_optional_libraries_that_fail_to_import_are_none(monkeypatch):
-    monkeypatch.setitem(sys.modules, "sksundae", None)      # import raises ImportError
-    monkeypatch.setitem(sys.modules, "CyRK", None)
-    assert peers.sundials() is None and peers.cyrk() is None
-    ok, notes = peers.available_peers(("ode-dop853", "cvode-bdf", "cyrk-nbsolve2-Vern8", "ida"))
-    assert ok == ["ode-dop853"]
-    assert len(notes) == 2 and "cvode-bdf, ida" in notes[0] and "cyrk-nbsolve2-Vern8" in notes[1]
-    # control: present modules are returned as they are
-    fake = types.ModuleType("sksundae")
-    monkeypatch.setitem(sys.modules, "sksundae", fake)
-    assert peers.sundials() is fake
-
-
 class _Clock:
     """A CPU clock that only the tasks advance (by their scripted costs)."""
 
@@ -105,6 +88,160 @@ def clock(monkeypatch):
     c = _Clock()
     monkeypatch.setattr(peers, "time", c)
     return c
+
+
+def _fake_cyrk(result):
+    mod = types.ModuleType("CyRK")
+    mod.calls = []
+
+    def solver(name):
+        def solve(fn, span, y0, **kw):
+            mod.calls.append((name, span, kw))
+            r = result()
+            return SimpleNamespace(success=r[0], y=r[1], message=r[2])
+        return solve
+    mod.nbsolve_ivp, mod.pysolve_ivp = solver("nb"), solver("py")
+    return mod
+
+
+class _SkResult(SimpleNamespace):
+    pass
+
+
+def _fake_sundials(state):
+    """scikit-sundae's CVODE and IDA: record the arguments, answer with rows numbered by output time
+    (row i = [i, 10 i, 100 i, ...]) so that the rows and columns kept are visible."""
+    sk = types.SimpleNamespace(made=[], solved=[])
+
+    def result(tspan, width):
+        rows = np.array([[i * 10.0 ** j for j in range(width)] for i in range(len(tspan))])
+        t = tspan if state.get("complete", True) else tspan[:-1]
+        return _SkResult(success=state.get("success", True), t=np.asarray(t), y=rows, nfev=33, message="gave up")
+
+    class CVODE:
+        def __init__(self, fn, **kw):
+            sk.made.append(("cvode", kw))
+
+        def solve(self, tspan, y0):
+            sk.solved.append(("cvode", np.array(tspan), None))
+            return result(tspan, len(y0))
+
+    class IDA:
+        def __init__(self, res, **kw):
+            self.res = res
+            sk.made.append(("ida", kw))
+
+        def solve(self, tspan, z0, zp0):
+            out = np.zeros(len(z0))
+            self.res(tspan[0], z0, zp0, out)
+            sk.solved.append(("ida", np.array(tspan), (np.array(z0), np.array(zp0), out.copy())))
+            return result(tspan, len(z0))
+    sk.cvode, sk.ida = SimpleNamespace(CVODE=CVODE), SimpleNamespace(IDA=IDA)
+    return sk
+
+
+# =============================================================================================
+# peers: rows of a run
+# =============================================================================================
+class _Scene:
+    def __init__(self, system=None, t0=0.0, exact=None):
+        self.system = system or _Osc()
+        self.t0 = t0
+        self.exact = exact
+        self.name = "rep1"
+
+    def initial(self):
+        return self.t0, [1], [0]
+
+    def exact_solution(self, t):
+        return [np.cos(t)], [-np.sin(t)], None
+
+
+def _spark_result(energy, q, k):
+    return SimpleNamespace(energy=np.asarray(energy, float), q=np.asarray(q, float), constraint=np.asarray(k, float))
+
+
+# =============================================================================================
+# peers: the study
+# =============================================================================================
+def _row_of(kind, method, param, cpu, err):
+    return {"kind": kind, "method": method, "param": param, "cpu": cpu, "q_final": [1.0 - err],
+            "energy_error": err, "constraint": 0.0, "nfev": None}
+
+
+@pytest.fixture
+def study_env(monkeypatch):
+    import ldaspark.models.scenes as scenes
+    env = SimpleNamespace(batches=[], spark=[], peer=[])
+    monkeypatch.setattr(scenes, "get_scene", lambda name: _Scene())
+    monkeypatch.setattr(peers, "plan", lambda quick=False: {
+        "t_end": 1.0, "t_long": 2.0, "n_out_long": 3,
+        "hs": {m: (0.5, 0.25) for m in peers.SPARK_METHODS + peers.COMPARATORS},
+        "hs_long": {m: (0.5,) for m in peers.SPARK_METHODS + peers.COMPARATORS},
+        "rtols": (1e-3, 1e-6), "rtols_long": (1e-4,)})
+    monkeypatch.setattr(peers, "sundials", lambda: None)
+    monkeypatch.setattr(peers, "cyrk", lambda: object())
+    monkeypatch.setattr(peers, "rhs_choice", lambda system, y0: {"form": "solve", "ns_per_call": {"solve": 1.0}})
+    monkeypatch.setattr(peers, "reference_final", lambda sc, t_end: (np.array([1.0]), "ref", None))
+    monkeypatch.setattr(peers, "_mechanical", lambda sc: True)
+
+    def prepare_spark(sc, m, h, t_end, n_out=1, public=False):
+        env.spark.append((m, h, t_end, n_out, public))
+        if m == "gauss-3" and h == 0.25:
+            raise LdasparkError("no point at this h")
+        kind = "comparator" if m in peers.COMPARATORS else ("spark" if public else "spark-fast")
+        err = h ** 4 * (2 if public else 1)
+        return (lambda: None), (lambda cpu, out: _row_of(kind, m, h, 1.0 / h, err))
+
+    def prepare_peer(sc, p, tol, t_end, n_out=1):
+        env.peer.append((p, tol, t_end, n_out))
+        if p == "ode-lsoda" and tol == 1e-6:
+            raise peers.PeerFailure("lsoda refused")
+
+        def go():
+            if p == "cyrk-nbsolve2-Vern8":
+                raise peers.PeerFailure("stopped")
+        return go, (lambda cpu, out: _row_of("peer", p, tol, -math.log10(tol), tol * 10))
+    monkeypatch.setattr(peers, "prepare_spark", prepare_spark)
+    monkeypatch.setattr(peers, "prepare_peer", prepare_peer)
+    real = peers.run_interleaved
+
+    def ri(tasks, rounds=3, short=0.5, failed=None):
+        env.batches.append(([t[0] for t in tasks], rounds))
+        return real(tasks, rounds=1, short=short, failed=failed)
+    monkeypatch.setattr(peers, "run_interleaved", ri)
+    return env
+
+
+# =============================================================================================
+# peers: speed-ups recomputed, the section's words
+# =============================================================================================
+def _law(kind, method, c0, errors):
+    return [{"kind": kind, "method": method, "param": e, "cpu": c0 * e ** -0.25, "error": e,
+             "energy_error": e} for e in errors]
+
+
+def _section_doc(**kw):
+    d = {"command": "c", "date": "d", "cpu_count": 2, "load_average_1min_at_end": 2.0, "versions": {},
+         "peers": {}, "atol": "a", "studies": []}
+    d.update(kw)
+    return "\n".join(peers.section(d))
+
+
+# =============================================================================================
+# peers: availability, the CPU clock, the interleaved rounds
+# =============================================================================================
+def test_optional_libraries_that_fail_to_import_are_none(monkeypatch):
+    monkeypatch.setitem(sys.modules, "sksundae", None)      # import raises ImportError
+    monkeypatch.setitem(sys.modules, "CyRK", None)
+    assert peers.sundials() is None and peers.cyrk() is None
+    ok, notes = peers.available_peers(("ode-dop853", "cvode-bdf", "cyrk-nbsolve2-Vern8", "ida"))
+    assert ok == ["ode-dop853"]
+    assert len(notes) == 2 and "cvode-bdf, ida" in notes[0] and "cyrk-nbsolve2-Vern8" in notes[1]
+    # control: present modules are returned as they are
+    fake = types.ModuleType("sksundae")
+    monkeypatch.setitem(sys.modules, "sksundae", fake)
+    assert peers.sundials() is fake
 
 
 def test_cpu_min_is_the_minimum_and_long_runs_are_not_repeated(clock):
@@ -255,20 +392,6 @@ def test_cyrk_compiled_loop_peer_checks_success_and_the_output_count(osc, monkey
         go()
 
 
-def _fake_cyrk(result):
-    mod = types.ModuleType("CyRK")
-    mod.calls = []
-
-    def solver(name):
-        def solve(fn, span, y0, **kw):
-            mod.calls.append((name, span, kw))
-            r = result()
-            return SimpleNamespace(success=r[0], y=r[1], message=r[2])
-        return solve
-    mod.nbsolve_ivp, mod.pysolve_ivp = solver("nb"), solver("py")
-    return mod
-
-
 def test_cyrk_numba_and_python_loop_peers_check_success_and_the_output_count(osc, monkeypatch):
     state = {"r": (True, np.zeros((2, 2)), "ok")}
     fake = _fake_cyrk(lambda: state["r"])
@@ -295,42 +418,6 @@ def test_cyrk_numba_and_python_loop_peers_check_success_and_the_output_count(osc
         state["r"] = (True, np.zeros((2, 1)), "short")
         with pytest.raises(peers.PeerFailure, match="short"):
             go()
-
-
-class _SkResult(SimpleNamespace):
-    pass
-
-
-def _fake_sundials(state):
-    """scikit-sundae's CVODE and IDA: record the arguments, answer with rows numbered by output time
-    (row i = [i, 10 i, 100 i, ...]) so that the rows and columns kept are visible."""
-    sk = types.SimpleNamespace(made=[], solved=[])
-
-    def result(tspan, width):
-        rows = np.array([[i * 10.0 ** j for j in range(width)] for i in range(len(tspan))])
-        t = tspan if state.get("complete", True) else tspan[:-1]
-        return _SkResult(success=state.get("success", True), t=np.asarray(t), y=rows, nfev=33, message="gave up")
-
-    class CVODE:
-        def __init__(self, fn, **kw):
-            sk.made.append(("cvode", kw))
-
-        def solve(self, tspan, y0):
-            sk.solved.append(("cvode", np.array(tspan), None))
-            return result(tspan, len(y0))
-
-    class IDA:
-        def __init__(self, res, **kw):
-            self.res = res
-            sk.made.append(("ida", kw))
-
-        def solve(self, tspan, z0, zp0):
-            out = np.zeros(len(z0))
-            self.res(tspan[0], z0, zp0, out)
-            sk.solved.append(("ida", np.array(tspan), (np.array(z0), np.array(zp0), out.copy())))
-            return result(tspan, len(z0))
-    sk.cvode, sk.ida = SimpleNamespace(CVODE=CVODE), SimpleNamespace(IDA=IDA)
-    return sk
 
 
 def test_cvode_peers_drop_the_added_output_time_and_report_failure(osc, monkeypatch):
@@ -386,23 +473,6 @@ def test_ida_peer_excludes_psi_from_the_error_test_and_returns_q_v_only(osc, mon
     assert tspan[0] == 1.0 and all(1.0 < x <= 1.01 for x in tspan[1:])
 
 
-# =============================================================================================
-# peers: rows of a run
-# =============================================================================================
-class _Scene:
-    def __init__(self, system=None, t0=0.0, exact=None):
-        self.system = system or _Osc()
-        self.t0 = t0
-        self.exact = exact
-        self.name = "rep1"
-
-    def initial(self):
-        return self.t0, [1], [0]
-
-    def exact_solution(self, t):
-        return [np.cos(t)], [-np.sin(t)], None
-
-
 def test_peer_row_has_the_largest_energy_and_constraint_errors_over_the_output_times(monkeypatch, clock):
     seen = {}
 
@@ -421,10 +491,6 @@ def test_peer_row_has_the_largest_energy_and_constraint_errors_over_the_output_t
     assert r["cpu"] == 0.5 and r["nfev"] == 9 and r["q_final"] == [2.0] and r["param"] == 1e-6
     assert r["kind"] == "peer" and r["method"] == "ode-dop853"
     assert r["energy_error"] == 1.53125 and r["constraint"] == 0.75      # max |v - 1| over the times
-
-
-def _spark_result(energy, q, k):
-    return SimpleNamespace(energy=np.asarray(energy, float), q=np.asarray(q, float), constraint=np.asarray(k, float))
 
 
 def test_spark_runs_public_internal_and_comparator(monkeypatch, clock):
@@ -483,13 +549,6 @@ def test_reference_is_the_closed_form_or_gauss4_checked_by_dop853(monkeypatch):
     assert q.tolist() == [1.0, -2.0] and "gauss-4" in label and chk == 0.5
 
 
-def test_mechanical_needs_the_mechanical_compiled_form(monkeypatch):
-    import ldaspark.compiled.fast as fast
-    for answer, want in (((True, "mechanical"), True), ((True, "general"), False), ((False, "mechanical"), False)):
-        monkeypatch.setattr(fast, "can_compile", lambda system, a=answer: a)
-        assert peers._mechanical(_Scene()) is want
-
-
 def test_the_study_plan_is_the_one_the_section_describes():
     # section(): "final error ... at t = 100", "energy error ... over t in [0, 1e4]"
     P, Q = peers.plan(), peers.plan(quick=True)
@@ -503,58 +562,6 @@ def test_the_study_plan_is_the_one_the_section_describes():
         # every run is a whole number of steps
         assert all(abs(p["t_end"] / h - round(p["t_end"] / h)) <= 1e-9 for hs in p["hs"].values() for h in hs)
     assert P["hs"]["lobatto-iiia-iiib-2"] == peers.SEMI_HS and P["hs_long"][peers.COMPARATORS[0]] == peers.SEMI_HS_LONG
-
-
-# =============================================================================================
-# peers: the study
-# =============================================================================================
-def _row_of(kind, method, param, cpu, err):
-    return {"kind": kind, "method": method, "param": param, "cpu": cpu, "q_final": [1.0 - err],
-            "energy_error": err, "constraint": 0.0, "nfev": None}
-
-
-@pytest.fixture
-def study_env(monkeypatch):
-    import ldaspark.models.scenes as scenes
-    env = SimpleNamespace(batches=[], spark=[], peer=[])
-    monkeypatch.setattr(scenes, "get_scene", lambda name: _Scene())
-    monkeypatch.setattr(peers, "plan", lambda quick=False: {
-        "t_end": 1.0, "t_long": 2.0, "n_out_long": 3,
-        "hs": {m: (0.5, 0.25) for m in peers.SPARK_METHODS + peers.COMPARATORS},
-        "hs_long": {m: (0.5,) for m in peers.SPARK_METHODS + peers.COMPARATORS},
-        "rtols": (1e-3, 1e-6), "rtols_long": (1e-4,)})
-    monkeypatch.setattr(peers, "sundials", lambda: None)
-    monkeypatch.setattr(peers, "cyrk", lambda: object())
-    monkeypatch.setattr(peers, "rhs_choice", lambda system, y0: {"form": "solve", "ns_per_call": {"solve": 1.0}})
-    monkeypatch.setattr(peers, "reference_final", lambda sc, t_end: (np.array([1.0]), "ref", None))
-    monkeypatch.setattr(peers, "_mechanical", lambda sc: True)
-
-    def prepare_spark(sc, m, h, t_end, n_out=1, public=False):
-        env.spark.append((m, h, t_end, n_out, public))
-        if m == "gauss-3" and h == 0.25:
-            raise LdasparkError("no point at this h")
-        kind = "comparator" if m in peers.COMPARATORS else ("spark" if public else "spark-fast")
-        err = h ** 4 * (2 if public else 1)
-        return (lambda: None), (lambda cpu, out: _row_of(kind, m, h, 1.0 / h, err))
-
-    def prepare_peer(sc, p, tol, t_end, n_out=1):
-        env.peer.append((p, tol, t_end, n_out))
-        if p == "ode-lsoda" and tol == 1e-6:
-            raise peers.PeerFailure("lsoda refused")
-
-        def go():
-            if p == "cyrk-nbsolve2-Vern8":
-                raise peers.PeerFailure("stopped")
-        return go, (lambda cpu, out: _row_of("peer", p, tol, -math.log10(tol), tol * 10))
-    monkeypatch.setattr(peers, "prepare_spark", prepare_spark)
-    monkeypatch.setattr(peers, "prepare_peer", prepare_peer)
-    real = peers.run_interleaved
-
-    def ri(tasks, rounds=3, short=0.5, failed=None):
-        env.batches.append(([t[0] for t in tasks], rounds))
-        return real(tasks, rounds=1, short=short, failed=failed)
-    monkeypatch.setattr(peers, "run_interleaved", ri)
-    return env
 
 
 def test_scene_study_interleaves_spark_and_peers_and_compares_at_equal_error(study_env):
@@ -630,14 +637,6 @@ def test_run_study_saves_each_scene_and_records_the_load(monkeypatch):
     assert d3["load_average_1min_at_start"] is None and d3["load_average_1min_at_end"] == 0.5
 
 
-# =============================================================================================
-# peers: speed-ups recomputed, the section's words
-# =============================================================================================
-def _law(kind, method, c0, errors):
-    return [{"kind": kind, "method": method, "param": e, "cpu": c0 * e ** -0.25, "error": e,
-             "energy_error": e} for e in errors]
-
-
 def test_recompute_speedups_from_the_stored_rows():
     e = [10.0 ** -k for k in range(1, 10)]
     rows = _law("spark", "gauss-2", 1e-3, e) + _law("peer", "p", 4e-3, e)
@@ -653,13 +652,6 @@ def test_recompute_speedups_from_the_stored_rows():
     assert peers.recompute_speedups(d, note="today")["recomputed"] == "today"
 
 
-def _section_doc(**kw):
-    d = {"command": "c", "date": "d", "cpu_count": 2, "load_average_1min_at_end": 2.0, "versions": {},
-         "peers": {}, "atol": "a", "studies": []}
-    d.update(kw)
-    return "\n".join(peers.section(d))
-
-
 def test_section_load_and_recomputed_notes():
     assert "a loaded machine" not in _section_doc()                            # load == CPUs: not loaded
     assert "a loaded machine" in _section_doc(load_average_1min_at_end=2.01)
@@ -671,306 +663,6 @@ def test_section_load_and_recomputed_notes():
     assert "0.5 at the start" in _section_doc(load_average_1min_at_start=0.5)
     assert peers._x(10.0) == "10x" and peers._x(9.5) == "9.50x" and peers._x(None, at_most=2.0) == "<= 2.00x"
     assert peers._s(0.0123) == "12.3 ms" and peers._s(None) == "-"
-
-
-# =============================================================================================
-# summary
-# =============================================================================================
-def test_readme_values_skip_absent_reports_and_the_probe_ratio(tmp_path):
-    assert summary._load(str(tmp_path), "claims.json") is None
-    (tmp_path / "report_timing.json").write_text(json.dumps({"wall": 99.6, "cpu": 300.0, "cpu_count": 2,
-                                                             "probe": {"cpu": 0.25}}))
-    v = summary.readme_values(str(tmp_path))
-    assert v == {"run.wall": "100 s", "run.cpu": "300 s", "run.cores": "2", "run.probe_ratio": "1200"}
-    assert "run.probe_ratio" not in summary.run_values({"wall": 1, "cpu": 1, "cpu_count": 1, "probe": None})
-
-
-def _claim(claim, status="pass", expected="pass", residual=None, method="m", **kw):
-    return dict({"claim": claim, "status": status, "expected": expected, "residual": residual, "method": method,
-                 "scene": "s", "wellposed": "ok"}, **kw)
-
-
-def test_claims_values_max_of_the_passing_min_of_the_negative_controls():
-    recs = [_claim("theorem1-a", residual=1e-16), _claim("theorem1-a", residual=4e-15),
-            _claim("theorem1-b", status="fail", residual=1e-3),             # unexpected, not in the max
-            _claim("theorem1-a", method="negctl-x", status="fail", expected="fail", residual=2e-2),
-            _claim("theorem1-a", method="negctl-y", status="fail", expected="fail", residual=5e-4),
-            _claim("symmetry-x", residual=3e-16), _claim("symmetry-y", residual=2e-15),
-            _claim("symmetry-z", status="fail", residual=1.0),
-            _claim("22a", status="pass", expected="pass"), _claim("23", status="fail", expected="pass"),
-            _claim("implicit-function", wellposed="singular", method="euler"),
-            _claim("implicit-function", wellposed="singular", method="negctl-e")]
-    v = summary.claims_values(recs)
-    assert v["claims.theorem1.max"] == "4.0e-15" and v["claims.theorem1.negctl_min"] == "5.0e-04"
-    assert v["claims.theorem1.unexpected"] == "1" and v["claims.symmetry.max"] == "2.0e-15"
-    assert v["claims.conditions"] == "1 of 2" and v["claims.singular"] == "euler on s"
-    # nothing passing, no negative control, no symmetry record: the keys are absent
-    v = summary.claims_values([_claim("theorem1-a", status="fail", residual=1.0), _claim("23")])
-    assert not {"claims.theorem1.max", "claims.theorem1.negctl_min", "claims.symmetry.max"} & set(v)
-    assert v["claims.theorem1.unexpected"] == "1" and v["claims.singular"] == "none"
-    # a claim group: not-applicable records are not decided; order claims have no residual max
-    v = summary.claims_values([_claim("energy-balance-2.2", residual=1.0),
-                               _claim("nonideal-3.3", residual=2e-3), _claim("nonideal-3.3", residual=3e-3),
-                               _claim("nonideal-3.3", status="not-applicable", residual=9.0)])
-    assert v["claims.energy-balance"] == "1 of 1" and "claims.energy-balance.max" not in v
-    assert v["claims.nonideal"] == "2 of 2"
-
-
-def _fig4(exps):
-    return {"methods": list(range(len(exps))), "fit": {i: {"exponent": x} for i, x in enumerate(exps)}, "seconds": 2.25}
-
-
-def test_energy_fig4_verdict_needs_every_exponent_near_one():
-    base = {"figures": [{"methods": {"a": {"last_over_first_quarter": 1.25, "bounded": True},
-                                     "b": {"last_over_first_quarter": 0.5, "bounded": False}}}]}
-    v = summary.energy_values(base)
-    assert v == {"energy.figs13.ratio": "0.50-1.25", "energy.figs13.bounded": "1 of 2"}
-    for exps, near, verdict in (([1.25, 0.75, 1.0], "3 of 3", "reproduced"), ([1.25, 1.5, 1.0], "2 of 3",
-                                                                               "partly reproduced"),
-                                ([1.5, 0.5, 2.0], "0 of 3", "not reproduced")):
-        v = summary.energy_values(dict(base, figure4_nonholonomic=_fig4(exps)))
-        assert v["energy.fig4.nh.near1"] == near and v["energy.fig4.nh.verdict"] == verdict
-        assert "energy.fig4.printed.verdict" not in v and v["energy.fig4.nh.seconds"] == "2.2 s"
-
-
-def test_work_precision_peer_ratios_only_where_measured():
-    d = {"studies": [{"scene": "s", "ratios": {"error": [{"target": 1e-3, "scipy/spark-fast": 12.4},
-                                                         {"target": 1e-6, "scipy/spark-fast": None}]}}],
-         "dps": []}
-    v = summary.work_precision_values(d)
-    assert v["wp.s.ratios"] == "12x / -" and "wp.s.peer_ratios" not in v
-    d["studies"][0]["ratios"]["error"][1]["peer/spark-fast"] = 0.456
-    assert summary.work_precision_values(d)["wp.s.peer_ratios"] == "- / 0.46x"
-    assert summary._r(None, at_most=4.94) == "<= 4.9x" and summary._r(None, at_least=12.3) == ">= 12x"
-
-
-def test_residuals_agree_within_a_factor_ten_only():
-    sm = summary.same_magnitude
-    assert sm("1e0", "1e1") and sm("1e1", "1e0") and not sm("1e0", "1.01e1") and not sm("1.01e1", "1e0")
-    assert sm("1e-16", "1e-16") and sm("-2e-3", "3e-3") and not sm("1e-16", "1e-12")
-    assert sm("0", "0.0") and not sm("0", "1e-300") and not sm("1e-300", "0")
-    assert sm("inf", "inf") and not sm("inf", "1e300") and not sm("nan", "nan")
-    assert sm("n/a", "n/a") and not sm("n/a", "1e-3")
-
-
-def test_quote_problem_by_kind(tmp_path):
-    vals = {"claims.x.max": "1.0e-15", "convergence.spark": "3 of 3"}
-    assert summary.quote_problem("nope.key", "1", vals).startswith("unknown key")
-    assert summary.quote_problem("claims.x.max", "9.0e-15", vals) is None
-    assert "another order" in summary.quote_problem("claims.x.max", "1.1e-14", vals)
-    assert summary.quote_problem("convergence.spark", "3 of 3", vals) is None
-    assert summary.quote_problem("convergence.spark", "2 of 3", vals) is not None
-    # timing: against the snapshot, and against the reports while they are the snapshot's
-    (tmp_path / "report_timing.json").write_text(json.dumps({"wall": 10, "cpu": 20, "cpu_count": 1, "date": "d"}))
-    snap = {"values": {"run.wall": "10 s"}, "run": {"date": "d", "wall": 10, "cpu": 20}}
-    assert summary.quote_problem("run.wall", "10 s", {"run.wall": "10 s"}, str(tmp_path), snap) is None
-    assert "the reports" in summary.quote_problem("run.wall", "10 s", {"run.wall": "11 s"}, str(tmp_path), snap)
-    snap["run"]["cpu"] = 21                                              # another run: the snapshot rules
-    assert summary.quote_problem("run.wall", "10 s", {"run.wall": "11 s"}, str(tmp_path), snap) is None
-    assert "no snapshot" in summary.quote_problem("run.wall", "10 s", {}, str(tmp_path))
-
-
-def test_fill_and_snapshot_through_main(tmp_path, capsys):
-    rep = tmp_path / "reports"
-    rep.mkdir()
-    assert summary.write_snapshot(str(rep)) is None and not (rep / "report_timing.json").exists()
-    (rep / "report_timing.json").write_text(json.dumps({"wall": 12.0, "cpu": 34.0, "cpu_count": 2, "date": "x"}))
-    readme = tmp_path / "README.md"
-    readme.write_text("wall <!--run.wall-->1 s<!--/-->, kept <!--other.key-->as is<!--/-->\n")
-    assert summary.main(["--reports", str(rep), "--fill", str(readme)]) == 0
-    assert readme.read_text() == "wall <!--run.wall-->12 s<!--/-->, kept <!--other.key-->as is<!--/-->\n"
-    assert "updated" in capsys.readouterr().out
-    snap = json.loads((rep / "report_timing.json").read_text())["readme"]
-    assert snap["values"] == {"run.wall": "12 s", "run.cpu": "34 s"} and snap["run"]["cpu"] == 34.0
-    assert summary.main(["--reports", str(rep), "--fill", str(readme)]) == 0
-    assert "already current" in capsys.readouterr().out
-    assert summary.main(["--reports", str(rep)]) == 0
-    assert "<!--run.cores-->2<!--/-->" in capsys.readouterr().out.splitlines()
-
-
-# =============================================================================================
-# systems
-# =============================================================================================
-def _quarter_series(q0, q3, n=100):
-    """|e| = q0 on the first three quarters, q3 on the last (boundedness's quarters overlap by one
-    sample: the last quarter starts at index 3n/4)."""
-    e = np.full(n, q0)
-    e[3 * n // 4:] = q3
-    return np.linspace(0.0, 1.0, n), e
-
-
-def test_bounded_drift_and_roundoff_thresholds():
-    base = 2.0 ** -10
-    for ratio, bounded, drift in ((1.5, True, False), (1.75, False, False), (2.0, False, True), (1.0, True, False)):
-        r = systems._bounded(*_quarter_series(base, ratio * base), 100, 1.0)
-        assert (r["bounded"], r["drift"], r["roundoff"]) == (bounded, drift, False) and r["ratio"] == ratio
-    # round-off: max <= 100 eps sqrt(N) (1 + |I0|); here N = 64, I0 = -3: 3200 eps
-    lim = 100 * systems.EPS * 8 * 4
-    at = systems._bounded(*_quarter_series(lim / 4, lim), 64, -3.0)
-    above = systems._bounded(*_quarter_series(lim / 4, lim * 1.0001), 64, -3.0)
-    assert at["roundoff"] and at["bounded"] and not at["drift"] and at["max"] == lim
-    assert not above["roundoff"] and not above["bounded"] and above["drift"]
-    # a first quarter of zeros: ratio infinite, reported as None, a drift
-    z = systems._bounded(*_quarter_series(0.0, 1.0), 100, 0.0)
-    assert z["ratio"] is None and z["drift"] and not z["bounded"]
-
-
-def _inv(bounded=True, roundoff=False, drift=False, mx=1e-6, ratio=1.0):
-    return {"max": mx, "quarters": [mx, mx, mx, mx], "ratio": ratio, "roundoff": roundoff, "bounded": bounded,
-            "drift": drift, "t": [0.0, 1.0, 2.0], "abs_err": [0.0, 1e-9, mx]}
-
-
-def _sysrec(name, g2, l3, ctrl, orders=None, kmax=(1e-16, 2e-16, 1e-15), kbound=1e-14, cost=10.0):
-    o = orders or {m: {"claimed": p, "q": float(p), "v": float(p)} for m, p in systems.ORDER_METHODS}
-
-    def run(inv, k):
-        return {"T": 500.0, "h": 0.1, "steps": 5000, "status": 0, "t_end_reached": 500.0, "max_abs_k": k,
-                "k_bound": kbound, "invariants": inv}
-    return {"name": name, "n": 3, "m": 1, "form": "mechanical", "description": "d", "source": "s",
-            "invariants": list(g2), "closed_forms": [], "from_mechanics": name != "contact-oscillator",
-            "t_compile": 0.5, "us_per_step_gauss2": cost, "order_reference": "closed form", "orders": o,
-            "runs": {"gauss-2": run(g2, kmax[0]), "lobatto-iiia-iiib-3": run(l3, kmax[1]), "euler-i": run(ctrl, kmax[2])}}
-
-
-def test_row_verdict_needs_both_symmetric_methods():
-    rec = _sysrec("suslov", {"E": _inv(roundoff=True, mx=1e-15), "J": _inv(bounded=False, mx=3e-3)},
-                  {"E": _inv(roundoff=False, mx=1e-9), "J": _inv(mx=2e-3)},
-                  {"E": _inv(drift=True, ratio=4.25), "J": _inv()}, kmax=(2e-15, 7e-15, 0.5))
-    row = systems._row(rec)
-    assert "E: 1.0e-09 (bounded)" in row[-2] and "J: 3.0e-03 (NOT bounded)" in row[-2]
-    assert row[-1] == "drift in E (ratio 4.25)" and row[7] == "7.0e-15"           # Euler I's k left out
-    rec["runs"]["lobatto-iiia-iiib-3"]["invariants"]["E"]["roundoff"] = True
-    assert "E: 1.0e-09 (round-off)" in systems._row(rec)[-2]
-    rec["runs"]["euler-i"]["invariants"]["E"]["drift"] = False
-    assert systems._row(rec)[-1].startswith("no drift (max 1.0e-06, 1.0e-06")
-
-
-def test_observations_name_what_fails_and_only_that():
-    good = _sysrec("chaplygin-sleigh", {"E": _inv()}, {"E": _inv()}, {"E": _inv()}, cost=5.0)
-    bad = _sysrec("suslov", {"E": _inv()}, {"E": _inv(bounded=False)}, {"E": _inv(drift=True, ratio=3.0)},
-                  orders={"gauss-2": {"claimed": 4, "q": 4.25, "v": 3.5}, "lobatto-iiia-iiib-2":
-                          {"claimed": 2, "q": None, "v": 2.0}}, kmax=(1.0, 0.0, 0.0), cost=40.0)
-    mid = _sysrec("tilted-disk", {"E": _inv(bounded=False)}, {"E": _inv()}, {"E": _inv(drift=True)}, cost=20.0)
-    res = {"chaplygin-sleigh": good, "suslov": bad, "tilted-disk": mid}
-    obs = systems._observations(res, list(res))
-    assert obs[0] == ("* Symmetric methods, long-time: NOT bounded: suslov lobatto-iiia-iiib-3 E over [0, 500] "
-                      "(max per quarter 1.0e-06, 1.0e-06, 1.0e-06, 1.0e-06), tilted-disk gauss-2 E over [0, 500] "
-                      "(max per quarter 1.0e-06, 1.0e-06, 1.0e-06, 1.0e-06).")
-    assert obs[1].startswith("  `suslov`: the Suslov flow") and not obs[2].startswith("  `")   # no note for the disk
-    assert obs[2].startswith("* Control (Euler I) drifts on `suslov`, `tilted-disk`; no drift on `chaplygin-sleigh`")
-    assert obs[3] == "* Orders: off by more than 0.3: suslov gauss-2 3.50, suslov lobatto-iiia-iiib-2 -."
-    assert obs[4] == "* Constraint: max |k| ABOVE the round-off bound on suslov."
-    assert obs[5].startswith("* Compiled cost per Gauss-2 step from 5 us (`chaplygin-sleigh`) to 40 us (`suslov`)")
-    only = systems._observations({"chaplygin-sleigh": good}, ["chaplygin-sleigh"])
-    assert only[0].endswith("every invariant bounded or at round-off.")
-    assert only[1].startswith("* Control (Euler I) drifts on ; no drift on `chaplygin-sleigh`: there the flow")
-    assert only[2].startswith("* Orders: every") and only[3].startswith("* Constraint: max |k| below")
-    drifting = systems._observations({"tilted-disk": mid}, ["tilted-disk"])
-    assert drifting[1] == "* Control (Euler I) drifts on `tilted-disk`."
-
-
-def test_observables_series_and_initial_state(monkeypatch):
-    sc = SimpleNamespace(params={"rho": 2})
-    assert systems._observables("chaplygin-sleigh", sc) == {}
-    (f,) = systems._observables("ball-turntable-rheonomic", sc).values()
-    assert f(None, np.array([[3.0, 4.0, 9.0]]), None).tolist() == [3.0]
-    sc = SimpleNamespace(invariant_values=lambda t, q, v: {"E": np.array([2.0, 2.5, 1.0])})
-    res = SimpleNamespace(t=np.arange(3.0), q=np.array([[3.0, 4.0]] * 3), v=None)
-    out, I0 = systems._series(sc, res, {"r": lambda t, q, v: t * 2})
-    assert out["E"].tolist() == [0.0, 0.5, -1.0] and I0 == {"E": 2.0, "r": 0.0} and out["r"].tolist() == [0, 2, 4]
-    import ldaspark.models.scenes as scenes
-    monkeypatch.setattr(scenes, "get_scene", lambda name: SimpleNamespace(initial=lambda: (0.0, [1], (0, 0, 0, 0, 0))))
-    assert systems._initial("tilted-disk")[2] == [0, 0, 0, 0.3, 0]
-    assert systems._initial("suslov")[2] == (0, 0, 0, 0, 0)
-
-
-def test_order_reference_is_the_closed_form_when_there_is_one(monkeypatch):
-    import ldaspark.lab.claims.claims_general as cg
-    import ldaspark.lab.theory.orders as orders
-    monkeypatch.setattr(orders, "ExactReference", lambda sc, dps: ("exact", dps))
-    monkeypatch.setattr(cg, "DOP853Reference", lambda system, t0, q0, v0, t_end: ("dop", t_end))
-    assert systems._reference("x", SimpleNamespace(exact=object()), 1.0) == (("exact", 30), "closed form")
-    sc = SimpleNamespace(exact=None, system=None, initial=lambda: (0.0, [], []))
-    ref, kind = systems._reference("x", sc, 1.5)
-    assert ref == ("dop", 1.5) and kind.startswith("DOP853")
-
-
-def test_thin_plot_markdown_and_json(tmp_path):
-    inv = _inv()
-    inv["t"], inv["abs_err"] = list(np.arange(250.0)), list(np.arange(250.0))
-    rec = _sysrec("suslov", {"E": inv}, {"E": _inv()}, {"E": _inv()})
-    th = systems._thin(rec, points=100)
-    assert th["runs"]["gauss-2"]["invariants"]["E"]["t"] == list(np.arange(0.0, 250.0, 3.0))
-    assert len(rec["runs"]["gauss-2"]["invariants"]["E"]["t"]) == 250                  # a copy
-    assert th["runs"]["euler-i"]["invariants"]["E"]["t"] == [0.0, 1.0, 2.0]
-    res = {"suslov": rec, "contact-oscillator": _sysrec("contact-oscillator", {"E": _inv()}, {"E": _inv()},
-                                                        {"E": _inv()})}
-    j = systems._json(res, None)
-    assert list(j["systems"]) == ["suslov", "contact-oscillator"] and j["bicycle"] is None
-    assert systems._json(res, {"error": "x"})["bicycle"] == {"error": "x"}
-    md = systems.markdown(res, clock=SimpleNamespace(wall=3.0, cpu=4.0), command="cmd")
-    assert "_Written by `cmd`: 3 s wall, 4 s CPU" in md
-    assert "(L and k)" in md and "via `LagrangianSystem.from_mechanics`" in md
-    assert "_Written" not in systems.markdown(res)
-    figs = []
-    import pytest as _pt
-    mp = _pt.MonkeyPatch()
-    mp.setattr(systems, "atomic_save_figure", lambda fig, path, dpi: figs.append((fig, path)))
-    try:
-        systems.plot(res, "p1.png")
-        systems.plot({"suslov": rec}, "p2.png")
-    finally:
-        mp.undo()
-    (two, p2), (one, p1) = figs
-    assert p2 == "p1.png" and len(two.axes) == 2 and len(one.axes) == 1
-    # one panel per system, each as tall: the figure grows with the number of systems
-    assert two.get_size_inches()[1] == 2 * one.get_size_inches()[1]
-    ax = one.axes[0]
-    assert "suslov" in ax.get_title() and ax.get_xlabel() == "t" and ax.get_yscale() == "log"
-    lines = ax.get_lines()
-    assert len(lines) == 3 and [ln.get_linestyle() for ln in lines] == ["-", "--", ":"]
-    # |I - I0| floored at 1e-17 for the log axis (the zero at t = 0 is drawn at the floor, not dropped)
-    y = lines[1].get_ydata()
-    assert y[0] == 1e-17 and y[-1] == 1e-6 and list(lines[1].get_xdata()) == [0.0, 1.0, 2.0]
-
-
-def test_jobs_build_and_the_command_line(monkeypatch, tmp_path):
-    here = os.path.join(os.path.dirname(systems.__file__), "systems_bicycle.py")
-    assert systems.bicycle_available() == os.path.exists(here)
-    monkeypatch.setattr(systems, "bicycle_available", lambda: False)
-    assert systems.jobs(systems=("suslov",), t_long=7.0) == [(("suslov",), "system_job", ("suslov", 7.0), 4.0)]
-    monkeypatch.setattr(systems, "bicycle_available", lambda: True)
-    both = systems.jobs(systems=("suslov",))
-    assert both[-1][:2] == (("bicycle",), "bicycle_job")
-    # the scheduler's cost estimates: positive, the bicycle section the longest job
-    assert all(c > 0 for *_, c in both) and both[-1][3] > both[0][3]
-    ran = []
-
-    def job(name, t_long):
-        ran.append((name, t_long))
-        return _sysrec(name, {"E": _inv()}, {"E": _inv()}, {"E": _inv()})
-    monkeypatch.setattr(systems, "system_job", job)
-    monkeypatch.setattr(systems, "bicycle_job", lambda outdir: {"markdown": "bike here", "json": {"b": 1}})
-    monkeypatch.setattr(systems, "plot", lambda res, path: ran.append(("plot", sorted(res))))
-    out = tmp_path / "rep"
-    (out / "figures").mkdir(parents=True)
-    res = systems.build(str(out), systems=("suslov",), t_long=9.0)
-    assert set(res) == {("suslov",), ("bicycle",)} and ran == [("suslov", 9.0), ("plot", ["suslov"])]
-    assert "bike here" in (out / systems.REPORT).read_text()
-    assert json.loads((out / systems.JSON).read_text())["bicycle"] == {"b": 1}
-    built = []
-    monkeypatch.setattr(systems, "build", lambda outdir, s, t: built.append((s, t)))
-    args = SimpleNamespace(outdir="o", systems=" suslov, ,tilted-disk", t_long=1.0)   # 1.0 = 10 h: allowed
-    assert systems.run(args) == 0 and built == [(("suslov", "tilted-disk"), 1.0)]
-    assert systems.run(SimpleNamespace(outdir="o", systems=None, t_long=50.0)) == 0 and built[-1][0] == systems.SYSTEMS
-    with pytest.raises(InputError, match="unknown system"):
-        systems.run(SimpleNamespace(outdir="o", systems="suslov,bogus", t_long=50.0))
-    for bad in (0.99, float("nan"), float("inf")):
-        with pytest.raises(InputError, match="--t-long"):
-            systems.run(SimpleNamespace(outdir="o", systems=None, t_long=bad))
-    monkeypatch.setattr(systems, "build", lambda outdir: built.append(("default", outdir)))
-    systems.run_default("z")
-    assert built[-1] == ("default", "z")
 
 
 def test_section_renders_every_part_of_a_study():
@@ -1000,3 +692,85 @@ def test_section_renders_every_part_of_a_study():
     bare = _section_doc(studies=[dict(st, rhs=None, comparators=None, t_vlong=None, vlong_rows=[], reference_check=None)])
     assert "per call" not in bare and "McLachlan" not in bare and "differs from" not in bare and "T = 100000" not in bare
     assert "(the faster, measured per scene" in bare                     # the key is there, empty
+
+
+ROOT = pathlib.Path(__file__).resolve().parents[3]
+
+
+class _Clock_2:
+    """time.process_time stand-in: returns the given instants in turn."""
+
+    def __init__(self, instants):
+        self.instants = list(instants)
+
+    def process_time(self):
+        return self.instants.pop(0)
+
+
+def test_cpu_min_takes_the_fastest_repeat(monkeypatch):
+    # repeats of 0.3, 0.1, 0.2 s
+    monkeypatch.setattr(P, "time", _Clock_2([0.0, 0.3, 1.0, 1.1, 2.0, 2.2]))
+    best, out = P._cpu_min(lambda: "r", repeats=3, short=0.5)
+    assert best == pytest.approx(0.1)
+    assert out == "r"
+
+
+def test_time_rhs_takes_the_fastest_repeat(monkeypatch):
+    pytest.importorskip("numba")
+    import numba
+
+    @numba.njit
+    def g(t, y, yp, W):
+        yp[-1] = t
+
+    monkeypatch.setattr(P, "time", _Clock_2([0.0, 3.0, 10.0, 11.0, 20.0, 22.0]))
+    ns = P._time_rhs(g, np.zeros(2), np.zeros(1), calls=1000, repeats=3)
+    assert ns == pytest.approx(1.0 / 1000 * 1e9)
+
+
+def test_rhs_choice_takes_the_faster_form(monkeypatch):
+    system = types.SimpleNamespace(name="kills-a-fake", n=1, m=1)
+    mod = types.SimpleNamespace(HAS_CLOSED=True, CLOSED_INFO={}, rhs_into_solve="solve", rhs_into_closed="closed")
+    monkeypatch.setattr(P, "_module", lambda s: mod)
+    monkeypatch.setattr(P, "_RHS_CHOICE", {})
+    monkeypatch.setattr(P, "_time_rhs", lambda g, y, W: {"solve": 80.0, "closed": 30.0}[g])
+    out = P.rhs_choice(system, [0.0, 0.0])
+    assert out["form"] == "closed"
+    assert out["ns_per_call"] == {"solve": 80.0, "closed": 30.0}
+
+
+def test_peer_section_names_the_rhs_choice_when_any_study_measured_it():
+    d = json.loads((ROOT / "reports" / "peers.json").read_text())
+    with_rhs = [i for i, st in enumerate(d["studies"]) if "rhs" in st]
+    assert len(d["studies"]) >= 2 and with_rhs
+    for i, st in enumerate(d["studies"]):
+        if i != with_rhs[0]:
+            st.pop("rhs", None)                 # one study measured the choice, the others not
+    text = "\n".join(P.section(d))
+    assert "the faster, measured per scene, of the closed form" in text
+    for st in d["studies"]:
+        st.pop("rhs", None)
+    assert "the faster, measured per scene, of the closed form" not in "\n".join(P.section(d))
+
+
+def _close(x, rel=1e-9, abs=0.0):
+    """pytest.approx without its absolute default of 1e-12, which would equate any two tiny residuals."""
+    return pytest.approx(x, rel=rel, abs=abs)
+
+
+def _cost_rows(kind, method, pairs):
+    return [{"kind": kind, "method": method, "error": e, "cpu": c} for e, c in pairs]
+
+
+def test_the_speedup_is_peer_cost_over_spark_cost():
+    from ldaspark.lab.reports import peers
+    # SPARK reaches 1e-6 at 1 s, the peer at 4 s (both bracket the target, log-interpolated on the envelope)
+    rows = (_cost_rows("spark", "s1", [(1e-4, 0.5), (1e-8, 2.0)]) + _cost_rows("spark", "s2", [(1e-4, 3.0), (1e-8, 9.0)])
+            + _cost_rows("peer", "p1", [(1e-4, 2.0), (1e-8, 8.0)]) + _cost_rows("peer", "p2", [(1e-4, 7.0), (1e-8, 30.0)]))
+    (r,) = peers.speedups(rows, [1e-6])
+    assert r["spark"] == "s1" and r["peer"] == "p1"                   # the cheapest of each side
+    assert r["speedup"] == _close(r["peer_cpu"] / r["spark_cpu"]) and r["speedup"] > 1
+    assert r["speedup"] == _close(4.0, rel=1e-9)
+    # the sides swapped: the reciprocal
+    sw = [dict(x, kind={"spark": "peer", "peer": "spark"}[x["kind"]]) for x in rows]
+    assert peers.speedups(sw, [1e-6])[0]["speedup"] == _close(0.25, rel=1e-9)

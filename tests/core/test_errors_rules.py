@@ -1,0 +1,222 @@
+"""Rules of ``ldaspark.core.errors`` fed inputs on which the right rule and a plausible neighbour give
+different answers (a wrong comparison, one side of a pair, a ratio upside down, a field left
+out, a mutated computation). The expensive inner computations are replaced by small
+stand-ins where the rule under test is what is applied to their results."""
+from __future__ import annotations
+
+import pytest
+from ldaspark.core.errors import InconsistentInitialDataError, SingularSaddleError
+from ldaspark.core.system import LagrangianSystem
+from verification import strategies as ST
+from fractions import Fraction
+import numpy as np
+import ldaspark
+from ldaspark.core.errors import InputError
+import mpmath
+import sympy
+from ldaspark.core.errors import InputError, SystemDefinitionError
+
+
+class FakeSystem:
+    """Stands for LagrangianSystem inside ``general_systems``: records L and k; the base point's
+    behaviour is set per test through ``FakeSystem.mode``."""
+    mode = {}
+
+    def __init__(self, L, k, q, v, t=None, name="system"):
+        self.L, self.k, self.q, self.v, self.t, self.name = L, list(k), list(q), list(v), t, name
+        self.n, self.m = len(self.q), len(self.k)
+
+    def project_velocity(self, bk, t, q, v):
+        if self.mode.get("raise"):
+            raise InconsistentInitialDataError("fake: no projection")
+        if "v" in self.mode:
+            return bk.array(self.mode["v"][:self.n] + [0] * max(0, self.n - len(self.mode["v"])))
+        return bk.array(v)
+
+    def check_saddle(self, bk, t, q, v, rcond=None):
+        rc = self.mode.get("rc", 1.0)          # the reciprocal condition of this fake's matrix (4)
+        if rc <= rcond:
+            raise SingularSaddleError("fake: singular")
+        return rc
+
+
+@pytest.fixture
+def fake_system(monkeypatch):
+    monkeypatch.setattr(ST, "LagrangianSystem", FakeSystem)
+    monkeypatch.setattr(FakeSystem, "mode", {})
+    return FakeSystem
+
+
+class _St:
+    """Stands for ``hypothesis.strategies`` inside the strategies' definitions, driven by ``_draw``:
+    each strategy is a tuple that the fake draw resolves by a policy (module attribute)."""
+    integers = staticmethod(lambda lo, hi: ("i", lo, hi))
+    fractions = staticmethod(lambda min_value, max_value, max_denominator: ("f", min_value, max_value))
+    permutations = staticmethod(lambda x: ("p", list(x), list(x)))
+    sampled_from = staticmethod(lambda x: ("p", list(x), list(x)))
+
+
+def _draw(policy):
+    """low: every draw at its lower end (a list: its first element, a permutation: the identity);
+    high: the upper end (last element, reversed); zero: 0 where the range holds it, else low."""
+    def draw(s):
+        kind, a, b = s
+        if kind == "p":
+            return (a if policy != "high" else a[::-1]) if _PERM[0] else (a[0] if policy != "high" else a[-1])
+        if policy == "zero" and a <= 0 <= b:
+            return type(a)(0)
+        return b if policy == "high" else a
+    return draw
+
+
+_PERM = [True]
+
+
+def _run(monkeypatch, strategy, policy, perm=True):
+    """The composite's definition run once with the fake draws (``perm``: "p" strategies are
+    permutations, else sampled_from)."""
+    w = strategy.wrapped_strategy
+    monkeypatch.setattr(ST, "st", _St)
+    _PERM[0] = perm
+    return w.definition(_draw(policy), *w.args, **w.kwargs)
+
+
+def _lowest_case(monkeypatch, **kw):
+    return _run(monkeypatch, ST.general_systems(**kw), "low")
+
+
+@pytest.mark.filterwarnings("ignore:Using `assume` outside")
+def test_general_systems_rejects_bad_base_points(fake_system, monkeypatch):
+    """The base point is kept only when the projection converges, the saddle matrix (4) passes
+    with rcond = 1e-6 and |v0|_inf < 3 (strict)."""
+    from hypothesis.errors import UnsatisfiedAssumption
+    for mode, accepted in ((dict(raise_=True), False), (dict(rc=1e-7), False), (dict(rc=1e-6), False),
+                           (dict(rc=1e-5), True), (dict(v=[3, 0]), False), (dict(v=[-3.5, 0]), False),
+                           (dict(v=[2.9, -1]), True), (dict(v=[0, -2.99]), True)):
+        FakeSystem.mode = {("raise" if k == "raise_" else k): x for k, x in mode.items()}
+        if accepted:
+            c = _lowest_case(monkeypatch, n_range=(2, 2))
+            assert c.dps == 60 and c.system.n == 2
+            if "v" in mode:
+                assert [float(x) for x in c.v0] == [float(x) for x in mode["v"]]
+        else:
+            with pytest.raises(UnsatisfiedAssumption):
+                _lowest_case(monkeypatch, n_range=(2, 2))
+
+
+def _point():
+    t0, q0, v0 = ldaspark.get_scene("skate").initial(None)
+    return [float(x) for x in q0], [float(x) for x in v0]
+
+
+# --- the theory checks: dps of NumPy's integer types, one dps where one is read -----------------
+@pytest.mark.parametrize("fn", ["theorem1_residuals", "check_symmetry"])
+def test_theory_checks_take_a_numpy_dps_and_refuse_a_tuple(fn):
+    q0, v0 = _point()
+    kw = dict(max_refine=0) if fn == "theorem1_residuals" else {}
+    f = getattr(ldaspark, fn)
+    with pytest.raises(InputError, match="one integer"):
+        f("skate", "gauss-1", 0, q0, v0, "0.1", dps=(20, 30), **kw)
+    assert isinstance(f("skate", "gauss-1", 0, q0, v0, "0.1", dps=np.int64(20), **kw), dict)
+
+
+def test_discrete_lagrangian_checks_its_guesses():
+    q0, _ = _point()
+    q1 = [x + 0.01 for x in q0]
+    for kw in (dict(x_guess=[0.0]), dict(x_guess=[float("nan")]), dict(v0_guess=[0.0]), dict(gauge_ref="ab")):
+        with pytest.raises(InputError):
+            ldaspark.discrete_lagrangian("skate", "gauss-1", 0, q0, "0.1", q1, dps=16, **kw)
+    d = ldaspark.discrete_lagrangian("skate", "gauss-1", 0, q0, "0.1", q1, dps=16, v0_guess=[0.1, 0.0, 0.1])
+    assert d.p0.shape == (3,)
+
+
+# --- result files: the .json extra arrays checked like every other field ------------------------
+@pytest.mark.parametrize("bad", ["x", 3, [1], {"t_events_0": [1]}, {"t_events_0": {"shape": [2], "data": [1]}},
+                                 {"t_events_0": {"shape": [-1], "data": []}},
+                                 {"t_events_0": {"shape": [1], "data": ["1"]}}])
+def test_json_extra_arrays_are_checked(tmp_path, bad):
+    import json
+    r = ldaspark.integrate("skate", "gauss-1", h=0.1, n_steps=3, engine="generic",
+                           events=lambda t, q, v: t - 0.15)
+    p = tmp_path / "r.json"
+    ldaspark.save_result(r, p)
+    assert len(ldaspark.load_result(p).t_events[0]) == 1          # valid neighbour: the file as written
+    d = json.loads(p.read_text())
+    d["extra_arrays"] = bad
+    p.write_text(json.dumps(d))
+    with pytest.raises(InputError):
+        ldaspark.load_result(p)
+
+
+# --- SparkTableau.with_entry: a coefficient, indices in range, a finite real delta ---------------
+@pytest.mark.parametrize("exact", [True, False])
+@pytest.mark.parametrize("args", [("Z", 0, 0, "1"), ("A", 5, 0, "1"), ("A", -1, 0, "1"), ("A", 0.0, 0, "1"),
+                                  ("A", 0, None, "1"), ("b", 0, 0, "1"), ("A", 0, 0, float("nan")), ("A", 0, 0, 1j),
+                                  ("A", True, 0, "1")])
+def test_with_entry_refuses_what_would_wrap_or_raise(exact, args):
+    from ldaspark.core.errors import TableauError
+    g = ldaspark.gauss(2, exact=exact)
+    with pytest.raises(TableauError):
+        g.with_entry(*args)
+    # valid neighbours: an index of NumPy's type, a vector entry, a Fraction delta
+    assert g.with_entry("A", np.int64(1), 0, Fraction(1, 10)).s == 2
+    assert g.with_entry("b", 0, None, "1/10").s == 2
+
+
+def _skate_point():
+    t0, q0, v0 = ldaspark.get_scene("skate").initial(None)
+    return [float(x) for x in q0], [float(x) for x in v0]
+
+
+# --- root 4: silent wrong numbers --------------------------------------------------------------
+X, Y, VX, VY = sympy.symbols("x y vx vy")
+
+
+def test_theorem1_and_wellposedness_refuse_h0_and_take_a_scene_name():
+    skate = ldaspark.get_scene("skate")
+    q0, v0 = _skate_point()
+    tab = ldaspark.get_method("gauss-1")
+    for fn in (ldaspark.theorem1_residuals, ldaspark.check_symmetry):
+        with pytest.raises(InputError, match="h must be nonzero"):
+            fn(skate.system, tab, 0, q0, v0, 0, dps=20)
+    with pytest.raises(InputError, match="h must be nonzero"):
+        ldaspark.classify_wellposedness(skate.system, tab, 0, q0, v0, 0, dps=(16, 20))
+    by_name = ldaspark.theorem1_residuals("skate", "gauss-1", 0, None, None, "0.1", dps=20, max_refine=0)
+    by_obj = ldaspark.theorem1_residuals(skate.system, tab, 0, q0, v0, "0.1", dps=20, max_refine=0)
+    assert by_name["theorem1-q0"] < 1e-15 and by_obj["theorem1-q0"] < 1e-15
+    cls = ldaspark.classify_wellposedness("skate", "gauss-1", 0, None, None, "0.1", dps=(16, 20))
+    assert "sigma" in cls
+    with pytest.raises(InputError, match="system"):
+        ldaspark.theorem1_residuals(3, tab, 0, q0, v0, "0.1")
+    with pytest.raises(InputError, match="h_factors"):
+        ldaspark.classify_wellposedness("skate", "gauss-1", 0, None, None, "0.1", dps=(16, 20), h_factors=(1,))
+
+
+def test_parameter_declarations_are_checked():
+    L = "a*vx**2/2 + vy**2/2"
+    for bad in (dict(params={"a": True}), dict(params={"a": np.bool_(False)}), dict(params=["x"]),
+                dict(params=["t"]), dict(params=["a", "a"]), dict(params={"a": float("nan")})):
+        with pytest.raises(SystemDefinitionError):
+            ldaspark.LagrangianSystem(L, ["vx - vy"], [X, Y], [VX, VY], **bad)
+    ok = ldaspark.LagrangianSystem(L, ["vx - vy"], [X, Y], [VX, VY], params={"a": 2.0})
+    with pytest.raises(SystemDefinitionError, match="bool"):
+        ok.with_params(a=True)
+    with pytest.raises(InputError, match="bool"):
+        ldaspark.integrate(ok, "gauss-1", q0=[0, 0], v0=[1, 1], h=0.1, n_steps=1, params={"a": True})
+    res = ldaspark.integrate(ok, "gauss-1", q0=[0, 0], v0=[1, 1], h=0.1, n_steps=1, engine="generic",
+                             params={"a": 3})
+    assert res.status == 0
+
+
+# --- root 7: valid input that was refused --------------------------------------------------------
+def test_dense_output_at_mpf_and_fraction_times():
+    res = ldaspark.integrate("skate", "gauss-2", h=0.1, n_steps=3, dense_output=True, engine="generic")
+    ref = res.sol(0.05)
+    for t in (mpmath.mpf("0.05"), Fraction(1, 20), sympy.Rational(1, 20), np.float32(0.05)):
+        q, v = res.sol(t)
+        assert np.allclose(q, ref[0], atol=1e-7) and np.allclose(v, ref[1], atol=1e-7)
+    q, _ = res.sol([mpmath.mpf("0.05"), Fraction(1, 10)])
+    assert q.shape == (2, 3)
+    for bad in ("0.05", mpmath.mpf("nan"), Fraction(10 ** 400, 1), [mpmath.mpc(1, 1)], True):
+        with pytest.raises(InputError):
+            res.sol(bad)

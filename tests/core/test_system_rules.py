@@ -1,0 +1,109 @@
+"""Rules of ``ldaspark.core.system`` fed inputs on which the right rule and a plausible neighbour give
+different answers (a wrong comparison, one side of a pair, a ratio upside down, a field left
+out, a mutated computation). The expensive inner computations are replaced by small
+stand-ins where the rule under test is what is applied to their results."""
+from __future__ import annotations
+
+import pytest
+import sympy
+from ldaspark.core.system import LagrangianSystem
+from verification import systems_checks as SC
+import json
+import numpy as np
+
+
+def _toy():
+    x, y, u, w, t = sympy.symbols("x y u w t")
+    return LagrangianSystem((u ** 2 + w ** 2) / 2 + x * w - y ** 2 / 2, [w - x * u], [x, y], [u, w], t=t, name="toy"), \
+        (x, y, u, w)
+
+
+def test_wrong_sign_flips_the_symbol_where_asked():
+    S, (x, y, u, w) = _toy()
+    a = SC.wrong_sign(S, "L", "x")
+    assert sympy.expand(a.L - ((u ** 2 + w ** 2) / 2 - x * w - y ** 2 / 2)) == 0 and list(a.k) == list(S.k)
+    assert a.name == "toy-wrong-L"
+    b = SC.wrong_sign(S, "k", "u", name="kk")
+    assert sympy.expand(b.k[0] - (w + x * u)) == 0 and b.L == S.L and b.name == "kk"
+    assert b.q == S.q and b.v == S.v and b.t == S.t
+    with pytest.raises(AssertionError, match="changed nothing"):
+        SC.wrong_sign(S, "L", "u")          # L is even in u
+    with pytest.raises(AssertionError, match="changed nothing"):
+        SC.wrong_sign(S, "k", "y")          # k has no y
+
+
+def test_the_exact_flow_bvp_starts_from_the_secant_and_counts_from_one():
+    """A free particle under k = v2: the straight line is the solution, and the secant velocity
+    (q1 - q0)/h with zero accelerations solves the collocation system at once: one Newton
+    iteration (the first increment is zero). A guess (q1 - q0) * h needs a second; so does a count
+    that starts at 2."""
+    import mpmath
+    import sympy
+
+    from ldaspark.core.system import LagrangianSystem
+    from ldaspark.lab.theory import exact_flow as EF
+    q, v = sympy.symbols("q1:3"), sympy.symbols("v1:3")
+    free = LagrangianSystem((v[0] ** 2 + v[1] ** 2) / 2, [v[1]], q, v, name="free")
+    with mpmath.workdps(25):
+        r = EF.ExactFlow(free, dps=25, stages=2).bvp(0, ["0.3", "0"], "0.5", ["1.3", "0"], sensitivities=False)
+        assert r.iterations == 1
+        assert abs(r.v0[0] - 2) < mpmath.mpf(10) ** -20 and abs(r.v0[1]) < mpmath.mpf(10) ** -20
+
+
+def test_the_exact_flow_takes_24_gauss_stages_unless_told():
+    """The module's docstring: s = 24 by default (order 48)."""
+    import sympy
+
+    from ldaspark.core.system import LagrangianSystem
+    from ldaspark.lab.theory import exact_flow as EF
+    q, v = sympy.symbols("q1:3"), sympy.symbols("v1:3")
+    free = LagrangianSystem((v[0] ** 2 + v[1] ** 2) / 2, [v[1]], q, v, name="free")
+    assert EF.ExactFlow(free, dps=20).s == 24 and EF.ExactFlow(free, dps=20, stages=3).s == 3
+    import pytest
+
+    from ldaspark.core.errors import TableauError
+    with pytest.raises(TableauError, match="limit 48"):               # still bounded
+        EF.ExactFlow(free, dps=20, stages=49)
+
+
+def test_the_exact_flow_newton_stops_after_max_iter_iterations():
+    """From a wrong start the free particle needs two iterations (one to solve the linear system,
+    one to see a zero increment): max_iter = 1 is refused, 2 converges."""
+    import mpmath
+    import pytest
+    import sympy
+
+    from ldaspark.core.system import LagrangianSystem
+    from ldaspark.lab.theory import exact_flow as EF
+    q, v = sympy.symbols("q1:3"), sympy.symbols("v1:3")
+    free = LagrangianSystem((v[0] ** 2 + v[1] ** 2) / 2, [v[1]], q, v, name="free")
+    fl = EF.ExactFlow(free, dps=25, stages=2)
+    with mpmath.workdps(25):
+        guess = [0] * 4 + [mpmath.mpf(1), mpmath.mpf(0)]
+        with pytest.raises(EF.ExactFlowError, match="did not converge in 1 iterations"):
+            fl.bvp(0, ["0.3", "0"], "0.5", ["1.3", "0"], x_guess=guess, max_iter=1, sensitivities=False)
+        r = fl.bvp(0, ["0.3", "0"], "0.5", ["1.3", "0"], x_guess=guess, max_iter=2, sensitivities=False)
+        assert r.iterations == 2 and abs(r.v0[0] - 2) < mpmath.mpf(10) ** -20
+
+
+# --- the flow Jacobian's dependent velocities ---------------------------------------------------------
+def two_constraints():
+    """n = 4, m = 2, k = (v3 + q2 v4 - cos(q1) v1, v4 + (1 + q3) v3 - q1 v2): the dependent block
+    K_dep = [[1, q2], [1 + q3, 1]] is neither diagonal nor symmetric and k_q != 0."""
+    q, v = sympy.symbols("q1:5"), sympy.symbols("v1:5")
+    L = sum(x ** 2 for x in v) / 2 - (q[0] ** 2 + 2 * q[1] ** 2 + q[2] ** 2 / 2 + q[3] ** 2 / 3) / 2
+    k = [v[2] + q[1] * v[3] - sympy.cos(q[0]) * v[0], v[3] + (1 + q[2]) * v[2] - q[0] * v[1]]
+    return LagrangianSystem(L, k, q, v, name="two-constraints"), q, v, k
+
+
+def test_the_default_dependent_velocities_are_outside_the_rates():
+    import ldaspark
+    sysm, *_ = two_constraints()
+    fj = ldaspark.flow_jacobian(sysm, "gauss-1", [0.3, -0.2, 0.4, 0.1], [0.5, -0.7, 0.0, 0.0], 0.1,
+                                coords=["q1"], rates=["v1", "v2"])
+    B = np.asarray(fj.tangent, float)
+    # the rates' own entries are unit vectors; the dependent rows v3, v4 carry the correction
+    assert B[4, 1] == 1 and B[5, 2] == 1 and B[4, 2] == 0 and B[5, 1] == 0
+    assert np.any(B[6:, :] != 0)
+    assert fj.select == [0, 4, 5]
+    assert json.dumps(fj.select)
