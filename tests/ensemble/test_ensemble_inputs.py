@@ -78,7 +78,7 @@ def test_plan_results_grouped_by_spec():
 _CTRL_C = """
 import sys, time
 sys.path.insert(0, sys.argv[1])
-from test_reliability_ensemble import _sleep_task
+from test_ensemble_inputs import _sleep_task
 from ldaspark.ensemble import _run_plan
 print("start", flush=True)
 try:

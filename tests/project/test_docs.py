@@ -55,7 +55,7 @@ def test_public_docstring_is_numpydoc(obj_name):
 
 def test_numpydoc_check_sees_an_undocumented_parameter():
     # negative control: a docstring without Parameters / Returns / Examples is reported
-    assert {c for c, _ in _numpydoc_errors("tests.test_docs._prose_only")} >= {"PR01", "RT01", "EX01"}
+    assert {c for c, _ in _numpydoc_errors("tests.project.test_docs._prose_only")} >= {"PR01", "RT01", "EX01"}
 
 
 def _prose_only(system, h):
