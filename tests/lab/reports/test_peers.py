@@ -123,7 +123,13 @@ def test_peers_are_optional(monkeypatch, skate):
     assert set(ok) == set(peers.PEERS) - set(peers.SUNDIALS_PEERS)
     assert len(notes) == 1 and "scikit-sundae" in notes[0] and "cvode-adams" in notes[0]
     plan = work_precision.study_plan("skate", 10.0, (0.1,), (0.1,), (1e-6,), (1e-6,))
-    assert [m for k, m, _ in plan if k == "peer"] == ["ode-dop853", "ode-lsoda"]
+    assert [m for k, m, _ in plan if k == "peer"] == ["cyrk-nbsolve2-DOP853", "cyrk-nbsolve2-Vern8", "ode-dop853",
+                                                      "ode-lsoda"]
+    # the high orders run at the four largest steps only; the others at every step
+    plan = work_precision.study_plan("skate", 10.0, (0.4, 0.2, 0.1, 0.05, 0.025), (0.1,), (1e-6,), (1e-6,))
+    fast = {m: hs for k, m, hs in plan if k == "spark-fast"}
+    assert fast["gauss-8"] == fast["gauss-6"] == (0.4, 0.2, 0.1, 0.05) and fast["gauss-4"] == (0.4, 0.2, 0.1, 0.05, 0.025)
+    assert {"gauss-4", "gauss-6", "gauss-8"} <= set(fast)
     with pytest.raises(peers.PeerFailure, match="scikit-sundae"):
         peers.peer_solver(skate.system, "cvode-adams", 1e-6, 0.0, np.zeros(6), [1.0])
     # control: with the module present nothing is dropped
