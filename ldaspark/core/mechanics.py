@@ -195,6 +195,9 @@ def _speed_map(kind, q, u, kdes):
     if any(e.has(sympy.nan, sympy.zoo, sympy.oo, -sympy.oo) for e in sol):
         raise SystemDefinitionError(f"{kind}: the kinematic differential equations cannot be solved for "
                                     "the generalized speeds u (their u-coefficient matrix is singular)")
+    # the solve divides by pivots such as cos(theta) + sin(theta)^2/cos(theta) = 1/cos(theta): the
+    # removable 0/0 it leaves would reach k and the generated code (off by 3e-2 at fl(pi/2))
+    sol = [_cancel_trig(e) for e in sol]
     out = dict(zip(tied, sol))
     if any(e.has(*u) for e in sol):
         raise SystemDefinitionError(f"{kind}: the kinematic differential equations do not determine u from q'")
@@ -401,6 +404,23 @@ def _trig_normal(e):
         if isinstance(b, sympy.sin) and k.is_Integer and k >= 2:
             rep[p] = b ** (k % 2) * (1 - sympy.cos(b.args[0]) ** 2) ** (k // 2)
     return sympy.expand(e.xreplace(rep)) if rep else e
+
+
+def _cancel_trig(e, ops=4 * _SIMPLIFY_OPS):
+    """``e`` with the denominators that cancel modulo sin^2 + cos^2 = 1 cancelled: numerator and
+    denominator of ``together(e)`` brought to ``_trig_normal`` form, then ``cancel`` (a polynomial
+    gcd in the sines and cosines). Applied to what inverting the kinematic equations produces, the
+    pieces where such 0/0 arise; an expression with a numeric denominator, or larger than ``ops``
+    (the cost of expansion grows quickly), is returned as it is. A denominator that remains is a
+    true singularity of the model's chart (1/cos of Euler angles), not one of the solve."""
+    e = sympy.sympify(e)
+    n, d = sympy.fraction(sympy.together(e))
+    if d.is_number or sympy.count_ops(n) + sympy.count_ops(d) > ops:
+        return e
+    n, d = _trig_normal(n), _trig_normal(d)
+    if d.is_number:
+        return sympy.expand(n / d) if d != 0 else e
+    return sympy.cancel(n / d)
 
 
 def _w_from_dcm(a, b):
