@@ -77,16 +77,26 @@ def _is_zero(e, num, on_manifold=False) -> bool:
     return num.zero([e], on_manifold=on_manifold)
 
 
-def _to_symbols(exprs, qs, t):
-    """Replace q_i(t)'' (refused), q_i'(t) and q_i(t) by plain symbols."""
+def _to_symbols(exprs, qs, t, cache=None):
+    """Replace q_i(t)'' (refused), q_i'(t) and q_i(t) by symbols: Dummy ones (named q_i and
+    v_<q_i>), which no symbol of the model can equal, until ``_final_names`` names them once every
+    expression is known. ``cache``: coordinate -> its (q, v) dummies, shared by the calls of one
+    conversion (the same coordinate must get the same symbols every time). Without ``cache``: the
+    plain symbols q_i, v_<q_i> (what a system without name collisions has, for a caller that
+    writes an expression of its own in them)."""
     from sympy.core.function import AppliedUndef
+    plain = cache is None
+    cache = {} if cache is None else cache
     qsym, vsym = [], []
     for x in qs:
         if not (isinstance(x, AppliedUndef) and x.args == (t,)):
             raise SystemDefinitionError(f"coordinates must be dynamicsymbols q(t), got {x!r}")
-        nm = str(x.func)
-        qsym.append(sympy.Symbol(nm))
-        vsym.append(sympy.Symbol(f"v_{nm}"))
+        if x not in cache:
+            nm = str(x.func)
+            sym = sympy.Symbol if plain else sympy.Dummy
+            cache[x] = (sym(nm), sym(f"v_{nm}"))
+        qsym.append(cache[x][0])
+        vsym.append(cache[x][1])
     dsub = {sympy.Derivative(x, t): vs for x, vs in zip(qs, vsym)}
     qsub = dict(zip(qs, qsym))
     out = []
@@ -493,6 +503,19 @@ def _spin_frame(body, m: _Model, num):
                                 f"orient {_name(B)} (e.g. orient_axis) and give its angle a kinematic equation")
 
 
+def _check_symmetric(body, Ic, F, m: _Model, num):
+    """An inertia dyadic is symmetric (I_ij = I_ji); sympy stores whatever dyadic it is given, and
+    T = w . I . w / 2 would silently use its symmetric part only. Refused, naming the body."""
+    bad = [(i, j) for i in range(3) for j in range(i + 1, 3) if not _is_zero(Ic[i, j] - Ic[j, i], num)]
+    if bad:
+        i, j = bad[0]
+        ax = "xyz"
+        raise SystemDefinitionError(
+            f"{m.kind}: body {_name(body)}: its central inertia dyadic is not symmetric (in {_name(F)}: "
+            f"I_{ax[i]}{ax[j]} = {str(Ic[i, j])[:60]} but I_{ax[j]}{ax[i]} = {str(Ic[j, i])[:60]}); an inertia "
+            "dyadic must be symmetric: build it with inertia(frame, ixx, iyy, izz, ixy, iyz, izx)")
+
+
 def _kinetic_minus_potential(m: _Model, kin: _Kin, num):
     """T - V of the bodies (V: their ``potential_energy``)."""
     import sympy.physics.mechanics as me
@@ -507,6 +530,7 @@ def _kinetic_minus_potential(m: _Model, kin: _Kin, num):
             v = _components(kin.point_velocity(body.masscenter), F)
             w = _components(kin.angular_velocity(body.frame), F)
             Ic = body.central_inertia.to_matrix(F)
+            _check_symmetric(body, Ic, F, m, num)
             T += body.mass * (v.T * v)[0, 0] / 2 + (w.T * Ic * w)[0, 0] / 2
         elif isinstance(body, me.Particle):
             v = _components(kin.point_velocity(body.point), m.frame)
@@ -782,10 +806,12 @@ def _convert_model(m: _Model, name):
     if left:
         raise SystemDefinitionError(f"{m.kind}: the velocity constraints still contain speeds {left} after u -> q'")
 
+    cache = {}
+
     def conv(exprs, what):
         # m.q as it is at the call: rolling contacts add coordinates on the way
         try:
-            ex, qsym, vsym = _to_symbols(exprs, m.q, t)
+            ex, qsym, vsym = _to_symbols(exprs, m.q, t, cache)
         except SystemDefinitionError as exc:
             raise SystemDefinitionError(f"{m.kind}: {what}: {exc}") from None
         return [e.subs(t, tsym) for e in ex], qsym, vsym
@@ -844,6 +870,41 @@ def _convert_model(m: _Model, name):
     return Ls, ks, qsym, vsym, tsym
 
 
+def _final_names(exprs, forces, qsym, vsym, tsym, added):
+    """The system's symbols for the coordinates' dummies: q_i keeps its name, its velocity is
+    v_<name>, made fresh (trailing underscores) when that name is taken by a symbol of the model, a
+    coordinate or another velocity: a model constant named v_x stays a constant, never the velocity
+    of x. A coordinate of the user's that shares its name with a symbol of the model is refused
+    (both would be one symbol); one the adapter added (``added``) is renamed instead."""
+    dummies = set(qsym) | set(vsym)
+    own = {str(x) for e in list(exprs) + list(forces or []) for x in sympy.sympify(e).free_symbols
+           if x not in dummies}
+    own.add(str(tsym))
+    taken, rename, new_added = set(own), {}, {}
+    for x in qsym:
+        nm = x.name
+        if nm in taken:
+            if nm not in added:
+                what = "the time t" if nm == str(tsym) else f"a symbol {nm} of the model"
+                raise SystemDefinitionError(f"from_mechanics: the coordinate {nm}(t) has the name of {what}; "
+                                            "rename one of them (both would become one symbol)")
+            while nm in taken:
+                nm += "_"
+        taken.add(nm)
+        rename[x] = sympy.Symbol(nm)
+        if x.name in added:
+            new_added[nm] = added[x.name]
+    for x in vsym:
+        nm = x.name
+        while nm in taken:
+            nm += "_"
+        taken.add(nm)
+        rename[x] = sympy.Symbol(nm)
+    exprs = [sympy.sympify(e).xreplace(rename) for e in exprs]
+    forces = [sympy.sympify(e).xreplace(rename) for e in forces] if forces is not None else None
+    return exprs, forces, [rename[x] for x in qsym], [rename[x] for x in vsym], new_added
+
+
 def from_mechanics(model: Any, q: Optional[Sequence] = None, constraints: Optional[Sequence] = None,
                    params: Optional[Sequence] = None, name: str = "system", cls: Optional[type] = None) -> Any:
     """A ``LagrangianSystem`` from a KanesMethod, LagrangesMethod, System or a Lagrangian in
@@ -888,9 +949,11 @@ def from_mechanics(model: Any, q: Optional[Sequence] = None, constraints: Option
         except (sympy.SympifyError, TypeError, ValueError):
             raise SystemDefinitionError(f"from_mechanics: {type(model).__name__} is not a sympy expression") from None
         qs, cons = list(q), list(constraints or [])
-        exprs, qsym, vsym = _to_symbols([L] + cons, qs, t)
+        exprs, qsym, vsym = _to_symbols([L] + cons, qs, t, {})
         tsym = sympy.Symbol("t")
         exprs = [e.subs(t, tsym) for e in exprs]
+    added = dict(mdl.added) if reader is not None else {}
+    exprs, forces, qsym, vsym, added = _final_names(exprs, forces, qsym, vsym, tsym, added)
     Ls, ks = exprs[0], exprs[1:]
     if params is None:
         found = set().union(*(e.free_symbols for e in exprs + list(forces or []))) - set(qsym) - set(vsym) - {tsym}
@@ -901,7 +964,7 @@ def from_mechanics(model: Any, q: Optional[Sequence] = None, constraints: Option
     system.force_loads = list(mdl.force_loads) if reader is not None else []
     # what the adapter added to the model (empty when nothing): coordinate name -> why, and the
     # constraint rows appended after the model's own
-    system.added_coordinates = dict(mdl.added) if reader is not None else {}
+    system.added_coordinates = added
     system.added_constraints = list(mdl.added_rows) if reader is not None else []
     if getattr(system, "lvv_problem", None):
         # a model read from sympy.physics.mechanics: refused at once (the usual cause, kinematics
