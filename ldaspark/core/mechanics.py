@@ -136,7 +136,7 @@ class _Model:
         self.L, self.bodies, self.loads, self.cons, self.fixed = L, list(bodies or []), list(loads or []), cons, fixed
         self.config = list(config or [])     # configuration constraints (their derivatives must be in cons)
         self.added = {}                      # coordinate added by the adapter -> why
-        self.added_rows = []                 # constraint rows added by the adapter (after cons), why
+        self.added_rows = []                 # why of the last rows of k (the adapter added them)
         self.free = []                       # speeds that no kinematic equation ties to a coordinate
         self.tidy = True                     # cancel removable 0/0 in the mapped constraints
 
@@ -177,10 +177,13 @@ def _speed_map(kind, q, u, kdes):
     ``_add_speed_coordinates``)."""
     u = list(u)
     if not u:
-        return {}, []
+        return {}, [], [], []
     kdes = [sympy.sympify(e) for e in (kdes or [])]
     free = [x for x in u if not any(e.has(x) for e in kdes)]
     tied = [x for x in u if x not in free]
+    if len(kdes) > len(tied) and tied:
+        # Kane's minimal speeds: q' = W(q) u + w(q) with fewer speeds than equations
+        return _minimal_speeds(kind, q, tied, kdes) + (free,)
     if len(kdes) != len(tied):
         which = f" (in them: {len(tied)} of the speeds)" if free else ""
         raise SystemDefinitionError(
@@ -188,7 +191,7 @@ def _speed_map(kind, q, u, kdes):
             "(1) needs the equations to determine every speed they contain from q' (a speed in none of them "
             "gets a coordinate of its own)")
     if not tied:
-        return {}, free
+        return {}, [], [], free
     kd = sympy.Matrix(kdes)
     A = kd.jacobian(tied)
     rest = kd.xreplace(dict.fromkeys(tied, 0))
@@ -211,7 +214,121 @@ def _speed_map(kind, q, u, kdes):
     out = dict(zip(tied, sol))
     if any(e.has(*u) for e in sol):
         raise SystemDefinitionError(f"{kind}: the kinematic differential equations do not determine u from q'")
-    return out, free
+    return out, [], [], free
+
+
+#: bounds of the derivation of Kane's minimal-speed constraints: equations, and the subsets of
+#: them tried for an invertible block (C(n, o) grows quickly)
+_MAX_KDES = 16
+_MAX_SUBSETS = 400
+
+
+def _nonzero_somewhere(e, seed=47) -> bool:
+    """e is not identically zero: its value at a random point of (q, parameters) (two points; a
+    determinant that vanishes at both is treated as singular)."""
+    from sympy.physics.mechanics import find_dynamicsymbols
+    rng = np.random.default_rng(seed)
+    for _ in range(2):
+        sub = {x: sympy.Float(rng.uniform(0.3, 1.2), 20) for x in find_dynamicsymbols(e)}
+        val = e.xreplace(sub)
+        val = val.xreplace({x: sympy.Float(rng.uniform(0.5, 1.5), 20) for x in val.free_symbols})
+        try:
+            if abs(complex(val.evalf(20))) > 1e-8:
+                return True
+        except (TypeError, ValueError):
+            continue
+    return False
+
+
+def _minimal_speeds(kind, q, tied, kdes):
+    """Kane's minimal speeds: kinematic differential equations A(q) u + r(q, q') = 0, n of them
+    (one per coordinate) in o < n speeds, r linear in q' (q' = W u + w with W = -B^{-1} A of rank
+    o < n). (1) needs a velocity for every coordinate, so the rolling conditions the model built
+    into the kinematics become velocity constraints: the left null space of A applied to r,
+    k = N(q)^T r(q, q') = 0 (zero exactly on q' = W u + w, and N^T A = 0 leaves no u).
+
+    Derived without dividing: a block A_S of o rows with det(A_S) != 0 gives u = -adj(A_S) r_S /
+    det(A_S) and the n - o rows det(A_S) r_R - A_R adj(A_S) r_S (= det(A_S) (A_R u + r_R)). A
+    block whose determinant is a nonzero number after sin^2 + cos^2 = 1 is preferred (u and k
+    polynomial: rolling-disc and contact coordinates); otherwise (quaternions: every 3 x 3 block
+    of E(q)^T vanishes somewhere) u = -(A^T A)^{-1} A^T r (A^T A = |q|^2 / 4 for a quaternion) and
+    each row is divided by the gcd of its coefficients (|q|^2: what remains is q . q' = 0). Each
+    piece is reduced by ``_cancel_trig``. Returns ({u: u(q, q')}, rows, why-per-row)."""
+    from itertools import combinations
+    from sympy.physics.mechanics import dynamicsymbols
+    t = dynamicsymbols._t
+    n, o = len(kdes), len(tied)
+    if n > _MAX_KDES:
+        raise SystemDefinitionError(f"{kind}: {n} kinematic differential equations in {o} speeds: more than "
+                                    f"{_MAX_KDES} are not reduced to velocity constraints (give one speed per "
+                                    "coordinate and the constraints as velocity_constraints)")
+    kd = sympy.Matrix(kdes)
+    qd = [x.diff(t) for x in q]
+    A = kd.jacobian(tied)
+    r = kd.xreplace(dict.fromkeys(tied, 0))
+    if A.has(*tied) or A.has(*qd) or r.jacobian(qd).has(*qd):
+        raise SystemDefinitionError(f"{kind}: the kinematic differential equations are not linear in u and q'")
+    subsets = list(combinations(range(n), o))[:_MAX_SUBSETS]
+    numeric, symbolic = None, None
+    for S in subsets:
+        AS = A.extract(list(S), list(range(o)))
+        d = AS.det(method="berkowitz")
+        d = _trig_normal(d) if sympy.count_ops(d) <= 4 * _SIMPLIFY_OPS else d
+        if d.is_number:
+            if d != 0:
+                numeric = (S, AS, d)
+                break
+        elif symbolic is None and _nonzero_somewhere(d):
+            symbolic = (S, AS, d)
+    if numeric is None and symbolic is None:
+        raise SystemDefinitionError(f"{kind}: {o} generalized speeds but {n} kinematic differential equations, "
+                                    "and the speeds' coefficients have rank < " f"{o}: the speeds are not "
+                                    "independent (q' = W u + w needs W of full column rank)")
+    S, AS, d = numeric or symbolic
+    R = [i for i in range(n) if i not in S]
+    adj = AS.adjugate(method="berkowitz")
+    rS = r.extract(list(S), [0])
+    rows = [d * r[i] - (A[i, :] * adj * rS)[0, 0] for i in R]
+    def red(e):
+        e = _cancel_trig(e)
+        small = sympy.denom(e).is_number and sympy.count_ops(e) <= 4 * _SIMPLIFY_OPS
+        return _trig_normal(e) if small else e
+    if numeric is not None:
+        sol = [red(e / d) for e in (-adj * rS)]
+        rows = [red(e / d) for e in rows]
+    else:
+        G = (A.T * A).applyfunc(_cancel_trig)
+        try:
+            sol = [_cancel_trig(e) for e in G.LUsolve(-A.T * r)]
+        except (ValueError, ZeroDivisionError, sympy.matrices.exceptions.NonInvertibleMatrixError):
+            raise SystemDefinitionError(f"{kind}: the kinematic differential equations cannot be solved for "
+                                        "the generalized speeds u (A^T A is singular)") from None
+        rows = [_primitive(_cancel_trig(e), qd) for e in rows]
+    if any(e.has(sympy.nan, sympy.zoo, sympy.oo, -sympy.oo) for e in list(sol) + rows):
+        raise SystemDefinitionError(f"{kind}: the kinematic differential equations cannot be solved for "
+                                    "the generalized speeds u")
+    rows = [e for e in rows if e != 0]
+    why = [f"kinematics: {o} speeds for {n} coordinates, q' = W(q) u + w(q) holds only where this row of "
+           "N(q)^T (q' - w) is 0 (N spans the left null space of W)" for _ in rows]
+    return dict(zip(tied, sol)), rows, why
+
+
+def _primitive(e, qd):
+    """e (linear in q') divided by the gcd of its coefficients, a factor that does not vanish
+    where the constraint does (|q|^2 of a quaternion's q . q')."""
+    ex = sympy.expand(e)
+    coeffs = [ex.coeff(x) for x in qd]
+    coeffs.append(ex.xreplace(dict.fromkeys(qd, 0)))
+    coeffs = [c for c in coeffs if c != 0]
+    if not coeffs:
+        return e
+    try:
+        g = sympy.gcd_list(coeffs)
+    except (sympy.polys.polyerrors.PolynomialError, sympy.polys.polyerrors.CoercionFailed):
+        return e
+    if g.is_number or g == 0:
+        return e
+    return sympy.expand(sympy.cancel(ex / g))
 
 
 def _read_kane(model):
@@ -223,10 +340,11 @@ def _read_kane(model):
                                     "u cannot be mapped to q'")
     qd = sympy.Matrix([x.diff(t) for x in q])
     kdes = list(model._k_ku_implicit * model.u + model._k_kqdot_implicit * qd + model._f_k_implicit)
-    u_map, free = _speed_map("KanesMethod", q, u, kdes)
+    u_map, krows, kwhy, free = _speed_map("KanesMethod", q, u, kdes)
     cons = []
     if len(model._k_nh):
         cons = list(model._k_nh * model.u + model._f_nh)
+    cons += krows
     if not model.bodies:
         raise SystemDefinitionError("KanesMethod has no bodies: give bodies=[...] (or call "
                                     "kanes_equations(bodies, loads) first)")
@@ -236,6 +354,7 @@ def _read_kane(model):
     # with denominators (1/cos of inverted kinematics) leaves removable 0/0 to cancel
     qu = getattr(model, "_qdot_u_map", None) or {}
     m.tidy = any(not sympy.denom(sympy.together(e)).is_number for e in qu.values())
+    m.added_rows = list(kwhy)
     _add_speed_coordinates(m, free)
     return m
 
@@ -251,14 +370,15 @@ def _read_lagranges(model):
 
 def _read_system(model):
     q, u = list(model.q), list(model.u)
-    u_map, free = _speed_map("System", q, u, list(model.kdes))
+    u_map, krows, kwhy, free = _speed_map("System", q, u, list(model.kdes))
     loads = list(model.loads or [])
     for act in getattr(model, "actuators", None) or []:
         loads.extend(act.to_loads())
-    cons = list(model.velocity_constraints)
+    cons = list(model.velocity_constraints) + krows
     if not model.bodies:
         raise SystemDefinitionError("System has no bodies: add them with add_bodies(...)")
     m = _Model("System", model.frame, q, u_map, None, model.bodies, loads, cons, fixed=model.fixed_point)
+    m.added_rows = list(kwhy)
     _add_speed_coordinates(m, free)
     return m
 
@@ -555,12 +675,36 @@ def _load_parts(load, kind):
     return loc, vec
 
 
+def _unit_norm_groups(ks, qsym, vsym):
+    """The groups S of coordinates with a row of k equal to c q_S . v_S (c != 0 a constant): the
+    velocity form of |q_S|^2 = const, which for a quaternion's orientation means |q_S| = 1."""
+    groups = []
+    vz = dict.fromkeys(vsym, 0)
+    for k in ks:
+        k = sympy.expand(k)
+        if k.xreplace(vz) != 0:
+            continue
+        a = [k.coeff(v) for v in vsym]
+        S = [i for i, c in enumerate(a) if c != 0]
+        if len(S) < 2 or any(v in c.free_symbols for c in a for v in vsym):
+            continue
+        c0 = sympy.cancel(a[S[0]] / qsym[S[0]])
+        if c0.free_symbols & set(qsym) or c0 == 0:
+            continue
+        if all(sympy.expand(a[i] - c0 * qsym[i]) == 0 for i in S):
+            groups.append([qsym[i] for i in S])
+    return groups
+
+
 class _Numeric:
     """Random points (t, q, v, parameters) on the constraint manifold, for checks that
     simplification does not decide."""
 
     def __init__(self, qsym, vsym, tsym, ks, seed=20260):
         self.q, self.v, self.t, self.ks = qsym, vsym, tsym, list(ks)
+        # coordinates whose velocity constraint is q_S . q_S' = 0 (a quaternion's unit norm in
+        # velocity form): the points lie on |q_S| = 1, where the model's orientation is a rotation
+        self.spheres = _unit_norm_groups(self.ks, qsym, vsym)
         self.rng = np.random.default_rng(seed)
         self._pts = None
 
@@ -572,6 +716,9 @@ class _Numeric:
             pts = []
             for _ in range(_N_CHECK):
                 sub = {x: float(self.rng.uniform(0.3, 1.2)) for x in self.q}
+                for grp in self.spheres:
+                    nrm = float(np.sqrt(sum(sub[x] ** 2 for x in grp)))
+                    sub.update({x: sub[x] / nrm for x in grp})
                 sub.update({p: float(self.rng.uniform(0.5, 1.5)) for p in pars})
                 sub[self.t] = float(self.rng.uniform(0, 1))
                 z = self.rng.uniform(-1, 1, len(self.v))
