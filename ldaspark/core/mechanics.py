@@ -137,6 +137,7 @@ class _Model:
         self.config = list(config or [])     # configuration constraints (their derivatives must be in cons)
         self.added = {}                      # coordinate added by the adapter -> why
         self.added_rows = []                 # why of the last rows of k (the adapter added them)
+        self.added_terms = []                # terms added to L that vanish on k = 0 (why)
         self.free = []                       # speeds that no kinematic equation ties to a coordinate
         self.tidy = True                     # cancel removable 0/0 in the mapped constraints
 
@@ -692,7 +693,7 @@ def _unit_norm_groups(ks, qsym, vsym):
         if c0.free_symbols & set(qsym) or c0 == 0:
             continue
         if all(sympy.expand(a[i] - c0 * qsym[i]) == 0 for i in S):
-            groups.append([qsym[i] for i in S])
+            groups.append(S)
     return groups
 
 
@@ -717,8 +718,8 @@ class _Numeric:
             for _ in range(_N_CHECK):
                 sub = {x: float(self.rng.uniform(0.3, 1.2)) for x in self.q}
                 for grp in self.spheres:
-                    nrm = float(np.sqrt(sum(sub[x] ** 2 for x in grp)))
-                    sub.update({x: sub[x] / nrm for x in grp})
+                    nrm = float(np.sqrt(sum(sub[self.q[i]] ** 2 for i in grp)))
+                    sub.update({self.q[i]: sub[self.q[i]] / nrm for i in grp})
                 sub.update({p: float(self.rng.uniform(0.5, 1.5)) for p in pars})
                 sub[self.t] = float(self.rng.uniform(0, 1))
                 z = self.rng.uniform(-1, 1, len(self.v))
@@ -941,6 +942,34 @@ def _root_contacts(m: _Model, kin: _Kin, conv, num):
     return rows
 
 
+def _regularize_unit_norm(L, qsym, vsym, num, m: _Model):
+    """L + mu (q_S . v_S)^2 / 2 for each unit-norm group S (a quaternion, ``_unit_norm_groups``)
+    along whose direction q_S L_vv vanishes, mu = trace(L_vv on S) / (|S| - 1).
+
+    An orientation depends on q_S / |q_S| only, so its kinetic energy does not see the velocity
+    q_S: L_vv q_S = 0, and although the saddle matrix (4) is regular (k's row q_S . v_S covers that
+    direction) the SPARK stage equations P_i = grad_v L(Q_i, V_i) of (21) leave the component of
+    V_i along q_S to the s - 1 averaged constraints: gauss-2 stops converging, gauss-3 and
+    lobatto-iiia-iiib-3 lose two orders on a ball in quaternions. The added term, c k^2 / 2 with k
+    the constraint row, changes no solution of (1): its Euler-Lagrange terms mu k' grad_v k + k (...)
+    vanish where k = 0 holds for all t; it makes L_vv regular with the eigenvalue mu along q_S
+    (the mean of the others: the scale of the body's inertia)."""
+    for grp in num.spheres:
+        qs, vs = [qsym[i] for i in grp], [vsym[i] for i in grp]
+        grad = [L.diff(v) for v in vs]
+        along = [sum(g.diff(v) * x for x, v in zip(qs, vs)) for g in grad]
+        if not all(_is_zero(a, num, on_manifold=False) for a in along):
+            continue               # L_vv already regular along q_S: nothing to add
+        mu = sum(g.diff(v) for g, v in zip(grad, vs)) / (len(grp) - 1)
+        if _is_zero(mu, num, on_manifold=False):
+            continue
+        k = sum(x * v for x, v in zip(qs, vs))
+        L = L + mu * k ** 2 / 2
+        m.added_terms.append(f"mu ({k})^2 / 2 with mu = trace of L_vv over {', '.join(map(str, vs))} / "
+                             f"{len(grp) - 1}: makes L_vv regular along the unit-norm direction (zero on k = 0)")
+    return L
+
+
 def _convert_model(m: _Model, name):
     """(L, k, qsym, vsym) in plain symbols from a read model."""
     import sympy.physics.mechanics as me
@@ -995,6 +1024,7 @@ def _convert_model(m: _Model, name):
             named.append(f"loads[{i}] ({'force on point' if isinstance(loc, me.Point) else 'torque on frame'} "
                          f"{_name(loc)})")
     m.forces, m.force_loads = (forces if named else None), named
+    Ls = _regularize_unit_norm(Ls, qsym, vsym, num, m)
     # the velocities set in the model must be the derived ones where the constraints hold
     for what, derived, given in kin.checks:
         diff = list((derived - given).to_matrix(m.frame))
@@ -1113,6 +1143,7 @@ def from_mechanics(model: Any, q: Optional[Sequence] = None, constraints: Option
     # constraint rows appended after the model's own
     system.added_coordinates = added
     system.added_constraints = list(mdl.added_rows) if reader is not None else []
+    system.added_terms = list(mdl.added_terms) if reader is not None else []
     if getattr(system, "lvv_problem", None):
         # a model read from sympy.physics.mechanics: refused at once (the usual cause, kinematics
         # with the rolling condition built in, is a modelling choice the user can change)
