@@ -172,6 +172,23 @@ def test_a_wrong_rolling_row_is_refused_or_disagrees_with_sympy(fault, monkeypat
     assert worst > 1e3 * ACC_TOL
 
 
+@pytest.mark.skipif(not hasattr(me, "System"), reason="sympy.physics.mechanics.System needs sympy >= 1.13")
+def test_disc_as_a_system_equals_the_kane_form(disc):
+    """The same disc given as a ``System`` (coordinates, speeds, kinematic equations, body, load):
+    the same L and the same derived rows (two-sided: equal, symbolically)."""
+    s, _ = disc
+    kane, info = rolling_disc()
+    sysm = me.System(kane._inertial)
+    sysm.add_coordinates(*info["q"])
+    sysm.add_speeds(*info["u"])
+    sysm.add_kdes(*info["kd"])
+    sysm.add_bodies(*kane.bodies)
+    sysm.add_loads(*kane.loads)
+    s2 = LagrangianSystem.from_mechanics(sysm, name="disc")
+    assert sympy.expand(s.L - s2.L) == 0 and s2.m == 2
+    assert all(sympy.expand(a - b) == 0 for a, b in zip(s.k, s2.k))
+
+
 def test_speeds_that_are_not_independent_are_refused():
     q = me.dynamicsymbols("q1:4")
     u1, u2 = me.dynamicsymbols("u1 u2")

@@ -47,7 +47,16 @@ has it: d/dt grad_v L = grad_q L - K^T psi + F. F is the system's ``N`` (the slo
 term of section 3.3, which every engine integrates, R_i = -K_i^T Psi_i + F(T_i, Q_i, V_i) in (21b,
 d)); ``system.force_loads`` names those loads. A model without velocity constraints has m = 0.
 
-Each q_i(t) becomes a plain symbol named after it and q_i'(t) a symbol ``v_<name>``; the time
+Kane's minimal speeds. Kinematic equations with fewer speeds than coordinates, q' = W(q) u + w(q)
+with W of rank o < n (the rolling condition built in, a quaternion's four rates from three
+angular speeds), give velocity constraints k = N(q)^T (q' - w) = 0, N spanning the left null
+space of W (``_minimal_speeds``, without division where a block of W has a numeric determinant);
+a quaternion's unit norm appears as e . e' = 0, its points are sampled on |e| = 1 and L gets
+mu (e . e')^2 / 2 where L_vv does not see that direction (``_regularize_unit_norm``). The pieces
+that come from inverting the kinematic equations are freed of removable 0/0 (``_cancel_trig``).
+
+Each q_i(t) becomes a plain symbol named after it and q_i'(t) a symbol ``v_<name>`` (with trailing
+underscores when the model has a symbol of that name, ``_final_names``); the time
 ``dynamicsymbols._t`` becomes the system's t. Free symbols other than t are the system's
 parameters (values at integrate time) unless ``params`` lists them explicitly. Anything that
 cannot be mapped is refused with a one-line ``SystemDefinitionError`` naming it.
