@@ -98,3 +98,28 @@ def test_a_coordinate_named_like_a_model_symbol_is_refused(clash):
         LagrangianSystem.from_mechanics(L, q=[x])
     msg = str(ei.value)
     assert "\n" not in msg and f"coordinate {clash}(t)" in msg
+
+
+def test_an_added_coordinate_named_like_a_constant_is_renamed():
+    """A speed in no kinematic equation (a wheel's spin) gets a coordinate q_<speed> of the
+    adapter's; a model constant named q_u2 keeps its name and meaning, the added coordinate is
+    renamed (and ``added_coordinates`` names it as renamed)."""
+    x = me.dynamicsymbols("x")
+    u1, u2 = me.dynamicsymbols("u1 u2")
+    m, J, Jt = sympy.symbols("m J Jt", positive=True)
+    c = sympy.Symbol("q_u2")
+    N, W = me.ReferenceFrame("N"), me.ReferenceFrame("W")
+    W.set_ang_vel(N, u2 * N.y)
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    P = O.locatenew("P", x * N.x)
+    P.set_vel(N, u1 * N.x)
+    wheel = me.RigidBody("wheel", P, W, m, (me.inertia(N, Jt, J, Jt), P))
+    km = me.KanesMethod(N, [x], [u1, u2], [x.diff(t) - u1], bodies=[wheel], forcelist=[(P, -c * N.x)])
+    s = LagrangianSystem.from_mechanics(km)
+    assert [str(a) for a in s.q] == ["x", "q_u2_"] and list(s.added_coordinates) == ["q_u2_"]
+    assert c in set(s.params)
+    # the constant is the force (grad_x L = -q_u2), the spin's velocity carries J: both two-sided
+    assert sympy.expand(s.L.diff(s.q[0]) + c) == 0
+    J = _by_name(s.params)["J"]
+    assert sympy.expand(s.L.diff(s.v[1]) - J * s.v[1]) == 0 and s.L.diff(s.q[1]) == 0
