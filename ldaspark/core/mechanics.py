@@ -264,7 +264,7 @@ def _minimal_speeds(kind, q, tied, kdes):
     of E(q)^T vanishes somewhere) u = -(A^T A)^{-1} A^T r (A^T A = |q|^2 / 4 for a quaternion) and
     each row is divided by the gcd of its coefficients (|q|^2: what remains is q . q' = 0). Each
     piece is reduced by ``_cancel_trig``. Returns ({u: u(q, q')}, rows, why-per-row)."""
-    from itertools import combinations
+    from itertools import combinations, islice
     from sympy.physics.mechanics import dynamicsymbols
     t = dynamicsymbols._t
     n, o = len(kdes), len(tied)
@@ -278,7 +278,7 @@ def _minimal_speeds(kind, q, tied, kdes):
     r = kd.xreplace(dict.fromkeys(tied, 0))
     if A.has(*tied) or A.has(*qd) or r.jacobian(qd).has(*qd):
         raise SystemDefinitionError(f"{kind}: the kinematic differential equations are not linear in u and q'")
-    subsets = list(combinations(range(n), o))[:_MAX_SUBSETS]
+    subsets = islice(combinations(range(n), o), _MAX_SUBSETS)
     numeric, symbolic = None, None
     for S in subsets:
         AS = A.extract(list(S), list(range(o)))
@@ -718,6 +718,10 @@ def _unit_norm_groups(ks, qsym, vsym):
     groups = []
     vz = dict.fromkeys(vsym, 0)
     for k in ks:
+        # a norm row is a small polynomial: rows with functions (sin, cos) or large ones are not
+        # expanded (the build of a large model must not pay for it)
+        if k.atoms(sympy.Function) or sympy.count_ops(k) > 200:
+            continue
         k = sympy.expand(k)
         if k.xreplace(vz) != 0:
             continue
