@@ -407,6 +407,7 @@ class _Kin:
         self.checks = []          # (what, derived vector, set vector): compared on the manifold
         self._checked = set()
         self.roots = {}           # id(point) -> {"offset", "material"}: rolling contacts given coordinates
+        self._w_cache = {}        # (id(frame), id(parent)) -> angular velocity from the orientation
 
     def _sub(self, vec):
         return vec.xreplace(self.m.u_map) if self.m.u_map else vec
@@ -514,7 +515,10 @@ class _Kin:
                 if stored is not None and not (speeds and stored.free_dynamicsymbols(b) & speeds):
                     derived += stored
                 else:
-                    derived += _w_quaternion(a, b) or _w_from_dcm(a, b)
+                    key = (id(a), id(b))
+                    if key not in self._w_cache:      # asked again for every position differentiated
+                        self._w_cache[key] = _w_quaternion(a, b) or _w_from_dcm(a, b)
+                    derived += self._w_cache[key]
         if derived is not None:
             if set_w is not None:
                 self._check(f"frame {_name(B)}", B, derived, set_w)
