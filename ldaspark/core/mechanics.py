@@ -47,7 +47,16 @@ has it: d/dt grad_v L = grad_q L - K^T psi + F. F is the system's ``N`` (the slo
 term of section 3.3, which every engine integrates, R_i = -K_i^T Psi_i + F(T_i, Q_i, V_i) in (21b,
 d)); ``system.force_loads`` names those loads. A model without velocity constraints has m = 0.
 
-Each q_i(t) becomes a plain symbol named after it and q_i'(t) a symbol ``v_<name>``; the time
+Kane's minimal speeds. Kinematic equations with fewer speeds than coordinates, q' = W(q) u + w(q)
+with W of rank o < n (the rolling condition built in, a quaternion's four rates from three
+angular speeds), give velocity constraints k = N(q)^T (q' - w) = 0, N spanning the left null
+space of W (``_minimal_speeds``, without division where a block of W has a numeric determinant);
+a quaternion's unit norm appears as e . e' = 0, its points are sampled on |e| = 1 and L gets
+mu (e . e')^2 / 2 where L_vv does not see that direction (``_regularize_unit_norm``). The pieces
+that come from inverting the kinematic equations are freed of removable 0/0 (``_cancel_trig``).
+
+Each q_i(t) becomes a plain symbol named after it and q_i'(t) a symbol ``v_<name>`` (with trailing
+underscores when the model has a symbol of that name, ``_final_names``); the time
 ``dynamicsymbols._t`` becomes the system's t. Free symbols other than t are the system's
 parameters (values at integrate time) unless ``params`` lists them explicitly. Anything that
 cannot be mapped is refused with a one-line ``SystemDefinitionError`` naming it.
@@ -77,16 +86,26 @@ def _is_zero(e, num, on_manifold=False) -> bool:
     return num.zero([e], on_manifold=on_manifold)
 
 
-def _to_symbols(exprs, qs, t):
-    """Replace q_i(t)'' (refused), q_i'(t) and q_i(t) by plain symbols."""
+def _to_symbols(exprs, qs, t, cache=None):
+    """Replace q_i(t)'' (refused), q_i'(t) and q_i(t) by symbols: Dummy ones (named q_i and
+    v_<q_i>), which no symbol of the model can equal, until ``_final_names`` names them once every
+    expression is known. ``cache``: coordinate -> its (q, v) dummies, shared by the calls of one
+    conversion (the same coordinate must get the same symbols every time). Without ``cache``: the
+    plain symbols q_i, v_<q_i> (what a system without name collisions has, for a caller that
+    writes an expression of its own in them)."""
     from sympy.core.function import AppliedUndef
+    plain = cache is None
+    cache = {} if cache is None else cache
     qsym, vsym = [], []
     for x in qs:
         if not (isinstance(x, AppliedUndef) and x.args == (t,)):
             raise SystemDefinitionError(f"coordinates must be dynamicsymbols q(t), got {x!r}")
-        nm = str(x.func)
-        qsym.append(sympy.Symbol(nm))
-        vsym.append(sympy.Symbol(f"v_{nm}"))
+        if x not in cache:
+            nm = str(x.func)
+            sym = sympy.Symbol if plain else sympy.Dummy
+            cache[x] = (sym(nm), sym(f"v_{nm}"))
+        qsym.append(cache[x][0])
+        vsym.append(cache[x][1])
     dsub = {sympy.Derivative(x, t): vs for x, vs in zip(qs, vsym)}
     qsub = dict(zip(qs, qsym))
     out = []
@@ -126,7 +145,8 @@ class _Model:
         self.L, self.bodies, self.loads, self.cons, self.fixed = L, list(bodies or []), list(loads or []), cons, fixed
         self.config = list(config or [])     # configuration constraints (their derivatives must be in cons)
         self.added = {}                      # coordinate added by the adapter -> why
-        self.added_rows = []                 # constraint rows added by the adapter (after cons), why
+        self.added_rows = []                 # why of the last rows of k (the adapter added them)
+        self.added_terms = []                # terms added to L that vanish on k = 0 (why)
         self.free = []                       # speeds that no kinematic equation ties to a coordinate
         self.tidy = True                     # cancel removable 0/0 in the mapped constraints
 
@@ -167,10 +187,13 @@ def _speed_map(kind, q, u, kdes):
     ``_add_speed_coordinates``)."""
     u = list(u)
     if not u:
-        return {}, []
+        return {}, [], [], []
     kdes = [sympy.sympify(e) for e in (kdes or [])]
     free = [x for x in u if not any(e.has(x) for e in kdes)]
     tied = [x for x in u if x not in free]
+    if len(kdes) > len(tied) and tied:
+        # Kane's minimal speeds: q' = W(q) u + w(q) with fewer speeds than equations
+        return _minimal_speeds(kind, q, tied, kdes) + (free,)
     if len(kdes) != len(tied):
         which = f" (in them: {len(tied)} of the speeds)" if free else ""
         raise SystemDefinitionError(
@@ -178,7 +201,7 @@ def _speed_map(kind, q, u, kdes):
             "(1) needs the equations to determine every speed they contain from q' (a speed in none of them "
             "gets a coordinate of its own)")
     if not tied:
-        return {}, free
+        return {}, [], [], free
     kd = sympy.Matrix(kdes)
     A = kd.jacobian(tied)
     rest = kd.xreplace(dict.fromkeys(tied, 0))
@@ -195,10 +218,127 @@ def _speed_map(kind, q, u, kdes):
     if any(e.has(sympy.nan, sympy.zoo, sympy.oo, -sympy.oo) for e in sol):
         raise SystemDefinitionError(f"{kind}: the kinematic differential equations cannot be solved for "
                                     "the generalized speeds u (their u-coefficient matrix is singular)")
+    # the solve divides by pivots such as cos(theta) + sin(theta)^2/cos(theta) = 1/cos(theta): the
+    # removable 0/0 it leaves would reach k and the generated code (off by 3e-2 at fl(pi/2))
+    sol = [_cancel_trig(e) for e in sol]
     out = dict(zip(tied, sol))
     if any(e.has(*u) for e in sol):
         raise SystemDefinitionError(f"{kind}: the kinematic differential equations do not determine u from q'")
-    return out, free
+    return out, [], [], free
+
+
+#: bounds of the derivation of Kane's minimal-speed constraints: equations, and the subsets of
+#: them tried for an invertible block (C(n, o) grows quickly)
+_MAX_KDES = 16
+_MAX_SUBSETS = 400
+
+
+def _nonzero_somewhere(e, seed=47) -> bool:
+    """e is not identically zero: its value at a random point of (q, parameters) (two points; a
+    determinant that vanishes at both is treated as singular)."""
+    from sympy.physics.mechanics import find_dynamicsymbols
+    rng = np.random.default_rng(seed)
+    for _ in range(2):
+        sub = {x: sympy.Float(rng.uniform(0.3, 1.2), 20) for x in find_dynamicsymbols(e)}
+        val = e.xreplace(sub)
+        val = val.xreplace({x: sympy.Float(rng.uniform(0.5, 1.5), 20) for x in val.free_symbols})
+        try:
+            if abs(complex(val.evalf(20))) > 1e-8:
+                return True
+        except (TypeError, ValueError):
+            continue
+    return False
+
+
+def _minimal_speeds(kind, q, tied, kdes):
+    """Kane's minimal speeds: kinematic differential equations A(q) u + r(q, q') = 0, n of them
+    (one per coordinate) in o < n speeds, r linear in q' (q' = W u + w with W = -B^{-1} A of rank
+    o < n). (1) needs a velocity for every coordinate, so the rolling conditions the model built
+    into the kinematics become velocity constraints: the left null space of A applied to r,
+    k = N(q)^T r(q, q') = 0 (zero exactly on q' = W u + w, and N^T A = 0 leaves no u).
+
+    Derived without dividing: a block A_S of o rows with det(A_S) != 0 gives u = -adj(A_S) r_S /
+    det(A_S) and the n - o rows det(A_S) r_R - A_R adj(A_S) r_S (= det(A_S) (A_R u + r_R)). A
+    block whose determinant is a nonzero number after sin^2 + cos^2 = 1 is preferred (u and k
+    polynomial: rolling-disc and contact coordinates); otherwise (quaternions: every 3 x 3 block
+    of E(q)^T vanishes somewhere) u = -(A^T A)^{-1} A^T r (A^T A = |q|^2 / 4 for a quaternion) and
+    each row is divided by the gcd of its coefficients (|q|^2: what remains is q . q' = 0). Each
+    piece is reduced by ``_cancel_trig``. Returns ({u: u(q, q')}, rows, why-per-row)."""
+    from itertools import combinations, islice
+    from sympy.physics.mechanics import dynamicsymbols
+    t = dynamicsymbols._t
+    n, o = len(kdes), len(tied)
+    if n > _MAX_KDES:
+        raise SystemDefinitionError(f"{kind}: {n} kinematic differential equations in {o} speeds: more than "
+                                    f"{_MAX_KDES} are not reduced to velocity constraints (give one speed per "
+                                    "coordinate and the constraints as velocity_constraints)")
+    kd = sympy.Matrix(kdes)
+    qd = [x.diff(t) for x in q]
+    A = kd.jacobian(tied)
+    r = kd.xreplace(dict.fromkeys(tied, 0))
+    if A.has(*tied) or A.has(*qd) or r.jacobian(qd).has(*qd):
+        raise SystemDefinitionError(f"{kind}: the kinematic differential equations are not linear in u and q'")
+    subsets = islice(combinations(range(n), o), _MAX_SUBSETS)
+    numeric, symbolic = None, None
+    for S in subsets:
+        AS = A.extract(list(S), list(range(o)))
+        d = AS.det(method="berkowitz")
+        d = _trig_normal(d) if sympy.count_ops(d) <= 4 * _SIMPLIFY_OPS else d
+        if d.is_number:
+            if d != 0:
+                numeric = (S, AS, d)
+                break
+        elif symbolic is None and _nonzero_somewhere(d):
+            symbolic = (S, AS, d)
+    if numeric is None and symbolic is None:
+        raise SystemDefinitionError(f"{kind}: {o} generalized speeds but {n} kinematic differential equations, "
+                                    "and the speeds' coefficients have rank < " f"{o}: the speeds are not "
+                                    "independent (q' = W u + w needs W of full column rank)")
+    S, AS, d = numeric or symbolic
+    R = [i for i in range(n) if i not in S]
+    adj = AS.adjugate(method="berkowitz")
+    rS = r.extract(list(S), [0])
+    rows = [d * r[i] - (A[i, :] * adj * rS)[0, 0] for i in R]
+    def red(e):
+        e = _cancel_trig(e)
+        small = sympy.denom(e).is_number and sympy.count_ops(e) <= 4 * _SIMPLIFY_OPS
+        return _trig_normal(e) if small else e
+    if numeric is not None:
+        sol = [red(e / d) for e in (-adj * rS)]
+        rows = [red(e / d) for e in rows]
+    else:
+        G = (A.T * A).applyfunc(_cancel_trig)
+        try:
+            sol = [_cancel_trig(e) for e in G.LUsolve(-A.T * r)]
+        except (ValueError, ZeroDivisionError, sympy.matrices.exceptions.NonInvertibleMatrixError):
+            raise SystemDefinitionError(f"{kind}: the kinematic differential equations cannot be solved for "
+                                        "the generalized speeds u (A^T A is singular)") from None
+        rows = [_primitive(_cancel_trig(e), qd) for e in rows]
+    if any(e.has(sympy.nan, sympy.zoo, sympy.oo, -sympy.oo) for e in list(sol) + rows):
+        raise SystemDefinitionError(f"{kind}: the kinematic differential equations cannot be solved for "
+                                    "the generalized speeds u")
+    rows = [e for e in rows if e != 0]
+    why = [f"kinematics: {o} speeds for {n} coordinates, q' = W(q) u + w(q) holds only where this row of "
+           "N(q)^T (q' - w) is 0 (N spans the left null space of W)" for _ in rows]
+    return dict(zip(tied, sol)), rows, why
+
+
+def _primitive(e, qd):
+    """e (linear in q') divided by the gcd of its coefficients, a factor that does not vanish
+    where the constraint does (|q|^2 of a quaternion's q . q')."""
+    ex = sympy.expand(e)
+    coeffs = [ex.coeff(x) for x in qd]
+    coeffs.append(ex.xreplace(dict.fromkeys(qd, 0)))
+    coeffs = [c for c in coeffs if c != 0]
+    if not coeffs:
+        return e
+    try:
+        g = sympy.gcd_list(coeffs)
+    except (sympy.polys.polyerrors.PolynomialError, sympy.polys.polyerrors.CoercionFailed):
+        return e
+    if g.is_number or g == 0:
+        return e
+    return sympy.expand(sympy.cancel(ex / g))
 
 
 def _read_kane(model):
@@ -210,10 +350,11 @@ def _read_kane(model):
                                     "u cannot be mapped to q'")
     qd = sympy.Matrix([x.diff(t) for x in q])
     kdes = list(model._k_ku_implicit * model.u + model._k_kqdot_implicit * qd + model._f_k_implicit)
-    u_map, free = _speed_map("KanesMethod", q, u, kdes)
+    u_map, krows, kwhy, free = _speed_map("KanesMethod", q, u, kdes)
     cons = []
     if len(model._k_nh):
         cons = list(model._k_nh * model.u + model._f_nh)
+    cons += krows
     if not model.bodies:
         raise SystemDefinitionError("KanesMethod has no bodies: give bodies=[...] (or call "
                                     "kanes_equations(bodies, loads) first)")
@@ -223,6 +364,7 @@ def _read_kane(model):
     # with denominators (1/cos of inverted kinematics) leaves removable 0/0 to cancel
     qu = getattr(model, "_qdot_u_map", None) or {}
     m.tidy = any(not sympy.denom(sympy.together(e)).is_number for e in qu.values())
+    m.added_rows = list(kwhy)
     _add_speed_coordinates(m, free)
     return m
 
@@ -238,14 +380,15 @@ def _read_lagranges(model):
 
 def _read_system(model):
     q, u = list(model.q), list(model.u)
-    u_map, free = _speed_map("System", q, u, list(model.kdes))
+    u_map, krows, kwhy, free = _speed_map("System", q, u, list(model.kdes))
     loads = list(model.loads or [])
     for act in getattr(model, "actuators", None) or []:
         loads.extend(act.to_loads())
-    cons = list(model.velocity_constraints)
+    cons = list(model.velocity_constraints) + krows
     if not model.bodies:
         raise SystemDefinitionError("System has no bodies: add them with add_bodies(...)")
     m = _Model("System", model.frame, q, u_map, None, model.bodies, loads, cons, fixed=model.fixed_point)
+    m.added_rows = list(kwhy)
     _add_speed_coordinates(m, free)
     return m
 
@@ -264,6 +407,7 @@ class _Kin:
         self.checks = []          # (what, derived vector, set vector): compared on the manifold
         self._checked = set()
         self.roots = {}           # id(point) -> {"offset", "material"}: rolling contacts given coordinates
+        self._w_cache = {}        # (id(frame), id(parent)) -> angular velocity from the orientation
 
     def _sub(self, vec):
         return vec.xreplace(self.m.u_map) if self.m.u_map else vec
@@ -371,7 +515,10 @@ class _Kin:
                 if stored is not None and not (speeds and stored.free_dynamicsymbols(b) & speeds):
                     derived += stored
                 else:
-                    derived += _w_from_dcm(a, b)
+                    key = (id(a), id(b))
+                    if key not in self._w_cache:      # asked again for every position differentiated
+                        self._w_cache[key] = _w_quaternion(a, b) or _w_from_dcm(a, b)
+                    derived += self._w_cache[key]
         if derived is not None:
             if set_w is not None:
                 self._check(f"frame {_name(B)}", B, derived, set_w)
@@ -401,6 +548,50 @@ def _trig_normal(e):
         if isinstance(b, sympy.sin) and k.is_Integer and k >= 2:
             rep[p] = b ** (k % 2) * (1 - sympy.cos(b.args[0]) ** 2) ** (k // 2)
     return sympy.expand(e.xreplace(rep)) if rep else e
+
+
+def _cancel_trig(e, ops=4 * _SIMPLIFY_OPS):
+    """``e`` with the denominators that cancel modulo sin^2 + cos^2 = 1 cancelled: numerator and
+    denominator of ``together(e)`` brought to ``_trig_normal`` form, then ``cancel`` (a polynomial
+    gcd in the sines and cosines). Applied to what inverting the kinematic equations produces, the
+    pieces where such 0/0 arise; an expression with a numeric denominator, or larger than ``ops``
+    (the cost of expansion grows quickly), is returned as it is. A denominator that remains is a
+    true singularity of the model's chart (1/cos of Euler angles), not one of the solve."""
+    e = sympy.sympify(e)
+    n, d = sympy.fraction(sympy.together(e))
+    if d.is_number or sympy.count_ops(n) + sympy.count_ops(d) > ops:
+        return e
+    n, d = _trig_normal(n), _trig_normal(d)
+    if d.is_number:
+        return sympy.expand(n / d) if d != 0 else e
+    return sympy.cancel(n / d)
+
+
+def _w_quaternion(a, b):
+    """The angular velocity of ``a`` in ``b`` when ``a`` is oriented from ``b`` by a quaternion
+    (``orient_quaternion``: direction cosines homogeneous quadratic in four coordinates), in the
+    compact form sympy gives it, 2 E(e) e' (bilinear), else None. It equals vee(C' C^T) where
+    |e| = 1, the only place a quaternion's orientation is a rotation (the unit norm is among the
+    constraints, ``_unit_norm_groups``); vee(C' C^T) itself is cubic in e and makes L about ten
+    times larger (a ball's L: ~2500 operations instead of ~300)."""
+    from itertools import permutations
+    from sympy.physics.mechanics import find_dynamicsymbols
+    C = a.dcm(b)
+    dyn = sorted(find_dynamicsymbols(C), key=str)
+    if len(dyn) != 4:
+        return None
+    try:
+        if any(not c.is_polynomial(*dyn) or sympy.Poly(c, *dyn).total_degree() != 2 for c in C if c != 0):
+            return None
+    except sympy.polys.polyerrors.PolynomialError:
+        return None
+    for order in permutations(dyn):
+        tmp = sympy.physics.vector.ReferenceFrame("_quaternion")
+        tmp.orient_quaternion(b, list(order))
+        if all(sympy.expand(x) == 0 for x in tmp.dcm(b) - C):
+            comps = tmp.ang_vel_in(b).to_matrix(tmp)
+            return sympy.physics.vector.Vector([(comps, a)])
+    return None
 
 
 def _w_from_dcm(a, b):
@@ -473,6 +664,19 @@ def _spin_frame(body, m: _Model, num):
                                 f"orient {_name(B)} (e.g. orient_axis) and give its angle a kinematic equation")
 
 
+def _check_symmetric(body, Ic, F, m: _Model, num):
+    """An inertia dyadic is symmetric (I_ij = I_ji); sympy stores whatever dyadic it is given, and
+    T = w . I . w / 2 would silently use its symmetric part only. Refused, naming the body."""
+    bad = [(i, j) for i in range(3) for j in range(i + 1, 3) if not _is_zero(Ic[i, j] - Ic[j, i], num)]
+    if bad:
+        i, j = bad[0]
+        ax = "xyz"
+        raise SystemDefinitionError(
+            f"{m.kind}: body {_name(body)}: its central inertia dyadic is not symmetric (in {_name(F)}: "
+            f"I_{ax[i]}{ax[j]} = {str(Ic[i, j])[:60]} but I_{ax[j]}{ax[i]} = {str(Ic[j, i])[:60]}); an inertia "
+            "dyadic must be symmetric: build it with inertia(frame, ixx, iyy, izz, ixy, iyz, izx)")
+
+
 def _kinetic_minus_potential(m: _Model, kin: _Kin, num):
     """T - V of the bodies (V: their ``potential_energy``)."""
     import sympy.physics.mechanics as me
@@ -487,6 +691,7 @@ def _kinetic_minus_potential(m: _Model, kin: _Kin, num):
             v = _components(kin.point_velocity(body.masscenter), F)
             w = _components(kin.angular_velocity(body.frame), F)
             Ic = body.central_inertia.to_matrix(F)
+            _check_symmetric(body, Ic, F, m, num)
             T += body.mass * (v.T * v)[0, 0] / 2 + (w.T * Ic * w)[0, 0] / 2
         elif isinstance(body, me.Particle):
             v = _components(kin.point_velocity(body.point), m.frame)
@@ -511,12 +716,40 @@ def _load_parts(load, kind):
     return loc, vec
 
 
+def _unit_norm_groups(ks, qsym, vsym):
+    """The groups S of coordinates with a row of k equal to c q_S . v_S (c != 0 a constant): the
+    velocity form of |q_S|^2 = const, which for a quaternion's orientation means |q_S| = 1."""
+    groups = []
+    vz = dict.fromkeys(vsym, 0)
+    for k in ks:
+        # a norm row is a small polynomial: rows with functions (sin, cos) or large ones are not
+        # expanded (the build of a large model must not pay for it)
+        if k.atoms(sympy.Function) or sympy.count_ops(k) > 200:
+            continue
+        k = sympy.expand(k)
+        if k.xreplace(vz) != 0:
+            continue
+        a = [k.coeff(v) for v in vsym]
+        S = [i for i, c in enumerate(a) if c != 0]
+        if len(S) < 2 or any(v in c.free_symbols for c in a for v in vsym):
+            continue
+        c0 = sympy.cancel(a[S[0]] / qsym[S[0]])
+        if c0.free_symbols & set(qsym) or c0 == 0:
+            continue
+        if all(sympy.expand(a[i] - c0 * qsym[i]) == 0 for i in S):
+            groups.append(S)
+    return groups
+
+
 class _Numeric:
     """Random points (t, q, v, parameters) on the constraint manifold, for checks that
     simplification does not decide."""
 
     def __init__(self, qsym, vsym, tsym, ks, seed=20260):
         self.q, self.v, self.t, self.ks = qsym, vsym, tsym, list(ks)
+        # coordinates whose velocity constraint is q_S . q_S' = 0 (a quaternion's unit norm in
+        # velocity form): the points lie on |q_S| = 1, where the model's orientation is a rotation
+        self.spheres = _unit_norm_groups(self.ks, qsym, vsym)
         self.rng = np.random.default_rng(seed)
         self._pts = None
 
@@ -528,6 +761,9 @@ class _Numeric:
             pts = []
             for _ in range(_N_CHECK):
                 sub = {x: float(self.rng.uniform(0.3, 1.2)) for x in self.q}
+                for grp in self.spheres:
+                    nrm = float(np.sqrt(sum(sub[self.q[i]] ** 2 for i in grp)))
+                    sub.update({self.q[i]: sub[self.q[i]] / nrm for i in grp})
                 sub.update({p: float(self.rng.uniform(0.5, 1.5)) for p in pars})
                 sub[self.t] = float(self.rng.uniform(0, 1))
                 z = self.rng.uniform(-1, 1, len(self.v))
@@ -750,6 +986,35 @@ def _root_contacts(m: _Model, kin: _Kin, conv, num):
     return rows
 
 
+def _regularize_unit_norm(L, qsym, vsym, num, m: _Model):
+    """L + mu (q_S . v_S)^2 / 2 for each unit-norm group S (a quaternion, ``_unit_norm_groups``)
+    along whose direction q_S L_vv vanishes, mu = trace(L_vv on S) / (|S| - 1).
+
+    An orientation depends on q_S / |q_S| only, so its kinetic energy does not see the velocity
+    q_S: L_vv q_S = 0, and although the saddle matrix (4) is regular (k's row q_S . v_S covers that
+    direction) the SPARK stage equations P_i = grad_v L(Q_i, V_i) of (21) leave the component of
+    V_i along q_S to the s - 1 averaged constraints: gauss-2 stops converging, gauss-3 and
+    lobatto-iiia-iiib-3 lose two orders on a ball in quaternions. The added term, c k^2 / 2 with k
+    the constraint row, changes no solution of (1): its Euler-Lagrange terms mu k' grad_v k + k (...)
+    vanish where k = 0 holds for all t; it makes L_vv regular with the eigenvalue mu along q_S
+    (the mean of the others: the scale of the body's inertia)."""
+    for grp in num.spheres:
+        qs, vs = [qsym[i] for i in grp], [vsym[i] for i in grp]
+        grad = [L.diff(v) for v in vs]
+        along = [sum(g.diff(v) * x for x, v in zip(qs, vs)) for g in grad]
+        if not all(_is_zero(a, num, on_manifold=False) for a in along):
+            continue               # L_vv already regular along q_S: nothing to add
+        mu = sum(g.diff(v) for g, v in zip(grad, vs)) / (len(grp) - 1)
+        if _is_zero(mu, num, on_manifold=False):
+            continue
+        k = sum(x * v for x, v in zip(qs, vs))
+        L = L + mu * k ** 2 / 2
+        dot = " + ".join(f"{x.name}*{v.name}" for x, v in zip(qs, vs))
+        m.added_terms.append(f"mu ({dot})^2 / 2 with mu = trace of L_vv over {', '.join(v.name for v in vs)} / "
+                             f"{len(grp) - 1}: makes L_vv regular along the unit-norm direction (zero on k = 0)")
+    return L
+
+
 def _convert_model(m: _Model, name):
     """(L, k, qsym, vsym) in plain symbols from a read model."""
     import sympy.physics.mechanics as me
@@ -762,10 +1027,12 @@ def _convert_model(m: _Model, name):
     if left:
         raise SystemDefinitionError(f"{m.kind}: the velocity constraints still contain speeds {left} after u -> q'")
 
+    cache = {}
+
     def conv(exprs, what):
         # m.q as it is at the call: rolling contacts add coordinates on the way
         try:
-            ex, qsym, vsym = _to_symbols(exprs, m.q, t)
+            ex, qsym, vsym = _to_symbols(exprs, m.q, t, cache)
         except SystemDefinitionError as exc:
             raise SystemDefinitionError(f"{m.kind}: {what}: {exc}") from None
         return [e.subs(t, tsym) for e in ex], qsym, vsym
@@ -802,6 +1069,7 @@ def _convert_model(m: _Model, name):
             named.append(f"loads[{i}] ({'force on point' if isinstance(loc, me.Point) else 'torque on frame'} "
                          f"{_name(loc)})")
     m.forces, m.force_loads = (forces if named else None), named
+    Ls = _regularize_unit_norm(Ls, qsym, vsym, num, m)
     # the velocities set in the model must be the derived ones where the constraints hold
     for what, derived, given in kin.checks:
         diff = list((derived - given).to_matrix(m.frame))
@@ -822,6 +1090,41 @@ def _convert_model(m: _Model, name):
                                         "vanish where the velocity constraints hold: add it to the velocity "
                                         "constraints (with a dependent speed)")
     return Ls, ks, qsym, vsym, tsym
+
+
+def _final_names(exprs, forces, qsym, vsym, tsym, added):
+    """The system's symbols for the coordinates' dummies: q_i keeps its name, its velocity is
+    v_<name>, made fresh (trailing underscores) when that name is taken by a symbol of the model, a
+    coordinate or another velocity: a model constant named v_x stays a constant, never the velocity
+    of x. A coordinate of the user's that shares its name with a symbol of the model is refused
+    (both would be one symbol); one the adapter added (``added``) is renamed instead."""
+    dummies = set(qsym) | set(vsym)
+    own = {str(x) for e in list(exprs) + list(forces or []) for x in sympy.sympify(e).free_symbols
+           if x not in dummies}
+    own.add(str(tsym))
+    taken, rename, new_added = set(own), {}, {}
+    for x in qsym:
+        nm = x.name
+        if nm in taken:
+            if nm not in added:
+                what = "the time t" if nm == str(tsym) else f"a symbol {nm} of the model"
+                raise SystemDefinitionError(f"from_mechanics: the coordinate {nm}(t) has the name of {what}; "
+                                            "rename one of them (both would become one symbol)")
+            while nm in taken:
+                nm += "_"
+        taken.add(nm)
+        rename[x] = sympy.Symbol(nm)
+        if x.name in added:
+            new_added[nm] = added[x.name]
+    for x in vsym:
+        nm = x.name
+        while nm in taken:
+            nm += "_"
+        taken.add(nm)
+        rename[x] = sympy.Symbol(nm)
+    exprs = [sympy.sympify(e).xreplace(rename) for e in exprs]
+    forces = [sympy.sympify(e).xreplace(rename) for e in forces] if forces is not None else None
+    return exprs, forces, [rename[x] for x in qsym], [rename[x] for x in vsym], new_added
 
 
 def from_mechanics(model: Any, q: Optional[Sequence] = None, constraints: Optional[Sequence] = None,
@@ -868,9 +1171,11 @@ def from_mechanics(model: Any, q: Optional[Sequence] = None, constraints: Option
         except (sympy.SympifyError, TypeError, ValueError):
             raise SystemDefinitionError(f"from_mechanics: {type(model).__name__} is not a sympy expression") from None
         qs, cons = list(q), list(constraints or [])
-        exprs, qsym, vsym = _to_symbols([L] + cons, qs, t)
+        exprs, qsym, vsym = _to_symbols([L] + cons, qs, t, {})
         tsym = sympy.Symbol("t")
         exprs = [e.subs(t, tsym) for e in exprs]
+    added = dict(mdl.added) if reader is not None else {}
+    exprs, forces, qsym, vsym, added = _final_names(exprs, forces, qsym, vsym, tsym, added)
     Ls, ks = exprs[0], exprs[1:]
     if params is None:
         found = set().union(*(e.free_symbols for e in exprs + list(forces or []))) - set(qsym) - set(vsym) - {tsym}
@@ -881,8 +1186,9 @@ def from_mechanics(model: Any, q: Optional[Sequence] = None, constraints: Option
     system.force_loads = list(mdl.force_loads) if reader is not None else []
     # what the adapter added to the model (empty when nothing): coordinate name -> why, and the
     # constraint rows appended after the model's own
-    system.added_coordinates = dict(mdl.added) if reader is not None else {}
+    system.added_coordinates = added
     system.added_constraints = list(mdl.added_rows) if reader is not None else []
+    system.added_terms = list(mdl.added_terms) if reader is not None else []
     if getattr(system, "lvv_problem", None):
         # a model read from sympy.physics.mechanics: refused at once (the usual cause, kinematics
         # with the rolling condition built in, is a modelling choice the user can change)
