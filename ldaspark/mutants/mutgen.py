@@ -388,7 +388,10 @@ def _inside(root: pathlib.Path, path: pathlib.Path) -> bool:
 # --- equivalents ---------------------------------------------------------------------------------
 def load_equivalent(path=EQUIVALENT) -> dict:
     """{mutant id: why it is equivalent} (``records.read_equivalent``: a regular file, bounded)."""
-    return read_equivalent(path)
+    try:
+        return read_equivalent(path)
+    except RecordError as exc:
+        raise MutgenError(str(exc)) from None
 
 
 # --- coverage: which tests execute which lines ----------------------------------------------------
