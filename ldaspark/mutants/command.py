@@ -110,7 +110,7 @@ def run(args) -> int:
     from .mutgen import make_outdir
     make_outdir(args.outdir)
     ck = Checkpoint(pathlib.Path(args.outdir) / "mutation.partial.jsonl",
-                    verdict_fingerprint("mutants", args.quick, exclude, project=PROJECT))
+                    verdict_fingerprint("mutants", args.quick, exclude))
     if getattr(args, "fresh", False):
         ck.discard()
     if args.quick:

@@ -178,14 +178,14 @@ def copy_project(dest, project=PROJECT) -> pathlib.Path:
     return dest
 
 
-def verdict_paths(project=PROJECT) -> list[pathlib.Path]:
+def verdict_paths(project=None) -> list[pathlib.Path]:
     """Every path a mutant's verdict depends on: what ``copy_project`` copies (the package with
     its data, tests/, verification/ with the equivalents list and its helpers, conftest.py,
     pyproject.toml, the reports the tests read, ...)."""
-    return [pathlib.Path(project) / name for name in COPY]
+    return [pathlib.Path(PROJECT if project is None else project) / name for name in COPY]
 
 
-def verdict_fingerprint(*config, project=PROJECT) -> str:
+def verdict_fingerprint(*config, project=None) -> str:
     """The checkpoint fingerprint of a mutation run: ``config`` and every file under
     ``verdict_paths`` (a change in any of them invalidates the records of an interrupted run)."""
     from ..dist.workers import source_fingerprint

@@ -233,13 +233,14 @@ def _defined_tests(path: pathlib.Path) -> set:
         tree = ast.parse(read_text(path, "a test file", MAX_SOURCE_BYTES))
     except (SyntaxError, ValueError, RecordError):
         return set()
+    # pytest's default collection: functions named test*, methods test* of classes named Test*
     out = set()
     for node in tree.body:
-        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.name.startswith("test"):
             out.add(node.name)
-        elif isinstance(node, ast.ClassDef):
+        elif isinstance(node, ast.ClassDef) and node.name.startswith("Test"):
             out.update(f"{node.name}::{f.name}" for f in node.body
-                       if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef)))
+                       if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef)) and f.name.startswith("test"))
     return out
 
 
