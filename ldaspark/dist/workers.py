@@ -388,10 +388,11 @@ def _hash_file(h, path: pathlib.Path, st) -> None:
     except OSError as exc:
         h.update(b"unreadable\0" + str(exc.errno).encode())
         return
+    if not stat.S_ISREG(os.fstat(fd).st_mode):      # before fdopen, which refuses a directory
+        os.close(fd)
+        h.update(b"special\0")
+        return
     with os.fdopen(fd, "rb") as fh:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            h.update(b"special\0")
-            return
         d = hashlib.sha256()
         for chunk in iter(lambda: fh.read(1 << 20), b""):
             d.update(chunk)
@@ -649,9 +650,10 @@ class Checkpoint:
             fd = os.open(path, flags)
         except OSError as exc:
             raise InputError(f"checkpoint {path} cannot be read ({exc.strerror or exc})") from None
+        if not stat.S_ISREG(os.fstat(fd).st_mode):      # before fdopen, which refuses a directory
+            os.close(fd)
+            raise InputError(f"checkpoint {path} is not a regular file")
         with os.fdopen(fd, "rb") as fh:
-            if not stat.S_ISREG(os.fstat(fd).st_mode):
-                raise InputError(f"checkpoint {path} is not a regular file")
             head = fh.readline(4096)
         try:
             fp = json.loads(head.decode("utf-8"))["fingerprint"]
@@ -757,9 +759,10 @@ class Checkpoint:
             raise InputError(f"checkpoint {self.path} cannot be read ({exc.strerror or exc}); not touched") from None
         import stat
         out, bad, total = {}, [], 0
+        if not stat.S_ISREG(os.fstat(fd).st_mode):      # before fdopen, which refuses a directory
+            os.close(fd)
+            raise InputError(f"checkpoint {self.path} exists and is not a regular file; not touched")
         with os.fdopen(fd, "rb") as fh:
-            if not stat.S_ISREG(os.fstat(fd).st_mode):
-                raise InputError(f"checkpoint {self.path} exists and is not a regular file; not touched")
             head = fh.readline(MAX_CHECKPOINT_LINE + 1)
             try:
                 ok = json.loads(head.decode("utf-8")).get("fingerprint") == self.fingerprint

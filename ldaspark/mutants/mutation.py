@@ -129,9 +129,10 @@ def _copy_regular(src: pathlib.Path, dst: pathlib.Path) -> None:
         fd = os.open(src, flags)
     except OSError:
         return
+    if not stat.S_ISREG(os.fstat(fd).st_mode):          # before fdopen, which refuses a directory
+        os.close(fd)
+        return
     with os.fdopen(fd, "rb") as fh:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            return
         with open(dst, "wb") as out:
             shutil.copyfileobj(fh, out)
     shutil.copystat(src, dst, follow_symlinks=False)

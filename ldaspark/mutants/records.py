@@ -53,19 +53,23 @@ def read_bytes(path, what: str, limit: int) -> bytes:
         fd = os.open(path, flags)
     except OSError as exc:
         raise RecordError(f"{what} {shown}: cannot be read ({exc.strerror or exc})") from None
-    with os.fdopen(fd, "rb") as fh:
+    try:
         st = os.fstat(fd)
         if not stat.S_ISREG(st.st_mode):
             kind = "a directory" if stat.S_ISDIR(st.st_mode) else "not a regular file"
             raise RecordError(f"{what} {shown}: {kind}")
+    except BaseException:
+        os.close(fd)
+        raise
+    with os.fdopen(fd, "rb") as fh:         # a regular file: fdopen accepts it
         data = fh.read(limit + 1)
     if len(data) > limit:
         raise RecordError(f"{what} {shown}: larger than the reader's bound of {limit} bytes")
     return data
 
 
-def read_text(path, what: str, limit: int = MAX_LIST_BYTES) -> str:
-    data = read_bytes(path, what, limit)
+def read_text(path, what: str, limit: int | None = None) -> str:
+    data = read_bytes(path, what, MAX_LIST_BYTES if limit is None else limit)
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:
@@ -98,8 +102,8 @@ def parse_json(text: str, where: str):
         raise RecordError(f"{where}: not finite JSON ({str(exc)[:80]})") from None
 
 
-def read_json(path, what: str, limit: int = MAX_REPORT_BYTES):
-    return parse_json(read_text(path, what, limit), f"{str(path)[:200]}: {what}")
+def read_json(path, what: str, limit: int | None = None):
+    return parse_json(read_text(path, what, MAX_REPORT_BYTES if limit is None else limit), f"{str(path)[:200]}: {what}")
 
 
 def read_id_list(path) -> list[str]:
