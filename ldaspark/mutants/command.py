@@ -42,7 +42,9 @@ def add_arguments(parser):
     parser.add_argument("--keep-killed", default=None, metavar="JSON",
                         help="with --generated: take the mutants killed in this earlier mutation-generated.json "
                              "(or these, comma-separated; the first is the report an update continues) as killed "
-                             "(their killing test still exists) and run the others")
+                             "(their killing test still exists) and run the others; a kill is kept only from a "
+                             "report signed with this user's key or an authenticated checkpoint record, the kills "
+                             "of any other file are run again, their named test first")
     parser.add_argument("--sample", type=int, default=None,
                         help="with --generated: a fixed, evenly spaced sample of N mutants per module, drawn "
                              "from all its mutants (the same whatever the tests)")
