@@ -378,25 +378,68 @@ def _environment_identity() -> list:
     return out
 
 
-def _hash_tree(h, root: pathlib.Path, pattern: str) -> None:
-    if root.is_file():
-        h.update(b"file\0" + root.name.encode() + b"\0")
-        h.update(hashlib.sha256(root.read_bytes()).digest())
+def _hash_file(h, path: pathlib.Path, st) -> None:
+    """The bytes of the regular file ``path`` (``st``: its lstat), read without following a link
+    and without blocking; a file that changed kind since ``st`` is hashed as a special entry."""
+    import stat
+    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+    try:
+        fd = os.open(path, flags)
+    except OSError as exc:
+        h.update(b"unreadable\0" + str(exc.errno).encode())
         return
-    if not root.is_dir():
+    if not stat.S_ISREG(os.fstat(fd).st_mode):      # before fdopen, which refuses a directory
+        os.close(fd)
+        h.update(b"special\0")
+        return
+    with os.fdopen(fd, "rb") as fh:
+        d = hashlib.sha256()
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            d.update(chunk)
+    h.update(d.digest())
+
+
+def _hash_tree(h, root: pathlib.Path, pattern: str) -> None:
+    """Every file under ``root`` matching ``pattern`` (caches and checkpoints left out), by its
+    path and bytes. A link is hashed as its target's text, never followed (a link to /dev/zero or
+    out of the tree is not read); FIFOs, sockets and devices enter by name only, never opened."""
+    import stat
+    try:
+        top = os.lstat(root)
+    except OSError:
         h.update(b"absent\0" + str(root.name).encode() + b"\0")
         return
-    for p in sorted(root.rglob(pattern)):
+    if not stat.S_ISDIR(top.st_mode):
+        h.update(b"file\0" + root.name.encode() + b"\0")
+        if stat.S_ISREG(top.st_mode):
+            _hash_file(h, root, top)
+        elif stat.S_ISLNK(top.st_mode):
+            h.update(b"link\0" + os.readlink(root).encode(errors="surrogateescape"))
+        else:
+            h.update(b"special\0")
+        return
+    for p in sorted(root.rglob(pattern)):      # rglob does not descend into linked directories
         rel = p.relative_to(root)
-        if any(part in _FINGERPRINT_SKIP for part in rel.parts) or p.name.endswith(_FINGERPRINT_SKIP_SUFFIX) \
-                or not p.is_file():            # FIFOs, sockets, directories: never opened
+        if any(part in _FINGERPRINT_SKIP for part in rel.parts) or p.name.endswith(_FINGERPRINT_SKIP_SUFFIX):
             continue
-        h.update(str(rel).encode() + b"\0")
-        h.update(hashlib.sha256(p.read_bytes()).digest())
+        try:
+            st = os.lstat(p)
+        except OSError:
+            continue
+        if stat.S_ISDIR(st.st_mode):
+            continue
+        h.update(str(rel).encode(errors="surrogateescape") + b"\0")
+        if stat.S_ISREG(st.st_mode):
+            _hash_file(h, p, st)
+        elif stat.S_ISLNK(st.st_mode):
+            h.update(b"link\0" + os.readlink(p).encode(errors="surrogateescape"))
+        else:                                   # FIFOs, sockets, devices: never opened
+            h.update(b"special\0")
 
 
 def source_fingerprint(*config, dirs=(), paths=()) -> str:
-    """sha256 over this package's source files, the ``*.py`` files under ``dirs``, every file
+    """sha256 over every file of this package (source and data: the tableaux a verdict reads),
+    the ``*.py`` files under ``dirs``, every file
     under ``paths`` (files or directories, caches and checkpoints left out), the Python version
     and the versions of the libraries the results depend on (``_FINGERPRINT_DISTS``), and
     ``config`` (JSON): a checkpoint written by other code, another environment or for another
@@ -404,7 +447,9 @@ def source_fingerprint(*config, dirs=(), paths=()) -> str:
     can recompute it, so ``Checkpoint`` authenticates its records with a key of its own."""
     h = hashlib.sha256()
     pkg = pathlib.Path(__file__).resolve().parent   # the package ldaspark
-    for root in (pkg, *map(pathlib.Path, dirs)):
+    h.update(b"package\0")
+    _hash_tree(h, pkg, "*")
+    for root in map(pathlib.Path, dirs):
         h.update(b"dir\0")
         _hash_tree(h, root, "*.py")
     for root in map(pathlib.Path, paths):
@@ -592,6 +637,32 @@ class Checkpoint:
             settings, sort_keys=True, default=str).encode()).hexdigest()
         return Checkpoint(self.path, fp, self.validate, self.say, self._key)
 
+    @classmethod
+    def of_file(cls, path, validate: Callable | None = None, say: Callable | None = None) -> "Checkpoint":
+        """The checkpoint at ``path`` bound to the fingerprint its header names: to read back
+        the records of another run (``ldaspark mutants --keep-killed RUN.partial.jsonl``). The
+        fingerprint is taken on trust, the records are not: each is still resumed only with
+        this user's HMAC over that fingerprint, its name and its value (``load``). Raises
+        InputError for a path that is not a regular file or a header that is not one."""
+        import stat
+        flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+        try:
+            fd = os.open(path, flags)
+        except OSError as exc:
+            raise InputError(f"checkpoint {path} cannot be read ({exc.strerror or exc})") from None
+        if not stat.S_ISREG(os.fstat(fd).st_mode):      # before fdopen, which refuses a directory
+            os.close(fd)
+            raise InputError(f"checkpoint {path} is not a regular file")
+        with os.fdopen(fd, "rb") as fh:
+            head = fh.readline(4096)
+        try:
+            fp = json.loads(head.decode("utf-8"))["fingerprint"]
+        except (ValueError, KeyError, TypeError, AttributeError, RecursionError):
+            fp = None
+        if not isinstance(fp, str) or not _MAC_HEX.match(fp):
+            raise InputError(f"checkpoint {path} has no header line {{\"fingerprint\": 64 hex digits}}")
+        return cls(path, fp, validate, say)
+
     # --- authentication and checks of one record ------------------------------------------
     def _mac_key(self) -> bytes | None:
         if self._key is None and self._key_error is None:
@@ -688,9 +759,10 @@ class Checkpoint:
             raise InputError(f"checkpoint {self.path} cannot be read ({exc.strerror or exc}); not touched") from None
         import stat
         out, bad, total = {}, [], 0
+        if not stat.S_ISREG(os.fstat(fd).st_mode):      # before fdopen, which refuses a directory
+            os.close(fd)
+            raise InputError(f"checkpoint {self.path} exists and is not a regular file; not touched")
         with os.fdopen(fd, "rb") as fh:
-            if not stat.S_ISREG(os.fstat(fd).st_mode):
-                raise InputError(f"checkpoint {self.path} exists and is not a regular file; not touched")
             head = fh.readline(MAX_CHECKPOINT_LINE + 1)
             try:
                 ok = json.loads(head.decode("utf-8")).get("fingerprint") == self.fingerprint
@@ -770,6 +842,54 @@ class Checkpoint:
         self.close()
         with contextlib.suppress(FileNotFoundError):
             os.remove(self.path)
+
+
+#: the HMAC domain of a signed document (a report read back, ``sign_document``): a checkpoint
+#: record's MAC never verifies as a document's, nor one kind of document's as another's
+_DOC_DOMAIN = b"ldaspark-signed-document-v1\0"
+SIGNATURE = "signature"
+
+
+def _document_mac(kind: str, doc: dict, key: bytes) -> str:
+    import hmac
+    body = {k: v for k, v in doc.items() if k != SIGNATURE}
+    return hmac.new(key, _DOC_DOMAIN + kind.encode() + b"\0" + _canonical(body), hashlib.sha256).hexdigest()
+
+
+def sign_document(kind: str, doc: dict, key: bytes | None = None) -> dict:
+    """``doc`` (finite JSON) with a ``signature`` {scheme, mac}: an HMAC-SHA256 with this user's
+    checkpoint key (``checkpoint_key``) over ``kind`` and the canonical JSON of the rest, as the
+    checkpoints' records carry one. Without a trusted key the document is returned unsigned
+    (a reader then treats it as data it cannot trust: ``document_signed`` is False)."""
+    body = json.loads(_canonical({k: v for k, v in doc.items() if k != SIGNATURE}))   # as read back
+    if key is None:
+        try:
+            key = checkpoint_key()
+        except CheckpointKeyError:
+            return body
+    return dict(body, **{SIGNATURE: {"scheme": "hmac-sha256", "mac": _document_mac(kind, body, key)}})
+
+
+def document_signed(kind: str, doc, key: bytes | None = None) -> bool:
+    """True when ``doc`` carries a signature of ``kind`` by this user's key over exactly its
+    other fields (``sign_document``); False for an unsigned, edited or forged document, one
+    signed with another key or as another kind, or without a trusted key here."""
+    import hmac
+    if not isinstance(doc, dict):
+        return False
+    sig = doc.get(SIGNATURE)
+    if not isinstance(sig, dict) or set(sig) != {"scheme", "mac"} or sig["scheme"] != "hmac-sha256" \
+            or not isinstance(sig["mac"], str) or not _MAC_HEX.match(sig["mac"]):
+        return False
+    if key is None:
+        try:
+            key = checkpoint_key()
+        except CheckpointKeyError:
+            return False
+    try:
+        return hmac.compare_digest(sig["mac"], _document_mac(kind, doc, key))
+    except (TypeError, ValueError):
+        return False
 
 
 def run_resumable(units: list[Unit], checkpoint: Checkpoint | None, where=None, jobs=None, retries=2,

@@ -8,9 +8,9 @@ import sys
 import time
 
 from ...core.errors import LdasparkError
-from ...executors import Checkpoint, UnitsFailed, add_scheduler_argument, source_fingerprint
-from .mutation import (COPY, PROJECT, QUICK, CATALOGUE, TIMEOUT, CatalogueError, by_id, ordered_targets,
-                       require_tests, run_catalogue, run_mutant, snippet_problems, write_reports)
+from ...executors import Checkpoint, UnitsFailed, add_scheduler_argument
+from .mutation import (PROJECT, QUICK, CATALOGUE, TIMEOUT, CatalogueError, by_id, ordered_targets,
+                       require_tests, run_catalogue, run_mutant, snippet_problems, verdict_fingerprint, write_reports)
 from .mutgen import quick_generated, run_generated
 
 
@@ -42,7 +42,9 @@ def add_arguments(parser):
     parser.add_argument("--keep-killed", default=None, metavar="JSON",
                         help="with --generated: take the mutants killed in this earlier mutation-generated.json "
                              "(or these, comma-separated; the first is the report an update continues) as killed "
-                             "(their killing test still exists) and run the others")
+                             "(their killing test still exists) and run the others; a kill is kept only from a "
+                             "report signed with this user's key or an authenticated checkpoint record, the kills "
+                             "of any other file are run again, their named test first")
     parser.add_argument("--sample", type=int, default=None,
                         help="with --generated: a fixed, evenly spaced sample of N mutants per module, drawn "
                              "from all its mutants (the same whatever the tests)")
@@ -84,15 +86,18 @@ def run(args) -> int:
     problems = snippet_problems()
     if problems:
         raise CatalogueError("mutation catalogue out of date: " + "; ".join(problems))
-    if args.only:
+    if args.only is not None:
+        ids = [x.strip() for x in args.only.split(",") if x.strip()]
+        if not ids:      # '--only ,' would run nothing and report success
+            raise CatalogueError(f"--only {args.only[:80]!r} selects no mutant (comma-separated catalogue ids)")
         try:
-            mutants = [by_id(x.strip()) for x in args.only.split(",") if x.strip()]
+            mutants = [by_id(x) for x in ids]
         except KeyError as exc:
-            raise CatalogueError(f"unknown mutant id {exc.args[0]!r}") from None
+            raise CatalogueError(f"unknown mutant id {str(exc.args[0])[:80]!r}") from None
     else:
         mutants = [by_id(x) for x in QUICK] if args.quick else list(CATALOGUE)
     targets = {}
-    if args.quick and not args.only:
+    if args.quick and args.only is None:
         # a fixed sample of generated mutants, each run against the one test that must kill it
         gen, targets = quick_generated()
         mutants += gen
@@ -104,9 +109,10 @@ def run(args) -> int:
         print(f"{r['mutant']:32s} {r['status']:9s} {r['seconds']:7.1f}s  {r['first_failing_test'] or ''}",
               flush=True)
     exclude = tuple(x.strip() for x in args.exclude.split(",") if x.strip())
+    from .mutgen import make_outdir
+    make_outdir(args.outdir)
     ck = Checkpoint(pathlib.Path(args.outdir) / "mutation.partial.jsonl",
-                    source_fingerprint("mutants", args.quick, exclude,
-                                       paths=[PROJECT / name for name in COPY if name != "ldaspark"]))
+                    verdict_fingerprint("mutants", args.quick, exclude))
     if getattr(args, "fresh", False):
         ck.discard()
     if args.quick:

@@ -93,22 +93,111 @@ def apply_mutant(root, mutant: Mutant) -> pathlib.Path:
     return path
 
 
+_COPY_IGNORE = ("__pycache__", ".hypothesis", ".pytest_cache")
+
+
+def _copy_tree(src: pathlib.Path, dst: pathlib.Path, root: pathlib.Path, skipped: list) -> None:
+    """Copy the directory ``src`` to ``dst`` without ever following a link: regular files are
+    copied, directories walked, a link kept as a link when it points inside the project tree
+    (``root``) at a file or directory that is copied too, and skipped otherwise; FIFOs, sockets
+    and devices are skipped (a link to /dev/zero would be copied until the disk is full)."""
+    import stat
+    dst.mkdir(parents=True, exist_ok=True)
+    with os.scandir(src) as it:
+        entries = sorted(it, key=lambda e: e.name)
+    for e in entries:
+        if e.name in _COPY_IGNORE or e.name.endswith(".pyc"):
+            continue
+        s, d = pathlib.Path(e.path), dst / e.name
+        st = os.lstat(s)
+        if stat.S_ISDIR(st.st_mode):
+            _copy_tree(s, d, root, skipped)
+        elif stat.S_ISREG(st.st_mode):
+            _copy_regular(s, d)
+        elif stat.S_ISLNK(st.st_mode) and _link_inside(s, root):
+            os.symlink(os.readlink(s), d)
+        else:
+            skipped.append(str(s.relative_to(root)))
+
+
+def _copy_regular(src: pathlib.Path, dst: pathlib.Path) -> None:
+    """A regular file, opened without following a link and without blocking (a file swapped for
+    a FIFO after the walk looked at it is skipped, never read)."""
+    import stat
+    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+    try:
+        fd = os.open(src, flags)
+    except OSError:
+        return
+    if not stat.S_ISREG(os.fstat(fd).st_mode):          # before fdopen, which refuses a directory
+        os.close(fd)
+        return
+    with os.fdopen(fd, "rb") as fh:
+        with open(dst, "wb") as out:
+            shutil.copyfileobj(fh, out)
+    shutil.copystat(src, dst, follow_symlinks=False)
+
+
+def _link_inside(link: pathlib.Path, root: pathlib.Path) -> bool:
+    """The link's target, relative and resolved, is a regular file or directory inside ``root``
+    under one of the copied entries (``COPY``), so the copy holds it too."""
+    import stat
+    target = os.readlink(link)
+    if os.path.isabs(target):
+        return False
+    try:
+        real = (link.parent / target).resolve(strict=True)
+        rel = real.relative_to(root.resolve())
+        mode = os.stat(real).st_mode
+    except (ValueError, OSError, RuntimeError):
+        return False
+    return bool(rel.parts) and rel.parts[0] in COPY and (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
+
+
 def copy_project(dest, project=PROJECT) -> pathlib.Path:
-    """The parts of the project a test run needs, without caches."""
+    """The parts of the project a test run needs (``COPY``), without caches. Never follows a
+    link out of the tree nor into a special file (``_copy_tree``)."""
+    import stat
     dest = pathlib.Path(dest)
-    ignore = shutil.ignore_patterns("__pycache__", "*.pyc", ".hypothesis", ".pytest_cache")
+    root = pathlib.Path(project)
+    skipped: list = []
+    dest.mkdir(parents=True, exist_ok=True)
     for name in COPY:
-        src = pathlib.Path(project) / name
-        if src.is_dir():
-            shutil.copytree(src, dest / name, ignore=ignore)
-        elif src.is_file():
-            shutil.copy2(src, dest / name)
+        src = root / name
+        try:
+            st = os.lstat(src)
+        except OSError:
+            continue
+        if stat.S_ISDIR(st.st_mode):
+            _copy_tree(src, dest / name, root, skipped)
+        elif stat.S_ISREG(st.st_mode):
+            _copy_regular(src, dest / name)
+        elif stat.S_ISLNK(st.st_mode) and _link_inside(src, root):
+            os.symlink(os.readlink(src), dest / name)
+        else:
+            skipped.append(name)
     return dest
 
 
+def verdict_paths(project=None) -> list[pathlib.Path]:
+    """Every path a mutant's verdict depends on: what ``copy_project`` copies (the package with
+    its data, tests/, verification/ with the equivalents list and its helpers, conftest.py,
+    pyproject.toml, the reports the tests read, ...)."""
+    return [pathlib.Path(PROJECT if project is None else project) / name for name in COPY]
+
+
+def verdict_fingerprint(*config, project=None) -> str:
+    """The checkpoint fingerprint of a mutation run: ``config`` and every file under
+    ``verdict_paths`` (a change in any of them invalidates the records of an interrupted run)."""
+    from ...executors import source_fingerprint
+    return source_fingerprint(*config, paths=verdict_paths(project))
+
+
 def all_test_files(project=PROJECT) -> list[str]:
+    import stat
     files = sorted(str(p.relative_to(project)) for d in ("verification", "tests")
-                   for p in (pathlib.Path(project) / d).rglob("test_*.py"))
+                   for p in (pathlib.Path(project) / d).rglob("test_*.py")
+                   if stat.S_ISREG(os.lstat(p).st_mode))      # a FIFO or a link is never a test file
     return [f for f in files if f not in EXCLUDED_TESTS]
 
 
@@ -124,11 +213,28 @@ def ordered_targets(mutant: Mutant, project=PROJECT, hints_only=False, exclude=(
 
 
 # --- running --------------------------------------------------------------------------------------
+#: pytest's exit code for "tests were collected and run, and some failed": the only one a kill comes from
+#: (2 interrupted, a collection error; 3 internal error; 4 usage error; 5 no tests collected;
+#: negative: killed by a signal, a segfault)
+PYTEST_TESTS_FAILED = 1
+_SUMMARY = "short test summary info"
+
+
 def _first_failure(output: str) -> str | None:
-    for line in output.splitlines():
+    """The first test pytest's short summary (``-rfE``) names as FAILED or ERROR: only lines
+    after the summary's header count (a test's own output saying "FAILED x" is not a verdict),
+    and a collection error of a whole file ('ERROR tests/x.py') names no test."""
+    lines = output.splitlines()
+    start = next((i for i in range(len(lines) - 1, -1, -1) if _SUMMARY in lines[i] and lines[i].startswith("=")), None)
+    if start is None:
+        return None
+    for line in lines[start + 1:]:
+        if line.startswith("="):
+            break
         for tag in ("FAILED ", "ERROR "):
             if line.startswith(tag):
-                return line[len(tag):].split(" - ")[0].strip()
+                node = line[len(tag):].split(" - ")[0].strip()
+                return node if "::" in node else None
     return None
 
 
@@ -152,15 +258,23 @@ def run_pytest(root, targets, timeout=TIMEOUT, cache_dir=None, python=sys.execut
 
 
 def classify(rc, output) -> tuple[str, str | None]:
-    """(status, first failing test) from a pytest run on a mutant."""
+    """(status, first failing test) from a pytest run on a mutant. A kill is pytest's exit code
+    1 (tests ran and failed) with a failing test named in its summary, nothing else:
+
+    * ``rc`` None (the time bound passed): "timeout", counted with the survivors, never a kill;
+    * 0: "survived";
+    * 1 with a test named: "killed";
+    * 1 without one (a process that exited 1 by itself), 2 (a collection error, an
+      interruption), 3, 4, 5 (no test ran), a negative code (a signal: a segfault, a kill) or
+      any other: "invalid", not a verdict on the suite."""
     if rc is None:
         return "timeout", None
-    first = _first_failure(output)
     if rc == 0:
         return "survived", None
-    if rc == 1 and first is not None:
+    first = _first_failure(output)
+    if rc == PYTEST_TESTS_FAILED and first is not None:
         return "killed", first
-    return "invalid", first          # collection error, usage error, crash: not a verdict
+    return "invalid", first
 
 
 def project_snapshot(project=PROJECT) -> bytes:

@@ -42,8 +42,10 @@ from dataclasses import dataclass, field
 
 from ...core.errors import LdasparkError
 from ...core.io import atomic_write_json, atomic_write_text
-from ...executors import Checkpoint, UnitsFailed, source_fingerprint
-from .mutation import TIMEOUT, all_test_files, require_tests, run_catalogue
+from ...executors import Checkpoint, UnitsFailed
+from .mutation import TIMEOUT, all_test_files, require_tests, run_catalogue, verdict_fingerprint
+from .records import (MAX_SOURCE_BYTES, RecordError, read_bytes, names_existing_test, read_equivalent, read_id_list, read_json,
+                      read_previous, read_text, sign_report)
 
 PACKAGE = pathlib.Path(__file__).resolve().parents[2]   # ./ldaspark
 PROJECT = PACKAGE.parent
@@ -341,36 +343,58 @@ def source_path(rel: str) -> pathlib.Path:
 
 def module_file(name: str) -> str:
     """'ldaspark/core/validate.py', 'core/validate.py' or 'ldaspark.core.validate' -> 'core/validate.py';
-    a verification helper (not a test file) as 'verification/strategies.py' stays so."""
+    a verification helper (not a test file) as 'verification/strategies.py' stays so. The path is
+    resolved (links and '..' included) and must stay inside the package (or verification/) and be
+    a regular file there: 'ldaspark/../../x.py' is refused."""
+    if not isinstance(name, str) or not name.strip() or len(name) > 500 or "\0" in name:
+        raise MutgenError(f"--generated: {str(name)[:80]!r} is not a module name")
     n = name.strip()
     hp = pathlib.Path(n)
     if n.endswith(".py") and len(hp.parts) == 2 and hp.parts[0] == HELPERS_DIR:
-        if hp.name.startswith("test_") or hp.name == "conftest.py" or not (PROJECT / hp).is_file():
+        if hp.name.startswith("test_") or hp.name == "conftest.py" or not _inside(PROJECT / HELPERS_DIR, PROJECT / hp):
             raise MutgenError(f"no verification helper {n} (test files and conftest.py are not mutated)")
         return str(hp)
     if n.endswith(".py"):
         p = pathlib.Path(n)
+        if p.is_absolute() or ".." in p.parts:
+            raise MutgenError(f"--generated: {n[:120]} is not a module of the ldaspark package (a path inside it, "
+                              "without '..', or a dotted name)")
         parts = p.parts[1:] if p.parts and p.parts[0] == "ldaspark" else p.parts
+        if not parts:
+            raise MutgenError(f"--generated: {n[:120]} is not a module name")
         rel = str(pathlib.Path(*parts))
     else:
         parts = n.split(".")
+        if not all(x.isidentifier() for x in parts):
+            raise MutgenError(f"--generated: {n[:120]} is not a dotted module name")
         parts = parts[1:] if parts[0] == "ldaspark" else parts
+        if not parts:
+            raise MutgenError(f"--generated: {n[:120]} is the package, not a module")
         rel = "/".join(parts) + ".py"
-    if not (PACKAGE / rel).is_file():
-        raise MutgenError(f"no module ldaspark/{rel}")
+    if not _inside(PACKAGE, PACKAGE / rel):
+        raise MutgenError(f"no module ldaspark/{rel[:120]} (a regular file inside the package)")
     return rel
+
+
+def _inside(root: pathlib.Path, path: pathlib.Path) -> bool:
+    """``path``, resolved, is a regular file under ``root`` resolved."""
+    import os
+    import stat
+    try:
+        real = path.resolve()
+        real.relative_to(root.resolve())
+        return stat.S_ISREG(os.stat(real).st_mode)
+    except (ValueError, OSError, RuntimeError):
+        return False
 
 
 # --- equivalents ---------------------------------------------------------------------------------
 def load_equivalent(path=EQUIVALENT) -> dict:
-    p = pathlib.Path(path)
-    if not p.is_file():
-        return {}
-    data = json.loads(p.read_text())
-    if not isinstance(data, dict) or not all(isinstance(k, str) and isinstance(v, str) and v.strip()
-                                             for k, v in data.items()):
-        raise MutgenError(f"{p}: must map each mutant id to a one-line argument")
-    return data
+    """{mutant id: why it is equivalent} (``records.read_equivalent``: a regular file, bounded)."""
+    try:
+        return read_equivalent(path)
+    except RecordError as exc:
+        raise MutgenError(str(exc)) from None
 
 
 # --- coverage: which tests execute which lines ----------------------------------------------------
@@ -409,6 +433,15 @@ if __name__ == "__main__":
 '''
 
 
+def _source_text(path) -> str:
+    """A test file's text ('' unless a regular file within the reader's bound: a FIFO named
+    test_x.py is never opened)."""
+    try:
+        return read_bytes(path, "a test file", MAX_SOURCE_BYTES).decode("utf-8", "ignore")
+    except RecordError:
+        return ""
+
+
 def mapped_tests(relfile: str, project=PROJECT) -> list[str]:
     """Test files that import the module (by its dotted name or a relative import of it; a
     verification helper by its bare name, as the tests beside it import it)."""
@@ -417,7 +450,7 @@ def mapped_tests(relfile: str, project=PROJECT) -> list[str]:
         name = pathlib.Path(relfile).stem
         pats = (f"from {name} import", f"import {name}", f"{HELPERS_DIR}.{name}")
         for f in all_test_files(project):
-            src = (pathlib.Path(project) / f).read_text(errors="ignore")
+            src = _source_text(pathlib.Path(project) / f)
             if any(p in src for p in pats):
                 out.append(f)
         return out + [f for f in ALWAYS_MAPPED if (pathlib.Path(project) / f).is_file() and f not in out]
@@ -425,7 +458,7 @@ def mapped_tests(relfile: str, project=PROJECT) -> list[str]:
     mod = dotted.rsplit(".", 1)
     pats = (dotted, f"from {mod[0]} import {mod[1]}", f"import {mod[1]}")
     for f in all_test_files(project):
-        src = (pathlib.Path(project) / f).read_text(errors="ignore")
+        src = _source_text(pathlib.Path(project) / f)
         if any(p in src for p in pats[:2]) or (pats[2] in src and mod[0] in src):
             out.append(f)
     for f in ALWAYS_MAPPED:
@@ -575,29 +608,37 @@ def _order_tests(ids, durations=None, file_costs=None):
 def run_generated(args) -> int:
     require_tests()
     files = [module_file(m) for m in args.generated]
+    if not files:
+        raise MutgenError("--generated: no module given")
     t0 = time.time()
     equivalent = load_equivalent()
     mutants = [m for f in files for m in generate(f)]
-    outdir = pathlib.Path(args.outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
-    tests = sorted({t for f in files for t in mapped_tests(f)})
-    if getattr(args, "tests", None) == SUITE:
-        tests = all_test_files(PROJECT)
-    elif getattr(args, "tests", None):
-        tests = [x.strip() for x in args.tests.split(",") if x.strip()]
+    # every file argument and selection is read and checked before any work starts
+    tests = _selected_tests(args, files)
+    only = _only_ids(args, mutants)
+    kinds = _kinds(args)
+    keep = _keep_files(args)
+    earlier = [read_previous(k) for k in keep]
+    if only is not None and earlier and not earlier[0].trusted:
+        raise MutgenError(f"--only with --keep-killed {keep[0][:200]} updates that report in place, but it is not "
+                          "signed with this user's key (written elsewhere, edited or forged): its records cannot be "
+                          "kept; run without --only to rerun its kills against their named tests")
+    outdir = make_outdir(args.outdir)
     print(f"[mutgen] {len(mutants)} mutants in {len(files)} modules; coverage of {len(tests)} test files ...",
           flush=True)
     # the coverage map is reused while the modules under test and the mapped test files are
     # unchanged (it is the run's most expensive single step; lines elsewhere do not move)
     key = coverage_key(files, tests)
     cfile, kfile = outdir / ".mutgen.coverage", outdir / ".mutgen.coverage.key"
-    if cfile.is_file() and kfile.is_file() and kfile.read_text().strip() == key:
+    if cfile.is_file() and _small_text(kfile).strip() == key:
         cmap, cstats, rc, csec, tail = coverage_map(files, tests, cfile, reuse=True)
     else:
         cmap, cstats, rc, csec, tail = coverage_map(files, tests, cfile, jobs=max(1, int(args.jobs or 1)))
     dpath = pathlib.Path(str(cfile) + ".durations.json")
-    runinfo = json.loads(dpath.read_text()) if dpath.is_file() else {}
-    durations, failed = runinfo.get("durations", {}), runinfo.get("failed", {})
+    runinfo = read_json(dpath, "the coverage run's durations") if dpath.is_file() else {}
+    durations, failed = (runinfo.get("durations", {}), runinfo.get("failed", {})) if isinstance(runinfo, dict) else ({}, {})
+    if not isinstance(durations, dict) or not isinstance(failed, dict):
+        raise MutgenError(f"{dpath}: not the durations a coverage run writes")
     if rc not in (0, 1, 5) or (rc == 1 and not failed):
         last = tail.strip().splitlines()[-1] if tail.strip() else ""
         raise MutgenError(f"the mapped tests could not run on the unmutated package (pytest exit {rc}): {last}")
@@ -651,32 +692,37 @@ def run_generated(args) -> int:
         targets[m.id] += [f"--deselect={t}" for t in BOOKKEEPING]
         todo.append(m)
     covered = {m.id for m in todo}
-    if getattr(args, "kinds", None):
+    if kinds is not None:
         # one kind of fault across many modules (all <-> any, min <-> max: the one-sided verdicts)
-        kinds = {k.strip() for k in args.kinds.split(",") if k.strip()}
         todo = [m for m in todo if mutant_kind(m.id) in kinds]
     if getattr(args, "sample", None):
         # drawn from every generated mutant (not only the covered ones): the same sample whatever
         # the tests, so runs against other test sets or after new tests extend one another
         picked = {m.id for m in sample([m for m in mutants if m.id not in equivalent], files, args.sample)}
         todo = [m for m in todo if m.id in picked]
-    only = _only_ids(args, mutants)
-    keep = [x.strip() for x in (getattr(args, "keep_killed", None) or "").split(",") if x.strip()]
-    previous = [r for path in keep for r in _previous_records(path)]
-    if previous:
+    if earlier:
         # adding tests cannot revive a killed mutant while its killing test is still there:
         # reuse those records (of any covered mutant, in the sample or not: an earlier run's
-        # kills stay in the report), run the rest (the survivors and the mutants not yet run)
-        for r in previous:
-            test = (r.get("first_failing_test") or "").split("::")[0]
-            if r.get("status") == "killed" and test and (PROJECT / test).is_file() and r.get("mutant") in covered \
-                    and r["mutant"] not in recs_fixed:
-                recs_fixed[r["mutant"]] = dict(r, previous_run=True)
+        # kills stay in the report), run the rest (the survivors and the mutants not yet run).
+        # Only a record its writer signed is a verdict (records.read_previous); a kill in an
+        # unsigned or forged file is a hint: the mutant runs again, its named test first
+        seen_tests: dict = {}
+        for prev in earlier:
+            for r in prev.records:
+                test = r.get("first_failing_test")
+                if r.get("status") != "killed" or r["mutant"] not in covered or r["mutant"] in recs_fixed \
+                        or not names_existing_test(test, PROJECT, seen_tests):
+                    continue
+                if prev.trusted:
+                    recs_fixed[r["mutant"]] = dict(r, previous_run=True)
+                elif r["mutant"] in targets and test not in targets[r["mutant"]]:
+                    targets[r["mutant"]] = [test] + targets[r["mutant"]]
         if only is not None:
-            # an update of the earlier report: the listed mutants run again, every other
-            # mutant keeps its earlier record (whatever its status), so the report stays whole
-            # (over this run's verdict of "not covered" too: a narrower --tests must not erase them)
-            for r in _previous_records(keep[0]):
+            # an update of the earlier report (signed: checked above): the listed mutants run
+            # again, every other mutant keeps its earlier record (whatever its status), so the
+            # report stays whole (over this run's verdict of "not covered" too: a narrower
+            # --tests must not erase them)
+            for r in earlier[0].records:
                 mine = recs_fixed.get(r["mutant"])
                 if r["mutant"] not in only and r.get("status") != "equivalent" \
                         and (mine is None or mine["status"] != "equivalent"):
@@ -687,8 +733,7 @@ def run_generated(args) -> int:
     if getattr(args, "limit", None):
         todo = todo[:args.limit]
     ck = Checkpoint(outdir / "mutation-generated.partial.jsonl",
-                    source_fingerprint("mutants-generated", files, tests, getattr(args, "tests", None),
-                                       dirs=(PROJECT / "tests", PROJECT / "verification")))
+                    verdict_fingerprint("mutants-generated", files, tests, getattr(args, "tests", None)))
     if getattr(args, "fresh", False):
         ck.discard()
 
@@ -722,7 +767,7 @@ def run_generated(args) -> int:
         cmd += f" --keep-killed {args.keep_killed}"
     # the history (earlier runs' commands) is that of the first report among them (a checkpoint
     # of an interrupted run has none: it contributes its records only)
-    history = _previous_runs(next((k for k in keep if not k.endswith(".jsonl")), keep[0])) if keep else {}
+    history = _previous_runs(next((e.doc for e in earlier if e.doc is not None), None)) if earlier else {}
     if history.get("modules_not_run"):
         # a module this run mutates is no longer "not yet run"
         names = {pathlib.Path(f).name for f in files}
@@ -798,30 +843,101 @@ def write_coverage_report(files, datafile, outdir, tests, failed, seconds, comma
 def _only_ids(args, mutants):
     """The set of ``--only`` ids (comma-separated, or @FILE with one id per line) for a generated
     run, None without ``--only``; an id that is not generated is an error (a typo would run
-    nothing and look like success)."""
+    nothing and look like success), and so is an empty selection ('--only ,', an empty file)."""
     spec = getattr(args, "only", None)
-    if not spec:
+    if spec is None:
         return None
+    if not isinstance(spec, str):
+        raise MutgenError("--only: a comma-separated list of ids or @FILE")
     if spec.startswith("@"):
-        ids = [x.strip() for x in pathlib.Path(spec[1:]).read_text().splitlines() if x.strip()]
+        ids = read_id_list(spec[1:])
     else:
         ids = [x.strip() for x in spec.split(",") if x.strip()]
+    if not ids:
+        raise MutgenError(f"--only {spec[:80]!r} selects no mutant (give ids, comma-separated, or @FILE with one a line)")
     known = {m.id for m in mutants}
     unknown = [x for x in ids if x not in known]
     if unknown:
-        raise MutgenError(f"--only: {len(unknown)} ids are not generated from these modules, e.g. {unknown[0]}")
+        raise MutgenError(f"--only: {len(unknown)} ids are not generated from these modules, e.g. {unknown[0][:200]}")
     return set(ids)
 
 
-def _previous_runs(path) -> dict:
-    """The run history (``runs``) and ``modules_not_run`` of an earlier report, carried into
-    an update of it (empty for a checkpoint)."""
-    if str(path).endswith(".jsonl"):
-        return {}
+#: the operator kinds ``generate`` makes (``--kinds``)
+KINDS = ("call-swap", "compare", "boolean", "not-removal", "negation-removal", "arithmetic", "constant", "return",
+         "slice")
+
+
+def _kinds(args):
+    """The ``--kinds`` set, None without it; empty or unknown kinds refused (they would run nothing)."""
+    spec = getattr(args, "kinds", None)
+    if spec is None:
+        return None
+    kinds = {k.strip() for k in str(spec).split(",") if k.strip()}
+    if not kinds or not kinds <= set(KINDS):
+        bad = sorted(kinds - set(KINDS))
+        raise MutgenError(f"--kinds {str(spec)[:80]!r}: " + (f"unknown kind {bad[0][:40]!r}; " if bad else "no kind; ")
+                          + f"one or more of {', '.join(KINDS)}")
+    return kinds
+
+
+def _keep_files(args) -> list[str]:
+    """The ``--keep-killed`` files; an empty list ('--keep-killed ,') refused."""
+    spec = getattr(args, "keep_killed", None)
+    if spec is None:
+        return []
+    keep = [x.strip() for x in str(spec).split(",") if x.strip()]
+    if not keep:
+        raise MutgenError(f"--keep-killed {str(spec)[:80]!r} names no file")
+    return keep
+
+
+def _selected_tests(args, files) -> list[str]:
+    """The test files mapped by coverage: ``--tests`` (each a regular test_*.py under tests/ or
+    verification/ of this project; 'suite': every default test file) or those importing the
+    modules; an empty selection refused."""
+    spec = getattr(args, "tests", None)
+    if spec == SUITE:
+        return all_test_files(PROJECT)
+    if spec is None:
+        return sorted({t for f in files for t in mapped_tests(f)})
+    tests = [x.strip() for x in str(spec).split(",") if x.strip()]
+    if not tests:
+        raise MutgenError(f"--tests {str(spec)[:80]!r} names no test file")
+    bad = [t for t in tests if "::" in t or not names_existing_test(t, PROJECT)]
+    if bad:
+        raise MutgenError(f"--tests: {bad[0][:200]} is not a test file of this project (tests/test_*.py or "
+                          "verification/test_*.py, a regular file)")
+    return tests
+
+
+def make_outdir(path) -> pathlib.Path:
+    """``--outdir``, created if needed; a path that is not a directory refused in one line."""
+    out = pathlib.Path(path)
     try:
-        doc = json.loads(pathlib.Path(path).read_text())
-    except (OSError, ValueError):
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise MutgenError(f"--outdir {str(path)[:200]}: cannot be created ({exc.strerror or exc})") from None
+    if not out.is_dir():
+        raise MutgenError(f"--outdir {str(path)[:200]}: not a directory")
+    return out
+
+
+def _small_text(path) -> str:
+    """A small file of this tool's own (the coverage map's key): '' when absent or not a regular file."""
+    try:
+        return read_text(path, "the coverage key", 4096)
+    except RecordError:
+        return ""
+
+
+def _previous_runs(doc) -> dict:
+    """The run history (``runs``) and ``modules_not_run`` of an earlier report (its ``doc`` as
+    ``records.read_previous`` read it, or a path), carried into an update of it (empty for a
+    checkpoint or None)."""
+    if doc is None or str(doc).endswith(".jsonl"):
         return {}
+    if not isinstance(doc, dict):
+        doc = read_previous(doc).doc
     runs = doc.get("runs")
     if not isinstance(runs, list):     # a report of one run: its own command is its history
         runs = [{k: doc[k] for k in ("command", "seconds", "test_files_mapped") if k in doc}] if "command" in doc else []
@@ -837,17 +953,9 @@ def _previous_runs(path) -> dict:
 
 def _previous_records(path) -> list:
     """The records of an earlier run: its mutation-generated.json, or the checkpoint
-    (``*.partial.jsonl``) of an interrupted one."""
-    text = pathlib.Path(path).read_text()
-    if str(path).endswith(".jsonl"):
-        out = []
-        for line in text.splitlines()[1:]:
-            try:
-                out.append(json.loads(line)["value"])
-            except (ValueError, KeyError, TypeError):
-                break
-        return out
-    return json.loads(text).get("mutants", [])
+    (``*.partial.jsonl``) of an interrupted one, as the one reader gives them
+    (``records.read_previous``: schema-checked; a checkpoint's records with their HMAC)."""
+    return read_previous(path).records
 
 
 def mutant_kind(mid: str) -> str:
@@ -941,7 +1049,8 @@ def write_reports(recs, files, cstats, outdir, command, seconds, tests, history=
            "equivalent": by("equivalent"), "surviving": by("survived", "timeout"),
            "not_covered": by("not-covered"), "modules": per, "test_files_mapped": tests,
            "mutants": recs}
-    atomic_write_json(pathlib.Path(outdir) / "mutation-generated.json", doc)
+    # signed with this user's key: a later run takes its kills as verdicts only when it verifies
+    atomic_write_json(pathlib.Path(outdir) / "mutation-generated.json", sign_report(doc))
     lines = ["# Generated mutants", "", f"Tool: {TOOL}, version {VERSION}. Reproduce: `{command}`; "
              f"wall time {seconds / 60:.1f} min.", ""]
     if len(runs) > 1:

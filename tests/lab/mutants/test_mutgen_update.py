@@ -8,6 +8,7 @@ import types
 import pytest
 
 from ldaspark.lab.mutants import mutgen
+from ldaspark.lab.mutants.records import sign_report
 
 
 def _mutants():
@@ -197,12 +198,14 @@ def test_kills_of_several_earlier_reports_are_kept_outside_the_sample(monkeypatc
     ms = mutgen.generate(rel, check=False)
     cmap = {rel: {m.line: ["tests/compiled/test_kahan.py::test_x"] for m in ms}}
     a, b = tmp_path / "a.json", tmp_path / "b.json"
-    a.write_text(json.dumps({"runs": [{"command": "first", "seconds": 1.0}],
+    kahan = "tests/compiled/test_kahan.py::test_neutral_direction_gains_most"      # a test that exists
+    # reports as this user's runs write them: signed (an unsigned one is tests/test_mutgen_records.py's)
+    a.write_text(json.dumps(sign_report({"runs": [{"command": "first", "seconds": 1.0}],
                              "modules_not_run": ["theory (symmetry.py, variational.py)", "models (bicycle.py)"],
                              "mutants": [
-        dict(mutgen._rec(ms[-1], "killed", "tests/compiled/test_kahan.py::test_x", 1.0))]}))
-    b.write_text(json.dumps({"mutants": [dict(mutgen._rec(ms[-2], "killed", "tests/compiled/test_kahan.py::test_x", 1.0)),
-                                         dict(mutgen._rec(ms[-3], "killed", "tests/no_such_file.py::t", 1.0))]}))
+        dict(mutgen._rec(ms[-1], "killed", kahan, 1.0))]})))
+    b.write_text(json.dumps(sign_report({"mutants": [dict(mutgen._rec(ms[-2], "killed", kahan, 1.0)),
+                                         dict(mutgen._rec(ms[-3], "killed", "tests/no_such_file.py::t", 1.0))]})))
     ran = {}
     _fake_run(monkeypatch, tmp_path, cmap, ["tests/compiled/test_kahan.py"], ran)
     args = types.SimpleNamespace(generated=[rel], outdir=str(tmp_path / "out"), tests="tests/compiled/test_kahan.py", jobs=1,
