@@ -405,6 +405,8 @@ def _check_metadata(md) -> dict:
     for key in ("stats", "params"):
         if md.get(key) is not None and not isinstance(md[key], dict):
             raise InputError(f"metadata: {key} must be a JSON object, got {type(md[key]).__name__}")
+    for k, v in (md.get("params") or {}).items():
+        _refuse_bools(v, f"metadata: params[{str(k)[:40]!r}]")
     for key in ("scene", "method", "system", "engine", "message"):
         if md.get(key) is not None and not isinstance(md[key], (str, list)):
             raise InputError(f"metadata: {key} must be a string, got {type(md[key]).__name__}")
@@ -470,6 +472,20 @@ def _build(md: dict, arrays: dict) -> Result:
                  np.asarray(status) if isinstance(status, list) else int(status), **kw)
     res.stats = md.get("stats", {}) or {}
     return res
+
+
+def _refuse_bools(x, name: str) -> None:
+    """JSON ``true`` / ``false`` where a number belongs (the arrays q, t, ...; a parameter value):
+    refused, naming the place and what is expected (NumPy would read them as 1.0 and 0.0).
+    Iterative, so that a deep list is not a RecursionError."""
+    todo = [(x, name)]
+    while todo:
+        v, where = todo.pop()
+        if isinstance(v, bool):
+            raise InputError(f"{where} is the JSON boolean {str(v).lower()}, not a number (expected a number "
+                             "or a decimal string)")
+        if isinstance(v, list):
+            todo.extend((e, f"{where}[{i}]") for i, e in enumerate(v))
 
 
 def _no_constant(name):
@@ -641,23 +657,10 @@ def _h5_arrays(f) -> dict:
 
 
 def _open_regular(path: str, limit: int):
-    """A binary file object of ``path`` when it is a regular file of at most ``limit`` bytes:
-    ``os.stat`` before opening (a FIFO or device is never opened), then opened without blocking
-    and checked again on the descriptor (the same file, still regular): what is checked is what
-    is read. Returns (file object, size)."""
-    import stat
-    from .validate import regular_file
-    regular_file(path, limit, "result file")
-    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
-    try:
-        fd = os.open(path, flags)
-    except OSError as exc:
-        raise InputError(f"cannot read result file {path}: {exc.strerror or exc}") from None
-    st = os.fstat(fd)
-    if not stat.S_ISREG(st.st_mode) or st.st_size > limit:
-        os.close(fd)
-        raise InputError(f"result file {path} is not a regular file of at most {limit} bytes")
-    return os.fdopen(fd, "rb"), st.st_size
+    """A binary file object of ``path`` when it is a regular file of at most ``limit`` bytes
+    (``validate.open_regular``, the one checked opener). Returns (file object, size)."""
+    from .validate import open_regular
+    return open_regular(path, limit, "result file")
 
 
 def load_result(path: Union[str, os.PathLike]) -> Result:
@@ -717,6 +720,7 @@ def _load(path, ext, fh, size) -> Result:
             arrays = {}
             for k in ARRAYS:
                 if k in d:
+                    _refuse_bools(d[k], k)
                     try:
                         arrays[k] = np.array(d[k], dtype=object if d.get("dps") else float)
                     except (TypeError, ValueError, OverflowError):
