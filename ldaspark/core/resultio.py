@@ -319,7 +319,11 @@ def save_result(result: Result, path: Union[str, os.PathLike]) -> None:
     arrays = {name: _numbers(getattr(result, name), result.dps) for name in ARRAYS
               if getattr(result, name) is not None}
     arrays.update(extra)
-    md = json.dumps(dict(metadata(result), stats=_json_value(result.stats)))
+    try:
+        md = json.dumps(dict(metadata(result), stats=_json_value(result.stats)))
+    except ValueError as exc:           # an integer of more than 4300 digits (h = 10**5000)
+        raise InputError(f"cannot write {path}: the metadata holds a value JSON cannot write "
+                         f"({str(exc).splitlines()[0][:80]})") from None
     if ext == ".npz":
         buf = io.BytesIO()
         np.savez(buf, metadata=np.array(md), **arrays)
@@ -327,6 +331,15 @@ def save_result(result: Result, path: Union[str, os.PathLike]) -> None:
         return
     h5py = _h5py()
     buf = io.BytesIO()
+    try:
+        _write_h5(h5py, buf, arrays, md)
+    except (TypeError, ValueError, OverflowError) as exc:       # a value HDF5 has no type for
+        raise InputError(f"cannot write {path}: {str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__}") \
+            from None
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def _write_h5(h5py, buf, arrays: dict, md: str) -> None:
     with h5py.File(buf, "w") as f:
         for name, a in arrays.items():
             f.create_dataset(name, data=a.astype("S") if a.dtype.kind == "U" else a)
@@ -338,8 +351,9 @@ def save_result(result: Result, path: Union[str, os.PathLike]) -> None:
         f.attrs["metadata"] = md                 # the same text for other HDF5 tools (not read here)
         for k in ("scene", "method", "h", "dps", "version", "status"):
             v = json.loads(md)[k]
-            f.attrs[k] = json.dumps(v) if not isinstance(v, (str, int, float)) else v
-    atomic_write_bytes(path, buf.getvalue())
+            # an integer beyond int64 (a 400-digit integer step h) has no HDF5 type: its JSON text
+            fits = isinstance(v, (str, float)) or isinstance(v, int) and -2 ** 63 <= v < 2 ** 63
+            f.attrs[k] = v if fits else json.dumps(v)
 
 
 def _h5py():
