@@ -233,6 +233,48 @@ def check_executor(executor):
     return executor
 
 
+def is_process_pool(executor) -> bool:
+    """``executor`` sends its work to other processes by pickling it (a ``ProcessPoolExecutor``,
+    the package's own pools included)."""
+    import concurrent.futures as cf
+    return isinstance(executor, cf.ProcessPoolExecutor)
+
+
+def check_picklable(executor, fns, what: str) -> None:
+    """With a process pool, every function in ``fns`` must pickle (a local function or a lambda
+    does not): refused up front, naming it, instead of a PicklingError from inside the pool.
+    Other executors (threads, this process) take any callable."""
+    import pickle
+    if not is_process_pool(executor):
+        return
+    for fn in fns:
+        try:
+            pickle.dumps(fn)
+        except Exception as exc:  # noqa: BLE001  (pickle raises PicklingError, AttributeError, TypeError)
+            inner = getattr(fn, "g", fn)                  # an Event wraps its function as .g
+            name = getattr(inner, "__qualname__", None) or type(inner).__name__
+            raise InputError(f"{what} {name} cannot be sent to the process pool {type(executor).__name__}: it does "
+                             f"not pickle ({type(exc).__name__}; a local function or a lambda): define it at "
+                             "module level, or use a ThreadPoolExecutor") from None
+
+
+def submitted(executor, future):
+    """What ``executor.submit`` returned, checked: a future (``result`` and ``cancel``), else one
+    InputError naming the executor (a ``submit`` that returns None was an AttributeError later)."""
+    if not (callable(getattr(future, "result", None)) and callable(getattr(future, "cancel", None))):
+        raise InputError(f"the executor {type(executor).__name__}'s submit returned {_describe(future)}, not a "
+                         "future (concurrent.futures.Future: result, cancel)")
+    return future
+
+
+def submit_error(executor, exc: BaseException) -> InputError:
+    """The one-line error for an executor whose ``submit`` raised (shut down, or its own error)."""
+    if isinstance(exc, RuntimeError):
+        return executor_shut_down(exc)
+    return InputError(f"the executor {type(executor).__name__}'s submit raised {type(exc).__name__}: "
+                      f"{' '.join(str(exc).split())[:100]}")
+
+
 def executor_shut_down(exc: BaseException) -> InputError:
     """The one-line error for an executor that refused new work at submit (RuntimeError
     'cannot schedule new futures after shutdown' and the like)."""
