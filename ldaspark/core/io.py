@@ -6,8 +6,8 @@ What is written where (the path is ``--out`` / ``--json`` of the command line):
 * a regular file, or a path that does not exist yet: atomic replace (temporary
   ``.tmp-ldaspark-<host>-<pid>-<random>.<name>`` file in the same directory, removed again on any
   error and on every signal whose default action terminates the process (SIGINT, SIGTERM,
-  SIGHUP, SIGQUIT, SIGUSR1, SIGALRM, SIGXCPU, ...: ``lifecycle.STOP_SIGNALS``); one left by a killed writer is removed at the
-  next write to the same target: ``ldaspark.core.lifecycle``);
+  SIGHUP, SIGQUIT, SIGUSR1, SIGALRM, SIGXCPU, ...: ``lifecycle.STOP_SIGNALS``); one left by a
+  killed writer is removed at the next write to the same target: ``ldaspark.core.lifecycle``);
 * a symbolic link: followed; its final target is replaced atomically (the link stays a link);
 * a character device or a FIFO (``/dev/null``, ``/dev/stdout``, a named pipe, ``>(cmd)``):
   written directly, as a shell redirection would (no atomicity is possible there; a FIFO blocks
