@@ -732,9 +732,11 @@ def _load(path, ext, fh, size) -> Result:
                 raise InputError(f"{os.fspath(path)}: not a result file")
             _check_metadata(d)
             arrays = {}
+            maybe_bools = b"true" in raw or b"false" in raw        # the walk only when one can be there
             for k in ARRAYS:
                 if k in d:
-                    _refuse_bools(d[k], k)
+                    if maybe_bools:
+                        _refuse_bools(d[k], k)
                     try:
                         arrays[k] = np.array(d[k], dtype=object if d.get("dps") else float)
                     except (TypeError, ValueError, OverflowError):
