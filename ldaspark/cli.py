@@ -257,7 +257,9 @@ def _main(argv=None) -> int:
         print("ldaspark: error: give a command (integrate, methods, report, verify, audit)", file=sys.stderr)
         return 2
     try:
-        return int(args.func(args) or 0)
+        rc = int(args.func(args) or 0)
+        sys.stdout.flush()          # a write error on stdout (``> /dev/full``) surfaces here, as one line
+        return rc
     except LdasparkError as exc:
         print(f"ldaspark: error: {_one_line(exc)}", file=sys.stderr)
         return 2
@@ -280,6 +282,25 @@ def _main(argv=None) -> int:
             pass
         print("ldaspark: error: output closed by the reader (broken pipe)", file=sys.stderr)
         return 2
+    except OSError as exc:
+        # a write error outside the atomic writers (which say it themselves): stdout on a full
+        # disk or /dev/full, an I/O error. One line, exit 2; what stdout still buffers is dropped
+        # so that the interpreter's final flush does not print a second error
+        _drop_stdout()
+        where = f" {exc.filename}" if getattr(exc, "filename", None) else " the output"
+        print(f"ldaspark: error: cannot write{where}: {exc.strerror or type(exc).__name__}", file=sys.stderr)
+        return 2
+
+
+def _drop_stdout() -> None:
+    """Point stdout at /dev/null and discard what its buffer holds (it cannot be written)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+        sys.stdout.flush()
+    except (OSError, ValueError, AttributeError):
+        pass
 
 
 def _file_state(path):

@@ -40,6 +40,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
 
+from .core import validate as V
 from .core.errors import InputError, LdasparkError
 from .core.io import atomic_write_text
 from .core.lifecycle import make_process_pool
@@ -240,7 +241,11 @@ def open_executor(where=None, jobs=None, mp_context=None):
 
     class _Tracking(cf.Executor):
         def submit(self, fn, /, *args, **kwargs):
-            f = submit(fn, *args, **kwargs)
+            try:
+                f = submit(fn, *args, **kwargs)
+            except Exception as exc:  # noqa: BLE001  (a user's executor's own error: one line)
+                raise V.submit_error(ex, exc) from exc
+            f = V.submitted(ex, f)
             submitted.append(f)
             return f
     try:
@@ -276,6 +281,17 @@ def _worker_lost(exc) -> bool:
     return isinstance(exc, BrokenProcessPool) or type(exc).__name__ in ("KilledWorker", "CommClosedError")
 
 
+def _submit(executor, u):
+    """``executor.submit(u.fn, *u.args)``, checked: a ``submit`` that raises (a shut-down
+    executor, or its own error) or returns something other than a future is one InputError
+    naming the executor (``validate.submitted``)."""
+    try:
+        fut = executor.submit(u.fn, *u.args)
+    except Exception as exc:  # noqa: BLE001  (any error of a user's executor is its own)
+        raise V.submit_error(executor, exc) from exc
+    return V.submitted(executor, fut)
+
+
 def run_units(units: Iterable[Unit], where=None, jobs=None, retries: int = 2,
               on_done: Callable[[str, Any], None] | None = None, mp_context=None, raise_failed=True) -> dict:
     """Run ``units`` where ``where`` says; returns {unit name: result}. ``on_done(name, result)``
@@ -302,6 +318,13 @@ def run_units_partial(units: Iterable[Unit], where=None, jobs=None, retries: int
     results, failed = {}, {}
     attempts = {u.name: 0 for u in units}
     place = _Place(where, jobs, mp_context)
+    try:
+        # a function that cannot reach a process pool (a local function, a lambda) is refused
+        # before anything runs, not reported as every unit failing with a PicklingError
+        V.check_picklable(place.executor, {id(u.fn): u.fn for u in units}.values(), "the work unit's function")
+    except BaseException:
+        place.close()
+        raise
     pending = units
 
     def handle(f, u):       # -> True when the pool broke under the unit
@@ -330,11 +353,7 @@ def run_units_partial(units: Iterable[Unit], where=None, jobs=None, retries: int
                         handle(place.executor.submit(u.fn, *u.args), u)
                     continue
                 for u in batch:
-                    try:
-                        futs[place.executor.submit(u.fn, *u.args)] = u
-                    except RuntimeError as exc:     # a user's executor that was shut down
-                        from .core.validate import executor_shut_down
-                        raise executor_shut_down(exc) from exc
+                    futs[_submit(place.executor, u)] = u
                 for f in cf.as_completed(futs):
                     broken = handle(f, futs[f]) or broken
             except BaseException:

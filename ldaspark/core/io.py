@@ -5,8 +5,9 @@ What is written where (the path is ``--out`` / ``--json`` of the command line):
 
 * a regular file, or a path that does not exist yet: atomic replace (temporary
   ``.tmp-ldaspark-<host>-<pid>-<random>.<name>`` file in the same directory, removed again on any
-  error and on SIGINT, SIGTERM, SIGHUP or SIGQUIT; one left by a killed writer is removed at the
-  next write to the same target: ``ldaspark.core.lifecycle``);
+  error and on every signal whose default action terminates the process (SIGINT, SIGTERM,
+  SIGHUP, SIGQUIT, SIGUSR1, SIGALRM, SIGXCPU, ...: ``lifecycle.STOP_SIGNALS``); one left by a
+  killed writer is removed at the next write to the same target: ``ldaspark.core.lifecycle``);
 * a symbolic link: followed; its final target is replaced atomically (the link stays a link);
 * a character device or a FIFO (``/dev/null``, ``/dev/stdout``, a named pipe, ``>(cmd)``):
   written directly, as a shell redirection would (no atomicity is possible there; a FIFO blocks
@@ -128,7 +129,7 @@ def _atomic_replace(path, target, data: bytes | None, write=None) -> None:
     """Write ``data`` (or let ``write(tmp_name)`` write) to a temporary file next to ``target``
     (``lifecycle.TempFile``: a recognisable name, O_EXCL | O_NOFOLLOW, the stale ones of a
     killed writer removed first), fsync, os.replace; the temporary file is removed on any
-    error and on every stop signal (SIGINT, SIGTERM, SIGHUP, SIGQUIT)."""
+    error and on every stop signal (``lifecycle.STOP_SIGNALS``)."""
     d = os.path.dirname(os.path.abspath(target))
     tmp = TempFile(target)
     with _sigterm_raises():

@@ -7,8 +7,12 @@
   once it changes. A pool left by an exception (Ctrl-C included) terminates its workers instead
   of waiting for them. Pool workers ignore SIGINT, SIGHUP and SIGQUIT (a terminal sends them to
   the whole process group): the parent decides and stops them.
-* **One stop policy for the command line** (``stop_on_signals``): SIGINT, SIGTERM, SIGHUP and
-  SIGQUIT raise ``Stopped`` (a ``KeyboardInterrupt``) in the main thread, so that every cleanup
+* **One stop policy for the command line** (``stop_on_signals``): every signal whose default
+  action terminates the process (``STOP_SIGNALS``, computed from the platform's signal list:
+  SIGINT, SIGTERM, SIGHUP, SIGQUIT, SIGUSR1, SIGUSR2, SIGALRM, SIGXCPU, SIGVTALRM, SIGPROF, the
+  real-time signals, ...; not SIGKILL, which cannot be caught, nor the fault signals SIGSEGV,
+  SIGBUS, SIGFPE, SIGILL, SIGTRAP, SIGSYS) raises ``Stopped`` (a ``KeyboardInterrupt``) in the
+  main thread, so that every cleanup
   that runs for Ctrl-C runs for each of them (workers stopped, checkpoints closed, temporary
   files removed); the command line prints one line and exits with 128 + the signal number. A
   second stop signal, or a cleanup that takes longer than ``deadline`` seconds, ends the run at
@@ -36,12 +40,51 @@ import threading
 import time
 import weakref
 
+#: the signals a terminal sends to the whole process group (and SIGTERM): the first four of the
+#: policy, named in messages and documentation
 STOP_SIGNAL_NAMES = ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT")
-#: the stop signals this platform has
-STOP_SIGNALS = tuple(getattr(signal, n) for n in STOP_SIGNAL_NAMES if hasattr(signal, n))
-# what a pool worker ignores: the parent stops it (SIGTERM keeps its default action, so that
-# terminating a worker ends it at once, whatever it computes)
-_WORKER_IGNORES = tuple(s for s in STOP_SIGNALS if s != getattr(signal, "SIGTERM", None))
+#: default actions that do not terminate the process (POSIX <signal.h>: ignore, stop, continue;
+#: SIGINFO, SIGWAITING, SIGLWP, SIGTHR, SIGCANCEL: ignored on the BSDs and Solaris)
+_NOT_TERMINATING = frozenset(("SIGCHLD", "SIGCLD", "SIGCONT", "SIGSTOP", "SIGTSTP", "SIGTTIN", "SIGTTOU",
+                              "SIGURG", "SIGWINCH", "SIGINFO", "SIGWAITING", "SIGLWP", "SIGTHR", "SIGCANCEL"))
+#: terminating, but not caught: SIGKILL cannot be; the synchronous fault signals must not be (the
+#: kernel sends them for the faulting instruction itself, and a Python-level handler returns to
+#: it: an endless loop instead of a crash); a file left by them is removed by the next write's
+#: sweep, its writer being dead
+UNCAUGHT_SIGNAL_NAMES = ("SIGKILL", "SIGSEGV", "SIGBUS", "SIGFPE", "SIGILL", "SIGTRAP", "SIGSYS", "SIGEMT")
+
+
+def _terminating_signals() -> tuple:
+    """Every signal of this platform (``signal.valid_signals``, real-time signals included)
+    whose default action terminates the process and that can be caught safely, in number
+    order; SIGINT, SIGTERM, SIGHUP and SIGQUIT are among them wherever the platform has them."""
+    names = {}
+    for sig in signal.Signals:              # aliases (SIGIOT, SIGPOLL, SIGCLD) share a number
+        names.setdefault(int(sig), set()).add(sig.name)
+    for n in ("SIGCLD", "SIGPOLL", "SIGIOT"):
+        if hasattr(signal, n):
+            names.setdefault(int(getattr(signal, n)), set()).add(n)
+    try:
+        valid = sorted(int(s) for s in signal.valid_signals())
+    except (AttributeError, ValueError, OSError):       # pragma: no cover - Python < 3.8
+        valid = sorted(names)
+    skip = _NOT_TERMINATING | set(UNCAUGHT_SIGNAL_NAMES)
+    out = []
+    for num in valid:
+        if names.get(num, set()) & skip:
+            continue
+        # a signal without a name is a real-time one (SIGRTMIN + k): terminating by default
+        out.append(signal.Signals(num) if num in names else num)
+    return tuple(out)
+
+
+#: the stop policy's signals: every signal of this platform whose default action terminates the
+#: process, computed from the platform's list (``_terminating_signals``), not a list of four
+STOP_SIGNALS = _terminating_signals()
+# what a pool worker ignores: the terminal's stop signals, which it sends to the whole process
+# group; the parent stops the worker (SIGTERM keeps its default action, so that terminating a
+# worker ends it at once, whatever it computes)
+_WORKER_IGNORES = tuple(getattr(signal, n) for n in ("SIGINT", "SIGHUP", "SIGQUIT") if hasattr(signal, n))
 # the signal a child receives when its parent dies; SIGTERM rather than SIGKILL so that a child
 # in the middle of an atomic write removes its temporary file (the watcher thread follows up
 # with os._exit if it is still alive a second later)
@@ -51,7 +94,8 @@ _WATCH_PERIOD = 0.2
 
 
 class Stopped(KeyboardInterrupt):
-    """A stop signal arrived (SIGINT, SIGTERM, SIGHUP or SIGQUIT); a ``KeyboardInterrupt``, so
+    """A stop signal arrived (``STOP_SIGNALS``: SIGINT, SIGTERM, SIGHUP, SIGQUIT and every other
+    signal whose default action terminates the process); a ``KeyboardInterrupt``, so
     that every cleanup written for Ctrl-C runs for it too."""
 
     def __init__(self, signum: int = signal.SIGINT):
@@ -384,8 +428,9 @@ class stop_on_signals:
 
 
 class raise_on_stop_signals:
-    """Outside the command line (a library writing a file): while the block runs, SIGTERM,
-    SIGHUP and SIGQUIT raise ``Stopped`` (SIGINT raises KeyboardInterrupt as always) so that
+    """Outside the command line (a library writing a file): while the block runs, every stop
+    signal (``STOP_SIGNALS``: SIGTERM, SIGHUP, SIGQUIT, SIGUSR1, SIGALRM, SIGXCPU, ...) raises
+    ``Stopped`` (SIGINT raises KeyboardInterrupt as always) so that
     its cleanup runs; on the way out their previous action is restored and the signal sent
     again, so that the process still ends by it as its parent expects. Only in the main thread
     and only for signals at their default action (the command line's or a program's own
@@ -456,18 +501,40 @@ def temp_tag(base: str, room: int) -> str:
     return keep + digest
 
 
+#: the largest process id a temporary file name may carry: pid_t is a signed 32-bit integer on
+#: every platform the package runs on (Linux caps pids at 2^22, macOS at 99999)
+PID_MAX = 2 ** 31 - 1
+# the pid as TempFile writes it: ASCII digits, no sign, no leading zero, at most 10 digits (a
+# bare ``\d`` would also take Arabic-Indic and other Unicode digits, which int() converts)
+_PID_RE = r"([1-9][0-9]{0,9})"
+
+
 def _stale_pattern(tag: str):
-    return re.compile(re.escape(_PREFIX) + r"([0-9a-f]{6})-(\d+)-[0-9a-z]{8}\." + re.escape(tag) + r"\Z", re.S)
+    return re.compile(re.escape(_PREFIX) + r"([0-9a-f]{6})-" + _PID_RE + r"-[0-9a-z]{8}\." + re.escape(tag) + r"\Z",
+                      re.S | re.ASCII)
+
+
+def parse_temp_pid(text: str) -> int | None:
+    """The writer's pid in a temporary file name's pid field, or None when the field is not one
+    that ``TempFile`` writes (empty, signed, a leading zero, non-ASCII digits, beyond PID_MAX):
+    such a file is not ours, and the sweep leaves it (a planted ``...-99999999999999999999-...``
+    once made every later write fail with OverflowError in ``os.kill``)."""
+    if not isinstance(text, str) or re.fullmatch(_PID_RE, text, re.ASCII) is None:
+        return None
+    pid = int(text)
+    return pid if 0 < pid <= PID_MAX else None
 
 
 def _pid_alive(pid: int) -> bool:
     if pid == os.getpid():
         return True
+    if not 0 < pid <= PID_MAX:
+        return True          # not a pid this platform has: cannot tell, keep the file
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
-    except (PermissionError, OSError):
+    except (PermissionError, OSError, OverflowError, ValueError):
         return True          # someone else's process, or cannot tell: keep its file
     return True
 
@@ -505,7 +572,9 @@ class TempFile:
             m = pat.match(e)
             if not m or m.group(1) != _HOST:
                 continue
-            pid = int(m.group(2))
+            pid = parse_temp_pid(m.group(2))
+            if pid is None:
+                continue                    # not a name this writer makes: not ours, left
             full = os.path.join(self.dir, e)
             if pid == os.getpid() and full in ours:
                 continue
@@ -562,4 +631,5 @@ class TempFile:
 
 def is_temp_name(name: str) -> bool:
     """A name made by ``TempFile`` (for any target)."""
-    return re.match(re.escape(_PREFIX) + r"[0-9a-f]{6}-\d+-[0-9a-z]{8}\.", os.path.basename(name)) is not None
+    m = re.match(re.escape(_PREFIX) + r"[0-9a-f]{6}-" + _PID_RE + r"-[0-9a-z]{8}\.", os.path.basename(name), re.ASCII)
+    return m is not None and parse_temp_pid(m.group(1)) is not None

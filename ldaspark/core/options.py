@@ -70,7 +70,11 @@ class IntegrationOptions:
         """These options with ``events`` (None, a callable or a sequence of them) checked and
         normalised (``ldaspark.core.dense.check_events``)."""
         from .dense import check_events
-        return dataclasses.replace(self, events=tuple(check_events(events)))
+        evs = tuple(check_events(events))
+        # members sent to a process pool carry the events: a local function or a lambda does not
+        # pickle, refused here by name rather than as a PicklingError from inside the pool
+        validate.check_picklable(self.executor, evs, "the event function")
+        return dataclasses.replace(self, events=evs)
 
     def replace(self, **changes) -> "IntegrationOptions":
         """A copy with ``changes`` (values already checked by the caller)."""

@@ -319,7 +319,11 @@ def save_result(result: Result, path: Union[str, os.PathLike]) -> None:
     arrays = {name: _numbers(getattr(result, name), result.dps) for name in ARRAYS
               if getattr(result, name) is not None}
     arrays.update(extra)
-    md = json.dumps(dict(metadata(result), stats=_json_value(result.stats)))
+    try:
+        md = json.dumps(dict(metadata(result), stats=_json_value(result.stats)))
+    except ValueError as exc:           # an integer of more than 4300 digits (h = 10**5000)
+        raise InputError(f"cannot write {path}: the metadata holds a value JSON cannot write "
+                         f"({str(exc).splitlines()[0][:80]})") from None
     if ext == ".npz":
         buf = io.BytesIO()
         np.savez(buf, metadata=np.array(md), **arrays)
@@ -327,6 +331,15 @@ def save_result(result: Result, path: Union[str, os.PathLike]) -> None:
         return
     h5py = _h5py()
     buf = io.BytesIO()
+    try:
+        _write_h5(h5py, buf, arrays, md)
+    except (TypeError, ValueError, OverflowError) as exc:       # a value HDF5 has no type for
+        raise InputError(f"cannot write {path}: {str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__}") \
+            from None
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def _write_h5(h5py, buf, arrays: dict, md: str) -> None:
     with h5py.File(buf, "w") as f:
         for name, a in arrays.items():
             f.create_dataset(name, data=a.astype("S") if a.dtype.kind == "U" else a)
@@ -338,8 +351,9 @@ def save_result(result: Result, path: Union[str, os.PathLike]) -> None:
         f.attrs["metadata"] = md                 # the same text for other HDF5 tools (not read here)
         for k in ("scene", "method", "h", "dps", "version", "status"):
             v = json.loads(md)[k]
-            f.attrs[k] = json.dumps(v) if not isinstance(v, (str, int, float)) else v
-    atomic_write_bytes(path, buf.getvalue())
+            # an integer beyond int64 (a 400-digit integer step h) has no HDF5 type: its JSON text
+            fits = isinstance(v, (str, float)) or isinstance(v, int) and -2 ** 63 <= v < 2 ** 63
+            f.attrs[k] = v if fits else json.dumps(v)
 
 
 def _h5py():
@@ -405,6 +419,8 @@ def _check_metadata(md) -> dict:
     for key in ("stats", "params"):
         if md.get(key) is not None and not isinstance(md[key], dict):
             raise InputError(f"metadata: {key} must be a JSON object, got {type(md[key]).__name__}")
+    for k, v in (md.get("params") or {}).items():
+        _refuse_bools(v, f"metadata: params[{str(k)[:40]!r}]")
     for key in ("scene", "method", "system", "engine", "message"):
         if md.get(key) is not None and not isinstance(md[key], (str, list)):
             raise InputError(f"metadata: {key} must be a string, got {type(md[key]).__name__}")
@@ -470,6 +486,20 @@ def _build(md: dict, arrays: dict) -> Result:
                  np.asarray(status) if isinstance(status, list) else int(status), **kw)
     res.stats = md.get("stats", {}) or {}
     return res
+
+
+def _refuse_bools(x, name: str) -> None:
+    """JSON ``true`` / ``false`` where a number belongs (the arrays q, t, ...; a parameter value):
+    refused, naming the place and what is expected (NumPy would read them as 1.0 and 0.0).
+    Iterative, so that a deep list is not a RecursionError."""
+    todo = [(x, name)]
+    while todo:
+        v, where = todo.pop()
+        if isinstance(v, bool):
+            raise InputError(f"{where} is the JSON boolean {str(v).lower()}, not a number (expected a number "
+                             "or a decimal string)")
+        if isinstance(v, list):
+            todo.extend((e, f"{where}[{i}]") for i, e in enumerate(v))
 
 
 def _no_constant(name):
@@ -641,23 +671,10 @@ def _h5_arrays(f) -> dict:
 
 
 def _open_regular(path: str, limit: int):
-    """A binary file object of ``path`` when it is a regular file of at most ``limit`` bytes:
-    ``os.stat`` before opening (a FIFO or device is never opened), then opened without blocking
-    and checked again on the descriptor (the same file, still regular): what is checked is what
-    is read. Returns (file object, size)."""
-    import stat
-    from .validate import regular_file
-    regular_file(path, limit, "result file")
-    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
-    try:
-        fd = os.open(path, flags)
-    except OSError as exc:
-        raise InputError(f"cannot read result file {path}: {exc.strerror or exc}") from None
-    st = os.fstat(fd)
-    if not stat.S_ISREG(st.st_mode) or st.st_size > limit:
-        os.close(fd)
-        raise InputError(f"result file {path} is not a regular file of at most {limit} bytes")
-    return os.fdopen(fd, "rb"), st.st_size
+    """A binary file object of ``path`` when it is a regular file of at most ``limit`` bytes
+    (``validate.open_regular``, the one checked opener). Returns (file object, size)."""
+    from .validate import open_regular
+    return open_regular(path, limit, "result file")
 
 
 def load_result(path: Union[str, os.PathLike]) -> Result:
@@ -715,8 +732,11 @@ def _load(path, ext, fh, size) -> Result:
                 raise InputError(f"{os.fspath(path)}: not a result file")
             _check_metadata(d)
             arrays = {}
+            maybe_bools = b"true" in raw or b"false" in raw        # the walk only when one can be there
             for k in ARRAYS:
                 if k in d:
+                    if maybe_bools:
+                        _refuse_bools(d[k], k)
                     try:
                         arrays[k] = np.array(d[k], dtype=object if d.get("dps") else float)
                     except (TypeError, ValueError, OverflowError):

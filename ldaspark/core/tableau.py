@@ -1030,22 +1030,17 @@ def load_tableau(path, max_stages: int | None = None) -> SparkTableau:
     1
     """
     import os
-    import stat
     if isinstance(path, bool) or not isinstance(path, (str, bytes, os.PathLike)) \
             or "\0" in (path if isinstance(path, str) else os.fsdecode(path)):
         raise TableauError(f"a tableau path must be a file name (str or os.PathLike, no NUL), got "
                            f"{type(path).__name__} {str(path)[:60]!r}")
+    from .validate import read_regular
     limit = max_file_bytes(max_stages)
     try:
-        st = os.stat(path)
-        if not stat.S_ISREG(st.st_mode):
-            raise TableauError(f"tableau file {path} is not a regular file")
-        if st.st_size > limit:
-            raise TableauError(f"tableau file {path} has {st.st_size} bytes, more than {limit}")
-        with open(path, "rb") as f:
-            raw = f.read(limit + 1)
-        if len(raw) > limit:
-            raise TableauError(f"tableau file {path} has more than {limit} bytes")
+        # the one checked opener: a regular file of bounded size, checked again on the descriptor
+        if not os.path.exists(path):
+            raise FileNotFoundError(path)
+        raw = read_regular(path, limit, "tableau file", TableauError)
         d = json.loads(raw.decode("utf-8"))
     except FileNotFoundError:
         raise TableauError(f"tableau file {path} not found") from None

@@ -233,6 +233,48 @@ def check_executor(executor):
     return executor
 
 
+def is_process_pool(executor) -> bool:
+    """``executor`` sends its work to other processes by pickling it (a ``ProcessPoolExecutor``,
+    the package's own pools included)."""
+    import concurrent.futures as cf
+    return isinstance(executor, cf.ProcessPoolExecutor)
+
+
+def check_picklable(executor, fns, what: str) -> None:
+    """With a process pool, every function in ``fns`` must pickle (a local function or a lambda
+    does not): refused up front, naming it, instead of a PicklingError from inside the pool.
+    Other executors (threads, this process) take any callable."""
+    import pickle
+    if not is_process_pool(executor):
+        return
+    for fn in fns:
+        try:
+            pickle.dumps(fn)
+        except Exception as exc:  # noqa: BLE001  (pickle raises PicklingError, AttributeError, TypeError)
+            inner = getattr(fn, "g", fn)                  # an Event wraps its function as .g
+            name = getattr(inner, "__qualname__", None) or type(inner).__name__
+            raise InputError(f"{what} {name} cannot be sent to the process pool {type(executor).__name__}: it does "
+                             f"not pickle ({type(exc).__name__}; a local function or a lambda): define it at "
+                             "module level, or use a ThreadPoolExecutor") from None
+
+
+def submitted(executor, future):
+    """What ``executor.submit`` returned, checked: a future (``result`` and ``cancel``), else one
+    InputError naming the executor (a ``submit`` that returns None was an AttributeError later)."""
+    if not (callable(getattr(future, "result", None)) and callable(getattr(future, "cancel", None))):
+        raise InputError(f"the executor {type(executor).__name__}'s submit returned {_describe(future)}, not a "
+                         "future (concurrent.futures.Future: result, cancel)")
+    return future
+
+
+def submit_error(executor, exc: BaseException) -> InputError:
+    """The one-line error for an executor whose ``submit`` raised (shut down, or its own error)."""
+    if isinstance(exc, RuntimeError):
+        return executor_shut_down(exc)
+    return InputError(f"the executor {type(executor).__name__}'s submit raised {type(exc).__name__}: "
+                      f"{' '.join(str(exc).split())[:100]}")
+
+
 def executor_shut_down(exc: BaseException) -> InputError:
     """The one-line error for an executor that refused new work at submit (RuntimeError
     'cannot schedule new futures after shutdown' and the like)."""
@@ -337,6 +379,50 @@ def regular_file(path, limit: int, what: str = "file") -> int:
     return st.st_size
 
 
+def open_regular(path, limit: int, what: str = "file", error=InputError):
+    """The one checked opener of every file the library or the command line reads (result
+    files, tableau files, JSON inputs): ``(binary file object, size)`` when ``path`` is a
+    regular file of at most ``limit`` bytes, else one ``error`` (an LdasparkError subclass) in
+    one line. ``regular_file`` (``os.stat``, following links) first, so that a FIFO, a device,
+    a directory or a link to one is refused without being opened; then opened without blocking
+    (O_NONBLOCK: a FIFO swapped in after the check does not block) and checked again on the
+    descriptor: what is checked is what is read."""
+    import stat
+    try:
+        regular_file(path, limit, what)
+    except InputError as exc:
+        raise (exc if error is InputError else error(str(exc))) from None
+    flags = (os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+             | getattr(os, "O_NOCTTY", 0) | getattr(os, "O_BINARY", 0))
+    try:
+        fd = os.open(path, flags)
+    except OSError as exc:
+        raise error(f"cannot read {what} {os.fspath(path)}: {exc.strerror or exc}") from None
+    try:
+        st = os.fstat(fd)
+    except OSError as exc:
+        os.close(fd)
+        raise error(f"cannot read {what} {os.fspath(path)}: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(st.st_mode) or st.st_size > limit:
+        os.close(fd)
+        raise error(f"{what} {os.fspath(path)} is not a regular file of at most {limit} bytes")
+    return os.fdopen(fd, "rb"), st.st_size
+
+
+def read_regular(path, limit: int, what: str = "file", error=InputError) -> bytes:
+    """The bytes of ``path`` through ``open_regular``: at most ``limit`` (a file that grew past
+    it since the check is refused, not read to its end)."""
+    fh, _ = open_regular(path, limit, what, error)
+    try:
+        with fh:
+            raw = fh.read(limit + 1)
+    except OSError as exc:
+        raise error(f"cannot read {what} {os.fspath(path)}: {exc.strerror or exc}") from None
+    if len(raw) > limit:
+        raise error(f"{what} {os.fspath(path)} has more than {limit} bytes")
+    return raw
+
+
 def finite_initial_point(system, bk, t, q, v, member: str = "") -> None:
     """The energy (8) and k at (t, q, v) (converted by ``bk``) are finite real numbers, else one
     NonFiniteError (rather than a NaN, inf or complex result): U = 1/x at x = 0, oo / zoo in L, v0 = 1e200, sqrt(x) at
@@ -391,7 +477,7 @@ def point(system, t0, q0, v0, what: str = "", scene=None, dps=None):
 
 def step_advances(t0, h, n_steps=1, dps=None, what: str = "h") -> None:
     """The times t0 + i h (i = 0..n_steps) are distinct at the working precision: float64 (dps
-    None) or ``dps`` digits. A step below the spacing of the numbers near t (t0 = 1e17, h = 1 in
+    None) or ``dps`` digits, and the run's work is within ``check_work``'s bound. A step below the spacing of the numbers near t (t0 = 1e17, h = 1 in
     float64) leaves t where it was, or rounds several output times to one, while the state moves
     by h: refused, naming the smallest step that resolves."""
     import numpy as np
@@ -405,6 +491,42 @@ def step_advances(t0, h, n_steps=1, dps=None, what: str = "h") -> None:
         prec = "float64" if dps is None else f"{dps} digits"
         raise InputError(f"{what} = {float(h):.3g} does not advance t near {T:.3g} in {prec} (times would repeat): "
                          f"use |h| >= {need:.3g} or a t0 closer to 0")
+    # the time grid is the run's plan: its work (digits x steps) is bounded here, before any step
+    check_work(n_steps, dps)
+
+
+#: the work budget of one mpmath run, in steps at low precision (``mp_step_cost(dps) = 1`` up to
+#: about 100 digits): at the ~5-10 ms a step of the generic mpmath engine on the paper's scenes
+#: (gauss-2 particle 5 ms, gauss-3 robot 7 ms at 50 digits, measured), 2 * 10**6 such steps are
+#: 3-6 hours; dps = 2000 (cost ~12.8) is allowed ~1.6 * 10**5 steps (the robot measured 96 ms a
+#: step there: ~4 hours), dps = 2000 with 10**6 steps (~27 hours) is refused
+MP_WORK_MAX = 2 * 10 ** 6
+
+
+def mp_step_cost(dps: int) -> float:
+    """Cost of one step at ``dps`` digits, in steps at low precision: 1 + (dps / 300)^1.3, the
+    generic engine's measured growth on the robot with gauss-3 (96 ms a step at 2000 digits
+    against 7.2 ms at 50: ratio 13; the formula gives 12.8 at 2000, 1.1 at 50); mpmath's
+    multiplication is O(dps^1.6) asymptotically, but below ~3000 digits the interpreter's
+    fixed cost per operation dominates."""
+    return 1.0 + (max(int(dps), 0) / 300.0) ** 1.3
+
+
+def check_work(n_steps, dps, what: str = "this run") -> float:
+    """The work bound of an mpmath run, fixed before it starts: ``n_steps * mp_step_cost(dps)``
+    at most ``MP_WORK_MAX`` (float64 runs, ``dps`` None, are bounded by ``MAX_STEPS`` alone).
+    Returns the estimate; refuses with one InputError naming the estimate, the limit and what to
+    reduce (docs/reliability.md, "Every unit of work is bounded")."""
+    if dps is None:
+        return float(n_steps)
+    work = int(n_steps) * mp_step_cost(dps)
+    if work > MP_WORK_MAX:
+        fits = int(MP_WORK_MAX // mp_step_cost(dps))
+        raise InputError(f"{what}: {_fmt_int(int(n_steps))} steps at dps = {int(dps)} is an estimated work of "
+                         f"{work:.3g} low-precision steps (n_steps x (1 + (dps/300)^1.3)), more than the limit "
+                         f"{MP_WORK_MAX:.3g}: use at most {fits} steps at this dps (a larger h or a shorter "
+                         f"t_end), or fewer digits")
+    return work
 
 
 def index_list(x, size: int, what: str, unique: bool = True) -> list:

@@ -1,0 +1,58 @@
+"""Every mpmath run has a work bound fixed before it starts (docs/reliability.md "Every unit of
+work is bounded"): ``n_steps * mp_step_cost(dps) <= MP_WORK_MAX``, checked in
+``validate.step_advances`` (the time grid of ``ldaspark.integrate`` and the CLI); a refusal names
+the estimate, the limit and what to reduce."""
+import time
+
+import pytest
+
+import ldaspark
+from ldaspark.core.errors import InputError
+from ldaspark.cli import main
+from ldaspark.core import validate as V
+
+
+def _fits(dps):
+    return int(V.MP_WORK_MAX // V.mp_step_cost(dps))
+
+
+@pytest.mark.parametrize("dps", [16, 50, 300, 1000, 2000])
+def test_the_bound_is_two_sided_at_each_precision(dps):
+    n = _fits(dps)
+    assert V.check_work(n, dps) <= V.MP_WORK_MAX          # the largest run that fits is accepted
+    with pytest.raises(InputError) as ei:
+        V.check_work(n + 1, dps)                           # one step more is refused
+    msg = str(ei.value)
+    assert f"dps = {dps}" in msg and "estimated work" in msg and f"{V.MP_WORK_MAX:.3g}" in msg
+    assert f"use at most {n} steps" in msg
+
+
+def test_the_cost_grows_with_the_digits_and_float64_is_not_bounded_here():
+    costs = [V.mp_step_cost(d) for d in (16, 100, 500, 1000, 2000)]
+    assert costs == sorted(costs) and 1 < costs[0] < 1.1 and 12 < costs[-1] < 14
+    assert V.check_work(V.MAX_STEPS, None) == V.MAX_STEPS     # float64: MAX_STEPS alone
+
+
+def test_the_api_refuses_dps_2000_with_a_million_steps_before_any_step():
+    t = time.process_time()
+    with pytest.raises(InputError, match=r"1000000 steps at dps = 2000 .* use at most \d+ steps"):
+        ldaspark.integrate("particle", "gauss-2", t0=0, h="0.001", n_steps=10 ** 6, dps=2000, engine="generic")
+    # negative control: the same call at float64 is not refused by this bound (it is not run:
+    # n_steps beyond MAX_STEPS is refused by the step-count check instead)
+    with pytest.raises(InputError, match="n_steps must be"):
+        ldaspark.integrate("particle", "gauss-2", t0=0, h="0.001", n_steps=V.MAX_STEPS + 1, engine="generic")
+    # refused at the boundary: no step ran (a step at 2000 digits costs ~15 ms)
+    assert time.process_time() - t < 5
+
+
+def test_a_run_within_the_bound_runs():
+    res = ldaspark.integrate("particle", "gauss-1", t0=0, h="0.1", n_steps=2, dps=2000, engine="generic")
+    assert len(res.t) == 3
+
+
+def test_the_cli_refuses_in_one_line(capsys, tmp_path):
+    rc = main(["integrate", "particle", "gauss-1", "--h", "0.1", "--t-end", "1e6", "--dps", "2000",
+               "--out", str(tmp_path / "o.json")])
+    err = capsys.readouterr().err
+    assert rc == 2 and len(err.splitlines()) == 1 and "estimated work" in err and "use at most" in err
+    assert not (tmp_path / "o.json").exists()

@@ -1,0 +1,48 @@
+"""JSON booleans where a number belongs are refused, naming the value and what is expected
+(docs/reliability.md "JSON booleans are not numbers"): NumPy reads true / false as 1.0 / 0.0."""
+import json
+
+import pytest
+
+import ldaspark
+from ldaspark.core.errors import InputError
+
+
+@pytest.fixture(scope="module")
+def written(tmp_path_factory):
+    res = ldaspark.integrate("particle", "gauss-1", t_span=(0, 1), h=0.5, engine="generic", params={})
+    path = tmp_path_factory.mktemp("r") / "r.json"
+    ldaspark.save_result(res, path)
+    return json.loads(path.read_text())
+
+
+@pytest.mark.parametrize("where", [("q", 0, 0), ("t", 0), ("v", 1, 2), ("energy", 2), ("constraint", 0, 0)])
+@pytest.mark.parametrize("value", [True, False])
+def test_a_boolean_in_an_array_is_refused(tmp_path, written, where, value):
+    d = json.loads(json.dumps(written))
+    slot = d[where[0]]
+    for i in where[1:-1]:
+        slot = slot[i]
+    slot[where[-1]] = value
+    p = tmp_path / "b.json"
+    p.write_text(json.dumps(d))
+    with pytest.raises(InputError) as ei:
+        ldaspark.load_result(p)
+    msg = str(ei.value)
+    assert f"JSON boolean {str(value).lower()}" in msg and "not a number" in msg and where[0] in msg
+    # negative control: the same place holding the number it stands for is read
+    slot[where[-1]] = float(value)
+    p.write_text(json.dumps(d))
+    assert ldaspark.load_result(p).t.shape == (3,)
+
+
+def test_a_boolean_parameter_value_is_refused(tmp_path, written):
+    d = json.loads(json.dumps(written))
+    d["params"] = {"m": True}
+    p = tmp_path / "b.json"
+    p.write_text(json.dumps(d))
+    with pytest.raises(InputError, match=r"params\['m'\] is the JSON boolean true"):
+        ldaspark.load_result(p)
+    d["params"] = {"m": 1.0}
+    p.write_text(json.dumps(d))
+    assert ldaspark.load_result(p).params == {"m": 1.0}
