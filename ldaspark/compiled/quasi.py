@@ -125,3 +125,28 @@ def run_quasi(cs, method, t0, q0, v0, h, n_steps, every=1, compensated=True, tol
 
 __all__ = ["run_quasi", "extrapolation", "QUASI_STAT_NAMES"]
 
+
+
+def quasi_integrate(system, method, t0, q0, v0, h, n_steps, every=1, tol=None) -> FastSolution:
+    """``fast.fast_integrate``'s checks (initial point, options) and ``run_quasi`` on the system's
+    compiled model; what ``ldaspark.integrate(..., engine="compiled", newton="quasi")`` runs per
+    chunk. No generic fallback: a system without the mechanical form, a comparator or a model
+    that does not compile is refused (InputError), a step the Newton chain cannot solve raises
+    NewtonError (``solve`` keeps the prefix and explains it with the generic step)."""
+    from ..core.validate import real_number, real_vector, step_advances
+    from .fast import _loaded, _setup_checks
+    from .runner import compile_system
+    real_number(h, "h", nonzero=True)
+    real_number(t0, "t0")
+    real_vector(q0, "q0")
+    real_vector(v0, "v0")
+    step_advances(t0, h, n_steps, None)
+    _setup_checks(system, t0, q0, v0, _loaded(system))
+    try:
+        cs = compile_system(system)
+        if cs.form != "mechanical":
+            raise NotCompilableError(f"{system.name}: not in mechanical form (L = 1/2 v^T M v - U(t, q), "
+                                     "k = K(t, q) v + b(t, q), M constant)")
+        return run_quasi(cs, method, t0, q0, v0, h, n_steps, every, True, tol)
+    except NotCompilableError as exc:
+        raise InputError(f"newton='quasi' cannot run this: {exc}") from None
