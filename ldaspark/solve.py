@@ -635,12 +635,14 @@ def _prefix_run(run: Callable, N: int, every: int) -> tuple:
 COMPILED_CHUNK = 2 ** 18
 
 
-def _fast_chunked(system, method, start, h, steps, tol, newton="auto"):
+def _fast_chunked(system, method, start, h, steps, tol):
     """``fast_integrate`` from ``start`` = (t0, q0, v0) of ``steps`` = (n, every): n steps in calls
     of at most COMPILED_CHUNK steps whose ends fall on the saved points (multiples of ``every``), so the
     saved samples are those of one call; a failure names the step of the whole run. Between calls
-    the predictor restarts (the numbers agree with one call to the Newton tolerance)."""
+    the predictor restarts (the numbers agree with one call to the Newton tolerance). ``tol`` may
+    be (tol, newton): newton "quasi" runs ``compiled.quasi`` instead."""
     from .compiled.fast import FastSolution, compile_system, fast_integrate, run_compiled
+    tol, newton = tol if isinstance(tol, tuple) else (tol, "auto")
     if newton == "quasi":       # the multiplier-only root finder (compiled.quasi), same chunks
         from .compiled.quasi import quasi_integrate, run_quasi
         fast_integrate = (lambda sysm, meth, *a, every, tol: quasi_integrate(sysm, meth, *a, every, tol))
@@ -709,7 +711,7 @@ def _run_compiled(system, prob: _Problem, q0, v0, opts: IntegrationOptions) -> R
     inner = 1 if opts.every_step else every
 
     def run(n, e):
-        fs = _fast_chunked(system, method, (t0, q0, v0), h, (n, e), tol, opts.newton)
+        fs = _fast_chunked(system, method, (t0, q0, v0), h, (n, e), (tol, opts.newton))
         st = dict(fs.stats)
         return Result(fs.t, fs.q, fs.v, fs.energy, fs.constraint, fs.psi, 0, MSG_DONE,
                       *(st.get(c, 0) for c in ("nfev", "njev", "nlu", "newton_iterations")),
