@@ -58,11 +58,14 @@ PREDICT_COLLOCATION = 3
 
 
 @numba.njit(cache=True)
-def quasi_workspace(s, n, m, Minv):
-    """Minv in CSR (row pointers, columns, values); W_j = M^-1 K_j^T (s, n, m); C_Z (s, m, s, n);
-    S and its pivots; y_k = M^-1 G_k (s + 1, n); the multiplier right-hand side and increment
-    u_j = W_j dLambda_j (s, n); D (m, n) scratch; the predictor's history: Z, Lambda, dv of the
-    last step."""
+def quasi_workspace(tab, n, m, Minv):
+    """Minv in CSR (row pointers, columns, values); W_j = M^-1 K_j^T (s, n, m); the frozen K_j,
+    k_q,j at the stages and K, k_q at the end point (at the predictor); P_kj = K_k W_j and
+    Q_kj = k_q,k W_j (s, s, m, m); S and its pivots; y_k = M^-1 G_k (s + 1, n); the multiplier
+    right-hand side; u_j = W_j dLambda_j (s, n); z_j = sum_k a_jk y_k (s, n); the tableau
+    products omega_rj (A A~)_jj' as OAAt (s - 1, s, s) and (b A~)_j (s); K_k y_k and k_q,j z_j (s, m)."""
+    c, A, Ah, At, bw, bh, bt, om = tab
+    s = A.shape[0]
     nnz = 0
     for a in range(n):
         for b in range(n):
@@ -78,9 +81,24 @@ def quasi_workspace(s, n, m, Minv):
                 e += 1
         Np[a + 1] = e
     sm = s * m
-    return (Np, Nj, Nx, np.zeros((s, n, m)), np.zeros((s, m, s, n)), np.zeros((sm, sm)),
-            np.zeros(sm, dtype=np.int64), np.zeros((s + 1, n)), np.zeros(sm), np.zeros((s, n)),
-            np.zeros((m, n)), np.zeros(s * n + sm + n))
+    OAAt = np.zeros((max(s - 1, 1), s, s))
+    bAt = np.zeros(s)
+    for jp in range(s):
+        acc = 0.0
+        for k in range(s):
+            acc += bw[k] * At[k, jp]
+        bAt[jp] = acc
+    for r in range(s - 1):
+        for jp in range(s):
+            for j in range(s):
+                acc = 0.0
+                for k in range(s):
+                    acc += A[j, k] * At[k, jp]
+                OAAt[r, j, jp] = om[r, j] * acc
+    return (Np, Nj, Nx, np.zeros((s, n, m)), np.zeros((s, m, n)), np.zeros((s, m, n)), np.zeros((m, n)),
+            np.zeros((m, n)), np.zeros((s, s, m, m)), np.zeros((s, s, m, m)), np.zeros((sm, sm)),
+            np.zeros(sm, dtype=np.int64), np.zeros((s + 1, n)), np.zeros(sm), np.zeros((s, n)), np.zeros((s, n)),
+            OAAt, bAt, np.zeros((s, m)), np.zeros((s, m)))
 
 
 @numba.njit(cache=True, _nrt=False)
@@ -95,78 +113,116 @@ def csr_matvec(Np, Nj, Nx, x, off, out):
 
 @numba.njit(cache=True, _nrt=False)
 def multiplier_matrix(model, tab, h, t, ws, qw):
-    """C_Z, W_j and the factored multiplier matrix S at the stage values of the last residual
-    (K_j there from ``mech_residual``; k_q evaluated here). False if S is singular."""
+    """The frozen K, k_q, W_j and the factored multiplier matrix S at the stage values of the last
+    residual (K_j there from ``mech_residual``; k_q evaluated here). False if S is singular.
+
+    With C_Z[r, k] = omega_rk K_k + h sum_j omega_rj a_jk k_q,j (21e) and h b_k k_q(q1, v1) (21f):
+    S[r, j'] = sum_k omega_rk a~_kj' K_k W_j' + h sum_j omega_rj (A A~)_jj' k_q,j W_j' (r < s - 1),
+    S[s - 1, j'] = (h (b A~)_j' k_q(q1, v1) + b~_j' K(q1)) W_j': O(s^3 m^2 + s^2 m^2 n), C_Z never formed."""
     kq_of = model[5]
-    c, A, Ah, At, bw, bh, bt, om = tab
-    T, Q, V, KK, kq, q1, v1, K1, kq1 = ws[0], ws[1], ws[2], ws[5], ws[10], ws[11], ws[12], ws[13], ws[15]
-    Np, Nj, Nx, W, CZ, S, spiv, D = qw[0], qw[1], qw[2], qw[3], qw[4], qw[5], qw[6], qw[10]
+    A, At, bt, om = tab[1], tab[3], tab[6], tab[7]
+    T, Q, V, KK, q1, v1, K1 = ws[0], ws[1], ws[2], ws[5], ws[11], ws[12], ws[13]
+    Np, Nj, Nx, W, Kf, kqf, K1f, kq1f, Pm, Qm, S, spiv = (qw[0], qw[1], qw[2], qw[3], qw[4], qw[5], qw[6], qw[7],
+                                                        qw[8], qw[9], qw[10], qw[11])
+    OAAt, bAt = qw[16], qw[17]
     s, n, m = A.shape[0], q1.shape[0], K1.shape[0]
     for j in range(s):
-        kq_of(T[j], Q[j], V[j], kq[j])
-    kq_of(t + h, q1, v1, kq1)
+        kq_of(T[j], Q[j], V[j], kqf[j])
+        for ll in range(m):
+            for b in range(n):
+                Kf[j, ll, b] = KK[j, ll, b]
+    kq_of(t + h, q1, v1, kq1f)
+    for ll in range(m):
+        for b in range(n):
+            K1f[ll, b] = K1[ll, b]
     # W_j = M^-1 K_j^T
     for j in range(s):
         for a in range(n):
             for ll in range(m):
                 acc = 0.0
                 for e in range(Np[a], Np[a + 1]):
-                    acc += Nx[e] * KK[j, ll, Nj[e]]
+                    acc += Nx[e] * Kf[j, ll, Nj[e]]
                 W[j, a, ll] = acc
-    # C_Z: (21e) row l, column block k: omega_lk K_k + h sum_j omega_lj a_jk k_q,j; (21f): h b_k k_q(q1, v1)
-    for r in range(s):
-        for k in range(s):
-            for mm in range(m):
-                for b in range(n):
-                    if r < s - 1:
-                        acc = om[r, k] * KK[k, mm, b]
-                        for j in range(s):
-                            acc += h * om[r, j] * A[j, k] * kq[j, mm, b]
-                    else:
-                        acc = h * bw[k] * kq1[mm, b]
-                    CZ[r, mm, k, b] = acc
-    # S[r, j] = (sum_k A~_kj C_Z[r, k] + [r = s-1] b~_j K1) W_j
-    for r in range(s):
+    # P_kj = K_k W_j, Q_kj = k_q,k W_j
+    for k in range(s):
         for j in range(s):
             for mm in range(m):
-                for b in range(n):
-                    acc = 0.0
-                    for k in range(s):
-                        acc += At[k, j] * CZ[r, mm, k, b]
-                    if r == s - 1:
-                        acc += bt[j] * K1[mm, b]
-                    D[mm, b] = acc
+                for ll in range(m):
+                    p = 0.0
+                    qq = 0.0
+                    for b in range(n):
+                        p += Kf[k, mm, b] * W[j, b, ll]
+                        qq += kqf[k, mm, b] * W[j, b, ll]
+                    Pm[k, j, mm, ll] = p
+                    Qm[k, j, mm, ll] = qq
+    for r in range(s - 1):
+        for jp in range(s):
             for mm in range(m):
                 for ll in range(m):
                     acc = 0.0
-                    for b in range(n):
-                        acc += D[mm, b] * W[j, b, ll]
-                    S[r * m + mm, j * m + ll] = acc
+                    acc2 = 0.0
+                    for k in range(s):
+                        acc += om[r, k] * At[k, jp] * Pm[k, jp, mm, ll]
+                        acc2 += OAAt[r, k, jp] * Qm[k, jp, mm, ll]
+                    S[r * m + mm, jp * m + ll] = acc + h * acc2
+    r = s - 1
+    for jp in range(s):
+        for mm in range(m):
+            for ll in range(m):
+                acc = 0.0
+                for b in range(n):
+                    acc += (h * bAt[jp] * kq1f[mm, b] + bt[jp] * K1f[mm, b]) * W[jp, b, ll]
+                S[r * m + mm, jp * m + ll] = acc
     return lu_factor(S, spiv)
 
 
 @numba.njit(cache=True, _nrt=False)
-def quasi_increment(tab, ws, qw, G, x):
-    """x += dx with dx the solution of the frozen system above for the residual G; |dx|_inf."""
-    A, At, bt = tab[1], tab[3], tab[6]
-    K1 = ws[13]
-    Np, Nj, Nx, W, CZ, S, spiv, y, rhs, u = qw[0], qw[1], qw[2], qw[3], qw[4], qw[5], qw[6], qw[7], qw[8], qw[9]
-    s, n, m = A.shape[0], y.shape[1], K1.shape[0]
+def quasi_increment(tab, h, qw, G, x):
+    """x += dx with dx the solution of the frozen system above for the residual G; |dx|_inf.
+    y_k = M^-1 G_k; S dLambda = G_c - C_Z y - C_dv y_s with C_Z y formed from the frozen K_k y_k and
+    k_q,j z_j, z_j = sum_k a_jk y_k (C_Z never formed); then dZ_k = -y_k - sum_j a~_kj W_j dLambda_j
+    and ddv = -y_s - sum_j b~_j W_j dLambda_j."""
+    A, At, bw, bt, om = tab[1], tab[3], tab[4], tab[6], tab[7]
+    Np, Nj, Nx, W, Kf, kqf, K1f, kq1f = qw[0], qw[1], qw[2], qw[3], qw[4], qw[5], qw[6], qw[7]
+    S, spiv, y, rhs, u, z, Ky, kz = qw[10], qw[11], qw[12], qw[13], qw[14], qw[15], qw[18], qw[19]
+    s, n, m = A.shape[0], y.shape[1], Kf.shape[1]
     sn, sm = s * n, s * m
     re0 = sn + n
     for k in range(s + 1):
         csr_matvec(Np, Nj, Nx, G, k * n, y[k])
-    # S dLambda = G_c - C_Z y - C_dv y_s
-    for r in range(s):
-        for mm in range(m):
-            acc = G[re0 + r * m + mm]
+    for j in range(s):
+        for a in range(n):
+            acc = 0.0
             for k in range(s):
-                for b in range(n):
-                    acc -= CZ[r, mm, k, b] * y[k, b]
-            if r == s - 1:
-                for b in range(n):
-                    acc -= K1[mm, b] * y[s, b]
-            rhs[r * m + mm] = acc
+                acc += A[j, k] * y[k, a]
+            z[j, a] = acc
+        for mm in range(m):
+            acc = 0.0
+            acc2 = 0.0
+            for a in range(n):
+                acc += Kf[j, mm, a] * y[j, a]
+                acc2 += kqf[j, mm, a] * z[j, a]
+            Ky[j, mm] = acc
+            kz[j, mm] = acc2
+    # (21e) rows: C_Z y = sum_k omega_rk K_k y_k + h sum_j omega_rj k_q,j z_j
+    for r in range(s - 1):
+        for mm in range(m):
+            acc = 0.0
+            for k in range(s):
+                acc += om[r, k] * (Ky[k, mm] + h * kz[k, mm])
+            rhs[r * m + mm] = G[re0 + r * m + mm] - acc
+    # (21f) row: h k_q(q1, v1) sum_k b_k y_k + K(q1) y_s
+    r = s - 1
+    for mm in range(m):
+        acc = 0.0
+        acc2 = 0.0
+        for a in range(n):
+            yb = 0.0
+            for k in range(s):
+                yb += bw[k] * y[k, a]
+            acc += kq1f[mm, a] * yb
+            acc2 += K1f[mm, a] * y[s, a]
+        rhs[r * m + mm] = G[re0 + r * m + mm] - h * acc - acc2
     lu_solve(S, spiv, rhs)
     dn = 0.0
     for j in range(s):
@@ -181,7 +237,6 @@ def quasi_increment(tab, ws, qw, G, x):
             for ll in range(m):
                 acc += W[j, a, ll] * rhs[j * m + ll]
             u[j, a] = acc
-    # dZ_k = -y_k - sum_j A~_kj u_j, ddv = -y_s - sum_j b~_j u_j
     for k in range(s + 1):
         off = k * n if k < s else sn + sm
         for a in range(n):
@@ -211,7 +266,7 @@ def quasi_newton(model, tab, ws, qw, x, t, q, v, h, G, tol, max_iter, stats, qst
     status = 0
     while it < max_iter:
         it += 1
-        dn = quasi_increment(tab, ws, qw, G, x)
+        dn = quasi_increment(tab, h, qw, G, x)
         status = newton_status(dn, prev, theta, norm_inf(x), scale, tol, False)
         if status != 0:
             break
@@ -256,7 +311,7 @@ def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compe
     sn, sm = s * n, s * m
     NN = sn + sm + n
     ws = mech_workspace(s, n, m, M)
-    qw = quasi_workspace(s, n, m, Minv)
+    qw = quasi_workspace(tab, n, m, Minv)
     J = np.zeros((NN, NN))
     piv = np.zeros(NN, dtype=np.int64)
     G = np.zeros(NN)
