@@ -24,7 +24,8 @@ round-off-floor clause (the matrix is not exact). Fallback: a step whose increme
 less than QUASI_THETA, or that has not converged after QUASI_MAX_ITER increments, or meets a
 singular multiplier matrix or a non-finite increment, is solved again by the compiled Newton
 chain of ``kernels.spark_newton`` (simplified Newton with fresh matrices, then full Newton from
-zero increments), counted in qstats[QS_FALLBACKS]. q and v are summed with Kahan's compensated
+zero increments), counted in qstats[QS_FALLBACKS]; after a fallback the next steps go there
+directly, for a wait that doubles while attempts keep failing (QS_SKIPPED, QUASI_WAIT_MAX). q and v are summed with Kahan's compensated
 summation (``newton.accept_step``).
 """
 import numba
@@ -53,6 +54,13 @@ QUASI_MAX_ITER = 30
 #: qstats entries: quasi-Newton iterations, steps solved by the quasi-Newton iteration, steps
 #: sent to the Newton chain (fallbacks), multiplier matrices factored
 QS_ITERATIONS, QS_STEPS, QS_FALLBACKS, QS_LU = 0, 1, 2, 3
+#: steps sent to the Newton chain without a quasi-Newton attempt (counted in QS_FALLBACKS too):
+#: after a fallback the next QUASI_WAIT_MAX >= wait >= 1 steps go straight to the Newton chain,
+#: the wait doubling after every fallback that follows one and reset by a converged attempt (the
+#: choice per run: where the iteration does not contract, as for a stiff spring, it is tried
+#: rarely instead of costing up to QUASI_MAX_ITER residuals before every Newton step)
+QS_SKIPPED = 4
+QUASI_WAIT_MAX = 64
 #: ``predictor`` value selecting the collocation extrapolation (0-2: ``newton.predict``)
 PREDICT_COLLOCATION = 3
 
@@ -323,6 +331,7 @@ def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compe
     for j in range(s):
         sb += bw[j]
     quasi_max = min(max_iter, QUASI_MAX_ITER)
+    wait, backoff = 0, 1
     stats[mt.FAILED_STEP] = -1
     if not store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
         fail(stats, 0, FAIL_NONFINITE)
@@ -336,8 +345,18 @@ def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compe
             predict(x, x_last, x_prev, step, 2 if predictor == PREDICT_COLLOCATION else predictor)
         for r in range(NN):
             x_pred[r] = x[r]
-        status, it = quasi_newton(model, tab, ws, qw, x, t, q, v, h, G, tol, quasi_max, stats, qstats)
-        qstats[QS_ITERATIONS] += it
+        if wait > 0:
+            wait -= 1
+            status, it = 0, 0
+            qstats[QS_SKIPPED] += 1
+        else:
+            status, it = quasi_newton(model, tab, ws, qw, x, t, q, v, h, G, tol, quasi_max, stats, qstats)
+            qstats[QS_ITERATIONS] += it
+            if status == 1:
+                backoff = 1
+            else:
+                wait = backoff
+                backoff = min(2 * backoff, QUASI_WAIT_MAX)
         if status == 1:
             qstats[QS_STEPS] += 1
         else:

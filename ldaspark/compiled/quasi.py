@@ -16,8 +16,9 @@ from .codegen import NotCompilableError
 from .runner import (_TOL_DEFAULT, STAT_NAMES, FastSolution, _check_options, _failure, kernel_spec, n_samples)
 
 #: the counters ``run_quasi`` adds to the stats of ``runner.run_compiled``: quasi-Newton
-#: iterations, steps it solved, steps sent to the Newton chain, multiplier matrices factored
-QUASI_STAT_NAMES = ("quasi_iterations", "quasi_steps", "quasi_fallbacks", "multiplier_lu")
+#: iterations, steps it solved, steps sent to the Newton chain, multiplier matrices factored,
+#: steps sent there without an attempt (``kernels_quasi.QS_SKIPPED``)
+QUASI_STAT_NAMES = ("quasi_iterations", "quasi_steps", "quasi_fallbacks", "multiplier_lu", "quasi_skipped")
 
 
 def lagrange_weights(nodes, points) -> np.ndarray:
