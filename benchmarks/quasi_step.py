@@ -111,7 +111,8 @@ def per_step(rounds, quick):
         fl, flm = quasi_flops(get_method(q["method"]).s, cs.n, cs.m, int(np.count_nonzero(cs.M)),
                               int(np.count_nonzero(cs.Minv)), q["iterations_per_step"])
         out.append({"scene": PER_STEP[i // 2][0], "method": q["method"], "h": q["param"],
-                    "us_per_step_quasi": 1e6 * q["cpu"] / q["steps"], "us_per_step_newton": 1e6 * nw["cpu"] / nw["steps"],
+                    "us_per_step_quasi": 1e6 * q["cpu"] / q["steps"],
+                    "us_per_step_newton": 1e6 * nw["cpu"] / nw["steps"],
                     "speedup": nw["cpu"] / q["cpu"], "iterations_quasi": q["iterations_per_step"],
                     "iterations_newton": nw["iterations_per_step"], "fallbacks": q["fallbacks"],
                     "final_q_difference": d, "counted_flops": fl, "counted_flops_matrix": flm,
@@ -151,7 +152,8 @@ def study(scene, t_end, key, targets, hs, rtols, n_out, rounds, quick):
 def _ratio(s):
     for k, pre in (("speedup", ""), ("speedup_at_least", ">= "), ("speedup_at_most", "<= ")):
         if s.get(k) is not None:
-            return f"{pre}{s[k]:.2f} ({s['spark']} {s['spark_cpu'] * 1e3:.1f} ms vs {s['peer']} {s['peer_cpu'] * 1e3:.1f} ms)"
+            return (f"{pre}{s[k]:.2f} ({s['spark']} {s['spark_cpu'] * 1e3:.1f} ms vs {s['peer']} "
+                    f"{s['peer_cpu'] * 1e3:.1f} ms)")
     return f"none (SPARK {s['spark']}, peer {s['peer']})"
 
 
@@ -171,8 +173,9 @@ def main(argv=None):
         print("CPU per step, quasi vs Newton (same run, min of interleaved rounds, through ldaspark.integrate):")
         for r in out["per_step"]:
             print(f"  {r['scene']:16s} {r['method']:8s} h={r['h']:<6g} quasi {r['us_per_step_quasi']:6.2f} us "
-                  f"({r['iterations_quasi']:.2f} it, {r['fallbacks']} fallbacks)  newton {r['us_per_step_newton']:6.2f} us "
-                  f"({r['iterations_newton']:.2f} it)  speed-up {r['speedup']:.2f}  |dq_final| {r['final_q_difference']:.1e}  "
+                  f"({r['iterations_quasi']:.2f} it, {r['fallbacks']} fallbacks)  "
+                  f"newton {r['us_per_step_newton']:6.2f} us ({r['iterations_newton']:.2f} it)  "
+                  f"speed-up {r['speedup']:.2f}  |dq_final| {r['final_q_difference']:.1e}  "
                   f"counted {r['counted_flops']:.0f} flops = {r['counted_us']:.2f} us")
     out["studies"] = []
     for i in (int(x) for x in a.studies.split(",") if x):

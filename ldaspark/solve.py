@@ -398,7 +398,7 @@ def _single(system, member, prob: _Problem, opts: IntegrationOptions, quiet=Fals
                 if not quiet:
                     _notice(reason)
     if opts.newton == "quasi" and use != "compiled":
-        raise InputError(f"newton='quasi' runs on the compiled engine only; here the generic engine would run ({name})")
+        raise InputError(f"newton='quasi' runs on the compiled engine only; the generic engine would run {name} here")
     if use == "compiled":
         res = _run_compiled(system_c, prob, q0, v0, opts)
     elif kind == "comparator":

@@ -25,8 +25,8 @@ less than QUASI_THETA, or that has not converged after QUASI_MAX_ITER increments
 singular multiplier matrix or a non-finite increment, is solved again by the compiled Newton
 chain of ``kernels.spark_newton`` (simplified Newton with fresh matrices, then full Newton from
 zero increments), counted in qstats[QS_FALLBACKS]; after a fallback the next steps go there
-directly, for a wait that doubles while attempts keep failing (QS_SKIPPED, QUASI_WAIT_MAX). q and v are summed with Kahan's compensated
-summation (``newton.accept_step``).
+directly, for a wait that doubles while attempts keep failing (QS_SKIPPED, QUASI_WAIT_MAX). q and
+v are summed with Kahan's compensated summation (``newton.accept_step``).
 """
 import numba
 import numpy as np
