@@ -20,7 +20,8 @@ Predictor (IRKGaussLegendre.jl): the previous step's stage polynomial extrapolat
 polynomial through (0, v0) and (c_j, V_j) evaluated at 1 + c_i and 2, the multipliers' through
 (c_j, Psi_j) at 1 + c_i (``quasi.extrapolation``). Stopping rule: ``newton.newton_status``
 (RADAU5's rate test, lim = tol (|x| + |v0|), the round-off of the stage values), never the
-round-off-floor clause (the matrix is not exact). Fallback: a step whose increments contract by
+round-off-floor clause (the matrix is not exact); at the second increment also RADAU5's test with
+the one ratio there, while |dx_2| <= FIRST_RATE_FACTOR lim. Fallback: a step whose increments contract by
 less than QUASI_THETA, or that has not converged after QUASI_MAX_ITER increments, or meets a
 singular multiplier matrix or a non-finite increment, is solved again by the compiled Newton
 chain of ``kernels.spark_newton`` (simplified Newton with fresh matrices, then full Newton from
@@ -35,8 +36,8 @@ from numba import types
 from . import modeltypes as mt
 from .kernels import spark_newton, evaluate, store   # noqa: F401 (evaluate: the overload spark_newton uses)
 from .kernels_mech import mech_residual, mech_workspace
-from .newton import (FAIL_NONFINITE, accept_step, end_newton, fail, lu_factor, lu_solve, newton_status, norm_inf,
-                     predict)
+from .newton import (FAIL_NONFINITE, RATE_KAPPA, accept_step, end_newton, fail, lu_factor, lu_solve, newton_status,
+                     norm_inf, predict)
 
 # numba keys a cached kernel on the content of this file only; the helpers it compiles in live in
 # the sibling modules below (kernels.py itself carries the digest of its own helpers). Their
@@ -61,6 +62,8 @@ QS_ITERATIONS, QS_STEPS, QS_FALLBACKS, QS_LU = 0, 1, 2, 3
 #: rarely instead of costing up to QUASI_MAX_ITER residuals before every Newton step)
 QS_SKIPPED = 4
 QUASI_WAIT_MAX = 64
+#: the single-ratio rate test at the second increment applies while |dx_2| <= FIRST_RATE_FACTOR lim
+FIRST_RATE_FACTOR = 1e3
 #: ``predictor`` value selecting the collocation extrapolation (0-2: ``newton.predict``)
 PREDICT_COLLOCATION = 3
 
@@ -276,6 +279,15 @@ def quasi_newton(model, tab, ws, qw, x, t, q, v, h, G, tol, max_iter, stats, qst
         it += 1
         dn = quasi_increment(tab, h, qw, G, x)
         status = newton_status(dn, prev, theta, norm_inf(x), scale, tol, False)
+        if status == 0 and prev > 0.0 and theta <= 0.0:
+            # RADAU5 at its second increment: the rate of the one ratio there, theta_1 =
+            # |dx_2| / |dx_1|, stops the iteration when theta_1 / (1 - theta_1) |dx_2| <= kappa lim,
+            # here only while |dx_2| is within FIRST_RATE_FACTOR lim (a drop onto a noise floor far
+            # above round-off is no evidence of contraction)
+            th = dn / prev
+            lim = tol * (norm_inf(x) + scale)
+            if th < 1.0 and th / (1.0 - th) * dn <= RATE_KAPPA * lim and dn <= FIRST_RATE_FACTOR * lim:
+                status = 1
         if status != 0:
             break
         if prev > 0.0 and dn > QUASI_THETA * prev:
