@@ -159,3 +159,18 @@ def test_chunked_run_sums_the_quasi_counters(monkeypatch):
     assert b.stats["quasi_steps"] == b.stats["multiplier_lu"] == 120 and b.stats["root_finder"] == "quasi"
     assert one.stats["quasi_steps"] == 120 and len(b.t) == 121
     assert _difference(one, b) <= 1.0
+
+
+def test_single_ratio_rate_test_at_the_second_increment():
+    """skate, gauss-8, h = 1.25: the second increment contracts fast and lies within 1e3 round-off
+    limits, so RADAU5's one-ratio test stops there (2 iterations per step, measured 2.00025; the
+    two-ratio rule of newton.newton_status needed 3); at h = 2.5 it does not apply (measured 2.99),
+    and either way the trajectory is the Newton engine's within the bound."""
+    sc = get_scene("skate")
+    t0, q0, v0 = sc.initial()
+    cs = compile_system(sc.system)
+    for h, lo, hi in ((1.25, 2.0, 2.01), (2.5, 2.9, 3.0)):
+        b = run_quasi(cs, "gauss-8", t0, q0, v0, h, 400, 1)
+        a = run_compiled(cs, "gauss-8", t0, q0, v0, h, 400, 1)
+        assert lo <= b.stats["mean_iterations"] <= hi, (h, b.stats["mean_iterations"])
+        assert _difference(a, b) <= 1.0
