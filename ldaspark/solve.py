@@ -333,7 +333,7 @@ def _compiled_ensemble(system, params, Q0, V0, prob: _Problem, opts: Integration
     ``ldaspark.ensemble.ensemble_integrate`` (tasks that pickle, so any executor, process
     pools and clusters included); None when the run does not qualify (then the loop runs)."""
     if (opts.engine == "generic" or opts.dps is not None or opts.dense_output or opts.events or opts.project
-            or opts.energy_jump is not None
+            or opts.energy_jump is not None or opts.newton == "quasi"
             or params is not None or system.params
             or _compiled_reason(system, prob.kind, prob.name) is not None):
         return None
@@ -397,6 +397,8 @@ def _single(system, member, prob: _Problem, opts: IntegrationOptions, quiet=Fals
                 use = "generic"
                 if not quiet:
                     _notice(reason)
+    if opts.newton == "quasi" and use != "compiled":
+        raise InputError(f"newton='quasi' runs on the compiled engine only; the generic engine would run {name} here")
     if use == "compiled":
         res = _run_compiled(system_c, prob, q0, v0, opts)
     elif kind == "comparator":
@@ -637,8 +639,14 @@ def _fast_chunked(system, method, start, h, steps, tol):
     """``fast_integrate`` from ``start`` = (t0, q0, v0) of ``steps`` = (n, every): n steps in calls
     of at most COMPILED_CHUNK steps whose ends fall on the saved points (multiples of ``every``), so the
     saved samples are those of one call; a failure names the step of the whole run. Between calls
-    the predictor restarts (the numbers agree with one call to the Newton tolerance)."""
+    the predictor restarts (the numbers agree with one call to the Newton tolerance). ``tol`` may
+    be (tol, newton): newton "quasi" runs ``compiled.quasi`` instead."""
     from .compiled.fast import FastSolution, compile_system, fast_integrate, run_compiled
+    tol, newton = tol if isinstance(tol, tuple) else (tol, "auto")
+    if newton == "quasi":       # the multiplier-only root finder (compiled.quasi), same chunks
+        from .compiled.quasi import quasi_integrate, run_quasi
+        fast_integrate = (lambda sysm, meth, *a, every, tol: quasi_integrate(sysm, meth, *a, every, tol))
+        run_compiled = (lambda cs, meth, *a: run_quasi(cs, meth, *a))
     (t0, q0, v0), (n, every) = start, steps
     chunk = COMPILED_CHUNK
     if n <= chunk:
@@ -679,7 +687,8 @@ def _fast_chunked(system, method, start, h, steps, tol):
         if stats is None:
             stats = dict(st)
         else:
-            for key in ("steps", "nfev", "njev", "nlu", "newton_iterations"):
+            for key in ("steps", "nfev", "njev", "nlu", "newton_iterations", "full_newton_steps", "quasi_iterations",
+                        "quasi_steps", "quasi_fallbacks", "multiplier_lu", "quasi_skipped"):
                 if key in st:
                     stats[key] = stats.get(key, 0) + st[key]
         q, v = fs.q[-1], fs.v[-1]
@@ -702,7 +711,7 @@ def _run_compiled(system, prob: _Problem, q0, v0, opts: IntegrationOptions) -> R
     inner = 1 if opts.every_step else every
 
     def run(n, e):
-        fs = _fast_chunked(system, method, (t0, q0, v0), h, (n, e), tol)
+        fs = _fast_chunked(system, method, (t0, q0, v0), h, (n, e), (tol, opts.newton))
         st = dict(fs.stats)
         return Result(fs.t, fs.q, fs.v, fs.energy, fs.constraint, fs.psi, 0, MSG_DONE,
                       *(st.get(c, 0) for c in ("nfev", "njev", "nlu", "newton_iterations")),

@@ -49,7 +49,8 @@ class IntegrationOptions:
         (``with_events``), after the system and the method, as ``integrate`` always has."""
         validate.check_choice(engine, "engine", ENGINES)
         dps = validate.check_dps(dps)
-        validate.check_choice(newton, "newton", validate.NEWTON_VARIANTS)
+        # "quasi": the compiled engine's multiplier-only root finder (``compiled.quasi``)
+        validate.check_choice(newton, "newton", validate.NEWTON_VARIANTS + ("quasi",))
         validate.check_executor(executor)
         validate.count(save_every, "save_every")
         validate.check_max_stages(max_stages)
@@ -62,6 +63,8 @@ class IntegrationOptions:
                 raise InputError(f"{flag} must be True or False, got {validate._describe(val)}")
         if dps is not None and engine == "compiled":
             raise InputError("the compiled engine is float64 only; dps needs engine='generic' (or 'auto')")
+        if newton == "quasi" and (engine == "generic" or dps is not None):
+            raise InputError("newton='quasi' runs on the compiled engine only (float64, engine='compiled' or 'auto')")
         return cls(engine=engine, dps=dps, newton=newton, tol=tol, save_every=save_every,
                    dense_output=dense_output, energy_jump=energy_jump, executor=executor,
                    max_stages=max_stages, project=project, raise_on_failure=raise_on_failure)

@@ -1,0 +1,199 @@
+"""The quasi-Newton root finder of the SPARK step (``integrate(..., newton="quasi")``,
+``ldaspark.compiled.kernels_quasi``) measured side by side with the compiled Newton step and with
+the strongest compiled peers (CyRK's nbsolve2_ivp DOP853 and Vern8 with a numba cfunc right-hand
+side, ``ldaspark.reports.peers``), all in one run: CPU time (process time), the minimum over
+interleaved rounds, SPARK always through the public ``ldaspark.integrate``.
+
+Part 1 (``per_step``): CPU per step of newton="quasi" and the default compiled Newton on the same
+run (scene, method, h, 20000 steps), with iterations per step and fallbacks.
+Part 2 (``targets``): the targets of issue 48 at equal error, cpu(best peer) / cpu(best SPARK):
+skate T = 100 final error 1e-9 and 1e-12; skate T = 1e4 max energy error 1e-8; particle T = 1e4
+max energy error 1e-10; SPARK gauss-2, 3, 4, 6, 8 with either root finder.
+
+    python benchmarks/quasi_step.py [--rounds 3] [--quick] [--out quasi_step.json]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+
+import ldaspark                                                          # noqa: E402
+from ldaspark.models.scenes import get_scene                             # noqa: E402
+from ldaspark.reports import peers as P                                  # noqa: E402
+
+PER_STEP = (("skate", "gauss-2", 0.1), ("skate", "gauss-4", 0.4), ("skate", "gauss-8", 1.25),
+            ("particle", "gauss-2", 0.05), ("particle", "gauss-4", 0.2), ("particle", "gauss-6", 0.4),
+            ("robot", "gauss-2", 0.05), ("mp-particles-nh", "gauss-3", 0.01), ("rolling-disk", "gauss-4", 0.2))
+PEERS = ("cyrk-nbsolve2-DOP853", "cyrk-nbsolve2-Vern8")
+#: (scene, T, key, targets, SPARK step sizes per method, peer rtols, samples)
+STUDIES = (
+    ("skate", 100.0, "error", (1e-9, 1e-12),
+     {"gauss-2": (0.05, 0.025, 0.0125, 0.00625), "gauss-3": (0.2, 0.1, 0.05, 0.025),
+      "gauss-4": (0.8, 0.4, 0.2, 0.1), "gauss-6": (1.25, 0.625, 0.3125, 0.15625),
+      "gauss-8": (2.5, 1.25, 0.625, 0.3125)},
+     (1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14), 1),
+    ("skate", 1e4, "energy_error", (1e-8,),
+     {"gauss-3": (0.4, 0.2, 0.1), "gauss-4": (1.0, 0.8, 0.4), "gauss-6": (2.0, 1.25, 0.625),
+      "gauss-8": (2.5, 1.25)},
+     (1e-8, 1e-9, 1e-10, 1e-11, 1e-12), 200),
+    ("particle", 1e4, "energy_error", (1e-10,),
+     {"gauss-3": (0.1, 0.05), "gauss-4": (0.25, 0.2, 0.1), "gauss-6": (0.5, 0.4, 0.2),
+      "gauss-8": (1.0, 0.8, 0.625, 0.3125)},
+     (1e-9, 1e-10, 1e-11, 1e-12, 1e-13), 200),
+)
+
+
+def spark_task(scene, method, h, t_end, n_out, newton):
+    """(label, go, finish) of one run through ldaspark.integrate (compiled once outside the clock)."""
+    sc = get_scene(scene)
+    t0 = float(sc.initial()[0])
+    n = int(round((t_end - t0) / h))
+    every = max(n // n_out, 1)
+    kw = {} if newton == "auto" else {"newton": newton}
+    ldaspark.integrate(scene, method, h=h, n_steps=2, engine="compiled", **kw)
+
+    def go():
+        return ldaspark.integrate(scene, method, h=h, n_steps=n, engine="compiled", save_every=every, **kw)
+
+    def finish(cpu, r):
+        st = r.stats
+        return {"kind": "spark-quasi" if newton == "quasi" else "spark", "method": method, "param": h,
+                "cpu": cpu, "steps": n, "q_final": [float(x) for x in r.q[-1]],
+                "energy_error": float(np.max(np.abs(r.energy - r.energy[0]))),
+                "constraint": float(np.max(np.abs(r.constraint))),
+                "iterations_per_step": st["newton_iterations"] / max(st["steps"], 1),
+                "fallbacks": st.get("quasi_fallbacks")}
+    return f"{scene} {method} h={h:g} T={t_end:g} {newton}", go, finish
+
+
+#: the yardstick rate of docs/performance.md's "The step at its operation count" (flops per
+#: second of the kernels' own lu_factor on a 64 x 64 matrix on this CPU)
+RATE = 4.37e9
+
+
+def quasi_flops(s, n, m, nnz_M, nnz_Minv, iterations):
+    """Counted flops (one per multiplication or addition) of one quasi-Newton step with
+    ``iterations`` increments (as many residuals: the predictor's and one after every increment
+    but the last), the model's own operations not counted (s + 1 points of grad U, K, b per
+    residual and of k_q per step). Returns (total, multiplier matrix + its LU)."""
+    k = iterations
+    residual = (2 * s * s * n + 2 * s * n + 2 * nnz_M * (s + 1) + 4 * s * (s + 1) * n + 4 * s * m * n
+                + 2 * (s - 1) * s * m + 2 * m * n)
+    matrix = (2 * s * m * nnz_Minv + 4 * s * s * m * m * n + 4 * (s - 1) * s * s * m * m + 4 * s * m * m * n
+              + 2 * (s * m) ** 3 / 3)
+    increment = (2 * (s + 1) * nnz_Minv + 2 * s * s * n + 4 * s * m * n + 2 * (s - 1) * s * m + 2 * s * m * n
+                 + 4 * m * n + 2 * (s * m) ** 2 + 2 * s * n * m + 2 * (s + 1) * s * n)
+    return k * (residual + increment) + matrix, matrix
+
+
+def per_step(rounds, quick):
+    tasks = []
+    for scene, method, h in PER_STEP:
+        n = 2000 if quick else 20000
+        for newton in ("quasi", "auto"):
+            tasks.append(spark_task(scene, method, h, n * h, 1, newton))
+    rows = P.run_interleaved(tasks, rounds=rounds, short=10.0)
+    out = []
+    for i in range(0, len(rows), 2):
+        q, nw = rows[i], rows[i + 1]
+        d = float(np.max(np.abs(np.asarray(q["q_final"]) - np.asarray(nw["q_final"]))))
+        from ldaspark.compiled.fast import compile_system
+        from ldaspark.core.families import get_method
+        sc = get_scene(PER_STEP[i // 2][0])
+        cs = compile_system(sc.system)
+        fl, flm = quasi_flops(get_method(q["method"]).s, cs.n, cs.m, int(np.count_nonzero(cs.M)),
+                              int(np.count_nonzero(cs.Minv)), q["iterations_per_step"])
+        out.append({"scene": PER_STEP[i // 2][0], "method": q["method"], "h": q["param"],
+                    "us_per_step_quasi": 1e6 * q["cpu"] / q["steps"],
+                    "us_per_step_newton": 1e6 * nw["cpu"] / nw["steps"],
+                    "speedup": nw["cpu"] / q["cpu"], "iterations_quasi": q["iterations_per_step"],
+                    "iterations_newton": nw["iterations_per_step"], "fallbacks": q["fallbacks"],
+                    "final_q_difference": d, "counted_flops": fl, "counted_flops_matrix": flm,
+                    "counted_us": 1e6 * fl / RATE})
+    return out
+
+
+def study(scene, t_end, key, targets, hs, rtols, n_out, rounds, quick):
+    sc = get_scene(scene)
+    if quick:
+        t_end = min(t_end, 100.0)
+    sp = [spark_task(scene, m, h, t_end, n_out, nw) for m, hl in hs.items() for h in hl for nw in ("quasi", "auto")]
+    pt = []
+    failed = []
+    for p in PEERS:
+        for tol in rtols:
+            try:
+                pt.append((f"{p} rtol {tol:g}", *P.prepare_peer(sc, p, tol, t_end, n_out)))
+            except P.PeerFailure as exc:
+                failed.append(f"{p} rtol {tol:g}: {exc}")
+    tasks = []
+    for i in range(max(len(sp), len(pt))):
+        tasks += sp[i:i + 1] + pt[i:i + 1]
+    rows = P.run_interleaved(tasks, rounds=rounds, short=1.0, failed=failed)
+    if key == "error":
+        q_ref = P.reference_final(sc, t_end)[0]
+        for r in rows:
+            r["error"] = float(np.max(np.abs(np.asarray(r["q_final"]) - q_ref)))
+    for r in rows:
+        r.pop("q_final", None)
+    res = {"scene": scene, "t_end": t_end, "key": key, "failed": failed, "rows": rows,
+           "quasi": P.speedups(rows, targets, key=key, spark="spark-quasi"),
+           "newton": P.speedups(rows, targets, key=key, spark="spark")}
+    return res
+
+
+def _ratio(s):
+    for k, pre in (("speedup", ""), ("speedup_at_least", ">= "), ("speedup_at_most", "<= ")):
+        if s.get(k) is not None:
+            return (f"{pre}{s[k]:.2f} ({s['spark']} {s['spark_cpu'] * 1e3:.1f} ms vs {s['peer']} "
+                    f"{s['peer_cpu'] * 1e3:.1f} ms)")
+    return f"none (SPARK {s['spark']}, peer {s['peer']})"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--skip-steps", action="store_true")
+    ap.add_argument("--studies", default="0,1,2")
+    ap.add_argument("--out", default="quasi_step.json")
+    a = ap.parse_args(argv)
+    load0 = os.getloadavg()[0]
+    c0 = time.process_time()
+    out = {"load_average_1min_at_start": load0, "cpu_count": os.cpu_count(), "rounds": a.rounds}
+    if not a.skip_steps:
+        out["per_step"] = per_step(a.rounds, a.quick)
+        print("CPU per step, quasi vs Newton (same run, min of interleaved rounds, through ldaspark.integrate):")
+        for r in out["per_step"]:
+            print(f"  {r['scene']:16s} {r['method']:8s} h={r['h']:<6g} quasi {r['us_per_step_quasi']:6.2f} us "
+                  f"({r['iterations_quasi']:.2f} it, {r['fallbacks']} fallbacks)  "
+                  f"newton {r['us_per_step_newton']:6.2f} us ({r['iterations_newton']:.2f} it)  "
+                  f"speed-up {r['speedup']:.2f}  |dq_final| {r['final_q_difference']:.1e}  "
+                  f"counted {r['counted_flops']:.0f} flops = {r['counted_us']:.2f} us")
+    out["studies"] = []
+    for i in (int(x) for x in a.studies.split(",") if x):
+        st = study(*STUDIES[i], rounds=a.rounds, quick=a.quick)
+        out["studies"].append(st)
+        print(f"{st['scene']} T = {st['t_end']:g}, {st['key']}: cpu(best of {', '.join(PEERS)}) / cpu(best SPARK)")
+        for q, nw in zip(st["quasi"], st["newton"]):
+            print(f"  target {q['target']:.0e}: quasi {_ratio(q)}; newton {_ratio(nw)}")
+        for f in st["failed"]:
+            print(f"  failed: {f}")
+    out["load_average_1min_at_end"] = os.getloadavg()[0]
+    out["cpu_seconds"] = time.process_time() - c0
+    with open(a.out, "w") as fh:
+        json.dump(out, fh, indent=1, default=float)
+    print(f"wrote {a.out}; load average {load0:.1f} at the start, {out['load_average_1min_at_end']:.1f} at the end "
+          f"({out['cpu_count']} CPUs)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,426 @@
+"""A second root finder for the SPARK step (21), mechanical form (L = 1/2 v^T M v - U(t, q),
+k = K(t, q) v + b(t, q), M constant): a quasi-Newton iteration on the multipliers only.
+
+The Newton matrix of (21b, d, e, f) in the increments x = [Z | Lambda | dv] (``kernels_mech``)
+is replaced by
+
+    [ I (x) M     0    A~ (x) K^T ]        rows (21b): M Z_i + h sum A^_ij grad U_j + sum A~_ij K_j^T Lambda_j
+    [   0         M    b~ (x) K^T ]        row  (21d)
+    [  C_Z      C_dv       0      ]        rows (21e), (21f): k_q to first order in h
+
+i.e. the velocity block frozen at the mass matrix M (the terms h^2 a^ a Hess U and
+h a~ a d(K^T Lambda)/dq dropped) and the constraint rows exact to first order
+(``newton.constraint_rows``), all at the predictor. Eliminating Z and dv (M^-1 is constant)
+leaves the multiplier system S dLambda = G_c - C_Z M^-1 G_Z - C_dv M^-1 G_d with
+S = sum_k C_Z[., k] A~_kj W_j + C_dv b~_j W_j, W_j = M^-1 K_j^T: (s m) x (s m), formed and
+factored once per step. The iteration converges to the same root of (21) (the residual is the
+exact one); its contraction rate is O(h^2 |Hess U| / |M| + h |Lambda| |K_q|), measured per step.
+
+Predictor (IRKGaussLegendre.jl): the previous step's stage polynomial extrapolated, the velocity
+polynomial through (0, v0) and (c_j, V_j) evaluated at 1 + c_i and 2, the multipliers' through
+(c_j, Psi_j) at 1 + c_i (``quasi.extrapolation``). Stopping rule: ``newton.newton_status``
+(RADAU5's rate test, lim = tol (|x| + |v0|), the round-off of the stage values), never the
+round-off-floor clause (the matrix is not exact); at the second increment also RADAU5's test with
+the one ratio there, while |dx_2| <= FIRST_RATE_FACTOR lim. Fallback: a step whose increments contract by
+less than QUASI_THETA, or that has not converged after QUASI_MAX_ITER increments, or meets a
+singular multiplier matrix or a non-finite increment, is solved again by the compiled Newton
+chain of ``kernels.spark_newton`` (simplified Newton with fresh matrices, then full Newton from
+zero increments), counted in qstats[QS_FALLBACKS]; after a fallback the next steps go there
+directly, for a wait that doubles while attempts keep failing (QS_SKIPPED, QUASI_WAIT_MAX). q and
+v are summed with Kahan's compensated summation (``newton.accept_step``).
+"""
+import numba
+import numpy as np
+from numba import types
+
+from . import modeltypes as mt
+from .kernels import spark_newton, evaluate, store   # noqa: F401 (evaluate: the overload spark_newton uses)
+from .kernels_mech import mech_residual, mech_workspace
+from .newton import (FAIL_NONFINITE, RATE_KAPPA, accept_step, end_newton, fail, lu_factor, lu_solve, newton_status,
+                     norm_inf, predict)
+
+# numba keys a cached kernel on the content of this file only; the helpers it compiles in live in
+# the sibling modules below (kernels.py itself carries the digest of its own helpers). Their
+# digest is written here so that editing one changes this file too (tests/test_kernels_quasi.py).
+HELPERS = ("kernels.py", "newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py",
+           "modeltypes.py")
+HELPERS_SHA256 = "8a4e187eb04fab1f74032fc7b2a0fae1410ec985d28d48e17774866968d19558"
+
+#: a quasi-Newton increment that contracts by less than this (|dx_k| > QUASI_THETA |dx_k-1|)
+#: sends the step to the Newton chain: at rate 1/2 the ~50 bits from a predictor error of 1e-2
+#: to round-off would take ~45 iterations, more residuals than Newton's Jacobian and LU save
+QUASI_THETA = 0.5
+#: quasi-Newton increments per step before the Newton chain takes over
+QUASI_MAX_ITER = 30
+#: qstats entries: quasi-Newton iterations, steps solved by the quasi-Newton iteration, steps
+#: sent to the Newton chain (fallbacks), multiplier matrices factored
+QS_ITERATIONS, QS_STEPS, QS_FALLBACKS, QS_LU = 0, 1, 2, 3
+#: steps sent to the Newton chain without a quasi-Newton attempt (counted in QS_FALLBACKS too):
+#: after a fallback the next QUASI_WAIT_MAX >= wait >= 1 steps go straight to the Newton chain,
+#: the wait doubling after every fallback that follows one and reset by a converged attempt (the
+#: choice per run: where the iteration does not contract, as for a stiff spring, it is tried
+#: rarely instead of costing up to QUASI_MAX_ITER residuals before every Newton step)
+QS_SKIPPED = 4
+QUASI_WAIT_MAX = 64
+#: the single-ratio rate test at the second increment applies while |dx_2| <= FIRST_RATE_FACTOR lim
+FIRST_RATE_FACTOR = 1e3
+#: ``predictor`` value selecting the collocation extrapolation (0-2: ``newton.predict``)
+PREDICT_COLLOCATION = 3
+
+
+@numba.njit(cache=True)
+def quasi_workspace(tab, n, m, Minv):
+    """Minv in CSR (row pointers, columns, values); W_j = M^-1 K_j^T (s, n, m); the frozen K_j,
+    k_q,j at the stages and K, k_q at the end point (at the predictor); P_kj = K_k W_j and
+    Q_kj = k_q,k W_j (s, s, m, m); S and its pivots; y_k = M^-1 G_k (s + 1, n); the multiplier
+    right-hand side; u_j = W_j dLambda_j (s, n); z_j = sum_k a_jk y_k (s, n); the tableau
+    products omega_rj (A A~)_jj' as OAAt (s - 1, s, s) and (b A~)_j (s); K_k y_k and k_q,j z_j (s, m)."""
+    c, A, Ah, At, bw, bh, bt, om = tab
+    s = A.shape[0]
+    nnz = 0
+    for a in range(n):
+        for b in range(n):
+            if Minv[a, b] != 0.0:
+                nnz += 1
+    Np, Nj, Nx = np.zeros(n + 1, dtype=np.int64), np.zeros(nnz, dtype=np.int64), np.zeros(nnz)
+    e = 0
+    for a in range(n):
+        for b in range(n):
+            if Minv[a, b] != 0.0:
+                Nj[e] = b
+                Nx[e] = Minv[a, b]
+                e += 1
+        Np[a + 1] = e
+    sm = s * m
+    OAAt = np.zeros((max(s - 1, 1), s, s))
+    bAt = np.zeros(s)
+    for jp in range(s):
+        acc = 0.0
+        for k in range(s):
+            acc += bw[k] * At[k, jp]
+        bAt[jp] = acc
+    for r in range(s - 1):
+        for jp in range(s):
+            for j in range(s):
+                acc = 0.0
+                for k in range(s):
+                    acc += A[j, k] * At[k, jp]
+                OAAt[r, j, jp] = om[r, j] * acc
+    return (Np, Nj, Nx, np.zeros((s, n, m)), np.zeros((s, m, n)), np.zeros((s, m, n)), np.zeros((m, n)),
+            np.zeros((m, n)), np.zeros((s, s, m, m)), np.zeros((s, s, m, m)), np.zeros((sm, sm)),
+            np.zeros(sm, dtype=np.int64), np.zeros((s + 1, n)), np.zeros(sm), np.zeros((s, n)), np.zeros((s, n)),
+            OAAt, bAt, np.zeros((s, m)), np.zeros((s, m)))
+
+
+@numba.njit(cache=True, _nrt=False)
+def csr_matvec(Np, Nj, Nx, x, off, out):
+    """out = Minv x[off:off + n] with Minv in CSR."""
+    for a in range(out.shape[0]):
+        acc = 0.0
+        for e in range(Np[a], Np[a + 1]):
+            acc += Nx[e] * x[off + Nj[e]]
+        out[a] = acc
+
+
+@numba.njit(cache=True, _nrt=False)
+def multiplier_matrix(model, tab, h, t, ws, qw):
+    """The frozen K, k_q, W_j and the factored multiplier matrix S at the stage values of the last
+    residual (K_j there from ``mech_residual``; k_q evaluated here). False if S is singular.
+
+    With C_Z[r, k] = omega_rk K_k + h sum_j omega_rj a_jk k_q,j (21e) and h b_k k_q(q1, v1) (21f):
+    S[r, j'] = sum_k omega_rk a~_kj' K_k W_j' + h sum_j omega_rj (A A~)_jj' k_q,j W_j' (r < s - 1),
+    S[s - 1, j'] = (h (b A~)_j' k_q(q1, v1) + b~_j' K(q1)) W_j': O(s^3 m^2 + s^2 m^2 n), C_Z never formed."""
+    kq_of = model[5]
+    A, At, bt, om = tab[1], tab[3], tab[6], tab[7]
+    T, Q, V, KK, q1, v1, K1 = ws[0], ws[1], ws[2], ws[5], ws[11], ws[12], ws[13]
+    Np, Nj, Nx, W, Kf, kqf, K1f, kq1f, Pm, Qm, S, spiv = (qw[0], qw[1], qw[2], qw[3], qw[4], qw[5], qw[6], qw[7],
+                                                        qw[8], qw[9], qw[10], qw[11])
+    OAAt, bAt = qw[16], qw[17]
+    s, n, m = A.shape[0], q1.shape[0], K1.shape[0]
+    for j in range(s):
+        kq_of(T[j], Q[j], V[j], kqf[j])
+        for ll in range(m):
+            for b in range(n):
+                Kf[j, ll, b] = KK[j, ll, b]
+    kq_of(t + h, q1, v1, kq1f)
+    for ll in range(m):
+        for b in range(n):
+            K1f[ll, b] = K1[ll, b]
+    # W_j = M^-1 K_j^T
+    for j in range(s):
+        for a in range(n):
+            for ll in range(m):
+                acc = 0.0
+                for e in range(Np[a], Np[a + 1]):
+                    acc += Nx[e] * Kf[j, ll, Nj[e]]
+                W[j, a, ll] = acc
+    # P_kj = K_k W_j, Q_kj = k_q,k W_j
+    for k in range(s):
+        for j in range(s):
+            for mm in range(m):
+                for ll in range(m):
+                    p = 0.0
+                    qq = 0.0
+                    for b in range(n):
+                        p += Kf[k, mm, b] * W[j, b, ll]
+                        qq += kqf[k, mm, b] * W[j, b, ll]
+                    Pm[k, j, mm, ll] = p
+                    Qm[k, j, mm, ll] = qq
+    for r in range(s - 1):
+        for jp in range(s):
+            for mm in range(m):
+                for ll in range(m):
+                    acc = 0.0
+                    acc2 = 0.0
+                    for k in range(s):
+                        acc += om[r, k] * At[k, jp] * Pm[k, jp, mm, ll]
+                        acc2 += OAAt[r, k, jp] * Qm[k, jp, mm, ll]
+                    S[r * m + mm, jp * m + ll] = acc + h * acc2
+    r = s - 1
+    for jp in range(s):
+        for mm in range(m):
+            for ll in range(m):
+                acc = 0.0
+                for b in range(n):
+                    acc += (h * bAt[jp] * kq1f[mm, b] + bt[jp] * K1f[mm, b]) * W[jp, b, ll]
+                S[r * m + mm, jp * m + ll] = acc
+    return lu_factor(S, spiv)
+
+
+@numba.njit(cache=True, _nrt=False)
+def quasi_increment(tab, h, qw, G, x):
+    """x += dx with dx the solution of the frozen system above for the residual G; |dx|_inf.
+    y_k = M^-1 G_k; S dLambda = G_c - C_Z y - C_dv y_s with C_Z y formed from the frozen K_k y_k and
+    k_q,j z_j, z_j = sum_k a_jk y_k (C_Z never formed); then dZ_k = -y_k - sum_j a~_kj W_j dLambda_j
+    and ddv = -y_s - sum_j b~_j W_j dLambda_j."""
+    A, At, bw, bt, om = tab[1], tab[3], tab[4], tab[6], tab[7]
+    Np, Nj, Nx, W, Kf, kqf, K1f, kq1f = qw[0], qw[1], qw[2], qw[3], qw[4], qw[5], qw[6], qw[7]
+    S, spiv, y, rhs, u, z, Ky, kz = qw[10], qw[11], qw[12], qw[13], qw[14], qw[15], qw[18], qw[19]
+    s, n, m = A.shape[0], y.shape[1], Kf.shape[1]
+    sn, sm = s * n, s * m
+    re0 = sn + n
+    for k in range(s + 1):
+        csr_matvec(Np, Nj, Nx, G, k * n, y[k])
+    for j in range(s):
+        for a in range(n):
+            acc = 0.0
+            for k in range(s):
+                acc += A[j, k] * y[k, a]
+            z[j, a] = acc
+        for mm in range(m):
+            acc = 0.0
+            acc2 = 0.0
+            for a in range(n):
+                acc += Kf[j, mm, a] * y[j, a]
+                acc2 += kqf[j, mm, a] * z[j, a]
+            Ky[j, mm] = acc
+            kz[j, mm] = acc2
+    # (21e) rows: C_Z y = sum_k omega_rk K_k y_k + h sum_j omega_rj k_q,j z_j
+    for r in range(s - 1):
+        for mm in range(m):
+            acc = 0.0
+            for k in range(s):
+                acc += om[r, k] * (Ky[k, mm] + h * kz[k, mm])
+            rhs[r * m + mm] = G[re0 + r * m + mm] - acc
+    # (21f) row: h k_q(q1, v1) sum_k b_k y_k + K(q1) y_s
+    r = s - 1
+    for mm in range(m):
+        acc = 0.0
+        acc2 = 0.0
+        for a in range(n):
+            yb = 0.0
+            for k in range(s):
+                yb += bw[k] * y[k, a]
+            acc += kq1f[mm, a] * yb
+            acc2 += K1f[mm, a] * y[s, a]
+        rhs[r * m + mm] = G[re0 + r * m + mm] - h * acc - acc2
+    lu_solve(S, spiv, rhs)
+    dn = 0.0
+    for j in range(s):
+        for ll in range(m):
+            d = rhs[j * m + ll]
+            x[sn + j * m + ll] += d
+            ad = abs(d)
+            if ad > dn or ad != ad:
+                dn = ad
+        for a in range(n):
+            acc = 0.0
+            for ll in range(m):
+                acc += W[j, a, ll] * rhs[j * m + ll]
+            u[j, a] = acc
+    for k in range(s + 1):
+        off = k * n if k < s else sn + sm
+        for a in range(n):
+            acc = y[k, a]
+            for j in range(s):
+                acc += (At[k, j] if k < s else bt[j]) * u[j, a]
+            x[off + a] -= acc
+            ad = abs(acc)
+            if ad > dn or ad != ad:
+                dn = ad
+    return dn
+
+
+@numba.njit(cache=True, _nrt=False)
+def quasi_newton(model, tab, ws, qw, x, t, q, v, h, G, tol, max_iter, stats, qstats):
+    """The quasi-Newton iteration from the guess in x; (status, iterations): 1 converged, 0 not
+    converged, slow (rate > QUASI_THETA) or singular (the caller falls back), -1 not finite."""
+    scale = norm_inf(v)
+    mech_residual(model, tab, x, t, q, v, h, ws, G)
+    stats[2] += tab[0].shape[0] + 1
+    qstats[QS_LU] += 1
+    if not multiplier_matrix(model, tab, h, t, ws, qw):
+        return 0, 0
+    prev = -1.0
+    theta = -1.0
+    it = 0
+    status = 0
+    while it < max_iter:
+        it += 1
+        dn = quasi_increment(tab, h, qw, G, x)
+        status = newton_status(dn, prev, theta, norm_inf(x), scale, tol, False)
+        if status == 0 and prev > 0.0 and theta <= 0.0:
+            # RADAU5 at its second increment: the rate of the one ratio there, theta_1 =
+            # |dx_2| / |dx_1|, stops the iteration when theta_1 / (1 - theta_1) |dx_2| <= kappa lim,
+            # here only while |dx_2| is within FIRST_RATE_FACTOR lim (a drop onto a noise floor far
+            # above round-off is no evidence of contraction)
+            th = dn / prev
+            lim = tol * (norm_inf(x) + scale)
+            if th < 1.0 and th / (1.0 - th) * dn <= RATE_KAPPA * lim and dn <= FIRST_RATE_FACTOR * lim:
+                status = 1
+        if status != 0:
+            break
+        if prev > 0.0 and dn > QUASI_THETA * prev:
+            break
+        theta = dn / prev if prev > 0.0 else -1.0
+        prev = dn
+        mech_residual(model, tab, x, t, q, v, h, ws, G)
+        stats[2] += tab[0].shape[0] + 1
+    return status, it
+
+
+@numba.njit(cache=True, _nrt=False)
+def collocation_predict(Ev, El, hist, x, s, n, m):
+    """IRKGaussLegendre.jl's predictor in the increments: with the last step's Z_j = V_j - v0',
+    dv' = v0 - v0' (v0' its initial velocity, Z = 0 at the node 0), Z_i = sum_j Ev[i, j] Z_j - dv',
+    dv = sum_j Ev[s, j] Z_j - dv', Lambda_i = sum_j El[i, j] Lambda_j (h constant)."""
+    sn, sm = s * n, s * m
+    for i in range(s + 1):
+        off = i * n if i < s else sn + sm
+        for a in range(n):
+            acc = 0.0
+            for j in range(s):
+                acc += Ev[i, j] * hist[j * n + a]
+            x[off + a] = acc - hist[sn + sm + a]
+    for i in range(s):
+        for ll in range(m):
+            acc = 0.0
+            for j in range(s):
+                acc += El[i, j] * hist[sn + j * m + ll]
+            x[sn + i * m + ll] = acc
+
+
+@numba.njit(cache=True)
+def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter,
+               predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x, qstats):
+    """The step loop of ``spark_loop`` (same sampling, counters, failure codes and out_x layout)
+    with the quasi-Newton iteration first and the Newton chain as the fallback."""
+    s = tab[1].shape[0]
+    n = q0.shape[0]
+    m = out_k.shape[1]
+    sn, sm = s * n, s * m
+    NN = sn + sm + n
+    ws = mech_workspace(s, n, m, M)
+    qw = quasi_workspace(tab, n, m, Minv)
+    J = np.zeros((NN, NN))
+    piv = np.zeros(NN, dtype=np.int64)
+    G = np.zeros(NN)
+    x, x_last, x_prev, x_pred = np.zeros(NN), np.zeros(NN), np.zeros(NN), np.zeros(NN)
+    dq, dv, cq, cv = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+    q, v = q0.copy(), v0.copy()
+    bw = tab[4]
+    sb = 0.0
+    for j in range(s):
+        sb += bw[j]
+    quasi_max = min(max_iter, QUASI_MAX_ITER)
+    wait, backoff = 0, 1
+    stats[mt.FAILED_STEP] = -1
+    if not store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
+        fail(stats, 0, FAIL_NONFINITE)
+        return
+    j_out = 1
+    for step in range(n_steps):
+        t = t0 + step * h
+        if predictor == PREDICT_COLLOCATION and step >= 1:
+            collocation_predict(Ev, El, x_last, x, s, n, m)
+        else:
+            predict(x, x_last, x_prev, step, 2 if predictor == PREDICT_COLLOCATION else predictor)
+        for r in range(NN):
+            x_pred[r] = x[r]
+        if wait > 0:
+            wait -= 1
+            status, it = 0, 0
+            qstats[QS_SKIPPED] += 1
+        else:
+            status, it = quasi_newton(model, tab, ws, qw, x, t, q, v, h, G, tol, quasi_max, stats, qstats)
+            qstats[QS_ITERATIONS] += it
+            if status == 1:
+                backoff = 1
+            else:
+                wait = backoff
+                backoff = min(2 * backoff, QUASI_WAIT_MAX)
+        if status == 1:
+            qstats[QS_STEPS] += 1
+        else:
+            # the Newton chain of ``spark_loop``: simplified Newton with fresh matrices from the
+            # predictor, then full Newton from zero increments
+            qstats[QS_FALLBACKS] += 1
+            for r in range(NN):
+                x[r] = x_pred[r]
+            status, it2, worst = spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, False,
+                                              stats, False)
+            it += it2
+            if status != 1:
+                stats[mt.FULL_NEWTON_STEPS] += 1
+                for r in range(NN):
+                    x[r] = 0.0
+                status, it2, worst = spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter,
+                                                  True, stats, False)
+                it += it2
+            if status != 1:
+                stats[2] += evaluate(model, tab, False, x, t, q, v, h, M, ws, G, J)
+                out_x[0] = norm_inf(G)
+        if not end_newton(stats, step, it, status):
+            return
+        for a in range(n):
+            acc = 0.0
+            for j in range(s):
+                acc += bw[j] * x[j * n + a]
+            dq[a] = h * (sb * v[a] + acc)
+            dv[a] = x[sn + sm + a]
+        if not accept_step(q, v, cq, cv, dq, dv, compensated, x, x_last, x_prev, stats, step):
+            return
+        if step % every == 0 and out_x.shape[0] > NN:
+            o = NN + (step // every) * sm
+            for r in range(sm):
+                out_x[o + r] = x[sn + r] / h
+        if (step + 1) % every == 0 or step + 1 == n_steps:
+            if not store(model, j_out, t0 + (step + 1) * h, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
+                fail(stats, step, FAIL_NONFINITE)
+                return
+            j_out += 1
+    for r in range(NN):
+        out_x[r] = x_last[r]
+
+
+QUASI_SIG = types.void(mt.MECH_MODEL, mt.TABLEAU_T, mt.a2, mt.a2, mt.a2, mt.a2, *mt.RUN, mt.a1, mt.STATS)
+
+
+@numba.njit(cache=True, nogil=True)
+def quasi_run(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, predictor,
+              out_t, out_q, out_v, out_E, out_k, stats, out_x, qstats):
+    """n_steps of the SPARK method (21) for a mechanical system with the quasi-Newton root finder
+    (``quasi_loop``); arguments as ``kernels.spark_run`` plus M^-1, the predictor's extrapolation
+    coefficients Ev (s + 1, s), El (s, s) and the quasi-Newton counters qstats (QS_*)."""
+    quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, predictor,
+               out_t, out_q, out_v, out_E, out_k, stats, out_x, qstats)

@@ -1,0 +1,153 @@
+"""The quasi-Newton root finder of the SPARK step (21) on the compiled float64 engine
+(``kernels_quasi``): ``run_quasi`` runs it on a compiled mechanical system and returns the
+``FastSolution`` of ``runner.run_compiled`` with its counters; ``ldaspark.integrate(...,
+engine="compiled", newton="quasi")`` reaches it through ``solve``.
+"""
+from __future__ import annotations
+
+import math
+import threading
+
+import numpy as np
+
+from ..core.errors import InputError
+
+from .codegen import NotCompilableError
+from .runner import (_TOL_DEFAULT, STAT_NAMES, FastSolution, _check_options, _failure, kernel_spec, n_samples)
+
+#: the counters ``run_quasi`` adds to the stats of ``runner.run_compiled``: quasi-Newton
+#: iterations, steps it solved, steps sent to the Newton chain, multiplier matrices factored,
+#: steps sent there without an attempt (``kernels_quasi.QS_SKIPPED``)
+QUASI_STAT_NAMES = ("quasi_iterations", "quasi_steps", "quasi_fallbacks", "multiplier_lu", "quasi_skipped")
+
+
+def lagrange_weights(nodes, points) -> np.ndarray:
+    """W[i, p] = l_p(points[i]), the Lagrange basis of ``nodes`` (distinct) at ``points``."""
+    nodes = np.asarray(nodes, float)
+    W = np.ones((len(points), len(nodes)))
+    for i, x in enumerate(points):
+        for p, xp in enumerate(nodes):
+            for r, xr in enumerate(nodes):
+                if r != p:
+                    W[i, p] *= (x - xr) / (xp - xr)
+    return W
+
+
+def extrapolation(c) -> tuple[np.ndarray, np.ndarray]:
+    """(Ev, El) of the collocation predictor (``kernels_quasi.collocation_predict``): the velocity
+    polynomial through (c_j, V_j) and (0, v0) (the node 0 only where no c_j is 0: Lobatto) at
+    1 + c_i and 2, its weights on the stage nodes (the node 0 carries a zero increment); the
+    multipliers' polynomial through (c_j, Psi_j) at 1 + c_i."""
+    c = [float(x) for x in c]
+    s = len(c)
+    extra = [] if min(abs(x) for x in c) < 1e-12 else [0.0]
+    Ev = lagrange_weights(c + extra, [1.0 + x for x in c] + [2.0])[:, :s]
+    El = lagrange_weights(c, [1.0 + x for x in c])
+    return np.ascontiguousarray(Ev), np.ascontiguousarray(El)
+
+
+_LOCK = threading.Lock()
+_ENTRY = []
+_EXTRAP: dict = {}
+
+
+def entry():
+    """The compiled ``kernels_quasi.quasi_run`` for its one signature (compiled or loaded from
+    numba's cache on first use)."""
+    if _ENTRY:
+        return _ENTRY[0]
+    import warnings
+    from numba.core.errors import NumbaExperimentalFeatureWarning
+    from . import kernels, kernels_general, kernels_mech, kernels_quasi, newton
+    from .cache import check_kernel_cache
+    check_kernel_cache((kernels, kernels_general, kernels_mech, newton, kernels_quasi))
+    with _LOCK:
+        if not _ENTRY:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
+                disp = kernels_quasi.quasi_run
+                sig = kernels_quasi.QUASI_SIG
+                cres = disp.overloads.get(tuple(sig.args))
+                ep = cres.entry_point if cres is not None else disp.compile(sig)
+            _ENTRY.append(ep)
+    return _ENTRY[0]
+
+
+def run_quasi(cs, method, t0, q0, v0, h, n_steps, every=1, compensated=True, tol=None, max_iter=50,
+              predictor="collocation") -> FastSolution:
+    """``runner.run_compiled`` with the quasi-Newton root finder (``kernels_quasi``): the same
+    method (21), the same stopping rule and failure reports; mechanical form and SPARK tableaus
+    only. predictor: "collocation" (IRKGaussLegendre.jl's, default) or 0, 1, 2 as
+    ``run_compiled``. stats adds QUASI_STAT_NAMES and root_finder = "quasi"."""
+    if cs.form != "mechanical":
+        raise NotCompilableError(f"{cs.name}: newton='quasi' needs a system in mechanical form "
+                                 "(L = 1/2 v^T M v - U(t, q), k = K(t, q) v + b(t, q), M constant)")
+    if isinstance(predictor, str) and predictor == "collocation":
+        pflag = 3
+        _check_options(n_steps, every, 2, tol, max_iter, cs.n, cs.m)
+    else:
+        _check_options(n_steps, every, predictor, tol, max_iter, cs.n, cs.m)
+        pflag = int(predictor)
+    kind, what, name = method if isinstance(method, tuple) else kernel_spec(method, "spark")
+    if kind != "spark":
+        raise InputError(f"newton='quasi' runs SPARK tableaus; {name} is a comparator")
+    q0 = np.array(q0, dtype=float)
+    v0 = np.array(v0, dtype=float)
+    if q0.shape != (cs.n,) or v0.shape != (cs.n,):
+        raise InputError(f"initial data must have n = {cs.n} entries")
+    h = float(h)
+    if not (math.isfinite(h) and h != 0 and np.isfinite(q0).all() and np.isfinite(v0).all()):
+        raise InputError("initial data or step size contain NaN/inf, or h = 0")
+    tol = _TOL_DEFAULT if tol is None else float(tol)
+    key = what[0].tobytes()
+    ex = _EXTRAP.get(key)
+    if ex is None:
+        ex = _EXTRAP[key] = extrapolation(what[0])
+    S = n_samples(int(n_steps), int(every))
+    outs = (np.zeros(S), np.zeros((S, cs.n)), np.zeros((S, cs.n)), np.zeros(S), np.zeros((S, cs.m)))
+    stats = np.zeros(len(STAT_NAMES), dtype=np.int64)
+    qstats = np.zeros(len(QUASI_STAT_NAMES), dtype=np.int64)
+    s_ = what[1].shape[0]
+    NN = s_ * (cs.n + cs.m) + cs.n
+    out_x = np.zeros(NN + (S - 1) * s_ * cs.m)
+    entry()(cs.model, what, cs.M, cs.Minv, ex[0], ex[1], float(t0), q0, v0, h, int(n_steps), int(every),
+            bool(compensated), tol, int(max_iter), pflag, *outs, stats, out_x, qstats)
+    st = dict(zip(STAT_NAMES, (int(x) for x in stats)))
+    if st["failed_step"] >= 0:
+        raise _failure(st, name, float(t0), h, float(out_x[0]))
+    for k in ("failed_step", "failure", "failed_iterations"):
+        st.pop(k)
+    st.update(zip(QUASI_STAT_NAMES, (int(x) for x in qstats)))
+    st["mean_iterations"] = st["newton_iterations"] / max(st["steps"], 1)
+    st.update(path="fast", kernel="quasi", form=cs.form, compensated=bool(compensated), linear_solver="dense",
+              reuse_matrix=False, root_finder="quasi")
+    return FastSolution(*outs, st, out_x[NN:].reshape(S - 1, s_, cs.m))
+
+
+__all__ = ["run_quasi", "extrapolation", "QUASI_STAT_NAMES"]
+
+
+
+def quasi_integrate(system, method, t0, q0, v0, h, n_steps, every=1, tol=None) -> FastSolution:
+    """``fast.fast_integrate``'s checks (initial point, options) and ``run_quasi`` on the system's
+    compiled model; what ``ldaspark.integrate(..., engine="compiled", newton="quasi")`` runs per
+    chunk. No generic fallback: a system without the mechanical form, a comparator or a model
+    that does not compile is refused (InputError), a step the Newton chain cannot solve raises
+    NewtonError (``solve`` keeps the prefix and explains it with the generic step)."""
+    from ..core.validate import real_number, real_vector, step_advances
+    from .fast import _loaded, _setup_checks
+    from .runner import compile_system
+    real_number(h, "h", nonzero=True)
+    real_number(t0, "t0")
+    real_vector(q0, "q0")
+    real_vector(v0, "v0")
+    step_advances(t0, h, n_steps, None)
+    _setup_checks(system, t0, q0, v0, _loaded(system))
+    try:
+        cs = compile_system(system)
+        if cs.form != "mechanical":
+            raise NotCompilableError(f"{system.name}: not in mechanical form (L = 1/2 v^T M v - U(t, q), "
+                                     "k = K(t, q) v + b(t, q), M constant)")
+        return run_quasi(cs, method, t0, q0, v0, h, n_steps, every, True, tol)
+    except NotCompilableError as exc:
+        raise InputError(f"newton='quasi' cannot run this: {exc}") from None

@@ -1,0 +1,176 @@
+"""The quasi-Newton root finder of the SPARK step (``compiled.kernels_quasi``, ``compiled.quasi``,
+``integrate(..., newton="quasi")``) solves the same equations (21) as the compiled Newton engine.
+
+Tolerance of the trajectory comparisons: both root finders stop when the remaining error of the
+step's unknowns is estimated at most lim = tol (|x| + |v0|) <= 8 eps * scale (``newton.newton_status``,
+scale = max(1, |q|, |v|) over the run), so one step's results differ by at most ~2 lim, and over
+N steps of a non-expanding flow by at most N * 2 lim: the bound used is 2 N * 8 eps * scale
+(measured: at most 0.16 of it, mp-particles gauss-2, over 10 scenes x 6 families, 300 steps).
+"""
+import hashlib
+import os
+
+import numpy as np
+import pytest
+import sympy
+
+import ldaspark
+from ldaspark.compiled.fast import compile_system, run_compiled
+from ldaspark.compiled.quasi import extrapolation, run_quasi
+from ldaspark.core.errors import InputError
+from ldaspark.core.system import LagrangianSystem
+from ldaspark.models.scenes import get_scene
+
+EPS = float(np.finfo(float).eps)
+MECH_SCENES = ("particle", "skate", "robot", "mp-particles", "mp-particles-nh", "pendulum", "rolling-disk",
+               "rheonomic-skate", "turntable", "contact-oscillator")
+FAMILIES = ("gauss-1", "gauss-2", "gauss-3", "gauss-4", "lobatto-iiia-iiib-2", "lobatto-iiia-iiib-3")
+N, H = 300, 0.05
+
+
+def _difference(a, b):
+    """max |dq|, |dv| over the run in units of 2 N * 8 eps * scale (the module docstring's bound)."""
+    scale = max(1.0, float(np.abs(a.q).max()), float(np.abs(a.v).max()))
+    d = max(float(np.abs(a.q - b.q).max()), float(np.abs(a.v - b.v).max()))
+    return d / (2 * len(a.t) * 8 * EPS * scale)
+
+
+def test_kernel_file_records_its_helpers():
+    """numba keys the cached quasi_run on kernels_quasi.py only: HELPERS_SHA256 must be the digest
+    of the modules compiled into it, so that editing one rebuilds the kernel."""
+    from ldaspark.compiled import kernels_quasi
+    d = os.path.dirname(kernels_quasi.__file__)
+    h = hashlib.sha256()
+    for f in kernels_quasi.HELPERS:
+        with open(os.path.join(d, f), "rb") as fh:
+            h.update(fh.read())
+    assert kernels_quasi.HELPERS_SHA256 == h.hexdigest(), "update HELPERS_SHA256 in ldaspark/compiled/kernels_quasi.py"
+
+
+def test_extrapolation_reproduces_polynomials():
+    """The predictor's weights extrapolate a polynomial of the interpolation degree exactly: the
+    velocity nodes are c_j and 0 (degree s; Lobatto: c_j only, degree s - 1), the multipliers' c_j
+    (degree s - 1); a polynomial of one degree more is not reproduced (negative control)."""
+    from ldaspark.compiled.runner import kernel_spec
+    for name, deg in (("gauss-2", 2), ("gauss-3", 3), ("lobatto-iiia-iiib-3", 2)):
+        c = kernel_spec(name, "spark")[1][0]
+        Ev, El = extrapolation(c)
+        t_new = np.concatenate([1 + c, [2.0]])
+        for p, ok in ((deg, True), (deg + 1, False)):
+            f = (lambda t: (t ** p) + 0.5 * t)      # value 0 at the node t = 0 (the zero increment there)
+            err = np.abs(Ev @ f(c) - f(t_new)).max()
+            assert (err < 1e-12) == ok, (name, p, err)
+        g = (lambda t: t ** (len(c) - 1) - 3.0)
+        assert np.abs(El @ g(c) - g(1 + c)).max() < 1e-12
+
+
+@pytest.mark.parametrize("scene", MECH_SCENES)
+def test_same_trajectory_as_newton_on_every_mechanical_scene(scene):
+    """Every mechanical scene, gauss-1..4 and lobatto-iiia-iiib-2..3, 300 steps of h = 0.05: the
+    quasi-Newton and Newton trajectories agree within the bound of the module docstring. Negative
+    control: another method (gauss-2 against lobatto-iiia-iiib-2, O(h^2) apart) breaks the bound."""
+    sc = get_scene(scene)
+    t0, q0, v0 = sc.initial()
+    cs = compile_system(sc.system)
+    for fam in FAMILIES:
+        a = run_compiled(cs, fam, t0, q0, v0, H, N, 1, kernel="spark")
+        b = run_quasi(cs, fam, t0, q0, v0, H, N, 1)
+        assert b.stats["steps"] == N and b.stats["quasi_steps"] + b.stats["quasi_fallbacks"] == N
+        assert _difference(a, b) <= 1.0, (scene, fam, _difference(a, b))
+        assert b.stats["root_finder"] == "quasi" and b.stats["quasi_iterations"] >= N
+    other = run_compiled(cs, "lobatto-iiia-iiib-2", t0, q0, v0, H, N, 1, kernel="spark")
+    b = run_quasi(cs, "gauss-2", t0, q0, v0, H, N, 1)
+    if scene not in ("skate", "rolling-disk", "rheonomic-skate", "turntable"):
+        # (on those four the stage polynomials are exact: every method gives the same trajectory)
+        assert _difference(other, b) > 10.0
+
+
+def test_order_2s_with_the_quasi_root_finder():
+    """skate (closed form), T = 2: the error of gauss-2 falls by 2^4 per halving of h (slope in
+    [3.6, 4.4]), gauss-1 by 2^2 (slope in [1.6, 2.4]); the two slopes differ (negative control)."""
+    sc = get_scene("skate")
+    t0, q0, v0 = sc.initial()
+    cs = compile_system(sc.system)
+    q_ex = np.asarray(sc.exact_solution(2.0)[0], float)
+    for fam, p in (("gauss-1", 2), ("gauss-2", 4)):
+        err = []
+        for h in (0.1, 0.05):
+            r = run_quasi(cs, fam, t0, q0, v0, h, int(round(2.0 / h)), 1000)
+            err.append(float(np.abs(r.q[-1] - q_ex).max()))
+        slope = np.log2(err[0] / err[1])
+        assert p - 0.4 <= slope <= p + 0.4, (fam, err, slope)
+
+
+def _stiff(w2):
+    q, v = list(sympy.symbols("q1:4")), list(sympy.symbols("v1:4"))
+    L = (v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 - sympy.Integer(w2) / 2 * (q[0] ** 2 + q[1] ** 2)
+    return LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name=f"stiff-particle-{w2}")
+
+
+@pytest.mark.parametrize("w2, all_fall_back", [(10000, True), (4, False)])
+def test_stiff_spring_falls_back_and_agrees(w2, all_fall_back):
+    """The particle of 8.1 with a spring omega^2 = 10^4 at h = 0.05 (h omega = 5): the frozen
+    velocity block misses h^2 a a^ Hess U ~ 25, the iteration does not contract, and every step
+    falls back to the Newton chain (counted), agreeing with the Newton engine within the bound;
+    after the first failures the attempts are rare (the doubling wait of kernels_quasi.QS_SKIPPED).
+    Control: omega^2 = 4 (the paper's particle) needs no fallback."""
+    cs = compile_system(_stiff(w2))
+    for fam in ("gauss-2", "gauss-3"):
+        a = run_compiled(cs, fam, 0.0, [1, 0, 0], [0, 1, 0], H, N, 1, kernel="spark")
+        b = run_quasi(cs, fam, 0.0, [1, 0, 0], [0, 1, 0], H, N, 1)
+        assert _difference(a, b) <= 1.0
+        if all_fall_back:
+            assert b.stats["quasi_fallbacks"] == N and b.stats["quasi_steps"] == 0 and b.stats["njev"] >= N
+            # attempts after waits of 1, 2, 4, ..., 64 steps: 7 in the first 134 steps, then one per 65
+            assert N - 15 <= b.stats["quasi_skipped"] < N
+        else:
+            assert b.stats["quasi_fallbacks"] == b.stats["quasi_skipped"] == 0 and b.stats["njev"] == 0
+
+
+def test_integrate_newton_quasi():
+    """Through ldaspark.integrate: the counters in Result.stats, the same trajectory as the
+    default compiled Newton; refused where it cannot run (generic engine, mpmath, comparators,
+    the general form)."""
+    a = ldaspark.integrate("particle", "gauss-3", h=0.1, n_steps=200, engine="compiled")
+    b = ldaspark.integrate("particle", "gauss-3", h=0.1, n_steps=200, engine="compiled", newton="quasi")
+    assert b.engine == "compiled" and b.stats["root_finder"] == "quasi" and "root_finder" not in a.stats
+    assert b.stats["quasi_steps"] == 200 and b.stats["multiplier_lu"] == 200 and b.stats["njev"] == 0
+    assert a.stats["njev"] >= 200
+    assert _difference(a, b) <= 1.0
+    for kw in (dict(engine="generic"), dict(dps=30)):
+        with pytest.raises(InputError, match="quasi"):
+            ldaspark.integrate("skate", "gauss-2", h=0.1, n_steps=3, newton="quasi", **kw)
+    with pytest.raises(InputError, match="comparator"):
+        ldaspark.integrate("skate", "lobatto-iiia-iiib-2-leapfrog", h=0.1, n_steps=3, newton="quasi",
+                           engine="compiled")
+    with pytest.raises(InputError, match="mechanical form"):
+        ldaspark.integrate("relativistic", "gauss-2", h=0.1, n_steps=3, newton="quasi", engine="compiled")
+    with pytest.raises(InputError, match="newton"):
+        ldaspark.integrate("skate", "gauss-2", h=0.1, n_steps=3, newton="quasy", engine="compiled")
+
+
+def test_chunked_run_sums_the_quasi_counters(monkeypatch):
+    """A run longer than one kernel call (solve.COMPILED_CHUNK, lowered to 50 here) is a sequence of
+    quasi-Newton calls: the counters add up over the chunks and the trajectory agrees with one call."""
+    from ldaspark import solve
+    one = ldaspark.integrate("skate", "gauss-2", h=0.1, n_steps=120, engine="compiled", newton="quasi")
+    monkeypatch.setattr(solve, "COMPILED_CHUNK", 50)
+    b = ldaspark.integrate("skate", "gauss-2", h=0.1, n_steps=120, engine="compiled", newton="quasi")
+    assert b.stats["quasi_steps"] == b.stats["multiplier_lu"] == 120 and b.stats["root_finder"] == "quasi"
+    assert one.stats["quasi_steps"] == 120 and len(b.t) == 121
+    assert _difference(one, b) <= 1.0
+
+
+def test_single_ratio_rate_test_at_the_second_increment():
+    """skate, gauss-8, h = 1.25: the second increment contracts fast and lies within 1e3 round-off
+    limits, so RADAU5's one-ratio test stops there (2 iterations per step, measured 2.00025; the
+    two-ratio rule of newton.newton_status needed 3); at h = 2.5 it does not apply (measured 2.99),
+    and either way the trajectory is the Newton engine's within the bound."""
+    sc = get_scene("skate")
+    t0, q0, v0 = sc.initial()
+    cs = compile_system(sc.system)
+    for h, lo, hi in ((1.25, 2.0, 2.01), (2.5, 2.9, 3.0)):
+        b = run_quasi(cs, "gauss-8", t0, q0, v0, h, 400, 1)
+        a = run_compiled(cs, "gauss-8", t0, q0, v0, h, 400, 1)
+        assert lo <= b.stats["mean_iterations"] <= hi, (h, b.stats["mean_iterations"])
+        assert _difference(a, b) <= 1.0
