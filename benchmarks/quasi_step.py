@@ -1,7 +1,7 @@
 """The quasi-Newton root finder of the SPARK step (``integrate(..., newton="quasi")``,
 ``ldaspark.compiled.kernels_quasi``) measured side by side with the compiled Newton step and with
 the strongest compiled peers (CyRK's nbsolve2_ivp DOP853 and Vern8 with a numba cfunc right-hand
-side, ``ldaspark.reports.peers``), all in one run: CPU time (process time), the minimum over
+side, ``ldaspark.lab.reports.peers``), all in one run: CPU time (process time), the minimum over
 interleaved rounds, SPARK always through the public ``ldaspark.integrate``.
 
 Part 1 (``per_step``): CPU per step of newton="quasi" and the default compiled Newton on the same
@@ -26,7 +26,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 
 import ldaspark                                                          # noqa: E402
 from ldaspark.models.scenes import get_scene                             # noqa: E402
-from ldaspark.reports import peers as P                                  # noqa: E402
+from ldaspark.lab.reports import peers as P                                  # noqa: E402
 
 PER_STEP = (("skate", "gauss-2", 0.1), ("skate", "gauss-4", 0.4), ("skate", "gauss-8", 1.25),
             ("particle", "gauss-2", 0.05), ("particle", "gauss-4", 0.2), ("particle", "gauss-6", 0.4),
