@@ -44,7 +44,7 @@ from .newton import (FAIL_NONFINITE, RATE_KAPPA, accept_step, end_newton, fail, 
 # digest is written here so that editing one changes this file too (tests/test_kernels_quasi.py).
 HELPERS = ("kernels.py", "newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py",
            "modeltypes.py")
-HELPERS_SHA256 = "8a4e187eb04fab1f74032fc7b2a0fae1410ec985d28d48e17774866968d19558"
+HELPERS_SHA256 = "d2ba4d86417a8369d5a70d7fc6126297c67100c6decfe59f133139b0041428ee"
 
 #: a quasi-Newton increment that contracts by less than this (|dx_k| > QUASI_THETA |dx_k-1|)
 #: sends the step to the Newton chain: at rate 1/2 the ~50 bits from a predictor error of 1e-2
