@@ -94,6 +94,7 @@ def _emit(name, sig, args, unpack, outputs, printer, ret=None):
     ret = None if literal is not None else ret
     exprs = [e for _, e in outputs if not isinstance(e, str)] + ([ret] if ret is not None else [])
     _only_generated_symbols(name, exprs)
+    _known_nodes(name, exprs)
     reps, red = _cse(exprs) if exprs else ([], [])
     used = set().union(*(e.free_symbols for e in exprs)) if exprs else set()
     # _jit: numba.njit(sig, cache=True) with the trusted cache of ldaspark.compiled.cache
@@ -140,6 +141,17 @@ def _only_generated_symbols(name, exprs):
     if bad:
         shown = ", ".join(sorted(repr(str(s))[:40] for s in bad)[:3])
         raise NotCompilableError(f"{name}: symbols other than t, q, v, lam, psi in the model ({shown})")
+
+
+def _known_nodes(name, exprs):
+    """Every node printed into the module is one ``gensource.check_expressions`` knows (an
+    undefined function or a node with its own print method would print user text)."""
+    from ..core.gensource import check_expressions
+    from ..core.errors import SystemDefinitionError
+    try:
+        check_expressions([(name, e) for e in exprs], derived=True)
+    except SystemDefinitionError as exc:
+        raise NotCompilableError(str(exc)) from None
 
 
 class Sparse(dict):

@@ -94,6 +94,10 @@ def _node_problem(node, derived: bool):
     return None
 
 
+_DYNAMIC = ("; functions of t and their derivatives (dynamicsymbols) are not coordinates here: use plain "
+            "symbols q, v, or LagrangianSystem.from_mechanics(...) for sympy.physics.mechanics models")
+
+
 def check_expressions(named_exprs, derived: bool = False, max_depth: int = MAX_DEPTH) -> None:
     """SystemDefinitionError (one line) for the first expression of ``named_exprs`` ([(where,
     expr)]) that holds a node the engines do not translate: an undefined function
@@ -119,12 +123,13 @@ def check_expressions(named_exprs, derived: bool = False, max_depth: int = MAX_D
             if bad == "undefined":
                 raise UndefinedFunctionError(
                     f"{where} contains the undefined function {_shown(type(node).__name__)}: it has no value to "
-                    "compute; substitute an expression for it")
+                    f"compute; substitute an expression for it{_DYNAMIC}")
             if bad is not None:
                 what = (f"the derivatives of L and k ({where}) contain {_shown(bad)}" if derived
                         else f"{where} contains the function {_shown(bad)}")
+                hint = _DYNAMIC if bad == "Derivative" and not derived else ""
                 raise SystemDefinitionError(f"{what}, which the engines do not translate; supported: "
-                                            f"{', '.join(sorted(SUPPORTED_FUNCTIONS))} (and powers, sqrt)")
+                                            f"{', '.join(sorted(SUPPORTED_FUNCTIONS))} (and powers, sqrt){hint}")
             if node.args:
                 todo.extend((a, d + 1) for a in node.args)
 
@@ -232,7 +237,7 @@ def check_source(src: str, namespace=(), pattern=_GENERATED_NAME) -> None:
     """GeneratedSourceError unless every identifier of ``src`` is a Python keyword, matches
     ``pattern`` (the generated names) or is a name of ``namespace`` (the numeric module's
     functions) not beginning with ``__``, and ``src`` has no string literal (a docstring at a
-    module's or function's start excepted only when ``pattern`` is not the lambdify one)."""
+    ``_STRINGS`` ("nan", "inf") excepted)."""
     try:
         tokens = list(tokenize.generate_tokens(io.StringIO(src).readline))
     except (tokenize.TokenError, SyntaxError, IndentationError) as exc:
@@ -240,12 +245,18 @@ def check_source(src: str, namespace=(), pattern=_GENERATED_NAME) -> None:
     for tok in tokens:
         if tok.type == tokenize.NAME:
             s = tok.string
-            if keyword.iskeyword(s) or pattern.match(s) or (s in namespace and not s.startswith("__")):
+            if keyword.iskeyword(s) or pattern.match(s) or s in _BUILTINS or (s in namespace and not s.startswith("__")):
                 continue
             raise GeneratedSourceError(f"generated source holds the identifier {_shown(s)}, which the library "
                                        "did not generate")
-        if tok.type == tokenize.STRING:
+        if tok.type == tokenize.STRING and tok.string not in _STRINGS:
             raise GeneratedSourceError("generated source holds a string literal")
+
+
+#: the builtins the printers use (Abs: abs, Max: max, nan: float('nan'), lambdify's range) and the
+#: only string literals they print
+_BUILTINS = frozenset(("abs", "min", "max", "float", "int", "complex", "bool", "pow", "range", "builtins"))
+_STRINGS = frozenset(("'nan'", "'inf'", "'-inf'", "'+inf'"))
 
 
 def _compile(src: str):
