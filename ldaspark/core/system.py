@@ -228,7 +228,8 @@ class LagrangianSystem:
                               f"(parameters: {', '.join(map(str, self.params)) or 'none'}); its value is ignored",
                               LdasparkWarning, stacklevel=2)
                 continue
-            new._param_values[sym] = _param_value(val, sym) if isinstance(val, str) else _checked_param(sym, val)
+            new._param_values[sym] = (_check_assumptions(sym, _param_value(val, sym)) if isinstance(val, str)
+                                      else _checked_param(sym, val))
         return new
 
     def param_values(self) -> dict:
@@ -597,6 +598,38 @@ def _checked_param(p, val):
         real_number(val, f"parameter {p}")
     except InputError as exc:
         raise SystemDefinitionError(str(exc)) from None
+    return _check_assumptions(p, val)
+
+
+#: the sympy assumptions a number's value decides, and how (x: the value to 60 digits)
+_DECIDED = {
+    "positive": lambda x: x > 0, "negative": lambda x: x < 0, "nonnegative": lambda x: x >= 0,
+    "nonpositive": lambda x: x <= 0, "zero": lambda x: x == 0, "nonzero": lambda x: x != 0,
+    "integer": lambda x: x == int(x), "noninteger": lambda x: x != int(x),
+    "even": lambda x: x == int(x) and int(x) % 2 == 0, "odd": lambda x: x == int(x) and int(x) % 2 == 1,
+}
+
+
+def _check_assumptions(p, val):
+    """``val`` if it satisfies the sympy assumptions the parameter ``p`` was declared with (the
+    model was derived under them: Abs(c) = c for c positive, sqrt(c**2) = c, ...), else a
+    SystemDefinitionError naming the parameter, the value and the assumption (issue 45, class 8)."""
+    facts = {key: b for key, b in getattr(p, "assumptions0", {}).items() if key in _DECIDED and b is not None}
+    if not facts:
+        return val
+    try:
+        x = mpmath.mpf(str(sympy.N(sympy.sympify(val, strict=True), 60))) if not isinstance(val, (int, float)) \
+            else val
+    except (TypeError, ValueError, sympy.SympifyError):
+        return val                      # not a number: real_number / _param_value refuse it
+    if isinstance(x, float) and not math.isfinite(x):
+        return val
+    # a violated True fact first (the declared assumption: positive, not the implied negative=False)
+    for key in sorted(facts, key=lambda k: (not facts[k], list(_DECIDED).index(k))):
+        if bool(_DECIDED[key](x)) != facts[key]:
+            raise SystemDefinitionError(f"parameter {p} = {str(val)[:40]} contradicts its assumption {key}={facts[key]} "
+                                        "(the model was derived under it): give a value that satisfies it, or "
+                                        "declare the symbol without the assumption")
     return val
 
 
