@@ -173,11 +173,11 @@ _KEY_NAMES = ["pi", "e", "E", "I", "oo", "sin", "sqrt", "exp", "cos", "mpf", "in
 
 def _model(names):
     """A skate-like system (n = 2, m = 1) whose t, q, v and 6 parameters carry ``names`` (10),
-    using pi, E, sin, cos, exp, sqrt, Abs: a shadowed constant or function changes its numbers."""
+    using pi, E, sin, cos, exp, sqrt, log: a shadowed constant or function changes its numbers."""
     t, q0, q1, v0, v1, *p = (sympy.Symbol(nm) for nm in names)
     L = (v0 ** 2 + (1 + p[0] / 10) * v1 ** 2) / 2 - p[1] * q0 ** 2 / 2 - sympy.pi * p[2] * sympy.cos(q1) / 10 \
         + sympy.E * p[3] * sympy.exp(-q0 ** 2) / 10 + sympy.sqrt(p[4]) * sympy.sin(q0 * q1) / 10 \
-        - p[5] * sympy.Abs(q1) * sympy.cos(t) / 50
+        - p[5] * sympy.log(2 + q1) * sympy.cos(t) / 50
     k = [v1 - q0 * v0 - p[0] * sympy.sin(t) / 10]
     vals = {s: sympy.Rational(i + 2, 7) for i, s in enumerate(p)}
     return ldaspark.LagrangianSystem(L, k, [q0, q1], [v0, v1], t=t, params=vals), (t, q0, q1, v0, v1)
