@@ -70,7 +70,7 @@ MAX_DEPTH = 120
 _STRUCTURAL = (sympy.Add, sympy.Mul, sympy.Pow, sympy.Number, sympy.NumberSymbol, sympy.functions.elementary.piecewise.ExprCondPair,
                sympy.core.relational.Relational, sympy.logic.boolalg.BooleanAtom, sympy.And, sympy.Or,
                sympy.Not, sympy.Tuple)
-_SPECIAL = (sympy.I,)
+_SPECIAL = (sympy.I, sympy.zoo)
 
 _DERIVED_ONLY = {sympy.DiracDelta: "DiracDelta"}
 
