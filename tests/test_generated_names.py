@@ -302,3 +302,33 @@ def test_every_refusal_is_one_line_and_an_ldaspark_error():
         with pytest.raises(LdasparkError) as err:
             ldaspark.LagrangianSystem((vx ** 2 + vy ** 2) / 2 + bad, [vy - x * vx], [x, y], [vx, vy])
         assert "\n" not in str(err.value) and re.search(r"L contains", str(err.value))
+
+
+def test_nonsmooth_loads_through_from_mechanics_run_on_the_generic_engine():
+    """A load -sign(u)/5 (was NameError: DiracDelta at integrate) equals -Heaviside(u)/5 and the
+    constant -1/5 while u > 0; -Piecewise((u, u > 0), (0, True))/5 equals -Max(u, 0)/5."""
+    import sympy.physics.mechanics as me
+
+    def run(force, dps=None):
+        q1, q2 = me.dynamicsymbols("q1 q2")
+        u1, u2 = me.dynamicsymbols("u1 u2")
+        N = me.ReferenceFrame("N")
+        O = me.Point("O")
+        O.set_vel(N, 0)
+        P = O.locatenew("P", q1 * N.x + q2 * N.y)
+        P.set_vel(N, u1 * N.x + u2 * N.y)
+        KM = me.KanesMethod(N, [q1, q2], [u1], kd_eqs=[q1.diff() - u1, q2.diff() - u2],
+                            u_dependent=[u2], velocity_constraints=[u2 - q1 * u1])
+        KM.kanes_equations([me.Particle("pa", P, 1)], [(P, force(u1) * N.x)])
+        S = ldaspark.LagrangianSystem.from_mechanics(KM)
+        r = ldaspark.integrate(S, "gauss-2", (0, 0.2), [0.1, 0], [1.0, 0.1], h=0.05, engine="generic", dps=dps)
+        assert r.status == 0
+        return np.asarray(r.q, float)
+
+    const = run(lambda u: -sympy.S(1) / 5)
+    for f in (lambda u: -sympy.sign(u) / 5, lambda u: -sympy.Heaviside(u) / 5):
+        assert np.abs(run(f) - const).max() <= 1e-14
+    assert np.abs(run(lambda u: -sympy.sign(u) / 5, dps=30) - const).max() <= 1e-14
+    ramp = run(lambda u: -sympy.Max(u, 0) / 5)
+    assert np.abs(run(lambda u: -sympy.Piecewise((u, u > 0), (0, True)) / 5) - ramp).max() <= 1e-14
+    assert np.abs(ramp - const).max() > 1e-5           # the control: the two loads differ (8e-5 here)
