@@ -332,3 +332,23 @@ def test_nonsmooth_loads_through_from_mechanics_run_on_the_generic_engine():
     ramp = run(lambda u: -sympy.Max(u, 0) / 5)
     assert np.abs(run(lambda u: -sympy.Piecewise((u, u > 0), (0, True)) / 5) - ramp).max() <= 1e-14
     assert np.abs(ramp - const).max() > 1e-5           # the control: the two loads differ (8e-5 here)
+
+
+def test_the_model_module_is_checked_generated_or_read_back(tmp_path, monkeypatch):
+    """codegen's model source passes the same identifier check (``codegen._checked_model``) when it
+    is generated and when it is read back from the cache; a source holding anything else is refused."""
+    monkeypatch.setenv("LDASPARK_CACHE_DIR", str(tmp_path))
+    from ldaspark.compiled import cache, codegen
+    S, _ = _hostile_system("x", "c")
+    src = codegen.general_source(S)
+    assert codegen._checked_model(src) == src
+    key = codegen.model_key(S, "general")
+    assert "_q0" in src and "_q1" in src
+    for bad in (src.replace("_q1", "__import__", 1), src + "\nopen('x', 'w')\n", src.replace("_q0", "x", 1)):
+        with pytest.raises(codegen.NotCompilableError, match="the model module"):
+            codegen._checked_model(bad)
+    # a tampered source under the key (as if read back): refused before anything runs
+    monkeypatch.setattr(codegen, "_SOURCES", {})
+    monkeypatch.setattr(cache, "stored_source", lambda k: src + "\nopen('x', 'w')\n" if k == key else None)
+    with pytest.raises(codegen.NotCompilableError):
+        codegen.general_source(S)

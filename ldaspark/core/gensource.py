@@ -233,11 +233,11 @@ def _flatten(x):
         yield sympy.sympify(x)
 
 
-def check_source(src: str, namespace=(), pattern=_GENERATED_NAME) -> None:
+def check_source(src: str, namespace=(), pattern=_GENERATED_NAME, strings=None) -> None:
     """GeneratedSourceError unless every identifier of ``src`` is a Python keyword, matches
     ``pattern`` (the generated names) or is a name of ``namespace`` (the numeric module's
     functions) not beginning with ``__``, and ``src`` has no string literal (a docstring at a
-    ``_STRINGS`` ("nan", "inf") excepted)."""
+    ``_STRINGS`` ("nan", "inf") and those ``strings`` (a regex) matches excepted)."""
     try:
         tokens = list(tokenize.generate_tokens(io.StringIO(src).readline))
     except (tokenize.TokenError, SyntaxError, IndentationError) as exc:
@@ -249,7 +249,8 @@ def check_source(src: str, namespace=(), pattern=_GENERATED_NAME) -> None:
                 continue
             raise GeneratedSourceError(f"generated source holds the identifier {_shown(s)}, which the library "
                                        "did not generate")
-        if tok.type == tokenize.STRING and tok.string not in _STRINGS:
+        if tok.type == tokenize.STRING and tok.string not in _STRINGS \
+                and not (strings is not None and strings.match(tok.string)):
             raise GeneratedSourceError("generated source holds a string literal")
 
 
