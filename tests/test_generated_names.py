@@ -343,8 +343,8 @@ def test_the_model_module_is_checked_generated_or_read_back(tmp_path, monkeypatc
     src = codegen.general_source(S)
     assert codegen._checked_model(src) == src
     key = codegen.model_key(S, "general")
-    assert "_q0" in src and "_q1" in src
-    for bad in (src.replace("_q1", "__import__", 1), src + "\nopen('x', 'w')\n", src.replace("_q0", "x", 1)):
+    assert "_q0" in src and "_v0" in src
+    for bad in (src.replace("_v0", "__import__", 1), src + "\nopen('x', 'w')\n", src.replace("_q0", "x", 1)):
         with pytest.raises(codegen.NotCompilableError, match="the model module"):
             codegen._checked_model(bad)
     # a tampered source under the key (as if read back): refused before anything runs
