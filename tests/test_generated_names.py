@@ -71,7 +71,7 @@ def test_the_attack_is_real_without_the_gate():
 
 
 @pytest.mark.parametrize("where", ["L", "k", "nonideal", "mechanical"])
-@pytest.mark.parametrize("name", HOSTILE[:3] + ["a\nb", "变量", "f"])
+@pytest.mark.parametrize("name", HOSTILE + ["f"])
 def test_an_undefined_function_is_refused_by_name_at_set_up(where, name):
     x, y, vx, vy = _xy()
     t = sympy.Symbol("t")
@@ -107,7 +107,7 @@ def _hostile_system(name, pname):
 
 @pytest.mark.parametrize("engine, dps", [("generic", None), ("generic", 30), ("auto", None)])
 def test_hostile_symbol_names_never_reach_the_source(engine, dps, sources):
-    names = [HOSTILE[0], "lambda", "a\nb"]
+    names = HOSTILE if (engine, dps) == ("generic", None) else [HOSTILE[0], "lambda", "a\nb", "_s0", "x0"]
     ref = None
     for i, nm in enumerate(names + ["x"]):
         S, syms = _hostile_system(nm, names[(i + 1) % len(names)] if nm != "x" else "c")
@@ -121,9 +121,12 @@ def test_hostile_symbol_names_never_reach_the_source(engine, dps, sources):
         assert np.abs(q - ref).max() <= 1e-13 * (1 + np.abs(ref).max())
     assert sources, "gensource saw no source"
     for src in sources:
+        words = set(re.findall(r"[^\W\d]\w*", src, re.UNICODE))
         for nm in names:
-            assert nm not in src
-        assert "lambda" not in src.replace("_lambdifygenerated", "")
+            if nm in ("_s0", "x0") or (keyword.iskeyword(nm) and nm != "lambda"):
+                continue            # generated names and the source's own keywords (def, import) are ours
+            assert (nm not in words) if nm.isidentifier() else (nm not in src), nm
+        assert "lambda" not in words and "__import__" not in src
 
 
 def test_hostile_names_on_the_compiled_engine(tmp_path, monkeypatch):
