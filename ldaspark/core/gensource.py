@@ -202,7 +202,7 @@ def lambdify(args, exprs, module: str, namespaces=(), order: str | None = None, 
     else:
         cses, red = (), exprs
     namespace: dict = {}
-    for m in [module, *namespaces][::-1]:
+    for m in [*namespaces, module][::-1]:     # the first has priority, as in sympy.lambdify
         namespace.update(_get_namespace(m))
     user_functions = {k: k for m in namespaces if isinstance(m, dict) for k in m}
     settings = {"fully_qualified_modules": False, "inline": True, "allow_unknown_functions": True,
