@@ -124,6 +124,11 @@ def check_expressions(named_exprs, derived: bool = False, max_depth: int = MAX_D
                 raise UndefinedFunctionError(
                     f"{where} contains the undefined function {_shown(type(node).__name__)}: it has no value to "
                     f"compute; substitute an expression for it{_DYNAMIC}")
+            if bad is not None and type(node).__module__.startswith("sympy.physics.units"):
+                units = sorted({_shown(str(u)) for u in e.atoms(type(node))})[:6]
+                raise SystemDefinitionError(
+                    f"{where} contains physical units ({', '.join(units)}); the integrator works on numbers: "
+                    "substitute the quantities by their values in one consistent unit system")
             if bad is not None:
                 what = (f"the derivatives of L and k ({where}) contain {_shown(bad)}" if derived
                         else f"{where} contains the function {_shown(bad)}")
