@@ -126,7 +126,6 @@ class LagrangianSystem:
         _check_functions([("L", self.L)] + [(f"k[{i}]", e) for i, e in enumerate(self.k)]
                          + [(f"nonideal[{i}]", e) for i, e in enumerate(nonideal_exprs)]
                          + _mechanical_exprs(mechanical))
-        _reject_dynamicsymbols(self.L, self.k)
         self.params, self._param_values = _parse_params(params)
         clash = set(self.params) & (set(self.q) | set(self.v) | {self.t})
         if clash:
@@ -923,17 +922,6 @@ def _parse_params(params):
         if val is not None:
             vals[p] = _checked_param(p, val)
     return tuple(syms), vals
-
-
-def _reject_dynamicsymbols(L, k):
-    """Functions of t (sympy.physics.mechanics.dynamicsymbols) and derivatives are not
-    coordinates here: their time derivatives would contain q''(t) later on."""
-    from sympy.core.function import AppliedUndef
-    for e in [L, *k]:
-        if e.atoms(AppliedUndef) or e.has(sympy.Derivative):
-            raise SystemDefinitionError(
-                "L or k contain functions of t or derivatives (dynamicsymbols); use plain symbols q, v, "
-                "or LagrangianSystem.from_mechanics(...) for sympy.physics.mechanics models")
 
 
 def _sympify_L_k(L, k):
