@@ -36,7 +36,8 @@ def test_every_supported_function_gives_its_own_key():
     for name in sorted(SUPPORTED_FUNCTIONS):
         e = _applied(name)
         keys[name] = codegen.model_key(_system(e), "general")
-    assert len(set(keys.values())) == len(keys), [p for p in itertools.combinations(keys, 2) if keys[p[0]] == keys[p[1]]]
+    same_key = [p for p in itertools.combinations(keys, 2) if keys[p[0]] == keys[p[1]]]
+    assert len(set(keys.values())) == len(keys), same_key
     # the control: the same model (renamed symbols) has the same key
     a, b = sympy.symbols("a b")
     same = ldaspark.LagrangianSystem((a ** 2 + b ** 2) / 2 - sympy.sin(x / 3 + sympy.Rational(1, 7)), [b - x * a],

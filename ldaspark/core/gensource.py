@@ -67,7 +67,8 @@ _FUNCTION_CLASSES = {getattr(sympy, f): f for f in SUPPORTED_FUNCTIONS}
 MAX_DEPTH = 120
 
 #: node types that print as numbers, operators or the printer's own names (never user text)
-_STRUCTURAL = (sympy.Add, sympy.Mul, sympy.Pow, sympy.Number, sympy.NumberSymbol, sympy.functions.elementary.piecewise.ExprCondPair,
+_STRUCTURAL = (sympy.Add, sympy.Mul, sympy.Pow, sympy.Number, sympy.NumberSymbol,
+               sympy.functions.elementary.piecewise.ExprCondPair,
                sympy.core.relational.Relational, sympy.logic.boolalg.BooleanAtom, sympy.And, sympy.Or,
                sympy.Not, sympy.Tuple)
 _SPECIAL = (sympy.I, sympy.zoo)
@@ -250,7 +251,8 @@ def check_source(src: str, namespace=(), pattern=_GENERATED_NAME, strings=None) 
     for tok in tokens:
         if tok.type == tokenize.NAME:
             s = tok.string
-            if keyword.iskeyword(s) or pattern.match(s) or s in _BUILTINS or (s in namespace and not s.startswith("__")):
+            if keyword.iskeyword(s) or pattern.match(s) or s in _BUILTINS \
+                    or (s in namespace and not s.startswith("__")):
                 continue
             raise GeneratedSourceError(f"generated source holds the identifier {_shown(s)}, which the library "
                                        "did not generate")

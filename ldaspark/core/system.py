@@ -626,7 +626,8 @@ def _check_assumptions(p, val):
     # a violated True fact first (the declared assumption: positive, not the implied negative=False)
     for key in sorted(facts, key=lambda k: (not facts[k], list(_DECIDED).index(k))):
         if bool(_DECIDED[key](x)) != facts[key]:
-            raise SystemDefinitionError(f"parameter {p} = {str(val)[:40]} contradicts its assumption {key}={facts[key]} "
+            raise SystemDefinitionError(f"parameter {p} = {str(val)[:40]} contradicts its assumption "
+                                        f"{key}={facts[key]} "
                                         "(the model was derived under it): give a value that satisfies it, or "
                                         "declare the symbol without the assumption")
     return val
