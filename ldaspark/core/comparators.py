@@ -83,9 +83,10 @@ class MechanicalParts:
         self.n, self.m = system.n, K.rows
         with backend.context():
             self.M = backend.array([[M[i, j] for j in range(self.n)] for i in range(self.n)])
-        self._gU = sympy.lambdify(q, gU.tolist(), modules=mod, cse=True)
-        self._K = sympy.lambdify(q, [K.tolist(), b.tolist()], modules=mod, cse=True)
-        self._kq = sympy.lambdify(list(q) + list(v), kq.tolist(), modules=mod, cse=True)
+        from .gensource import lambdify      # no user text in generated source
+        self._gU = lambdify(list(q), gU.tolist(), mod[1], namespaces=mod[:1])
+        self._K = lambdify(list(q), [K.tolist(), b.tolist()], mod[1], namespaces=mod[:1])
+        self._kq = lambdify(list(q) + list(v), kq.tolist(), mod[1], namespaces=mod[:1])
         self.n_grad_U = 0
 
     def grad_U(self, q):

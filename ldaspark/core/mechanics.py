@@ -841,6 +841,7 @@ def _potential(i, load, m: _Model, kin: _Kin, qs, conv, num: _Numeric):
             if not _is_zero(d, num):
                 return None, Qs     # not curl free: no potential
     if V is None:
+        from .bounded import TIMED_OUT, call_bounded
         V = sympy.S.Zero
         for j, x in enumerate(qsym):
             rest = -Qs[j] - V.diff(x)
@@ -850,11 +851,12 @@ def _potential(i, load, m: _Model, kin: _Kin, qs, conv, num: _Numeric):
             # integral sympy does not do) is as exact as a generalized force: only L differs
             if sympy.count_ops(rest) > _SIMPLIFY_OPS:
                 return None, Qs
-            rest = sympy.simplify(rest)
-            if rest.free_symbols & set(qsym[:j]):
+            # each symbolic step time-bounded (bounded.call_bounded): past it, the force route
+            rest = call_bounded(sympy.simplify, rest)
+            if rest is TIMED_OUT or rest.free_symbols & set(qsym[:j]):
                 return None, Qs
-            part = sympy.integrate(rest, x)
-            if part.has(sympy.Integral):
+            part = call_bounded(sympy.integrate, rest, x)
+            if part is TIMED_OUT or part.has(sympy.Integral):
                 return None, Qs
             V = V + part
     grad = [-V.diff(x) - e for x, e in zip(qsym, Qs)]

@@ -17,7 +17,9 @@ import numpy as np
 import sympy
 
 from .backend import Backend, fmt
+from . import gensource
 from .derive import install, real_jacobian  # noqa: F401 (real_jacobian: its old home)
+from .gensource import SUPPORTED_FUNCTIONS  # noqa: F401 (its old home)
 from .errors import InconsistentInitialDataError, LdasparkWarning, SingularSaddleError, SystemDefinitionError
 
 
@@ -49,17 +51,6 @@ _DERIVED = ("L_q", "L_v", "L_vv", "L_vq", "L_qq", "L_vt", "L_t", "k_q", "k_v", "
 #: DiracDelta) are evaluated almost everywhere: DiracDelta is 0 off its support, which is what
 #: Newton's matrix needs (the Jacobian of a piecewise-smooth residual)
 _NONSMOOTH = {"DiracDelta": lambda *a: 0, "Heaviside": lambda x, *a: 0 if x < 0 else (1 if x > 0 else 0.5)}
-
-
-def _lambdify_printer(module: str):
-    """lambdify's own printer for ``module`` with its own settings, and terms printed in their
-    stored (canonical, process-independent) order: sorting each sum for printing
-    (``as_ordered_terms``) was more than half of lambdify's time on large models (the
-    KanesMethod bicycle: 8.5 s -> 3.5 s); the sums are the same to round-off."""
-    from sympy.printing.pycode import MpmathPrinter, PythonCodePrinter
-    printer = MpmathPrinter if module == "mpmath" else PythonCodePrinter
-    return printer({"fully_qualified_modules": False, "inline": True, "allow_unknown_functions": True,
-                    "user_functions": {k: k for k in _NONSMOOTH}, "order": "none"})
 
 
 class LagrangianSystem:
@@ -129,7 +120,12 @@ class LagrangianSystem:
         self.m = self.k.rows
         if self.m >= self.n:
             raise SystemDefinitionError(f"need m < n constraints, got m = {self.m}, n = {self.n}")
-        _reject_dynamicsymbols(self.L, self.k)
+        nonideal_exprs = [] if nonideal is None else [sympy.sympify(e) for e in nonideal]
+        # first, before any recursive walk of sympy's: every node known (an undefined function
+        # refused by name), the nesting bounded (gensource: no user text in generated source)
+        _check_functions([("L", self.L)] + [(f"k[{i}]", e) for i, e in enumerate(self.k)]
+                         + [(f"nonideal[{i}]", e) for i, e in enumerate(nonideal_exprs)]
+                         + _mechanical_exprs(mechanical))
         self.params, self._param_values = _parse_params(params)
         clash = set(self.params) & (set(self.q) | set(self.v) | {self.t})
         if clash:
@@ -137,10 +133,7 @@ class LagrangianSystem:
                                         "coordinate, a velocity or the time")
         self.lam = sympy.symbols(f"lam0:{self.m}")
         self.psi = list(psi) if psi is not None else list(sympy.symbols(f"psi1:{self.m + 1}"))
-        nonideal_exprs = [] if nonideal is None else [sympy.sympify(e) for e in nonideal]
         _check_names(self, nonideal_exprs)
-        _check_functions([("L", self.L)] + [(f"k[{i}]", e) for i, e in enumerate(self.k)]
-                         + [(f"nonideal[{i}]", e) for i, e in enumerate(nonideal_exprs)])
         allowed = set(self.q) | set(self.v) | {self.t} | set(self.params)
         extra = (self.L.free_symbols | self.k.free_symbols) - allowed
         if extra:
@@ -234,7 +227,8 @@ class LagrangianSystem:
                               f"(parameters: {', '.join(map(str, self.params)) or 'none'}); its value is ignored",
                               LdasparkWarning, stacklevel=2)
                 continue
-            new._param_values[sym] = _param_value(val, sym) if isinstance(val, str) else _checked_param(sym, val)
+            new._param_values[sym] = (_check_assumptions(sym, _param_value(val, sym)) if isinstance(val, str)
+                                      else _checked_param(sym, val))
         return new
 
     def param_values(self) -> dict:
@@ -281,8 +275,8 @@ class LagrangianSystem:
         if ck not in self._compiled:
             args = [self.t] + self.q + self.v + (list(self.lam) if with_lam else []) + list(self.params)
             lists = [e.tolist() if isinstance(e, sympy.MatrixBase) else e for e in exprs]
-            f = sympy.lambdify(args, lists, modules=[_NONSMOOTH, backend.lambdify_module], cse=True,
-                               printer=_lambdify_printer(backend.lambdify_module))
+            # every generated source passes gensource: symbols printed as _s<i>, nodes checked
+            f = gensource.lambdify(args, lists, backend.lambdify_module, namespaces=[_NONSMOOTH], order="none")
             empty = [e.shape if isinstance(e, sympy.MatrixBase) and 0 in e.shape else None for e in exprs]
             if any(empty):
                 # an m = 0 system's k, K, ... print as [] and would come back without their shape
@@ -353,7 +347,8 @@ class LagrangianSystem:
             mats = [self.N, self.N_q, self.N_v, self.N_psi] if partials else [self.N, self.N_psi]
             flat = [e for M in mats for e in M]
             args = [self.t] + self.q + self.v + self.psi + list(self.params)
-            self._compiled[ck] = sympy.lambdify(args, flat, modules=backend.lambdify_module, cse=True)
+            # with the nonsmooth functions' derivatives (DiracDelta: 0 off its support), as L and k
+            self._compiled[ck] = gensource.lambdify(args, flat, backend.lambdify_module, namespaces=[_NONSMOOTH])
         pv = self._param_arg_values(backend) if self.params else ()
         out = _arr(self._compiled[ck](t, *q, *v, *psi, *pv), backend)
         N, rest = out[:n], out[n:]
@@ -602,6 +597,39 @@ def _checked_param(p, val):
         real_number(val, f"parameter {p}")
     except InputError as exc:
         raise SystemDefinitionError(str(exc)) from None
+    return _check_assumptions(p, val)
+
+
+#: the sympy assumptions a number's value decides, and how (x: the value to 60 digits)
+_DECIDED = {
+    "positive": lambda x: x > 0, "negative": lambda x: x < 0, "nonnegative": lambda x: x >= 0,
+    "nonpositive": lambda x: x <= 0, "zero": lambda x: x == 0, "nonzero": lambda x: x != 0,
+    "integer": lambda x: x == int(x), "noninteger": lambda x: x != int(x),
+    "even": lambda x: x == int(x) and int(x) % 2 == 0, "odd": lambda x: x == int(x) and int(x) % 2 == 1,
+}
+
+
+def _check_assumptions(p, val):
+    """``val`` if it satisfies the sympy assumptions the parameter ``p`` was declared with (the
+    model was derived under them: Abs(c) = c for c positive, sqrt(c**2) = c, ...), else a
+    SystemDefinitionError naming the parameter, the value and the assumption (issue 45, class 8)."""
+    facts = {key: b for key, b in getattr(p, "assumptions0", {}).items() if key in _DECIDED and b is not None}
+    if not facts:
+        return val
+    try:
+        x = mpmath.mpf(str(sympy.N(sympy.sympify(val, strict=True), 60))) if not isinstance(val, (int, float)) \
+            else val
+    except (TypeError, ValueError, sympy.SympifyError):
+        return val                      # not a number: real_number / _param_value refuse it
+    if isinstance(x, float) and not math.isfinite(x):
+        return val
+    # a violated True fact first (the declared assumption: positive, not the implied negative=False)
+    for key in sorted(facts, key=lambda k: (not facts[k], list(_DECIDED).index(k))):
+        if bool(_DECIDED[key](x)) != facts[key]:
+            raise SystemDefinitionError(f"parameter {p} = {str(val)[:40]} contradicts its assumption "
+                                        f"{key}={facts[key]} "
+                                        "(the model was derived under it): give a value that satisfies it, or "
+                                        "declare the symbol without the assumption")
     return val
 
 
@@ -639,38 +667,28 @@ def _check_names(system, nonideal_exprs) -> None:
         raise SystemDefinitionError(f"{other.name!r} ({orole}) and {x.name!r} ({role}) {how}: rename one of them")
 
 
-#: the sympy functions every engine translates: numpy / math at float64 and mpmath at dps (the
-#: lambdify modules of ``Backend``), and their derivatives (DiracDelta, from sign and Heaviside,
-#: is zero off its support). The compiled engine translates a subset and refuses the others with
-#: NotCompilableError (engine "auto" then runs the generic engine).
-SUPPORTED_FUNCTIONS = frozenset((
-    "sin", "cos", "tan", "cot", "sec", "csc", "asin", "acos", "atan", "acot", "asec", "acsc", "atan2",
-    "sinh", "cosh", "tanh", "coth", "sech", "csch", "asinh", "acosh", "atanh",
-    "exp", "log", "erf", "erfc", "sinc", "Abs", "sign", "re", "im", "Heaviside", "Piecewise", "Min", "Max"))
+def _mechanical_exprs(mech) -> list:
+    """[(where, expr)] of the sympy expressions in the mechanical parts (M, U, K, b), for the node
+    check (the comparators and the compiled engine generate code from them)."""
+    if not isinstance(mech, dict):
+        return []
+    out, todo = [], [(f"mechanical[{key!r}]", val) for key, val in mech.items()]
+    while todo:
+        where, val = todo.pop()
+        if isinstance(val, (sympy.MatrixBase, list, tuple)):
+            todo += [(f"{where}[{i}]", e) for i, e in enumerate(val)]
+        elif isinstance(val, sympy.Basic):
+            out.append((where, val))
+    return out
 
 
 def _check_functions(named_exprs, derived: bool = False) -> None:
-    """SystemDefinitionError naming the first function in the expressions that an engine cannot
-    translate (besselj, polygamma, LambertW, zeta, conjugate, floor, an unevaluated Derivative),
-    when the system is built, instead of a NameError or PrintMethodNotImplementedError at the
-    first evaluation."""
-    from sympy.core.function import AppliedUndef
-    for where, e in named_exprs:
-        if not isinstance(e, sympy.Basic):
-            continue
-        for node in sympy.preorder_traversal(e):
-            bad = None
-            if isinstance(node, (sympy.Derivative, sympy.Integral, sympy.Subs, sympy.Sum, sympy.Product)):
-                bad = type(node).__name__
-            elif isinstance(node, sympy.Function) and not isinstance(node, AppliedUndef):
-                name = type(node).__name__
-                if name not in SUPPORTED_FUNCTIONS and not (derived and name == "DiracDelta"):
-                    bad = name
-            if bad is not None:
-                what = (f"the derivatives of L and k ({where}) contain {bad}" if derived
-                        else f"{where} contains the function {bad}")
-                raise SystemDefinitionError(f"{what}, which the engines do not translate; supported: "
-                                            f"{', '.join(sorted(SUPPORTED_FUNCTIONS))} (and powers, sqrt)")
+    """SystemDefinitionError naming the first node in the expressions that an engine cannot
+    translate (an undefined function, besselj, polygamma, LambertW, zeta, conjugate, floor, an
+    unevaluated Derivative), or a nesting deeper than ``gensource.MAX_DEPTH``, when the system is
+    built, instead of a NameError, a RecursionError or PrintMethodNotImplementedError at the first
+    evaluation (``gensource.check_expressions``)."""
+    gensource.check_expressions(named_exprs, derived=derived)
 
 
 def check_mechanical(system, mech) -> None:
@@ -905,17 +923,6 @@ def _parse_params(params):
         if val is not None:
             vals[p] = _checked_param(p, val)
     return tuple(syms), vals
-
-
-def _reject_dynamicsymbols(L, k):
-    """Functions of t (sympy.physics.mechanics.dynamicsymbols) and derivatives are not
-    coordinates here: their time derivatives would contain q''(t) later on."""
-    from sympy.core.function import AppliedUndef
-    for e in [L, *k]:
-        if e.atoms(AppliedUndef) or e.has(sympy.Derivative):
-            raise SystemDefinitionError(
-                "L or k contain functions of t or derivatives (dynamicsymbols); use plain symbols q, v, "
-                "or LagrangianSystem.from_mechanics(...) for sympy.physics.mechanics models")
 
 
 def _sympify_L_k(L, k):

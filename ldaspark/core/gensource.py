@@ -1,0 +1,321 @@
+"""Generated source holds no user text: the one gate in front of every piece of Python source the
+library builds from a model's expressions and then compiles (sympy's lambdify for the generic
+float64 / mpmath engines and the comparators, the compiled engine's code generator, the model
+modules read back from the cache).
+
+Three rules, each enforced here:
+
+* **the expressions are made of known nodes only** (``check_expressions``): numbers, symbols,
+  sums, products, powers, the sympy functions of ``SUPPORTED_FUNCTIONS`` (the classes themselves,
+  not a user class of the same name), Piecewise and its conditions, Min and Max. An undefined
+  function (``sympy.Function("f")(x)``) is refused by name, as is any other node: its printed form
+  would be its (user-chosen) name, or text of its own print method. The expressions' depth is
+  bounded (``MAX_DEPTH``): the printers, cse and sympy's own algorithms recurse on it;
+* **no user name is printed** (``lambdify``): every symbol is printed as an identifier the
+  library generates (``_s0``, ``_s1``, ... by argument position; cse's ``x0``, ``x1``, ...), by
+  the printer, without rebuilding the expressions (a rebuilt sum is re-sorted by the new names,
+  which would change the order of the floating-point additions and so the results' last bits).
+  A parameter named ``pi``, ``E``, ``sin`` or ``__import__('os')`` is ``_s7`` in the source;
+* **the source is checked before it is compiled** (``check_source``): every identifier in it is
+  a keyword, a generated name or a name of the numeric module's namespace (never one beginning
+  with ``__``), and it holds no string literal. A violation is a library bug and raises
+  ``GeneratedSourceError``; nothing has been executed.
+
+Tests: tests/test_generated_names.py.
+"""
+from __future__ import annotations
+
+import ast
+import io
+import keyword
+import re
+import sys
+import tokenize
+
+import sympy
+
+from .errors import LdasparkError, SystemDefinitionError
+
+
+class UndefinedFunctionError(SystemDefinitionError):
+    """An expression of the model contains an undefined function (``sympy.Function("f")(x)``):
+    it has no value, and its name would be printed into generated code."""
+
+
+class ExpressionTooLargeError(SystemDefinitionError):
+    """An expression of the model is nested deeper than ``MAX_DEPTH`` (the printers, cse and
+    the compiler recurse on the nesting)."""
+
+
+class GeneratedSourceError(LdasparkError):
+    """Generated source holds an identifier or literal the library did not generate (a bug
+    guard: nothing of it was executed)."""
+
+
+#: the sympy functions every engine translates: numpy / math at float64 and mpmath at dps (the
+#: lambdify modules of ``Backend``), and their derivatives (DiracDelta, from sign and Heaviside,
+#: is zero off its support). The compiled engine translates a subset and refuses the others with
+#: NotCompilableError (engine "auto" then runs the generic engine).
+SUPPORTED_FUNCTIONS = frozenset((
+    "sin", "cos", "tan", "cot", "sec", "csc", "asin", "acos", "atan", "acot", "asec", "acsc", "atan2",
+    "sinh", "cosh", "tanh", "coth", "sech", "csch", "asinh", "acosh", "atanh",
+    "exp", "log", "erf", "erfc", "sinc", "Abs", "sign", "re", "im", "Heaviside", "Piecewise", "Min", "Max"))
+_FUNCTION_CLASSES = {getattr(sympy, f): f for f in SUPPORTED_FUNCTIONS}
+
+#: the deepest expression accepted (the library's models are at most 16 deep, the Whipple
+#: bicycle's derivatives included); sympy's printers use 3-5 Python frames per level
+MAX_DEPTH = 120
+
+#: node types that print as numbers, operators or the printer's own names (never user text)
+_STRUCTURAL = (sympy.Add, sympy.Mul, sympy.Pow, sympy.Number, sympy.NumberSymbol,
+               sympy.functions.elementary.piecewise.ExprCondPair,
+               sympy.core.relational.Relational, sympy.logic.boolalg.BooleanAtom, sympy.And, sympy.Or,
+               sympy.Not, sympy.Tuple)
+_SPECIAL = (sympy.I, sympy.zoo)
+
+_DERIVED_ONLY = {sympy.DiracDelta: "DiracDelta"}
+
+
+def _node_problem(node, derived: bool):
+    """None for a node the engines print from its type alone, else a short description."""
+    from sympy.core.function import AppliedUndef
+    t = type(node)
+    if isinstance(node, sympy.Symbol):
+        return None
+    if isinstance(node, AppliedUndef):
+        return "undefined"
+    if t in _FUNCTION_CLASSES or (derived and t in _DERIVED_ONLY):
+        return None
+    if isinstance(node, (sympy.Derivative, sympy.Integral, sympy.Subs, sympy.Sum, sympy.Product)):
+        return t.__name__
+    if isinstance(node, sympy.Function) or not isinstance(node, _STRUCTURAL):
+        if node in _SPECIAL:
+            return None
+        return t.__name__
+    return None
+
+
+_DYNAMIC = ("; functions of t and their derivatives (dynamicsymbols) are not coordinates here: use plain "
+            "symbols q, v, or LagrangianSystem.from_mechanics(...) for sympy.physics.mechanics models")
+
+
+def check_expressions(named_exprs, derived: bool = False, max_depth: int = MAX_DEPTH) -> None:
+    """SystemDefinitionError (one line) for the first expression of ``named_exprs`` ([(where,
+    expr)]) that holds a node the engines do not translate: an undefined function
+    (``UndefinedFunctionError``, named), a function or node outside ``SUPPORTED_FUNCTIONS`` and
+    the structural nodes, or a nesting deeper than ``max_depth`` (``ExpressionTooLargeError``).
+    One iterative walk per expression graph (no recursion: the depth is what is bounded)."""
+    for where, e in named_exprs:
+        if not isinstance(e, sympy.Basic):
+            continue
+        depth: dict = {}
+        todo = [(e, 1)]
+        while todo:
+            node, d = todo.pop()
+            if depth.get(node, 0) >= d:
+                continue
+            depth[node] = d
+            if d > max_depth:
+                raise ExpressionTooLargeError(
+                    f"{where} is nested more than {max_depth} levels deep (the limit of "
+                    "ldaspark.core.gensource.MAX_DEPTH); give it in a flatter form (expand it, or name its parts "
+                    "as coordinates)")
+            bad = _node_problem(node, derived)
+            if bad == "undefined":
+                raise UndefinedFunctionError(
+                    f"{where} contains the undefined function {_shown(type(node).__name__)}: it has no value to "
+                    f"compute; substitute an expression for it{_DYNAMIC}")
+            if bad is not None and type(node).__module__.startswith("sympy.physics.units"):
+                units = sorted({_shown(str(u)) for u in e.atoms(type(node))})[:6]
+                raise SystemDefinitionError(
+                    f"{where} contains physical units ({', '.join(units)}); the integrator works on numbers: "
+                    "substitute the quantities by their values in one consistent unit system")
+            if bad is not None:
+                what = (f"the derivatives of L and k ({where}) contain {_shown(bad)}" if derived
+                        else f"{where} contains the function {_shown(bad)}")
+                hint = _DYNAMIC if bad == "Derivative" and not derived else ""
+                raise SystemDefinitionError(f"{what}, which the engines do not translate; supported: "
+                                            f"{', '.join(sorted(SUPPORTED_FUNCTIONS))} (and powers, sqrt){hint}")
+            if node.args:
+                todo.extend((a, d + 1) for a in node.args)
+
+
+def _shown(name: str) -> str:
+    """A user-chosen name for a one-line message: printable, quoted when it is not a plain
+    identifier, at most 60 characters."""
+    s = str(name)
+    if s.isidentifier() and s.isascii() and len(s) <= 60:
+        return s
+    return repr(s[:60])
+
+
+# --- the printer: symbols by generated names --------------------------------------------------
+_CSE_NAME = re.compile(r"^x[0-9]+$")
+_GENERATED_NAME = re.compile(r"^(_s[0-9]+|x[0-9]+|_lambdifygenerated)$")
+
+
+def _printer(module: str, names: dict, cse_symbols: set, settings: dict):
+    """sympy's printer for ``module`` ("math": PythonCodePrinter, "mpmath": MpmathPrinter) with
+    ``settings``, printing each symbol of ``names`` by its generated name and cse's symbols by
+    theirs; any other symbol raises GeneratedSourceError."""
+    from sympy.printing.pycode import MpmathPrinter, PythonCodePrinter
+    base = MpmathPrinter if module == "mpmath" else PythonCodePrinter
+
+    class _Named(base):
+        def _print_Symbol(self, expr):
+            name = names.get(expr)
+            if name is not None:
+                return name
+            if expr in cse_symbols and _CSE_NAME.match(expr.name):
+                return expr.name
+            raise GeneratedSourceError("generated source: a symbol that is not an argument of the function")
+
+        _print_Dummy = _print_Symbol
+
+        def _print_Function(self, expr):
+            from sympy.core.function import AppliedUndef
+            if isinstance(expr, AppliedUndef):
+                raise UndefinedFunctionError(f"undefined function {_shown(type(expr).__name__)} in an expression")
+            return super()._print_Function(expr)
+    return _Named(settings)
+
+
+def lambdify(args, exprs, module: str, namespaces=(), order: str | None = None, cse: bool = True):
+    """``sympy.lambdify(args, exprs, modules=[*namespaces, module], cse=cse)`` with no user text in
+    its source: the expressions checked (``check_expressions``), each argument printed as
+    ``_s<position>``, the source checked (``check_source``) before it is compiled. ``order``:
+    the printer's "order" setting ("none": the sums' stored order, as ``LagrangianSystem`` prints).
+    A symbol of ``exprs`` that is not in ``args`` is refused. Results are those of sympy.lambdify
+    with the same printer settings: the expressions are printed as they are, only the names
+    differ. A source beyond CPython's compiler's nesting (a sum of thousands of terms) is compiled
+    with its long sums and products rebalanced."""
+    from sympy.utilities.lambdify import _EvaluatorPrinter, _get_namespace
+    import builtins
+    flat = list(_flatten(exprs))
+    check_expressions([(f"generated function output {i}", e) for i, e in enumerate(flat)], derived=True)
+    names = {}
+    for i, a in enumerate(args):
+        if not isinstance(a, sympy.Symbol) or a in names:
+            raise GeneratedSourceError("generated source: arguments must be distinct symbols")
+        names[a] = f"_s{i}"
+    free = set().union(*(e.free_symbols for e in flat if isinstance(e, sympy.Basic))) if flat else set()
+    if free - set(names):
+        raise SystemDefinitionError(f"an expression contains symbols that are not arguments: "
+                                    f"{', '.join(sorted(_shown(str(s)) for s in free - set(names))[:3])}")
+    if cse:
+        from sympy.simplify.cse_main import cse as _cse
+        cses, red = _cse(exprs, list=False)
+    else:
+        cses, red = (), exprs
+    namespace: dict = {}
+    for m in [*namespaces, module][::-1]:     # the first has priority, as in sympy.lambdify
+        namespace.update(_get_namespace(m))
+    user_functions = {k: k for m in namespaces if isinstance(m, dict) for k in m}
+    settings = {"fully_qualified_modules": False, "inline": True, "allow_unknown_functions": True,
+                "user_functions": user_functions}
+    if order is not None:
+        settings["order"] = order
+    printer = _printer(module, names, {s for s, _ in cses}, settings)
+    new_args = [sympy.Symbol(names[a]) for a in args]
+    try:
+        src = _EvaluatorPrinter(printer, False).doprint("_lambdifygenerated", new_args, red, cses=cses)
+    except RecursionError:
+        raise ExpressionTooLargeError("an expression is too deep to print; give it in a flatter form") from None
+    check_source(src, namespace)
+    namespace.update({"builtins": builtins, "range": range})
+    code = _compile(src)
+    local: dict = {}
+    exec(code, namespace, local)     # noqa: S102 - checked generated source: defines the function only
+    return local["_lambdifygenerated"]
+
+
+def _flatten(x):
+    if isinstance(x, sympy.MatrixBase):
+        yield from x
+    elif isinstance(x, (list, tuple)):
+        for y in x:
+            yield from _flatten(y)
+    else:
+        yield sympy.sympify(x)
+
+
+def check_source(src: str, namespace=(), pattern=_GENERATED_NAME, strings=None) -> None:
+    """GeneratedSourceError unless every identifier of ``src`` is a Python keyword, matches
+    ``pattern`` (the generated names) or is a name of ``namespace`` (the numeric module's
+    functions) not beginning with ``__``, and ``src`` has no string literal (a docstring at a
+    ``_STRINGS`` ("nan", "inf") and those ``strings`` (a regex) matches excepted)."""
+    try:
+        tokens = list(tokenize.generate_tokens(io.StringIO(src).readline))
+    except (tokenize.TokenError, SyntaxError, IndentationError) as exc:
+        raise GeneratedSourceError(f"generated source does not tokenize ({type(exc).__name__})") from None
+    for tok in tokens:
+        if tok.type == tokenize.NAME:
+            s = tok.string
+            if keyword.iskeyword(s) or pattern.match(s) or s in _BUILTINS \
+                    or (s in namespace and not s.startswith("__")):
+                continue
+            raise GeneratedSourceError(f"generated source holds the identifier {_shown(s)}, which the library "
+                                       "did not generate")
+        if tok.type == tokenize.STRING and tok.string not in _STRINGS \
+                and not (strings is not None and strings.match(tok.string)):
+            raise GeneratedSourceError("generated source holds a string literal")
+
+
+#: the builtins the printers use (Abs: abs, Max: max, nan: float('nan'), lambdify's range) and the
+#: only string literals they print
+_BUILTINS = frozenset(("abs", "min", "max", "float", "int", "complex", "bool", "pow", "range", "builtins"))
+_STRINGS = frozenset(("'nan'", "'inf'", "'-inf'", "'+inf'"))
+
+
+def _compile(src: str):
+    try:
+        return compile(src, "<ldaspark generated>", "exec")
+    except (RecursionError, MemoryError):
+        pass
+    limit = sys.getrecursionlimit()
+    try:
+        sys.setrecursionlimit(max(limit, 20000))
+        tree = ast.fix_missing_locations(_Balanced().visit(ast.parse(src)))
+        return compile(tree, "<ldaspark generated>", "exec")
+    except (RecursionError, MemoryError, SyntaxError) as exc:
+        raise ExpressionTooLargeError(f"the generated function does not compile ({type(exc).__name__}): an "
+                                      "expression is too large; give it in a smaller form") from None
+    finally:
+        sys.setrecursionlimit(limit)
+
+
+class _Balanced(ast.NodeTransformer):
+    """Chains ``a + b - c + ...`` and ``a * b * ...`` as balanced trees (only for a source
+    CPython's compiler refused as printed: a chain of n terms is n - 1 nested nodes)."""
+
+    @staticmethod
+    def _chain(node, ops):
+        terms, stack = [], [(node, False)]
+        while stack:
+            x, neg = stack.pop()
+            if isinstance(x, ast.BinOp) and type(x.op) in ops:
+                stack.append((x.right, neg != isinstance(x.op, ast.Sub)))
+                stack.append((x.left, neg))
+            else:
+                terms.append((x, neg))
+        return terms
+
+    @staticmethod
+    def _tree(items, op):
+        while len(items) > 1:
+            items = [ast.BinOp(left=items[i], op=op(), right=items[i + 1]) if i + 1 < len(items) else items[i]
+                     for i in range(0, len(items), 2)]
+        return items[0]
+
+    def visit_BinOp(self, node):
+        if type(node.op) in (ast.Add, ast.Sub):
+            terms = self._chain(node, (ast.Add, ast.Sub))
+            if len(terms) > 8:
+                items = [self.visit(x) for x, _ in terms]
+                items = [ast.UnaryOp(op=ast.USub(), operand=x) if neg else x for x, (_, neg) in zip(items, terms)]
+                return self._tree(items, ast.Add)
+        elif isinstance(node.op, ast.Mult):
+            terms = self._chain(node, (ast.Mult,))
+            if len(terms) > 8:
+                return self._tree([self.visit(x) for x, _ in terms], ast.Mult)
+        return self.generic_visit(node)
