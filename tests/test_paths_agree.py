@@ -17,7 +17,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import pytest
 import sympy
-from hypothesis import given, seed, settings
+from hypothesis import Phase, given, seed, settings
 
 import ldaspark
 from ldaspark import solve
@@ -31,7 +31,10 @@ EXHAUSTIVE_DRAWS = 20
 def harness(draws=DEFAULT_DRAWS, strategy=harness_cases):
     """@given(case=...) with the harness seed and ``draws`` examples."""
     def deco(f):
-        return seed(SEED)(settings(max_examples=draws, deadline=None, database=None)(given(case=strategy())(f)))
+        # no shrinking: a smaller failing system would be derived and compiled again for each
+        # attempt (minutes); the drawn example is printed as it is
+        return seed(SEED)(settings(max_examples=draws, deadline=None, database=None,
+                                   phases=[Phase.explicit, Phase.generate])(given(case=strategy())(f)))
     return deco
 
 
@@ -289,16 +292,19 @@ def check_edited_model_is_not_served_from_the_cache(case):
 # --- dense output and events -------------------------------------------------------------------
 @pair_tests()
 def check_dense_output_agrees_with_the_steps_and_a_stopped_run(case):
-    """``Result.sol`` at the grid points is the steps' (q, v) (to round-off); in the middle of
-    step j it agrees with a run of j steps of h and one of h/2 to the local error of the dense
-    output, which shrinks at least as h^3 (collocation polynomial: stage order s >= 1 plus 1...
-    checked as a ratio: halving h divides the difference by more than 2^2.5)."""
+    """``Result.sol`` at the grid points is the steps' q (and v for the compiled engine's Hermite
+    interpolant) to round-off; in the middle of step j it agrees with a run of j steps of h and
+    one of h/2 to the local error of the dense output, O(h^r) (r = stage order + 1 for the
+    collocation polynomial, 3 for the cubic Hermite), checked as a ratio: halving h divides the
+    difference by more than 2^(r - 1/2) (a dense output on the wrong step or nodes is off by O(h))."""
     for engine in ("generic", "compiled"):
         r = case.run(engine=engine, dense_output=True)
         for i in range(case.n_steps + 1):
             qd, vd = r.sol(float(r.t[i]))
             assert max_diff(qd, r.q[i]) <= 64 * np.finfo(float).eps * case.scale, (engine, i)
-            assert max_diff(vd, r.v[i]) <= 64 * np.finfo(float).eps * case.scale, (engine, i)
+            if engine == "compiled":      # Hermite through (q_n, v_n); the generic engine's v is
+                # the degree s-1 polynomial through the stage velocities V_j, O(h^s) from v_n there
+                assert max_diff(vd, r.v[i]) <= 64 * np.finfo(float).eps * case.scale, (engine, i)
         errs = []
         for h in (case.h, case.h / 2):
             j = 2
@@ -309,7 +315,11 @@ def check_dense_output_agrees_with_the_steps_and_a_stopped_run(case):
                             q0=list(stop_a.q[-1]), v0=list(stop_a.v[-1]))
             qd, _ = rr.sol(ts)
             errs.append(max_diff(qd, stop.q[-1]))
-        assert errs[1] < errs[0] / 2 ** 2.5 or errs[0] <= 1e3 * case.tol(), (engine, errs)
+        # the difference's order r: 3 for Hermite (O(h^4) interpolation, the stopped step's local
+        # error O(h^3)) and gauss-2's collocation polynomial (stage order 2); 2 for stage order 1
+        # (gauss-1; the IIIB velocities of lobatto-iiia-iiib-2)
+        r = 3 if engine == "compiled" or case.method == "gauss-2" else 2
+        assert errs[1] < errs[0] / 2 ** (r - 0.5) or errs[0] <= 1e3 * case.tol(), (engine, errs, r)
 
 
 def _crossing_time(case, h):
@@ -322,15 +332,16 @@ def _crossing_time(case, h):
 @pair_tests()
 def check_events_located_agree_with_a_fine_run(case):
     """The event q_1 = level located on the dense output of a run with step h, against the same
-    event on a run with h/16: the difference is the dense output's error divided by |dg/dt|, and
-    halving h divides it by more than 2^2.5 (order >= 3 of the dense q; a crossing found in the
-    wrong step or at the wrong end of it is off by O(h))."""
+    event on a run with h/16: the difference is the dense output's error (O(h^3) locally, the
+    steps' global error O(h^2) or better) divided by |dg/dt|: below h^2, and halving h divides it
+    by more than 2^1.5 (a crossing found in the wrong step, at the wrong end of it or by linear
+    interpolation is off by O(h) or O(h^2) with order <= 1 in the ratio... at these h: e1 > h^2)."""
     fine = _crossing_time(case, case.h / 16)
     if fine is None:
         return
     e1 = abs(_crossing_time(case, case.h) - fine)
     e2 = abs(_crossing_time(case, case.h / 2) - fine)
-    assert e1 < case.h / 8 and (e2 < e1 / 2 ** 2.5 or e1 < 1e-9), (e1, e2)
+    assert e1 < case.h ** 2 and (e2 < e1 / 2 ** 1.5 or e1 < 1e-9), (e1, e2)
 
 
 # --- from_mechanics with a compound rotation -------------------------------------------------
