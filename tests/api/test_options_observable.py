@@ -1,0 +1,163 @@
+"""Every option of ``ldaspark.integrate`` is observable on every engine: changing it changes the
+counters or the numbers as documented, or it is refused (docs/verification.md, "The
+differential harness"). A discrepancy is a strict xfail naming it, so that it flips when fixed.
+"""
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import pytest
+import sympy
+
+import ldaspark
+from ldaspark import LdasparkError
+from ldaspark.core.errors import InputError
+
+ENGINES = ("generic", "compiled")
+KW = dict(t_span=(0.0, 0.5), h=0.05)
+
+
+def run(engine, **kw):
+    return ldaspark.integrate("skate", "gauss-2", engine=engine, **{**KW, **kw})
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_tol_changes_the_iterations(engine):
+    """A loose Newton tolerance stops earlier: fewer iterations, other numbers (at ~tol); on a
+    system where Newton needs several iterations (L quartic in v, k quadratic in v)."""
+    from verification.general_fixtures import rheonomic_initial, rheonomic_system
+    t0, q0, v0 = rheonomic_initial()
+    sysm = rheonomic_system()
+
+    def go(**kw):
+        return ldaspark.integrate(sysm, "gauss-2", t_span=(t0, t0 + 0.5), q0=q0, v0=v0, h=0.1, engine=engine, **kw)
+    tight, loose = go(), go(tol=1e-3)
+    assert loose.newton_iterations < tight.newton_iterations, (loose.newton_iterations, tight.newton_iterations)
+    assert 0 < np.max(np.abs(loose.q - tight.q)) < 1e-2
+
+
+@pytest.mark.parametrize("engine", [
+    "generic",
+    pytest.param("compiled", marks=pytest.mark.xfail(strict=True, reason="compiled engine ignores newton: issue #46")),
+])
+def test_newton_variant_changes_the_counters(engine):
+    """Full Newton evaluates and factors the Jacobian at every iteration, simplified Newton once
+    a step: the counters njev/nlu differ (same numbers to the tolerance)."""
+    full, simp = run(engine, newton="full"), run(engine, newton="simplified")
+    assert (full.njev, full.nlu) != (simp.njev, simp.nlu), (full.njev, full.nlu, simp.njev, simp.nlu)
+    assert full.njev > simp.njev
+    assert np.max(np.abs(full.q - simp.q)) < 1e-12
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_save_every_keeps_fewer_rows_and_the_same_work(engine):
+    a, b = run(engine), run(engine, save_every=3)
+    assert len(a.t) == 11 and len(b.t) == 5 and b.nfev == a.nfev     # 0, 3, 6, 9 and the last (10)
+    assert np.array_equal(np.asarray(b.t, float), np.asarray(a.t, float)[[0, 3, 6, 9, 10]])
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_dense_output_attaches_sol(engine):
+    a, b = run(engine), run(engine, dense_output=True)
+    assert getattr(a, "sol", None) is None and callable(b.sol)
+    q, _ = b.sol(0.125)
+    assert np.all(np.isfinite(q)) and not np.allclose(q, b.q[2]) and not np.allclose(q, b.q[3])
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_events_are_located_and_terminal_stops(engine):
+    ref = run(engine)
+    level = float((ref.q[0][0] + ref.q[-1][0]) / 2)
+
+    def g(t, q, v):
+        return q[0] - level
+    a = run(engine, events=g)
+    assert len(a.t_events[0]) >= 1 and a.status == 0 and len(a.t) == 11
+    g.terminal = True
+    b = run(engine, events=g)
+    assert b.status == 1 and len(b.t) < 11
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_energy_jump_stops_the_run_and_raise_on_failure_raises(engine):
+    """A threshold below the per-step energy change (round-off of a conserved energy: ~1e-16):
+    status -3; with raise_on_failure the same failure is raised."""
+    ok = run(engine, energy_jump=1e-3)
+    assert ok.status == 0
+    bad = run(engine, energy_jump=1e-300)
+    assert bad.status == -3 and len(bad.t) < 11
+    with pytest.raises(LdasparkError):
+        run(engine, energy_jump=1e-300, raise_on_failure=True)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_project_makes_inconsistent_data_consistent(engine):
+    scene = ldaspark.get_scene("skate")
+    t0, q0, v0 = scene.initial(None)
+    v0 = [float(x) + 0.1 for x in v0]
+    q0 = [float(x) for x in q0]
+    with pytest.raises(LdasparkError, match="inconsistent"):
+        run(engine, q0=q0, v0=v0)
+    r = run(engine, q0=q0, v0=v0, project=True)
+    assert r.status == 0 and r.stats["projected_v0_change"] > 1e-3
+
+
+def test_dps_runs_mpmath_on_generic_and_is_refused_by_compiled():
+    r = run("generic", dps=30)
+    assert type(r.q[-1][0]).__name__ == "mpf"
+    with pytest.raises(InputError, match="float64 only"):
+        run("compiled", dps=30)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_params_change_the_numbers(engine):
+    x, y, vx, vy = sympy.symbols("x y vx vy")
+    w = sympy.Symbol("w")
+    sysm = ldaspark.LagrangianSystem((vx ** 2 + vy ** 2) / 2 - w * x ** 2 / 2, [vy - x * vx], [x, y], [vx, vy],
+                                     params=[w])
+    kw = dict(q0=[0.3, 0.0], v0=[0.2, 0.06], t_span=(0.0, 0.5), h=0.05, engine=engine)
+    a = ldaspark.integrate(sysm, "gauss-2", params={"w": 1.0}, **kw)
+    b = ldaspark.integrate(sysm, "gauss-2", params={"w": 2.0}, **kw)
+    assert np.max(np.abs(a.q - b.q)) > 1e-3
+    with pytest.raises(LdasparkError):
+        ldaspark.integrate(sysm, "gauss-2", **kw)        # no value for w: refused
+
+
+class _CountingExecutor(ThreadPoolExecutor):
+    calls = 0
+
+    def map(self, *a, **k):
+        type(self).calls += 1
+        return super().map(*a, **k)
+
+    def submit(self, *a, **k):
+        type(self).calls += 1
+        return super().submit(*a, **k)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_executor_runs_the_members(engine):
+    scene = ldaspark.get_scene("skate")
+    _, q0, v0 = scene.initial(None)
+    q0, v0 = [float(x) for x in q0], [float(x) for x in v0]
+    q1 = [q0[0] + 0.1] + q0[1:]
+    _CountingExecutor.calls = 0
+    with _CountingExecutor(max_workers=2) as ex:
+        r = run(engine, q0=[q0, q1], v0=[v0, v0], executor=ex)
+    assert _CountingExecutor.calls >= 1 and r.q.shape[0] == 2
+    with pytest.raises(InputError):
+        run(engine, executor="threads")
+
+
+def test_max_stages_raises_the_stage_limit():
+    with pytest.raises(LdasparkError, match="more than the limit"):
+        ldaspark.integrate("skate", "gauss-21", h=0.1, n_steps=1, engine="generic")
+    r = ldaspark.integrate("skate", "gauss-21", h=0.1, n_steps=1, engine="generic", max_stages=21)
+    assert r.status == 0 and r.psi.shape[1] == 21
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_an_unknown_option_is_refused(engine):
+    with pytest.raises(InputError, match="did you mean tol"):
+        run(engine, tool=1e-3)
