@@ -485,6 +485,19 @@ class KernelOptions:
     predictor: int = 2
     reuse_matrix: object = "auto"
     linear_solver: str = "auto"
+    #: the root finder's kind as the SPARK kernels run it (``kernels.NEWTON_MODE``): 0 "auto",
+    #: 1 "full" (and "mixed", which is "full" in float64), 2 "simplified"; ``NEWTON_MODES``
+    newton_mode: int = 0
+    #: the root finder's kind by name (``ldaspark.core.rootfinder.KINDS``): a kind in
+    #: ``KIND_RUNNERS`` runs there instead of the kernels' Newton
+    newton_kind: str = "auto"
+
+
+#: root-finder kind -> the SPARK kernels' Newton mode (``kernels.NEWTON_MODE``). A kind run by
+#: its own module (e.g. a multiplier-only quasi-Newton iteration) registers a runner in
+#: ``KIND_RUNNERS`` instead: ``KIND_RUNNERS[kind](cs, spec, start, grid, opts) -> FastSolution``
+NEWTON_MODES = {"auto": 0, "full": 1, "mixed": 1, "simplified": 2}
+KIND_RUNNERS: dict = {}
 
 
 def _run_checked(cs, method, start, grid, opts: KernelOptions):
@@ -496,6 +509,8 @@ def _run_checked(cs, method, start, grid, opts: KernelOptions):
                                                      opts.predictor)
     reuse_matrix, linear_solver = opts.reuse_matrix, opts.linear_solver
     spec = method if isinstance(method, tuple) else kernel_spec(method, kernel)
+    if opts.newton_kind in KIND_RUNNERS:      # a root-finder kind with a module of its own
+        return KIND_RUNNERS[opts.newton_kind](cs, spec, start, grid, opts)
     kind, what, name = spec
     if kind == "lf2" and cs.form != "mechanical":
         if name in LF2_VARIANTS:
@@ -517,7 +532,7 @@ def _run_checked(cs, method, start, grid, opts: KernelOptions):
         reuse_matrix = cs.n >= REUSE_AUTO_MIN_N
     elif not isinstance(reuse_matrix, (bool, np.bool_)):
         raise InputError(f"reuse_matrix must be True, False or 'auto', got {reuse_matrix!r:.60}")
-    pflag = int(predictor) + (4 if reuse_matrix else 0)
+    pflag = int(predictor) + (4 if reuse_matrix else 0) + 8 * int(opts.newton_mode)
     run = (float(t0), q0, v0, h, int(n_steps), int(every), bool(compensated), tol, int(max_iter), pflag)
     model = cs.model
     solver = "dense"
@@ -553,6 +568,7 @@ def _run_checked(cs, method, start, grid, opts: KernelOptions):
     st["compensated"] = bool(compensated)
     st["linear_solver"] = solver
     st["reuse_matrix"] = bool(reuse_matrix) and kind != "lf2"
+    st["newton_kind"] = "lf2" if kind == "lf2" else opts.newton_kind
     psi = None if kind == "lf2" else out_x[NN:].reshape(S - 1, s_, cs.m)
     return FastSolution(*outs, st, psi)
 

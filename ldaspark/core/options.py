@@ -20,7 +20,9 @@ class IntegrationOptions:
     """How to integrate (not what): engine, arithmetic, Newton, output, monitors, where members run.
 
     engine: "auto", "compiled" or "generic"; dps: mpmath digits (None: float64); newton: the
-    generic engine's Newton variant; tol: Newton tolerance (None: the engine's default);
+    root finder (``ldaspark.core.rootfinder.Newton``, every engine receives it; the old kind
+    names are mapped to it); tol: Newton tolerance (None: the engine's default; = newton.tol);
+    guard: the step-acceptance guard (``ldaspark.core.guard``, on by default);
     save_every: keep every k-th step and the last; dense_output; events: the checked events
     (``ldaspark.core.dense.Event``); energy_jump: the energy monitor's relative jump (None: off);
     executor: where ensemble members run (None: a loop here); max_stages: the stage limit of
@@ -28,8 +30,9 @@ class IntegrationOptions:
 
     engine: str = "auto"
     dps: Optional[int] = None
-    newton: str = "auto"
+    newton: Any = None
     tol: Optional[float] = None
+    guard: bool = True
     save_every: int = 1
     dense_output: bool = False
     events: tuple = ()
@@ -38,33 +41,40 @@ class IntegrationOptions:
     max_stages: Optional[int] = None
     project: bool = False
     raise_on_failure: bool = False
+    #: an engine keeps every step for the step-acceptance guard (set by the driver, not a user option)
+    keep_steps: bool = False
 
     @classmethod
     def checked(cls, *, engine="auto", dps=None, newton="auto", tol=None, save_every=1, dense_output=False,
                 energy_jump=None, executor=None, max_stages=None, project=False,
-                raise_on_failure=False) -> "IntegrationOptions":
+                raise_on_failure=False, guard=True) -> "IntegrationOptions":
         """The options after the checks of ``ldaspark.core.validate`` (one InputError naming the
         first wrong value, in this order: engine, dps, newton, executor, save_every, max_stages,
         tol, energy_jump, the flags, dps with the compiled engine). Events are checked apart
         (``with_events``), after the system and the method, as ``integrate`` always has."""
         validate.check_choice(engine, "engine", ENGINES)
         dps = validate.check_dps(dps)
-        validate.check_choice(newton, "newton", validate.NEWTON_VARIANTS)
+        from .rootfinder import Newton
+        if not isinstance(newton, Newton):
+            validate.check_choice(newton, "newton", validate.NEWTON_VARIANTS)
         validate.check_executor(executor)
         validate.count(save_every, "save_every")
         validate.check_max_stages(max_stages)
         validate.check_newton_options(tol, 1)
+        newton = Newton.coerce(newton, tol)
+        tol = newton.tol
         if energy_jump is not None:
             validate.check_newton_options(energy_jump, 1, what="energy_jump")
         for flag, val in (("dense_output", dense_output), ("raise_on_failure", raise_on_failure),
-                          ("project", project)):
+                          ("project", project), ("guard", guard)):
             if not validate._is_bool(val):
                 raise InputError(f"{flag} must be True or False, got {validate._describe(val)}")
         if dps is not None and engine == "compiled":
             raise InputError("the compiled engine is float64 only; dps needs engine='generic' (or 'auto')")
         return cls(engine=engine, dps=dps, newton=newton, tol=tol, save_every=save_every,
                    dense_output=dense_output, energy_jump=energy_jump, executor=executor,
-                   max_stages=max_stages, project=project, raise_on_failure=raise_on_failure)
+                   max_stages=max_stages, project=project, raise_on_failure=raise_on_failure,
+                   guard=bool(guard))
 
     def with_events(self, events) -> "IntegrationOptions":
         """These options with ``events`` (None, a callable or a sequence of them) checked and
@@ -79,5 +89,5 @@ class IntegrationOptions:
     @property
     def every_step(self) -> bool:
         """Whether an engine that can keep every ``save_every``-th point must keep every step
-        instead: dense output, events and the energy monitor look at each step."""
-        return bool(self.dense_output or self.events or self.energy_jump is not None)
+        instead: dense output, events, the energy monitor and the guard look at each step."""
+        return bool(self.dense_output or self.events or self.energy_jump is not None or self.keep_steps)
