@@ -674,6 +674,8 @@ def _post_process(full: Result, every: int, dense: bool, events, sliced: bool = 
         full.t_events, full.q_events, full.v_events = tracker.arrays()
     if dense and done > 0:
         full.sol = HermiteDense(t[:done + 1], q[:done + 1], v[:done + 1])
+    if every == 1 and done == len(full.t) - 1:
+        return full                       # every step kept and asked for: nothing to slice
     idx = save_indices(done, every) if done > 0 else np.array([0])
     for name in ("t", "q", "v", "energy", "constraint"):
         setattr(full, name, np.asarray(getattr(full, name))[idx])
@@ -771,8 +773,6 @@ def _run_compiled(system, prob: _Problem, q0, v0, opts: IntegrationOptions) -> R
     if opts.project:
         bk = Backend(None)
         v0 = system.project_velocity(bk, float(t0), bk.array(q0), bk.array(v0))
-    if _guard_every_step(opts, system, N):
-        opts = opts.replace(keep_steps=True)     # the guard looks at every step
     inner = 1 if opts.every_step else every
     runner._check_options(N, inner, kopts.predictor, tol, kopts.max_iter, system.n, system.m)
     # the initial point's (4) and k = 0 (the kernels assume both), after the projection of v0
@@ -790,7 +790,7 @@ def _run_compiled(system, prob: _Problem, q0, v0, opts: IntegrationOptions) -> R
     res, exc = _prefix_run(run, N, inner)
     if isinstance(exc, NewtonError):
         exc = _generic_diagnosis(exc, system, prob, res, (t0, q0, v0), tol)
-    res, exc = _guard_scan(res, exc, system, prob, opts, inner)
+    res, exc = _guard_scan(res, exc, system, prob, opts, lambda n: run(n, 1))
     if exc is None:
         res, exc = _energy_jump_cut(res, energy_jump)
     # without dense output, events, an energy-jump watch or the guard the kernels kept every
@@ -823,24 +823,27 @@ def _kernel_options(prob: _Problem, opts: IntegrationOptions) -> tuple:
                          root.linear_solver, NEWTON_MODES.get(root.kind, 0), root.kind), name
 
 
-#: the compiled engine's guard keeps every step when the run's every-step arrays hold at most
-#: this many floats (128 MB); a longer run with ``save_every`` > 1 is guarded on its saved samples
-#: only (``stats["guard"] == "samples"``: flagged intervals are counted, not solved again)
+#: the compiled engine's guard on a run with ``save_every`` > 1 judges the saved samples; a
+#: flagged interval is located by running the prefix again with every step kept, when that
+#: prefix holds at most this many floats (128 MB; beyond it the flagged intervals are counted as
+#: unverified)
 GUARD_EVERY_STEP_FLOATS = 2 ** 24
+#: the longest first saved interval the compiled engine's guard runs again with every step kept
+#: (4096 steps: a few ms of a kernel; a run that keeps only its end, save_every >= n_steps, is
+#: judged from its samples only)
+GUARD_HEAD = 4096
 #: flagged steps solved again per run; beyond it they are counted as unverified
 GUARD_MAX_RESOLVES = 1000
 
 
-def _guard_every_step(opts: IntegrationOptions, system, N) -> bool:
-    """Whether the compiled engine keeps every step for the guard."""
-    return opts.guard and (N + 1) * (2 + 2 * system.n + system.m) <= GUARD_EVERY_STEP_FLOATS
-
-
-def _guard_scan(res, exc, system, prob: _Problem, opts: IntegrationOptions, inner) -> tuple:
+def _guard_scan(res, exc, system, prob: _Problem, opts: IntegrationOptions, rerun=None) -> tuple:
     """The step-acceptance guard (``ldaspark.core.guard``) on a run that returned its steps
-    (compiled kernels, comparators): (the prefix up to the first step with another root, that
-    RootMismatchError or ``exc``), the guard's counters in ``res.stats``. ``inner``: the steps
-    between the samples of ``res`` (1: every step)."""
+    (compiled kernels, comparators): (the run up to the first step with another root, that
+    RootMismatchError or ``exc``), the guard's counters in ``res.stats``. ``rerun(n)``: the
+    first n steps again with every step kept (the compiled engine, whose samples are
+    ``save_every`` steps apart unless dense output, events or the energy monitor kept every
+    step); None: ``res`` holds every step. Without a flagged sample nothing is run again, so the
+    guard costs one vectorised pass over the saved energies."""
     from .core import guard
     if res is None:
         return res, exc
@@ -848,17 +851,52 @@ def _guard_scan(res, exc, system, prob: _Problem, opts: IntegrationOptions, inne
         res.stats["guard"] = False
         return res, exc
     st = res.stats
-    st.update(guard=True if inner == 1 else "samples", guard_flagged=0, guard_confirmed=0, guard_unverified=0)
+    st.update(guard=True, guard_flagged=0, guard_confirmed=0, guard_unverified=0)
     if len(res.t) < 3:
         return res, exc
     bad = guard.flagged(float_array(res.energy))
-    st["guard_flagged"] = int(len(bad))
-    if inner != 1 or not len(bad):
-        st["guard_unverified"] = int(len(bad)) if inner != 1 else 0
+    every = 1 if rerun is None or opts.every_step else opts.save_every
+    # the first saved interval has no history among the samples: its steps are judged on a
+    # rerun with every step kept when it is short (GUARD_HEAD steps), else left unjudged
+    head = 1 < every <= GUARD_HEAD
+    if not len(bad) and not head:
         return res, exc
+    steps = res
+    if every > 1:       # locate: the prefix to the end of the last flagged interval, every step
+        t = float_array(res.t)
+        j = bad[-1] + 1 if len(bad) else 1
+        last = int(round((t[min(j, len(t) - 1)] - t[0]) / float(prob.h)))
+        if (last + 1) * (2 + 2 * system.n + system.m) > GUARD_EVERY_STEP_FLOATS:
+            st["guard_flagged"] = st["guard_unverified"] = int(len(bad))
+            return res, exc
+        try:
+            steps = rerun(last)
+        except LdasparkError:
+            st["guard_flagged"] = st["guard_unverified"] = int(len(bad))
+            return res, exc
+        bad = guard.flagged(float_array(steps.energy))
+    n = _guard_resolve(steps, bad, system, prob, opts, st)
+    if n is None:
+        return res, exc
+    n, err = n
+    idx = np.arange(n + 1) if every == 1 else save_indices(n, every) if n > 0 else np.array([0])
+    for nm in ("t", "q", "v", "energy", "constraint"):
+        setattr(res, nm, np.asarray(getattr(steps, nm))[idx])
+    res.psi = None if steps.psi is None else np.asarray(steps.psi)[idx[:-1]]
+    return res, err
+
+
+def _guard_resolve(steps: Result, bad, system, prob: _Problem, opts: IntegrationOptions, st: dict):
+    """Solve the flagged steps ``bad`` of the every-step run ``steps`` again from the safe
+    starts; (the first step with another root, its RootMismatchError) or None. Counts into
+    ``st`` (the run's stats)."""
+    from .core import guard
+    st["guard_flagged"] = int(len(bad))
+    if not len(bad):
+        return None
     resolve = _comparator_resolver(system, prob, opts) if prob.kind == "comparator" else \
         _spark_resolver(system, prob, opts)
-    t, q, v, E = (float_array(getattr(res, a)) for a in ("t", "q", "v", "energy"))
+    t, q, v, E = (float_array(getattr(steps, a)) for a in ("t", "q", "v", "energy"))
     for count, n in enumerate(bad):
         if count >= GUARD_MAX_RESOLVES:
             st["guard_unverified"] += len(bad) - count
@@ -866,17 +904,11 @@ def _guard_scan(res, exc, system, prob: _Problem, opts: IntegrationOptions, inne
         label, safe = resolve(n, t, q, v)
         if safe is None:
             st["guard_unverified"] += 1
-            continue
-        if guard.same_root(q[n + 1], v[n + 1], safe[0], safe[1]):
+        elif guard.same_root(q[n + 1], v[n + 1], safe[0], safe[1]):
             st["guard_confirmed"] += 1
-            continue
-        err = guard.mismatch(int(n), t[n], prob.h, (q[n + 1], v[n + 1], E[n + 1]), safe, label)
-        for nm in ("t", "q", "v", "energy", "constraint"):
-            setattr(res, nm, np.asarray(getattr(res, nm))[:n + 1])
-        if res.psi is not None:
-            res.psi = np.asarray(res.psi)[:n]
-        return res, err
-    return res, exc
+        else:
+            return int(n), guard.mismatch(int(n), t[n], prob.h, (q[n + 1], v[n + 1], E[n + 1]), safe, label)
+    return None
 
 
 def _spark_resolver(system, prob: _Problem, opts: IntegrationOptions):
@@ -977,7 +1009,7 @@ def _run_comparator(system, prob: _Problem, q0, v0, opts: IntegrationOptions) ->
                       engine="generic", stats=st)
     validate.check_storage(N + 1, 2 + 2 * system.n + system.m, mp=dps is not None, what="the comparator's steps")
     res, exc = _prefix_run(run, N, 1)
-    res, exc = _guard_scan(res, exc, system, prob, opts, 1)
+    res, exc = _guard_scan(res, exc, system, prob, opts)
     if exc is None:
         res, exc = _energy_jump_cut(res, opts.energy_jump)
     return _finish_prefix(res, exc, system, (t0_, q0, v0), opts, "generic")

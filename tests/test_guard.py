@@ -89,3 +89,15 @@ def test_the_guard_flags_nothing_on_the_skate():
     for engine in ("generic", "compiled"):
         res = ldaspark.integrate("skate", "gauss-2", t_span=(0, 10), h=0.1, engine=engine)
         assert res.status == 0 and res.stats["guard"] is True and res.stats["guard_flagged"] == 0
+
+
+def test_a_second_root_between_saved_samples_is_located():
+    # save_every = 4 on the compiled engine: the guard judges the saved samples, runs the
+    # flagged prefix again with every step kept, and stops at the same step as with every step
+    every = run("gauss-1", "compiled", Newton(predictor="zero"))
+    sampled = run("gauss-1", "compiled", Newton(predictor="zero"), save_every=4)
+    assert every.status == sampled.status == guard.STATUS_GUARD
+    assert sampled.error.step == every.error.step
+    k = every.error.step
+    assert list(sampled.t) == list(every.t[list(range(0, k + 1, 4)) + ([k] if k % 4 else [])])
+    assert sampled.psi is not None and len(sampled.psi) == len(sampled.t) - 1

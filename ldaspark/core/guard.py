@@ -89,12 +89,13 @@ def flagged(E) -> np.ndarray:
     if len(E) < 3:
         return np.zeros(0, dtype=int)
     a = np.abs(np.diff(E))
-    padded = np.concatenate([np.zeros(WINDOW), a])
-    prev = np.lib.stride_tricks.sliding_window_view(padded[:-1], WINDOW).max(axis=1)
-    lim = SAFETY * prev + ROUND_ULPS * _EPS * (1.0 + np.maximum(np.abs(E[:-1]), np.abs(E[1:])))
-    bad = a > lim
-    bad[0] = False
-    return np.flatnonzero(bad)
+    floor = ROUND_ULPS * _EPS * (1.0 + np.maximum(np.abs(E[:-1]), np.abs(E[1:])))
+    # the previous step alone bounds the window's maximum from below: only the steps beyond
+    # SAFETY times their predecessor's change can be flagged (a few in a run; the window's
+    # maximum is taken for those only)
+    cand = np.flatnonzero(a[1:] > SAFETY * a[:-1] + floor[1:]) + 1
+    bad = [n for n in cand if a[n] > SAFETY * a[max(0, n - WINDOW):n].max() + floor[n]]
+    return np.asarray(bad, dtype=int)
 
 
 class StepGuard:

@@ -41,8 +41,6 @@ class IntegrationOptions:
     max_stages: Optional[int] = None
     project: bool = False
     raise_on_failure: bool = False
-    #: an engine keeps every step for the step-acceptance guard (set by the driver, not a user option)
-    keep_steps: bool = False
 
     @classmethod
     def checked(cls, *, engine="auto", dps=None, newton="auto", tol=None, save_every=1, dense_output=False,
@@ -89,5 +87,5 @@ class IntegrationOptions:
     @property
     def every_step(self) -> bool:
         """Whether an engine that can keep every ``save_every``-th point must keep every step
-        instead: dense output, events, the energy monitor and the guard look at each step."""
-        return bool(self.dense_output or self.events or self.energy_jump is not None or self.keep_steps)
+        instead: dense output, events and the energy monitor look at each step."""
+        return bool(self.dense_output or self.events or self.energy_jump is not None)

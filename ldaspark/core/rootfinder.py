@@ -89,6 +89,14 @@ class Newton:
         (mechanical form).
     reuse : {"auto", True, False}
         Start a step from the previous step's factored Newton matrix (compiled engine).
+
+    Examples
+    --------
+    >>> import ldaspark
+    >>> res = ldaspark.integrate("skate", "gauss-2", t_span=(0, 1), h=0.1, engine="generic",
+    ...                          newton=ldaspark.Newton(kind="full", max_iter=20))
+    >>> res.stats["root_finder"]["kind"], res.njev == res.newton_iterations
+    ('full', True)
     """
 
     kind: str = "auto"
