@@ -296,12 +296,30 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
         # worker), so that process pools and clusters can run the members as well as threads
         run = functools.partial(_member, sysm if isinstance(executor, ThreadPoolExecutor) else _portable(sysm),
                                 prob, member_opts)
-        try:
-            members = executor.map(run, jobs)       # submits every member now
-        except RuntimeError as exc:
-            raise validate.executor_shut_down(exc) from exc
-        return stack(list(members))
+        return stack(_run_members(executor, run, jobs))
     return _single(sysm, (params, q0, v0), prob, opts)
+
+
+def _run_members(executor, run, jobs) -> list:
+    """The members' Results from ``executor`` (its ``map``, which submits every member now): a
+    member's LdasparkError as it is; an executor that is shut down, whose ``submit`` raises or
+    returns something other than a future, or that hands back something other than a Result:
+    one LdasparkError naming the executor."""
+    name = type(executor).__name__
+    try:
+        members = list(executor.map(run, jobs))
+    except LdasparkError:
+        raise
+    except RuntimeError as exc:     # "cannot schedule new futures after shutdown" and the like
+        raise validate.executor_shut_down(exc) from exc
+    except Exception as exc:       # a third-party executor's own failure (submit returned None, ...)
+        raise LdasparkError(f"the executor {name} failed to run the ensemble members "
+                            f"({type(exc).__name__}: {str(exc)[:120]})") from exc
+    bad = [type(m).__name__ for m in members if not isinstance(m, Result)]
+    if bad or len(members) != len(jobs):
+        raise LdasparkError(f"the executor {name} returned {len(members)} results for {len(jobs)} ensemble members"
+                            + (f", not Results ({bad[0]})" if bad else ""))
+    return members
 
 
 @dataclass(frozen=True)

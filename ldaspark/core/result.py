@@ -196,6 +196,18 @@ def save_indices(n_steps: int, every: int) -> np.ndarray:
     return np.array(idx, dtype=int)
 
 
+class EnsembleDense:
+    """The dense output of an ensemble: ``sol(t) -> (q, v)`` with a leading member axis, each
+    member's own ``sol`` (``Result.members[j].sol``) evaluated at t."""
+
+    def __init__(self, sols):
+        self.sols = list(sols)
+
+    def __call__(self, t):
+        pairs = [s(t) for s in self.sols]
+        return np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs])
+
+
 def stack(members: list) -> Result:
     """An ensemble Result from member Results (same system, method and grid).
 
@@ -237,7 +249,8 @@ def stack(members: list) -> Result:
                   h=first.h, dps=first.dps, save_every=first.save_every,
                   params={"members": [r.params for r in members]},
                   stats={"members": [r.stats for r in members]}, n_valid=n_valid, members=list(members),
-                  coordinate_names=first.coordinate_names, **out)
+                  coordinate_names=first.coordinate_names, **out,
+                  sol=EnsembleDense(r.sol for r in members) if all(r.sol is not None for r in members) else None)
 
 
 def from_ensemble(ens: Any, **meta: Any) -> Result:
