@@ -365,9 +365,9 @@ def _compiled_ensemble(system, params, Q0, V0, prob: _Problem, opts: Integration
             or params is not None or system.params
             or _compiled_reason(system, prob.kind, prob.name) is not None):
         return None
-    from .dist.ensemble import ensemble_integrate
+    from .dist.ensemble import run_ensemble
     from .core.result import from_ensemble
-    ens = ensemble_integrate(system, prob.method, prob.t0, Q0, V0, prob.h, prob.N, every=opts.save_every,
+    ens = run_ensemble(system, prob.method, prob.t0, Q0, V0, prob.h, prob.N, every=opts.save_every,
                              tol=opts.tol, executor=opts.executor)
     return from_ensemble(ens, method=prob.name, system=system.name, scene=prob.scene, h=prob.h,
                          save_every=opts.save_every)

@@ -196,7 +196,12 @@ def _first_line(exc):
 def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n_steps=None,
                    every=1, compensated=True, tol=None, max_iter=50, kernel="auto", predictor=2,
                    linear_solver="auto") -> FastSolution:
-    """Integrate with the compiled float64 path (numba kernels of (21)).
+    """Integrate with the compiled float64 path (numba kernels of (21)); deprecated.
+
+    ``ldaspark.integrate(..., engine="compiled")`` runs the same kernels through the one driver
+    (time grid, chunking, saving, events, dense output, monitors, the step-acceptance guard,
+    ensembles) with the root finder ``ldaspark.Newton(...)``; this function emits a
+    DeprecationWarning and returns the same numbers as before.
 
     Parameters
     ----------
@@ -254,6 +259,9 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
     >>> sol.q.shape
     (11, 3)
     """
+    import warnings
+    warnings.warn("fast_integrate is deprecated: use ldaspark.integrate(..., engine='compiled', "
+                  "newton=ldaspark.Newton(...))", DeprecationWarning, stacklevel=2)
     if isinstance(scene_or_system, str):          # a scene name, as integrate takes it
         from ..models.scenes import get_scene
         scene_or_system = get_scene(scene_or_system)
@@ -339,7 +347,7 @@ def _warm(scene_name, method, kernel):
     else:
         system = get_scene(scene_name).system
     cs = compile_system(system)
-    run_compiled(cs, method, 0.0, np.zeros(system.n), np.zeros(system.n), 0.01, 1, kernel=kernel)
+    runner.run_kernels(cs, method, 0.0, np.zeros(system.n), np.zeros(system.n), 0.01, 1, kernel=kernel)
     return _time.perf_counter() - t
 
 

@@ -41,7 +41,7 @@ def run_with_rescue(system, tab, cs, method, t0, q0, v0, h, n_steps, every, comp
     solver and matrix reuse among them); None: those of the other arguments."""
     from ..core.backend import Backend
     from ..core.spark import SparkMethod
-    from .runner import FastSolution, _run_checked, run_compiled
+    from .runner import FastSolution, _run_checked, run_kernels
 
     want = set(range(0, n_steps + 1, every)) | {n_steps}
     samples = {}                # global step -> (t, q, v, E, k)
@@ -74,7 +74,7 @@ def run_with_rescue(system, tab, cs, method, t0, q0, v0, h, n_steps, every, comp
     def run(n, e):
         if kopts is not None:
             return _run_checked(cs, method, (t, q, v), (h, n, e), kopts)
-        return run_compiled(cs, method, t, q, v, h, n, e, compensated, tol, max_iter, kernel, predictor)
+        return run_kernels(cs, method, t, q, v, h, n, e, compensated, tol, max_iter, kernel, predictor)
 
     while start < n_steps:
         left = n_steps - start

@@ -455,6 +455,18 @@ def _entry(name):
 
 def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, compensated=True,
                  tol=None, max_iter=50, kernel="auto", predictor=2, reuse_matrix="auto", linear_solver="auto"):
+    """Deprecated: ``ldaspark.integrate(..., engine="compiled", newton=ldaspark.Newton(...))`` runs
+    the same kernels with every option (the root finder's fields included); this is
+    ``run_kernels`` with a DeprecationWarning, the same results."""
+    import warnings
+    warnings.warn("run_compiled is deprecated: use ldaspark.integrate(..., engine='compiled', "
+                  "newton=ldaspark.Newton(...))", DeprecationWarning, stacklevel=2)
+    return run_kernels(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, kernel, predictor,
+                       reuse_matrix, linear_solver)
+
+
+def run_kernels(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, compensated=True,
+                tol=None, max_iter=50, kernel="auto", predictor=2, reuse_matrix="auto", linear_solver="auto"):
     """Run a compiled kernel (no fallback); ``method`` a name, a SparkTableau or a kernel_spec.
     predictor: 2 = linear extrapolation of the last two steps' unknowns, 1 = last step's,
     0 = zero increments (V_i = v1 = v0, Psi = 0). linear_solver (SPARK kernels, mechanical
