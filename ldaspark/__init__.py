@@ -115,6 +115,7 @@ if not any(isinstance(f, _MovedModules) for f in sys.meta_path):
 _EXPORTS = {
     "LagrangianSystem": "ldaspark.core.system",
     "integrate": "ldaspark.solve",
+    "Newton": "ldaspark.core.rootfinder",
     "Result": "ldaspark.core.result",
     "load_result": "ldaspark.core.resultio",
     "save_result": "ldaspark.core.resultio",

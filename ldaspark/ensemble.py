@@ -45,10 +45,10 @@ class EnsembleResult:
 
 
 def _fast_task(cs, spec, t0, ics, h, n_steps, every, compensated, tol):
-    from .compiled.fast import run_compiled
+    from .compiled.runner import run_kernels
     out = []
     for q0, v0 in ics:
-        fs = run_compiled(cs, spec, t0, q0, v0, h, n_steps, every, compensated, tol)
+        fs = run_kernels(cs, spec, t0, q0, v0, h, n_steps, every, compensated, tol)
         out.append(tuple(fs) + (fs.psi,))
     return out
 
@@ -126,14 +126,15 @@ class RunSpec:
 
     def tasks(self, chunk):
         """(callable, args) per chunk of initial data; compiles in this process first."""
-        from .compiled.fast import NotCompilableError, _notice, compile_system, kernel_spec, run_compiled
+        from .compiled.fast import NotCompilableError, _notice, compile_system, kernel_spec
+        from .compiled.runner import run_kernels
         spec = kernel_spec(self.method, self.kernel)
         rows = list(zip(self.Q0, self.V0))
         chunks = [rows[i:i + chunk] for i in range(0, len(rows), chunk)]
         try:
             cs = compile_system(self.system)
             # warm the numba cache here so that local workers load instead of compile
-            run_compiled(cs, spec, self.t0, self.Q0[0], self.V0[0], self.h, 1, 1, self.compensated, self.tol)
+            run_kernels(cs, spec, self.t0, self.Q0[0], self.V0[0], self.h, 1, 1, self.compensated, self.tol)
         except NotCompilableError as exc:
             _notice(str(exc))
             sysm = copy.copy(self.system)
@@ -247,6 +248,17 @@ def _run_plan(plan, n_specs, executor=None, max_workers=None, progress=None):
 
 def ensemble_integrate(system, method, t0, Q0, V0, h, n_steps, every=1, compensated=True, tol=None,
                        executor=None, max_workers=None, chunk=1, kernel="auto", progress=None) -> EnsembleResult:
+    """Deprecated: ``ldaspark.integrate(system, method, q0=Q0, v0=V0, executor=...)`` runs an
+    initial-data ensemble (a batched Result); this is the same run with a DeprecationWarning."""
+    import warnings
+    warnings.warn("ensemble_integrate is deprecated: use ldaspark.integrate(system, method, q0=Q0, v0=V0, "
+                  "executor=...)", DeprecationWarning, stacklevel=2)
+    return run_ensemble(system, method, t0, Q0, V0, h, n_steps, every, compensated, tol, executor, max_workers,
+                        chunk, kernel, progress)
+
+
+def run_ensemble(system, method, t0, Q0, V0, h, n_steps, every=1, compensated=True, tol=None,
+                 executor=None, max_workers=None, chunk=1, kernel="auto", progress=None) -> EnsembleResult:
     """Integrate ``system`` from every row of (Q0, V0) with the fast path (``ldaspark.compiled.fast``),
     in parallel over ``executor`` (default: a process pool over all cores). ``chunk`` initial
     data per task."""

@@ -38,6 +38,7 @@ from .core import validate
 from .core.dense import CollocationDense, EventTracker, HermiteDense, step_piece
 from .core.errors import InputError, LdasparkError, NewtonError, SingularSaddleError, TableauError
 from .core.options import ENGINES, IntegrationOptions
+from .core.guard import STATUS_GUARD
 from .core.result import (STATUS_EVENT, STATUS_NEWTON, STATUS_OTHER, STATUS_SADDLE, Result, float_array,
                           save_indices, stack)
 from .core.system import LagrangianSystem
@@ -146,9 +147,9 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
               h: Any = None, *, t0: Any = None, t_end: Any = None, n_steps: Optional[int] = None,
               engine: str = "auto", dps: Optional[int] = None, save_every: int = 1, dense_output: bool = False,
               events: Union[None, Callable, Sequence[Callable]] = None, params: Union[None, dict, list] = None,
-              raise_on_failure: bool = False, newton: str = "auto", project: bool = False,
+              raise_on_failure: bool = False, newton: Any = "auto", project: bool = False,
               tol: Optional[float] = None, executor: Any = None, energy_jump: Optional[float] = None,
-              max_stages: Optional[int] = None, **unknown: Any) -> Result:
+              max_stages: Optional[int] = None, guard: bool = True, **unknown: Any) -> Result:
     """Integrate the index-2 DAE (1) by an s-stage SPARK method (21a-f) with constant step h.
 
     Each step solves the stage equations (21a-f) for (Q_i, V_i, Psi_i) by Newton with the
@@ -193,10 +194,13 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
         ensemble over parameter values.
     raise_on_failure : bool, optional
         Raise the step failure instead of returning a Result with negative ``status``.
-    newton : {"auto", "full", "simplified", "mixed"}, optional
-        The Newton variant: "auto" (simplified Newton continuing as full Newton when it
-        contracts slowly), "full", "simplified", and at mpmath precision "mixed" (Newton matrix
-        in float64, residual at full precision).
+    newton : Newton or {"auto", "full", "simplified", "mixed"}, optional
+        The root finder of the stage equations (``ldaspark.Newton``: kind, tol, max_iter,
+        predictor, linear_solver, reuse), which every engine receives: each field is honoured
+        or refused with one InputError naming the engine and the field. A name is the kind:
+        "auto" (simplified Newton continuing as full Newton when it contracts slowly), "full",
+        "simplified", and at mpmath precision "mixed" (Newton matrix in float64, residual at
+        full precision; "full" in float64). ``Result.stats["root_finder"]`` says what ran.
     project : bool, optional
         Project v0 onto the constraint k(t0, q0, v) = 0 (in the L_vv metric) before the first
         step.
@@ -209,6 +213,11 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
         ``energy_jump (1 + |E|)``.
     max_stages : int, optional
         Raise the stage limit (20) of built-in method names.
+    guard : bool, optional
+        The step-acceptance guard (``ldaspark.core.guard``, on by default): a step whose
+        energy (8) change is far beyond what the method's local error explains is solved again
+        from safe starts; a different root ends the run with status -4 and a message naming the
+        step, the two roots and their energies.
     **unknown
         Any other keyword is refused with an `InputError` naming the closest option (a
         misspelt option must not be a raw TypeError, nor silently ignored).
@@ -247,7 +256,8 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
     # options object that every engine path below reads (the engines check nothing again)
     opts = IntegrationOptions.checked(engine=engine, dps=dps, newton=newton, tol=tol, save_every=save_every,
                                       dense_output=dense_output, energy_jump=energy_jump, executor=executor,
-                                      max_stages=max_stages, project=project, raise_on_failure=raise_on_failure)
+                                      max_stages=max_stages, project=project, raise_on_failure=raise_on_failure,
+                                      guard=guard)
     dps = opts.dps
     sysm, scene, init = _resolve_system(system, dps)
     kind, what, name = resolve_method(method, max_stages)
@@ -286,12 +296,30 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
         # worker), so that process pools and clusters can run the members as well as threads
         run = functools.partial(_member, sysm if isinstance(executor, ThreadPoolExecutor) else _portable(sysm),
                                 prob, member_opts)
-        try:
-            members = executor.map(run, jobs)       # submits every member now
-        except RuntimeError as exc:
-            raise validate.executor_shut_down(exc) from exc
-        return stack(list(members))
+        return stack(_run_members(executor, run, jobs))
     return _single(sysm, (params, q0, v0), prob, opts)
+
+
+def _run_members(executor, run, jobs) -> list:
+    """The members' Results from ``executor`` (its ``map``, which submits every member now): a
+    member's LdasparkError as it is; an executor that is shut down, whose ``submit`` raises or
+    returns something other than a future, or that hands back something other than a Result:
+    one LdasparkError naming the executor."""
+    name = type(executor).__name__
+    try:
+        members = list(executor.map(run, jobs))
+    except LdasparkError:
+        raise
+    except RuntimeError as exc:     # "cannot schedule new futures after shutdown" and the like
+        raise validate.executor_shut_down(exc) from exc
+    except Exception as exc:       # a third-party executor's own failure (submit returned None, ...)
+        raise LdasparkError(f"the executor {name} failed to run the ensemble members "
+                            f"({type(exc).__name__}: {str(exc)[:120]})") from exc
+    bad = [type(m).__name__ for m in members if not isinstance(m, Result)]
+    if bad or len(members) != len(jobs):
+        raise LdasparkError(f"the executor {name} returned {len(members)} results for {len(jobs)} ensemble members"
+                            + (f", not Results ({bad[0]})" if bad else ""))
+    return members
 
 
 @dataclass(frozen=True)
@@ -337,9 +365,9 @@ def _compiled_ensemble(system, params, Q0, V0, prob: _Problem, opts: Integration
             or params is not None or system.params
             or _compiled_reason(system, prob.kind, prob.name) is not None):
         return None
-    from .ensemble import ensemble_integrate
+    from .ensemble import run_ensemble
     from .core.result import from_ensemble
-    ens = ensemble_integrate(system, prob.method, prob.t0, Q0, V0, prob.h, prob.N, every=opts.save_every,
+    ens = run_ensemble(system, prob.method, prob.t0, Q0, V0, prob.h, prob.N, every=opts.save_every,
                              tol=opts.tol, executor=opts.executor)
     return from_ensemble(ens, method=prob.name, system=system.name, scene=prob.scene, h=prob.h,
                          save_every=opts.save_every)
@@ -483,6 +511,9 @@ def _energy_jump_cut(res: Result, energy_jump) -> tuple:
 
 
 def _failure(exc: BaseException) -> tuple:
+    from .core.guard import RootMismatchError
+    if isinstance(exc, RootMismatchError):
+        return STATUS_GUARD, str(exc)
     if isinstance(exc, NewtonError):
         return STATUS_NEWTON, str(exc)
     if isinstance(exc, SingularSaddleError):
@@ -525,7 +556,9 @@ def _run_generic(system, prob: _Problem, q0, v0, opts: IntegrationOptions) -> Re
     validate.check_storage(n_samples(N, every), 2 + 2 * n + m + s * m, mp=dps is not None)
     if dense or events:
         validate.check_storage(N + 1, n + s * n, what="the dense output")
-    method = SparkMethod(system, tableau, dps=dps, tol=opts.tol, newton=opts.newton, energy_jump=opts.energy_jump)
+    root = opts.newton.check_for("generic")
+    method = SparkMethod(system, tableau, dps=dps, tol=opts.tol, newton=root.kind, max_iter=root.iterations,
+                         energy_jump=opts.energy_jump)
     bk = method.backend
     status, message, error = 0, MSG_DONE, None
     with bk.context():
@@ -541,7 +574,8 @@ def _run_generic(system, prob: _Problem, q0, v0, opts: IntegrationOptions) -> Re
         saved_i, Qs, Vs, Ps = [0], [q], [v], []
         dense_q, dense_V = [], []
         done = 0
-        steps = march(method, t0_, q, v, h_, N)
+        watch = _GenericGuard(system, tableau, opts, bk, t0_, q, v, h_) if opts.guard else None
+        steps = march(method, t0_, q, v, h_, N, predictor=root.predictor)
         while True:
             try:              # only the step itself: an error raised by an event function propagates
                 item = next(steps, None)
@@ -551,6 +585,11 @@ def _run_generic(system, prob: _Problem, q0, v0, opts: IntegrationOptions) -> Re
             if item is None:
                 break
             i, ti, _, r = item
+            if watch is not None:
+                error = watch.step(i, ti, q, v, r)
+                if error is not None:
+                    status, message = STATUS_GUARD, str(error)
+                    break
             if i % every == 0:
                 Ps.append(r.Psi)
             if dense or tracker:
@@ -580,13 +619,60 @@ def _run_generic(system, prob: _Problem, q0, v0, opts: IntegrationOptions) -> Re
     res = Result(np.array(ts, dtype=dt), np.array(Qs, dtype=dt), np.array(Vs, dtype=dt), np.array(E, dtype=dt),
                  np.array(K, dtype=dt).reshape(len(ts), system.m), psi, status, message,
                  st["nfev"], st["njev"], st["nlu"], st["newton_iterations"], engine="generic",
-                 stats=dict(st, path="generic"), error=error)
+                 stats=dict(st, path="generic", engine="generic", root_finder=root.describe(),
+                            **(watch.stats() if watch is not None else {"guard": False})), error=error)
     if dense and done > 0:
         tg = float(t0_) + np.arange(done + 1) * float(h_)
         res.sol = CollocationDense(tg, np.array(dense_q + [float_array(q)]), c, np.array(dense_V))
     if tracker is not None:
         res.t_events, res.q_events, res.v_events = tracker.arrays()
     return res
+
+
+class _GenericGuard:
+    """The step-acceptance guard (``ldaspark.core.guard``) inside the generic engine's loop: each
+    step's energy change and Newton iterations against the previous steps'; a suspect step is
+    solved again from the safe starts, and a different root is the error that ends the run."""
+
+    def __init__(self, system, tableau, opts, bk, t0, q0, v0, h):
+        from .core.guard import StepGuard
+        self.system, self.tableau, self.opts, self.bk, self.h = system, tableau, opts, bk, h
+        self.test = StepGuard()
+        self.E = float(system.energy(bk, t0, q0, v0))
+        self.prev = None            # (V, Psi, h) of the previous step
+        self.methods = None
+        self.flagged = self.confirmed = self.unverified = 0
+
+    def _methods(self):
+        if self.methods is None:
+            from .core.spark import SparkMethod
+            o = self.opts
+            mk = lambda kind: SparkMethod(self.system, self.tableau, dps=o.dps, tol=o.tol, newton=kind,  # noqa: E731
+                                          max_iter=o.newton.iterations)
+            self.methods = (mk("full"), mk("auto"))
+        return self.methods
+
+    def step(self, i, ti, q, v, r):
+        """None when step i (from (ti, q, v), result r) stands, else the RootMismatchError."""
+        from .core import guard
+        E1 = float(r.energy)
+        if self.test.suspect(i, self.E, E1, r.iterations):
+            self.flagged += 1
+            label, safe = guard.safe_root(self._methods(), ti, q, v, self.h, self.prev, step_index=i)
+            if safe is None:
+                self.unverified += 1
+            elif guard.same_root(r.q1, r.v1, safe.q1, safe.v1):
+                self.confirmed += 1
+            else:
+                return guard.mismatch(i, ti, self.h, (r.q1, r.v1, E1), (safe.q1, safe.v1, float(safe.energy)), label)
+        self.test.accept(self.E, E1, r.iterations)
+        self.E = E1
+        self.prev = (r.V, r.Psi, self.h)
+        return None
+
+    def stats(self) -> dict:
+        return {"guard": True, "guard_flagged": self.flagged, "guard_confirmed": self.confirmed,
+                "guard_unverified": self.unverified}
 
 
 def _post_process(full: Result, every: int, dense: bool, events, sliced: bool = False) -> Result:
@@ -608,6 +694,8 @@ def _post_process(full: Result, every: int, dense: bool, events, sliced: bool = 
         full.t_events, full.q_events, full.v_events = tracker.arrays()
     if dense and done > 0:
         full.sol = HermiteDense(t[:done + 1], q[:done + 1], v[:done + 1])
+    if every == 1 and done == len(full.t) - 1:
+        return full                       # every step kept and asked for: nothing to slice
     idx = save_indices(done, every) if done > 0 else np.array([0])
     for name in ("t", "q", "v", "energy", "constraint"):
         setattr(full, name, np.asarray(getattr(full, name))[idx])
@@ -635,22 +723,18 @@ def _prefix_run(run: Callable, N: int, every: int) -> tuple:
 COMPILED_CHUNK = 2 ** 18
 
 
-def _fast_chunked(system, method, start, h, steps, tol):
-    """``fast_integrate`` from ``start`` = (t0, q0, v0) of ``steps`` = (n, every): n steps in calls
+def _fast_chunked(system, method, start, h, steps, kopts):
+    """The compiled engine (``compiled.fast.run_engine`` with the kernel options ``kopts``) from
+    ``start`` = (t0, q0, v0) of ``steps`` = (n, every): n steps in calls
     of at most COMPILED_CHUNK steps whose ends fall on the saved points (multiples of ``every``), so the
     saved samples are those of one call; a failure names the step of the whole run. Between calls
-    the predictor restarts (the numbers agree with one call to the Newton tolerance). ``tol`` may
-    be (tol, newton): newton "quasi" runs ``compiled.quasi`` instead."""
-    from .compiled.fast import FastSolution, compile_system, fast_integrate, run_compiled
-    tol, newton = tol if isinstance(tol, tuple) else (tol, "auto")
-    if newton == "quasi":       # the multiplier-only root finder (compiled.quasi), same chunks
-        from .compiled.quasi import quasi_integrate, run_quasi
-        fast_integrate = (lambda sysm, meth, *a, every, tol: quasi_integrate(sysm, meth, *a, every, tol))
-        run_compiled = (lambda cs, meth, *a: run_quasi(cs, meth, *a))
+    the predictor restarts (the numbers agree with one call to the Newton tolerance)."""
+    from .compiled.fast import FastSolution, compile_system, run_engine
+    from .compiled.runner import _run_checked
     (t0, q0, v0), (n, every) = start, steps
     chunk = COMPILED_CHUNK
     if n <= chunk:
-        return fast_integrate(system, method, t0, q0, v0, h, n, every=every, tol=tol)
+        return run_engine(system, method, (t0, q0, v0), (h, n, every), kopts)
     hf, t0f = float(h), float(t0)
     parts, stats, done, cs = [], None, 0, None
     q, v = q0, v0
@@ -662,12 +746,12 @@ def _fast_chunked(system, method, start, h, steps, tol):
             e = L
         try:
             if cs is None:
-                fs = fast_integrate(system, method, t0f + done * hf, q, v, h, L, every=e, tol=tol)
+                fs = run_engine(system, method, (t0f + done * hf, q, v), (h, L, e), kopts)
                 if fs.stats.get("path") != "fast":      # the generic fallback: one Python loop
-                    return fast_integrate(system, method, t0, q0, v0, h, n, every=every, tol=tol)
+                    return run_engine(system, method, (t0, q0, v0), (h, n, every), kopts)
                 cs = compile_system(system)
             else:
-                fs = run_compiled(cs, method, t0f + done * hf, q, v, h, L, e, True, tol)
+                fs = _run_checked(cs, method, (t0f + done * hf, q, v), (h, L, e), kopts)
         except LdasparkError as exc:
             if isinstance(getattr(exc, "step", None), int):
                 exc.step += done
@@ -702,29 +786,192 @@ def _run_compiled(system, prob: _Problem, q0, v0, opts: IntegrationOptions) -> R
     """The compiled engine (numba kernels, in chunks), with the prefix of a failed run, the energy
     monitor, dense output and events after the kernels; a kernel's Newton failure explained by
     the generic step at the same state."""
+    from .compiled import fast, runner
     from .core.backend import Backend
     method, t0, h, N = prob.method, prob.t0, prob.h, prob.N
     every, tol, energy_jump = opts.save_every, opts.tol, opts.energy_jump
+    kopts, engine_name = _kernel_options(prob, opts)
     if opts.project:
         bk = Backend(None)
         v0 = system.project_velocity(bk, float(t0), bk.array(q0), bk.array(v0))
     inner = 1 if opts.every_step else every
+    runner._check_options(N, inner, kopts.predictor, tol, kopts.max_iter, system.n, system.m)
+    # the initial point's (4) and k = 0 (the kernels assume both), after the projection of v0
+    fast._setup_checks(system, t0, q0, v0, fast._loaded(system))
 
     def run(n, e):
-        fs = _fast_chunked(system, method, (t0, q0, v0), h, (n, e), (tol, opts.newton))
+        fs = _fast_chunked(system, method, (t0, q0, v0), h, (n, e), kopts)
         st = dict(fs.stats)
+        used = "compiled" if st.get("path") == "fast" else "generic"
+        st.update(engine=engine_name if used == "compiled" else "generic", root_finder=opts.newton.describe())
+        st.setdefault("rescued_steps", st.get("generic_steps", 0))
         return Result(fs.t, fs.q, fs.v, fs.energy, fs.constraint, fs.psi, 0, MSG_DONE,
                       *(st.get(c, 0) for c in ("nfev", "njev", "nlu", "newton_iterations")),
-                      engine="compiled" if st.get("path") == "fast" else "generic", stats=st)
+                      engine=used, stats=st)
     res, exc = _prefix_run(run, N, inner)
     if isinstance(exc, NewtonError):
         exc = _generic_diagnosis(exc, system, prob, res, (t0, q0, v0), tol)
+    res, exc = _guard_scan(res, exc, system, prob, opts, lambda n: run(n, 1))
     if exc is None:
         res, exc = _energy_jump_cut(res, energy_jump)
-    # without dense output, events or an energy-jump watch the kernels kept every ``every``-th
-    # point already (inner = every): nothing to post-process (with every = 1 too: re-slicing
-    # would copy the arrays unchanged)
+    # without dense output, events, an energy-jump watch or the guard the kernels kept every
+    # ``every``-th point already (inner = every): nothing to post-process (with every = 1 too:
+    # re-slicing would copy the arrays unchanged)
     return _finish_prefix(res, exc, system, (t0, q0, v0), opts, "compiled")
+
+
+def _kernel_options(prob: _Problem, opts: IntegrationOptions) -> tuple:
+    """(``compiled.runner.KernelOptions`` of the root finder ``opts.newton``, the engine's name in
+    ``rootfinder.SUPPORT``): every field honoured or refused here. lobatto-iiia-iiib-2 runs on
+    the semi-implicit kernel (25) by default; a root finder that kernel does not run (another
+    kind, the block LU, matrix reuse) runs it on the SPARK kernel (the same method (21))."""
+    from .compiled.runner import NEWTON_MODES, KernelOptions, kernel_spec
+    from .core.rootfinder import PREDICTOR_CODES
+    root, kernel, name = opts.newton, "auto", "compiled"
+    if prob.kind == "comparator":
+        name = "compiled-lf2"
+        root.check_for(name)
+    elif kernel_spec(prob.method, "auto")[0] == "lf2":
+        try:
+            root.check_for("compiled-lf2")
+            name = "compiled-lf2"
+        except InputError:
+            root.check_for("compiled")
+            kernel = "spark"
+    else:
+        root.check_for("compiled")
+    if root.kind == "quasi":
+        from .compiled import quasi   # noqa: F401 (registers its runner in runner.KIND_RUNNERS)
+    return KernelOptions(True, opts.tol, root.iterations, kernel, PREDICTOR_CODES[root.predictor], root.reuse,
+                         root.linear_solver, NEWTON_MODES.get(root.kind, 0), root.kind), name
+
+
+#: the compiled engine's guard on a run with ``save_every`` > 1 judges the saved samples; a
+#: flagged interval is located by running the prefix again with every step kept, when that
+#: prefix holds at most this many floats (128 MB; beyond it the flagged intervals are counted as
+#: unverified)
+GUARD_EVERY_STEP_FLOATS = 2 ** 24
+#: the longest first saved interval the compiled engine's guard runs again with every step kept
+#: (4096 steps: a few ms of a kernel; a run that keeps only its end, save_every >= n_steps, is
+#: judged from its samples only)
+GUARD_HEAD = 4096
+#: flagged steps solved again per run; beyond it they are counted as unverified
+GUARD_MAX_RESOLVES = 1000
+
+
+def _guard_scan(res, exc, system, prob: _Problem, opts: IntegrationOptions, rerun=None) -> tuple:
+    """The step-acceptance guard (``ldaspark.core.guard``) on a run that returned its steps
+    (compiled kernels, comparators): (the run up to the first step with another root, that
+    RootMismatchError or ``exc``), the guard's counters in ``res.stats``. ``rerun(n)``: the
+    first n steps again with every step kept (the compiled engine, whose samples are
+    ``save_every`` steps apart unless dense output, events or the energy monitor kept every
+    step); None: ``res`` holds every step. Without a flagged sample nothing is run again, so the
+    guard costs one vectorised pass over the saved energies."""
+    from .core import guard
+    if res is None:
+        return res, exc
+    if not opts.guard:
+        res.stats["guard"] = False
+        return res, exc
+    st = res.stats
+    st.update(guard=True, guard_flagged=0, guard_confirmed=0, guard_unverified=0)
+    if len(res.t) < 3:
+        return res, exc
+    bad = guard.flagged(float_array(res.energy))
+    every = 1 if rerun is None or opts.every_step else opts.save_every
+    # the first saved interval has no history among the samples: its steps are judged on a
+    # rerun with every step kept when it is short (GUARD_HEAD steps), else left unjudged
+    head = 1 < every <= GUARD_HEAD
+    if not len(bad) and not head:
+        return res, exc
+    steps = res
+    if every > 1:       # locate: the prefix to the end of the last flagged interval, every step
+        t = float_array(res.t)
+        j = bad[-1] + 1 if len(bad) else 1
+        last = int(round((t[min(j, len(t) - 1)] - t[0]) / float(prob.h)))
+        if (last + 1) * (2 + 2 * system.n + system.m) > GUARD_EVERY_STEP_FLOATS:
+            st["guard_flagged"] = st["guard_unverified"] = int(len(bad))
+            return res, exc
+        try:
+            steps = rerun(last)
+        except LdasparkError:
+            st["guard_flagged"] = st["guard_unverified"] = int(len(bad))
+            return res, exc
+        bad = guard.flagged(float_array(steps.energy))
+    n = _guard_resolve(steps, bad, system, prob, opts, st)
+    if n is None:
+        return res, exc
+    n, err = n
+    idx = np.arange(n + 1) if every == 1 else save_indices(n, every) if n > 0 else np.array([0])
+    for nm in ("t", "q", "v", "energy", "constraint"):
+        setattr(res, nm, np.asarray(getattr(steps, nm))[idx])
+    res.psi = None if steps.psi is None else np.asarray(steps.psi)[idx[:-1]]
+    return res, err
+
+
+def _guard_resolve(steps: Result, bad, system, prob: _Problem, opts: IntegrationOptions, st: dict):
+    """Solve the flagged steps ``bad`` of the every-step run ``steps`` again from the safe
+    starts; (the first step with another root, its RootMismatchError) or None. Counts into
+    ``st`` (the run's stats)."""
+    from .core import guard
+    st["guard_flagged"] = int(len(bad))
+    if not len(bad):
+        return None
+    resolve = _comparator_resolver(system, prob, opts) if prob.kind == "comparator" else \
+        _spark_resolver(system, prob, opts)
+    t, q, v, E = (float_array(getattr(steps, a)) for a in ("t", "q", "v", "energy"))
+    for count, n in enumerate(bad):
+        if count >= GUARD_MAX_RESOLVES:
+            st["guard_unverified"] += len(bad) - count
+            break
+        label, safe = resolve(n, t, q, v)
+        if safe is None:
+            st["guard_unverified"] += 1
+        elif guard.same_root(q[n + 1], v[n + 1], safe[0], safe[1]):
+            st["guard_confirmed"] += 1
+        else:
+            return int(n), guard.mismatch(int(n), t[n], prob.h, (q[n + 1], v[n + 1], E[n + 1]), safe, label)
+    return None
+
+
+def _spark_resolver(system, prob: _Problem, opts: IntegrationOptions):
+    """resolve(n, t, q, v) -> (label, (q1, v1, E1)) of the safe root of step n (generic full Newton
+    from the previous step's collocation polynomial, then the explicit Euler predictor, then the
+    generic default step), or (None, None)."""
+    from .core import guard
+    from .core.spark import SparkMethod
+    tab = prob.what if prob.kind == "spark" else resolve_method(prob.name)[1]
+    mk = lambda kind: SparkMethod(system, tab, tol=opts.tol, newton=kind, max_iter=opts.newton.iterations)  # noqa: E731
+    methods = (mk("full"), mk("auto"))
+    h = float(prob.h)
+
+    def resolve(n, t, q, v):
+        prev = None
+        if n >= 1:          # the previous step's stages: a generic step from its start
+            try:
+                r = methods[0].step(t[n - 1], q[n - 1], v[n - 1], h, step_index=n - 1)
+                prev = (r.V, r.Psi, h)
+            except LdasparkError:
+                prev = None
+        label, r = guard.safe_root(methods, t[n], q[n], v[n], h, prev, step_index=int(n))
+        return (None, None) if r is None else (label, (r.q1, r.v1, float(r.energy)))
+    return resolve
+
+
+def _comparator_resolver(system, prob: _Problem, opts: IntegrationOptions):
+    """resolve(n, t, q, v) for a comparator: its own step from the same state, started afresh
+    (its default guess), as the safe root."""
+    from .core.comparators import integrate_comparator
+
+    def resolve(n, t, q, v):
+        try:
+            sol = integrate_comparator(prob.name, system, t[n], q[n], v[n], prob.h, 1, dps=opts.dps, tol=opts.tol,
+                                       max_iter=opts.newton.iterations, max_stages=opts.max_stages)
+        except LdasparkError:
+            return None, None
+        return "the comparator's own start", (np.asarray(sol.q[-1], float), np.asarray(sol.v[-1], float),
+                                              float(sol.energy[-1]))
+    return resolve
 
 
 def _generic_diagnosis(exc, system, prob: _Problem, res, start, tol) -> LdasparkError:
@@ -770,19 +1017,22 @@ def _run_comparator(system, prob: _Problem, q0, v0, opts: IntegrationOptions) ->
     from .core.comparators import integrate_comparator
     name, t0, h, N = prob.name, prob.t0, prob.h, prob.N
     dps, tol, max_stages = opts.dps, opts.tol, opts.max_stages
+    root = opts.newton.check_for("comparator")
     bk = Backend(dps)
     with bk.context():
         t0_, q0, v0 = _initial_checks(system, bk, (t0, q0, v0), opts)
 
     def run(n, e):
-        sol = integrate_comparator(name, system, t0_, q0, v0, h, int(n), dps=dps, tol=tol, max_stages=max_stages)
-        st = dict(sol.stats, path="generic")
+        sol = integrate_comparator(name, system, t0_, q0, v0, h, int(n), dps=dps, tol=tol, max_stages=max_stages,
+                                   max_iter=root.iterations)
+        st = dict(sol.stats, path="generic", engine="comparator", root_finder=root.describe())
         psi = np.asarray(sol.psi)
         return Result(sol.t, sol.q, sol.v, sol.energy, sol.constraint, psi if psi.ndim == 3 else None, 0,
                       MSG_DONE, *(st.get(c, 0) for c in ("nfev", "njev", "nlu", "newton_iterations")),
                       engine="generic", stats=st)
     validate.check_storage(N + 1, 2 + 2 * system.n + system.m, mp=dps is not None, what="the comparator's steps")
     res, exc = _prefix_run(run, N, 1)
+    res, exc = _guard_scan(res, exc, system, prob, opts)
     if exc is None:
         res, exc = _energy_jump_cut(res, opts.energy_jump)
     return _finish_prefix(res, exc, system, (t0_, q0, v0), opts, "generic")

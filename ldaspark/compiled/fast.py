@@ -196,7 +196,12 @@ def _first_line(exc):
 def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n_steps=None,
                    every=1, compensated=True, tol=None, max_iter=50, kernel="auto", predictor=2,
                    linear_solver="auto") -> FastSolution:
-    """Integrate with the compiled float64 path (numba kernels of (21)).
+    """Integrate with the compiled float64 path (numba kernels of (21)); deprecated.
+
+    ``ldaspark.integrate(..., engine="compiled")`` runs the same kernels through the one driver
+    (time grid, chunking, saving, events, dense output, monitors, the step-acceptance guard,
+    ensembles) with the root finder ``ldaspark.Newton(...)``; this function emits a
+    DeprecationWarning and returns the same numbers as before.
 
     Parameters
     ----------
@@ -254,6 +259,9 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
     >>> sol.q.shape
     (11, 3)
     """
+    import warnings
+    warnings.warn("fast_integrate is deprecated: use ldaspark.integrate(..., engine='compiled', "
+                  "newton=ldaspark.Newton(...))", DeprecationWarning, stacklevel=2)
     if isinstance(scene_or_system, str):          # a scene name, as integrate takes it
         from ..models.scenes import get_scene
         scene_or_system = get_scene(scene_or_system)
@@ -279,6 +287,19 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
     if linear_solver not in LINEAR_SOLVERS:
         raise InputError(f"linear_solver must be one of {LINEAR_SOLVERS}, got {linear_solver!r}")
     _setup_checks(system, t0, q0, v0, _loaded(system))
+    kopts = runner.KernelOptions(compensated, tol, max_iter, kernel, predictor, linear_solver=linear_solver)
+    return run_engine(system, method, (t0, q0, v0), (h, n_steps, every), kopts)
+
+
+def run_engine(system, method, start, grid, kopts) -> FastSolution:
+    """The compiled engine's block of steps after the checks (``ldaspark.integrate``'s driver
+    and ``fast_integrate`` checked the options and the initial point): ``start`` = (t0, q0, v0),
+    ``grid`` = (h, n_steps, every), ``kopts`` the ``runner.KernelOptions`` (the root finder's
+    fields among them). The fallbacks: the generic path where the system does not compile, the
+    generic full-Newton step where a kernel's Newton fails (``rescue``)."""
+    (t0, q0, v0), (h, n_steps, every) = start, grid
+    compensated, tol, max_iter, kernel, predictor = (kopts.compensated, kopts.tol, kopts.max_iter, kopts.kernel,
+                                                     kopts.predictor)
     try:
         cs = compile_system(system)
         cs.model  # noqa: B018  (build the model now so that failures fall back)
@@ -288,7 +309,6 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
     except Exception as exc:  # numba typing/lowering errors of generated code
         _notice(f"{system.name}: compilation failed ({_first_line(exc)})")
         return generic_integrate(system, method, t0, q0, v0, h, n_steps, every, tol)
-    kopts = runner.KernelOptions(compensated, tol, max_iter, kernel, predictor, linear_solver=linear_solver)
     try:
         return runner._run_checked(cs, method, (t0, q0, v0), (h, n_steps, every), kopts)
     except NotCompilableError as exc:
@@ -301,7 +321,7 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
         # the last link of the fallback chain: the generic full-Newton step (``rescue``)
         from .rescue import run_with_rescue
         return run_with_rescue(system, what, cs, method, t0, q0, v0, h, int(n_steps), int(every), compensated,
-                               tol, max_iter, kernel, predictor, exc)
+                               tol, max_iter, kernel, predictor, exc, kopts=kopts)
 
 
 # --- warming the compile cache -------------------------------------------------------------
@@ -327,7 +347,7 @@ def _warm(scene_name, method, kernel):
     else:
         system = get_scene(scene_name).system
     cs = compile_system(system)
-    run_compiled(cs, method, 0.0, np.zeros(system.n), np.zeros(system.n), 0.01, 1, kernel=kernel)
+    runner.run_kernels(cs, method, 0.0, np.zeros(system.n), np.zeros(system.n), 0.01, 1, kernel=kernel)
     return _time.perf_counter() - t
 
 

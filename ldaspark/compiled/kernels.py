@@ -119,6 +119,11 @@ MAX_FRESH = 8
 #: when that step needed at most one matrix (simplified Newton across steps, RADAU5's reuse); an
 #: increment that does not contract by 1/2 brings a fresh matrix as within a step
 REUSE_MATRIX = 4
+#: ``predictor`` // NEWTON_MODE (from ``runner.KernelOptions.newton_mode``): the root finder's
+#: kind (``ldaspark.core.rootfinder.Newton``): 0 "auto" (simplified Newton with fresh matrices
+#: at slow contraction, the default), 1 "full" (a matrix at every iterate), 2 "simplified" (one
+#: matrix per step, no fresh ones); each followed by the full-Newton rescue from the zero start
+NEWTON_MODE = 8
 #: (after a reuse attempt that did not stay under REUSE_THETA the next attempt waits 1, 2, 4, ...,
 #: 64 steps: where the matrix changes too fast per step, reuse is then tried rarely)
 #: the matrix is kept for the next step only if every increment of this step contracted by this
@@ -129,7 +134,7 @@ REUSE_THETA = 0.01
 
 
 @numba.njit(cache=True, _nrt=False)
-def spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, full, stats, stale):
+def spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, mode, stats, stale):
     """Newton for the step equations (21) from the guess in x; returns (status, iterations),
     status as ``newton.end_newton``. Stopping rule ``newton.newton_status`` with the round-off
     scale |v0|_inf of the stage values V_i = v0 + Z_i. full=False: simplified Newton (one
@@ -141,7 +146,10 @@ def spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, ful
     stale=True: J, piv already hold the LU of the previous step's
     matrix, used as it is (no Jacobian, no LU) until an increment does not contract by 1/2;
     status -3 when its first increments are not finite (the caller predicts again and starts
-    with a fresh matrix)."""
+    with a fresh matrix). ``mode`` (``NEWTON_MODE``): 0 simplified with fresh matrices, 1 full
+    (``full``), 2 simplified with the one matrix of the step (no fresh ones)."""
+    full = mode == 1
+    max_fresh = 0 if mode == 2 else MAX_FRESH
     scale = norm_inf(v)
     if stale:
         begin_step(model, t, q, v, ws)
@@ -168,7 +176,7 @@ def spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, ful
             return -3, it, worst
         if status != 0:
             break
-        if full or (prev > 0.0 and dn > 0.5 * prev and fresh < MAX_FRESH):
+        if full or (prev > 0.0 and dn > 0.5 * prev and fresh < max_fresh):
             if not full:
                 fresh += 1
             stats[2] += evaluate(model, tab, True, x, t, q, v, h, M, ws, G, J)
@@ -222,7 +230,8 @@ def spark_loop(model, tab, M, ws, J, piv, t0, q0, v0, h, n_steps, every, compens
     if not store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
         fail(stats, 0, FAIL_NONFINITE)
         return
-    reuse = predictor >= REUSE_MATRIX          # bit REUSE_MATRIX of ``predictor``: see REUSE_MATRIX
+    mode = predictor // NEWTON_MODE            # the root finder's kind: see NEWTON_MODE
+    reuse = (predictor // REUSE_MATRIX) % 2 == 1 and mode != 1   # bit REUSE_MATRIX: see REUSE_MATRIX
     predictor = predictor % REUSE_MATRIX
     have = False            # J, piv hold the LU of a matrix of the last step, fit for reuse
     wait, backoff = 0, 1    # steps before the next reuse attempt after a failed one, and its growth
@@ -234,12 +243,12 @@ def spark_loop(model, tab, M, ws, J, piv, t0, q0, v0, h, n_steps, every, compens
         stale = reuse and have and wait == 0
         if wait > 0:
             wait -= 1
-        status, it, worst = spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, False,
+        status, it, worst = spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, mode,
                                          stats, stale)
         if status == -3:
             # the reused matrix sent the first increments to inf/NaN: predict again, fresh matrix
             predict(x, x_last, x_prev, step, predictor)
-            status, it2, worst = spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, False,
+            status, it2, worst = spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, mode,
                                               stats, False)
             it += it2
         # reuse the matrix next step if this step needed at most one and contracted fast with it
@@ -257,7 +266,7 @@ def spark_loop(model, tab, M, ws, J, piv, t0, q0, v0, h, n_steps, every, compens
             stats[mt.FULL_NEWTON_STEPS] += 1
             for r in range(NN):
                 x[r] = 0.0
-            status, it2, worst = spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, True,
+            status, it2, worst = spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, 1,
                                               stats, False)
             it += it2
         if status != 1:

@@ -44,7 +44,7 @@ from .newton import (FAIL_NONFINITE, RATE_KAPPA, accept_step, end_newton, fail, 
 # digest is written here so that editing one changes this file too (tests/test_kernels_quasi.py).
 HELPERS = ("kernels.py", "newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py",
            "modeltypes.py")
-HELPERS_SHA256 = "d2ba4d86417a8369d5a70d7fc6126297c67100c6decfe59f133139b0041428ee"
+HELPERS_SHA256 = "04fa3f767296d5fa9a6e06b6e5fe88740585bed0e0e63b630cb765ae398f6bfc"
 
 #: a quasi-Newton increment that contracts by less than this (|dx_k| > QUASI_THETA |dx_k-1|)
 #: sends the step to the Newton chain: at rate 1/2 the ~50 bits from a predictor error of 1e-2

@@ -14,6 +14,7 @@ from ..core.errors import InputError
 
 from .codegen import NotCompilableError
 from .runner import (_TOL_DEFAULT, STAT_NAMES, FastSolution, _check_options, _failure, kernel_spec, n_samples)
+from . import runner
 
 #: the counters ``run_quasi`` adds to the stats of ``runner.run_compiled``: quasi-Newton
 #: iterations, steps it solved, steps sent to the Newton chain, multiplier matrices factored,
@@ -79,8 +80,8 @@ def run_quasi(cs, method, t0, q0, v0, h, n_steps, every=1, compensated=True, tol
     method (21), the same stopping rule and failure reports; mechanical form and SPARK tableaus
     only. predictor: "collocation" (IRKGaussLegendre.jl's, default) or 0, 1, 2 as
     ``run_compiled``. stats adds QUASI_STAT_NAMES and root_finder = "quasi"."""
-    if cs.form != "mechanical":
-        raise NotCompilableError(f"{cs.name}: newton='quasi' needs a system in mechanical form "
+    if cs.form != "mechanical":     # an InputError, not NotCompilableError: never run as something else
+        raise InputError(f"{cs.name}: newton='quasi' needs a system in mechanical form "
                                  "(L = 1/2 v^T M v - U(t, q), k = K(t, q) v + b(t, q), M constant)")
     if isinstance(predictor, str) and predictor == "collocation":
         pflag = 3
@@ -151,3 +152,24 @@ def quasi_integrate(system, method, t0, q0, v0, h, n_steps, every=1, tol=None) -
         return run_quasi(cs, method, t0, q0, v0, h, n_steps, every, True, tol)
     except NotCompilableError as exc:
         raise InputError(f"newton='quasi' cannot run this: {exc}") from None
+
+
+def _run_quasi_kind(cs, spec, start, grid, opts):
+    """The "quasi" kind: ``compiled.quasi.run_quasi`` (the multiplier-only iteration of (21) with
+    its fallback to this module's Newton chain). It solves the multiplier system densely and forms
+    its matrix once per step: a sparse solver or matrix reuse asked for is refused, not ignored."""
+    if opts.linear_solver not in ("auto", "dense"):
+        raise InputError(f"newton kind 'quasi' on the compiled engine: linear_solver={opts.linear_solver!r} is not "
+                         "honoured (it factors the (s m) x (s m) multiplier matrix densely); use 'auto' or 'dense'")
+    if opts.reuse_matrix is True:
+        raise InputError("newton kind 'quasi' on the compiled engine: reuse=True is not honoured (the multiplier "
+                         "matrix is formed once per step at the predictor); use 'auto' or False")
+    if spec[0] == "lf2" and spec[2] not in runner.LF2_VARIANTS:
+        spec = runner.kernel_spec(spec[2], "spark")          # (25) is lobatto-iiia-iiib-2
+    (t0, q0, v0), (h, n_steps, every) = start, grid
+    predictor = "collocation" if opts.predictor in (None, 2, "auto") else opts.predictor
+    return run_quasi(cs, spec, t0, q0, v0, h, n_steps, every, opts.compensated, opts.tol,
+                     opts.max_iter if opts.max_iter is not None else 50, predictor)
+
+
+runner.KIND_RUNNERS["quasi"] = _run_quasi_kind

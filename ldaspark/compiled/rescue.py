@@ -32,14 +32,16 @@ def _local_indices(n, every):
 
 
 def run_with_rescue(system, tab, cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter,
-                    kernel, predictor, first_failure):
+                    kernel, predictor, first_failure, kopts=None):
     """Finish the run that failed with ``first_failure`` (the kernel's NewtonError, local step
     from t0) by generic full-Newton steps at the failing steps; returns a FastSolution with the
     kernel's statistics summed and stats["generic_steps"] = the number of steps taken by the
-    generic engine. Raises the generic step's NewtonError where that fails too."""
+    generic engine. Raises the generic step's NewtonError where that fails too. ``kopts``
+    (``runner.KernelOptions``): the kernel runs' options as given (the root finder's kind, linear
+    solver and matrix reuse among them); None: those of the other arguments."""
     from ..core.backend import Backend
     from ..core.spark import SparkMethod
-    from .runner import FastSolution, run_compiled
+    from .runner import FastSolution, _run_checked, run_kernels
 
     want = set(range(0, n_steps + 1, every)) | {n_steps}
     samples = {}                # global step -> (t, q, v, E, k)
@@ -70,7 +72,9 @@ def run_with_rescue(system, tab, cs, method, t0, q0, v0, h, n_steps, every, comp
         return t, q.copy(), v.copy(), E, np.asarray(system.constraint(bk, t, q, v), float)
 
     def run(n, e):
-        return run_compiled(cs, method, t, q, v, h, n, e, compensated, tol, max_iter, kernel, predictor)
+        if kopts is not None:
+            return _run_checked(cs, method, (t, q, v), (h, n, e), kopts)
+        return run_kernels(cs, method, t, q, v, h, n, e, compensated, tol, max_iter, kernel, predictor)
 
     while start < n_steps:
         left = n_steps - start

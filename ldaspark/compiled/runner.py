@@ -455,6 +455,18 @@ def _entry(name):
 
 def run_compiled(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, compensated=True,
                  tol=None, max_iter=50, kernel="auto", predictor=2, reuse_matrix="auto", linear_solver="auto"):
+    """Deprecated: ``ldaspark.integrate(..., engine="compiled", newton=ldaspark.Newton(...))`` runs
+    the same kernels with every option (the root finder's fields included); this is
+    ``run_kernels`` with a DeprecationWarning, the same results."""
+    import warnings
+    warnings.warn("run_compiled is deprecated: use ldaspark.integrate(..., engine='compiled', "
+                  "newton=ldaspark.Newton(...))", DeprecationWarning, stacklevel=2)
+    return run_kernels(cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, kernel, predictor,
+                       reuse_matrix, linear_solver)
+
+
+def run_kernels(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, compensated=True,
+                tol=None, max_iter=50, kernel="auto", predictor=2, reuse_matrix="auto", linear_solver="auto"):
     """Run a compiled kernel (no fallback); ``method`` a name, a SparkTableau or a kernel_spec.
     predictor: 2 = linear extrapolation of the last two steps' unknowns, 1 = last step's,
     0 = zero increments (V_i = v1 = v0, Psi = 0). linear_solver (SPARK kernels, mechanical
@@ -485,6 +497,20 @@ class KernelOptions:
     predictor: int = 2
     reuse_matrix: object = "auto"
     linear_solver: str = "auto"
+    #: the root finder's kind as the SPARK kernels run it (``kernels.NEWTON_MODE``): 0 "auto",
+    #: 1 "full" (and "mixed", which is "full" in float64), 2 "simplified"; ``NEWTON_MODES``
+    newton_mode: int = 0
+    #: the root finder's kind by name (``ldaspark.core.rootfinder.KINDS``): a kind in
+    #: ``KIND_RUNNERS`` runs there instead of the kernels' Newton
+    newton_kind: str = "auto"
+
+
+#: root-finder kind -> the SPARK kernels' Newton mode (``kernels.NEWTON_MODE``). A kind run by
+#: its own module (e.g. a multiplier-only quasi-Newton iteration) registers a runner in
+#: ``KIND_RUNNERS`` instead: ``KIND_RUNNERS[kind](cs, spec, start, grid, opts) -> FastSolution``
+NEWTON_MODES = {"auto": 0, "full": 1, "mixed": 1, "simplified": 2, "quasi": 0}
+KIND_RUNNERS: dict = {}          # "quasi": registered by ``compiled.quasi`` when imported
+
 
 
 def _run_checked(cs, method, start, grid, opts: KernelOptions):
@@ -496,6 +522,8 @@ def _run_checked(cs, method, start, grid, opts: KernelOptions):
                                                      opts.predictor)
     reuse_matrix, linear_solver = opts.reuse_matrix, opts.linear_solver
     spec = method if isinstance(method, tuple) else kernel_spec(method, kernel)
+    if opts.newton_kind in KIND_RUNNERS:      # a root-finder kind with a module of its own
+        return KIND_RUNNERS[opts.newton_kind](cs, spec, start, grid, opts)
     kind, what, name = spec
     if kind == "lf2" and cs.form != "mechanical":
         if name in LF2_VARIANTS:
@@ -517,7 +545,7 @@ def _run_checked(cs, method, start, grid, opts: KernelOptions):
         reuse_matrix = cs.n >= REUSE_AUTO_MIN_N
     elif not isinstance(reuse_matrix, (bool, np.bool_)):
         raise InputError(f"reuse_matrix must be True, False or 'auto', got {reuse_matrix!r:.60}")
-    pflag = int(predictor) + (4 if reuse_matrix else 0)
+    pflag = int(predictor) + (4 if reuse_matrix else 0) + 8 * int(opts.newton_mode)
     run = (float(t0), q0, v0, h, int(n_steps), int(every), bool(compensated), tol, int(max_iter), pflag)
     model = cs.model
     solver = "dense"
@@ -553,6 +581,7 @@ def _run_checked(cs, method, start, grid, opts: KernelOptions):
     st["compensated"] = bool(compensated)
     st["linear_solver"] = solver
     st["reuse_matrix"] = bool(reuse_matrix) and kind != "lf2"
+    st["newton_kind"] = "lf2" if kind == "lf2" else opts.newton_kind
     psi = None if kind == "lf2" else out_x[NN:].reshape(S - 1, s_, cs.m)
     return FastSolution(*outs, st, psi)
 

@@ -20,7 +20,9 @@ class IntegrationOptions:
     """How to integrate (not what): engine, arithmetic, Newton, output, monitors, where members run.
 
     engine: "auto", "compiled" or "generic"; dps: mpmath digits (None: float64); newton: the
-    generic engine's Newton variant; tol: Newton tolerance (None: the engine's default);
+    root finder (``ldaspark.core.rootfinder.Newton``, every engine receives it; the old kind
+    names are mapped to it); tol: Newton tolerance (None: the engine's default; = newton.tol);
+    guard: the step-acceptance guard (``ldaspark.core.guard``, on by default);
     save_every: keep every k-th step and the last; dense_output; events: the checked events
     (``ldaspark.core.dense.Event``); energy_jump: the energy monitor's relative jump (None: off);
     executor: where ensemble members run (None: a loop here); max_stages: the stage limit of
@@ -28,8 +30,9 @@ class IntegrationOptions:
 
     engine: str = "auto"
     dps: Optional[int] = None
-    newton: str = "auto"
+    newton: Any = None
     tol: Optional[float] = None
+    guard: bool = True
     save_every: int = 1
     dense_output: bool = False
     events: tuple = ()
@@ -42,23 +45,27 @@ class IntegrationOptions:
     @classmethod
     def checked(cls, *, engine="auto", dps=None, newton="auto", tol=None, save_every=1, dense_output=False,
                 energy_jump=None, executor=None, max_stages=None, project=False,
-                raise_on_failure=False) -> "IntegrationOptions":
+                raise_on_failure=False, guard=True) -> "IntegrationOptions":
         """The options after the checks of ``ldaspark.core.validate`` (one InputError naming the
         first wrong value, in this order: engine, dps, newton, executor, save_every, max_stages,
         tol, energy_jump, the flags, dps with the compiled engine). Events are checked apart
         (``with_events``), after the system and the method, as ``integrate`` always has."""
         validate.check_choice(engine, "engine", ENGINES)
         dps = validate.check_dps(dps)
-        # "quasi": the compiled engine's multiplier-only root finder (``compiled.quasi``)
-        validate.check_choice(newton, "newton", validate.NEWTON_VARIANTS + ("quasi",))
+        from .rootfinder import Newton
+        if not isinstance(newton, Newton):
+            # "quasi": the compiled engine's multiplier-only root finder (``compiled.quasi``)
+            validate.check_choice(newton, "newton", validate.NEWTON_VARIANTS + ("quasi",))
         validate.check_executor(executor)
         validate.count(save_every, "save_every")
         validate.check_max_stages(max_stages)
         validate.check_newton_options(tol, 1)
+        newton = Newton.coerce(newton, tol)
+        tol = newton.tol
         if energy_jump is not None:
             validate.check_newton_options(energy_jump, 1, what="energy_jump")
         for flag, val in (("dense_output", dense_output), ("raise_on_failure", raise_on_failure),
-                          ("project", project)):
+                          ("project", project), ("guard", guard)):
             if not validate._is_bool(val):
                 raise InputError(f"{flag} must be True or False, got {validate._describe(val)}")
         if dps is not None and engine == "compiled":
@@ -67,7 +74,8 @@ class IntegrationOptions:
             raise InputError("newton='quasi' runs on the compiled engine only (float64, engine='compiled' or 'auto')")
         return cls(engine=engine, dps=dps, newton=newton, tol=tol, save_every=save_every,
                    dense_output=dense_output, energy_jump=energy_jump, executor=executor,
-                   max_stages=max_stages, project=project, raise_on_failure=raise_on_failure)
+                   max_stages=max_stages, project=project, raise_on_failure=raise_on_failure,
+                   guard=bool(guard))
 
     def with_events(self, events) -> "IntegrationOptions":
         """These options with ``events`` (None, a callable or a sequence of them) checked and

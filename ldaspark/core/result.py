@@ -12,8 +12,12 @@ Shapes for one run with S saved points (S = N + 1 for ``save_every = 1``):
   same equations with +K^T lam, so for the same constraint expressions psi = -lam.
 * ``status``: 0 success, 1 a terminal event stopped the run, negative failure (scipy's
   convention): -1 the Newton iteration of (21) failed, -2 the saddle matrix (4) became singular
-  or changed sign, -3 another step failure (non-finite values). On failure the arrays hold the
+  or changed sign, -3 another step failure (non-finite values), -4 the step-acceptance guard
+  found another root of (21) at a step (``ldaspark.core.guard``). On failure the arrays hold the
   trajectory up to the last good step and ``message`` says why.
+* ``stats``: the engine's counters, and what ran: ``engine``, ``root_finder`` (the fields of
+  ``ldaspark.Newton``), the rescues (``full_newton_steps``, ``rescued_steps`` on the compiled
+  engine) and the guard's ``guard_flagged`` / ``guard_confirmed`` / ``guard_unverified``.
 * counters ``nfev`` (stage points evaluated), ``njev`` (Jacobian assemblies), ``nlu`` (LU
   factorisations), ``newton_iterations``.
 * ``sol``: the dense output (``ldaspark.core.dense``) when asked for, ``sol(t) -> (q, v)``.
@@ -39,6 +43,7 @@ STATUS_EVENT = 1
 STATUS_NEWTON = -1
 STATUS_SADDLE = -2
 STATUS_OTHER = -3
+STATUS_GUARD = -4
 
 COUNTERS = ("nfev", "njev", "nlu", "newton_iterations")
 
@@ -196,6 +201,18 @@ def save_indices(n_steps: int, every: int) -> np.ndarray:
     return np.array(idx, dtype=int)
 
 
+class EnsembleDense:
+    """The dense output of an ensemble: ``sol(t) -> (q, v)`` with a leading member axis, each
+    member's own ``sol`` (``Result.members[j].sol``) evaluated at t."""
+
+    def __init__(self, sols):
+        self.sols = list(sols)
+
+    def __call__(self, t):
+        pairs = [s(t) for s in self.sols]
+        return np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs])
+
+
 def stack(members: list) -> Result:
     """An ensemble Result from member Results (same system, method and grid).
 
@@ -237,7 +254,8 @@ def stack(members: list) -> Result:
                   h=first.h, dps=first.dps, save_every=first.save_every,
                   params={"members": [r.params for r in members]},
                   stats={"members": [r.stats for r in members]}, n_valid=n_valid, members=list(members),
-                  coordinate_names=first.coordinate_names, **out)
+                  coordinate_names=first.coordinate_names, **out,
+                  sol=EnsembleDense(r.sol for r in members) if all(r.sol is not None for r in members) else None)
 
 
 def from_ensemble(ens: Any, **meta: Any) -> Result:

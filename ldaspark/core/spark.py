@@ -569,7 +569,7 @@ def n_steps_for(t0, t_end, h) -> int:
     return N
 
 
-def march(method: SparkMethod, t0, q0, v0, h, n_steps: int, monitor_saddle: bool = True):
+def march(method: SparkMethod, t0, q0, v0, h, n_steps: int, monitor_saddle: bool = True, predictor: str = "auto"):
     """The stepping loop of (21) shared by ``integrate`` and ``ldaspark.integrate``: yields
     (i, t_i, q_i, StepResult of step i) for i = 0..n_steps-1 from checked, consistent
     (t0, q0, v0) already converted by ``method.backend`` (t_i = t0 + i h). The caller stores
@@ -577,14 +577,19 @@ def march(method: SparkMethod, t0, q0, v0, h, n_steps: int, monitor_saddle: bool
     early; a failing step raises (NewtonError, NonFiniteError, SingularSaddleError) from the
     generator. Predictor: the previous step's unknowns shifted by the last velocity increment.
     ``monitor_saddle``: a sign change of det (4) between t0 and a step point is an error (the
-    step landed on the second solution near the limit of (4), see ``integrate``)."""
+    step landed on the second solution near the limit of (4), see ``integrate``).
+    ``predictor`` (``ldaspark.core.rootfinder.PREDICTORS``): "auto" and "previous" as above,
+    "zero" every step from zero increments (V_i = v1 = v0, Psi = 0: ``SparkMethod.step``'s
+    default start)."""
     system, bk = method.system, method.backend
     q, v = q0, v0
     x = v_prev = None
     sign0 = _saddle_sign(system, bk, t0, q, v) if monitor_saddle else None
     for i in range(n_steps):
         ti = t0 + i * h
-        if x is not None and v_prev is not None:
+        if predictor == "zero":
+            x = None
+        elif x is not None and v_prev is not None:
             Vp, Lp, v1p = method.unpack(x)
             x = method.pack(Vp + (v - v_prev), Lp, v1p + (v - v_prev))
         r = method.step(ti, q, v, h, x0=x, step_index=i)

@@ -83,8 +83,8 @@ MAX_NUMBER_CHARS = 5000
 MAX_STAGES_CEILING = 100
 #: result files larger than this are not read (a trajectory of 10**8 float64 numbers is 0.8 GB)
 MAX_RESULT_BYTES = 2 ** 31
-#: the Newton variants of ``SparkMethod`` (the compiled engine runs simplified Newton whatever the
-#: name, but a name outside this list is a mistake on every engine)
+#: the Newton variants of ``SparkMethod`` (``integrate``'s ``newton`` names; every engine honours
+#: them or refuses them: ``ldaspark.core.rootfinder``)
 NEWTON_VARIANTS = ("auto", "full", "simplified", "mixed")
 
 

@@ -39,7 +39,7 @@ def test_tol_changes_the_iterations(engine):
 
 @pytest.mark.parametrize("engine", [
     "generic",
-    pytest.param("compiled", marks=pytest.mark.xfail(strict=True, reason="compiled engine ignores newton: issue #46")),
+    "compiled",                     # honoured since the root finder became an option object (#46)
 ])
 def test_newton_variant_changes_the_counters(engine):
     """Full Newton evaluates and factors the Jacobian at every iteration, simplified Newton once

@@ -50,7 +50,7 @@ MUTANTS = (
        "energy_jump silently ignored by the compiled engine", "validation",
        TV + "::test_energy_jump_is_accepted_by_integrate_on_every_engine", TV),
     _m("relvalid-compiled-not-chunked", "solve.py",
-       "    if n <= chunk:\n        return fast_integrate", "    if True:\n        return fast_integrate",
+       "    if n <= chunk:\n        return run_engine", "    if True:\n        return run_engine",
        "a long compiled run is one kernel call (Ctrl-C waits for it)", "validation",
        TV + "::test_long_compiled_run_is_chunked_with_the_same_samples", TV),
     _m("relvalid-generic-storage-unchecked", "solve.py",

@@ -1,0 +1,196 @@
+"""The step-acceptance guard: no step whose Newton iteration converged to another root of the
+stage equations (21) is handed back as part of a solution.
+
+Near the Newton limit (h of the order of the period of the fastest motion) the stage equations
+(21a-f) can have several roots; a Newton iteration started from a poor guess may converge to
+one far from the trajectory, with the constraint (1c) still satisfied to round-off: only the
+energy (8) shows the jump. The guard runs on every engine (on by default, ``guard=False`` turns
+it off):
+
+1. **Which steps are suspect.** For a consistent step of an order-p method the energy change
+   dE_n = E(t_{n+1}) - E(t_n) is the local error of the energy, C h^{p+1} with C varying
+   smoothly along the trajectory (conservative systems), or h times the power of the
+   nonconservative / rheonomic forces plus that error (the discrete energy balance (2.2)); in
+   both cases consecutive steps change it by a factor 1 + O(h). The guard estimates what the
+   local error can explain from the previous steps: r_n = max |dE_k| over the previous
+   ``WINDOW`` steps (16 steps: more than half a period of an energy error oscillating with
+   period >= 32 steps, so a zero crossing of dE never hides the scale), and flags step n when
+
+       |dE_n| > SAFETY * r_n + ROUND_ULPS * eps * (1 + max(|E_n|, |E_{n+1}|))
+
+   with SAFETY = 10 (the local error constant may not grow tenfold within 16 steps of a
+   resolved trajectory; the rattleback's wrong root changed the energy 16.6x its value, 10^9 times
+   the previous steps' changes) and the second term the round-off of evaluating E (1024 ulps:
+   energy-preserving methods on quadratic energies change E only by round-off). Step 0 has no
+   history and is not judged (it starts from the zero-increment predictor, the safe start
+   below). On the generic engine a step whose Newton took more than ITER_FACTOR times the
+   largest iteration count of the previous WINDOW steps plus ITER_EXTRA is flagged too.
+2. **Re-solved from safe starts.** A flagged step is solved again by the generic engine's full
+   Newton from the same state: from the previous step's collocation polynomial (the stage
+   velocities V_i of the previous step interpolated at their nodes c_i and extrapolated to
+   1 + c_i, the multipliers kept), then from the explicit Euler predictor (Q_i = q0 + c_i h v0:
+   zero increments), then with the generic engine's default variant ("auto"). The first that
+   converges gives the safe root.
+3. **Verdict.** When the safe root and the engine's root agree to ROOT_AGREE (relative; both are
+   converged to the Newton tolerance, ~1e-15, while distinct roots differ at O(1)) the energy
+   change is real and the step stands. Otherwise the run stops at that step with status -4
+   (``STATUS_GUARD``) and a message naming the step, the two roots and their energies; the
+   trajectory ends at the state before the step.
+
+The cost is one vectorised pass over the step energies (compiled engine) or a few float
+operations per step (generic engine) when no step is flagged; docs/performance.md gives the
+measured cost on the skate.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+
+import numpy as np
+
+from .errors import LdasparkError
+
+STATUS_GUARD = -4
+#: previous steps whose energy changes estimate the local error
+WINDOW = 16
+#: how far beyond the previous steps' energy changes a step may go (see the module docstring)
+SAFETY = 10.0
+#: the round-off of evaluating the energy (8), in units of eps (1 + |E|)
+ROUND_ULPS = 1024
+#: a step whose Newton iterations exceed ITER_FACTOR * (the previous WINDOW steps' largest) +
+#: ITER_EXTRA is flagged (generic engine)
+ITER_FACTOR = 2
+ITER_EXTRA = 2
+#: two roots agree when max |q1 - q1'|, |v1 - v1'| <= ROOT_AGREE (1 + max |q1'|, |v1'|): both
+#: converged to the Newton tolerance (10 eps relative), distinct roots differ at O(1); 1e-8 leaves
+#: room for the conditioning of the stage equations near the Newton limit (cond ~ 1e6)
+ROOT_AGREE = 1e-8
+_EPS = float(np.finfo(float).eps)
+
+
+class RootMismatchError(LdasparkError):
+    """The step-acceptance guard found two roots of the stage equations (21) at one step: the
+    engine's and the one from a safe start. Names the step, its time, both roots and energies."""
+
+    def __init__(self, message, step=None, time=None):
+        super().__init__(message)
+        self.step = step
+        self.time = time
+
+
+def _round(E0, E1):
+    return ROUND_ULPS * _EPS * (1.0 + max(abs(E0), abs(E1)))
+
+
+def flagged(E) -> np.ndarray:
+    """The steps n >= 1 whose energy change E[n + 1] - E[n] exceeds the threshold of the module
+    docstring (E: the energy (8) at every step point, float64). Vectorised: O(N WINDOW)."""
+    E = np.asarray(E, dtype=float)
+    if len(E) < 3:
+        return np.zeros(0, dtype=int)
+    a = np.abs(np.diff(E))
+    floor = ROUND_ULPS * _EPS * (1.0 + np.maximum(np.abs(E[:-1]), np.abs(E[1:])))
+    # the previous step alone bounds the window's maximum from below: only the steps beyond
+    # SAFETY times their predecessor's change can be flagged (a few in a run; the window's
+    # maximum is taken for those only)
+    cand = np.flatnonzero(a[1:] > SAFETY * a[:-1] + floor[1:]) + 1
+    bad = [n for n in cand if a[n] > SAFETY * a[max(0, n - WINDOW):n].max() + floor[n]]
+    return np.asarray(bad, dtype=int)
+
+
+class StepGuard:
+    """The guard's test one step at a time (generic engine): ``suspect(n, E0, E1, iterations)``
+    says whether step n is flagged; ``accept(E0, E1, iterations)`` enters the step into the
+    history. The same threshold as ``flagged``."""
+
+    def __init__(self):
+        self.dE = deque(maxlen=WINDOW)
+        self.its = deque(maxlen=WINDOW)
+
+    def suspect(self, n, E0, E1, iterations=None) -> bool:
+        if n == 0 or not self.dE:
+            return False
+        d = abs(E1 - E0)
+        if d > SAFETY * max(self.dE) + _round(E0, E1):
+            return True
+        return iterations is not None and len(self.its) > 0 and \
+            iterations > ITER_FACTOR * max(self.its) + ITER_EXTRA
+
+    def accept(self, E0, E1, iterations=None):
+        self.dE.append(abs(E1 - E0))
+        if iterations is not None:
+            self.its.append(iterations)
+
+
+def _extrapolated_start(method, prev, v):
+    """The packed unknowns from the previous step's collocation polynomial: ``prev`` = (V (s, n),
+    Psi (s, m), h) of the previous step, ``v`` the velocity at its end. The velocity polynomial
+    through (c_i, V_i) and (1, v) (nodes in units of h from the previous step's start) is
+    evaluated at 1 + c_i (the new stages) and at 2 (the new end point); Lambda = h Psi kept."""
+    V, Psi, h = prev
+    c = np.asarray([float(x) for x in method.tab.c])
+    nodes, vals = [], []
+    for ci, Vi in zip(c, np.asarray(V, dtype=float)):
+        if all(abs(ci - x) > 1e-12 for x in nodes):
+            nodes.append(ci)
+            vals.append(Vi)
+    if all(abs(1.0 - x) > 1e-12 for x in nodes):
+        nodes.append(1.0)
+        vals.append(np.asarray(v, dtype=float))
+    nodes, vals = np.asarray(nodes), np.asarray(vals)
+
+    def at(tau):
+        w = np.ones(len(nodes))
+        for j in range(len(nodes)):
+            for k in range(len(nodes)):
+                if k != j:
+                    w[j] *= (tau - nodes[k]) / (nodes[j] - nodes[k])
+        return w.dot(vals)
+    Vn = np.array([at(1.0 + ci) for ci in c])
+    return method.pack(Vn, np.asarray(Psi, dtype=float) * float(h), at(2.0))
+
+
+def safe_root(methods, t, q, v, h, prev=None, step_index=0):
+    """(label, StepResult) of the first safe start that converges, or (None, None): ``methods``
+    = (full-Newton SparkMethod, default-variant SparkMethod); ``prev`` as ``_extrapolated_start``."""
+    full, auto = methods
+    tries = []
+    if prev is not None:
+        try:
+            tries.append(("the previous step's collocation polynomial", full, _extrapolated_start(full, prev, v)))
+        except (ValueError, FloatingPointError):
+            pass
+    tries.append(("the explicit Euler predictor", full, None))
+    tries.append(("the generic engine's step", auto, None))
+    for label, meth, x0 in tries:
+        if x0 is not None:
+            x0 = meth.backend.array(x0)      # the working number type (mpmath at dps)
+        try:
+            return label, meth.step(t, q, v, h, x0=x0, step_index=step_index)
+        except LdasparkError:
+            continue
+    return None, None
+
+
+def same_root(q1, v1, q1s, v1s) -> bool:
+    """Whether (q1, v1) and (q1s, v1s) are one root (ROOT_AGREE)."""
+    q1, v1, q1s, v1s = (np.asarray(x, dtype=float) for x in (q1, v1, q1s, v1s))
+    scale = 1.0 + max(float(np.max(np.abs(q1s), initial=0.0)), float(np.max(np.abs(v1s), initial=0.0)))
+    diff = max(float(np.max(np.abs(q1 - q1s), initial=0.0)), float(np.max(np.abs(v1 - v1s), initial=0.0)))
+    return math.isfinite(diff) and diff <= ROOT_AGREE * scale
+
+
+def _fmt(a) -> str:
+    return np.array2string(np.asarray(a, dtype=float), precision=10, max_line_width=10 ** 6)
+
+
+def mismatch(n, t, h, engine_root, safe, label) -> RootMismatchError:
+    """The error that stops the run: step n from time t, the engine's root (q1, v1, E1) and the
+    safe root (q1', v1', E1') found from ``label``."""
+    (q1, v1, E1), (q1s, v1s, E1s) = engine_root, safe
+    return RootMismatchError(
+        f"step {n} (t = {float(t):.6g} -> {float(t) + float(h):.6g}): the step-acceptance guard found two roots "
+        f"of the stage equations (21): the engine's q1 = {_fmt(q1)}, v1 = {_fmt(v1)} with energy (8) "
+        f"E = {float(E1):.10g}, and from {label} q1 = {_fmt(q1s)}, v1 = {_fmt(v1s)} with E = {float(E1s):.10g}; "
+        "the step is beyond the Newton limit of this h (reduce h, or guard=False to keep the engine's root)",
+        step=n, time=float(t))
