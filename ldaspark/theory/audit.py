@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 from . import order_conditions as oc
 from .audit_checks import (FAIL, INFO, ORDER_SLACK, PASS, SKIP, Check, _coefficient_strings, _fmt, _jsonable,  # noqa: F401
-                           check_22a, check_22b, check_23, check_omega, check_omega_default, check_row_sums,
+                           check_22a, check_22b, check_23, check_omega, check_solvable, check_omega_default, check_row_sums,
                            check_shapes, convergence_checks, digits_of, energy_check, entry_effect, entry_radii,
                            observed_order, order_checks, probe_step)
 from ..core.errors import InputError, LdasparkError
@@ -327,6 +327,7 @@ def algebraic_checks(tab, ar, e, dps):
         C.append(check_row_sums(ar, e, M))
     C.append(check_omega(tab, ar, e, dps))
     C.append(check_omega_default(tab, dps))
+    C.append(check_solvable(tab))
     C.append(check_22a(ar, e))
     C.append(check_22b(ar, e))
     C.extend(check_23(ar, e))
@@ -377,6 +378,13 @@ def audit(tab: SparkTableau, dps: int = 30, quick: bool = False, arith: str = "a
     res.facts.update(facts)
     hyp22, hyp23 = facts["22"], facts["23"]
     p = facts["predicted_order"]
+    if res.get("solvable").status == FAIL:
+        # no numerical check can run: (21) has no locally unique solution for this tableau
+        for name in ("theorem1", "convergence:skate", "convergence:particle", "constraint", "energy"):
+            C.append(Check(name, SKIP, None, "not run: (21) is not solvable for this tableau (see 'solvable')"))
+        res.verdict = verdict(res)
+        res.seconds = time.time() - t_start
+        return res
     say("probe step")
     probe_step(tab)
     say("Theorem 1")
@@ -400,6 +408,13 @@ def verdict(res: AuditResult) -> str:
     f = res.facts
     s = res.s
     parts = []
+    sv = res.get("solvable")
+    if sv is not None and sv.status == FAIL:
+        return (f"{res.tableau} ({s} stage{'s' if s > 1 else ''}): {sv.detail}. Theorem 1 takes the quantities of "
+                "(21) as implicit functions of (t0, q0, t1, q1), which do not exist here, and no step can be "
+                f"computed, so no numerical check was run. (22) {'holds' if f['22'] else 'does not hold'}; "
+                f"the tree conditions give order {f['order:A']} for (A, b) as an RK method. Result: the tableau "
+                "cannot be used as a SPARK method; the audit counts that as a failure.")
     c22a, c22b = res.get("22a"), res.get("22b")
     how = ("exactly" if res.exact else f"to {f.get('decided_to') or 'the precision the entries carry'} "
            f"({f.get('arithmetic')})")

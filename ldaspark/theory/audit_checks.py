@@ -203,6 +203,64 @@ def check_omega_default(tab: SparkTableau, dps) -> Check:
                  f"> s-1 = {s - 1}): convergence results of [26, 27] are stated for that choice", how, tol)
 
 
+def check_solvable(tab: SparkTableau) -> Check:
+    """Whether (21) determines its unknowns for small h: eliminating V_i - v_0 (from (21b), M
+    invertible) and v_1 - v_0 (from (21d)), (21e) and (21f) at h -> 0 read
+    ([omega A_tilde; b_tilde^T] (x) K M^-1 K^T) Psi = 0, so the Newton matrix of (21) is
+    nonsingular for small h (a regular mass matrix M and constraint Jacobian K) exactly when the
+    s x s matrix N = [omega A_tilde; b_tilde^T] is. Its rank is decided as omega's
+    (``tableau.omega_rank``): singular values at enough digits against the entries' uncertainty."""
+    s = tab.s
+    D = max(tab.decimal_digits or 0, tab.source_digits or 0)
+    w = max(60, D + 30, 3 * s + 30)
+    ent = tab.mp_entries(w)
+    rad = 0.0
+    radii = entry_radii(tab)
+    with mpmath.workdps(w):
+        om = mpmath.matrix(ent["omega"]) if s > 1 else None
+        At = mpmath.matrix(ent["A_tilde"])
+        bt = [x[0] if isinstance(x, list) else x for x in ent["b_tilde"]]
+        N = mpmath.matrix(s, s)
+        if s > 1:
+            P = om * At
+            for i in range(s - 1):
+                for j in range(s):
+                    N[i, j] = P[i, j]
+        for j in range(s):
+            N[s - 1, j] = bt[j]
+        sv = sorted((float(x) for x in mpmath.svd_r(N, compute_uv=False)), reverse=True)
+        if radii is not None:
+            # ||Delta N||_F <= ||omega||_F ||Delta A_tilde||_F + ||Delta omega||_F ||A_tilde||_F + ||Delta b_tilde||
+            fro = lambda M: float(mpmath.mnorm(M, "f"))
+            dAt = math.sqrt(sum(x * x for r in radii["A_tilde"] for x in r))
+            dbt = math.sqrt(sum(x * x for x in radii["b_tilde"]))
+            dom = _omega_radius(tab)
+            rad = (fro(om) * dAt + dom * fro(At) if s > 1 else 0.0) + dbt
+    bound = rad + s * s * 10.0 ** (5 - w) * max(sv[0], 1e-300)
+    smin = sv[-1]
+    how = f"mpmath singular values at dps {w} against the uncertainty {bound:.1e} of N"
+    if smin > bound:
+        return Check("solvable", PASS, smin, f"N = [omega A_tilde; b_tilde^T] is nonsingular (smallest singular "
+                     f"value {smin:.3g} > {bound:.1e}): (21) determines V_i, Psi_i, v_1 for small h", how, bound)
+    rank = sum(x > bound for x in sv)
+    At_ = [[float(x) for x in r] for r in ent["A_tilde"]]
+    explicit = all(abs(At_[i][j]) == 0 for i in range(s) for j in range(i, s))
+    why = (" A_tilde is explicit (strictly lower triangular): its last column is zero, so Psi_s enters (21b) "
+           "nowhere and (21d) only through b_tilde_s, and the first stage's (21b) carries no multiplier at all;"
+           if explicit else "")
+    return Check("solvable", FAIL, smin,
+                 f"(21) is not solvable for this tableau: N = [omega A_tilde; b_tilde^T] has rank {rank} < s = {s} "
+                 f"(smallest singular value {smin:.2e}, within {bound:.1e}).{why} at h -> 0 the Newton matrix of "
+                 "(21) is N (x) K M^-1 K^T after eliminating the velocities, so the multipliers Psi_i are not "
+                 "determined: (21e), (21f) leave a direction of Psi free whatever the system", how, bound)
+
+
+def _omega_radius(tab) -> float:
+    """||Delta omega||_F, the uncertainty of omega (``tableau.omega_rank``)."""
+    from ..core.tableau import omega_rank
+    return omega_rank(tab)["radius"]
+
+
 def check_22a(ar, e) -> Check:
     """(22a) b_hat_i = b_i."""
     with ar.context():
