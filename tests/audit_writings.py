@@ -48,6 +48,8 @@ def written(c, A, b, kind, A_hat=None, A_tilde=None, name="m"):
             v = mpmath.mpf(sympy.N(x, 60)) if not isinstance(x, float) else mpmath.mpf(x)
             if kind == "float64":
                 return float(v)
+            if kind == "15json":            # a published 15-digit coefficient, as a JSON number
+                return float(mpmath.nstr(v, 15))
             return mpmath.nstr(v, int(kind), min_fixed=-5, max_fixed=5)
     vec = lambda v: [one(x) for x in v]
     mat = lambda M: [[one(x) for x in r] for r in M]

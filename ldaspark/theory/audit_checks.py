@@ -83,7 +83,8 @@ def _mode(ar, w: float = 0.0, rad: float = 0.0) -> str:
     if ar.exact:
         return "exactly"
     if ar.ball:
-        return (f"to {ar.scope or f'{ar.dps} digits'} (largest |residual| {w:.1e}, within the "
+        held = f"holds to {digits_of(rad)} digits: " if rad > 0 else ""
+        return (f"to {ar.scope or f'{ar.dps} digits'} ({held}largest |residual| {w:.1e}, within the "
                 f"uncertainty {rad:.1e})")
     return f"to tolerance {ar.tol:.1e}"
 
