@@ -9,6 +9,7 @@ import sympy
 from ldaspark.core.families import get_method
 
 WRITINGS = ("exact", "float64", "17", "40")
+# besides: "15json" (JSON numbers of 15 digits), any other integer string (decimal strings of that many digits)
 
 
 def builtin(name):

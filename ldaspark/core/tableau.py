@@ -522,7 +522,9 @@ class _BallEvaluator:
             # the decimal text to its digits (as a string entry), and, when it may be the shortest
             # writing of a float64, half an ulp on top (the float nearest the intended coefficient)
             ball = self.node(ast.parse(src, mode="eval").body, src).real
-            if decimal_info(src.lstrip("-"))[1] <= FLOAT64_REPR_DIGITS:
+            # (not in a file whose longest number has more digits than a float64's writing: there a
+            # short one such as 0.5 is a terminating expansion, as a string would be)
+            if decimal_info(src.lstrip("-"))[1] <= FLOAT64_REPR_DIGITS and (self.D or 0) <= FLOAT64_REPR_DIGITS:
                 ball = ball + flint.arb(0, abs(ball.mid()) * flint.arb(2) ** -53)
             return ball
         z = self.node(ast.parse(src, mode="eval").body, src)
@@ -988,7 +990,7 @@ def _parse_entry(x, where, info: dict | None = None):
         if isinstance(x, JsonNumber):
             # known to its digits (and half an ulp), not exactly: the tableau is not exact
             sig = decimal_info(x.strip().lstrip("-"))[1]
-            if info is not None:
+            if info is not None and sig >= LONG_DECIMAL:      # short ones are terminating expansions
                 info["json"] = min(info.get("json", 10 ** 6), 15 if sig <= FLOAT64_REPR_DIGITS else sig)
             return e, False
         if e.is_real is False:                        # sqrt(-1) * tiny: exactly non-real, however small
