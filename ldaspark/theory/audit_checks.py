@@ -246,7 +246,9 @@ def check_solvable(tab: SparkTableau) -> Check:
     rank = sum(x > bound for x in sv)
     At_ = [[float(x) for x in r] for r in ent["A_tilde"]]
     explicit = all(abs(At_[i][j]) == 0 for i in range(s) for j in range(i, s))
-    why = (" A_tilde is explicit (strictly lower triangular): its last column is zero, so Psi_s enters (21b) "
+    zero = all(abs(At_[i][j]) == 0 for i in range(s) for j in range(s)) and all(float(x) == 0 for x in bt)
+    why = (" A_tilde = 0 and b_tilde = 0: the multipliers never enter (21b, d);" if zero else
+           " A_tilde is explicit (strictly lower triangular): its last column is zero, so Psi_s enters (21b) "
            "nowhere and (21d) only through b_tilde_s, and the first stage's (21b) carries no multiplier at all;"
            if explicit else "")
     return Check("solvable", FAIL, smin,
