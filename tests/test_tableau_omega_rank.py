@@ -71,3 +71,12 @@ def test_exact_equal_rows_are_singular_and_float64_rows_carry_half_an_ulp():
         from_json_dict(d)
     d["omega"] = [[1.0, 2.0, 3.0], [1.0, 2.0, 3.001]]
     assert omega_rank(from_json_dict(d))["rank"] == 2
+
+
+@pytest.mark.exhaustive
+@pytest.mark.parametrize("s", [6, 7])
+def test_gauss_6_and_7_files_in_40_digits_pass_the_audit(s, tmp_path):
+    from ldaspark.cli import main
+    p = tmp_path / f"gauss{s}.json"
+    p.write_text(json.dumps(_printed(gauss(s), 40)))
+    assert main(["audit", str(p), "--quick", "--json", str(tmp_path / "out.json")]) == 0
