@@ -147,6 +147,34 @@ def test_every_float_method_at_15_digits_gets_nodepys_order(name):
     assert f["order:A"] == want or name in NODEPY_TOLERANCE_CASES
 
 
+def _exit_codes(name, tmp_path, kinds):
+    c, A, b = nodepy_method(LIB[name])
+    codes = {}
+    for kind in kinds:
+        p = tmp_path / f"{kind}.json"
+        p.write_text(json.dumps(written(c, A, b, kind, name=name)))
+        codes[kind] = main(["audit", str(p), "--quick"])
+    return codes
+
+
+@pytest.mark.parametrize("name", ["GL2", "SSP33"])
+def test_writings_get_one_exit_code_on_a_sample(name, tmp_path, capsys):
+    """GL2 exits 0 and SSP33 (explicit: (21) not solvable) 1, whatever the writing."""
+    kinds = ("exact", "float64") if name == "GL2" else ("float64", "40")
+    codes = _exit_codes(name, tmp_path, kinds)
+    assert set(codes.values()) == {0 if name == "GL2" else 1}
+
+
+@pytest.mark.exhaustive
+@pytest.mark.parametrize("name", sorted(LIB))
+def test_writings_get_one_exit_code_on_nodepys_library(name, tmp_path, capsys):
+    """Exact (nodepy's exact methods only), float64, 17- and 40-digit writings: one exit code (2
+    when the default omega is singular: repeated nodes)."""
+    kinds = (("exact",) if _kind(LIB[name]) == "exact" else ()) + ("float64", "17", "40")
+    codes = _exit_codes(name, tmp_path, kinds)
+    assert len(set(codes.values())) == 1, codes
+
+
 def test_the_comparison_has_teeth():
     """Negative control: a wrong fact is a listed difference (RK44's b_1 moved by 1e-6 makes its
     order 0 for the audit, while nodepy is asked about the unchanged method)."""
