@@ -101,3 +101,24 @@ def test_every_writing_gets_the_verdict_of_the_exact_one(name, pair, tmp_path):
                         if c["status"] in ("pass", "fail")}
     assert codes == {k: 0 for k in WRITINGS}
     assert all(status[k] == status["exact"] for k in WRITINGS)
+
+
+def test_no_allowance_when_the_moved_tableau_cannot_be_solved(monkeypatch, tmp_path):
+    """The allowance is measured or absent: when a moved tableau's solve fails, the scene is judged
+    at the numerical tolerance (a residual of 1e-13 fails), and with the measurement (a response of
+    1e3 per unit change: allowance ~1e-11) it passes."""
+    from ldaspark.core.errors import LdasparkError
+    from ldaspark.theory import discrete
+    fake = {"theorem1-q0": 1e-13, "theorem1-q1": 1e-13, "fd_error": 1e-30, "dps": 30, "wellposed": "well-posed",
+            "rank_deficiency": 0, "dps_fd": 50, "without_forces_q0": 1.0}
+    monkeypatch.setattr(discrete, "theorem1_residuals", lambda *a, **k: dict(fake))
+    tab = load_tableau(_file(tmp_path, "gauss-2", "float64"))
+
+    def fails(*a):
+        raise LdasparkError("Newton did not converge")
+    monkeypatch.setattr(au, "entry_effect", fails)
+    ch, _ = au.theorem1_checks(tab, True, False, 30, True, ("skate",), (1.0, 0.0))
+    assert ch[0].status == au.FAIL and ch[0].tolerance == pytest.approx(1e-15)
+    monkeypatch.setattr(au, "entry_effect", lambda tab, radii, f: (1e-11, 1e3))
+    ch, _ = au.theorem1_checks(tab, True, False, 30, True, ("skate",), (1.0, 0.0))
+    assert ch[0].status == au.PASS and ch[0].tolerance == pytest.approx(1e-11)

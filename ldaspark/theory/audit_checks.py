@@ -552,7 +552,10 @@ def convergence_checks(tab, predicted, dps, quick, capped=False):
     for scene_name, t_end in (("skate", 1), ("particle", 1)):
         Ns = _step_counts(predicted, quick)
         try:
-            efloor, eper = _entry_floor_measured(tab, scene_name, Ns[-1], t_end, wdps)
+            try:
+                efloor, eper = _entry_floor_measured(tab, scene_name, Ns[-1], t_end, wdps)
+            except LdasparkError:      # a moved tableau's run failed: the working-precision floor only
+                efloor, eper = 0.0, 0.0
             floor = max(wfloor, efloor)
             res = observed_order(tab, scene_name, Ns, t_end, wdps, floor)
             while not math.isfinite(res["observed"]) and efloor > wfloor and Ns[0] >= 4:
