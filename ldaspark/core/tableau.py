@@ -196,6 +196,13 @@ class SparkTableau:
         return self.is_exact and self.decimal_digits is None
 
     @property
+    def json_numbers(self) -> bool:
+        """Some entry is a JSON number read as its decimal text (``JsonNumber``)."""
+        return self.sources is not None and any(
+            isinstance(x[0] if isinstance(x, tuple) else x, JsonNumber)
+            for v in self.sources.values() for x in _flatten(v))
+
+    @property
     def has_float_entries(self) -> bool:
         """Some entry is a float64 (a JSON number with a point or an exponent)."""
         return self.sources is not None and any(
@@ -206,8 +213,9 @@ class SparkTableau:
         'decimal+float', or 'computed' (a built-in known to any precision, ``builder``)."""
         if self.exact is None:
             return "computed"
-        dec, flt = self.decimal_digits is not None, self.has_float_entries or (
-            self.sources is None and self.source_digits is not None)
+        dec = self.decimal_digits is not None and (self.sources is None or any(
+            _leaf_is_decimal_string(x) for v in self.sources.values() for x in _flatten(v)))
+        flt = self.has_float_entries or (self.sources is None and self.source_digits is not None)
         return "decimal+float" if dec and flt else "decimal" if dec else "float" if flt else "exact"
 
     def precision_text(self) -> str:
@@ -222,6 +230,11 @@ class SparkTableau:
             dec = (f"decimal literals with up to {D} significant digit{'s' if D != 1 else ''} (each taken as "
                    f"known to half a unit in its {_ordinal(D)} significant digit)") if D else ""
         flt = "float64 entries (each known to half a unit in the last place, 2^-53 ~ 1.1e-16 relative)"
+        if self.json_numbers:
+            flt = (f"JSON numbers read as decimal texts with up to {D} significant digits (each known to half "
+                   f"a unit in its last digit, a short one (a terminating expansion) in the {_ordinal(D)}, and "
+                   f"one of at most {FLOAT64_REPR_DIGITS} digits also to half an ulp of float64, 2^-53 ~ 1.1e-16 "
+                   "relative: it may be a float64's shortest writing)")
         return {"exact": "exact entries (integers, fractions, radicals, sin/cos/pi expressions)",
                 "computed": "built-in coefficients computed to any precision",
                 "decimal": dec, "float": flt, "decimal+float": f"{dec}; {flt}"}[kind]
@@ -403,7 +416,30 @@ def _flatten(v):
 def _leaf_is_float(x) -> bool:
     while isinstance(x, tuple):          # (value, exact delta) from with_entry
         x = x[0]
-    return isinstance(x, float)
+    return isinstance(x, (float, JsonNumber))
+
+
+def _leaf_is_decimal_string(x) -> bool:
+    """A string entry (not a JSON number) with a decimal literal in it."""
+    while isinstance(x, tuple):
+        x = x[0]
+    if not isinstance(x, str) or isinstance(x, JsonNumber):
+        return False
+    import re
+    return re.search(r"(^|[^A-Za-z_])[0-9_]*\.[0-9]|[0-9][eE][+-]?[0-9]", x) is not None
+
+
+class JsonNumber(str):
+    """A JSON number with a point or an exponent, kept as its text (``json.loads(...,
+    parse_float=JsonNumber)``): a decimal known to its own digits. One of at most
+    FLOAT64_REPR_DIGITS significant digits may also be the shortest writing of a float64, which
+    stands for the intended coefficient only to half an ulp: its ball gets both radii
+    (``_BallEvaluator.leaf``)."""
+    __slots__ = ()
+
+
+#: a float64 printed by a shortest round-trip printer has at most 17 significant digits
+FLOAT64_REPR_DIGITS = 17
 
 
 def _ordinal(n: int) -> str:
@@ -482,6 +518,15 @@ class _BallEvaluator:
             return _float_ball(x)
         import ast
         src = x.strip()
+        if isinstance(x, JsonNumber):
+            # the decimal text to its digits (as a string entry), and, when it may be the shortest
+            # writing of a float64, half an ulp on top (the float nearest the intended coefficient)
+            ball = self.node(ast.parse(src, mode="eval").body, src).real
+            # (not in a file whose longest number has more digits than a float64's writing: there a
+            # short one such as 0.5 is a terminating expansion, as a string would be)
+            if decimal_info(src.lstrip("-"))[1] <= FLOAT64_REPR_DIGITS and (self.D or 0) <= FLOAT64_REPR_DIGITS:
+                ball = ball + flint.arb(0, abs(ball.mid()) * flint.arb(2) ** -53)
+            return ball
         z = self.node(ast.parse(src, mode="eval").body, src)
         return z.real
 
@@ -569,6 +614,47 @@ def _sympy_ball(e, digits, float_digits):
         return acb(re + flint.arb(0, flint.arb(10) ** -(digits + 5) * max(1, abs(float(val)))))
 
     return walk(sympy.sympify(e)).real
+
+
+def omega_rank(tab: "SparkTableau", dps: int | None = None, extra_rows=None) -> dict:
+    """The rank of omega (21e) decided at the precision its entries carry, rank-revealing for
+    Vandermonde-type matrices (the default rows b_j c_j^(i-1) lose ~0.7 digits per stage):
+
+    singular values by mpmath's SVD at ``w`` digits (backward stable: each computed value is within
+    ~s 10^-w sigma_max of the exact one of the matrix held), and the uncertainty of the matrix the
+    entries stand for, ||Delta omega||_F, from the entries' balls (``ball_entries``; the default
+    omega from the balls of b and c). Weyl: every matrix within that uncertainty has its singular
+    values within ``bound`` = ||Delta omega||_F + s^2 10^(5-w) sigma_max of the computed ones, so a
+    singular value above ``bound`` is nonzero for all of them, one at or below it is not decided
+    nonzero. ``rank`` counts the singular values above the bound (exact entries: the uncertainty is
+    that of the working precision only). ``extra_rows``: rows stacked under omega (mpf lists at
+    ``w`` digits; ``check_omega_default``). Returns {"rank", "sigma" (descending floats), "bound",
+    "dps", "radius"}."""
+    import flint
+    s = tab.s
+    D = max(tab.decimal_digits or 0, tab.source_digits or 0)
+    w = dps or max(60, D + 30, 3 * s + 30)
+    ent = tab.mp_entries(w)
+    digits = max(D + 20, 40)
+    balls = tab.ball_entries(digits)
+    given = tab.sources is not None and "omega" in tab.sources
+    if tab.sources is not None and not given:
+        with flint.ctx.workprec(int(digits * 3.33) + 16):
+            bv, cv = balls["b"], balls["c"]
+            obs = [[bv[j] * cv[j] ** i for j in range(s)] for i in range(s - 1)]
+    else:
+        obs = balls["omega"]
+    rad2 = sum(float(x.rad()) ** 2 for r in obs for x in r)
+    if tab.known_exactly or tab.exact is None:
+        rad2 = 0.0                      # the entries stand for themselves
+    with mpmath.workdps(w):
+        rows = [list(r) for r in ent["omega"]] + [list(r) for r in (extra_rows or [])]
+        sv = mpmath.svd_r(mpmath.matrix(rows), compute_uv=False) if rows else []
+        sig = sorted((float(x) for x in sv), reverse=True)
+    smax = sig[0] if sig else 0.0
+    bound = math.sqrt(rad2) + s * s * 10.0 ** (5 - w) * max(smax, 1e-300)
+    return {"rank": sum(x > bound for x in sig), "sigma": sig, "bound": bound, "dps": w,
+            "radius": math.sqrt(rad2)}
 
 
 def _default_omega_exact(b, c, s):
@@ -901,6 +987,12 @@ def _parse_entry(x, where, info: dict | None = None):
         return sympy.Float(x, 17), False
     if isinstance(x, str):
         e = parse_exact_string(x, where, info)
+        if isinstance(x, JsonNumber):
+            # known to its digits (and half an ulp), not exactly: the tableau is not exact
+            sig = decimal_info(x.strip().lstrip("-"))[1]
+            if info is not None and sig >= LONG_DECIMAL:      # short ones are terminating expansions
+                info["json"] = min(info.get("json", 10 ** 6), 15 if sig <= FLOAT64_REPR_DIGITS else sig)
+            return e, False
         if e.is_real is False:                        # sqrt(-1) * tiny: exactly non-real, however small
             raise TableauError(f"{where}: {x!r} is not a real number")
         try:
@@ -972,10 +1064,6 @@ def from_json_dict(d: dict, name: str | None = None, max_stages: int | None = No
         all_exact = all_exact and all(flag for _, flag in ent)
     if "omega" not in ex:
         ex["omega"] = _default_omega_exact([ex["b"][j] for j in range(s)], [ex["c"][j] for j in range(s)], s)
-    if s > 1:
-        om = ex["omega"].evalf(30)
-        if om.rank(iszerofunc=lambda e: abs(e) < 1e-20) < s - 1:
-            raise TableauError("omega is singular (rank < s-1): (21e) would not determine the multipliers")
     label = name or d.get("name") or "custom"
     # the entries as given, so that the audit decides at the precision they carry
     sources = {k: [list(r) if isinstance(r, list) else r for r in d[k]] for k in NAMES if k in d}
@@ -983,8 +1071,31 @@ def from_json_dict(d: dict, name: str | None = None, max_stages: int | None = No
     longs = [n for n in info.get("counts", ()) if n >= LONG_DECIMAL]
     kw = dict(family="custom", sources=sources, decimal_digits=digits, decimal_digits_min=min(longs) if longs else None)
     if all_exact:
-        return SparkTableau(str(label), s, exact=ex, **kw)
-    return SparkTableau(str(label), s, exact=ex, source_digits=15, **kw)
+        return _rank_checked(SparkTableau(str(label), s, exact=ex, **kw))
+    # float64 entries carry ~15 digits; JSON numbers longer than a float64's writing their own
+    pyfloat = any(isinstance(x, float) for v in sources.values() for x in _flatten(v))
+    jd = info.get("json")
+    digits_carried = jd if jd is not None and jd > FLOAT64_REPR_DIGITS and not pyfloat else 15
+    return _rank_checked(SparkTableau(str(label), s, exact=ex, source_digits=digits_carried, **kw))
+
+
+def _rank_checked(tab: SparkTableau) -> SparkTableau:
+    """``tab`` when omega has rank s-1 at the precision its entries carry (``omega_rank``), else a
+    TableauError: (21e) with (21f) would not determine the s multipliers."""
+    if tab.s > 1:
+        r = omega_rank(tab)
+        if r["rank"] < tab.s - 1:
+            sig = r["sigma"][tab.s - 2] if len(r["sigma"]) >= tab.s - 1 else 0.0
+            raise TableauError(f"omega is singular (rank {r['rank']} < s-1 = {tab.s - 1}: its smallest singular "
+                               f"value {sig:.2e} is within {r['bound']:.1e}, the uncertainty of the entries and "
+                               f"of {r['dps']}-digit arithmetic): (21e) would not determine the multipliers")
+    return tab
+
+
+def _json_number(text: str):
+    """``parse_float`` of the tableau loader: the text of a JSON number (JsonNumber); one that is
+    not finite as a float64 (1e999) stays a float, refused by ``_parse_entry`` as before."""
+    return JsonNumber(text) if math.isfinite(float(text)) else float(text)
 
 
 def max_file_bytes(max_stages: int | None = None) -> int:
@@ -1041,7 +1152,9 @@ def load_tableau(path, max_stages: int | None = None) -> SparkTableau:
         if not os.path.exists(path):
             raise FileNotFoundError(path)
         raw = read_regular(path, limit, "tableau file", TableauError)
-        d = json.loads(raw.decode("utf-8"))
+        # a JSON number is a decimal text with its digits (JsonNumber): 0.1127016653792583 is known
+        # to its 16 digits and half an ulp, a published 15-digit coefficient to its 15 digits
+        d = json.loads(raw.decode("utf-8"), parse_float=_json_number)
     except FileNotFoundError:
         raise TableauError(f"tableau file {path} not found") from None
     except json.JSONDecodeError as exc:

@@ -15,8 +15,9 @@ from ...core.errors import InputError, LdasparkError, TableauError
 from ...core.tableau import SparkTableau
 
 PASS, FAIL, INFO, SKIP = "pass", "fail", "info", "skip"
-# |observed - predicted| allowed (two-sided). Below 1/2, so that a prediction off by one in
-# either direction fails where the right one passes (|obs - (p +- 1)| >= 1 - slack > slack).
+# observed - predicted allowed below the prediction (one-sided: above it is reported, not failed).
+# Below 1/2, so that a prediction one too high fails where the right one passes (obs - (p + 1) <=
+# -(1 - slack) < -slack).
 # Measured on every built-in up to s = 4, skate and particle, finest pair: worst gap 0.31
 # (Gauss-4 on the particle in --quick, 8.31; 0.06 in the full run).
 ORDER_SLACK = 0.45
@@ -82,7 +83,8 @@ def _mode(ar, w: float = 0.0, rad: float = 0.0) -> str:
     if ar.exact:
         return "exactly"
     if ar.ball:
-        return (f"to {ar.scope or f'{ar.dps} digits'} (largest |residual| {w:.1e}, within the "
+        held = f"holds to {digits_of(rad)} digits: " if rad > 0 else ""
+        return (f"to {ar.scope or f'{ar.dps} digits'} ({held}largest |residual| {w:.1e}, within the "
                 f"uncertainty {rad:.1e})")
     return f"to tolerance {ar.tol:.1e}"
 
@@ -156,44 +158,110 @@ def check_row_sums(ar, e, name) -> Check:
 
 
 def check_omega(tab: SparkTableau, ar, e, dps) -> Check:
-    """rank(omega) = s - 1, so that (21e) with (21f) fixes the s multipliers."""
+    """rank(omega) = s - 1, so that (21e) with (21f) fixes the s multipliers: decided at the
+    precision the entries carry (``tableau.omega_rank``: singular values at enough digits against
+    the uncertainty of omega, correct for Vandermonde-type rows)."""
+    from ...core.tableau import omega_rank
     s = tab.s
     if s == 1:
         return Check("omega-rank", PASS, None, "s = 1: no (21e) rows")
-    with mpmath.workdps(dps):
-        om = tab.mp_entries(dps)["omega"]
-        sv = mpmath.svd_r(mpmath.matrix(om), compute_uv=False)
-        smin = float(min(sv[i] for i in range(s - 1)))
-        smax = float(max(sv[i] for i in range(s - 1)))
-    tol = 10.0 ** (3 - min(dps, tab.source_digits or dps)) * s
-    if smin <= tol * max(smax, 1.0):
-        raise TableauError(f"omega is singular (smallest singular value {smin:.2e}): "
+    r = omega_rank(tab)
+    sig = r["sigma"]
+    smin, smax = sig[s - 2], sig[0]
+    how = (f"mpmath singular values at dps {r['dps']} against the uncertainty {r['radius']:.1e} of omega "
+           "(Frobenius norm of its entries' radii) and of the arithmetic")
+    if r["rank"] < s - 1:
+        raise TableauError(f"omega is singular (smallest singular value {smin:.2e}, within {r['bound']:.1e}): "
                            "(21e) would not determine the multipliers")
-    return Check("omega-rank", PASS, smin, f"rank {s - 1} = s-1; singular values in [{smin:.3g}, {smax:.3g}]",
-                 f"mpmath singular values at dps {dps}", tol * max(smax, 1.0))
+    return Check("omega-rank", PASS, smin, f"rank {s - 1} = s-1; singular values in [{smin:.3g}, {smax:.3g}], "
+                 f"the smallest above the uncertainty {r['bound']:.1e}", how, r["bound"])
 
 
 def check_omega_default(tab: SparkTableau, dps) -> Check:
     """Whether the rows of omega span {(b_j c_j^(i-1))_j : i = 1..s-1}, the choice after (21e)
-    under which the Gauss and Lobatto convergence results [26, 27] are stated (information)."""
+    under which the Gauss and Lobatto convergence results [26, 27] are stated (information):
+    the rank of omega stacked on those rows (``omega_rank``), s-1 when they span the same space."""
+    from ...core.tableau import omega_rank
     s = tab.s
     if s == 1:
         return Check("omega-span", INFO, None, "s = 1: no (21e) rows")
-    with mpmath.workdps(dps):
-        ent = tab.mp_entries(dps)
+    w = omega_rank(tab)["dps"]
+    with mpmath.workdps(w):
+        ent = tab.mp_entries(w)
         b = [x[0] if isinstance(x, list) else x for x in ent["b"]]
         c = [x[0] if isinstance(x, list) else x for x in ent["c"]]
         dflt = [[b[j] * c[j] ** i for j in range(s)] for i in range(s - 1)]
-        sv = mpmath.svd_r(mpmath.matrix(ent["omega"] + dflt), compute_uv=False)
-        sv = sorted((float(sv[i]) for i in range(min(2 * s - 2, s))), reverse=True)
-    tol = 10.0 ** (3 - min(dps, tab.source_digits or dps)) * s * max(sv[0], 1.0)
+    r = omega_rank(tab, w, dflt)
+    sv, rank = r["sigma"], r["rank"]
+    # the stacked rows carry the uncertainty of omega and of the default rows: twice omega's
+    tol = 2 * r["bound"]
     rank = sum(x > tol for x in sv)
-    how = f"mpmath singular values at dps {dps}"
+    how = f"mpmath singular values at dps {w}"
     if rank == s - 1:
         return Check("omega-span", PASS, sv[s - 1] if len(sv) >= s else 0.0,
                      "rows of omega span {b_j c_j^(i-1)}, i < s (the choice of [26, 27])", how, tol)
     return Check("omega-span", INFO, sv[s - 1], f"rows of omega do not span {{b_j c_j^(i-1)}} (stacked rank {rank} "
                  f"> s-1 = {s - 1}): convergence results of [26, 27] are stated for that choice", how, tol)
+
+
+def check_solvable(tab: SparkTableau) -> Check:
+    """Whether (21) determines its unknowns for small h: eliminating V_i - v_0 (from (21b), M
+    invertible) and v_1 - v_0 (from (21d)), (21e) and (21f) at h -> 0 read
+    ([omega A_tilde; b_tilde^T] (x) K M^-1 K^T) Psi = 0, so the Newton matrix of (21) is
+    nonsingular for small h (a regular mass matrix M and constraint Jacobian K) exactly when the
+    s x s matrix N = [omega A_tilde; b_tilde^T] is. Its rank is decided as omega's
+    (``tableau.omega_rank``): singular values at enough digits against the entries' uncertainty."""
+    s = tab.s
+    D = max(tab.decimal_digits or 0, tab.source_digits or 0)
+    w = max(60, D + 30, 3 * s + 30)
+    ent = tab.mp_entries(w)
+    rad = 0.0
+    radii = entry_radii(tab)
+    with mpmath.workdps(w):
+        om = mpmath.matrix(ent["omega"]) if s > 1 else None
+        At = mpmath.matrix(ent["A_tilde"])
+        bt = [x[0] if isinstance(x, list) else x for x in ent["b_tilde"]]
+        N = mpmath.matrix(s, s)
+        if s > 1:
+            P = om * At
+            for i in range(s - 1):
+                for j in range(s):
+                    N[i, j] = P[i, j]
+        for j in range(s):
+            N[s - 1, j] = bt[j]
+        sv = sorted((float(x) for x in mpmath.svd_r(N, compute_uv=False)), reverse=True)
+        if radii is not None:
+            # ||Delta N||_F <= ||omega||_F ||Delta A_tilde||_F + ||Delta omega||_F ||A_tilde||_F + ||Delta b_tilde||
+            fro = lambda M: float(mpmath.mnorm(M, "f"))
+            dAt = math.sqrt(sum(x * x for r in radii["A_tilde"] for x in r))
+            dbt = math.sqrt(sum(x * x for x in radii["b_tilde"]))
+            dom = _omega_radius(tab)
+            rad = (fro(om) * dAt + dom * fro(At) if s > 1 else 0.0) + dbt
+    bound = rad + s * s * 10.0 ** (5 - w) * max(sv[0], 1e-300)
+    smin = sv[-1]
+    how = f"mpmath singular values at dps {w} against the uncertainty {bound:.1e} of N"
+    if smin > bound:
+        return Check("solvable", PASS, smin, f"N = [omega A_tilde; b_tilde^T] is nonsingular (smallest singular "
+                     f"value {smin:.3g} > {bound:.1e}): (21) determines V_i, Psi_i, v_1 for small h", how, bound)
+    rank = sum(x > bound for x in sv)
+    At_ = [[float(x) for x in r] for r in ent["A_tilde"]]
+    explicit = all(abs(At_[i][j]) == 0 for i in range(s) for j in range(i, s))
+    zero = all(abs(At_[i][j]) == 0 for i in range(s) for j in range(s)) and all(float(x) == 0 for x in bt)
+    why = (" A_tilde = 0 and b_tilde = 0: the multipliers never enter (21b, d);" if zero else
+           " A_tilde is explicit (strictly lower triangular): its last column is zero, so Psi_s enters (21b) "
+           "nowhere and (21d) only through b_tilde_s, and the first stage's (21b) carries no multiplier at all;"
+           if explicit else "")
+    return Check("solvable", FAIL, smin,
+                 f"(21) is not solvable for this tableau: N = [omega A_tilde; b_tilde^T] has rank {rank} < s = {s} "
+                 f"(smallest singular value {smin:.2e}, within {bound:.1e}).{why} at h -> 0 the Newton matrix of "
+                 "(21) is N (x) K M^-1 K^T after eliminating the velocities, so the multipliers Psi_i are not "
+                 "determined: (21e), (21f) leave a direction of Psi free whatever the system", how, bound)
+
+
+def _omega_radius(tab) -> float:
+    """||Delta omega||_F, the uncertainty of omega (``tableau.omega_rank``)."""
+    from ...core.tableau import omega_rank
+    return omega_rank(tab)["radius"]
 
 
 def check_22a(ar, e) -> Check:
@@ -283,6 +351,87 @@ def order_checks(ar, e) -> tuple[list, dict]:
     return checks, facts
 
 
+# --- what the entries' uncertainty contributes to a numerical check ------------------------------
+#: size of the probing perturbation (relative to the largest entry radius, scaled to this): far
+#: above the working precision's noise (1e-15 at dps 30) so that the response is measured, far
+#: below 1 so that it is linear (its quadratic part ~1e-20)
+PERTURB = 1e-10
+#: probing directions (pseudo-random signs, fixed seeds): with two, the largest response is below a
+#: tenth of its root-mean-square in under 1 % of cases (two independent near-Gaussian sums)
+ENTRY_SAMPLES = 2
+#: the entries' actual deviation may align with the scene's sensitivity where a random direction
+#: does not: a sum of n terms is at most sqrt(n) times its root-mean-square; a random-sign sample is
+#: at least a tenth of that (ENTRY_SAMPLES): the bound is 10 sqrt(n) times the measured response
+ENTRY_SAFETY = 10.0
+PERTURBED = ("c", "A", "A_hat", "A_tilde", "b", "b_hat", "b_tilde")
+
+
+def entry_radii(tab) -> dict | None:
+    """The radius of every entry's ball (``SparkTableau.ball_entries``: decimals to the digits
+    given, JSON numbers and float64 to half an ulp), as floats, vectors flat, omega left out;
+    None when the entries are known exactly or computed to any precision (nothing to propagate)."""
+    if tab.exact is None or tab.known_exactly:
+        return None
+    balls = tab.ball_entries(oc.ball_digits(tab, 30))
+    rad = {k: [[float(x.rad()) for x in r] if isinstance(r, list) else float(r.rad()) for r in balls[k]]
+           for k in PERTURBED}
+    umax = max(_flat(rad.values()), default=0.0)
+    return rad if umax > 0 else None
+
+
+def _flat(v):
+    for x in v:
+        if isinstance(x, (list, tuple)) or hasattr(x, "values"):
+            yield from _flat(x.values() if hasattr(x, "values") else x)
+        else:
+            yield x
+
+
+def perturbed_tableau(tab, radii: dict, eps: float, seed: int):
+    """``tab`` with every entry moved by eps * (its radius / the largest radius) with a pseudo-random
+    sign (``seed``): a tableau off by the shape of the entries' uncertainty, scaled to ``eps``."""
+    import random
+    from ...core.tableau import SparkTableau
+    umax = max(_flat(radii.values()))
+    rng = random.Random(seed)
+    dirs = {k: [[rng.choice((-1, 1)) * x / umax for x in r] if isinstance(r, list) else rng.choice((-1, 1)) * r / umax
+                for r in v] for k, v in radii.items()}
+
+    def builder(dps):
+        ent = tab.mp_entries(dps + 10)
+        out = {}
+        with mpmath.workdps(dps + 10):
+            for k, v in ent.items():
+                if k not in dirs:
+                    out[k] = [list(r) if isinstance(r, list) else r for r in v]
+                    continue
+                flat = [x[0] if isinstance(x, list) and k in ("c", "b", "b_hat", "b_tilde") else x for x in v]
+                out[k] = [[y + eps * d for y, d in zip(r, dr)] if isinstance(r, list) else r + eps * dr
+                          for r, dr in zip(flat, dirs[k])]
+        return out
+    return SparkTableau(f"{tab.name} perturbed", tab.s, builder=builder, family="perturbed")
+
+
+def entry_effect(tab, radii: dict, response) -> tuple[float, float]:
+    """What the entries' uncertainty can contribute to a numerical quantity: ``response(T)`` is the
+    quantity's change when the tableau is ``T`` instead of ``tab`` (a Theorem 1 residual, which
+    vanishes under (22); a difference of final states). Measured on ENTRY_SAMPLES tableaux moved
+    by PERTURB in the shape of the entries' radii, rescaled to the largest radius, times
+    ENTRY_SAFETY sqrt(n) (``ENTRY_SAFETY``). Returns (bound, largest measured response per unit
+    of perturbation)."""
+    umax = max(_flat(radii.values()))
+    n = sum(1 for _ in _flat(radii.values()))
+    resp = max(float(response(perturbed_tableau(tab, radii, PERTURB, seed))) for seed in range(ENTRY_SAMPLES))
+    return ENTRY_SAFETY * math.sqrt(n) * resp / PERTURB * umax, resp / PERTURB
+
+
+def digits_of(residual: float, scale: float = 1.0) -> int:
+    """The number of digits to which a quantity of size ``scale`` holds with this residual."""
+    if residual <= 0:
+        return 99
+    return max(0, int(math.floor(-math.log10(residual / max(scale, 1e-300)))))
+
+
 # --- numerical checks ------------------------------------------------------------------------
 def probe_step(tab: SparkTableau) -> None:
     """One float64 step on the skate and the particle; unusable tableau -> InputError."""
@@ -315,10 +464,12 @@ def _err(sol, qref, vref) -> float:
 
 
 def _reference_tableau(tab):
-    """A Gauss SPARK method of higher order than anything we audit and not the tableau itself."""
+    """A Gauss SPARK method of order 2 max(5, s+1) >= 2s + 2, above any s-stage method's order 2s
+    (Gauss-7 from a file has a reference too), and never the audited tableau itself."""
     from ...core.families import gauss
-    s = 6 if tab.s == 5 else 5   # never the audited tableau itself, even a gauss-5 copy from a file
-    return gauss(s)
+    from ...core.tableau import MAX_STAGES
+    s = max(5, tab.s + 1)
+    return gauss(s, max_stages=max(MAX_STAGES, s))     # one stage above the audited tableau's own bound
 
 
 def observed_order(tab, scene_name, Ns, t_end, dps, floor):
@@ -359,52 +510,87 @@ def _step_counts(p: int, quick: bool):
     return Ns[:2] if quick and p >= 3 else Ns
 
 
+#: errors used for a slope are at least this multiple of what the entries' uncertainty changes
+ENTRY_FLOOR = 10.0
+
+
+def _entry_floor_measured(tab, scene_name, N, t_end, wdps):
+    """(ENTRY_FLOOR x what the entries' uncertainty changes in the state at t_end with N steps,
+    the response per unit change): errors below it do not shrink like h^p (``entry_effect``);
+    (0, 0) for exact entries."""
+    from ...models.scenes import get_scene
+    radii = entry_radii(tab)
+    if radii is None:
+        return 0.0, 0.0
+    sc = get_scene(scene_name)
+    base = _run(tab, sc, N, t_end, wdps)
+
+    def change(T):
+        sol = _run(T, sc, N, t_end, wdps)
+        return _err(sol, base.q[-1], base.v[-1])
+    _, per = entry_effect(tab, radii, change)
+    umax = max(_flat(radii.values()))
+    # the slope needs the typical size of the contamination, not its worst case: errors at least
+    # ENTRY_FLOOR x the measured response to an uncertainty-sized change bend a slope by at most
+    # log2((1 + 1/10) / (1 - 1/10)) = 0.29 < ORDER_SLACK
+    return ENTRY_FLOOR * per * umax, per
+
+
 def convergence_checks(tab, predicted, dps, quick, capped=False):
-    """Observed order on the skate (exact solution) and the particle (reference solution)."""
+    """Observed order on the skate (exact solution) and the particle (reference solution).
+    One-sided (docs/audit.md): an observed order below the prediction fails; one above it is
+    reported (the tree prediction is a lower bound of what a scene shows: an error constant can
+    vanish on it), not failed. Errors below the working precision's floor, or below what the
+    entries' own uncertainty can contribute (measured: ``_entry_floor_measured``), are not used
+    for the slope; when that leaves no usable pair, coarser steps are added (down to h = t_end/2)."""
     checks, facts = [], {}
     # float64 suffices while the finest error stays far above round-off (order <= 4 at the
     # step counts below); higher orders run at dps digits
     wdps = None if predicted <= 4 else dps
-    digits = 15 if wdps is None else min(dps, tab.source_digits or dps)
-    floor = 10.0 ** (4 - digits)
+    digits = 15 if wdps is None else dps
+    wfloor = 10.0 ** (4 - digits)
     facts["convergence_dps"] = wdps
     kmax = 0.0
     for scene_name, t_end in (("skate", 1), ("particle", 1)):
         Ns = _step_counts(predicted, quick)
         try:
+            try:
+                efloor, eper = _entry_floor_measured(tab, scene_name, Ns[-1], t_end, wdps)
+            except LdasparkError:      # a moved tableau's run failed: the working-precision floor only
+                efloor, eper = 0.0, 0.0
+            floor = max(wfloor, efloor)
             res = observed_order(tab, scene_name, Ns, t_end, wdps, floor)
+            while not math.isfinite(res["observed"]) and efloor > wfloor and Ns[0] >= 4:
+                Ns = [Ns[0] // 2] + Ns      # the entries' floor reached: measure at coarser steps
+                res = observed_order(tab, scene_name, Ns, t_end, wdps, floor)
         except LdasparkError as exc:   # e.g. Newton fails at the larger steps
             checks.append(Check(f"convergence:{scene_name}", FAIL, None,
                                 f"integration failed: {str(exc).splitlines()[0]}"))
             continue
         kmax = max(kmax, res["max_constraint"])
+        res["floor"], res["entry_floor"] = floor, efloor
         facts[f"convergence:{scene_name}"] = res
         obs = res["observed"]
         errs = ", ".join(f"h=1/{N}: {e:.2e}" for N, e in zip(res["N"], res["errors"]))
+        fl = (f"; errors below {floor:.0e} not used (what the entries' uncertainty can contribute: a response "
+              f"of {eper:.1e} per unit change of the entries, measured)" if efloor > wfloor else "")
         if not math.isfinite(obs):
             status, what = FAIL, "no usable slope (errors at the floor or zero)"
         elif obs < predicted - ORDER_SLACK:
             status, what = FAIL, f"observed {obs:.2f} below the predicted {predicted}"
         elif capped and obs > predicted + ORDER_SLACK:
-            # one-sided only here: the trees were checked up to the cap, so the prediction is
-            # ">= predicted", a lower bound
+            # the trees were checked up to the cap, so the prediction is ">= predicted", a lower bound
             status, what = PASS, f"observed {obs:.2f}, consistent with the prediction >= {predicted} (tree cap)"
-        elif obs > predicted + ORDER_SLACK and min(res["errors"]) < _entry_floor(tab):
-            # entries known to d digits perturb the order conditions by ~10^-d, which adds an error
-            # term ~10^-d that does not shrink like h^p: near it the finest slope is bent, and
-            # only the lower bound is decided (1e3: the constants of the order conditions' error
-            # terms on these scenes, residuals ~1e-2 for the first failing tree)
-            status, what = PASS, (f"observed {obs:.2f}, consistent with the prediction {predicted} (the finest "
-                                  f"error is within 1e3 of the entries' precision {_entry_floor(tab) / 1e3:.0e}: "
-                                  "only the lower bound is decided)")
         elif obs > predicted + ORDER_SLACK:
-            status, what = FAIL, (f"observed {obs:.2f} above the predicted {predicted} (the tree prediction is "
-                                  "not what this scene shows)")
+            # one-sided: faster than the trees predict is reported, not failed (the error constant
+            # of the first failing tree can vanish on a scene)
+            status, what = PASS, (f"observed {obs:.2f} above the predicted {predicted}: this scene converges "
+                                  "faster than the trees predict (reported, not a failure: the check is one-sided)")
         else:
             status, what = PASS, f"observed {obs:.2f} vs predicted {predicted}"
         checks.append(Check(f"convergence:{scene_name}", status, abs(obs - predicted) if math.isfinite(obs) else None,
                             f"{what}; errors in (q, v) at t = {t_end} vs {res['reference']} "
-                            f"({'float64' if wdps is None else f'dps {wdps}'}): {errs}"))
+                            f"({'float64' if wdps is None else f'dps {wdps}'}): {errs}{fl}"))
     ktol = 1e3 * (2.0 ** -52 if wdps is None else 10.0 ** (-wdps))
     checks.append(Check("constraint", PASS if kmax <= ktol else FAIL, kmax,
                         f"max |k(t_n, q_n, v_n)| over the convergence runs = {kmax:.2e} "
@@ -414,7 +600,8 @@ def convergence_checks(tab, predicted, dps, quick, capped=False):
 
 
 def _entry_floor(tab) -> float:
-    """1e3 x the precision the entries carry (0 for exact or float64-and-better entries)."""
+    """1e3 x the precision the entries carry (0 for exact or float64-and-better entries): a rough
+    a-priori size of the entries' error term (the measured one is ``_entry_floor_measured``)."""
     given = [getattr(tab, a, None) for a in ("source_digits", "decimal_digits_min", "decimal_digits")]
     d = min((x for x in given if x), default=None)
     return 1e3 * 10.0 ** -d if d and d < 15 else 0.0

@@ -80,7 +80,26 @@ def t1env(monkeypatch):
     return env
 
 
-TAB0 = types.SimpleNamespace(source_digits=None)
+#: a tableau known exactly (``entry_radii`` None: the entries' uncertainty contributes nothing)
+TAB0 = types.SimpleNamespace(source_digits=None, decimal_digits=None, exact={}, known_exactly=True, name="T0")
+#: a tableau known to its digits only (the allowance is measured: ``entry_effect`` is replaced)
+TABD = types.SimpleNamespace(source_digits=None, decimal_digits=20, exact={}, known_exactly=False, name="TD")
+
+
+@pytest.fixture
+def effect(monkeypatch):
+    """``entry_radii`` / ``entry_effect`` replaced: the allowance measured on a scene is env.bound
+    (per unit change env.per), or env.bound is an exception raised by the moved tableau's solve."""
+    env = types.SimpleNamespace(bound=0.0, per=1.0, calls=0)
+    monkeypatch.setattr(au, "entry_radii", lambda tab: None if tab.known_exactly else {"A": [[1e-20]]})
+
+    def eff(tab, radii, response):
+        env.calls += 1
+        if isinstance(env.bound, Exception):
+            raise env.bound
+        return env.bound, env.per
+    monkeypatch.setattr(au, "entry_effect", eff)
+    return env
 
 
 # ==== audit: symmetry per scene ===============================================================
@@ -179,10 +198,12 @@ def test_theorem1_tolerance_is_the_largest_of_its_three_parts():
     tab = types.SimpleNamespace(source_digits=None)
     assert au._theorem1_tol(tab, 30, 1e-12) == approx(1e-11, rel=1e-12)        # FD error dominates
     assert au._theorem1_tol(tab, 30, 1e-20) == approx(1e-15, rel=1e-12)        # working precision
-    assert au._theorem1_tol(tab, 30, 1e-20, 1e-9) == approx(1e-9, rel=1e-12)   # entries
+    assert au._theorem1_tol(tab, 30, 1e-20, 1e-9) == approx(1e-9, rel=1e-12)   # given
+    # the entries' digits no longer enter as a fixed factor (was 10^(3 - 20) = 1e-17): what they
+    # contribute is measured on each scene (``entry_effect``)
     tab20 = types.SimpleNamespace(source_digits=20)
-    assert au._theorem1_tol(tab20, 60, 0.0) == approx(1e-17, rel=1e-12)       # 10^(3 - 20)
-    assert au._theorem1_tol(tab20, 60, 0.0, 0.0) == approx(1e-30, rel=1e-12)  # given: not from digits
+    assert au._theorem1_tol(tab20, 60, 0.0) == approx(1e-30, rel=1e-12)
+    assert au._theorem1_tol(tab20, 60, 0.0, 0.0) == approx(1e-30, rel=1e-12)
 
 
 def test_theorem1_summary_needs_two_decided_scenes_and_no_failure():
@@ -225,16 +246,40 @@ def test_theorem1_scene_without_teeth_is_not_decided(t1env):
     t1env.results = [_r(fd=1e-6, q1=1e-9)]                  # 10 x FD error = 1e-5 > TEETH
     c, _ = au._theorem1_scene(TAB0, "skate", True, 30, True)
     assert c.status == SKIP and "not decided" in c.detail
-    # a large tolerance from the entries alone is decided, and said so
-    t1env.results = [_r(q1=1e-5)]
-    c, _ = au._theorem1_scene(TAB0, "skate", True, 30, True, entry_tol=1e-4)
-    assert c.status == PASS and "to the precision of the entries" in c.detail and c.tolerance == 1e-4
-    t1env.results = [_r(q1=1e-3)]
-    c, _ = au._theorem1_scene(TAB0, "skate", True, 30, True, entry_tol=1e-4)
-    assert c.status == FAIL
     # just below TEETH: decided (10 x 9e-8 = 9e-7 <= 1e-6)
     t1env.results = [_r(fd=9e-8, q1=1e-9)]
     assert au._theorem1_scene(TAB0, "skate", True, 30, True)[0].status == PASS
+
+
+def test_theorem1_scene_entry_allowance_is_measured_on_the_scene(t1env, effect):
+    """A residual above the numerical tolerance is judged against what the entries' uncertainty
+    contributes on that scene (measured), only when (22) holds to the entries' precision (gate
+    entry_tol > 0 or not given) and the entries are not known exactly; decided (not skipped)
+    although that allowance is above TEETH, and said so with the digits to which it holds."""
+    effect.bound = 1e-4
+    t1env.results = [_r(q1=1e-5)]
+    c, _ = au._theorem1_scene(TABD, "skate", True, 30, True, entry_tol=1e-7)
+    assert c.status == PASS and c.tolerance == 1e-4 and "to the precision of the entries" in c.detail
+    assert "holds to 5 digits" in c.detail and effect.calls == 1
+    t1env.results = [_r(q1=1e-3)]                            # above the measured allowance
+    assert au._theorem1_scene(TABD, "skate", True, 30, True, entry_tol=1e-7)[0].status == FAIL
+    # (22) violated (gate 0): full strength, nothing measured
+    t1env.results = [_r(q1=1e-5)]
+    c, _ = au._theorem1_scene(TABD, "skate", True, 30, True, entry_tol=0.0)
+    assert c.status == FAIL and c.tolerance == approx(1e-15, rel=1e-12) and effect.calls == 2   # not measured
+    # exact entries: nothing to propagate, however large the (replaced) effect
+    t1env.results = [_r(q1=1e-5)]
+    assert au._theorem1_scene(TAB0, "skate", True, 30, True, entry_tol=1e-7)[0].status == FAIL
+    # the moved tableau's solve fails: no allowance, judged at full strength
+    effect.bound = LdasparkError("moved BVP failed")
+    t1env.results = [_r(q1=1e-5)]
+    c, _ = au._theorem1_scene(TABD, "skate", True, 30, True, entry_tol=1e-7)
+    assert c.status == FAIL and "to the precision of the entries" not in c.detail
+    # within the numerical tolerance: no measurement at all
+    effect.calls = 0
+    t1env.results = [_r(q1=1e-20)]
+    assert au._theorem1_scene(TABD, "skate", True, 30, True, entry_tol=1e-7)[0].status == PASS
+    assert effect.calls == 0
 
 
 def test_theorem1_scene_full_retries_at_more_digits(t1env):
@@ -341,10 +386,27 @@ def test_symmetry_summary_needs_one_decided_scene_and_no_failure(symenv):
     checks, _ = au._symmetry_checks(TAB0, 30, ["skate", "particle"])
     assert [c.status for c in checks] == [PASS, FAIL, FAIL] and checks[-1].residual == 1e-3
     assert au._symmetry_checks(TAB0, 30, []) == ([], {})
-    # the entries' tolerance counts when larger than the working precision
-    symenv.scene.calls.clear()
+    # the entries' uncertainty counts when larger than the working precision: measured on the scene
+    # (``test_symmetry_entry_allowance_is_measured_on_the_scene``)
+
+
+def test_symmetry_entry_allowance_is_measured_on_the_scene(symenv, effect):
+    effect.bound = 1e-11
     symenv.results = {0: _sym(ld=1e-12)}
-    assert au._symmetry_checks(TAB0, 30, ["skate"], entry_tol=1e-11)[0][0].status == PASS
+    c = au._symmetry_checks(TABD, 30, ["skate"], entry_tol=1e-20)[0][0]
+    assert c.status == PASS and c.tolerance == 1e-11 and "holds to 12 digits" in c.detail
+    symenv.scene.calls.clear()
+    symenv.results = {0: _sym(ld=1e-10)}                     # above the measured allowance
+    assert au._symmetry_checks(TABD, 30, ["skate"], entry_tol=1e-20)[0][0].status == FAIL
+    symenv.scene.calls.clear()
+    symenv.results = {0: _sym(ld=1e-12)}                     # (23) violated: gate 0, full strength
+    assert au._symmetry_checks(TABD, 30, ["skate"], entry_tol=0.0)[0][0].status == FAIL
+    symenv.scene.calls.clear()
+    assert au._symmetry_checks(TAB0, 30, ["skate"], entry_tol=1e-20)[0][0].status == FAIL   # exact entries
+    symenv.scene.calls.clear()
+    effect.bound = LdasparkError("moved solve failed")       # no allowance, full strength
+    c = au._symmetry_checks(TABD, 30, ["skate"], entry_tol=1e-20)[0][0]
+    assert c.status == FAIL and "holds to" not in c.detail
 
 
 def test_inconsistent_method_is_order_0_and_fails():
