@@ -304,7 +304,9 @@ def test_observed_order_finest_usable_slope_and_reference(monkeypatch):
     r = ac.observed_order(gauss(2), "x", [4, 8], 1, None, 0.0)
     assert runs[0][1] == 16 and runs[0][0].name == "gauss-5" and r["reference"] == "gauss-5 with h = 1/16"
     assert r["observed"] == approx(math.log(10) / math.log(2), rel=1e-6)
-    assert ac._reference_tableau(types.SimpleNamespace(s=5)).s == 6
+    # the reference is Gauss-max(5, s+1): above the audited method's order 2s, never itself; a
+    # 20-stage tableau (MAX_STAGES) still gets one
+    assert [ac._reference_tableau(types.SimpleNamespace(s=s)).s for s in (1, 4, 5, 6, 7, 20)] == [5, 5, 6, 7, 8, 21]
 
 
 def test_step_counts():
