@@ -159,7 +159,9 @@ def _exit_codes(name, tmp_path, kinds):
 
 @pytest.mark.parametrize("name", ["GL2", "SSP33"])
 def test_writings_get_one_exit_code_on_a_sample(name, tmp_path, capsys):
-    """GL2 exits 0 and SSP33 (explicit: (21) not solvable) 1, whatever the writing."""
+    """GL2 exits 0 and SSP33 1 ((22b) fails for an explicit method as an RK embedding, and Theorem 1
+    with it), whatever the writing: an allowance for float64 or 40-digit entries does not turn a
+    failing method into a passing one."""
     kinds = ("exact", "float64") if name == "GL2" else ("float64", "40")
     codes = _exit_codes(name, tmp_path, kinds)
     assert set(codes.values()) == {0 if name == "GL2" else 1}
