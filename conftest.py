@@ -15,7 +15,7 @@ settings.register_profile("ci", derandomize=True, deadline=None, max_examples=25
 settings.register_profile("dev", deadline=None, max_examples=100)
 settings.load_profile("ci")
 
-# tests/ mirrors the package in folders; their shared helpers (reliability_helpers) live in tests/
+# tests/ mirrors the package in folders; their shared helpers (run_helpers, *_fakes) live in tests/
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "tests"))
 
 

@@ -35,6 +35,7 @@ from scipy.optimize import brentq
 
 import ldaspark
 from ldaspark import LagrangianSystem
+from verification.rolling_disc import create_rolling_disc
 
 REF_TOL = 1e-12
 K_TOL = 1e-13
@@ -337,31 +338,10 @@ def _disc_from_contact():
 
 
 def _disc_kane5():
-    t = me.dynamicsymbols._t
-    q1, q2, q3, q4, q5, u1, u2, u3, u4, u5 = me.dynamicsymbols('q1:6 u1:6')
-    g, r, m = sympy.symbols('g r m')
-    ground = me.RigidBody('ground')
-    disc = me.RigidBody('disk', mass=m)
-    disc.inertia = (m * r ** 2 / 4 * me.inertia(disc.frame, 1, 2, 1), disc.masscenter)
-    ground.masscenter.set_vel(ground.frame, 0)
-    disc.masscenter.set_vel(disc.frame, 0)
-    int_frame = me.ReferenceFrame('int_frame')
-    int_frame.orient_body_fixed(ground.frame, (q1, q2, 0), 'zxy')
-    disc.frame.orient_axis(int_frame, int_frame.y, q3)
-    g_w_d = disc.frame.ang_vel_in(ground.frame)
-    disc.frame.set_ang_vel(ground.frame, u1 * disc.x + u2 * disc.y + u3 * disc.z)
-    cp = ground.masscenter.locatenew('contact_point', q4 * ground.x + q5 * ground.y)
-    cp.set_vel(ground.frame, u4 * ground.x + u5 * ground.y)
-    disc.masscenter.set_pos(cp, r * int_frame.z)
-    disc.masscenter.set_vel(ground.frame, me.cross(disc.frame.ang_vel_in(ground.frame),
-                                                   disc.masscenter.pos_from(cp)))
-    kdes = [g_w_d.dot(disc.x) - u1, g_w_d.dot(disc.y) - u2, g_w_d.dot(disc.z) - u3,
-            q4.diff(t) - u4, q5.diff(t) - u5]
-    v0 = cp.vel(ground.frame) + me.cross(disc.frame.ang_vel_in(int_frame), cp.pos_from(disc.masscenter))
-    fnh = [v0.dot(ground.x), v0.dot(ground.y)]
-    return me.KanesMethod(ground.frame, [q1, q2, q3, q4, q5], [u1, u2, u3], kdes, u_dependent=[u4, u5],
-                          velocity_constraints=fnh, bodies=[disc],
-                          forcelist=[(disc.masscenter, -disc.mass * g * ground.z)], explicit_kinematics=False)
+    p = create_rolling_disc()
+    return me.KanesMethod(p['frame'], p['q_ind'], p['u_ind'], p['kdes'], u_dependent=p['u_dep'],
+                          velocity_constraints=p['fnh'], bodies=p['bodies'], forcelist=p['loads'],
+                          explicit_kinematics=False)
 
 
 def test_kane_way_disc_equals_the_disc_with_contact_coordinates():

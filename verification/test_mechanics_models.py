@@ -27,6 +27,7 @@ from sympy import symbols
 
 import ldaspark
 from ldaspark import LagrangianSystem
+from verification.rolling_disc import create_rolling_disc
 from ldaspark.core.errors import LdasparkError, SystemDefinitionError
 
 REF_TOL = 1e-12
@@ -70,35 +71,6 @@ def _order_ok(errs, p, hs):
 
 
 # --- the rolling disc of sympy's test_kane5, as written there -------------------------------------
-def _create_rolling_disc():
-    t = me.dynamicsymbols._t
-    q1, q2, q3, q4, q5, u1, u2, u3, u4, u5 = me.dynamicsymbols('q1:6 u1:6')
-    g, r, m = symbols('g r m')
-    ground = me.RigidBody('ground')
-    disc = me.RigidBody('disk', mass=m)
-    disc.inertia = (m * r ** 2 / 4 * me.inertia(disc.frame, 1, 2, 1), disc.masscenter)
-    ground.masscenter.set_vel(ground.frame, 0)
-    disc.masscenter.set_vel(disc.frame, 0)
-    int_frame = me.ReferenceFrame('int_frame')
-    int_frame.orient_body_fixed(ground.frame, (q1, q2, 0), 'zxy')
-    disc.frame.orient_axis(int_frame, int_frame.y, q3)
-    g_w_d = disc.frame.ang_vel_in(ground.frame)
-    disc.frame.set_ang_vel(ground.frame, u1 * disc.x + u2 * disc.y + u3 * disc.z)
-    cp = ground.masscenter.locatenew('contact_point', q4 * ground.x + q5 * ground.y)
-    cp.set_vel(ground.frame, u4 * ground.x + u5 * ground.y)
-    disc.masscenter.set_pos(cp, r * int_frame.z)
-    disc.masscenter.set_vel(ground.frame, me.cross(disc.frame.ang_vel_in(ground.frame),
-                                                   disc.masscenter.pos_from(cp)))
-    kdes = [g_w_d.dot(disc.x) - u1, g_w_d.dot(disc.y) - u2, g_w_d.dot(disc.z) - u3,
-            q4.diff(t) - u4, q5.diff(t) - u5]
-    v0 = cp.vel(ground.frame) + me.cross(disc.frame.ang_vel_in(int_frame), cp.pos_from(disc.masscenter))
-    fnh = [v0.dot(ground.x), v0.dot(ground.y)]
-    loads = [(disc.masscenter, -disc.mass * g * ground.z)]
-    return {'frame': ground.frame, 'fixed': ground.masscenter, 'q_ind': [q1, q2, q3, q4, q5],
-            'u_ind': [u1, u2, u3], 'u_dep': [u4, u5], 'kdes': kdes, 'fnh': fnh, 'bodies': [disc],
-            'loads': loads}
-
-
 def _kane(props, loads=None):
     return me.KanesMethod(props['frame'], props['q_ind'], props['u_ind'], props['kdes'],
                           u_dependent=props['u_dep'], velocity_constraints=props['fnh'],
@@ -115,7 +87,7 @@ DISC_T, DISC_HS = 0.2, (0.01, 0.005)
 @functools.lru_cache(maxsize=None)
 def _disc_reference():
     """(q0, v0, q(T), v(T)) of sympy's Kane equations for the disc."""
-    props = _create_rolling_disc()
+    props = create_rolling_disc()
     kane = _kane(props)
     kane.kanes_equations()
     pv = {symbols(k): v for k, v in DISC_P.items()}
@@ -131,7 +103,7 @@ def _disc_reference():
 
 @functools.lru_cache(maxsize=None)
 def _disc_kane_system(drop_load=False):
-    props = _create_rolling_disc()
+    props = create_rolling_disc()
     return LagrangianSystem.from_mechanics(_kane(props, loads=[] if drop_load else None), name="disc-kane")
 
 
@@ -165,7 +137,7 @@ def test_rolling_disc_as_a_system_equals_the_kane_form():
         pytest.skip("sympy.physics.mechanics.System needs sympy >= 1.13")
 
     def build(sign=1):
-        props = _create_rolling_disc()
+        props = create_rolling_disc()
         sy = me.System(props['frame'], props['fixed'])
         sy.add_coordinates(*props['q_ind'])
         sy.add_speeds(*props['u_ind'])
@@ -489,7 +461,7 @@ def test_kane_way_kinematics_named_and_other_refusals():
     a singular Newton matrix although (4) holds); from_mechanics derives the velocity from the
     position instead (the Kane test above). Physical units are refused at build; a model without
     constraints, a body instead of a model, and a KanesMethod without bodies are one line each."""
-    props = _create_rolling_disc()
+    props = create_rolling_disc()
     N = props['frame']
     kane = _kane(props)
     L_kane_way = me.Lagrangian(N, *props['bodies']).xreplace(

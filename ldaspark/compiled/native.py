@@ -30,6 +30,7 @@ import math
 import os
 
 from ..core.errors import LdasparkError
+from ..core.gensource import BalancedSums
 import numba.experimental.function_type  # noqa: F401  (registers typeof/unboxing of the protocol)
 from numba.core.types.function_type import WrapperAddressProtocol
 from numba.core.typing.templates import Signature
@@ -506,52 +507,12 @@ def _init_llvm():
         _LLVM_READY.append(True)
 
 
-class _BalancedSums(ast.NodeTransformer):
-    """Chains ``a + b - c + ...`` and ``a * b * ...`` of the generated source as balanced trees:
-    a sum of n terms is n - 1 nested BinOp nodes, and CPython's compiler refuses nesting beyond
-    a few thousand ("maximum recursion depth exceeded while traversing 'expr' node": a model
-    with n = 1001 coordinates). Only the set-up checks run this Python form; the sums then
-    differ from the native code's order in the last bits, far below their tolerances."""
-
-    @staticmethod
-    def _chain(node, ops):
-        terms, stack = [], [(node, False)]
-        while stack:                    # iterative: the chain itself may be too deep to recurse on
-            x, neg = stack.pop()
-            if isinstance(x, ast.BinOp) and type(x.op) in ops:
-                stack.append((x.right, neg != isinstance(x.op, ast.Sub)))
-                stack.append((x.left, neg))
-            else:
-                terms.append((x, neg))
-        return terms
-
-    @staticmethod
-    def _tree(items, op):
-        while len(items) > 1:
-            items = [ast.BinOp(left=items[i], op=op(), right=items[i + 1]) if i + 1 < len(items) else items[i]
-                     for i in range(0, len(items), 2)]
-        return items[0]
-
-    def visit_BinOp(self, node):
-        if type(node.op) in (ast.Add, ast.Sub):
-            terms = self._chain(node, (ast.Add, ast.Sub))
-            if len(terms) > 8:
-                items = [self.visit(x) for x, _ in terms]
-                items = [ast.UnaryOp(op=ast.USub(), operand=x) if neg else x for x, (_, neg) in zip(items, terms)]
-                return self._tree(items, ast.Add)
-        elif isinstance(node.op, ast.Mult):
-            terms = self._chain(node, (ast.Mult,))
-            if len(terms) > 8:
-                return self._tree([self.visit(x) for x, _ in terms], ast.Mult)
-        return self.generic_visit(node)
-
-
 def python_module(source: str):
     """The model module's functions as plain Python (numpy arrays in and out), for the few calls
     made outside the kernels (the set-up checks): the generated source executed with the jit
     decorator replaced by the identity, nothing compiled. The source is codegen's own output,
     whose every name is checked (``codegen._only_generated_symbols``); long sums and products
-    are rebalanced (``_BalancedSums``) so that any model size compiles."""
+    are rebalanced (``gensource.BalancedSums``) so that any model size compiles."""
     import sys
     import types as _types
     try:
@@ -564,7 +525,7 @@ def python_module(source: str):
         # the transformer's own recursion follows the nesting the parser accepted (ast.parse
         # builds deeper trees than compile takes)
         sys.setrecursionlimit(max(limit, 20000))
-        tree = ast.fix_missing_locations(_BalancedSums().visit(tree))
+        tree = ast.fix_missing_locations(BalancedSums().visit(tree))
     finally:
         sys.setrecursionlimit(limit)
     mod = _types.ModuleType("ldaspark_model_python")

@@ -275,7 +275,7 @@ def _compile(src: str):
     limit = sys.getrecursionlimit()
     try:
         sys.setrecursionlimit(max(limit, 20000))
-        tree = ast.fix_missing_locations(_Balanced().visit(ast.parse(src)))
+        tree = ast.fix_missing_locations(BalancedSums().visit(ast.parse(src)))
         return compile(tree, "<ldaspark generated>", "exec")
     except (RecursionError, MemoryError, SyntaxError) as exc:
         raise ExpressionTooLargeError(f"the generated function does not compile ({type(exc).__name__}): an "
@@ -284,9 +284,13 @@ def _compile(src: str):
         sys.setrecursionlimit(limit)
 
 
-class _Balanced(ast.NodeTransformer):
-    """Chains ``a + b - c + ...`` and ``a * b * ...`` as balanced trees (only for a source
-    CPython's compiler refused as printed: a chain of n terms is n - 1 nested nodes)."""
+class BalancedSums(ast.NodeTransformer):
+    """Chains ``a + b - c + ...`` and ``a * b * ...`` of a generated source as balanced trees: a
+    sum of n terms is n - 1 nested BinOp nodes, and CPython's compiler refuses nesting beyond a
+    few thousand ("maximum recursion depth exceeded while traversing 'expr' node": a model with
+    n = 1001 coordinates). Used where a source is compiled as Python (here, when the printed form
+    was refused; ``compiled.native.python_module`` always); the sums then differ from the native
+    code's order in the last bits, far below every tolerance they are checked at."""
 
     @staticmethod
     def _chain(node, ops):

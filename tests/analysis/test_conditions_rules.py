@@ -4,31 +4,17 @@ out, a mutated computation). The expensive inner computations are replaced by sm
 stand-ins where the rule under test is what is applied to their results."""
 from __future__ import annotations
 
-from ldaspark.core.families import gauss, get_method
-from ldaspark.core.tableau import from_json_dict
 from ldaspark.analysis import conditions as cond
 import pytest
 import sympy
-from hypothesis import HealthCheck, Phase, given, settings
 from ldaspark.analysis.conditions import check_22a, check_22b, check_23
 from verification import general_fixtures as GF
 from verification import strategies as ST
+from system_fakes import _run, collect
+from tableau_fakes import _lobatto2, _tab
 
 
 # ==== audit: algebraic checks on small tableaux ===============================================
-def _tab(**over):
-    d = {"c": ["1/2"], "A": [["1/2"]], "A_hat": [["1/2"]], "A_tilde": [["1/2"]],
-         "b": [1], "b_hat": [1], "b_tilde": [1]}
-    d.update(over)
-    return from_json_dict(d, "t")
-
-
-def _lobatto2(**over):
-    d = {"c": [0, 1], "A": [[0, 0], ["1/2", "1/2"]], "A_hat": [["1/2", 0], ["1/2", 0]],
-         "A_tilde": [["1/2", 0], ["1/2", 0]], "b": ["1/2", "1/2"], "b_hat": ["1/2", "1/2"],
-         "b_tilde": ["1/2", "1/2"]}
-    d.update(over)
-    return from_json_dict(d, "l2")
 
 
 # ==== conditions (exact) ======================================================================
@@ -62,55 +48,10 @@ def test_method_table_needs_both_halves_of_22(monkeypatch):
 Q = sympy.Rational
 
 
-def collect(strategy, n):
-    """n examples of ``strategy`` (derandomized by the ci profile), no shrinking."""
-    out = []
-
-    @settings(max_examples=n, database=None, phases=[Phase.generate],
-              suppress_health_check=list(HealthCheck))
-    @given(strategy)
-    def run(x):
-        out.append(x)
-    run()
-    return out
-
-
 def _den_ok(x, den):
     return sympy.Rational(x).q <= den
 
 
-class _St:
-    """Stands for ``hypothesis.strategies`` inside the strategies' definitions, driven by ``_draw``:
-    each strategy is a tuple that the fake draw resolves by a policy (module attribute)."""
-    integers = staticmethod(lambda lo, hi: ("i", lo, hi))
-    fractions = staticmethod(lambda min_value, max_value, max_denominator: ("f", min_value, max_value))
-    permutations = staticmethod(lambda x: ("p", list(x), list(x)))
-    sampled_from = staticmethod(lambda x: ("p", list(x), list(x)))
-
-
-def _draw(policy):
-    """low: every draw at its lower end (a list: its first element, a permutation: the identity);
-    high: the upper end (last element, reversed); zero: 0 where the range holds it, else low."""
-    def draw(s):
-        kind, a, b = s
-        if kind == "p":
-            return (a if policy != "high" else a[::-1]) if _PERM[0] else (a[0] if policy != "high" else a[-1])
-        if policy == "zero" and a <= 0 <= b:
-            return type(a)(0)
-        return b if policy == "high" else a
-    return draw
-
-
-_PERM = [True]
-
-
-def _run(monkeypatch, strategy, policy, perm=True):
-    """The composite's definition run once with the fake draws (``perm``: "p" strategies are
-    permutations, else sampled_from)."""
-    w = strategy.wrapped_strategy
-    monkeypatch.setattr(ST, "st", _St)
-    _PERM[0] = perm
-    return w.definition(_draw(policy), *w.args, **w.kwargs)
 
 
 def _tab_expected(s, dA, db, dAt, dom):

@@ -14,12 +14,7 @@ from ldaspark.core.tableau import from_json_dict
 from ldaspark.lab.theory import audit as au
 from ldaspark.lab.theory import audit_checks as ac
 from ldaspark.analysis import order_conditions as oc
-
-
-def approx(expected, rel=1e-9, abs=0.0):
-    """pytest.approx without its default absolute tolerance 1e-12, which would let every residual
-    of these tests (1e-15 .. 1e-30) equal every other."""
-    return pytest.approx(expected, rel=rel, abs=abs)
+from tableau_fakes import _tab, approx
 
 
 def mp_ar(tol=1e-10, dps=30):
@@ -32,11 +27,6 @@ def mpv(v):
 
 
 # ==== audit: algebraic checks on small tableaux ===============================================
-def _tab(**over):
-    d = {"c": ["1/2"], "A": [["1/2"]], "A_hat": [["1/2"]], "A_tilde": [["1/2"]],
-         "b": [1], "b_hat": [1], "b_tilde": [1]}
-    d.update(over)
-    return from_json_dict(d, "t")
 
 
 def _extab(c):

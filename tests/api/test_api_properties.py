@@ -24,7 +24,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 import ldaspark
 from ldaspark.core.errors import LdasparkError
 
-from reliability_helpers import assert_ok_or_one_line, run_cli, time_bound
+from run_helpers import assert_ok_or_one_line, run_cli, time_bound
 
 #: examples per property: LDASPARK_PROPERTY_SCALE=10 (with --hypothesis-profile=dev: random
 #: examples) for a longer search; the default is sized for the default run

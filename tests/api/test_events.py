@@ -9,7 +9,7 @@ import pytest
 import ldaspark
 from ldaspark.core.errors import InputError
 
-from reliability_helpers import time_bound
+from run_helpers import time_bound
 
 ENGINES = ["generic", "compiled"]
 

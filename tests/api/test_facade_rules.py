@@ -10,11 +10,7 @@ import mpmath
 import numpy as np
 import pytest
 import sympy
-from hypothesis import HealthCheck, Phase, given, settings
 import ldaspark
-from ldaspark.core.errors import InconsistentInitialDataError, SingularSaddleError
-from ldaspark.core.families import get_method
-from ldaspark.core.system import LagrangianSystem
 from verification import general_fixtures as GF
 from verification import strategies as ST
 from verification import systems_checks as SC
@@ -24,6 +20,7 @@ import os
 import subprocess
 import sys
 from ldaspark.core.errors import InputError, SystemDefinitionError
+from system_fakes import _documented_defaults, _one_line, _run, collect, fake_system  # noqa: F401 (pytest fixtures)
 
 
 EPS = 2.0 ** -52
@@ -32,51 +29,8 @@ EPS = 2.0 ** -52
 Q = sympy.Rational
 
 
-def collect(strategy, n):
-    """n examples of ``strategy`` (derandomized by the ci profile), no shrinking."""
-    out = []
-
-    @settings(max_examples=n, database=None, phases=[Phase.generate],
-              suppress_health_check=list(HealthCheck))
-    @given(strategy)
-    def run(x):
-        out.append(x)
-    run()
-    return out
-
-
 def _den_ok(x, den):
     return sympy.Rational(x).q <= den
-
-
-class FakeSystem:
-    """Stands for LagrangianSystem inside ``general_systems``: records L and k; the base point's
-    behaviour is set per test through ``FakeSystem.mode``."""
-    mode = {}
-
-    def __init__(self, L, k, q, v, t=None, name="system"):
-        self.L, self.k, self.q, self.v, self.t, self.name = L, list(k), list(q), list(v), t, name
-        self.n, self.m = len(self.q), len(self.k)
-
-    def project_velocity(self, bk, t, q, v):
-        if self.mode.get("raise"):
-            raise InconsistentInitialDataError("fake: no projection")
-        if "v" in self.mode:
-            return bk.array(self.mode["v"][:self.n] + [0] * max(0, self.n - len(self.mode["v"])))
-        return bk.array(v)
-
-    def check_saddle(self, bk, t, q, v, rcond=None):
-        rc = self.mode.get("rc", 1.0)          # the reciprocal condition of this fake's matrix (4)
-        if rc <= rcond:
-            raise SingularSaddleError("fake: singular")
-        return rc
-
-
-@pytest.fixture
-def fake_system(monkeypatch):
-    monkeypatch.setattr(ST, "LagrangianSystem", FakeSystem)
-    monkeypatch.setattr(FakeSystem, "mode", {})
-    return FakeSystem
 
 
 def _at0(e, syms):
@@ -175,38 +129,6 @@ def _check_general_case(case, n_range, m_max):
     return n, m, P, pivots
 
 
-class _St:
-    """Stands for ``hypothesis.strategies`` inside the strategies' definitions, driven by ``_draw``:
-    each strategy is a tuple that the fake draw resolves by a policy (module attribute)."""
-    integers = staticmethod(lambda lo, hi: ("i", lo, hi))
-    fractions = staticmethod(lambda min_value, max_value, max_denominator: ("f", min_value, max_value))
-    permutations = staticmethod(lambda x: ("p", list(x), list(x)))
-    sampled_from = staticmethod(lambda x: ("p", list(x), list(x)))
-
-
-def _draw(policy):
-    """low: every draw at its lower end (a list: its first element, a permutation: the identity);
-    high: the upper end (last element, reversed); zero: 0 where the range holds it, else low."""
-    def draw(s):
-        kind, a, b = s
-        if kind == "p":
-            return (a if policy != "high" else a[::-1]) if _PERM[0] else (a[0] if policy != "high" else a[-1])
-        if policy == "zero" and a <= 0 <= b:
-            return type(a)(0)
-        return b if policy == "high" else a
-    return draw
-
-
-_PERM = [True]
-
-
-def _run(monkeypatch, strategy, policy, perm=True):
-    """The composite's definition run once with the fake draws (``perm``: "p" strategies are
-    permutations, else sampled_from)."""
-    w = strategy.wrapped_strategy
-    monkeypatch.setattr(ST, "st", _St)
-    _PERM[0] = perm
-    return w.definition(_draw(policy), *w.args, **w.kwargs)
 
 
 def _lowest_case(monkeypatch, **kw):
@@ -677,12 +599,6 @@ def _skate_point():
     return [float(x) for x in q0], [float(x) for x in v0]
 
 
-def _one_line(exc_info):
-    msg = str(exc_info.value)
-    assert msg and "\n" not in msg
-    return msg
-
-
 # --- root 3: exported functions outside the validation layer ------------------------------------
 def _fj(**kw):
     h = kw.pop("h", 0.1)
@@ -889,26 +805,6 @@ def test_theory_checks_at_steps_beyond_range_are_errors_not_numbers():
 
 
 # --- documented defaults and the precision the ledger reports ------------------------------------
-def _documented_defaults(doc):
-    """{parameter: text} for numpydoc parameters whose description says '(default X' (X up to the
-    first ';' or ')' that closes it)."""
-    import re
-    out, name = {}, None
-    for line in (doc or "").splitlines():
-        m = re.match(r"^(\w+)(?:, (\w+))* : ", line)
-        if m and not line.startswith(" "):
-            name = [n.strip() for n in line.split(" : ")[0].split(",")]
-            continue
-        if name and line.startswith(" "):
-            d = re.search(r"\(default ([^;]*?)(?:;|\)$|\)\.|\)\s*$)", line.strip())
-            if d:
-                for n in name:
-                    out[n] = d.group(1).strip()
-        elif not line.strip():
-            continue
-        else:
-            name = None
-    return out
 
 
 def test_the_documented_default_parser():

@@ -13,7 +13,7 @@ import ldaspark
 from ldaspark.core import validate
 from ldaspark.core.errors import InputError, LdasparkError, NonFiniteError, SystemDefinitionError
 
-from reliability_helpers import time_bound
+from run_helpers import time_bound
 
 #: catches a hang, not the machine's speed: the first compiled run of a fresh checkout compiles the
 #: kernels (a minute or more on a loaded machine)

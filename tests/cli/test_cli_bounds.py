@@ -11,7 +11,7 @@ import pytest
 
 import ldaspark
 
-from reliability_helpers import assert_ok_or_one_line, run_cli
+from run_helpers import assert_ok_or_one_line, run_cli
 
 
 def one_line(argv, match, seconds=60):

@@ -51,7 +51,8 @@ def slow(f, data):
                 time.sleep(60)
             except BaseException:
                 pass
-    time.sleep(60)
+    for _ in range(6000):               # short sleeps: a signal landing just before a long one waits it out
+        time.sleep(0.01)
     f.write(data[len(data) // 2:])
 lio._write_all = slow
 from ldaspark.cli import main

@@ -20,6 +20,7 @@ from ldaspark.core.families import get_method
 from ldaspark.models.scenes import get_scene, mp_particles
 from ldaspark.core.spark import integrate
 from ldaspark.core.system import LagrangianSystem
+from system_fakes import max_diff
 
 AGREE = 1e-12
 N = 1000
@@ -66,13 +67,6 @@ def non_quadratic():
 
 SYSTEMS = {"time-dependent": time_dependent, "nonlinear-constraint": nonlinear_constraint,
            "gyroscopic": gyroscopic, "non-quadratic": non_quadratic}
-
-
-def max_diff(fast, sol):
-    return max(float(np.max(np.abs(fast.q - np.asarray(sol.q, float)))),
-               float(np.max(np.abs(fast.v - np.asarray(sol.v, float)))),
-               float(np.max(np.abs(fast.energy - np.asarray(sol.energy, float)))),
-               float(np.max(np.abs(fast.constraint - np.asarray(sol.constraint, float)))))
 
 
 def agreement(system, q0, v0, method, h=0.1, n=N, form="auto", tol=None):

@@ -12,6 +12,7 @@ from ldaspark.models.scenes import get_scene, mp_particles
 from ldaspark.core.spark import integrate
 from ldaspark.core.system import LagrangianSystem
 from ldaspark.core.families import get_method
+from system_fakes import max_diff
 
 AGREE = 1e-12
 N = 1000
@@ -25,13 +26,6 @@ WARM = [("particle", "gauss-2", "spark"), ("rolling-disk", "mp-lobatto-iiib-a-2"
 def compiled():
     """Compile the kernels in parallel processes first (numba cache=True); later loads are fast."""
     return precompile(WARM)
-
-
-def max_diff(fast, sol):
-    return max(float(np.max(np.abs(fast.q - np.asarray(sol.q, float)))),
-               float(np.max(np.abs(fast.v - np.asarray(sol.v, float)))),
-               float(np.max(np.abs(fast.energy - np.asarray(sol.energy, float)))),
-               float(np.max(np.abs(fast.constraint - np.asarray(sol.constraint, float)))))
 
 
 @pytest.fixture(scope="module")

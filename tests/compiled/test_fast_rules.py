@@ -4,46 +4,22 @@ out, a mutated computation). The expensive inner computations are replaced by sm
 stand-ins where the rule under test is what is applied to their results."""
 from __future__ import annotations
 
-import numpy as np
-from ldaspark.lab.reports import peers, summary, systems
+from ldaspark.lab.reports import peers
 import pytest
 import sympy
 import ldaspark
-from ldaspark.core.errors import InputError, SystemDefinitionError
+from ldaspark.core.errors import SystemDefinitionError
+from scene_fakes import _Scene
 
 
 # =============================================================================================
 # peers: stand-ins
 # =============================================================================================
-class _Osc:
-    """q'' = -q with one (dummy) multiplier: n = 1, m = 1; E = (q^2 + v^2) / 2, k = v - 1."""
-    name = "rep1-osc"
-    n, m = 1, 1
-
-    @staticmethod
-    def energy(bk, t, q, v):
-        return 0.5 * (float(q[0]) ** 2 + float(v[0]) ** 2)
-
-    @staticmethod
-    def constraint(bk, t, q, v):
-        return float(v[0]) - 1.0
 
 
 # =============================================================================================
 # peers: rows of a run
 # =============================================================================================
-class _Scene:
-    def __init__(self, system=None, t0=0.0, exact=None):
-        self.system = system or _Osc()
-        self.t0 = t0
-        self.exact = exact
-        self.name = "rep1"
-
-    def initial(self):
-        return self.t0, [1], [0]
-
-    def exact_solution(self, t):
-        return [np.cos(t)], [-np.sin(t)], None
 
 
 def test_mechanical_needs_the_mechanical_compiled_form(monkeypatch):

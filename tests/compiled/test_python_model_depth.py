@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from ldaspark.compiled import native
+from ldaspark.core import gensource
 
 
 def _source(n_terms: int) -> str:
@@ -23,7 +24,7 @@ def _source(n_terms: int) -> str:
 def test_a_sum_and_a_product_of_2000_terms_compile_and_keep_their_value():
     N = 2000
     src = _source(N)
-    tree, balanced = ast.parse(src), ast.fix_missing_locations(native._BalancedSums().visit(ast.parse(src)))
+    tree, balanced = ast.parse(src), ast.fix_missing_locations(gensource.BalancedSums().visit(ast.parse(src)))
     old = sys.getrecursionlimit()
     try:
         # CPython's compiler allows a nesting of a few times the recursion limit, minus the frames
@@ -48,7 +49,7 @@ def test_a_sum_and_a_product_of_2000_terms_compile_and_keep_their_value():
 
 def test_short_chains_are_left_as_printed():
     src = "def f(x):\n    return x[0] + x[1] - x[2] * x[3]\n"
-    tree = native._BalancedSums().visit(ast.parse(src))
+    tree = gensource.BalancedSums().visit(ast.parse(src))
     assert ast.unparse(tree).strip().endswith("return x[0] + x[1] - x[2] * x[3]")
 
 

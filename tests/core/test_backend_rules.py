@@ -6,8 +6,8 @@ import mpmath
 import ldaspark
 from ldaspark.core.backend import Backend
 from ldaspark.analysis import discrete as D
-from hypothesis import HealthCheck, Phase, given, settings
 from verification import strategies as ST
+from system_fakes import collect
 
 
 def test_perturbed_initial_is_consistent_and_generic():
@@ -30,19 +30,6 @@ def test_perturbed_initial_is_consistent_and_generic():
             again = sc.system.project_velocity(bk, t, q, shifted)
             assert max(abs(a - b) for a, b in zip(v, again)) < mpmath.mpf(10) ** -25
             assert max(abs(a - b) for a, b in zip(v, v0s)) > sval / 10
-
-
-def collect(strategy, n):
-    """n examples of ``strategy`` (derandomized by the ci profile), no shrinking."""
-    out = []
-
-    @settings(max_examples=n, database=None, phases=[Phase.generate],
-              suppress_health_check=list(HealthCheck))
-    @given(strategy)
-    def run(x):
-        out.append(x)
-    run()
-    return out
 
 
 def test_general_systems_real_base_point_satisfies_k_and_the_saddle_condition():

@@ -5,8 +5,6 @@ stand-ins where the rule under test is what is applied to their results."""
 from __future__ import annotations
 
 import pytest
-from ldaspark.core.errors import InconsistentInitialDataError, SingularSaddleError
-from ldaspark.core.system import LagrangianSystem
 from verification import strategies as ST
 from fractions import Fraction
 import numpy as np
@@ -15,70 +13,9 @@ from ldaspark.core.errors import InputError
 import mpmath
 import sympy
 from ldaspark.core.errors import InputError, SystemDefinitionError
+from system_fakes import FakeSystem, _run, fake_system  # noqa: F401 (pytest fixtures)
 
 
-class FakeSystem:
-    """Stands for LagrangianSystem inside ``general_systems``: records L and k; the base point's
-    behaviour is set per test through ``FakeSystem.mode``."""
-    mode = {}
-
-    def __init__(self, L, k, q, v, t=None, name="system"):
-        self.L, self.k, self.q, self.v, self.t, self.name = L, list(k), list(q), list(v), t, name
-        self.n, self.m = len(self.q), len(self.k)
-
-    def project_velocity(self, bk, t, q, v):
-        if self.mode.get("raise"):
-            raise InconsistentInitialDataError("fake: no projection")
-        if "v" in self.mode:
-            return bk.array(self.mode["v"][:self.n] + [0] * max(0, self.n - len(self.mode["v"])))
-        return bk.array(v)
-
-    def check_saddle(self, bk, t, q, v, rcond=None):
-        rc = self.mode.get("rc", 1.0)          # the reciprocal condition of this fake's matrix (4)
-        if rc <= rcond:
-            raise SingularSaddleError("fake: singular")
-        return rc
-
-
-@pytest.fixture
-def fake_system(monkeypatch):
-    monkeypatch.setattr(ST, "LagrangianSystem", FakeSystem)
-    monkeypatch.setattr(FakeSystem, "mode", {})
-    return FakeSystem
-
-
-class _St:
-    """Stands for ``hypothesis.strategies`` inside the strategies' definitions, driven by ``_draw``:
-    each strategy is a tuple that the fake draw resolves by a policy (module attribute)."""
-    integers = staticmethod(lambda lo, hi: ("i", lo, hi))
-    fractions = staticmethod(lambda min_value, max_value, max_denominator: ("f", min_value, max_value))
-    permutations = staticmethod(lambda x: ("p", list(x), list(x)))
-    sampled_from = staticmethod(lambda x: ("p", list(x), list(x)))
-
-
-def _draw(policy):
-    """low: every draw at its lower end (a list: its first element, a permutation: the identity);
-    high: the upper end (last element, reversed); zero: 0 where the range holds it, else low."""
-    def draw(s):
-        kind, a, b = s
-        if kind == "p":
-            return (a if policy != "high" else a[::-1]) if _PERM[0] else (a[0] if policy != "high" else a[-1])
-        if policy == "zero" and a <= 0 <= b:
-            return type(a)(0)
-        return b if policy == "high" else a
-    return draw
-
-
-_PERM = [True]
-
-
-def _run(monkeypatch, strategy, policy, perm=True):
-    """The composite's definition run once with the fake draws (``perm``: "p" strategies are
-    permutations, else sampled_from)."""
-    w = strategy.wrapped_strategy
-    monkeypatch.setattr(ST, "st", _St)
-    _PERM[0] = perm
-    return w.definition(_draw(policy), *w.args, **w.kwargs)
 
 
 def _lowest_case(monkeypatch, **kw):

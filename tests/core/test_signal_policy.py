@@ -47,7 +47,11 @@ for sig in sigs:
             def slow(f, b):
                 f.write(b[:len(b) // 2]); f.flush()
                 open(ready, "w").close()
-                time.sleep(30)
+                # held in short sleeps: a signal that lands between the check of pending handlers
+                # and the start of one sleep is handled when that sleep ends (CPython runs Python
+                # handlers between bytecodes), so one 30 s sleep made the test flaky under load
+                for _ in range(3000):
+                    time.sleep(0.01)
                 f.write(b[len(b) // 2:])
             lio._write_all = slow
             lio.atomic_write_bytes(target, data)

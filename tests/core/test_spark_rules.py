@@ -15,7 +15,7 @@ import pytest
 # --- lab/reports/stability_stiff.py -----------------------------------------------------------------
 from ldaspark.lab.reports import stability_stiff as SS  # noqa: E402
 import sympy
-from ldaspark.core.system import LagrangianSystem
+from system_fakes import two_constraints
 
 
 def test_flow_jacobian_uses_the_given_t0_without_a_scene():
@@ -107,13 +107,6 @@ def test_dps_extreme_reports_the_largest_component_difference(monkeypatch):
 
 
 # --- the flow Jacobian's dependent velocities ---------------------------------------------------------
-def two_constraints():
-    """n = 4, m = 2, k = (v3 + q2 v4 - cos(q1) v1, v4 + (1 + q3) v3 - q1 v2): the dependent block
-    K_dep = [[1, q2], [1 + q3, 1]] is neither diagonal nor symmetric and k_q != 0."""
-    q, v = sympy.symbols("q1:5"), sympy.symbols("v1:5")
-    L = sum(x ** 2 for x in v) / 2 - (q[0] ** 2 + 2 * q[1] ** 2 + q[2] ** 2 / 2 + q[3] ** 2 / 3) / 2
-    k = [v[2] + q[1] * v[3] - sympy.cos(q[0]) * v[0], v[3] + (1 + q[2]) * v[2] - q[0] * v[1]]
-    return LagrangianSystem(L, k, q, v, name="two-constraints"), q, v, k
 
 
 def _consistent_v(kfun, q, vfree, dps):

@@ -10,6 +10,7 @@ from ldaspark.core.system import LagrangianSystem
 from verification import systems_checks as SC
 import json
 import numpy as np
+from system_fakes import two_constraints
 
 
 def _toy():
@@ -87,13 +88,6 @@ def test_the_exact_flow_newton_stops_after_max_iter_iterations():
 
 
 # --- the flow Jacobian's dependent velocities ---------------------------------------------------------
-def two_constraints():
-    """n = 4, m = 2, k = (v3 + q2 v4 - cos(q1) v1, v4 + (1 + q3) v3 - q1 v2): the dependent block
-    K_dep = [[1, q2], [1 + q3, 1]] is neither diagonal nor symmetric and k_q != 0."""
-    q, v = sympy.symbols("q1:5"), sympy.symbols("v1:5")
-    L = sum(x ** 2 for x in v) / 2 - (q[0] ** 2 + 2 * q[1] ** 2 + q[2] ** 2 / 2 + q[3] ** 2 / 3) / 2
-    k = [v[2] + q[1] * v[3] - sympy.cos(q[0]) * v[0], v[3] + (1 + q[2]) * v[2] - q[0] * v[1]]
-    return LagrangianSystem(L, k, q, v, name="two-constraints"), q, v, k
 
 
 def test_the_default_dependent_velocities_are_outside_the_rates():

@@ -9,7 +9,8 @@ import pytest
 import ldaspark
 from ldaspark.core.errors import InputError
 import concurrent.futures as cf
-from ldaspark.core.errors import InputError, SystemDefinitionError
+from ldaspark.core.errors import InputError
+from system_fakes import _one_line, no_client  # noqa: F401 (pytest fixtures)
 
 
 def _point():
@@ -48,25 +49,9 @@ def _skate_point():
     return [float(x) for x in q0], [float(x) for x in v0]
 
 
-def _one_line(exc_info):
-    msg = str(exc_info.value)
-    assert msg and "\n" not in msg
-    return msg
-
-
 # --- root 6: malformed Dask addresses -------------------------------------------------------------
 BAD_ADDRESSES = ["x://y", "tcp://", "inproc://", "tcp://[::1", "tcp://:8786", "tcp://h:0", "tcp://h:99999",
                  "tcp://h:abc", "tcp://h:", "tcp://a b:1", "tcp://h/x", "tcp://u@h:1", "inproc://1.2.3.4/1/1"]
-
-
-@pytest.fixture
-def no_client(monkeypatch):
-    """distributed.Client replaced by a recorder: a malformed address must be refused before any
-    Client exists (a Client waits for its connect timeout, then complains again in __del__)."""
-    distributed = pytest.importorskip("distributed")
-    made = []
-    monkeypatch.setattr(distributed, "Client", lambda *a, **k: made.append(a) or pytest.fail("Client created"))
-    return made
 
 
 def test_runspec_and_run_many_check_their_arguments():

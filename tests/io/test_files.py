@@ -16,7 +16,7 @@ import ldaspark
 from ldaspark import load_result, save_result
 from ldaspark.core.errors import InputError
 
-from reliability_helpers import time_bound
+from run_helpers import time_bound
 
 h5py = pytest.importorskip("h5py")
 FORMATS = ("json", "npz", "h5")

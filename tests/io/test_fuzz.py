@@ -15,7 +15,7 @@ from hypothesis import given, settings, strategies as st
 from ldaspark.core.errors import TableauError
 from ldaspark.core.tableau import MAX_MAGNITUDE, _parse_entry, from_json_dict
 
-from reliability_helpers import assert_ok_or_one_line, run_cli, time_bound
+from run_helpers import assert_ok_or_one_line, run_cli, time_bound
 
 # --- the tableau parser --------------------------------------------------------------------------
 ATOMS = ["0", "1", "2", "9", "64", "1.5", "1e-9999999", "1e400", "5e-324", "0x10", "1_0", "pi", "sqrt(2)",

@@ -117,7 +117,8 @@ import ldaspark.core.io as lio
 def slow(f, data):
     f.write(data[:3]); f.flush()
     open(sys.argv[2], "w").close()          # tell the parent: the temporary file exists
-    time.sleep(60)
+    for _ in range(6000):                   # short sleeps: a signal landing just before a long one waits it out
+        time.sleep(0.01)
     f.write(data[3:])
 lio._write_all = slow
 lio.atomic_write_bytes(sys.argv[1], b'{"new": "content"}')

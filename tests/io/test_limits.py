@@ -12,7 +12,7 @@ from ldaspark.core.errors import TableauError
 from ldaspark.core.families import get_method
 from ldaspark.core.tableau import _parse_entry, from_json_dict, load_tableau, parse_exact_string
 
-from reliability_helpers import assert_ok_or_one_line, run_cli, time_bound
+from run_helpers import assert_ok_or_one_line, run_cli, time_bound
 
 HOSTILE = [
     ("1e-9999999", "scientific notation"),

@@ -9,12 +9,7 @@ import numpy as np
 import pytest
 from types import SimpleNamespace
 import mpmath
-
-
-def approx(expected, rel=1e-9, abs=0.0):
-    """pytest.approx without its default absolute tolerance 1e-12, which would let every residual
-    of these tests (1e-15 .. 1e-30) equal every other."""
-    return pytest.approx(expected, rel=rel, abs=abs)
+from tableau_fakes import approx
 
 
 # ==== symmetry: the identities' arithmetic on synthetic BVP results ===========================

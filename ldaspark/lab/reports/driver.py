@@ -93,14 +93,13 @@ def write_run_timing(outdir, stats, clock, workers, full=False, probe=None):
     The "readme" block of the file it replaces (the snapshot of the timings README quotes,
     ``summary.write_snapshot``) is kept: README's timing marks are checked against it."""
     import datetime
-    import json
+    from .files import load_json
     import platform
     from ...core.io import atomic_write_json
     path = os.path.join(outdir, "report_timing.json")
     keep = {}
     try:
-        with open(path) as f:
-            old = json.load(f)
+        old = load_json(path)
         if isinstance(old, dict) and isinstance(old.get("readme"), dict):
             keep["readme"] = old["readme"]
     except (OSError, ValueError):

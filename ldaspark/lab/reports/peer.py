@@ -12,11 +12,10 @@ def peer_section(path):
     """Lines of "External peer: odelab" from ``path`` (written by ``benchmarks/peer_odelab.py``,
     which needs odelab, not a dependency: the file is committed, not regenerated here); [] when
     the file is absent."""
-    import json
+    from .files import load_json
     if not os.path.exists(path):
         return []
-    with open(path) as f:
-        d = json.load(f)
+    d = load_json(path)
     od = d["versions"]["odelab"]
     runs = d["runs"]
     n, h = runs[0]["n_steps"], runs[0]["h"]

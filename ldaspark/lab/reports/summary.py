@@ -22,24 +22,20 @@ and then the tests passes on any machine:
 """
 from __future__ import annotations
 
-import hashlib
-import json
 import math
 import os
 import re
 import sys
 
 from ..theory.orders import verdict
+from .files import load_json, sha256
 
 IRK = ("gauss-irk-1", "gauss-irk-2")
 
 
 def _load(d, name):
     path = os.path.join(d, name)
-    if not os.path.exists(path):
-        return None
-    with open(path) as f:
-        return json.load(f)
+    return load_json(path)
 
 
 def _e(x):
@@ -349,8 +345,7 @@ def same_magnitude(a: str, b: str) -> bool:
 
 
 def _sha(path):
-    with open(path, "rb") as f:
-        return hashlib.sha256(f.read()).hexdigest()
+    return sha256(path)
 
 
 def file_digests(reports_dir) -> dict:

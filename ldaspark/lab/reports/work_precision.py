@@ -490,12 +490,11 @@ def strongest_peers_section(path):
     """Lines of the "Strongest peers" section from ``path`` (``reports/peers.json``, written by
     ``benchmarks/peers.py``: five scenes, T = 100 and T = 1e4, every peer; too long for the main
     job, so the file is committed and rendered here); [] when the file is absent."""
-    import json
+    from .files import load_json
     if not os.path.exists(path):
         return []
     from .peers import section
-    with open(path) as f:
-        return section(json.load(f))
+    return section(load_json(path))
 
 
 def scaling_section(path):
@@ -503,12 +502,11 @@ def scaling_section(path):
     ``benchmarks/scaling.py``: the compiled step's cost against n and s; committed, not regenerated
     by the main job) and its figure ``figures/wp_scaling.png`` beside the report; [] when the
     file is absent."""
-    import json
+    from .files import load_json
     import math
     if not os.path.exists(path):
         return []
-    with open(path) as f:
-        d = json.load(f)
+    d = load_json(path)
     rows = d["rows"]
     ok = [r for r in rows if r.get("status") == "ok"]
     L = ["", "## Scale: the compiled step against n and s (MP particles, nonholonomic constraint)", "",

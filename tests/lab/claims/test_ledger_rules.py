@@ -10,11 +10,12 @@ import mpmath
 import pytest
 from ldaspark.lab.claims import ledger
 from ldaspark.core.errors import InputError, LdasparkError
-from ldaspark.core.errors import InputError, SystemDefinitionError
+from ldaspark.core.errors import InputError
 import types
 import numpy as np
 # --- lab/claims/ledger.py ---------------------------------------------------------------------------
 from ldaspark.lab.claims import ledger as LG  # noqa: E402
+from system_fakes import _binding, no_client  # noqa: F401 (pytest fixtures)
 
 
 def _tab(name="tab-x"):
@@ -401,16 +402,6 @@ def test_ledger_tabs_and_task(monkeypatch):
     assert built == [(3, True), (2, True)]
 
 
-@pytest.fixture
-def no_client(monkeypatch):
-    """distributed.Client replaced by a recorder: a malformed address must be refused before any
-    Client exists (a Client waits for its connect timeout, then complains again in __del__)."""
-    distributed = pytest.importorskip("distributed")
-    made = []
-    monkeypatch.setattr(distributed, "Client", lambda *a, **k: made.append(a) or pytest.fail("Client created"))
-    return made
-
-
 def test_ledger_refuses_a_malformed_address_before_work(no_client, monkeypatch):
     from ldaspark.lab.claims import ledger
     built = []
@@ -499,16 +490,6 @@ def test_a_wellposedness_record_takes_the_time_of_its_classification(monkeypatch
 
 
 # --- fingerprints: every component of a run's identity ---------------------------------------------------
-def _binding(monkeypatch, call):
-    from ldaspark import executors as workers
-    seen = []
-
-    def fake(work, checkpoint, **kw):
-        seen.append(checkpoint.fingerprint)
-        return {u.name: [] for u in work}
-    monkeypatch.setattr(workers, "run_resumable", fake)
-    call(workers.Checkpoint("unused.partial.jsonl", "caller-fp"))
-    return seen[-1]
 
 
 def _fake_section5_all(monkeypatch):

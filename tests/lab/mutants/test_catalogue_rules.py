@@ -3,29 +3,10 @@ different answers (a wrong comparison, one side of a pair, a ratio upside down, 
 out, a mutated computation). The expensive inner computations are replaced by small
 stand-ins where the rule under test is what is applied to their results."""
 from __future__ import annotations
+from system_fakes import _documented_defaults
 
 
 # --- documented defaults and the precision the ledger reports ------------------------------------
-def _documented_defaults(doc):
-    """{parameter: text} for numpydoc parameters whose description says '(default X' (X up to the
-    first ';' or ')' that closes it)."""
-    import re
-    out, name = {}, None
-    for line in (doc or "").splitlines():
-        m = re.match(r"^(\w+)(?:, (\w+))* : ", line)
-        if m and not line.startswith(" "):
-            name = [n.strip() for n in line.split(" : ")[0].split(",")]
-            continue
-        if name and line.startswith(" "):
-            d = re.search(r"\(default ([^;]*?)(?:;|\)$|\)\.|\)\s*$)", line.strip())
-            if d:
-                for n in name:
-                    out[n] = d.group(1).strip()
-        elif not line.strip():
-            continue
-        else:
-            name = None
-    return out
 
 
 def test_documented_defaults_are_the_signatures_defaults():

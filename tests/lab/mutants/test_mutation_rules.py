@@ -1,3 +1,4 @@
+from system_fakes import _binding
 """Rules of ``ldaspark.lab.mutants.mutation`` fed inputs on which the right rule and a plausible neighbour give
 different answers (a wrong comparison, one side of a pair, a ratio upside down, a field left
 out, a mutated computation). The expensive inner computations are replaced by small
@@ -5,16 +6,6 @@ stand-ins where the rule under test is what is applied to their results."""
 
 
 # --- fingerprints: every component of a run's identity ---------------------------------------------------
-def _binding(monkeypatch, call):
-    from ldaspark import executors as workers
-    seen = []
-
-    def fake(work, checkpoint, **kw):
-        seen.append(checkpoint.fingerprint)
-        return {u.name: [] for u in work}
-    monkeypatch.setattr(workers, "run_resumable", fake)
-    call(workers.Checkpoint("unused.partial.jsonl", "caller-fp"))
-    return seen[-1]
 
 
 def test_the_catalogue_binds_every_setting_that_changes_a_verdict(monkeypatch):

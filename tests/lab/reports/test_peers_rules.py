@@ -9,29 +9,18 @@ import types
 from types import SimpleNamespace
 import numpy as np
 import pytest
-from ldaspark.core.errors import InputError, LdasparkError
-from ldaspark.lab.reports import peers, summary, systems
+from ldaspark.core.errors import LdasparkError
+from ldaspark.lab.reports import peers
 import json
 import pathlib
 # --- lab/reports/peers.py ---------------------------------------------------------------------------
 from ldaspark.lab.reports import peers as P  # noqa: E402
+from scene_fakes import _Osc, _Scene
 
 
 # =============================================================================================
 # peers: stand-ins
 # =============================================================================================
-class _Osc:
-    """q'' = -q with one (dummy) multiplier: n = 1, m = 1; E = (q^2 + v^2) / 2, k = v - 1."""
-    name = "rep1-osc"
-    n, m = 1, 1
-
-    @staticmethod
-    def energy(bk, t, q, v):
-        return 0.5 * (float(q[0]) ** 2 + float(v[0]) ** 2)
-
-    @staticmethod
-    def constraint(bk, t, q, v):
-        return float(v[0]) - 1.0
 
 
 def _f(t, y, W):
@@ -143,18 +132,6 @@ def _fake_sundials(state):
 # =============================================================================================
 # peers: rows of a run
 # =============================================================================================
-class _Scene:
-    def __init__(self, system=None, t0=0.0, exact=None):
-        self.system = system or _Osc()
-        self.t0 = t0
-        self.exact = exact
-        self.name = "rep1"
-
-    def initial(self):
-        return self.t0, [1], [0]
-
-    def exact_solution(self, t):
-        return [np.cos(t)], [-np.sin(t)], None
 
 
 def _spark_result(energy, q, k):

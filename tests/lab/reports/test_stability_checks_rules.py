@@ -11,16 +11,7 @@ import numpy as np
 import pytest
 from ldaspark.core.errors import NewtonError
 from ldaspark.lab.reports import stability_checks as sc_
-
-
-def _fake_fast(monkeypatch, fast_integrate=None, roundoff_errors=None):
-    mod = types.ModuleType("ldaspark.compiled.fast")
-    if fast_integrate is not None:
-        mod.fast_integrate = fast_integrate
-    if roundoff_errors is not None:
-        mod.roundoff_errors = roundoff_errors
-    monkeypatch.setitem(sys.modules, "ldaspark.compiled.fast", mod)
-    return mod
+from stability_fakes import _fake_fast
 
 
 def _energies(n_samples, every):

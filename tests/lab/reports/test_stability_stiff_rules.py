@@ -5,7 +5,6 @@ stand-ins where the rule under test is what is applied to their results."""
 from __future__ import annotations
 
 import math
-import sys
 import types
 import numpy as np
 import pytest
@@ -13,6 +12,7 @@ from ldaspark.core.errors import NewtonError
 from ldaspark.lab.reports import stability_stiff as ss
 # --- lab/reports/stability_stiff.py -----------------------------------------------------------------
 from ldaspark.lab.reports import stability_stiff as SS  # noqa: E402
+from stability_fakes import _fake_fast
 
 
 # ================================================================================================
@@ -23,16 +23,6 @@ class _Sol:
         self.energy, self.constraint = energy, constraint
         self.stats = stats or {}
         self.q, self.v = q, v
-
-
-def _fake_fast(monkeypatch, fast_integrate=None, roundoff_errors=None):
-    mod = types.ModuleType("ldaspark.compiled.fast")
-    if fast_integrate is not None:
-        mod.fast_integrate = fast_integrate
-    if roundoff_errors is not None:
-        mod.roundoff_errors = roundoff_errors
-    monkeypatch.setitem(sys.modules, "ldaspark.compiled.fast", mod)
-    return mod
 
 
 # ================================================================================================

@@ -14,7 +14,7 @@ from ldaspark.core.tableau import VECTOR_NAMES, from_json_dict, load_tableau
 from ldaspark.lab.theory import audit as au
 from ldaspark.analysis import order_conditions as oc
 
-from reliability_helpers import time_bound
+from run_helpers import time_bound
 
 EX = pathlib.Path(__file__).resolve().parents[3] / "examples" / "tableaux"
 PRIMES = (2, 3, 5, 7, 11, 13, 17, 19, 23, 29)

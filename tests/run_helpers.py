@@ -1,4 +1,4 @@
-"""Helpers of the reliability tests: a time bound that turns a hang into a test failure, and
+"""Helpers of the input-checking tests: a time bound that turns a hang into a test failure, and
 the check that a CLI run ended with rc 0, or rc 2 and exactly one line on stderr."""
 import contextlib
 import signal
