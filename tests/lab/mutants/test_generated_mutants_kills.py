@@ -452,8 +452,9 @@ def test_the_theorem1_tolerance_is_the_largest_of_its_three_parts():
     assert au._theorem1_tol(tab, 30, 0.0) == _close(1e-15)                 # 10^(-dps/2)
     assert au._theorem1_tol(tab, 40, 1e-19) == _close(1e-18)               # 10 x FD error
     tab20 = types.SimpleNamespace(source_digits=20)
-    assert au._theorem1_tol(tab20, 60, 0.0) == _close(1e-17)               # 10^(3 - 20 digits given)
-    assert au._theorem1_tol(tab20, 60, 0.0, entry_tol=2e-25) == _close(2e-25)   # given: replaces it
+    # the digits given no longer enter as 10^(3 - 20) = 1e-17: their effect is measured per scene
+    assert au._theorem1_tol(tab20, 60, 0.0) == _close(1e-30)
+    assert au._theorem1_tol(tab20, 60, 0.0, entry_tol=2e-25) == _close(2e-25)   # given: the largest
 
 
 def test_theorem1_is_computed_from_initial_values_accurate_beyond_the_working_digits(monkeypatch):
@@ -493,12 +494,21 @@ def test_a_tolerance_exactly_at_the_teeth_bound_is_decided(monkeypatch):
     checks, _ = au.theorem1_checks(get_method("gauss-1"), True, False, 12, False, ("particle",), entry_tol=(0.0, 0.0))
     assert calls == [12]
     assert checks[0].status == au.PASS and "decided at dps 12, 32 and h, h/2" in checks[0].detail
+    # the entries' allowance is measured (``entry_effect``, replaced here): one above TEETH is still
+    # decided, since the numerical part (1e-10 at dps 20) has teeth, and said so; a residual within
+    # the numerical part gets no note; a computed built-in has no uncertainty to propagate
+    monkeypatch.setattr(au, "entry_radii", lambda tab: {"A": [[1e-20]]})
+    monkeypatch.setattr(au, "entry_effect", lambda tab, radii, f: (2 * au.TEETH, 1.0))
+    checks, _ = au.theorem1_checks(get_method("gauss-1"), True, False, 20, True, ("particle",),
+                                   entry_tol=(1e-12, 0.0))
+    assert checks[0].status == au.PASS and "precision of the entries" in checks[0].detail
+    monkeypatch.undo()
+    monkeypatch.setattr(discrete, "theorem1_residuals", fake)
+    monkeypatch.setattr(wellposedness, "classify_wellposedness",
+                        lambda *a, **k: {"class": "well-posed", "rank_deficiency": 0})
     checks, _ = au.theorem1_checks(get_method("gauss-1"), True, False, 20, True, ("particle",),
                                    entry_tol=(au.TEETH, 0.0))
-    assert checks[0].status == au.PASS and "precision of the entries" not in checks[0].detail
-    checks, _ = au.theorem1_checks(get_method("gauss-1"), True, False, 20, True, ("particle",),
-                                   entry_tol=(2 * au.TEETH, 0.0))
-    assert "precision of the entries" in checks[0].detail
+    assert checks[0].status == au.FAIL and "precision of the entries" not in checks[0].detail
 
 
 def test_the_step_counts_of_the_convergence_runs():
