@@ -157,7 +157,7 @@ def _exit_codes(name, tmp_path, kinds):
     return codes
 
 
-@pytest.mark.parametrize("name", ["GL2", "SSP33"])
+@pytest.mark.parametrize("name", ["GL2", pytest.param("SSP33", marks=pytest.mark.exhaustive)])
 def test_writings_get_one_exit_code_on_a_sample(name, tmp_path, capsys):
     """GL2 exits 0 and SSP33 1 ((22b) fails for an explicit method as an RK embedding, and Theorem 1
     with it), whatever the writing: an allowance for float64 or 40-digit entries does not turn a
