@@ -175,6 +175,11 @@ def test_a_module_constant_executed_at_import_is_run_against_the_files_importing
     assert mutgen.run_generated(args) == 0
     files_run = [t for t in ran[const.id] if not t.startswith("--deselect")]
     assert set(mapped) <= set(files_run)                       # the importing files, run whole
+    # ... first, then the kill files (every one of them, once): a constant the kill files do not
+    # read reaches its own test before the timeout
+    kill_files = [f for f in mutgen.ALWAYS_MAPPED if (mutgen.PROJECT / f).is_file()]
+    assert set(files_run[:len(mapped)]) == set(mapped) and set(kill_files) <= set(files_run)
+    assert len(files_run) == len(set(files_run))
     assert [t for t in ran[inner.id] if not t.startswith("--")] == ["tests/test_x.py::test_y"]
     doc = json.loads((tmp_path / "mutation-generated.json").read_text())
     status = {r["mutant"]: r["status"] for r in doc["mutants"]}
