@@ -16,6 +16,7 @@ import numpy as np
 import sympy
 
 from ..core.errors import InputError, LdasparkError, NewtonError, NonFiniteError
+from ..core.rootfinder import Newton
 from . import modeltypes as mt
 from . import native
 from .cache import CacheDirectoryError, load_source, source_key
@@ -529,6 +530,9 @@ def _run_checked(cs, method, start, grid, opts: KernelOptions):
         if name in LF2_VARIANTS:
             raise NotCompilableError(f"{cs.name}: {name} needs a system in mechanical form")
         kind, what, name = kernel_spec(name, "spark")        # (25) is lobatto-iiia-iiib-2
+    if kind == "lf2":   # no block LU, no matrix reuse in the semi-implicit kernel: refused, never ignored
+        Newton(linear_solver=linear_solver,
+               reuse="auto" if isinstance(reuse_matrix, str) else bool(reuse_matrix)).check_for("compiled-lf2")
     q0 = np.array(q0, dtype=float)          # a fresh contiguous copy: the kernel may not alias the caller's
     v0 = np.array(v0, dtype=float)
     if q0.shape != (cs.n,) or v0.shape != (cs.n,):

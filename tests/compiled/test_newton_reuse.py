@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from ldaspark.compiled.fast import compile_system, run_compiled
+from ldaspark.core.errors import InputError
 from ldaspark.models.scenes import get_scene
 
 
@@ -49,9 +50,11 @@ def test_reuse_on_the_general_kernel_sets_p0(scene):
     assert d <= 1e-12
 
 
-def test_semi_implicit_kernel_ignores_the_flag():
-    off, on, d, _ = _pair("skate", "lobatto-iiia-iiib-2", 1e-3, 1000, kernel="auto")
-    assert on["kernel"] == off["kernel"] == "lf2" and d == 0.0 and on["njev"] == off["njev"]
+def test_semi_implicit_kernel_refuses_the_flag():
+    # it factors its m x m matrix in every step: the flag is refused, not dropped (an option is
+    # honoured or refused; tests/compiled/test_semi_implicit_kernel_options.py)
+    with pytest.raises(InputError, match="engine 'compiled-lf2' refuses Newton reuse=True"):
+        _pair("skate", "lobatto-iiia-iiib-2", 1e-3, 10, kernel="auto")
 
 
 def test_auto_reuses_the_matrix_from_REUSE_AUTO_MIN_N_on():

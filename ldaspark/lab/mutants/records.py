@@ -31,6 +31,9 @@ MAX_REPORT_BYTES = 64 * 2 ** 20
 MAX_LIST_BYTES = 8 * 2 ** 20
 MAX_SOURCE_BYTES = 8 * 2 ** 20
 MAX_DEPTH = 32
+#: a mutant id holds the replaced source text (a ``return`` of a 20-line dict literal: 2430
+#: characters in the committed report); bounded, far above every id the generator makes
+MAX_ID_CHARS = 16384
 REPORT_KIND = "mutation-generated-report"
 #: every status a generated mutant's record can carry (``mutgen._rec``, ``mutation.STATUSES``)
 GEN_STATUSES = ("killed", "survived", "invalid", "timeout", "equivalent", "not-covered", "not-run")
@@ -129,7 +132,7 @@ def check_generated_record(rec) -> dict:
     if not isinstance(rec, dict) or not _GEN_KEYS <= set(rec) or not set(rec) <= _GEN_KEYS | _GEN_OPTIONAL:
         raise RecordError("a record does not have a generated mutant's keys")
     name = rec["mutant"]
-    if not isinstance(name, str) or not name or len(name) > 1000:
+    if not isinstance(name, str) or not name or len(name) > MAX_ID_CHARS:
         raise RecordError("a record's mutant id is not a string")
     if rec["status"] not in GEN_STATUSES or not isinstance(rec["killed"], bool) \
             or rec["killed"] != (rec["status"] == "killed"):

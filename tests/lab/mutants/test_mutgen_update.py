@@ -175,6 +175,11 @@ def test_a_module_constant_executed_at_import_is_run_against_the_files_importing
     assert mutgen.run_generated(args) == 0
     files_run = [t for t in ran[const.id] if not t.startswith("--deselect")]
     assert set(mapped) <= set(files_run)                       # the importing files, run whole
+    # ... first, then the kill files (every one of them, once): a constant the kill files do not
+    # read reaches its own test before the timeout
+    kill_files = [f for f in mutgen.ALWAYS_MAPPED if (mutgen.PROJECT / f).is_file()]
+    assert set(files_run[:len(mapped)]) == set(mapped) and set(kill_files) <= set(files_run)
+    assert len(files_run) == len(set(files_run))
     assert [t for t in ran[inner.id] if not t.startswith("--")] == ["tests/test_x.py::test_y"]
     doc = json.loads((tmp_path / "mutation-generated.json").read_text())
     status = {r["mutant"]: r["status"] for r in doc["mutants"]}
@@ -219,6 +224,12 @@ def test_kills_of_several_earlier_reports_are_kept_outside_the_sample(monkeypatc
     assert ms[-1].id not in ran and ms[-2].id not in ran
     assert rec[ms[-3].id]["status"] in ("not-run", "killed") and not rec[ms[-3].id].get("previous_run")
     assert len(ran) == 2                                          # the sample ran
+    # each ran its covering test first, then every kill file (newer tests than the map), once
+    kill_files = [f for f in mutgen.ALWAYS_MAPPED if (mutgen.PROJECT / f).is_file()]
+    for targets in ran.values():
+        files = [t for t in targets if not t.startswith("--")]
+        assert files[0] == "tests/compiled/test_kahan.py::test_x" and set(kill_files) <= set(files[1:])
+        assert len(files) == len(set(files))
     assert [r["command"] for r in doc["runs"]][0] == "first"      # the history is the first file's
     assert doc["modules_not_run"] == ["models (bicycle.py)"]       # symmetry.py ran: no longer listed
     assert "--sample 2" in doc["command"] and "--tests tests/compiled/test_kahan.py" in doc["command"]

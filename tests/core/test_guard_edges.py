@@ -1,0 +1,59 @@
+"""The step-acceptance guard (``ldaspark.core.guard``) at its edges: the threshold is strict on
+both the step-by-step test (``StepGuard.suspect``) and the vectorised one (``flagged``), at an
+energy change equal to it in float64 (found by search, then one ulp above); the safe start
+extrapolated from the previous step's collocation polynomial is exact for a velocity linear in
+time, for nodes that include the end point (Lobatto: c = 0, 1, which must not be entered twice)
+and nodes that do not (Gauss)."""
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+
+from ldaspark.core import guard
+from ldaspark.core.families import get_method
+
+
+def _boundary():
+    """(p, E1): with the previous energy change p and E0 = 0, E1 - E0 equals the threshold
+    SAFETY p + round(E0, E1) exactly in float64."""
+    for k in range(10, 40):
+        E1 = 2.0 ** -k
+        base = (E1 - guard._round(0.0, E1)) / guard.SAFETY
+        for u in range(-8, 9):
+            p = base + u * math.ulp(base)
+            if p > 0 and guard.SAFETY * p + guard._round(0.0, E1) == E1:
+                return p, E1
+    raise AssertionError("no exact boundary found")
+
+
+def test_a_change_equal_to_the_threshold_is_not_flagged_one_ulp_more_is():
+    p, E1 = _boundary()
+    above = float(np.nextafter(E1, 1.0))
+    g = guard.StepGuard()
+    g.accept(-p, 0.0)
+    assert not g.suspect(1, 0.0, E1) and g.suspect(1, 0.0, above)
+    assert list(guard.flagged([-p, 0.0, E1])) == [] and list(guard.flagged([-p, 0.0, above])) == [1]
+
+
+def _start(name, h=0.1):
+    tab = get_method(name).arrays(None)           # what SparkMethod.tab holds in float64
+    c = np.asarray([float(x) for x in tab.c])
+    a, b = np.array([0.3, -1.2]), np.array([2.0, 0.5])        # v(tau) = a + b tau, tau in units of h
+    V = a + np.outer(c, b)
+    Psi = np.array([[0.25]] * len(c))
+    meth = SimpleNamespace(tab=tab, pack=lambda V, Lam, v1: np.concatenate([np.ravel(V), np.ravel(Lam), v1]))
+    x = guard._extrapolated_start(meth, (V, Psi, h), a + b)
+    s = len(c)
+    return x, a + np.outer(1 + c, b), a + 2 * b, Psi * h, s
+
+
+def test_the_extrapolated_start_is_exact_for_a_linear_velocity():
+    for name in ("lobatto-iiia-iiib-2", "lobatto-iiia-iiib-3", "gauss-1", "gauss-2"):   # >= 2 distinct nodes
+        x, V_want, v_want, lam_want, s = _start(name)
+        assert np.isfinite(x).all(), name
+        n = V_want.shape[1]
+        assert np.allclose(x[:s * n].reshape(s, n), V_want, rtol=0, atol=1e-12), name
+        assert np.allclose(x[s * n:s * n + s], lam_want.ravel(), rtol=0, atol=1e-15), name
+        assert np.allclose(x[-n:], v_want, rtol=0, atol=1e-12), name
