@@ -116,13 +116,10 @@ class RunSpec:
         """The set-up checks of ``integrate`` for every member: finite data, (4) regular with K of
         full rank, consistent v0 (an inconsistent v0 would otherwise run, its energy jumping in
         the first step); the error names the member."""
-        from .core.errors import LdasparkError
-        from .compiled.fast import _setup_checks
-        for j, (q0, v0) in enumerate(zip(Q0, V0)):
-            try:
-                _setup_checks(system, t0, q0, v0)
-            except LdasparkError as exc:
-                raise type(exc)(f"ensemble member {j}: {exc}") from None
+        from .core.backend import Backend
+        from .core.validate import initial_point
+        for j, (q0, v0) in enumerate(zip(Q0, V0)):       # the one initial-point check, per member
+            initial_point(system, Backend(None), t0, q0, v0, member=f"ensemble member {j}: ")
 
     def tasks(self, chunk):
         """(callable, args) per chunk of initial data; compiles in this process first."""

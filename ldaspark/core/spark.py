@@ -639,15 +639,11 @@ def integrate(system: LagrangianSystem, tableau: SparkTableau, t0, q0, v0, h, t_
             n_steps = n_steps_for(t0, t_end, h)
         from .validate import count
         n_steps = count(n_steps, "n_steps", 1, MAX_STEPS)
-        if q.ndim != 1 or v.ndim != 1 or len(q) != system.n or len(v) != system.n:
-            raise InputError(f"initial data have shapes q: {q.shape}, v: {v.shape}; the system has n = {system.n}")
-        if not (bk.isfinite(q) and bk.isfinite(v)):
-            raise InputError("initial data contain NaN or infinity")
-        if check_initial:
-            system.check_saddle(bk, t0_, q, v)
-            if project:
-                v = system.project_velocity(bk, t0_, q, v)
-            system.check_consistent(bk, t0_, q, v, tol=None if tol is None else 10 * tol)
+        # the one initial-point check of every engine (numbers, shapes, finite, (8) and k finite,
+        # then (4), the projection and (1c) unless ``check_initial`` is off)
+        from .validate import initial_point
+        t0_, q, v = initial_point(system, bk, t0_, q, v, project=project and check_initial, tol=tol,
+                                  consistent=check_initial)
         N = n_steps
         from .validate import check_storage
         check_storage(N + 1, 2 + 2 * system.n + (tableau.s + 1) * system.m, bk.is_mp)
