@@ -42,7 +42,7 @@ from .spark import Solution, SparkMethod
 from .derive import real_jacobian
 from .system import _NONSMOOTH, LagrangianSystem, _arr
 from .families import euler_i, euler_ii, gauss, lobatto_iiia_iiib
-from .validate import initial_point
+from . import validate
 
 FIXED_NAMES = ("lobatto-iiia-iiib-2-leapfrog", "lobatto-iiia-iiib-2-modified",
                "lobatto-iiia-iiib-2-modified-leapfrog", "mp-lobatto-iiib-a-2",
@@ -399,7 +399,7 @@ def integrate_comparator(name: str, system: LagrangianSystem, t0, q0, v0, h, n_s
         raise InputError(f"n_steps must be a positive integer, got {n_steps!r}")
     bk = Backend(dps)
     with bk.context():       # the one initial-point check of every engine (ldaspark.core.validate)
-        initial_point(system, bk, t0, q0, v0, tol=tol)
+        validate.initial_point(system, bk, t0, q0, v0, tol=tol)
     mt = re.fullmatch(r"gauss-irk-([1-9][0-9]*)", name)
     if mt:
         meth = GaussIRK(system, gauss(int(mt.group(1)), max_stages=max_stages), dps=dps, tol=tol, max_iter=max_iter)
