@@ -160,8 +160,9 @@ def generic_integrate(system, method, t0, q0, v0, h, n_steps, every=1, tol=None)
     st["path"] = "generic"
     return FastSolution(np.asarray(sol.t, float)[idx], np.asarray(sol.q, float)[idx],
                         np.asarray(sol.v, float)[idx], np.asarray(sol.energy, float)[idx],
-                        np.asarray(sol.constraint, float)[idx], st,
-                        None if getattr(sol, "psi", None) is None else np.asarray(sol.psi, float)[idx[:-1]])
+                        np.asarray(sol.constraint, float)[idx],
+                        psi=None if getattr(sol, "psi", None) is None else np.asarray(sol.psi, float)[idx[:-1]],
+                        stats=st)
 
 
 def _first_line(exc):

@@ -217,9 +217,9 @@ def _finish_solution(system, bk, ts, Qs, Vs, Ps, stats, dps, name):
         E = [_energy_checked(system, bk, ts, Qs, Vs, i) for i in range(len(ts))]
         K = [system.constraint(bk, ts[i], Qs[i], Vs[i]) for i in range(len(ts))]
     dt = object if bk.is_mp else float
-    return Solution(np.array(ts, dtype=dt), np.array(Qs, dtype=dt), np.array(Vs, dtype=dt),
-                    np.array(Ps, dtype=dt), np.array(E, dtype=dt), np.array(K, dtype=dt),
-                    stats, dps, name, system.name)
+    return Solution(t=np.array(ts, dtype=dt), q=np.array(Qs, dtype=dt), v=np.array(Vs, dtype=dt),
+                    energy=np.array(E, dtype=dt), constraint=np.array(K, dtype=dt), psi=np.array(Ps, dtype=dt),
+                    stats=stats, dps=dps, method=name, system=system.name)
 
 
 def _energy_checked(system, bk, ts, Qs, Vs, i):

@@ -519,15 +519,17 @@ def _budget_short(dn, prev, tol_abs, left) -> bool:
 
 @dataclass
 class Solution:
-    """Result of ``integrate``: t (N+1), q, v (N+1, n), psi (N, s, m), energy (N+1),
-    constraint (N+1, m) = k(t_n, q_n, v_n), and solver statistics."""
+    """Result of ``integrate`` (deprecated in favour of ``ldaspark.integrate``'s ``Result``): t (N+1),
+    q, v (N+1, n), energy (N+1), constraint (N+1, m) = k(t_n, q_n, v_n), psi (N, s, m), and solver
+    statistics. The first six fields are those of ``ldaspark.core.result.Result``, in its order
+    (``LEADING_FIELDS``); build it with keywords."""
 
     t: np.ndarray
     q: np.ndarray
     v: np.ndarray
-    psi: np.ndarray
     energy: np.ndarray
     constraint: np.ndarray
+    psi: np.ndarray
     stats: dict
     dps: int | None
     method: str
@@ -658,6 +660,6 @@ def integrate(system: LagrangianSystem, tableau: SparkTableau, t0, q0, v0, h, t_
         E = [system.energy(bk, ts[i], Qs[i], Vs[i]) for i in range(N + 1)]
         K = [system.constraint(bk, ts[i], Qs[i], Vs[i]) for i in range(N + 1)]
     dt = object if bk.is_mp else float
-    return Solution(np.array(ts, dtype=dt), np.array(Qs, dtype=dt), np.array(Vs, dtype=dt),
-                    np.array(Ps, dtype=dt), np.array(E, dtype=dt), np.array(K, dtype=dt),
-                    method.stats.as_dict(), dps, tableau.name, system.name)
+    return Solution(t=np.array(ts, dtype=dt), q=np.array(Qs, dtype=dt), v=np.array(Vs, dtype=dt),
+                    energy=np.array(E, dtype=dt), constraint=np.array(K, dtype=dt), psi=np.array(Ps, dtype=dt),
+                    stats=method.stats.as_dict(), dps=dps, method=tableau.name, system=system.name)
