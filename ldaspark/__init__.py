@@ -4,7 +4,7 @@ with a suite that machine-checks the paper's claims.
 Layers (a module imports only from its own room or from the layers to its left; rooms in one
 layer do not import each other; ``tests/project/test_layers.py`` checks this on every import statement):
 
-    core  <  models  <  compiled  <  executors  <  ensemble  <  solve, plot  <  analysis  <  cli  <  lab
+    core  <  models  <  compiled  <  executors  <  ensemble  <  engines  <  solve, plot  <  analysis  <  cli  <  lab
 
 (the paper lab ``ldaspark.lab`` sits above the library and is not imported by it)
 
@@ -16,7 +16,9 @@ layer do not import each other; ``tests/project/test_layers.py`` checks this on 
 * ``ldaspark.compiled``: code generation from a scene's sympy expressions, numba kernels.
 * ``ldaspark.executors``: where work runs (local pool, Dask, any Executor); ``ldaspark.ensemble``:
   many initial data or parameters of one system over an executor.
-* ``ldaspark.solve``: ``integrate`` (one entry point for every engine) returning ``Result``;
+* ``ldaspark.engines``: the engine protocol (``Engine``: prepare, steps or blocks of steps,
+  counters, the guard's safe root) and the generic, compiled and comparator engines.
+* ``ldaspark.solve``: ``integrate`` (one entry point, the one driver of every engine) returning ``Result``;
   ``ldaspark.plot``: energy, constraint and trajectory plots of a Result.
 * ``ldaspark.analysis``: discrete Lagrangian (13), Theorem 1 residuals, well-posedness, symmetry (23),
   the exact conditions (22)/(23), order conditions, the step map's Jacobian.

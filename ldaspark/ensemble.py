@@ -19,7 +19,7 @@ from __future__ import annotations
 import copy
 import os
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Optional
 
 import numpy as np
@@ -30,18 +30,21 @@ from .models import arguments
 
 @dataclass
 class EnsembleResult:
-    """Samples of every run: t (S,), q and v (R, S, n), energy (R, S), constraint (R, S, m);
-    stats: one dict per run (Newton counters, path); seconds: wall time of the whole ensemble."""
+    """Samples of every run: t (S,), q and v (R, S, n), energy (R, S), constraint (R, S, m), psi;
+    stats: one dict per run (Newton counters, path); seconds: wall time of the whole ensemble.
+    Deprecated with ``ensemble_integrate`` in favour of ``ldaspark.integrate``'s batched ``Result``
+    (``result.from_ensemble`` makes one of it); the first six fields are those of ``Result``, in its
+    order (``ldaspark.core.result.LEADING_FIELDS``)."""
 
     t: np.ndarray
     q: np.ndarray
     v: np.ndarray
     energy: np.ndarray
     constraint: np.ndarray
-    stats: list
-    seconds: float
     #: (R, S - 1, s, m) stage multipliers of (21) of each run's saved steps (None: the semi-implicit kernel)
     psi: Optional[np.ndarray] = None
+    stats: list = field(default_factory=list)
+    seconds: float = 0.0
 
 
 def _fast_task(cs, spec, t0, ics, h, n_steps, every, compensated, tol):
@@ -116,13 +119,10 @@ class RunSpec:
         """The set-up checks of ``integrate`` for every member: finite data, (4) regular with K of
         full rank, consistent v0 (an inconsistent v0 would otherwise run, its energy jumping in
         the first step); the error names the member."""
-        from .core.errors import LdasparkError
-        from .compiled.fast import _setup_checks
-        for j, (q0, v0) in enumerate(zip(Q0, V0)):
-            try:
-                _setup_checks(system, t0, q0, v0)
-            except LdasparkError as exc:
-                raise type(exc)(f"ensemble member {j}: {exc}") from None
+        from .core.backend import Backend
+        from .core.validate import initial_point
+        for j, (q0, v0) in enumerate(zip(Q0, V0)):       # the one initial-point check, per member
+            initial_point(system, Backend(None), t0, q0, v0, member=f"ensemble member {j}: ")
 
     def tasks(self, chunk):
         """(callable, args) per chunk of initial data; compiles in this process first."""
@@ -220,8 +220,8 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
         t = rs[0][0]
         out.append(EnsembleResult(t, np.array([r[1] for r in rs]), np.array([r[2] for r in rs]),
                                   np.array([r[3] for r in rs]), np.array([r[4] for r in rs]),
-                                  [r[5] for r in rs], seconds,
-                                  None if any(r[6] is None for r in rs) else np.array([r[6] for r in rs])))
+                                  psi=None if any(r[6] is None for r in rs) else np.array([r[6] for r in rs]),
+                                  stats=[r[5] for r in rs], seconds=seconds))
     return out
 
 

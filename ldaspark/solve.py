@@ -25,8 +25,8 @@ dicts (or q0, v0 with a leading batch axis) runs an ensemble and returns a batch
 from __future__ import annotations
 
 import copy
+import dataclasses
 import functools
-import math
 import sys
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -35,9 +35,10 @@ from typing import Any, Callable, Optional, Sequence, Union
 import numpy as np
 
 from .core import validate
+from .core.backend import Backend
 from .core.dense import CollocationDense, EventTracker, HermiteDense, step_piece
 from .core.errors import InputError, LdasparkError, NewtonError, SingularSaddleError, TableauError
-from .core.options import ENGINES, IntegrationOptions
+from .core.options import ENGINES as ENGINE_CHOICES, IntegrationOptions  # noqa: F401 (the engine option's values)
 from .core.guard import STATUS_GUARD
 from .core.result import (STATUS_EVENT, STATUS_NEWTON, STATUS_OTHER, STATUS_SADDLE, Result, float_array,
                           save_indices, stack)
@@ -284,7 +285,7 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
             raise InputError(f"q0 has {len(Q0)} rows but v0 has {len(V0)}")
         if executor is not None and batch_ic and not batch_params:
             if params is None:
-                _check_initial_point(_with_params(sysm, None), t0, q0, v0, dps)     # every member
+                _check_initial_point(_with_params(sysm, None), (t0, q0, v0), dps, opts=opts)     # every member
             fast = _compiled_ensemble(sysm, params, Q0, V0, prob, opts)
             if fast is not None:
                 return fast
@@ -359,14 +360,16 @@ def _portable(system):
 def _compiled_ensemble(system, params, Q0, V0, prob: _Problem, opts: IntegrationOptions) -> Optional[Result]:
     """Initial-data ensembles on the compiled engine go through
     ``ldaspark.ensemble.ensemble_integrate`` (tasks that pickle, so any executor, process
-    pools and clusters included); None when the run does not qualify (then the loop runs)."""
+    pools and clusters included); None when the run does not qualify (then the loop runs: a root
+    finder other than the default with any tol, whose fields the kernel tasks do not take, too)."""
+    from .engines import ENGINES
     if (opts.engine == "generic" or opts.dps is not None or opts.dense_output or opts.events or opts.project
-            or opts.energy_jump is not None or opts.newton == "quasi"
+            or opts.energy_jump is not None or dataclasses.replace(opts.newton, tol=None) != "auto"
             or params is not None or system.params
-            or _compiled_reason(system, prob.kind, prob.name) is not None):
+            or ENGINES["compiled"].unavailable(system, prob) is not None):
         return None
-    from .ensemble import run_ensemble
     from .core.result import from_ensemble
+    from .ensemble import run_ensemble
     ens = run_ensemble(system, prob.method, prob.t0, Q0, V0, prob.h, prob.N, every=opts.save_every,
                              tol=opts.tol, executor=opts.executor)
     return from_ensemble(ens, method=prob.name, system=system.name, scene=prob.scene, h=prob.h,
@@ -385,56 +388,50 @@ def _with_params(system: LagrangianSystem, params) -> LagrangianSystem:
     return system.with_params(params)
 
 
-def _compiled_reason(system: LagrangianSystem, kind: str, name: str) -> Optional[str]:
-    """None when the compiled engine can run this system and method, else why not."""
-    from .compiled import fast
-    if kind == "comparator" and name not in fast.LF2_VARIANTS:
-        return f"comparator {name} has no compiled kernel"
-    try:
-        cs = fast.compile_system(system)
-        cs.model  # noqa: B018  (build the model now so that failures fall back)
-        fast._kernels()     # checks the directory numba loads the kernels from (compiled.cache)
-    except (fast.NotCompilableError, fast.CacheDirectoryError) as exc:
-        return str(exc)
-    except Exception as exc:  # numba typing/lowering errors of generated code
-        return f"{system.name}: compilation failed ({type(exc).__name__})"
-    return None
-
-
-def _single(system, member, prob: _Problem, opts: IntegrationOptions, quiet=False) -> Result:
-    """One run of ``member`` = (params, q0, v0): parameters applied, the initial point checked, the
-    engine chosen (``opts.engine``; "auto" falls back to the generic engine with one notice unless
-    ``quiet``) and run."""
-    (params, q0, v0), kind, name, t0, engine, dps = member, prob.kind, prob.name, prob.t0, opts.engine, opts.dps
-    system = _with_params(system, params)
-    pvals = {str(k): v for k, v in system.param_values().items()}
-    _check_initial_point(system, t0, q0, v0, dps)
-    use = engine
-    if engine != "generic":
-        if dps is not None:
+def _choose_engine(system, prob: _Problem, opts: IntegrationOptions, quiet: bool):
+    """The registered engine (``ldaspark.engines.ENGINES``) that runs this problem: "compiled"
+    when asked for or, with "auto", whenever it can run the system and method in float64; else the
+    generic SPARK engine, or the comparator engine for a comparator. "auto" falls back with one
+    notice on stderr (unless ``quiet``); an explicit "compiled" that cannot run is refused."""
+    from .engines import ENGINES
+    use = opts.engine
+    if use != "generic":
+        if opts.dps is not None:
             use = "generic"
         else:
             # parameters are the model's run-time values (compiled.codegen.fill_params, native
             # wrappers): the model is generated and compiled once for every value
-            reason = _compiled_reason(system, kind, name)
+            reason = ENGINES["compiled"].unavailable(system, prob)
             if reason is None:
-                use, system_c = "compiled", system
-            elif engine == "compiled":
+                use = "compiled"
+            elif use == "compiled":
                 raise InputError(f"engine 'compiled' cannot run this: {reason}")
             else:
                 use = "generic"
                 if not quiet:
                     _notice(reason)
     if opts.newton == "quasi" and use != "compiled":
-        raise InputError(f"newton='quasi' runs on the compiled engine only; the generic engine would run {name} here")
-    if use == "compiled":
-        res = _run_compiled(system_c, prob, q0, v0, opts)
-    elif kind == "comparator":
-        res = _run_comparator(system.substituted(), prob, q0, v0, opts)
-    else:
-        res = _run_generic(system, prob, q0, v0, opts)
+        raise InputError(f"newton='quasi' runs on the compiled engine only; the generic engine would run {prob.name} "
+                         "here")
+    if use == "generic" and prob.kind == "comparator":
+        use = "comparator"
+    return ENGINES[use]
+
+
+def _single(system, member, prob: _Problem, opts: IntegrationOptions, quiet=False) -> Result:
+    """The driver, for one run of ``member`` = (params, q0, v0): parameters applied, the engine
+    chosen (``_choose_engine``) and prepared (its root finder honoured or refused), the one
+    initial-point check, then the engine driven (``_drive``) into one Result."""
+    (params, q0, v0), t0, dps = member, prob.t0, opts.dps
+    system = _with_params(system, params)
+    pvals = {str(k): v for k, v in system.param_values().items()}
+    engine = _choose_engine(system, prob, opts, quiet)
+    prep = engine.prepare(system, prob, opts)
+    bk = engine.backend(prep, opts)
+    start = _check_initial_point(prep.system, (t0, q0, v0), dps, bk=bk, opts=opts, model=engine.point_model(prep))
+    res = _drive(engine, prep, start)
     res.method, res.system, res.scene, res.h, res.dps, res.save_every, res.params = \
-        name, system.name, prob.scene, prob.h, dps, opts.save_every, pvals
+        prob.name, system.name, prob.scene, prob.h, dps, opts.save_every, pvals
     res.coordinate_names = [str(x) for x in system.q]
     if opts.project and len(res.t):
         _note_projection(res, v0)
@@ -460,37 +457,195 @@ def _note_projection(res: Result, v0) -> None:
                       "so that k(t0, q0, v0) = 0", LdasparkWarning, stacklevel=3)
 
 
-def _check_initial_point(system, t0, q0, v0, dps) -> None:
-    """The energy (8) and k at the initial point are finite real numbers, so that
-    U = 1/x at x = 0, oo or zoo in L, v0 = 1e200, sqrt(x) at x = -1 (a math domain error in
-    float64, a complex mpc at dps) are one error here, never a NaN, inf or complex energy[0] in
-    a returned Result (nor a ZeroDivisionError printed by a compiled kernel)."""
-    import warnings
-
-    from .core.backend import Backend
-    bk = Backend(dps)
+def _check_initial_point(system, start, dps, bk=None, opts: Optional[IntegrationOptions] = None, model=None):
+    """The initial point of a run (or of every member of an initial-data ensemble, q0 and v0 with a
+    leading axis) through the one check ``ldaspark.core.validate.initial_point``: numbers, shapes,
+    finite, the energy (8) and k finite real numbers (U = 1/x at x = 0, oo or zoo in L, v0 = 1e200,
+    sqrt(x) at x = -1 are one error here, never a NaN, inf or complex energy[0] in a returned
+    Result, nor a ZeroDivisionError printed by a compiled kernel), (4) regular, v0 projected with
+    ``opts.project``, (1c). ``start`` = (t0, q0, v0); returns it in ``bk``'s numbers (of the last
+    member)."""
+    (t0, q0, v0), bk = start, Backend(dps) if bk is None else bk
     rows = [(np.asarray(q0, dtype=object), np.asarray(v0, dtype=object))]
     if rows[0][0].ndim == 2:                      # an initial-data ensemble: every member
         rows = list(zip(rows[0][0], rows[0][1]))
-    with bk.context(), np.errstate(all="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore")
+    project, tol = (False, None) if opts is None else (opts.project, opts.tol)
+    start = None
+    with bk.context():
         for j, (q, v) in enumerate(rows):
             member = f"ensemble member {j}: " if len(rows) > 1 else ""
-            try:
-                t, qq, vv = bk.scalar(t0), bk.array(list(q)), bk.array(list(v))
-            except (TypeError, ValueError) as exc:
-                raise InputError(f"{member}t0, q0 and v0 must be numbers: {exc}") from None
-            if qq.shape != (system.n,) or vv.shape != (system.n,):
-                raise InputError(f"{member}initial data have shapes q: {qq.shape}, v: {vv.shape}; the system has "
-                                 f"n = {system.n}")
-            validate.finite_initial_point(system, bk, t, qq, vv, member)
+            start = validate.initial_point(system, bk, t0, q, v, member=member, project=project, tol=tol,
+                                           model=model)
+    return start
+
+
+# --- the driver -----------------------------------------------------------------------------
+def _drive(engine, prep, start) -> Result:
+    """Drive ``engine`` (prepared: ``prep``) from the checked ``start`` over the problem's grid into
+    one Result, with what the driver owns for every engine: save_every, dense output, events, the
+    energy monitor, the step-acceptance guard, the prefix of a failed run and (block engines) the
+    chunks."""
+    return _drive_steps(engine, prep, start) if engine.mode == "steps" else _drive_blocks(engine, prep, start)
+
+
+class _StepWatch:
+    """The driver's per-step monitors on a stepping engine: the energy monitor (``energy_jump``,
+    the test of ``_energy_jump_cut``) and the step-acceptance guard (``ldaspark.core.guard``: each
+    step's energy change and Newton iterations against the previous steps'; a suspect step is
+    solved again from the safe starts of ``engine.resolve_step``, and a different root ends the
+    run)."""
+
+    def __init__(self, engine, prep, E0, h):
+        from .core.guard import StepGuard
+        self.engine, self.prep, self.h = engine, prep, h
+        self.jump = prep.opts.energy_jump
+        self.test = StepGuard() if prep.opts.guard else None
+        self.E = E0
+        self.prev = None            # (V, Psi, h) of the previous step
+        self.flagged = self.confirmed = self.unverified = 0
+
+    def step(self, st) -> Optional[LdasparkError]:
+        """None when the step ``st`` (``engines.Step``) stands, else the error that ends the run."""
+        from .core import guard
+        from .core.errors import NonFiniteError
+        E1 = float(st.energy)
+        if self.jump is not None and abs(E1 - self.E) > float(self.jump) * (1 + abs(self.E)):
+            return NonFiniteError(
+                f"step {st.index} (t = {float(st.t):.6g} -> {float(st.t + self.h):.6g}): energy jumped from "
+                f"{self.E:.6g} to {E1:.6g} (more than energy_jump = {float(self.jump):g} relative): a collision "
+                "with a singularity of L or a step too large", step=st.index, time=float(st.t))
+        if self.test is not None:
+            if self.test.suspect(st.index, self.E, E1, st.iterations):
+                self.flagged += 1
+                label, safe = self.engine.resolve_step(self.prep, st.index, (st.t, st.q, st.v), self.prev)
+                if safe is None:
+                    self.unverified += 1
+                elif guard.same_root(st.q1, st.v1, safe[0], safe[1]):
+                    self.confirmed += 1
+                else:
+                    return guard.mismatch(st.index, st.t, self.h, (st.q1, st.v1, E1), safe, label)
+            self.test.accept(self.E, E1, st.iterations)
+        self.E = E1
+        self.prev = (st.V, st.Psi, self.h)
+        return None
+
+    def stats(self) -> dict:
+        if self.test is None:
+            return {"guard": False}
+        return {"guard": True, "guard_flagged": self.flagged, "guard_confirmed": self.confirmed,
+                "guard_unverified": self.unverified}
+
+
+def _drive_steps(engine, prep, start) -> Result:
+    """A stepping engine (the generic one) driven step by step: every ``every``-th point (t, q, v,
+    E, k, psi) kept, the stages' collocation polynomial for dense output and events, the monitors
+    (``_StepWatch``), and the prefix on a step failure."""
+    from .compiled.fast import n_samples
+    prob, opts, system = prep.prob, prep.opts, prep.system
+    N, every, dense, events, dps = prob.N, opts.save_every, opts.dense_output, opts.events, opts.dps
+    c = engine.nodes(prep)
+    # what this run stores: every ``every``-th point (t, q, v, E, k, psi), and with dense output or
+    # events the nodes and stage velocities of every step (refused before allocating, as the
+    # compiled engine does)
+    s, n, m = len(c), system.n, system.m
+    validate.check_storage(n_samples(N, every), 2 + 2 * n + m + s * m, mp=dps is not None)
+    if dense or events:
+        validate.check_storage(N + 1, n + s * n, what="the dense output")
+    bk = engine.backend(prep, opts)
+    status, message, error = 0, MSG_DONE, None
+    with bk.context():
+        t0_, q, v = start
+        h_ = bk.scalar(prob.h)
+        tracker = EventTracker(events, t0_, q, v) if events else None
+        saved_i, Qs, Vs, Ps = [0], [q], [v], []
+        dense_q, dense_V = [], []
+        done = 0
+        watch = _StepWatch(engine, prep, float(system.energy(bk, t0_, q, v)), h_) \
+            if opts.guard or opts.energy_jump is not None else None
+        steps = engine.steps(prep, (t0_, q, v), N)
+        while True:
+            try:              # only the step itself: an error raised by an event function propagates
+                st = next(steps, None)
+            except LdasparkError as exc:
+                (status, message), error = _failure(exc), exc
+                break
+            if st is None:
+                break
+            i, ti = st.index, st.t
+            if watch is not None:
+                error = watch.step(st)
+                if error is not None:
+                    status, message = _failure(error)
+                    break
+            if i % every == 0:
+                Ps.append(st.Psi)
+            if dense or tracker:
+                dense_q.append(float_array(q))
+                dense_V.append(float_array(st.V))
+            stop = tracker is not None and tracker.after_step(
+                ti, t0_ + (i + 1) * h_, st.q1, st.v1, step_piece(ti, h_, q, c, st.V))
+            q, v = st.q1, st.v1
+            done = i + 1
+            if done % every == 0 or done == N or stop:
+                saved_i.append(done)
+                Qs.append(q)
+                Vs.append(v)
+            if stop:
+                status, message = STATUS_EVENT, MSG_EVENT
+                break
+        if saved_i[-1] != done:           # failure: the last good state ends the trajectory
+            saved_i.append(done)
+            Qs.append(q)
+            Vs.append(v)
+        ts = [t0_ + j * h_ for j in saved_i]
+        E = [system.energy(bk, ts[j], Qs[j], Vs[j]) for j in range(len(ts))]
+        K = [system.constraint(bk, ts[j], Qs[j], Vs[j]) for j in range(len(ts))]
+    dt = object if bk.is_mp else float
+    st = engine.stats(prep)
+    psi = np.array(Ps[:len(ts) - 1], dtype=dt).reshape(len(ts) - 1, s, m)
+    guard_stats = watch.stats() if watch is not None and watch.test is not None else {"guard": False}
+    res = Result(np.array(ts, dtype=dt), np.array(Qs, dtype=dt), np.array(Vs, dtype=dt), np.array(E, dtype=dt),
+                 np.array(K, dtype=dt).reshape(len(ts), m), psi, status, message,
+                 st["nfev"], st["njev"], st["nlu"], st["newton_iterations"], engine=engine.label,
+                 stats=dict(st, path="generic", engine=prep.support, root_finder=prep.root.describe(),
+                            **guard_stats), error=error)
+    if dense and done > 0:
+        tg = float(t0_) + np.arange(done + 1) * float(h_)
+        res.sol = CollocationDense(tg, np.array(dense_q + [float_array(q)]), c, np.array(dense_V))
+    if tracker is not None:
+        res.t_events, res.q_events, res.v_events = tracker.arrays()
+    return res
+
+
+def _drive_blocks(engine, prep, start) -> Result:
+    """A block engine (compiled kernels, comparators) driven in blocks: the run in chunks
+    (``_chunked``), the prefix of a failed run (``_prefix_run``, explained by ``engine.explain``),
+    the guard (``_guard_scan``), the energy monitor (``_energy_jump_cut``), then dense output,
+    events and ``save_every`` (``_finish_prefix``)."""
+    prob, opts = prep.prob, prep.opts
+    N, energy_jump = prob.N, opts.energy_jump
+    inner = opts.save_every if engine.samples and not opts.every_step else 1
+    engine.check_block(prep, N, inner)
+
+    def run(n, e):
+        return _chunked(engine, prep, start, n, e)
+    res, exc = _prefix_run(run, N, inner)
+    if exc is not None:
+        exc = engine.explain(prep, exc, res, start)
+    res, exc = _guard_scan(res, exc, engine, prep, (lambda n: run(n, 1)) if engine.samples else None)
+    if exc is None:
+        res, exc = _energy_jump_cut(res, energy_jump)
+    # without dense output, events, an energy-jump watch or the guard the kernels kept every
+    # ``every``-th point already (inner = every): nothing to post-process (with every = 1 too:
+    # re-slicing would copy the arrays unchanged)
+    return _finish_prefix(res, exc, prep, start, engine.label, sliced=engine.samples and not opts.every_step)
 
 
 def _energy_jump_cut(res: Result, energy_jump) -> tuple:
     """The ``energy_jump`` monitor on a run that returned every step (compiled kernels,
     comparators): (the prefix up to the first step whose energy changes by more than
-    energy_jump (1 + |E|), the NonFiniteError) or (res, None). The same test as
-    ``SparkMethod``'s monitor on the generic engine."""
+    energy_jump (1 + |E|), the NonFiniteError) or (res, None). The same test as the stepping
+    engines' monitor (``_StepWatch``)."""
     from .core.errors import NonFiniteError
     if energy_jump is None or res is None or len(res.t) < 2:
         return res, None
@@ -519,160 +674,6 @@ def _failure(exc: BaseException) -> tuple:
     if isinstance(exc, SingularSaddleError):
         return STATUS_SADDLE, str(exc)
     return STATUS_OTHER, str(exc)
-
-
-def _initial_checks(system, bk, start, opts: IntegrationOptions):
-    """The set-up checks of ``ldaspark.core.spark.integrate`` at ``start`` = (t0, q0, v0): numbers,
-    shapes, finite, (4), k = 0 (after the projection of v0 with ``opts.project``)."""
-    (t0, q0, v0), project, tol = start, opts.project, opts.tol
-    try:
-        t0_ = bk.scalar(t0)
-        q, v = bk.array(q0), bk.array(v0)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"t0, q0 and v0 must be numbers: {exc}") from None
-    if q.ndim != 1 or v.ndim != 1 or len(q) != system.n or len(v) != system.n:
-        raise InputError(f"initial data have shapes q: {q.shape}, v: {v.shape}; the system has n = {system.n}")
-    if not (math.isfinite(float(t0_)) and bk.isfinite(q) and bk.isfinite(v)):
-        raise InputError("initial data contain NaN or infinity")
-    system.check_saddle(bk, t0_, q, v)
-    if project:
-        v = system.project_velocity(bk, t0_, q, v)
-    system.check_consistent(bk, t0_, q, v, tol=None if tol is None else 10 * tol)
-    return t0_, q, v
-
-
-def _run_generic(system, prob: _Problem, q0, v0, opts: IntegrationOptions) -> Result:
-    """The loop of ``ldaspark.core.spark.integrate`` (``core.spark.march``: same predictor, same
-    checks, so the same numbers), keeping every ``every``-th point, the stage values for dense
-    output, events, and the prefix on a step failure."""
-    tableau, t0, h, N = prob.what, prob.t0, prob.h, prob.N
-    every, dense, events, dps = opts.save_every, opts.dense_output, opts.events, opts.dps
-    from .compiled.fast import n_samples
-    from .core.spark import SparkMethod, march
-    # what this run stores: every ``every``-th point (t, q, v, E, k, psi), and with dense output or
-    # events the nodes and stage velocities of every step (refused before allocating, as the
-    # compiled engine does)
-    s, n, m = tableau.s, system.n, system.m
-    validate.check_storage(n_samples(N, every), 2 + 2 * n + m + s * m, mp=dps is not None)
-    if dense or events:
-        validate.check_storage(N + 1, n + s * n, what="the dense output")
-    root = opts.newton.check_for("generic")
-    method = SparkMethod(system, tableau, dps=dps, tol=opts.tol, newton=root.kind, max_iter=root.iterations,
-                         energy_jump=opts.energy_jump)
-    bk = method.backend
-    status, message, error = 0, MSG_DONE, None
-    with bk.context():
-        try:
-            h_ = bk.scalar(h)
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"h must be a number: {exc}") from None
-        if not math.isfinite(float(h_)) or h_ == 0:
-            raise InputError(f"step size h must be finite and nonzero, got {h}")
-        t0_, q, v = _initial_checks(system, bk, (t0, q0, v0), opts)
-        c = np.asarray(float_array(tableau.arrays(None).c))
-        tracker = EventTracker(events, t0_, q, v) if events else None
-        saved_i, Qs, Vs, Ps = [0], [q], [v], []
-        dense_q, dense_V = [], []
-        done = 0
-        watch = _GenericGuard(system, tableau, opts, bk, t0_, q, v, h_) if opts.guard else None
-        steps = march(method, t0_, q, v, h_, N, predictor=root.predictor)
-        while True:
-            try:              # only the step itself: an error raised by an event function propagates
-                item = next(steps, None)
-            except LdasparkError as exc:
-                (status, message), error = _failure(exc), exc
-                break
-            if item is None:
-                break
-            i, ti, _, r = item
-            if watch is not None:
-                error = watch.step(i, ti, q, v, r)
-                if error is not None:
-                    status, message = STATUS_GUARD, str(error)
-                    break
-            if i % every == 0:
-                Ps.append(r.Psi)
-            if dense or tracker:
-                dense_q.append(float_array(q))
-                dense_V.append(float_array(r.V))
-            stop = tracker is not None and tracker.after_step(
-                ti, t0_ + (i + 1) * h_, r.q1, r.v1, step_piece(ti, h_, q, c, r.V))
-            q, v = r.q1, r.v1
-            done = i + 1
-            if done % every == 0 or done == N or stop:
-                saved_i.append(done)
-                Qs.append(q)
-                Vs.append(v)
-            if stop:
-                status, message = STATUS_EVENT, MSG_EVENT
-                break
-        if saved_i[-1] != done:           # failure: the last good state ends the trajectory
-            saved_i.append(done)
-            Qs.append(q)
-            Vs.append(v)
-        ts = [t0_ + j * h_ for j in saved_i]
-        E = [system.energy(bk, ts[j], Qs[j], Vs[j]) for j in range(len(ts))]
-        K = [system.constraint(bk, ts[j], Qs[j], Vs[j]) for j in range(len(ts))]
-    dt = object if bk.is_mp else float
-    st = method.stats.as_dict()
-    psi = np.array(Ps[:len(ts) - 1], dtype=dt).reshape(len(ts) - 1, tableau.s, system.m)
-    res = Result(np.array(ts, dtype=dt), np.array(Qs, dtype=dt), np.array(Vs, dtype=dt), np.array(E, dtype=dt),
-                 np.array(K, dtype=dt).reshape(len(ts), system.m), psi, status, message,
-                 st["nfev"], st["njev"], st["nlu"], st["newton_iterations"], engine="generic",
-                 stats=dict(st, path="generic", engine="generic", root_finder=root.describe(),
-                            **(watch.stats() if watch is not None else {"guard": False})), error=error)
-    if dense and done > 0:
-        tg = float(t0_) + np.arange(done + 1) * float(h_)
-        res.sol = CollocationDense(tg, np.array(dense_q + [float_array(q)]), c, np.array(dense_V))
-    if tracker is not None:
-        res.t_events, res.q_events, res.v_events = tracker.arrays()
-    return res
-
-
-class _GenericGuard:
-    """The step-acceptance guard (``ldaspark.core.guard``) inside the generic engine's loop: each
-    step's energy change and Newton iterations against the previous steps'; a suspect step is
-    solved again from the safe starts, and a different root is the error that ends the run."""
-
-    def __init__(self, system, tableau, opts, bk, t0, q0, v0, h):
-        from .core.guard import StepGuard
-        self.system, self.tableau, self.opts, self.bk, self.h = system, tableau, opts, bk, h
-        self.test = StepGuard()
-        self.E = float(system.energy(bk, t0, q0, v0))
-        self.prev = None            # (V, Psi, h) of the previous step
-        self.methods = None
-        self.flagged = self.confirmed = self.unverified = 0
-
-    def _methods(self):
-        if self.methods is None:
-            from .core.spark import SparkMethod
-            o = self.opts
-            mk = lambda kind: SparkMethod(self.system, self.tableau, dps=o.dps, tol=o.tol, newton=kind,  # noqa: E731
-                                          max_iter=o.newton.iterations)
-            self.methods = (mk("full"), mk("auto"))
-        return self.methods
-
-    def step(self, i, ti, q, v, r):
-        """None when step i (from (ti, q, v), result r) stands, else the RootMismatchError."""
-        from .core import guard
-        E1 = float(r.energy)
-        if self.test.suspect(i, self.E, E1, r.iterations):
-            self.flagged += 1
-            label, safe = guard.safe_root(self._methods(), ti, q, v, self.h, self.prev, step_index=i)
-            if safe is None:
-                self.unverified += 1
-            elif guard.same_root(r.q1, r.v1, safe.q1, safe.v1):
-                self.confirmed += 1
-            else:
-                return guard.mismatch(i, ti, self.h, (r.q1, r.v1, E1), (safe.q1, safe.v1, float(safe.energy)), label)
-        self.test.accept(self.E, E1, r.iterations)
-        self.E = E1
-        self.prev = (r.V, r.Psi, self.h)
-        return None
-
-    def stats(self) -> dict:
-        return {"guard": True, "guard_flagged": self.flagged, "guard_confirmed": self.confirmed,
-                "guard_unverified": self.unverified}
 
 
 def _post_process(full: Result, every: int, dense: bool, events, sliced: bool = False) -> Result:
@@ -716,27 +717,29 @@ def _prefix_run(run: Callable, N: int, every: int) -> tuple:
         return (run(k, every) if k > 0 else None), exc
 
 
-#: steps of one compiled kernel call: a long run is a sequence of such calls (each starting from
-#: the previous end state), and Python handles a Ctrl-C between two of them (a kernel holds the
-#: interpreter). 2**18 steps take 0.1-3 s (0.4-10 us a step), so an interrupt ends the run within
-#: a few seconds; runs up to this length are one call, bit for bit as before.
+#: steps of one block of a chunked engine (the compiled kernels): a long run is a sequence of
+#: blocks (each starting from the previous end state), and Python handles a Ctrl-C between two of
+#: them (a kernel holds the interpreter). 2**18 steps take 0.1-3 s (0.4-10 us a step), so an
+#: interrupt ends the run within a few seconds; runs up to this length are one call, bit for bit
+#: as before.
 COMPILED_CHUNK = 2 ** 18
+#: the counters that add up over the blocks of a chunked run
+_BLOCK_SUMS = ("steps", "nfev", "njev", "nlu", "newton_iterations", "full_newton_steps", "quasi_iterations",
+               "quasi_steps", "quasi_fallbacks", "multiplier_lu", "quasi_skipped", "generic_steps", "rescued_steps")
 
 
-def _fast_chunked(system, method, start, h, steps, kopts):
-    """The compiled engine (``compiled.fast.run_engine`` with the kernel options ``kopts``) from
-    ``start`` = (t0, q0, v0) of ``steps`` = (n, every): n steps in calls
-    of at most COMPILED_CHUNK steps whose ends fall on the saved points (multiples of ``every``), so the
-    saved samples are those of one call; a failure names the step of the whole run. Between calls
-    the predictor restarts (the numbers agree with one call to the Newton tolerance)."""
-    from .compiled.fast import FastSolution, compile_system, run_engine
-    from .compiled.runner import _run_checked
-    (t0, q0, v0), (n, every) = start, steps
+def _chunked(engine, prep, start, n, every) -> Result:
+    """``engine.run`` of n steps from ``start`` = (t0, q0, v0) keeping every ``every``-th sample, in
+    blocks of at most COMPILED_CHUNK steps (a ``chunked`` engine) whose ends fall on the saved points
+    (multiples of ``every``), so the saved samples are those of one call; a failure names the step of
+    the whole run. Between blocks the predictor restarts (the numbers agree with one call to the
+    Newton tolerance)."""
     chunk = COMPILED_CHUNK
-    if n <= chunk:
-        return run_engine(system, method, (t0, q0, v0), (h, n, every), kopts)
-    hf, t0f = float(h), float(t0)
-    parts, stats, done, cs = [], None, 0, None
+    if not engine.chunked or n <= chunk:
+        return engine.run(prep, start, n, every)
+    (t0, q0, v0), hf = start, float(prep.prob.h)
+    t0f = float(t0)
+    parts, stats, done = [], None, 0
     q, v = q0, v0
     while done < n:
         if every <= chunk:
@@ -745,18 +748,14 @@ def _fast_chunked(system, method, start, h, steps, kopts):
             L = min(n - done, chunk, (done // every + 1) * every - done)
             e = L
         try:
-            if cs is None:
-                fs = run_engine(system, method, (t0f + done * hf, q, v), (h, L, e), kopts)
-                if fs.stats.get("path") != "fast":      # the generic fallback: one Python loop
-                    return run_engine(system, method, (t0, q0, v0), (h, n, every), kopts)
-                cs = compile_system(system)
-            else:
-                fs = _run_checked(cs, method, (t0f + done * hf, q, v), (h, L, e), kopts)
+            fs = engine.run(prep, (t0f + done * hf, q, v), L, e)
         except LdasparkError as exc:
             if isinstance(getattr(exc, "step", None), int):
                 exc.step += done
                 exc.time = t0f + exc.step * hf
             raise
+        if not parts and fs.engine != engine.label:    # the block ran on a fallback, which does not chunk
+            return engine.run(prep, start, n, every)
         rows = [0] if not parts else []            # the start of a chunk ends the previous one
         if every <= chunk:
             rows += list(range(1, len(fs.t)))        # its samples fall on multiples of every
@@ -767,107 +766,43 @@ def _fast_chunked(system, method, start, h, steps, kopts):
         psi = None if fs.psi is None else (fs.psi if every <= chunk else fs.psi[:1] if done % every == 0
                                            else fs.psi[:0])
         parts.append(tuple(np.asarray(a)[rows] for a in (fs.t, fs.q, fs.v, fs.energy, fs.constraint)) + (psi,))
-        st = fs.stats
         if stats is None:
-            stats = dict(st)
+            stats = dict(fs.stats)
         else:
-            for key in ("steps", "nfev", "njev", "nlu", "newton_iterations", "full_newton_steps", "quasi_iterations",
-                        "quasi_steps", "quasi_fallbacks", "multiplier_lu", "quasi_skipped"):
-                if key in st:
-                    stats[key] = stats.get(key, 0) + st[key]
+            for key in _BLOCK_SUMS:
+                if key in fs.stats:
+                    stats[key] = stats.get(key, 0) + fs.stats[key]
         q, v = fs.q[-1], fs.v[-1]
         done += L
     stats["mean_iterations"] = stats.get("newton_iterations", 0) / max(stats.get("steps", 1), 1)
     psi = None if any(p[5] is None for p in parts) else np.concatenate([p[5] for p in parts])
-    return FastSolution(*(np.concatenate([p[i] for p in parts]) for i in range(5)), stats, psi)
+    return Result(*(np.concatenate([p[i] for p in parts]) for i in range(5)), psi, 0, MSG_DONE,
+                  *(stats.get(c, 0) for c in ("nfev", "njev", "nlu", "newton_iterations")), engine=engine.label,
+                  stats=stats)
 
 
-def _run_compiled(system, prob: _Problem, q0, v0, opts: IntegrationOptions) -> Result:
-    """The compiled engine (numba kernels, in chunks), with the prefix of a failed run, the energy
-    monitor, dense output and events after the kernels; a kernel's Newton failure explained by
-    the generic step at the same state."""
-    from .compiled import fast, runner
-    from .core.backend import Backend
-    method, t0, h, N = prob.method, prob.t0, prob.h, prob.N
-    every, tol, energy_jump = opts.save_every, opts.tol, opts.energy_jump
-    kopts, engine_name = _kernel_options(prob, opts)
-    if opts.project:
-        bk = Backend(None)
-        v0 = system.project_velocity(bk, float(t0), bk.array(q0), bk.array(v0))
-    inner = 1 if opts.every_step else every
-    runner._check_options(N, inner, kopts.predictor, tol, kopts.max_iter, system.n, system.m)
-    # the initial point's (4) and k = 0 (the kernels assume both), after the projection of v0
-    fast._setup_checks(system, t0, q0, v0, fast._loaded(system))
-
-    def run(n, e):
-        fs = _fast_chunked(system, method, (t0, q0, v0), h, (n, e), kopts)
-        st = dict(fs.stats)
-        used = "compiled" if st.get("path") == "fast" else "generic"
-        st.update(engine=engine_name if used == "compiled" else "generic", root_finder=opts.newton.describe())
-        st.setdefault("rescued_steps", st.get("generic_steps", 0))
-        return Result(fs.t, fs.q, fs.v, fs.energy, fs.constraint, fs.psi, 0, MSG_DONE,
-                      *(st.get(c, 0) for c in ("nfev", "njev", "nlu", "newton_iterations")),
-                      engine=used, stats=st)
-    res, exc = _prefix_run(run, N, inner)
-    if isinstance(exc, NewtonError):
-        exc = _generic_diagnosis(exc, system, prob, res, (t0, q0, v0), tol)
-    res, exc = _guard_scan(res, exc, system, prob, opts, lambda n: run(n, 1))
-    if exc is None:
-        res, exc = _energy_jump_cut(res, energy_jump)
-    # without dense output, events, an energy-jump watch or the guard the kernels kept every
-    # ``every``-th point already (inner = every): nothing to post-process (with every = 1 too:
-    # re-slicing would copy the arrays unchanged)
-    return _finish_prefix(res, exc, system, (t0, q0, v0), opts, "compiled")
-
-
-def _kernel_options(prob: _Problem, opts: IntegrationOptions) -> tuple:
-    """(``compiled.runner.KernelOptions`` of the root finder ``opts.newton``, the engine's name in
-    ``rootfinder.SUPPORT``): every field honoured or refused here. lobatto-iiia-iiib-2 runs on
-    the semi-implicit kernel (25) by default; a root finder that kernel does not run (another
-    kind, the block LU, matrix reuse) runs it on the SPARK kernel (the same method (21))."""
-    from .compiled.runner import NEWTON_MODES, KernelOptions, kernel_spec
-    from .core.rootfinder import PREDICTOR_CODES
-    root, kernel, name = opts.newton, "auto", "compiled"
-    if prob.kind == "comparator":
-        name = "compiled-lf2"
-        root.check_for(name)
-    elif kernel_spec(prob.method, "auto")[0] == "lf2":
-        try:
-            root.check_for("compiled-lf2")
-            name = "compiled-lf2"
-        except InputError:
-            root.check_for("compiled")
-            kernel = "spark"
-    else:
-        root.check_for("compiled")
-    if root.kind == "quasi":
-        from .compiled import quasi   # noqa: F401 (registers its runner in runner.KIND_RUNNERS)
-    return KernelOptions(True, opts.tol, root.iterations, kernel, PREDICTOR_CODES[root.predictor], root.reuse,
-                         root.linear_solver, NEWTON_MODES.get(root.kind, 0), root.kind), name
-
-
-#: the compiled engine's guard on a run with ``save_every`` > 1 judges the saved samples; a
-#: flagged interval is located by running the prefix again with every step kept, when that
-#: prefix holds at most this many floats (128 MB; beyond it the flagged intervals are counted as
-#: unverified)
+#: the guard on a run with ``save_every`` > 1 of an engine that keeps its samples (the compiled
+#: kernels) judges the saved samples; a flagged interval is located by running the prefix again
+#: with every step kept, when that prefix holds at most this many floats (128 MB; beyond it the
+#: flagged intervals are counted as unverified)
 GUARD_EVERY_STEP_FLOATS = 2 ** 24
-#: the longest first saved interval the compiled engine's guard runs again with every step kept
-#: (4096 steps: a few ms of a kernel; a run that keeps only its end, save_every >= n_steps, is
-#: judged from its samples only)
+#: the longest first saved interval the guard runs again with every step kept (4096 steps: a few
+#: ms of a kernel; a run that keeps only its end, save_every >= n_steps, is judged from its
+#: samples only)
 GUARD_HEAD = 4096
 #: flagged steps solved again per run; beyond it they are counted as unverified
 GUARD_MAX_RESOLVES = 1000
 
 
-def _guard_scan(res, exc, system, prob: _Problem, opts: IntegrationOptions, rerun=None) -> tuple:
-    """The step-acceptance guard (``ldaspark.core.guard``) on a run that returned its steps
-    (compiled kernels, comparators): (the run up to the first step with another root, that
-    RootMismatchError or ``exc``), the guard's counters in ``res.stats``. ``rerun(n)``: the
-    first n steps again with every step kept (the compiled engine, whose samples are
-    ``save_every`` steps apart unless dense output, events or the energy monitor kept every
-    step); None: ``res`` holds every step. Without a flagged sample nothing is run again, so the
-    guard costs one vectorised pass over the saved energies."""
+def _guard_scan(res, exc, engine, prep, rerun=None) -> tuple:
+    """The step-acceptance guard (``ldaspark.core.guard``) on a run of a block engine: (the run up
+    to the first step with another root, that RootMismatchError or ``exc``), the guard's counters
+    in ``res.stats``. ``rerun(n)``: the first n steps again with every step kept (an engine that
+    keeps samples ``save_every`` steps apart unless dense output, events or the energy monitor
+    kept every step); None: ``res`` holds every step. Without a flagged sample nothing is run
+    again, so the guard costs one vectorised pass over the saved energies."""
     from .core import guard
+    prob, opts, system = prep.prob, prep.opts, prep.system
     if res is None:
         return res, exc
     if not opts.guard:
@@ -898,7 +833,7 @@ def _guard_scan(res, exc, system, prob: _Problem, opts: IntegrationOptions, reru
             st["guard_flagged"] = st["guard_unverified"] = int(len(bad))
             return res, exc
         bad = guard.flagged(float_array(steps.energy))
-    n = _guard_resolve(steps, bad, system, prob, opts, st)
+    n = _guard_resolve(steps, bad, engine, prep, st)
     if n is None:
         return res, exc
     n, err = n
@@ -909,98 +844,37 @@ def _guard_scan(res, exc, system, prob: _Problem, opts: IntegrationOptions, reru
     return res, err
 
 
-def _guard_resolve(steps: Result, bad, system, prob: _Problem, opts: IntegrationOptions, st: dict):
-    """Solve the flagged steps ``bad`` of the every-step run ``steps`` again from the safe
-    starts; (the first step with another root, its RootMismatchError) or None. Counts into
-    ``st`` (the run's stats)."""
+def _guard_resolve(steps: Result, bad, engine, prep, st: dict):
+    """Solve the flagged steps ``bad`` of the every-step run ``steps`` again from the engine's safe
+    starts (``engine.resolve_step``); (the first step with another root, its RootMismatchError) or
+    None. Counts into ``st`` (the run's stats)."""
     from .core import guard
     st["guard_flagged"] = int(len(bad))
     if not len(bad):
         return None
-    resolve = _comparator_resolver(system, prob, opts) if prob.kind == "comparator" else \
-        _spark_resolver(system, prob, opts)
     t, q, v, E = (float_array(getattr(steps, a)) for a in ("t", "q", "v", "energy"))
     for count, n in enumerate(bad):
         if count >= GUARD_MAX_RESOLVES:
             st["guard_unverified"] += len(bad) - count
             break
-        label, safe = resolve(n, t, q, v)
+        before = (t[n - 1], q[n - 1], v[n - 1]) if n >= 1 else None
+        label, safe = engine.resolve_step(prep, int(n), (t[n], q[n], v[n]), None, before)
         if safe is None:
             st["guard_unverified"] += 1
         elif guard.same_root(q[n + 1], v[n + 1], safe[0], safe[1]):
             st["guard_confirmed"] += 1
         else:
-            return int(n), guard.mismatch(int(n), t[n], prob.h, (q[n + 1], v[n + 1], E[n + 1]), safe, label)
+            return int(n), guard.mismatch(int(n), t[n], prep.prob.h, (q[n + 1], v[n + 1], E[n + 1]), safe, label)
     return None
 
 
-def _spark_resolver(system, prob: _Problem, opts: IntegrationOptions):
-    """resolve(n, t, q, v) -> (label, (q1, v1, E1)) of the safe root of step n (generic full Newton
-    from the previous step's collocation polynomial, then the explicit Euler predictor, then the
-    generic default step), or (None, None)."""
-    from .core import guard
-    from .core.spark import SparkMethod
-    tab = prob.what if prob.kind == "spark" else resolve_method(prob.name)[1]
-    mk = lambda kind: SparkMethod(system, tab, tol=opts.tol, newton=kind, max_iter=opts.newton.iterations)  # noqa: E731
-    methods = (mk("full"), mk("auto"))
-    h = float(prob.h)
-
-    def resolve(n, t, q, v):
-        prev = None
-        if n >= 1:          # the previous step's stages: a generic step from its start
-            try:
-                r = methods[0].step(t[n - 1], q[n - 1], v[n - 1], h, step_index=n - 1)
-                prev = (r.V, r.Psi, h)
-            except LdasparkError:
-                prev = None
-        label, r = guard.safe_root(methods, t[n], q[n], v[n], h, prev, step_index=int(n))
-        return (None, None) if r is None else (label, (r.q1, r.v1, float(r.energy)))
-    return resolve
-
-
-def _comparator_resolver(system, prob: _Problem, opts: IntegrationOptions):
-    """resolve(n, t, q, v) for a comparator: its own step from the same state, started afresh
-    (its default guess), as the safe root."""
-    from .core.comparators import integrate_comparator
-
-    def resolve(n, t, q, v):
-        try:
-            sol = integrate_comparator(prob.name, system, t[n], q[n], v[n], prob.h, 1, dps=opts.dps, tol=opts.tol,
-                                       max_iter=opts.newton.iterations, max_stages=opts.max_stages)
-        except LdasparkError:
-            return None, None
-        return "the comparator's own start", (np.asarray(sol.q[-1], float), np.asarray(sol.v[-1], float),
-                                              float(sol.energy[-1]))
-    return resolve
-
-
-def _generic_diagnosis(exc, system, prob: _Problem, res, start, tol) -> LdasparkError:
-    """The kernels report only the failing step k: redo step k with the generic step from the
-    same state (the end of the prefix ``res``, or ``start`` = (t0, q0, v0)), whose error says why
-    (singular matrix, divergence, domain error)."""
-    from .core.spark import SparkMethod
-    method, h, (t0, q0, v0) = prob.method, prob.h, start
-    k = exc.step
-    if not isinstance(method, SparkTableau):
-        return exc
-    q, v = (np.asarray(q0, float), np.asarray(v0, float)) if res is None else (res.q[-1], res.v[-1])
-    tk = float(t0) + k * float(h)
-    try:
-        SparkMethod(system, method, tol=tol).step(tk, q, v, float(h), step_index=k)
-    except LdasparkError as gen:
-        return gen
-    return NewtonError(f"Newton did not converge at step {k} (compiled engine, simplified Newton): {exc}; "
-                       "the generic full-Newton step converges there (engine='generic')", step=k, time=tk)
-
-
-def _finish_prefix(res, exc, system, start, opts: IntegrationOptions, engine) -> Result:
+def _finish_prefix(res, exc, prep, start, engine: str, sliced=False) -> Result:
     """The run's Result: the prefix ``res`` (None: the initial point ``start`` = (t0, q0, v0)
-    only) with the failure ``exc`` marked, then dense output, events and ``save_every``. A
-    compiled run without dense output, events or the energy monitor is already sliced."""
-    (t0, q0, v0), every, dense, events = start, opts.save_every, opts.dense_output, opts.events
-    sliced = engine == "compiled" and not opts.every_step
+    only) with the failure ``exc`` marked, then dense output, events and ``save_every`` (not for a
+    run whose engine ``sliced`` it already)."""
+    system, opts, (t0, q0, v0) = prep.system, prep.opts, start
+    every, dense, events = opts.save_every, opts.dense_output, opts.events
     if res is None:        # failure in the first step: the initial point only
-        from .core.backend import Backend
         bk = Backend(None)
         q, v = bk.array(q0), bk.array(v0)
         res = Result(np.array([float(t0)]), q[None], v[None], np.array([system.energy(bk, float(t0), q, v)]),
@@ -1008,31 +882,3 @@ def _finish_prefix(res, exc, system, start, opts: IntegrationOptions, engine) ->
     if exc is not None:
         (res.status, res.message), res.error = _failure(exc), exc
     return _post_process(res, every, dense, events, sliced)
-
-
-def _run_comparator(system, prob: _Problem, q0, v0, opts: IntegrationOptions) -> Result:
-    """A comparator of sections 7-8 (every step kept, then post-processed as the compiled
-    engine's runs with dense output or events)."""
-    from .core.backend import Backend
-    from .core.comparators import integrate_comparator
-    name, t0, h, N = prob.name, prob.t0, prob.h, prob.N
-    dps, tol, max_stages = opts.dps, opts.tol, opts.max_stages
-    root = opts.newton.check_for("comparator")
-    bk = Backend(dps)
-    with bk.context():
-        t0_, q0, v0 = _initial_checks(system, bk, (t0, q0, v0), opts)
-
-    def run(n, e):
-        sol = integrate_comparator(name, system, t0_, q0, v0, h, int(n), dps=dps, tol=tol, max_stages=max_stages,
-                                   max_iter=root.iterations)
-        st = dict(sol.stats, path="generic", engine="comparator", root_finder=root.describe())
-        psi = np.asarray(sol.psi)
-        return Result(sol.t, sol.q, sol.v, sol.energy, sol.constraint, psi if psi.ndim == 3 else None, 0,
-                      MSG_DONE, *(st.get(c, 0) for c in ("nfev", "njev", "nlu", "newton_iterations")),
-                      engine="generic", stats=st)
-    validate.check_storage(N + 1, 2 + 2 * system.n + system.m, mp=dps is not None, what="the comparator's steps")
-    res, exc = _prefix_run(run, N, 1)
-    res, exc = _guard_scan(res, exc, system, prob, opts)
-    if exc is None:
-        res, exc = _energy_jump_cut(res, opts.energy_jump)
-    return _finish_prefix(res, exc, system, (t0_, q0, v0), opts, "generic")

@@ -36,12 +36,12 @@ to the generic path`` to stderr and runs ``ldaspark.core.spark.integrate`` /
 from __future__ import annotations
 
 import dataclasses
-import math
 import sys
 
 import numpy as np
 
 from ..core.errors import InputError, LdasparkError, NewtonError, NonFiniteError
+from ..core.validate import _CHECKED  # noqa: F401 (the memory of checked initial points, under its old name)
 from . import native, runner
 from .cache import CacheDirectoryError, load_source, source_key
 from .codegen import NotCompilableError, general_source, mechanical_source, nonideal_term
@@ -91,55 +91,30 @@ def _diagnose_newton_failure(exc, system, cs, method, start, h, opts):
                        "ldaspark.core.spark.integrate for this step size)", step=k, time=tk)
 
 
-def _setup_checks(system, t0, q0, v0, cs=None):
-    """The generic path's set-up checks, in float64: finite data of the right shape, (4)
-    nonsingular with K of full rank, consistent v0 (the compiled kernels assume all three).
-
-    Same tests, cheaper where possible (the per-call overhead of a short run): with ``cs`` (a
-    mechanical-form model already loaded), (4) = [[M, K^T], [K, 0]] and k = K v0 + b come from
-    the model's own compiled K_of, b_of instead of the lambdified sympy expressions, and an
-    initial point that passed both checks for this system object is remembered (the verdict
-    is a function of (system, t0, q0, v0) only), so repeating a run skips them."""
-    try:
-        q, v = np.array(q0, dtype=float), np.array(v0, dtype=float)     # = Backend(None).array
-        t = float(t0)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"t0, q0 and v0 must be numbers: {exc}") from None
-    if q.shape != (system.n,) or v.shape != (system.n,):
-        raise InputError(f"initial data have shapes q: {q.shape}, v: {v.shape}; the system has n = {system.n}")
-    if not (math.isfinite(t) and np.isfinite(q).all() and np.isfinite(v).all()):
-        raise InputError("initial data contain NaN or infinity")
-    key = (t, q.tobytes(), v.tobytes())
-    memo = _CHECKED.get(id(system))
-    if memo is not None and memo[0] is system and key in memo[1]:
-        return
+def _setup_checks(system, t0, q0, v0, cs=None, tol=None, project=False):
+    """The one initial-point check (``ldaspark.core.validate.initial_point``) in float64: finite
+    data of the right shape, finite energy (8) and k, (4) nonsingular with K of full rank,
+    consistent v0 (the compiled kernels assume all of them); (t0, q0, v0) as float64, v0 projected
+    with ``project``. With ``cs`` (a mechanical-form model already loaded), (4) = [[M, K^T], [K, 0]]
+    and k = K v0 + b come from the model's own compiled K_of, b_of (``model_checks``) instead of
+    the lambdified sympy expressions; a point that passed for this system object is remembered."""
     from ..core.backend import Backend
-    bk = Backend(None)
-    from ..core.validate import finite_initial_point
-    finite_initial_point(system, bk, t, q, v)     # before a kernel divides by zero at it
-    S = None
-    if cs is not None and cs.form == "mechanical":
+    from ..core.validate import initial_point
+    return initial_point(system, Backend(None), t0, q0, v0, project=project, tol=tol, model=model_checks(cs))
+
+
+def model_checks(cs):
+    """``model(t, q, v) -> (S, k)`` of ``initial_point`` from a loaded mechanical-form model ``cs``
+    (None otherwise, or where the model has no Python form: the lambdified checks)."""
+    if cs is None or cs.form != "mechanical":
+        return None
+
+    def model(t, q, v):
         try:
-            S, k = _saddle_and_k(cs, t, np.ascontiguousarray(q, float), np.ascontiguousarray(v, float))
-        except native.NotNativeError:       # no Python form of the model: the lambdified checks
-            S = None
-    if S is not None:
-        system.check_saddle(bk, t, q, v, S=S)
-        system.check_consistent(bk, t, q, v, k=k)
-    else:
-        system.check_saddle(bk, t, q, v)
-        system.check_consistent(bk, t, q, v)
-    if memo is None or memo[0] is not system:
-        if len(_CHECKED) >= 256:           # bounded: a parameter sweep makes a new system per value
-            _CHECKED.clear()
-        memo = _CHECKED[id(system)] = (system, {})
-    if len(memo[1]) >= 64:                 # a bounded memory of checked points per system
-        memo[1].clear()
-    memo[1][key] = True
-
-
-#: id(system) -> (system, {checked initial point: True}); the identity test guards against reuse of ids
-_CHECKED: dict[int, tuple] = {}
+            return _saddle_and_k(cs, float(t), np.ascontiguousarray(q, float), np.ascontiguousarray(v, float))
+        except native.NotNativeError:
+            return None
+    return model
 
 
 def _saddle_and_k(cs, t, q, v):
@@ -185,8 +160,9 @@ def generic_integrate(system, method, t0, q0, v0, h, n_steps, every=1, tol=None)
     st["path"] = "generic"
     return FastSolution(np.asarray(sol.t, float)[idx], np.asarray(sol.q, float)[idx],
                         np.asarray(sol.v, float)[idx], np.asarray(sol.energy, float)[idx],
-                        np.asarray(sol.constraint, float)[idx], st,
-                        None if getattr(sol, "psi", None) is None else np.asarray(sol.psi, float)[idx[:-1]])
+                        np.asarray(sol.constraint, float)[idx],
+                        psi=None if getattr(sol, "psi", None) is None else np.asarray(sol.psi, float)[idx[:-1]],
+                        stats=st)
 
 
 def _first_line(exc):

@@ -131,6 +131,6 @@ def run_with_rescue(system, tab, cs, method, t0, q0, v0, h, n_steps, every, comp
               form=cs.form, compensated=bool(compensated))
     return FastSolution(np.array([samples[i][0] for i in order]), np.array([samples[i][1] for i in order]),
                         np.array([samples[i][2] for i in order]), np.array([samples[i][3] for i in order]),
-                        np.array([samples[i][4] for i in order]), st,
-                        np.array([psis[i] for i in order[:-1]]).reshape(len(order) - 1, tab.s, cs.m)
-                        if all(i in psis for i in order[:-1]) else None)
+                        np.array([samples[i][4] for i in order]),
+                        psi=np.array([psis[i] for i in order[:-1]]).reshape(len(order) - 1, tab.s, cs.m)
+                        if all(i in psis for i in order[:-1]) else None, stats=st)

@@ -324,7 +324,10 @@ def can_compile(system) -> tuple[bool, str]:
 
 @dataclass
 class FastSolution:
-    """Samples at steps 0, every, 2 every, ..., and the last step. Unpacks as
+    """Samples at steps 0, every, 2 every, ..., and the last step (deprecated with ``fast_integrate``
+    and ``run_compiled`` in favour of ``ldaspark.integrate``'s ``Result``). The first six fields are
+    those of ``ldaspark.core.result.Result``, in its order (``LEADING_FIELDS``); the old positional
+    order (t, q, v, energy, constraint, stats, psi) is still accepted. Unpacks as
     (t, q, v, energy, constraint, stats)."""
 
     t: np.ndarray
@@ -332,10 +335,16 @@ class FastSolution:
     v: np.ndarray
     energy: np.ndarray
     constraint: np.ndarray
-    stats: dict
     #: (samples - 1, s, m): the stage multipliers Psi_i of (21) of the step starting at each
     #: sample (None where the path does not form them: the semi-implicit kernel)
     psi: Optional[np.ndarray] = None
+    stats: dict = dataclasses.field(default_factory=dict)
+
+    def __post_init__(self):
+        if isinstance(self.psi, dict) and not isinstance(self.stats, dict):    # the old order (..., stats, psi)
+            self.psi, self.stats = self.stats, self.psi
+        elif isinstance(self.psi, dict) and self.stats == {}:                  # the old (..., stats)
+            self.psi, self.stats = None, self.psi
 
     def __iter__(self):
         return iter((self.t, self.q, self.v, self.energy, self.constraint, self.stats))
@@ -587,7 +596,7 @@ def _run_checked(cs, method, start, grid, opts: KernelOptions):
     st["reuse_matrix"] = bool(reuse_matrix) and kind != "lf2"
     st["newton_kind"] = "lf2" if kind == "lf2" else opts.newton_kind
     psi = None if kind == "lf2" else out_x[NN:].reshape(S - 1, s_, cs.m)
-    return FastSolution(*outs, st, psi)
+    return FastSolution(*outs, psi=psi, stats=st)
 
 
 def _failure(st, name, t0, h, residual=None):

@@ -46,6 +46,9 @@ STATUS_OTHER = -3
 STATUS_GUARD = -4
 
 COUNTERS = ("nfev", "njev", "nlu", "newton_iterations")
+#: the leading fields of ``Result`` and, in the same order, of the deprecated result types
+#: (``core.spark.Solution``, ``compiled.runner.FastSolution``, ``ensemble.EnsembleResult``)
+LEADING_FIELDS = ("t", "q", "v", "energy", "constraint", "psi")
 
 
 @dataclass

@@ -519,15 +519,17 @@ def _budget_short(dn, prev, tol_abs, left) -> bool:
 
 @dataclass
 class Solution:
-    """Result of ``integrate``: t (N+1), q, v (N+1, n), psi (N, s, m), energy (N+1),
-    constraint (N+1, m) = k(t_n, q_n, v_n), and solver statistics."""
+    """Result of ``integrate`` (deprecated in favour of ``ldaspark.integrate``'s ``Result``): t (N+1),
+    q, v (N+1, n), energy (N+1), constraint (N+1, m) = k(t_n, q_n, v_n), psi (N, s, m), and solver
+    statistics. The first six fields are those of ``ldaspark.core.result.Result``, in its order
+    (``LEADING_FIELDS``); build it with keywords."""
 
     t: np.ndarray
     q: np.ndarray
     v: np.ndarray
-    psi: np.ndarray
     energy: np.ndarray
     constraint: np.ndarray
+    psi: np.ndarray
     stats: dict
     dps: int | None
     method: str
@@ -639,15 +641,11 @@ def integrate(system: LagrangianSystem, tableau: SparkTableau, t0, q0, v0, h, t_
             n_steps = n_steps_for(t0, t_end, h)
         from .validate import count
         n_steps = count(n_steps, "n_steps", 1, MAX_STEPS)
-        if q.ndim != 1 or v.ndim != 1 or len(q) != system.n or len(v) != system.n:
-            raise InputError(f"initial data have shapes q: {q.shape}, v: {v.shape}; the system has n = {system.n}")
-        if not (bk.isfinite(q) and bk.isfinite(v)):
-            raise InputError("initial data contain NaN or infinity")
-        if check_initial:
-            system.check_saddle(bk, t0_, q, v)
-            if project:
-                v = system.project_velocity(bk, t0_, q, v)
-            system.check_consistent(bk, t0_, q, v, tol=None if tol is None else 10 * tol)
+        # the one initial-point check of every engine (numbers, shapes, finite, (8) and k finite,
+        # then (4), the projection and (1c) unless ``check_initial`` is off)
+        from .validate import initial_point
+        t0_, q, v = initial_point(system, bk, t0_, q, v, project=project and check_initial, tol=tol,
+                                  consistent=check_initial)
         N = n_steps
         from .validate import check_storage
         check_storage(N + 1, 2 + 2 * system.n + (tableau.s + 1) * system.m, bk.is_mp)
@@ -662,6 +660,6 @@ def integrate(system: LagrangianSystem, tableau: SparkTableau, t0, q0, v0, h, t_
         E = [system.energy(bk, ts[i], Qs[i], Vs[i]) for i in range(N + 1)]
         K = [system.constraint(bk, ts[i], Qs[i], Vs[i]) for i in range(N + 1)]
     dt = object if bk.is_mp else float
-    return Solution(np.array(ts, dtype=dt), np.array(Qs, dtype=dt), np.array(Vs, dtype=dt),
-                    np.array(Ps, dtype=dt), np.array(E, dtype=dt), np.array(K, dtype=dt),
-                    method.stats.as_dict(), dps, tableau.name, system.name)
+    return Solution(t=np.array(ts, dtype=dt), q=np.array(Qs, dtype=dt), v=np.array(Vs, dtype=dt),
+                    energy=np.array(E, dtype=dt), constraint=np.array(K, dtype=dt), psi=np.array(Ps, dtype=dt),
+                    stats=method.stats.as_dict(), dps=dps, method=tableau.name, system=system.name)

@@ -451,6 +451,72 @@ def finite_initial_point(system, bk, t, q, v, member: str = "") -> None:
                                  "(or L has oo / zoo / I in it)", step=0, time=float(t))
 
 
+#: id(system) -> (system, {checked float64 initial point: True}) of ``initial_point``: a repeated
+#: short run (the per-call overhead of the compiled engine) skips the checks of a point that passed
+#: for this system object (the verdict is a function of (system, t0, q0, v0, tol) only); the
+#: identity test guards against reuse of ids. Bounded: 256 systems, 64 points each.
+_CHECKED: dict = {}
+
+
+def initial_point(system, bk, t0, q0, v0, *, member: str = "", project: bool = False, tol=None,
+                  consistent: bool = True, model=None):
+    """The one initial-point check of every engine and entry point: (t0, q0, v0) converted by
+    ``bk`` (call inside ``bk.context()``), returned as (t, q, v) with v projected onto k = 0 when
+    ``project``. In order, each failure one error (``member`` prefixes its message, e.g.
+    "ensemble member 3: "):
+
+    1. numbers of the right shapes (n entries each) -> InputError;
+    2. finite values -> InputError;
+    3. the energy (8) and k of (1c) finite real numbers (``finite_initial_point``) -> NonFiniteError;
+    4. with ``consistent`` (the set-up of a run): the saddle matrix (4) regular with K of full rank
+       -> SingularSaddleError; then v projected (``project``); then |k(t0, q0, v0)| <= tol' (1 + |v0|)
+       (1c) with tol' = 10 tol, or the backend's default when ``tol`` is None ->
+       InconsistentInitialDataError.
+
+    ``model(t, q, v) -> (S, k)`` or None: the matrix (4) and k from the caller's own model (the
+    compiled engine's generated functions), the same tests applied. A float64 point that passed for
+    this system object (without ``project``) is remembered, so repeating a run skips the checks."""
+    from .errors import LdasparkError
+    try:
+        t = bk.scalar(t0)
+        q, v = bk.array(q0), bk.array(v0)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{member}t0, q0 and v0 must be numbers: {exc}") from None
+    if q.shape != (system.n,) or v.shape != (system.n,):
+        raise InputError(f"{member}initial data have shapes q: {q.shape}, v: {v.shape}; the system has "
+                         f"n = {system.n}")
+    if not (math.isfinite(float(t)) and bk.isfinite(q) and bk.isfinite(v)):
+        raise InputError(f"{member}initial data contain NaN or infinity")
+    key = memo = None
+    if consistent and not project and not bk.is_mp:
+        key = (float(t), q.tobytes(), v.tobytes(), tol)
+        memo = _CHECKED.get(id(system))
+        if memo is not None and memo[0] is system and key in memo[1]:
+            return t, q, v
+    finite_initial_point(system, bk, t, q, v, member)
+    if not consistent:
+        return t, q, v
+    try:
+        S, k = (None, None) if model is None else (model(t, q, v) or (None, None))
+        system.check_saddle(bk, t, q, v, S=S)
+        if project:
+            v, k = system.project_velocity(bk, t, q, v), None
+        system.check_consistent(bk, t, q, v, tol=None if tol is None else 10 * tol, k=k)
+    except LdasparkError as exc:
+        if not member:
+            raise
+        raise type(exc)(f"{member}{exc}") from None
+    if key is not None:
+        if memo is None or memo[0] is not system:
+            if len(_CHECKED) >= 256:         # bounded: a parameter sweep makes a new system per value
+                _CHECKED.clear()
+            memo = _CHECKED[id(system)] = (system, {})
+        if len(memo[1]) >= 64:
+            memo[1].clear()
+        memo[1][key] = True
+    return t, q, v
+
+
 # --- the exported functions outside ``integrate`` ------------------------------------------------
 # ``flow_jacobian``, the Theorem 1 checks, ``RunSpec`` / ``run_many`` and ``get_scene`` take the
 # same kinds of values as ``integrate``; these helpers check them the same way, so that every

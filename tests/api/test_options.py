@@ -56,18 +56,22 @@ def test_options_are_frozen_and_checked_once():
 
 
 def _spy(monkeypatch, name):
+    """The (problem, options) each run hands to the engine ``name`` (``ldaspark.engines.ENGINES``)
+    through the protocol's ``prepare``."""
+    from ldaspark.engines import ENGINES
     seen = []
-    real = getattr(solve, name)
+    engine = ENGINES[name]
+    real = engine.prepare
 
-    def spy(system, prob, q0, v0, opts):
+    def spy(system, prob, opts):
         seen.append((prob, opts))
-        return real(system, prob, q0, v0, opts)
-    monkeypatch.setattr(solve, name, spy)
+        return real(system, prob, opts)
+    monkeypatch.setattr(engine, "prepare", spy)
     return seen
 
 
 def test_one_options_object_reaches_the_generic_engine(monkeypatch):
-    seen = _spy(monkeypatch, "_run_generic")
+    seen = _spy(monkeypatch, "generic")
     ev = lambda t, q, v: q[0] - 10.0               # noqa: E731  (never fires)
     r = ldaspark.integrate("skate", "gauss-1", t_span=(0, 0.2), h=0.1, engine="generic", newton="full",
                            save_every=2, events=ev, energy_jump=0.5)
@@ -80,11 +84,11 @@ def test_one_options_object_reaches_the_generic_engine(monkeypatch):
 
 
 def test_one_options_object_reaches_the_comparator_and_every_member(monkeypatch):
-    seen = _spy(monkeypatch, "_run_comparator")
+    seen = _spy(monkeypatch, "comparator")
     r = ldaspark.integrate("skate", "lobatto-iiia-iiib-2-leapfrog", n_steps=2, h=0.1, engine="generic",
                            params=None)
     assert r.status == 0 and len(seen) == 1 and seen[0][1].engine == "generic"
-    seen_g = _spy(monkeypatch, "_run_generic")
+    seen_g = _spy(monkeypatch, "generic")
     q0 = [[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]]
     v0 = [[0.0, 0.0, 1.0], [0.0, 0.0, 1.0]]
     b = ldaspark.integrate("skate", "gauss-1", n_steps=2, h=0.1, q0=q0, v0=v0, engine="generic", tol=1e-12)

@@ -25,7 +25,7 @@ PACKAGE = pathlib.Path(ldaspark.__file__).resolve().parent
 
 #: left to right: a room imports only from itself and from the layers to its left; the rooms of
 #: one layer do not import each other. ``ldaspark`` itself (the lazy facade) is the top.
-LAYERS = (("_version",), ("core",), ("models",), ("compiled",), ("executors",), ("ensemble",),
+LAYERS = (("_version",), ("core",), ("models",), ("compiled",), ("executors",), ("ensemble",), ("engines",),
           ("solve", "plot"), ("analysis",), ("cli",), ("__main__",), ("ldaspark",),
           # the paper lab, above the whole library (which never imports it)
           ("lab.theory",), ("lab.claims", "lab.mutants"), ("lab.reports",), ("lab.commands",), ("lab",))

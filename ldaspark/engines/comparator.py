@@ -1,0 +1,75 @@
+"""The comparator engine: the methods of sections 7-8 that are not SPARK methods (standard Gauss
+IRK, the modified Lobatto method of 8.4, the compositions of 7.5, the leapfrog forms of (25) and
+McLachlan-Perlmutter's (26); ``ldaspark.core.comparators``), in float64 or mpmath.
+
+A block engine that returns every step (``samples = False``): the driver slices ``save_every``,
+builds Hermite dense output and locates events, as for the compiled engine's runs with dense
+output. ``Result.engine`` says "generic" for these runs (as before the protocol).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..core.errors import LdasparkError
+from ..core.result import Result
+from .base import Engine, Prepared
+
+MSG_DONE = "The integration reached t_end."
+
+
+class ComparatorSafeRoot:
+    """The guard's safe root for a comparator: its own step from the same state, started afresh
+    (its default guess)."""
+
+    def __init__(self, system, prob, opts):
+        self.system, self.prob, self.opts = system, prob, opts
+
+    def __call__(self, n, state, prev=None, before=None):
+        from ..core.comparators import integrate_comparator
+        t, q, v = state
+        o = self.opts
+        try:
+            sol = integrate_comparator(self.prob.name, self.system, t, q, v, self.prob.h, 1, dps=o.dps, tol=o.tol,
+                                       max_iter=o.newton.iterations, max_stages=o.max_stages)
+        except LdasparkError:
+            return None, None
+        return "the comparator's own start", (np.asarray(sol.q[-1], float), np.asarray(sol.v[-1], float),
+                                              float(sol.energy[-1]))
+
+
+class ComparatorEngine(Engine):
+    """The comparator engine (module docstring)."""
+
+    name = "comparator"
+    label = "generic"
+    support = "comparator"
+    mode = "block"
+    samples = False
+
+    def prepare(self, system, prob, opts) -> Prepared:
+        root, support = self.root_finder(opts.newton, prob)
+        # the comparators evaluate the system's expressions with the parameter values substituted
+        return Prepared(system.substituted(), prob, opts, root, support)
+
+    def check_block(self, prepared, n_steps, every):
+        from ..core import validate
+        s = prepared.system
+        validate.check_storage(n_steps + 1, 2 + 2 * s.n + s.m, mp=prepared.opts.dps is not None,
+                               what="the comparator's steps")
+
+    def run(self, prepared, start, n_steps, every) -> Result:
+        from ..core.comparators import integrate_comparator
+        (t0, q0, v0), o, root = start, prepared.opts, prepared.root
+        sol = integrate_comparator(prepared.prob.name, prepared.system, t0, q0, v0, prepared.prob.h, int(n_steps),
+                                   dps=o.dps, tol=o.tol, max_stages=o.max_stages, max_iter=root.iterations)
+        st = dict(sol.stats, path="generic", engine="comparator", root_finder=root.describe())
+        psi = np.asarray(sol.psi)
+        return Result(sol.t, sol.q, sol.v, sol.energy, sol.constraint, psi if psi.ndim == 3 else None, 0,
+                      MSG_DONE, *(st.get(c, 0) for c in ("nfev", "njev", "nlu", "newton_iterations")),
+                      engine="generic", stats=st)
+
+    def resolve_step(self, prepared, n, state, prev=None, before=None):
+        hit = prepared.data.get("safe")
+        if hit is None:
+            hit = prepared.data["safe"] = ComparatorSafeRoot(prepared.system, prepared.prob, prepared.opts)
+        return hit(n, state, prev, before)

@@ -1,0 +1,133 @@
+"""The compiled engine: the numba kernels of ``ldaspark.compiled`` (float64; every system: the
+mechanical form, the general L(t, q, v) and k(t, q, v), nonideal terms, the block LU of the
+sparse Newton matrix, the semi-implicit kernel of (25) and the comparators of Fig. 4, and the
+root-finder kinds run by modules of their own, ``compiled.runner.KIND_RUNNERS``, e.g. "quasi").
+
+A block engine (``Engine.mode = "block"``): ``run`` is one kernel call of n steps keeping every
+``every``-th sample (``compiled.fast.run_engine``: the kernel, with the generic full-Newton step
+where a kernel's Newton fails, ``compiled.rescue``); the driver cuts long runs into blocks of
+``solve.COMPILED_CHUNK`` steps. Walk: driver -> ``CompiledEngine.run`` -> ``fast.run_engine`` ->
+``runner._run_checked`` -> the kernels.
+"""
+from __future__ import annotations
+
+from typing import Optional
+
+import numpy as np
+
+from ..core.errors import InputError, LdasparkError, NewtonError
+from ..core.result import Result
+from ..core.tableau import SparkTableau
+from .base import Engine, Prepared
+from .generic import SparkSafeRoot
+
+MSG_DONE = "The integration reached t_end."
+
+
+class CompiledEngine(Engine):
+    """The compiled engine (module docstring)."""
+
+    name = "compiled"
+    label = "compiled"
+    support = "compiled"
+    mode = "block"
+    samples = True
+    chunked = True
+
+    def unavailable(self, system, prob) -> Optional[str]:
+        from ..compiled import fast
+        if prob.kind == "comparator" and prob.name not in fast.LF2_VARIANTS:
+            return f"comparator {prob.name} has no compiled kernel"
+        try:
+            cs = fast.compile_system(system)
+            cs.model  # noqa: B018  (build the model now so that failures fall back)
+            fast._kernels()     # checks the directory numba loads the kernels from (compiled.cache)
+        except (fast.NotCompilableError, fast.CacheDirectoryError) as exc:
+            return str(exc)
+        except Exception as exc:  # numba typing/lowering errors of generated code
+            return f"{system.name}: compilation failed ({type(exc).__name__})"
+        return None
+
+    def root_finder(self, newton, prob):
+        """(the root finder, its name in ``SUPPORT``): lobatto-iiia-iiib-2 runs on the
+        semi-implicit kernel (25) by default ("compiled-lf2"); a root finder that kernel does not
+        run (another kind, the block LU, matrix reuse) runs it on the SPARK kernel (the same
+        method (21))."""
+        from ..compiled.runner import kernel_spec
+        if prob.kind == "comparator":
+            return newton.check_for("compiled-lf2"), "compiled-lf2"
+        if kernel_spec(prob.method, "auto")[0] == "lf2":
+            try:
+                return newton.check_for("compiled-lf2"), "compiled-lf2"
+            except InputError:
+                pass
+        return newton.check_for("compiled"), "compiled"
+
+    def prepare(self, system, prob, opts) -> Prepared:
+        """The kernel options (``compiled.runner.KernelOptions``) of the root finder ``opts.newton``:
+        every field honoured or refused here."""
+        from ..compiled.runner import NEWTON_MODES, KernelOptions
+        from ..core.rootfinder import PREDICTOR_CODES
+        root, support = self.root_finder(opts.newton, prob)
+        kernel = "spark" if support == "compiled" and prob.kind == "spark" and _is_lf2(prob.method) else "auto"
+        if root.kind == "quasi":
+            from ..compiled import quasi   # noqa: F401 (registers its runner in runner.KIND_RUNNERS)
+        kopts = KernelOptions(True, opts.tol, root.iterations, kernel, PREDICTOR_CODES[root.predictor], root.reuse,
+                              root.linear_solver, NEWTON_MODES.get(root.kind, 0), root.kind)
+        return Prepared(system, prob, opts, root, support, {"kopts": kopts})
+
+    def point_model(self, prepared):
+        from ..compiled import fast
+        return fast.model_checks(fast._loaded(prepared.system))
+
+    def check_block(self, prepared, n_steps, every):
+        from ..compiled import runner
+        k, s = prepared.data["kopts"], prepared.system
+        runner._check_options(n_steps, every, k.predictor, prepared.opts.tol, k.max_iter, s.n, s.m)
+
+    def run(self, prepared, start, n_steps, every) -> Result:
+        from ..compiled import fast
+        fs = fast.run_engine(prepared.system, prepared.prob.method, start, (prepared.prob.h, n_steps, every),
+                             prepared.data["kopts"])
+        st = dict(fs.stats)
+        used = "compiled" if st.get("path") == "fast" else "generic"
+        st.update(engine=prepared.support if used == "compiled" else "generic",
+                  root_finder=prepared.opts.newton.describe())
+        st.setdefault("rescued_steps", st.get("generic_steps", 0))
+        return Result(fs.t, fs.q, fs.v, fs.energy, fs.constraint, fs.psi, 0, MSG_DONE,
+                      *(st.get(c, 0) for c in ("nfev", "njev", "nlu", "newton_iterations")), engine=used, stats=st)
+
+    def resolve_step(self, prepared, n, state, prev=None, before=None):
+        hit = prepared.data.get("safe")
+        if hit is None:
+            prob, o = prepared.prob, prepared.opts
+            if prob.kind == "comparator":
+                from .comparator import ComparatorSafeRoot
+                hit = ComparatorSafeRoot(prepared.system, prob, o)
+            else:
+                hit = SparkSafeRoot(prepared.system, prob.what, None, o.tol, o.newton.iterations, float(prob.h))
+            prepared.data["safe"] = hit
+        return hit(n, state, prev, before)
+
+    def explain(self, prepared, exc, prefix, start):
+        """The kernels report only the failing step k of a Newton failure: step k again with the
+        generic step from the same state (the end of the prefix, or ``start``), whose error says why
+        (singular matrix, divergence, domain error)."""
+        from ..core.spark import SparkMethod
+        method, h, (t0, q0, v0) = prepared.prob.method, prepared.prob.h, start
+        if not isinstance(exc, NewtonError) or not isinstance(method, SparkTableau):
+            return exc
+        k = exc.step
+        q, v = (np.asarray(q0, float), np.asarray(v0, float)) if prefix is None else (prefix.q[-1], prefix.v[-1])
+        tk = float(t0) + k * float(h)
+        try:
+            SparkMethod(prepared.system, method, tol=prepared.opts.tol).step(tk, q, v, float(h), step_index=k)
+        except LdasparkError as gen:
+            return gen
+        return NewtonError(f"Newton did not converge at step {k} (compiled engine, simplified Newton): {exc}; "
+                           "the generic full-Newton step converges there (engine='generic')", step=k, time=tk)
+
+
+def _is_lf2(method) -> bool:
+    from ..compiled.runner import kernel_spec
+    return kernel_spec(method, "auto")[0] == "lf2"

@@ -1,0 +1,153 @@
+"""The engine protocol (``ldaspark.engines``): ``ldaspark.integrate`` reaches every engine only
+through ``ENGINES`` and the ``Engine`` interface, and the driver (``ldaspark.solve``), not the
+engine, applies save_every, chunking, events, dense output, the energy monitor and the
+step-acceptance guard. A fake engine registered here is driven like the real ones; a misbehaving
+one (a wrong root at one step) is caught by the driver."""
+import numpy as np
+import pytest
+
+import ldaspark
+from ldaspark import solve
+from ldaspark.core.errors import InputError
+from ldaspark.engines import ENGINES, Engine, get_engine, register
+from ldaspark.engines.generic import GenericEngine
+
+RUN = dict(t_span=(0, 1.2), h=0.1)          # 12 steps of the skate
+
+
+class StepsAsBlocks(GenericEngine):
+    """A block engine built on the generic engine's steps: returns every step (``samples`` False),
+    or keeps every ``every``-th sample itself (``samples`` True); records the blocks asked for.
+    ``corrupt``: the step whose end state it replaces by a wrong root (v1 scaled)."""
+
+    name = "fake"
+    mode = "block"
+
+    def __init__(self, samples=False, chunked=False, corrupt=None):
+        self.samples, self.chunked, self.corrupt = samples, chunked, corrupt
+        self.blocks = []
+
+    def run(self, prep, start, n_steps, every):
+        from ldaspark.core.backend import Backend
+        from ldaspark.core.result import Result, save_indices
+        self.blocks.append((n_steps, every))
+        before = GenericEngine.stats(self, prep)
+        t0, q, v = start
+        bk, system, h = Backend(None), prep.system, float(prep.prob.h)
+        T, Q, V = [float(t0)], [np.asarray(q, float)], [np.asarray(v, float)]
+        for st in GenericEngine.steps(self, prep, start, n_steps):
+            q1, v1 = np.asarray(st.q1, float), np.asarray(st.v1, float)
+            if st.index == self.corrupt:
+                v1 = 3.0 * v1             # another "root" (k is linear in v: still k = 0), energy x 9
+            T.append(float(t0) + (st.index + 1) * h)
+            Q.append(q1)
+            V.append(v1)
+        idx = save_indices(len(T) - 1, every) if self.samples else np.arange(len(T))
+        T, Q, V = np.array(T)[idx], np.array(Q)[idx], np.array(V)[idx]
+        E = np.array([float(system.energy(bk, t, a, b)) for t, a, b in zip(T, Q, V)])
+        K = np.array([system.constraint(bk, t, a, b) for t, a, b in zip(T, Q, V)], float).reshape(len(T), system.m)
+        # this block's counters (the method object's are cumulative over the blocks)
+        after = GenericEngine.stats(self, prep)
+        st = {c: after[c] - before.get(c, 0) for c in ("steps", "nfev", "njev", "nlu", "newton_iterations")}
+        st["path"] = "fake"
+        return Result(T, Q, V, E, K, None, 0, "done", st["nfev"], st["njev"], st["nlu"], st["newton_iterations"],
+                      engine=self.label, stats=st)
+
+
+def _with(monkeypatch, engine):
+    monkeypatch.setitem(ENGINES, "generic", engine)      # what integrate(engine="generic") runs
+    return engine
+
+
+def test_every_registered_engine_is_an_engine_and_the_registry_refuses_others():
+    assert {"generic", "compiled", "comparator"} <= set(ENGINES)
+    for name, eng in ENGINES.items():
+        assert isinstance(eng, Engine) and eng.name == name and eng.mode in ("steps", "block")
+        assert get_engine(name) is eng
+    with pytest.raises(TypeError):
+        register(object())               # negative control: not an Engine
+    with pytest.raises(InputError, match="unknown engine"):
+        get_engine("warp")
+
+
+def test_the_driver_slices_save_every_for_an_engine_that_returns_every_step(monkeypatch):
+    ref = ldaspark.integrate("skate", "gauss-2", engine="generic", save_every=5, **RUN)
+    fake = _with(monkeypatch, StepsAsBlocks())
+    res = ldaspark.integrate("skate", "gauss-2", engine="generic", save_every=5, **RUN)
+    assert fake.blocks == [(12, 1)]                          # asked for every step ...
+    assert list(np.round(res.t / 0.1).astype(int)) == [0, 5, 10, 12]    # ... and sliced by the driver
+    # the same steps (the generic engine's, same predictor): the same numbers, bit for bit
+    assert np.array_equal(res.q, ref.q) and np.array_equal(res.v, ref.v)
+    assert res.stats["path"] == "fake" and res.stats["guard"] is True
+
+
+def test_the_driver_chunks_a_chunked_engine_and_keeps_the_samples(monkeypatch):
+    whole = _with(monkeypatch, StepsAsBlocks(samples=True, chunked=True))
+    one = ldaspark.integrate("skate", "gauss-2", engine="generic", save_every=3, **RUN)
+    # negative control: a short run is one block; then the driver's guard judges the first saved
+    # interval on a rerun of its 3 steps with every step kept (the guard is the driver's)
+    assert whole.blocks == [(12, 3), (3, 1)]
+    monkeypatch.setattr(solve, "COMPILED_CHUNK", 4)
+    cut = _with(monkeypatch, StepsAsBlocks(samples=True, chunked=True))
+    res = ldaspark.integrate("skate", "gauss-2", engine="generic", save_every=3, guard=False, **RUN)
+    assert len(cut.blocks) == 4 and all(n <= 4 for n, _ in cut.blocks), cut.blocks
+    assert list(np.round(res.t / 0.1).astype(int)) == list(np.round(one.t / 0.1).astype(int)) == [0, 3, 6, 9, 12]
+    # the predictor restarts at a block boundary: agreement to the Newton tolerance (10 eps
+    # relative per step, 12 steps of an O(1) solution)
+    np.testing.assert_allclose(res.q, one.q, rtol=0, atol=1e-12)
+    assert res.stats["steps"] == one.stats["steps"] == 12
+
+
+def test_the_driver_locates_events_and_builds_dense_output_for_a_block_engine(monkeypatch):
+    _with(monkeypatch, StepsAsBlocks())
+    x_end = ldaspark.integrate("skate", "gauss-2", engine="generic", **RUN).q[-1, 0]
+    g = lambda t, q, v: q[0] - 0.5 * x_end              # noqa: E731  (crossed once on the way)
+    g.terminal = True
+    res = ldaspark.integrate("skate", "gauss-2", engine="generic", events=g, dense_output=True, **RUN)
+    assert res.status == 1 and len(res.t_events[0]) == 1
+    te = res.t_events[0][0]
+    assert 0 < te < res.t[-1] <= 1.2
+    q_e, _ = res.sol(te)
+    assert abs(g(te, q_e, None)) < 1e-9                 # the zero of g on the driver's dense output
+    q_grid, _ = res.sol(res.t[1])
+    np.testing.assert_allclose(q_grid, res.q[1], rtol=0, atol=1e-14)   # Hermite: exact at the nodes
+
+
+def test_a_misbehaving_engine_is_caught_by_the_drivers_guard(monkeypatch):
+    """Negative control: a block engine that hands back another root at step 7 (v1 tripled, so the
+    energy jumps) is stopped by the driver's guard with status -4 naming step 7; with the guard
+    off the driver's energy monitor catches it (status -3); with both off the wrong step passes
+    (what the monitors prevent)."""
+    _with(monkeypatch, StepsAsBlocks(corrupt=7))
+    res = ldaspark.integrate("skate", "gauss-2", engine="generic", **RUN)
+    assert res.status == -4 and "step 7" in res.message and len(res.t) == 8
+    assert res.stats["guard_flagged"] >= 1
+    jump = ldaspark.integrate("skate", "gauss-2", engine="generic", guard=False, energy_jump=0.5, **RUN)
+    assert jump.status == -3 and "step 7" in jump.message and len(jump.t) == 8
+    blind = ldaspark.integrate("skate", "gauss-2", engine="generic", guard=False, **RUN)
+    assert blind.status == 0 and len(blind.t) == 13      # without the monitors the wrong step passes
+
+
+def test_the_real_engines_are_reached_through_the_protocol(monkeypatch):
+    """integrate -> the driver -> Engine.prepare and Engine.steps / Engine.run of the registered
+    engine of each path (generic, mpmath generic, comparator, compiled)."""
+    calls = []
+    for name in ("generic", "comparator", "compiled"):
+        eng = ENGINES[name]
+        for meth in ("prepare", "steps", "run"):
+            real = getattr(eng, meth)
+
+            def spy(*a, _n=name, _m=meth, _r=real, **k):
+                calls.append((_n, _m))
+                return _r(*a, **k)
+            monkeypatch.setattr(eng, meth, spy)
+    cases = [(dict(method="gauss-2", engine="generic"), ("generic", "steps")),
+             (dict(method="gauss-2", engine="generic", dps=20), ("generic", "steps")),
+             (dict(method="gauss-irk-2", engine="generic"), ("comparator", "run")),
+             (dict(method="gauss-2", engine="compiled"), ("compiled", "run"))]
+    for kw, want in cases:
+        calls.clear()
+        res = ldaspark.integrate("skate", t_span=(0, 0.3), h=0.1, **kw)
+        assert res.status == 0
+        assert calls[0] == (want[0], "prepare") and want in calls, (kw, calls)
+        assert {c[0] for c in calls} == {want[0]}

@@ -1,0 +1,64 @@
+"""One field order for the result types: ``Result`` and the deprecated ``Solution``
+(``core.spark.integrate``), ``FastSolution`` (``fast_integrate``, ``run_compiled``) and
+``EnsembleResult`` (``ensemble_integrate``) start with the same six fields in the same order, psi
+at position 5 in each (``result.LEADING_FIELDS``); the old positional order of FastSolution still
+builds the same object."""
+import dataclasses
+import warnings
+
+import numpy as np
+
+import ldaspark
+from ldaspark.compiled.runner import FastSolution
+from ldaspark.core.result import LEADING_FIELDS, Result
+from ldaspark.core.spark import Solution
+from ldaspark.ensemble import EnsembleResult
+
+
+def leading(cls) -> tuple:
+    return tuple(f.name for f in dataclasses.fields(cls))[:len(LEADING_FIELDS)]
+
+
+def test_every_result_type_leads_with_the_fields_of_result():
+    assert LEADING_FIELDS == ("t", "q", "v", "energy", "constraint", "psi")
+    for cls in (Result, Solution, FastSolution, EnsembleResult):
+        assert leading(cls) == LEADING_FIELDS, cls.__name__
+
+
+def test_negative_control_another_order_is_seen():
+    @dataclasses.dataclass
+    class Old:                       # the order Solution had: psi before energy
+        t: int
+        q: int
+        v: int
+        psi: int
+        energy: int
+        constraint: int
+    assert leading(Old) != LEADING_FIELDS
+
+
+def test_fast_solution_takes_the_old_positional_order():
+    a = [np.zeros(2)] * 5
+    st, psi = {"steps": 1}, np.ones((1, 2, 1))
+    old = FastSolution(*a, st, psi)                   # (t, q, v, energy, constraint, stats, psi)
+    new = FastSolution(*a, psi, st)
+    assert old.stats is st and old.psi is psi and new.stats is st and new.psi is psi
+    bare = FastSolution(*a, st)                       # (t, q, v, energy, constraint, stats)
+    assert bare.stats is st and bare.psi is None
+    assert list(old)[5] is st                         # unpacks as before: (t, q, v, energy, constraint, stats)
+
+
+def test_the_legacy_entry_points_fill_the_fields_by_name():
+    sc = ldaspark.get_scene("skate")
+    res = ldaspark.integrate(sc, "gauss-2", h=0.1, n_steps=4, engine="compiled")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        fs = ldaspark.fast_integrate(sc, "gauss-2", h=0.1, n_steps=4)
+    from ldaspark.core.families import get_method
+    from ldaspark.core.spark import integrate
+    t0, q0, v0 = sc.initial()
+    sol = integrate(sc.system, get_method("gauss-2"), t0, q0, v0, 0.1, n_steps=4)
+    for other in (fs, sol):
+        assert isinstance(other.stats, dict) and np.shape(other.psi) == np.shape(res.psi) == (4, 2, 1)
+        np.testing.assert_allclose(np.asarray(other.energy, float), res.energy, rtol=0, atol=1e-13)
+    assert np.array_equal(fs.psi, res.psi)

@@ -1,0 +1,105 @@
+"""One initial-point check (``ldaspark.core.validate.initial_point``) for every engine and entry
+point: each refuses an inconsistent start with the same message, and each goes through that one
+function (replaced here by one that raises a sentinel: every path raises the sentinel)."""
+import warnings
+from concurrent.futures import ThreadPoolExecutor
+
+import pytest
+
+import ldaspark
+from ldaspark.core import validate
+from ldaspark.core.backend import Backend
+from ldaspark.core.errors import InconsistentInitialDataError, InputError, LdasparkError, NonFiniteError
+from ldaspark.core.families import get_method
+
+SK = ldaspark.get_scene("skate")
+BAD_V0 = [0.0, 0.3, 1.0]          # k = v2 - v1 tan(theta)-type constraint of the skate violated at q0 = 0
+Q0 = [0.0, 0.0, 0.0]
+
+
+def _paths():
+    """name -> a call that starts a run at (0, Q0, v0) on that path."""
+    from ldaspark.compiled.fast import fast_integrate
+    from ldaspark.core.comparators import integrate_comparator
+    from ldaspark.core.spark import integrate as spark_integrate
+    from ldaspark.ensemble import RunSpec
+
+    def api(**kw):
+        return lambda v0: ldaspark.integrate("skate", kw.pop("method", "gauss-2"), q0=Q0, v0=v0, h=0.1, n_steps=2,
+                                             **kw)
+
+    def fast(v0):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            return fast_integrate(SK, "gauss-2", t0=0.0, q0=Q0, v0=v0, h=0.1, n_steps=2)
+
+    def ensemble(v0):
+        with ThreadPoolExecutor(1) as ex:
+            return ldaspark.integrate("skate", "gauss-2", q0=[Q0, Q0], v0=[[0.0, 0.0, 1.0], v0], h=0.1, n_steps=2,
+                                      executor=ex)
+    return {
+        "generic": api(engine="generic"),
+        "generic-mpmath": api(engine="generic", dps=20),
+        "compiled": api(engine="compiled"),
+        "comparator": api(engine="generic", method="gauss-irk-2"),
+        "compiled-lf2": api(engine="compiled", method="lobatto-iiia-iiib-2"),
+        "fast_integrate": fast,
+        "RunSpec": lambda v0: RunSpec(SK.system, "gauss-2", 0.0, [Q0], [v0], 0.1, 2),
+        "ensemble": ensemble,
+        "core.spark.integrate": lambda v0: spark_integrate(SK.system, get_method("gauss-2"), 0.0, Q0, v0, 0.1,
+                                                           n_steps=2),
+        "integrate_comparator": lambda v0: integrate_comparator("gauss-irk-2", SK.system, 0.0, Q0, v0, 0.1, 2),
+    }
+
+
+PATHS = sorted(_paths())
+
+
+@pytest.mark.parametrize("name", PATHS)
+def test_every_path_refuses_an_inconsistent_start_with_the_one_message(name):
+    run = _paths()[name]
+    with pytest.raises(InconsistentInitialDataError) as err:
+        run(BAD_V0)
+    msg = str(err.value)
+    msg = msg.split(": ", 1)[1] if msg.startswith("ensemble member") else msg
+    # |k| = 0.3 against the default tolerance 1e3 eps (1 + |v0|_inf) = 2e3 eps: 4.4e-13 in float64
+    # (at 20 digits the backend's eps is 1e-20: 2e-17)
+    tol = "2.0e-17" if name == "generic-mpmath" else "4.4e-13"
+    assert msg == f"initial data are inconsistent: |k(t0, q0, v0)| = 3.000e-01 > {tol} (pass project=True / " \
+                  "--project to project v0 onto k = 0)", msg
+    if name in ("RunSpec", "ensemble"):
+        assert str(err.value).startswith("ensemble member")
+    run([0.0, 0.0, 1.0])          # negative control: the consistent start runs on the same path
+
+
+class Sentinel(LdasparkError):
+    pass
+
+
+@pytest.mark.parametrize("name", PATHS)
+def test_every_path_goes_through_the_one_function(name, monkeypatch):
+    def refuse(*a, **k):
+        raise Sentinel("the one initial-point check")
+    monkeypatch.setattr(validate, "initial_point", refuse)
+    with pytest.raises(Sentinel):
+        _paths()[name]([0.0, 0.0, 1.0])
+
+
+def test_the_checks_in_order_and_the_member_prefix():
+    bk, system = Backend(None), SK.system
+    with pytest.raises(InputError, match="must be numbers"):
+        validate.initial_point(system, bk, 0.0, ["a", 0, 0], [0, 0, 1])
+    with pytest.raises(InputError, match="the system has n = 3"):
+        validate.initial_point(system, bk, 0.0, [0, 0], [0, 0, 1])
+    with pytest.raises(InputError, match="ensemble member 2: initial data contain NaN"):
+        validate.initial_point(system, bk, 0.0, [0, 0, float("nan")], [0, 0, 1], member="ensemble member 2: ")
+    with pytest.raises(NonFiniteError, match="^ensemble member 1: the energy"):
+        validate.initial_point(system, bk, 0.0, [0, 0, 0], [0, 0, 1e200], member="ensemble member 1: ")
+    with pytest.raises(InconsistentInitialDataError, match="^m: initial data are inconsistent"):
+        validate.initial_point(system, bk, 0.0, Q0, BAD_V0, member="m: ")
+    t, q, v = validate.initial_point(system, bk, 0.0, Q0, BAD_V0, project=True)
+    assert abs(float(system.constraint(bk, t, q, v)[0])) < 1e-15 and v[1] != BAD_V0[1]
+    # consistent=False: the set-up checks (4) and (1c) are skipped, the finite checks are not
+    validate.initial_point(system, bk, 0.0, Q0, BAD_V0, consistent=False)
+    with pytest.raises(NonFiniteError):
+        validate.initial_point(system, bk, 0.0, [0, 0, 0], [0, 0, 1e200], consistent=False)
