@@ -18,8 +18,10 @@ from . import runner
 
 #: the counters ``run_quasi`` adds to the stats of ``runner.run_compiled``: quasi-Newton
 #: iterations, steps it solved, steps sent to the Newton chain, multiplier matrices factored,
-#: steps sent there without an attempt (``kernels_quasi.QS_SKIPPED``)
-QUASI_STAT_NAMES = ("quasi_iterations", "quasi_steps", "quasi_fallbacks", "multiplier_lu", "quasi_skipped")
+#: steps sent there without an attempt (``kernels_quasi.QS_SKIPPED``), Hessian decompositions and
+#: steps solved with the velocity block carrying Hess U (``kernels_quasi.curvature_matrix``)
+QUASI_STAT_NAMES = ("quasi_iterations", "quasi_steps", "quasi_fallbacks", "multiplier_lu", "quasi_skipped",
+                    "curvature_refreshes", "curvature_steps")
 
 
 def lagrange_weights(nodes, points) -> np.ndarray:
@@ -75,11 +77,12 @@ def entry():
 
 
 def run_quasi(cs, method, t0, q0, v0, h, n_steps, every=1, compensated=True, tol=None, max_iter=50,
-              predictor="collocation") -> FastSolution:
+              predictor="collocation", curvature=True) -> FastSolution:
     """``runner.run_compiled`` with the quasi-Newton root finder (``kernels_quasi``): the same
     method (21), the same stopping rule and failure reports; mechanical form and SPARK tableaus
     only. predictor: "collocation" (IRKGaussLegendre.jl's, default) or 0, 1, 2 as
-    ``run_compiled``. stats adds QUASI_STAT_NAMES and root_finder = "quasi"."""
+    ``run_compiled``. curvature: the velocity block frozen at I (x) M + h^2 (A^ A) (x) Hess U where
+    it pays (``kernels_quasi.CURV_*``), else at M. stats adds QUASI_STAT_NAMES and root_finder = "quasi"."""
     if cs.form != "mechanical":     # an InputError, not NotCompilableError: never run as something else
         raise InputError(f"{cs.name}: newton='quasi' needs a system in mechanical form "
                                  "(L = 1/2 v^T M v - U(t, q), k = K(t, q) v + b(t, q), M constant)")
@@ -112,7 +115,7 @@ def run_quasi(cs, method, t0, q0, v0, h, n_steps, every=1, compensated=True, tol
     NN = s_ * (cs.n + cs.m) + cs.n
     out_x = np.zeros(NN + (S - 1) * s_ * cs.m)
     entry()(cs.model, what, cs.M, cs.Minv, ex[0], ex[1], float(t0), q0, v0, h, int(n_steps), int(every),
-            bool(compensated), tol, int(max_iter), pflag, *outs, stats, out_x, qstats)
+            bool(compensated), tol, int(max_iter), pflag, *outs, stats, out_x, qstats, bool(curvature))
     st = dict(zip(STAT_NAMES, (int(x) for x in stats)))
     if st["failed_step"] >= 0:
         raise _failure(st, name, float(t0), h, float(out_x[0]))
