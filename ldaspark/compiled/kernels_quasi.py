@@ -268,12 +268,13 @@ def quasi_increment(tab, h, qw, G, x):
 #: contracts at about eta: the skate, H = 0, stays there); the decomposition is kept while the
 #: dropped part h^2 |A^ A| |M^-1| |H - H_frozen| stays below max(CURV_STALE, CURV_STALE_REL eta)
 #: (a constant Hessian, the particle's, is decomposed once per run). The choice per run: once
-#: CURV_WARMUP steps have passed with more than one refresh in CURV_REFRESH_EVERY steps, the run
-#: continues with the M-only block (a decomposition, O(s^2 n^3), costs more than the residuals it saves)
+#: CURV_WARMUP steps have passed with more than one refresh (the first not counted) in
+#: CURV_REFRESH_EVERY steps, the run continues with the M-only block (a decomposition, O(s^2 n^3)
+#: and a LAPACK call, measured 2.5-3 us at n = 3, costs more than the ~1 residual it saves per step)
 CURV_N_MAX = 16
 CURV_MIN = 1e-3
 CURV_STALE = 1e-4
-CURV_STALE_REL = 0.1
+CURV_STALE_REL = 0.25
 CURV_WARMUP = 32
 CURV_REFRESH_EVERY = 8
 #: qstats entry: Hessian decompositions (``curvature_refresh``) and steps iterated with the curvature
@@ -642,7 +643,7 @@ def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compe
                         have_frozen = curvature_refresh(tab, h, cw)
                         qstats[QS_CURV_REFRESH] += 1
                     curv = have_frozen
-                    if step >= CURV_WARMUP and qstats[QS_CURV_REFRESH] * CURV_REFRESH_EVERY > step:
+                    if step >= CURV_WARMUP and (qstats[QS_CURV_REFRESH] - 1) * CURV_REFRESH_EVERY > step:
                         use_curv = False
                         curv = False
             status, it = quasi_newton(model, tab, ws, qw, cw, curv, x, t, q, v, h, G, tol, quasi_max, stats, qstats)
