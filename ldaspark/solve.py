@@ -772,7 +772,8 @@ def _fast_chunked(system, method, start, h, steps, kopts):
             stats = dict(st)
         else:
             for key in ("steps", "nfev", "njev", "nlu", "newton_iterations", "full_newton_steps", "quasi_iterations",
-                        "quasi_steps", "quasi_fallbacks", "multiplier_lu", "quasi_skipped"):
+                        "quasi_steps", "quasi_fallbacks", "multiplier_lu", "quasi_skipped", "curvature_refreshes",
+                        "curvature_steps"):
                 if key in st:
                     stats[key] = stats.get(key, 0) + st[key]
         q, v = fs.q[-1], fs.v[-1]
