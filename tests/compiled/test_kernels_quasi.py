@@ -131,7 +131,7 @@ def test_stiff_spring_falls_back_and_agrees(w2, all_fall_back):
 def test_integrate_newton_quasi():
     """Through ldaspark.integrate: the counters in Result.stats, the same trajectory as the
     default compiled Newton; refused where it cannot run (generic engine, mpmath, comparators,
-    the general form)."""
+    a nonideal term)."""
     a = ldaspark.integrate("particle", "gauss-3", h=0.1, n_steps=200, engine="compiled")
     b = ldaspark.integrate("particle", "gauss-3", h=0.1, n_steps=200, engine="compiled", newton="quasi")
     assert b.engine == "compiled" and b.stats["root_finder"]["kind"] == "quasi" and a.stats["root_finder"]["kind"] == "auto"
@@ -144,8 +144,8 @@ def test_integrate_newton_quasi():
     with pytest.raises(InputError, match="comparator|refuses Newton kind=.quasi."):
         ldaspark.integrate("skate", "lobatto-iiia-iiib-2-leapfrog", h=0.1, n_steps=3, newton="quasi",
                            engine="compiled")
-    with pytest.raises(InputError, match="mechanical form"):
-        ldaspark.integrate("relativistic", "gauss-2", h=0.1, n_steps=3, newton="quasi", engine="compiled")
+    with pytest.raises(InputError, match="nonideal"):      # the general form runs: test_quasi_general.py
+        ldaspark.integrate("friction-skate", "gauss-2", h=0.1, n_steps=3, newton="quasi", engine="compiled")
     with pytest.raises(InputError, match="newton"):
         ldaspark.integrate("skate", "gauss-2", h=0.1, n_steps=3, newton="quasy", engine="compiled")
 
