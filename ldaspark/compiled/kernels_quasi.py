@@ -28,6 +28,14 @@ chain of ``kernels.spark_newton`` (simplified Newton with fresh matrices, then f
 zero increments), counted in qstats[QS_FALLBACKS]; after a fallback the next steps go there
 directly, for a wait that doubles while attempts keep failing (QS_SKIPPED, QUASI_WAIT_MAX). q and
 v are summed with Kahan's compensated summation (``newton.accept_step``).
+
+Curvature variant (``curvature_refresh``, ``curvature_matrix``, ``curvature_increment``; CURV_*):
+where h^2 |A^ A| |M^-1| |Hess U| is not small the velocity block is frozen at I (x) M + h^2 (A^ A)
+(x) H (and the (21d) row's h^2 (b^ A) (x) H), H = Hess U at the predicted midpoint, its inverse
+built from the eigenvectors of (H, M) as n systems of size s and kept while H is not stale: the
+contraction rate drops from O(h^2 |Hess U| / |M|) to that of the terms still dropped (the
+constraint curvature, the change of H), and the particle of 8.1 needs 3 increments per step
+instead of 4-8. The residual is the same, so is the root.
 """
 import numba
 import numpy as np

@@ -36,7 +36,7 @@ from .newton import (FAIL_NONFINITE, RATE_KAPPA, accept_step, end_newton, fail, 
 # compiles in (tests/compiled/test_quasi_general.py checks it)
 HELPERS = ("kernels.py", "newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py",
            "modeltypes.py", "kernels_quasi.py")
-HELPERS_SHA256 = "c05814e50d08cec01ce9b325d795b1341761343c9ef69aff2ae483780ea324ed"
+HELPERS_SHA256 = "08d3c80f816d669f26d1de97bb70fc7cd185dbce35a39c644f921cbf6bb1b94d"
 
 
 @numba.njit(cache=True)
