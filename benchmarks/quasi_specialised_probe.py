@@ -104,8 +104,8 @@ def main(argv=None):
         g = Q.run_quasi(cs, a.method, t0, q0, v0, a.h, N, N)
         c2 = time.process_time()
         best_s, best_g = min(best_s, c1 - c0), min(best_g, c2 - c1)
-    print(f"{a.scene} {a.method} h={a.h:g}: specialised (s, n, m) = ({s}, {cs.n}, {cs.m}) {best_s / N * 1e6:.2f} us/step, "
-          f"generic {best_g / N * 1e6:.2f} us/step, speed-up {best_g / best_s:.2f}; |dq_final| "
+    print(f"{a.scene} {a.method} h={a.h:g}: specialised (s, n, m) = ({s}, {cs.n}, {cs.m}) "
+          f"{best_s / N * 1e6:.2f} us/step, generic {best_g / N * 1e6:.2f} us/step, speed-up {best_g / best_s:.2f}; |dq_final| "
           f"{np.abs(qs - g.q[-1]).max():.1e}; compile {compile_s:.0f} s wall; load average {os.getloadavg()[0]:.1f}")
     return 0
 
