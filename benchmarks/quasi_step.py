@@ -69,7 +69,7 @@ def spark_task(scene, method, h, t_end, n_out, newton):
                 "energy_error": float(np.max(np.abs(r.energy - r.energy[0]))),
                 "constraint": float(np.max(np.abs(r.constraint))),
                 "iterations_per_step": st["newton_iterations"] / max(st["steps"], 1),
-                "fallbacks": st.get("quasi_fallbacks")}
+                "fallbacks": st.get("quasi_fallbacks"), "curvature_steps": st.get("curvature_steps")}
     return f"{scene} {method} h={h:g} T={t_end:g} {newton}", go, finish
 
 
@@ -78,14 +78,22 @@ def spark_task(scene, method, h, t_end, n_out, newton):
 RATE = 4.37e9
 
 
-def quasi_flops(s, n, m, nnz_M, nnz_Minv, iterations):
+def quasi_flops(s, n, m, nnz_M, nnz_Minv, iterations, curvature=False):
     """Counted flops (one per multiplication or addition) of one quasi-Newton step with
     ``iterations`` increments (as many residuals: the predictor's and one after every increment
     but the last), the model's own operations not counted (s + 1 points of grad U, K, b per
-    residual and of k_q per step). Returns (total, multiplier matrix + its LU)."""
+    residual, k_q at s + 1 points and Hess U at one per step). curvature: the velocity block with
+    Hess U (``kernels_quasi.curvature_matrix``, ``curvature_increment``), its decomposition (once
+    per run for a constant Hessian) not counted. Returns (total, multiplier matrix + its LU)."""
     k = iterations
     residual = (2 * s * s * n + 2 * s * n + 2 * nnz_M * (s + 1) + 4 * s * (s + 1) * n + 4 * s * m * n
                 + 2 * (s - 1) * s * m + 2 * m * n)
+    if curvature:
+        N1 = (s + 1) * n
+        apply_c = 2 * s * s * n + 4 * s * m * n + 2 * (s - 1) * s * m + 2 * s * n + 4 * m * n
+        matrix = s * m * (2 * N1 * n + apply_c) + 2 * (s * m) ** 3 / 3
+        increment = 2 * N1 * N1 + apply_c + 2 * (s * m) ** 2 + 2 * N1 * s * m + s * m
+        return k * (residual + increment) + matrix, matrix
     matrix = (2 * s * m * nnz_Minv + 4 * s * s * m * m * n + 4 * (s - 1) * s * s * m * m + 4 * s * m * m * n
               + 2 * (s * m) ** 3 / 3)
     increment = (2 * (s + 1) * nnz_Minv + 2 * s * s * n + 4 * s * m * n + 2 * (s - 1) * s * m + 2 * s * m * n
@@ -109,13 +117,15 @@ def per_step(rounds, quick):
         sc = get_scene(PER_STEP[i // 2][0])
         cs = compile_system(sc.system)
         fl, flm = quasi_flops(get_method(q["method"]).s, cs.n, cs.m, int(np.count_nonzero(cs.M)),
-                              int(np.count_nonzero(cs.Minv)), q["iterations_per_step"])
+                              int(np.count_nonzero(cs.Minv)), q["iterations_per_step"],
+                              curvature=2 * (q["curvature_steps"] or 0) > q["steps"])
         out.append({"scene": PER_STEP[i // 2][0], "method": q["method"], "h": q["param"],
                     "us_per_step_quasi": 1e6 * q["cpu"] / q["steps"],
                     "us_per_step_newton": 1e6 * nw["cpu"] / nw["steps"],
                     "speedup": nw["cpu"] / q["cpu"], "iterations_quasi": q["iterations_per_step"],
                     "iterations_newton": nw["iterations_per_step"], "fallbacks": q["fallbacks"],
                     "final_q_difference": d, "counted_flops": fl, "counted_flops_matrix": flm,
+                    "curvature_steps": q["curvature_steps"],
                     "counted_us": 1e6 * fl / RATE})
     return out
 

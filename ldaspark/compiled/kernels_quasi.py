@@ -28,6 +28,14 @@ chain of ``kernels.spark_newton`` (simplified Newton with fresh matrices, then f
 zero increments), counted in qstats[QS_FALLBACKS]; after a fallback the next steps go there
 directly, for a wait that doubles while attempts keep failing (QS_SKIPPED, QUASI_WAIT_MAX). q and
 v are summed with Kahan's compensated summation (``newton.accept_step``).
+
+Curvature variant (``curvature_refresh``, ``curvature_matrix``, ``curvature_increment``; CURV_*):
+where h^2 |A^ A| |M^-1| |Hess U| is not small the velocity block is frozen at I (x) M + h^2 (A^ A)
+(x) H (and the (21d) row's h^2 (b^ A) (x) H), H = Hess U at the predicted midpoint, its inverse
+built from the eigenvectors of (H, M) as n systems of size s and kept while H is not stale: the
+contraction rate drops from O(h^2 |Hess U| / |M|) to that of the terms still dropped (the
+constraint curvature, the change of H), and the particle of 8.1 needs 3 increments per step
+instead of 4-8. The residual is the same, so is the root.
 """
 import numba
 import numpy as np
@@ -261,15 +269,263 @@ def quasi_increment(tab, h, qw, G, x):
     return dn
 
 
+#: the curvature variant (``curvature_*``): the velocity block frozen at I (x) M + h^2 (A^ A) (x) H
+#: with H = Hess U at the step's predicted midpoint, used on a run with n <= CURV_N_MAX (the
+#: transformation costs O(n^2) per stage and increment, the decomposition O(n^3)) and on a step
+#: where eta = h^2 |A^ A|_inf |M^-1|_inf |H|_inf >= CURV_MIN (below it the M-only iteration already
+#: contracts at about eta: the skate, H = 0, stays there); the decomposition is kept while the
+#: dropped part h^2 |A^ A| |M^-1| |H - H_frozen| stays below max(CURV_STALE, CURV_STALE_REL eta)
+#: (a constant Hessian, the particle's, is decomposed once per run). The choice per run: once
+#: CURV_WARMUP steps have passed with more than one refresh (the first not counted) in
+#: CURV_REFRESH_EVERY steps, the run continues with the M-only block (a decomposition, O(s^2 n^3)
+#: and a LAPACK call, measured 2.5-3 us at n = 3, costs more than the ~1 residual it saves per step)
+CURV_N_MAX = 16
+CURV_MIN = 1e-3
+CURV_STALE = 1e-4
+CURV_STALE_REL = 0.25
+CURV_WARMUP = 32
+CURV_REFRESH_EVERY = 8
+#: qstats entry: Hessian decompositions (``curvature_refresh``) and steps iterated with the curvature
+QS_CURV_REFRESH, QS_CURV_STEPS = 5, 6
+
+
+@numba.njit(cache=True)
+def curvature_workspace(tab, n, m, M, Minv):
+    """L^-1 (M = L L^T, Cholesky), P = A^ A (s, s), p = b^ A (s), info = [|P|_inf, |M^-1|_inf], the
+    frozen H and a new one (n, n), X (n, n), mu (n), the inverses of I + h^2 mu_a P (n, s, s) and
+    pivots, the response matrices T_j ((s + 1) n, n) per stage, R ((s + 1) n, (s + 1) n) (see
+    ``curvature_refresh``), the responses of the step's multipliers (s m, (s + 1) n), M^-1, scratch."""
+    A, Ah, bh = tab[1], tab[2], tab[5]
+    s = A.shape[0]
+    Lc = np.linalg.cholesky(M)
+    Linv = np.linalg.inv(Lc)
+    P = Ah @ A
+    p = bh @ A
+    info = np.zeros(2)
+    pn = 0.0
+    for i in range(s):
+        acc = 0.0
+        for k in range(s):
+            acc += abs(P[i, k])
+        pn = max(pn, acc)
+    mn = 0.0
+    for a in range(n):
+        acc = 0.0
+        for b in range(n):
+            acc += abs(Minv[a, b])
+        mn = max(mn, acc)
+    info[0] = pn
+    info[1] = mn
+    N1 = (s + 1) * n
+    return (np.ascontiguousarray(Linv), np.ascontiguousarray(P), np.ascontiguousarray(p), info, np.zeros((n, n)),
+            np.zeros((n, n)), np.zeros((n, n)), np.zeros(n), np.zeros((n, s, s)), np.zeros(s, dtype=np.int64),
+            np.zeros((s, N1, n)), np.zeros((N1, N1)), np.zeros((s * m, N1)), np.zeros(N1), np.zeros(s),
+            np.ascontiguousarray(Minv), np.zeros(s * m))
+
+
+@numba.njit(cache=True)
+def curvature_refresh(tab, h, cw):
+    """The frozen velocity block's inverse from H = cw[4] (Hess U). With M = L L^T,
+    L^-1 H L^-T = U diag(mu) U^T and X = L^-T U (X^T M X = I, X^T H X = diag(mu)), the stage block
+    B = I (x) M + h^2 P (x) H of (21b) has B^-1_ik = sum_a [(I + h^2 mu_a P)^-1]_ik X_a X_a^T (n
+    systems of size s, not one of size s n). R maps the residual rows [G_Z; G_d] of (21b, d) to
+    [y; y_s] = [B^-1 G_Z; M^-1 (G_d - h^2 H sum_k p_k y_k)], and T_j = R (A~_ij I; b~_j I)_i: the
+    response of (21b, d) to a multiplier of stage j is T_j K_j^T e_l. False if singular or not finite."""
+    At, bt = tab[3], tab[6]
+    Linv, P, p, Hf, X, mu, Inv, piv, Tw, R, Minv, col = (cw[0], cw[1], cw[2], cw[4], cw[6], cw[7], cw[8], cw[9],
+                                                         cw[10], cw[11], cw[15], cw[14])
+    n, s = Hf.shape[0], P.shape[0]
+    C = Linv @ Hf @ Linv.T
+    C = 0.5 * (C + C.T)
+    for a in range(n):
+        for b in range(n):
+            if not np.isfinite(C[a, b]):
+                return False
+    w, U = np.linalg.eigh(C)
+    Xn = Linv.T @ U
+    h2 = h * h
+    LU = np.zeros((s, s))
+    for a in range(n):
+        mu[a] = w[a]
+        for b in range(n):
+            X[a, b] = Xn[a, b]
+        for i in range(s):
+            for k in range(s):
+                LU[i, k] = (1.0 if i == k else 0.0) + h2 * w[a] * P[i, k]
+        if not lu_factor(LU, piv):
+            return False
+        for k in range(s):
+            for i in range(s):
+                col[i] = 1.0 if i == k else 0.0
+            lu_solve(LU, piv, col)
+            for i in range(s):
+                Inv[a, i, k] = col[i]
+    sn = s * n
+    R[:, :] = 0.0
+    for i in range(s):
+        for k in range(s):
+            for a in range(n):
+                xa = X[:, a]
+                f = Inv[a, i, k]
+                for r in range(n):
+                    for c2 in range(n):
+                        R[i * n + r, k * n + c2] += f * xa[r] * xa[c2]
+    F = h2 * (Minv @ Hf)
+    # y_s = M^-1 G_d - F sum_k p_k y_k, y_k = sum_i' B^-1_ki' G_i'
+    for ip in range(s):
+        for r in range(n):
+            for c2 in range(n):
+                acc = 0.0
+                for k in range(s):
+                    for e in range(n):
+                        acc += p[k] * F[r, e] * R[k * n + e, ip * n + c2]
+                R[sn + r, ip * n + c2] = -acc
+    for r in range(n):
+        for c2 in range(n):
+            R[sn + r, sn + c2] = Minv[r, c2]
+    for j in range(s):
+        for r in range((s + 1) * n):
+            for c2 in range(n):
+                acc = bt[j] * R[r, sn + c2]
+                for ip in range(s):
+                    acc += At[ip, j] * R[r, ip * n + c2]
+                Tw[j, r, c2] = acc
+    for j in range(s):
+        for r in range((s + 1) * n):
+            for c2 in range(n):
+                if not np.isfinite(Tw[j, r, c2]):
+                    return False
+    return True
+
+
 @numba.njit(cache=True, _nrt=False)
-def quasi_newton(model, tab, ws, qw, x, t, q, v, h, G, tol, max_iter, stats, qstats):
-    """The quasi-Newton iteration from the guess in x; (status, iterations): 1 converged, 0 not
-    converged, slow (rate > QUASI_THETA) or singular (the caller falls back), -1 not finite."""
+def constraint_apply(A, bw, om, h, Kf, kqf, K1f, kq1f, z, Ky, kz, y, out):
+    """out = C_Z y_Z + C_dv y_s, the frozen (21e, f) rows, y = [y_Z (s, n) | y_s (n)] flat:
+    sum_k omega_rk K_k y_k + h sum_j omega_rj k_q,j sum_k a_jk y_k (r < s - 1); h k_q(q1, v1)
+    sum_k b_k y_k + K(q1) y_s (the frozen K, k_q of ``multiplier_matrix``; scratch z, Ky, kz;
+    arrays rather than the workspace tuples are passed: a call copies its arguments)."""
+    s, n, m = A.shape[0], Kf.shape[2], Kf.shape[1]
+    sn = s * n
+    for j in range(s):
+        for a in range(n):
+            acc = 0.0
+            for k in range(s):
+                acc += A[j, k] * y[k * n + a]
+            z[j, a] = acc
+        for mm in range(m):
+            acc = 0.0
+            acc2 = 0.0
+            for a in range(n):
+                acc += Kf[j, mm, a] * y[j * n + a]
+                acc2 += kqf[j, mm, a] * z[j, a]
+            Ky[j, mm] = acc
+            kz[j, mm] = acc2
+    for r in range(s - 1):
+        for mm in range(m):
+            acc = 0.0
+            for k in range(s):
+                acc += om[r, k] * (Ky[k, mm] + h * kz[k, mm])
+            out[r * m + mm] = acc
+    r = s - 1
+    for mm in range(m):
+        acc = 0.0
+        acc2 = 0.0
+        for a in range(n):
+            yb = 0.0
+            for k in range(s):
+                yb += bw[k] * y[k * n + a]
+            acc += kq1f[mm, a] * yb
+            acc2 += K1f[mm, a] * y[sn + a]
+        out[r * m + mm] = h * acc + acc2
+
+
+@numba.njit(cache=True, _nrt=False)
+def curvature_matrix(model, tab, h, t, ws, qw, cw):
+    """``multiplier_matrix`` with the velocity block I (x) M + h^2 P (x) H (``curvature_refresh``):
+    for every multiplier (j, l) its response w = T_j K_j^T e_l in (21b, d) and the column
+    S[:, (j, l)] = C_Z w_Z + C_dv w_s. O(s m (s + 1) n^2 + s m s^2 n). False if S is singular."""
+    kq_of = model[5]
+    A, bw, om = tab[1], tab[4], tab[7]
+    T, Q, V, KK, q1, v1, K1 = ws[0], ws[1], ws[2], ws[5], ws[11], ws[12], ws[13]
+    Kf, kqf, K1f, kq1f, S, spiv = qw[4], qw[5], qw[6], qw[7], qw[10], qw[11]
+    z, Ky, kz = qw[15], qw[18], qw[19]
+    Tw, Wc, rhs = cw[10], cw[12], cw[16]
+    s, n, m = A.shape[0], q1.shape[0], K1.shape[0]
+    N1 = (s + 1) * n
+    for j in range(s):
+        kq_of(T[j], Q[j], V[j], kqf[j])
+        for ll in range(m):
+            for b in range(n):
+                Kf[j, ll, b] = KK[j, ll, b]
+    kq_of(t + h, q1, v1, kq1f)
+    for ll in range(m):
+        for b in range(n):
+            K1f[ll, b] = K1[ll, b]
+    for j in range(s):
+        for ll in range(m):
+            col = j * m + ll
+            for r in range(N1):
+                acc = 0.0
+                for b in range(n):
+                    acc += Tw[j, r, b] * Kf[j, ll, b]
+                Wc[col, r] = acc
+            constraint_apply(A, bw, om, h, Kf, kqf, K1f, kq1f, z, Ky, kz, Wc[col], rhs)
+            for r in range(s * m):
+                S[r, col] = rhs[r]
+    return lu_factor(S, spiv)
+
+
+@numba.njit(cache=True, _nrt=False)
+def curvature_increment(tab, h, qw, cw, G, x):
+    """``quasi_increment`` with the velocity block of ``curvature_matrix``: y = R [G_Z; G_d],
+    S dLambda = G_c - C_Z y_Z - C_dv y_s, [dZ; ddv] = -y - sum w dLambda; |dx|_inf."""
+    A, bw, om = tab[1], tab[4], tab[7]
+    Kf, kqf, K1f, kq1f, S, spiv = qw[4], qw[5], qw[6], qw[7], qw[10], qw[11]
+    rhs, z, Ky, kz = qw[13], qw[15], qw[18], qw[19]
+    R, Wc, y, r2 = cw[11], cw[12], cw[13], cw[16]
+    s, n, m = A.shape[0], Kf.shape[2], Kf.shape[1]
+    sn, sm = s * n, s * m
+    N1 = sn + n
+    for r in range(N1):
+        acc = 0.0
+        for c2 in range(N1):
+            acc += R[r, c2] * G[c2]
+        y[r] = acc
+    constraint_apply(A, bw, om, h, Kf, kqf, K1f, kq1f, z, Ky, kz, y, r2)
+    for r in range(sm):
+        rhs[r] = G[N1 + r] - r2[r]
+    lu_solve(S, spiv, rhs)
+    dn = 0.0
+    for col in range(sm):
+        d = rhs[col]
+        x[sn + col] += d
+        ad = abs(d)
+        if ad > dn or ad != ad:
+            dn = ad
+    for r in range(N1):
+        acc = y[r]
+        for col in range(sm):
+            acc += Wc[col, r] * rhs[col]
+        x[r if r < sn else r + sm] -= acc
+        ad = abs(acc)
+        if ad > dn or ad != ad:
+            dn = ad
+    return dn
+
+
+@numba.njit(cache=True, _nrt=False)
+def quasi_newton(model, tab, ws, qw, cw, curv, x, t, q, v, h, G, tol, max_iter, stats, qstats):
+    """The quasi-Newton iteration from the guess in x, with the velocity block frozen at M (curv
+    False) or at I (x) M + h^2 P (x) H (``curvature_matrix``); (status, iterations): 1 converged, 0
+    not converged, slow (rate > QUASI_THETA) or singular (the caller falls back), -1 not finite."""
     scale = norm_inf(v)
     mech_residual(model, tab, x, t, q, v, h, ws, G)
     stats[2] += tab[0].shape[0] + 1
     qstats[QS_LU] += 1
-    if not multiplier_matrix(model, tab, h, t, ws, qw):
+    if curv:
+        if not curvature_matrix(model, tab, h, t, ws, qw, cw):
+            return 0, 0
+    elif not multiplier_matrix(model, tab, h, t, ws, qw):
         return 0, 0
     prev = -1.0
     theta = -1.0
@@ -277,7 +533,7 @@ def quasi_newton(model, tab, ws, qw, x, t, q, v, h, G, tol, max_iter, stats, qst
     status = 0
     while it < max_iter:
         it += 1
-        dn = quasi_increment(tab, h, qw, G, x)
+        dn = curvature_increment(tab, h, qw, cw, G, x) if curv else quasi_increment(tab, h, qw, G, x)
         status = newton_status(dn, prev, theta, norm_inf(x), scale, tol, False)
         if status == 0 and prev > 0.0 and theta <= 0.0:
             # RADAU5 at its second increment: the rate of the one ratio there, theta_1 =
@@ -322,9 +578,10 @@ def collocation_predict(Ev, El, hist, x, s, n, m):
 
 @numba.njit(cache=True)
 def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter,
-               predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x, qstats):
+               predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x, qstats, curvature):
     """The step loop of ``spark_loop`` (same sampling, counters, failure codes and out_x layout)
-    with the quasi-Newton iteration first and the Newton chain as the fallback."""
+    with the quasi-Newton iteration first and the Newton chain as the fallback; curvature: the
+    velocity block with Hess U where it pays (CURV_N_MAX, CURV_MIN, CURV_STALE)."""
     s = tab[1].shape[0]
     n = q0.shape[0]
     m = out_k.shape[1]
@@ -343,6 +600,13 @@ def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compe
     for j in range(s):
         sb += bw[j]
     quasi_max = min(max_iter, QUASI_MAX_ITER)
+    hess_U = model[2]
+    cw = curvature_workspace(tab, n, m, M, Minv)
+    cinfo, Hf, Hn = cw[3], cw[4], cw[5]
+    use_curv = curvature and n <= CURV_N_MAX and cinfo[0] > 0.0
+    have_frozen = False
+    qmid = np.zeros(n)
+    hpm = h * h * cinfo[0] * cinfo[1]
     wait, backoff = 0, 1
     stats[mt.FAILED_STEP] = -1
     if not store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
@@ -362,8 +626,38 @@ def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compe
             status, it = 0, 0
             qstats[QS_SKIPPED] += 1
         else:
-            status, it = quasi_newton(model, tab, ws, qw, x, t, q, v, h, G, tol, quasi_max, stats, qstats)
+            curv = False
+            if use_curv:
+                # Hess U at the predicted midpoint; the frozen one kept while the difference
+                # would contract at most CURV_STALE
+                for a in range(n):
+                    qmid[a] = q[a] + 0.5 * h * v[a]
+                hess_U(t + 0.5 * h, qmid, Hn)
+                hn = 0.0
+                dh = 0.0
+                for a in range(n):
+                    acc = 0.0
+                    acc2 = 0.0
+                    for b in range(n):
+                        acc += abs(Hn[a, b])
+                        acc2 += abs(Hn[a, b] - Hf[a, b])
+                    hn = max(hn, acc)
+                    dh = max(dh, acc2)
+                if hpm * hn >= CURV_MIN:
+                    if not have_frozen or not (hpm * dh <= max(CURV_STALE, CURV_STALE_REL * hpm * hn)):
+                        for a in range(n):
+                            for b in range(n):
+                                Hf[a, b] = Hn[a, b]
+                        have_frozen = curvature_refresh(tab, h, cw)
+                        qstats[QS_CURV_REFRESH] += 1
+                    curv = have_frozen
+                    if step >= CURV_WARMUP and (qstats[QS_CURV_REFRESH] - 1) * CURV_REFRESH_EVERY > step:
+                        use_curv = False
+                        curv = False
+            status, it = quasi_newton(model, tab, ws, qw, cw, curv, x, t, q, v, h, G, tol, quasi_max, stats, qstats)
             qstats[QS_ITERATIONS] += it
+            if curv and status == 1:
+                qstats[QS_CURV_STEPS] += 1
             if status == 1:
                 backoff = 1
             else:
@@ -413,14 +707,15 @@ def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compe
         out_x[r] = x_last[r]
 
 
-QUASI_SIG = types.void(mt.MECH_MODEL, mt.TABLEAU_T, mt.a2, mt.a2, mt.a2, mt.a2, *mt.RUN, mt.a1, mt.STATS)
+QUASI_SIG = types.void(mt.MECH_MODEL, mt.TABLEAU_T, mt.a2, mt.a2, mt.a2, mt.a2, *mt.RUN, mt.a1, mt.STATS, mt.b1)
 
 
 @numba.njit(cache=True, nogil=True)
 def quasi_run(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, predictor,
-              out_t, out_q, out_v, out_E, out_k, stats, out_x, qstats):
+              out_t, out_q, out_v, out_E, out_k, stats, out_x, qstats, curvature):
     """n_steps of the SPARK method (21) for a mechanical system with the quasi-Newton root finder
     (``quasi_loop``); arguments as ``kernels.spark_run`` plus M^-1, the predictor's extrapolation
-    coefficients Ev (s + 1, s), El (s, s) and the quasi-Newton counters qstats (QS_*)."""
+    coefficients Ev (s + 1, s), El (s, s), the quasi-Newton counters qstats (QS_*) and whether the
+    velocity block carries Hess U where it pays (``curvature_matrix``)."""
     quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter, predictor,
-               out_t, out_q, out_v, out_E, out_k, stats, out_x, qstats)
+               out_t, out_q, out_v, out_E, out_k, stats, out_x, qstats, curvature)

@@ -18,8 +18,10 @@ from . import runner
 
 #: the counters ``run_quasi`` adds to the stats of ``runner.run_compiled``: quasi-Newton
 #: iterations, steps it solved, steps sent to the Newton chain, multiplier matrices factored,
-#: steps sent there without an attempt (``kernels_quasi.QS_SKIPPED``)
-QUASI_STAT_NAMES = ("quasi_iterations", "quasi_steps", "quasi_fallbacks", "multiplier_lu", "quasi_skipped")
+#: steps sent there without an attempt (``kernels_quasi.QS_SKIPPED``), Hessian decompositions and
+#: steps solved with the velocity block carrying Hess U (``kernels_quasi.curvature_matrix``)
+QUASI_STAT_NAMES = ("quasi_iterations", "quasi_steps", "quasi_fallbacks", "multiplier_lu", "quasi_skipped",
+                    "curvature_refreshes", "curvature_steps")
 
 
 def lagrange_weights(nodes, points) -> np.ndarray:
@@ -48,41 +50,49 @@ def extrapolation(c) -> tuple[np.ndarray, np.ndarray]:
 
 
 _LOCK = threading.Lock()
-_ENTRY = []
+_ENTRY: dict = {}
 _EXTRAP: dict = {}
 
 
-def entry():
-    """The compiled ``kernels_quasi.quasi_run`` for its one signature (compiled or loaded from
-    numba's cache on first use)."""
-    if _ENTRY:
-        return _ENTRY[0]
+def entry(form="mechanical"):
+    """The compiled ``kernels_quasi.quasi_run`` (form "mechanical") or
+    ``kernels_quasi_general.general_quasi_run`` ("general") for its one signature (compiled or
+    loaded from numba's cache on first use)."""
+    ep = _ENTRY.get(form)
+    if ep is not None:
+        return ep
     import warnings
     from numba.core.errors import NumbaExperimentalFeatureWarning
-    from . import kernels, kernels_general, kernels_mech, kernels_quasi, newton
+    from . import kernels, kernels_general, kernels_mech, kernels_quasi, kernels_quasi_general, newton
     from .cache import check_kernel_cache
-    check_kernel_cache((kernels, kernels_general, kernels_mech, newton, kernels_quasi))
+    check_kernel_cache((kernels, kernels_general, kernels_mech, newton, kernels_quasi, kernels_quasi_general))
     with _LOCK:
-        if not _ENTRY:
+        if form not in _ENTRY:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
-                disp = kernels_quasi.quasi_run
-                sig = kernels_quasi.QUASI_SIG
+                if form == "mechanical":
+                    disp, sig = kernels_quasi.quasi_run, kernels_quasi.QUASI_SIG
+                else:
+                    disp, sig = kernels_quasi_general.general_quasi_run, kernels_quasi_general.GENERAL_QUASI_SIG
                 cres = disp.overloads.get(tuple(sig.args))
-                ep = cres.entry_point if cres is not None else disp.compile(sig)
-            _ENTRY.append(ep)
-    return _ENTRY[0]
+                _ENTRY[form] = cres.entry_point if cres is not None else disp.compile(sig)
+    return _ENTRY[form]
 
 
 def run_quasi(cs, method, t0, q0, v0, h, n_steps, every=1, compensated=True, tol=None, max_iter=50,
-              predictor="collocation") -> FastSolution:
+              predictor="collocation", curvature=True) -> FastSolution:
     """``runner.run_compiled`` with the quasi-Newton root finder (``kernels_quasi``): the same
     method (21), the same stopping rule and failure reports; mechanical form and SPARK tableaus
     only. predictor: "collocation" (IRKGaussLegendre.jl's, default) or 0, 1, 2 as
-    ``run_compiled``. stats adds QUASI_STAT_NAMES and root_finder = "quasi"."""
-    if cs.form != "mechanical":     # an InputError, not NotCompilableError: never run as something else
-        raise InputError(f"{cs.name}: newton='quasi' needs a system in mechanical form "
-                                 "(L = 1/2 v^T M v - U(t, q), k = K(t, q) v + b(t, q), M constant)")
+    ``run_compiled``. curvature: the velocity block frozen at I (x) M + h^2 (A^ A) (x) Hess U where
+    it pays (``kernels_quasi.CURV_*``), else at M. A system in the general form runs
+    ``kernels_quasi_general`` (the velocity block frozen at L_vv at the predictor; curvature does
+    not apply); one with a nonideal term (3.3) is refused. stats adds QUASI_STAT_NAMES and
+    root_finder = "quasi"."""
+    if cs.form != "mechanical" and cs.model[-1]:     # an InputError: never run as something else
+        raise InputError(f"{cs.name}: newton='quasi' takes ideal constraints only (this system has a nonideal "
+                         "term N, section 3.3, which its frozen multiplier block leaves out); use the default "
+                         "root finder")
     if isinstance(predictor, str) and predictor == "collocation":
         pflag = 3
         _check_options(n_steps, every, 2, tol, max_iter, cs.n, cs.m)
@@ -111,8 +121,12 @@ def run_quasi(cs, method, t0, q0, v0, h, n_steps, every=1, compensated=True, tol
     s_ = what[1].shape[0]
     NN = s_ * (cs.n + cs.m) + cs.n
     out_x = np.zeros(NN + (S - 1) * s_ * cs.m)
-    entry()(cs.model, what, cs.M, cs.Minv, ex[0], ex[1], float(t0), q0, v0, h, int(n_steps), int(every),
-            bool(compensated), tol, int(max_iter), pflag, *outs, stats, out_x, qstats)
+    if cs.form == "mechanical":
+        entry()(cs.model, what, cs.M, cs.Minv, ex[0], ex[1], float(t0), q0, v0, h, int(n_steps), int(every),
+                bool(compensated), tol, int(max_iter), pflag, *outs, stats, out_x, qstats, bool(curvature))
+    else:
+        entry("general")(cs.model, what, cs.M, ex[0], ex[1], float(t0), q0, v0, h, int(n_steps), int(every),
+                         bool(compensated), tol, int(max_iter), pflag, *outs, stats, out_x, qstats)
     st = dict(zip(STAT_NAMES, (int(x) for x in stats)))
     if st["failed_step"] >= 0:
         raise _failure(st, name, float(t0), h, float(out_x[0]))
@@ -132,8 +146,8 @@ __all__ = ["run_quasi", "extrapolation", "QUASI_STAT_NAMES"]
 def quasi_integrate(system, method, t0, q0, v0, h, n_steps, every=1, tol=None) -> FastSolution:
     """``fast.fast_integrate``'s checks (initial point, options) and ``run_quasi`` on the system's
     compiled model; what ``ldaspark.integrate(..., engine="compiled", newton="quasi")`` runs per
-    chunk. No generic fallback: a system without the mechanical form, a comparator or a model
-    that does not compile is refused (InputError), a step the Newton chain cannot solve raises
+    chunk. No generic fallback: a system with a nonideal term, a comparator or a model that
+    does not compile is refused (InputError), a step the Newton chain cannot solve raises
     NewtonError (``solve`` keeps the prefix and explains it with the generic step)."""
     from ..core.validate import real_number, real_vector, step_advances
     from .fast import _loaded, _setup_checks
@@ -146,9 +160,6 @@ def quasi_integrate(system, method, t0, q0, v0, h, n_steps, every=1, tol=None) -
     _setup_checks(system, t0, q0, v0, _loaded(system))
     try:
         cs = compile_system(system)
-        if cs.form != "mechanical":
-            raise NotCompilableError(f"{system.name}: not in mechanical form (L = 1/2 v^T M v - U(t, q), "
-                                     "k = K(t, q) v + b(t, q), M constant)")
         return run_quasi(cs, method, t0, q0, v0, h, n_steps, every, True, tol)
     except NotCompilableError as exc:
         raise InputError(f"newton='quasi' cannot run this: {exc}") from None
