@@ -38,6 +38,7 @@ from .core import validate
 from .core.backend import Backend
 from .core.dense import CollocationDense, EventTracker, HermiteDense, step_piece
 from .core.errors import InputError, LdasparkError, NewtonError, SingularSaddleError, TableauError
+from .core.options import ENGINES as ENGINE_CHOICES, IntegrationOptions  # noqa: F401 (the engine option's values)
 from .core.guard import STATUS_GUARD
 from .core.result import (STATUS_EVENT, STATUS_NEWTON, STATUS_OTHER, STATUS_SADDLE, Result, float_array,
                           save_indices, stack)
