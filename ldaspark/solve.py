@@ -361,10 +361,12 @@ def _compiled_ensemble(system, params, Q0, V0, prob: _Problem, opts: Integration
     """Initial-data ensembles on the compiled engine go through
     ``ldaspark.ensemble.ensemble_integrate`` (tasks that pickle, so any executor, process
     pools and clusters included); None when the run does not qualify (then the loop runs: a root
-    finder other than the default with any tol, whose fields the kernel tasks do not take, too)."""
+    finder other than the default with any tol, whose fields the kernel tasks do not take, too, and
+    the step-acceptance guard, which those tasks do not run: guard=True, the default, takes the loop,
+    whose members are driven as single runs)."""
     from .engines import ENGINES
     if (opts.engine == "generic" or opts.dps is not None or opts.dense_output or opts.events or opts.project
-            or opts.energy_jump is not None or dataclasses.replace(opts.newton, tol=None) != "auto"
+            or opts.guard or opts.energy_jump is not None or dataclasses.replace(opts.newton, tol=None) != "auto"
             or params is not None or system.params
             or ENGINES["compiled"].unavailable(system, prob) is not None):
         return None

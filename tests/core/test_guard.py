@@ -101,3 +101,23 @@ def test_a_second_root_between_saved_samples_is_located():
     k = every.error.step
     assert list(sampled.t) == list(every.t[list(range(0, k + 1, 4)) + ([k] if k % 4 else [])])
     assert sampled.psi is not None and len(sampled.psi) == len(sampled.t) - 1
+
+
+def test_the_guard_runs_on_every_member_of_a_compiled_ensemble_through_an_executor():
+    # an ensemble over initial data with an executor once went to the kernel tasks, which run no
+    # guard (members' stats without "guard"): with guard=True (the default) every member is
+    # judged as its single run is; guard=False may take the kernel tasks and says so
+    from concurrent.futures import ThreadPoolExecutor
+    Q0, V0 = [[1.2, 0.0], [1.1, 0.0]], [[1.5, 0.0], [1.4, 0.0]]
+    kw = dict(START, q0=Q0, v0=V0, n_steps=12)
+    singles = [run("gauss-1", "compiled", **dict(kw, q0=q, v0=v)) for q, v in zip(Q0, V0)]
+    assert sum(r.stats["guard_flagged"] for r in singles) >= 1       # the scene gives the guard work
+    with ThreadPoolExecutor(1) as ex:
+        ens = run("gauss-1", "compiled", executor=ex, **kw)
+        off = run("gauss-1", "compiled", executor=ex, guard=False, **kw)
+    for member, one in zip(ens.stats["members"], singles):
+        assert member["guard"] is True and member["engine"] == "compiled"
+        assert {k: member[k] for k in ("guard_flagged", "guard_confirmed")} == \
+            {k: one.stats[k] for k in ("guard_flagged", "guard_confirmed")}
+    assert [m["guard"] for m in off.stats["members"]] == [False, False]
+    assert np.array_equal(np.asarray(ens.q, float), np.asarray(off.q, float))
