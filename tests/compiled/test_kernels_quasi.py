@@ -175,3 +175,16 @@ def test_single_ratio_rate_test_at_the_second_increment():
         a = run_compiled(cs, "gauss-8", t0, q0, v0, h, 400, 1)
         assert lo <= b.stats["mean_iterations"] <= hi, (h, b.stats["mean_iterations"])
         assert _difference(a, b) <= 1.0
+
+
+def test_run_quasi_defaults_keep_every_step_as_documented():
+    """run_quasi's defaults are run_compiled's (every = 1, compensated sums, the default tol,
+    50 iterations, the collocation predictor): a call without them keeps every step and equals
+    the call that spells them out, bit for bit."""
+    sc = get_scene("skate")
+    t0, q0, v0 = sc.initial()
+    cs = compile_system(sc.system)
+    short = run_quasi(cs, "gauss-2", t0, q0, v0, 0.1, 7)
+    spelled = run_quasi(cs, "gauss-2", t0, q0, v0, 0.1, 7, 1, True, None, 50, "collocation", True)
+    assert len(short.t) == 8 and np.array_equal(short.t, spelled.t)
+    assert np.array_equal(short.q, spelled.q) and np.array_equal(short.psi, spelled.psi)
