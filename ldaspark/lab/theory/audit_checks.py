@@ -599,14 +599,6 @@ def convergence_checks(tab, predicted, dps, quick, capped=False):
     return checks, facts
 
 
-def _entry_floor(tab) -> float:
-    """1e3 x the precision the entries carry (0 for exact or float64-and-better entries): a rough
-    a-priori size of the entries' error term (the measured one is ``_entry_floor_measured``)."""
-    given = [getattr(tab, a, None) for a in ("source_digits", "decimal_digits_min", "decimal_digits")]
-    d = min((x for x in given if x), default=None)
-    return 1e3 * 10.0 ** -d if d and d < 15 else 0.0
-
-
 def energy_check(tab, quick):
     """Energy error of the particle scene (E conserved, 8.1) on a short float64 run at h and
     h/2; information (the theorem says nothing quantitative about energy)."""

@@ -18,7 +18,6 @@ from ldaspark.lab.theory import audit as au
 from ldaspark.lab.theory import audit_checks as ac
 from ldaspark.analysis import order_conditions as oc
 from types import SimpleNamespace
-from ldaspark.core.errors import TableauError
 
 
 def approx(expected, rel=1e-9, abs=0.0):
@@ -415,14 +414,6 @@ def test_convergence_constraint_is_the_worst_scene_and_failures_continue(convenv
     assert "convergence:skate" not in f and f["max_constraint"] == 1e-20
 
 
-def test_entry_floor():
-    T = lambda a=None, b=None, c=None: types.SimpleNamespace(source_digits=a, decimal_digits=b, decimal_digits_min=c)
-    assert ac._entry_floor(T()) == 0.0
-    assert ac._entry_floor(T(10)) == approx(1e-7)
-    assert ac._entry_floor(T(None, 12, 8)) == approx(1e-5)        # the fewest digits
-    assert ac._entry_floor(T(15)) == 0.0 and ac._entry_floor(T(14)) == approx(1e-11)
-
-
 def test_energy_check_rate_and_failure(monkeypatch):
     runs = []
 
@@ -469,13 +460,6 @@ P, F, S, I = au.PASS, au.FAIL, au.SKIP, au.INFO
 def test_convergence_error_is_the_worst_component_of_q_and_v():
     sol = SimpleNamespace(q=[np.array([1.0 + 1e-3, 2.0 + 1e-6])], v=[np.array([0.0, 1e-9])])
     assert ac._err(sol, [1.0, 2.0], [0.0, 0.0]) == _close(1e-3, rel=1e-9)
-
-
-def test_entry_floor_uses_the_fewest_digits_given():
-    tab = SimpleNamespace(source_digits=10, decimal_digits_min=None, decimal_digits=12)
-    assert ac._entry_floor(tab) == _close(1e3 * 1e-10, rel=1e-12)
-    tab = SimpleNamespace(source_digits=None, decimal_digits_min=13, decimal_digits=11)
-    assert ac._entry_floor(tab) == _close(1e3 * 1e-11, rel=1e-12)
 
 
 # the convergence floor and the one-sided check: test_convergence_floor_is_the_working_precision_or_the_measured_entries_floor,

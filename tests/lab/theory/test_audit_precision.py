@@ -373,12 +373,3 @@ def test_six_digit_entries_theorem1_decided_to_their_precision():
     assert res.exit_code == 0
     assert au.entry_tolerances([au.Check("22a", au.PASS, 0.0, ""), au.Check("22b", au.FAIL, 1e-7, "")]) == (0.0, 0.0)
 
-
-def test_entry_floor_only_for_entries_known_to_few_digits():
-    """The finest-slope allowance of convergence_checks applies near 1e3 x 10^-d for entries of d
-    digits only: exact and float64-precision tableaux keep the two-sided order check."""
-    from ldaspark.lab.theory.audit_checks import _entry_floor
-    six = from_json_dict(printed(get_method("lobatto-iiia-iiib-3", exact=True), 6))
-    assert _entry_floor(six) == pytest.approx(1e-3)
-    assert _entry_floor(get_method("lobatto-iiia-iiib-3", exact=True)) == 0.0
-    assert _entry_floor(from_json_dict(printed(get_method("gauss-2", exact=True), 40))) == 0.0
