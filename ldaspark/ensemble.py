@@ -131,10 +131,12 @@ class RunSpec:
         spec = kernel_spec(self.method, self.kernel)
         rows = list(zip(self.Q0, self.V0))
         chunks = [rows[i:i + chunk] for i in range(0, len(rows), chunk)]
+        self._kernels = None
         try:
             cs = compile_system(self.system)
             # warm the numba cache here so that local workers load instead of compile
             run_kernels(cs, spec, self.t0, self.Q0[0], self.V0[0], self.h, 1, 1, self.compensated, self.tol)
+            self._kernels = (cs, spec)
         except NotCompilableError as exc:
             _notice(str(exc))
             sysm = copy.copy(self.system)
@@ -145,12 +147,47 @@ class RunSpec:
                 for c in chunks]
 
 
+    def rerun(self, q0, v0, n_steps):
+        """The first ``n_steps`` of the member from (q0, v0) again with every step kept, on the path
+        its task ran (the kernels, or the generic path of a system that does not compile)."""
+        if self._kernels is not None:
+            from .compiled.runner import run_kernels
+            cs, spec = self._kernels
+            return run_kernels(cs, spec, self.t0, q0, v0, self.h, n_steps, 1, self.compensated, self.tol)
+        from .compiled.fast import generic_integrate
+        return generic_integrate(self.system, self.method, self.t0, q0, v0, self.h, n_steps, 1, self.tol)
+
+    def judge(self, k, ens):
+        """The step-acceptance guard (``ldaspark.core.guard.judge``) on every member of this spec's
+        ensemble ``ens`` (spec number k of ``run_many``): each member's stats get the guard's
+        counters; a member with another root of (21) at some step raises RootMismatchError naming
+        the spec, the member, the step and both roots. A comparator of sections 7-8 (the Fig. 4
+        variants of LF2) has no SPARK safe root: its members say ``guard: False``."""
+        from types import SimpleNamespace
+        from .compiled.fast import _resolve
+        from .core import guard
+        kind, what, name = _resolve(self.method)
+        if kind != "spark":
+            for st in ens.stats:
+                st["guard"] = False
+            return
+        safe = guard.SparkSafeRoot(self.system, what, None, self.tol, 50, self.h)
+        for r, (q0, v0) in enumerate(zip(self.Q0, self.V0)):
+            member = SimpleNamespace(t=ens.t, q=ens.q[r], v=ens.v[r], energy=ens.energy[r])
+            st, cut = guard.judge(member, self.every, self.h, lambda n, state, before: safe(n, state, None, before),
+                                  lambda n: self.rerun(q0, v0, n), 2 + 2 * self.system.n + self.system.m)
+            ens.stats[r].update(st)
+            if cut is not None:
+                n, err, _ = cut
+                raise guard.RootMismatchError(f"run_many: spec {k} ({name}), member {r}: {err}", step=n, time=err.time)
+
+
 def default_executor(max_workers=None):
     from .core.lifecycle import make_process_pool
     return make_process_pool(max_workers=max_workers or os.cpu_count() or 1)
 
 
-def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, where=None):
+def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, where=None, guard=True):
     """Run several ensembles (`RunSpec` objects) through one executor.
 
     Parameters
@@ -168,6 +205,11 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
     where : str, distributed.Client or Executor, optional
         Where the tasks run: a Dask scheduler address, a ``distributed.Client``, or any
         ``concurrent.futures.Executor`` (``ldaspark.executors``).
+    guard : bool, optional
+        The step-acceptance guard (``ldaspark.core.guard``, on by default) on every member, in
+        this process once the tasks are done: a step with another root of (21) raises
+        RootMismatchError naming the spec, the member and the step; each member's stats get
+        the guard's counters.
 
     Returns
     -------
@@ -191,8 +233,9 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
     >>> out.q.shape
     (2, 11, 3)
     """
-    from .core.validate import _describe, callable_or_none, check_executor, count
+    from .core.validate import _describe, callable_or_none, check_executor, count, flag
     from .executors import check_where
+    flag(guard, "run_many: guard")
     if executor is not None and where is not None:
         raise InputError("give executor or where, not both")
     check_executor(executor)
@@ -222,6 +265,12 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
                                   np.array([r[3] for r in rs]), np.array([r[4] for r in rs]),
                                   psi=None if any(r[6] is None for r in rs) else np.array([r[6] for r in rs]),
                                   stats=[r[5] for r in rs], seconds=seconds))
+    for k, (sp, ens) in enumerate(zip(specs, out)):
+        if guard:
+            sp.judge(k, ens)
+        else:
+            for st in ens.stats:
+                st["guard"] = False
     return out
 
 
@@ -247,22 +296,23 @@ def _run_plan(plan, n_specs, executor=None, max_workers=None, progress=None):
 
 
 def ensemble_integrate(system, method, t0, Q0, V0, h, n_steps, every=1, compensated=True, tol=None,
-                       executor=None, max_workers=None, chunk=1, kernel="auto", progress=None) -> EnsembleResult:
+                       executor=None, max_workers=None, chunk=1, kernel="auto", progress=None,
+                       guard=True) -> EnsembleResult:
     """Deprecated: ``ldaspark.integrate(system, method, q0=Q0, v0=V0, executor=...)`` runs an
     initial-data ensemble (a batched Result); this is the same run with a DeprecationWarning."""
     import warnings
     warnings.warn("ensemble_integrate is deprecated: use ldaspark.integrate(system, method, q0=Q0, v0=V0, "
                   "executor=...)", DeprecationWarning, stacklevel=2)
     return run_ensemble(system, method, t0, Q0, V0, h, n_steps, every, compensated, tol, executor, max_workers,
-                        chunk, kernel, progress)
+                        chunk, kernel, progress, guard)
 
 
 def run_ensemble(system, method, t0, Q0, V0, h, n_steps, every=1, compensated=True, tol=None,
-                 executor=None, max_workers=None, chunk=1, kernel="auto", progress=None) -> EnsembleResult:
+                 executor=None, max_workers=None, chunk=1, kernel="auto", progress=None, guard=True) -> EnsembleResult:
     """Integrate ``system`` from every row of (Q0, V0) with the fast path (``ldaspark.compiled.fast``),
     in parallel over ``executor`` (default: a process pool over all cores). ``chunk`` initial
     data per task."""
     from .core.validate import count
     count(chunk, "chunk", 1, 10 ** 9)
     spec = RunSpec(system, method, t0, Q0, V0, h, n_steps, every, compensated, tol, kernel)
-    return run_many([spec], executor=executor, max_workers=max_workers, chunk=chunk, progress=progress)[0]
+    return run_many([spec], executor=executor, max_workers=max_workers, chunk=chunk, progress=progress, guard=guard)[0]

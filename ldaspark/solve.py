@@ -362,8 +362,8 @@ def _compiled_ensemble(system, params, Q0, V0, prob: _Problem, opts: Integration
     ``ldaspark.ensemble.ensemble_integrate`` (tasks that pickle, so any executor, process
     pools and clusters included); None when the run does not qualify (then the loop runs: a root
     finder other than the default with any tol, whose fields the kernel tasks do not take, too, and
-    the step-acceptance guard, which those tasks do not run: guard=True, the default, takes the loop,
-    whose members are driven as single runs)."""
+    guard=True, the default: ``run_many``'s guard raises for the whole ensemble, while the loop
+    drives each member as its single run, a member with another root ending with its own status)."""
     from .engines import ENGINES
     if (opts.engine == "generic" or opts.dps is not None or opts.dense_output or opts.events or opts.project
             or opts.guard or opts.energy_jump is not None or dataclasses.replace(opts.newton, tol=None) != "auto"
@@ -373,7 +373,7 @@ def _compiled_ensemble(system, params, Q0, V0, prob: _Problem, opts: Integration
     from .core.result import from_ensemble
     from .ensemble import run_ensemble
     ens = run_ensemble(system, prob.method, prob.t0, Q0, V0, prob.h, prob.N, every=opts.save_every,
-                             tol=opts.tol, executor=opts.executor)
+                             tol=opts.tol, executor=opts.executor, guard=False)
     return from_ensemble(ens, method=prob.name, system=system.name, scene=prob.scene, h=prob.h,
                          save_every=opts.save_every)
 
@@ -784,26 +784,12 @@ def _chunked(engine, prep, start, n, every) -> Result:
                   stats=stats)
 
 
-#: the guard on a run with ``save_every`` > 1 of an engine that keeps its samples (the compiled
-#: kernels) judges the saved samples; a flagged interval is located by running the prefix again
-#: with every step kept, when that prefix holds at most this many floats (128 MB; beyond it the
-#: flagged intervals are counted as unverified)
-GUARD_EVERY_STEP_FLOATS = 2 ** 24
-#: the longest first saved interval the guard runs again with every step kept (4096 steps: a few
-#: ms of a kernel; a run that keeps only its end, save_every >= n_steps, is judged from its
-#: samples only)
-GUARD_HEAD = 4096
-#: flagged steps solved again per run; beyond it they are counted as unverified
-GUARD_MAX_RESOLVES = 1000
-
-
 def _guard_scan(res, exc, engine, prep, rerun=None) -> tuple:
-    """The step-acceptance guard (``ldaspark.core.guard``) on a run of a block engine: (the run up
-    to the first step with another root, that RootMismatchError or ``exc``), the guard's counters
-    in ``res.stats``. ``rerun(n)``: the first n steps again with every step kept (an engine that
-    keeps samples ``save_every`` steps apart unless dense output, events or the energy monitor
-    kept every step); None: ``res`` holds every step. Without a flagged sample nothing is run
-    again, so the guard costs one vectorised pass over the saved energies."""
+    """The step-acceptance guard (``ldaspark.core.guard.judge``) on a run of a block engine: (the run
+    up to the first step with another root, that RootMismatchError or ``exc``), the guard's
+    counters in ``res.stats``. ``rerun(n)``: the first n steps again with every step kept (an
+    engine that keeps samples ``save_every`` steps apart unless dense output, events or the energy
+    monitor kept every step); None: ``res`` holds every step."""
     from .core import guard
     prob, opts, system = prep.prob, prep.opts, prep.system
     if res is None:
@@ -811,64 +797,18 @@ def _guard_scan(res, exc, engine, prep, rerun=None) -> tuple:
     if not opts.guard:
         res.stats["guard"] = False
         return res, exc
-    st = res.stats
-    st.update(guard=True, guard_flagged=0, guard_confirmed=0, guard_unverified=0)
-    if len(res.t) < 3:
-        return res, exc
-    bad = guard.flagged(float_array(res.energy))
     every = 1 if rerun is None or opts.every_step else opts.save_every
-    # the first saved interval has no history among the samples: its steps are judged on a
-    # rerun with every step kept when it is short (GUARD_HEAD steps), else left unjudged
-    head = 1 < every <= GUARD_HEAD
-    if not len(bad) and not head:
+    st, cut = guard.judge(res, every, prob.h, lambda n, state, before: engine.resolve_step(prep, n, state, None, before),
+                          rerun if every > 1 else None, 2 + 2 * system.n + system.m)
+    res.stats.update(st)
+    if cut is None:
         return res, exc
-    steps = res
-    if every > 1:       # locate: the prefix to the end of the last flagged interval, every step
-        t = float_array(res.t)
-        j = bad[-1] + 1 if len(bad) else 1
-        last = int(round((t[min(j, len(t) - 1)] - t[0]) / float(prob.h)))
-        if (last + 1) * (2 + 2 * system.n + system.m) > GUARD_EVERY_STEP_FLOATS:
-            st["guard_flagged"] = st["guard_unverified"] = int(len(bad))
-            return res, exc
-        try:
-            steps = rerun(last)
-        except LdasparkError:
-            st["guard_flagged"] = st["guard_unverified"] = int(len(bad))
-            return res, exc
-        bad = guard.flagged(float_array(steps.energy))
-    n = _guard_resolve(steps, bad, engine, prep, st)
-    if n is None:
-        return res, exc
-    n, err = n
+    n, err, steps = cut
     idx = np.arange(n + 1) if every == 1 else save_indices(n, every) if n > 0 else np.array([0])
     for nm in ("t", "q", "v", "energy", "constraint"):
         setattr(res, nm, np.asarray(getattr(steps, nm))[idx])
     res.psi = None if steps.psi is None else np.asarray(steps.psi)[idx[:-1]]
     return res, err
-
-
-def _guard_resolve(steps: Result, bad, engine, prep, st: dict):
-    """Solve the flagged steps ``bad`` of the every-step run ``steps`` again from the engine's safe
-    starts (``engine.resolve_step``); (the first step with another root, its RootMismatchError) or
-    None. Counts into ``st`` (the run's stats)."""
-    from .core import guard
-    st["guard_flagged"] = int(len(bad))
-    if not len(bad):
-        return None
-    t, q, v, E = (float_array(getattr(steps, a)) for a in ("t", "q", "v", "energy"))
-    for count, n in enumerate(bad):
-        if count >= GUARD_MAX_RESOLVES:
-            st["guard_unverified"] += len(bad) - count
-            break
-        before = (t[n - 1], q[n - 1], v[n - 1]) if n >= 1 else None
-        label, safe = engine.resolve_step(prep, int(n), (t[n], q[n], v[n]), None, before)
-        if safe is None:
-            st["guard_unverified"] += 1
-        elif guard.same_root(q[n + 1], v[n + 1], safe[0], safe[1]):
-            st["guard_confirmed"] += 1
-        else:
-            return int(n), guard.mismatch(int(n), t[n], prep.prob.h, (q[n + 1], v[n + 1], E[n + 1]), safe, label)
-    return None
 
 
 def _finish_prefix(res, exc, prep, start, engine: str, sliced=False) -> Result:

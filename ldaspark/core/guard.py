@@ -66,6 +66,15 @@ ITER_EXTRA = 2
 #: room for the conditioning of the stage equations near the Newton limit (cond ~ 1e6)
 ROOT_AGREE = 1e-8
 _EPS = float(np.finfo(float).eps)
+#: a run that kept every ``every``-th step is judged on its samples; a flagged interval is located
+#: by running the prefix again with every step kept, when that prefix holds at most this many
+#: floats (128 MB; beyond it the flagged intervals are counted as unverified)
+EVERY_STEP_FLOATS = 2 ** 24
+#: the longest first saved interval run again with every step kept (4096 steps: a few ms of a
+#: kernel; a run that keeps only its end, every >= n_steps, is judged from its samples only)
+HEAD = 4096
+#: flagged steps solved again per run; beyond it they are counted as unverified
+MAX_RESOLVES = 1000
 
 
 class RootMismatchError(LdasparkError):
@@ -194,3 +203,93 @@ def mismatch(n, t, h, engine_root, safe, label) -> RootMismatchError:
         f"E = {float(E1):.10g}, and from {label} q1 = {_fmt(q1s)}, v1 = {_fmt(v1s)} with E = {float(E1s):.10g}; "
         "the step is beyond the Newton limit of this h (reduce h, or guard=False to keep the engine's root)",
         step=n, time=float(t))
+
+
+class SparkSafeRoot:
+    """``resolve(n, state, prev, before)`` for a SPARK tableau: the safe starts of ``safe_root``
+    with generic full / default Newton at ``dps`` digits (None: float64); the method objects are
+    built at the first flagged step. ``before`` = (t, q, v) at the start of step n - 1: a block
+    engine keeps no stages, so the previous step is solved again to extrapolate from."""
+
+    def __init__(self, system, tableau, dps, tol, max_iter, h):
+        self.args = (system, tableau, dps, tol, max_iter)
+        self.h = h
+        self.methods = None
+
+    def _methods(self):
+        if self.methods is None:
+            from .spark import SparkMethod
+            system, tableau, dps, tol, max_iter = self.args
+            mk = lambda kind: SparkMethod(system, tableau, dps=dps, tol=tol, newton=kind,  # noqa: E731
+                                          max_iter=max_iter)
+            self.methods = (mk("full"), mk("auto"))
+        return self.methods
+
+    def __call__(self, n, state, prev=None, before=None):
+        methods = self._methods()
+        t, q, v = state
+        if prev is None and before is not None and n >= 1:
+            try:
+                r = methods[0].step(before[0], before[1], before[2], self.h, step_index=n - 1)
+                prev = (r.V, r.Psi, self.h)
+            except LdasparkError:
+                prev = None
+        label, r = safe_root(methods, t, q, v, self.h, prev, step_index=int(n))
+        return (None, None) if r is None else (label, (r.q1, r.v1, float(r.energy)))
+
+
+def counters() -> dict:
+    """The guard's counters of a run, all zero (``Result.stats``)."""
+    return {"guard": True, "guard_flagged": 0, "guard_confirmed": 0, "guard_unverified": 0}
+
+
+def judge(samples, every, h, resolve, rerun=None, floats_per_step=0):
+    """The guard on a run kept every ``every``-th step (a block engine, an ensemble member):
+    (its counters, None) or (its counters, (n, RootMismatchError, steps)) for the first step n with
+    another root, ``steps`` holding every step up to at least n + 1.
+
+    samples: t, q, v, energy (float64 arrays; every = 1: every step). resolve(n, (t, q, v),
+    before): (label, (q1, v1, E1)) of step n from a safe start (``SparkSafeRoot``), or (None, None).
+    rerun(n): the first n steps again with every step kept (t, q, v, energy), for every > 1; None:
+    the samples hold every step. floats_per_step bounds what a rerun may hold (EVERY_STEP_FLOATS).
+    Without a flagged sample (and, for every > 1, a first interval longer than HEAD) nothing is run
+    again: the guard costs one vectorised pass over the saved energies."""
+    st = counters()
+    if len(samples.t) < 3:
+        return st, None
+    bad = flagged(np.asarray(samples.energy, dtype=float))
+    every = 1 if rerun is None else int(every)
+    # the first saved interval has no history among the samples: its steps are judged on a
+    # rerun with every step kept when it is short (HEAD steps), else left unjudged
+    head = 1 < every <= HEAD
+    if not len(bad) and not head:
+        return st, None
+    steps = samples
+    if every > 1:       # locate: the prefix to the end of the last flagged interval, every step
+        t = np.asarray(samples.t, dtype=float)
+        j = bad[-1] + 1 if len(bad) else 1
+        last = int(round((t[min(j, len(t) - 1)] - t[0]) / float(h)))
+        if (last + 1) * floats_per_step > EVERY_STEP_FLOATS:
+            st["guard_flagged"] = st["guard_unverified"] = int(len(bad))
+            return st, None
+        try:
+            steps = rerun(last)
+        except LdasparkError:
+            st["guard_flagged"] = st["guard_unverified"] = int(len(bad))
+            return st, None
+        bad = flagged(np.asarray(steps.energy, dtype=float))
+    st["guard_flagged"] = int(len(bad))
+    t, q, v, E = (np.asarray(getattr(steps, a), dtype=float) for a in ("t", "q", "v", "energy"))
+    for count, n in enumerate(bad):
+        if count >= MAX_RESOLVES:
+            st["guard_unverified"] += len(bad) - count
+            break
+        before = (t[n - 1], q[n - 1], v[n - 1]) if n >= 1 else None
+        label, safe = resolve(int(n), (t[n], q[n], v[n]), before)
+        if safe is None:
+            st["guard_unverified"] += 1
+        elif same_root(q[n + 1], v[n + 1], safe[0], safe[1]):
+            st["guard_confirmed"] += 1
+        else:
+            return st, (int(n), mismatch(int(n), t[n], h, (q[n + 1], v[n + 1], E[n + 1]), safe, label), steps)
+    return st, None

@@ -271,8 +271,8 @@ def from_ensemble(ens: Any, **meta: Any) -> Result:
                       None if psi is None else psi[r], **{c: int(counters[c][r]) for c in COUNTERS}, stats=ens.stats[r],
                       engine="compiled" if ens.stats[r].get("path") == "fast" else "generic", **meta)
                for r in range(R)]
-    for m in members:       # the kernel tasks run no step-acceptance guard (solve._compiled_ensemble)
-        m.stats = {**m.stats, "guard": False, "engine": m.engine}
+    for m in members:
+        m.stats = {**m.stats, "engine": m.engine}
     res = stack(members)
     res.stats["seconds"] = ens.seconds
     return res

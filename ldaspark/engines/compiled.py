@@ -19,7 +19,7 @@ from ..core.errors import InputError, LdasparkError, NewtonError
 from ..core.result import Result
 from ..core.tableau import SparkTableau
 from .base import Engine, Prepared
-from .generic import SparkSafeRoot
+from ..core.guard import SparkSafeRoot
 
 MSG_DONE = "The integration reached t_end."
 

@@ -2,10 +2,8 @@
 in mpmath at ``dps`` digits, one step at a time (``Engine.mode = "steps"``; ``core.spark.march``:
 the same predictor and checks as ``core.spark.integrate``, so the same numbers).
 
-Also the safe root of the step-acceptance guard for every SPARK method (``SparkSafeRoot``): a
-flagged step solved again by the generic full Newton from the previous step's collocation
-polynomial, then from the explicit Euler predictor, then by the default variant
-(``ldaspark.core.guard.safe_root``); the compiled engine uses it too.
+The safe root of the step-acceptance guard for every SPARK method is
+``ldaspark.core.guard.SparkSafeRoot`` (the compiled engine and ``run_many`` use it too).
 """
 from __future__ import annotations
 
@@ -13,43 +11,10 @@ import math
 
 import numpy as np
 
-from ..core.errors import InputError, LdasparkError
+from ..core.errors import InputError
 from ..core.result import float_array
+from ..core.guard import SparkSafeRoot
 from .base import Engine, Prepared, Step
-
-
-class SparkSafeRoot:
-    """``resolve(n, state, prev, before)`` of ``Engine.resolve_step`` for a SPARK tableau: the
-    guard's safe starts (``ldaspark.core.guard.safe_root``) with generic full / default Newton at
-    ``dps`` digits; the method objects are built at the first flagged step."""
-
-    def __init__(self, system, tableau, dps, tol, max_iter, h):
-        self.args = (system, tableau, dps, tol, max_iter)
-        self.h = h
-        self.methods = None
-
-    def _methods(self):
-        if self.methods is None:
-            from ..core.spark import SparkMethod
-            system, tableau, dps, tol, max_iter = self.args
-            mk = lambda kind: SparkMethod(system, tableau, dps=dps, tol=tol, newton=kind,  # noqa: E731
-                                          max_iter=max_iter)
-            self.methods = (mk("full"), mk("auto"))
-        return self.methods
-
-    def __call__(self, n, state, prev=None, before=None):
-        from ..core import guard
-        methods = self._methods()
-        t, q, v = state
-        if prev is None and before is not None and n >= 1:
-            # a block engine keeps no stages: the previous step again, generic, from its start
-            try:
-                r = methods[0].step(before[0], before[1], before[2], self.h, step_index=n - 1)
-                prev = (r.V, r.Psi, self.h)
-            except LdasparkError:
-                prev = None
-        label, r = guard.safe_root(methods, t, q, v, self.h, prev, step_index=int(n))
-        return (None, None) if r is None else (label, (r.q1, r.v1, float(r.energy)))
 
 
 class GenericEngine(Engine):

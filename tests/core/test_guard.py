@@ -104,9 +104,9 @@ def test_a_second_root_between_saved_samples_is_located():
 
 
 def test_the_guard_runs_on_every_member_of_a_compiled_ensemble_through_an_executor():
-    # an ensemble over initial data with an executor once went to the kernel tasks, which run no
+    # an ensemble over initial data with an executor once went to the kernel tasks without the
     # guard (members' stats without "guard"): with guard=True (the default) every member is
-    # judged as its single run is; guard=False may take the kernel tasks and says so
+    # judged as its single run is; guard=False takes the kernel tasks and says so
     from concurrent.futures import ThreadPoolExecutor
     Q0, V0 = [[1.2, 0.0], [1.1, 0.0]], [[1.5, 0.0], [1.4, 0.0]]
     kw = dict(START, q0=Q0, v0=V0, n_steps=12)

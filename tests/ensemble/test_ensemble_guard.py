@@ -1,0 +1,59 @@
+"""The step-acceptance guard (``ldaspark.core.guard``) on the members of ``run_many`` (and the
+deprecated ``ensemble_integrate``): every member is judged as its single ``integrate`` run is, on
+its saved samples and, for save_every > 1, on the prefix run again with every step kept."""
+import warnings
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import pytest
+
+import ldaspark
+from ldaspark.core import guard
+from ldaspark.core.errors import InputError
+from ldaspark.ensemble import RunSpec, run_many
+from tests.core.test_guard import START, WELL
+
+Q0, V0 = [[1.2, 0.0], [1.1, 0.0]], [[1.5, 0.0], [1.4, 0.0]]
+KEYS = ("guard", "guard_flagged", "guard_confirmed", "guard_unverified")
+
+
+def _single(q0, v0, every):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return ldaspark.integrate(WELL, "gauss-1", engine="compiled",
+                                  **dict(START, q0=q0, v0=v0, n_steps=12, save_every=every))
+
+
+@pytest.mark.parametrize("every", [1, 4])
+def test_run_many_members_get_the_guard_of_their_single_runs(every):
+    # the double well at h = 2.5 has steps the guard flags (energy changes beyond the previous
+    # steps') and confirms (the safe start finds the same root): the counters are those of the
+    # single runs, also when the flagged steps fall between saved samples (every = 4)
+    singles = [_single(q, v, every) for q, v in zip(Q0, V0)]
+    assert sum(r.stats["guard_flagged"] for r in singles) >= 1
+    spec = RunSpec(WELL, "gauss-1", START["t0"], Q0, V0, START["h"], 12, every)
+    with ThreadPoolExecutor(1) as ex:
+        (ens,) = run_many([spec], where=ex)
+        (off,) = run_many([spec], where=ex, guard=False)
+    for st, one in zip(ens.stats, singles):
+        assert {k: st[k] for k in KEYS} == {k: one.stats[k] for k in KEYS}
+    assert [st["guard"] for st in off.stats] == [False, False]
+    assert np.array_equal(ens.q, off.q)
+
+
+def test_run_many_stops_on_a_member_with_another_root(monkeypatch):
+    # a safe root that never agrees (negative control of the wiring): the flagged step of the
+    # member is reported with the spec and the member named; guard=False returns the run
+    monkeypatch.setattr(guard, "same_root", lambda *a: False)
+    spec = RunSpec(WELL, "gauss-1", START["t0"], Q0, V0, START["h"], 12)
+    with ThreadPoolExecutor(1) as ex:
+        with pytest.raises(guard.RootMismatchError, match=r"run_many: spec 0 \(gauss-1\), member 0: step \d+ "):
+            run_many([spec], where=ex)
+        (off,) = run_many([spec], where=ex, guard=False)
+    assert off.q.shape == (2, 13, 2)
+
+
+def test_run_many_guard_is_a_flag():
+    spec = RunSpec(WELL, "gauss-1", START["t0"], Q0, V0, START["h"], 3)
+    with pytest.raises(InputError, match="guard"):       # checked before any work is sent
+        run_many([spec], guard="yes")
