@@ -130,14 +130,14 @@ def _documented_defaults(doc):
 
 
 def _binding(monkeypatch, call):
-    from ldaspark import executors as workers
+    from ldaspark.lab import checkpoint as lab_checkpoint
     seen = []
 
     def fake(work, checkpoint, **kw):
         seen.append(checkpoint.fingerprint)
         return {u.name: [] for u in work}
-    monkeypatch.setattr(workers, "run_resumable", fake)
-    call(workers.Checkpoint("unused.partial.jsonl", "caller-fp"))
+    monkeypatch.setattr(lab_checkpoint, "run_resumable", fake)
+    call(lab_checkpoint.Checkpoint("unused.partial.jsonl", "caller-fp"))
     return seen[-1]
 
 

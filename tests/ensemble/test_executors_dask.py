@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from ldaspark.core.errors import InputError, LdasparkError
-from ldaspark.executors import (Checkpoint, InlineExecutor, Unit, UnitsFailed, run_resumable, run_units,
-                                   source_fingerprint)
+from ldaspark.executors import InlineExecutor, Unit, UnitsFailed, run_units
+from ldaspark.lab.checkpoint import Checkpoint, run_resumable, source_fingerprint
 
 distributed = pytest.importorskip("distributed")
 

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from ldaspark.core.errors import InputError, LdasparkError
 from ldaspark import executors as workers
-from ldaspark.executors import Checkpoint, InlineExecutor, Unit
-from ldaspark.core.errors import InputError
-from ldaspark.executors import MAX_CHECKPOINT_DEPTH, MAX_CHECKPOINT_LINE, Checkpoint
+from ldaspark.executors import InlineExecutor, Unit
+from ldaspark.lab import checkpoint as lab_checkpoint
+from ldaspark.lab.checkpoint import MAX_CHECKPOINT_DEPTH, MAX_CHECKPOINT_LINE, Checkpoint
 
 
 class _FakeExecutor(cf.Executor):
@@ -51,7 +51,7 @@ def _fail_unit(x):
 def private_cache(tmp_path, monkeypatch):
     d = tmp_path / "cache"
     monkeypatch.setenv("LDASPARK_CACHE_DIR", str(d))
-    monkeypatch.setattr(workers, "_KEYS", {})
+    monkeypatch.setattr(lab_checkpoint, "_KEYS", {})
     return d
 
 
@@ -313,8 +313,9 @@ def test_environment_identity_names_absent_distributions(monkeypatch):
             raise md.PackageNotFoundError(name)
         return real(name) if name != "gmpy2" else "9.9"
     monkeypatch.setattr(md, "version", version)
-    ident = workers._environment_identity()
-    assert "numba absent" in ident and "gmpy2==9.9" in ident and len(ident) == 2 + len(workers._FINGERPRINT_DISTS)
+    ident = lab_checkpoint._environment_identity()
+    assert "numba absent" in ident and "gmpy2==9.9" in ident
+    assert len(ident) == 2 + len(lab_checkpoint._FINGERPRINT_DISTS)
 
 
 def test_source_fingerprint_covers_paths_dirs_and_config(tmp_path):
@@ -330,59 +331,59 @@ def test_source_fingerprint_covers_paths_dirs_and_config(tmp_path):
     (p / "run.partial.jsonl").write_text("{}\n")
     f = tmp_path / "single.json"
     f.write_text("{}")
-    base = workers.source_fingerprint("cfg", dirs=[d], paths=[p, f])
-    assert base == workers.source_fingerprint("cfg", dirs=[d], paths=[p, f])
-    assert base != workers.source_fingerprint("cfg2", dirs=[d], paths=[p, f])
+    base = lab_checkpoint.source_fingerprint("cfg", dirs=[d], paths=[p, f])
+    assert base == lab_checkpoint.source_fingerprint("cfg", dirs=[d], paths=[p, f])
+    assert base != lab_checkpoint.source_fingerprint("cfg2", dirs=[d], paths=[p, f])
     (d / "b.txt").write_text("changed\n")            # not *.py under dirs: no change
-    assert base == workers.source_fingerprint("cfg", dirs=[d], paths=[p, f])
+    assert base == lab_checkpoint.source_fingerprint("cfg", dirs=[d], paths=[p, f])
     (p / "__pycache__" / "c.pyc").write_bytes(b"1")   # caches and checkpoints: no change
     (p / "run.partial.jsonl").write_text("{\"x\": 1}\n")
-    assert base == workers.source_fingerprint("cfg", dirs=[d], paths=[p, f])
+    assert base == lab_checkpoint.source_fingerprint("cfg", dirs=[d], paths=[p, f])
     (d / "a.py").write_text("x = 2\n")
-    b2 = workers.source_fingerprint("cfg", dirs=[d], paths=[p, f])
+    b2 = lab_checkpoint.source_fingerprint("cfg", dirs=[d], paths=[p, f])
     assert b2 != base
     (p / "data.csv").write_text("1,3\n")
-    b3 = workers.source_fingerprint("cfg", dirs=[d], paths=[p, f])
+    b3 = lab_checkpoint.source_fingerprint("cfg", dirs=[d], paths=[p, f])
     assert b3 != b2
     f.write_text("[]")
-    b4 = workers.source_fingerprint("cfg", dirs=[d], paths=[p, f])
+    b4 = lab_checkpoint.source_fingerprint("cfg", dirs=[d], paths=[p, f])
     assert b4 != b3
     f.unlink()                                         # absent is its own state
-    assert workers.source_fingerprint("cfg", dirs=[d], paths=[p, f]) not in (b3, b4)
+    assert lab_checkpoint.source_fingerprint("cfg", dirs=[d], paths=[p, f]) not in (b3, b4)
     # a renamed file changes it (the relative name is hashed, not only the contents)
     (p / "data.csv").rename(p / "data2.csv")
-    assert workers.source_fingerprint("cfg", dirs=[d], paths=[p, f]) != workers.source_fingerprint(
+    assert lab_checkpoint.source_fingerprint("cfg", dirs=[d], paths=[p, f]) != lab_checkpoint.source_fingerprint(
         "cfg", dirs=[d], paths=[p])
 
 
 def test_json_depth_skips_strings_and_escapes():
-    assert workers._json_depth('{"a": [1, {"b": 2}]}') == 3
-    assert workers._json_depth('"[[[[" ') == 0
-    assert workers._json_depth('["a\\"[[[", [1]]') == 2
-    assert workers._json_depth('["a\\\\", [[1]]]') == 3
-    assert workers._json_depth('["unclosed [[[[') == 1
-    assert workers._json_depth("") == 0 and workers._json_depth("]]") == 0
+    assert lab_checkpoint._json_depth('{"a": [1, {"b": 2}]}') == 3
+    assert lab_checkpoint._json_depth('"[[[[" ') == 0
+    assert lab_checkpoint._json_depth('["a\\"[[[", [1]]') == 2
+    assert lab_checkpoint._json_depth('["a\\\\", [[1]]]') == 3
+    assert lab_checkpoint._json_depth('["unclosed [[[[') == 1
+    assert lab_checkpoint._json_depth("") == 0 and lab_checkpoint._json_depth("]]") == 0
 
 
 def test_read_key_refuses_what_is_not_a_private_key_file(tmp_path, monkeypatch):
     good = tmp_path / "k"
     good.write_bytes(b"ab" * 32 + b"\n")
     os.chmod(good, 0o600)
-    assert workers._read_key(str(good)) == bytes.fromhex("ab" * 32)
+    assert lab_checkpoint._read_key(str(good)) == bytes.fromhex("ab" * 32)
     os.chmod(good, 0o640)
-    assert workers._read_key(str(good)) is None
+    assert lab_checkpoint._read_key(str(good)) is None
     os.chmod(good, 0o600)
     good.write_bytes(b"AB" * 32 + b"\n")
-    assert workers._read_key(str(good)) is None
+    assert lab_checkpoint._read_key(str(good)) is None
     good.write_bytes(b"ab" * 32 + b"\n\n")
-    assert workers._read_key(str(good)) is None
-    assert workers._read_key(str(tmp_path / "none")) is None
+    assert lab_checkpoint._read_key(str(good)) is None
+    assert lab_checkpoint._read_key(str(tmp_path / "none")) is None
 
     def bad_read(fd, n):
         raise OSError("EIO")
     good.write_bytes(b"ab" * 32 + b"\n")
     monkeypatch.setattr(os, "read", bad_read)
-    assert workers._read_key(str(good)) is None
+    assert lab_checkpoint._read_key(str(good)) is None
 
 
 def test_checkpoint_key_errors(private_cache, monkeypatch, tmp_path):
@@ -391,13 +392,13 @@ def test_checkpoint_key_errors(private_cache, monkeypatch, tmp_path):
     def no_dir():
         raise cache_mod.CacheDirectoryError("nowhere safe")
     monkeypatch.setattr(cache_mod, "cache_dir", no_dir)
-    with pytest.raises(workers.CheckpointKeyError, match="nowhere safe"):
-        workers.checkpoint_key()
+    with pytest.raises(lab_checkpoint.CheckpointKeyError, match="nowhere safe"):
+        lab_checkpoint.checkpoint_key()
     d = tmp_path / "keys"
     d.mkdir(mode=0o700)
     os.chmod(d, 0o700)
-    key = workers.checkpoint_key(str(d))
-    assert len(key) == 32 and workers.checkpoint_key(str(d)) is key
+    key = lab_checkpoint.checkpoint_key(str(d))
+    assert len(key) == 32 and lab_checkpoint.checkpoint_key(str(d)) is key
     # a key that cannot be created: a CheckpointKeyError, the temporary file removed
     d2 = tmp_path / "keys2"
     d2.mkdir()
@@ -409,16 +410,16 @@ def test_checkpoint_key_errors(private_cache, monkeypatch, tmp_path):
             raise PermissionError(13, "Permission denied")
         return real_open(path, flags, mode)
     monkeypatch.setattr(os, "open", no_create)
-    with pytest.raises(workers.CheckpointKeyError, match="cannot create"):
-        workers.checkpoint_key(str(d2))
+    with pytest.raises(lab_checkpoint.CheckpointKeyError, match="cannot create"):
+        lab_checkpoint.checkpoint_key(str(d2))
     monkeypatch.setattr(os, "open", real_open)
     # a key that never reads back as trustworthy (mode reset by someone): three tries, then an error
     d3 = tmp_path / "keys3"
     d3.mkdir()
     os.chmod(d3, 0o700)
-    monkeypatch.setattr(workers, "_read_key", lambda path: None)
-    with pytest.raises(workers.CheckpointKeyError, match="cannot be made trustworthy"):
-        workers.checkpoint_key(str(d3))
+    monkeypatch.setattr(lab_checkpoint, "_read_key", lambda path: None)
+    with pytest.raises(lab_checkpoint.CheckpointKeyError, match="cannot be made trustworthy"):
+        lab_checkpoint.checkpoint_key(str(d3))
     assert [p.name for p in d3.iterdir()] == ["checkpoint-hmac.key"]
 
 
@@ -426,7 +427,7 @@ def test_checkpoint_key_race_keeps_the_other_creators_key(tmp_path, monkeypatch)
     d = tmp_path / "keys"
     d.mkdir()
     os.chmod(d, 0o700)
-    monkeypatch.setattr(workers, "_KEYS", {})
+    monkeypatch.setattr(lab_checkpoint, "_KEYS", {})
     theirs = b"cd" * 32 + b"\n"
 
     def racing_link(src, dst):
@@ -435,7 +436,7 @@ def test_checkpoint_key_race_keeps_the_other_creators_key(tmp_path, monkeypatch)
         os.close(fd)
         raise FileExistsError(17, "File exists")
     monkeypatch.setattr(os, "link", racing_link)
-    assert workers.checkpoint_key(str(d)) == bytes.fromhex("cd" * 32)
+    assert lab_checkpoint.checkpoint_key(str(d)) == bytes.fromhex("cd" * 32)
     assert sorted(p.name for p in d.iterdir()) == ["checkpoint-hmac.key"]
 
 
@@ -486,12 +487,12 @@ def test_checkpoint_why_not_bounds(tmp_path, monkeypatch):
     assert ck._why_not("", 1, None) == "the unit name is not a string"
     assert ck._why_not("u", float("nan"), None).startswith("the value is not finite JSON")
     assert ck._why_not("u", {1j: 2}, None).startswith("the value is not finite JSON")
-    monkeypatch.setattr(workers, "MAX_CHECKPOINT_LINE", 300)
+    monkeypatch.setattr(lab_checkpoint, "MAX_CHECKPOINT_LINE", 300)
     assert ck._why_not("u", "x" * 98, None) == ""                        # 100 bytes = 300 - 200
     assert "101 bytes, more than" in ck._why_not("u", "x" * 99, None)
-    monkeypatch.setattr(workers, "MAX_CHECKPOINT_LINE", 8 * 2 ** 20)
+    monkeypatch.setattr(lab_checkpoint, "MAX_CHECKPOINT_LINE", 8 * 2 ** 20)
     deep = [[[[1]]]]
-    monkeypatch.setattr(workers, "MAX_CHECKPOINT_DEPTH", 6)
+    monkeypatch.setattr(lab_checkpoint, "MAX_CHECKPOINT_DEPTH", 6)
     assert ck._why_not("u", deep, None) == ""                 # depth 4 = 6 - 2
     assert ck._why_not("u", [deep], None).startswith("the value is nested")
 
@@ -580,21 +581,21 @@ def test_run_resumable_says_what_it_resumes(tmp_path):
         return i * 10
     units = [Unit(f"u{i}", unit, (i,)) for i in range(3)]
     ck = Checkpoint(p, "fp", key=KEY)
-    assert workers.run_resumable(units[:2], ck, jobs=1, say=said.append) == {"u0": 0, "u1": 10}
+    assert lab_checkpoint.run_resumable(units[:2], ck, jobs=1, say=said.append) == {"u0": 0, "u1": 10}
     assert said == [] and ck.say == said.append
     ran.clear()
     done = []
     ck = Checkpoint(p, "fp", key=KEY)
-    out = workers.run_resumable(units, ck, jobs=1, say=said.append, on_done=lambda n, v: done.append(n))
+    out = lab_checkpoint.run_resumable(units, ck, jobs=1, say=said.append, on_done=lambda n, v: done.append(n))
     assert out == {"u0": 0, "u1": 10, "u2": 20} and ran == [2] and done == ["u2"]
     assert said == [f"resuming: 2 of 3 units from {p}"]
     # a checkpoint with its own say keeps it
     mine = []
     ck = Checkpoint(p, "other-fp", key=KEY, say=mine.append)
-    workers.run_resumable(units[:1], ck, jobs=1, say=said.append)
+    lab_checkpoint.run_resumable(units[:1], ck, jobs=1, say=said.append)
     assert mine and "not resumed" in mine[0] and len(said) == 1
     # no checkpoint: no say about resuming
-    assert workers.run_resumable(units[:1], None, jobs=1, say=said.append) == {"u0": 0} and len(said) == 1
+    assert lab_checkpoint.run_resumable(units[:1], None, jobs=1, say=said.append) == {"u0": 0} and len(said) == 1
 
 
 def test_a_local_pool_is_renewed_only_when_a_worker_died(monkeypatch):
@@ -642,13 +643,13 @@ def test_open_flags_missing_on_a_platform_are_left_out(tmp_path, monkeypatch, fl
     ck.open({"a": [1]})
     ck.close()
     monkeypatch.delattr(os, flag)
-    assert workers._read_key(str(good)) == bytes.fromhex("ab" * 32)
+    assert lab_checkpoint._read_key(str(good)) == bytes.fromhex("ab" * 32)
     assert _ck(p)[0].load() == {"a": [1]}
     d = tmp_path / "keys"
     d.mkdir()
     os.chmod(d, 0o700)
-    monkeypatch.setattr(workers, "_KEYS", {})
-    key = workers.checkpoint_key(str(d))
+    monkeypatch.setattr(lab_checkpoint, "_KEYS", {})
+    key = lab_checkpoint.checkpoint_key(str(d))
     assert len(key) == 32 and stat.S_IMODE(os.lstat(d / "checkpoint-hmac.key").st_mode) == 0o600
 
 
@@ -735,7 +736,7 @@ def test_why_not_quotes_the_json_error_up_to_sixty_characters(tmp_path):
 def test_parse_depth_bound_of_the_line_and_of_the_value(tmp_path, monkeypatch):
     """A line nested exactly MAX_CHECKPOINT_DEPTH deep passes the reader's bound (the record's value,
     one level less, then meets the writer's bound); one level more is refused unparsed."""
-    monkeypatch.setattr(workers, "MAX_CHECKPOINT_DEPTH", 6)
+    monkeypatch.setattr(lab_checkpoint, "MAX_CHECKPOINT_DEPTH", 6)
     ck, _ = _ck(tmp_path / "c")
 
     def line(value):
@@ -748,7 +749,7 @@ def test_parse_depth_bound_of_the_line_and_of_the_value(tmp_path, monkeypatch):
 # --- checkpoints: the reader's depth check is linear in the line ----------------------------------
 def test_checkpoint_depth_check_is_linear_on_a_forged_line():
     import time
-    from ldaspark.executors import _json_depth
+    from ldaspark.lab.checkpoint import _json_depth
     # an unclosed string of escaped quotes: the former regular expression retried it at every
     # quote (quadratic: 18 s at 80 kB, hours at the 8 MiB line bound); now one pass
     forged = '"' + '\\"' * 400_000
@@ -843,10 +844,10 @@ def test_stop_pool_uses_the_pools_own_terminate_workers():
 
 
 def test_source_fingerprint_does_not_depend_on_the_order_of_config_keys():
-    a = workers.source_fingerprint({"a": 1, "b": 2})
-    b = workers.source_fingerprint({"b": 2, "a": 1})
+    a = lab_checkpoint.source_fingerprint({"a": 1, "b": 2})
+    b = lab_checkpoint.source_fingerprint({"b": 2, "a": 1})
     assert a == b
-    assert a != workers.source_fingerprint({"a": 1, "b": 3})
+    assert a != lab_checkpoint.source_fingerprint({"a": 1, "b": 3})
 
 
 def test_read_key_returns_the_32_bytes_of_a_good_key_file(tmp_path):
@@ -854,18 +855,18 @@ def test_read_key_returns_the_32_bytes_of_a_good_key_file(tmp_path):
     fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
     os.write(fd, KEY.hex().encode() + b"\n")
     os.close(fd)
-    assert workers._read_key(str(path)) == KEY
+    assert lab_checkpoint._read_key(str(path)) == KEY
 
 
 @pytest.mark.parametrize("text, depth", [("[[1]]", 2), ('{"a": [1, {"b": "]]"}]}', 3), ("1", 0), ("[]", 1)])
 def test_json_depth_counts_nesting_from_the_first_character(text, depth):
-    assert workers._json_depth(text) == depth
+    assert lab_checkpoint._json_depth(text) == depth
 
 
 def test_record_mac_does_not_depend_on_dict_order(tmp_path):
     cp = Checkpoint(tmp_path / "c.jsonl", "fp", key=KEY)
     assert cp._mac("u", {"a": 1, "b": 2}) == cp._mac("u", {"b": 2, "a": 1})
-    assert workers._canonical({"b": 2, "a": 1}) == b'{"a":1,"b":2}'
+    assert lab_checkpoint._canonical({"b": 2, "a": 1}) == b'{"a":1,"b":2}'
 
 
 def test_writer_bound_admits_a_value_of_exactly_the_bound(tmp_path):
@@ -883,7 +884,7 @@ def test_reader_depth_bound_admits_a_line_of_exactly_the_bound(tmp_path):
     for _ in range(MAX_CHECKPOINT_DEPTH - 1):
         value = [value]
     raw = cp._line("u", value).encode()
-    assert workers._json_depth(raw.decode()) == MAX_CHECKPOINT_DEPTH
+    assert lab_checkpoint._json_depth(raw.decode()) == MAX_CHECKPOINT_DEPTH
     assert cp._parse(raw, None) == (None, "the value is nested more deeply than the reader's bound")
     deeper = cp._line("u", [value]).encode()
     assert cp._parse(deeper, None) == (None, "nested more deeply than the reader's bound")
@@ -905,16 +906,16 @@ def test_checkpoint_line_of_exactly_the_reader_bound_is_resumed(tmp_path):
 # --- the checkpoint fingerprint ------------------------------------------------------------------
 def test_each_config_item_changes_the_fingerprint():
     base = ("run", True, ("a", "b"), 3)
-    f0 = workers.source_fingerprint(*base)
-    assert workers.source_fingerprint(*base) == f0                       # deterministic
+    f0 = lab_checkpoint.source_fingerprint(*base)
+    assert lab_checkpoint.source_fingerprint(*base) == f0                       # deterministic
     for i in range(len(base)):
         other = list(base)
         other[i] = {0: "other-run", 1: False, 2: ("a",), 3: 4}[i]
-        assert workers.source_fingerprint(*other) != f0, i
+        assert lab_checkpoint.source_fingerprint(*other) != f0, i
     # order matters too (a swapped pair of options is another run)
-    assert workers.source_fingerprint("run", ("a", "b"), True, 3) != f0
+    assert lab_checkpoint.source_fingerprint("run", ("a", "b"), True, 3) != f0
     # a dict option: its values count, not only its keys
-    assert workers.source_fingerprint({"k": 1}) != workers.source_fingerprint({"k": 2})
+    assert lab_checkpoint.source_fingerprint({"k": 1}) != lab_checkpoint.source_fingerprint({"k": 2})
 
 
 def test_the_files_under_dirs_change_the_fingerprint(tmp_path):
@@ -922,83 +923,101 @@ def test_the_files_under_dirs_change_the_fingerprint(tmp_path):
     d.mkdir()
     (d / "test_a.py").write_text("x = 1\n")
     (d / "notes.txt").write_text("not source\n")
-    f0 = workers.source_fingerprint("r", dirs=(d,))
-    assert f0 != workers.source_fingerprint("r"), "dirs ignored"
+    f0 = lab_checkpoint.source_fingerprint("r", dirs=(d,))
+    assert f0 != lab_checkpoint.source_fingerprint("r"), "dirs ignored"
     (d / "notes.txt").write_text("changed\n")                           # not a .py file
-    assert workers.source_fingerprint("r", dirs=(d,)) == f0
+    assert lab_checkpoint.source_fingerprint("r", dirs=(d,)) == f0
     (d / "test_a.py").write_text("x = 2\n")                             # content
-    f1 = workers.source_fingerprint("r", dirs=(d,))
+    f1 = lab_checkpoint.source_fingerprint("r", dirs=(d,))
     assert f1 != f0
     (d / "test_a.py").rename(d / "test_b.py")                           # name, same content
-    f2 = workers.source_fingerprint("r", dirs=(d,))
+    f2 = lab_checkpoint.source_fingerprint("r", dirs=(d,))
     assert f2 != f1
     sub = d / "sub"
     sub.mkdir()
     (sub / "test_c.py").write_text("")                                  # a new (empty) file below
-    assert workers.source_fingerprint("r", dirs=(d,)) != f2
+    assert lab_checkpoint.source_fingerprint("r", dirs=(d,)) != f2
     # a second directory counts as well as the first
     e = tmp_path / "verification"
     e.mkdir()
     (e / "test_v.py").write_text("y = 1\n")
-    g0 = workers.source_fingerprint("r", dirs=(d, e))
+    g0 = lab_checkpoint.source_fingerprint("r", dirs=(d, e))
     (e / "test_v.py").write_text("y = 2\n")
-    assert workers.source_fingerprint("r", dirs=(d, e)) != g0
+    assert lab_checkpoint.source_fingerprint("r", dirs=(d, e)) != g0
 
 
 def test_a_checkpoint_of_another_identity_is_not_resumed(tmp_path):
     path = tmp_path / "run.partial.jsonl"
-    ck = workers.Checkpoint(path, workers.source_fingerprint("r", 1)).open({})
+    ck = lab_checkpoint.Checkpoint(path, lab_checkpoint.source_fingerprint("r", 1)).open({})
     ck.add("u", {"v": 1})
     ck.close()
-    assert workers.Checkpoint(path, workers.source_fingerprint("r", 1)).load() == {"u": {"v": 1}}
-    assert workers.Checkpoint(path, workers.source_fingerprint("r", 2)).load() == {}
+    assert lab_checkpoint.Checkpoint(path, lab_checkpoint.source_fingerprint("r", 1)).load() == {"u": {"v": 1}}
+    assert lab_checkpoint.Checkpoint(path, lab_checkpoint.source_fingerprint("r", 2)).load() == {}
 
 
 def test_the_package_source_and_each_library_version_enter_the_fingerprint(tmp_path, monkeypatch):
     import importlib.metadata
     import sys
 
-    from ldaspark import executors as workers
     pkg = tmp_path / "pkg"
     (pkg / "dist").mkdir(parents=True)
     (pkg / "core.py").write_text("A = 1\n")
     (pkg / "notes.txt").write_text("not source\n")
-    monkeypatch.setattr(workers, "__file__", str(pkg / "executors.py"))
-    f0 = workers.source_fingerprint("r")
+    monkeypatch.setattr(lab_checkpoint, "__file__", str(pkg / "lab" / "checkpoint.py"))
+    f0 = lab_checkpoint.source_fingerprint("r")
     (pkg / "notes.txt").write_text("changed\n")
-    assert workers.source_fingerprint("r") != f0          # every file of the package: its data too (tableaux)
-    f0 = workers.source_fingerprint("r")
+    assert lab_checkpoint.source_fingerprint("r") != f0          # every file of the package: its data too (tableaux)
+    f0 = lab_checkpoint.source_fingerprint("r")
     (pkg / "core.py").write_text("A = 2\n")
-    f1 = workers.source_fingerprint("r")
+    f1 = lab_checkpoint.source_fingerprint("r")
     assert f1 != f0                                                        # the package's own source
-    ident = workers._environment_identity()
-    assert ident[0] == sys.version and len(ident) == 2 + len(workers._FINGERPRINT_DISTS)
+    ident = lab_checkpoint._environment_identity()
+    assert ident[0] == sys.version and len(ident) == 2 + len(lab_checkpoint._FINGERPRINT_DISTS)
     real = importlib.metadata.version
-    for name in workers._FINGERPRINT_DISTS:
+    for name in lab_checkpoint._FINGERPRINT_DISTS:
         def version(n, name=name):
             if n == name:
                 return "0.0.0-other"
             return real(n)
         monkeypatch.setattr(importlib.metadata, "version", version)
-        assert workers.source_fingerprint("r") != f1, name
+        assert lab_checkpoint.source_fingerprint("r") != f1, name
     monkeypatch.setattr(importlib.metadata, "version", real)
-    assert workers.source_fingerprint("r") == f1
+    assert lab_checkpoint.source_fingerprint("r") == f1
     monkeypatch.setattr(sys, "version", sys.version + " other")
-    assert workers.source_fingerprint("r") != f1
+    assert lab_checkpoint.source_fingerprint("r") != f1
 
 
 def test_a_cache_directory_anywhere_below_is_left_out_of_the_fingerprint(tmp_path):
-    from ldaspark import executors as workers
     d = tmp_path / "tests"
     (d / "sub" / "__pycache__").mkdir(parents=True)
     (d / "test_a.py").write_text("x = 1\n")
-    f0 = workers.source_fingerprint("r", dirs=(d,))
+    f0 = lab_checkpoint.source_fingerprint("r", dirs=(d,))
     (d / "sub" / "__pycache__" / "stale.py").write_text("y = 2\n")       # one part of three is a cache
-    assert workers.source_fingerprint("r", dirs=(d,)) == f0
+    assert lab_checkpoint.source_fingerprint("r", dirs=(d,)) == f0
     (d / "sub" / "test_b.py").write_text("")
-    assert workers.source_fingerprint("r", dirs=(d,)) != f0
+    assert lab_checkpoint.source_fingerprint("r", dirs=(d,)) != f0
 
 
 def test_a_dict_option_fingerprints_the_same_in_any_key_order():
-    from ldaspark import executors as workers
-    assert workers.source_fingerprint({"a": 1, "b": 2}) == workers.source_fingerprint({"b": 2, "a": 1})
+    assert lab_checkpoint.source_fingerprint({"a": 1, "b": 2}) == lab_checkpoint.source_fingerprint({"b": 2, "a": 1})
+
+
+def test_a_checkpoint_name_asked_of_executors_says_where_it_moved():
+    """The checkpoints moved to the lab (``ldaspark.lab.checkpoint``); the library cannot import
+    the lab to alias them, so an access names the new place, and only for the moved names."""
+    import subprocess
+    import sys
+    for name in workers.MOVED_TO_LAB:
+        assert hasattr(lab_checkpoint, name), name                    # the list names real names
+        with pytest.raises(AttributeError, match=f"moved to ldaspark.lab.checkpoint.{name} "):
+            getattr(workers, name)
+    with pytest.raises(AttributeError) as exc:                           # control: any other name
+        workers.no_such_name
+    assert "moved" not in str(exc.value) and "no_such_name" in str(exc.value)
+    assert hasattr(workers, "run_units") and not hasattr(workers, "Checkpoint")
+    # asking does not import the lab
+    code = ("import sys, ldaspark.executors as w\n"
+            "try:\n    w.Checkpoint\nexcept AttributeError:\n    pass\n"
+            "print(any(m.startswith('ldaspark.lab') for m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"

@@ -27,8 +27,9 @@ PACKAGE = pathlib.Path(ldaspark.__file__).resolve().parent
 #: one layer do not import each other. ``ldaspark`` itself (the lazy facade) is the top.
 LAYERS = (("_version",), ("core",), ("models",), ("compiled",), ("executors",), ("ensemble",), ("engines",),
           ("solve", "plot"), ("analysis",), ("cli",), ("__main__",), ("ldaspark",),
-          # the paper lab, above the whole library (which never imports it)
-          ("lab.theory",), ("lab.claims", "lab.mutants"), ("lab.reports",), ("lab.commands",), ("lab",))
+          # the paper lab, above the whole library (which never imports it); its checkpoints at the bottom
+          ("lab.checkpoint",), ("lab.theory",), ("lab.claims", "lab.mutants"), ("lab.reports",), ("lab.commands",),
+          ("lab",))
 
 
 def _module_name(path: pathlib.Path) -> tuple[str, bool]:

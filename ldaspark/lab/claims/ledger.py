@@ -411,9 +411,10 @@ def run_ledger(max_s=3, scenes=LEDGER_SCENES, perturbed=True, holonomic=True, co
     with ``quick``), run where ``where`` says (``ldaspark.executors``: default a local pool of
     ``ledger_jobs(jobs)`` worker processes, 1: in this process; a Dask scheduler address or
     client), the longest first; each unit's records are computed independently of the others,
-    so the output does not depend on the schedule. ``checkpoint`` (a ``workers.Checkpoint``):
+    so the output does not depend on the schedule. ``checkpoint`` (a ``lab.checkpoint.Checkpoint``):
     units finished by an interrupted run are resumed from it, each finished unit is appended."""
-    from ...executors import Unit, check_where, run_resumable
+    from ...executors import Unit, check_where
+    from ..checkpoint import run_resumable
     check_where(where)                  # a malformed address before the tableaux are built
     n_tabs = len(_ledger_tabs(max_s, controls))
     units = []

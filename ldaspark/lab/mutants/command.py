@@ -8,7 +8,8 @@ import sys
 import time
 
 from ...core.errors import LdasparkError
-from ...executors import Checkpoint, UnitsFailed, add_scheduler_argument
+from ...executors import UnitsFailed, add_scheduler_argument
+from ..checkpoint import Checkpoint
 from .mutation import (PROJECT, QUICK, CATALOGUE, TIMEOUT, CatalogueError, by_id, ordered_targets,
                        require_tests, run_catalogue, run_mutant, snippet_problems, verdict_fingerprint, write_reports)
 from .mutgen import quick_generated, run_generated

@@ -189,7 +189,7 @@ def verdict_paths(project=None) -> list[pathlib.Path]:
 def verdict_fingerprint(*config, project=None) -> str:
     """The checkpoint fingerprint of a mutation run: ``config`` and every file under
     ``verdict_paths`` (a change in any of them invalidates the records of an interrupted run)."""
-    from ...executors import source_fingerprint
+    from ..checkpoint import source_fingerprint
     return source_fingerprint(*config, paths=verdict_paths(project))
 
 
@@ -388,9 +388,10 @@ def run_catalogue(mutants, jobs=2, hints_only=False, progress=None, exclude=(), 
     """Run mutants, ``jobs`` at a time on this machine (threads, each driving a pytest process), or
     as work units on a Dask cluster (``where``: a scheduler address or client; each unit carries
     a snapshot of the project); records in catalogue order. ``checkpoint``
-    (``ldaspark.executors.Checkpoint``): mutants finished by an interrupted run are resumed
+    (``ldaspark.lab.checkpoint.Checkpoint``): mutants finished by an interrupted run are resumed
     from it. ``targets``: {mutant id: test node ids} to run instead of the suite."""
-    from ...executors import Unit, check_where, is_address, run_resumable
+    from ...executors import Unit, check_where, is_address
+    from ..checkpoint import run_resumable
     check_where(where, jobs)
     targets = targets or {}
     remote = where is not None and where != "local"

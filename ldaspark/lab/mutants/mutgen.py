@@ -42,7 +42,8 @@ from dataclasses import dataclass, field
 
 from ...core.errors import LdasparkError
 from ...core.io import atomic_write_json, atomic_write_text
-from ...executors import Checkpoint, UnitsFailed
+from ...executors import UnitsFailed
+from ..checkpoint import Checkpoint
 from .mutation import TIMEOUT, all_test_files, require_tests, run_catalogue, verdict_fingerprint
 from .records import (MAX_SOURCE_BYTES, RecordError, read_bytes, names_existing_test, read_equivalent, read_id_list, read_json,
                       read_previous, read_text, sign_report)
@@ -992,7 +993,7 @@ QUICK_GENERATED = (
     ("lab/theory/audit.py::_theorem1_summary::call-swap::max->min#1", "tests/lab/theory/test_audit_rules.py::test_theorem1_summary_rule_directly"),
     ("lab/claims/claims_paper.py::section5_records::call-swap::max->min#1",
      "tests/lab/claims/test_claims_paper_rules.py::test_the_antisymmetry_record_fails_when_one_identity_fails[f_minus]"),
-    ("executors.py::_hash_tree::compare::in->not in#1",
+    ("lab/checkpoint.py::_hash_tree::compare::in->not in#1",
      "tests/ensemble/test_executors_rules.py::test_the_files_under_dirs_change_the_fingerprint"),
     ("lab/reports/systems.py::_row::call-swap::all->any#1",
      "tests/lab/reports/test_systems_rules.py::test_row_verdict_needs_both_symmetric_methods"),

@@ -7,7 +7,7 @@ records in them.
   a longer file, a directory, a missing file, bytes that are not UTF-8, JSON that is not finite
   or nested past ``MAX_DEPTH`` each end in one ``RecordError`` naming the file.
 * A record is believed only when its writer's signature verifies: a report carries an HMAC
-  with this user's checkpoint key (``ldaspark.executors.sign_document``), a checkpoint an HMAC
+  with this user's checkpoint key (``ldaspark.lab.checkpoint.sign_document``), a checkpoint an HMAC
   per record (``Checkpoint``). An unsigned, edited or forged report is not refused as a file,
   but none of its verdicts is taken: its kills only order the tests that rerun their mutants
   (the named test first), so a forged "killed" costs a run and never turns a survivor into a
@@ -80,7 +80,7 @@ def read_text(path, what: str, limit: int | None = None) -> str:
 
 
 def _depth(text: str) -> int:
-    from ...executors import _json_depth
+    from ..checkpoint import _json_depth
     return _json_depth(text)
 
 
@@ -192,13 +192,13 @@ def check_report(doc, where: str) -> dict:
 
 
 def sign_report(doc: dict) -> dict:
-    """The report with its writer's signature (``workers.sign_document``)."""
-    from ...executors import sign_document
+    """The report with its writer's signature (``lab.checkpoint.sign_document``)."""
+    from ..checkpoint import sign_document
     return sign_document(REPORT_KIND, doc)
 
 
 def report_signed(doc) -> bool:
-    from ...executors import document_signed
+    from ..checkpoint import document_signed
     return document_signed(REPORT_KIND, doc)
 
 
@@ -215,7 +215,7 @@ def read_previous(path, say=None) -> Previous:
     """The one reader of an earlier run's records: a report (``mutation-generated.json``) or the
     checkpoint of an interrupted run (``*.partial.jsonl``; only the records whose HMAC verifies)."""
     from ...core.errors import InputError
-    from ...executors import Checkpoint
+    from ..checkpoint import Checkpoint
     p = pathlib.Path(path)
     if str(path).endswith(".jsonl"):
         def valid(name, value):

@@ -99,7 +99,8 @@ def run_verify(outdir=REPORT_DIR, quick=False, json_path=None, command="ldaspark
     that is interrupted or loses units keeps it, and the next run resumes from it (same code and
     options only: the file carries a fingerprint of both); it is removed once the ledger is
     written. ``resume=False`` starts afresh."""
-    from ...executors import Checkpoint, UnitsFailed, source_fingerprint
+    from ...executors import UnitsFailed
+    from ..checkpoint import Checkpoint, source_fingerprint
     clock = Clock()
     # the claim groups' pieces run in the same worker processes as the ledger's units
     groups = _ledger.CLAIM_GROUPS

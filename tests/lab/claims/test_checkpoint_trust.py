@@ -11,9 +11,10 @@ import stat
 import pytest
 from hypothesis import given, strategies as st
 
-from ldaspark.core import workers
+from ldaspark.lab import checkpoint as lab_checkpoint
 from ldaspark.core.errors import LdasparkError
-from ldaspark.executors import Checkpoint, CheckpointKeyError, Unit, checkpoint_key, run_resumable, \
+from ldaspark.executors import Unit
+from ldaspark.lab.checkpoint import Checkpoint, CheckpointKeyError, checkpoint_key, run_resumable, \
     source_fingerprint
 
 
@@ -32,7 +33,7 @@ def private_cache(tmp_path, monkeypatch):
     """A fresh trusted directory (and no key cached in this process) for every test."""
     d = tmp_path / "cache"
     monkeypatch.setenv("LDASPARK_CACHE_DIR", str(d))
-    monkeypatch.setattr(workers, "_KEYS", {})
+    monkeypatch.setattr(lab_checkpoint, "_KEYS", {})
     return d
 
 
@@ -206,7 +207,7 @@ def test_a_schema_that_raises_anything_only_discards(tmp_path):
 
 @pytest.mark.parametrize("kind", ["utf8", "deep", "long", "not-a-record", "truncated", "empty", "array"])
 def test_malformed_lines_never_crash_the_reader(tmp_path, monkeypatch, kind):
-    monkeypatch.setattr(workers, "MAX_CHECKPOINT_LINE", 4096)
+    monkeypatch.setattr(lab_checkpoint, "MAX_CHECKPOINT_LINE", 4096)
     run = Run(tmp_path)
     run()
     raw = run.path.read_bytes().splitlines(keepends=True)
@@ -227,7 +228,7 @@ def test_malformed_lines_never_crash_the_reader(tmp_path, monkeypatch, kind):
 def test_the_reader_is_bounded_in_total_size(tmp_path, monkeypatch):
     run = Run(tmp_path)
     run()
-    monkeypatch.setattr(workers, "MAX_CHECKPOINT_BYTES", len(run.lines()[0]) + len(run.lines()[1]) + 5)
+    monkeypatch.setattr(lab_checkpoint, "MAX_CHECKPOINT_BYTES", len(run.lines()[0]) + len(run.lines()[1]) + 5)
     assert run() and run.ran() == [1, 2, 3] and "past" in run.notes[0]
 
 
@@ -263,7 +264,7 @@ def test_the_key_file_is_private_and_made_once(private_cache):
     st_ = os.lstat(path)
     assert stat.S_ISREG(st_.st_mode) and stat.S_IMODE(st_.st_mode) == 0o600 and st_.st_uid == os.getuid()
     assert stat.S_IMODE(os.stat(private_cache).st_mode) == 0o700
-    workers._KEYS.clear()
+    lab_checkpoint._KEYS.clear()
     assert checkpoint_key() == k1 and len(k1) == 32
     assert not [n for n in os.listdir(private_cache) if n.startswith(".checkpoint-hmac")]  # no temp left
 
@@ -291,7 +292,7 @@ def test_an_untrusted_key_file_is_replaced_never_used(private_cache, tmp_path, p
     assert target.read_text() == known                          # the link's target untouched
     assert stat.S_ISREG(os.lstat(path).st_mode) and stat.S_IMODE(os.lstat(path).st_mode) == 0o600
     # control: a private key file of the same content is the key
-    workers._KEYS.clear()
+    lab_checkpoint._KEYS.clear()
     path.unlink()
     path.write_text(known)
     os.chmod(path, 0o600)
@@ -329,7 +330,7 @@ def test_the_fingerprint_covers_the_environment_and_the_files_a_run_reads(tmp_pa
     (f / "tests" / "data.json").write_text("{}")                # not only *.py under paths
     assert source_fingerprint("m", paths=paths) != changed_readme
     now = source_fingerprint("m", paths=paths)
-    monkeypatch.setattr(workers, "_environment_identity", lambda: ["another numpy"])
+    monkeypatch.setattr(lab_checkpoint, "_environment_identity", lambda: ["another numpy"])
     assert source_fingerprint("m", paths=paths) != now
     ck = Checkpoint(tmp_path / "c", now)
     assert ck.bound_to(1, "a").fingerprint != ck.bound_to(2, "a").fingerprint
@@ -343,7 +344,7 @@ def test_run_ledger_binds_the_checkpoint_to_its_own_settings(monkeypatch):
     def fake(work, checkpoint, **kw):
         seen.append((checkpoint.fingerprint, kw["validate"]))
         return {u.name: [] for u in work}
-    monkeypatch.setattr(workers, "run_resumable", fake)
+    monkeypatch.setattr(lab_checkpoint, "run_resumable", fake)
     ck = Checkpoint("unused.partial.jsonl", "caller-fp")
     for perturbed in (True, False):
         ledger.run_ledger(max_s=1, scenes=("particle",), perturbed=perturbed, holonomic=False, groups=(),
@@ -359,7 +360,7 @@ def test_run_catalogue_binds_the_checkpoint_to_its_own_settings(monkeypatch):
     def fake(units, checkpoint, **kw):
         seen.append((checkpoint.fingerprint, kw["validate"]))
         return {u.name: None for u in units}
-    monkeypatch.setattr(workers, "run_resumable", fake)
+    monkeypatch.setattr(lab_checkpoint, "run_resumable", fake)
     ck = Checkpoint("unused.partial.jsonl", "caller-fp")
     m = [mutation.by_id(mutation.QUICK[0])]
     mutation.run_catalogue(m, 1, hints_only=True, checkpoint=ck)
@@ -410,5 +411,5 @@ def test_the_key_is_made_where_hard_links_are_not_supported(private_cache, monke
     key = checkpoint_key()
     path = private_cache / "checkpoint-hmac.key"
     assert len(key) == 32 and stat.S_IMODE(os.lstat(path).st_mode) == 0o600
-    workers._KEYS.clear()
+    lab_checkpoint._KEYS.clear()
     assert checkpoint_key() == key

@@ -10,7 +10,7 @@ import types
 import pytest
 
 from ldaspark.core.errors import LdasparkError
-from ldaspark.executors import Checkpoint, document_signed, sign_document
+from ldaspark.lab.checkpoint import Checkpoint, document_signed, sign_document
 from ldaspark.lab.mutants import mutation, mutgen
 from ldaspark.lab.mutants.records import (names_existing_test, read_previous, report_signed,
                                       sign_report)

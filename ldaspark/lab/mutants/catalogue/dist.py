@@ -1,4 +1,5 @@
-"""Mutants of where work runs (``ldaspark.executors``): retries, failures by name, checkpoints."""
+"""Mutants of where work runs (``ldaspark.executors``: retries, failures by name) and of the lab's
+checkpoints (``ldaspark.lab.checkpoint``: resume, fingerprint)."""
 from ..mutant import _m
 
 TD = "tests/ensemble/test_executors_dask.py"
@@ -15,11 +16,11 @@ MUTANTS = (
        'return isinstance(exc, BrokenProcessPool) or type(exc).__name__ in ("KilledWorker", "CommClosedError")',
        'return type(exc).__name__ in ("KilledWorker", "CommClosedError")',
        "a broken local pool (a worker killed) counted as the unit's own error: not retried", "workers", POOL),
-    _m("workers-resume-ignored", "executors.py",
+    _m("workers-resume-ignored", "lab/checkpoint.py",
        "done = {u.name: done[u.name] for u in units if u.name in done}",
        "done = {}",
        "a rerun recomputes every unit instead of resuming from the checkpoint", "workers", RESUME),
-    _m("workers-fingerprint-without-config", "executors.py",
+    _m("workers-fingerprint-without-config", "lab/checkpoint.py",
        "h.update(json.dumps(config, sort_keys=True, default=str).encode())", "pass",
        "checkpoint fingerprint ignores the run's options: a run with other options resumes", "workers", RESUME),
     _m("workers-error-retried", "executors.py",
