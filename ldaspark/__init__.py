@@ -128,7 +128,7 @@ _EXPORTS = {
     "euler_i": "ldaspark.core.families",
     "euler_ii": "ldaspark.core.families",
     "SparkTableau": "ldaspark.core.tableau",
-    "load_tableau": "ldaspark.core.tableau",
+    "load_tableau": "ldaspark.core.tableau_file",
     "get_method": "ldaspark.core.families",
     "get_scene": "ldaspark.models.scenes",
     "discrete_lagrangian": "ldaspark.analysis.discrete",

@@ -60,7 +60,7 @@ def _add_integrate(sub):
 def _run_integrate(args) -> int:
     from .core.resultio import save_result
     from .models.scenes import get_scene
-    from .core.tableau import load_tableau
+    from .core.tableau_file import load_tableau
     from .core.errors import InputError
     from .solve import integrate
 

@@ -67,7 +67,7 @@ def resolve_method(method: Union[str, SparkTableau], max_stages: Optional[int] =
         return "spark", hit, method
     from .core.comparators import comparator_names, is_comparator
     from .core.families import get_method
-    from .core.tableau import check_stages
+    from .core.tableau_file import check_stages
     if not isinstance(method, str):
         raise InputError(f"method must be a name or a SparkTableau, got {type(method).__name__}")
     if len(method) > MAX_METHOD_NAME:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from ldaspark.core.tableau import from_json_dict
+from ldaspark.core.tableau_file import from_json_dict
 
 
 def approx(expected, rel=1e-9, abs=0.0):

@@ -11,7 +11,7 @@ import mpmath
 import sympy
 
 from ldaspark.core.system import LagrangianSystem
-from ldaspark.core.tableau import from_json_dict
+from ldaspark.core.tableau_file import from_json_dict
 
 T = sympy.Symbol("t")
 Q = sympy.symbols("x y z")

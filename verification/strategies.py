@@ -33,7 +33,7 @@ from ldaspark.core.backend import Backend
 from ldaspark.core.errors import LdasparkError
 from ldaspark.core.families import get_method
 from ldaspark.core.system import LagrangianSystem
-from ldaspark.core.tableau import from_json_dict
+from ldaspark.core.tableau_file import from_json_dict
 
 
 def small(lo="-1/5", hi="1/5", den=20):

@@ -9,7 +9,7 @@ from hypothesis import given, settings, strategies as st
 from ldaspark.analysis.discrete import theorem1_residuals
 from ldaspark.analysis.conditions import check_22a, check_22b
 from ldaspark.models.scenes import get_scene
-from ldaspark.core.tableau import from_json_dict
+from ldaspark.core.tableau_file import from_json_dict
 
 SCENE = get_scene("particle")
 GAUSS_A = {1: [[Fraction(1, 2)]], 2: [[Fraction(1, 4), Fraction(1, 4)], [Fraction(3, 4), Fraction(1, 4)]]}

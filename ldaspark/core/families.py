@@ -20,7 +20,8 @@ from sympy.polys.matrices import DomainMatrix
 from sympy.polys.numberfields.subfield import primitive_element
 
 from .errors import TableauError
-from .tableau import SparkTableau, check_stages, guard_digits
+from .tableau import SparkTableau, guard_digits
+from .tableau_file import check_stages
 
 # --- exact construction ------------------------------------------------------------------
 # Exact coefficients are computed in the algebraic number field Q(c_1, ..., c_s) with sympy's

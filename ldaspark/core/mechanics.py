@@ -126,7 +126,7 @@ def _to_symbols(exprs, qs, t, cache=None):
 def _refuse_strings(model, q, constraints):
     """Strings are refused here: text in dynamicsymbols (q1(t), Derivative(q1(t), t)) has no
     bounded parser, and sympify would execute it. (LagrangianSystem itself parses strings in
-    plain symbols, ``tableau.parse_expression``.)"""
+    plain symbols, ``numbers.parse_expression``.)"""
     for what, val in (("the model", model), ("q", q), ("constraints", constraints)):
         items = list(val) if isinstance(val, (list, tuple)) else [val]
         if any(isinstance(x, (str, bytes)) for x in items):

@@ -550,9 +550,9 @@ def _names(*groups) -> dict:
 
 def _exprs(obj, names, where):
     """``obj`` with every string in it (nested lists, tuples, arrays) replaced by its expression
-    (``tableau.parse_expression``: a bounded whitelist parser in the declared names); everything
+    (``numbers.parse_expression``: a bounded whitelist parser in the declared names); everything
     else as it is."""
-    from .tableau import parse_expression
+    from .numbers import parse_expression
     if isinstance(obj, str):
         if _nfkc(obj) != obj:
             odd = sorted({c for c in obj if _nfkc(c) != c})
@@ -564,7 +564,7 @@ def _exprs(obj, names, where):
             return parse_expression(obj, names, where, error=SystemDefinitionError)
         except SystemDefinitionError as exc:
             raise SystemDefinitionError(f"{exc}; expressions must be sympy expressions, or text in the declared "
-                                        "symbols and the functions of tableau.parse_expression") from None
+                                        "symbols and the functions of numbers.parse_expression") from None
     if isinstance(obj, np.ndarray) and obj.dtype.kind in "OUS":
         obj = obj.tolist()
     if isinstance(obj, (list, tuple)):
@@ -862,8 +862,8 @@ def _derived_nonzeros(system, name):
 
 def _param_value(x, p):
     """A parameter's value as a sympy number: a string through the tableau entry parser
-    (``tableau.parse_number``: "1/2", "sqrt(2)", "9.81"), never nsimplify or sympify of text."""
-    from .tableau import parse_number
+    (``numbers.parse_number``: "1/2", "sqrt(2)", "9.81"), never nsimplify or sympify of text."""
+    from .numbers import parse_number
     if isinstance(x, str):
         return parse_number(x, f"parameter {p}", error=SystemDefinitionError)
     try:
@@ -875,8 +875,8 @@ def _param_value(x, p):
 def _parse_strings(L, k, q, v, t, params, nonideal, psi, mechanical):
     """The arguments of LagrangianSystem with every string in them parsed (never evaluated):
     names of q, v, t, psi and params become Symbols, L, k, N and the mechanical parts go
-    through ``tableau.parse_expression`` in the declared symbols, parameter values through
-    ``tableau.parse_number``."""
+    through ``numbers.parse_expression`` in the declared symbols, parameter values through
+    ``numbers.parse_number``."""
     if isinstance(q, (str, bytes)) or isinstance(v, (str, bytes)):
         raise SystemDefinitionError("q and v must be lists of symbols (or of names), not strings")
     q = [_symbol(x, "q") for x in q] if hasattr(q, "__iter__") else q

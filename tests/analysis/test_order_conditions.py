@@ -152,7 +152,7 @@ def seven_array_tableau():
     (A_tilde, b_tilde): b_tilde = (1/3, 1/3, 1/3), b_tilde c = 17/30 != 1/2: order 1.
     So the pair (A; A_hat) has order 2 and the forced ODE (A; A_hat, A_tilde) order 1; with b_hat
     in place of b_tilde it would be 2 (and the order of A_tilde alone 2)."""
-    from ldaspark.core.tableau import from_json_dict
+    from ldaspark.core.tableau_file import from_json_dict
     d = {"c": ["1/5", "1/2", "1"],
          "A": [["1/5", "0", "0"], ["1/4", "1/4", "0"], ["1/2", "12/25", "1/50"]],
          "A_hat": [["0", "1/5", "0"], ["1/2", "0", "0"], ["1/3", "1/3", "1/3"]],
@@ -211,7 +211,7 @@ def _lobatto3_with_own_tilde(b_tilde, a_from=None):
     """Lobatto IIIA-IIIB 3 with A_tilde_ij = w_j / 2 (w = ``a_from``, default b_tilde), which
     satisfies (23d) with respect to b_tilde = w for any symmetric w: a symmetric method with
     b_tilde != b_hat."""
-    from ldaspark.core.tableau import from_json_dict
+    from ldaspark.core.tableau_file import from_json_dict
     bt = [sympy.Rational(x) for x in b_tilde]
     w = [sympy.Rational(x) for x in (a_from or b_tilde)]
     d = {"c": ["0", "1/2", "1"],

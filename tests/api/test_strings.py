@@ -1,6 +1,6 @@
 """Strings given to the Python API are never executed: L, k, N, the
 mechanical parts, parameter values, scene parameters and symbol names go through the bounded
-whitelist parser (``tableau.parse_expression`` / ``parse_number``, the tableau entry parser
+whitelist parser (``numbers.parse_expression`` / ``parse_number``, the tableau entry parser
 extended to the system's declared symbols) or are refused with an LdasparkError.
 
 Each hostile string would create a marker file if it were evaluated; every test asserts the
@@ -18,7 +18,7 @@ from sympy.physics.mechanics import dynamicsymbols
 
 import ldaspark
 from ldaspark.core.errors import LdasparkError, SystemDefinitionError
-from ldaspark.core.tableau import parse_expression, parse_number
+from ldaspark.core.numbers import parse_expression, parse_number
 
 x, y, z, vx, vy, vz = sympy.symbols("x y z vx vy vz")
 Q, V = [x, y, z], [vx, vy, vz]

@@ -1,5 +1,5 @@
-"""Negative powers in the audit's ball arithmetic (``core.tableau._BallEvaluator`` for file
-entries, ``core.tableau._sympy_ball`` for exact sympy entries): x**-k (and x**(-p/q)) as an arb
+"""Negative powers in the audit's ball arithmetic (``core.numbers._BallEvaluator`` for file
+entries, ``core.numbers._sympy_ball`` for exact sympy entries): x**-k (and x**(-p/q)) as an arb
 ball must contain the value computed by mpmath at 80 digits, with a radius far below the
 precision used (so that the containment is not won by a huge ball), and differ from x**k
 (a sign of the exponent lost would give x**k, outside)."""
@@ -10,7 +10,7 @@ import mpmath
 import sympy
 from hypothesis import given, settings, strategies as st
 
-from ldaspark.core.tableau import _BallEvaluator, _sympy_ball
+from ldaspark.core.numbers import _BallEvaluator, _sympy_ball
 
 PREC_BITS = 200          # ~60 digits; the reference has 80, so its own error is below 1e-75
 

@@ -8,7 +8,7 @@ import sympy
 from sympy import Rational as R, sqrt
 
 from ldaspark.core.errors import TableauError
-from ldaspark.core.tableau import from_json_dict, load_tableau
+from ldaspark.core.tableau_file import from_json_dict, load_tableau
 from ldaspark.core.families import (euler_i, euler_ii, gauss, get_method, lobatto_coefficients, lobatto_iiia_iiib,
                                    lobatto_iiia_iiib_iiid)
 
@@ -185,7 +185,7 @@ def test_string_entries_are_never_evaluated_as_python(text):
                                          ("-2.5e-1", R(-1, 4)), ("Rational(1, 3)", R(1, 3)), ("2**-3", R(1, 8)),
                                          ("pi/4", sympy.pi / 4)])
 def test_exact_string_entries(text, value):
-    from ldaspark.core.tableau import parse_exact_string
+    from ldaspark.core.numbers import parse_exact_string
     assert sympy.simplify(parse_exact_string(text) - value) == 0
 
 

@@ -9,7 +9,8 @@ import pytest
 
 from ldaspark.core.errors import TableauError
 from ldaspark.core.families import gauss
-from ldaspark.core.tableau import from_json_dict, load_tableau, omega_rank
+from ldaspark.core.tableau import omega_rank
+from ldaspark.core.tableau_file import from_json_dict, load_tableau
 from ldaspark.lab.theory import audit_checks as ac
 
 

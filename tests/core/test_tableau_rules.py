@@ -49,7 +49,7 @@ def test_ift_with_zero_weights_agrees_with_differences():
     """A tableau with b_hat_2 = 0 and b_tilde_1 = 0 (and zeros in A_hat, A_tilde): the terms the
     IFT skips for zero weights must be exactly the zero ones; central differences of the step
     map at 30 digits (error ~1e-20) are the reference, on a nonlinear L and k."""
-    from ldaspark.core.tableau import from_json_dict
+    from ldaspark.core.tableau_file import from_json_dict
     q, v = sympy.symbols("q1:3"), sympy.symbols("v1:3")
     L = (v[0] ** 2 + v[1] ** 2) / 2 - q[0] ** 2 / 2 - q[0] ** 3 / 3
     sysm = LagrangianSystem(L, [v[1] - v[0] * (1 + q[0])], q, v, name="osc-nl")

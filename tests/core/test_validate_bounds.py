@@ -8,7 +8,7 @@ import pytest
 
 from ldaspark.core import validate
 from ldaspark.core.errors import InputError, LdasparkError
-from ldaspark.core.tableau import check_stages
+from ldaspark.core.tableau_file import check_stages
 
 
 def test_the_stage_ceiling_is_100():

@@ -13,7 +13,8 @@ import sympy
 from hypothesis import given, settings, strategies as st
 
 from ldaspark.core.errors import TableauError
-from ldaspark.core.tableau import MAX_MAGNITUDE, _parse_entry, from_json_dict
+from ldaspark.core.numbers import MAX_MAGNITUDE, _parse_entry
+from ldaspark.core.tableau_file import from_json_dict
 
 from run_helpers import assert_ok_or_one_line, run_cli, time_bound
 

@@ -10,7 +10,8 @@ import sympy
 
 from ldaspark.core.errors import TableauError
 from ldaspark.core.families import get_method
-from ldaspark.core.tableau import _parse_entry, from_json_dict, load_tableau, parse_exact_string
+from ldaspark.core.numbers import _parse_entry, parse_exact_string
+from ldaspark.core.tableau_file import from_json_dict, load_tableau
 
 from run_helpers import assert_ok_or_one_line, run_cli, time_bound
 

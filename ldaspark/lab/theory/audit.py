@@ -43,7 +43,8 @@ from .audit_checks import (FAIL, INFO, ORDER_SLACK, PASS, SKIP, Check, _coeffici
                            check_shapes, convergence_checks, digits_of, energy_check, entry_effect, entry_radii,
                            observed_order, order_checks, probe_step)
 from ...core.errors import InputError, LdasparkError
-from ...core.tableau import SparkTableau, load_tableau
+from ...core.tableau import SparkTableau
+from ...core.tableau_file import load_tableau
 from ...core.families import get_method
 
 PAPER_SCENES = ("particle", "skate", "robot", "mp-particles")
@@ -589,7 +590,7 @@ def add_arguments(parser) -> None:
 
 
 def safe_load_tableau(path, max_stages=None) -> SparkTableau:
-    """The core loader: string entries go through ``tableau.parse_exact_string``, an AST
+    """The core loader: string entries go through ``numbers.parse_exact_string``, an AST
     whitelist (numbers, + - * / **, sqrt, Rational, pi) that never evaluates Python; the file
     is read only if regular and bounded in size, s <= max_stages (default 20)."""
     return load_tableau(path, max_stages=max_stages)

@@ -467,7 +467,7 @@ def _reference_tableau(tab):
     """A Gauss SPARK method of order 2 max(5, s+1) >= 2s + 2, above any s-stage method's order 2s
     (Gauss-7 from a file has a reference too), and never the audited tableau itself."""
     from ...core.families import gauss
-    from ...core.tableau import MAX_STAGES
+    from ...core.numbers import MAX_STAGES
     s = max(5, tab.s + 1)
     return gauss(s, max_stages=max(MAX_STAGES, s))     # one stage above the audited tableau's own bound
 

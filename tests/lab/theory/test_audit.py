@@ -8,7 +8,7 @@ from ldaspark.lab.theory import audit as au
 from ldaspark.cli import main
 from ldaspark.core.errors import TableauError
 from ldaspark.analysis.conditions import check_23
-from ldaspark.core.tableau import load_tableau
+from ldaspark.core.tableau_file import load_tableau
 from ldaspark.core.families import builtin_method_names, get_method
 
 EX = pathlib.Path(__file__).resolve().parents[3] / "examples" / "tableaux"

@@ -13,7 +13,7 @@ import pytest
 import sympy
 from ldaspark.core.errors import InputError, LdasparkError, TableauError
 from ldaspark.core.families import gauss, get_method
-from ldaspark.core.tableau import from_json_dict
+from ldaspark.core.tableau_file import from_json_dict
 from ldaspark.lab.theory import audit as au
 from ldaspark.lab.theory import audit_checks as ac
 from ldaspark.analysis import order_conditions as oc

@@ -15,7 +15,7 @@ nodepy_rk = pytest.importorskip("nodepy.runge_kutta_method")
 
 from ldaspark.cli import main                                    # noqa: E402
 from ldaspark.core.errors import TableauError                    # noqa: E402
-from ldaspark.core.tableau import from_json_dict                 # noqa: E402
+from ldaspark.core.tableau_file import from_json_dict                 # noqa: E402
 from ldaspark.lab.theory import audit as au                          # noqa: E402
 from ldaspark.analysis import order_conditions as oc               # noqa: E402
 
@@ -66,7 +66,7 @@ def _audit_facts(name, kind=None):
 
 
 def _jn(text):
-    from ldaspark.core.tableau import _json_number
+    from ldaspark.core.tableau_file import _json_number
     return _json_number(text)
 
 

@@ -10,7 +10,8 @@ import pytest
 from ldaspark.cli import main
 from ldaspark.core.errors import TableauError
 from ldaspark.core.families import builtin_method_names, get_method
-from ldaspark.core.tableau import VECTOR_NAMES, from_json_dict, load_tableau
+from ldaspark.core.tableau import VECTOR_NAMES
+from ldaspark.core.tableau_file import from_json_dict, load_tableau
 from ldaspark.lab.theory import audit as au
 from ldaspark.analysis import order_conditions as oc
 

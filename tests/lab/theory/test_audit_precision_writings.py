@@ -7,7 +7,8 @@ import json
 import pytest
 
 from ldaspark.cli import main
-from ldaspark.core.tableau import JsonNumber, load_tableau
+from ldaspark.core.numbers import JsonNumber
+from ldaspark.core.tableau_file import load_tableau
 from ldaspark.lab.theory import audit as au
 from ldaspark.lab.theory import audit_checks as ac
 

@@ -9,7 +9,7 @@ import json
 import types
 import pytest
 from ldaspark.core.errors import InputError, LdasparkError, TableauError
-from ldaspark.core.tableau import from_json_dict
+from ldaspark.core.tableau_file import from_json_dict
 from ldaspark.lab.theory import audit as au
 from ldaspark.core.families import get_method
 

@@ -8,7 +8,7 @@ TAUD = "tests/lab/theory/test_audit.py"
 T = TPREC + "::"
 
 MUTANTS = (
-    _m("audit-decimal-literal-exact", "core/tableau.py",
+    _m("audit-decimal-literal-exact", "core/numbers.py",
        "if self.D is not None and sig > 0:", "if False and self.D is not None and sig > 0:",
        "a decimal literal taken as exact (no uncertainty from its digits): a (22) pair solved at 40 "
        "digits is 'violated' at 1e-41", "conditions",
@@ -18,22 +18,22 @@ MUTANTS = (
        "decimal entries sent to the exact decision (read as exact rationals: the original bug, "
        "Gauss-2 at 40 digits predicted order 2)", "conditions",
        T + "test_cli_decimal_tableau_exit_0_and_arithmetic_in_json", TPREC),
-    _m("audit-decimal-radius-wrong-digit", "core/tableau.py",
+    _m("audit-decimal-radius-wrong-digit", "core/numbers.py",
        "    e = adjusted - digits_given + 1", "    e = adjusted - digits_given - 1",
        "decimal uncertainty from the wrong digit count (half a unit in the (D+2)-th digit: 100x too "
        "small)", "conditions",
        T + "test_22_pair_solved_at_40_digits_passes_and_a_1e10_change_fails_with_its_residual", TPREC),
-    _m("audit-decimal-digits-tableau-max", "core/tableau.py",
+    _m("audit-decimal-digits-tableau-max", "core/numbers.py",
        "known = sig if sig >= LONG_DECIMAL else self.D", "known = self.D",
        "every decimal literal credited with the longest literal's digits (entries printed to "
        "different precisions)", "conditions",
        T + "test_entries_printed_to_different_digits_keep_their_own", TPREC),
-    _m("audit-short-decimal-own-digits", "core/tableau.py",
+    _m("audit-short-decimal-own-digits", "core/numbers.py",
        "known = sig if sig >= LONG_DECIMAL else self.D", "known = sig",
        "a short terminating decimal ('0.5') known only to its own digit (0.5 +- 0.05 beside 40-digit "
        "entries)", "conditions",
        T + "test_short_decimals_are_terminating_expansions", TPREC),
-    _m("audit-float64-exact", "core/tableau.py",
+    _m("audit-float64-exact", "core/numbers.py",
        "return flint.arb(flint.fmpq(q.numerator, q.denominator)) + flint.arb(0, abs(flint.arb(x)) * flint.arb(2) ** -53)",
        "return flint.arb(flint.fmpq(q.numerator, q.denominator))",
        "a float64 entry taken as exactly its binary value (no half-ulp uncertainty)", "conditions",
@@ -55,7 +55,7 @@ MUTANTS = (
        "                    raise ExactBudgetExceeded()", "                    pass",
        "the exact decision's time budget never enforced", "conditions",
        T + "test_exact_time_budget_falls_back_to_numerics_and_says_so", TPREC),
-    _m("audit-zero-denominator-structural", "core/tableau.py",
+    _m("audit-zero-denominator-structural", "core/numbers.py",
        "if isinstance(node.op, ast.Div) and self.zero(b, node.right):",
        "if isinstance(node.op, ast.Div) and b == 0:",
        "an exact zero denominator that sympy does not reduce (sin(1)**2 + cos(1)**2 - 1) accepted",

@@ -74,7 +74,7 @@ MUTANTS = (
     _m("relvalid-writer-nan", "core/resultio.py",
        "    _check_finite_arrays(result)\n    ext = _ext(path)", "    ext = _ext(path)",
        "save_result writes NaN to .npz / .h5", "validation", TF),
-    _m("relvalid-max-stages-unbounded", "core/tableau.py",
+    _m("relvalid-max-stages-unbounded", "core/tableau_file.py",
        "not 1 <= limit <= MAX_STAGES_CEILING:", "not 1 <= limit:",
        "--max-stages 10**8 accepted (MemoryError / OverflowError later)", "validation",
        TC + "::test_audit_max_stages_is_bounded", TC),
