@@ -103,3 +103,16 @@ def test_the_checks_in_order_and_the_member_prefix():
     validate.initial_point(system, bk, 0.0, Q0, BAD_V0, consistent=False)
     with pytest.raises(NonFiniteError):
         validate.initial_point(system, bk, 0.0, [0, 0, 0], [0, 0, 1e200], consistent=False)
+
+
+@pytest.mark.parametrize("engine", ["generic", "compiled"])
+def test_a_given_tol_sets_the_consistency_tolerance_to_ten_tol(engine):
+    # with tol given the start must satisfy |k| <= 10 tol (1 + |v0|_inf) on every engine: at
+    # tol = 1e-10 and |v0|_inf = 1 that is 2e-9; a violation of 1.5e-9 runs, one of 3e-9 is refused
+    # with that bound in the message (a tolerance 1e4 x too loose would accept both)
+    def go(d):
+        return ldaspark.integrate("skate", "gauss-2", q0=Q0, v0=[0.0, d, 1.0], h=0.1, n_steps=2, tol=1e-10,
+                                  engine=engine)
+    assert go(1.5e-9).status == 0
+    with pytest.raises(InconsistentInitialDataError, match=r"\|k\(t0, q0, v0\)\| = 3\.000e-09 > 2\.0e-09 "):
+        go(3e-9)
