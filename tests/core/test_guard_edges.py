@@ -57,3 +57,17 @@ def test_the_extrapolated_start_is_exact_for_a_linear_velocity():
         assert np.allclose(x[:s * n].reshape(s, n), V_want, rtol=0, atol=1e-12), name
         assert np.allclose(x[s * n:s * n + s], lam_want.ravel(), rtol=0, atol=1e-15), name
         assert np.allclose(x[-n:], v_want, rtol=0, atol=1e-12), name
+
+
+def test_same_root_at_root_agree_relative_to_the_safe_root():
+    # ROOT_AGREE (1e-8) relative to 1 + max(|q1'|, |v1'|): both roots are converged to ~1e-15, so a
+    # difference of 0.9 ROOT_AGREE (1 + 4) is one root and 1.1 ROOT_AGREE (1 + 4) or a 1e-6 one are two
+    import numpy as np
+    from ldaspark.core import guard
+    q, v = np.array([4.0, -1.0]), np.array([0.5, 2.0])
+    tol = guard.ROOT_AGREE * (1 + 4.0)
+    assert guard.same_root(q + [0.9 * tol, 0], v, q, v)
+    assert guard.same_root(q, v - [0, 0.9 * tol], q, v)
+    assert not guard.same_root(q + [1.1 * tol, 0], v, q, v)
+    assert not guard.same_root(q, v + [0, 1e-6], q, v)
+    assert not guard.same_root(q + [np.nan, 0], v, q, v)
