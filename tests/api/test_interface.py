@@ -156,3 +156,22 @@ def test_compiled_ensemble_through_an_executor_equals_the_loop():
     assert par.batch == loop.batch == 3 and par.q.shape == (3, 6, 3) and par.success
     assert np.array_equal(par.q, loop.q) and np.array_equal(par.t, loop.t) and par.method == "gauss-2"
     assert list(par.nfev) == list(loop.nfev)
+
+
+@pytest.mark.parametrize("tol", [None, 1e-6])
+def test_compiled_ensemble_kernel_tasks_honour_tol(tol):
+    # guard=False sends an ensemble through an executor to the kernel tasks of run_many: each
+    # member equals its single run with the same tol (a loose tol takes fewer Newton iterations)
+    from concurrent.futures import ThreadPoolExecutor
+    Q0 = [[1, 0, 0], [0.5, 0, 0]]
+    V0 = [[0, 1, 0], [0, 0.5, 0]]
+    kw = dict(n_steps=20, h=0.2, engine="compiled", guard=False, tol=tol)
+    with ThreadPoolExecutor(1) as ex:
+        par = ldaspark.integrate("particle", "gauss-2", q0=Q0, v0=V0, executor=ex, **kw)
+    assert [m["guard"] for m in par.stats["members"]] == [False, False]     # the kernel tasks ran
+    for r, (q0, v0) in enumerate(zip(Q0, V0)):
+        one = ldaspark.integrate("particle", "gauss-2", q0=q0, v0=v0, **kw)
+        assert np.array_equal(par.q[r], one.q) and par.newton_iterations[r] == one.newton_iterations
+    loose = ldaspark.integrate("particle", "gauss-2", q0=Q0[0], v0=V0[0], **dict(kw, tol=1e-6))
+    tight = ldaspark.integrate("particle", "gauss-2", q0=Q0[0], v0=V0[0], **dict(kw, tol=None))
+    assert loose.newton_iterations < tight.newton_iterations     # the option is observable here
