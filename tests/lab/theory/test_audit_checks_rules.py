@@ -19,11 +19,7 @@ from ldaspark.lab.theory import audit_checks as ac
 from ldaspark.analysis import order_conditions as oc
 from types import SimpleNamespace
 
-
-def approx(expected, rel=1e-9, abs=0.0):
-    """pytest.approx without its default absolute tolerance 1e-12, which would let every residual
-    of these tests (1e-15 .. 1e-30) equal every other."""
-    return pytest.approx(expected, rel=rel, abs=abs)
+from tableau_fakes import _lobatto2, _tab, approx
 
 
 PASS, FAIL, INFO, SKIP = au.PASS, au.FAIL, au.INFO, au.SKIP
@@ -42,21 +38,6 @@ def mpv(v):
 
 
 # ==== audit: algebraic checks on small tableaux ===============================================
-def _tab(**over):
-    d = {"c": ["1/2"], "A": [["1/2"]], "A_hat": [["1/2"]], "A_tilde": [["1/2"]],
-         "b": [1], "b_hat": [1], "b_tilde": [1]}
-    d.update(over)
-    return from_json_dict(d, "t")
-
-
-def _lobatto2(**over):
-    d = {"c": [0, 1], "A": [[0, 0], ["1/2", "1/2"]], "A_hat": [["1/2", 0], ["1/2", 0]],
-         "A_tilde": [["1/2", 0], ["1/2", 0]], "b": ["1/2", "1/2"], "b_hat": ["1/2", "1/2"],
-         "b_tilde": ["1/2", "1/2"]}
-    d.update(over)
-    return from_json_dict(d, "l2")
-
-
 # ==== audit_checks: numerical checks ==========================================================
 class _Sol:
     def __init__(self, q, v, k=(0.0,), energy=None):
@@ -444,11 +425,6 @@ def test_coefficient_strings_show_a_changed_entry_as_value_plus_delta():
     assert ac._coefficient_strings(t2)["A"][1][0] == "1/2 + (1/1000) + (2)"
 
 
-def _close(x, rel=1e-9):
-    """pytest.approx without its absolute default of 1e-12, which would equate any two tiny numbers."""
-    return pytest.approx(x, rel=rel, abs=0.0)
-
-
 P, F, S, I = au.PASS, au.FAIL, au.SKIP, au.INFO
 
 
@@ -459,16 +435,11 @@ P, F, S, I = au.PASS, au.FAIL, au.SKIP, au.INFO
 
 def test_convergence_error_is_the_worst_component_of_q_and_v():
     sol = SimpleNamespace(q=[np.array([1.0 + 1e-3, 2.0 + 1e-6])], v=[np.array([0.0, 1e-9])])
-    assert ac._err(sol, [1.0, 2.0], [0.0, 0.0]) == _close(1e-3, rel=1e-9)
+    assert ac._err(sol, [1.0, 2.0], [0.0, 0.0]) == approx(1e-3, rel=1e-9)
 
 
 # the convergence floor and the one-sided check: test_convergence_floor_is_the_working_precision_or_the_measured_entries_floor,
 # test_convergence_at_the_entries_floor_measures_at_coarser_steps, test_convergence_one_sided_with_slack
-
-
-def _close_4(x, rel=1e-9, abs=0.0):
-    """pytest.approx without its absolute default of 1e-12, which would equate any two tiny residuals."""
-    return pytest.approx(x, rel=rel, abs=abs)
 
 
 def test_the_energy_rate_is_log2_of_coarse_over_fine(monkeypatch):
@@ -485,8 +456,8 @@ def test_the_energy_rate_is_log2_of_coarse_over_fine(monkeypatch):
     monkeypatch.setattr(ac, "_run", fake_run)
     chk, facts = ac.energy_check(None, True)
     # |E - E0| of 1 + 4e-6 carries a rounding of eps / 4e-6 ~ 6e-11 relative
-    assert facts["energy_rate"] == _close_4(2.0, rel=1e-9)
-    assert chk.residual == _close_4(1e-6) and chk.status == au.INFO
+    assert facts["energy_rate"] == approx(2.0, rel=1e-9)
+    assert chk.residual == approx(1e-6) and chk.status == au.INFO
     assert [h for h, _ in facts["energy"]] == [0.1, 0.05]
 
 
