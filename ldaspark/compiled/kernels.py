@@ -197,6 +197,36 @@ def spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, mod
 
 
 @numba.njit(cache=True)
+def finish_step(model, M, ws, x, x_last, x_prev, q, v, cq, cv, dq, dv, bw, sb, h, t0, step, n_steps, every,
+                compensated, stats, j_out, out_t, out_q, out_v, out_E, out_k, out_x):
+    """The end of step ``step`` of every step loop once (21) is solved in x = [Z | Lambda | dv]:
+    q1 - q0 = h sum_j b_j (v0 + Z_j) and v1 - v0 = dv (compensated sums, ``accept_step``), the
+    stage multipliers Psi_i = Lambda_i / h of a step that starts at a saved sample (out_x beyond
+    its first NN entries) and the sample at t_{n+1} when it is saved. Returns the next sample's
+    index, or -1 when the new state is not finite (the failure recorded in stats)."""
+    s, n, m = bw.shape[0], q.shape[0], out_k.shape[1]
+    sn, sm, NN = s * n, s * m, x.shape[0]
+    for a in range(n):
+        acc = 0.0
+        for j in range(s):
+            acc += bw[j] * x[j * n + a]
+        dq[a] = h * (sb * v[a] + acc)
+        dv[a] = x[sn + sm + a]
+    if not accept_step(q, v, cq, cv, dq, dv, compensated, x, x_last, x_prev, stats, step):
+        return -1
+    if step % every == 0 and out_x.shape[0] > NN:
+        o = NN + (step // every) * sm
+        for r in range(sm):
+            out_x[o + r] = x[sn + r] / h
+    if (step + 1) % every == 0 or step + 1 == n_steps:
+        if not store(model, j_out, t0 + (step + 1) * h, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
+            fail(stats, step, FAIL_NONFINITE)
+            return -1
+        j_out += 1
+    return j_out
+
+
+@numba.njit(cache=True)
 def spark_loop(model, tab, M, ws, J, piv, t0, q0, v0, h, n_steps, every, compensated, tol,
                max_iter, predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x):
     """The step loop of the SPARK method (21) shared by both forms: ``evaluate`` (residual and
@@ -274,25 +304,10 @@ def spark_loop(model, tab, M, ws, J, piv, t0, q0, v0, h, n_steps, every, compens
             out_x[0] = norm_inf(G)
         if not end_newton(stats, step, it, status):
             return
-        # q1 - q0 = h sum_j b_j (v0 + Z_j); v1 - v0 = dv
-        for a in range(n):
-            acc = 0.0
-            for j in range(s):
-                acc += bw[j] * x[j * n + a]
-            dq[a] = h * (sb * v[a] + acc)
-            dv[a] = x[sn + sm + a]
-        if not accept_step(q, v, cq, cv, dq, dv, compensated, x, x_last, x_prev, stats, step):
+        j_out = finish_step(model, M, ws, x, x_last, x_prev, q, v, cq, cv, dq, dv, bw, sb, h, t0, step, n_steps,
+                            every, compensated, stats, j_out, out_t, out_q, out_v, out_E, out_k, out_x)
+        if j_out < 0:
             return
-        if step % every == 0 and out_x.shape[0] > NN:
-            # the stage multipliers Psi_i = Lambda_i / h of the step that starts at a saved sample
-            o = NN + (step // every) * sm
-            for r in range(sm):
-                out_x[o + r] = x[sn + r] / h
-        if (step + 1) % every == 0 or step + 1 == n_steps:
-            if not store(model, j_out, t0 + (step + 1) * h, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
-                fail(stats, step, FAIL_NONFINITE)
-                return
-            j_out += 1
     for r in range(NN):
         out_x[r] = x_last[r]
 

@@ -42,9 +42,9 @@ import numpy as np
 from numba import types
 
 from . import modeltypes as mt
-from .kernels import spark_newton, evaluate, store   # noqa: F401 (evaluate: the overload spark_newton uses)
+from .kernels import finish_step, spark_newton, evaluate, store   # noqa: F401 (evaluate: the overload spark_newton uses)
 from .kernels_mech import mech_residual, mech_workspace
-from .newton import (FAIL_NONFINITE, RATE_KAPPA, accept_step, end_newton, fail, lu_factor, lu_solve, newton_status,
+from .newton import (FAIL_NONFINITE, RATE_KAPPA, end_newton, fail, lu_factor, lu_solve, newton_status,
                      norm_inf, predict)
 
 # numba keys a cached kernel on the content of this file only; the helpers it compiles in live in
@@ -52,7 +52,7 @@ from .newton import (FAIL_NONFINITE, RATE_KAPPA, accept_step, end_newton, fail, 
 # digest is written here so that editing one changes this file too (tests/test_kernels_quasi.py).
 HELPERS = ("kernels.py", "newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py",
            "modeltypes.py")
-HELPERS_SHA256 = "04fa3f767296d5fa9a6e06b6e5fe88740585bed0e0e63b630cb765ae398f6bfc"
+HELPERS_SHA256 = "f05a3ce699d22044b2a7f8630ce5ca27313c1a0cad421a167bf4834c32aee799"
 
 #: a quasi-Newton increment that contracts by less than this (|dx_k| > QUASI_THETA |dx_k-1|)
 #: sends the step to the Newton chain: at rate 1/2 the ~50 bits from a predictor error of 1e-2
@@ -686,23 +686,10 @@ def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compe
                 out_x[0] = norm_inf(G)
         if not end_newton(stats, step, it, status):
             return
-        for a in range(n):
-            acc = 0.0
-            for j in range(s):
-                acc += bw[j] * x[j * n + a]
-            dq[a] = h * (sb * v[a] + acc)
-            dv[a] = x[sn + sm + a]
-        if not accept_step(q, v, cq, cv, dq, dv, compensated, x, x_last, x_prev, stats, step):
+        j_out = finish_step(model, M, ws, x, x_last, x_prev, q, v, cq, cv, dq, dv, bw, sb, h, t0, step, n_steps,
+                            every, compensated, stats, j_out, out_t, out_q, out_v, out_E, out_k, out_x)
+        if j_out < 0:
             return
-        if step % every == 0 and out_x.shape[0] > NN:
-            o = NN + (step // every) * sm
-            for r in range(sm):
-                out_x[o + r] = x[sn + r] / h
-        if (step + 1) % every == 0 or step + 1 == n_steps:
-            if not store(model, j_out, t0 + (step + 1) * h, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
-                fail(stats, step, FAIL_NONFINITE)
-                return
-            j_out += 1
     for r in range(NN):
         out_x[r] = x_last[r]
 

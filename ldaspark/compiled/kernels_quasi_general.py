@@ -24,19 +24,19 @@ import numpy as np
 from numba import types
 
 from . import modeltypes as mt
-from .kernels import spark_newton, evaluate, store   # noqa: F401 (evaluate: the overload spark_newton uses)
+from .kernels import finish_step, spark_newton, evaluate, store   # noqa: F401 (evaluate: the overload spark_newton uses)
 from .kernels_general import general_begin, general_eval, workspace
 from .kernels_quasi import (FIRST_RATE_FACTOR, PREDICT_COLLOCATION, QS_FALLBACKS, QS_ITERATIONS, QS_LU, QS_SKIPPED,
                             QS_STEPS, QUASI_MAX_ITER, QUASI_THETA, QUASI_WAIT_MAX, collocation_predict,
                             constraint_apply)
-from .newton import (FAIL_NONFINITE, RATE_KAPPA, accept_step, end_newton, fail, lu_factor, lu_solve, newton_status,
+from .newton import (FAIL_NONFINITE, RATE_KAPPA, end_newton, fail, lu_factor, lu_solve, newton_status,
                      norm_inf, predict)
 
 # numba keys a cached kernel on the content of this file only: the digest of the modules it
 # compiles in (tests/compiled/test_quasi_general.py checks it)
 HELPERS = ("kernels.py", "newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py",
            "modeltypes.py", "kernels_quasi.py")
-HELPERS_SHA256 = "08d3c80f816d669f26d1de97bb70fc7cd185dbce35a39c644f921cbf6bb1b94d"
+HELPERS_SHA256 = "8acec9d5b09659e19b29770b471c2827d6b38852be252e7ff08a293de3a7b034"
 
 
 @numba.njit(cache=True)
@@ -238,23 +238,10 @@ def general_quasi_loop(model, tab, M, Ev, El, t0, q0, v0, h, n_steps, every, com
                 out_x[0] = norm_inf(G)
         if not end_newton(stats, step, it, status):
             return
-        for a in range(n):
-            acc = 0.0
-            for j in range(s):
-                acc += bw[j] * x[j * n + a]
-            dq[a] = h * (sb * v[a] + acc)
-            dv[a] = x[sn + sm + a]
-        if not accept_step(q, v, cq, cv, dq, dv, compensated, x, x_last, x_prev, stats, step):
+        j_out = finish_step(model, M, ws, x, x_last, x_prev, q, v, cq, cv, dq, dv, bw, sb, h, t0, step, n_steps,
+                            every, compensated, stats, j_out, out_t, out_q, out_v, out_E, out_k, out_x)
+        if j_out < 0:
             return
-        if step % every == 0 and out_x.shape[0] > NN:
-            o = NN + (step // every) * sm
-            for r in range(sm):
-                out_x[o + r] = x[sn + r] / h
-        if (step + 1) % every == 0 or step + 1 == n_steps:
-            if not store(model, j_out, t0 + (step + 1) * h, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
-                fail(stats, step, FAIL_NONFINITE)
-                return
-            j_out += 1
     for r in range(NN):
         out_x[r] = x_last[r]
 
