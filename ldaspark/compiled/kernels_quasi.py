@@ -131,20 +131,13 @@ def csr_matvec(Np, Nj, Nx, x, off, out):
 
 
 @numba.njit(cache=True, _nrt=False)
-def multiplier_matrix(model, tab, h, t, ws, qw):
-    """The frozen K, k_q, W_j and the factored multiplier matrix S at the stage values of the last
-    residual (K_j there from ``mech_residual``; k_q evaluated here). False if S is singular.
-
-    With C_Z[r, k] = omega_rk K_k + h sum_j omega_rj a_jk k_q,j (21e) and h b_k k_q(q1, v1) (21f):
-    S[r, j'] = sum_k omega_rk a~_kj' K_k W_j' + h sum_j omega_rj (A A~)_jj' k_q,j W_j' (r < s - 1),
-    S[s - 1, j'] = (h (b A~)_j' k_q(q1, v1) + b~_j' K(q1)) W_j': O(s^3 m^2 + s^2 m^2 n), C_Z never formed."""
+def freeze_constraint(model, h, t, ws, qw):
+    """The frozen constraint geometry of the step (``multiplier_matrix``, ``curvature_matrix``): K_j
+    (from the last residual) and k_q,j at the stages, K and k_q at (t + h, q1, v1), into qw."""
     kq_of = model[5]
-    A, At, bt, om = tab[1], tab[3], tab[6], tab[7]
     T, Q, V, KK, q1, v1, K1 = ws[0], ws[1], ws[2], ws[5], ws[11], ws[12], ws[13]
-    Np, Nj, Nx, W, Kf, kqf, K1f, kq1f, Pm, Qm, S, spiv = (qw[0], qw[1], qw[2], qw[3], qw[4], qw[5], qw[6], qw[7],
-                                                        qw[8], qw[9], qw[10], qw[11])
-    OAAt, bAt = qw[16], qw[17]
-    s, n, m = A.shape[0], q1.shape[0], K1.shape[0]
+    Kf, kqf, K1f, kq1f = qw[4], qw[5], qw[6], qw[7]
+    s, m, n = Kf.shape[0], Kf.shape[1], Kf.shape[2]
     for j in range(s):
         kq_of(T[j], Q[j], V[j], kqf[j])
         for ll in range(m):
@@ -154,6 +147,23 @@ def multiplier_matrix(model, tab, h, t, ws, qw):
     for ll in range(m):
         for b in range(n):
             K1f[ll, b] = K1[ll, b]
+
+
+@numba.njit(cache=True, _nrt=False)
+def multiplier_matrix(model, tab, h, t, ws, qw):
+    """The frozen K, k_q, W_j and the factored multiplier matrix S at the stage values of the last
+    residual (K_j there from ``mech_residual``; k_q evaluated here). False if S is singular.
+
+    With C_Z[r, k] = omega_rk K_k + h sum_j omega_rj a_jk k_q,j (21e) and h b_k k_q(q1, v1) (21f):
+    S[r, j'] = sum_k omega_rk a~_kj' K_k W_j' + h sum_j omega_rj (A A~)_jj' k_q,j W_j' (r < s - 1),
+    S[s - 1, j'] = (h (b A~)_j' k_q(q1, v1) + b~_j' K(q1)) W_j': O(s^3 m^2 + s^2 m^2 n), C_Z never formed."""
+    A, At, bt, om = tab[1], tab[3], tab[6], tab[7]
+    q1, K1 = ws[11], ws[13]
+    Np, Nj, Nx, W, Kf, kqf, K1f, kq1f, Pm, Qm, S, spiv = (qw[0], qw[1], qw[2], qw[3], qw[4], qw[5], qw[6], qw[7],
+                                                        qw[8], qw[9], qw[10], qw[11])
+    OAAt, bAt = qw[16], qw[17]
+    s, n, m = A.shape[0], q1.shape[0], K1.shape[0]
+    freeze_constraint(model, h, t, ws, qw)
     # W_j = M^-1 K_j^T
     for j in range(s):
         for a in range(n):
@@ -444,23 +454,14 @@ def curvature_matrix(model, tab, h, t, ws, qw, cw):
     """``multiplier_matrix`` with the velocity block I (x) M + h^2 P (x) H (``curvature_refresh``):
     for every multiplier (j, l) its response w = T_j K_j^T e_l in (21b, d) and the column
     S[:, (j, l)] = C_Z w_Z + C_dv w_s. O(s m (s + 1) n^2 + s m s^2 n). False if S is singular."""
-    kq_of = model[5]
     A, bw, om = tab[1], tab[4], tab[7]
-    T, Q, V, KK, q1, v1, K1 = ws[0], ws[1], ws[2], ws[5], ws[11], ws[12], ws[13]
+    q1, K1 = ws[11], ws[13]
     Kf, kqf, K1f, kq1f, S, spiv = qw[4], qw[5], qw[6], qw[7], qw[10], qw[11]
     z, Ky, kz = qw[15], qw[18], qw[19]
     Tw, Wc, rhs = cw[10], cw[12], cw[16]
     s, n, m = A.shape[0], q1.shape[0], K1.shape[0]
     N1 = (s + 1) * n
-    for j in range(s):
-        kq_of(T[j], Q[j], V[j], kqf[j])
-        for ll in range(m):
-            for b in range(n):
-                Kf[j, ll, b] = KK[j, ll, b]
-    kq_of(t + h, q1, v1, kq1f)
-    for ll in range(m):
-        for b in range(n):
-            K1f[ll, b] = K1[ll, b]
+    freeze_constraint(model, h, t, ws, qw)
     for j in range(s):
         for ll in range(m):
             col = j * m + ll

@@ -36,7 +36,7 @@ from .newton import (FAIL_NONFINITE, RATE_KAPPA, end_newton, fail, lu_factor, lu
 # compiles in (tests/compiled/test_quasi_general.py checks it)
 HELPERS = ("kernels.py", "newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py",
            "modeltypes.py", "kernels_quasi.py")
-HELPERS_SHA256 = "8acec9d5b09659e19b29770b471c2827d6b38852be252e7ff08a293de3a7b034"
+HELPERS_SHA256 = "735471f821b2732ffdf123c7959fb1447d02d959a287e3a76243d9a48716ca5b"
 
 
 @numba.njit(cache=True)
