@@ -132,8 +132,18 @@ class Engine(abc.ABC):
         """The step-acceptance guard's hook: (label, (q1, v1, E1)) of the safe root of step n from
         ``state`` = (t, q, v), or (None, None) when no safe start converges. ``prev`` = (V, Psi, h)
         of the previous step (stepping engines), ``before`` = its start (t, q, v) (block engines,
-        which keep no stages)."""
-        return None, None
+        which keep no stages). The engine's ``safe_root(prepared)`` is built at the first flagged
+        step and kept with the prepared run."""
+        hit = prepared.data.get("safe")
+        if hit is None:
+            hit = prepared.data["safe"] = self.safe_root(prepared)
+        return (None, None) if hit is None else hit(n, state, prev, before)
+
+    def safe_root(self, prepared):
+        """The guard's safe root of this engine's steps, a callable (n, state, prev, before) ->
+        (label, (q1, v1, E1)) or (None, None) (``ldaspark.core.guard.SparkSafeRoot``); None: the
+        engine has none, and its flagged steps count as unverified."""
+        return None
 
     def explain(self, prepared, exc: LdasparkError, prefix, start) -> LdasparkError:
         """The error that ends a run which failed with ``exc`` after the prefix ``prefix`` (a

@@ -68,8 +68,5 @@ class ComparatorEngine(Engine):
                       MSG_DONE, *(st.get(c, 0) for c in ("nfev", "njev", "nlu", "newton_iterations")),
                       engine="generic", stats=st)
 
-    def resolve_step(self, prepared, n, state, prev=None, before=None):
-        hit = prepared.data.get("safe")
-        if hit is None:
-            hit = prepared.data["safe"] = ComparatorSafeRoot(prepared.system, prepared.prob, prepared.opts)
-        return hit(n, state, prev, before)
+    def safe_root(self, prepared):
+        return ComparatorSafeRoot(prepared.system, prepared.prob, prepared.opts)

@@ -97,17 +97,12 @@ class CompiledEngine(Engine):
         return Result(fs.t, fs.q, fs.v, fs.energy, fs.constraint, fs.psi, 0, MSG_DONE,
                       *(st.get(c, 0) for c in ("nfev", "njev", "nlu", "newton_iterations")), engine=used, stats=st)
 
-    def resolve_step(self, prepared, n, state, prev=None, before=None):
-        hit = prepared.data.get("safe")
-        if hit is None:
-            prob, o = prepared.prob, prepared.opts
-            if prob.kind == "comparator":
-                from .comparator import ComparatorSafeRoot
-                hit = ComparatorSafeRoot(prepared.system, prob, o)
-            else:
-                hit = SparkSafeRoot(prepared.system, prob.what, None, o.tol, o.newton.iterations, float(prob.h))
-            prepared.data["safe"] = hit
-        return hit(n, state, prev, before)
+    def safe_root(self, prepared):
+        prob, o = prepared.prob, prepared.opts
+        if prob.kind == "comparator":
+            from .comparator import ComparatorSafeRoot
+            return ComparatorSafeRoot(prepared.system, prob, o)
+        return SparkSafeRoot(prepared.system, prob.what, None, o.tol, o.newton.iterations, float(prob.h))
 
     def explain(self, prepared, exc, prefix, start):
         """The kernels report only the failing step k of a Newton failure: step k again with the

@@ -60,10 +60,7 @@ class GenericEngine(Engine):
     def stats(self, prepared) -> dict:
         return prepared.data["method"].stats.as_dict()
 
-    def resolve_step(self, prepared, n, state, prev=None, before=None):
-        hit = prepared.data.get("safe")
-        if hit is None:
-            o = prepared.opts
-            hit = prepared.data["safe"] = SparkSafeRoot(prepared.system, prepared.prob.what, o.dps, o.tol,
-                                                        prepared.root.iterations, prepared.data["h"])
-        return hit(n, state, prev, before)
+    def safe_root(self, prepared):
+        o = prepared.opts
+        return SparkSafeRoot(prepared.system, prepared.prob.what, o.dps, o.tol, prepared.root.iterations,
+                             prepared.data["h"])
