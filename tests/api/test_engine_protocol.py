@@ -151,3 +151,15 @@ def test_the_real_engines_are_reached_through_the_protocol(monkeypatch):
         assert res.status == 0
         assert calls[0] == (want[0], "prepare") and want in calls, (kw, calls)
         assert {c[0] for c in calls} == {want[0]}
+
+
+def test_a_failure_in_a_later_block_names_the_step_and_time_of_the_whole_run(monkeypatch):
+    # the semi-implicit kernel (a comparator: its error is returned as it is, not re-examined)
+    # with 4 iterations fails at step 1 of the pendulum at h = 1 from t0 = 5; cut into blocks of
+    # one step, the failure is in the second block: the same step and time (t0 + k h) as one call
+    kw = dict(engine="compiled", t0=5.0, n_steps=6, h=1.0, newton=ldaspark.Newton(max_iter=4), guard=False)
+    one = ldaspark.integrate("pendulum", "lobatto-iiia-iiib-2-leapfrog", **kw)
+    monkeypatch.setattr(solve, "COMPILED_CHUNK", 1)
+    cut = ldaspark.integrate("pendulum", "lobatto-iiia-iiib-2-leapfrog", **kw)
+    assert one.status == cut.status < 0 and one.error.step == cut.error.step == 1
+    assert cut.error.time == one.error.time == 6.0 == float(cut.t[-1])

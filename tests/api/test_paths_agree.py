@@ -262,6 +262,29 @@ def check_executor_members_equal_their_single_runs(case):
             _member_equal(ens, j, single, case, ("thread pool", opt))
 
 
+
+@pair_tests()
+def check_executor_kernel_tasks_equal_their_single_runs(case):
+    """guard=False sends an initial-data ensemble with an executor to the compiled kernel tasks
+    (``solve._compiled_ensemble``; with the guard on, the default, the members run as single
+    runs): each member equals its single run with every option passed down (tol, save_every) or
+    refused to those tasks (events: the members then run as single runs and locate them)."""
+    sysp = case.system.with_params(case.params).substituted()
+    q1, v1 = consistent_neighbour(case, -1 / 32)
+    kw = dict(t_span=(case.t0, case.t0 + case.n_steps * case.h), h=case.h, engine="compiled", guard=False)
+    level = float(np.mean([case.q0[0], case.run(engine="generic").q[-1][0]]))
+
+    def g(t, q, v):
+        return q[0] - level
+    for opt in (dict(tol=1e-5), dict(save_every=case.every), dict(events=g), {}):
+        with ThreadPoolExecutor(max_workers=2) as ex:
+            ens = ldaspark.integrate(sysp, case.method, q0=[case.q0, q1], v0=[case.v0, v1], executor=ex, **kw, **opt)
+        for j, (qa, va) in enumerate(((case.q0, case.v0), (q1, v1))):
+            single = ldaspark.integrate(sysp, case.method, q0=qa, v0=va, **kw, **opt)
+            _member_equal(ens, j, single, case, ("kernel tasks", opt))
+            if "events" in opt and j == 0:
+                assert len(single.t_events[0]) >= 1          # the event is crossed: the check has teeth
+
 def test_process_pool_members_equal_their_single_runs():
     """The same through a process pool (the members run in other processes, with the system
     pickled without its compiled functions), on one system: the skate with t0 != 0."""

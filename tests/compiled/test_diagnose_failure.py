@@ -32,3 +32,18 @@ def test_a_comparator_failure_is_returned_as_it_is():
     out = fast._diagnose_newton_failure(planted, sc.system, cs, "lobatto-iiia-iiib-2-leapfrog", _start(sc), 0.1,
                                         runner.KernelOptions())
     assert out is planted
+
+
+def test_the_failing_step_is_examined_at_its_own_time_when_t0_is_not_zero():
+    # integrate on the compiled engine with one Newton iteration fails at step 0; the engine
+    # examines that step with the generic step at t0 + k h (not k h): the error names that
+    # time, which is where the returned trajectory ends
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = ldaspark.integrate("pendulum", "gauss-2", engine="compiled", t0=5.0, n_steps=20, h=0.5,
+                                 newton=ldaspark.Newton(kind="full", max_iter=1), guard=False)
+    assert res.status < 0 and isinstance(res.error, NewtonError)
+    k = res.error.step
+    assert res.error.time == 5.0 + k * 0.5 == float(res.t[-1])
+    assert "generic full-Newton step converges" in res.message

@@ -188,3 +188,38 @@ def test_run_quasi_defaults_keep_every_step_as_documented():
     spelled = run_quasi(cs, "gauss-2", t0, q0, v0, 0.1, 7, 1, True, None, 50, "collocation", True)
     assert len(short.t) == 8 and np.array_equal(short.t, spelled.t)
     assert np.array_equal(short.q, spelled.q) and np.array_equal(short.psi, spelled.psi)
+
+
+def test_the_collocation_predictor_is_the_one_of_the_method_run():
+    # the predictor weights (``extrapolation(c)``) are cached per method: a run of gauss-2 first
+    # must not hand its weights to lobatto-iiia-iiib-2 (also s = 2, nodes c = 0, 1 instead of
+    # 1/2 -+ sqrt(3)/6): the same counters as a run from an empty cache (measured 297 Newton
+    # iterations; with gauss-2's weights 354)
+    from ldaspark.compiled import quasi
+    kw = dict(n_steps=20, h=0.5, guard=False, engine="compiled", newton="quasi")
+    keys = ("newton_iterations", "quasi_iterations", "quasi_steps", "quasi_fallbacks")
+    quasi._EXTRAP.clear()
+    fresh = ldaspark.integrate("pendulum", "lobatto-iiia-iiib-2", **kw)
+    quasi._EXTRAP.clear()
+    ldaspark.integrate("pendulum", "gauss-2", **kw)
+    after = ldaspark.integrate("pendulum", "lobatto-iiia-iiib-2", **kw)
+    assert fresh.status == after.status == 0
+    assert [after.stats[k] for k in keys] == [fresh.stats[k] for k in keys]
+    assert np.array_equal(after.q, fresh.q)
+
+
+@pytest.mark.parametrize("scene", ("rheonomic-skate", "turntable"))
+def test_a_rheonomic_scene_started_at_t0_not_zero_agrees_with_newton(scene):
+    """The stage times of the quasi-Newton kernel are t0 + (step + c_i) h: on the scenes whose L
+    or k depend on t, started from a point of their trajectory at t = 0.75 (15 steps in, so the
+    data are consistent there), quasi-Newton and Newton agree within the bound, as from t = 0."""
+    sc = get_scene(scene)
+    t0, q0, v0 = sc.initial()
+    cs = compile_system(sc.system)
+    head = run_compiled(cs, "gauss-2", t0, q0, v0, H, 15, 1, kernel="spark")
+    t1, q1, v1 = float(head.t[-1]), head.q[-1], head.v[-1]
+    assert abs(t1 - (float(t0) + 0.75)) < 1e-12 and t1 != 0.0
+    for fam in ("gauss-2", "lobatto-iiia-iiib-3"):
+        a = run_compiled(cs, fam, t1, q1, v1, H, 100, 1, kernel="spark")
+        b = run_quasi(cs, fam, t1, q1, v1, H, 100, 1)
+        assert b.t[0] == t1 and _difference(a, b) <= 1.0, (scene, fam, _difference(a, b))

@@ -121,3 +121,15 @@ def test_the_guard_runs_on_every_member_of_a_compiled_ensemble_through_an_execut
             {k: one.stats[k] for k in ("guard_flagged", "guard_confirmed")}
     assert [m["guard"] for m in off.stats["members"]] == [False, False]
     assert np.array_equal(np.asarray(ens.q, float), np.asarray(off.q, float))
+
+
+@pytest.mark.parametrize("t0", [-40.0, 1e7])
+def test_a_second_root_between_saved_samples_is_located_from_any_t0(t0):
+    # the double well is autonomous: from t0 = -40 or 1e7 (t0 + k h exact in float64) the run is
+    # the one from 0, and the guard runs the prefix up to the flagged sample interval (its length
+    # counted from t0) again with every step kept: the same step is located
+    ref = run("gauss-1", "compiled", Newton(predictor="zero"), save_every=4)
+    res = run("gauss-1", "compiled", Newton(predictor="zero"), save_every=4, t0=t0)
+    assert ref.status == res.status == guard.STATUS_GUARD
+    assert res.error.step == ref.error.step and np.array_equal(res.q, ref.q)
+    assert list(res.t) == [t0 + float(x) for x in ref.t]

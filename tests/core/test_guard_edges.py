@@ -71,3 +71,14 @@ def test_same_root_at_root_agree_relative_to_the_safe_root():
     assert not guard.same_root(q + [1.1 * tol, 0], v, q, v)
     assert not guard.same_root(q, v + [0, 1e-6], q, v)
     assert not guard.same_root(q + [np.nan, 0], v, q, v)
+
+
+def test_the_iteration_test_is_against_the_window_s_largest_count():
+    # the generic engine flags a step whose Newton took more than ITER_FACTOR times the largest
+    # count of the previous WINDOW steps plus ITER_EXTRA: after counts 2, 10, 2, 2 (largest 10)
+    # a step of 22 iterations stands and one of 23 is flagged (the energy does not change)
+    g = guard.StepGuard()
+    for its in (2, 10, 2, 2):
+        g.accept(1.0, 1.0, its)
+    limit = guard.ITER_FACTOR * 10 + guard.ITER_EXTRA
+    assert not g.suspect(4, 1.0, 1.0, limit) and g.suspect(4, 1.0, 1.0, limit + 1)

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import sympy
 
+import ldaspark
 from ldaspark.ensemble import ensemble_integrate
 from ldaspark.core.errors import InputError
 from ldaspark.compiled.fast import fast_integrate, precompile
@@ -136,3 +137,24 @@ def test_fit_growth_recovers_exponents():
     assert fit_growth(t, 3 * np.ones_like(t), [10, 1000]) == pytest.approx(0.0, abs=1e-12)
     with pytest.raises(InputError):
         fit_growth(t, t, [2000, 3000])
+
+
+def test_members_run_with_the_summation_asked_for():
+    # RunSpec(compensated=False) reaches the kernel tasks: each member is bit for bit the kernel
+    # run with plain sums, which differs from the compensated one (the negative control: 2000
+    # skate steps move the last bits of q)
+    from concurrent.futures import ThreadPoolExecutor
+
+    from ldaspark.compiled.fast import compile_system, kernel_spec
+    from ldaspark.compiled.runner import run_kernels
+    from ldaspark.ensemble import RunSpec, run_many
+    sc = ldaspark.get_scene("skate")
+    t0, q0, v0 = (float(sc.initial()[0]), np.array(sc.initial()[1], float), np.array(sc.initial()[2], float))
+    cs, spec = compile_system(sc.system), kernel_spec("gauss-2", "auto")
+    for comp in (False, True):
+        with ThreadPoolExecutor(1) as ex:
+            (ens,) = run_many([RunSpec(sc.system, "gauss-2", t0, [q0], [v0], 0.1, N_STEPS, 100, compensated=comp)],
+                              where=ex, guard=False)
+        ref = run_kernels(cs, spec, t0, q0, v0, 0.1, N_STEPS, 100, comp, None)
+        other = run_kernels(cs, spec, t0, q0, v0, 0.1, N_STEPS, 100, not comp, None)
+        assert np.array_equal(ens.q[0], ref.q) and not np.array_equal(ens.q[0], other.q), comp

@@ -57,3 +57,21 @@ def test_run_many_guard_is_a_flag():
     spec = RunSpec(WELL, "gauss-1", START["t0"], Q0, V0, START["h"], 3)
     with pytest.raises(InputError, match="guard"):       # checked before any work is sent
         run_many([spec], guard="yes")
+
+
+def test_the_guard_reruns_a_member_from_its_own_t0():
+    # the guard's rerun of a member (every step kept, to locate a flagged interval) is the
+    # member's own run from t0: on a rheonomic system (L and k depend on t) from t0 != 0, the
+    # rerun's first steps equal those of the member run with every step kept, bit for bit
+    from verification.general_fixtures import rheonomic_initial, rheonomic_system
+    t0, q0, v0 = rheonomic_initial()
+    sysm = rheonomic_system()
+    q0, v0 = np.asarray(q0, float), np.asarray(v0, float)
+    assert float(t0) != 0.0
+    sampled = RunSpec(sysm, "gauss-2", t0, [q0], [v0], 0.1, 8, 4)
+    every = RunSpec(sysm, "gauss-2", t0, [q0], [v0], 0.1, 8, 1)
+    with ThreadPoolExecutor(1) as ex:
+        (ens,) = run_many([every], where=ex, guard=False)
+        run_many([sampled], where=ex, guard=False)            # sets up the path its tasks ran
+    again = sampled.rerun(q0, v0, 8)
+    assert np.array_equal(np.asarray(again.t), ens.t) and np.array_equal(np.asarray(again.q), ens.q[0])
