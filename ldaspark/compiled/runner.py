@@ -523,6 +523,23 @@ KIND_RUNNERS: dict = {}          # "quasi": registered by ``compiled.quasi`` whe
 
 
 
+def auto_runs_quasi(cs, spec, opts: KernelOptions) -> bool:
+    """Whether the root finder "auto" runs the quasi-Newton iteration (``compiled.quasi``, issue
+    48; the same method (21) to the same stopping rule, with a per-step fallback to the kernels'
+    Newton where it contracts slowly). Chosen per run where it was measured faster than the
+    kernels' Newton (docs/performance.md, "The quasi-Newton step": 1.1-3.5x per step): SPARK
+    tableaus on the SPARK kernel (lobatto-iiia-iiib-2 keeps the semi-implicit kernel (25)), the
+    mechanical form (the general form's quasi step was measured no faster), n below the size from
+    which the Newton matrix is reused or factored by blocks (not measured there), and no linear
+    solver, matrix reuse or kernel asked for (an explicit one is a request for the kernels' Newton)."""
+    if spec[0] != "spark" or cs.form != "mechanical" or cs.n >= REUSE_AUTO_MIN_N:
+        return False
+    if not (isinstance(opts.reuse_matrix, str) and opts.reuse_matrix == "auto" and opts.linear_solver == "auto"
+            and opts.kernel == "auto"):
+        return False
+    return _sparse_structure(cs, spec[1][1].shape[0], "auto") is None
+
+
 def _run_checked(cs, method, start, grid, opts: KernelOptions):
     """``run_compiled`` after ``_check_options`` passed (fast_integrate checks them once, before
     compiling; checking twice was ~3 us of a repeated short call's overhead): ``start`` =
@@ -532,6 +549,8 @@ def _run_checked(cs, method, start, grid, opts: KernelOptions):
                                                      opts.predictor)
     reuse_matrix, linear_solver = opts.reuse_matrix, opts.linear_solver
     spec = method if isinstance(method, tuple) else kernel_spec(method, kernel)
+    if opts.newton_kind == "auto" and auto_runs_quasi(cs, spec, opts):
+        opts = dataclasses.replace(opts, newton_kind="quasi")   # registered by the package (__init__)
     if opts.newton_kind in KIND_RUNNERS:      # a root-finder kind with a module of its own
         return KIND_RUNNERS[opts.newton_kind](cs, spec, start, grid, opts)
     kind, what, name = spec
