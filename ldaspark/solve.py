@@ -412,7 +412,7 @@ def _choose_engine(system, prob: _Problem, opts: IntegrationOptions, quiet: bool
                 use = "generic"
                 if not quiet:
                     _notice(reason)
-    if opts.newton == "quasi" and use != "compiled":
+    if use != "compiled" and opts.newton == "quasi":       # (Newton.__eq__ is not cheap)
         raise InputError(f"newton='quasi' runs on the compiled engine only; the generic engine would run {prob.name} "
                          "here")
     if use == "generic" and prob.kind == "comparator":
@@ -434,12 +434,28 @@ def _single(system, member, prob: _Problem, opts: IntegrationOptions, quiet=Fals
     res = _drive(engine, prep, start)
     res.method, res.system, res.scene, res.h, res.dps, res.save_every, res.params = \
         prob.name, system.name, prob.scene, prob.h, dps, opts.save_every, pvals
-    res.coordinate_names = [str(x) for x in system.q]
+    res.coordinate_names = _coordinate_names(system)
     if opts.project and len(res.t):
         _note_projection(res, v0)
     if opts.raise_on_failure and res.status < 0:
         res.raise_for_status()
     return res
+
+
+def _coordinate_names(system) -> list:
+    """The names of the coordinates q as printed (a fresh list), printed once per tuple of q symbols
+    (sympy's printer took ~3 us a name at every call)."""
+    key = tuple(system.q)
+    hit = _NAMES.get(key)
+    if hit is None:
+        if len(_NAMES) >= 256:         # bounded: a sweep over new systems makes a key per system
+            _NAMES.clear()
+        hit = _NAMES[key] = tuple(str(x) for x in key)
+    return list(hit)
+
+
+#: tuple of q symbols -> their printed names (``_coordinate_names``)
+_NAMES: dict = {}
 
 
 def _note_projection(res: Result, v0) -> None:

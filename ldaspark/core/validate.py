@@ -285,6 +285,10 @@ def real_vector(x, what: str):
     """q0 / v0: a sequence of real numbers (1-D), or rows of them (2-D, an ensemble); entries as
     accepted by ``real_number``. Returns x unchanged (strings and mpf keep their digits)."""
     import numpy as np
+    if type(x) is np.ndarray and x.dtype == np.float64 and x.ndim in (1, 2) and x.size and np.isfinite(x).all():
+        return x          # finite float64 numbers: what the entry-wise checks below would accept
+    if type(x) in (list, tuple) and x and all(type(e) is float and math.isfinite(e) for e in x):
+        return x          # a vector of finite floats (a scene's initial data): likewise
     try:
         a = np.asarray(x, dtype=object)
     except (ValueError, TypeError):
