@@ -519,8 +519,8 @@ def model_jit(sig=None, **options):
 
 
 # --- numba's own cache of the kernels -------------------------------------------------------------------
-#: kernel cache directory -> (the directory path_trust judged, the fingerprint of every component it
-#: looked at) when it was found safe
+#: kernel cache directory -> (the directory path_trust judged, ((component, fingerprint), ...) of
+#: the components it looked at before the last, (the last one, its fingerprint)) when found safe
 _KERNEL_CACHE_OK: dict = {}
 #: the kernel modules (a tuple, held: no id reuse) -> the cache paths of their dispatchers
 _KERNEL_PATHS: dict = {}
@@ -549,9 +549,15 @@ def _still_trusted(path: str) -> bool:
     # is; judged by its parent: it must still not exist as a directory
     if rec is None or (rec[0] != path and _kernel_cache_target(path) != rec[0]):
         return False
-    last = len(rec[1]) - 1
+    lstat = os.lstat
     try:
-        return all(_fingerprint(os.lstat(p), i == last) == fp for i, (p, fp) in enumerate(rec[1]))
+        for p, fp in rec[1]:
+            st = lstat(p)
+            if (st.st_dev, st.st_ino, st.st_mode, st.st_uid) != fp:
+                return False
+        p, fp = rec[2]
+        st = lstat(p)
+        return (st.st_dev, st.st_ino, st.st_mode, st.st_uid, st.st_mtime_ns, st.st_ctime_ns) == fp
     except OSError:
         return False
 
@@ -596,8 +602,8 @@ def check_kernel_cache(modules) -> None:
             _KERNEL_CACHE_OK.pop(path, None)
             raise CacheDirectoryError(f"numba would load the compiled kernels from {path}, which is not safe "
                                       f"({why}); point NUMBA_CACHE_DIR at a directory only you can write")
-        last = len(walked) - 1
-        _KERNEL_CACHE_OK[path] = (target, tuple((p, _fingerprint(st, i == last)) for i, (p, st) in enumerate(walked)))
+        _KERNEL_CACHE_OK[path] = (target, tuple((p, _fingerprint(st, False)) for p, st in walked[:-1]),
+                                  (walked[-1][0], _fingerprint(walked[-1][1], True)))
 
 
 # --- generated sources by the model's content ------------------------------------------------------

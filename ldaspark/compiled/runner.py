@@ -432,11 +432,20 @@ def _check_options_now(n_steps, every, predictor, tol, max_iter, n_dof, n_con):
 
 
 def _kernels():
-    from . import kernels       # cheap: a kernel compiles (or loads) on its first use, in _entry
-    from . import kernels_general, kernels_mech, newton
+    """The kernels module, after ``cache.check_kernel_cache`` of the directory numba loads them
+    from (at every call: cheap after the first, and a directory made unsafe since is refused)."""
+    mods = _KERNEL_MODULES
+    if not mods:
+        from . import kernels       # cheap: a kernel compiles (or loads) on its first use, in _entry
+        from . import kernels_general, kernels_mech, newton
+        mods = _KERNEL_MODULES[:] = [(kernels, kernels_general, kernels_mech, newton)]
     from .cache import check_kernel_cache
-    check_kernel_cache((kernels, kernels_general, kernels_mech, newton))   # numba unpickles from there
-    return kernels
+    check_kernel_cache(mods[0])     # numba unpickles from there
+    return mods[0][0]
+
+
+#: [the kernel modules] once imported (``_kernels``)
+_KERNEL_MODULES: list = []
 
 
 # the kernels the main job's compiled-path jobs run (``reports.jobs.PRELUDE`` compiles them first)

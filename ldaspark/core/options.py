@@ -56,7 +56,8 @@ class IntegrationOptions:
         is not 1), so a repeated call checks them once; the options object is frozen and shared."""
         key = (engine, dps, newton, tol, save_every, dense_output, energy_jump, executor, max_stages, project,
                raise_on_failure, guard)
-        key = key + tuple(map(type, key)) if all(type(x) in _PLAIN for x in key) else None
+        types = tuple(map(type, key))
+        key = key + types if _PLAIN.issuperset(types) else None
         hit = _CHECKED_OPTIONS.get(key) if key is not None else None
         if hit is not None:
             return hit
@@ -125,6 +126,6 @@ class IntegrationOptions:
 
 #: the value types whose options ``IntegrationOptions.checked`` remembers (hashable, immutable,
 #: equal values validate alike)
-_PLAIN = (str, int, float, bool, type(None))
+_PLAIN = frozenset((str, int, float, bool, type(None)))
 #: (the options' values, their types) -> the checked ``IntegrationOptions``
 _CHECKED_OPTIONS: dict = {}

@@ -97,6 +97,8 @@ def real_number(x, what: str, *, positive: bool = False, nonzero: bool = False):
     """A finite real number given as int, float, a NumPy scalar, mpmath ``mpf``, a real sympy
     number or a decimal string (kept as given, so that mpmath runs keep its digits). Returns x.
     Refused: bool (``h=True`` is not 1), complex, None, sequences, non-numeric strings, NaN, inf."""
+    if type(x) is float and math.isfinite(x) and (x > 0 or not positive) and (x != 0 or not nonzero):
+        return x            # the common case, accepted by the checks below
     ok, val = False, None
     if _is_bool(x):
         raise InputError(f"{what} must be a real number, got the bool {x!r}")
@@ -489,14 +491,16 @@ def initial_point(system, bk, t0, q0, v0, *, member: str = "", project: bool = F
     if q.shape != (system.n,) or v.shape != (system.n,):
         raise InputError(f"{member}initial data have shapes q: {q.shape}, v: {v.shape}; the system has "
                          f"n = {system.n}")
-    if not (math.isfinite(float(t)) and bk.isfinite(q) and bk.isfinite(v)):
-        raise InputError(f"{member}initial data contain NaN or infinity")
     key = memo = None
     if consistent and not project and not bk.is_mp:
+        # a remembered point passed every check below (finite values included): the same bytes
+        # are the same numbers
         key = (float(t), q.tobytes(), v.tobytes(), tol)
         memo = _CHECKED.get(id(system))
         if memo is not None and memo[0] is system and key in memo[1]:
             return t, q, v
+    if not (math.isfinite(float(t)) and bk.isfinite(q) and bk.isfinite(v)):
+        raise InputError(f"{member}initial data contain NaN or infinity")
     finite_initial_point(system, bk, t, q, v, member)
     if not consistent:
         return t, q, v
