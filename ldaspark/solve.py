@@ -274,7 +274,7 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
     opts = opts.with_events(events)
     prob = _Problem(kind, what, name, t0, h, N, scene)
     batch_params = isinstance(params, (list, tuple))
-    batch_ic = dps is None and np.ndim(np.asarray(q0, dtype=object)) == 2
+    batch_ic = dps is None and _ndim(q0) == 2
     if batch_params and not params:
         raise InputError("params is an empty list: an ensemble needs at least one member")
     if batch_params or batch_ic:
@@ -299,6 +299,15 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
                                 prob, member_opts)
         return stack(_run_members(executor, run, jobs))
     return _single(sysm, (params, q0, v0), prob, opts)
+
+
+def _ndim(x) -> int:
+    """The number of axes of q0 / v0 as numpy reads a nested sequence of numbers (objects kept)."""
+    if type(x) is np.ndarray:
+        return x.ndim
+    if type(x) in (list, tuple) and all(type(e) is float for e in x):
+        return 1 if x else np.ndim(np.asarray(x, dtype=object))
+    return np.ndim(np.asarray(x, dtype=object))
 
 
 def _run_members(executor, run, jobs) -> list:
@@ -484,9 +493,10 @@ def _check_initial_point(system, start, dps, bk=None, opts: Optional[Integration
     ``opts.project``, (1c). ``start`` = (t0, q0, v0); returns it in ``bk``'s numbers (of the last
     member)."""
     (t0, q0, v0), bk = start, Backend(dps) if bk is None else bk
-    rows = [(np.asarray(q0, dtype=object), np.asarray(v0, dtype=object))]
-    if rows[0][0].ndim == 2:                      # an initial-data ensemble: every member
-        rows = list(zip(rows[0][0], rows[0][1]))
+    if _ndim(q0) == 2:                            # an initial-data ensemble: every member
+        rows = list(zip(np.asarray(q0, dtype=object), np.asarray(v0, dtype=object)))
+    else:
+        rows = [(q0, v0)]
     project, tol = (False, None) if opts is None else (opts.project, opts.tol)
     start = None
     with bk.context():
