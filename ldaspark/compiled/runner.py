@@ -589,7 +589,7 @@ def _run_checked(cs, method, start, grid, opts: KernelOptions):
         if solver == "dense":
             _entry("spark_run" if cs.form == "mechanical" else "general_run")(model, what, cs.M, *run, *outs,
                                                                                stats, out_x)
-    st = dict(zip(STAT_NAMES, (int(x) for x in stats)))
+    st = dict(zip(STAT_NAMES, stats.tolist()))          # Python ints
     if st["failed_step"] >= 0:
         # the SPARK kernels leave the residual at the last iterate in out_x[0] (kernels.spark_loop)
         raise _failure(st, name, float(t0), h, None if kind == "lf2" else float(out_x[0]))

@@ -475,6 +475,30 @@ def test_kernel_cache_not_yet_created_is_judged_by_its_parent_until_it_exists(tm
         cache.check_kernel_cache([mod])
 
 
+def test_integrate_refuses_the_compiled_engine_once_its_kernel_cache_is_made_unsafe(tmp_path, monkeypatch):
+    """Through ``ldaspark.integrate``: a first compiled run passes the check; the kernel cache
+    directory made writable by everyone afterwards: engine='compiled' is refused naming it, 'auto'
+    falls back to the generic engine (the kernels' paths pointed at a test directory)."""
+    import ldaspark
+    from ldaspark.core.errors import InputError
+    tree = tmp_path / "numba-cache"
+    (tree / "sub").mkdir(parents=True)
+    os.chmod(tree, 0o755)
+    monkeypatch.setattr(cache, "_kernel_paths", lambda modules: [str(tree / "sub")])
+    run = dict(h=0.1, n_steps=3)
+    first = ldaspark.integrate("particle", "gauss-2", engine="compiled", **run)
+    assert first.status == 0 and first.engine == "compiled"
+    assert ldaspark.integrate("particle", "gauss-2", engine="compiled", **run).engine == "compiled"
+    os.chmod(tree / "sub", 0o777)
+    for newton in ("auto", "quasi"):
+        with pytest.raises(InputError, match="not safe"):
+            ldaspark.integrate("particle", "gauss-2", engine="compiled", newton=newton, **run)
+    fallback = ldaspark.integrate("particle", "gauss-2", **run)
+    assert fallback.engine == "generic"
+    os.chmod(tree / "sub", 0o755)
+    assert ldaspark.integrate("particle", "gauss-2", engine="compiled", **run).engine == "compiled"
+
+
 @pytest.mark.skipif(not ROOT, reason="chown needs root")
 def test_kernel_cache_given_to_another_user_after_a_first_check_is_refused(tmp_path):
     tree = tmp_path / "numba-cache"
