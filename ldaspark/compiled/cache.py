@@ -564,8 +564,10 @@ def _still_trusted(path: str) -> bool:
 
 def _kernel_paths(modules) -> list:
     """The cache paths numba's locators chose for the dispatchers of ``modules`` (fixed when a
-    module's dispatchers were made), collected once per tuple of modules."""
-    key = tuple(modules)
+    module's dispatchers were made), collected once per tuple of modules and numba's
+    ``NUMBA_CACHE_DIR`` setting (a module reloaded after it changed has dispatchers elsewhere)."""
+    config = sys.modules.get("numba.core.config")
+    key = (tuple(modules), getattr(config, "CACHE_DIR", None))
     hit = _KERNEL_PATHS.get(key)
     if hit is not None:
         return hit

@@ -475,6 +475,24 @@ def test_kernel_cache_not_yet_created_is_judged_by_its_parent_until_it_exists(tm
         cache.check_kernel_cache([mod])
 
 
+def test_kernel_paths_are_collected_again_under_another_numba_cache_dir(tmp_path, monkeypatch):
+    """The kernel modules' cache paths are collected once per NUMBA_CACHE_DIR setting: dispatchers
+    made again under another setting (here: the fake dispatcher's path moved to a directory others
+    can write) are checked there."""
+    from numba.core import config
+    safe, shared = tmp_path / "safe", tmp_path / "shared"
+    safe.mkdir()
+    shared.mkdir()
+    os.chmod(tmp_path, 0o755)
+    os.chmod(shared, 0o777)
+    mod = _fake_kernel_module(safe)
+    cache.check_kernel_cache([mod])
+    mod.k._cache.cache_path = str(shared)
+    monkeypatch.setattr(config, "CACHE_DIR", str(tmp_path))
+    with pytest.raises(cache.CacheDirectoryError, match="writable by other users"):
+        cache.check_kernel_cache([mod])
+
+
 def test_integrate_refuses_the_compiled_engine_once_its_kernel_cache_is_made_unsafe(tmp_path, monkeypatch):
     """Through ``ldaspark.integrate``: a first compiled run passes the check; the kernel cache
     directory made writable by everyone afterwards: engine='compiled' is refused naming it, 'auto'
