@@ -432,11 +432,20 @@ def _check_options_now(n_steps, every, predictor, tol, max_iter, n_dof, n_con):
 
 
 def _kernels():
-    from . import kernels       # cheap: a kernel compiles (or loads) on its first use, in _entry
-    from . import kernels_general, kernels_mech, newton
+    """The kernels module, after ``cache.check_kernel_cache`` of the directory numba loads them
+    from (at every call: cheap after the first, and a directory made unsafe since is refused)."""
+    mods = _KERNEL_MODULES
+    if not mods:
+        from . import kernels       # cheap: a kernel compiles (or loads) on its first use, in _entry
+        from . import kernels_general, kernels_mech, newton
+        mods = _KERNEL_MODULES[:] = [(kernels, kernels_general, kernels_mech, newton)]
     from .cache import check_kernel_cache
-    check_kernel_cache((kernels, kernels_general, kernels_mech, newton))   # numba unpickles from there
-    return kernels
+    check_kernel_cache(mods[0])     # numba unpickles from there
+    return mods[0][0]
+
+
+#: [the kernel modules] once imported (``_kernels``)
+_KERNEL_MODULES: list = []
 
 
 # the kernels the main job's compiled-path jobs run (``reports.jobs.PRELUDE`` compiles them first)
@@ -599,7 +608,7 @@ def _run_checked(cs, method, start, grid, opts: KernelOptions):
         if solver == "dense":
             _entry("spark_run" if cs.form == "mechanical" else "general_run")(model, what, cs.M, *run, *outs,
                                                                                stats, out_x)
-    st = dict(zip(STAT_NAMES, (int(x) for x in stats)))
+    st = dict(zip(STAT_NAMES, stats.tolist()))          # Python ints
     if st["failed_step"] >= 0:
         # the SPARK kernels leave the residual at the last iterate in out_x[0] (kernels.spark_loop)
         raise _failure(st, name, float(t0), h, None if kind == "lf2" else float(out_x[0]))
