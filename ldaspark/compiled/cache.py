@@ -44,6 +44,7 @@ import types
 import uuid
 
 from ..core.errors import LdasparkError
+from ..core.gensource import SOURCE_LOCK
 
 
 class CacheDirectoryError(LdasparkError):
@@ -683,7 +684,9 @@ def load_source(source: str, prefix: str = "ldaspark_model_", digest: str | None
     mod.__file__ = path
     sys.modules[modname] = mod
     try:
-        exec(compile(source, path, "exec"), mod.__dict__)
+        with SOURCE_LOCK:             # compile in two threads at once (gensource.SOURCE_LOCK)
+            code = compile(source, path, "exec")
+        exec(code, mod.__dict__)
     except BaseException:
         sys.modules.pop(modname, None)
         raise
