@@ -53,7 +53,8 @@ def main(argv=None):
     ap.add_argument("--rounds", type=int, default=3, help="interleaved rounds (CPU time: the minimum)")
     ap.add_argument("--out", default=os.path.join("reports", "peers.json"))
     ap.add_argument("--newton", default="auto", choices=("auto", "quasi"),
-                    help="root finder of the SPARK runs through ldaspark.integrate (default: auto, Newton)")
+                    help="root finder of the SPARK runs through ldaspark.integrate (default: auto, the quasi "
+                         "iteration where runner.auto_runs_quasi holds, the kernels' Newton elsewhere)")
     a = ap.parse_args(argv)
     if a.rounds < 1:
         print("peers.py: --rounds must be at least 1", file=sys.stderr)

@@ -274,7 +274,7 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
     opts = opts.with_events(events)
     prob = _Problem(kind, what, name, t0, h, N, scene)
     batch_params = isinstance(params, (list, tuple))
-    batch_ic = dps is None and np.ndim(np.asarray(q0, dtype=object)) == 2
+    batch_ic = dps is None and _ndim(q0) == 2
     if batch_params and not params:
         raise InputError("params is an empty list: an ensemble needs at least one member")
     if batch_params or batch_ic:
@@ -299,6 +299,15 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
                                 prob, member_opts)
         return stack(_run_members(executor, run, jobs))
     return _single(sysm, (params, q0, v0), prob, opts)
+
+
+def _ndim(x) -> int:
+    """The number of axes of q0 / v0 as numpy reads a nested sequence of numbers (objects kept)."""
+    if type(x) is np.ndarray:
+        return x.ndim
+    if type(x) in (list, tuple) and all(type(e) is float for e in x):
+        return 1 if x else np.ndim(np.asarray(x, dtype=object))
+    return np.ndim(np.asarray(x, dtype=object))
 
 
 def _run_members(executor, run, jobs) -> list:
@@ -412,7 +421,7 @@ def _choose_engine(system, prob: _Problem, opts: IntegrationOptions, quiet: bool
                 use = "generic"
                 if not quiet:
                     _notice(reason)
-    if opts.newton == "quasi" and use != "compiled":
+    if use != "compiled" and opts.newton == "quasi":       # (Newton.__eq__ is not cheap)
         raise InputError(f"newton='quasi' runs on the compiled engine only; the generic engine would run {prob.name} "
                          "here")
     if use == "generic" and prob.kind == "comparator":
@@ -434,12 +443,28 @@ def _single(system, member, prob: _Problem, opts: IntegrationOptions, quiet=Fals
     res = _drive(engine, prep, start)
     res.method, res.system, res.scene, res.h, res.dps, res.save_every, res.params = \
         prob.name, system.name, prob.scene, prob.h, dps, opts.save_every, pvals
-    res.coordinate_names = [str(x) for x in system.q]
+    res.coordinate_names = _coordinate_names(system)
     if opts.project and len(res.t):
         _note_projection(res, v0)
     if opts.raise_on_failure and res.status < 0:
         res.raise_for_status()
     return res
+
+
+def _coordinate_names(system) -> list:
+    """The names of the coordinates q as printed (a fresh list), printed once per tuple of q symbols
+    (sympy's printer took ~3 us a name at every call)."""
+    key = tuple(system.q)
+    hit = _NAMES.get(key)
+    if hit is None:
+        if len(_NAMES) >= 256:         # bounded: a sweep over new systems makes a key per system
+            _NAMES.clear()
+        hit = _NAMES[key] = tuple(str(x) for x in key)
+    return list(hit)
+
+
+#: tuple of q symbols -> their printed names (``_coordinate_names``)
+_NAMES: dict = {}
 
 
 def _note_projection(res: Result, v0) -> None:
@@ -468,9 +493,10 @@ def _check_initial_point(system, start, dps, bk=None, opts: Optional[Integration
     ``opts.project``, (1c). ``start`` = (t0, q0, v0); returns it in ``bk``'s numbers (of the last
     member)."""
     (t0, q0, v0), bk = start, Backend(dps) if bk is None else bk
-    rows = [(np.asarray(q0, dtype=object), np.asarray(v0, dtype=object))]
-    if rows[0][0].ndim == 2:                      # an initial-data ensemble: every member
-        rows = list(zip(rows[0][0], rows[0][1]))
+    if _ndim(q0) == 2:                            # an initial-data ensemble: every member
+        rows = list(zip(np.asarray(q0, dtype=object), np.asarray(v0, dtype=object)))
+    else:
+        rows = [(q0, v0)]
     project, tol = (False, None) if opts is None else (opts.project, opts.tol)
     start = None
     with bk.context():

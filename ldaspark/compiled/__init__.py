@@ -12,3 +12,7 @@ the SPARK step (21a-f) and the semi-implicit comparators, ensembles on any Execu
 
 Imports ``ldaspark.core`` and ``ldaspark.models`` only.
 """
+
+# the quasi-Newton root finder registers its runner (``runner.KIND_RUNNERS["quasi"]``) on import:
+# the default root finder runs it (``runner.auto_runs_quasi``) wherever a kernel runs
+from . import quasi  # noqa: E402,F401

@@ -44,6 +44,7 @@ import types
 import uuid
 
 from ..core.errors import LdasparkError
+from ..core.gensource import SOURCE_LOCK
 
 
 class CacheDirectoryError(LdasparkError):
@@ -79,7 +80,7 @@ def _trusted_owner(st) -> bool:
     return uid is None or st.st_uid in (uid, 0)
 
 
-def path_trust(path: str, final_private: bool = True) -> str:
+def path_trust(path: str, final_private: bool = True, walked: list | None = None) -> str:
     """"" when every component of ``path`` is safe, else the reason it is not.
 
     Safe: each ancestor directory owned by this user or root and not writable by group or others
@@ -88,7 +89,9 @@ def path_trust(path: str, final_private: bool = True) -> str:
     elsewhere by them); the final component a directory owned by this user and not accessible
     to anyone else, or, without ``final_private``, owned by this user or root and not writable
     by anyone else. Links are followed (at most MAX_LINK_HOPS),
-    the components of their targets checked the same way."""
+    the components of their targets checked the same way. ``walked``: a list that receives
+    (component, its lstat) of every component looked at, in order (what the verdict depends on:
+    ``check_kernel_cache`` compares them again at every call)."""
     uid = _uid()
     path = os.fspath(path)
     todo = path.split(os.sep) if os.path.isabs(path) else os.getcwd().split(os.sep) + path.split(os.sep)
@@ -104,6 +107,8 @@ def path_trust(path: str, final_private: bool = True) -> str:
             st = os.lstat(nxt)
         except OSError as exc:
             return f"{nxt}: {exc.strerror or exc}"
+        if walked is not None:
+            walked.append((nxt, st))
         if stat.S_ISLNK(st.st_mode):
             if not _trusted_owner(st):
                 return f"{nxt} is a symbolic link owned by another user (uid {st.st_uid})"
@@ -127,6 +132,10 @@ def path_trust(path: str, final_private: bool = True) -> str:
         st = os.lstat(cur)                                # cur is free of links
     except OSError as exc:
         return f"{cur}: {exc.strerror or exc}"
+    if walked is not None:
+        if walked and walked[-1][0] == cur:
+            walked.pop()                                  # looked at again: its newer lstat
+        walked.append((cur, st))
     if not final_private:                                # a shared read-only place (an installed package)
         if not _trusted_owner(st):
             return f"{cur} belongs to another user (uid {st.st_uid})"
@@ -511,15 +520,58 @@ def model_jit(sig=None, **options):
 
 
 # --- numba's own cache of the kernels -------------------------------------------------------------------
-_KERNEL_CACHE_OK: list = []
+#: kernel cache directory -> (the directory path_trust judged, ((component, fingerprint), ...) of
+#: the components it looked at before the last, (the last one, its fingerprint)) when found safe
+_KERNEL_CACHE_OK: dict = {}
+#: the kernel modules (a tuple, held: no id reuse) -> the cache paths of their dispatchers
+_KERNEL_PATHS: dict = {}
 
 
-def check_kernel_cache(modules) -> None:
-    """Raise CacheDirectoryError unless every directory numba would load the cached kernels of
-    ``modules`` from (the package's ``__pycache__``, ``NUMBA_CACHE_DIR`` or numba's per-user cache,
-    as numba's locators choose) is safe by ``path_trust(..., final_private=False)``: numba unpickles
-    the index files found there, so a directory another user can write is a way to run code in
-    this process. Checked once per process and directory."""
+def _fingerprint(st, final: bool) -> tuple:
+    """What the trust verdict of one component depends on: its identity (a replaced directory or
+    link is another inode), type and mode, owner; for the final directory also its mtime and ctime
+    (an entry added, removed or renamed in it, or its metadata changed)."""
+    fp = (st.st_dev, st.st_ino, st.st_mode, st.st_uid)
+    return fp + (st.st_mtime_ns, st.st_ctime_ns) if final else fp
+
+
+def _kernel_cache_target(path: str) -> str:
+    """The directory whose trust decides: the cache directory itself, or its parent while numba has
+    not created it (it would create it there)."""
+    return path if os.path.isdir(path) else os.path.dirname(path)
+
+
+def _still_trusted(path: str) -> bool:
+    """True when ``path`` was found safe and nothing its verdict depends on has changed since: the
+    same directory judged, every component (ancestors, links, the directory) with the same lstat
+    fingerprint. One lstat per component: a few microseconds, against a full ``path_trust``."""
+    rec = _KERNEL_CACHE_OK.get(path)
+    # judged as the directory itself: its unchanged fingerprint (inode, a directory) says it still
+    # is; judged by its parent: it must still not exist as a directory
+    if rec is None or (rec[0] != path and _kernel_cache_target(path) != rec[0]):
+        return False
+    lstat = os.lstat
+    try:
+        for p, fp in rec[1]:
+            st = lstat(p)
+            if (st.st_dev, st.st_ino, st.st_mode, st.st_uid) != fp:
+                return False
+        p, fp = rec[2]
+        st = lstat(p)
+        return (st.st_dev, st.st_ino, st.st_mode, st.st_uid, st.st_mtime_ns, st.st_ctime_ns) == fp
+    except OSError:
+        return False
+
+
+def _kernel_paths(modules) -> list:
+    """The cache paths numba's locators chose for the dispatchers of ``modules`` (fixed when a
+    module's dispatchers were made), collected once per tuple of modules and numba's
+    ``NUMBA_CACHE_DIR`` setting (a module reloaded after it changed has dispatchers elsewhere)."""
+    config = sys.modules.get("numba.core.config")
+    key = (tuple(modules), getattr(config, "CACHE_DIR", None))
+    hit = _KERNEL_PATHS.get(key)
+    if hit is not None:
+        return hit
     paths = set()
     for mod in modules:
         for obj in vars(mod).values():
@@ -527,15 +579,34 @@ def check_kernel_cache(modules) -> None:
             path = getattr(cache, "cache_path", None) if cache is not None else None
             if isinstance(path, str):
                 paths.add(path)
-    for path in sorted(paths):
-        if path in _KERNEL_CACHE_OK:
+    if len(_KERNEL_PATHS) >= 64:           # bounded: the library passes two tuples
+        _KERNEL_PATHS.clear()
+    hit = _KERNEL_PATHS[key] = sorted(paths)
+    return hit
+
+
+def check_kernel_cache(modules) -> None:
+    """Raise CacheDirectoryError unless every directory numba would load the cached kernels of
+    ``modules`` from (the package's ``__pycache__``, ``NUMBA_CACHE_DIR`` or numba's per-user cache,
+    as numba's locators choose) is safe by ``path_trust(..., final_private=False)``: numba unpickles
+    the index files found there, so a directory another user can write is a way to run code in
+    this process. Checked at every call: in full the first time, afterwards by comparing the lstat
+    fingerprint of every component the full check looked at (``_still_trusted``; any change, a
+    chmod, chown, replaced or re-linked component, a file added or removed in the directory,
+    means the full check again), so that a directory made unsafe after a first run is still
+    refused."""
+    for path in _kernel_paths(modules):
+        if _still_trusted(path):
             continue
-        why = path_trust(path, final_private=False) if os.path.isdir(path) else path_trust(
-            os.path.dirname(path), final_private=False)
+        target = _kernel_cache_target(path)
+        walked: list = []
+        why = path_trust(target, final_private=False, walked=walked)
         if why:
+            _KERNEL_CACHE_OK.pop(path, None)
             raise CacheDirectoryError(f"numba would load the compiled kernels from {path}, which is not safe "
                                       f"({why}); point NUMBA_CACHE_DIR at a directory only you can write")
-        _KERNEL_CACHE_OK.append(path)
+        _KERNEL_CACHE_OK[path] = (target, tuple((p, _fingerprint(st, False)) for p, st in walked[:-1]),
+                                  (walked[-1][0], _fingerprint(walked[-1][1], True)))
 
 
 # --- generated sources by the model's content ------------------------------------------------------
@@ -613,7 +684,9 @@ def load_source(source: str, prefix: str = "ldaspark_model_", digest: str | None
     mod.__file__ = path
     sys.modules[modname] = mod
     try:
-        exec(compile(source, path, "exec"), mod.__dict__)
+        with SOURCE_LOCK:             # compile in two threads at once (gensource.SOURCE_LOCK)
+            code = compile(source, path, "exec")
+        exec(code, mod.__dict__)
     except BaseException:
         sys.modules.pop(modname, None)
         raise

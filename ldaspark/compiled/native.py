@@ -30,7 +30,7 @@ import math
 import os
 
 from ..core.errors import LdasparkError
-from ..core.gensource import BalancedSums
+from ..core.gensource import SOURCE_LOCK, BalancedSums
 import numba.experimental.function_type  # noqa: F401  (registers typeof/unboxing of the protocol)
 from numba.core.types.function_type import WrapperAddressProtocol
 from numba.core.typing.templates import Signature
@@ -365,7 +365,8 @@ def _constants(source: str) -> dict:
 def _tree(source: str):
     """The syntax tree of a model source, parsed once for its constants and its translation (a
     large model's parse is a tenth of a second); read only."""
-    return ast.parse(source)
+    with SOURCE_LOCK:                 # ast.parse in two threads at once (gensource.SOURCE_LOCK)
+        return ast.parse(source)
 
 
 def compile_model(source: str, params=()) -> tuple:
@@ -507,14 +508,9 @@ def _init_llvm():
         _LLVM_READY.append(True)
 
 
-def python_module(source: str):
-    """The model module's functions as plain Python (numpy arrays in and out), for the few calls
-    made outside the kernels (the set-up checks): the generated source executed with the jit
-    decorator replaced by the identity, nothing compiled. The source is codegen's own output,
-    whose every name is checked (``codegen._only_generated_symbols``); long sums and products
-    are rebalanced (``gensource.BalancedSums``) so that any model size compiles."""
+def _python_code(source: str):
+    """The code object of ``python_module`` (under ``SOURCE_LOCK``)."""
     import sys
-    import types as _types
     try:
         tree = ast.parse(source)
     except (RecursionError, MemoryError, SyntaxError) as exc:
@@ -528,11 +524,22 @@ def python_module(source: str):
         tree = ast.fix_missing_locations(BalancedSums().visit(tree))
     finally:
         sys.setrecursionlimit(limit)
-    mod = _types.ModuleType("ldaspark_model_python")
-    mod.__dict__["_jit"] = lambda *args, **kwargs: (lambda f: f)
     try:
-        code = compile(tree, "<ldaspark model>", "exec")
+        return compile(tree, "<ldaspark model>", "exec")
     except (RecursionError, MemoryError) as exc:
         raise NotNativeError(f"the model's Python form does not compile ({type(exc).__name__})") from None
+
+
+def python_module(source: str):
+    """The model module's functions as plain Python (numpy arrays in and out), for the few calls
+    made outside the kernels (the set-up checks): the generated source executed with the jit
+    decorator replaced by the identity, nothing compiled. The source is codegen's own output,
+    whose every name is checked (``codegen._only_generated_symbols``); long sums and products
+    are rebalanced (``gensource.BalancedSums``) so that any model size compiles."""
+    import types as _types
+    with SOURCE_LOCK:                 # parse, recursion limit and compile: one thread at a time
+        code = _python_code(source)
+    mod = _types.ModuleType("ldaspark_model_python")
+    mod.__dict__["_jit"] = lambda *args, **kwargs: (lambda f: f)
     exec(code, mod.__dict__)     # noqa: S102  (our generated code)
     return mod

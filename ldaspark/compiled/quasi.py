@@ -135,7 +135,7 @@ def run_quasi(cs, method, t0, q0, v0, h, n_steps, every=1, compensated=True, tol
     st.update(zip(QUASI_STAT_NAMES, (int(x) for x in qstats)))
     st["mean_iterations"] = st["newton_iterations"] / max(st["steps"], 1)
     st.update(path="fast", kernel="quasi", form=cs.form, compensated=bool(compensated), linear_solver="dense",
-              reuse_matrix=False, root_finder="quasi")
+              reuse_matrix=False, root_finder="quasi", newton_kind="quasi")
     return FastSolution(*outs, st, out_x[NN:].reshape(S - 1, s_, cs.m))
 
 

@@ -432,11 +432,20 @@ def _check_options_now(n_steps, every, predictor, tol, max_iter, n_dof, n_con):
 
 
 def _kernels():
-    from . import kernels       # cheap: a kernel compiles (or loads) on its first use, in _entry
-    from . import kernels_general, kernels_mech, newton
+    """The kernels module, after ``cache.check_kernel_cache`` of the directory numba loads them
+    from (at every call: cheap after the first, and a directory made unsafe since is refused)."""
+    mods = _KERNEL_MODULES
+    if not mods:
+        from . import kernels       # cheap: a kernel compiles (or loads) on its first use, in _entry
+        from . import kernels_general, kernels_mech, newton
+        mods = _KERNEL_MODULES[:] = [(kernels, kernels_general, kernels_mech, newton)]
     from .cache import check_kernel_cache
-    check_kernel_cache((kernels, kernels_general, kernels_mech, newton))   # numba unpickles from there
-    return kernels
+    check_kernel_cache(mods[0])     # numba unpickles from there
+    return mods[0][0]
+
+
+#: [the kernel modules] once imported (``_kernels``)
+_KERNEL_MODULES: list = []
 
 
 # the kernels the main job's compiled-path jobs run (``reports.jobs.PRELUDE`` compiles them first)
@@ -523,6 +532,23 @@ KIND_RUNNERS: dict = {}          # "quasi": registered by ``compiled.quasi`` whe
 
 
 
+def auto_runs_quasi(cs, spec, opts: KernelOptions) -> bool:
+    """Whether the root finder "auto" runs the quasi-Newton iteration (``compiled.quasi``, issue
+    48; the same method (21) to the same stopping rule, with a per-step fallback to the kernels'
+    Newton where it contracts slowly). Chosen per run where it was measured faster than the
+    kernels' Newton (docs/performance.md, "The quasi-Newton step": 1.1-3.5x per step): SPARK
+    tableaus on the SPARK kernel (lobatto-iiia-iiib-2 keeps the semi-implicit kernel (25)), the
+    mechanical form (the general form's quasi step was measured no faster), n below the size from
+    which the Newton matrix is reused or factored by blocks (not measured there), and no linear
+    solver, matrix reuse or kernel asked for (an explicit one is a request for the kernels' Newton)."""
+    if spec[0] != "spark" or cs.form != "mechanical" or cs.n >= REUSE_AUTO_MIN_N:
+        return False
+    if not (isinstance(opts.reuse_matrix, str) and opts.reuse_matrix == "auto" and opts.linear_solver == "auto"
+            and opts.kernel == "auto"):
+        return False
+    return _sparse_structure(cs, spec[1][1].shape[0], "auto") is None
+
+
 def _run_checked(cs, method, start, grid, opts: KernelOptions):
     """``run_compiled`` after ``_check_options`` passed (fast_integrate checks them once, before
     compiling; checking twice was ~3 us of a repeated short call's overhead): ``start`` =
@@ -532,6 +558,8 @@ def _run_checked(cs, method, start, grid, opts: KernelOptions):
                                                      opts.predictor)
     reuse_matrix, linear_solver = opts.reuse_matrix, opts.linear_solver
     spec = method if isinstance(method, tuple) else kernel_spec(method, kernel)
+    if opts.newton_kind == "auto" and auto_runs_quasi(cs, spec, opts):
+        opts = dataclasses.replace(opts, newton_kind="quasi")   # registered by the package (__init__)
     if opts.newton_kind in KIND_RUNNERS:      # a root-finder kind with a module of its own
         return KIND_RUNNERS[opts.newton_kind](cs, spec, start, grid, opts)
     kind, what, name = spec
@@ -580,7 +608,7 @@ def _run_checked(cs, method, start, grid, opts: KernelOptions):
         if solver == "dense":
             _entry("spark_run" if cs.form == "mechanical" else "general_run")(model, what, cs.M, *run, *outs,
                                                                                stats, out_x)
-    st = dict(zip(STAT_NAMES, (int(x) for x in stats)))
+    st = dict(zip(STAT_NAMES, stats.tolist()))          # Python ints
     if st["failed_step"] >= 0:
         # the SPARK kernels leave the residual at the last iterate in out_x[0] (kernels.spark_loop)
         raise _failure(st, name, float(t0), h, None if kind == "lf2" else float(out_x[0]))

@@ -125,7 +125,7 @@ class Backend:
     def isfinite(self, x) -> bool:
         if self.is_mp:
             return all(mpmath.isfinite(v) for v in np.asarray(x).reshape(-1))
-        return bool(np.all(np.isfinite(x)))
+        return bool(np.isfinite(x).all())
 
     # --- linear algebra --------------------------------------------------------------------
     def factor(self, J):

@@ -30,6 +30,7 @@ import io
 import keyword
 import re
 import sys
+import threading
 import tokenize
 
 import sympy
@@ -267,7 +268,20 @@ _BUILTINS = frozenset(("abs", "min", "max", "float", "int", "complex", "bool", "
 _STRINGS = frozenset(("'nan'", "'inf'", "'-inf'", "'+inf'"))
 
 
+#: one parse or compile of generated source at a time in this process. CPython 3.11 counts the AST
+#: constructor's recursion in state the threads share, so two threads parsing at once can raise
+#: "SystemError: AST constructor recursion depth mismatch" (python/cpython#106905; seen with models
+#: compiled for an ensemble on a ThreadPoolExecutor), and the recursion limit raised below for deep
+#: trees is process-wide. Reentrant: a parse may run inside a caller that holds it.
+SOURCE_LOCK = threading.RLock()
+
+
 def _compile(src: str):
+    with SOURCE_LOCK:
+        return _compile_locked(src)
+
+
+def _compile_locked(src: str):
     try:
         return compile(src, "<ldaspark generated>", "exec")
     except (RecursionError, MemoryError):

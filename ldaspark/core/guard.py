@@ -97,12 +97,15 @@ def flagged(E) -> np.ndarray:
     E = np.asarray(E, dtype=float)
     if len(E) < 3:
         return np.zeros(0, dtype=int)
-    a = np.abs(np.diff(E))
-    floor = ROUND_ULPS * _EPS * (1.0 + np.maximum(np.abs(E[:-1]), np.abs(E[1:])))
+    a = np.abs(E[1:] - E[:-1])            # np.diff's numbers, without its generality (a short run's cost)
+    absE = np.abs(E)
+    floor = ROUND_ULPS * _EPS * (1.0 + np.maximum(absE[:-1], absE[1:]))
     # the previous step alone bounds the window's maximum from below: only the steps beyond
     # SAFETY times their predecessor's change can be flagged (a few in a run; the window's
     # maximum is taken for those only)
-    cand = np.flatnonzero(a[1:] > SAFETY * a[:-1] + floor[1:]) + 1
+    cand = (a[1:] > SAFETY * a[:-1] + floor[1:]).nonzero()[0] + 1
+    if not len(cand):
+        return np.zeros(0, dtype=int)
     bad = [n for n in cand if a[n] > SAFETY * a[max(0, n - WINDOW):n].max() + floor[n]]
     return np.asarray(bad, dtype=int)
 

@@ -49,7 +49,31 @@ class IntegrationOptions:
         """The options after the checks of ``ldaspark.core.validate`` (one InputError naming the
         first wrong value, in this order: engine, dps, newton, executor, save_every, max_stages,
         tol, energy_jump, the flags, dps with the compiled engine). Events are checked apart
-        (``with_events``), after the system and the method, as ``integrate`` always has."""
+        (``with_events``), after the system and the method, as ``integrate`` always has.
+
+        Options of plain values (str, int, float, bool, None; no executor) that passed are
+        remembered per process (``_CHECKED_OPTIONS``, keyed with their types: ``save_every=True``
+        is not 1), so a repeated call checks them once; the options object is frozen and shared."""
+        key = (engine, dps, newton, tol, save_every, dense_output, energy_jump, executor, max_stages, project,
+               raise_on_failure, guard)
+        types = tuple(map(type, key))
+        key = key + types if _PLAIN.issuperset(types) else None
+        hit = _CHECKED_OPTIONS.get(key) if key is not None else None
+        if hit is not None:
+            return hit
+        opts = cls._checked(engine=engine, dps=dps, newton=newton, tol=tol, save_every=save_every,
+                            dense_output=dense_output, energy_jump=energy_jump, executor=executor,
+                            max_stages=max_stages, project=project, raise_on_failure=raise_on_failure, guard=guard)
+        if key is not None:
+            if len(_CHECKED_OPTIONS) >= 256:      # bounded: a sweep over tol makes a key per value
+                _CHECKED_OPTIONS.clear()
+            _CHECKED_OPTIONS[key] = opts
+        return opts
+
+    @classmethod
+    def _checked(cls, *, engine, dps, newton, tol, save_every, dense_output, energy_jump, executor, max_stages,
+                 project, raise_on_failure, guard) -> "IntegrationOptions":
+        """``checked`` without the memory."""
         validate.check_choice(engine, "engine", ENGINES)
         dps = validate.check_dps(dps)
         from .rootfinder import Newton
@@ -70,7 +94,7 @@ class IntegrationOptions:
                 raise InputError(f"{flag} must be True or False, got {validate._describe(val)}")
         if dps is not None and engine == "compiled":
             raise InputError("the compiled engine is float64 only; dps needs engine='generic' (or 'auto')")
-        if newton == "quasi" and (engine == "generic" or dps is not None):
+        if (engine == "generic" or dps is not None) and newton == "quasi":     # (Newton.__eq__ is not cheap)
             raise InputError("newton='quasi' runs on the compiled engine only (float64, engine='compiled' or 'auto')")
         return cls(engine=engine, dps=dps, newton=newton, tol=tol, save_every=save_every,
                    dense_output=dense_output, energy_jump=energy_jump, executor=executor,
@@ -80,6 +104,8 @@ class IntegrationOptions:
     def with_events(self, events) -> "IntegrationOptions":
         """These options with ``events`` (None, a callable or a sequence of them) checked and
         normalised (``ldaspark.core.dense.check_events``)."""
+        if events is None and self.events == ():
+            return self               # nothing to check, nothing changes (the options are frozen)
         from .dense import check_events
         evs = tuple(check_events(events))
         # members sent to a process pool carry the events: a local function or a lambda does not
@@ -96,3 +122,10 @@ class IntegrationOptions:
         """Whether an engine that can keep every ``save_every``-th point must keep every step
         instead: dense output, events and the energy monitor look at each step."""
         return bool(self.dense_output or self.events or self.energy_jump is not None)
+
+
+#: the value types whose options ``IntegrationOptions.checked`` remembers (hashable, immutable,
+#: equal values validate alike)
+_PLAIN = frozenset((str, int, float, bool, type(None)))
+#: (the options' values, their types) -> the checked ``IntegrationOptions``
+_CHECKED_OPTIONS: dict = {}

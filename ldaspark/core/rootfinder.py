@@ -8,12 +8,15 @@ solver of the Newton matrix and the reuse of that matrix across steps. Each engi
 the engine and the field, so that nothing is accepted and ignored. ``Newton.describe()`` is
 what ``Result.stats["root_finder"]`` records.
 
-Kinds (``KINDS``): "auto" (simplified Newton, continued as full Newton when it contracts
-slowly; each engine's default), "full" (the Newton matrix at every iterate), "simplified" (one
-matrix per step), "mixed" (at mpmath precision: the Newton matrix in float64, the residual at
-full precision; in float64 it is "full"). A new kind (for example a multiplier-only
-quasi-Newton iteration, "quasi") is added to ``KINDS`` and to the ``SUPPORT`` of the engines
-that run it; the compiled engine dispatches it through ``ldaspark.compiled.runner.KIND_RUNNERS``.
+Kinds (``KINDS``): "auto" (each engine's default: simplified Newton, continued as full Newton
+when it contracts slowly; on the compiled engine the quasi-Newton iteration where
+``ldaspark.compiled.runner.auto_runs_quasi`` says it pays), "full" (the Newton matrix at every
+iterate), "simplified" (one matrix per step), "mixed" (at mpmath precision: the Newton matrix in
+float64, the residual at full precision; in float64 it is "full"), "quasi" (the compiled
+engine's multiplier-only quasi-Newton iteration of issue 48, ``ldaspark.compiled.quasi``). A new
+kind is added to ``KINDS`` and to the ``SUPPORT`` of the engines that run it; the compiled engine
+dispatches such kinds through ``ldaspark.compiled.runner.KIND_RUNNERS``. What ran is
+``Result.stats["root_finder"]["runs"]`` on the compiled engine.
 """
 from __future__ import annotations
 
@@ -24,8 +27,8 @@ from typing import Any, Optional
 from . import validate
 from .errors import InputError
 
-#: the root finder's kinds (``Newton.kind``); see the module docstring. "quasi" is reserved for
-#: the compiled engine's multiplier-only quasi-Newton iteration (refused until an engine runs it)
+#: the root finder's kinds (``Newton.kind``); see the module docstring ("quasi": the compiled
+#: engine only, refused by the others)
 KINDS = ("auto", "full", "simplified", "mixed", "quasi")
 #: predictors: "auto" (the engine's default), "extrapolate" (linear extrapolation of the last
 #: two steps' unknowns), "previous" (the last step's unknowns, shifted by the last velocity

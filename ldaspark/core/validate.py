@@ -97,6 +97,8 @@ def real_number(x, what: str, *, positive: bool = False, nonzero: bool = False):
     """A finite real number given as int, float, a NumPy scalar, mpmath ``mpf``, a real sympy
     number or a decimal string (kept as given, so that mpmath runs keep its digits). Returns x.
     Refused: bool (``h=True`` is not 1), complex, None, sequences, non-numeric strings, NaN, inf."""
+    if type(x) is float and math.isfinite(x) and (x > 0 or not positive) and (x != 0 or not nonzero):
+        return x            # the common case, accepted by the checks below
     ok, val = False, None
     if _is_bool(x):
         raise InputError(f"{what} must be a real number, got the bool {x!r}")
@@ -285,6 +287,10 @@ def real_vector(x, what: str):
     """q0 / v0: a sequence of real numbers (1-D), or rows of them (2-D, an ensemble); entries as
     accepted by ``real_number``. Returns x unchanged (strings and mpf keep their digits)."""
     import numpy as np
+    if type(x) is np.ndarray and x.dtype == np.float64 and x.ndim in (1, 2) and x.size and np.isfinite(x).all():
+        return x          # finite float64 numbers: what the entry-wise checks below would accept
+    if type(x) in (list, tuple) and x and all(type(e) is float and math.isfinite(e) for e in x):
+        return x          # a vector of finite floats (a scene's initial data): likewise
     try:
         a = np.asarray(x, dtype=object)
     except (ValueError, TypeError):
@@ -485,14 +491,16 @@ def initial_point(system, bk, t0, q0, v0, *, member: str = "", project: bool = F
     if q.shape != (system.n,) or v.shape != (system.n,):
         raise InputError(f"{member}initial data have shapes q: {q.shape}, v: {v.shape}; the system has "
                          f"n = {system.n}")
-    if not (math.isfinite(float(t)) and bk.isfinite(q) and bk.isfinite(v)):
-        raise InputError(f"{member}initial data contain NaN or infinity")
     key = memo = None
     if consistent and not project and not bk.is_mp:
+        # a remembered point passed every check below (finite values included): the same bytes
+        # are the same numbers
         key = (float(t), q.tobytes(), v.tobytes(), tol)
         memo = _CHECKED.get(id(system))
         if memo is not None and memo[0] is system and key in memo[1]:
             return t, q, v
+    if not (math.isfinite(float(t)) and bk.isfinite(q) and bk.isfinite(v)):
+        raise InputError(f"{member}initial data contain NaN or infinity")
     finite_initial_point(system, bk, t, q, v, member)
     if not consistent:
         return t, q, v

@@ -92,7 +92,7 @@ class CompiledEngine(Engine):
         st = dict(fs.stats)
         used = "compiled" if st.get("path") == "fast" else "generic"
         st.update(engine=prepared.support if used == "compiled" else "generic",
-                  root_finder=prepared.opts.newton.describe())
+                  root_finder=dict(prepared.opts.newton.describe(), runs=st.get("newton_kind", "generic")))
         st.setdefault("rescued_steps", st.get("generic_steps", 0))
         return Result(fs.t, fs.q, fs.v, fs.energy, fs.constraint, fs.psi, 0, MSG_DONE,
                       *(st.get(c, 0) for c in ("nfev", "njev", "nlu", "newton_iterations")), engine=used, stats=st)

@@ -89,13 +89,22 @@ def check_mechanical_kernels_agree(case):
     semi-implicit kernel (25) unless the root finder asks for what only the SPARK kernel does).
     The block LU asked for through ``fast_integrate`` and through ``integrate(newton=
     Newton(linear_solver="sparse"))`` is honoured (stats say "sparse", numbers equal to the dense
-    LU's) or refused in one line naming the engine and the field; never run densely in silence."""
+    LU's) or refused in one line naming the engine and the field; never run densely in silence.
+    The quasi-Newton root finder (asked for, and chosen by the default) agrees with the dense LU."""
     kw = dict(t0=case.t0, q0=case.q0, v0=case.v0, h=case.h, n_steps=case.n_steps)
     for method in dict.fromkeys((case.method, "lobatto-iiia-iiib-2")):
         rg = ldaspark.integrate(case.system, method, **case.kw(engine="generic"))
         dense = ldaspark.fast_integrate(case.system, method, linear_solver="dense", **kw)
         assert dense.stats["linear_solver"] == "dense"
         _agree(dense, rg, case.tol(), f"{method}: compiled dense vs generic")
+        # the quasi-Newton root finder (issue 48), asked for and as the default picks it: the same
+        # method (21) to the same stopping rule, so the same bound
+        for newton in ("quasi", "auto"):
+            rq = ldaspark.integrate(case.system, method, newton=newton, **case.kw(engine="compiled"))
+            want = ("quasi" if newton == "quasi" or _auto_quasi(case.system, method)
+                    else "lf2" if method == "lobatto-iiia-iiib-2" else "auto")
+            assert rq.status == 0 and rq.stats["root_finder"]["runs"] == want, (method, newton, rq.stats)
+            _agree(rq, dense, case.tol(), f"{method}: compiled newton={newton} vs the dense LU")
         routes = {"fast_integrate": lambda: ldaspark.fast_integrate(case.system, method, linear_solver="sparse",
                                                                     **kw),
                   "integrate": lambda: ldaspark.integrate(case.system, method, newton=ldaspark.Newton(
@@ -109,6 +118,12 @@ def check_mechanical_kernels_agree(case):
                 continue
             assert sparse.stats["linear_solver"] == "sparse", (method, route, sparse.stats)
             _agree(sparse, dense, case.tol(), f"{method} via {route}: compiled sparse vs dense")
+
+
+def _auto_quasi(system, method):
+    from ldaspark.compiled import runner
+    return runner.auto_runs_quasi(runner.compile_system(system), runner.kernel_spec(method, "auto"),
+                                  runner.KernelOptions())
 
 
 # --- the driver's options ----------------------------------------------------------------------

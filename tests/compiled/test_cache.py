@@ -401,6 +401,134 @@ def test_kernel_cache_in_a_directory_others_can_write_is_refused(tmp_path):
     cache.check_kernel_cache([_fake_kernel_module(shared / "sub")])
 
 
+def test_kernel_cache_made_unsafe_after_a_first_check_is_refused(tmp_path):
+    """The verdict is remembered per directory, but every call compares the lstat fingerprint of
+    each component: a chmod of an ancestor or of the directory after a passing check is refused at
+    the next call (control: the unchanged tree keeps passing)."""
+    tree = tmp_path / "numba-cache"
+    (tree / "sub").mkdir(parents=True)
+    os.chmod(tree, 0o755)
+    mod = _fake_kernel_module(tree / "sub")
+    cache.check_kernel_cache([mod])
+    cache.check_kernel_cache([mod])              # control: nothing changed, still trusted
+    os.chmod(tree, 0o777)                        # an ancestor now writable by everyone
+    with pytest.raises(cache.CacheDirectoryError, match="writable by other users"):
+        cache.check_kernel_cache([mod])
+    os.chmod(tree, 0o755)
+    cache.check_kernel_cache([mod])
+    os.chmod(tree / "sub", 0o777)                # the directory itself
+    with pytest.raises(cache.CacheDirectoryError, match="writable by other users"):
+        cache.check_kernel_cache([mod])
+
+
+def test_kernel_cache_replaced_by_a_link_after_a_first_check_is_refused(tmp_path):
+    """The directory swapped for a link into a directory others can write (same name, another
+    inode) after a passing check: refused at the next call."""
+    tree = tmp_path / "numba-cache"
+    (tree / "sub").mkdir(parents=True)
+    os.chmod(tree, 0o755)
+    shared = tmp_path / "shared"
+    shared.mkdir()
+    os.chmod(shared, 0o777)
+    mod = _fake_kernel_module(tree / "sub")
+    cache.check_kernel_cache([mod])
+    os.rename(tree / "sub", tmp_path / "old")
+    os.symlink(shared, tree / "sub")
+    with pytest.raises(cache.CacheDirectoryError, match="writable by other users"):
+        cache.check_kernel_cache([mod])
+
+
+def test_kernel_cache_checks_again_in_full_when_anything_changed(tmp_path, monkeypatch):
+    """Unchanged: the remembered verdict, no new walk of the path; a file added to the directory
+    (its mtime) or a component's mode changed: ``path_trust`` runs again."""
+    tree = tmp_path / "numba-cache"
+    (tree / "sub").mkdir(parents=True)
+    os.chmod(tree, 0o755)
+    mod = _fake_kernel_module(tree / "sub")
+    cache.check_kernel_cache([mod])
+    calls = []
+    real = cache.path_trust
+    monkeypatch.setattr(cache, "path_trust", lambda *a, **k: calls.append(a[0]) or real(*a, **k))
+    cache.check_kernel_cache([mod])
+    assert calls == []
+    (tree / "sub" / "kernels.run-1.py311.nbi").write_bytes(b"x")
+    cache.check_kernel_cache([mod])
+    assert calls == [str(tree / "sub")]
+    cache.check_kernel_cache([mod])
+    assert len(calls) == 1
+    os.chmod(tree, 0o750)
+    cache.check_kernel_cache([mod])
+    assert len(calls) == 2
+
+
+def test_kernel_cache_not_yet_created_is_judged_by_its_parent_until_it_exists(tmp_path):
+    """numba creates the directory at its first save: until then its parent decides; once it
+    exists (here: writable by everyone) the directory itself is judged."""
+    tree = tmp_path / "numba-cache"
+    tree.mkdir()
+    os.chmod(tree, 0o755)
+    mod = _fake_kernel_module(tree / "sub")
+    cache.check_kernel_cache([mod])
+    (tree / "sub").mkdir()
+    os.chmod(tree / "sub", 0o777)
+    with pytest.raises(cache.CacheDirectoryError, match="writable by other users"):
+        cache.check_kernel_cache([mod])
+
+
+def test_kernel_paths_are_collected_again_under_another_numba_cache_dir(tmp_path, monkeypatch):
+    """The kernel modules' cache paths are collected once per NUMBA_CACHE_DIR setting: dispatchers
+    made again under another setting (here: the fake dispatcher's path moved to a directory others
+    can write) are checked there."""
+    from numba.core import config
+    safe, shared = tmp_path / "safe", tmp_path / "shared"
+    safe.mkdir()
+    shared.mkdir()
+    os.chmod(tmp_path, 0o755)
+    os.chmod(shared, 0o777)
+    mod = _fake_kernel_module(safe)
+    cache.check_kernel_cache([mod])
+    mod.k._cache.cache_path = str(shared)
+    monkeypatch.setattr(config, "CACHE_DIR", str(tmp_path))
+    with pytest.raises(cache.CacheDirectoryError, match="writable by other users"):
+        cache.check_kernel_cache([mod])
+
+
+def test_integrate_refuses_the_compiled_engine_once_its_kernel_cache_is_made_unsafe(tmp_path, monkeypatch):
+    """Through ``ldaspark.integrate``: a first compiled run passes the check; the kernel cache
+    directory made writable by everyone afterwards: engine='compiled' is refused naming it, 'auto'
+    falls back to the generic engine (the kernels' paths pointed at a test directory)."""
+    import ldaspark
+    from ldaspark.core.errors import InputError
+    tree = tmp_path / "numba-cache"
+    (tree / "sub").mkdir(parents=True)
+    os.chmod(tree, 0o755)
+    monkeypatch.setattr(cache, "_kernel_paths", lambda modules: [str(tree / "sub")])
+    run = dict(h=0.1, n_steps=3)
+    first = ldaspark.integrate("particle", "gauss-2", engine="compiled", **run)
+    assert first.status == 0 and first.engine == "compiled"
+    assert ldaspark.integrate("particle", "gauss-2", engine="compiled", **run).engine == "compiled"
+    os.chmod(tree / "sub", 0o777)
+    for newton in ("auto", "quasi"):
+        with pytest.raises(InputError, match="not safe"):
+            ldaspark.integrate("particle", "gauss-2", engine="compiled", newton=newton, **run)
+    fallback = ldaspark.integrate("particle", "gauss-2", **run)
+    assert fallback.engine == "generic"
+    os.chmod(tree / "sub", 0o755)
+    assert ldaspark.integrate("particle", "gauss-2", engine="compiled", **run).engine == "compiled"
+
+
+@pytest.mark.skipif(not ROOT, reason="chown needs root")
+def test_kernel_cache_given_to_another_user_after_a_first_check_is_refused(tmp_path):
+    tree = tmp_path / "numba-cache"
+    (tree / "sub").mkdir(parents=True)
+    os.chmod(tree, 0o755)
+    mod = _fake_kernel_module(tree / "sub")
+    cache.check_kernel_cache([mod])
+    os.chown(tree, OTHER_UID, OTHER_UID)
+    with pytest.raises(cache.CacheDirectoryError, match="belongs to another user"):
+        cache.check_kernel_cache([mod])
+
+
 # --- what held keeps holding ---------------------------------------------------------------------------
 def test_record_format_is_sha256sum(cdir):
     """The record beside each module is `sha256sum -c` input: one '<digest>  <name>' line per file."""

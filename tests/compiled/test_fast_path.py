@@ -131,15 +131,15 @@ def test_sampling_and_unpacking(particle):
 def test_newton_counters_and_predictor(particle):
     """Simplified Newton: one Jacobian and one LU per step; the extrapolating predictor saves
     iterations against the zero-increment start (negative control)."""
-    r2 = fast_integrate(particle, "lobatto-iiia-iiib-3", h=0.05, n_steps=2000)
-    r0 = fast_integrate(particle, "lobatto-iiia-iiib-3", h=0.05, n_steps=2000, predictor=0)
+    r2 = fast_integrate(particle, "lobatto-iiia-iiib-3", h=0.05, n_steps=2000, kernel="spark")
+    r0 = fast_integrate(particle, "lobatto-iiia-iiib-3", h=0.05, n_steps=2000, predictor=0, kernel="spark")
     for r in (r2, r0):
         assert r.stats["njev"] == r.stats["nlu"] == r.stats["steps"] == 2000
         assert r.stats["newton_iterations"] >= 2000
     assert r2.stats["mean_iterations"] <= r0.stats["mean_iterations"] - 0.5
     assert r2.stats["max_iterations"] <= 8
     # tolerance tied to the precision: a loose tolerance stops earlier
-    loose = fast_integrate(particle, "lobatto-iiia-iiib-3", h=0.05, n_steps=2000, tol=1e-6)
+    loose = fast_integrate(particle, "lobatto-iiia-iiib-3", h=0.05, n_steps=2000, tol=1e-6, kernel="spark")
     assert loose.stats["mean_iterations"] < r2.stats["mean_iterations"]
 
 

@@ -73,6 +73,28 @@ def test_same_root_at_root_agree_relative_to_the_safe_root():
     assert not guard.same_root(q + [np.nan, 0], v, q, v)
 
 
+def test_the_vectorised_test_flags_what_the_step_by_step_test_flags():
+    """``flagged`` (block engines, vectorised) and ``StepGuard.suspect`` (stepping engines) are one
+    threshold: on random energy sequences, quiet and with jumps of every size (so both outcomes
+    occur), they flag the same steps."""
+    rng = np.random.default_rng(7)
+    seen = set()
+    for _ in range(400):
+        N = int(rng.integers(0, 60))
+        E = 1.0 + rng.standard_normal(N) * 10.0 ** rng.uniform(-17, -4)
+        if N and rng.random() < 0.6:
+            E[rng.integers(0, N)] += 10.0 ** rng.uniform(-15, 0)
+        sg, ref = guard.StepGuard(), []
+        for n in range(N - 1):
+            if sg.suspect(n, E[n], E[n + 1]):
+                ref.append(n)
+            sg.accept(E[n], E[n + 1])
+        got = guard.flagged(E)
+        assert got.dtype.kind == "i" and list(got) == ref
+        seen.add(bool(ref))
+    assert seen == {True, False}
+
+
 def test_the_iteration_test_is_against_the_window_s_largest_count():
     # the generic engine flags a step whose Newton took more than ITER_FACTOR times the largest
     # count of the previous WINDOW steps plus ITER_EXTRA: after counts 2, 10, 2, 2 (largest 10)

@@ -20,7 +20,8 @@ def _kind():
 
 def test_newton_option_reaches_the_public_runs(monkeypatch):
     monkeypatch.setattr(solve, "integrate", solve.integrate)     # restored after the test
-    assert _kind() == ("auto", None)                              # control: the default root finder
+    # control: the default root finder by name ("auto", which runs the quasi iteration on the skate)
+    assert _kind() == ("auto", 10)
     bench._use_newton("quasi")
     assert _kind() == ("quasi", 10)
 

@@ -46,7 +46,7 @@ MUTANTS = (
        "a __pycache__ of another user, or a link to a directory, is used as the model's numba cache",
        "cache", TC + "::test_links_planted_under_the_caches_other_names_are_not_followed", TC),
     _m("relcache-kernel-cache-unchecked", "compiled/cache.py",
-       "        if path in _KERNEL_CACHE_OK:\n            continue",
+       "        if _still_trusted(path):\n            continue",
        "        if True:\n            continue",
        "the directory numba loads the kernels from (NUMBA_CACHE_DIR) is not checked", "cache",
        TC + "::test_kernel_cache_in_a_directory_others_can_write_is_refused", TC),
