@@ -11,7 +11,7 @@ Part 2 (``targets``): the targets of issue 48 at equal error, cpu(best peer) / c
 skate T = 100 final error 1e-9 and 1e-12; skate T = 1e4 max energy error 1e-8; particle T = 1e4
 max energy error 1e-10; SPARK gauss-2, 3, 4, 6, 8 with either root finder.
 
-    python benchmarks/quasi_step.py [--rounds 3] [--quick] [--out quasi_step.json]
+    python benchmarks/quasi_step.py [--rounds 3] [--quick] [--out reports/quasi_step.json]
 """
 from __future__ import annotations
 
@@ -177,7 +177,7 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--skip-steps", action="store_true")
     ap.add_argument("--studies", default="0,1,2")
-    ap.add_argument("--out", default="quasi_step.json")
+    ap.add_argument("--out", default=os.path.join("reports", "quasi_step.json"))
     a = ap.parse_args(argv)
     load0 = os.getloadavg()[0]
     c0 = time.process_time()

@@ -253,6 +253,30 @@ def scaling_values(d):
     return out
 
 
+def quasi_step_values(d):
+    """The quasi-Newton step against the kernels' Newton and against the best compiled peer
+    (``reports/quasi_step.json``, from ``benchmarks/quasi_step.py``): the range of the per-step
+    speed-ups, and per study and target cpu(best peer) / cpu(best SPARK) with the quasi root
+    finder (``qs.<scene>.<key>.<target>``) and with the kernels' Newton (``...newton``)."""
+    sp = [r["speedup"] for r in d.get("per_step", [])]
+    out = {"qs.per_step.range": f"{min(sp):.3g}-{max(sp):.2g}x"} if sp else {}
+    for st in d.get("studies", []):
+        for side, suffix in (("quasi", ""), ("newton", ".newton")):
+            for r in st.get(side, []):
+                key = f"qs.{st['scene']}.{st['key']}.{r['target']:.0e}{suffix}"
+                if r.get("speedup") is not None:
+                    out[key] = f"{r['speedup']:.2f}x"
+                elif r.get("speedup_at_least") is not None:
+                    out[key] = f">= {r['speedup_at_least']:.2f}x"
+                elif r.get("speedup_at_most") is not None:
+                    out[key] = f"<= {r['speedup_at_most']:.2f}x"
+                else:
+                    out[key] = "-"
+    if "load_average_1min_at_start" in d:
+        out["qs.load"] = f"{d['load_average_1min_at_start']:.1f}-{d['load_average_1min_at_end']:.1f}"
+    return out
+
+
 def mutgen_values(d):
     """The generated mutants' report (``mutation-generated.json``): counts over every listed
     module, and the lowest per-module score among the modules with mutants run."""
@@ -296,6 +320,7 @@ def readme_values(reports_dir="reports") -> dict:
                      ("energy.json", energy_values), ("work_precision.json", work_precision_values),
                      ("report_timing.json", run_values), ("peer_odelab.json", peer_values),
                      ("peers.json", peers_values), ("scaling.json", scaling_values),
+                     ("quasi_step.json", quasi_step_values),
                      ("mutation-generated.json", mutgen_values), ("coverage-checking.json", coverage_values)):
         d = _load(reports_dir, name)
         if d is not None:
@@ -309,7 +334,7 @@ MARK = re.compile(r"<!--([\w.:+\-]+)-->(.*?)<!--/-->")
 TIMING = re.compile(r"^(run\.(wall|cpu|probe_ratio)|energy\.fig4\.\w+\.seconds|wp\.sps\.\w+"
                     r"|wp\.[\w-]+\.(ratios|peer_ratios|rhs)|peer\.(spark2|ratios)"
                     r"|peers\.[\w-]+\.(speedups|long|speedups_fast|long_fast|vlong|vlong_fast|best_peer|long_best_peer)"
-                    r"|peers\.load_(at_start|at_end)|scaling\.(step|first_call)\.\d+)$")
+                    r"|peers\.load_(at_start|at_end)|scaling\.(step|first_call)\.\d+|qs\.[\w.+-]+)$")
 #: values that float64 round-off decides, checked as timings are (against the snapshot): the
 #: Fig. 4 drift exponents fit mu((E - E0)^2) over 1e6 steps, where the energy error is a random
 #: walk of round-off; a fresh main job on the same machine after a change of the generated
@@ -322,7 +347,7 @@ RESIDUAL = re.compile(r"^claims\.[\w.-]+\.(max|negctl_min)$")
 SOURCE = {"convergence": "convergence.json", "claims": "claims.json", "energy": "energy.json",
           "wp": "work_precision.json", "run": "report_timing.json", "peer": "peer_odelab.json",
           "peers": "peers.json", "scaling": "scaling.json", "mutgen": "mutation-generated.json",
-          "coverage": "coverage-checking.json"}
+          "coverage": "coverage-checking.json", "qs": "quasi_step.json"}
 
 
 def quote_kind(key: str) -> str:

@@ -183,3 +183,29 @@ def test_peer_ratios_are_quoted_when_any_target_has_one():
                                                {"target": 1e-8, "scipy/spark-fast": None, "peer/spark-fast": 3.0}]}}
     out = work_precision_values({"studies": [st_], "dps": []})
     assert out["wp.sc.peer_ratios"] == "- / 3x"
+
+
+def test_quasi_step_values_quote_each_side_the_right_way_up():
+    """``summary.quasi_step_values`` quotes the study's cpu(peer) / cpu(SPARK) (``peers.speedups``)
+    as it is: a SPARK run 4x cheaper than the peer reads 4.00x, the Newton side (8x dearer than
+    the quasi run) 0.50x under its own key; a bound reads '>= ' or '<= ', a missing one '-'; the
+    per-step range runs from the smallest to the largest speed-up."""
+    from ldaspark.lab.reports.summary import quasi_step_values
+
+    def side(spark_cpu, peer_cpu=0.004, **kw):
+        r = {"target": 1e-9, "spark_cpu": spark_cpu, "peer_cpu": peer_cpu, "speedup": peer_cpu / spark_cpu,
+             "speedup_at_least": None, "speedup_at_most": None}
+        r.update(kw)
+        return [r]
+    study = {"scene": "skate", "t_end": 100.0, "key": "error", "quasi": side(0.001), "newton": side(0.008)}
+    d = {"per_step": [{"speedup": 3.32}, {"speedup": 1.07}], "studies": [study],
+         "load_average_1min_at_start": 2.04, "load_average_1min_at_end": 1.96}
+    out = quasi_step_values(d)
+    assert (out["qs.skate.error.1e-09"], out["qs.skate.error.1e-09.newton"]) == ("4.00x", "0.50x")
+    assert out["qs.per_step.range"] == "1.07-3.3x" and out["qs.load"] == "2.0-2.0"
+    study["quasi"] = side(0.001, speedup=None, speedup_at_least=1.5)
+    study["newton"] = side(0.008, speedup=None, speedup_at_most=0.25)
+    out = quasi_step_values(d)
+    assert (out["qs.skate.error.1e-09"], out["qs.skate.error.1e-09.newton"]) == (">= 1.50x", "<= 0.25x")
+    study["newton"] = side(0.008, speedup=None)
+    assert quasi_step_values(d)["qs.skate.error.1e-09.newton"] == "-"
