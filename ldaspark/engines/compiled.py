@@ -119,8 +119,22 @@ class CompiledEngine(Engine):
             SparkMethod(prepared.system, method, tol=prepared.opts.tol).step(tk, q, v, float(h), step_index=k)
         except LdasparkError as gen:
             return gen
-        return NewtonError(f"Newton did not converge at step {k} (compiled engine, simplified Newton): {exc}; "
+        return NewtonError(f"Newton did not converge at step {k} (compiled engine, {_ran(prepared)}): {exc}; "
                            "the generic full-Newton step converges there (engine='generic')", step=k, time=tk)
+
+
+def _ran(prepared) -> str:
+    """The root finder the kernels ran, by name, for a failure message: the quasi-Newton iteration
+    where "auto" chose it (``runner.auto_runs_quasi``) or where it was asked for, else the kernels'
+    Newton."""
+    from ..compiled import runner
+    k = prepared.data["kopts"]
+    try:
+        quasi = k.newton_kind == "quasi" or (k.newton_kind == "auto" and runner.auto_runs_quasi(
+            runner.compile_system(prepared.system), runner.kernel_spec(prepared.prob.method, k.kernel), k))
+    except LdasparkError:
+        quasi = False
+    return "the quasi-Newton iteration, then the Newton chain" if quasi else f"Newton ({k.newton_kind})"
 
 
 def _is_lf2(method) -> bool:

@@ -47,3 +47,19 @@ def test_the_failing_step_is_examined_at_its_own_time_when_t0_is_not_zero():
     k = res.error.step
     assert res.error.time == 5.0 + k * 0.5 == float(res.t[-1])
     assert "generic full-Newton step converges" in res.message
+
+
+def test_the_failure_message_names_the_root_finder_that_ran():
+    # one iteration per step cannot converge at h = 0.5: the default ("auto") ran the quasi-Newton
+    # iteration on this small mechanical system, kind="full" the kernels' Newton; each message says which
+    import warnings
+    msgs = {}
+    for newton in ("auto", "full"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res = ldaspark.integrate("pendulum", "gauss-2", engine="compiled", n_steps=20, h=0.5,
+                                     newton=ldaspark.Newton(kind=newton, max_iter=1), guard=False)
+        assert res.status < 0 and isinstance(res.error, NewtonError)
+        msgs[newton] = res.message
+    assert "quasi-Newton iteration" in msgs["auto"] and "quasi" not in msgs["full"]
+    assert "Newton (full)" in msgs["full"]
