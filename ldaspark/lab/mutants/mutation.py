@@ -39,7 +39,11 @@ PROJECT = PACKAGE.parent
 # tests fail in every copy and would "kill" a mutant that the rest of the suite lets survive
 #: what a test run reads: the tests collect the docs' tutorials and read the benchmarks' sources
 COPY = ("ldaspark", "tests", "verification", "examples", "reports", "docs", "benchmarks", "conftest.py",
-        "pyproject.toml", "README.md", ".ci")
+        "pyproject.toml", "README.md", "LICENSE", ".ci")
+#: a kill found by the rest of the suite (after the hint files) counts only if that test passes
+#: on the unmutated copy; a test that fails there too (something the copy lacks, a test that
+#: depends on the machine) is deselected and the run goes on, at most this many times
+MAX_CONTROL = 3
 EXCLUDED_TESTS = ("tests/lab/mutants/test_mutation_quick.py",)          # would recurse into this runner
 TIMEOUT = 1500
 
@@ -306,7 +310,9 @@ def run_mutant(mutant: Mutant | None, hints_only=False, project=PROJECT, timeout
                targets=None, exclude=(), snapshot: bytes | None = None) -> dict:
     """Apply one mutant (None: the unmutated package, a control) to a fresh scratch copy (of
     ``project``, or unpacked from ``snapshot``, see ``project_snapshot``), run the suite (or
-    ``targets``), return its record."""
+    ``targets``), return its record. A kill found by the rest of the suite (not by the hint files
+    or the given targets) counts only if that test passes on an unmutated copy; a test failing
+    there too is deselected and the run goes on (at most MAX_CONTROL times, then "invalid")."""
     t = time.time()
     label = mutant.id if mutant is not None else "none"
     import re
@@ -325,6 +331,7 @@ def run_mutant(mutant: Mutant | None, hints_only=False, project=PROJECT, timeout
                 return _record(mutant, "invalid", f"SyntaxError: {exc}", time.time() - t)
         cache = pathlib.Path(tmp) / "cache" if mutant is not None and mutant.category == "compiled" else None
         phases = [targets]
+        suite_phase = None           # the index of the phase that runs the rest of the suite
         if targets is None:
             full = ordered_targets(mutant, root, hints_only, exclude)
             hint = ordered_targets(mutant, root, True, exclude) if mutant is not None else []
@@ -332,16 +339,36 @@ def run_mutant(mutant: Mutant | None, hints_only=False, project=PROJECT, timeout
             # the suite only if they pass: the same verdict and first failing test as one run
             # of hint + rest with -x, without collecting the whole suite for every killed mutant
             phases = [hint, full[len(hint):]] if hint and not hints_only else [full]
+            suite_phase = None if hints_only else len(phases) - 1
         if not phases[0]:     # pytest without targets would run its default testpaths
             raise CatalogueError(f"mutant {label}: none of its hint files exists")
-        for phase in phases:
+        control = None
+        deselected: list = []
+        for i, phase in enumerate(phases):
             if not phase:
                 continue
-            left = max(1.0, timeout - (time.time() - t))
-            rc, out, _ = run_pytest(root, list(phase), left, cache)
-            status, first = classify(rc, out)
+            while True:
+                left = max(1.0, timeout - (time.time() - t))
+                rc, out, _ = run_pytest(root, list(phase) + [f"--deselect={d}" for d in deselected], left, cache)
+                status, first = classify(rc, out)
+                if status != "killed" or mutant is None or i != suite_phase:
+                    break
+                # the rest of the suite named a test: it must pass without the mutant to be a kill
+                if control is None:
+                    control = (_unpack_snapshot(snapshot, pathlib.Path(tmp) / "control") if snapshot is not None
+                               else copy_project(pathlib.Path(tmp) / "control", project))
+                crc, cout, _ = run_pytest(control, [first], max(1.0, timeout - (time.time() - t)), None)
+                if crc == 0:
+                    break
+                deselected.append(first)
+                if len(deselected) > MAX_CONTROL:
+                    status, out = "invalid", (f"{len(deselected)} tests fail on the unmutated copy too: "
+                                              + ", ".join(deselected) + "\n" + cout)
+                    break
             if status != "survived":
                 break
+        if deselected and status != "invalid":
+            out = "deselected (they fail on the unmutated copy too): " + ", ".join(deselected) + "\n" + out
         rec = _record(mutant, status, first, time.time() - t)
         if mutant is not None:       # the file actually mutated (of the alternatives)
             rec["file"] = str(path.relative_to(root))

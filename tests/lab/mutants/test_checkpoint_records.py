@@ -25,7 +25,7 @@ PROJECT_FILES = {
     "verification/mutants_equivalent.json": "{}", "verification/strategies.py": "S = 1\n",
     "verification/fixtures/values.csv": "1,2\n", "examples/e.py": "E = 1\n", "reports/r.json": "{}",
     "docs/d.md": "# d\n", "benchmarks/b.py": "B = 1\n", "conftest.py": "C = 1\n", "pyproject.toml": "[x]\n",
-    "README.md": "# r\n", ".ci/run": "#!/bin/sh\n",
+    "README.md": "# r\n", "LICENSE": "MIT License\n", ".ci/run": "#!/bin/sh\n",
 }
 
 
