@@ -70,8 +70,6 @@ class CompiledEngine(Engine):
         from ..core.rootfinder import PREDICTOR_CODES
         root, support = self.root_finder(opts.newton, prob)
         kernel = "spark" if support == "compiled" and prob.kind == "spark" and _is_lf2(prob.method) else "auto"
-        if root.kind == "quasi":
-            from ..compiled import quasi   # noqa: F401 (registers its runner in runner.KIND_RUNNERS)
         kopts = KernelOptions(True, opts.tol, root.iterations, kernel, PREDICTOR_CODES[root.predictor], root.reuse,
                               root.linear_solver, NEWTON_MODES.get(root.kind, 0), root.kind)
         return Prepared(system, prob, opts, root, support, {"kopts": kopts})
