@@ -220,13 +220,17 @@ def link_to_parent(parent_pid: int | None, death_signal: bool = True) -> None:
 def worker_initializer(parent_pid=None, death_signal=True, initializer=None, initargs=()):
     """Initializer of every pool worker: linked to its parent, the terminal's stop signals
     ignored (the parent stops the worker), SIGTERM at its default action (a Python handler
-    inherited through fork would make terminate() a no-op), then the caller's own initializer."""
-    link_to_parent(parent_pid, death_signal)
+    inherited through fork would make terminate() a no-op), then the caller's own initializer.
+    The stop signals arrive blocked (``LinkedProcessPool._spawn_process``): unblocked once the
+    worker's own actions are set, before its watcher thread starts (threads inherit the mask)."""
     for s in _WORKER_IGNORES:
         with contextlib.suppress(OSError, ValueError):
             signal.signal(s, signal.SIG_IGN)
     with contextlib.suppress(OSError, ValueError, AttributeError):
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    with contextlib.suppress(OSError, ValueError, AttributeError):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
+    link_to_parent(parent_pid, death_signal)
     if initializer is not None:
         initializer(*initargs)
 
@@ -260,7 +264,11 @@ class LinkedProcessPool(cf.ProcessPoolExecutor):
 
     def _spawn_process(self):       # where CPython starts each worker: this thread spawns it
         self._initargs = self._link_args()
-        return super()._spawn_process()
+        # a stop signal handled in the middle of the fork would raise Stopped inside an at-fork
+        # callback (logging's _releaseLock), where Python only prints "Exception ignored" and
+        # goes on: held back until the worker is started and registered, raised after that
+        with signals_blocked():
+            return super()._spawn_process()
 
     def terminate_workers(self):
         """Cancel what is queued and end the workers now (SIGTERM, SIGKILL after 2 s)."""
