@@ -15,6 +15,11 @@ settings.register_profile("ci", derandomize=True, deadline=None, max_examples=25
 settings.register_profile("dev", deadline=None, max_examples=100)
 settings.load_profile("ci")
 
+# no background build of the specialised quasi-Newton kernels (ldaspark.compiled.specialised) while
+# the suite runs: it would take one of the 2 cores for ~30 s at a moment that depends on the order
+# of the tests. tests/compiled/test_specialised.py turns it on where it is the subject.
+os.environ["LDASPARK_SPECIALISE"] = "0"
+
 # tests/ mirrors the package in folders; their shared helpers (run_helpers, *_fakes) live in tests/
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "tests"))
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 
 import numpy as np
 
@@ -14,7 +15,7 @@ from ..core.errors import InputError
 
 from .codegen import NotCompilableError
 from .runner import (_TOL_DEFAULT, STAT_NAMES, FastSolution, _check_options, _failure, kernel_spec, n_samples)
-from . import runner
+from . import runner, specialised
 
 #: the counters ``run_quasi`` adds to the stats of ``runner.run_compiled``: quasi-Newton
 #: iterations, steps it solved, steps sent to the Newton chain, multiplier matrices factored,
@@ -121,9 +122,16 @@ def run_quasi(cs, method, t0, q0, v0, h, n_steps, every=1, compensated=True, tol
     s_ = what[1].shape[0]
     NN = s_ * (cs.n + cs.m) + cs.n
     out_x = np.zeros(NN + (S - 1) * s_ * cs.m)
+    special = False
     if cs.form == "mechanical":
-        entry()(cs.model, what, cs.M, cs.Minv, ex[0], ex[1], float(t0), q0, v0, h, int(n_steps), int(every),
-                bool(compensated), tol, int(max_iter), pflag, *outs, stats, out_x, qstats, bool(curvature))
+        # the kernel specialised to (s, n, m) where it is built: the same bits, less CPU per step
+        ep = specialised.kernel(s_, cs.n, cs.m)
+        special = ep is not None
+        c0 = time.process_time()
+        (ep or entry())(cs.model, what, cs.M, cs.Minv, ex[0], ex[1], float(t0), q0, v0, h, int(n_steps), int(every),
+                        bool(compensated), tol, int(max_iter), pflag, *outs, stats, out_x, qstats, bool(curvature))
+        if not special:
+            specialised.note(s_, cs.n, cs.m, time.process_time() - c0)
     else:
         entry("general")(cs.model, what, cs.M, ex[0], ex[1], float(t0), q0, v0, h, int(n_steps), int(every),
                          bool(compensated), tol, int(max_iter), pflag, *outs, stats, out_x, qstats)
@@ -135,7 +143,7 @@ def run_quasi(cs, method, t0, q0, v0, h, n_steps, every=1, compensated=True, tol
     st.update(zip(QUASI_STAT_NAMES, (int(x) for x in qstats)))
     st["mean_iterations"] = st["newton_iterations"] / max(st["steps"], 1)
     st.update(path="fast", kernel="quasi", form=cs.form, compensated=bool(compensated), linear_solver="dense",
-              reuse_matrix=False, root_finder="quasi", newton_kind="quasi")
+              reuse_matrix=False, root_finder="quasi", newton_kind="quasi", kernel_specialised=special)
     return FastSolution(*outs, st, out_x[NN:].reshape(S - 1, s_, cs.m))
 
 
