@@ -4,12 +4,15 @@ the strongest compiled peers (CyRK's nbsolve2_ivp DOP853 and Vern8 with a numba 
 side, ``ldaspark.lab.reports.peers``), all in one run: CPU time (process time), the minimum over
 interleaved rounds, SPARK always through the public ``ldaspark.integrate``.
 
-Part 1 (``per_step``): CPU per step of newton="quasi" (what the default runs on these scenes) and
-the compiled kernels' Newton (the default before it chose the quasi iteration) on the same
-run (scene, method, h, 20000 steps), with iterations per step and fallbacks.
+Part 1 (``per_step``): CPU per step of newton="quasi" (what the default runs on these scenes)
+with the kernel specialised to the run's (s, n, m) (``ldaspark.compiled.specialised``, built
+before the clock starts, as a long-lived process has it once BUILD_AFTER seconds were spent in the
+generic one), the same with the generic kernel (what every run gets first; the same bits) and the
+compiled kernels' Newton (the default before it chose the quasi iteration) on the same run
+(scene, method, h, 20000 steps), with iterations per step and fallbacks.
 Part 2 (``targets``): the targets of issue 48 at equal error, cpu(best peer) / cpu(best SPARK):
 skate T = 100 final error 1e-9 and 1e-12; skate T = 1e4 max energy error 1e-8; particle T = 1e4
-max energy error 1e-10; SPARK gauss-2, 3, 4, 6, 8 with either root finder.
+max energy error 1e-10; SPARK gauss-2, 3, 4, 6, 8 with each of the three.
 
     python benchmarks/quasi_step.py [--rounds 3] [--quick] [--out reports/quasi_step.json]
 """
@@ -28,11 +31,18 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 import ldaspark                                                          # noqa: E402
 from ldaspark.models.scenes import get_scene                             # noqa: E402
 from ldaspark.lab.reports import peers as P                                  # noqa: E402
+from ldaspark.compiled import specialised as SP                               # noqa: E402
+
+SP.BUILD_AFTER = float("inf")       # no build in the background: the kernels needed are built first
 
 PER_STEP = (("skate", "gauss-2", 0.1), ("skate", "gauss-4", 0.4), ("skate", "gauss-8", 1.25),
             ("particle", "gauss-2", 0.05), ("particle", "gauss-4", 0.2), ("particle", "gauss-6", 0.4),
             ("robot", "gauss-2", 0.05), ("mp-particles-nh", "gauss-3", 0.01), ("rolling-disk", "gauss-4", 0.2))
 PEERS = ("cyrk-nbsolve2-DOP853", "cyrk-nbsolve2-Vern8")
+#: the SPARK rows: the quasi-Newton root finder with the kernel specialised to (s, n, m) (built
+#: before the clock starts; general-form systems have none and run the generic one), the same
+#: with the generic kernel, and the kernels' Newton
+VARIANTS = ("quasi", "quasi-generic", "newton")
 #: (scene, T, key, targets, SPARK step sizes per method, peer rtols, samples)
 STUDIES = (
     ("skate", 100.0, "error", (1e-9, 1e-12),
@@ -60,15 +70,32 @@ def spark_task(scene, method, h, t_end, n_out, newton):
     # "newton": the kernels' Newton, which newton="auto" ran before it chose the quasi iteration
     # (runner.auto_runs_quasi); an explicit reuse asks for the Newton matrix, and for n < 32 reuse is
     # off either way. "auto" (the default) runs the quasi iteration on these scenes: the "quasi" rows.
-    kw = {"newton": ldaspark.Newton(reuse=False)} if newton == "newton" else {"newton": newton}
+    # "quasi-generic": the same root finder with the generic kernel (what a run gets before the
+    # kernel specialised to its (s, n, m) is built: compiled.specialised)
+    kw = {"newton": ldaspark.Newton(reuse=False)} if newton == "newton" else {"newton": "quasi"}
+    special = "1" if newton == "quasi" else "0"
+    if newton == "quasi":
+        sc_ = get_scene(scene)
+        from ldaspark.compiled.fast import compile_system
+        from ldaspark.core.families import get_method
+        cs = compile_system(sc_.system)
+        if cs.form == "mechanical":
+            SP.build(get_method(method).s, cs.n, cs.m)      # compiled or loaded now, outside the clock
+    os.environ["LDASPARK_SPECIALISE"] = special
     ldaspark.integrate(scene, method, h=h, n_steps=2, engine="compiled", **kw)
 
     def go():
+        os.environ["LDASPARK_SPECIALISE"] = special
         return ldaspark.integrate(scene, method, h=h, n_steps=n, engine="compiled", save_every=every, **kw)
 
     def finish(cpu, r):
         st = r.stats
-        return {"kind": "spark-quasi" if newton == "quasi" else "spark", "method": method, "param": h,
+        if newton != "newton" and bool(st.get("kernel_specialised")) != (newton == "quasi"):
+            if st.get("form") == "mechanical" or newton == "quasi-generic":
+                raise RuntimeError(f"{scene} {method}: kernel_specialised={st.get('kernel_specialised')} "
+                                   f"in a {newton} row")
+        kind = {"quasi": "spark-quasi", "quasi-generic": "spark-quasi-generic", "newton": "spark"}[newton]
+        return {"kind": kind, "method": method, "param": h, "specialised": bool(st.get("kernel_specialised")),
                 "cpu": cpu, "steps": n, "q_final": [float(x) for x in r.q[-1]],
                 "energy_error": float(np.max(np.abs(r.energy - r.energy[0]))),
                 "constraint": float(np.max(np.abs(r.constraint))),
@@ -109,22 +136,26 @@ def per_step(rounds, quick):
     tasks = []
     for scene, method, h in PER_STEP:
         n = 2000 if quick else 20000
-        for newton in ("quasi", "newton"):
+        for newton in VARIANTS:
             tasks.append(spark_task(scene, method, h, n * h, 1, newton))
     rows = P.run_interleaved(tasks, rounds=rounds, short=10.0)
     out = []
-    for i in range(0, len(rows), 2):
-        q, nw = rows[i], rows[i + 1]
+    for i in range(0, len(rows), 3):
+        q, qg, nw = rows[i], rows[i + 1], rows[i + 2]
+        dg = float(np.max(np.abs(np.asarray(q["q_final"]) - np.asarray(qg["q_final"]))))
         d = float(np.max(np.abs(np.asarray(q["q_final"]) - np.asarray(nw["q_final"]))))
         from ldaspark.compiled.fast import compile_system
         from ldaspark.core.families import get_method
-        sc = get_scene(PER_STEP[i // 2][0])
+        sc = get_scene(PER_STEP[i // 3][0])
         cs = compile_system(sc.system)
         fl, flm = quasi_flops(get_method(q["method"]).s, cs.n, cs.m, int(np.count_nonzero(cs.M)),
                               int(np.count_nonzero(cs.Minv)), q["iterations_per_step"],
                               curvature=2 * (q["curvature_steps"] or 0) > q["steps"])
-        out.append({"scene": PER_STEP[i // 2][0], "method": q["method"], "h": q["param"],
-                    "us_per_step_quasi": 1e6 * q["cpu"] / q["steps"],
+        out.append({"scene": PER_STEP[i // 3][0], "method": q["method"], "h": q["param"],
+                    "us_per_step_quasi": 1e6 * q["cpu"] / q["steps"], "specialised": q["specialised"],
+                    "us_per_step_quasi_generic": 1e6 * qg["cpu"] / qg["steps"],
+                    "specialised_speedup": qg["cpu"] / q["cpu"], "generic_speedup": nw["cpu"] / qg["cpu"],
+                    "specialised_q_difference": dg,
                     "us_per_step_newton": 1e6 * nw["cpu"] / nw["steps"],
                     "speedup": nw["cpu"] / q["cpu"], "iterations_quasi": q["iterations_per_step"],
                     "iterations_newton": nw["iterations_per_step"], "fallbacks": q["fallbacks"],
@@ -138,7 +169,7 @@ def study(scene, t_end, key, targets, hs, rtols, n_out, rounds, quick):
     sc = get_scene(scene)
     if quick:
         t_end = min(t_end, 100.0)
-    sp = [spark_task(scene, m, h, t_end, n_out, nw) for m, hl in hs.items() for h in hl for nw in ("quasi", "newton")]
+    sp = [spark_task(scene, m, h, t_end, n_out, nw) for m, hl in hs.items() for h in hl for nw in VARIANTS]
     pt = []
     failed = []
     for p in PEERS:
@@ -159,6 +190,7 @@ def study(scene, t_end, key, targets, hs, rtols, n_out, rounds, quick):
         r.pop("q_final", None)
     res = {"scene": scene, "t_end": t_end, "key": key, "failed": failed, "rows": rows,
            "quasi": P.speedups(rows, targets, key=key, spark="spark-quasi"),
+           "quasi_generic": P.speedups(rows, targets, key=key, spark="spark-quasi-generic"),
            "newton": P.speedups(rows, targets, key=key, spark="spark")}
     return res
 
@@ -187,7 +219,9 @@ def main(argv=None):
         print("CPU per step, quasi vs Newton (same run, min of interleaved rounds, through ldaspark.integrate):")
         for r in out["per_step"]:
             print(f"  {r['scene']:16s} {r['method']:8s} h={r['h']:<6g} quasi {r['us_per_step_quasi']:6.2f} us "
-                  f"({r['iterations_quasi']:.2f} it, {r['fallbacks']} fallbacks)  "
+                  f"({r['iterations_quasi']:.2f} it, {r['fallbacks']} fallbacks; generic kernel "
+                  f"{r['us_per_step_quasi_generic']:.2f} us, x{r['specialised_speedup']:.2f}, "
+                  f"|dq| {r['specialised_q_difference']:.0e})  "
                   f"newton {r['us_per_step_newton']:6.2f} us ({r['iterations_newton']:.2f} it)  "
                   f"speed-up {r['speedup']:.2f}  |dq_final| {r['final_q_difference']:.1e}  "
                   f"counted {r['counted_flops']:.0f} flops = {r['counted_us']:.2f} us")
@@ -196,8 +230,8 @@ def main(argv=None):
         st = study(*STUDIES[i], rounds=a.rounds, quick=a.quick)
         out["studies"].append(st)
         print(f"{st['scene']} T = {st['t_end']:g}, {st['key']}: cpu(best of {', '.join(PEERS)}) / cpu(best SPARK)")
-        for q, nw in zip(st["quasi"], st["newton"]):
-            print(f"  target {q['target']:.0e}: quasi {_ratio(q)}; newton {_ratio(nw)}")
+        for q, qg, nw in zip(st["quasi"], st["quasi_generic"], st["newton"]):
+            print(f"  target {q['target']:.0e}: quasi {_ratio(q)}; generic kernel {_ratio(qg)}; newton {_ratio(nw)}")
         for f in st["failed"]:
             print(f"  failed: {f}")
     out["load_average_1min_at_end"] = os.getloadavg()[0]

@@ -257,11 +257,19 @@ def quasi_step_values(d):
     """The quasi-Newton step against the kernels' Newton and against the best compiled peer
     (``reports/quasi_step.json``, from ``benchmarks/quasi_step.py``): the range of the per-step
     speed-ups, and per study and target cpu(best peer) / cpu(best SPARK) with the quasi root
-    finder (``qs.<scene>.<key>.<target>``) and with the kernels' Newton (``...newton``)."""
+    finder (``qs.<scene>.<key>.<target>``), the same with the generic kernel (``...generic``; the
+    plain keys run the kernel specialised per (s, n, m)) and with the kernels' Newton (``...newton``)."""
     sp = [r["speedup"] for r in d.get("per_step", [])]
     out = {"qs.per_step.range": f"{min(sp):.3g}-{max(sp):.2g}x"} if sp else {}
+    # the kernel specialised per (s, n, m) against the generic one (rows with a specialised kernel)
+    ss = [r["specialised_speedup"] for r in d.get("per_step", []) if r.get("specialised")]
+    if ss:
+        out["qs.specialised.range"] = f"{min(ss):.3g}-{max(ss):.2g}x"
+    gs = [r["generic_speedup"] for r in d.get("per_step", []) if "generic_speedup" in r]
+    if gs:
+        out["qs.per_step.generic.range"] = f"{min(gs):.3g}-{max(gs):.2g}x"
     for st in d.get("studies", []):
-        for side, suffix in (("quasi", ""), ("newton", ".newton")):
+        for side, suffix in (("quasi", ""), ("quasi_generic", ".generic"), ("newton", ".newton")):
             for r in st.get(side, []):
                 key = f"qs.{st['scene']}.{st['key']}.{r['target']:.0e}{suffix}"
                 if r.get("speedup") is not None:
