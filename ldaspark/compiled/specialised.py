@@ -154,15 +154,17 @@ def build(s, n, m) -> object:
     import warnings
     from numba.core.errors import NumbaExperimentalFeatureWarning
     s, n, m = _sizes(s, n, m)
-    from .cache import check_kernel_cache
+    from .cache import _FileLock, cache_dir, check_kernel_cache
     from . import kernels, kernels_general, kernels_mech, kernels_quasi, newton
     check_kernel_cache((kernels, kernels_general, kernels_mech, newton, kernels_quasi))
-    ep = _load(s, n, m)
-    if ep is None:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
-            mod = _module(s, n, m)
-            ep = mod.quasi_run.compile(_signature())
+    # one compile per (s, n, m) on this machine: the workers of an ensemble that reach BUILD_AFTER
+    # together wait for the first build (asleep) and then load it
+    with _FileLock(os.path.join(cache_dir(), f"{_PREFIX}{s}_{n}_{m}.lock")):
+        ep = _load(s, n, m)
+        if ep is None:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
+                ep = _module(s, n, m).quasi_run.compile(_signature())
     with _lock:
         _ready[(s, n, m)] = ep
     return ep

@@ -209,3 +209,21 @@ def test_quasi_step_values_quote_each_side_the_right_way_up():
     assert (out["qs.skate.error.1e-09"], out["qs.skate.error.1e-09.newton"]) == (">= 1.50x", "<= 0.25x")
     study["newton"] = side(0.008, speedup=None)
     assert quasi_step_values(d)["qs.skate.error.1e-09.newton"] == "-"
+
+
+def test_quasi_step_values_quote_the_specialised_kernel_against_the_generic_one():
+    """The specialised kernel's range covers the rows where it ran only (a general-form row has
+    none: its ratio 1.0 would pull the range down); the generic kernel's own range against Newton
+    and its study keys ('.generic') are quoted apart from the specialised ones."""
+    from ldaspark.lab.reports.summary import quasi_step_values
+    rows = [{"speedup": 2.0, "specialised": True, "specialised_speedup": 1.5, "generic_speedup": 1.33},
+            {"speedup": 4.0, "specialised": True, "specialised_speedup": 1.34, "generic_speedup": 3.0},
+            {"speedup": 1.0, "specialised": False, "specialised_speedup": 1.0, "generic_speedup": 1.0}]
+    gen = [{"target": 1e-9, "speedup": 0.5, "speedup_at_least": None, "speedup_at_most": None}]
+    spec = [{"target": 1e-9, "speedup": 0.7, "speedup_at_least": None, "speedup_at_most": None}]
+    d = {"per_step": rows, "studies": [{"scene": "skate", "key": "error", "quasi": spec, "quasi_generic": gen,
+                                        "newton": gen}]}
+    out = quasi_step_values(d)
+    assert out["qs.specialised.range"] == "1.34-1.5x"
+    assert out["qs.per_step.generic.range"] == "1-3x" and out["qs.per_step.range"] == "1-4x"
+    assert (out["qs.skate.error.1e-09"], out["qs.skate.error.1e-09.generic"]) == ("0.70x", "0.50x")
