@@ -49,6 +49,13 @@ _spent: dict = {}            # (s, n, m) -> CPU seconds in the generic kernel
 _builds: dict = {}           # (s, n, m) -> the thread waiting for its build process
 _failed: dict = {}           # (s, n, m) -> why its build failed (not retried in this process)
 _tried: set = set()          # (s, n, m) looked for in the cache since the last build
+_load_lock = threading.Lock()  # numba's dispatcher: one thread adds an overload at a time
+
+
+def _building(key) -> bool:
+    """A build of ``key`` is running (a thread object inherited through fork is not alive)."""
+    t = _builds.get(key)
+    return t is not None and t.is_alive()
 
 
 def enabled() -> bool:
@@ -159,7 +166,7 @@ def build(s, n, m) -> object:
     check_kernel_cache((kernels, kernels_general, kernels_mech, newton, kernels_quasi))
     # one compile per (s, n, m) on this machine: the workers of an ensemble that reach BUILD_AFTER
     # together wait for the first build (asleep) and then load it
-    with _FileLock(os.path.join(cache_dir(), f"{_PREFIX}{s}_{n}_{m}.lock")):
+    with _FileLock(os.path.join(cache_dir(), f"{_PREFIX}{s}_{n}_{m}.lock")), _load_lock:
         ep = _load(s, n, m)
         if ep is None:
             with warnings.catch_warnings():
@@ -204,11 +211,12 @@ def kernel(s, n, m):
     if ep is not None:
         return ep
     with _lock:
-        if key in _tried or key in _failed or key in _builds or _spent.get(key, 0.0) < LOAD_AFTER:
+        if key in _tried or key in _failed or _building(key) or _spent.get(key, 0.0) < LOAD_AFTER:
             return None
         _tried.add(key)
     try:
-        ep = _load(*key)                     # built by another process, or by ours just now
+        with _load_lock:
+            ep = _load(*key)                 # built by another process, or by ours just now
     except Exception as exc:                 # no trusted cache directory, numba internals moved
         with _lock:
             _failed[key] = f"cannot load: {type(exc).__name__}: {str(exc)[:200]}"
@@ -227,8 +235,8 @@ def note(s, n, m, cpu: float) -> None:
         return
     with _lock:
         _spent[key] = _spent.get(key, 0.0) + max(float(cpu), 0.0)
-        if (_spent[key] < BUILD_AFTER or key in _failed or key in _builds or key in _ready
-                or any(t.is_alive() for t in _builds.values())
+        if (_spent[key] < BUILD_AFTER or key in _failed or key in _ready
+                or any(_building(k) for k in _builds)
                 or not (1 <= key[0] <= MAX_S and 1 <= key[1] <= MAX_N and 0 <= key[2] <= MAX_M)):
             return
         if key not in _tried:                # the next kernel() call looks in the cache first
@@ -244,7 +252,7 @@ def status(s, n, m) -> str:
     key = (int(s), int(n), int(m))
     if key in _ready:
         return "ready"
-    if key in _builds:
+    if _building(key):
         return "building"
     if key in _failed:
         return "failed: " + _failed[key]

@@ -160,3 +160,23 @@ def test_the_same_bits_on_other_sizes(monkeypatch, scene, method, h):
         monkeypatch.setattr(SP, "kernel", lambda *a, e=e: e)
         out.append(Q.run_quasi(cs, method, t0, q0, v0, h, 300, 1))
     _same(*out)
+
+
+def test_a_build_thread_inherited_through_fork_does_not_block_the_child(registry, monkeypatch, tmp_path):
+    """After a fork the child holds the parent's thread object, not alive there: not 'building',
+    and the child may start its own build."""
+    import threading
+    dead = threading.Thread(target=lambda: None)
+    dead.start()
+    dead.join()
+    SP._builds[KEY] = dead
+    SP._tried.add(KEY)
+    SP._spent[KEY] = SP.BUILD_AFTER
+    assert SP.status(*KEY) == "not built"
+    marker = tmp_path / "built"
+    monkeypatch.setattr(SP, "_command", lambda key: [sys.executable, "-c", f"open({str(marker)!r}, 'w').close()"])
+    SP.note(*KEY, 0.0)
+    t = SP._builds[KEY]
+    assert t is not dead
+    t.join(60)
+    assert marker.exists()
