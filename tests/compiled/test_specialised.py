@@ -109,6 +109,8 @@ def test_a_build_is_started_once_after_build_after_and_its_result_loaded(registr
     monkeypatch.setattr(SP, "_load", lambda *k: built if marker.exists() else None)
     SP.note(*KEY, SP.LOAD_AFTER)
     assert SP.kernel(*KEY) is None                         # not in the cache yet
+    SP.note(*KEY, 0.0)
+    assert SP.status(*KEY) == "not built"                  # below BUILD_AFTER: no build yet
     SP.note(*KEY, SP.BUILD_AFTER)
     t = SP._builds.get(KEY)
     assert t is not None and SP.status(*KEY) == "building"

@@ -24,6 +24,7 @@ TCK = "tests/lab/test_checkpoint.py"
 TCKR = "tests/lab/mutants/test_checkpoint_records.py"
 TCLS = "tests/lab/mutants/test_mutgen_classify.py"
 TRM = "tests/project/test_readme.py"
+TSP = "tests/compiled/test_specialised.py"
 
 MUTANTS = (
     # --- the root finder: a field dropped on one engine ----------------------------------------
@@ -149,6 +150,26 @@ MUTANTS = (
        "the guard's rerun length counted from t = 0, not t0 (t0 < 0: a negative length; large t0: "
        "the flagged interval left unverified)", "paths",
        TG + "::test_a_second_root_between_saved_samples_is_located_from_any_t0", TG),
+    # --- the kernel specialised per (s, n, m) ----------------------------------------------------
+    _m("paths-specialised-sizes-swapped", "compiled/specialised.py",
+       'r"\\1s, m, n = S_, M_, N_"', 'r"\\1s, m, n = S_, N_, M_"',
+       "the specialised kernel's frozen constraint geometry sized (s, n, m) where the generic one reads "
+       "(s, m, n): other numbers than the generic kernel's", "paths",
+       TSP + "::test_the_specialised_kernel_returns_the_generic_kernels_bits", TSP),
+    _m("paths-specialised-not-reported", "compiled/quasi.py",
+       'newton_kind="quasi", kernel_specialised=special)', 'newton_kind="quasi", kernel_specialised=False)',
+       "Result.stats says the generic kernel ran when the specialised one did", "paths",
+       TSP + "::test_integrate_runs_it_when_ready_and_says_so", TSP),
+    _m("paths-specialised-switch-ignored", "compiled/specialised.py",
+       '    if not enabled():\n        return None\n    ep = _ready.get(key)',
+       '    ep = _ready.get(key)',
+       "LDASPARK_SPECIALISE=0 ignored where a specialised kernel is ready", "paths",
+       TSP + "::test_integrate_runs_it_when_ready_and_says_so", TSP),
+    _m("paths-specialised-build-at-once", "compiled/specialised.py",
+       "if (_spent[key] < BUILD_AFTER or key in _failed", "if (key in _failed",
+       "the build process started at the first look into the cache, not after BUILD_AFTER seconds "
+       "(every run of a new size pays a 30 s compile on one core)", "paths",
+       TSP + "::test_a_build_is_started_once_after_build_after_and_its_result_loaded", TSP),
     # --- the lab's tools -----------------------------------------------------------------------
     _m("paths-fingerprint-paths-py-only", "lab/checkpoint.py",
        "        _hash_tree(h, root, \"*\")", "        _hash_tree(h, root, \"*.py\")",
