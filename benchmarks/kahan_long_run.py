@@ -10,6 +10,10 @@ import numpy as np
 
 from ldaspark.compiled.fast import growth_exponent, roundoff_errors
 
+# the generic kernel is timed, as in the reports: no specialised kernel built in the background
+# mid-run (ldaspark.compiled.specialised; benchmarks/quasi_step.py times both)
+os.environ.setdefault("LDASPARK_SPECIALISE", "0")
+
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__)

@@ -35,6 +35,10 @@ from ldaspark.core.io import atomic_write_json                 # noqa: E402
 from ldaspark.lab.reports.markdown import jsonable                 # noqa: E402
 from ldaspark.lab.reports.peers import SCENES, run_study, speedup_text   # noqa: E402
 
+# the generic kernel is timed, as in the reports: no specialised kernel built in the background
+# mid-run (ldaspark.compiled.specialised; benchmarks/quasi_step.py times both)
+os.environ.setdefault("LDASPARK_SPECIALISE", "0")
+
 
 def _use_newton(kind):
     """The study's public SPARK runs (``peers.prepare_spark`` imports ``ldaspark.solve.integrate``

@@ -35,6 +35,10 @@ sys.path.insert(0, os.path.join(HERE, ".."))
 
 import numpy as np  # noqa: E402
 
+# the generic kernel is timed, as in the reports: no specialised kernel built in the background
+# mid-run (ldaspark.compiled.specialised; benchmarks/quasi_step.py times both)
+os.environ.setdefault("LDASPARK_SPECIALISE", "0")
+
 SCENES = (("particle", {}), ("skate", {}), ("robot", {}), ("mp-particles-nh", {"m": 2}), ("mp-particles-nh", {}))
 METHODS = ("gauss-2", "gauss-3", "gauss-4", "gauss-5", "gauss-6")
 H = 0.1

@@ -1,8 +1,13 @@
 """Steps per second of each method on each scene, generic path vs compiled fast path, measured
 side by side in one run (h = 0.05). Usage: python benchmarks/steps_per_second.py [--quick]"""
 import argparse
+import os
 
 from ldaspark.lab.reports.work_precision import steps_per_second
+
+# the generic kernel is timed, as in the reports: no specialised kernel built in the background
+# mid-run (ldaspark.compiled.specialised; benchmarks/quasi_step.py times both)
+os.environ.setdefault("LDASPARK_SPECIALISE", "0")
 
 METHODS = ("gauss-1", "gauss-2", "gauss-3", "lobatto-iiia-iiib-2", "lobatto-iiia-iiib-3",
            "lobatto-iiia-iiib-iiid-2", "lobatto-iiia-iiib-iiid-3", "euler-i", "euler-ii")
