@@ -26,6 +26,9 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 _DRIVER = r"""
 import json, multiprocessing, os, signal, sys, time
 from ldaspark.core import lifecycle
+# the policy keeps an ignored signal ignored: start from the default action whatever the runner's
+# is (a job started under nohup, or in the background of a shell, ignores SIGHUP)
+signal.signal(signal.SIGHUP, signal.SIG_DFL)
 if sys.argv[1] == "unblocked":      # the negative control: the spawn as before the fix
     lifecycle.LinkedProcessPool._spawn_process = lambda self: (
         setattr(self, "_initargs", self._link_args()),
