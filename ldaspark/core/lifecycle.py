@@ -310,7 +310,8 @@ def make_process_pool(max_workers=None, mp_context=None, initializer=None, inita
 
 
 # a child started by run_linked asks for the death signal before it becomes the program
-_BOOT = ("import os, sys\n"
+# (and unblocks the stop signals run_linked held back around its start: exec keeps the mask)
+_BOOT = ("import os, signal, sys\n"
          "try:\n"
          "    import ctypes\n"
          "    ctypes.CDLL(None).prctl(1, int(sys.argv[1]), 0, 0, 0)\n"
@@ -318,7 +319,9 @@ _BOOT = ("import os, sys\n"
          "    pass\n"
          "if os.getppid() != int(sys.argv[2]):\n"
          "    os._exit(1)\n"
-         "os.execv(sys.argv[3], sys.argv[3:])\n")
+         "if sys.argv[3]:\n"
+         "    signal.pthread_sigmask(signal.SIG_UNBLOCK, [int(x) for x in sys.argv[3].split(',')])\n"
+         "os.execv(sys.argv[4], sys.argv[4:])\n")
 
 
 def linked_command(cmd: list) -> list:
@@ -326,7 +329,8 @@ def linked_command(cmd: list) -> list:
     on Linux through a small Python stub that sets the death signal and then execs it."""
     if not sys.platform.startswith("linux") or not sys.executable:
         return list(cmd)
-    return [sys.executable, "-c", _BOOT, str(int(DEATH_SIGNAL)), str(os.getpid()), *map(str, cmd)]
+    held = ",".join(str(int(x)) for x in STOP_SIGNALS) if hasattr(signal, "pthread_sigmask") else ""
+    return [sys.executable, "-c", _BOOT, str(int(DEATH_SIGNAL)), str(os.getpid()), held, *map(str, cmd)]
 
 
 def run_linked(cmd, timeout=None, **kwargs):
@@ -337,10 +341,15 @@ def run_linked(cmd, timeout=None, **kwargs):
     cmd = list(cmd)
     if kwargs.pop("capture_output", False):
         kwargs["stdout"] = kwargs["stderr"] = subprocess.PIPE
-    with _registry_lock:        # with stop_subprocesses(): either refused or registered, then killed
+    linked = linked_command(cmd)
+    # a stop signal raised between the start and the registration would leave the child running
+    # unregistered (not killed by the stop): held back across both where the stub unblocks it in
+    # the child (Linux); elsewhere the child would inherit the blocked mask
+    hold = signals_blocked() if linked != cmd else contextlib.nullcontext()
+    with hold, _registry_lock:  # with stop_subprocesses(): either refused or registered, then killed
         if _no_new_children.is_set():
             raise Stopped(DEATH_SIGNAL)
-        proc = subprocess.Popen(linked_command(cmd), **kwargs)
+        proc = subprocess.Popen(linked, **kwargs)
         _children.add(proc)
     try:
         try:

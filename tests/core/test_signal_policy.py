@@ -8,6 +8,12 @@ exists), the driver sends the signal and checks that the child ended by it (or, 
 KeyboardInterrupt), that the target still holds its old bytes and that no temporary file is
 left. The negative control runs the same driver with the policy cut to the old four signals:
 SIGUSR1 then leaves the temporary file behind.
+
+A stop signal that lands while the package starts a child (a pool worker's fork, ``run_linked``'s
+subprocess) is held back until the child is started and registered, then raised; the child runs
+with the stop signals unblocked. Seen under load in tests/cli/test_signals.py: the second signal
+of a resume hit logging's at-fork ``_releaseLock`` and was printed as "Exception ignored" instead
+of stopping the run.
 """
 import json
 import os
@@ -136,3 +142,122 @@ def test_negative_control_the_four_signal_policy_leaves_the_file(tmp_path):
     # kills the writer mid-write and its temporary file stays
     res = _drive(tmp_path, [signal.SIGUSR1], policy="old")[int(signal.SIGUSR1)]
     assert res["how"] == f"signal {int(signal.SIGUSR1)}" and len(res["left"]) == 1 and res["intact"]
+
+
+# --- a stop signal while the package starts a child ----------------------------------------------
+#: the signal lands where a child is being started: in an at-fork callback of a pool worker's fork
+#: (a stop raised there is printed as "Exception ignored" and lost), and right after run_linked's
+#: Popen returned, before the child is registered (a stop raised there leaves it running,
+#: unregistered: not killed by the stop). "unblocked": the starts as before they held the signals back.
+_FORK_DRIVER = r"""
+import json, multiprocessing, os, signal, sys, time
+from ldaspark.core import lifecycle
+# the policy keeps an ignored signal ignored: start from the default action whatever the runner's
+# is (a job started under nohup, or in the background of a shell, ignores SIGHUP)
+signal.signal(signal.SIGHUP, signal.SIG_DFL)
+if sys.argv[1] == "unblocked":      # the negative control: the spawn as before the fix
+    lifecycle.LinkedProcessPool._spawn_process = lambda self: (
+        setattr(self, "_initargs", self._link_args()),
+        super(lifecycle.LinkedProcessPool, self)._spawn_process())[1]
+armed = [True]
+def land():
+    if armed[0]:
+        armed[0] = False
+        os.kill(os.getpid(), signal.SIGHUP)
+os.register_at_fork(after_in_parent=land)
+out = {"stopped": None}
+with lifecycle.stop_on_signals(deadline=30.0) as policy:
+    try:
+        with lifecycle.make_process_pool(1, mp_context=multiprocessing.get_context("fork")) as pool:
+            fut = pool.submit(os.getpid)
+            fut.result(timeout=60)
+            time.sleep(5)                   # the signal has not been raised yet: it was lost
+    except lifecycle.Stopped as exc:
+        out["stopped"] = exc.signum
+print(json.dumps(out))
+"""
+
+
+
+_LINKED_DRIVER = r"""
+import json, os, signal, subprocess, sys, time
+from ldaspark.core import lifecycle
+signal.signal(signal.SIGHUP, signal.SIG_DFL)
+if sys.argv[1] == "unblocked":
+    lifecycle.signals_blocked = lambda *a: __import__("contextlib").nullcontext()
+real = subprocess.Popen
+class Landing(real):
+    def __init__(self, *a, **k):
+        super().__init__(*a, **k)
+        os.kill(os.getpid(), signal.SIGHUP)      # after the start, before the registration
+subprocess.Popen = Landing
+out = {"stopped": None}
+with lifecycle.stop_on_signals(deadline=30.0):
+    try:
+        lifecycle.run_linked(["/bin/sleep", "30"], timeout=60)
+    except lifecycle.Stopped as exc:
+        out["stopped"] = exc.signum
+kids = list(lifecycle._children)
+out["registered"] = len(kids)
+for p in kids:
+    p.kill()
+print(json.dumps(out))
+"""
+
+
+def _run(driver, mode):
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    p = subprocess.run([sys.executable, "-c", driver, mode], capture_output=True, text=True, timeout=120,
+                       env=env, cwd=ROOT)
+    return p, json.loads(p.stdout.strip().splitlines()[-1]) if p.stdout.strip() else None
+
+
+_linux_fork = pytest.mark.skipif(not sys.platform.startswith("linux") or not hasattr(os, "register_at_fork"),
+                                 reason="forks, reads /proc")
+
+
+@_linux_fork
+def test_a_signal_during_the_fork_of_a_worker_is_raised_after_it():
+    p, out = _run(_FORK_DRIVER, "blocked")
+    assert p.returncode == 0, p.stderr
+    assert "Exception ignored" not in p.stderr, p.stderr
+    assert out["stopped"] == 1, (out, p.stderr)          # SIGHUP, raised by submit once the worker runs
+
+
+@_linux_fork
+def test_negative_control_an_unblocked_spawn_raises_inside_the_fork():
+    p, out = _run(_FORK_DRIVER, "unblocked")
+    assert "Exception ignored" in p.stderr and "raise Stopped" in p.stderr, p.stderr
+    assert out["stopped"] is None, out                  # and the stop was lost
+
+
+@_linux_fork
+@pytest.mark.parametrize("start", ("pool", "run_linked"))
+def test_children_run_with_the_stop_signals_unblocked(start):
+    src = ("import os, multiprocessing\nfrom ldaspark.core import lifecycle\n"
+           "if " + repr(start) + " == 'pool':\n"
+           "    with lifecycle.make_process_pool(1, mp_context=multiprocessing.get_context('fork')) as pool:\n"
+           "        pid = pool.submit(os.getpid).result(timeout=60)\n"
+           "        print(open(f'/proc/{pid}/status').read())\n"
+           "else:\n"
+           "    print(lifecycle.run_linked(['/bin/cat', '/proc/self/status'], capture_output=True,\n"
+           "                               timeout=60).stdout.decode())\n")
+    p = subprocess.run([sys.executable, "-c", src], capture_output=True, text=True, timeout=120,
+                       env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert p.returncode == 0, p.stderr
+    blk = int([ln for ln in p.stdout.splitlines() if ln.startswith("SigBlk:")][0].split()[1], 16)
+    for s in (signal.SIGHUP, signal.SIGTERM, signal.SIGINT):
+        assert not blk & (1 << (int(s) - 1)), hex(blk)
+
+
+@_linux_fork
+def test_a_signal_right_after_run_linked_started_its_child_finds_it_registered():
+    p, out = _run(_LINKED_DRIVER, "blocked")
+    assert p.returncode == 0, p.stderr
+    assert out == {"stopped": 1, "registered": 1}, (out, p.stderr)
+
+
+@_linux_fork
+def test_negative_control_an_unheld_start_leaves_the_child_unregistered():
+    p, out = _run(_LINKED_DRIVER, "unblocked")
+    assert out == {"stopped": 1, "registered": 0}, (out, p.stderr)
