@@ -15,6 +15,7 @@ import time
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
 
 import ldaspark
 from ldaspark.compiled import quasi as Q
@@ -22,6 +23,7 @@ from ldaspark.compiled import runner
 from ldaspark.compiled import specialised as SP
 from ldaspark.core.errors import LdasparkError
 from ldaspark.models.scenes import get_scene
+from verification.harness import mechanical_cases
 
 KEY = (2, 3, 1)
 RUNS = (("skate", 0.1, 300), ("particle", 0.2, 300), ("particle", 1.0, 200))
@@ -147,6 +149,23 @@ def test_the_source_carries_the_sizes_and_the_helpers_digest():
     for bad in ((0, 3, 1), (SP.MAX_S + 1, 3, 1), (2, SP.MAX_N + 1, 1), (2, 3, -1)):
         with pytest.raises(LdasparkError):
             SP.specialised_source(*bad)
+
+
+@settings(max_examples=1, database=None, derandomize=True, deadline=None)
+@given(case=mechanical_cases(n_range=(3, 3)))
+def test_the_same_bits_on_a_drawn_mechanical_system(case):
+    """The differential harness's mechanical draw (M non-diagonal, U quadratic + cubic, K(q) with a
+    q-dependent entry, b(q) = beta sin(q_h) + rho != 0, t0 != 0; docs/verification.md): gauss-2
+    on the specialised kernel of its sizes and on the generic one, every output bit for bit."""
+    cs = runner.compile_system(case.system)
+    ep = SP.build(2, cs.n, cs.m)
+    out = []
+    for e in (None, ep):
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(SP, "kernel", lambda *a, e=e: e)
+            out.append(Q.run_quasi(cs, "gauss-2", case.t0, case.q0, case.v0, case.h, 40, 1))
+    assert out[1].stats["kernel_specialised"] and not out[0].stats["kernel_specialised"]
+    _same(*out)
 
 
 @pytest.mark.exhaustive
