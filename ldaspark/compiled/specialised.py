@@ -74,9 +74,13 @@ def _read(name: str) -> str:
         return f.read()
 
 
+def _in_range(s, n, m) -> bool:
+    return 1 <= s <= MAX_S and 1 <= n <= MAX_N and 0 <= m <= MAX_M
+
+
 def _sizes(s, n, m) -> tuple:
     s, n, m = int(s), int(n), int(m)
-    if not (1 <= s <= MAX_S and 1 <= n <= MAX_N and 0 <= m <= MAX_M):
+    if not _in_range(s, n, m):
         raise InputError(f"no specialised kernel for (s, n, m) = ({s}, {n}, {m}): sizes 1 <= s <= {MAX_S}, "
                          f"1 <= n <= {MAX_N}, 0 <= m <= {MAX_M}")
     return s, n, m
@@ -177,8 +181,13 @@ def build(s, n, m) -> object:
     return ep
 
 
+#: the build process (not ``-m``: runpy would execute a second copy of this module, which the
+#: package has imported already, and warn about it on stderr)
+_BUILD = "import sys; from ldaspark.compiled.specialised import _main; sys.exit(_main(sys.argv[1:]))"
+
+
 def _command(key) -> list:
-    return [sys.executable, "-m", "ldaspark.compiled.specialised", *map(str, key)]
+    return [sys.executable, "-c", _BUILD, *map(str, key)]
 
 
 def _build_in_background(key) -> None:
@@ -211,7 +220,8 @@ def kernel(s, n, m):
     if ep is not None:
         return ep
     with _lock:
-        if key in _tried or key in _failed or _building(key) or _spent.get(key, 0.0) < LOAD_AFTER:
+        if (key in _tried or key in _failed or _building(key) or _spent.get(key, 0.0) < LOAD_AFTER
+                or not _in_range(*key)):
             return None
         _tried.add(key)
     try:
@@ -235,11 +245,9 @@ def note(s, n, m, cpu: float) -> None:
         return
     with _lock:
         _spent[key] = _spent.get(key, 0.0) + max(float(cpu), 0.0)
-        if (_spent[key] < BUILD_AFTER or key in _failed or key in _ready
-                or any(_building(k) for k in _builds)
-                or not (1 <= key[0] <= MAX_S and 1 <= key[1] <= MAX_N and 0 <= key[2] <= MAX_M)):
-            return
-        if key not in _tried:                # the next kernel() call looks in the cache first
+        # key not in _tried: the next kernel() call looks in the cache first
+        if (_spent[key] < BUILD_AFTER or key in _failed or key not in _tried
+                or any(_building(k) for k in _builds) or not _in_range(*key)):
             return
         t = threading.Thread(target=_build_in_background, args=(key,), name=f"ldaspark-specialise-{key}",
                              daemon=True)
@@ -261,13 +269,15 @@ def status(s, n, m) -> str:
 
 def _main(argv) -> int:
     if len(argv) != 3 or not all(a.isdigit() for a in argv):
-        print("usage: python -m ldaspark.compiled.specialised S N M", file=sys.stderr)
+        print("usage: ldaspark.compiled.specialised._main([S, N, M])", file=sys.stderr)
         return 2
+    from ..core.errors import LdasparkError
     t0 = time.time()
-    build(*map(int, argv))
+    try:
+        build(*map(int, argv))
+    except LdasparkError as exc:
+        print(f"ldaspark.compiled.specialised: {exc}", file=sys.stderr)
+        return 2
     print(f"built ({', '.join(argv)}) in {time.time() - t0:.1f} s")
     return 0
 
-
-if __name__ == "__main__":
-    sys.exit(_main(sys.argv[1:]))

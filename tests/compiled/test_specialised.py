@@ -201,3 +201,14 @@ def test_a_build_thread_inherited_through_fork_does_not_block_the_child(registry
     assert t is not dead
     t.join(60)
     assert marker.exists()
+
+
+def test_the_build_process_command_builds_or_says_why_in_one_line(built):
+    """The command the background thread runs: it loads (or compiles) the kernel and exits 0;
+    sizes out of range are one line on stderr and exit 2, no traceback."""
+    import subprocess
+    p = subprocess.run(SP._command(KEY), capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0 and p.stdout.startswith("built (2, 3, 1)"), p.stderr
+    p = subprocess.run(SP._command((0, 3, 1)), capture_output=True, text=True, timeout=120)
+    assert p.returncode == 2 and "Traceback" not in p.stderr
+    assert p.stderr.strip().splitlines() == [p.stderr.strip()] and "(0, 3, 1)" in p.stderr
