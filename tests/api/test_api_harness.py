@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import math
+import os
 import signal
 import threading
 
@@ -25,6 +26,10 @@ from ldaspark import LdasparkError
 
 TIME_BOUND = 60          # seconds per call (generous: a refusal takes milliseconds; kernels are
                          # compiled by the module fixture, outside the bound)
+
+
+#: the checkout (the module runs in a directory of its own: ``_result_file``)
+_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 # --- the drawn wrong values ------------------------------------------------------------------
@@ -105,7 +110,8 @@ BASELINES = {
     "euler_i": (ldaspark.euler_i, lambda: dict(exact=True), None),
     "euler_ii": (ldaspark.euler_ii, lambda: dict(exact=True), None),
     "SparkTableau": (lambda **a: ldaspark.SparkTableau(**a).arrays(), _tableau_kwargs, None),
-    "load_tableau": (ldaspark.load_tableau, lambda: dict(path="examples/tableaux/gauss2.json", max_stages=None),
+    "load_tableau": (ldaspark.load_tableau,
+                     lambda: dict(path=os.path.join(_ROOT, "examples", "tableaux", "gauss2.json"), max_stages=None),
                      None),
     "get_method": (ldaspark.get_method, lambda: dict(name="gauss-1", exact=False, max_stages=None), None),
     "get_scene": (ldaspark.get_scene, lambda: dict(name="mp-particles", ic=1), None),
@@ -193,13 +199,20 @@ def assert_clean(name, kwargs):
 
 
 @pytest.fixture(scope="module", autouse=True)
-def _result_file():
+def _result_file(tmp_path_factory):
+    # the module runs in a directory of its own: a drawn path that is valid (save_result's path
+    # drawn as a short text) writes there, never into the checkout the tests run from
+    home = os.getcwd()
+    os.chdir(tmp_path_factory.mktemp("harness-cwd"))
     ldaspark.save_result(_result(), "/tmp/ldaspark-harness.json")
     ldaspark.fast_integrate("skate", "gauss-2", h=0.1, n_steps=2)      # compile (or load) the kernels once
     _runspec()
     import matplotlib
     matplotlib.use("Agg")
-    yield
+    try:
+        yield
+    finally:
+        os.chdir(home)
 
 
 CASES = [(name, arg) for name, (_, make, _) in BASELINES.items() for arg in make()]
