@@ -12,7 +12,9 @@ compiled kernels' Newton (the default before it chose the quasi iteration) on th
 (scene, method, h, 20000 steps), with iterations per step and fallbacks.
 Part 2 (``targets``): the targets of issue 48 at equal error, cpu(best peer) / cpu(best SPARK):
 skate T = 100 final error 1e-9 and 1e-12; skate T = 1e4 max energy error 1e-8; particle T = 1e4
-max energy error 1e-10; SPARK gauss-2, 3, 4, 6, 8 with each of the three.
+max energy error 1e-10; SPARK gauss-2, 3, 4, 6, 8 with each of the three, gauss-6 and gauss-8 on
+step grids fine enough that the best step for a target is among them (``STUDIES``). Every task
+runs for at least MIN_CPU seconds a round (short runs repeated), its CPU the minimum of all runs.
 
     python benchmarks/quasi_step.py [--rounds 3] [--quick] [--out reports/quasi_step.json]
 """
@@ -43,22 +45,32 @@ PEERS = ("cyrk-nbsolve2-DOP853", "cyrk-nbsolve2-Vern8")
 #: before the clock starts; general-form systems have none and run the generic one), the same
 #: with the generic kernel, and the kernels' Newton
 VARIANTS = ("quasi", "quasi-generic", "newton")
-#: (scene, T, key, targets, SPARK step sizes per method, peer rtols, samples)
+#: (scene, T, key, targets, SPARK step sizes per method, peer rtols, samples). A user picks the
+#: step that just meets the target, as a peer's user picks its tolerance: the steps of gauss-6 and
+#: gauss-8 near the targets are T / N for N about 1.1-1.25x apart (an error of order 2s = 16 changes
+#: 10-30x between them, as the peers' errors do between tolerances 10x apart), the rest halve
 STUDIES = (
     ("skate", 100.0, "error", (1e-9, 1e-12),
      {"gauss-2": (0.05, 0.025, 0.0125, 0.00625), "gauss-3": (0.2, 0.1, 0.05, 0.025),
-      "gauss-4": (0.8, 0.4, 0.2, 0.1), "gauss-6": (1.25, 0.625, 0.3125, 0.15625),
-      "gauss-8": (2.5, 1.25, 0.625, 0.3125)},
+      "gauss-4": (0.8, 0.4, 0.25, 0.2, 0.125, 0.1),
+      "gauss-6": tuple(100.0 / N for N in (80, 100, 120, 140, 160, 200, 250, 320)),
+      "gauss-8": tuple(100.0 / N for N in (40, 48, 56, 64, 72, 80, 100, 120, 160))},
      (1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14), 1),
     ("skate", 1e4, "energy_error", (1e-8,),
-     {"gauss-3": (0.4, 0.2, 0.1), "gauss-4": (1.0, 0.8, 0.4), "gauss-6": (2.0, 1.25, 0.625),
-      "gauss-8": (2.5, 1.25)},
+     {"gauss-3": (0.4, 0.2, 0.1), "gauss-4": (1.0, 0.8, 0.4),
+      "gauss-6": tuple(1e4 / N for N in (5000, 6000, 6400, 7000, 8000, 16000)),
+      "gauss-8": tuple(1e4 / N for N in (4000, 4400, 5000, 8000))},
      (1e-8, 1e-9, 1e-10, 1e-11, 1e-12), 200),
     ("particle", 1e4, "energy_error", (1e-10,),
-     {"gauss-3": (0.1, 0.05), "gauss-4": (0.25, 0.2, 0.1), "gauss-6": (0.5, 0.4, 0.2),
-      "gauss-8": (1.0, 0.8, 0.625, 0.3125)},
+     {"gauss-3": (0.1, 0.05), "gauss-4": (0.25, 0.2, 0.1),
+      "gauss-6": tuple(1e4 / N for N in (20000, 22500, 25000, 50000)),
+      "gauss-8": tuple(1e4 / N for N in (10000, 12500, 14000, 16000, 32000))},
      (1e-9, 1e-10, 1e-11, 1e-12, 1e-13), 200),
 )
+#: CPU seconds each task runs for in every round of a study (``peers.run_interleaved``'s
+#: min_cpu): a 0.1-0.5 ms run (the skate to T = 100, SPARK and peers alike) is timed ~100-500
+#: times a round, its minimum taken, instead of once
+MIN_CPU = 0.05
 
 
 def spark_task(scene, method, h, t_end, n_out, newton):
@@ -181,7 +193,7 @@ def study(scene, t_end, key, targets, hs, rtols, n_out, rounds, quick):
     tasks = []
     for i in range(max(len(sp), len(pt))):
         tasks += sp[i:i + 1] + pt[i:i + 1]
-    rows = P.run_interleaved(tasks, rounds=rounds, short=1.0, failed=failed)
+    rows = P.run_interleaved(tasks, rounds=rounds, short=1.0, failed=failed, min_cpu=MIN_CPU)
     if key == "error":
         q_ref = P.reference_final(sc, t_end)[0]
         for r in rows:

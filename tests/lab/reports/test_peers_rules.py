@@ -275,6 +275,49 @@ def test_interleaved_rounds_keep_each_runs_cheapest_round(clock):
     assert rows == [{"method": "h", "cpu": 0.5, "out": ("h", 0.5)}]
 
 
+
+def test_interleaved_min_cpu_repeats_short_runs_within_a_round(clock):
+    """min_cpu: a task runs again in its round until its runs there add up to min_cpu (every run a
+    sample of the minimum), at most max_repeats times; a run at or above min_cpu runs once; a
+    failure in a repeat drops the task. Negative control: without min_cpu, one run per round."""
+    log = []
+
+    def task(name, costs):
+        it = iter(costs)
+
+        def go():
+            c = next(it)
+            clock.now += c
+            log.append(name)
+            return c
+        return (name, go, lambda cpu, out: {"method": name, "cpu": cpu, "out": out})
+    rows = peers.run_interleaved([task("a", [0.25, 0.5, 0.125, 0.5, 0.5, 0.5]), task("b", [2.0, 2.0])], rounds=2,
+                                 short=10.0, min_cpu=0.75)
+    # round 1: a 0.25 + 0.5 (0.75 reached), b once; round 2: a 0.125 + 0.5 + 0.5, b once
+    assert log == ["a", "a", "b", "a", "a", "a", "b"]
+    assert {r["method"]: r["cpu"] for r in rows} == {"a": 0.125, "b": 2.0}
+    log.clear()
+    rows = peers.run_interleaved([task("c", [0.25] * 10)], rounds=2, short=10.0, min_cpu=100.0, max_repeats=3)
+    assert log == ["c"] * 6 and rows[0]["cpu"] == 0.25
+    log.clear()
+    peers.run_interleaved([task("d", [0.25, 0.125, 0.5])], rounds=3, short=10.0)
+    assert log == ["d"] * 3                              # the control: one run per round
+    n = {"k": 0}
+
+    def flaky():
+        n["k"] += 1
+        clock.now += 0.25
+        if n["k"] == 3:
+            raise LdasparkError("gone")
+        return n["k"]
+    failed = []
+    rows = peers.run_interleaved([("f", flaky, lambda c, o: o)], rounds=2, short=10.0, failed=failed, min_cpu=1.0)
+    assert rows == [] and failed == ["f: LdasparkError: gone"] and n["k"] == 3
+    with pytest.raises(ValueError):
+        peers.run_interleaved([], min_cpu=-1.0)
+    with pytest.raises(ValueError):
+        peers.run_interleaved([], max_repeats=0)
+
 # =============================================================================================
 # peers: the solvers' wiring (libraries replaced by recorders)
 # =============================================================================================
