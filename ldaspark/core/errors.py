@@ -19,6 +19,24 @@ class LdasparkError(Exception):
     TableauError
     """
 
+    def __init__(self, *args):
+        # the message is one line whatever text it quotes (a user's path or name may hold a line
+        # break or a terminal control): such characters are written as escapes, as repr() does
+        if args and isinstance(args[0], str):
+            args = (one_line(args[0]),) + args[1:]
+        super().__init__(*args)
+
+
+#: the characters ``str.splitlines`` breaks at and the other C0/C1 controls (a tab stays a tab)
+_CONTROLS = {c: repr(chr(c))[1:-1] for c in [*range(0x20), 0x7f, *range(0x80, 0xa0), 0x2028, 0x2029]
+             if c != 0x09}
+
+
+def one_line(text: str) -> str:
+    """``text`` with its line breaks and control characters written as escapes (``\\n``, ``\\x1b``,
+    ``\\u2028``): one line, and nothing in it a terminal acts on."""
+    return text.translate(_CONTROLS)
+
 
 class TableauError(LdasparkError):
     """Malformed or unusable tableau (shapes, non-numeric entries, NaN, singular omega)."""
