@@ -47,3 +47,13 @@ def assert_ok_or_one_line(rc, err, argv=None):
     assert "Traceback" not in err, (argv, err)
     if rc == 2:
         assert err.count("\n") == 1 and err.startswith("ldaspark: error:"), (argv, err)
+
+
+def two_line_error(cls, first, second, **kw):
+    """An error of ``cls`` whose message prints as two lines. LdasparkError escapes a line break
+    in the text it is given (``core.errors.one_line``); text from deeper down (a third-party
+    exception's message carried over, a subclass's own ``__str__``) may still hold one, and the
+    code that keeps only the first line is tested with this."""
+    exc = cls(first, **kw)
+    exc.args = (f"{first}\n{second}",)
+    return exc

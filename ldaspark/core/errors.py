@@ -9,6 +9,12 @@ class LdasparkError(Exception):
     ``TableauError``, ``NewtonError``, ``SingularSaddleError``, ...); its message is one line.
     The CLI prints that line and exits with status 2.
 
+    Parameters
+    ----------
+    *args
+        As for ``Exception``; a text message is kept on one line (its line breaks and control
+        characters written as escapes, ``one_line``), whatever user text it quotes.
+
     Examples
     --------
     >>> import ldaspark

@@ -16,6 +16,7 @@ import pathlib
 # --- lab/reports/peers.py ---------------------------------------------------------------------------
 from ldaspark.lab.reports import peers as P  # noqa: E402
 from scene_fakes import _Osc, _Scene
+from run_helpers import two_line_error
 
 
 # =============================================================================================
@@ -263,7 +264,7 @@ def test_interleaved_rounds_keep_each_runs_cheapest_round(clock):
         n["k"] += 1
         clock.now += 0.25
         if n["k"] == 2:
-            raise LdasparkError("no point\nsecond line")
+            raise two_line_error(LdasparkError, "no point", "second line")
         return n["k"]
     failed = []
     rows = peers.run_interleaved([("f", flaky, lambda c, o: o), task("g", [0.5, 0.5])], rounds=2, short=1.0,

@@ -13,6 +13,7 @@ from ldaspark.lab.reports import stability_stiff as ss
 # --- lab/reports/stability_stiff.py -----------------------------------------------------------------
 from ldaspark.lab.reports import stability_stiff as SS  # noqa: E402
 from stability_fakes import _fake_fast
+from run_helpers import two_line_error
 
 
 # ================================================================================================
@@ -54,7 +55,7 @@ def test_stiff_run_growth_ratio_and_failure_context(monkeypatch):
     def fake(system, method, t0, q0, v0, h, n, every, kernel):
         n_calls.append((method, h, n))
         if n > 100:
-            raise NewtonError("Newton failed at step 7\nsecond line", step=7)
+            raise two_line_error(NewtonError, "Newton failed at step 7", "second line", step=7)
         E = np.ones(n + 1)
         E[1] = 1.02           # relative to E[0] = 1, not to E[1]
         E[2] = 1.1            # first half (samples 0 .. half - 1): max rel dE 0.1
@@ -115,7 +116,7 @@ def test_tiny_step_run_and_grid(monkeypatch):
     def fake(scene, method, h, n_steps, every):
         seen.append((method, h, n_steps, every))
         if method == "euler-i":
-            raise NewtonError("stopped\nmore")
+            raise two_line_error(NewtonError, "stopped", "more")
         return _Sol(np.array([2.0, 2.5, 1.0, 2.0]), np.array([[1e-17, -4e-17], [0.0, 0.0]]),
                     {"kernel": "spark", "mean_iterations": 2.0, "full_newton_steps": 3} if h > 1e-6
                     else {"kernel": "spark", "mean_iterations": 2.0})

@@ -20,6 +20,7 @@ from ldaspark.analysis import order_conditions as oc
 from types import SimpleNamespace
 
 from tableau_fakes import _lobatto2, _tab, approx
+from run_helpers import two_line_error
 
 
 PASS, FAIL, INFO, SKIP = au.PASS, au.FAIL, au.INFO, au.SKIP
@@ -238,7 +239,7 @@ def test_probe_step_rejects_failure_and_nonfinite(monkeypatch):
 
         def step(self, t0, q0, v0, h):
             if mode["m"] == "raise":
-                raise LdasparkError("newton\nx")
+                raise two_line_error(LdasparkError, "newton", "x")
             bad = np.full_like(np.asarray(q0, dtype=float), np.nan)
             ok = np.asarray(q0, dtype=float)
             return types.SimpleNamespace(q1=bad if mode["m"] == "nan" else ok,
@@ -388,7 +389,7 @@ def test_convergence_constraint_is_the_worst_scene_and_failures_continue(convenv
     convenv.k = {"skate": 1e-16, "particle": 1e-29}
     assert ac.convergence_checks(TABX, 6, 30, False)[0][-1].status == FAIL
     convenv.k = {"skate": 1e-16, "particle": 1e-20}
-    convenv.obs = {"skate": LdasparkError("newton\nx"), "particle": 4.0}
+    convenv.obs = {"skate": two_line_error(LdasparkError, "newton", "x"), "particle": 4.0}
     C, f = ac.convergence_checks(TABX, 4, 30, False)
     assert [c.name for c in C] == ["convergence:skate", "convergence:particle", "constraint"]
     assert C[0].status == FAIL and C[0].detail == "integration failed: newton" and C[1].status == PASS
@@ -411,7 +412,7 @@ def test_energy_check_rate_and_failure(monkeypatch):
     assert runs == [(50, 5.0), (100, 5.0)] and f["energy_rate"] == approx(math.log(2.5) / math.log(2))
 
     def boom(tab, sc, N, T, dps):
-        raise LdasparkError("diverged\nx")
+        raise two_line_error(LdasparkError, "diverged", "x")
     monkeypatch.setattr(ac, "_run", boom)
     c, f = ac.energy_check(None, True)
     assert c.status == FAIL and f == {} and c.detail.endswith("failed: diverged") and "h = 0.1" in c.detail

@@ -12,6 +12,7 @@ from ldaspark.core.errors import InputError, LdasparkError, TableauError
 from ldaspark.core.tableau_file import from_json_dict
 from ldaspark.lab.theory import audit as au
 from ldaspark.core.families import get_method
+from run_helpers import two_line_error
 
 
 def approx(expected, rel=1e-9, abs=0.0):
@@ -284,7 +285,7 @@ def test_theorem1_scene_entry_allowance_is_measured_on_the_scene(t1env, effect):
 
 def test_theorem1_scene_full_retries_at_more_digits(t1env):
     # full: the first solve fails, the second (+20 digits) decides
-    t1env.results = [LdasparkError("stall\nmore"), _r()]
+    t1env.results = [two_line_error(LdasparkError, "stall", "more"), _r()]
     c, fact = au._theorem1_scene(TAB0, "skate", True, 30, False)
     assert t1env.calls == [30, 50] and c.status == PASS and "dps 50" in c.detail
     assert "regular (rank deficiency 0, decided at dps 30, 50" in c.detail
@@ -305,7 +306,7 @@ def test_theorem1_scene_full_retries_at_more_digits(t1env):
 
 
 def test_theorem1_scene_both_solves_failing_is_skip(t1env):
-    t1env.results = [LdasparkError("a"), LdasparkError("b\nc")]
+    t1env.results = [LdasparkError("a"), two_line_error(LdasparkError, "b", "c")]
     c, fact = au._theorem1_scene(TAB0, "skate", True, 30, False)
     assert c.status == SKIP and fact is None and "(b)" in c.detail and "at dps 30 and 50" in c.detail
     t1env.results = [LdasparkError("a")]
@@ -372,7 +373,7 @@ def test_symmetry_checks_singular_bvp_judges_only_Ld_and_Phi(symenv):
 
 
 def test_symmetry_summary_needs_one_decided_scene_and_no_failure(symenv):
-    symenv.results = {0: LdasparkError("no\nmore"), 1: _sym(ld=2e-20)}
+    symenv.results = {0: two_line_error(LdasparkError, "no", "more"), 1: _sym(ld=2e-20)}
     checks, _ = au._symmetry_checks(TAB0, 30, ["skate", "particle"], entry_tol=1e-25)
     assert [c.status for c in checks] == [SKIP, PASS, PASS]
     assert checks[0].detail.endswith("(no)") and checks[-1].residual == 2e-20
