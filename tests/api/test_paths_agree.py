@@ -369,7 +369,9 @@ def check_dense_output_agrees_with_the_steps_and_a_stopped_run(case):
                 # the degree s-1 polynomial through the stage velocities V_j, O(h^s) from v_n there
                 assert max_diff(vd, r.v[i]) <= 64 * np.finfo(float).eps * case.scale, (engine, i)
         errs = []
-        for h in (case.h, case.h / 2):
+        # three step sizes, the order read on the finer pair: one halving from a drawn h can sit
+        # before the asymptotic range (a drawn nonideal system gave 2^2.34 from h = 1/16 to 1/32)
+        for h in (case.h, case.h / 2, case.h / 4):
             j = 2
             ts = case.t0 + (j + 0.5) * h
             rr = case.run(engine=engine, dense_output=True, h=h, t_span=(case.t0, case.t0 + (j + 1) * h))
@@ -382,7 +384,7 @@ def check_dense_output_agrees_with_the_steps_and_a_stopped_run(case):
         # error O(h^3)) and gauss-2's collocation polynomial (stage order 2); 2 for stage order 1
         # (gauss-1; the IIIB velocities of lobatto-iiia-iiib-2)
         r = 3 if engine == "compiled" or case.method == "gauss-2" else 2
-        assert errs[1] < errs[0] / 2 ** (r - 0.5) or errs[0] <= 1e3 * case.tol(), (engine, errs, r)
+        assert errs[2] < errs[1] / 2 ** (r - 0.5) or errs[1] <= 1e3 * case.tol(), (engine, errs, r)
 
 
 def _crossing_time(case, h, engine="generic"):

@@ -95,12 +95,23 @@ def test_same_outcome_on_every_openblas_kernel(core):
 
 
 @pytest.mark.exhaustive
-def test_negative_control_without_the_residual_test_haswell_fails():
-    # the bug this guards against: with the round-off residual test switched off, the Haswell
-    # kernel reports 'Newton did not converge ... residual 3e-17' at step 199 with full Newton
-    # (newton="auto" happens to reach the monitor's step 200 even without it)
-    env = dict(os.environ, OPENBLAS_CORETYPE="Haswell", PYTHONPATH=os.getcwd())
-    script = ("from ldaspark.core.spark import SparkMethod\nSparkMethod.ROUNDOFF_FACTOR = 0\nNEWTON = ('full',)\n"
-              + _SCRIPT)
-    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=300)
-    assert r.stdout.strip() == "NewtonError 199", (r.stdout, r.stderr[-500:])
+def test_negative_control_without_the_residual_test_some_kernel_fails():
+    # the bug this guards against: with the round-off residual test switched off, Newton reports
+    # 'Newton did not converge ... residual 3e-17' at step 199 instead of the monitor's step 200.
+    # Which OpenBLAS kernel and which Newton variant show it depends on the CPU (written on a host
+    # where Haswell / full Newton did; measured 2026-12-06 on an AMD EPYC host: the default and the
+    # SkylakeX kernels with newton="auto", none with full Newton), so every pair is tried and one
+    # must show it; a CPU on which none does cannot show what the test above guards against, and
+    # says so (skip) instead of failing a check that does not depend on the library
+    seen = []
+    for core in ("", "Haswell", "Prescott", "Zen", "SkylakeX"):
+        env = dict(os.environ, OPENBLAS_CORETYPE=core, PYTHONPATH=os.getcwd())
+        script = ("from ldaspark.core.spark import SparkMethod\nSparkMethod.ROUNDOFF_FACTOR = 0\n"
+                  "NEWTON = ('full', 'auto')\n" + _SCRIPT)
+        r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=300)
+        out = r.stdout.split("\n")[:2]
+        assert all(o in ("NewtonError 199", "SingularSaddleError 200") for o in out), (core, r.stdout, r.stderr[-500:])
+        seen += [(core, o) for o in out]
+        if "NewtonError 199" in out:
+            return
+    pytest.skip(f"no OpenBLAS kernel of this CPU fails without the residual test: {seen}")
