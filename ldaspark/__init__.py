@@ -108,7 +108,34 @@ class _MovedModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
             module.__path__ = []
             return
         # importlib returns sys.modules[name] after exec_module: the moved module itself
-        sys.modules[module.__name__] = importlib.import_module(new)
+        moved = sys.modules[module.__name__] = importlib.import_module(new)
+        if hasattr(moved, "__path__"):
+            _old_children(moved, module.__name__)
+
+
+def _old_children(package, old: str) -> None:
+    """``from <old package> import <child>`` where the child moved elsewhere (``from
+    ldaspark.theory import discrete``): the old package is the new package's object, whose
+    ``__name__`` is the new one, so Python's from-import looks for the child there and fails. A
+    module ``__getattr__`` on the package imports such a child by its old dotted name (through this
+    finder: the moved module itself). Nothing else is looked up this way; the package's own
+    submodules import as usual."""
+    children = getattr(package, "_ldaspark_old_children", None)
+    if children is None:
+        if "__getattr__" in vars(package):          # a package with its own lookup is left alone
+            return
+        children = package._ldaspark_old_children = {}
+
+        def __getattr__(name):
+            old_name = children.get(name)
+            if old_name is None:
+                raise AttributeError(f"module {package.__name__!r} has no attribute {name!r}")
+            return importlib.import_module(old_name)
+        package.__getattr__ = __getattr__
+    for key in MOVED:
+        head, _, name = key.rpartition(".")
+        if head == old and MOVED[key] and MOVED[key] != f"{package.__name__}.{name}":
+            children[name] = key
 
 
 if not any(isinstance(f, _MovedModules) for f in sys.meta_path):

@@ -9,6 +9,10 @@ TF = "tests/io/test_files.py"
 TC = "tests/cli/test_cli_bounds.py"
 
 MUTANTS = (
+    _m("relvalid-error-message-two-lines", "core/errors.py",
+       "            args = (one_line(args[0]),) + args[1:]", "            args = tuple(args)",
+       "a message quoting a path with a line break is two lines (load_result(path='\\n')), a terminal "
+       "escape in a path reaches the terminal", "validation", "tests/core/test_errors.py"),
     _m("relvalid-dps-no-upper-bound", "core/validate.py",
        "    if not DPS_MIN <= dps <= DPS_MAX:", "    if not DPS_MIN <= dps:",
        "dps accepted above DPS_MAX (dps = 10**6 ran for minutes)", "validation", TV),
