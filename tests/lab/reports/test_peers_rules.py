@@ -239,18 +239,24 @@ def test_cpu_min_is_the_minimum_and_long_runs_are_not_repeated(clock):
     assert peers._cpu_min(fn, repeats=3, short=1.0) == (0.5, 3)
 
 
+def _fake_task(clock, log, name, costs, out=lambda name, c: (name, c)):
+    """(label, go, finish) of run_interleaved whose runs cost ``costs`` in turn on the fake clock,
+    logging each run."""
+    it = iter(costs)
+
+    def go():
+        c = next(it)
+        clock.now += c
+        log.append(name)
+        return out(name, c)
+    return (name, go, lambda cpu, o: {"method": name, "cpu": cpu, "out": o})
+
+
 def test_interleaved_rounds_keep_each_runs_cheapest_round(clock):
     log = []
 
     def task(name, costs):
-        it = iter(costs)
-
-        def go():
-            c = next(it)
-            clock.now += c
-            log.append(name)
-            return (name, c)
-        return (name, go, lambda cpu, out: {"method": name, "cpu": cpu, "out": out})
+        return _fake_task(clock, log, name, costs)
     tasks = [task("a", [1.0, 0.5, 0.75]), task("b", [2.0]), task("c", [1.5, 1.25, 1.0]), task("d", [0.5, 3.0, 0.25])]
     rows = peers.run_interleaved(tasks, rounds=3, short=1.5)
     # b (2.0 > short) is not repeated; c (exactly short) is; each round runs the tasks in turn
@@ -284,14 +290,7 @@ def test_interleaved_min_cpu_repeats_short_runs_within_a_round(clock):
     log = []
 
     def task(name, costs):
-        it = iter(costs)
-
-        def go():
-            c = next(it)
-            clock.now += c
-            log.append(name)
-            return c
-        return (name, go, lambda cpu, out: {"method": name, "cpu": cpu, "out": out})
+        return _fake_task(clock, log, name, costs, out=lambda name, c: c)
     rows = peers.run_interleaved([task("a", [0.25, 0.5, 0.125, 0.5, 0.5, 0.5]), task("b", [2.0, 2.0])], rounds=2,
                                  short=10.0, min_cpu=0.75)
     # round 1: a 0.25 + 0.5 (0.75 reached), b once; round 2: a 0.125 + 0.5 + 0.5, b once
