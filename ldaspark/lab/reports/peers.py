@@ -431,9 +431,9 @@ def run_interleaved(tasks, rounds=3, short=0.5, failed=None, min_cpu=0.0, max_re
     timed three times keeps the scheduler's and the caches' noise, which the minimum of ~100 runs
     does not (the same for every task, SPARK and peer alike). A task that raises PeerFailure or an
     LdasparkError is dropped (its label and the message appended to ``failed``)."""
-    from ...core.errors import LdasparkError
+    from ...core.errors import InputError, LdasparkError
     if not (min_cpu >= 0.0 and int(max_repeats) >= 1):
-        raise ValueError(f"run_interleaved: min_cpu >= 0 and max_repeats >= 1, got {min_cpu!r}, {max_repeats!r}")
+        raise InputError(f"run_interleaved: min_cpu >= 0 and max_repeats >= 1, got {min_cpu!r}, {max_repeats!r}")
     best = [float("inf")] * len(tasks)
     outs = [None] * len(tasks)
     dead = [False] * len(tasks)

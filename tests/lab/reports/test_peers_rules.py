@@ -9,7 +9,7 @@ import types
 from types import SimpleNamespace
 import numpy as np
 import pytest
-from ldaspark.core.errors import LdasparkError
+from ldaspark.core.errors import InputError, LdasparkError
 from ldaspark.lab.reports import peers
 import json
 import pathlib
@@ -313,9 +313,9 @@ def test_interleaved_min_cpu_repeats_short_runs_within_a_round(clock):
     failed = []
     rows = peers.run_interleaved([("f", flaky, lambda c, o: o)], rounds=2, short=10.0, failed=failed, min_cpu=1.0)
     assert rows == [] and failed == ["f: LdasparkError: gone"] and n["k"] == 3
-    with pytest.raises(ValueError):
+    with pytest.raises(InputError):
         peers.run_interleaved([], min_cpu=-1.0)
-    with pytest.raises(ValueError):
+    with pytest.raises(InputError):
         peers.run_interleaved([], max_repeats=0)
 
 # =============================================================================================
