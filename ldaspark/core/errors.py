@@ -2,7 +2,18 @@
 so the CLI can print one line and exit 2 without a traceback."""
 
 
-class LdasparkError(Exception):
+class _OneLine:
+    """The message of an LdasparkError or LdasparkWarning is one line whatever text it quotes (a
+    user's path or name may hold a line break or a terminal control): such characters are written
+    as escapes, as repr() does (``one_line``)."""
+
+    def __init__(self, *args):
+        if args and isinstance(args[0], str):
+            args = (one_line(args[0]),) + args[1:]
+        super().__init__(*args)
+
+
+class LdasparkError(_OneLine, Exception):
     """Base class of all ldaspark errors.
 
     Every error the library raises on purpose derives from it (``InputError``,
@@ -24,13 +35,6 @@ class LdasparkError(Exception):
     ...     print(type(exc).__name__)
     TableauError
     """
-
-    def __init__(self, *args):
-        # the message is one line whatever text it quotes (a user's path or name may hold a line
-        # break or a terminal control): such characters are written as escapes, as repr() does
-        if args and isinstance(args[0], str):
-            args = (one_line(args[0]),) + args[1:]
-        super().__init__(*args)
 
 
 #: the characters ``str.splitlines`` breaks at and the other C0/C1 controls (a tab stays a tab)
@@ -85,7 +89,7 @@ class NonFiniteError(LdasparkError):
         self.time = time
 
 
-class LdasparkWarning(UserWarning):
+class LdasparkWarning(_OneLine, UserWarning):
     """Something was accepted with a note (``warnings.simplefilter("error", LdasparkWarning)``
     turns these notes into errors): a parameter value for a symbol the model does not have, an
-    initial velocity changed by ``project=True``."""
+    initial velocity changed by ``project=True``. Its text is one line, as an error's (``one_line``)."""

@@ -50,3 +50,17 @@ def test_the_command_line_prints_the_escaped_path(capsys, tmp_path):
     rc = main(["audit", str(tmp_path / "a\nb.json")])
     err = capsys.readouterr().err
     assert rc == 2 and err.count("\n") == 1 and "a\\nb.json" in err, err
+
+
+def test_a_warning_quoting_a_name_is_one_line_too():
+    """The neighbour of the path in an error: a user's parameter name in an LdasparkWarning
+    (``params={"a\\nb": 1.0}``: not a parameter of the skate). Control: a plain UserWarning."""
+    import warnings
+
+    from ldaspark.core.errors import LdasparkWarning
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        ldaspark.integrate("skate", "gauss-2", h=0.1, n_steps=2, engine="generic", params={"a\nb": 1.0})
+    msgs = [str(x.message) for x in w if issubclass(x.category, LdasparkWarning)]
+    assert msgs and all(len(m.splitlines()) == 1 for m in msgs) and "a\\nb" in msgs[0], msgs
+    assert len(str(UserWarning("a\nb")).splitlines()) == 2
