@@ -30,6 +30,10 @@ def plugin_commands() -> dict:
     return out
 
 
+#: the destinations of the commands' file and directory options (``--out``, ``--json``, ...)
+_PATH_OPTIONS = ("out", "json", "outdir", "tableau", "keep_killed", "fill", "file")
+
+
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # argparse's own usage errors: one line, exit 2
         self.exit(2, f"ldaspark: error: {message}\n")
@@ -252,6 +256,12 @@ def _main(argv=None) -> int:
     except KeyboardInterrupt as exc:
         return _stopped(exc, "")
     args = parser.parse_args(argv)
+    for dest in _PATH_OPTIONS:      # an empty path is never "not given": refused, never ignored
+        val = getattr(args, dest, None)
+        if isinstance(val, str) and not val.strip():
+            name = "FILE" if dest == "file" else "--" + dest.replace("_", "-")
+            print(f"ldaspark: error: {name} is an empty path", file=sys.stderr)
+            return 2
     if not getattr(args, "func", None):
         parser.print_help()
         print("ldaspark: error: give a command (integrate, methods, report, verify, audit)", file=sys.stderr)

@@ -108,9 +108,54 @@ def decimal_radius(adjusted: int, digits_given: int):
 
 
 #: A decimal literal with at least this many significant digits is known to half a unit in its own
-#: last digit; a shorter one is read as a terminating expansion ("0.5", "0.25": printing to D digits
-#: drops trailing zeros), known to the tableau's largest digit count D
+#: last digit; so is one as long as the tableau's longest writing (its D significant digits, or its F
+#: decimal places: "0.0416667" in a file printed to 7 places). A shorter one may be a terminating
+#: expansion ("0.5", "0.25": printing to D digits or F places drops trailing zeros): known to half a
+#: unit in the D-th significant digit or the F-th place, whichever is larger (``literal_radius``)
 LONG_DECIMAL = 8
+
+
+def decimal_places(text: str) -> int:
+    """Decimal places of a decimal literal ('0.0416667' 7, '2.5e-1' 2, '1.5e3' -2, '0.0' 1)."""
+    from decimal import Decimal
+    return -Decimal(text.replace("_", "")).as_tuple().exponent
+
+
+def _half_place(places: int):
+    """Half a unit in the ``places``-th decimal place, 0.5 * 10^-places, as an exact fmpq."""
+    import flint
+    return flint.fmpq(5, 10 ** (places + 1)) if places >= -1 else flint.fmpq(5 * 10 ** (-places - 1))
+
+
+def literal_radius(text: str, digits: int, places: int | None, float_like: bool, json: bool = False):
+    """The radius (an exact fmpq) of the ball of what a decimal literal of a tableau file stands for,
+    in a file whose longest literal has ``digits`` (D) significant digits and ``places`` (F) decimal
+    places. The writer rounded either to significant digits (D, trailing zeros dropped) or to
+    decimal places (F, fixed point, zeros kept or dropped); which one is not known, so:
+
+    * a literal with LONG_DECIMAL or more digits, or with D digits, or with F places, was rounded at
+      its own last digit: half a unit there;
+    * every literal is also known at least to half a unit in the D-th significant digit and in the
+      F-th place (a shorter one is a terminating expansion of one of the two writings): the larger;
+    * a zero ("0.0000000") to half a unit in the F-th place;
+    * plus half an ulp of float64 (2^-53 |x|) for a literal of at most FLOAT64_REPR_DIGITS digits
+      when it may be a float64's writing (repr or %.17g: the float nearest the intended value,
+      printed): when the file holds a literal of LONG_DECIMAL..FLOAT64_REPR_DIGITS digits
+      (``float_like``), or, for a JSON number, when no literal is longer than a float64's writing."""
+    import flint
+    val, sig, adj = decimal_info(text.lstrip("+-"))
+    pl = decimal_places(text.lstrip("+-"))
+    F = pl if places is None else max(places, pl)
+    r = _half_place(F)
+    if sig == 0:
+        return r
+    r = max(r, decimal_radius(adj, max(digits, sig)))
+    if sig >= LONG_DECIMAL or sig >= digits or pl >= F:
+        r = max(r, decimal_radius(adj, sig))
+    if sig <= FLOAT64_REPR_DIGITS and (float_like or (json and digits <= FLOAT64_REPR_DIGITS)):
+        # 2^-53 |x| rounded up to a rational with a power-of-two denominator: exact, no arb needed
+        r = r + abs(val) / flint.fmpq(2 ** 53)
+    return r
 
 
 class _BallEvaluator:
@@ -120,8 +165,9 @@ class _BallEvaluator:
     ball arithmetic (acb) so that sqrt of a negative intermediate follows sympy's principal branch;
     the entry is real (checked at load), its real part is returned."""
 
-    def __init__(self, digits_given: int | None):
-        self.D = digits_given
+    def __init__(self, digits_given: int | None, places: int | None = None, float_like: bool = False):
+        self.D, self.F, self.float_like = digits_given, places, float_like
+        self.json = False
 
     def leaf(self, x):
         import flint
@@ -135,17 +181,13 @@ class _BallEvaluator:
             return _float_ball(x)
         import ast
         src = x.strip()
-        if isinstance(x, JsonNumber):
-            # the decimal text to its digits (as a string entry), and, when it may be the shortest
-            # writing of a float64, half an ulp on top (the float nearest the intended coefficient)
-            ball = self.node(ast.parse(src, mode="eval").body, src).real
-            # (not in a file whose longest number has more digits than a float64's writing: there a
-            # short one such as 0.5 is a terminating expansion, as a string would be)
-            if decimal_info(src.lstrip("-"))[1] <= FLOAT64_REPR_DIGITS and (self.D or 0) <= FLOAT64_REPR_DIGITS:
-                ball = ball + flint.arb(0, abs(ball.mid()) * flint.arb(2) ** -53)
-            return ball
-        z = self.node(ast.parse(src, mode="eval").body, src)
-        return z.real
+        # a JSON number: the decimal text to its digits, as a string entry, and half an ulp on top
+        # where it may be a float64's writing (``literal_radius``)
+        self.json = isinstance(x, JsonNumber)
+        try:
+            return self.node(ast.parse(src, mode="eval").body, src).real
+        finally:
+            self.json = False
 
     def node(self, n, src):
         import ast
@@ -157,9 +199,9 @@ class _BallEvaluator:
             text = ast.get_source_segment(src, n) or repr(n.value)
             val, sig, adj = decimal_info(text)
             ball = flint.arb(val)
-            if self.D is not None and sig > 0:
-                known = sig if sig >= LONG_DECIMAL else self.D
-                ball = ball + flint.arb(0, flint.arb(decimal_radius(adj, known)))
+            if self.D is not None:
+                rad = literal_radius(text, self.D, self.F, self.float_like, self.json)
+                ball = ball + flint.arb(0, flint.arb(rad))
             return acb(ball)
         if isinstance(n, ast.UnaryOp):
             v = self.node(n.operand, src)
@@ -240,6 +282,12 @@ _MAX_ENTRY_LEN = 200          # characters of one string entry
 _MAX_EXPONENT = 64            # product of the literal exponents of nested '**'
 _MAX_SCI_EXPONENT = 400       # |e| of scientific notation 1.5e-30 (float64 spans 1e-324 .. 1e308)
 _MAX_DEPTH = 32               # depth of the expression tree
+# sympy's construction of nested sin/cos grows faster than linearly with the nesting (its assumption
+# queries recurse): sin(sin(...)) 30 deep took ~0.1 s an entry, minutes for a file of s = 20. Published
+# coefficients nest radicals two or three deep (sqrt(245 - 14*sqrt(70))) and use a few of them
+# (the shipped gauss2-ten-radicals.json: 10 in one entry)
+_MAX_CALL_DEPTH = 4           # sqrt/sin/cos/Rational nested in one another
+_MAX_CALLS = 16               # sqrt/sin/cos/Rational calls in one entry
 _MAX_BITS = 8192              # numerator / denominator of an intermediate rational
 _MAX_TRIG_ARG = 1e6           # |x| in sin(x), cos(x)
 MAX_MAGNITUDE = 1e300         # |entry|: every entry converts to a finite float64
@@ -305,10 +353,10 @@ def parse_exact_string(x: str, where: str = "entry", info: dict | None = None):
     (decimals read as exact decimals), + - * /, ** with a literal integer exponent, sqrt,
     Rational, sin, cos and pi. Bounded so that no entry can hang or exhaust memory: at most
     200 characters, tree depth 32, the product of nested '**' exponents at most 64, scientific
-    exponents |e| <= 400, intermediate rationals of at most 8192 bits, |x| <= 1e6 inside sin/cos.
-    Anything else is a TableauError naming the entry, and so is a denominator (or the base of a
+    exponents |e| <= 400, intermediate rationals of at most 8192 bits, |x| <= 1e6 inside sin/cos,
+    at most 16 calls of sqrt, sin, cos, Rational, nested at most 4 deep. Anything else is a TableauError naming the entry, and so is a denominator (or the base of a
     negative power) that is zero, also when sympy does not reduce it (``sin(1)**2 + cos(1)**2 - 1``):
-    it is tested in ball arithmetic at 12000 bits. ``info``, when given, receives ``digits``: the
+    it is tested in ball arithmetic at 256, then 12000 bits. ``info``, when given, receives ``digits``: the
     largest number of significant digits of a decimal literal in the entry (0 if none)."""
     src, tree = _parse_source(x, where, _MAX_ENTRY_LEN, TableauError, repr)
     b = _EntryBuilder(x, src, where)
@@ -317,6 +365,8 @@ def parse_exact_string(x: str, where: str = "entry", info: dict | None = None):
         raise b.bad("not a number")
     if info is not None:
         info["digits"] = max(info.get("digits", 0), b.digits)
+        if b.places > -10 ** 6:
+            info["places"] = max(info.get("places", b.places), b.places)
         info.setdefault("counts", set()).update(b.counts)
     return e
 
@@ -335,6 +385,8 @@ class _EntryBuilder:
         self.depth_limit = _MAX_EXPR_DEPTH if self.symbolic else _MAX_DEPTH
         self.digits = 0         # most significant digits of a decimal literal seen
         self.counts = set()     # the significant digits of every nonzero decimal literal
+        self.places = -10 ** 6  # most decimal places of a decimal literal seen (zeros too)
+        self.calls = self.call_depth = 0    # function calls so far, and nested around the current node
 
     def zero(self, value, node) -> bool:
         """Whether a (validated) denominator is zero: exactly for a rational, else by its ball at
@@ -344,9 +396,14 @@ class _EntryBuilder:
         if getattr(value, "is_Rational", False):
             return False
         import flint
-        with flint.ctx.workprec(_ZERO_TEST_BITS):
-            z = _BallEvaluator(None).node(node, self.src)
-            return bool(z.real.contains(0) and z.imag.contains(0))
+        # 256 bits first: a ball that excludes 0 there settles a nonzero denominator (nearly every
+        # one) without the 12000-bit evaluation
+        for bits in (256, _ZERO_TEST_BITS):
+            with flint.ctx.workprec(bits):
+                z = _BallEvaluator(None).node(node, self.src)
+                if not (z.real.contains(0) and z.imag.contains(0)):
+                    return False
+        return True
 
     def bad(self, why):
         what = "an expression" if self.symbolic else "a number"
@@ -391,6 +448,7 @@ class _EntryBuilder:
             if not math.isfinite(node.value):
                 raise self.bad("not finite")
             e = sympy.Rational(text.replace("_", ""))
+            self.places = max(self.places, decimal_places(text))
             if e != 0:
                 sig = decimal_info(text)[1]
                 self.digits = max(self.digits, sig)
@@ -468,7 +526,18 @@ class _EntryBuilder:
 
     def call(self, node, depth, power):
         fname = node.func.id
-        args = [self.build(a, depth + 1, power) for a in node.args]
+        if not self.symbolic:
+            self.calls += 1
+            if self.calls > _MAX_CALLS:
+                raise self.bad(f"more than {_MAX_CALLS} function calls")
+            self.call_depth += 1
+            if self.call_depth > _MAX_CALL_DEPTH:
+                raise self.bad(f"function calls nested deeper than {_MAX_CALL_DEPTH}")
+        try:
+            args = [self.build(a, depth + 1, power) for a in node.args]
+        finally:
+            if not self.symbolic:
+                self.call_depth -= 1
         if fname == "Rational":
             if not all(a.is_Integer for a in args) or (len(args) == 2 and args[1] == 0):
                 raise self.bad("Rational needs integer arguments and a nonzero denominator")

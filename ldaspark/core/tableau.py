@@ -81,6 +81,8 @@ class SparkTableau:
         The entries as given in a file (kept for the audit report).
     decimal_digits, decimal_digits_min : int, optional
         Largest and smallest number of digits of decimal-literal entries.
+    decimal_places : int, optional
+        Most decimal places of a decimal literal (a file printed to fixed places).
     _cache : dict
         Internal memo of derived arrays (not compared, not printed).
 
@@ -114,6 +116,9 @@ class SparkTableau:
     #: the fewest significant digits of a decimal literal of at least LONG_DECIMAL digits (None if
     #: there is none): below ``decimal_digits`` when the entries were printed to different precisions
     decimal_digits_min: int | None = None
+    #: the most decimal places of a decimal literal in an entry (None when ``decimal_digits`` is):
+    #: a file printed to F places (fixed point) has literals of fewer digits than D at full length
+    decimal_places: int | None = None
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self):
@@ -219,6 +224,13 @@ class SparkTableau:
         return self.sources is not None and any(
             _leaf_is_float(x) for v in self.sources.values() for x in _flatten(v))
 
+    @property
+    def float_like_digits(self) -> bool:
+        """Some decimal literal has LONG_DECIMAL to FLOAT64_REPR_DIGITS significant digits: it may be a
+        float64's writing (repr, %.17g), so each literal of at most that many digits is also known only
+        to half an ulp of float64 (``numbers.literal_radius``)."""
+        return self.decimal_digits_min is not None and self.decimal_digits_min <= FLOAT64_REPR_DIGITS
+
     def precision_kind(self) -> str:
         """'exact', 'decimal' (string entries with decimal literals), 'float' (float64 entries),
         'decimal+float', or 'computed' (a built-in known to any precision, ``builder``)."""
@@ -232,14 +244,18 @@ class SparkTableau:
     def precision_text(self) -> str:
         """What the entries carry, in words (the audit's report)."""
         kind = self.precision_kind()
-        D, Dmin = self.decimal_digits, self.decimal_digits_min
+        D, Dmin, F = self.decimal_digits, self.decimal_digits_min, self.decimal_places
+        place = f" or the {_ordinal(F)} decimal place, the larger" if F is not None and F > 0 else ""
         if D and Dmin and Dmin < D:
             dec = (f"decimal literals with {Dmin} to {D} significant digits (one of {LONG_DECIMAL} or more "
                    f"digits known to half a unit in its last digit, a shorter one (a terminating expansion) "
-                   f"to half a unit in the {_ordinal(D)} significant digit)")
+                   f"to half a unit in the {_ordinal(D)} significant digit{place})")
         else:
             dec = (f"decimal literals with up to {D} significant digit{'s' if D != 1 else ''} (each taken as "
-                   f"known to half a unit in its {_ordinal(D)} significant digit)") if D else ""
+                   f"known to half a unit in its {_ordinal(D)} significant digit{place})") if D else ""
+        if D and self.float_like_digits:
+            dec += (f"; one of at most {FLOAT64_REPR_DIGITS} digits also to half an ulp of float64 (it may be a "
+                    "float64's writing)")
         flt = "float64 entries (each known to half a unit in the last place, 2^-53 ~ 1.1e-16 relative)"
         if self.json_numbers:
             flt = (f"JSON numbers read as decimal texts with up to {D} significant digits (each known to half "
@@ -264,7 +280,7 @@ class SparkTableau:
             prec = int(digits * 3.33) + 16
             with flint.ctx.workprec(prec):
                 if self.sources is not None:
-                    ev = _BallEvaluator(self.decimal_digits)
+                    ev = _BallEvaluator(self.decimal_digits, self.decimal_places, self.float_like_digits)
                     out = {k: _map_nested(v, ev.leaf) for k, v in self.sources.items()}
                     if "omega" not in out:
                         out["omega"] = [[_sympy_ball(self.exact["omega"][i, j], digits, None)
@@ -331,7 +347,7 @@ class SparkTableau:
             return SparkTableau(f"{self.name}+d{name}[{i},{j}]", self.s, exact=ex,
                                 source_digits=self.source_digits, claimed_order=None, family="perturbed",
                                 sources=src, decimal_digits=self.decimal_digits,
-                                decimal_digits_min=self.decimal_digits_min)
+                                decimal_digits_min=self.decimal_digits_min, decimal_places=self.decimal_places)
         base = self.builder
 
         def builder(dps, base=base):
@@ -449,20 +465,25 @@ def omega_rank(tab: "SparkTableau", dps: int | None = None, extra_rows=None) -> 
     if tab.sources is not None and not given:
         with flint.ctx.workprec(int(digits * 3.33) + 16):
             bv, cv = balls["b"], balls["c"]
-            obs = [[bv[j] * cv[j] ** i for j in range(s)] for i in range(s - 1)]
+            # b_j c_j^i by repeated products: arb's ** is NaN on a ball containing 0 ("0.0000000")
+            obs, row = [], list(bv)
+            for i in range(s - 1):
+                obs.append(row)
+                row = [row[j] * cv[j] for j in range(s)]
     else:
         obs = balls["omega"]
-    rad2 = sum(float(x.rad()) ** 2 for r in obs for x in r)
+    # ||Delta omega||_F by hypot: the squares of radii of entries up to MAX_MAGNITUDE overflow
+    rad = math.hypot(*(float(x.rad()) for r in obs for x in r))
     if tab.known_exactly or tab.exact is None:
-        rad2 = 0.0                      # the entries stand for themselves
+        rad = 0.0                       # the entries stand for themselves
     with mpmath.workdps(w):
         rows = [list(r) for r in ent["omega"]] + [list(r) for r in (extra_rows or [])]
         sv = mpmath.svd_r(mpmath.matrix(rows), compute_uv=False) if rows else []
         sig = sorted((float(x) for x in sv), reverse=True)
     smax = sig[0] if sig else 0.0
-    bound = math.sqrt(rad2) + s * s * 10.0 ** (5 - w) * max(smax, 1e-300)
+    bound = rad + s * s * 10.0 ** (5 - w) * max(smax, 1e-300)
     return {"rank": sum(x > bound for x in sig), "sigma": sig, "bound": bound, "dps": w,
-            "radius": math.sqrt(rad2)}
+            "radius": rad}
 
 
 def _default_omega_exact(b, c, s):

@@ -80,7 +80,8 @@ def from_json_dict(d: dict, name: str | None = None, max_stages: int | None = No
     sources = {k: [list(r) if isinstance(r, list) else r for r in d[k]] for k in NAMES if k in d}
     digits = info["digits"] or None
     longs = [n for n in info.get("counts", ()) if n >= LONG_DECIMAL]
-    kw = dict(family="custom", sources=sources, decimal_digits=digits, decimal_digits_min=min(longs) if longs else None)
+    kw = dict(family="custom", sources=sources, decimal_digits=digits, decimal_digits_min=min(longs) if longs else None,
+              decimal_places=info.get("places") if digits else None)
     if all_exact:
         return _rank_checked(SparkTableau(str(label), s, exact=ex, **kw))
     # float64 entries carry ~15 digits; JSON numbers longer than a float64's writing their own

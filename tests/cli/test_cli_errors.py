@@ -79,6 +79,21 @@ def test_argument_errors(capsys, tmp_path, argv, match):
     assert not (tmp_path / "X").exists()
 
 
+@pytest.mark.parametrize("argv, name", [
+    (["audit", "--method", "gauss-1", "--quick", "--json", ""], "--json"),
+    (["audit", "--method", "gauss-1", "--quick", "--out", " "], "--out"),
+    (["methods", "--json", ""], "--json"),
+    (["audit", ""], "FILE"),
+    (["integrate", "skate", "gauss-1", "--h", "0.5", "--t-end", "1", "--out", ""], "--out"),
+])
+def test_an_empty_output_path_is_refused_not_ignored(capsys, tmp_path, monkeypatch, argv, name):
+    """An empty --json / --out was read as "not given" (the report went to stdout, exit 0): one
+    line, exit 2, before any work; a real path runs (control: ``methods --json``)."""
+    monkeypatch.chdir(tmp_path)
+    _one_error_line(capsys, argv, match=f"{name} is an empty path")
+    assert main(["methods", "--max-s", "1", "--json", "m.json"]) == 0 and (tmp_path / "m.json").is_file()
+
+
 @pytest.mark.parametrize("text, match", [
     ("{not json", "not valid JSON"),
     ('{"c": [0.5]}', "missing"),

@@ -6,10 +6,11 @@ from ..mutant import _m
 TPREC = "tests/lab/theory/test_audit_precision.py"
 TAUD = "tests/lab/theory/test_audit.py"
 T = TPREC + "::"
+TPW = "tests/lab/theory/test_audit_printed_writings.py"
 
 MUTANTS = (
     _m("audit-decimal-literal-exact", "core/numbers.py",
-       "if self.D is not None and sig > 0:", "if False and self.D is not None and sig > 0:",
+       "rad = literal_radius(text, self.D, self.F, self.float_like, self.json)", "rad = 0",
        "a decimal literal taken as exact (no uncertainty from its digits): a (22) pair solved at 40 "
        "digits is 'violated' at 1e-41", "conditions",
        T + "test_22_pair_solved_at_40_digits_passes_and_a_1e10_change_fails_with_its_residual", TPREC),
@@ -24,15 +25,36 @@ MUTANTS = (
        "small)", "conditions",
        T + "test_22_pair_solved_at_40_digits_passes_and_a_1e10_change_fails_with_its_residual", TPREC),
     _m("audit-decimal-digits-tableau-max", "core/numbers.py",
-       "known = sig if sig >= LONG_DECIMAL else self.D", "known = self.D",
+       "if sig >= LONG_DECIMAL or sig >= digits or pl >= F:", "if False:",
        "every decimal literal credited with the longest literal's digits (entries printed to "
        "different precisions)", "conditions",
        T + "test_entries_printed_to_different_digits_keep_their_own", TPREC),
     _m("audit-short-decimal-own-digits", "core/numbers.py",
-       "known = sig if sig >= LONG_DECIMAL else self.D", "known = sig",
+       "if sig >= LONG_DECIMAL or sig >= digits or pl >= F:", "if True:",
        "a short terminating decimal ('0.5') known only to its own digit (0.5 +- 0.05 beside 40-digit "
        "entries)", "conditions",
        T + "test_short_decimals_are_terminating_expansions", TPREC),
+    _m("audit-fixed-point-places-ignored", "core/numbers.py",
+       "    r = _half_place(F)\n", "    r = flint.fmpq(0)\n",
+       "a table printed to F places read as printed to significant digits only ('0.0416667' in a "
+       "7-place table known to 5e-10: Lobatto IIIA-IIIB 3 'violates' (22b))", "conditions",
+       TPW + "::test_every_writing_satisfies_22_and_is_consistent", TPW),
+    _m("audit-float-writing-strings-exact", "core/numbers.py",
+       "(float_like or (json and digits <= FLOAT64_REPR_DIGITS))", "(json and digits <= FLOAT64_REPR_DIGITS)",
+       "a float64's repr written as a string (or beside 30-digit numbers) known to its digits only, "
+       "not to half an ulp ('0.16666666666666666' is 6.7e-18 from 1/6)", "conditions",
+       TPW + "::test_every_writing_satisfies_22_and_is_consistent", TPW),
+    _m("audit-violation-radius-largest", "lab/theory/audit_checks.py",
+       "return (worst if not ok else largest), label, ok, (rad if ok else worst_rad)",
+       "return (worst if not ok else largest), label, ok, rad",
+       "a violation compared in its message with the largest radius of all entries, not the violated "
+       "one's ('2.29e-09, beyond the uncertainty 1.0e-08')", "conditions",
+       TPW + "::test_a_coefficient_moved_in_its_6th_digit_fails_22b", TPW),
+    _m("audit-undecided-order-fails", "lab/theory/audit_checks.py",
+       "if not math.isfinite(obs) and efloor > wfloor:", "if False:",
+       "an order the entries' digits cannot show (every error within what they change) failed as the "
+       "method's", "conditions",
+       TPW + "::test_convergence_hidden_by_the_entries_is_undecided_not_failed", TPW),
     _m("audit-float64-exact", "core/numbers.py",
        "return flint.arb(flint.fmpq(q.numerator, q.denominator)) + flint.arb(0, abs(flint.arb(x)) * flint.arb(2) ** -53)",
        "return flint.arb(flint.fmpq(q.numerator, q.denominator))",

@@ -1,0 +1,125 @@
+"""Methods written as their users write them, decided at the precision the writing carries
+(``numbers.literal_radius``): fixed-point tables ("0.0416667" beside "1.0000000"), a float64's repr
+or "%.17g" as strings, 30-digit JSON numbers beside float64 ones. Each writing of a method that
+satisfies (22) passes (22) and its consistency; the same writing with one coefficient moved in its
+6th digit fails (22b) (the negative control), and the violation is measured against the violated
+entry's own uncertainty."""
+import json
+
+import pytest
+
+from ldaspark.core import numbers as nb
+from ldaspark.core.tableau_file import from_json_dict, load_tableau
+from ldaspark.lab.theory import audit as au
+from ldaspark.lab.theory import audit_checks as ac
+
+from audit_writings import builtin, write, written
+
+METHODS = ("lobatto-iiia-iiib-3", "lobatto-iiia-iiib-4", "gauss-3", "gauss-4")
+KINDS = ("f7", "f8", "f10", "repr", "g17", "mixed30")
+
+
+def _algebraic(tab):
+    ar, e = au.decide_arith(tab, 30)[:2]
+    checks, facts = au.algebraic_checks(tab, ar, e, 30)
+    return {c.name: c for c in checks}, facts
+
+
+def _load(tmp_path, name, kind, move=None):
+    c, A, b, Ah, At = builtin(name)
+    d = written(c, A, b, kind, Ah, At, name=name)
+    if move is not None:                 # one coefficient of A_hat moved by 1e-6 relative (6th digit)
+        x = d["A_hat"][0][1]
+        y = float(x) * (1 + 1e-6) + 1e-7
+        d["A_hat"][0][1] = type(x)(f"{y:.{len(str(x))}g}") if isinstance(x, str) else y
+    return load_tableau(write(tmp_path / f"{name}-{kind}.json", d))
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("name", METHODS)
+def test_every_writing_satisfies_22_and_is_consistent(name, kind, tmp_path):
+    by, facts = _algebraic(_load(tmp_path, name, kind))
+    assert by["22a"].status == au.PASS and by["22b"].status == au.PASS, by["22b"].detail
+    assert by["consistent"].status == au.PASS
+    assert facts["order:A"] >= 4
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("name", ("lobatto-iiia-iiib-3", "gauss-3"))
+def test_a_coefficient_moved_in_its_6th_digit_fails_22b(name, kind, tmp_path):
+    by, _ = _algebraic(_load(tmp_path, name, kind, move=True))
+    c = by["22b"]
+    assert c.status == au.FAIL
+    # the uncertainty named in the message is the violated entry's, below its residual
+    assert c.tolerance < c.residual
+
+
+def test_fixed_point_literals_are_known_to_their_places():
+    """In a file printed to 7 places (D = 8 from "1.0000000"), "0.0416667" (6 digits) is known to
+    5e-8, not to the 8th significant digit (5e-10, the old reading that failed Lobatto IIIA-B 3);
+    "0.5" and "0.0000000" to 5e-8 as well; a repr-printed "0.16666666666666666" to half a unit in
+    its last digit plus half an ulp (its digits are the float's, not 1/6's)."""
+    r = lambda *a, **k: float(nb.literal_radius(*a, **k))
+    assert r("0.0416667", 8, 7, False) == pytest.approx(5e-8)
+    assert r("0.5", 8, 7, False) == pytest.approx(5e-8)
+    assert r("0.0000000", 8, 7, False) == pytest.approx(5e-8)
+    # a file of 16-17 significant digits: "0.5" is a terminating expansion, 5e-17
+    assert r("0.5", 17, 18, False) == pytest.approx(5e-18)
+    # the float64 writing: 1/6 - 0.16666666666666666 = 6.7e-18 > 5e-18, within 5e-18 + 1.85e-17
+    one_sixth = r("0.16666666666666666", 17, 18, True)
+    assert one_sixth > 1 / 6 - 0.16666666666666666 + 1e-18 and one_sixth < 3e-17
+    assert r("0.16666666666666666", 30, 30, False) == pytest.approx(5e-18)   # control: no ulp
+    assert nb.decimal_places("2.5e-1") == 2 and nb.decimal_places("1.5e3") == -2
+
+
+def test_shorter_literals_in_a_long_file_are_still_terminating_expansions():
+    """The fixed-point reading does not loosen a %g file: Gauss-2 at 40 digits keeps "0.5" to 40
+    digits (its (22a) tolerance below 1e-39)."""
+    c, A, b, Ah, At = builtin("gauss-2")
+    tab = from_json_dict(written(c, A, b, "40", Ah, At))
+    by, _ = _algebraic(tab)
+    assert by["22a"].tolerance < 1e-39
+
+
+def test_entries_near_the_magnitude_limit_do_not_overflow(tmp_path):
+    """b = 1e155 squares beyond float64 in (22b): the checks say so in numbers, no OverflowError."""
+    p = tmp_path / "big.json"
+    p.write_text(json.dumps({"c": ["1/2"], "A": [["1/2"]], "A_hat": [["1/2"]], "A_tilde": [["1/2"]],
+                             "b": ["1e155"], "b_hat": ["1e155"], "b_tilde": ["1"]}))
+    by, _ = _algebraic(load_tableau(p))
+    assert by["22a"].status == au.PASS and by["consistent"].status == au.FAIL
+    assert ac.digits_of(float("inf")) == 0 and ac.digits_of(1e-5) == 5
+
+
+def test_nested_calls_are_bounded():
+    """sin(sin(...)) took sympy ~0.1 s an entry at 30 levels: nesting beyond 4 and more than 16
+    calls in one entry are refused in one line; the published writings stay within (control)."""
+    from ldaspark.core.errors import TableauError
+    nb.parse_exact_string("1/" + "sin(" * 4 + "7" + ")" * 4)
+    with pytest.raises(TableauError, match="nested deeper than 4"):
+        nb.parse_exact_string("1/" + "sin(" * 5 + "7" + ")" * 5)
+    nb.parse_exact_string("+".join(f"sqrt({k})" for k in range(2, 18)))
+    with pytest.raises(TableauError, match="more than 16 function calls"):
+        nb.parse_exact_string("+".join(f"sqrt({k})" for k in range(2, 19)))
+    # a zero denominator is still found when the cheap 256-bit test cannot decide it
+    with pytest.raises(TableauError, match="division by zero"):
+        nb.parse_exact_string("1/(sin(1)**2 + cos(1)**2 - 1)")
+
+
+def test_convergence_hidden_by_the_entries_is_undecided_not_failed(monkeypatch):
+    """When every error is within what the entries' uncertainty changes, down to one step of
+    t_end, the order is undecided (info), not a failure of the method; when the floor is round-off
+    (exact entries) no slope is still a failure (control)."""
+    from ldaspark.core.families import get_method
+    tab = get_method("gauss-2")
+    monkeypatch.setattr(ac, "_entry_floor_measured", lambda *a: (1.0, 1.0))
+    ch, f = ac.convergence_checks(tab, 4, 30, True)
+    conv = [c for c in ch if c.name.startswith("convergence:")]
+    assert all(c.status == ac.INFO and "undecided" in c.detail for c in conv)
+    assert f["convergence:skate"]["N"][0] == 1
+    monkeypatch.setattr(ac, "_entry_floor_measured", lambda *a: (0.0, 0.0))
+    monkeypatch.setattr(ac, "observed_order", lambda tab, sc, Ns, t, w, fl: {
+        "scene": sc, "N": Ns, "t_end": t, "errors": [0.0] * len(Ns), "slopes": [], "observed": float("nan"),
+        "reference": "-", "max_constraint": 0.0})
+    ch, _ = ac.convergence_checks(tab, 4, 30, True)
+    assert all(c.status == ac.FAIL for c in ch if c.name.startswith("convergence:"))
