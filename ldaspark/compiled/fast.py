@@ -267,12 +267,14 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
     return run_engine(system, method, (t0, q0, v0), (h, n_steps, every), kopts)
 
 
-def run_engine(system, method, start, grid, kopts) -> FastSolution:
+def run_engine(system, method, start, grid, kopts, fallback=True) -> FastSolution:
     """The compiled engine's block of steps after the checks (``ldaspark.integrate``'s driver
     and ``fast_integrate`` checked the options and the initial point): ``start`` = (t0, q0, v0),
     ``grid`` = (h, n_steps, every), ``kopts`` the ``runner.KernelOptions`` (the root finder's
-    fields among them). The fallbacks: the generic path where the system does not compile, the
-    generic full-Newton step where a kernel's Newton fails (``rescue``)."""
+    fields among them). The fallbacks: the generic path where the system does not compile
+    (``fast_integrate``; with ``fallback=False``, the engine's, an InputError instead: the
+    generic path would drop the root finder's fields), the generic full-Newton step where a
+    kernel's Newton fails (``rescue``)."""
     (t0, q0, v0), (h, n_steps, every) = start, grid
     compensated, tol, max_iter, kernel, predictor = (kopts.compensated, kopts.tol, kopts.max_iter, kopts.kernel,
                                                      kopts.predictor)
@@ -288,6 +290,8 @@ def run_engine(system, method, start, grid, kopts) -> FastSolution:
     try:
         return runner._run_checked(cs, method, (t0, q0, v0), (h, n_steps, every), kopts)
     except NotCompilableError as exc:
+        if not fallback:
+            raise InputError(f"engine 'compiled' cannot run this: {exc}") from None
         _notice(str(exc))
         return generic_integrate(system, method, t0, q0, v0, h, n_steps, every, tol)
     except NewtonError as exc:

@@ -103,6 +103,9 @@ def run_quasi(cs, method, t0, q0, v0, h, n_steps, every=1, compensated=True, tol
     kind, what, name = method if isinstance(method, tuple) else kernel_spec(method, "spark")
     if kind != "spark":
         raise InputError(f"newton='quasi' runs SPARK tableaus; {name} is a comparator")
+    if cs.form == "mechanical" and not cs.mass_positive_definite:
+        raise InputError(f"{cs.name}: newton='quasi' needs a symmetric positive definite mass matrix M (its frozen "
+                         "velocity block is factored as M = L L^T); use the default root finder")
     q0 = np.array(q0, dtype=float)
     v0 = np.array(v0, dtype=float)
     if q0.shape != (cs.n,) or v0.shape != (cs.n,):

@@ -124,6 +124,20 @@ class CompiledSystem:
     def digest(self) -> str:
         return source_key(self.source)
 
+    @functools.cached_property
+    def mass_positive_definite(self) -> bool:
+        """M symmetric positive definite (the mechanical form; False for the general form): what
+        the quasi-Newton kernel's curvature block factors (M = L L^T, ``kernels_quasi``). A
+        Lagrangian with an indefinite or negative kinetic term ((vx^2 - vy^2) / 2, -|v|^2 / 2) is a
+        valid system (1) that the kernels' Newton solves, but not that factorisation."""
+        if self.form != "mechanical":
+            return False
+        try:
+            np.linalg.cholesky(self.M)
+        except np.linalg.LinAlgError:
+            return False
+        return bool(np.array_equal(self.M, self.M.T))
+
     @property
     def model_id(self) -> tuple:
         """What identifies the model a run calls: the source's digest and the parameter values."""
@@ -538,10 +552,10 @@ def auto_runs_quasi(cs, spec, opts: KernelOptions) -> bool:
     Newton where it contracts slowly). Chosen per run where it was measured faster than the
     kernels' Newton (docs/performance.md, "The quasi-Newton step": 1.07-3.3x per step): SPARK
     tableaus on the SPARK kernel (lobatto-iiia-iiib-2 keeps the semi-implicit kernel (25)), the
-    mechanical form (the general form's quasi step was measured no faster), n below the size from
+    mechanical form with M positive definite (the general form's quasi step was measured no faster), n below the size from
     which the Newton matrix is reused or factored by blocks (not measured there), and no linear
     solver, matrix reuse or kernel asked for (an explicit one is a request for the kernels' Newton)."""
-    if spec[0] != "spark" or cs.form != "mechanical" or cs.n >= REUSE_AUTO_MIN_N:
+    if spec[0] != "spark" or cs.form != "mechanical" or cs.n >= REUSE_AUTO_MIN_N or not cs.mass_positive_definite:
         return False
     if not (isinstance(opts.reuse_matrix, str) and opts.reuse_matrix == "auto" and opts.linear_solver == "auto"
             and opts.kernel == "auto"):

@@ -46,6 +46,10 @@ class CompiledEngine(Engine):
             return str(exc)
         except Exception as exc:  # numba typing/lowering errors of generated code
             return f"{system.name}: compilation failed ({type(exc).__name__})"
+        if prob.kind == "comparator" and cs.form != "mechanical":
+            # decided here, not by the kernel runner's fallback to the generic path, which ran the
+            # comparator without the root finder's fields (max_iter, kind) and said "compiled"
+            return f"{system.name}: comparator {prob.name} needs a system in mechanical form"
         return None
 
     def root_finder(self, newton, prob):
@@ -86,7 +90,7 @@ class CompiledEngine(Engine):
     def run(self, prepared, start, n_steps, every) -> Result:
         from ..compiled import fast
         fs = fast.run_engine(prepared.system, prepared.prob.method, start, (prepared.prob.h, n_steps, every),
-                             prepared.data["kopts"])
+                             prepared.data["kopts"], fallback=False)
         st = dict(fs.stats)
         used = "compiled" if st.get("path") == "fast" else "generic"
         st.update(engine=prepared.support if used == "compiled" else "generic",

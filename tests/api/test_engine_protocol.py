@@ -163,3 +163,22 @@ def test_a_failure_in_a_later_block_names_the_step_and_time_of_the_whole_run(mon
     cut = ldaspark.integrate("pendulum", "lobatto-iiia-iiib-2-leapfrog", **kw)
     assert one.status == cut.status < 0 and one.error.step == cut.error.step == 1
     assert cut.error.time == one.error.time == 6.0 == float(cut.t[-1])
+
+
+def test_a_comparator_the_compiled_kernel_cannot_run_is_decided_before_the_run(capsys):
+    """lobatto-iiia-iiib-2-modified on a system not in mechanical form: "auto" runs the generic
+    comparator engine with the root finder's fields (max_iter = 2 fails there, as on the generic
+    engine) and says so; "compiled" is refused in one line. Before, the compiled engine fell back to
+    the generic path inside its run, dropped max_iter (status 0, 40 iterations) and reported the
+    fields it had ignored. Control: the same comparator on a mechanical system runs compiled."""
+    nw = ldaspark.Newton(max_iter=2)
+    gen = ldaspark.integrate("relativistic", "lobatto-iiia-iiib-2-modified", n_steps=10, h=0.05,
+                             engine="generic", newton=nw)
+    auto = ldaspark.integrate("relativistic", "lobatto-iiia-iiib-2-modified", n_steps=10, h=0.05, newton=nw)
+    assert gen.status == auto.status == -1 and auto.engine == "generic"
+    assert "needs a system in mechanical form" in capsys.readouterr().err
+    with pytest.raises(InputError, match="engine 'compiled' cannot run this: .*mechanical form"):
+        ldaspark.integrate("relativistic", "lobatto-iiia-iiib-2-modified", n_steps=10, h=0.05, engine="compiled",
+                           newton=nw)
+    ok = ldaspark.integrate("skate", "lobatto-iiia-iiib-2-modified", n_steps=10, h=0.05, engine="compiled")
+    assert ok.status == 0 and ok.engine == "compiled"

@@ -66,3 +66,24 @@ def test_every_entry_point_makes_the_same_choice():
     assert "quasi_iterations" not in newton.stats and newton.stats["njev"] > a.stats["njev"]
     # the same method: the trajectories agree to the stopping rule (50 steps; 1e-12 is ~5e3 ulps)
     assert np.max(np.abs(newton.q - a.q)) < 1e-12
+
+
+@pytest.mark.parametrize("L", ["indefinite", "negative"])
+def test_a_mass_matrix_that_is_not_positive_definite_runs_the_kernels_newton(L):
+    """L = (vx^2 - vy^2)/2 or -|v|^2/2: valid systems (1) with a constant M that is not positive
+    definite. The default root finder chose the quasi-Newton kernel, whose curvature block factors
+    M = L L^T, and raised numpy's LinAlgError; now it runs the kernels' Newton (the generic engine's
+    numbers), and newton="quasi" is refused in one line. Control: a positive definite M runs quasi."""
+    import sympy
+    x, y, vx, vy = sympy.symbols("x y vx vy")
+    lag = (vx**2 - vy**2) / 2 if L == "indefinite" else -(vx**2 + vy**2) / 2
+    s = ldaspark.LagrangianSystem(lag, [vx - 2 * vy], [x, y], [vx, vy], name=f"{L} M")
+    kw = dict(n_steps=3, h=0.1, q0=[0, 0], v0=[2, 1])
+    r = ldaspark.integrate(s, "gauss-2", engine="compiled", **kw)
+    g = ldaspark.integrate(s, "gauss-2", engine="generic", **kw)
+    assert r.status == 0 and r.stats["root_finder"]["runs"] == "auto"
+    np.testing.assert_allclose(r.q, g.q, rtol=0, atol=1e-14)
+    with pytest.raises(ldaspark.LdasparkError, match="positive definite mass matrix"):
+        ldaspark.integrate(s, "gauss-2", engine="compiled", newton="quasi", **kw)
+    ok = ldaspark.LagrangianSystem((vx**2 + vy**2) / 2, [vx - 2 * vy], [x, y], [vx, vy], name="positive M")
+    assert ldaspark.integrate(ok, "gauss-2", engine="compiled", **kw).stats["root_finder"]["runs"] == "quasi"
