@@ -175,7 +175,7 @@ class RunSpec:
         for r, (q0, v0) in enumerate(zip(self.Q0, self.V0)):
             member = SimpleNamespace(t=ens.t, q=ens.q[r], v=ens.v[r], energy=ens.energy[r])
             st, cut = guard.judge(member, self.every, self.h, lambda n, state, before: safe(n, state, None, before),
-                                  lambda n: self.rerun(q0, v0, n), 2 + 2 * self.system.n + self.system.m)
+                                  lambda n: self.rerun(q0, v0, n), 2 + 2 * self.system.n + self.system.m, self.tol)
             ens.stats[r].update(st)
             if cut is not None:
                 n, err, _ = cut

@@ -527,7 +527,7 @@ class _StepWatch:
         from .core.guard import StepGuard
         self.engine, self.prep, self.h = engine, prep, h
         self.jump = prep.opts.energy_jump
-        self.test = StepGuard() if prep.opts.guard else None
+        self.test = StepGuard(prep.opts.tol) if prep.opts.guard else None
         self.E = E0
         self.prev = None            # (V, Psi, h) of the previous step
         self.flagged = self.confirmed = self.unverified = 0
@@ -548,7 +548,7 @@ class _StepWatch:
                 label, safe = self.engine.resolve_step(self.prep, st.index, (st.t, st.q, st.v), self.prev)
                 if safe is None:
                     self.unverified += 1
-                elif guard.same_root(st.q1, st.v1, safe[0], safe[1]):
+                elif guard.same_root(st.q1, st.v1, safe[0], safe[1], self.prep.opts.tol):
                     self.confirmed += 1
                 else:
                     return guard.mismatch(st.index, st.t, self.h, (st.q1, st.v1, E1), safe, label)
@@ -825,7 +825,7 @@ def _guard_scan(res, exc, engine, prep, rerun=None) -> tuple:
         return res, exc
     every = 1 if rerun is None or opts.every_step else opts.save_every
     st, cut = guard.judge(res, every, prob.h, lambda n, state, before: engine.resolve_step(prep, n, state, None, before),
-                          rerun if every > 1 else None, 2 + 2 * system.n + system.m)
+                          rerun if every > 1 else None, 2 + 2 * system.n + system.m, opts.tol)
     res.stats.update(st)
     if cut is None:
         return res, exc

@@ -35,7 +35,9 @@ it off):
    converged to the Newton tolerance, ~1e-15, while distinct roots differ at O(1)) the energy
    change is real and the step stands. Otherwise the run stops at that step with status -4
    (``STATUS_GUARD``) and a message naming the step, the two roots and their energies; the
-   trajectory ends at the state before the step.
+   trajectory ends at the state before the step. A run with a looser Newton tolerance tol than
+   the default compares at max(ROOT_AGREE, ROOT_TOL_FACTOR tol) and counts energy changes below
+   ENERGY_TOL_FACTOR tol (1 + |E|) as Newton's (``same_root``, ``flagged``).
 
 The cost is one vectorised pass over the step energies (compiled engine) or a few float
 operations per step (generic engine) when no step is flagged; docs/performance.md gives the
@@ -65,6 +67,14 @@ ITER_EXTRA = 2
 #: converged to the Newton tolerance (10 eps relative), distinct roots differ at O(1); 1e-8 leaves
 #: room for the conditioning of the stage equations near the Newton limit (cond ~ 1e6)
 ROOT_AGREE = 1e-8
+#: a user's Newton tolerance tol (``tol=``, ``Newton(tol=...)``) leaves each root, and the energy
+#: (8) at each step, uncertain at ~tol relative instead of round-off: two roots agree within
+#: max(ROOT_AGREE, ROOT_TOL_FACTOR tol) (tol = 1e-5 left differences of 2e-9..2e-6 on the
+#: friction skate, which ROOT_AGREE called two roots), and an energy change within
+#: ENERGY_TOL_FACTOR tol (1 + |E|) is Newton's, not a step's; distinct roots still differ at O(1)
+#: for tol <= 1e-4
+ROOT_TOL_FACTOR = 1e3
+ENERGY_TOL_FACTOR = 10.0
 _EPS = float(np.finfo(float).eps)
 #: a run that kept every ``every``-th step is judged on its samples; a flagged interval is located
 #: by running the prefix again with every step kept, when that prefix holds at most this many
@@ -87,19 +97,26 @@ class RootMismatchError(LdasparkError):
         self.time = time
 
 
-def _round(E0, E1):
-    return ROUND_ULPS * _EPS * (1.0 + max(abs(E0), abs(E1)))
+def _floor_rel(tol) -> float:
+    """The relative size of an energy change that is noise: the round-off of evaluating E, or the
+    Newton tolerance's share (ENERGY_TOL_FACTOR tol) when the user loosened it."""
+    return max(ROUND_ULPS * _EPS, ENERGY_TOL_FACTOR * float(tol)) if tol is not None else ROUND_ULPS * _EPS
 
 
-def flagged(E) -> np.ndarray:
+def _round(E0, E1, tol=None):
+    return _floor_rel(tol) * (1.0 + max(abs(E0), abs(E1)))
+
+
+def flagged(E, tol=None) -> np.ndarray:
     """The steps n >= 1 whose energy change E[n + 1] - E[n] exceeds the threshold of the module
-    docstring (E: the energy (8) at every step point, float64). Vectorised: O(N WINDOW)."""
+    docstring (E: the energy (8) at every step point, float64; tol: the run's Newton tolerance,
+    None for the default). Vectorised: O(N WINDOW)."""
     E = np.asarray(E, dtype=float)
     if len(E) < 3:
         return np.zeros(0, dtype=int)
     a = np.abs(E[1:] - E[:-1])            # np.diff's numbers, without its generality (a short run's cost)
     absE = np.abs(E)
-    floor = ROUND_ULPS * _EPS * (1.0 + np.maximum(absE[:-1], absE[1:]))
+    floor = _floor_rel(tol) * (1.0 + np.maximum(absE[:-1], absE[1:]))
     # the previous step alone bounds the window's maximum from below: only the steps beyond
     # SAFETY times their predecessor's change can be flagged (a few in a run; the window's
     # maximum is taken for those only)
@@ -115,15 +132,16 @@ class StepGuard:
     says whether step n is flagged; ``accept(E0, E1, iterations)`` enters the step into the
     history. The same threshold as ``flagged``."""
 
-    def __init__(self):
+    def __init__(self, tol=None):
         self.dE = deque(maxlen=WINDOW)
         self.its = deque(maxlen=WINDOW)
+        self.tol = tol
 
     def suspect(self, n, E0, E1, iterations=None) -> bool:
         if n == 0 or not self.dE:
             return False
         d = abs(E1 - E0)
-        if d > SAFETY * max(self.dE) + _round(E0, E1):
+        if d > SAFETY * max(self.dE) + _round(E0, E1, self.tol):
             return True
         return iterations is not None and len(self.its) > 0 and \
             iterations > ITER_FACTOR * max(self.its) + ITER_EXTRA
@@ -184,12 +202,14 @@ def safe_root(methods, t, q, v, h, prev=None, step_index=0):
     return None, None
 
 
-def same_root(q1, v1, q1s, v1s) -> bool:
-    """Whether (q1, v1) and (q1s, v1s) are one root (ROOT_AGREE)."""
+def same_root(q1, v1, q1s, v1s, tol=None) -> bool:
+    """Whether (q1, v1) and (q1s, v1s) are one root: within ROOT_AGREE, or ROOT_TOL_FACTOR times
+    the run's Newton tolerance ``tol`` when that is larger (None: the default tolerance)."""
     q1, v1, q1s, v1s = (np.asarray(x, dtype=float) for x in (q1, v1, q1s, v1s))
     scale = 1.0 + max(float(np.max(np.abs(q1s), initial=0.0)), float(np.max(np.abs(v1s), initial=0.0)))
     diff = max(float(np.max(np.abs(q1 - q1s), initial=0.0)), float(np.max(np.abs(v1 - v1s), initial=0.0)))
-    return math.isfinite(diff) and diff <= ROOT_AGREE * scale
+    agree = ROOT_AGREE if tol is None else max(ROOT_AGREE, ROOT_TOL_FACTOR * float(tol))
+    return math.isfinite(diff) and diff <= agree * scale
 
 
 def _fmt(a) -> str:
@@ -246,7 +266,7 @@ def counters() -> dict:
     return {"guard": True, "guard_flagged": 0, "guard_confirmed": 0, "guard_unverified": 0}
 
 
-def judge(samples, every, h, resolve, rerun=None, floats_per_step=0):
+def judge(samples, every, h, resolve, rerun=None, floats_per_step=0, tol=None):
     """The guard on a run kept every ``every``-th step (a block engine, an ensemble member):
     (its counters, None) or (its counters, (n, RootMismatchError, steps)) for the first step n with
     another root, ``steps`` holding every step up to at least n + 1.
@@ -256,11 +276,12 @@ def judge(samples, every, h, resolve, rerun=None, floats_per_step=0):
     rerun(n): the first n steps again with every step kept (t, q, v, energy), for every > 1; None:
     the samples hold every step. floats_per_step bounds what a rerun may hold (EVERY_STEP_FLOATS).
     Without a flagged sample (and, for every > 1, a first interval longer than HEAD) nothing is run
-    again: the guard costs one vectorised pass over the saved energies."""
+    again: the guard costs one vectorised pass over the saved energies. tol: the run's Newton
+    tolerance (``flagged``, ``same_root``), None for the default."""
     st = counters()
     if len(samples.t) < 3:
         return st, None
-    bad = flagged(np.asarray(samples.energy, dtype=float))
+    bad = flagged(np.asarray(samples.energy, dtype=float), tol)
     every = 1 if rerun is None else int(every)
     # the first saved interval has no history among the samples: its steps are judged on a
     # rerun with every step kept when it is short (HEAD steps), else left unjudged
@@ -280,7 +301,7 @@ def judge(samples, every, h, resolve, rerun=None, floats_per_step=0):
         except LdasparkError:
             st["guard_flagged"] = st["guard_unverified"] = int(len(bad))
             return st, None
-        bad = flagged(np.asarray(steps.energy, dtype=float))
+        bad = flagged(np.asarray(steps.energy, dtype=float), tol)
     st["guard_flagged"] = int(len(bad))
     t, q, v, E = (np.asarray(getattr(steps, a), dtype=float) for a in ("t", "q", "v", "energy"))
     for count, n in enumerate(bad):
@@ -291,7 +312,7 @@ def judge(samples, every, h, resolve, rerun=None, floats_per_step=0):
         label, safe = resolve(int(n), (t[n], q[n], v[n]), before)
         if safe is None:
             st["guard_unverified"] += 1
-        elif same_root(q[n + 1], v[n + 1], safe[0], safe[1]):
+        elif same_root(q[n + 1], v[n + 1], safe[0], safe[1], tol):
             st["guard_confirmed"] += 1
         else:
             return st, (int(n), mismatch(int(n), t[n], h, (q[n + 1], v[n + 1], E[n + 1]), safe, label), steps)

@@ -133,3 +133,20 @@ def test_a_second_root_between_saved_samples_is_located_from_any_t0(t0):
     assert ref.status == res.status == guard.STATUS_GUARD
     assert res.error.step == ref.error.step and np.array_equal(res.q, ref.q)
     assert list(res.t) == [t0 + float(x) for x in ref.t]
+
+
+@pytest.mark.parametrize("engine", ["generic", "compiled"])
+def test_a_loose_newton_tolerance_is_not_a_second_root(engine):
+    """tol = 1e-5 leaves each root uncertain at ~1e-5: the friction skate's flagged step 1 was
+    called two roots (status -4; with guard=False the run is the same to 2e-6 of the default
+    tolerance's). Roots agree within max(ROOT_AGREE, ROOT_TOL_FACTOR tol) now, and energy changes
+    within ENERGY_TOL_FACTOR tol are Newton's. Control: at that tolerance the double well's second
+    root (O(1) away) still stops the run."""
+    kw = dict(n_steps=20, h=0.05, tol=1e-5, engine=engine)
+    res = ldaspark.integrate("friction-skate", "lobatto-iiia-iiib-2", **kw)
+    off = ldaspark.integrate("friction-skate", "lobatto-iiia-iiib-2", guard=False, **kw)
+    assert res.status == 0 and np.array_equal(np.asarray(res.q, float), np.asarray(off.q, float))
+    assert guard.same_root([1.0], [0.0], [1.0 + 1e-6], [0.0], tol=1e-5)
+    assert not guard.same_root([1.0], [0.0], [1.0 + 1e-6], [0.0])
+    wrong = run("gauss-1", engine, Newton(predictor="zero", tol=1e-5))
+    assert wrong.status == guard.STATUS_GUARD and "two roots" in wrong.message

@@ -140,6 +140,12 @@ MUTANTS = (
        "iterations > ITER_FACTOR * max(self.its) + ITER_EXTRA", "iterations > ITER_FACTOR * min(self.its) + ITER_EXTRA",
        "the guard's iteration test against the window's smallest count (flags ordinary steps)", "paths",
        TGE + "::test_the_iteration_test_is_against_the_window_s_largest_count", TGE),
+    _m("paths-guard-root-agree-ignores-tol", "core/guard.py",
+       "agree = ROOT_AGREE if tol is None else max(ROOT_AGREE, ROOT_TOL_FACTOR * float(tol))",
+       "agree = ROOT_AGREE",
+       "two roots compared at round-off whatever the user's Newton tolerance: tol = 1e-5 ends the "
+       "friction skate with a false 'two roots'", "paths",
+       TG + "::test_a_loose_newton_tolerance_is_not_a_second_root", TG),
     _m("paths-guard-head-unjudged", "core/guard.py",
        "head = 1 < every <= HEAD", "head = False",
        "with save_every > 1 the first saved interval is never judged", "paths",
