@@ -846,8 +846,11 @@ def _finish_prefix(res, exc, prep, start, engine: str, sliced=False) -> Result:
     if res is None:        # failure in the first step: the initial point only
         bk = Backend(None)
         q, v = bk.array(q0), bk.array(v0)
+        # the stats every engine's Result carries (what ran, the guard), with no step counted
+        stats = {"steps": 0, "newton_iterations": 0, "nfev": 0, "njev": 0, "nlu": 0, "engine": prep.support,
+                 "root_finder": dict(prep.opts.newton.describe()), "guard": bool(opts.guard)}
         res = Result(np.array([float(t0)]), q[None], v[None], np.array([system.energy(bk, float(t0), q, v)]),
-                     system.constraint(bk, float(t0), q, v)[None], None, engine=engine)
+                     system.constraint(bk, float(t0), q, v)[None], None, engine=engine, stats=stats)
     if exc is not None:
         (res.status, res.message), res.error = _failure(exc), exc
     return _post_process(res, every, dense, events, sliced)

@@ -117,12 +117,22 @@ class CompiledEngine(Engine):
         k = exc.step
         q, v = (np.asarray(q0, float), np.asarray(v0, float)) if prefix is None else (prefix.q[-1], prefix.v[-1])
         tk = float(t0) + k * float(h)
+        # the generic step with the run's root finder (its kind where the generic engine has it,
+        # its max_iter and tol): what engine='generic' would do there, which the message promises
+        root = prepared.root
+        kind = root.kind if root.kind in ("auto", "full", "simplified") else "full"
         try:
-            SparkMethod(prepared.system, method, tol=prepared.opts.tol).step(tk, q, v, float(h), step_index=k)
-        except LdasparkError as gen:
+            SparkMethod(prepared.system, method, tol=prepared.opts.tol, newton=kind,
+                        max_iter=root.iterations).step(tk, q, v, float(h), step_index=k)
+        except NewtonError as gen:      # the root finder fails there on both engines: both said
+            return NewtonError(f"Newton did not converge at step {k} (compiled engine, {_ran(prepared)}): {exc}; "
+                               f"the generic engine's {kind} Newton step with the same root finder fails there too "
+                               f"({gen})", step=k, time=tk)
+        except LdasparkError as gen:    # singular, not finite, outside the domain: the generic step says why
             return gen
         return NewtonError(f"Newton did not converge at step {k} (compiled engine, {_ran(prepared)}): {exc}; "
-                           "the generic full-Newton step converges there (engine='generic')", step=k, time=tk)
+                           f"the generic engine's {kind} Newton step with the same root finder converges there "
+                           "(engine='generic')", step=k, time=tk)
 
 
 def _ran(prepared) -> str:

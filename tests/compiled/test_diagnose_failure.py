@@ -46,7 +46,19 @@ def test_the_failing_step_is_examined_at_its_own_time_when_t0_is_not_zero():
     assert res.status < 0 and isinstance(res.error, NewtonError)
     k = res.error.step
     assert res.error.time == 5.0 + k * 0.5 == float(res.t[-1])
-    assert "generic full-Newton step converges" in res.message
+    # the generic step with the same root finder (one full-Newton iteration) fails there too, and
+    # the message says so (it said "the generic full-Newton step converges there", which took 50
+    # iterations, not the run's 1); where it converges, the message says that (control: a planted
+    # kernel failure at an easy step of the skate, explained by the engine with max_iter = 5)
+    assert "fails there too" in res.message and res.stats["root_finder"]["max_iter"] == 1
+    from ldaspark import solve
+    from ldaspark.engines import ENGINES
+    sc = ldaspark.get_scene("skate")
+    opts = solve.IntegrationOptions.checked(engine="compiled", newton=ldaspark.Newton(kind="full", max_iter=5))
+    prob = solve._Problem("spark", solve.resolve_method("gauss-2")[1], "gauss-2", 0.0, 0.1, 10, "skate")
+    prep = ENGINES["compiled"].prepare(sc.system, prob, opts)
+    out = ENGINES["compiled"].explain(prep, NewtonError("planted", step=0, time=0.0), None, _start(sc))
+    assert isinstance(out, NewtonError) and "same root finder converges there" in str(out)
 
 
 def test_the_failure_message_names_the_root_finder_that_ran():
