@@ -90,6 +90,16 @@ def resolve_method(method: Union[str, SparkTableau], max_stages: Optional[int] =
     return "spark", tab, method
 
 
+def _stages(kind: str, what) -> int:
+    """The stages of a resolved method, for the work bound (``validate.check_work``): a SPARK
+    tableau's s; a comparator "gauss-irk-S" has S, the others (Lobatto pairs, Euler compositions)
+    at most 2."""
+    if kind == "spark":
+        return int(what.s)
+    tail = what.rsplit("-", 1)[-1]
+    return int(tail) if what.startswith("gauss-irk-") and tail.isdigit() else 2
+
+
 #: method name -> its SparkTableau, built once per process: a tableau computes its coefficients
 #: (mpmath, ~0.2 ms for gauss-2) once and keeps them, and the compiled engine's kernel_spec cache
 #: is keyed by the tableau object, so a repeated call by name re-derives nothing. Tableaux are
@@ -263,7 +273,7 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
     sysm, scene, init = _resolve_system(system, dps)
     kind, what, name = resolve_method(method, max_stages)
     t0, N = _time_grid(t_span, t0, t_end, n_steps, h, init[0] if init else None)
-    validate.step_advances(t0, h, N, dps)
+    validate.step_advances(t0, h, N, dps, s=_stages(kind, what), n=sysm.n, m=sysm.m)
     if q0 is None or v0 is None:
         if init is None:
             raise InputError("give q0 and v0 (or pass a Scene / scene name for its initial data)")

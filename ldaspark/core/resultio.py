@@ -2,7 +2,7 @@
 
 * ``.json`` (and any name without one of the other extensions): the ``ldaspark integrate`` contract (keys scene, method, h, dps, t, q, v, energy,
   constraint, psi, stats; numbers as floats, or as strings of ``dps`` digits after an mpmath
-  run), plus engine, status, message, save_every, params, version.
+  run), plus engine, status, message, save_every, params, version, coordinate_names.
 * ``.npz``: named arrays t, q, v, energy, constraint (and psi when the engine forms it) and
   the metadata as a JSON string in the array ``metadata``; no pickled objects.
 * ``.h5`` / ``.hdf5``: the same arrays as HDF5 datasets, the metadata as the scalar dataset
@@ -23,6 +23,10 @@ bounded by the bytes the file holds before anything is allocated; object arrays 
 loaded. Non-finite numbers are refused at write time in every format (arrays, events, dense
 output, metadata and ``stats``: a file that one format's reader would refuse is never written),
 and at read time.
+
+``coordinate_names`` (the names of q's columns) is in the metadata of every format; a file
+without it (earlier versions) reads as None; a value other than n non-empty printable strings of
+at most MAX_NAME_CHARS characters is refused, on reading and before writing.
 
 Also kept (float64, as computed): ``stats`` (JSON key / metadata), the events (``t_events_e``,
 ``q_events_e``, ``v_events_e`` for event function e) and the dense output's data (``dense_t``,
@@ -45,7 +49,9 @@ from .result import Result
 
 ARRAYS = ("t", "q", "v", "energy", "constraint", "psi")
 META = ("scene", "method", "system", "engine", "h", "dps", "status", "message", "save_every", "params", "version",
-        "nfev", "njev", "nlu", "newton_iterations")
+        "nfev", "njev", "nlu", "newton_iterations", "coordinate_names")
+#: longest coordinate name read or written (printed sympy symbols are a few characters)
+MAX_NAME_CHARS = 256
 FORMATS = (".json", ".npz", ".h5", ".hdf5")
 
 
@@ -244,6 +250,10 @@ def _check_writable(result: Result) -> dict:
     md = metadata(result)
     for k, v in md.items():
         _check_finite_json(v, k)
+    try:
+        _check_names(md.get("coordinate_names"), np.shape(result.q)[-1])
+    except InputError as exc:
+        raise InputError(f"refusing to write a result that the reader would refuse: {exc}") from None
     _check_finite_json(_json_value(result.stats), "stats")
     return extra
 
@@ -437,7 +447,24 @@ def _check_metadata(md) -> dict:
     se = md.get("save_every", 1)
     if se is not None and (isinstance(se, bool) or not isinstance(se, int) or se < 1):
         raise InputError(f"metadata: save_every must be a positive integer, got {str(se)[:40]}")
+    _check_names(md.get("coordinate_names"))
     return md
+
+
+def _check_names(names, n=None) -> None:
+    """``coordinate_names`` as read (or about to be written): None (files of earlier versions), or
+    a list of non-empty printable strings of at most MAX_NAME_CHARS characters, n of them when the
+    number of coordinates n is known. Only compared and printed, never evaluated."""
+    if names is None:
+        return
+    if not isinstance(names, list):
+        raise InputError(f"metadata: coordinate_names must be a list of strings, got {type(names).__name__}")
+    if n is not None and len(names) != n:
+        raise InputError(f"metadata: coordinate_names has {len(names)} names for n = {n} coordinates")
+    for i, x in enumerate(names):
+        if not isinstance(x, str) or not 0 < len(x) <= MAX_NAME_CHARS or not x.isprintable():
+            raise InputError(f"metadata: coordinate_names[{i}] must be a non-empty printable string of at most "
+                             f"{MAX_NAME_CHARS} characters, got {str(x)[:40]!r}")
 
 
 def _check_shapes(got: dict, batch: bool) -> None:
@@ -485,6 +512,8 @@ def _build(md: dict, arrays: dict) -> Result:
                  got["energy"], got["constraint"].reshape(len(t), m) if t.ndim == 1 else got["constraint"], psi,
                  np.asarray(status) if isinstance(status, list) else int(status), **kw)
     res.stats = md.get("stats", {}) or {}
+    _check_names(md.get("coordinate_names"), n)
+    res.coordinate_names = md.get("coordinate_names")
     return res
 
 

@@ -549,11 +549,13 @@ def point(system, t0, q0, v0, what: str = "", scene=None, dps=None):
     return t0, q0, v0
 
 
-def step_advances(t0, h, n_steps=1, dps=None, what: str = "h") -> None:
+def step_advances(t0, h, n_steps=1, dps=None, what: str = "h", *, s=None, n=None, m=None) -> None:
     """The times t0 + i h (i = 0..n_steps) are distinct at the working precision: float64 (dps
-    None) or ``dps`` digits, and the run's work is within ``check_work``'s bound. A step below the spacing of the numbers near t (t0 = 1e17, h = 1 in
-    float64) leaves t where it was, or rounds several output times to one, while the state moves
-    by h: refused, naming the smallest step that resolves."""
+    None) or ``dps`` digits, and the run's work is within ``check_work``'s bound (``s``, ``n``,
+    ``m``: the stages, coordinates and constraints of the problem, when known). A step below the
+    spacing of the numbers near t (t0 = 1e17, h = 1 in float64) leaves t where it was, or rounds
+    several output times to one, while the state moves by h: refused, naming the smallest step
+    that resolves."""
     import numpy as np
     h_, t_ = abs(float(h)), abs(float(t0))
     T = max(t_, abs(float(t0) + int(n_steps) * float(h))) if math.isfinite(t_) else t_
@@ -565,41 +567,79 @@ def step_advances(t0, h, n_steps=1, dps=None, what: str = "h") -> None:
         prec = "float64" if dps is None else f"{dps} digits"
         raise InputError(f"{what} = {float(h):.3g} does not advance t near {T:.3g} in {prec} (times would repeat): "
                          f"use |h| >= {need:.3g} or a t0 closer to 0")
-    # the time grid is the run's plan: its work (digits x steps) is bounded here, before any step
-    check_work(n_steps, dps)
+    # the time grid is the run's plan: its work (digits x steps x stage system) is bounded here,
+    # before any step
+    check_work(n_steps, dps, s=s, n=n, m=m)
 
 
 #: the work budget of one mpmath run, in steps at low precision (``mp_step_cost(dps) = 1`` up to
-#: about 100 digits): at the ~5-10 ms a step of the generic mpmath engine on the paper's scenes
-#: (gauss-2 particle 5 ms, gauss-3 robot 7 ms at 50 digits, measured), 2 * 10**6 such steps are
-#: 3-6 hours; dps = 2000 (cost ~12.8) is allowed ~1.6 * 10**5 steps (the robot measured 96 ms a
-#: step there: ~4 hours), dps = 2000 with 10**6 steps (~27 hours) is refused
+#: about 100 digits, for a stage system up to the robot's with gauss-3): at the ~5-10 ms a step of
+#: the generic mpmath engine on the paper's scenes (gauss-2 particle 5 ms, gauss-3 robot 7 ms at
+#: 50 digits, measured), 2 * 10**6 such steps are 3-6 hours; dps = 2000 (cost ~12.8) is allowed
+#: ~1.6 * 10**5 steps (the robot measured 96 ms a step there: ~4 hours), dps = 2000 with 10**6
+#: steps (~27 hours) is refused
 MP_WORK_MAX = 2 * 10 ** 6
 
 
-def mp_step_cost(dps: int) -> float:
-    """Cost of one step at ``dps`` digits, in steps at low precision: 1 + (dps / 300)^1.3, the
-    generic engine's measured growth on the robot with gauss-3 (96 ms a step at 2000 digits
-    against 7.2 ms at 50: ratio 13; the formula gives 12.8 at 2000, 1.1 at 50); mpmath's
-    multiplication is O(dps^1.6) asymptotically, but below ~3000 digits the interpreter's
-    fixed cost per operation dominates."""
-    return 1.0 + (max(int(dps), 0) / 300.0) ** 1.3
+def stage_work(s: int, n: int, m: int) -> float:
+    """Operations of one Newton iteration on the stage system of ``s`` stages, ``n`` coordinates
+    and ``m`` constraints: N = s (n + m) + n unknowns, the dense LU ~N^3 / 3, the residual and
+    Jacobian evaluations ~25 s (n + m), and a fixed ~500 of the step's own bookkeeping. The
+    constants are fitted to the generic engine at 300 digits (2 cores, shared and loaded; one to
+    four steps each): robot gauss-3 (N = 22) 50 ms a step, particle gauss-2 (N = 11) 6.8 ms at 50
+    digits against the robot's 27 ms, mp-particles-nh gauss-4 (N = 39) 255 ms and gauss-10
+    (N = 87) 2.6 s: ratios to the robot 0.25, 5.1, 51.5 where this formula gives 0.25, 4.7, 49."""
+    N = s * (n + m) + n
+    return 500.0 + 25.0 * s * (n + m) + N ** 3 / 3.0
 
 
-def check_work(n_steps, dps, what: str = "this run") -> float:
-    """The work bound of an mpmath run, fixed before it starts: ``n_steps * mp_step_cost(dps)``
-    at most ``MP_WORK_MAX`` (float64 runs, ``dps`` None, are bounded by ``MAX_STEPS`` alone).
-    Returns the estimate; refuses with one InputError naming the estimate, the limit and what to
-    reduce (docs/reliability.md, "Every unit of work is bounded")."""
+#: ``stage_work`` of the calibration problem of ``mp_step_cost``: the robot (n = 4, m = 2), gauss-3
+REF_STAGE_WORK = stage_work(3, 4, 2)
+
+
+def mp_step_cost(dps: int, s=None, n=None, m=None) -> float:
+    """Cost of one step at ``dps`` digits, in steps at low precision of the robot with gauss-3.
+
+    The digits alone: 1 + (dps / 300)^1.3, the generic engine's measured growth on the robot
+    (96 ms a step at 2000 digits against 7.2 ms at 50: ratio 13; the formula gives 12.8 at 2000,
+    1.1 at 50); mpmath's multiplication is O(dps^1.6) asymptotically, but below ~3000 digits the
+    interpreter's fixed cost per operation dominates such a small step.
+
+    With the problem's ``s``, ``n``, ``m`` (all three, else the digits alone), times the size of
+    its stage system against the robot's, r = stage_work(s, n, m) / REF_STAGE_WORK, when r > 1
+    (a smaller system keeps the digits-alone cost: its fixed per-step cost does not shrink with
+    it): 1 + (r - 1) (1 + dps / 1000). The work beyond the robot's is arithmetic on dps-digit
+    numbers in the LU and the Jacobian, and grows faster with the digits than the robot's
+    interpreter-bound step: mp-particles-nh gauss-4 took 2.1-2.6 s a step at 2000 digits against
+    the robot's 0.18 s (same machine as ``stage_work``: ratio 12-14, the formula 12.0), and gauss-10
+    ~30 s (the reported case; the formula 146 x the robot's 0.18 s = 26 s)."""
+    cost = 1.0 + (max(int(dps), 0) / 300.0) ** 1.3
+    if s is None or n is None or m is None:
+        return cost
+    r = stage_work(int(s), int(n), int(m)) / REF_STAGE_WORK
+    return cost * (1.0 + (r - 1.0) * (1.0 + max(int(dps), 0) / 1000.0)) if r > 1 else cost
+
+
+def check_work(n_steps, dps, what: str = "this run", *, s=None, n=None, m=None) -> float:
+    """The work bound of an mpmath run, fixed before it starts: ``n_steps * mp_step_cost(dps, s,
+    n, m)`` at most ``MP_WORK_MAX`` (float64 runs, ``dps`` None, are bounded by ``MAX_STEPS``
+    alone; without ``s``, ``n``, ``m`` the cost of the digits alone). Returns the estimate;
+    refuses with one InputError naming the estimate, the limit and what to reduce
+    (docs/reliability.md, "Every unit of work is bounded")."""
     if dps is None:
         return float(n_steps)
-    work = int(n_steps) * mp_step_cost(dps)
+    cost = mp_step_cost(dps, s, n, m)
+    work = int(n_steps) * cost
     if work > MP_WORK_MAX:
-        fits = int(MP_WORK_MAX // mp_step_cost(dps))
-        raise InputError(f"{what}: {_fmt_int(int(n_steps))} steps at dps = {int(dps)} is an estimated work of "
-                         f"{work:.3g} low-precision steps (n_steps x (1 + (dps/300)^1.3)), more than the limit "
-                         f"{MP_WORK_MAX:.3g}: use at most {fits} steps at this dps (a larger h or a shorter "
-                         f"t_end), or fewer digits")
+        fits = int(MP_WORK_MAX // cost)
+        sized = s is not None and n is not None and m is not None
+        size = (f" with s = {int(s)} stages, n = {int(n)}, m = {int(m)} (a stage system of "
+                f"{int(s) * (int(n) + int(m)) + int(n)} unknowns: {cost:.3g} low-precision steps each)" if sized
+                else f" ({cost:.3g} low-precision steps each)")
+        fewer = ", fewer digits or fewer stages" if sized else " or fewer digits"
+        raise InputError(f"{what}: {_fmt_int(int(n_steps))} steps at dps = {int(dps)}{size} is an estimated work "
+                         f"of {work:.3g} low-precision steps, more than the limit {MP_WORK_MAX:.3g}: use at most "
+                         f"{fits} steps at this dps (a larger h or a shorter t_end){fewer}")
     return work
 
 

@@ -62,5 +62,5 @@ def theory_args(system, tableau, t0, q0, v0, h, dps, what: str, several: bool = 
     hf = _rational_string(h)           # "1/10": the mpmath checks take exact fractions as text
     real_number(h if hf is None else hf, f"{what}: h", nonzero=True)
     for d in dlist:
-        step_advances(t0, h if hf is None else hf, 1, int(d), what=f"{what}: h")
+        step_advances(t0, h if hf is None else hf, 1, int(d), what=f"{what}: h", s=tab.s, n=sysm.n, m=sysm.m)
     return sysm, tab, t0, q0, v0

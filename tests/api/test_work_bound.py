@@ -56,3 +56,48 @@ def test_the_cli_refuses_in_one_line(capsys, tmp_path):
     err = capsys.readouterr().err
     assert rc == 2 and len(err.splitlines()) == 1 and "estimated work" in err and "use at most" in err
     assert not (tmp_path / "o.json").exists()
+
+
+def test_a_large_stage_system_at_2000_digits_is_refused_before_any_step(capsys, tmp_path):
+    """mp-particles-nh (n = 7, m = 1) with gauss-10 takes ~30 s a step at 2000 digits: 150000
+    steps (~54 days) are refused in one line naming the estimate, the limit and what to reduce."""
+    t = time.process_time()
+    with pytest.raises(InputError) as ei:
+        ldaspark.integrate("mp-particles-nh", "gauss-10", n_steps=150000, h=0.1, dps=2000)
+    msg = str(ei.value)
+    fits = int(V.MP_WORK_MAX // V.mp_step_cost(2000, 10, 7, 1))
+    assert len(msg.splitlines()) == 1 and "s = 10 stages, n = 7, m = 1" in msg and "87 unknowns" in msg
+    assert "estimated work of 2.8e+08" in msg and f"limit {V.MP_WORK_MAX:.3g}" in msg
+    assert f"use at most {fits} steps" in msg and "fewer stages" in msg and 500 < fits < 3000
+    # negative control: the digits alone (the old estimate) accepted this run
+    assert V.check_work(150000, 2000) <= V.MP_WORK_MAX
+    rc = main(["integrate", "mp-particles-nh", "gauss-10", "--h", "0.1", "--t-end", "15000", "--dps", "2000",
+               "--out", str(tmp_path / "o.json")])
+    err = capsys.readouterr().err
+    assert rc == 2 and len(err.splitlines()) == 1 and "87 unknowns" in err and "use at most" in err
+    assert not (tmp_path / "o.json").exists()
+    assert time.process_time() - t < 5                   # refused before a step (one is ~30 s)
+
+
+def test_a_small_run_of_the_large_system_is_accepted_and_the_bound_is_two_sided():
+    # control of the refusal: a short low-precision run of the same system runs
+    res = ldaspark.integrate("mp-particles-nh", "gauss-2", n_steps=2, h=0.1, dps=30, engine="generic")
+    assert res.success and len(res.t) == 3
+    fits = int(V.MP_WORK_MAX // V.mp_step_cost(2000, 10, 7, 1))
+    assert V.check_work(fits, 2000, s=10, n=7, m=1) <= V.MP_WORK_MAX
+    with pytest.raises(InputError, match=f"use at most {fits} steps"):
+        V.check_work(fits + 1, 2000, s=10, n=7, m=1)
+
+
+def test_the_estimate_grows_with_the_stages_and_the_coordinates():
+    by_s = [V.mp_step_cost(2000, s, 7, 1) for s in (4, 6, 10, 20)]
+    by_n = [V.mp_step_cost(2000, 10, n, 1) for n in (3, 7, 20, 50)]
+    assert by_s == sorted(by_s) and len(set(by_s)) == 4 and by_n == sorted(by_n) and len(set(by_n)) == 4
+    # the calibration: the robot with gauss-3 is one step of the digits' cost; a smaller system
+    # keeps that cost (its fixed per-step work does not shrink); gauss-4 on mp-particles-nh is
+    # 12-14 robot steps at 2000 digits (measured) and gauss-10 ~150
+    d = V.mp_step_cost(2000)
+    assert V.mp_step_cost(2000, 3, 4, 2) == d == V.mp_step_cost(2000, 1, 3, 1)
+    assert 11 < V.mp_step_cost(2000, 4, 7, 1) / d < 15 and 100 < V.mp_step_cost(2000, 10, 7, 1) / d < 200
+    # control: the digits alone do not see the stages (the old estimate, kept without s, n, m)
+    assert V.mp_step_cost(2000, None, 7, 1) == V.mp_step_cost(2000, 20, 7, None) == d

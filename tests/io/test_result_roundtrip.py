@@ -75,6 +75,7 @@ def test_every_field_round_trips(runs, tmp_path, ext, kind):
            (r.method, r.scene, r.h, r.dps, r.status, r.engine, r.save_every)
     assert (back.nfev, back.njev, back.nlu, back.newton_iterations) == (r.nfev, r.njev, r.nlu, r.newton_iterations)
     assert back.stats == _json_value(r.stats) and back.stats
+    assert back.coordinate_names == r.coordinate_names == ["q1", "q2", "q3"]
     # events: one array per event function, bit for bit, shapes kept when empty
     assert len(back.t_events) == len(r.t_events) == 2
     for e in range(2):
