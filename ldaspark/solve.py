@@ -393,6 +393,11 @@ def _compiled_ensemble(system, params, Q0, V0, prob: _Problem, opts: Integration
     from .ensemble import run_ensemble
     ens = run_ensemble(system, prob.method, prob.t0, Q0, V0, prob.h, prob.N, every=opts.save_every,
                              tol=opts.tol, executor=opts.executor, guard=False)
+    # each member says what ran as a single run's Result does: the root finder asked for, and the
+    # kernel's choice ("runs"), not the kernel's bare kind name
+    asked = opts.newton.describe()
+    for st in ens.stats:
+        st["root_finder"] = dict(asked, runs=st.get("newton_kind", st.get("root_finder", "generic")))
     return from_ensemble(ens, method=prob.name, system=system.name, scene=prob.scene, h=prob.h,
                          save_every=opts.save_every)
 

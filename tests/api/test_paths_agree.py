@@ -469,3 +469,20 @@ def test_from_mechanics_compound_rotation_gives_the_kinetic_energy_of_its_body_r
         worst = max(worst, abs(got - float(T_body.subs(sub))))
         gap = max(gap, abs(got - float(T_space.subs(sub))))
     assert worst <= 1e-12 and gap > 1e-3, (worst, gap)
+
+
+def test_every_ensemble_path_reports_the_root_finder_as_a_single_run_does():
+    """A compiled initial-data ensemble through an executor (``run_ensemble``) reported the kernel's
+    bare kind ("quasi") as its members' root_finder, where the loop and a single run give the root
+    finder asked for and what ran ({"kind": ..., "runs": "quasi"}): now all three agree (the
+    loop's members are the control)."""
+    sc = ldaspark.get_scene("skate")
+    _, q0, v0 = sc.initial()
+    kw = dict(n_steps=5, h=0.1, q0=[q0, q0], v0=[v0, v0], guard=False)
+    single = ldaspark.integrate("skate", "gauss-2", n_steps=5, h=0.1, guard=False).stats["root_finder"]
+    loop = ldaspark.integrate("skate", "gauss-2", **kw).stats["members"]
+    with ThreadPoolExecutor(2) as ex:
+        fast = ldaspark.integrate("skate", "gauss-2", executor=ex, **kw)
+    assert "seconds" in fast.stats          # the compiled ensemble ran (the loop keeps no time)
+    assert single["kind"] == "auto" and single["runs"] == "quasi"
+    assert [m["root_finder"] for m in loop] == [m["root_finder"] for m in fast.stats["members"]] == [single, single]
