@@ -284,7 +284,8 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
     opts = opts.with_events(events)
     prob = _Problem(kind, what, name, t0, h, N, scene)
     batch_params = isinstance(params, (list, tuple))
-    batch_ic = dps is None and _ndim(q0) == 2
+    # (B, n) initial data is an ensemble at any precision (at dps it ran the last row alone)
+    batch_ic = _ndim(q0) == 2
     if batch_params and not params:
         raise InputError("params is an empty list: an ensemble needs at least one member")
     if batch_params or batch_ic:
@@ -328,6 +329,9 @@ def _run_members(executor, run, jobs) -> list:
     name = type(executor).__name__
     try:
         members = list(executor.map(run, jobs))
+        # a dask.distributed Client's map returns its futures (check_executor accepts a Client)
+        members = [m.result() if not isinstance(m, Result) and callable(getattr(m, "result", None)) else m
+                   for m in members]
     except LdasparkError:
         raise
     except RuntimeError as exc:     # "cannot schedule new futures after shutdown" and the like
@@ -391,8 +395,15 @@ def _compiled_ensemble(system, params, Q0, V0, prob: _Problem, opts: Integration
         return None
     from .core.result import from_ensemble
     from .ensemble import run_ensemble
-    ens = run_ensemble(system, prob.method, prob.t0, Q0, V0, prob.h, prob.N, every=opts.save_every,
-                             tol=opts.tol, executor=opts.executor, guard=False)
+    from .executors import UnitsFailed
+    try:
+        ens = run_ensemble(system, prob.method, prob.t0, Q0, V0, prob.h, prob.N, every=opts.save_every,
+                           tol=opts.tol, executor=opts.executor, guard=False)
+    except UnitsFailed:
+        # a member's step failed (NonFiniteError, NewtonError): the kernel task has no rescue chain
+        # and no partial Result, so the ensemble runs again as the loop of single runs, where that
+        # member ends with its own status and the others are kept (the loop's numbers are the same)
+        return None
     # each member says what ran as a single run's Result does: the root finder asked for, and the
     # kernel's choice ("runs"), not the kernel's bare kind name
     asked = opts.newton.describe()

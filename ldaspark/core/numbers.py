@@ -121,6 +121,30 @@ def decimal_places(text: str) -> int:
     return -Decimal(text.replace("_", "")).as_tuple().exponent
 
 
+def _kept_trailing_zero(text: str) -> bool:
+    """A literal of 2 or more decimal places ending in 0 ("0.50", "1.0000000"): a shortest or %g
+    writer drops such zeros (repr and mpmath.nstr keep one, "1.0"), a fixed-point one keeps them."""
+    mant = text.lower().split("e")[0].replace("_", "")
+    return "." in mant and len(mant.split(".")[1]) >= 2 and mant.endswith("0")
+
+
+def fixed_places(shapes) -> int | None:
+    """F, the decimal places of a file printed in fixed point, from the (places, significant
+    digits, trailing zero kept) of its nonzero literals, or None when nothing shows a fixed-point
+    writing: a kept trailing zero, or two literals of the file's most places (at least 2) with
+    different numbers of significant digits ("0.2083333" and "0.0416667": a %g writer gives both
+    the same count)."""
+    shapes = list(shapes)
+    if not shapes:
+        return None
+    F = max(p for p, _, _ in shapes)
+    if any(z for _, _, z in shapes):
+        return F
+    if F >= 2 and len({sig for p, sig, _ in shapes if p == F}) > 1:
+        return F
+    return None
+
+
 def _half_place(places: int):
     """Half a unit in the ``places``-th decimal place, 0.5 * 10^-places, as an exact fmpq."""
     import flint
@@ -129,15 +153,20 @@ def _half_place(places: int):
 
 def literal_radius(text: str, digits: int, places: int | None, float_like: bool, json: bool = False):
     """The radius (an exact fmpq) of the ball of what a decimal literal of a tableau file stands for,
-    in a file whose longest literal has ``digits`` (D) significant digits and ``places`` (F) decimal
-    places. The writer rounded either to significant digits (D, trailing zeros dropped) or to
-    decimal places (F, fixed point, zeros kept or dropped); which one is not known, so:
+    in a file whose longest literal has ``digits`` (D) significant digits and that, where it shows a
+    fixed-point writing (``fixed_places``), was printed to ``places`` (F) decimal places (None: no
+    such sign). The writer rounded to significant digits (D, trailing zeros dropped) or to places
+    (F); so:
 
     * a literal with LONG_DECIMAL or more digits, or with D digits, or with F places, was rounded at
       its own last digit: half a unit there;
-    * every literal is also known at least to half a unit in the D-th significant digit and in the
-      F-th place (a shorter one is a terminating expansion of one of the two writings): the larger;
-    * a zero ("0.0000000") to half a unit in the F-th place;
+    * every literal is also known at least to half a unit in the D-th significant digit and, in a
+      fixed-point file, in the F-th place (a shorter one is a terminating expansion): the larger;
+    * a zero ("0.0", "0.0000000") is exact: tableau coefficients are zero by structure (the
+      explicit first row of Lobatto IIIA, the last column of IIIB), a true value below half a unit
+      in the last place printed as zero is not met in practice, and a zero known only to +- 0.05 in
+      a file of one-digit literals ("0.0", "0.5", "1.0") lets order conditions that fail by 1/12
+      "hold";
     * plus half an ulp of float64 (2^-53 |x|) for a literal of at most FLOAT64_REPR_DIGITS digits
       when it may be a float64's writing (repr or %.17g: the float nearest the intended value,
       printed): when the file holds a literal of LONG_DECIMAL..FLOAT64_REPR_DIGITS digits
@@ -145,12 +174,14 @@ def literal_radius(text: str, digits: int, places: int | None, float_like: bool,
     import flint
     val, sig, adj = decimal_info(text.lstrip("+-"))
     pl = decimal_places(text.lstrip("+-"))
-    F = pl if places is None else max(places, pl)
-    r = _half_place(F)
     if sig == 0:
-        return r
-    r = max(r, decimal_radius(adj, max(digits, sig)))
-    if sig >= LONG_DECIMAL or sig >= digits or pl >= F:
+        return flint.fmpq(0)
+    r = decimal_radius(adj, max(digits, sig))           # the D-digit reading
+    full = sig >= LONG_DECIMAL or sig >= digits
+    if places is not None:                              # the file shows a fixed-point writing
+        r = max(r, _half_place(places))
+        full = full or pl >= places
+    if full:
         r = max(r, decimal_radius(adj, sig))
     if sig <= FLOAT64_REPR_DIGITS and (float_like or (json and digits <= FLOAT64_REPR_DIGITS)):
         # 2^-53 |x| rounded up to a rational with a power-of-two denominator: exact, no arb needed
@@ -367,6 +398,7 @@ def parse_exact_string(x: str, where: str = "entry", info: dict | None = None):
         info["digits"] = max(info.get("digits", 0), b.digits)
         if b.places > -10 ** 6:
             info["places"] = max(info.get("places", b.places), b.places)
+        info.setdefault("shapes", set()).update(b.shapes)
         info.setdefault("counts", set()).update(b.counts)
     return e
 
@@ -387,6 +419,7 @@ class _EntryBuilder:
         self.counts = set()     # the significant digits of every nonzero decimal literal
         self.places = -10 ** 6  # most decimal places of a decimal literal seen (zeros too)
         self.calls = self.call_depth = 0    # function calls so far, and nested around the current node
+        self.shapes = set()     # (places, significant digits, trailing zero kept) of nonzero literals
 
     def zero(self, value, node) -> bool:
         """Whether a (validated) denominator is zero: exactly for a rational, else by its ball at
@@ -448,11 +481,13 @@ class _EntryBuilder:
             if not math.isfinite(node.value):
                 raise self.bad("not finite")
             e = sympy.Rational(text.replace("_", ""))
-            self.places = max(self.places, decimal_places(text))
+            pl = decimal_places(text)
+            self.places = max(self.places, pl)
             if e != 0:
                 sig = decimal_info(text)[1]
                 self.digits = max(self.digits, sig)
                 self.counts.add(sig)
+                self.shapes.add((pl, sig, _kept_trailing_zero(text)))
         if _bits(e) * power > _MAX_BITS:
             raise self.bad(f"a power of it exceeds {_MAX_BITS} bits")
         return e

@@ -362,6 +362,11 @@ class SparkMethod:
                 if self.newton == "auto" and not refresh and prev is not None:
                     # contracting, but too slowly for the digits still missing: full Newton from here
                     refresh = _full_newton_cheaper(dn, prev, tol_abs, self.tol)
+                if self.newton == "mixed" and bk.is_mp and not refresh and prev is not None:
+                    # the float64 matrix gains ~16 digits an increment: at 1000 digits that is more
+                    # than max_iter increments; the rest of the step with the full-precision matrix
+                    # (quadratic) when the budget left is short
+                    refresh = _budget_short(dn, prev, tol_abs, self.max_iter - it)
                 if self.newton == "simplified" and prev is not None:
                     # contracting, but too slowly to reach the tolerance within max_iter: a new
                     # matrix at this iterate (at 200-2000 digits simplified Newton gains ~3.6

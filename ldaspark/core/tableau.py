@@ -82,7 +82,7 @@ class SparkTableau:
     decimal_digits, decimal_digits_min : int, optional
         Largest and smallest number of digits of decimal-literal entries.
     decimal_places : int, optional
-        Most decimal places of a decimal literal (a file printed to fixed places).
+        The places of a file printed in fixed point (None: no sign of one).
     _cache : dict
         Internal memo of derived arrays (not compared, not printed).
 
@@ -116,8 +116,8 @@ class SparkTableau:
     #: the fewest significant digits of a decimal literal of at least LONG_DECIMAL digits (None if
     #: there is none): below ``decimal_digits`` when the entries were printed to different precisions
     decimal_digits_min: int | None = None
-    #: the most decimal places of a decimal literal in an entry (None when ``decimal_digits`` is):
-    #: a file printed to F places (fixed point) has literals of fewer digits than D at full length
+    #: F, the decimal places of a file printed in fixed point (``numbers.fixed_places``; None when
+    #: nothing shows a fixed-point writing): its literals have fewer digits than D at full length
     decimal_places: int | None = None
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 

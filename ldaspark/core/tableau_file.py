@@ -17,7 +17,7 @@ import math
 import sympy
 
 from .errors import TableauError
-from .numbers import FLOAT64_REPR_DIGITS, LONG_DECIMAL, MAX_STAGES, JsonNumber, _parse_entry
+from .numbers import FLOAT64_REPR_DIGITS, LONG_DECIMAL, MAX_STAGES, JsonNumber, _parse_entry, fixed_places
 from .tableau import NAMES, VECTOR_NAMES, SparkTableau, _col, _default_omega_exact, _flatten, omega_rank
 
 
@@ -81,7 +81,7 @@ def from_json_dict(d: dict, name: str | None = None, max_stages: int | None = No
     digits = info["digits"] or None
     longs = [n for n in info.get("counts", ()) if n >= LONG_DECIMAL]
     kw = dict(family="custom", sources=sources, decimal_digits=digits, decimal_digits_min=min(longs) if longs else None,
-              decimal_places=info.get("places") if digits else None)
+              decimal_places=fixed_places(info.get("shapes", ())) if digits else None)
     if all_exact:
         return _rank_checked(SparkTableau(str(label), s, exact=ex, **kw))
     # float64 entries carry ~15 digits; JSON numbers longer than a float64's writing their own

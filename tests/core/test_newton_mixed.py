@@ -68,3 +68,23 @@ def test_mixed_is_full_newton_at_float64():
     a = integrate(sc.system, get_method("gauss-2"), t0, q0, v0, 0.05, n_steps=20, newton="mixed")
     b = integrate(sc.system, get_method("gauss-2"), t0, q0, v0, 0.05, n_steps=20, newton="full")
     assert np.array_equal(np.asarray(a.q, float), np.asarray(b.q, float))
+
+
+def test_mixed_newton_at_a_thousand_digits_finishes_with_the_full_precision_matrix(monkeypatch):
+    """The float64 matrix gains ~16 digits an increment: at 1000 digits a step needed more than
+    max_iter = 50 increments and failed on the skate's easy first step. When the contraction leaves
+    more increments than the budget, the rest of the step runs with the full-precision matrix
+    (``_budget_short``): the step converges, to full Newton's solution. Control: at 40 digits the
+    budget is never short (no full-precision factorisation)."""
+    r = _run("skate", "gauss-2", "mixed", n_steps=2, dps=1000)
+    f = _run("skate", "gauss-2", "full", n_steps=2, dps=1000)
+    with mpmath.workdps(1000):
+        assert max(abs(a - b) for a, b in zip(r.q[-1], f.q[-1])) < mpmath.mpf(10) ** -990
+    assert r.stats["newton_iterations"] < 2 * 50
+    full_precision = []
+    orig = Backend.factor
+    monkeypatch.setattr(Backend, "factor", lambda self, J: (self.is_mp and full_precision.append(1)) or orig(self, J))
+    _run("skate", "gauss-2", "mixed", n_steps=2, dps=40)
+    assert not full_precision
+    _run("skate", "gauss-2", "mixed", n_steps=1, dps=1000)
+    assert full_precision

@@ -57,12 +57,12 @@ def test_a_coefficient_moved_in_its_6th_digit_fails_22b(name, kind, tmp_path):
 def test_fixed_point_literals_are_known_to_their_places():
     """In a file printed to 7 places (D = 8 from "1.0000000"), "0.0416667" (6 digits) is known to
     5e-8, not to the 8th significant digit (5e-10, the old reading that failed Lobatto IIIA-B 3);
-    "0.5" and "0.0000000" to 5e-8 as well; a repr-printed "0.16666666666666666" to half a unit in
+    "0.5" to 5e-8 as well ("0.0000000" is exact); a repr-printed "0.16666666666666666" to half a unit in
     its last digit plus half an ulp (its digits are the float's, not 1/6's)."""
     r = lambda *a, **k: float(nb.literal_radius(*a, **k))
     assert r("0.0416667", 8, 7, False) == pytest.approx(5e-8)
     assert r("0.5", 8, 7, False) == pytest.approx(5e-8)
-    assert r("0.0000000", 8, 7, False) == pytest.approx(5e-8)
+    assert r("0.0000000", 8, 7, False) == 0          # a zero is structural, exact
     # a file of 16-17 significant digits: "0.5" is a terminating expansion, 5e-17
     assert r("0.5", 17, 18, False) == pytest.approx(5e-18)
     # the float64 writing: 1/6 - 0.16666666666666666 = 6.7e-18 > 5e-18, within 5e-18 + 1.85e-17
@@ -70,6 +70,14 @@ def test_fixed_point_literals_are_known_to_their_places():
     assert one_sixth > 1 / 6 - 0.16666666666666666 + 1e-18 and one_sixth < 3e-17
     assert r("0.16666666666666666", 30, 30, False) == pytest.approx(5e-18)   # control: no ulp
     assert nb.decimal_places("2.5e-1") == 2 and nb.decimal_places("1.5e3") == -2
+    # the fixed-point reading applies where the file shows one: a kept trailing zero, or literals
+    # of the most places with different digit counts; not to "0.0", "0.5", "1.0" (nstr of
+    # Lobatto IIIA-IIIB 2 at any digits: "0.5" stays 1/2 to its D = 2 digits, +- 0.005)
+    assert nb.fixed_places({(7, 8, True), (7, 6, False)}) == 7
+    assert nb.fixed_places({(7, 7, False), (7, 6, False)}) == 7
+    assert nb.fixed_places({(1, 2, False), (1, 1, False)}) is None
+    assert nb.fixed_places({(17, 17, False), (16, 16, False)}) is None
+    assert r("0.5", 2, None, False) == pytest.approx(5e-3)
 
 
 def test_shorter_literals_in_a_long_file_are_still_terminating_expansions():

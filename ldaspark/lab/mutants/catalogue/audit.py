@@ -35,7 +35,7 @@ MUTANTS = (
        "entries)", "conditions",
        T + "test_short_decimals_are_terminating_expansions", TPREC),
     _m("audit-fixed-point-places-ignored", "core/numbers.py",
-       "    r = _half_place(F)\n", "    r = flint.fmpq(0)\n",
+       "r = max(r, _half_place(places))", "r = r",
        "a table printed to F places read as printed to significant digits only ('0.0416667' in a "
        "7-place table known to 5e-10: Lobatto IIIA-IIIB 3 'violates' (22b))", "conditions",
        TPW + "::test_every_writing_satisfies_22_and_is_consistent", TPW),
