@@ -407,8 +407,12 @@ def _compiled_ensemble(system, params, Q0, V0, prob: _Problem, opts: Integration
     # each member says what ran as a single run's Result does: the root finder asked for, and the
     # kernel's choice ("runs"), not the kernel's bare kind name
     asked = opts.newton.describe()
+    support = ENGINES["compiled"].root_finder(opts.newton, prob)[1]      # "compiled" or "compiled-lf2"
     for st in ens.stats:
         st["root_finder"] = dict(asked, runs=st.get("newton_kind", st.get("root_finder", "generic")))
+        st.setdefault("rescued_steps", st.get("generic_steps", 0))
+        if st.get("path") == "fast":
+            st["engine"] = support
     return from_ensemble(ens, method=prob.name, system=system.name, scene=prob.scene, h=prob.h,
                          save_every=opts.save_every)
 

@@ -272,7 +272,7 @@ def from_ensemble(ens: Any, **meta: Any) -> Result:
                       engine="compiled" if ens.stats[r].get("path") == "fast" else "generic", **meta)
                for r in range(R)]
     for m in members:
-        m.stats = {**m.stats, "engine": m.engine}
+        m.stats = {**m.stats, "engine": m.stats.get("engine", m.engine)}
     res = stack(members)
     res.stats["seconds"] = ens.seconds
     return res

@@ -486,3 +486,17 @@ def test_every_ensemble_path_reports_the_root_finder_as_a_single_run_does():
     assert "seconds" in fast.stats          # the compiled ensemble ran (the loop keeps no time)
     assert single["kind"] == "auto" and single["runs"] == "quasi"
     assert [m["root_finder"] for m in loop] == [m["root_finder"] for m in fast.stats["members"]] == [single, single]
+
+
+@pytest.mark.parametrize("method", ["lobatto-iiia-iiib-2", "gauss-2"])
+def test_a_compiled_ensemble_member_has_the_stats_keys_and_engine_of_its_single_run(method):
+    """The kernel-task members lacked rescued_steps and said engine "compiled" where the single run
+    of lobatto-iiia-iiib-2 (the semi-implicit kernel) says "compiled-lf2"; gauss-2 is the control
+    that always agreed on the engine."""
+    sc = ldaspark.get_scene("skate")
+    _, q0, v0 = sc.initial()
+    single = ldaspark.integrate("skate", method, n_steps=5, h=0.1, guard=False).stats
+    with ThreadPoolExecutor(2) as ex:
+        member = ldaspark.integrate("skate", method, n_steps=5, h=0.1, q0=[q0, q0], v0=[v0, v0], executor=ex,
+                                    guard=False).stats["members"][0]
+    assert member["engine"] == single["engine"] and set(single) <= set(member)
