@@ -83,6 +83,13 @@ class ClassicScene(Scene):
                 for k, a, b in zip(names, o, e)}
 
 
+def _num(x):
+    """A scene parameter as a sympy number: text through the tableau entry parser ("1/2",
+    "sqrt(2)"; ``system._param_value``), never sympify of text, which evaluates it as Python."""
+    from ..core.system import _param_value
+    return _param_value(x, "of the scene")
+
+
 def _psi_along(system, ts, qe):
     """psi(t) of (1b) along a closed-form q(t) (sympy): d/dt grad_v L - grad_q L = -K^T psi,
     psi = -(K K^T)^-1 K r with r the left-hand side (K of full rank m, (4))."""
@@ -119,7 +126,7 @@ def chaplygin_sleigh(m=1, a=1, omega0=1) -> ClassicScene:
     (integrating u (cos theta, sin theta) with cos(2 gd) = 1 - 2 tanh^2, sin(2 gd) = 2 tanh sech).
     Written with sympy.physics.mechanics."""
     me = _mech()
-    m, a, omega0 = map(sympy.sympify, (m, a, omega0))
+    m, a, omega0 = map(_num, (m, a, omega0))
     if not (m > 0 and a > 0 and omega0 > 0):
         raise InputError("chaplygin-sleigh needs m, a, omega0 > 0")
     I = 3 * m * a ** 2
@@ -167,14 +174,14 @@ def disk_steady_spin(theta0, Omega, r=1, g=1):
     cos(theta0) != 0. Conversely, for given theta0 and spin phi', a steady yaw rate Omega exists iff
     (36 phi'^2 r^2 cos^2 - 80 g r sin^2 cos) >= 0, i.e. phi'^2 >= 20 g sin^2(theta0) / (9 r cos(theta0))
     for 0 < cos(theta0) (``disk_steady_exists``)."""
-    theta0, Omega, r, g = map(sympy.sympify, (theta0, Omega, r, g))
+    theta0, Omega, r, g = map(_num, (theta0, Omega, r, g))
     return -(4 * g + 5 * r * Omega ** 2 * sympy.cos(theta0)) * sympy.sin(theta0) / (6 * r * Omega * sympy.cos(theta0))
 
 
 def disk_steady_exists(theta0, spin, r=1, g=1) -> bool:
     """Existence condition of a steady circular motion with tilt theta0 (0 < cos theta0) and spin
     phi' = ``spin``: the discriminant of the quadratic in Omega is >= 0 (``disk_steady_spin``)."""
-    theta0, spin, r, g = (float(sympy.sympify(x)) for x in (theta0, spin, r, g))
+    theta0, spin, r, g = (float(_num(x)) for x in (theta0, spin, r, g))
     c, s = np.cos(theta0), np.sin(theta0)
     return bool(36 * spin ** 2 * r ** 2 * c ** 2 - 80 * g * r * s ** 2 * c >= 0)
 
@@ -193,7 +200,7 @@ def tilted_disk(m=1, r=1, g=1, theta0=sympy.pi / 6, Omega=1) -> ClassicScene:
     theta = theta0, psi = Omega t, phi = phi'_s t with phi'_s = ``disk_steady_spin``, and the contact
     point on the circle of radius r phi'_s / Omega). Written with sympy.physics.mechanics."""
     me = _mech()
-    m, r, g, theta0, Omega = map(sympy.sympify, (m, r, g, theta0, Omega))
+    m, r, g, theta0, Omega = map(_num, (m, r, g, theta0, Omega))
     x, y, psi, th, ph = me.dynamicsymbols("x y psi theta phi")
     tt = me.dynamicsymbols._t
     N = me.ReferenceFrame("N")
@@ -269,7 +276,7 @@ def chaplygin_sphere(m=1, r=1, I1=1, I2=R(3, 2), I3=2) -> ClassicScene:
     constant in space (the contact force passes through the contact point), so |M|^2 and
     (M, gamma) are invariants. Written with sympy.physics.mechanics."""
     me = _mech()
-    m, r, I1, I2, I3 = map(sympy.sympify, (m, r, I1, I2, I3))
+    m, r, I1, I2, I3 = map(_num, (m, r, I1, I2, I3))
     (x, y, psi, th, ph), N, B, L, w, vc = _ball_on_plane(me, m, r, (I1, I2, I3))
     cons = [vc.dot(N.x), vc.dot(N.y)]
     S = LagrangianSystem.from_mechanics(L, q=[x, y, psi, th, ph], constraints=cons, name="chaplygin-sphere")
@@ -303,7 +310,7 @@ def suslov(I1=2, I2=1, I3=3, I13=1, omega1_0=1) -> ClassicScene:
     omega_2 = W tanh(kappa t), omega_1 = w1 sech(kappa t), W = w1 sqrt(I1 / I2), kappa = I13 W / I1
     (the body tends to a rotation about its second axis). Written with sympy.physics.mechanics."""
     me = _mech()
-    I1, I2, I3, I13, w1 = map(sympy.sympify, (I1, I2, I3, I13, omega1_0))
+    I1, I2, I3, I13, w1 = map(_num, (I1, I2, I3, I13, omega1_0))
     psi, th, ph = me.dynamicsymbols("psi theta phi")
     N = me.ReferenceFrame("N")
     B = _body_zxz(me, N, psi, th, ph)
@@ -341,7 +348,7 @@ def contact_oscillator(epsilon=R(3, 10), z0=R(1, 2)) -> ClassicScene:
     y, the y-equation is y'' = -y: the y-energy (y^2 + y'^2)/2 is an exact first integral,
     besides the energy (8). Initial data as odelab's ``initial_cos``: H0 = 3/2, H_y = 1/2, z' = 0,
     q0 = (sqrt((2 H0 - z0^2 - 1) / (1 + epsilon z0^2)), 1, z0), v0 = 0."""
-    epsilon, z0 = sympy.sympify(epsilon), sympy.sympify(z0)
+    epsilon, z0 = _num(epsilon), _num(z0)
     q = list(sympy.symbols("x y z"))
     v = list(sympy.symbols("vx vy vz"))
     x, y, z = q
@@ -376,7 +383,7 @@ def ball_turntable(Omega=1, eps=0, rho=1, r=1, m=1) -> ClassicScene:
     at the fixed tilt theta0, cot(theta0) = -2 r / (5 rho) (so that omega_z = 0), the Euler
     angles are psi = beta + pi/2, theta = theta0, phi = (5 rho / (7 r sin theta0)) Theta(t)."""
     me = _mech()
-    Omega, eps, rho, r, m = map(sympy.sympify, (Omega, eps, rho, r, m))
+    Omega, eps, rho, r, m = map(_num, (Omega, eps, rho, r, m))
     tt = me.dynamicsymbols._t
     Om_t = Omega * (1 + eps * sympy.sin(tt))
     Ib = 2 * m * r ** 2 / 5
