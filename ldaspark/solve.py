@@ -601,7 +601,7 @@ def _drive_steps(engine, prep, start) -> Result:
         h_ = bk.scalar(prob.h)
         tracker = EventTracker(events, t0_, q, v) if events else None
         saved_i, Qs, Vs, Ps = [0], [q], [v], []
-        dense_q, dense_V = [], []
+        dense_q, dense_v, dense_V = [], [], []
         done = 0
         watch = _StepWatch(engine, prep, float(system.energy(bk, t0_, q, v)), h_) \
             if opts.guard or opts.energy_jump is not None else None
@@ -622,11 +622,12 @@ def _drive_steps(engine, prep, start) -> Result:
                     break
             if i % every == 0:
                 Ps.append(st.Psi)
-            if dense or tracker:
+            if dense:
                 dense_q.append(float_array(q))
+                dense_v.append(float_array(v))
                 dense_V.append(float_array(st.V))
             stop = tracker is not None and tracker.after_step(
-                ti, t0_ + (i + 1) * h_, st.q1, st.v1, step_piece(ti, h_, q, c, st.V))
+                ti, t0_ + (i + 1) * h_, st.q1, st.v1, step_piece(ti, h_, (q, v), (st.q1, st.v1), c, st.V))
             q, v = st.q1, st.v1
             done = i + 1
             if done % every == 0 or done == N or stop:
@@ -654,7 +655,8 @@ def _drive_steps(engine, prep, start) -> Result:
                             **guard_stats), error=error)
     if dense and done > 0:
         tg = float(t0_) + np.arange(done + 1) * float(h_)
-        res.sol = CollocationDense(tg, np.array(dense_q + [float_array(q)]), c, np.array(dense_V))
+        res.sol = CollocationDense(tg, np.array(dense_q + [float_array(q)]), c, np.array(dense_V),
+                                   np.array(dense_v + [float_array(v)]))
     if tracker is not None:
         res.t_events, res.q_events, res.v_events = tracker.arrays()
     return res
@@ -681,7 +683,9 @@ def _drive_blocks(engine, prep, start) -> Result:
     # without dense output, events, an energy-jump watch or the guard the kernels kept every
     # ``every``-th point already (inner = every): nothing to post-process (with every = 1 too:
     # re-slicing would copy the arrays unchanged)
-    return _finish_prefix(res, exc, prep, start, engine.label, sliced=engine.samples and not opts.every_step)
+    sliced = engine.samples and not opts.every_step
+    stages = engine.stage_solver(prep) if (opts.dense_output or opts.events) and not sliced else None
+    return _finish_prefix(res, exc, prep, start, engine.label, sliced=sliced, stages=stages)
 
 
 def _energy_jump_cut(res: Result, energy_jump) -> tuple:
@@ -719,25 +723,50 @@ def _failure(exc: BaseException) -> tuple:
     return STATUS_OTHER, str(exc)
 
 
-def _post_process(full: Result, every: int, dense: bool, events, sliced: bool = False) -> Result:
-    """Dense output (Hermite), events and ``save_every`` for engines that return every step
-    (``sliced``: the engine already kept every ``every``-th point; no dense output or events)."""
+def _post_process(full: Result, every: int, dense: bool, events, sliced: bool = False, stages=None) -> Result:
+    """Dense output, events and ``save_every`` for engines that return every step (``sliced``:
+    the engine already kept every ``every``-th point; no dense output or events). ``stages``
+    (``Engine.stage_solver``): the stage velocities of a step solved again from its saved start,
+    for the stage polynomial corrected to the grid (every step for dense output, only the steps
+    where an event changes sign for events); None: the cubic Hermite of the grid (comparators)."""
     if sliced:
         return full
     t, q, v = float_array(full.t), float_array(full.q), float_array(full.v)
     done = len(t) - 1
+    if stages is not None and dense and done > 0:
+        validate.check_storage(done + 1, len(stages.c) * q.shape[1], what="the dense output")
+    solved: dict = {}
+
+    def stage_V(i):
+        if i not in solved:
+            solved[i] = stages(t[i], q[i], v[i], q[i + 1], v[i + 1])
+        return solved[i]
+
+    def piece(i):
+        if stages is None:
+            return HermiteDense(t[i:i + 2], q[i:i + 2], v[i:i + 2])
+        return step_piece(t[i], t[i + 1] - t[i], (q[i], v[i]), (q[i + 1], v[i + 1]), stages.c, stage_V(i))
     if events and done > 0:
         tracker = EventTracker(events, t[0], q[0], v[0])
         for i in range(done):
-            piece = HermiteDense(t[i:i + 2], q[i:i + 2], v[i:i + 2])
-            if tracker.after_step(t[i], t[i + 1], q[i + 1], v[i + 1], piece):
+            # the step's interpolant is built (its stages solved) only where an event changes sign
+            local = functools.partial(_lazy_piece, [None], piece, i)
+            if tracker.after_step(t[i], t[i + 1], q[i + 1], v[i + 1], local):
                 done = i + 1
                 if full.status >= 0:
                     full.status, full.message = STATUS_EVENT, MSG_EVENT
                 break
         full.t_events, full.q_events, full.v_events = tracker.arrays()
     if dense and done > 0:
-        full.sol = HermiteDense(t[:done + 1], q[:done + 1], v[:done + 1])
+        if stages is None:
+            full.sol = HermiteDense(t[:done + 1], q[:done + 1], v[:done + 1])
+        else:
+            V = np.zeros((done, len(stages.c), q.shape[1]))
+            for i in range(done):
+                Vi = stage_V(i)
+                if Vi is not None:       # else zeros: the corrected polynomial is the cubic Hermite
+                    V[i] = Vi
+            full.sol = CollocationDense(t[:done + 1], q[:done + 1], stages.c, V, v[:done + 1])
     if every == 1 and done == len(full.t) - 1:
         return full                       # every step kept and asked for: nothing to slice
     idx = save_indices(done, every) if done > 0 else np.array([0])
@@ -746,6 +775,13 @@ def _post_process(full: Result, every: int, dense: bool, events, sliced: bool = 
     if full.psi is not None:
         full.psi = np.asarray(full.psi)[idx[:-1]]
     return full
+
+
+def _lazy_piece(memo: list, build: Callable, i: int, tt):
+    """(q, v) at tt on step i's interpolant, built by ``build(i)`` at the first call."""
+    if memo[0] is None:
+        memo[0] = build(i)
+    return memo[0](tt)
 
 
 def _prefix_run(run: Callable, N: int, every: int) -> tuple:
@@ -852,10 +888,10 @@ def _guard_scan(res, exc, engine, prep, rerun=None) -> tuple:
     return res, err
 
 
-def _finish_prefix(res, exc, prep, start, engine: str, sliced=False) -> Result:
+def _finish_prefix(res, exc, prep, start, engine: str, sliced=False, stages=None) -> Result:
     """The run's Result: the prefix ``res`` (None: the initial point ``start`` = (t0, q0, v0)
     only) with the failure ``exc`` marked, then dense output, events and ``save_every`` (not for a
-    run whose engine ``sliced`` it already)."""
+    run whose engine ``sliced`` it already; ``stages``: the engine's ``stage_solver``)."""
     system, opts, (t0, q0, v0) = prep.system, prep.opts, start
     every, dense, events = opts.save_every, opts.dense_output, opts.events
     if res is None:        # failure in the first step: the initial point only
@@ -868,4 +904,4 @@ def _finish_prefix(res, exc, prep, start, engine: str, sliced=False) -> Result:
                      system.constraint(bk, float(t0), q, v)[None], None, engine=engine, stats=stats)
     if exc is not None:
         (res.status, res.message), res.error = _failure(exc), exc
-    return _post_process(res, every, dense, events, sliced)
+    return _post_process(res, every, dense, events, sliced, stages)
