@@ -123,16 +123,9 @@ class CollocationDense(_Dense):
             others = np.delete(self.c, j)
             lj = P.polyfromroots(others) / np.prod(cj - others) if len(others) else np.array([1.0])
             self._basis.append((lj, P.polyint(lj)))
-        if self.v is not None:
-            # per basis polynomial: l_j(0), l_j(1), int_0^1 l_j; per step: the quadratic's middle
-            # coefficient gamma (e = a (1 - theta) + b theta + gamma 6 theta (1 - theta))
-            ends = np.array([[P.polyval(0.0, lj), P.polyval(1.0, lj), P.polyval(1.0, ij)] for lj, ij in self._basis])
-            self._ends = ends
-            # int_0^1 (p - chord of p) = sum_j (int_0^1 l_j - (l_j(0) + l_j(1)) / 2) V_j
-            wbar = ends[:, 2] - 0.5 * (ends[:, 0] + ends[:, 1])
-            h = np.diff(self.t)[:, None]
-            self._gamma = ((self.q[1:] - self.q[:-1]) / h - 0.5 * (self.v[:-1] + self.v[1:])
-                           - np.einsum("j,kjn->kn", wbar, self.V))
+        # per basis polynomial: l_j(0), l_j(1), int_0^1 l_j
+        self._ends = np.array([[P.polyval(0.0, lj), P.polyval(1.0, lj), P.polyval(1.0, ij)]
+                               for lj, ij in self._basis])
 
     def _eval(self, k, theta, h):
         P = np.polynomial.polynomial
@@ -149,8 +142,12 @@ class CollocationDense(_Dense):
         A0, A1 = th - th ** 2 / 2, th ** 2 / 2                   # int_0^theta (1 - x), int_0^theta x
         w = L - (1 - th) * l0 - th * l1
         W = B - A0 * l0 - A1 * l1
-        g = self._gamma[k]
         v0, v1 = self.v[k], self.v[k + 1]
+        # the correction e = a (1 - theta) + b theta + g 6 theta (1 - theta) with a = v_n - p(0),
+        # b = v_n+1 - p(1) and int_0^1 e = (q_n+1 - q_n) / h - int_0^1 p, so that
+        # g = (q_n+1 - q_n) / h - (v_n + v_n+1) / 2 - int_0^1 (p - chord of p)
+        wbar = self._ends[:, 2] - 0.5 * (self._ends[:, 0] + self._ends[:, 1])
+        g = (self.q[k + 1] - self.q[k]) / h[:, None] - 0.5 * (v0 + v1) - np.einsum("j,kjn->kn", wbar, V)
         v = np.einsum("kj,kjn->kn", w, V) + (1 - th) * v0 + th * v1 + 6 * th * (1 - th) * g
         q = self.q[k] + h[:, None] * (np.einsum("kj,kjn->kn", W, V) + A0 * v0 + A1 * v1
                                       + (3 * th ** 2 - 2 * th ** 3) * g)
