@@ -196,10 +196,15 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
     save_every : int, optional
         Keep steps 0, k, 2k, ... and the last one; the computed numbers do not depend on k.
     dense_output : bool, optional
-        Attach ``Result.sol(t) -> (q, v)`` (the stages' collocation polynomial between steps).
+        Attach ``Result.sol(t) -> (q, v)`` on the run's interval (an InputError outside it): on
+        each step the polynomial through the stage velocities corrected to the grid, so that it
+        reproduces the saved q_n, v_n (``ldaspark.core.dense``); the same on every engine (the
+        compiled engine solves each step's stages again from its saved start after the run; the
+        comparators get the cubic Hermite of the grid). h < 0 works too.
     events : callable or list of callable, optional
-        ``g(t, q, v) -> float``; zeros are located on the dense output (attributes
-        ``terminal`` and ``direction`` as in scipy).
+        ``g(t, q, v) -> float``; zeros are located on the same interpolant of the steps where g
+        changes sign (attributes ``terminal`` and ``direction`` as in scipy: the direction is
+        along the integration, also for h < 0).
     params : dict or list of dict, optional
         ``{symbol or name: value}`` for the system's symbolic parameters; a list runs an
         ensemble over parameter values.
@@ -581,8 +586,8 @@ class _StepWatch:
 
 def _drive_steps(engine, prep, start) -> Result:
     """A stepping engine (the generic one) driven step by step: every ``every``-th point (t, q, v,
-    E, k, psi) kept, the stages' collocation polynomial for dense output and events, the monitors
-    (``_StepWatch``), and the prefix on a step failure."""
+    E, k, psi) kept, the stage polynomial corrected to the grid for dense output and events, the
+    monitors (``_StepWatch``), and the prefix on a step failure."""
     from .compiled.fast import n_samples
     prob, opts, system = prep.prob, prep.opts, prep.system
     N, every, dense, events, dps = prob.N, opts.save_every, opts.dense_output, opts.events, opts.dps
@@ -683,9 +688,7 @@ def _drive_blocks(engine, prep, start) -> Result:
     # without dense output, events, an energy-jump watch or the guard the kernels kept every
     # ``every``-th point already (inner = every): nothing to post-process (with every = 1 too:
     # re-slicing would copy the arrays unchanged)
-    sliced = engine.samples and not opts.every_step
-    stages = engine.stage_solver(prep) if (opts.dense_output or opts.events) and not sliced else None
-    return _finish_prefix(res, exc, prep, start, engine.label, sliced=sliced, stages=stages)
+    return _finish_prefix(res, exc, prep, start, engine, sliced=engine.samples and not opts.every_step)
 
 
 def _energy_jump_cut(res: Result, energy_jump) -> tuple:
@@ -888,10 +891,10 @@ def _guard_scan(res, exc, engine, prep, rerun=None) -> tuple:
     return res, err
 
 
-def _finish_prefix(res, exc, prep, start, engine: str, sliced=False, stages=None) -> Result:
+def _finish_prefix(res, exc, prep, start, engine, sliced=False) -> Result:
     """The run's Result: the prefix ``res`` (None: the initial point ``start`` = (t0, q0, v0)
     only) with the failure ``exc`` marked, then dense output, events and ``save_every`` (not for a
-    run whose engine ``sliced`` it already; ``stages``: the engine's ``stage_solver``)."""
+    run whose ``engine`` sliced it already; else with the engine's ``stage_solver``)."""
     system, opts, (t0, q0, v0) = prep.system, prep.opts, start
     every, dense, events = opts.save_every, opts.dense_output, opts.events
     if res is None:        # failure in the first step: the initial point only
@@ -901,7 +904,8 @@ def _finish_prefix(res, exc, prep, start, engine: str, sliced=False, stages=None
         stats = {"steps": 0, "newton_iterations": 0, "nfev": 0, "njev": 0, "nlu": 0, "engine": prep.support,
                  "root_finder": dict(prep.opts.newton.describe()), "guard": bool(opts.guard)}
         res = Result(np.array([float(t0)]), q[None], v[None], np.array([system.energy(bk, float(t0), q, v)]),
-                     system.constraint(bk, float(t0), q, v)[None], None, engine=engine, stats=stats)
+                     system.constraint(bk, float(t0), q, v)[None], None, engine=engine.label, stats=stats)
     if exc is not None:
         (res.status, res.message), res.error = _failure(exc), exc
+    stages = engine.stage_solver(prep) if (dense or events) and not sliced else None
     return _post_process(res, every, dense, events, sliced, stages)

@@ -1,32 +1,62 @@
 """Dense output (continuous extensions) and event location.
 
-``CollocationDense``: on the step [t_n, t_n + h] of a SPARK method (21), v(t) is the polynomial
-through the stage velocities (T_i, V_i) and q(t) = q_n + int_{t_n}^t v. For a collocation tableau
-A (Gauss, Lobatto IIIA) q is the collocation polynomial through (t_n, q_n) and the stage points
-(T_i, Q_i) of (21a), and v = q'.
-Measured orders of the maximal error over [0, 2] on the skate (exact solution, h = 0.2 .. 0.05,
-``tests/api/test_dense_events.py``), all below the nodal order:
+``CollocationDense``, the dense output of every SPARK run (generic or compiled engine, float64 or
+mpmath): on the step n from t_n to t_n+1 = t_n + h, with theta = (t - t_n) / h in [0, 1], the
+polynomial p(theta) = sum_j l_j(theta) V_j through the stage velocities (c_j, V_j) (Lagrange
+basis l_j on the distinct nodes c_j) corrected to the grid:
 
-    method                 nodal   q(t)  v(t)
-    gauss-2                  4       3     2
-    gauss-3                  6       4     3
-    lobatto-iiia-iiib-2      2       2     1
-    lobatto-iiia-iiib-3      4       3     2
+    v(t) = p(theta) + e(theta),    q(t) = q_n + h int_0^theta v,
 
-(Gauss: q O(h^(s+1)), v O(h^s), the stage order; the Lobatto IIIA-IIIB stage velocities are one
-order less accurate as interpolation data.)
+e the quadratic with v(t_n) = v_n, v(t_n+1) = v_n+1 and q(t_n+1) = q_n+1 (e(0) = v_n - p(0),
+e(1) = v_n+1 - p(1), int_0^1 e = (q_n+1 - q_n) / h - int_0^1 p). The saved grid values are
+reproduced (to a few ulps; exactly at the start of a step), and the mismatches that e absorbs are
+O(h^stage order), so the order of p is not lowered. Without e the polynomial missed the grid
+(lobatto-iiia-iiib-2: v(0) = [-0.0101, 0.45] for v_0 = [0, 0.5] on the pendulum at h = 0.1).
+For s <= 3 stages v is a quadratic, so the corrected polynomial is the cubic Hermite interpolant
+of (q_n, v_n), (q_n+1, v_n+1); from s = 4 on the stages carry what the grid alone does not (a
+high-degree Hermite of the grid alone was tried and rejected: gauss-8 at h = 1.5 on the skate, q
+off by 7e-2).
 
-``HermiteDense``: engines that do not keep stage values (compiled kernels, comparators) get the
-cubic Hermite interpolant of (t_n, q_n, v_n) and (t_n+1, q_n+1, v_n+1) for q and its derivative
-for v (error O(h^4) in q, O(h^3) in v at most; limited by the nodal accuracy: measured q 4, v 3
-for gauss-2 and gauss-3, q 2, v 2 for lobatto-iiia-iiib-2).
+The generic engine has the V_j of each step; the compiled engine keeps none and solves each
+step again from its saved (t_n, q_n, v_n) (``compiled.runner.StageSolver``: the SPARK kernel for
+one step, full Newton; the generic step where it fails), so the V_j agree with the run's to the
+Newton tolerance and both engines' dense outputs agree to ~1e-12 (lobatto-iiia-iiib-2, which the
+compiled engine runs with the semi-implicit kernel (25), too: the same method (21)). A step whose
+stages cannot be recomputed to the saved end has V = 0: the cubic Hermite of its ends. Dense
+output re-solves every step after the run; events only the steps where an event changes sign.
 
-Both are evaluated in float64 (also after an mpmath run) and need increasing t.
+Measured orders of the maximal error over [0, 2] on the skate (exact solution, h = 0.2, 0.1, 0.05,
+both engines alike; ``tests/api/test_dense_events.py``), before the correction (the generic
+engine's uncorrected p) in brackets:
+
+    method                 nodal   q(t)     v(t)
+    gauss-2                  4     4 (3)    3 (2)
+    gauss-3                  6     4 (4)    3 (3)
+    gauss-4                  8     5 (5)    4 (4)
+    lobatto-iiia-iiib-2      2     2 (2)    2 (1)
+    lobatto-iiia-iiib-3      4     4 (3)    3 (2)
+
+Large steps on the skate over [0, 60] (max error against compiled gauss-6, h = 0.01): gauss-6 at
+h = 1.0 q 5.4e-6, v 4.0e-5; gauss-8 at h = 1.5 q 8.8e-7, v 6.1e-6 (the uncorrected p: 1.1e-6 /
+4.7e-5 and 1.4e-7 / 6.2e-6, not at the grid; the cubic Hermite the compiled engine had: 9.7e-3 /
+3.0e-2 and 4.5e-2 / 9.3e-2). The correction of v at the ends moves q inside the step by
+h int e = O(h^(s+1)), the order of p's own q error, with a larger constant at these steps.
+
+``HermiteDense``: the comparators (no SPARK stages, every engine): the cubic Hermite interpolant of
+(t_n, q_n, v_n) and (t_n+1, q_n+1, v_n+1) for q and its derivative for v.
+
+``CollocationDense(..., v_nodes=None)``: the uncorrected p, for files written before the
+correction (``resultio``: they stored no grid velocities with the stages).
+
+Both are evaluated in float64 (also after an mpmath run) on increasing (h > 0) or decreasing
+(h < 0) grids.
 
 Events: functions g(t, q, v) -> float with optional attributes ``terminal`` (bool) and
 ``direction`` (sign of the crossing: > 0 upward only, < 0 downward only, 0 both), as in
-``scipy.integrate.solve_ivp``. A sign change of g between two consecutive steps is located by
-``scipy.optimize.brentq`` on g(t, sol(t)) inside that step.
+``scipy.integrate.solve_ivp``: the direction is along the integration (with h < 0, "upward" is
+g increasing as t decreases), and the crossings come in the run's order. A sign change of g
+between two consecutive steps is located by ``scipy.optimize.brentq`` on g(t, sol(t)) inside
+that step.
 """
 from __future__ import annotations
 
