@@ -196,10 +196,15 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
     save_every : int, optional
         Keep steps 0, k, 2k, ... and the last one; the computed numbers do not depend on k.
     dense_output : bool, optional
-        Attach ``Result.sol(t) -> (q, v)`` (the stages' collocation polynomial between steps).
+        Attach ``Result.sol(t) -> (q, v)`` on the run's interval (an InputError outside it): on
+        each step the polynomial through the stage velocities corrected to the grid, so that it
+        reproduces the saved q_n, v_n (``ldaspark.core.dense``); the same on every engine (the
+        compiled engine solves each step's stages again from its saved start after the run; the
+        comparators get the cubic Hermite of the grid). h < 0 works too.
     events : callable or list of callable, optional
-        ``g(t, q, v) -> float``; zeros are located on the dense output (attributes
-        ``terminal`` and ``direction`` as in scipy).
+        ``g(t, q, v) -> float``; zeros are located on the same interpolant of the steps where g
+        changes sign (attributes ``terminal`` and ``direction`` as in scipy: the direction is
+        along the integration, also for h < 0).
     params : dict or list of dict, optional
         ``{symbol or name: value}`` for the system's symbolic parameters; a list runs an
         ensemble over parameter values.
@@ -596,8 +601,8 @@ class _StepWatch:
 
 def _drive_steps(engine, prep, start) -> Result:
     """A stepping engine (the generic one) driven step by step: every ``every``-th point (t, q, v,
-    E, k, psi) kept, the stages' collocation polynomial for dense output and events, the monitors
-    (``_StepWatch``), and the prefix on a step failure."""
+    E, k, psi) kept, the stage polynomial corrected to the grid for dense output and events, the
+    monitors (``_StepWatch``), and the prefix on a step failure."""
     from .compiled.fast import n_samples
     prob, opts, system = prep.prob, prep.opts, prep.system
     N, every, dense, events, dps = prob.N, opts.save_every, opts.dense_output, opts.events, opts.dps
@@ -616,7 +621,7 @@ def _drive_steps(engine, prep, start) -> Result:
         h_ = bk.scalar(prob.h)
         tracker = EventTracker(events, t0_, q, v) if events else None
         saved_i, Qs, Vs, Ps = [0], [q], [v], []
-        dense_q, dense_V = [], []
+        dense_q, dense_v, dense_V = [], [], []
         done = 0
         watch = _StepWatch(engine, prep, float(system.energy(bk, t0_, q, v)), h_) \
             if opts.guard or opts.energy_jump is not None else None
@@ -637,11 +642,12 @@ def _drive_steps(engine, prep, start) -> Result:
                     break
             if i % every == 0:
                 Ps.append(st.Psi)
-            if dense or tracker:
+            if dense:
                 dense_q.append(float_array(q))
+                dense_v.append(float_array(v))
                 dense_V.append(float_array(st.V))
             stop = tracker is not None and tracker.after_step(
-                ti, t0_ + (i + 1) * h_, st.q1, st.v1, step_piece(ti, h_, q, c, st.V))
+                ti, t0_ + (i + 1) * h_, st.q1, st.v1, step_piece(ti, h_, (q, v), (st.q1, st.v1), c, st.V))
             q, v = st.q1, st.v1
             done = i + 1
             if done % every == 0 or done == N or stop:
@@ -669,7 +675,8 @@ def _drive_steps(engine, prep, start) -> Result:
                             **guard_stats), error=error)
     if dense and done > 0:
         tg = float(t0_) + np.arange(done + 1) * float(h_)
-        res.sol = CollocationDense(tg, np.array(dense_q + [float_array(q)]), c, np.array(dense_V))
+        res.sol = CollocationDense(tg, np.array(dense_q + [float_array(q)]), c, np.array(dense_V),
+                                   np.array(dense_v + [float_array(v)]))
     if tracker is not None:
         res.t_events, res.q_events, res.v_events = tracker.arrays()
     return res
@@ -696,7 +703,7 @@ def _drive_blocks(engine, prep, start) -> Result:
     # without dense output, events, an energy-jump watch or the guard the kernels kept every
     # ``every``-th point already (inner = every): nothing to post-process (with every = 1 too:
     # re-slicing would copy the arrays unchanged)
-    return _finish_prefix(res, exc, prep, start, engine.label, sliced=engine.samples and not opts.every_step)
+    return _finish_prefix(res, exc, prep, start, engine, sliced=engine.samples and not opts.every_step)
 
 
 def _energy_jump_cut(res: Result, energy_jump) -> tuple:
@@ -734,25 +741,50 @@ def _failure(exc: BaseException) -> tuple:
     return STATUS_OTHER, str(exc)
 
 
-def _post_process(full: Result, every: int, dense: bool, events, sliced: bool = False) -> Result:
-    """Dense output (Hermite), events and ``save_every`` for engines that return every step
-    (``sliced``: the engine already kept every ``every``-th point; no dense output or events)."""
+def _post_process(full: Result, every: int, dense: bool, events, sliced: bool = False, stages=None) -> Result:
+    """Dense output, events and ``save_every`` for engines that return every step (``sliced``:
+    the engine already kept every ``every``-th point; no dense output or events). ``stages``
+    (``Engine.stage_solver``): the stage velocities of a step solved again from its saved start,
+    for the stage polynomial corrected to the grid (every step for dense output, only the steps
+    where an event changes sign for events); None: the cubic Hermite of the grid (comparators)."""
     if sliced:
         return full
     t, q, v = float_array(full.t), float_array(full.q), float_array(full.v)
     done = len(t) - 1
+    if stages is not None and dense and done > 0:
+        validate.check_storage(done + 1, len(stages.c) * q.shape[1], what="the dense output")
+    solved: dict = {}
+
+    def stage_V(i):
+        if i not in solved:
+            solved[i] = stages(t[i], q[i], v[i], q[i + 1], v[i + 1])
+        return solved[i]
+
+    def piece(i):
+        if stages is None:
+            return HermiteDense(t[i:i + 2], q[i:i + 2], v[i:i + 2])
+        return step_piece(t[i], t[i + 1] - t[i], (q[i], v[i]), (q[i + 1], v[i + 1]), stages.c, stage_V(i))
     if events and done > 0:
         tracker = EventTracker(events, t[0], q[0], v[0])
         for i in range(done):
-            piece = HermiteDense(t[i:i + 2], q[i:i + 2], v[i:i + 2])
-            if tracker.after_step(t[i], t[i + 1], q[i + 1], v[i + 1], piece):
+            # the step's interpolant is built (its stages solved) only where an event changes sign
+            local = functools.partial(_lazy_piece, [None], piece, i)
+            if tracker.after_step(t[i], t[i + 1], q[i + 1], v[i + 1], local):
                 done = i + 1
                 if full.status >= 0:
                     full.status, full.message = STATUS_EVENT, MSG_EVENT
                 break
         full.t_events, full.q_events, full.v_events = tracker.arrays()
     if dense and done > 0:
-        full.sol = HermiteDense(t[:done + 1], q[:done + 1], v[:done + 1])
+        if stages is None:
+            full.sol = HermiteDense(t[:done + 1], q[:done + 1], v[:done + 1])
+        else:
+            V = np.zeros((done, len(stages.c), q.shape[1]))
+            for i in range(done):
+                Vi = stage_V(i)
+                if Vi is not None:       # else zeros: the corrected polynomial is the cubic Hermite
+                    V[i] = Vi
+            full.sol = CollocationDense(t[:done + 1], q[:done + 1], stages.c, V, v[:done + 1])
     if every == 1 and done == len(full.t) - 1:
         return full                       # every step kept and asked for: nothing to slice
     idx = save_indices(done, every) if done > 0 else np.array([0])
@@ -761,6 +793,13 @@ def _post_process(full: Result, every: int, dense: bool, events, sliced: bool = 
     if full.psi is not None:
         full.psi = np.asarray(full.psi)[idx[:-1]]
     return full
+
+
+def _lazy_piece(memo: list, build: Callable, i: int, tt):
+    """(q, v) at tt on step i's interpolant, built by ``build(i)`` at the first call."""
+    if memo[0] is None:
+        memo[0] = build(i)
+    return memo[0](tt)
 
 
 def _prefix_run(run: Callable, N: int, every: int) -> tuple:
@@ -867,10 +906,10 @@ def _guard_scan(res, exc, engine, prep, rerun=None) -> tuple:
     return res, err
 
 
-def _finish_prefix(res, exc, prep, start, engine: str, sliced=False) -> Result:
+def _finish_prefix(res, exc, prep, start, engine, sliced=False) -> Result:
     """The run's Result: the prefix ``res`` (None: the initial point ``start`` = (t0, q0, v0)
     only) with the failure ``exc`` marked, then dense output, events and ``save_every`` (not for a
-    run whose engine ``sliced`` it already)."""
+    run whose ``engine`` sliced it already; else with the engine's ``stage_solver``)."""
     system, opts, (t0, q0, v0) = prep.system, prep.opts, start
     every, dense, events = opts.save_every, opts.dense_output, opts.events
     if res is None:        # failure in the first step: the initial point only
@@ -880,7 +919,8 @@ def _finish_prefix(res, exc, prep, start, engine: str, sliced=False) -> Result:
         stats = {"steps": 0, "newton_iterations": 0, "nfev": 0, "njev": 0, "nlu": 0, "engine": prep.support,
                  "root_finder": dict(prep.opts.newton.describe()), "guard": bool(opts.guard)}
         res = Result(np.array([float(t0)]), q[None], v[None], np.array([system.energy(bk, float(t0), q, v)]),
-                     system.constraint(bk, float(t0), q, v)[None], None, engine=engine, stats=stats)
+                     system.constraint(bk, float(t0), q, v)[None], None, engine=engine.label, stats=stats)
     if exc is not None:
         (res.status, res.message), res.error = _failure(exc), exc
-    return _post_process(res, every, dense, events, sliced)
+    stages = engine.stage_solver(prep) if (dense or events) and not sliced else None
+    return _post_process(res, every, dense, events, sliced, stages)

@@ -641,6 +641,53 @@ def _run_checked(cs, method, start, grid, opts: KernelOptions):
     return FastSolution(*outs, psi=psi, stats=st)
 
 
+class StageSolver:
+    """The stage velocities V_i (s, n) of one SPARK step (21) from a saved point (t, q, v): the
+    SPARK kernel (the mechanical or general form; lobatto-iiia-iiib-2 too, whose runs take the
+    semi-implicit kernel (25) of the same method) run for one step with full Newton from the
+    generic engine's starting guess (V_i = v1 = v, Psi = 0); the kernels leave the step's unknowns
+    x = [Z | Lambda | dv] in out_x[:NN] and V_i = v + Z_i. Used by the driver for the dense
+    output and the events of a compiled run, which keeps no stage values (``solve._post_process``).
+
+    ``solver(t, q, v, h)`` -> (V (s, n), q1, v1), or None when the kernel's Newton fails there."""
+
+    def __init__(self, cs: CompiledSystem, tableau, tol=None, max_iter=50):
+        kind, what, _ = kernel_spec(tableau, "spark")
+        self.cs, self.what = cs, what
+        self.s = what[1].shape[0]
+        self.NN = self.s * (cs.n + cs.m) + cs.n
+        self.tol = _TOL_DEFAULT if tol is None else float(tol)
+        self.max_iter = int(max_iter)
+        self.outs = (np.zeros(2), np.zeros((2, cs.n)), np.zeros((2, cs.n)), np.zeros(2), np.zeros((2, cs.m)))
+        self.stats = np.zeros(len(STAT_NAMES), dtype=np.int64)
+        self.out_x = np.zeros(self.NN)          # the step's unknowns only (no multipliers stored)
+        self.structure = _sparse_structure(cs, self.s, "auto")
+
+    def _run(self, run, structure):
+        for arr in self.outs + (self.stats, self.out_x):
+            arr[...] = 0
+        if structure is not None:
+            _entry("spark_sparse_run")(self.cs.model, self.what, self.cs.M, *run, *self.outs, self.stats, self.out_x,
+                                       *structure.arrays())
+        else:
+            _entry("spark_run" if self.cs.form == "mechanical" else "general_run")(
+                self.cs.model, self.what, self.cs.M, *run, *self.outs, self.stats, self.out_x)
+        return self.stats[mt.FAILED_STEP] < 0
+
+    def __call__(self, t, q, v, h):
+        q0 = np.array(q, dtype=float)
+        v0 = np.array(v, dtype=float)
+        # predictor 0 (zero increments), no matrix reuse, Newton mode 1 (full): ``kernels.NEWTON_MODE``
+        run = (float(t), q0, v0, float(h), 1, 1, True, self.tol, self.max_iter, 8 * NEWTON_MODES["full"])
+        ok = self._run(run, self.structure)
+        if not ok and self.structure is not None and self.stats[mt.FAILURE] == mt.FAIL_SINGULAR:
+            ok = self._run(run, None)           # a block pivot too small: the dense LU pivots freely
+        if not ok:
+            return None
+        V = v0[None, :] + self.out_x[:self.s * self.cs.n].reshape(self.s, self.cs.n)
+        return V, self.outs[1][1].copy(), self.outs[2][1].copy()
+
+
 def _failure(st, name, t0, h, residual=None):
     k = st["failed_step"]
     tk = t0 + k * h

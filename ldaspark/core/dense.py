@@ -1,32 +1,62 @@
 """Dense output (continuous extensions) and event location.
 
-``CollocationDense``: on the step [t_n, t_n + h] of a SPARK method (21), v(t) is the polynomial
-through the stage velocities (T_i, V_i) and q(t) = q_n + int_{t_n}^t v. For a collocation tableau
-A (Gauss, Lobatto IIIA) q is the collocation polynomial through (t_n, q_n) and the stage points
-(T_i, Q_i) of (21a), and v = q'.
-Measured orders of the maximal error over [0, 2] on the skate (exact solution, h = 0.2 .. 0.05,
-``tests/api/test_dense_events.py``), all below the nodal order:
+``CollocationDense``, the dense output of every SPARK run (generic or compiled engine, float64 or
+mpmath): on the step n from t_n to t_n+1 = t_n + h, with theta = (t - t_n) / h in [0, 1], the
+polynomial p(theta) = sum_j l_j(theta) V_j through the stage velocities (c_j, V_j) (Lagrange
+basis l_j on the distinct nodes c_j) corrected to the grid:
 
-    method                 nodal   q(t)  v(t)
-    gauss-2                  4       3     2
-    gauss-3                  6       4     3
-    lobatto-iiia-iiib-2      2       2     1
-    lobatto-iiia-iiib-3      4       3     2
+    v(t) = p(theta) + e(theta),    q(t) = q_n + h int_0^theta v,
 
-(Gauss: q O(h^(s+1)), v O(h^s), the stage order; the Lobatto IIIA-IIIB stage velocities are one
-order less accurate as interpolation data.)
+e the quadratic with v(t_n) = v_n, v(t_n+1) = v_n+1 and q(t_n+1) = q_n+1 (e(0) = v_n - p(0),
+e(1) = v_n+1 - p(1), int_0^1 e = (q_n+1 - q_n) / h - int_0^1 p). The saved grid values are
+reproduced (to a few ulps; exactly at the start of a step), and the mismatches that e absorbs are
+O(h^stage order), so the order of p is not lowered. Without e the polynomial missed the grid
+(lobatto-iiia-iiib-2: v(0) = [-0.0101, 0.45] for v_0 = [0, 0.5] on the pendulum at h = 0.1).
+For s <= 3 stages v is a quadratic, so the corrected polynomial is the cubic Hermite interpolant
+of (q_n, v_n), (q_n+1, v_n+1); from s = 4 on the stages carry what the grid alone does not (a
+high-degree Hermite of the grid alone was tried and rejected: gauss-8 at h = 1.5 on the skate, q
+off by 7e-2).
 
-``HermiteDense``: engines that do not keep stage values (compiled kernels, comparators) get the
-cubic Hermite interpolant of (t_n, q_n, v_n) and (t_n+1, q_n+1, v_n+1) for q and its derivative
-for v (error O(h^4) in q, O(h^3) in v at most; limited by the nodal accuracy: measured q 4, v 3
-for gauss-2 and gauss-3, q 2, v 2 for lobatto-iiia-iiib-2).
+The generic engine has the V_j of each step; the compiled engine keeps none and solves each
+step again from its saved (t_n, q_n, v_n) (``compiled.runner.StageSolver``: the SPARK kernel for
+one step, full Newton; the generic step where it fails), so the V_j agree with the run's to the
+Newton tolerance and both engines' dense outputs agree to ~1e-12 (lobatto-iiia-iiib-2, which the
+compiled engine runs with the semi-implicit kernel (25), too: the same method (21)). A step whose
+stages cannot be recomputed to the saved end has V = 0: the cubic Hermite of its ends. Dense
+output re-solves every step after the run; events only the steps where an event changes sign.
 
-Both are evaluated in float64 (also after an mpmath run) and need increasing t.
+Measured orders of the maximal error over [0, 2] on the skate (exact solution, h = 0.2, 0.1, 0.05,
+both engines alike; ``tests/api/test_dense_events.py``), before the correction (the generic
+engine's uncorrected p) in brackets:
+
+    method                 nodal   q(t)     v(t)
+    gauss-2                  4     4 (3)    3 (2)
+    gauss-3                  6     4 (4)    3 (3)
+    gauss-4                  8     5 (5)    4 (4)
+    lobatto-iiia-iiib-2      2     2 (2)    2 (1)
+    lobatto-iiia-iiib-3      4     4 (3)    3 (2)
+
+Large steps on the skate over [0, 60] (max error against compiled gauss-6, h = 0.01): gauss-6 at
+h = 1.0 q 5.4e-6, v 4.0e-5; gauss-8 at h = 1.5 q 8.8e-7, v 6.1e-6 (the uncorrected p: 1.1e-6 /
+4.7e-5 and 1.4e-7 / 6.2e-6, not at the grid; the cubic Hermite the compiled engine had: 9.7e-3 /
+3.0e-2 and 4.5e-2 / 9.3e-2). The correction of v at the ends moves q inside the step by
+h int e = O(h^(s+1)), the order of p's own q error, with a larger constant at these steps.
+
+``HermiteDense``: the comparators (no SPARK stages, every engine): the cubic Hermite interpolant of
+(t_n, q_n, v_n) and (t_n+1, q_n+1, v_n+1) for q and its derivative for v.
+
+``CollocationDense(..., v_nodes=None)``: the uncorrected p, for files written before the
+correction (``resultio``: they stored no grid velocities with the stages).
+
+Both are evaluated in float64 (also after an mpmath run) on increasing (h > 0) or decreasing
+(h < 0) grids.
 
 Events: functions g(t, q, v) -> float with optional attributes ``terminal`` (bool) and
 ``direction`` (sign of the crossing: > 0 upward only, < 0 downward only, 0 both), as in
-``scipy.integrate.solve_ivp``. A sign change of g between two consecutive steps is located by
-``scipy.optimize.brentq`` on g(t, sol(t)) inside that step.
+``scipy.integrate.solve_ivp``: the direction is along the integration (with h < 0, "upward" is
+g increasing as t decreases), and the crossings come in the run's order. A sign change of g
+between two consecutive steps is located by ``scipy.optimize.brentq`` on g(t, sol(t)) inside
+that step.
 """
 from __future__ import annotations
 
@@ -49,28 +79,35 @@ def _lagrange_weights(nodes: np.ndarray, theta: np.ndarray) -> np.ndarray:
 
 
 class _Dense:
-    """Piecewise interpolant on the step grid ``t`` (N + 1 increasing points)."""
+    """Piecewise interpolant on the step grid ``t`` (N + 1 points, increasing for h > 0 or
+    decreasing for h < 0)."""
 
     def __init__(self, t: np.ndarray):
         self.t = np.asarray(t, float)
-        if len(self.t) < 2 or np.any(np.diff(self.t) <= 0):
-            raise InputError("dense output needs at least one step and increasing times (h > 0)")
+        d = np.diff(self.t)
+        if len(self.t) < 2 or not (np.all(d > 0) or np.all(d < 0)):
+            raise InputError("dense output needs at least one step and strictly monotone times (increasing for "
+                             "h > 0, decreasing for h < 0)")
+        #: +1 on an increasing grid (h > 0), -1 on a decreasing one (h < 0)
+        self.direction = 1.0 if d[0] > 0 else -1.0
 
     @property
     def t_min(self) -> float:
-        return float(self.t[0])
+        return float(min(self.t[0], self.t[-1]))
 
     @property
     def t_max(self) -> float:
-        return float(self.t[-1])
+        return float(max(self.t[0], self.t[-1]))
 
     def _locate(self, t):
         from .validate import times
         tt = np.atleast_1d(times(t))
-        span = self.t[-1] - self.t[0]
-        if np.any(tt < self.t[0] - 1e-12 * span) or np.any(tt > self.t[-1] + 1e-12 * span):
-            raise InputError(f"dense output is defined on [{self.t[0]:g}, {self.t[-1]:g}], got t outside it")
-        k = np.clip(np.searchsorted(self.t, tt, side="right") - 1, 0, len(self.t) - 2)
+        lo, hi = self.t_min, self.t_max
+        span = hi - lo
+        if np.any(tt < lo - 1e-12 * span) or np.any(tt > hi + 1e-12 * span):
+            raise InputError(f"dense output is defined on [{lo:g}, {hi:g}], got t outside it")
+        s = self.direction           # s t is increasing: the step holding t, from the run's start
+        k = np.clip(np.searchsorted(s * self.t, s * tt, side="right") - 1, 0, len(self.t) - 2)
         h = self.t[k + 1] - self.t[k]
         return tt, k, (tt - self.t[k]) / h, h
 
@@ -83,36 +120,67 @@ class _Dense:
         return q, v
 
 
+def _distinct_nodes(c) -> list:
+    """Indices of the distinct nodes of ``c`` (the first of equal ones)."""
+    c = np.asarray(c, float)
+    return [i for i in range(len(c)) if all(abs(c[i] - c[j]) > 1e-14 for j in range(i))]
+
+
 class CollocationDense(_Dense):
-    """Stage-value extension of a SPARK method (see module docstring).
+    """The stage polynomial of a SPARK method corrected to the grid (see module docstring).
 
-    t (N+1,), q_nodes (N+1, n); c (s,) the tableau's nodes; V (N, s, n) stage velocities.
-    With l_j the Lagrange basis on c: v(t_n + theta h) = sum_j l_j(theta) V_j and
-    q(t_n + theta h) = q_n + h sum_j (int_0^theta l_j) V_j. For a collocation A (a_ij =
-    int_0^c_i l_j: Gauss, Lobatto IIIA) this is the collocation polynomial through (t_n, q_n) and
-    the stage points (T_i, Q_i) of (21a), and it ends at q_n+1 of (21c) since b_j = int_0^1 l_j."""
+    t (N+1,), q_nodes (N+1, n); c (s,) the tableau's nodes; V (N, s, n) stage velocities;
+    v_nodes (N+1, n) the saved velocities. With theta = (t - t_n) / h in [0, 1], l_j the Lagrange
+    basis on the distinct nodes c_j and p(theta) = sum_j l_j(theta) V_j:
+    v(t) = p(theta) + e(theta), q(t) = q_n + h int_0^theta v, where the quadratic e makes
+    v(t_n) = v_n, v(t_n+1) = v_n+1 and q(t_n+1) = q_n+1. A step whose V are all zero (its stages
+    could not be recomputed) is the cubic Hermite interpolant of the grid.
 
-    def __init__(self, t, q_nodes, c, V):
+    ``v_nodes=None`` is the uncorrected polynomial p (files written before the correction, which
+    stored no velocities with the stages): for a collocation A (Gauss, Lobatto IIIA) q is then the
+    collocation polynomial through (t_n, q_n) and the stage points (T_i, Q_i) of (21a)."""
+
+    def __init__(self, t, q_nodes, c, V, v_nodes=None):
         super().__init__(t)
-        c = np.asarray(c, float)
-        keep = [i for i in range(len(c)) if all(abs(c[i] - c[j]) > 1e-14 for j in range(i))]
-        self.c = c[keep]
+        keep = _distinct_nodes(c)
+        self.c = np.asarray(c, float)[keep]
         self.q = np.asarray(q_nodes, float)
         self.V = np.asarray(V, float)[:, keep, :]
+        self.v = None if v_nodes is None else np.asarray(v_nodes, float)
         P = np.polynomial.polynomial
         self._basis = []
         for j, cj in enumerate(self.c):
             others = np.delete(self.c, j)
             lj = P.polyfromroots(others) / np.prod(cj - others) if len(others) else np.array([1.0])
             self._basis.append((lj, P.polyint(lj)))
+        # per basis polynomial: l_j(0), l_j(1), int_0^1 l_j
+        self._ends = np.array([[P.polyval(0.0, lj), P.polyval(1.0, lj), P.polyval(1.0, ij)]
+                               for lj, ij in self._basis])
 
     def _eval(self, k, theta, h):
         P = np.polynomial.polynomial
         L = np.stack([P.polyval(theta, lj) for lj, _ in self._basis], axis=1)        # (K, s)
         B = np.stack([P.polyval(theta, ij) for _, ij in self._basis], axis=1)
         V = self.V[k]                                                                   # (K, s, n)
-        v = np.einsum("kj,kjn->kn", L, V)
-        q = self.q[k] + h[:, None] * np.einsum("kj,kjn->kn", B, V)
+        if self.v is None:
+            v = np.einsum("kj,kjn->kn", L, V)
+            q = self.q[k] + h[:, None] * np.einsum("kj,kjn->kn", B, V)
+            return q, v
+        th = theta[:, None]
+        l0, l1 = self._ends[:, 0][None, :], self._ends[:, 1][None, :]
+        # p minus its chord, and its integral: zero at theta = 0 and (the chord's) at theta = 1
+        A0, A1 = th - th ** 2 / 2, th ** 2 / 2                   # int_0^theta (1 - x), int_0^theta x
+        w = L - (1 - th) * l0 - th * l1
+        W = B - A0 * l0 - A1 * l1
+        v0, v1 = self.v[k], self.v[k + 1]
+        # the correction e = a (1 - theta) + b theta + g 6 theta (1 - theta) with a = v_n - p(0),
+        # b = v_n+1 - p(1) and int_0^1 e = (q_n+1 - q_n) / h - int_0^1 p, so that
+        # g = (q_n+1 - q_n) / h - (v_n + v_n+1) / 2 - int_0^1 (p - chord of p)
+        wbar = self._ends[:, 2] - 0.5 * (self._ends[:, 0] + self._ends[:, 1])
+        g = (self.q[k + 1] - self.q[k]) / h[:, None] - 0.5 * (v0 + v1) - np.einsum("j,kjn->kn", wbar, V)
+        v = np.einsum("kj,kjn->kn", w, V) + (1 - th) * v0 + th * v1 + 6 * th * (1 - th) * g
+        q = self.q[k] + h[:, None] * (np.einsum("kj,kjn->kn", W, V) + A0 * v0 + A1 * v1
+                                      + (3 * th ** 2 - 2 * th ** 3) * g)
         return q, v
 
 
@@ -224,14 +292,16 @@ class EventTracker:
             g1 = g(t1, q1f, v1f)
             if _crossed(self.g[e], g1, g.direction):
                 fn = lambda tt, g=g: g(tt, *piece(tt))
-                a, b = float(t0), float(t1)
+                a, b = float(t0), float(t1)      # a > b on a decreasing grid (h < 0)
                 ga, gb = fn(a), fn(b)
                 if ga == 0:
                     te = a
                 elif gb == 0 or np.sign(ga) == np.sign(gb):
                     te = b   # the interpolant disagrees in sign with the nodes only at round-off level
                 else:
-                    te = brentq(fn, a, b, xtol=4 * np.finfo(float).eps * max(1.0, abs(b)), rtol=4 * np.finfo(float).eps)
+                    lo, hi = min(a, b), max(a, b)
+                    te = brentq(fn, lo, hi, xtol=4 * np.finfo(float).eps * max(1.0, abs(lo), abs(hi)),
+                                rtol=4 * np.finfo(float).eps)
                 qe, ve = piece(te)
                 self.found[e].append((te, np.asarray(qe, float), np.asarray(ve, float)))
                 stop = stop or g.terminal
@@ -255,8 +325,14 @@ def float_vec(x) -> np.ndarray:
     return a.astype(float)
 
 
-def step_piece(t0: Any, h: Any, q0: Any, c: Any, V: Any) -> CollocationDense:
-    """Dense output of one step from its stage values (used while stepping, for events)."""
-    q0 = np.asarray(q0, float)
-    return CollocationDense(np.array([float(t0), float(t0) + float(h)]), np.array([q0, q0]), c,
-                            np.asarray(V, float)[None])
+def step_piece(t0: Any, h: Any, start: tuple, end: tuple, c: Any, V: Any) -> CollocationDense:
+    """Dense output of one step from its stage velocities V (s, n) and its ends ``start`` =
+    (q_n, v_n), ``end`` = (q_n+1, v_n+1) (used while stepping, for events; None for V: the cubic
+    Hermite interpolant)."""
+    t0f = float(t0)
+    t = np.array([t0f, t0f + float(h)])
+    q = np.array([float_vec(start[0]), float_vec(end[0])])
+    v = np.array([float_vec(start[1]), float_vec(end[1])])
+    if V is None:
+        return HermiteDense(t, q, v)
+    return CollocationDense(t, q, c, float_vec(V)[None], v)

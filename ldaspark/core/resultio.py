@@ -30,8 +30,10 @@ at most MAX_NAME_CHARS characters is refused, on reading and before writing.
 
 Also kept (float64, as computed): ``stats`` (JSON key / metadata), the events (``t_events_e``,
 ``q_events_e``, ``v_events_e`` for event function e) and the dense output's data (``dense_t``,
-``dense_q`` with ``dense_c``, ``dense_V`` for the collocation extension or ``dense_v`` for the
-Hermite one): arrays in .npz and .h5, in .json under ``extra_arrays`` as {name: {shape, data}}.
+``dense_q``, ``dense_v`` with ``dense_c``, ``dense_V`` for the stage polynomial corrected to the
+grid, ``dense_q``, ``dense_v`` alone for the cubic Hermite one; a file without ``dense_v`` next to
+``dense_c`` (written before the correction) reads as the uncorrected stage polynomial it was
+saved with): arrays in .npz and .h5, in .json under ``extra_arrays`` as {name: {shape, data}}.
 """
 from __future__ import annotations
 
@@ -122,6 +124,8 @@ def _extra_arrays(result: Result) -> dict:
     sol = result.sol
     if isinstance(sol, CollocationDense):
         out.update(dense_t=sol.t, dense_q=sol.q, dense_c=sol.c, dense_V=sol.V)
+        if sol.v is not None:            # the grid velocities of the correction (absent in old files)
+            out.update(dense_v=sol.v)
     elif isinstance(sol, HermiteDense):
         out.update(dense_t=sol.t, dense_q=sol.q, dense_v=sol.v)
     return out
@@ -186,14 +190,17 @@ def _restore_extras(res: Result, extra: dict) -> None:
             res.v_events.append(need(f"v_events_{e}", (len(te), n), "event velocities"))
         if "dense_c" in extra or "dense_v" in extra:
             t = need("dense_t", (None,), "dense output nodes")
-            if len(t) < 2 or not np.all(np.diff(t) > 0):
-                raise InputError("dense_t is not an increasing sequence of at least two times")
+            if len(t) < 2 or not (np.all(np.diff(t) > 0) or np.all(np.diff(t) < 0)):
+                raise InputError("dense_t is not a strictly monotone sequence of at least two times")
             q = need("dense_q", (len(t), n), "dense output")
             if "dense_c" in extra:
                 c = need("dense_c", (None,), "collocation nodes")
                 if not len(c):
                     raise InputError("dense_c is empty")
-                res.sol = CollocationDense(t, q, c, need("dense_V", (len(t) - 1, len(c), n), "stage velocities"))
+                # dense_v: the grid velocities of the corrected stage polynomial; a file written
+                # before the correction has none and keeps the polynomial it was saved with
+                vg = need("dense_v", (len(t), n), "grid velocities") if "dense_v" in extra else None
+                res.sol = CollocationDense(t, q, c, need("dense_V", (len(t) - 1, len(c), n), "stage velocities"), vg)
             else:
                 res.sol = HermiteDense(t, q, need("dense_v", (len(t), n), "dense output"))
     elif ne or any(k.startswith("dense_") for k in extra):

@@ -13,13 +13,15 @@ Two ways to hand steps to the driver (``Engine.mode``):
 
 * ``"steps"``: ``steps(prepared, start, n)`` yields one ``Step`` at a time (the generic engine,
   float64 and mpmath: a Python loop over ``SparkMethod.step``); the driver keeps, watches and
-  interpolates each step as it comes (the stages' collocation polynomial for dense output and
-  events);
+  interpolates each step as it comes (the stage polynomial corrected to the grid, for dense
+  output and events);
 * ``"block"``: ``run(prepared, start, n, every)`` returns a block of n steps as a ``Result``
   (samples at 0, every, 2 every, ..., n; a failure raises with ``step`` set); the driver runs
   blocks of at most its chunk length (``chunked``), reruns the prefix of a failed block, and
-  interpolates with Hermite cubics. ``samples`` says whether the engine can keep every
-  ``every``-th step itself (else the driver asks for every step and slices).
+  interpolates with the stage polynomial corrected to the grid, the stages of each step solved
+  again from its saved start (``stage_solver``; the cubic Hermite for the comparators, which have
+  none). ``samples`` says whether the engine can keep every ``every``-th step itself (else the
+  driver asks for every step and slices).
 
 Every engine receives the root finder (``ldaspark.Newton``) in ``prepare`` and honours each field
 or refuses it in one line naming the engine and the field (``ldaspark.core.rootfinder.SUPPORT``,
@@ -143,6 +145,14 @@ class Engine(abc.ABC):
         """The guard's safe root of this engine's steps, a callable (n, state, prev, before) ->
         (label, (q1, v1, E1)) or (None, None) (``ldaspark.core.guard.SparkSafeRoot``); None: the
         engine has none, and its flagged steps count as unverified."""
+        return None
+
+    def stage_solver(self, prepared):
+        """A block engine's stage velocities for dense output and events (it keeps none): an object
+        with ``c`` (the SPARK tableau's nodes) that is called as ``(t, q, v, q1, v1)`` -> V (s, n)
+        of the step from (t, q, v) whose saved end is (q1, v1), or None where no root agreeing with
+        that end is found (that step's dense output is the cubic Hermite of its ends); None: the
+        engine has no SPARK stages (the comparators), its dense output is the cubic Hermite."""
         return None
 
     def explain(self, prepared, exc: LdasparkError, prefix, start) -> LdasparkError:

@@ -106,6 +106,14 @@ class CompiledEngine(Engine):
             return ComparatorSafeRoot(prepared.system, prob, o)
         return SparkSafeRoot(prepared.system, prob.what, None, o.tol, o.newton.iterations, float(prob.h))
 
+    def stage_solver(self, prepared):
+        """SPARK tableaus: ``SparkStages`` (the kernel's one-step solve, the generic step where it
+        fails); comparators: None (cubic Hermite)."""
+        if prepared.prob.kind != "spark":
+            return None
+        return SparkStages(prepared.system, prepared.prob.what, float(prepared.prob.h), prepared.opts.tol,
+                           prepared.root.iterations)
+
     def explain(self, prepared, exc, prefix, start):
         """The kernels report only the failing step k of a Newton failure: step k again with the
         generic step from the same state (the end of the prefix, or ``start``), whose error says why
@@ -152,3 +160,43 @@ def _ran(prepared) -> str:
 def _is_lf2(method) -> bool:
     from ..compiled.runner import kernel_spec
     return kernel_spec(method, "auto")[0] == "lf2"
+
+
+class SparkStages:
+    """The stage velocities V_i of one step of a compiled SPARK run, solved again from its saved
+    start (t, q, v) (``Engine.stage_solver``): the SPARK kernel for one step with full Newton
+    (``compiled.runner.StageSolver``; lobatto-iiia-iiib-2 too, which ran on the semi-implicit
+    kernel (25) of the same method), else the generic full-Newton step (``SparkMethod.step``);
+    a root is taken when its end point is the saved one (``core.guard.same_root``), so the V_i
+    are the run's to the Newton tolerance. None: no such root (cubic Hermite on that step)."""
+
+    def __init__(self, system, tableau, h, tol, max_iter):
+        self.system, self.tableau, self.h, self.tol, self.max_iter = system, tableau, h, tol, max_iter
+        self.c = np.asarray(tableau.arrays(None).c, dtype=float)
+        self._kernel = self._generic = None
+
+    def _solvers(self):
+        if self._kernel is None:
+            from ..compiled import fast, runner
+            try:
+                self._kernel = runner.StageSolver(fast.compile_system(self.system), self.tableau, self.tol,
+                                                  self.max_iter)
+            except LdasparkError:          # NotCompilableError, CacheDirectoryError: the generic step
+                self._kernel = False
+        return self._kernel
+
+    def __call__(self, t, q, v, q1, v1):
+        from ..core.guard import same_root
+        kernel = self._solvers()
+        if kernel:
+            hit = kernel(t, q, v, self.h)
+            if hit is not None and same_root(hit[1], hit[2], q1, v1, self.tol):
+                return hit[0]
+        if self._generic is None:
+            from ..core.spark import SparkMethod
+            self._generic = SparkMethod(self.system, self.tableau, tol=self.tol, newton="full", max_iter=self.max_iter)
+        try:
+            r = self._generic.step(float(t), np.asarray(q, float), np.asarray(v, float), self.h)
+        except LdasparkError:
+            return None
+        return np.asarray(r.V, float) if same_root(r.q1, r.v1, q1, v1, self.tol) else None

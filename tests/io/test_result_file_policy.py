@@ -322,7 +322,7 @@ def _setters():
     return {"t": arr("t", 3), "q": arr("q", (2, 0)), "v": arr("v", (1, 1)), "energy": arr("energy", 0),
             "constraint": arr("constraint", (4, 0)), "psi": arr("psi", (0, 1, 0)),
             "t_events": ev("t_events"), "q_events": ev("q_events"), "v_events": ev("v_events"),
-            "dense_q": dense("q"), "dense_V": dense("V"), "dense_t": dense("t"),
+            "dense_q": dense("q"), "dense_v": dense("v"), "dense_V": dense("V"), "dense_t": dense("t"),
             "h": lambda r, x: _copy(r, h=x),
             "params": lambda r, x: _copy(r, params={"mu": x}),
             "stats": lambda r, x: _copy(r, stats=dict(r.stats, max_residual=x)),
@@ -358,7 +358,7 @@ def test_every_finite_field_round_trips_in_every_format(res, tmp_path, ext, fiel
                 np.array_equal(np.signbit(a), np.signbit(b)), (name, x)
         for name in ("t_events", "q_events", "v_events"):
             assert all(np.array_equal(a, b) for a, b in zip(getattr(r, name), getattr(back, name)))
-        for k in ("t", "q", "c", "V"):
+        for k in ("t", "q", "v", "c", "V"):
             assert np.array_equal(getattr(r.sol, k), getattr(back.sol, k)), k
         assert (back.h, back.params, back.stats) == (r.h, r.params, r.stats)
         if field == "stats":
@@ -442,6 +442,7 @@ def test_a_file_claiming_non_finite_stats_is_refused_by_every_reader(res, good, 
 
 @pytest.mark.parametrize("name, shape, match", [("dense_q", (3, 3), "dense_q has shape"),
                                                 ("dense_V", (2, 2, 3), "dense_V has shape"),
+                                                ("dense_v", (3, 3), "dense_v has shape"),
                                                 ("q_events_0", (4, 3), "q_events_0 has shape"),
                                                 ("dense_t", (1,), "at least two")])
 def test_inconsistent_events_and_dense_data_are_refused(good, tmp_path, name, shape, match):
@@ -453,6 +454,25 @@ def test_inconsistent_events_and_dense_data_are_refused(good, tmp_path, name, sh
     np.savez(p2, **z)
     back = load_result(p2)
     assert np.all(np.isfinite(back.sol(0.55)[0]))
+
+
+def test_a_file_written_before_the_grid_correction_reads_as_it_was_saved(res, good, tmp_path):
+    """A file of the stage polynomial without ``dense_v`` (written before the correction to the
+    grid) loads as the uncorrected polynomial it was saved with; the file as written now (with
+    ``dense_v``) reproduces the saved v at the grid. Control: the two differ there."""
+    from ldaspark.core.dense import CollocationDense
+    z = dict(np.load(good / "good.npz"))
+    assert "dense_v" in z and "dense_c" in z
+    p = tmp_path / "old.npz"
+    np.savez(p, **{k: a for k, a in z.items() if k != "dense_v"})
+    old, new = load_result(p), load_result(good / "good.npz")
+    assert isinstance(old.sol, CollocationDense) and old.sol.v is None and new.sol.v is not None
+    tt = np.linspace(0, 1, 23)
+    want = CollocationDense(res.sol.t, res.sol.q, res.sol.c, res.sol.V)(tt)
+    assert all(np.array_equal(a, b) for a, b in zip(old.sol(tt), want))
+    assert all(np.array_equal(a, b) for a, b in zip(new.sol(tt), res.sol(tt)))
+    assert np.abs(new.sol(res.t)[1] - res.v).max() < 1e-14
+    assert np.abs(old.sol(res.t)[1] - res.v).max() > 1e-5          # control
 
 
 @pytest.mark.parametrize("change, match", [(dict(nfev="abc"), "nfev"), (dict(njev=-1), "njev"),

@@ -84,8 +84,9 @@ def test_every_field_round_trips(runs, tmp_path, ext, kind):
             assert a.shape == b.shape and np.array_equal(a, b), (name, e)
     # dense output: the same interpolant (type and data), the same values anywhere
     assert type(back.sol) is type(r.sol)
-    assert isinstance(r.sol, HermiteDense if kind == "float64-compiled" else CollocationDense)
-    keys = ("t", "q", "v") if isinstance(r.sol, HermiteDense) else ("t", "q", "c", "V")
+    # every engine's SPARK run: the stage polynomial corrected to the grid (velocities kept too)
+    assert isinstance(r.sol, CollocationDense) and r.sol.v is not None
+    keys = ("t", "q", "v") if isinstance(r.sol, HermiteDense) else ("t", "q", "v", "c", "V")
     for k in keys:
         assert np.array_equal(getattr(r.sol, k), getattr(back.sol, k)), k
     tt = np.linspace(0, 1, 37)

@@ -1,0 +1,140 @@
+"""The dense output and the events are the same on every engine: the stage polynomial of each
+SPARK step corrected to the grid (``ldaspark.core.dense``), the compiled engine solving each
+step's stages again from its saved start. Each test has a negative control: the previous pair
+(the generic engine's uncorrected stage polynomial, the compiled engine's cubic Hermite), or the
+uncorrected polynomial alone, fails the same check."""
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+import ldaspark
+from ldaspark.core.dense import CollocationDense, HermiteDense
+from ldaspark.core.errors import InputError
+from ldaspark.models.scenes import get_scene
+
+SK = get_scene("skate")
+EPS = np.finfo(float).eps
+
+#: (system, method, h, t_end)
+CASES = [("skate", "gauss-2", 0.1, 3.0), ("skate", "gauss-8", 1.5, 15.0),
+         ("pendulum", "lobatto-iiia-iiib-2", 0.1, 2.0), ("relativistic", "gauss-2", 0.05, 1.0)]
+
+
+def _pair(system, method, h, t_end, **kw):
+    return [ldaspark.integrate(system, method, t_span=(0, t_end), h=h, engine=e, dense_output=True, **kw)
+            for e in ("generic", "compiled")]
+
+
+def _old_generic(r):
+    """The generic engine's dense output before the correction (the uncorrected stage polynomial)."""
+    return CollocationDense(r.sol.t, r.sol.q, r.sol.c, r.sol.V)
+
+
+def _old_compiled(r):
+    """The compiled engine's dense output before: the cubic Hermite of the grid."""
+    return HermiteDense(r.sol.t, r.sol.q, r.sol.v)
+
+
+def _rel(a, b):
+    (qa, va), (qb, vb) = a, b
+    return max(np.abs(qa - qb).max() / (1 + np.abs(qa).max()), np.abs(va - vb).max() / (1 + np.abs(va).max()))
+
+
+@pytest.mark.parametrize("system, method, h, t_end", CASES)
+def test_engines_give_the_same_dense_output(system, method, h, t_end):
+    g, c = _pair(system, method, h, t_end)
+    assert c.engine == "compiled" and g.engine == "generic"
+    assert isinstance(g.sol, CollocationDense) and isinstance(c.sol, CollocationDense)
+    tt = np.linspace(0, t_end, 1001)
+    new = _rel(g.sol(tt), c.sol(tt))
+    assert new < 1e-11, new
+    # control: the previous pair differs by far more (O(h^2) .. O(h^4) of the interpolants)
+    old = _rel(_old_generic(g)(tt), _old_compiled(c)(tt))
+    assert old > 1e4 * max(new, 1e-15), (old, new)
+
+
+@pytest.mark.parametrize("engine", ["generic", "compiled"])
+@pytest.mark.parametrize("every", [1, 3])
+@pytest.mark.parametrize("system, method, h", [("pendulum", "lobatto-iiia-iiib-2", 0.1), ("skate", "gauss-3", 0.2),
+                                               ("skate", "gauss-8", 1.5)])
+def test_dense_output_reproduces_the_saved_grid(system, method, h, every, engine):
+    r = ldaspark.integrate(system, method, n_steps=10, h=h, engine=engine, dense_output=True, save_every=every)
+    q, v = r.sol(r.t)
+    q0, v0 = r.sol(float(r.t[0]))
+    for got, want in ((q, r.q), (v, r.v), (q0, r.q[0]), (v0, r.v[0])):
+        assert np.all(np.abs(got - want) <= 8 * EPS * np.maximum(1, np.abs(want))), np.abs(got - want).max()
+    if method == "lobatto-iiia-iiib-2":
+        # control: the uncorrected stage polynomial misses v_n (its stage velocities are not v_n)
+        qo, vo = _old_generic(r)(r.t)
+        assert np.abs(vo - r.v).max() > 1e-3
+
+
+def _down(t, q, v):
+    return q[0] + 0.3
+
+
+_down.direction = -1
+
+
+def _pendulum_x(t, q, v):
+    return q[0] - 0.5
+
+
+@pytest.mark.parametrize("system, method, h, t_end, event", [
+    ("skate", "gauss-2", 0.1, 7.0, _down), ("skate", "gauss-8", 1.5, 30.0, _down),
+    ("pendulum", "lobatto-iiia-iiib-2", 0.1, 3.0, _pendulum_x)])
+def test_event_times_agree_between_engines(system, method, h, t_end, event):
+    g, c = [ldaspark.integrate(system, method, t_span=(0, t_end), h=h, engine=e, events=event)
+            for e in ("generic", "compiled")]
+    tg, tc = g.t_events[0], c.t_events[0]
+    assert len(tg) == len(tc) >= 1
+    assert np.abs(tg - tc).max() < 1e-10 * (1 + np.abs(tg).max()), np.abs(tg - tc).max()
+    # control: the crossings located on the previous pair of interpolants differ by far more
+    d = _pair(system, method, h, t_end)[0]
+    old = []
+    for sol in (_old_generic(d), _old_compiled(d)):
+        k = int(np.searchsorted(d.t, tg[0])) - 1
+        old.append(brentq(lambda t: event(t, *sol(t)), d.t[k], d.t[k + 1], xtol=1e-15))
+    assert abs(old[0] - old[1]) > 1e-8, old
+
+
+T_STAR = np.arcsin(np.sqrt(0.6))
+DOWN = np.array([T_STAR, np.pi + T_STAR])          # q1 + 0.3 decreasing in t through 0
+UP = np.array([np.pi - T_STAR, 2 * np.pi - T_STAR])
+
+
+@pytest.mark.parametrize("engine", ["generic", "compiled"])
+def test_backward_run_events_and_dense_output(engine):
+    """h < 0 (t decreasing from 7 to 0): events and dense output as for h > 0, ``direction`` along
+    the integration as in scipy's solve_ivp (+1: g increasing as the run proceeds, here the
+    crossings where q1 + 0.3 decreases in t); the crossings come in the run's order."""
+    q7, v7, _ = SK.exact_solution(7.0)
+    up = lambda t, q, v: q[0] + 0.3      # noqa: E731
+    up.direction = 1
+    stop = lambda t, q, v: q[0] + 0.3    # noqa: E731
+    stop.terminal = True
+    both = lambda t, q, v: q[0] + 0.3    # noqa: E731
+    r = ldaspark.integrate(SK, "gauss-3", t_span=(7, 0), q0=q7, v0=v7, h=-0.05, engine=engine,
+                           dense_output=True, events=[both, up])
+    assert r.status == 0 and r.t[0] == 7 and r.t[-1] == pytest.approx(0, abs=1e-12)
+    allx = np.sort(np.r_[DOWN, UP])[::-1]
+    assert np.abs(r.t_events[0] - allx).max() < 1e-6, r.t_events[0]
+    assert np.abs(r.t_events[1] - DOWN[::-1]).max() < 1e-6, r.t_events[1]
+    # control: the same direction in the forward run picks the other crossings
+    fwd = ldaspark.integrate(SK, "gauss-3", t_span=(0, 7), h=0.05, engine=engine, events=up)
+    assert np.abs(fwd.t_events[0] - UP).max() < 1e-6 and np.abs(fwd.t_events[0] - DOWN).min() > 0.1
+    # the dense output on the decreasing grid: the exact solution, the grid values, the interval
+    tt = np.linspace(0, 7, 71)
+    q, v = r.sol(tt)
+    qe = np.array([SK.exact_solution(t)[0] for t in tt])
+    assert np.abs(q - qe).max() < 1e-6
+    qg, vg = r.sol(r.t)
+    assert np.abs(qg - r.q).max() <= 8 * EPS and np.abs(vg - r.v).max() <= 8 * EPS
+    assert (r.sol.t_min, r.sol.t_max) == (pytest.approx(0, abs=1e-12), 7.0)
+    with pytest.raises(InputError, match=r"defined on \[0, 7\]"):
+        r.sol(7.5)
+    with pytest.raises(InputError, match=r"defined on \[0, 7\]"):
+        r.sol(-0.5)
+    # a terminal event stops the backward run at its first crossing (the largest one)
+    s = ldaspark.integrate(SK, "gauss-3", t_span=(7, 0), q0=q7, v0=v7, h=-0.05, engine=engine, events=stop)
+    assert s.status == 1 and abs(s.t_events[0][0] - allx[0]) < 1e-6 and s.t[-1] < allx[0] < s.t[-2]
