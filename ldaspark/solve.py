@@ -778,13 +778,8 @@ def _post_process(full: Result, every: int, dense: bool, events, sliced: bool = 
     if dense and done > 0:
         if stages is None:
             full.sol = HermiteDense(t[:done + 1], q[:done + 1], v[:done + 1])
-        else:
-            V = np.zeros((done, len(stages.c), q.shape[1]))
-            for i in range(done):
-                Vi = stage_V(i)
-                if Vi is not None:       # else zeros: the corrected polynomial is the cubic Hermite
-                    V[i] = Vi
-            full.sol = CollocationDense(t[:done + 1], q[:done + 1], stages.c, V, v[:done + 1])
+        else:       # each step's stages solved when the step is first evaluated (``CollocationDense``)
+            full.sol = CollocationDense(t[:done + 1], q[:done + 1], stages.c, None, v[:done + 1], stage_fn=stage_V)
     if every == 1 and done == len(full.t) - 1:
         return full                       # every step kept and asked for: nothing to slice
     idx = save_indices(done, every) if done > 0 else np.array([0])

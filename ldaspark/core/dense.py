@@ -23,7 +23,8 @@ one step, full Newton; the generic step where it fails), so the V_j agree with t
 Newton tolerance and both engines' dense outputs agree to ~1e-12 (lobatto-iiia-iiib-2, which the
 compiled engine runs with the semi-implicit kernel (25), too: the same method (21)). A step whose
 stages cannot be recomputed to the saved end has V = 0: the cubic Hermite of its ends. Dense
-output re-solves every step after the run; events only the steps where an event changes sign.
+output solves a step when it is first evaluated (``CollocationDense(..., stage_fn=...)``; a
+pickled copy carries every step's stages); events only the steps where an event changes sign.
 
 Measured orders of the maximal error over [0, 2] on the skate (exact solution, h = 0.2, 0.1, 0.05,
 both engines alike; ``tests/api/test_dense_events.py``), before the correction (the generic
@@ -140,13 +141,23 @@ class CollocationDense(_Dense):
     stored no velocities with the stages): for a collocation A (Gauss, Lobatto IIIA) q is then the
     collocation polynomial through (t_n, q_n) and the stage points (T_i, Q_i) of (21a)."""
 
-    def __init__(self, t, q_nodes, c, V, v_nodes=None):
+    def __init__(self, t, q_nodes, c, V, v_nodes=None, stage_fn=None):
         super().__init__(t)
         keep = _distinct_nodes(c)
         self.c = np.asarray(c, float)[keep]
         self.q = np.asarray(q_nodes, float)
-        self.V = np.asarray(V, float)[:, keep, :]
         self.v = None if v_nodes is None else np.asarray(v_nodes, float)
+        # V None with ``stage_fn(i)`` (the stage velocities of step i, None where they cannot be
+        # recomputed): solved when a step is first evaluated, not for every step up front (the
+        # compiled engine's one-step solve costs ~100 us a step, 25x the run itself)
+        self._keep = keep
+        if V is None:
+            self._V = np.zeros((len(self.t) - 1, len(keep), self.q.shape[1]))
+            self._have = np.zeros(len(self.t) - 1, dtype=bool)
+            self._stage_fn = stage_fn
+        else:
+            self._V = np.asarray(V, float)[:, keep, :]
+            self._have, self._stage_fn = None, None
         P = np.polynomial.polynomial
         self._basis = []
         for j, cj in enumerate(self.c):
@@ -157,11 +168,40 @@ class CollocationDense(_Dense):
         self._ends = np.array([[P.polyval(0.0, lj), P.polyval(1.0, lj), P.polyval(1.0, ij)]
                                for lj, ij in self._basis])
 
+    def _solve_steps(self, ks) -> None:
+        if self._have is None:
+            return
+        for i in np.unique(np.asarray(ks, dtype=int)):
+            if not self._have[i]:
+                Vi = self._stage_fn(int(i))
+                if Vi is not None:       # else zeros: this step is the cubic Hermite of the grid
+                    self._V[i] = np.asarray(Vi, float)[self._keep]
+                self._have[i] = True
+
+    @property
+    def V(self) -> np.ndarray:
+        """The stage velocities (N, s, n) of every step (solved now where they were not yet)."""
+        self._solve_steps(range(len(self.t) - 1))
+        return self._V
+
+    @V.setter
+    def V(self, value) -> None:
+        self._V = np.asarray(value, float)
+        self._have = self._stage_fn = None
+
+    def __getstate__(self):
+        # a pickled or saved copy carries every step's stages, not the solver
+        self._solve_steps(range(len(self.t) - 1))
+        state = dict(self.__dict__)
+        state["_have"] = state["_stage_fn"] = None
+        return state
+
     def _eval(self, k, theta, h):
         P = np.polynomial.polynomial
+        self._solve_steps(k)
         L = np.stack([P.polyval(theta, lj) for lj, _ in self._basis], axis=1)        # (K, s)
         B = np.stack([P.polyval(theta, ij) for _, ij in self._basis], axis=1)
-        V = self.V[k]                                                                   # (K, s, n)
+        V = self._V[k]                                                                  # (K, s, n)
         if self.v is None:
             v = np.einsum("kj,kjn->kn", L, V)
             q = self.q[k] + h[:, None] * np.einsum("kj,kjn->kn", B, V)

@@ -138,3 +138,25 @@ def test_backward_run_events_and_dense_output(engine):
     # a terminal event stops the backward run at its first crossing (the largest one)
     s = ldaspark.integrate(SK, "gauss-3", t_span=(7, 0), q0=q7, v0=v7, h=-0.05, engine=engine, events=stop)
     assert s.status == 1 and abs(s.t_events[0][0] - allx[0]) < 1e-6 and s.t[-1] < allx[0] < s.t[-2]
+
+
+def test_the_compiled_engine_solves_only_the_steps_that_are_evaluated(monkeypatch):
+    """Each step's stages are solved again (one kernel call, ~100 us) when the step is first
+    evaluated: a 2000-step dense run costs the run, not 2000 solves; a pickled copy (process pools,
+    save_result) carries every step's stages and gives the same numbers. Control: ``V`` of the
+    original solves the rest."""
+    import pickle
+    from ldaspark.engines import compiled
+    calls = []
+    orig = compiled.SparkStages.__call__
+    monkeypatch.setattr(compiled.SparkStages, "__call__", lambda self, *a: calls.append(1) or orig(self, *a))
+    r = ldaspark.integrate("skate", "gauss-4", n_steps=2000, h=0.05, engine="compiled", dense_output=True)
+    assert not calls
+    q, v = r.sol(np.linspace(0.0, 0.5, 40))                # steps 0..10
+    assert 1 <= len(calls) <= 11
+    copy = pickle.loads(pickle.dumps(r.sol))
+    assert len(calls) == 2000
+    q2, v2 = copy(np.linspace(0.0, 0.5, 40))
+    np.testing.assert_array_equal(q, q2)
+    np.testing.assert_array_equal(v, v2)
+    assert r.sol.V.shape == (2000, 4, 3) and len(calls) == 2000
