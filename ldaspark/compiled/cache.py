@@ -585,6 +585,36 @@ def _kernel_paths(modules) -> list:
     return hit
 
 
+def _kernel_files_trust(path: str) -> str:
+    """"" when every index and data file numba would read in the kernel cache directory ``path``
+    (.nbi, .nbc) is a regular file owned by this user or root and not writable by anyone else, else
+    the reason: a safe directory keeps others from adding files, not from rewriting one they own
+    or may write (a planted .nbi owned by nobody, mode 0666, was unpickled). Only this user can
+    change such a file's mode or owner afterwards, so the directory's fingerprint
+    (``_still_trusted``) keeps covering them."""
+    if not os.path.isdir(path):
+        return ""
+    try:
+        names = os.listdir(path)
+    except OSError as exc:
+        return f"{path}: {exc.strerror or exc}"
+    for name in names:
+        if not name.endswith((".nbi", ".nbc")):
+            continue
+        full = os.path.join(path, name)
+        try:
+            st = os.lstat(full)
+        except OSError:
+            continue                       # removed meanwhile: numba will not read it
+        if not stat.S_ISREG(st.st_mode):
+            return f"{full} is not a regular file"
+        if not _trusted_owner(st):
+            return f"{full} belongs to another user (uid {st.st_uid})"
+        if st.st_mode & 0o022:
+            return f"{full} is writable by other users"
+    return ""
+
+
 def check_kernel_cache(modules) -> None:
     """Raise CacheDirectoryError unless every directory numba would load the cached kernels of
     ``modules`` from (the package's ``__pycache__``, ``NUMBA_CACHE_DIR`` or numba's per-user cache,
@@ -600,7 +630,7 @@ def check_kernel_cache(modules) -> None:
             continue
         target = _kernel_cache_target(path)
         walked: list = []
-        why = path_trust(target, final_private=False, walked=walked)
+        why = path_trust(target, final_private=False, walked=walked) or _kernel_files_trust(path)
         if why:
             _KERNEL_CACHE_OK.pop(path, None)
             raise CacheDirectoryError(f"numba would load the compiled kernels from {path}, which is not safe "

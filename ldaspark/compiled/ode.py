@@ -240,6 +240,9 @@ def ode_source(system) -> str:
     (``LagrangianSystem.ode_rhs`` solves it by Newton)."""
     if nonideal_term(system) is not None:
         raise NotCompilableError(f"{system.name}: the compiled ODE (3a-b) has no nonideal term (3.3)")
+    if system.params:       # the ODE module has no run-time parameter block (numba: NameError PARAMS)
+        raise NotCompilableError(f"{system.name}: the compiled ODE (3a-b) takes no parameters "
+                                 f"({', '.join(str(p) for p in system.params)[:80]}); substitute their values in L and k")
     n, m = system.n, system.m
     S = _Symbols(system, m)
     Lvv, kv, r1, r2 = _parts(system, S)

@@ -57,7 +57,7 @@ def mechanical_parts(system) -> dict:
     else:
         # on the nonzero entries of the sparse derivation: the dense L_vv, M v and simplify of
         # every row cost 2.7 s at n = 121 (what a first integrate of such a system waited)
-        from ..core.system import _derived_nonzeros
+        from ..core.system import _derived_nonzeros, numerically_zero
         Mnz = _derived_nonzeros(system, "L_vv")
         if any(e.free_symbols & (set(q) | set(v) | {t}) for e in Mnz.values()):
             raise NotCompilableError(f"{system.name}: L_vv depends on (t, q, v); not mechanical form")
@@ -68,7 +68,9 @@ def mechanical_parts(system) -> dict:
             rows.setdefault(i, []).append(e * v[j])
         for i in sorted(set(rows) | {i for i, _ in Lv}):
             gyro = Lv.get((i, 0), sympy.S.Zero) - sympy.Add(*rows.get(i, ()))
-            if gyro != 0 and sympy.simplify(gyro) != 0:
+            # decided at random points (parameters too: one model serves every value), not by
+            # sympy.simplify (minutes for a large power)
+            if gyro != 0 and not numerically_zero(gyro, q + v + [t] + list(system.params)):
                 raise NotCompilableError(f"{system.name}: grad_v L is not M v (terms linear in v); not mechanical "
                                          "form")
         M = sympy.SparseMatrix(system.n, system.n, Mnz)

@@ -67,6 +67,12 @@ _FUNCTION_CLASSES = {getattr(sympy, f): f for f in SUPPORTED_FUNCTIONS}
 #: bicycle's derivatives included); sympy's printers use 3-5 Python frames per level
 MAX_DEPTH = 120
 
+#: the most nodes an expression may have written out as a tree (shared subexpressions counted
+#: at every use: what sympy's free_symbols, derivatives and printers walk). The library's largest,
+#: the Whipple bicycle's derivatives, have 12282; e = sin(e) + cos(e) twenty times over (2e6) took
+#: LagrangianSystem 65 s and the first step minutes
+MAX_TREE_NODES = 500_000
+
 #: node types that print as numbers, operators or the printer's own names (never user text)
 _STRUCTURAL = (sympy.Add, sympy.Mul, sympy.Pow, sympy.Number, sympy.NumberSymbol,
                sympy.functions.elementary.piecewise.ExprCondPair,
@@ -81,15 +87,19 @@ def _node_problem(node, derived: bool):
     """None for a node the engines print from its type alone, else a short description."""
     from sympy.core.function import AppliedUndef
     t = type(node)
-    if isinstance(node, sympy.Symbol):
-        return None
     if isinstance(node, AppliedUndef):
         return "undefined"
     if t in _FUNCTION_CLASSES or (derived and t in _DERIVED_ONLY):
         return None
-    if isinstance(node, (sympy.Derivative, sympy.Integral, sympy.Subs, sympy.Sum, sympy.Product)):
+    if isinstance(node, (sympy.Derivative, sympy.Integral, sympy.Subs, sympy.Sum, sympy.Product, sympy.Function)):
         return t.__name__
-    if isinstance(node, sympy.Function) or not isinstance(node, _STRUCTURAL):
+    if not (t.__module__ or "").startswith("sympy."):
+        # a subclass defined outside sympy (of Symbol, NumberSymbol, Add, ...) may print itself
+        # (_pythoncode, _numpycode, _sympystr): its own text would go into the generated source
+        return f"{t.__name__} (defined outside sympy)"
+    if isinstance(node, sympy.Symbol):
+        return None
+    if not isinstance(node, _STRUCTURAL):
         if node in _SPECIAL:
             return None
         return t.__name__
@@ -98,6 +108,27 @@ def _node_problem(node, derived: bool):
 
 _DYNAMIC = ("; functions of t and their derivatives (dynamicsymbols) are not coordinates here: use plain "
             "symbols q, v, or LagrangianSystem.from_mechanics(...) for sympy.physics.mechanics models")
+
+
+def tree_nodes(e, cap: int) -> int:
+    """The number of nodes of ``e`` written out as a tree, counted on its graph (each distinct node
+    once, iteratively) and capped just above ``cap``: linear in the distinct nodes, where a walk of
+    the tree is exponential in the nesting of shared parts."""
+    size: dict = {}
+    todo = [(e, False)]
+    while todo:
+        node, ready = todo.pop()
+        if node in size:
+            continue
+        args = node.args
+        if not args:
+            size[node] = 1
+        elif ready:
+            size[node] = min(cap + 1, 1 + sum(size[a] for a in args))
+        else:
+            todo.append((node, True))
+            todo.extend((a, False) for a in args if a not in size)
+    return size[e]
 
 
 def check_expressions(named_exprs, derived: bool = False, max_depth: int = MAX_DEPTH) -> None:
@@ -109,6 +140,11 @@ def check_expressions(named_exprs, derived: bool = False, max_depth: int = MAX_D
     for where, e in named_exprs:
         if not isinstance(e, sympy.Basic):
             continue
+        if tree_nodes(e, MAX_TREE_NODES) > MAX_TREE_NODES:
+            raise ExpressionTooLargeError(
+                f"{where} has more than {MAX_TREE_NODES} nodes written out (shared subexpressions count at "
+                "every use; the limit of ldaspark.core.gensource.MAX_TREE_NODES): name its parts as "
+                "coordinates or parameters, or give it in a smaller form")
         depth: dict = {}
         todo = [(e, 1)]
         while todo:
@@ -223,6 +259,7 @@ def lambdify(args, exprs, module: str, namespaces=(), order: str | None = None, 
     except RecursionError:
         raise ExpressionTooLargeError("an expression is too deep to print; give it in a flatter form") from None
     check_source(src, namespace)
+    _one_function(src)
     namespace.update({"builtins": builtins, "range": range})
     code = _compile(src)
     local: dict = {}
@@ -240,11 +277,45 @@ def _flatten(x):
         yield sympy.sympify(x)
 
 
+def _one_function(src: str) -> None:
+    """GeneratedSourceError unless ``src`` is one function definition, ``_lambdifygenerated``, with
+    no definition, import or global statement inside: executing it defines that function and does
+    nothing else (the names are checked by ``check_source``, the statements here)."""
+    with SOURCE_LOCK:
+        try:
+            tree = ast.parse(src)
+        except (SyntaxError, ValueError):
+            raise GeneratedSourceError("generated source does not parse") from None
+        except (RecursionError, MemoryError):
+            return          # too deep for the checker's parser: _compile rebalances or refuses it
+    body = tree.body
+    if len(body) != 1 or not isinstance(body[0], ast.FunctionDef) or body[0].name != "_lambdifygenerated":
+        raise GeneratedSourceError("generated source is not one function definition")
+    bad = (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef, ast.Lambda, ast.Import, ast.ImportFrom,
+           ast.Global, ast.Nonlocal, ast.Delete, ast.With, ast.Try, ast.Raise)
+    for node in ast.walk(body[0]):
+        if node is not body[0] and isinstance(node, bad):
+            raise GeneratedSourceError(f"generated source holds a {type(node).__name__} statement")
+        # the printers read builtins.<name> (nan as builtins.float('nan')); nothing is assigned to
+        # an attribute or a subscript
+        if isinstance(node, ast.Attribute) and not (isinstance(node.value, ast.Name) and node.value.id == "builtins"
+                                                    and isinstance(node.ctx, ast.Load)):
+            raise GeneratedSourceError("generated source holds an attribute other than a builtin read")
+        if isinstance(node, (ast.Assign, ast.AugAssign, ast.AnnAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            if not all(isinstance(x, ast.Name) for x in targets):
+                raise GeneratedSourceError("generated source assigns to something other than a name")
+
+
 def check_source(src: str, namespace=(), pattern=_GENERATED_NAME, strings=None) -> None:
     """GeneratedSourceError unless every identifier of ``src`` is a Python keyword, matches
     ``pattern`` (the generated names) or is a name of ``namespace`` (the numeric module's
     functions) not beginning with ``__``, and ``src`` has no string literal (a docstring at a
     ``_STRINGS`` ("nan", "inf") and those ``strings`` (a regex) matches excepted)."""
+    if not src.isascii():
+        # every name and number the library prints is ASCII; the compiler folds other identifier
+        # characters (NFKC: U+FE33 is "_") into names the token check never saw
+        raise GeneratedSourceError("generated source holds a character outside ASCII")
     try:
         tokens = list(tokenize.generate_tokens(io.StringIO(src).readline))
     except (tokenize.TokenError, SyntaxError, IndentationError) as exc:

@@ -823,6 +823,38 @@ def _check_mechanical_parts(system, mech, M, Mnz) -> None:
             refuse(what, bad)
 
 
+def numerically_zero(e, syms, fixed=None, points: int = 3) -> bool:
+    """Whether the expression ``e`` in ``syms`` vanishes: at ``points`` random rational points in
+    [0.3, 0.7] (``fixed``: values of parameters) evaluated to 40 digits, each finite value within
+    1e-25 of 0 relative to the size of its terms. A nonzero expression differs from 0 at almost
+    every point; sympy.simplify of a large one (a power (q0 + ... + q7)^16) ran for minutes. Where
+    fewer than two points evaluate (domain errors), False: the caller keeps the safe answer."""
+    import random
+    e = sympy.sympify(e)
+    if e == 0:
+        return True
+    rng = random.Random(271828)
+    at = _point_evaluator(e)
+    terms = [_point_evaluator(t) for t in sympy.Add.make_args(e)][:64]
+    tested = 0
+    for _ in range(2 * points):
+        pt = {x: sympy.Rational(rng.randint(300, 700), 1000) for x in syms}
+        pt.update(fixed or {})
+        try:
+            val = complex(sympy.N(at(pt), 40))
+            scale = sum(abs(complex(sympy.N(t(pt), 20))) for t in terms)
+        except (TypeError, ValueError, ZeroDivisionError, ArithmeticError):
+            continue
+        if not (math.isfinite(val.real) and math.isfinite(val.imag) and math.isfinite(scale)):
+            continue
+        if abs(val) > 1e-25 * (1 + scale):
+            return False
+        tested += 1
+        if tested == points:
+            return True
+    return tested >= 2
+
+
 def _point_evaluator(e):
     """pt -> e at the exact point ``pt`` ({symbol: Rational}): substituted in symengine (C++;
     sympy's xreplace rebuilds the tree through its constructors, ~5x slower on a large L),

@@ -87,3 +87,21 @@ def test_a_mass_matrix_that_is_not_positive_definite_runs_the_kernels_newton(L):
         ldaspark.integrate(s, "gauss-2", engine="compiled", newton="quasi", **kw)
     ok = ldaspark.LagrangianSystem((vx**2 + vy**2) / 2, [vx - 2 * vy], [x, y], [vx, vy], name="positive M")
     assert ldaspark.integrate(ok, "gauss-2", engine="compiled", **kw).stats["root_finder"]["runs"] == "quasi"
+
+
+def test_the_gyroscopic_test_decides_at_points_not_by_simplify(monkeypatch):
+    """grad_v L - M v was tested with sympy.simplify: L = |v|^2/2 + v0 (q0 + ... + q7)^16 / 10^16
+    waited minutes before the first step. Decided at random points now (``numerically_zero``):
+    the power is a gyroscopic term (the general form), and a term that is zero only after
+    simplification, v0 (sin(q0)^2 + cos(q0)^2 - 1), is none (the mechanical form) - the control."""
+    import sympy
+    monkeypatch.setattr(sympy, "simplify", lambda *a, **k: (_ for _ in ()).throw(AssertionError("simplify")))
+    n = 8
+    q, v = list(sympy.symbols(f"q0:{n}")), list(sympy.symbols(f"v0:{n}"))
+    kw = dict(n_steps=2, h=0.01, q0=[0.1] * n, v0=[0.1, 0.1] + [0.01] * (n - 2))
+    big = ldaspark.LagrangianSystem(sum(x**2 for x in v) / 2 + v[0] * sum(q)**16 / 10**16, [v[1] - v[0]], q, v,
+                                    name="power")
+    assert ldaspark.integrate(big, "gauss-2", **kw).stats["form"] == "general"
+    hidden = ldaspark.LagrangianSystem(sum(x**2 for x in v) / 2 + v[0] * (sympy.sin(q[0])**2 + sympy.cos(q[0])**2 - 1),
+                                       [v[1] - v[0]], q, v, name="hidden zero")
+    assert ldaspark.integrate(hidden, "gauss-2", **kw).stats["form"] == "mechanical"

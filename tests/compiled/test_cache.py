@@ -656,3 +656,30 @@ def test_two_processes_compiling_one_new_system_agree_bit_for_bit(tmp_path):
         assert store.sweep() == []                             # nothing unrecorded or stale
         assert set(store._read_manifest()) == {n for n in os.listdir(d / "__pycache__")
                                                if n.startswith(modname + ".")}
+
+
+def test_a_kernel_cache_file_others_can_write_is_refused(tmp_path):
+    """A safe directory keeps others from adding files, not from rewriting a file they may write:
+    an .nbi owned by another user or writable by others (mode 0666) was unpickled. Refused now,
+    and so is a link in its place; control: the same file, 0644 and ours, passes."""
+    d = tmp_path / "numba-cache" / "sub"
+    d.mkdir(parents=True)
+    os.chmod(d.parent, 0o755)
+    os.chmod(d, 0o755)
+    f = d / "kernels.spark_run-10.py311.nbi"
+    f.write_bytes(b"index")
+    os.chmod(f, 0o666)
+    mod = _fake_kernel_module(d)
+    with pytest.raises(cache.CacheDirectoryError, match="nbi is writable by other users"):
+        cache.check_kernel_cache([mod])
+    os.chmod(f, 0o644)
+    cache.check_kernel_cache([mod])
+    link = d / "kernels.spark_run-10.py311.1.nbc"
+    os.symlink(f, link)
+    with pytest.raises(cache.CacheDirectoryError, match="not a regular file"):
+        cache.check_kernel_cache([mod])
+    link.unlink()
+    if os.geteuid() == 0:                         # as root: a file of another user
+        os.chown(f, 65534, 65534)
+        with pytest.raises(cache.CacheDirectoryError, match="belongs to another user"):
+            cache.check_kernel_cache([mod])

@@ -355,3 +355,62 @@ def test_the_model_module_is_checked_generated_or_read_back(tmp_path, monkeypatc
     monkeypatch.setattr(cache, "stored_source", lambda k: src + "\nopen('x', 'w')\n" if k == key else None)
     with pytest.raises(codegen.NotCompilableError):
         codegen.general_source(S)
+
+
+class _SelfPrinting(sympy.core.numbers.NumberSymbol):
+    """A constant whose own printer hooks return source text (as sympy lets any class do)."""
+    is_real = is_positive = is_irrational = is_number = True
+    __slots__ = ()
+
+    def _as_mpf_val(self, prec):
+        return mpmath.mpf(9.81)._mpf_
+
+    def _pythoncode(self, printer, *args, **kw):
+        return "0\nbuiltins.abs = builtins.float\ndef _x99():\n    return 0"
+    _numpycode = _mpmathcode = _lambdacode = _pythoncode
+
+
+def test_a_node_class_defined_outside_sympy_never_prints_into_the_source():
+    """sympy's printers call a node's own _pythoncode before _print_Symbol: a NumberSymbol subclass
+    put statements into the compiled ODE module (not checked) and the generic engine's function
+    (builtins.abs replaced process-wide). Refused at set-up now, by class; the generated source is
+    ASCII and one function definition of name-only assignments (U+FE33 folded by the compiler into
+    "_" passed the token check). Control: sympy's own NumberSymbols (pi, E) run."""
+    a, b, va, vb = sympy.symbols("a b va vb")
+    with pytest.raises(SystemDefinitionError, match="outside sympy"):
+        ldaspark.LagrangianSystem((va**2 + vb**2) / 2 - _SelfPrinting() * sympy.cos(a), [vb - a * va], [a, b],
+                                  [va, vb])
+    assert abs(-5) == 5
+    ok = ldaspark.LagrangianSystem((va**2 + vb**2) / 2 - sympy.pi * sympy.cos(a) / sympy.E, [vb - a * va], [a, b],
+                                   [va, vb])
+    assert ldaspark.integrate(ok, "gauss-2", n_steps=2, h=0.1, q0=[0.1, 0], v0=[0, 0], engine="generic").status == 0
+    from sympy.utilities.lambdify import _get_namespace
+    with pytest.raises(gensource.GeneratedSourceError, match="outside ASCII"):
+        gensource.check_source("def _lambdifygenerated(_s0):\n    return e\ufe33\ufe33(_s0)\n", _get_namespace("math"))
+    for src in ("def _lambdifygenerated(_s0):\n    builtins.abs = builtins.float\n    return 0\n",
+                "x0 = 1\ndef _lambdifygenerated(_s0):\n    return 0\n",
+                "def _lambdifygenerated(_s0):\n    import os\n    return 0\n"):
+        with pytest.raises(gensource.GeneratedSourceError):
+            gensource._one_function(src)
+    gensource._one_function("def _lambdifygenerated(_s0):\n    x0 = _s0\n    return builtins.float('nan') + x0\n")
+
+
+def test_an_expression_whose_tree_is_exponential_in_its_graph_is_refused_at_set_up():
+    """e = sin(e) + cos(e) twenty times: 41 distinct nodes, 2e6 written out, which sympy's
+    free_symbols, the derivatives and the printers walk (LagrangianSystem took 65 s, the first
+    step minutes). Refused at set-up by its tree size, counted on the graph; control: eight times
+    (1021 nodes) runs."""
+    a, b, va, vb = sympy.symbols("a b va vb")
+
+    def nested(k):
+        e = a
+        for _ in range(k):
+            e = sympy.sin(e) + sympy.cos(e)
+        return e
+    assert gensource.tree_nodes(nested(20), gensource.MAX_TREE_NODES) > gensource.MAX_TREE_NODES
+    with pytest.raises(ExpressionTooLargeError, match="nodes written out"):
+        ldaspark.LagrangianSystem((va**2 + vb**2) / 2 - nested(20) / 10**20, [vb - a * va], [a, b], [va, vb])
+    assert gensource.tree_nodes(nested(8), 10**9) == 1021      # 2^(k+2) - 3
+    ok = ldaspark.LagrangianSystem((va**2 + vb**2) / 2 - nested(8) / 10**8, [vb - a * va], [a, b], [va, vb])
+    assert ldaspark.integrate(ok, "gauss-2", n_steps=2, h=0.01, q0=[0.1, 0], v0=[0.1, 0.01],
+                              engine="generic").status == 0
