@@ -27,6 +27,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import functools
+import re
 import sys
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -692,8 +693,8 @@ def _drive_blocks(engine, prep, start) -> Result:
     inner = opts.save_every if engine.samples and not opts.every_step else 1
     engine.check_block(prep, N, inner)
 
-    def run(n, e):
-        return _chunked(engine, prep, start, n, e)
+    def run(n, e):      # block ends on the saved points of the run (``inner``), for its reruns too
+        return _chunked(engine, prep, start, n, e, boundaries=inner)
     res, exc = _prefix_run(run, N, inner)
     if exc is not None:
         exc = engine.explain(prep, exc, res, start)
@@ -821,31 +822,37 @@ _BLOCK_SUMS = ("steps", "nfev", "njev", "nlu", "newton_iterations", "full_newton
                "curvature_refreshes", "curvature_steps")
 
 
-def _chunked(engine, prep, start, n, every) -> Result:
+def _chunked(engine, prep, start, n, every, boundaries=None) -> Result:
     """``engine.run`` of n steps from ``start`` = (t0, q0, v0) keeping every ``every``-th sample, in
     blocks of at most COMPILED_CHUNK steps (a ``chunked`` engine) whose ends fall on the saved points
-    (multiples of ``every``), so the saved samples are those of one call; a failure names the step of
-    the whole run. Between blocks the predictor restarts (the numbers agree with one call to the
-    Newton tolerance)."""
+    of a run keeping every ``boundaries``-th step (default ``every``: the guard's rerun of the first
+    steps with every step kept gets the blocks of the run it judges, so the predictor restarts at
+    the same steps and it sees the same trajectory), so the saved samples are those of one call:
+    their times t0 + i h computed as one call computes them; a failure names the step of the whole
+    run, in its message too. Between blocks the predictor restarts (the numbers agree with one call
+    to the Newton tolerance). Stats: the counters summed over the blocks (``_BLOCK_SUMS``),
+    max_iterations their maximum, kernel_specialised whether any block ran the specialised kernel."""
     chunk = COMPILED_CHUNK
     if not engine.chunked or n <= chunk:
         return engine.run(prep, start, n, every)
+    b = every if boundaries is None else int(boundaries)
     (t0, q0, v0), hf = start, float(prep.prob.h)
     t0f = float(t0)
     parts, stats, done = [], None, 0
     q, v = q0, v0
     while done < n:
-        if every <= chunk:
-            L, e = min(n - done, (chunk // every) * every), every
-        else:
-            L = min(n - done, chunk, (done // every + 1) * every - done)
-            e = L
+        L = min(n - done, (chunk // b) * b) if b <= chunk else min(n - done, chunk, (done // b + 1) * b - done)
+        e = every if every <= chunk else L
         try:
             fs = engine.run(prep, (t0f + done * hf, q, v), L, e)
         except LdasparkError as exc:
             if isinstance(getattr(exc, "step", None), int):
+                old = exc.step
                 exc.step += done
                 exc.time = t0f + exc.step * hf
+                if done and exc.args and isinstance(exc.args[0], str):
+                    # the kernel's message counts the block's steps: the run's step number in it too
+                    exc.args = (re.sub(rf"\bstep {old}\b", f"step {exc.step}", exc.args[0]),) + exc.args[1:]
             raise
         if not parts and fs.engine != engine.label:    # the block ran on a fallback, which does not chunk
             return engine.run(prep, start, n, every)
@@ -858,13 +865,21 @@ def _chunked(engine, prep, start, n, every) -> Result:
         # the samples fall inside the chunk, else its one step row if the chunk starts at a sample
         psi = None if fs.psi is None else (fs.psi if every <= chunk else fs.psi[:1] if done % every == 0
                                            else fs.psi[:0])
-        parts.append(tuple(np.asarray(a)[rows] for a in (fs.t, fs.q, fs.v, fs.energy, fs.constraint)) + (psi,))
+        # the times as one call computes them, t0 + i h (the block's t0 + j h is an ulp off)
+        steps_at = np.minimum(np.arange(len(fs.t)) * e, L)
+        t_block = t0f + (done + steps_at) * hf
+        parts.append((t_block[rows],) + tuple(np.asarray(a)[rows] for a in (fs.q, fs.v, fs.energy, fs.constraint))
+                     + (psi,))
         if stats is None:
             stats = dict(fs.stats)
         else:
             for key in _BLOCK_SUMS:
                 if key in fs.stats:
                     stats[key] = stats.get(key, 0) + fs.stats[key]
+            if "max_iterations" in fs.stats:
+                stats["max_iterations"] = max(stats.get("max_iterations", 0), fs.stats["max_iterations"])
+            if "kernel_specialised" in fs.stats:
+                stats["kernel_specialised"] = bool(stats.get("kernel_specialised")) or bool(fs.stats["kernel_specialised"])
         q, v = fs.q[-1], fs.v[-1]
         done += L
     stats["mean_iterations"] = stats.get("newton_iterations", 0) / max(stats.get("steps", 1), 1)

@@ -1,0 +1,74 @@
+"""A run cut into blocks (``solve._chunked``, runs longer than COMPILED_CHUNK steps; made small
+here) is the run of one call to what it reports: the saved times t0 + i h as one call computes
+them, the counters' maximum over the blocks, a failure's step number in its message, and the
+guard's rerun of the first steps with the blocks of the run it judges. Each check has the
+unchunked run (or the generic engine) as its control."""
+import numpy as np
+import pytest
+import sympy
+
+import ldaspark
+from ldaspark import solve
+
+x, y, th, vx, vy, vth = sympy.symbols("x y th vx vy vth")
+# a stiff quartic spring with a nonholonomic constraint: gauss-3 at h = 0.2 takes up to ~70
+# full-Newton iterations a step, gauss-2 at h = 0.7 fails after a few steps
+QUARTIC = ldaspark.LagrangianSystem((vx**2 + vy**2) / 2 + vth**2 / 2 - 1e4 * (x**4 / 4 + x**2 * y**2 / 2)
+                                    - 3 * sympy.cos(th), [vy - 3 * x * vth], [x, y, th], [vx, vy, vth], name="quartic")
+IC = dict(q0=[0.5, 0.1, 0.3], v0=[1.0, 0.75, 0.5], engine="compiled")
+
+
+def _run(chunk, monkeypatch, method="gauss-2", **kw):
+    monkeypatch.setattr(solve, "COMPILED_CHUNK", chunk)
+    return ldaspark.integrate(QUARTIC, method, **dict(IC, **kw))
+
+
+def test_max_iterations_is_the_maximum_over_the_blocks(monkeypatch):
+    kw = dict(h=0.2, n_steps=50, newton="full")
+    one = _run(2**18, monkeypatch, "gauss-3", **kw).stats["max_iterations"]
+    blocks = _run(10, monkeypatch, "gauss-3", **kw).stats["max_iterations"]
+    assert blocks == one and one > 30          # was the first block's (36 against 69)
+
+
+@pytest.mark.parametrize("every", [1, 3])
+def test_the_saved_times_are_those_of_one_call(monkeypatch, every):
+    """Each block started at t0 + done h and added j h: 10 of 41 times were an ulp off the generic
+    engine's and the unchunked run's t0 + i h."""
+    kw = dict(h=0.1, t0=0.3, n_steps=40, save_every=every)
+    gen = ldaspark.integrate(QUARTIC, "gauss-2", q0=IC["q0"], v0=IC["v0"], h=0.1, t0=0.3, n_steps=40,
+                             save_every=every, engine="generic")
+    one = _run(2**18, monkeypatch, **kw)
+    blocks = _run(8, monkeypatch, **kw)
+    np.testing.assert_array_equal(one.t, np.asarray(gen.t, float))
+    np.testing.assert_array_equal(blocks.t, one.t)
+
+
+def test_a_later_block_s_failure_names_the_run_s_step_in_its_message(monkeypatch):
+    """The kernel's message counted the block's steps ("step 3") where error.step said 7."""
+    one = _run(2**18, monkeypatch, h=0.7, n_steps=30, newton="full")
+    blocks = _run(4, monkeypatch, h=0.7, n_steps=30, newton="full")
+    assert blocks.status == one.status < 0 and blocks.error.step == one.error.step >= 4
+    k = blocks.error.step
+    import re
+    steps = {int(m) for m in re.findall(r"\bstep (\d+)\b", blocks.message)}
+    assert steps == {k} and blocks.message.count(f"step {k}") >= 2
+
+
+def test_the_guard_reruns_the_blocks_of_the_run_it_judges(monkeypatch):
+    """With save_every = 3 the run's blocks were 3 steps long (COMPILED_CHUNK = 4) and the guard's
+    every-step rerun's 4: the predictor restarted at other steps, the rerun was another trajectory
+    (it failed at another step than the run near the Newton limit). With the run's block ends
+    (``boundaries``) the rerun's every third step is the run's sample, bit for bit; control: with
+    its own blocks it is not."""
+    from ldaspark.engines import ENGINES
+    monkeypatch.setattr(solve, "COMPILED_CHUNK", 4)
+    opts = solve.IntegrationOptions.checked(engine="compiled", save_every=3)
+    prob = solve._Problem("spark", solve.resolve_method("gauss-2")[1], "gauss-2", 0.0, 0.05, 30, None)
+    eng = ENGINES["compiled"]
+    prep = eng.prepare(QUARTIC, prob, opts)
+    start = (0.0, np.array(IC["q0"]), np.array(IC["v0"]))
+    run = solve._chunked(eng, prep, start, 30, 3)
+    rerun = solve._chunked(eng, prep, start, 30, 1, boundaries=3)
+    own = solve._chunked(eng, prep, start, 30, 1)
+    np.testing.assert_array_equal(np.asarray(rerun.q)[::3], np.asarray(run.q))
+    assert not np.array_equal(np.asarray(own.q)[::3], np.asarray(run.q))
