@@ -7,4 +7,9 @@ except KeyboardInterrupt:          # Ctrl-C while the command line module loads:
     print("ldaspark: interrupted", file=sys.stderr)
     sys.exit(130)
 
-sys.exit(main())
+try:
+    code = main()
+except KeyboardInterrupt:          # Ctrl-C before main installed its handlers (its own imports)
+    print("ldaspark: interrupted", file=sys.stderr)
+    code = 130
+sys.exit(code)

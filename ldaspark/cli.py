@@ -214,7 +214,11 @@ def _command_of(argv) -> str | None:
 def main(argv=None) -> int:
     """Run the command line; returns the exit code (0 ok, 2 user error, 128 + the signal number
     when stopped by SIGINT, SIGTERM, SIGHUP or SIGQUIT: ``ldaspark.core.lifecycle``)."""
-    from .core import lifecycle
+    try:
+        from .core import lifecycle
+    except KeyboardInterrupt:       # Ctrl-C while the signal handling itself loads: one line, 130
+        print("ldaspark: interrupted", file=sys.stderr)
+        return 130
     with lifecycle.stop_on_signals(line=_forced_line) as stop:
         try:
             return _main(argv)

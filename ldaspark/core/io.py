@@ -80,6 +80,14 @@ def _destination(path):
     return "replace", (os.path.realpath(path) if os.path.islink(path) else path)
 
 
+def check_destination(path) -> None:
+    """Refuse now (LdasparkError, one line) an output path the writers would refuse at the end (a
+    directory, a socket, an unreadable component): a long run checks its outputs before it starts,
+    so that it never computes for nothing nor leaves half of a pair of files written."""
+    if path is not None:
+        _destination(os.fspath(path))
+
+
 def atomic_write_bytes(path, data: bytes) -> None:
     path = os.fspath(path)
     kind, what = _destination(path)

@@ -507,7 +507,11 @@ class Checkpoint:
             self._fh = None
 
     def discard(self):
+        """Remove the checkpoint (``--fresh``): a regular file only; a link, FIFO or directory at its
+        path is refused as the run without ``--fresh`` refuses it (it unlinked them)."""
         self.close()
+        if os.path.lexists(self.path):
+            self._check_regular()
         with contextlib.suppress(FileNotFoundError):
             os.remove(self.path)
 

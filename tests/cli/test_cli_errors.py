@@ -209,3 +209,42 @@ def test_any_step_string_is_rc0_or_one_line_rc2(h):
             assert e.count("\n") == 1 and e.startswith("ldaspark: error:") and "Traceback" not in e
         else:
             assert os.path.exists(os.path.join(d, "o.json"))
+
+
+def test_ctrl_c_while_the_signal_handling_loads_is_one_line(capsys, monkeypatch):
+    """``cli.main`` imported its signal handling before its own try: a Ctrl-C there printed a
+    traceback (and once exit 1). One line and 130 now; control: the same call without the
+    interrupt runs."""
+    import importlib.abc
+    import sys as _sys
+
+    class Interrupt(importlib.abc.MetaPathFinder):
+        def find_spec(self, name, path=None, target=None):
+            if name == "ldaspark.core.lifecycle":
+                raise KeyboardInterrupt
+            return None
+    import ldaspark.core
+    monkeypatch.delitem(_sys.modules, "ldaspark.core.lifecycle", raising=False)
+    monkeypatch.delattr(ldaspark.core, "lifecycle", raising=False)
+    monkeypatch.setattr(_sys, "meta_path", [Interrupt()] + _sys.meta_path)
+    assert main(["methods", "--max-s", "1"]) == 130
+    err = capsys.readouterr().err
+    assert err == "ldaspark: interrupted\n"
+    monkeypatch.undo()
+    assert main(["methods", "--max-s", "1"]) == 0
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["report", "convergence", "--scenes", "particle", "--methods", "gauss-1", "--t-end", "1e308"], "--t-end must be"),
+    (["report", "convergence", "--scenes", "particle", "--methods", "nosuch-3"], "unknown method"),
+    (["report", "convergence", "--scenes", "particle", "--methods", "gauss-1", "--json", "DIR"], "is a directory"),
+    (["verify", "--quick", "--jobs", "1", "--json", "DIR", "--outdir", "OUT"], "is a directory"),
+])
+def test_long_reports_refuse_their_bad_arguments_before_the_run(capsys, tmp_path, argv, match):
+    """--t-end 1e308 computed until killed; an unknown method was found after the reference; a
+    --json that is a directory after the whole run (the markdown of the pair already written).
+    Each is one line before any work now: nothing is written (control: the directory stays empty)."""
+    (tmp_path / "DIR").mkdir()
+    argv = [str(tmp_path / a) if a in ("DIR", "OUT") else a for a in argv]
+    _one_error_line(capsys, argv, match=match)
+    assert not (tmp_path / "OUT").exists() or not any((tmp_path / "OUT").iterdir())

@@ -44,3 +44,28 @@ def test_a_library_file_outside_the_lab_changes_the_fingerprint(tmp_path, monkey
     # control: a file beside the package (the module's grandparent's sibling) does not count
     (tmp_path / "elsewhere.py").write_text("C = 1\n")
     assert lab_checkpoint.source_fingerprint("r") == f2
+
+
+def test_fresh_refuses_a_link_or_fifo_at_the_checkpoint_path(tmp_path):
+    """``--fresh`` (``Checkpoint.discard``) unlinked a symlink or a FIFO at the checkpoint's path,
+    which the run without it refuses ("not a regular file; not touched"); refused the same way now.
+    Control: a regular checkpoint file is removed."""
+    import os
+    import pytest
+    from ldaspark.core.errors import InputError
+    target = tmp_path / "precious.txt"
+    target.write_text("SECRET")
+    link = tmp_path / "claims.partial.jsonl"
+    os.symlink(target, link)
+    with pytest.raises(InputError, match="not a regular file"):
+        lab_checkpoint.Checkpoint(link, "fp").discard()
+    assert link.is_symlink() and target.read_text() == "SECRET"
+    fifo = tmp_path / "other.partial.jsonl"
+    os.mkfifo(fifo)
+    with pytest.raises(InputError, match="not a regular file"):
+        lab_checkpoint.Checkpoint(fifo, "fp").discard()
+    assert fifo.exists()
+    plain = tmp_path / "plain.partial.jsonl"
+    plain.write_text("{}\n")
+    lab_checkpoint.Checkpoint(plain, "fp").discard()
+    assert not plain.exists()
