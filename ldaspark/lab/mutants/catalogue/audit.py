@@ -25,12 +25,12 @@ MUTANTS = (
        "small)", "conditions",
        T + "test_22_pair_solved_at_40_digits_passes_and_a_1e10_change_fails_with_its_residual", TPREC),
     _m("audit-decimal-digits-tableau-max", "core/numbers.py",
-       "if sig >= LONG_DECIMAL or sig >= digits or pl >= F:", "if False:",
+       "full = sig >= LONG_DECIMAL or sig >= digits", "full = sig >= digits",
        "every decimal literal credited with the longest literal's digits (entries printed to "
        "different precisions)", "conditions",
        T + "test_entries_printed_to_different_digits_keep_their_own", TPREC),
     _m("audit-short-decimal-own-digits", "core/numbers.py",
-       "if sig >= LONG_DECIMAL or sig >= digits or pl >= F:", "if True:",
+       "full = sig >= LONG_DECIMAL or sig >= digits", "full = True",
        "a short terminating decimal ('0.5') known only to its own digit (0.5 +- 0.05 beside 40-digit "
        "entries)", "conditions",
        T + "test_short_decimals_are_terminating_expansions", TPREC),

@@ -81,7 +81,7 @@ MUTANTS = (
        "a failure in a block of a chunked run reported at k h instead of t0 + k h", "paths",
        TEP + "::test_a_failure_in_a_later_block_names_the_step_and_time_of_the_whole_run", TEP),
     _m("paths-chunk-long-every-not-aligned", "solve.py",
-       "L = min(n - done, chunk, (done // every + 1) * every - done)", "L = min(n - done, chunk)",
+       "else min(n - done, chunk, (done // b + 1) * b - done)", "else min(n - done, chunk)",
        "save_every longer than a block: block ends no longer fall on the saved points", "paths",
        TPSI + "::test_chunked_runs_keep_the_psi_of_their_saved_steps", TPSI),
     # --- the driver's monitors and psi rows ----------------------------------------------------
