@@ -14,7 +14,8 @@ import numpy as np
 
 from ...core.backend import Backend
 from ...models.scenes import get_scene
-from .exact_flow import ExactFlow, f_minus_17, f_minus_20b_printed, f_plus_19, fd_gradient
+from .exact_flow import (ExactFlow, f_minus_17, f_minus_17_other_inner, f_minus_20b_printed, f_plus_19,
+                         f_plus_19_other_inner, fd_gradient)
 
 DPS = 32          # working precision of the exact flow; finite differences at DPS + 20
 STAGES = 10       # Gauss collocation nodes: |q - q_ref| ~ 4e-31 at h = 0.1 on the particle
@@ -41,19 +42,6 @@ def endpoints(scene_name, h="0.1", dps=DPS, stages=STAGES, offset=None):
         return t0, np.array(q0, dtype=object), t0 + h, q1
 
 
-def _f_minus_17_other_inner(flow, r, h):
-    """(17) with the inner integral int_s^{t1} Psi^T K dt in place of int_{t0}^s (a wrong formula)."""
-    inner = flow.cumulative(list(r.PsiK), h)
-    total = flow.quad(list(r.PsiK), h)
-    return flow.quad([(total - inner[i]).dot(r.dV_dq0[i]) for i in range(flow.s)], h)
-
-
-def _f_plus_19_other_inner(flow, r, h):
-    """(19) with the inner integral int_{t0}^s Psi^T K dt in place of int_s^{t1} (a wrong formula)."""
-    inner = flow.cumulative(list(r.PsiK), h)
-    return -flow.quad([inner[i].dot(r.dV_dq1[i]) for i in range(flow.s)], h)
-
-
 @functools.lru_cache(maxsize=64)
 def exact_identities(scene_name, h="0.1", offset=None, dps=DPS, stages=STAGES):
     """(16), (18) with dL_d^E/dq by finite differences at dps + 20 digits; (17), (19) and the
@@ -76,8 +64,8 @@ def exact_identities(scene_name, h="0.1", offset=None, dps=DPS, stages=STAGES):
             "19": _nrm(f_plus_19(fl, r, hh) - r.f_d_plus) / fscale,
             # negative controls of (17), (19): the inner integral over the other part of
             # [t0, t1] (int_s^{t1} in (17), int_{t0}^s in (19)), each against the same side
-            "17-other-inner": _nrm(_f_minus_17_other_inner(fl, r, hh) - r.f_d_minus) / fscale,
-            "19-other-inner": _nrm(_f_plus_19_other_inner(fl, r, hh) - r.f_d_plus) / fscale,
+            "17-other-inner": _nrm(f_minus_17_other_inner(fl, r, hh) - r.f_d_minus) / fscale,
+            "19-other-inner": _nrm(f_plus_19_other_inner(fl, r, hh) - r.f_d_plus) / fscale,
             "20b-printed": _nrm(f_minus_20b_printed(fl, r, hh) - r.f_d_minus) / fscale,
             "20b-corrected": _nrm(-f_minus_20b_printed(fl, r, hh) - r.f_d_minus) / fscale,
             "f_d_minus": _nrm(r.f_d_minus), "f_d_plus": _nrm(r.f_d_plus),
