@@ -12,7 +12,10 @@ Euler methods under (23) and for the negative controls), residual, threshold, dp
 
 Thresholds: Theorem 1 <= 1e-20 relative at 40 digits (finite differences at 60 digits);
 symmetry <= 1e-25 at 40 digits; constraint <= 1e3 eps (1 + |v|); negative controls must give
->= 1e-6. The ledger is reproducible: ``ldaspark verify`` (default) or ``ldaspark report claims``.
+>= 1e-6. Every claim has a negative control (``claims_index.LEDGER_CLAIMS``): besides the
+``negctl-*`` tableaux, the first control's scene units carry the controls of constraint (the
+standard Gauss IRK) and implicit-function (Gauss 1 with b = 0), gauge-invariance is a control on
+the singular pairs, and 5.1-holonomic has the unprojected covector. The ledger is reproducible: ``ldaspark verify`` (default) or ``ldaspark report claims``.
 """
 from __future__ import annotations
 
