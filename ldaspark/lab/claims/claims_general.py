@@ -11,8 +11,10 @@ in v), and the nonideal constraints of section 3.3 (``friction-skate``).
 * ``symmetry-general``: L_d(t1,q1,t0,q0) + L_d(t0,q0,t1,q1) and Phi_{-h} o Phi_h - id (<= 1e-25);
   Euler I as the control (expected fail);
 * ``constraint-general``: max |k(t_n, q_n, v_n)| / (1 + |v_n|) over 5 float64 steps (<= 1e3 eps);
+  control: the standard 2-stage Gauss IRK (k = 0 at the stages, not (21f)), which must give >= 1e-6;
 * ``order-general-scenes``: observed orders of q and v (within 0.3 of 2s for Gauss, 2s - 2 for
-  Lobatto) against the ODE (3a-b) in mpmath's Taylor solver;
+  Lobatto) against the ODE (3a-b) in mpmath's Taylor solver; control: Euler I measured against
+  the Gauss s = 1 claim 2 (two-sided, expected fail);
 * ``nonideal-3.3``: every SPARK family on ``friction-skate`` (orders 1, 2, 4) against the ODE (3a)
   with N solved by DOP853 (``DOP853Reference``, float64, rtol 1e-13); the control integrates the
   ideal skate (N dropped), which must not converge to the nonideal reference.
@@ -28,9 +30,10 @@ from ...core.backend import Backend
 from ...core.errors import LdasparkError
 from ...core.families import get_method
 from ...models.scenes import GENERAL_SCENES, get_scene
+from ...core.comparators import integrate_comparator
 from ...core.spark import integrate
 from ...analysis.discrete import theorem1_residuals
-from .ledger import TOL_NEGATIVE, TOL_SYMMETRY, TOL_THEOREM1, record
+from .ledger import CONSTRAINT_CONTROL, TOL_NEGATIVE, TOL_SYMMETRY, TOL_THEOREM1, record
 from ..theory.orders import estimate_order, floor_for, make_reference, measure_errors, order_records
 from ...analysis.symmetry import check_symmetry
 
@@ -78,16 +81,23 @@ def order_plan(method):
     return 25, [4, 8, 16], "mixed"
 
 
-def scene_orders(scene_name, methods, t_end=1.0, reference=None):
-    """Order records (q, v, psi) of ``methods`` on one scene against one reference."""
+def scene_orders(scene_name, methods, t_end=1.0, reference=None, claimed=None):
+    """Order records (q, v, psi) of ``methods`` on one scene against one reference; ``claimed``
+    (method -> order) replaces a method's own claim (the negative control)."""
     scene = get_scene(scene_name)
     ref = reference if reference is not None else make_reference(scene, REF_DPS)
     out = []
     for meth in methods:
         dps, nl, newton = order_plan(meth)
         m = measure_errors(meth, scene, ref, t_end, nl, dps=dps, newton=newton)
-        out += order_records(meth, scene_name, get_method(meth).claimed_order, m, dps, t_end, ref.kind)
+        c = (claimed or {}).get(meth, get_method(meth).claimed_order)
+        out += order_records(meth, scene_name, c, m, dps, t_end, ref.kind)
     return out
+
+
+# negative control of order-general-scenes: Euler I (a 1-stage SPARK method of order 1, 7.1)
+# measured against the 1-stage Gauss claim 2s = 2 by the same two-sided rule: |1 - 2| > TOL_ORDER
+ORDER_CONTROL = ("euler-i", 2)
 
 
 NONIDEAL_METHODS = ("gauss-1", "gauss-2", "lobatto-iiia-iiib-2", "lobatto-iiia-iiib-3",
@@ -123,12 +133,14 @@ def ideal_control_error(ref, scene_name="friction-skate", method="gauss-2", n_li
     return errs
 
 
-def _order_record(claim, r, t, note_extra=""):
+def _order_record(claim, r, t, note_extra="", expected="pass", method=None):
+    """Two-sided: pass iff |observed - claimed| <= TOL_ORDER (the same rule for a control, whose
+    ``expected`` is fail: a method measured against an order it does not have)."""
     o, c = r["observed_order"], r["claimed_order"]
     ok = o is not None and abs(o - c) <= TOL_ORDER
     pw = ", ".join("-" if p is None else f"{p:.2f}" for p in r["pairwise_orders"])
-    return record(claim, r["method"], r["scene"], "pass" if ok else "fail",
-                  None if o is None else abs(o - c), "pass", r["dps"], "n/a", t, f"order-{r['variable']}",
+    return record(claim, method or r["method"], r["scene"], "pass" if ok else "fail",
+                  None if o is None else abs(o - c), expected, r["dps"], "n/a", t, f"order-{r['variable']}",
                   TOL_ORDER, f"claimed {c}, observed {'-' if o is None else f'{o:.2f}'} (pairwise {pw}); "
                   f"errors {r['errors'][0]:.1e} .. {r['errors'][-1]:.1e}; reference {r['reference']}" + note_extra)
 
@@ -175,16 +187,28 @@ def _symmetry_record(scn, tab, expected, t0, q0, v0):
 
 
 def _constraint_record(scn, tab):
+    """max_n |k| / (1 + |v_n|) over 5 float64 steps, <= 1e3 eps; ``tab`` a comparator name: the
+    negative control (``CONSTRAINT_CONTROL``, (21f) not imposed), which must give >= 1e-6."""
     t = time.time()
     t0, q0, v0 = scn.initial()
+    control = isinstance(tab, str)
+    name = f"{tab} (control: (21f) not imposed)" if control else tab.name
+    expected = "fail" if control else "pass"
     try:
-        sol = integrate(scn.system, tab, t0, q0, v0, float(H), n_steps=5)
+        if control:
+            sol = integrate_comparator(tab, scn.system, t0, q0, v0, float(H), 5)
+        else:
+            sol = integrate(scn.system, tab, t0, q0, v0, float(H), n_steps=5)
     except LdasparkError as exc:
-        return record("constraint-general", tab.name, scn.name, "fail", None, "pass", None, "n/a",
+        return record("constraint-general", name, scn.name, "fail", None, expected, None, "n/a",
                       time.time() - t, "ivp-5-steps", None, f"integration failed: {exc}")
     k = max(float(np.abs(sol.constraint[i]).max()) / (1 + float(np.abs(sol.v[i]).max())) for i in range(6))
+    if control:
+        return record("constraint-general", name, scn.name, "fail" if k >= TOL_NEGATIVE else "pass", k, expected,
+                      None, "n/a", time.time() - t, "ivp-5-steps", TOL_NEGATIVE,
+                      "standard Gauss IRK: k = 0 at the stages only, so k(t_n, q_n, v_n) drifts")
     tol = 1e3 * Backend(None).eps
-    return record("constraint-general", tab.name, scn.name, "pass" if k <= tol else "fail", k, "pass", None,
+    return record("constraint-general", name, scn.name, "pass" if k <= tol else "fail", k, expected, None,
                   "n/a", time.time() - t, "ivp-5-steps", tol, "(21f) at every step, float64")
 
 
@@ -227,9 +251,13 @@ def piece_records(piece, quick=False):
         return _scene_checks(piece[1], quick)
     if piece[0] == "orders":
         t = time.time()
-        recs = scene_orders(piece[1], _ord_methods(quick))
+        meth, c = ORDER_CONTROL     # run with the others, against the same reference
+        recs = scene_orders(piece[1], _ord_methods(quick) + [meth], claimed={meth: c})
         dt = (time.time() - t) / max(len(recs), 1)
-        return [_order_record("order-general-scenes", r, dt) for r in recs if r["variable"] in ("q", "v")]
+        return [_order_record("order-general-scenes", r, dt) if r["method"] != meth else
+                _order_record("order-general-scenes", r, dt, "; control: Euler I against the Gauss s = 1 claim",
+                              expected="fail", method=f"{meth} (control: claimed {c})")
+                for r in recs if r["variable"] in ("q", "v")]
     return _nonideal_records(quick)
 
 
@@ -247,6 +275,7 @@ def _scene_checks(name, quick):
     out.append(_symmetry_record(scn, get_method("euler-i"), "fail", t0, q0, v0))
     for m in ("gauss-2", "lobatto-iiia-iiib-iiid-3"):
         out.append(_constraint_record(scn, get_method(m)))
+    out.append(_constraint_record(scn, CONSTRAINT_CONTROL))
     return out
 
 

@@ -248,3 +248,61 @@ def claims_index_markdown() -> str:
         t = "<br>".join(f"`{_cell(x)}`" for x in tests) if tests else "-"
         lines.append(f"| {_cell(ref)} | {_cell(sec)} | {_cell(claim)} | {t} | {status} | {_cell(note) or '-'} |")
     return "\n".join(lines) + "\n"
+
+
+# The claims the ledger (``ldaspark verify``, ``ldaspark.lab.claims.ledger`` and its claim groups)
+# records, each with its negative control: a record expected to fail, run through the same check on
+# an input for which the claim does not hold. ``ledger_control_problems`` holds a ledger's records
+# against this list (tests/lab/claims/test_claims_controls.py).
+LEDGER_CLAIMS: dict[str, str] = {
+    "22a": "Gauss 2 with b_hat_1 + 1/10",
+    "22b": "Gauss 2 / Lobatto IIIA-B 3 with one A_hat entry + 1/10, Gauss 2 with b_hat_1 + 1/10",
+    "23": "Euler I, II (not symmetric) and the perturbed tableaux",
+    "5.1-holonomic": "the SPARK covector without the projection onto the tangent space (the normal reaction)",
+    "implicit-function": "Gauss 1 with b = 0: q1 = q0 whatever V, the BVP is singular",
+    "theorem1-q0": "the (22b)-breaking tableaux",
+    "theorem1-q1": "the (22)-breaking tableaux",
+    "symmetry-Ld": "Euler I, II",
+    "symmetry-fd-plus": "Euler I, II",
+    "symmetry-fd-minus": "Euler I, II",
+    "symmetry-Phi": "Euler I, II",
+    "constraint": "the standard 2-stage Gauss IRK ((21f) not imposed)",
+    "gauge-invariance": "the singular pairs: the null vector moves V, L_d moves along it",
+    "theorem1-general-q0": "Gauss 2 with A_hat_12 + 1/10",
+    "theorem1-general-q1": "Gauss 2 with A_hat_12 + 1/10",
+    "symmetry-general": "Euler I",
+    "constraint-general": "the standard 2-stage Gauss IRK ((21f) not imposed)",
+    "order-general-scenes": "Euler I measured against the 1-stage Gauss order 2",
+    "nonideal-3.3": "the ideal skate (N dropped) against the nonideal reference",
+    "15a": "Gauss 2 with A_hat_12 + 1/10",
+    "15b": "the left end point off C_d",
+    "16": "dL_d^E/dq0 without the force",
+    "18": "dL_d^E/dq1 without the force",
+    "17-integral": "(17) with the inner integral over [s, t1]",
+    "19-integral": "(19) with the inner integral over [t0, s]",
+    "20-integral": "(20b) as printed",
+    "antisymmetry-exact": "the wrong pairing f_d^E+(rev) + f_d^E+(fwd)",
+    "5.1-exact": "the nonholonomic particle",
+    "variational-order": "Gauss 2 with A_hat_12 + 1/10 against Gauss 2's order 5",
+    "energy-balance-2.2": "the balance without L_t / without the psi term",
+    "euler-i-reduction": "the Euler II step against the printed Euler I system",
+    "euler-ii-reduction": "the Euler I step against the printed Euler II system",
+    "midpoint-7.3": "Lobatto IIIA-B 2 against the printed midpoint system",
+    "linearly-implicit-7": "Euler I with K(q)",
+}
+
+
+def ledger_control_problems(records, claims=None) -> list[str]:
+    """What keeps a ledger's records from the contract "every claim has a negative control": a
+    claim of ``claims`` (default ``LEDGER_CLAIMS``) with records but none expected to fail and
+    decided (a control recorded not-applicable shows nothing), and a recorded claim that is not
+    indexed. [] when the contract holds. A claim without records (the quick ledger leaves out
+    5.1-holonomic) is not a problem here."""
+    claims = LEDGER_CLAIMS if claims is None else claims
+    seen = list(dict.fromkeys(r["claim"] for r in records))
+    out = [f"{c}: not in the index of ledger claims" for c in seen if c not in claims]
+    for c in seen:
+        if c in claims and not any(r["claim"] == c and r["expected"] == "fail" and r["status"] != "not-applicable"
+                                   for r in records):
+            out.append(f"{c}: no negative control (no decided record expected to fail)")
+    return out

@@ -8,7 +8,7 @@ import sys
 from ...core.io import atomic_write_json, atomic_write_text
 from ...core.families import builtin_method_names
 from ..claims import ledger as _ledger
-from ..claims.claims_index import claims_index_markdown
+from ..claims.claims_index import claims_index_markdown, ledger_control_problems
 from ...executors import add_scheduler_argument
 from ..claims.ledger import extra_records, negative_controls, run_ledger, summarize  # noqa: F401 (re-exported)
 from .markdown import table
@@ -27,6 +27,10 @@ def write_markdown(records, path, seconds, command):
              "symmetry <= 1e-25; negative controls >= 1e-6.", ""]
     unexp = [r for r in records if r["status"] != "not-applicable" and r["status"] != r["expected"]]
     lines += [f"**{len(records)} records, {len(unexp)} with an unexpected outcome.**", ""]
+    missing = ledger_control_problems(records)
+    lines += [("Negative controls: every claim has a record expected to fail, run through the same check "
+               "(see the claims index below)." if not missing else
+               "**Negative controls missing:** " + "; ".join(missing) + "."), ""]
     # well-posedness matrix
     wp = {}
     for r in records:

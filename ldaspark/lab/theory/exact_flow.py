@@ -326,6 +326,22 @@ def f_plus_19(flow: ExactFlow, r: ExactBVPResult, h):
     return -flow.quad([(total - inner[i]).dot(r.dV_dq1[i]) for i in range(flow.s)], h)
 
 
+def f_minus_17_other_inner(flow: ExactFlow, r: ExactBVPResult, h):
+    """(17) with the inner integral int_s^{t1} Psi^T K dt in place of int_{t0}^s: a wrong formula,
+    the negative control of (17) (it differs from f_d^{E-} by -(T + 2 f_d^{E-}), T = int_{t0}^{t1} Psi^T K,
+    since int d_q0 v = -1)."""
+    inner = flow.cumulative(list(r.PsiK), h)
+    total = flow.quad(list(r.PsiK), h)
+    return flow.quad([(total - inner[i]).dot(r.dV_dq0[i]) for i in range(flow.s)], h)
+
+
+def f_plus_19_other_inner(flow: ExactFlow, r: ExactBVPResult, h):
+    """(19) with the inner integral int_{t0}^s Psi^T K dt in place of int_s^{t1}: a wrong formula,
+    the negative control of (19)."""
+    inner = flow.cumulative(list(r.PsiK), h)
+    return -flow.quad([inner[i].dot(r.dV_dq1[i]) for i in range(flow.s)], h)
+
+
 def f_minus_20b_printed(flow: ExactFlow, r: ExactBVPResult, h):
     """(20b) as printed: int_{t_k}^{t_{k+1}} (int_{s}^{t_k} Psi^T K dt) d_{q_k} v(s) ds, i.e. (17) with
     the inner limits reversed: the negative of (17) (a sign slip in the transcription or the paper)."""

@@ -14,7 +14,8 @@ import numpy as np
 
 from ...core.backend import Backend
 from ...models.scenes import get_scene
-from .exact_flow import ExactFlow, f_minus_17, f_minus_20b_printed, f_plus_19, fd_gradient
+from .exact_flow import (ExactFlow, f_minus_17, f_minus_17_other_inner, f_minus_20b_printed, f_plus_19,
+                         f_plus_19_other_inner, fd_gradient)
 
 DPS = 32          # working precision of the exact flow; finite differences at DPS + 20
 STAGES = 10       # Gauss collocation nodes: |q - q_ref| ~ 4e-31 at h = 0.1 on the particle
@@ -61,6 +62,10 @@ def exact_identities(scene_name, h="0.1", offset=None, dps=DPS, stages=STAGES):
             "18-without-force": _nrm(g1 - r.p1) / scale,
             "17": _nrm(f_minus_17(fl, r, hh) - r.f_d_minus) / fscale,
             "19": _nrm(f_plus_19(fl, r, hh) - r.f_d_plus) / fscale,
+            # negative controls of (17), (19): the inner integral over the other part of
+            # [t0, t1] (int_s^{t1} in (17), int_{t0}^s in (19)), each against the same side
+            "17-other-inner": _nrm(f_minus_17_other_inner(fl, r, hh) - r.f_d_minus) / fscale,
+            "19-other-inner": _nrm(f_plus_19_other_inner(fl, r, hh) - r.f_d_plus) / fscale,
             "20b-printed": _nrm(f_minus_20b_printed(fl, r, hh) - r.f_d_minus) / fscale,
             "20b-corrected": _nrm(-f_minus_20b_printed(fl, r, hh) - r.f_d_minus) / fscale,
             "f_d_minus": _nrm(r.f_d_minus), "f_d_plus": _nrm(r.f_d_plus),

@@ -156,7 +156,10 @@ def test_variational_verdict_is_two_sided(monkeypatch, shift, status):
         r["orders"] = dict(r["orders"], L_d=r["predicted_local_order"] + shift)
         return r
     monkeypatch.setattr(cp, "variational_errors", fake)
-    assert _status(cp.variational_records(quick=True), "variational-order") == [status] * 2   # skate, rheonomic
+    recs = cp.variational_records(quick=True)
+    assert _status(recs, "variational-order", expected="pass") == [status] * 2   # skate, rheonomic
+    # the control (22b broken) is judged against Gauss-2's 5, not its own shifted prediction: it fails
+    assert _status(recs, "variational-order", expected="fail") == ["fail"]
 
 
 def test_variational_control_is_judged_against_the_unperturbed_prediction(monkeypatch):
@@ -316,7 +319,9 @@ def test_ledger_gauge_invariance_verdict(monkeypatch):
 def test_holonomic_verdict(monkeypatch, p, status):
     """One-sided (no rate is predicted, see ledger.HOLONOMIC_RATE): a slow decay fails."""
     _override(monkeypatch, lg, "holonomic_order", p_tangential=p, tangential=[1e-3, 5e-4, 2e-4])
-    assert _status(lg.holonomic_records(get_method("gauss-1", exact=True), "pass"), "5.1-holonomic") == [status]
+    recs = lg.holonomic_records(get_method("gauss-1", exact=True), "pass")
+    assert _status(recs, "5.1-holonomic", expected="pass") == [status]
+    assert _status(recs, "5.1-holonomic", expected="fail") == ["fail"]      # the unprojected covector ~ h^0.9
 
 
 # --- the audit's convergence verdict --------------------------------------------------------------

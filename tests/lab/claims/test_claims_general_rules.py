@@ -137,11 +137,21 @@ def test_general_piece_records_dispatch(monkeypatch):
     monkeypatch.setattr(cg, "_nonideal_records", lambda quick: [("nonideal", quick)])
     recs = [{"variable": v, "observed_order": 2.0, "claimed_order": 2, "pairwise_orders": [2.0], "method": "m",
              "scene": "s", "dps": None, "errors": [1e-2, 1e-3], "reference": "r"} for v in ("q", "v", "psi")]
-    monkeypatch.setattr(cg, "scene_orders", lambda name, methods: recs)
+    asked = []
+    monkeypatch.setattr(cg, "scene_orders", lambda name, methods, claimed=None: asked.append((methods, claimed)) or recs)
     assert cg.piece_records(("checks", "turntable"), True) == [("checks", "turntable", True)]
     assert cg.piece_records(("nonideal",), False) == [("nonideal", False)]
     out = cg.piece_records(("orders", "turntable"), True)
     assert [r["claim"] for r in out] == ["order-general-scenes"] * 2      # psi left out
+    # the control runs with the others, measured against the claim it does not have
+    assert asked[-1] == (cg._ord_methods(True) + ["euler-i"], {"euler-i": 2})
+    ctl = [dict(r, method="euler-i", observed_order=1.0) for r in recs]
+    monkeypatch.setattr(cg, "scene_orders", lambda name, methods, claimed=None: recs + ctl)
+    out = cg.piece_records(("orders", "turntable"), True)
+    assert [(r["method"], r["status"], r["expected"]) for r in out] == [("m", "pass", "pass")] * 2 + [
+        ("euler-i (control: claimed 2)", "fail", "fail")] * 2
+    ctl[0]["observed_order"] = 2.1          # a control that showed the claimed order is reported
+    assert cg.piece_records(("orders", "turntable"), True)[2]["status"] == "pass"
     assert cg._ord_methods(False)[-1] == "gauss-3" and "gauss-3" not in cg._ord_methods(True)
     assert cg._t1_methods(True) == ["gauss-2", "lobatto-iiia-iiib-3"]
     assert cg.piece_cost(("nonideal",)) == 5.2 and cg.piece_cost(("orders", "nowhere")) == 1.0
@@ -235,11 +245,12 @@ def test_scene_checks_order_and_expectations(monkeypatch):
     monkeypatch.setattr(cg, "get_scene", lambda name: scn)
     monkeypatch.setattr(cg, "_theorem1_records", lambda s, tab, exp, t0, q0, v0: [("t1", tab.name, exp, t0)])
     monkeypatch.setattr(cg, "_symmetry_record", lambda s, tab, exp, t0, q0, v0: ("sym", tab.name, exp))
-    monkeypatch.setattr(cg, "_constraint_record", lambda s, tab: ("con", tab.name))
+    monkeypatch.setattr(cg, "_constraint_record", lambda s, tab: ("con", getattr(tab, "name", tab)))
     out = cg._scene_checks("turntable", True)
     assert out == [("t1", "gauss-2", "pass", "t0"), ("t1", "lobatto-iiia-iiib-3", "pass", "t0"),
                    ("t1", "negctl-gauss-2+dA_hat[0,1]", "fail", "t0"), ("sym", "gauss-2", "pass"),
-                   ("sym", "euler-i", "fail"), ("con", "gauss-2"), ("con", "lobatto-iiia-iiib-iiid-3")]
+                   ("sym", "euler-i", "fail"), ("con", "gauss-2"), ("con", "lobatto-iiia-iiib-iiid-3"),
+                   ("con", "gauss-irk-2")]
     assert [x[1] for x in cg._scene_checks("turntable", False)[:3]] == [
         "gauss-2", "lobatto-iiia-iiib-3", "lobatto-iiia-iiib-iiid-2"]
 
@@ -264,7 +275,7 @@ def test_order_records_share_the_piece_time_per_record(monkeypatch):
     def rec(var):
         return {"observed_order": 2.0, "claimed_order": 2, "pairwise_orders": [2.0], "method": "gauss-1",
                 "scene": "s", "dps": None, "variable": var, "errors": [1e-3, 2.5e-4], "reference": "r"}
-    monkeypatch.setattr(CG, "scene_orders", lambda name, methods: [rec("q"), rec("v"), rec("lambda")])
+    monkeypatch.setattr(CG, "scene_orders", lambda name, methods, claimed=None: [rec("q"), rec("v"), rec("lambda")])
     out = CG.piece_records(("orders", "s"))
     assert [r["point"] for r in out] == ["order-q", "order-v"]
     assert [r["seconds"] for r in out] == [2.0, 2.0]

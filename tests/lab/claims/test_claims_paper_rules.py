@@ -53,16 +53,18 @@ def test_section7_records_rules_and_arguments(monkeypatch):
     monkeypatch.setattr(cp, "one_newton_iteration", newton)
     out = cp.section7_records(True)
     assert red_calls == [("euler-i", "euler-i", False), ("euler-ii", "euler-ii", False), ("midpoint", "gauss-1", False),
-                         ("euler-ii", "euler-i", False), ("midpoint", "lobatto-iiia-iiib-2", False)]
+                         ("euler-i", "euler-ii", False), ("euler-ii", "euler-i", False),
+                         ("midpoint", "lobatto-iiia-iiib-2", False)]
     assert newton_calls == [("euler-i", True, "generic"), ("euler-ii", False, "default"), ("euler-i", False, "generic")]
     assert [(r["claim"], r["method"], r["status"], r["expected"]) for r in out] == [
         ("euler-i-reduction", "euler-i", "pass", "pass"), ("euler-ii-reduction", "euler-ii", "fail", "pass"),
-        ("midpoint-7.3", "gauss-1", "pass", "pass"), ("euler-ii-reduction", "euler-i", "fail", "fail"),
+        ("midpoint-7.3", "gauss-1", "pass", "pass"), ("euler-i-reduction", "euler-ii", "fail", "fail"),
+        ("euler-ii-reduction", "euler-i", "fail", "fail"),
         ("midpoint-7.3", "lobatto-iiia-iiib-2", "fail", "fail"), ("linearly-implicit-7", "euler-i", "pass", "pass"),
         ("linearly-implicit-7", "euler-ii", "pass", "pass"), ("linearly-implicit-7", "euler-i", "fail", "fail")]
-    assert [r["residual"] for r in out[:5]] == [T, 2 * T, T, 2 * N, 2 * N]
-    assert all(r["dps"] == 40 for r in out) and [r["threshold"] for r in out] == [T, T, T, N, N, T, T, N]
-    assert [r["scene"] for r in out[5:]] == ["affine-const-K", "affine-K(q)", "affine-K(q)"]
+    assert [r["residual"] for r in out[:6]] == [T, 2 * T, T, 2 * N, 2 * N, 2 * N]
+    assert all(r["dps"] == 40 for r in out) and [r["threshold"] for r in out] == [T, T, T, N, N, N, T, T, N]
+    assert [r["scene"] for r in out[6:]] == ["affine-const-K", "affine-K(q)", "affine-K(q)"]
 
 
 def test_the_section_5_and_7_records_report_the_precision_their_computations_ran_at(monkeypatch):
@@ -81,7 +83,7 @@ def test_the_section_5_and_7_records_report_the_precision_their_computations_ran
             return result
         return f
     r5 = {k: 0.0 for k in ("16", "18", "16-without-force", "18-without-force", "17", "19", "20b-printed",
-                           "20b-corrected", "f_d_minus", "k0")}
+                           "20b-corrected", "f_d_minus", "k0", "17-other-inner", "19-other-inner")}
     monkeypatch.setattr(cp, "exact_identities", spy("s5", S5.exact_identities, r5))
     monkeypatch.setattr(cp, "reduction", spy("s7", S7.reduction, {"diff": 0.0, "stage": 0.0}))
     monkeypatch.setattr(cp, "one_newton_iteration", spy("s7n", S7.one_newton_iteration, {"after_one": 0.0}))
@@ -126,7 +128,7 @@ def _fake_section5(monkeypatch, anti):
     from ldaspark.lab.claims import claims_paper as cp
     ident = {k: 1e-30 for k in ("16", "18", "17", "19", "20b-corrected")}
     ident.update({"16-without-force": 1e-3, "18-without-force": 1e-3, "20b-printed": 1e-3, "f_d_minus": 1.0,
-                  "k0": 0.0})
+                  "k0": 0.0, "17-other-inner": 1e-3, "19-other-inner": 1e-3})
     monkeypatch.setattr(cp, "exact_identities", lambda scn, **k: dict(ident))
     monkeypatch.setattr(cp, "antisymmetry", lambda scn, **k: anti(scn))
     monkeypatch.setattr(cp, "holonomic_exact",

@@ -135,11 +135,21 @@ def test_ledger_wellposed_and_gauge_records(monkeypatch):
         assert [r["claim"] for r in out] == ["implicit-function", "gauge-invariance"]
         assert out[0]["status"] == "pass" and out[0]["residual"] == 1.0
         assert out[1]["status"] == st and out[1]["residual"] == max(moves)
-    # singular: the implicit function fails, the gauge check is not-applicable
+    # singular: the implicit function fails; the gauge check is a negative control there (the null
+    # vector moves V, L_d is not a function of the endpoints): expected fail, fails when a move >= 1e-6
     c["c"] = _classification(ledger.SINGULAR, 2)
     g["g"] = {"dL_d": 0.0, "d(p0+f_d_minus)": 0.0, "d(p1-f_d_plus)": 0.0, "dp0": 1.0, "dV": 1.0}
     out, cls = ledger.wellposed_records(_scene(), _tab(), 0, [0], [0], "base")
-    assert [r["status"] for r in out] == ["fail", "not-applicable"] and cls == ledger.SINGULAR
+    assert [(r["status"], r["expected"]) for r in out] == [("fail", "pass"), ("pass", "fail")]
+    assert cls == ledger.SINGULAR
+    for moves, st in (((ledger.TOL_NEGATIVE, 0.0, 0.0), "fail"), ((0.0, 0.0, 2e-6), "fail"),
+                      ((0.0, ledger.TOL_NEGATIVE / 2, 0.0), "pass")):
+        g["g"] = {"dL_d": moves[0], "d(p0+f_d_minus)": moves[1], "d(p1-f_d_plus)": moves[2], "dp0": 1.0, "dV": 1.0}
+        out, _ = ledger.wellposed_records(_scene(), _tab(), 0, [0], [0], "base")
+        assert (out[1]["status"], out[1]["expected"], out[1]["threshold"]) == (st, "fail", ledger.TOL_NEGATIVE)
+    # the implicit-function control: its expectation is passed through, the gauge check left out
+    out, _ = ledger.wellposed_records(_scene(), _tab(), 0, [0], [0], "base", expected="fail", gauge=False)
+    assert [(r["claim"], r["status"], r["expected"]) for r in out] == [("implicit-function", "fail", "fail")]
     # the gauge re-solve fails: one fail record, nothing else
     c["c"] = _classification(ledger.GAUGE, 1)
     g["g"] = LdasparkError("re-solve diverged")
@@ -153,7 +163,7 @@ def test_ledger_wellposed_and_gauge_records(monkeypatch):
     monkeypatch.setattr(ledger, "classify_wellposedness", boom)
     out, cls = ledger.wellposed_records(_scene(), _tab(), 0, [0], [0], "p")
     assert cls == "singular" and [(r["claim"], r["status"], r["wellposed"]) for r in out] == [
-        ("wellposedness", "fail", "singular")]
+        ("implicit-function", "fail", "singular")]
 
 
 def test_ledger_symmetry_records(monkeypatch):
@@ -394,9 +404,12 @@ def test_ledger_tabs_and_task(monkeypatch):
     monkeypatch.setattr(ledger, "_ledger_tabs", lambda max_s, controls: built.append((max_s, controls)) or tabs)
     monkeypatch.setattr(ledger, "_WORKER_TABS", {})
     monkeypatch.setattr(ledger, "_tab_records", lambda tab, control, holo: [("tab", tab.name, control, holo)])
-    monkeypatch.setattr(ledger, "_scene_records", lambda tab, control, scn, pert: [("scn", tab.name, scn, pert)])
+    monkeypatch.setattr(ledger, "_scene_records", lambda tab, control, scn, pert, scene_controls=False: [
+        ("scn", tab.name, scn, pert, scene_controls)])
     assert ledger._ledger_task(3, True, False, True, 1, None) == [("tab", "B", {"c": 1}, False)]
-    assert ledger._ledger_task(3, True, False, True, 0, "robot") == [("scn", "A", "robot", True)]
+    assert ledger._ledger_task(3, True, False, True, 0, "robot") == [("scn", "A", "robot", True, False)]
+    # the first negative control's scene units carry the per-scene controls, no other unit does
+    assert ledger._ledger_task(3, True, False, True, 1, "robot") == [("scn", "B", "robot", True, True)]
     assert built == [(3, True)]                      # built once per (max_s, controls) in a worker
     ledger._ledger_task(2, True, False, True, 0, "robot")
     assert built == [(3, True), (2, True)]
@@ -496,7 +509,7 @@ def _fake_section5_all(monkeypatch):
     from ldaspark.lab.claims import claims_paper as cp
     ident = {k: 1e-30 for k in ("16", "18", "17", "19", "20b-corrected")}
     ident.update({"16-without-force": 1e-3, "18-without-force": 1e-3, "20b-printed": 1e-3, "f_d_minus": 1.0,
-                  "k0": 0.0})
+                  "k0": 0.0, "17-other-inner": 1e-3, "19-other-inner": 1e-3})
     clock = iter(range(0, 10 ** 6, 7))
     monkeypatch.setattr(cp.time, "time", lambda: float(next(clock)))      # every timed call "takes" 7 s
     monkeypatch.setattr(cp, "exact_identities", lambda scn, **k: dict(ident))

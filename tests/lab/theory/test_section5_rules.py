@@ -51,6 +51,8 @@ def _section5_stubs(monkeypatch):
     monkeypatch.setattr(S5, "f_minus_17", lambda flow, r, h: r.f_d_minus + A(0.001, 0.0))
     monkeypatch.setattr(S5, "f_plus_19", lambda flow, r, h: r.f_d_plus + A(0.0, -0.002))
     monkeypatch.setattr(S5, "f_minus_20b_printed", lambda flow, r, h: -r.f_d_minus + A(0.004, 0.0))
+    monkeypatch.setattr(S5, "f_minus_17_other_inner", lambda flow, r, h: r.f_d_minus + A(0.0, 0.25))
+    monkeypatch.setattr(S5, "f_plus_19_other_inner", lambda flow, r, h: r.f_d_plus + A(-0.5, 0.0))
     return S5, fw, rv, g, seen
 
 
@@ -74,6 +76,8 @@ def test_section5_endpoints_and_identities_on_stubs(monkeypatch):
     assert out["17"] == pytest.approx(0.001 / fscale) and out["19"] == pytest.approx(0.002 / fscale)
     assert out["20b-printed"] == pytest.approx(nrm(-2 * fw.f_d_minus + np.array([0.004, 0])) / fscale)
     assert out["20b-corrected"] == pytest.approx(0.004 / fscale)
+    # the controls of (17), (19): against the same side, relative to the same scale
+    assert out["17-other-inner"] == pytest.approx(0.25 / fscale) and out["19-other-inner"] == pytest.approx(0.5 / fscale)
     assert out["f_d_minus"] == 0.5 and out["f_d_plus"] == 0.75 and out["k0"] == 0.125
     assert out["bvp_residual"] == 1e-30 and out["L_d"] == 2.5
     # k(T_i, Q_i, V_i) - k0: 0*1 + 0 - 1/8 and 2*3 + 1/4 - 1/8
