@@ -184,7 +184,7 @@ MUTANTS = (
        "paper-claims negative controls count any residual above 1e-22 as the expected failure",
        "ledger-verdict", f"{CV}::test_definition1_verdicts"),
     _m("teeth-holonomic-rate-loose", "lab/claims/ledger.py",
-       'ok = vanish or r["p_tangential"] >= HOLONOMIC_RATE', 'ok = vanish or r["p_tangential"] >= 0.5',
+       "return values[-1] < 1e-30 or p >= HOLONOMIC_RATE", "return values[-1] < 1e-30 or p >= 0.5",
        "5.1-holonomic record passes a tangential rate of 0.5", "ledger-verdict", f"{CV}::test_holonomic_verdict"),
     _m("teeth-general-symmetry-phi-ignored", "lab/claims/claims_general.py",
        'res = max(r["symmetry-Ld"], r["symmetry-Phi"])', 'res = r["symmetry-Ld"]',
