@@ -228,7 +228,7 @@ class _BallEvaluator:
             if isinstance(n.value, int):
                 return acb(n.value)
             text = ast.get_source_segment(src, n) or repr(n.value)
-            val, sig, adj = decimal_info(text)
+            val = decimal_info(text)[0]          # its radius: literal_radius
             ball = flint.arb(val)
             if self.D is not None:
                 rad = literal_radius(text, self.D, self.F, self.float_like, self.json)
