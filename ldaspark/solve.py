@@ -410,6 +410,13 @@ def _compiled_ensemble(system, params, Q0, V0, prob: _Problem, opts: Integration
         # and no partial Result, so the ensemble runs again as the loop of single runs, where that
         # member ends with its own status and the others are kept (the loop's numbers are the same)
         return None
+    if prob.kind == "spark" and _saddle_may_change_sign(system) and any(
+            (_saddle_signs(system, ens.t, ens.q[r], ens.v[r]) != _saddle_signs(system, ens.t[:1], ens.q[r][:1],
+                                                                              ens.v[r][:1])[0]).any()
+            for r in range(len(ens.q))):
+        # a member crossed the singular set of (4): the loop of single runs, where that member
+        # stops with the det (4) monitor's error as its single run does (``_saddle_scan``)
+        return None
     # each member says what ran as a single run's Result does: the root finder asked for, and the
     # kernel's choice ("runs"), not the kernel's bare kind name
     asked = opts.newton.describe()
@@ -698,6 +705,7 @@ def _drive_blocks(engine, prep, start) -> Result:
     res, exc = _prefix_run(run, N, inner)
     if exc is not None:
         exc = engine.explain(prep, exc, res, start)
+    res, exc = _saddle_scan(res, exc, prep, inner, (lambda n: run(n, 1)) if inner > 1 else None)
     res, exc = _guard_scan(res, exc, engine, prep, (lambda n: run(n, 1)) if engine.samples else None)
     if exc is None:
         res, exc = _energy_jump_cut(res, energy_jump)
@@ -705,6 +713,88 @@ def _drive_blocks(engine, prep, start) -> Result:
     # ``every``-th point already (inner = every): nothing to post-process (with every = 1 too:
     # re-slicing would copy the arrays unchanged)
     return _finish_prefix(res, exc, prep, start, engine, sliced=engine.samples and not opts.every_step)
+
+
+def _saddle_may_change_sign(system) -> bool:
+    """Whether det (4) can change sign along a run: not for the mechanical form with a constant
+    symmetric positive definite M (det (4) = det M det(-K M^-1 K^T) keeps the sign (-1)^m wherever
+    K has full rank); otherwise (L_vv depending on (t, q, v), K on v, an indefinite M) it can."""
+    from .compiled import fast
+    try:
+        cs = fast.compile_system(system)
+    except LdasparkError:
+        return True
+    return not (cs.form == "mechanical" and cs.mass_positive_definite)
+
+
+def _saddle_signs(system, t, Q, V) -> np.ndarray:
+    """sign(det (4)) at the points (t[j], Q[j], V[j]) (0 where it is not finite), as
+    ``core.spark._saddle_sign`` point by point (~50 us a point, 5x a compiled step of a small
+    system), here with L_vv and K evaluated on all points at once (numpy) and one batched slogdet."""
+    from .core import gensource
+    from .core.spark import _saddle_sign
+    n, m, N = system.n, system.m, len(t)
+    try:
+        f = system._compiled.get(("saddle", "numpy-points"))
+        if f is None:
+            args = [system.t] + list(system.q) + list(system.v) + list(system.params)
+            f = system._compiled[("saddle", "numpy-points")] = gensource.lambdify(
+                args, [system.L_vv.tolist(), system.k_v.tolist()], "numpy", order="none")
+        pv = [float(x) for x in system._param_arg_values(None)] if system.params else []
+        with np.errstate(all="ignore"):
+            Lvv, kv = f(np.asarray(t, float), *np.asarray(Q, float).T, *np.asarray(V, float).T, *pv)
+            S = np.zeros((N, n + m, n + m))
+            for a in range(n):
+                for b in range(n):
+                    S[:, a, b] = Lvv[a][b]          # an array over the points, or a constant
+            for l in range(m):
+                for a in range(n):
+                    S[:, n + l, a] = S[:, a, n + l] = kv[l][a]
+            sgn = np.linalg.slogdet(S)[0]
+        return np.where(np.isfinite(sgn), sgn, 0.0)
+    except (LdasparkError, TypeError, ValueError, ArithmeticError, np.linalg.LinAlgError):
+        bk = Backend(None)       # what numpy does not evaluate on arrays: point by point
+        return np.array([_saddle_sign(system, bk, t[j], Q[j], V[j]) for j in range(N)], dtype=float)
+
+
+def _saddle_scan(res, exc, prep, every, rerun=None) -> tuple:
+    """The det (4) monitor of the stepping engines (``core.spark.march``: a sign change of det (4)
+    between t0 and a step point is a SingularSaddleError, status -2) on a SPARK run of a block
+    engine, which solves (21) with no such check and would go on across the singular set of (4)
+    on another branch: (the run up to the step that crossed, that error) or (res, exc). ``every``:
+    the samples' spacing in steps; ``rerun(n)``: the first n steps with every step kept, to name the
+    step that crossed between two samples (a crossing and its return between two samples is not
+    seen). Skipped where det (4) cannot change sign (``_saddle_may_change_sign``)."""
+    prob, system = prep.prob, prep.system
+    if res is None or len(res.t) < 2 or prob.kind != "spark" or not _saddle_may_change_sign(system):
+        return res, exc
+
+    def first_change(r, start):
+        t, Q, V = float_array(r.t), float_array(r.q), float_array(r.v)
+        change = np.nonzero(_saddle_signs(system, t[start:], Q[start:], V[start:]) != sign0)[0]
+        return int(change[0]) + start if len(change) else None
+    t0 = float_array(res.t)[0]
+    sign0 = _saddle_signs(system, float_array(res.t)[:1], float_array(res.q)[:1], float_array(res.v)[:1])[0]
+    j = first_change(res, 1) if sign0 else None
+    if j is None:
+        return res, exc
+    steps, i = res, j
+    if every > 1:                               # the step that crossed, between samples j - 1 and j
+        at = save_indices(int(round((float_array(res.t)[-1] - t0) / float(prob.h))), every)
+        steps = rerun(int(at[j]))
+        i = first_change(steps, int(at[j - 1]) + 1)
+        i = int(at[j]) if i is None else i
+    k = i - 1                                   # step k ends at point i: the prefix ends at point k
+    tk = t0 + k * float(prob.h)
+    err = SingularSaddleError(
+        f"step {k} (t = {tk:.6g} -> {tk + float(prob.h):.6g}) crossed the singular set of the saddle matrix (4): "
+        "det (4) changed sign, so the step solved (21) on the wrong branch or the solution left the region where "
+        "(4) holds")
+    idx = np.arange(k + 1) if every == 1 else save_indices(k, every) if k > 0 else np.array([0])
+    for nm in ("t", "q", "v", "energy", "constraint"):
+        setattr(res, nm, np.asarray(getattr(steps, nm))[idx])
+    res.psi = None if steps.psi is None else np.asarray(steps.psi)[idx[:-1]]
+    return res, err
 
 
 def _energy_jump_cut(res: Result, energy_jump) -> tuple:

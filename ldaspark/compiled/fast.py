@@ -294,9 +294,15 @@ def run_engine(system, method, start, grid, kopts, fallback=True) -> FastSolutio
             raise InputError(f"engine 'compiled' cannot run this: {exc}") from None
         _notice(str(exc))
         return generic_integrate(system, method, t0, q0, v0, h, n_steps, every, tol)
-    except NewtonError as exc:
+    except (NewtonError, NonFiniteError) as exc:
+        # a kernel's NaN or inf (a non-finite residual inside Newton: L or k outside their domain
+        # at an iterate, or a non-finite end point) goes down the same chain: the generic step there
+        # raises what the generic engine raises (NewtonError for a domain error inside the
+        # iteration, NonFiniteError for a non-finite end point), or converges and the run goes on
         kind, what, name = _resolve(method)
         if name in LF2_VARIANTS:        # a comparator: no generic SPARK step to take over
+            if isinstance(exc, NonFiniteError):
+                raise
             raise _diagnose_newton_failure(exc, system, cs, method, (t0, q0, v0), h, kopts) from None
         # the last link of the fallback chain: the generic full-Newton step (``rescue``)
         from .rescue import run_with_rescue

@@ -191,7 +191,10 @@ def _run_quasi_kind(cs, spec, start, grid, opts):
     if spec[0] == "lf2" and spec[2] not in runner.LF2_VARIANTS:
         spec = runner.kernel_spec(spec[2], "spark")          # (25) is lobatto-iiia-iiib-2
     (t0, q0, v0), (h, n_steps, every) = start, grid
-    predictor = "collocation" if opts.predictor in (None, 2, "auto") else opts.predictor
+    # "auto" is the collocation predictor; "extrapolate" (the same kernel code 2) is the linear
+    # extrapolation it names, not the default
+    auto = opts.predictor in (None, 2, "auto") and opts.predictor_name == "auto"
+    predictor = "collocation" if auto else opts.predictor
     return run_quasi(cs, spec, t0, q0, v0, h, n_steps, every, opts.compensated, opts.tol,
                      opts.max_iter if opts.max_iter is not None else 50, predictor)
 

@@ -2,7 +2,10 @@
 kernel's simplified, fresh-matrix and full Newton all fail is taken by the generic engine's full
 Newton (``SparkMethod.step`` with newton="full", float64) from the same state, and the compiled
 run goes on from the step after. So the compiled engine fails only where the generic full Newton
-fails too, and then with the generic step's NewtonError (step, time, residual, iterations).
+fails too, and then with the generic step's NewtonError (step, time, residual, iterations). A
+kernel's NaN or inf (its Newton iterates outside the domain of L or k, or a non-finite end point:
+``NonFiniteError``) is taken the same way: the generic step there says what the generic engine
+says (a NewtonError "evaluating L or k", a NonFiniteError), or converges.
 
 Why a generic step and not only the kernel's own full Newton: near the Newton limit (h of order
 the period of the fastest motion) full Newton wanders for tens of iterations before it is caught
@@ -20,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.errors import NewtonError
+from ..core.errors import NewtonError, NonFiniteError
 
 
 def _local_indices(n, every):
@@ -33,10 +36,10 @@ def _local_indices(n, every):
 
 def run_with_rescue(system, tab, cs, method, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter,
                     kernel, predictor, first_failure, kopts=None):
-    """Finish the run that failed with ``first_failure`` (the kernel's NewtonError, local step
-    from t0) by generic full-Newton steps at the failing steps; returns a FastSolution with the
+    """Finish the run that failed with ``first_failure`` (the kernel's NewtonError or
+    NonFiniteError, local step from t0) by generic full-Newton steps at the failing steps; returns a FastSolution with the
     kernel's statistics summed and stats["generic_steps"] = the number of steps taken by the
-    generic engine. Raises the generic step's NewtonError where that fails too. ``kopts``
+    generic engine. Raises the generic step's NewtonError (or NonFiniteError) where that fails too. ``kopts``
     (``runner.KernelOptions``): the kernel runs' options as given (the root finder's kind, linear
     solver and matrix reuse among them); None: those of the other arguments."""
     from ..core.backend import Backend
@@ -84,7 +87,7 @@ def run_with_rescue(system, tab, cs, method, t0, q0, v0, h, n_steps, every, comp
         if failure is None:
             try:
                 sol = run(n, e)
-            except NewtonError as exc:
+            except (NewtonError, NonFiniteError) as exc:
                 failure = exc
             else:
                 keep(sol, start, n, e)

@@ -538,6 +538,10 @@ class KernelOptions:
     #: the root finder's kind by name (``ldaspark.core.rootfinder.KINDS``): a kind in
     #: ``KIND_RUNNERS`` runs there instead of the kernels' Newton
     newton_kind: str = "auto"
+    #: the predictor by name (``ldaspark.core.rootfinder.PREDICTORS``): "auto" and "extrapolate"
+    #: share the kernels' code 2, but a kind with a default predictor of its own (the quasi
+    #: iteration's collocation predictor) runs that one for "auto" only
+    predictor_name: str = "auto"
 
 
 #: root-finder kind -> the SPARK kernels' Newton mode (``kernels.NEWTON_MODE``). A kind run by

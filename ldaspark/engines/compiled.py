@@ -75,7 +75,7 @@ class CompiledEngine(Engine):
         root, support = self.root_finder(opts.newton, prob)
         kernel = "spark" if support == "compiled" and prob.kind == "spark" and _is_lf2(prob.method) else "auto"
         kopts = KernelOptions(True, opts.tol, root.iterations, kernel, PREDICTOR_CODES[root.predictor], root.reuse,
-                              root.linear_solver, NEWTON_MODES.get(root.kind, 0), root.kind)
+                              root.linear_solver, NEWTON_MODES.get(root.kind, 0), root.kind, root.predictor)
         return Prepared(system, prob, opts, root, support, {"kopts": kopts})
 
     def point_model(self, prepared):

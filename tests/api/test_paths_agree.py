@@ -498,3 +498,45 @@ def test_a_compiled_ensemble_member_has_the_stats_keys_and_engine_of_its_single_
         member = ldaspark.integrate("skate", method, n_steps=5, h=0.1, q0=[q0, q0], v0=[v0, v0], executor=ex,
                                     guard=False).stats["members"][0]
     assert member["engine"] == single["engine"] and set(single) <= set(member)
+
+
+def _mass_vanishing_at_q1_1():
+    """L = (1 - q1^2) v1^2 / 2 + (v2^2 + v3^2) / 2, k = v3 - q2 v1: L_vv depends on q and is singular
+    at |q1| = 1, where det (4) changes sign; from q1 = 0.9, v1 = 1 the run reaches it at step 4 (h = 0.02)."""
+    q, v = list(sympy.symbols("q1:4")), list(sympy.symbols("v1:4"))
+    L = (1 - q[0] ** 2) * v[0] ** 2 / 2 + (v[1] ** 2 + v[2] ** 2) / 2
+    return ldaspark.LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name="mass-vanishing")
+
+
+@pytest.mark.parametrize("every", [1, 3])
+def test_a_crossing_of_the_singular_set_of_4_is_the_same_error_on_every_engine(every):
+    """The generic engine's det (4) monitor stops at step 4 (SingularSaddleError, status -2); the
+    compiled engine had no such check: its Newton went on across the singular set, the guard
+    stopping it at step 6 (status -4) and the quasi-Newton kind not at all (status 0 over 100
+    steps, q1 = 1.67 where the mass is negative). Now every engine and kind: -2 at step 4, the same
+    prefix. Control: integrating backwards (h < 0) from there never reaches |q1| = 1: status 0."""
+    system = _mass_vanishing_at_q1_1()
+    kw = dict(q0=[0.9, 0.3, 0.0], v0=[1.0, 0.1, 0.3], save_every=every)
+    runs = {(eng, kind): ldaspark.integrate(system, "gauss-2", t_span=(0, 2), h=0.02, engine=eng, newton=kind, **kw)
+            for eng, kind in (("generic", "auto"), ("compiled", "auto"), ("compiled", "full"), ("compiled", "quasi"))}
+    ref = runs["generic", "auto"]
+    assert ref.status == -2 and "step 4 " in ref.message
+    for key, r in runs.items():
+        assert r.status == -2 and "step 4 " in r.message and "crossed the singular set" in r.message, (key, r.message)
+        assert len(r.t) == len(ref.t) and max_diff(r.q, ref.q) < 1e-12, key
+    back = ldaspark.integrate(system, "gauss-2", t_span=(0, -2), h=-0.02, engine="compiled", newton="quasi", **kw)
+    assert back.status == 0
+
+
+def test_an_ensemble_member_crossing_the_singular_set_of_4_stops_as_its_single_run():
+    """The compiled ensemble through an executor (guard off: the kernel tasks of ``run_ensemble``)
+    has no det (4) monitor either: the member that crosses |q1| = 1 stops with status -2 at step 4
+    as its single run does (it ran to the end, status 0), the other member (control, starting at
+    q1 = 0) runs to the end."""
+    system = _mass_vanishing_at_q1_1()
+    kw = dict(t_span=(0, 1), h=0.02, guard=False, engine="compiled")
+    with ThreadPoolExecutor(2) as ex:
+        ens = ldaspark.integrate(system, "gauss-2", q0=[[0.0, 0.3, 0.0], [0.9, 0.3, 0.0]],
+                                 v0=[[0.1, 0.1, 0.03], [1.0, 0.1, 0.3]], executor=ex, **kw)
+    one = ldaspark.integrate(system, "gauss-2", q0=[0.9, 0.3, 0.0], v0=[1.0, 0.1, 0.3], **kw)
+    assert one.status == -2 and list(ens.status) == [0, -2]

@@ -169,11 +169,34 @@ def test_nonfinite_run_stops_with_step_and_time(general):
         fast_integrate(system, "gauss-2", 0.0, [0.5, 0.0], [3.0, 1.5], 0.05, 400)
     e = exc.value
     assert isinstance(e, LdasparkError) and not isinstance(e, NewtonError) and e.step is not None and 0 < e.step < 400
-    assert f"step {e.step}" in str(e) and "NaN or inf" in str(e)
+    assert f"step {e.step}" in str(e)
+    # the kernels' NaN goes to the generic step there (``compiled.rescue``), which says what the
+    # generic engine says: the same error, word for word
+    with pytest.raises(NonFiniteError) as gen:
+        integrate(system, get_method("gauss-2"), 0.0, [0.5, 0.0], [3.0, 1.5], 0.05, n_steps=400)
+    assert str(e) == str(gen.value) and "not a finite real number" in str(e)
     assert e.time == pytest.approx(0.05 * e.step)
     # control: stopping before the wall, the same run returns finite energies
     ok = fast_integrate(system, "gauss-2", 0.0, [0.5, 0.0], [3.0, 1.5], 0.05, max(e.step - 2, 1))
     assert np.all(np.isfinite(ok.energy))
+
+
+def test_a_domain_error_inside_newton_is_the_same_failure_on_both_engines():
+    """L = -sqrt(1 - |v|^2) (relativistic, L_vv depending on v) with a strong potential: the step's
+    Newton iterates leave |V| < 1 at step 0. The generic engine stops with its NewtonError
+    (status -1, "evaluating L or k"); the compiled kernels' non-finite residual was a NonFiniteError
+    (status -3) that skipped the rescue by the generic full-Newton step (``compiled.rescue``): the
+    engines disagreed on the status of one failure. Now both say -1 at the same step."""
+    import ldaspark
+    q, v = _qv()
+    L = -sympy.sqrt(1 - v[0] ** 2 - v[1] ** 2 - v[2] ** 2) - 10 * (q[0] ** 2 + q[1] ** 2)
+    system = LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name="relativistic-steep")
+    runs = {eng: ldaspark.integrate(system, "gauss-2", t_span=(0, 4), q0=[1.0, 0, 0], v0=[0, 0.3, 0], h=0.1,
+                                    engine=eng) for eng in ("generic", "compiled")}
+    gen, com = runs["generic"], runs["compiled"]
+    assert gen.status == -1 and "evaluating L or k" in gen.message, gen.message
+    assert (com.status, len(com.t)) == (gen.status, len(gen.t)), com.message
+    assert "evaluating L or k" in com.message and np.isfinite(com.q).all()
 
 
 @pytest.mark.parametrize("kw", [{"max_iter": 0}, {"max_iter": -1}, {"max_iter": 2.5}, {"tol": 0.0},
