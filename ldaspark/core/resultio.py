@@ -47,7 +47,7 @@ import numpy as np
 
 from .errors import InputError
 from .io import atomic_write_bytes, atomic_write_json
-from .result import Result
+from .result import STATUS_EVENT, STATUS_GUARD, Result
 
 ARRAYS = ("t", "q", "v", "energy", "constraint", "psi")
 META = ("scene", "method", "system", "engine", "h", "dps", "status", "message", "save_every", "params", "version",
@@ -429,10 +429,12 @@ def _check_metadata(md) -> dict:
     except InputError as exc:
         raise InputError(f"metadata: {exc}") from None
     st = md.get("status", 0)
-    if not (isinstance(st, int) and not isinstance(st, bool) and -3 <= st <= 1) and not (
-            isinstance(st, list) and st and all(isinstance(x, int) and not isinstance(x, bool) and -3 <= x <= 1
+    # every status a run can end with (``core.result``): STATUS_GUARD (-4) .. STATUS_EVENT (1)
+    lo, hi = STATUS_GUARD, STATUS_EVENT
+    if not (isinstance(st, int) and not isinstance(st, bool) and lo <= st <= hi) and not (
+            isinstance(st, list) and st and all(isinstance(x, int) and not isinstance(x, bool) and lo <= x <= hi
                                                 for x in st)):
-        raise InputError(f"metadata: status must be an integer in -3..1 (or a list of them), got {str(st)[:40]}")
+        raise InputError(f"metadata: status must be an integer in {lo}..{hi} (or a list of them), got {str(st)[:40]}")
     for key in ("stats", "params"):
         if md.get(key) is not None and not isinstance(md[key], dict):
             raise InputError(f"metadata: {key} must be a JSON object, got {type(md[key]).__name__}")
