@@ -169,6 +169,12 @@ class Result:
             for r in self.members:
                 r.raise_for_status()
             return self
+        if np.ndim(self.status):      # a batch without its members (a file of an earlier version)
+            bad = np.flatnonzero(np.asarray(self.status) < 0)
+            if len(bad):
+                msg = self.message[bad[0]] if isinstance(self.message, list) else self.message
+                raise LdasparkError(f"ensemble member {int(bad[0])}: {msg}")
+            return self
         if self.status < 0:
             if self.error is not None:
                 raise self.error

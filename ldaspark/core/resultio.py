@@ -51,7 +51,7 @@ from .result import STATUS_EVENT, STATUS_GUARD, Result
 
 ARRAYS = ("t", "q", "v", "energy", "constraint", "psi")
 META = ("scene", "method", "system", "engine", "h", "dps", "status", "message", "save_every", "params", "version",
-        "nfev", "njev", "nlu", "newton_iterations", "coordinate_names")
+        "nfev", "njev", "nlu", "newton_iterations", "coordinate_names", "n_valid")
 #: longest coordinate name read or written (printed sympy symbols are a few characters)
 MAX_NAME_CHARS = 256
 FORMATS = (".json", ".npz", ".h5", ".hdf5")
@@ -457,6 +457,10 @@ def _check_metadata(md) -> dict:
     if se is not None and (isinstance(se, bool) or not isinstance(se, int) or se < 1):
         raise InputError(f"metadata: save_every must be a positive integer, got {str(se)[:40]}")
     _check_names(md.get("coordinate_names"))
+    nv = md.get("n_valid")
+    if nv is not None and not (isinstance(nv, list) and nv and all(
+            isinstance(x, int) and not isinstance(x, bool) and x >= 1 for x in nv)):
+        raise InputError(f"metadata: n_valid must be a list of positive integers, got {str(nv)[:40]}")
     return md
 
 
@@ -523,7 +527,43 @@ def _build(md: dict, arrays: dict) -> Result:
     res.stats = md.get("stats", {}) or {}
     _check_names(md.get("coordinate_names"), n)
     res.coordinate_names = md.get("coordinate_names")
+    if isinstance(status, list) and md.get("n_valid") is not None:
+        _restore_members(res, md)
     return res
+
+
+def _restore_members(res: Result, md: dict) -> None:
+    """An ensemble's ``n_valid`` and ``members`` (``core.result.stack``) from its file: member j
+    is its first n_valid[j] rows (the rest repeat its last state), its status, message, counters,
+    stats and params; files of earlier versions (no ``n_valid``) keep ``members`` None."""
+    B, S = np.shape(res.t)
+    nv = md["n_valid"]
+    if len(nv) != B or max(nv) > S:
+        raise InputError(f"metadata: n_valid {str(nv)[:40]} does not match {B} members of {S} samples")
+    msgs = res.message
+    if not (isinstance(msgs, list) and len(msgs) == B and all(isinstance(x, str) for x in msgs)):
+        raise InputError(f"metadata: message must be a list of {B} strings for an ensemble")
+    counters = {}
+    for c in ("nfev", "njev", "nlu", "newton_iterations"):
+        a = np.asarray(getattr(res, c))
+        if a.shape != (B,):
+            raise InputError(f"metadata: {c} must be a list of {B} counts for an ensemble")
+        counters[c] = a
+
+    def per_member(d):
+        got = d.get("members") if isinstance(d, dict) else None
+        return got if isinstance(got, list) and len(got) == B and all(isinstance(x, dict) for x in got) \
+            else [{} for _ in range(B)]
+    stats, params = per_member(res.stats), per_member(res.params)
+    res.n_valid = np.array(nv, dtype=int)
+    res.members = [
+        Result(res.t[j, :k], res.q[j, :k], res.v[j, :k], res.energy[j, :k], res.constraint[j, :k],
+               None if res.psi is None else res.psi[j, :k - 1], int(res.status[j]), msgs[j],
+               *(int(counters[c][j]) for c in ("nfev", "njev", "nlu", "newton_iterations")),
+               method=res.method, system=res.system, scene=res.scene, engine=res.engine, h=res.h, dps=res.dps,
+               save_every=res.save_every, params=params[j], stats=stats[j],
+               coordinate_names=None if res.coordinate_names is None else list(res.coordinate_names))
+        for j, k in enumerate(nv)]
 
 
 def _refuse_bools(x, name: str) -> None:

@@ -10,7 +10,7 @@ import pytest
 
 import ldaspark
 from ldaspark.cli import main
-from ldaspark.core.errors import InputError
+from ldaspark.core.errors import InputError, LdasparkError
 from ldaspark.core.resultio import load_result, save_result
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -72,6 +72,36 @@ def test_ensemble_npz(tmp_path):
     save_result(ens, tmp_path / "e.npz")
     back = load_result(tmp_path / "e.npz")
     assert back.q.shape == (2, 4, 3) and np.array_equal(back.q, ens.q) and list(back.status) == [0, 0]
+
+
+@pytest.mark.parametrize("ext", [".npz", ".h5"])
+def test_an_ensemble_with_a_failed_member_reads_back_as_saved(tmp_path, ext):
+    """An ensemble's file kept the padded arrays and statuses but not ``n_valid`` nor the members:
+    the loaded Result had batch None, n_valid None (the repeated rows after a failure looked like
+    valid samples) and its raise_for_status raised numpy's ValueError ("truth value of an array is
+    ambiguous") instead of the member's failure. Now n_valid is in the metadata and the members are
+    rebuilt from their valid rows."""
+    import sympy as sp
+    x, y, vx, vy = sp.symbols("x y vx vy")
+    # U = sqrt(x): the second member walks into x < 0 (a step failure), the first does not
+    root = ldaspark.LagrangianSystem((vx ** 2 + vy ** 2) / 2 - sp.sqrt(x), [vy - x * vx], [x, y], [vx, vy],
+                                     name="root")
+    ens = ldaspark.integrate(root, "gauss-2", t_span=(0, 2), h=0.1, q0=[[1.0, 0.0], [0.3, 0.0]],
+                             v0=[[0.1, 0.1], [-1.0, -0.3]], guard=False, engine="generic")
+    assert ens.status[0] == 0 and ens.status[1] < 0 and ens.n_valid[1] < ens.n_valid[0]
+    save_result(ens, tmp_path / f"e{ext}")
+    back = load_result(tmp_path / f"e{ext}")
+    assert back.batch == ens.batch == 2 and list(back.n_valid) == list(ens.n_valid)
+    for a, b in zip(ens.members, back.members):
+        assert (a.status, a.message, a.nfev, a.method, a.h) == (b.status, b.message, b.nfev, b.method, b.h)
+        for name in ("t", "q", "v", "energy", "constraint", "psi"):
+            assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    with pytest.raises(LdasparkError, match="step"):
+        back.raise_for_status()
+    ok = ldaspark.integrate("particle", "gauss-1", n_steps=3, h=0.1, q0=[[1, 0, 0], [2, 0, 0]],
+                            v0=[[0, 1, 0], [0, 2, 0]], engine="generic")
+    save_result(ok, tmp_path / f"ok{ext}")
+    assert load_result(tmp_path / f"ok{ext}").raise_for_status().success
 
 
 def test_cli_npz_engines_agree_and_every(tmp_path):
