@@ -732,9 +732,12 @@ def _energy_jump_cut(res: Result, energy_jump) -> tuple:
 
 
 def _failure(exc: BaseException) -> tuple:
+    from .core.errors import NonFiniteError
     from .core.guard import RootMismatchError
     if isinstance(exc, RootMismatchError):
         return STATUS_GUARD, str(exc)
+    if isinstance(exc, NonFiniteError):     # before NewtonError: a NonFiniteStepError is both
+        return STATUS_OTHER, str(exc)
     if isinstance(exc, NewtonError):
         return STATUS_NEWTON, str(exc)
     if isinstance(exc, SingularSaddleError):
@@ -800,14 +803,24 @@ def _lazy_piece(memo: list, build: Callable, i: int, tt):
 
 def _prefix_run(run: Callable, N: int, every: int) -> tuple:
     """run(n_steps, every) -> Result; on a step failure at step k, rerun k steps (the kernels and
-    the comparators do not return partial trajectories) and mark the failure."""
+    the comparators do not return partial trajectories) and mark the failure. The rerun may fail
+    at an earlier step j < k (a comparator checks its points' energies only at the end of a run: a
+    point outside the domain of L made by step j is met inside a later step k of the long run):
+    then step j ends the run, with the prefix of j steps."""
     try:
         return run(N, every), None
     except LdasparkError as exc:
-        k = getattr(exc, "step", None)
+        err = exc
+    while True:                         # k < N decreases: at most N reruns
+        k = getattr(err, "step", None)
         if not isinstance(k, int) or k < 0 or k >= N:
-            raise
-        return (run(k, every) if k > 0 else None), exc
+            raise err
+        if k == 0:
+            return None, err
+        try:
+            return run(k, every), err
+        except LdasparkError as exc:
+            err, N = exc, k
 
 
 #: steps of one block of a chunked engine (the compiled kernels): a long run is a sequence of

@@ -37,7 +37,7 @@ import numpy as np
 import sympy
 
 from .backend import Backend, SingularMatrixError, fmt
-from .errors import InputError, NewtonError
+from .errors import InputError, NewtonError, NonFiniteStepError
 from .spark import Solution, SparkMethod
 from .derive import real_jacobian
 from .system import _NONSMOOTH, LagrangianSystem, _arr
@@ -130,8 +130,10 @@ def _newton(fun, x0, bk: Backend, tol, max_iter, step_index, t):
     tol_abs = tol * bk.norm_inf(x)
     prev = None
     res = float("inf")
+    it = 0
     for it in range(1, max_iter + 1):
-        G, J = fun(x)
+        with _domain(step_index, t):
+            G, J = fun(x)
         res = bk.norm_inf(G)
         if not math.isfinite(res):
             break
@@ -152,8 +154,24 @@ def _newton(fun, x0, bk: Backend, tol, max_iter, step_index, t):
             return x, it
         x = x_new
         prev = dn
-    raise NewtonError(f"Newton did not converge at step {step_index}, t = {float(t):.6g}: residual {fmt(res)}",
-                      step=step_index, time=float(t), residual=res, iterations=max_iter)
+    # a NaN or infinite residual or increment: outside the domain of L or k, or an overflow
+    # (status -3, as the compiled kernels and SparkMethod.step report it), not a slow iteration
+    err = NewtonError if math.isfinite(res) else NonFiniteStepError
+    raise err(f"Newton did not converge at step {step_index}, t = {float(t):.6g}: residual {fmt(res)}",
+              step=step_index, time=float(t), residual=res, iterations=it)
+
+
+@contextlib.contextmanager
+def _domain(k, t):
+    """Evaluations of grad U, K, b and their derivatives in step k of a semi-implicit comparator:
+    outside the domain of L or k (math's ValueError, an mpc that is no mpf: TypeError, a division
+    by zero, an overflow) the step stops with NonFiniteStepError naming the step, as
+    SparkMethod.step does (never the raw exception out of ``integrate``)."""
+    try:
+        yield
+    except (ValueError, ZeroDivisionError, OverflowError, TypeError) as exc:
+        raise NonFiniteStepError(f"step {k} at t = {float(t):.6g}: {type(exc).__name__}: {exc} evaluating L or k "
+                                 "(the solution left their domain)", step=k, time=float(t)) from None
 
 
 def _saddle(bk, M, KT, Cv):
@@ -309,7 +327,8 @@ def _leapfrog(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, constraint, na
         psi2_prev = bk.zeros(m)  # Psi_{2,k-1}
         x = np.concatenate([v, bk.zeros(m)])
         for k in range(n_steps):
-            Kk, bk_k = mp.K_b(q)
+            with _domain(k, ts[-1]):
+                Kk, bk_k = mp.K_b(q)
             rhs = M.dot(v) - half * g if k == 0 else M.dot(w) - h_ * g
 
             def fun(z, q=q, Kk=Kk, bk_k=bk_k, rhs=rhs):
@@ -332,9 +351,10 @@ def _leapfrog(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, constraint, na
             w, lam = x[:n], x[n:]
             q = q + h_ * w
             # output v_{k+1} and Psi_{2,k} from the (otherwise unneeded) linear system
-            g = mp.grad_U(q)
-            K1, b1 = mp.K_b(q)
-            sol = bk.solve(_saddle(bk, M, K1.T, K1), np.concatenate([M.dot(w) - half * g, -b1]))
+            with _domain(k, ts[-1]):          # q_{k+1} outside the domain: step k failed
+                g = mp.grad_U(q)
+                K1, b1 = mp.K_b(q)
+                sol = bk.solve(_saddle(bk, M, K1.T, K1), np.concatenate([M.dot(w) - half * g, -b1]))
             v, mu = sol[:n], sol[n:]
             psi2 = mu / half
             psi1 = lam / half - psi2_prev
@@ -360,8 +380,9 @@ def _mp_iiib_a(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, name, progres
         x = np.concatenate([v, bk.zeros(m)])
         for k in range(n_steps):
             Q1 = q + half * v                                   # (26a)
-            g = mp.grad_U(Q1)
-            KQ, _ = mp.K_b(Q1)
+            with _domain(k, ts[-1]):
+                g = mp.grad_U(Q1)
+                KQ, _ = mp.K_b(Q1)
             rhs = M.dot(v) - h_ * g
 
             def fun(z, q=q, v=v, KQ=KQ, rhs=rhs):
