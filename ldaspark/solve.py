@@ -419,8 +419,12 @@ def _compiled_ensemble(system, params, Q0, V0, prob: _Problem, opts: Integration
         st.setdefault("rescued_steps", st.get("generic_steps", 0))
         if st.get("path") == "fast":
             st["engine"] = support
-    return from_ensemble(ens, method=prob.name, system=system.name, scene=prob.scene, h=prob.h,
-                         save_every=opts.save_every)
+    res = from_ensemble(ens, method=prob.name, system=system.name, scene=prob.scene, h=prob.h,
+                        save_every=opts.save_every)
+    # what every single run's Result names (``_single``): the coordinates, each Result its own list
+    for r in [res] + res.members:
+        r.coordinate_names = _coordinate_names(system)
+    return res
 
 
 def _with_params(system: LagrangianSystem, params) -> LagrangianSystem:

@@ -263,7 +263,7 @@ def stack(members: list) -> Result:
                   h=first.h, dps=first.dps, save_every=first.save_every,
                   params={"members": [r.params for r in members]},
                   stats={"members": [r.stats for r in members]}, n_valid=n_valid, members=list(members),
-                  coordinate_names=first.coordinate_names, **out,
+                  coordinate_names=None if first.coordinate_names is None else list(first.coordinate_names), **out,
                   sol=EnsembleDense(r.sol for r in members) if all(r.sol is not None for r in members) else None)
 
 
