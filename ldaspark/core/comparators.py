@@ -123,8 +123,11 @@ def derive_mechanical(system: LagrangianSystem) -> dict:
 
 
 # --- a small Newton solver for the semi-implicit forms --------------------------------------
-def _newton(fun, x0, bk: Backend, tol, max_iter, step_index, t):
-    """Newton on fun(x) -> (G, J); same stopping rule as SparkMethod.step."""
+def _newton(fun, x0, bk: Backend, tol, max_iter, step_index, t, counts=None):
+    """Newton on fun(x) -> (G, J); same stopping rule as SparkMethod.step. ``counts`` (a dict):
+    the counters every engine reports, added to: ``nfev`` and ``njev`` one per call of fun (a
+    residual at the step's point and its Jacobian), ``nlu`` one per factorised solve."""
+    counts = {} if counts is None else counts
     x = x0.copy()
     # round-off of the unknowns' values (invariant under the scale of h and of the state)
     tol_abs = tol * bk.norm_inf(x)
@@ -134,6 +137,8 @@ def _newton(fun, x0, bk: Backend, tol, max_iter, step_index, t):
     for it in range(1, max_iter + 1):
         with _domain(step_index, t):
             G, J = fun(x)
+        counts["nfev"] = counts.get("nfev", 0) + 1
+        counts["njev"] = counts.get("njev", 0) + 1
         res = bk.norm_inf(G)
         if not math.isfinite(res):
             break
@@ -142,6 +147,7 @@ def _newton(fun, x0, bk: Backend, tol, max_iter, step_index, t):
         except SingularMatrixError as exc:
             raise NewtonError(f"step {step_index} at t = {float(t):.6g}: {exc}", step=step_index,
                               time=float(t), residual=res, iterations=it) from None
+        counts["nlu"] = counts.get("nlu", 0) + 1
         x_new = x + dx
         dn = bk.norm_inf(dx)
         if not math.isfinite(dn):
@@ -321,6 +327,7 @@ def _leapfrog(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, constraint, na
     grad U(q_k) is evaluated once per step and shared by both uses."""
     with _semi_implicit(system, dps, tol, h, t0, q0, v0) as (bk, mp, tol, h_, half, t0_, q, v):
         n, m, M, iters = mp.n, mp.m, mp.M, 0
+        counts = {"nfev": 0, "njev": 0, "nlu": 0}
         ts, Qs, Vs, Ps = [t0_], [q], [v], []
         g = mp.grad_U(q)
         w = None                 # v_{k-1/2}
@@ -346,7 +353,7 @@ def _leapfrog(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, constraint, na
                     Cv = Km + half * mp.k_q(qm, vh)
                 return np.concatenate([r1, r2]), _saddle(bk, M, Kk.T, Cv)
 
-            x, it = _newton(fun, x, bk, tol, max_iter, k, ts[-1])
+            x, it = _newton(fun, x, bk, tol, max_iter, k, ts[-1], counts)
             iters += it
             w, lam = x[:n], x[n:]
             q = q + h_ * w
@@ -355,6 +362,7 @@ def _leapfrog(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, constraint, na
                 g = mp.grad_U(q)
                 K1, b1 = mp.K_b(q)
                 sol = bk.solve(_saddle(bk, M, K1.T, K1), np.concatenate([M.dot(w) - half * g, -b1]))
+            counts["nlu"] += 1
             v, mu = sol[:n], sol[n:]
             psi2 = mu / half
             psi1 = lam / half - psi2_prev
@@ -365,7 +373,7 @@ def _leapfrog(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, constraint, na
             Ps.append([psi1, psi2])
             if progress is not None:
                 progress(k + 1, n_steps)
-    st = {"steps": n_steps, "newton_iterations": iters, "n_grad_U": mp.n_grad_U,
+    st = {"steps": n_steps, "newton_iterations": iters, **counts, "n_grad_U": mp.n_grad_U,
           "mean_iterations": iters / max(n_steps, 1)}
     return _finish_solution(system, bk, ts, Qs, Vs, Ps, st, dps, name)
 
@@ -376,6 +384,7 @@ def _mp_iiib_a(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, name, progres
     q1 = q0 + h/2 (v0 + v1), 0 = K(q1) v1 + b(q1). One grad U per step."""
     with _semi_implicit(system, dps, tol, h, t0, q0, v0) as (bk, mp, tol, h_, half, t0_, q, v):
         n, m, M, iters = mp.n, mp.m, mp.M, 0
+        counts = {"nfev": 0, "njev": 0, "nlu": 0}
         ts, Qs, Vs, Ps = [t0_], [q], [v], []
         x = np.concatenate([v, bk.zeros(m)])
         for k in range(n_steps):
@@ -393,7 +402,7 @@ def _mp_iiib_a(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, name, progres
                 r2 = K1.dot(v1) + b1                            # (26d)
                 return np.concatenate([r1, r2]), _saddle(bk, M, KQ.T, K1 + half * mp.k_q(q1, v1))
 
-            x, it = _newton(fun, x, bk, tol, max_iter, k, ts[-1])
+            x, it = _newton(fun, x, bk, tol, max_iter, k, ts[-1], counts)
             iters += it
             v1, lam = x[:n], x[n:]
             q = q + half * (v + v1)
@@ -404,7 +413,7 @@ def _mp_iiib_a(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, name, progres
             Ps.append([lam / h_])
             if progress is not None:
                 progress(k + 1, n_steps)
-    st = {"steps": n_steps, "newton_iterations": iters, "n_grad_U": mp.n_grad_U,
+    st = {"steps": n_steps, "newton_iterations": iters, **counts, "n_grad_U": mp.n_grad_U,
           "mean_iterations": iters / max(n_steps, 1)}
     return _finish_solution(system, bk, ts, Qs, Vs, Ps, st, dps, name)
 
