@@ -34,6 +34,10 @@ Also kept (float64, as computed): ``stats`` (JSON key / metadata), the events (`
 grid, ``dense_q``, ``dense_v`` alone for the cubic Hermite one; a file without ``dense_v`` next to
 ``dense_c`` (written before the correction) reads as the uncorrected stage polynomial it was
 saved with): arrays in .npz and .h5, in .json under ``extra_arrays`` as {name: {shape, data}}.
+An ensemble (.npz and .h5 only) keeps ``n_valid`` in its metadata and each member's events and
+dense output under the prefix ``member<j>_``; it reads back with its members (their valid rows,
+status, message, counters, stats and params) and the batch's events and dense output made of
+theirs, as ``core.result.stack`` makes them.
 """
 from __future__ import annotations
 
@@ -114,10 +118,14 @@ def _to_json(result: Result) -> dict:
 
 
 def _extra_arrays(result: Result) -> dict:
-    """Events and dense-output data as named float64 arrays (none for an ensemble)."""
+    """Events and dense-output data as named float64 arrays; an ensemble's are its members',
+    member j's under the prefix ``member<j>_`` (the batch's events and dense output are made of
+    them: ``core.result.batch_events_and_dense``)."""
     from .dense import CollocationDense, HermiteDense
     out = {}
     if result.members is not None:
+        for j, member in enumerate(result.members):
+            out.update({f"member{j}_{k}": a for k, a in _extra_arrays(member).items()})
         return out
     for e, (te, qe, ve) in enumerate(zip(result.t_events, result.q_events, result.v_events)):
         out[f"t_events_{e}"], out[f"q_events_{e}"], out[f"v_events_{e}"] = (np.asarray(x, float) for x in (te, qe, ve))
@@ -132,7 +140,7 @@ def _extra_arrays(result: Result) -> dict:
 
 
 def _is_extra(name: str) -> bool:
-    return name.startswith(("t_events_", "q_events_", "v_events_", "dense_"))
+    return name.startswith(("t_events_", "q_events_", "v_events_", "dense_", "member"))
 
 
 def _json_extras(ex) -> dict:
@@ -203,8 +211,20 @@ def _restore_extras(res: Result, extra: dict) -> None:
                 res.sol = CollocationDense(t, q, c, need("dense_V", (len(t) - 1, len(c), n), "stage velocities"), vg)
             else:
                 res.sol = HermiteDense(t, q, need("dense_v", (len(t), n), "dense output"))
-    elif ne or any(k.startswith("dense_") for k in extra):
-        raise InputError("events or dense output stored with an ensemble")
+    elif res.members is not None:       # an ensemble with its members (``_restore_members``)
+        from .result import batch_events_and_dense
+        used = 0
+        for j, member in enumerate(res.members):
+            pre = f"member{j}_"
+            sub = {k[len(pre):]: a for k, a in extra.items() if k.startswith(pre)}
+            used += len(sub)
+            _restore_extras(member, sub)
+        if used != len(extra):
+            raise InputError(f"{sorted(set(extra))[0][:40]}: not the events or dense output of a member")
+        events, res.sol = batch_events_and_dense(res.members)
+        res.t_events, res.q_events, res.v_events = events["t_events"], events["q_events"], events["v_events"]
+    elif extra:
+        raise InputError("events or dense output stored with an ensemble without its members")
 
 
 def _check_finite_arrays(result: Result) -> None:
@@ -249,7 +269,9 @@ def _check_writable(result: Result) -> dict:
             raise InputError(f"refusing to write a result whose {k} contains NaN, infinity or non-real values")
     # the reader's structural checks of events and dense output, on what is about to be written
     import types
-    probe = types.SimpleNamespace(q=np.asarray(result.q), t=result.t, members=result.members, sol=None)
+    def shell(r, members=None):    # what _restore_extras reads and sets, apart from ``r``
+        return types.SimpleNamespace(q=np.asarray(r.q), t=r.t, members=members, sol=None)
+    probe = shell(result, None if result.members is None else [shell(m) for m in result.members])
     try:
         _restore_extras(probe, extra)
     except InputError as exc:
@@ -347,6 +369,9 @@ def save_result(result: Result, path: Union[str, os.PathLike]) -> None:
         atomic_write_bytes(path, buf.getvalue())
         return
     h5py = _h5py()
+    if len(arrays) + 1 > MAX_H5_OBJECTS:     # the reader's bound: never write a file it refuses
+        raise InputError(f"cannot write {path}: {len(arrays) + 1} datasets (an ensemble's events and dense output, "
+                         f"5 a member), more than the {MAX_H5_OBJECTS} an .h5 result file may hold; write .npz")
     buf = io.BytesIO()
     try:
         _write_h5(h5py, buf, arrays, md)

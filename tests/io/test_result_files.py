@@ -104,6 +104,27 @@ def test_an_ensemble_with_a_failed_member_reads_back_as_saved(tmp_path, ext):
     assert load_result(tmp_path / f"ok{ext}").raise_for_status().success
 
 
+@pytest.mark.parametrize("ext", [".npz", ".h5"])
+def test_an_ensembles_events_and_dense_output_read_back(tmp_path, ext):
+    """save_result dropped an ensemble's events and dense output without a word (the loaded
+    Result had t_events [] and sol None, the saved one an event per member and an EnsembleDense);
+    now each member's are stored under member<j>_ and the batch's rebuilt from them."""
+    def down(t, q, v):
+        return q[0] + 0.1
+    down.direction = -1
+    ens = ldaspark.integrate("skate", "gauss-2", t_span=(0, 1), h=0.1, engine="generic", events=[down],
+                             q0=[[0, 0, 0], [0.05, 0, 0]], v0=[[0, 0, 1.0], [0, 0, 1.0]], dense_output=True)
+    assert [len(te) for te in ens.t_events[0]] == [1, 1] and ens.sol is not None
+    save_result(ens, tmp_path / f"e{ext}")
+    back = load_result(tmp_path / f"e{ext}")
+    for name in ("t_events", "q_events", "v_events"):
+        got, want = getattr(back, name), getattr(ens, name)
+        assert len(got) == len(want) == 1 and all(np.array_equal(a, b) for a, b in zip(got[0], want[0])), name
+    tt = np.linspace(0, 1, 13)
+    assert all(np.array_equal(a, b) for a, b in zip(ens.sol(tt), back.sol(tt)))
+    assert np.array_equal(back.members[1].t_events[0], ens.members[1].t_events[0])
+
+
 def test_cli_npz_engines_agree_and_every(tmp_path):
     a, b, c = (tmp_path / n for n in ("a.npz", "b.h5", "c.json"))
     base = ["integrate", "particle", "gauss-2", "--h", "0.01", "--t-end", "1"]
