@@ -426,8 +426,12 @@ def _compiled_ensemble(system, params, Q0, V0, prob: _Problem, opts: Integration
         st.setdefault("rescued_steps", st.get("generic_steps", 0))
         if st.get("path") == "fast":
             st["engine"] = support
-    return from_ensemble(ens, method=prob.name, system=system.name, scene=prob.scene, h=prob.h,
-                         save_every=opts.save_every)
+    res = from_ensemble(ens, method=prob.name, system=system.name, scene=prob.scene, h=prob.h,
+                        save_every=opts.save_every)
+    # what every single run's Result names (``_single``): the coordinates, each Result its own list
+    for r in [res] + res.members:
+        r.coordinate_names = _coordinate_names(system)
+    return res
 
 
 def _with_params(system: LagrangianSystem, params) -> LagrangianSystem:
@@ -822,9 +826,12 @@ def _energy_jump_cut(res: Result, energy_jump) -> tuple:
 
 
 def _failure(exc: BaseException) -> tuple:
+    from .core.errors import NonFiniteError
     from .core.guard import RootMismatchError
     if isinstance(exc, RootMismatchError):
         return STATUS_GUARD, str(exc)
+    if isinstance(exc, NonFiniteError):     # before NewtonError: a NonFiniteStepError is both
+        return STATUS_OTHER, str(exc)
     if isinstance(exc, NewtonError):
         return STATUS_NEWTON, str(exc)
     if isinstance(exc, SingularSaddleError):
@@ -890,14 +897,24 @@ def _lazy_piece(memo: list, build: Callable, i: int, tt):
 
 def _prefix_run(run: Callable, N: int, every: int) -> tuple:
     """run(n_steps, every) -> Result; on a step failure at step k, rerun k steps (the kernels and
-    the comparators do not return partial trajectories) and mark the failure."""
+    the comparators do not return partial trajectories) and mark the failure. The rerun may fail
+    at an earlier step j < k (a comparator checks its points' energies only at the end of a run: a
+    point outside the domain of L made by step j is met inside a later step k of the long run):
+    then step j ends the run, with the prefix of j steps."""
     try:
         return run(N, every), None
     except LdasparkError as exc:
-        k = getattr(exc, "step", None)
+        err = exc
+    while True:                         # k < N decreases: at most N reruns
+        k = getattr(err, "step", None)
         if not isinstance(k, int) or k < 0 or k >= N:
-            raise
-        return (run(k, every) if k > 0 else None), exc
+            raise err
+        if k == 0:
+            return None, err
+        try:
+            return run(k, every), err
+        except LdasparkError as exc:
+            err, N = exc, k
 
 
 #: steps of one block of a chunked engine (the compiled kernels): a long run is a sequence of

@@ -37,7 +37,7 @@ import numpy as np
 import sympy
 
 from .backend import Backend, SingularMatrixError, fmt
-from .errors import InputError, NewtonError
+from .errors import InputError, NewtonError, NonFiniteStepError
 from .spark import Solution, SparkMethod
 from .derive import real_jacobian
 from .system import _NONSMOOTH, LagrangianSystem, _arr
@@ -123,15 +123,22 @@ def derive_mechanical(system: LagrangianSystem) -> dict:
 
 
 # --- a small Newton solver for the semi-implicit forms --------------------------------------
-def _newton(fun, x0, bk: Backend, tol, max_iter, step_index, t):
-    """Newton on fun(x) -> (G, J); same stopping rule as SparkMethod.step."""
+def _newton(fun, x0, bk: Backend, tol, max_iter, step_index, t, counts=None):
+    """Newton on fun(x) -> (G, J); same stopping rule as SparkMethod.step. ``counts`` (a dict):
+    the counters every engine reports, added to: ``nfev`` and ``njev`` one per call of fun (a
+    residual at the step's point and its Jacobian), ``nlu`` one per factorised solve."""
+    counts = {} if counts is None else counts
     x = x0.copy()
     # round-off of the unknowns' values (invariant under the scale of h and of the state)
     tol_abs = tol * bk.norm_inf(x)
     prev = None
     res = float("inf")
+    it = 0
     for it in range(1, max_iter + 1):
-        G, J = fun(x)
+        with _domain(step_index, t):
+            G, J = fun(x)
+        counts["nfev"] = counts.get("nfev", 0) + 1
+        counts["njev"] = counts.get("njev", 0) + 1
         res = bk.norm_inf(G)
         if not math.isfinite(res):
             break
@@ -140,6 +147,7 @@ def _newton(fun, x0, bk: Backend, tol, max_iter, step_index, t):
         except SingularMatrixError as exc:
             raise NewtonError(f"step {step_index} at t = {float(t):.6g}: {exc}", step=step_index,
                               time=float(t), residual=res, iterations=it) from None
+        counts["nlu"] = counts.get("nlu", 0) + 1
         x_new = x + dx
         dn = bk.norm_inf(dx)
         if not math.isfinite(dn):
@@ -152,8 +160,24 @@ def _newton(fun, x0, bk: Backend, tol, max_iter, step_index, t):
             return x, it
         x = x_new
         prev = dn
-    raise NewtonError(f"Newton did not converge at step {step_index}, t = {float(t):.6g}: residual {fmt(res)}",
-                      step=step_index, time=float(t), residual=res, iterations=max_iter)
+    # a NaN or infinite residual or increment: outside the domain of L or k, or an overflow
+    # (status -3, as the compiled kernels and SparkMethod.step report it), not a slow iteration
+    err = NewtonError if math.isfinite(res) else NonFiniteStepError
+    raise err(f"Newton did not converge at step {step_index}, t = {float(t):.6g}: residual {fmt(res)}",
+              step=step_index, time=float(t), residual=res, iterations=it)
+
+
+@contextlib.contextmanager
+def _domain(k, t):
+    """Evaluations of grad U, K, b and their derivatives in step k of a semi-implicit comparator:
+    outside the domain of L or k (math's ValueError, an mpc that is no mpf: TypeError, a division
+    by zero, an overflow) the step stops with NonFiniteStepError naming the step, as
+    SparkMethod.step does (never the raw exception out of ``integrate``)."""
+    try:
+        yield
+    except (ValueError, ZeroDivisionError, OverflowError, TypeError) as exc:
+        raise NonFiniteStepError(f"step {k} at t = {float(t):.6g}: {type(exc).__name__}: {exc} evaluating L or k "
+                                 "(the solution left their domain)", step=k, time=float(t)) from None
 
 
 def _saddle(bk, M, KT, Cv):
@@ -303,13 +327,15 @@ def _leapfrog(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, constraint, na
     grad U(q_k) is evaluated once per step and shared by both uses."""
     with _semi_implicit(system, dps, tol, h, t0, q0, v0) as (bk, mp, tol, h_, half, t0_, q, v):
         n, m, M, iters = mp.n, mp.m, mp.M, 0
+        counts = {"nfev": 0, "njev": 0, "nlu": 0}
         ts, Qs, Vs, Ps = [t0_], [q], [v], []
         g = mp.grad_U(q)
         w = None                 # v_{k-1/2}
         psi2_prev = bk.zeros(m)  # Psi_{2,k-1}
         x = np.concatenate([v, bk.zeros(m)])
         for k in range(n_steps):
-            Kk, bk_k = mp.K_b(q)
+            with _domain(k, ts[-1]):
+                Kk, bk_k = mp.K_b(q)
             rhs = M.dot(v) - half * g if k == 0 else M.dot(w) - h_ * g
 
             def fun(z, q=q, Kk=Kk, bk_k=bk_k, rhs=rhs):
@@ -327,14 +353,16 @@ def _leapfrog(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, constraint, na
                     Cv = Km + half * mp.k_q(qm, vh)
                 return np.concatenate([r1, r2]), _saddle(bk, M, Kk.T, Cv)
 
-            x, it = _newton(fun, x, bk, tol, max_iter, k, ts[-1])
+            x, it = _newton(fun, x, bk, tol, max_iter, k, ts[-1], counts)
             iters += it
             w, lam = x[:n], x[n:]
             q = q + h_ * w
             # output v_{k+1} and Psi_{2,k} from the (otherwise unneeded) linear system
-            g = mp.grad_U(q)
-            K1, b1 = mp.K_b(q)
-            sol = bk.solve(_saddle(bk, M, K1.T, K1), np.concatenate([M.dot(w) - half * g, -b1]))
+            with _domain(k, ts[-1]):          # q_{k+1} outside the domain: step k failed
+                g = mp.grad_U(q)
+                K1, b1 = mp.K_b(q)
+                sol = bk.solve(_saddle(bk, M, K1.T, K1), np.concatenate([M.dot(w) - half * g, -b1]))
+            counts["nlu"] += 1
             v, mu = sol[:n], sol[n:]
             psi2 = mu / half
             psi1 = lam / half - psi2_prev
@@ -345,7 +373,7 @@ def _leapfrog(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, constraint, na
             Ps.append([psi1, psi2])
             if progress is not None:
                 progress(k + 1, n_steps)
-    st = {"steps": n_steps, "newton_iterations": iters, "n_grad_U": mp.n_grad_U,
+    st = {"steps": n_steps, "newton_iterations": iters, **counts, "n_grad_U": mp.n_grad_U,
           "mean_iterations": iters / max(n_steps, 1)}
     return _finish_solution(system, bk, ts, Qs, Vs, Ps, st, dps, name)
 
@@ -356,12 +384,14 @@ def _mp_iiib_a(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, name, progres
     q1 = q0 + h/2 (v0 + v1), 0 = K(q1) v1 + b(q1). One grad U per step."""
     with _semi_implicit(system, dps, tol, h, t0, q0, v0) as (bk, mp, tol, h_, half, t0_, q, v):
         n, m, M, iters = mp.n, mp.m, mp.M, 0
+        counts = {"nfev": 0, "njev": 0, "nlu": 0}
         ts, Qs, Vs, Ps = [t0_], [q], [v], []
         x = np.concatenate([v, bk.zeros(m)])
         for k in range(n_steps):
             Q1 = q + half * v                                   # (26a)
-            g = mp.grad_U(Q1)
-            KQ, _ = mp.K_b(Q1)
+            with _domain(k, ts[-1]):
+                g = mp.grad_U(Q1)
+                KQ, _ = mp.K_b(Q1)
             rhs = M.dot(v) - h_ * g
 
             def fun(z, q=q, v=v, KQ=KQ, rhs=rhs):
@@ -372,7 +402,7 @@ def _mp_iiib_a(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, name, progres
                 r2 = K1.dot(v1) + b1                            # (26d)
                 return np.concatenate([r1, r2]), _saddle(bk, M, KQ.T, K1 + half * mp.k_q(q1, v1))
 
-            x, it = _newton(fun, x, bk, tol, max_iter, k, ts[-1])
+            x, it = _newton(fun, x, bk, tol, max_iter, k, ts[-1], counts)
             iters += it
             v1, lam = x[:n], x[n:]
             q = q + half * (v + v1)
@@ -383,7 +413,7 @@ def _mp_iiib_a(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, name, progres
             Ps.append([lam / h_])
             if progress is not None:
                 progress(k + 1, n_steps)
-    st = {"steps": n_steps, "newton_iterations": iters, "n_grad_U": mp.n_grad_U,
+    st = {"steps": n_steps, "newton_iterations": iters, **counts, "n_grad_U": mp.n_grad_U,
           "mean_iterations": iters / max(n_steps, 1)}
     return _finish_solution(system, bk, ts, Qs, Vs, Ps, st, dps, name)
 

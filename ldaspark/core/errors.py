@@ -89,6 +89,17 @@ class NonFiniteError(LdasparkError):
         self.time = time
 
 
+class NonFiniteStepError(NonFiniteError, NewtonError):
+    """Newton's iteration of a step met NaN, infinity or a complex value (L or k evaluated
+    outside its domain, an overflow): a NonFiniteError (``Result.status`` -3, as the compiled
+    kernels report the same step) that is also a NewtonError, so that the callers which retry a
+    failed Newton step from another start (the rescue chain, the guard) still do; names the
+    step, its time, the residual and the iterations."""
+
+    def __init__(self, message, step=None, time=None, residual=None, iterations=None):
+        NewtonError.__init__(self, message, step=step, time=time, residual=residual, iterations=iterations)
+
+
 class LdasparkWarning(_OneLine, UserWarning):
     """Something was accepted with a note (``warnings.simplefilter("error", LdasparkWarning)``
     turns these notes into errors): a parameter value for a symbol the model does not have, an

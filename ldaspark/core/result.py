@@ -169,6 +169,12 @@ class Result:
             for r in self.members:
                 r.raise_for_status()
             return self
+        if np.ndim(self.status):      # a batch without its members (a file of an earlier version)
+            bad = np.flatnonzero(np.asarray(self.status) < 0)
+            if len(bad):
+                msg = self.message[bad[0]] if isinstance(self.message, list) else self.message
+                raise LdasparkError(f"ensemble member {int(bad[0])}: {msg}")
+            return self
         if self.status < 0:
             if self.error is not None:
                 raise self.error
@@ -244,12 +250,7 @@ def stack(members: list) -> Result:
         psi = np.stack([pad(r.psi, S - 1) if len(r.psi) else np.zeros((S - 1,) + r.psi.shape[1:])
                         for r in members])
     first = members[0]
-    # the members' events, per event function one list with each member's array: a terminal
-    # event that stopped a member is reported on the batched Result too (status 1 there)
-    n_ev = max((len(r.t_events) for r in members), default=0)
-    events = {name: [[(getattr(r, name)[i] if i < len(getattr(r, name)) else np.zeros((0,) if name == "t_events"
-                      else (0, np.shape(r.q)[-1]))) for r in members] for i in range(n_ev)]
-              for name in ("t_events", "q_events", "v_events")}
+    events, sol = batch_events_and_dense(members)
     return Result(t=t, psi=psi, status=np.array([r.status for r in members], dtype=int), **events,
                   message=[r.message for r in members],
                   **{c: np.array([getattr(r, c) for r in members]) for c in COUNTERS},
@@ -257,8 +258,21 @@ def stack(members: list) -> Result:
                   h=first.h, dps=first.dps, save_every=first.save_every,
                   params={"members": [r.params for r in members]},
                   stats={"members": [r.stats for r in members]}, n_valid=n_valid, members=list(members),
-                  coordinate_names=first.coordinate_names, **out,
-                  sol=EnsembleDense(r.sol for r in members) if all(r.sol is not None for r in members) else None)
+                  coordinate_names=None if first.coordinate_names is None else list(first.coordinate_names), **out,
+                  sol=sol)
+
+
+def batch_events_and_dense(members: list) -> tuple:
+    """The events and dense output of an ensemble from its members' (``stack``, and
+    ``resultio`` for a file): per event function one list with each member's array (a terminal
+    event that stopped a member is reported on the batched Result too, status 1 there), and an
+    ``EnsembleDense`` when every member has dense output, else None."""
+    n_ev = max((len(r.t_events) for r in members), default=0)
+    events = {name: [[(getattr(r, name)[i] if i < len(getattr(r, name)) else np.zeros((0,) if name == "t_events"
+                      else (0, np.shape(r.q)[-1]))) for r in members] for i in range(n_ev)]
+              for name in ("t_events", "q_events", "v_events")}
+    sol = EnsembleDense(r.sol for r in members) if all(r.sol is not None for r in members) else None
+    return events, sol
 
 
 def from_ensemble(ens: Any, **meta: Any) -> Result:

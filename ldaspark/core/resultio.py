@@ -34,6 +34,10 @@ Also kept (float64, as computed): ``stats`` (JSON key / metadata), the events (`
 grid, ``dense_q``, ``dense_v`` alone for the cubic Hermite one; a file without ``dense_v`` next to
 ``dense_c`` (written before the correction) reads as the uncorrected stage polynomial it was
 saved with): arrays in .npz and .h5, in .json under ``extra_arrays`` as {name: {shape, data}}.
+An ensemble (.npz and .h5 only) keeps ``n_valid`` in its metadata and each member's events and
+dense output under the prefix ``member<j>_``; it reads back with its members (their valid rows,
+status, message, counters, stats and params) and the batch's events and dense output made of
+theirs, as ``core.result.stack`` makes them.
 """
 from __future__ import annotations
 
@@ -47,11 +51,11 @@ import numpy as np
 
 from .errors import InputError
 from .io import atomic_write_bytes, atomic_write_json
-from .result import Result
+from .result import STATUS_EVENT, STATUS_GUARD, Result
 
 ARRAYS = ("t", "q", "v", "energy", "constraint", "psi")
 META = ("scene", "method", "system", "engine", "h", "dps", "status", "message", "save_every", "params", "version",
-        "nfev", "njev", "nlu", "newton_iterations", "coordinate_names")
+        "nfev", "njev", "nlu", "newton_iterations", "coordinate_names", "n_valid")
 #: longest coordinate name read or written (printed sympy symbols are a few characters)
 MAX_NAME_CHARS = 256
 FORMATS = (".json", ".npz", ".h5", ".hdf5")
@@ -114,10 +118,14 @@ def _to_json(result: Result) -> dict:
 
 
 def _extra_arrays(result: Result) -> dict:
-    """Events and dense-output data as named float64 arrays (none for an ensemble)."""
+    """Events and dense-output data as named float64 arrays; an ensemble's are its members',
+    member j's under the prefix ``member<j>_`` (the batch's events and dense output are made of
+    them: ``core.result.batch_events_and_dense``)."""
     from .dense import CollocationDense, HermiteDense
     out = {}
     if result.members is not None:
+        for j, member in enumerate(result.members):
+            out.update({f"member{j}_{k}": a for k, a in _extra_arrays(member).items()})
         return out
     for e, (te, qe, ve) in enumerate(zip(result.t_events, result.q_events, result.v_events)):
         out[f"t_events_{e}"], out[f"q_events_{e}"], out[f"v_events_{e}"] = (np.asarray(x, float) for x in (te, qe, ve))
@@ -132,7 +140,7 @@ def _extra_arrays(result: Result) -> dict:
 
 
 def _is_extra(name: str) -> bool:
-    return name.startswith(("t_events_", "q_events_", "v_events_", "dense_"))
+    return name.startswith(("t_events_", "q_events_", "v_events_", "dense_", "member"))
 
 
 def _json_extras(ex) -> dict:
@@ -203,8 +211,20 @@ def _restore_extras(res: Result, extra: dict) -> None:
                 res.sol = CollocationDense(t, q, c, need("dense_V", (len(t) - 1, len(c), n), "stage velocities"), vg)
             else:
                 res.sol = HermiteDense(t, q, need("dense_v", (len(t), n), "dense output"))
-    elif ne or any(k.startswith("dense_") for k in extra):
-        raise InputError("events or dense output stored with an ensemble")
+    elif res.members is not None:       # an ensemble with its members (``_restore_members``)
+        from .result import batch_events_and_dense
+        used = 0
+        for j, member in enumerate(res.members):
+            pre = f"member{j}_"
+            sub = {k[len(pre):]: a for k, a in extra.items() if k.startswith(pre)}
+            used += len(sub)
+            _restore_extras(member, sub)
+        if used != len(extra):
+            raise InputError(f"{sorted(set(extra))[0][:40]}: not the events or dense output of a member")
+        events, res.sol = batch_events_and_dense(res.members)
+        res.t_events, res.q_events, res.v_events = events["t_events"], events["q_events"], events["v_events"]
+    elif extra:
+        raise InputError("events or dense output stored with an ensemble without its members")
 
 
 def _check_finite_arrays(result: Result) -> None:
@@ -249,7 +269,9 @@ def _check_writable(result: Result) -> dict:
             raise InputError(f"refusing to write a result whose {k} contains NaN, infinity or non-real values")
     # the reader's structural checks of events and dense output, on what is about to be written
     import types
-    probe = types.SimpleNamespace(q=np.asarray(result.q), t=result.t, members=result.members, sol=None)
+    def shell(r, members=None):    # what _restore_extras reads and sets, apart from ``r``
+        return types.SimpleNamespace(q=np.asarray(r.q), t=r.t, members=members, sol=None)
+    probe = shell(result, None if result.members is None else [shell(m) for m in result.members])
     try:
         _restore_extras(probe, extra)
     except InputError as exc:
@@ -347,6 +369,9 @@ def save_result(result: Result, path: Union[str, os.PathLike]) -> None:
         atomic_write_bytes(path, buf.getvalue())
         return
     h5py = _h5py()
+    if len(arrays) + 1 > MAX_H5_OBJECTS:     # the reader's bound: never write a file it refuses
+        raise InputError(f"cannot write {path}: {len(arrays) + 1} datasets (an ensemble's events and dense output, "
+                         f"5 a member), more than the {MAX_H5_OBJECTS} an .h5 result file may hold; write .npz")
     buf = io.BytesIO()
     try:
         _write_h5(h5py, buf, arrays, md)
@@ -429,10 +454,12 @@ def _check_metadata(md) -> dict:
     except InputError as exc:
         raise InputError(f"metadata: {exc}") from None
     st = md.get("status", 0)
-    if not (isinstance(st, int) and not isinstance(st, bool) and -3 <= st <= 1) and not (
-            isinstance(st, list) and st and all(isinstance(x, int) and not isinstance(x, bool) and -3 <= x <= 1
+    # every status a run can end with (``core.result``): STATUS_GUARD (-4) .. STATUS_EVENT (1)
+    lo, hi = STATUS_GUARD, STATUS_EVENT
+    if not (isinstance(st, int) and not isinstance(st, bool) and lo <= st <= hi) and not (
+            isinstance(st, list) and st and all(isinstance(x, int) and not isinstance(x, bool) and lo <= x <= hi
                                                 for x in st)):
-        raise InputError(f"metadata: status must be an integer in -3..1 (or a list of them), got {str(st)[:40]}")
+        raise InputError(f"metadata: status must be an integer in {lo}..{hi} (or a list of them), got {str(st)[:40]}")
     for key in ("stats", "params"):
         if md.get(key) is not None and not isinstance(md[key], dict):
             raise InputError(f"metadata: {key} must be a JSON object, got {type(md[key]).__name__}")
@@ -455,6 +482,10 @@ def _check_metadata(md) -> dict:
     if se is not None and (isinstance(se, bool) or not isinstance(se, int) or se < 1):
         raise InputError(f"metadata: save_every must be a positive integer, got {str(se)[:40]}")
     _check_names(md.get("coordinate_names"))
+    nv = md.get("n_valid")
+    if nv is not None and not (isinstance(nv, list) and nv and all(
+            isinstance(x, int) and not isinstance(x, bool) and x >= 1 for x in nv)):
+        raise InputError(f"metadata: n_valid must be a list of positive integers, got {str(nv)[:40]}")
     return md
 
 
@@ -521,7 +552,43 @@ def _build(md: dict, arrays: dict) -> Result:
     res.stats = md.get("stats", {}) or {}
     _check_names(md.get("coordinate_names"), n)
     res.coordinate_names = md.get("coordinate_names")
+    if isinstance(status, list) and md.get("n_valid") is not None:
+        _restore_members(res, md)
     return res
+
+
+def _restore_members(res: Result, md: dict) -> None:
+    """An ensemble's ``n_valid`` and ``members`` (``core.result.stack``) from its file: member j
+    is its first n_valid[j] rows (the rest repeat its last state), its status, message, counters,
+    stats and params; files of earlier versions (no ``n_valid``) keep ``members`` None."""
+    B, S = np.shape(res.t)
+    nv = md["n_valid"]
+    if len(nv) != B or max(nv) > S:
+        raise InputError(f"metadata: n_valid {str(nv)[:40]} does not match {B} members of {S} samples")
+    msgs = res.message
+    if not (isinstance(msgs, list) and len(msgs) == B and all(isinstance(x, str) for x in msgs)):
+        raise InputError(f"metadata: message must be a list of {B} strings for an ensemble")
+    counters = {}
+    for c in ("nfev", "njev", "nlu", "newton_iterations"):
+        a = np.asarray(getattr(res, c))
+        if a.shape != (B,):
+            raise InputError(f"metadata: {c} must be a list of {B} counts for an ensemble")
+        counters[c] = a
+
+    def per_member(d):
+        got = d.get("members") if isinstance(d, dict) else None
+        return got if isinstance(got, list) and len(got) == B and all(isinstance(x, dict) for x in got) \
+            else [{} for _ in range(B)]
+    stats, params = per_member(res.stats), per_member(res.params)
+    res.n_valid = np.array(nv, dtype=int)
+    res.members = [
+        Result(res.t[j, :k], res.q[j, :k], res.v[j, :k], res.energy[j, :k], res.constraint[j, :k],
+               None if res.psi is None else res.psi[j, :k - 1], int(res.status[j]), msgs[j],
+               *(int(counters[c][j]) for c in ("nfev", "njev", "nlu", "newton_iterations")),
+               method=res.method, system=res.system, scene=res.scene, engine=res.engine, h=res.h, dps=res.dps,
+               save_every=res.save_every, params=params[j], stats=stats[j],
+               coordinate_names=None if res.coordinate_names is None else list(res.coordinate_names))
+        for j, k in enumerate(nv)]
 
 
 def _refuse_bools(x, name: str) -> None:

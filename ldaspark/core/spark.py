@@ -25,7 +25,7 @@ import numpy as np
 
 from .backend import Backend, SingularMatrixError, fmt
 from .blocks import combine as _combine, stage_blocks as _stage_blocks
-from .errors import InputError, NewtonError, NonFiniteError, SingularSaddleError
+from .errors import InputError, NewtonError, NonFiniteError, NonFiniteStepError, SingularSaddleError
 from .system import LagrangianSystem
 from .tableau import SparkTableau
 
@@ -374,7 +374,10 @@ class SparkMethod:
                     renew = _budget_short(dn, prev, tol_abs, self.max_iter - it)
                 x = x_new
                 prev = dn
-            raise NewtonError(
+            # a NaN, infinite or complex residual or increment: not a slow iteration but a point
+            # outside the domain of L or k (or an overflow), status -3 as on the compiled engine
+            err = NewtonError if math.isfinite(res) else NonFiniteStepError
+            raise err(
                 f"Newton did not converge at step {step_index}, t = {float(t0):.6g}, h = {float(h):.3g}: "
                 f"residual {fmt(res)} after {it} iterations{why}", step=step_index, time=float(t0),
                 residual=res, iterations=it)

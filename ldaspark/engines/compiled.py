@@ -15,7 +15,7 @@ from typing import Optional
 
 import numpy as np
 
-from ..core.errors import InputError, LdasparkError, NewtonError
+from ..core.errors import InputError, LdasparkError, NewtonError, NonFiniteError
 from ..core.result import Result
 from ..core.tableau import SparkTableau
 from .base import Engine, Prepared
@@ -132,6 +132,8 @@ class CompiledEngine(Engine):
         try:
             SparkMethod(prepared.system, method, tol=prepared.opts.tol, newton=kind,
                         max_iter=root.iterations).step(tk, q, v, float(h), step_index=k)
+        except NonFiniteError as gen:   # outside the domain of L or k (a NewtonError too): it says why
+            return gen
         except NewtonError as gen:      # the root finder fails there on both engines: both said
             return NewtonError(f"Newton did not converge at step {k} (compiled engine, {_ran(prepared)}): {exc}; "
                                f"the generic engine's {kind} Newton step with the same root finder fails there too "

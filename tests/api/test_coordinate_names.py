@@ -31,3 +31,20 @@ def test_functions_of_time_are_printed_as_sympy_prints_them():
     t = sympy.Symbol("t")
     x = sympy.Function("x")(t)
     assert solve._coordinate_names(type("S", (), {"q": [x, sympy.Symbol("y")]})()) == ["x(t)", "y"]
+
+
+def test_an_ensemble_through_an_executor_names_its_coordinates_as_the_loop_does():
+    """The compiled initial-data ensemble through an executor (``solve._compiled_ensemble``) gave
+    coordinate_names None on the batched Result and on each member, the loop over single runs
+    ["x", "y"] (the same ensemble, the same numbers)."""
+    from concurrent.futures import ThreadPoolExecutor
+    osc = _oscillator(["x", "y"])
+    run = dict(q0=[[0.1, 0.2], [0.2, 0.1]], v0=[[0.3, 0.3], [0.1, 0.1]], t0=0.0, h=0.1, n_steps=2, guard=False)
+    loop = ldaspark.integrate(osc, "gauss-1", **run)
+    with ThreadPoolExecutor(2) as ex:
+        pool = ldaspark.integrate(osc, "gauss-1", executor=ex, **run)
+    assert pool.engine == loop.engine == "compiled" and (pool.q == loop.q).all()
+    assert loop.coordinate_names == pool.coordinate_names == ["x", "y"]
+    assert [m.coordinate_names for m in pool.members] == [["x", "y"]] * 2
+    for ens in (loop, pool):          # each Result its own list
+        assert len({id(ens.coordinate_names)} | {id(m.coordinate_names) for m in ens.members}) == 3

@@ -95,7 +95,7 @@ def _wall():
 def test_generic_failure_keeps_prefix():
     sysm = _wall()
     r = ldaspark.integrate(sysm, "gauss-2", t_span=(0, 3), q0=[0, 0, 0], v0=[1, 0, 0], h=0.05, engine="generic")
-    assert r.status == -1 and not r.success and "step 29" in r.message
+    assert r.status == -3 and not r.success and "step 29" in r.message
     assert len(r.t) == 30 and len(r.psi) == 29 and np.all(np.isfinite(r.q))
     ok = ldaspark.integrate(sysm, "gauss-2", n_steps=29, q0=[0, 0, 0], v0=[1, 0, 0], h=0.05, engine="generic")
     assert ok.success and np.array_equal(ok.q, r.q) and np.array_equal(ok.psi, r.psi)
@@ -104,6 +104,34 @@ def test_generic_failure_keeps_prefix():
                            raise_on_failure=True)
     with pytest.raises(NewtonError):
         r.raise_for_status()
+
+
+# the same walk into the domain boundary of L on every engine and comparator: the generic SPARK
+# step called it a Newton failure (status -1: "residual nan ... math domain error"), the compiled
+# kernels a non-finite value (status -3), and the semi-implicit comparators on the generic engine
+# let the raw ValueError "math domain error" of grad U out of integrate. Now every path ends at
+# the same step with status -3 (STATUS_OTHER: NaN, infinity or complex values, NonFiniteError)
+# and the trajectory up to the last good step.
+WALL_PATHS = [("gauss-2", "generic", {}), ("gauss-2", "generic", {"dps": 20}), ("gauss-2", "compiled", {}),
+              ("lobatto-iiia-iiib-2", "generic", {}), ("lobatto-iiia-iiib-2", "compiled", {}),
+              ("gauss-irk-2", "generic", {}), ("lobatto-iiia-iiib-2-modified", "generic", {}),
+              ("lobatto-iiia-iiib-2-modified", "compiled", {}), ("lobatto-iiia-iiib-2-leapfrog", "generic", {}),
+              ("lobatto-iiia-iiib-2-leapfrog", "generic", {"dps": 20}),
+              ("lobatto-iiia-iiib-2-leapfrog", "compiled", {}), ("lobatto-iiia-iiib-2-modified-leapfrog", "generic", {}),
+              ("mp-lobatto-iiib-a-2", "generic", {}), ("mp-lobatto-iiib-a-2", "compiled", {}),
+              ("euler-i-ii-composition", "generic", {})]
+
+
+@pytest.mark.parametrize("method, engine, kw", WALL_PATHS)
+def test_a_domain_failure_is_the_same_status_on_every_engine(method, engine, kw):
+    from ldaspark.core.errors import NonFiniteError
+    sysm = _wall()
+    run = dict(t_span=(0, 3), q0=[0, 0, 0], v0=[1, 0, 0], h=0.05, engine=engine, **kw)
+    r = ldaspark.integrate(sysm, method, **run)
+    assert r.status == -3 and "step 29" in r.message and len(r.t) == 30, (r.status, r.message)
+    assert isinstance(r.error, NonFiniteError) and np.all(np.isfinite(np.asarray(r.q, float)))
+    ok = ldaspark.integrate(sysm, method, **dict(run, t_span=None, n_steps=29))
+    assert ok.success and np.array_equal(np.asarray(ok.q, float), np.asarray(r.q, float))
 
 
 def test_compiled_failure_keeps_prefix():

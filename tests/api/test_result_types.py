@@ -62,3 +62,19 @@ def test_the_legacy_entry_points_fill_the_fields_by_name():
         assert isinstance(other.stats, dict) and np.shape(other.psi) == np.shape(res.psi) == (4, 2, 1)
         np.testing.assert_allclose(np.asarray(other.energy, float), res.energy, rtol=0, atol=1e-13)
     assert np.array_equal(fs.psi, res.psi)
+
+
+def test_raise_for_status_of_a_batch_without_members():
+    """A batched Result without its member Results (an ensemble file of an earlier version) raised
+    numpy's ValueError ("truth value of an array ... is ambiguous"); now the first failed member's
+    message as an LdasparkError, and nothing when every member succeeded."""
+    import pytest
+
+    from ldaspark.core.errors import LdasparkError
+    z = np.zeros((2, 3, 1))
+    bad = Result(np.zeros((2, 3)), z, z, np.zeros((2, 3)), z, status=np.array([0, -1]),
+                 message=["The integration reached t_end.", "Newton failed at step 2"])
+    with pytest.raises(LdasparkError, match="member 1: Newton failed at step 2"):
+        bad.raise_for_status()
+    good = dataclasses.replace(bad, status=np.array([0, 1]))
+    assert good.raise_for_status() is good

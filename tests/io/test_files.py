@@ -56,7 +56,8 @@ def test_json_nonfinite_numbers_are_refused(good, tmp_path, token):
 
 @pytest.mark.parametrize("change, match", [
     (dict(dps=100000000), "dps must be between"), (dict(dps=-5), "dps must be between"),
-    (dict(dps="30"), "dps"), (dict(status="ok"), "status"), (dict(save_every=0), "save_every"),
+    (dict(dps="30"), "dps"), (dict(status="ok"), "status"), (dict(status=-5), "status"), (dict(status=2), "status"),
+    (dict(save_every=0), "save_every"),
     (dict(q="abc"), "q"), (dict(t=[[0.0, 0.05]]), "t has shape"), (dict(energy=[1.0]), "energy has shape"),
     (dict(q=[[1e308 * 10]]), "."),
 ])

@@ -10,7 +10,7 @@ import pytest
 
 import ldaspark
 from ldaspark.cli import main
-from ldaspark.core.errors import InputError
+from ldaspark.core.errors import InputError, LdasparkError
 from ldaspark.core.resultio import load_result, save_result
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -72,6 +72,57 @@ def test_ensemble_npz(tmp_path):
     save_result(ens, tmp_path / "e.npz")
     back = load_result(tmp_path / "e.npz")
     assert back.q.shape == (2, 4, 3) and np.array_equal(back.q, ens.q) and list(back.status) == [0, 0]
+
+
+@pytest.mark.parametrize("ext", [".npz", ".h5"])
+def test_an_ensemble_with_a_failed_member_reads_back_as_saved(tmp_path, ext):
+    """An ensemble's file kept the padded arrays and statuses but not ``n_valid`` nor the members:
+    the loaded Result had batch None, n_valid None (the repeated rows after a failure looked like
+    valid samples) and its raise_for_status raised numpy's ValueError ("truth value of an array is
+    ambiguous") instead of the member's failure. Now n_valid is in the metadata and the members are
+    rebuilt from their valid rows."""
+    import sympy as sp
+    x, y, vx, vy = sp.symbols("x y vx vy")
+    # U = sqrt(x): the second member walks into x < 0 (a step failure), the first does not
+    root = ldaspark.LagrangianSystem((vx ** 2 + vy ** 2) / 2 - sp.sqrt(x), [vy - x * vx], [x, y], [vx, vy],
+                                     name="root")
+    ens = ldaspark.integrate(root, "gauss-2", t_span=(0, 2), h=0.1, q0=[[1.0, 0.0], [0.3, 0.0]],
+                             v0=[[0.1, 0.1], [-1.0, -0.3]], guard=False, engine="generic")
+    assert ens.status[0] == 0 and ens.status[1] < 0 and ens.n_valid[1] < ens.n_valid[0]
+    save_result(ens, tmp_path / f"e{ext}")
+    back = load_result(tmp_path / f"e{ext}")
+    assert back.batch == ens.batch == 2 and list(back.n_valid) == list(ens.n_valid)
+    for a, b in zip(ens.members, back.members):
+        assert (a.status, a.message, a.nfev, a.method, a.h) == (b.status, b.message, b.nfev, b.method, b.h)
+        for name in ("t", "q", "v", "energy", "constraint", "psi"):
+            assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    with pytest.raises(LdasparkError, match="step"):
+        back.raise_for_status()
+    ok = ldaspark.integrate("particle", "gauss-1", n_steps=3, h=0.1, q0=[[1, 0, 0], [2, 0, 0]],
+                            v0=[[0, 1, 0], [0, 2, 0]], engine="generic")
+    save_result(ok, tmp_path / f"ok{ext}")
+    assert load_result(tmp_path / f"ok{ext}").raise_for_status().success
+
+
+@pytest.mark.parametrize("ext", [".npz", ".h5"])
+def test_an_ensembles_events_and_dense_output_read_back(tmp_path, ext):
+    """save_result dropped an ensemble's events and dense output without a word (the loaded
+    Result had t_events [] and sol None, the saved one an event per member and an EnsembleDense);
+    now each member's are stored under member<j>_ and the batch's rebuilt from them."""
+    def down(t, q, v):
+        return q[0] + 0.1
+    down.direction = -1
+    ens = ldaspark.integrate("skate", "gauss-2", t_span=(0, 1), h=0.1, engine="generic", events=[down],
+                             q0=[[0, 0, 0], [0.05, 0, 0]], v0=[[0, 0, 1.0], [0, 0, 1.0]], dense_output=True)
+    assert [len(te) for te in ens.t_events[0]] == [1, 1] and ens.sol is not None
+    save_result(ens, tmp_path / f"e{ext}")
+    back = load_result(tmp_path / f"e{ext}")
+    for name in ("t_events", "q_events", "v_events"):
+        got, want = getattr(back, name), getattr(ens, name)
+        assert len(got) == len(want) == 1 and all(np.array_equal(a, b) for a, b in zip(got[0], want[0])), name
+    tt = np.linspace(0, 1, 13)
+    assert all(np.array_equal(a, b) for a, b in zip(ens.sol(tt), back.sol(tt)))
+    assert np.array_equal(back.members[1].t_events[0], ens.members[1].t_events[0])
 
 
 def test_cli_npz_engines_agree_and_every(tmp_path):

@@ -139,3 +139,29 @@ def test_restart_at_a_nonzero_time_continues_a_time_dependent_run(engine):
     wrong = ldaspark.integrate("rheonomic-skate", "gauss-2", t0=0.0, q0=full.q[2], v0=full.v[2], n_steps=2,
                                project=True, **kw)
     assert np.abs(wrong.q[-1] - full.q[-1]).max() > 1e-6
+
+
+# --- a run stopped by the step-acceptance guard (status -4, ``ldaspark.core.guard``): the file
+# save_result writes must read back (the reader accepted statuses -3..1 only, so every format
+# refused the file it had just written)
+@pytest.mark.parametrize("ext", FORMATS)
+def test_a_guard_stop_round_trips(tmp_path, ext):
+    import warnings
+
+    import sympy as sp
+
+    from ldaspark.core import guard
+    x, y, vx, vy = sp.symbols("x y vx vy")
+    # the double well of tests/core/test_guard.py: Newton from zero increments lands on another
+    # root of (21) at a later step
+    well = ldaspark.LagrangianSystem((vx ** 2 + vy ** 2) / 2 - (x ** 4 / 4 - x ** 2 / 2), [vy], [x, y], [vx, vy],
+                                     name="double-well")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = ldaspark.integrate(well, "gauss-1", engine="generic", newton=ldaspark.Newton(predictor="zero"), t0=0.0,
+                               q0=[1.2, 0.0], v0=[1.5, 0.0], h=2.5, n_steps=30)
+    assert r.status == guard.STATUS_GUARD, r.message
+    save_result(r, tmp_path / f"g{ext}")
+    back = load_result(tmp_path / f"g{ext}")
+    assert (back.status, back.message) == (r.status, r.message) and not back.success
+    assert np.array_equal(back.q, r.q)
