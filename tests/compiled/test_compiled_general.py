@@ -183,10 +183,10 @@ def test_nonfinite_run_stops_with_step_and_time(general):
 
 def test_a_domain_error_inside_newton_is_the_same_failure_on_both_engines():
     """L = -sqrt(1 - |v|^2) (relativistic, L_vv depending on v) with a strong potential: the step's
-    Newton iterates leave |V| < 1 at step 0. The generic engine stops with its NewtonError
-    (status -1, "evaluating L or k"); the compiled kernels' non-finite residual was a NonFiniteError
-    (status -3) that skipped the rescue by the generic full-Newton step (``compiled.rescue``): the
-    engines disagreed on the status of one failure. Now both say -1 at the same step."""
+    Newton iterates leave |V| < 1 at step 0. The compiled kernels' non-finite residual was a
+    NonFiniteError that skipped the rescue by the generic full-Newton step (``compiled.rescue``),
+    while the generic engine stopped with a NewtonError: the engines disagreed on the status of one
+    failure. Now both say NonFiniteStepError (status -3, docs/reliability.md) at the same step."""
     import ldaspark
     q, v = _qv()
     L = -sympy.sqrt(1 - v[0] ** 2 - v[1] ** 2 - v[2] ** 2) - 10 * (q[0] ** 2 + q[1] ** 2)
@@ -194,7 +194,7 @@ def test_a_domain_error_inside_newton_is_the_same_failure_on_both_engines():
     runs = {eng: ldaspark.integrate(system, "gauss-2", t_span=(0, 4), q0=[1.0, 0, 0], v0=[0, 0.3, 0], h=0.1,
                                     engine=eng) for eng in ("generic", "compiled")}
     gen, com = runs["generic"], runs["compiled"]
-    assert gen.status == -1 and "evaluating L or k" in gen.message, gen.message
+    assert gen.status == -3 and "evaluating L or k" in gen.message, gen.message
     assert (com.status, len(com.t)) == (gen.status, len(gen.t)), com.message
     assert "evaluating L or k" in com.message and np.isfinite(com.q).all()
 

@@ -26,11 +26,10 @@ def test_a_failing_member_keeps_the_others_through_an_executor():
     loop = _run()
     with ThreadPoolExecutor(2) as ex:
         pooled = _run(executor=ex)
-    # the member's domain error inside Newton (sqrt(x) at an iterate with x < 0) is the generic
-    # engine's NewtonError, status -1, on the compiled engine too (it said -3 before the kernels'
-    # NaN went down the rescue chain, ``compiled.rescue``)
+    # the member's domain error inside Newton (sqrt(x) at an iterate with x < 0) is the same
+    # NonFiniteStepError, status -3, as the member's single run on the generic engine
     alone = ldaspark.integrate(ROOT, "gauss-2", t_span=(0, 2), h=0.1, q0=Q[1], v0=V[1], guard=False, engine="generic")
-    assert list(loop.status) == list(pooled.status) == [0, alone.status] == [0, -1]
+    assert list(loop.status) == list(pooled.status) == [0, alone.status] == [0, -3]
     for r in range(2):
         np.testing.assert_array_equal(np.asarray(loop.q[r], float), np.asarray(pooled.q[r], float))
 
@@ -71,6 +70,6 @@ def test_an_executor_whose_map_returns_futures_gives_the_results():
     refused as "not Results"; now they are waited for. Control: objects that are neither Results nor
     futures are still one LdasparkError."""
     res = ldaspark.integrate(ROOT, "gauss-2", t_span=(0, 2), h=0.1, q0=Q, v0=V, executor=_FutureMap())
-    assert list(res.status) == [0, -1]           # the generic engine's status of that member (a NewtonError)
+    assert list(res.status) == [0, -3]           # the generic engine's status of that member (NonFiniteStepError)
     with pytest.raises(LdasparkError, match="not Results"):
         ldaspark.integrate(ROOT, "gauss-2", t_span=(0, 2), h=0.1, q0=Q, v0=V, executor=_FutureMap(wrap=False))
