@@ -49,3 +49,33 @@ def test_22b_detects_tiny_exact_perturbation(exact_method):
 def test_22_23_s6(name, exact_method):
     tab = exact_method(name)
     assert check_22a(tab) and check_22b(tab) and check_23(tab)
+
+
+# Each of (23a), (23b), (23c), (23d) decides on its own: a symmetric tableau with one entry of
+# exactly one of c, A, A_hat, A_tilde moved (by 1/7, exact) breaks (23) and nothing else of it.
+# Lobatto IIIA-B-D 3 has three different matrices, so no perturbation hides behind an equal one.
+@pytest.mark.parametrize("entry,i,j", [("c", 0, None), ("A", 0, 1), ("A_hat", 2, 0), ("A_tilde", 1, 2)])
+def test_23_each_condition_decides(entry, i, j, exact_method):
+    base = exact_method("lobatto-iiia-iiib-iiid-3")
+    assert check_23(base)
+    assert not check_23(base.with_entry(entry, i, j, "1/7")), entry
+    # two-sided: the moved entry's mirror moved by the opposite amount keeps (23) (the check is
+    # the printed pairing a_{s+1-i,s+1-j} + a_ij, c_{s+1-i} + c_i, not a stricter one)
+    s = base.s
+    ri, rj = s - 1 - i, (None if j is None else s - 1 - j)
+    pair = base.with_entry(entry, i, j, "1/7").with_entry(entry, ri, rj, "-1/7")
+    assert check_23(pair), entry
+
+
+def _one_stage(b_hat, a_hat):
+    from ldaspark.core.tableau_file import from_json_dict
+    return from_json_dict({"c": ["1/2"], "A": [["1/2"]], "A_hat": [[a_hat]], "A_tilde": [["1/2"]],
+                           "b": ["1"], "b_hat": [b_hat], "b_tilde": ["1"]}, name="b_hat-control")
+
+
+def test_22b_uses_b_hat_where_printed():
+    # (22b) b^_i a_ij + b_j a^_ji - b^_i b_j = 0 with a = 1/2, b = 1: a^ = b^/2. With b^ = 2,
+    # a^ = 1 satisfies (22b) (not (22a)); a^ = 1/2 satisfies the b^ -> b variant b_i a_ij +
+    # b_j a^_ji - b_i b_j = 0 but not (22b). Decides whether b_hat enters where the paper has it.
+    assert check_22b(_one_stage("2", "1")) and not check_22a(_one_stage("2", "1"))
+    assert not check_22b(_one_stage("2", "1/2"))
