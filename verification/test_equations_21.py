@@ -105,10 +105,11 @@ def test_ivp_step_solves_21_as_printed(name):
             assert residual_21(sysm, tab, t0, q0, v0, h, r.V, r.Psi, r.q1, r.v1, swap=True) > 1e-6
 
 
-def test_boundary_value_solve_solves_21_as_printed():
+@pytest.mark.parametrize("name", ["general-2", "general-2-bhat"])
+def test_boundary_value_solve_solves_21_as_printed(name):
     """Theorem 1's implicit functions of (t0, q0, t1, q1): the BVP solution, with q1 moved off
     the IVP endpoint (v0 is then an output), satisfies (21a-f) with p0 = grad_v L(t0, q0, v0)."""
-    sysm, tab = _system(), _tableau("general-2")
+    sysm, tab = _system(), _tableau(name)
     bk = Backend(DPS)
     t0, q0, v0 = rheonomic_initial(DPS)
     with bk.context():
@@ -154,9 +155,11 @@ def test_newton_matrix_is_the_derivative_of_21(name):
         assert _rel(Jbad, fd) > 1e-4
 
 
-def test_boundary_value_sensitivities_are_derivatives():
-    """dG/dx, dG/dq0 and dG/dq1 of the BVP residual (they give dV/dq in f_d^{+/-})."""
-    sysm, tab = _system(), _tableau("general-2")
+@pytest.mark.parametrize("name", ["general-2", "general-2-bhat"])
+def test_boundary_value_sensitivities_are_derivatives(name):
+    """dG/dx, dG/dq0 and dG/dq1 of the BVP residual (they give dV/dq in f_d^{+/-}); b_hat != b
+    too, so that b_hat's rows of dG/dq0 are seen."""
+    sysm, tab = _system(), _tableau(name)
     bk = Backend(DPS)
     t0, q0, v0 = rheonomic_initial(DPS)
     bvp = DiscreteBVP(sysm, tab, DPS)
