@@ -124,6 +124,29 @@ def test_boundary_value_solve_solves_21_as_printed(name):
                            res.v1) > 1e-6
 
 
+@pytest.mark.parametrize("name", ["general-2", "lobatto-iiia-iiib-iiid-3"])
+def test_discrete_lagrangian_13_as_printed(name):
+    """The L_d that ``discrete_lagrangian`` returns (the value reported by symmetry-Ld, the
+    variational order and the ledger; Theorem 1's finite differences use another function) is
+    (13) as printed: h sum b_i L(t0 + c_i h, q0 + h sum_j a_ij V_j, V_i), with L from sympy here.
+    The system has L_t != 0 at t0 = 3/10, so a time argument is visible (the paper's scenes and
+    the rheonomic skate at t0 = 0, where L_t = 0, hide it). Control: L at t0 misses by > 1e-6."""
+    sysm, tab = _system(), _tableau(name)
+    bk = Backend(DPS)
+    t0, q0, v0 = rheonomic_initial(DPS)
+    Lfn = sympy.lambdify([sysm.t] + list(sysm.q) + list(sysm.v), sysm.L, modules="mpmath")
+    with bk.context():
+        t1, q1, xg = base_point(sysm, tab, t0, q0, v0, H, DPS)
+        t0, q0 = bk.scalar(t0), bk.array(q0)
+        res = discrete_lagrangian(sysm, tab, t0, q0, t1, q1, dps=DPS, x_guess=xg)
+        a, h, s = tab.arrays(DPS), t1 - t0, tab.s
+        Q = [q0 + h * sum(a.A[i, j] * res.V[j] for j in range(s)) for i in range(s)]
+        L_d = lambda time: h * sum(a.b[i] * Lfn(time(i), *Q[i], *res.V[i]) for i in range(s))
+        printed = L_d(lambda i: t0 + a.c[i] * h)
+        assert abs(res.L_d - printed) <= TOL * max(abs(printed), 1), (res.L_d, printed)
+        assert abs(res.L_d - L_d(lambda i: t0)) > 1e-6                 # negative control
+
+
 def _fd_columns(fun, x, delta):
     cols = []
     for k in range(len(x)):
