@@ -147,6 +147,39 @@ def test_discrete_lagrangian_13_as_printed(name):
         assert abs(res.L_d - L_d(lambda i: t0)) > 1e-6                 # negative control
 
 
+@pytest.mark.parametrize("name", ["euler-i", "euler-ii"])
+def test_section7_euler_methods_as_printed_for_general_L(name):
+    """7.1, 7.2 for a general L(t, q, v), k(t, q, v) (the rheonomic system here): Euler I is
+    q1 = q0 + h V1, P1 = p0 + h (F1 + R1), p1 = P1, 0 = k(t1, q1, v1) with P1, F1, R1 at
+    (t0, q0, V1); Euler II is q1 = q0 + h V1, P1 = p0, p1 = p0 + h (F1 + R1), 0 = k(t1, q1, v1)
+    with P1, F1, R1 at (t1, q1, V1). The time argument is visible only here (test_section7's
+    systems are autonomous): a node c of Euler I / II moved to the other end passes every other
+    check (planted). Control: the other end's time misses by > 1e-6."""
+    sysm, tab, bk, t0, q0, v0, h, r = _ivp(name)
+    f = _independent(sysm)
+    n, m = sysm.n, sysm.m
+    ev = lambda nm, t, q, v: np.array(f[nm](t, *q, *v), dtype=object)
+    V1, Psi1 = r.V[0], r.Psi[0]
+
+    def residual(tq):
+        tt, qq = tq
+        P1, F1 = ev("Lv", tt, qq, V1), ev("Lq", tt, qq, V1)
+        R1 = -ev("kv", tt, qq, V1).reshape(m, n).T.dot(Psi1)
+        res = list(r.q1 - q0 - h * V1) + list(ev("k", t1, r.q1, r.v1))
+        if name == "euler-i":
+            res += list(P1 - p0 - h * (F1 + R1)) + list(p1 - P1)
+        else:
+            res += list(P1 - p0) + list(p1 - p0 - h * (F1 + R1))
+        return max(abs(x) for x in res)
+
+    with bk.context():                                  # DPS digits for every operation
+        t1 = t0 + h
+        p0, p1 = ev("Lv", t0, q0, v0), ev("Lv", t1, r.q1, r.v1)
+        own, other = ((t0, q0), (t1, q0)) if name == "euler-i" else ((t1, r.q1), (t0, r.q1))
+        assert residual(own) <= TOL
+        assert residual(other) > 1e-6                               # negative control
+
+
 def _fd_columns(fun, x, delta):
     cols = []
     for k in range(len(x)):
