@@ -6,7 +6,8 @@ directly from the printed equations with L and k differentiated by sympy in this
 digits, on the solutions the library returns: the IVP step and the boundary-value solve of
 Theorem 1. The system has explicit time in L and k, gyroscopic terms, and a constraint nonlinear
 in v with K(t, q, v); the tableau has c != b, A_hat != A_tilde, b_tilde != b_hat and an omega
-that is not b_j c_j^(i-1), so every coefficient and every argument of (21) is visible.
+that is not b_j c_j^(i-1), and a variant with b_hat != b (the IVP step only: (21) does not need
+(22)), so every coefficient and every argument of (21) is visible.
 
 Also: the Newton matrix and the boundary-value sensitivities dG/dx, dG/dq0, dG/dq1 against
 central differences of the residual (a Jacobian error would only slow Newton down, but it
@@ -37,6 +38,9 @@ def _system():
 
 @functools.lru_cache(maxsize=None)
 def _tableau(name):
+    if name == "general-2-bhat":
+        # b_hat != b (breaks (22a), not (21)): b_hat of (21d) and b of (21c) become distinguishable
+        return general_tableau().with_entry("b_hat", 0, None, "1/10")
     return general_tableau() if name == "general-2" else get_method(name, exact=True)
 
 
@@ -91,7 +95,7 @@ def _ivp(name):
     return sysm, tab, bk, t0, q0, v0, h, r
 
 
-@pytest.mark.parametrize("name", ["general-2", "gauss-3", "lobatto-iiia-iiib-iiid-3"])
+@pytest.mark.parametrize("name", ["general-2", "general-2-bhat", "gauss-3", "lobatto-iiia-iiib-iiid-3"])
 def test_ivp_step_solves_21_as_printed(name):
     sysm, tab, bk, t0, q0, v0, h, r = _ivp(name)
     with bk.context():
@@ -101,10 +105,11 @@ def test_ivp_step_solves_21_as_printed(name):
             assert residual_21(sysm, tab, t0, q0, v0, h, r.V, r.Psi, r.q1, r.v1, swap=True) > 1e-6
 
 
-def test_boundary_value_solve_solves_21_as_printed():
+@pytest.mark.parametrize("name", ["general-2", "general-2-bhat"])
+def test_boundary_value_solve_solves_21_as_printed(name):
     """Theorem 1's implicit functions of (t0, q0, t1, q1): the BVP solution, with q1 moved off
     the IVP endpoint (v0 is then an output), satisfies (21a-f) with p0 = grad_v L(t0, q0, v0)."""
-    sysm, tab = _system(), _tableau("general-2")
+    sysm, tab = _system(), _tableau(name)
     bk = Backend(DPS)
     t0, q0, v0 = rheonomic_initial(DPS)
     with bk.context():
@@ -117,6 +122,62 @@ def test_boundary_value_solve_solves_21_as_printed():
         # negative control: the IVP's v0 is not the BVP's once q1 is moved
         assert residual_21(sysm, tab, bk.scalar(t0), bk.array(q0), bk.array(v0), h, res.V, res.Psi, q1,
                            res.v1) > 1e-6
+
+
+@pytest.mark.parametrize("name", ["general-2", "lobatto-iiia-iiib-iiid-3"])
+def test_discrete_lagrangian_13_as_printed(name):
+    """The L_d that ``discrete_lagrangian`` returns (the value reported by symmetry-Ld, the
+    variational order and the ledger; Theorem 1's finite differences use another function) is
+    (13) as printed: h sum b_i L(t0 + c_i h, q0 + h sum_j a_ij V_j, V_i), with L from sympy here.
+    The system has L_t != 0 at t0 = 3/10, so a time argument is visible (the paper's scenes and
+    the rheonomic skate at t0 = 0, where L_t = 0, hide it). Control: L at t0 misses by > 1e-6."""
+    sysm, tab = _system(), _tableau(name)
+    bk = Backend(DPS)
+    t0, q0, v0 = rheonomic_initial(DPS)
+    Lfn = sympy.lambdify([sysm.t] + list(sysm.q) + list(sysm.v), sysm.L, modules="mpmath")
+    with bk.context():
+        t1, q1, xg = base_point(sysm, tab, t0, q0, v0, H, DPS)
+        t0, q0 = bk.scalar(t0), bk.array(q0)
+        res = discrete_lagrangian(sysm, tab, t0, q0, t1, q1, dps=DPS, x_guess=xg)
+        a, h, s = tab.arrays(DPS), t1 - t0, tab.s
+        Q = [q0 + h * sum(a.A[i, j] * res.V[j] for j in range(s)) for i in range(s)]
+        L_d = lambda time: h * sum(a.b[i] * Lfn(time(i), *Q[i], *res.V[i]) for i in range(s))
+        printed = L_d(lambda i: t0 + a.c[i] * h)
+        assert abs(res.L_d - printed) <= TOL * max(abs(printed), 1), (res.L_d, printed)
+        assert abs(res.L_d - L_d(lambda i: t0)) > 1e-6                 # negative control
+
+
+@pytest.mark.parametrize("name", ["euler-i", "euler-ii"])
+def test_section7_euler_methods_as_printed_for_general_L(name):
+    """7.1, 7.2 for a general L(t, q, v), k(t, q, v) (the rheonomic system here): Euler I is
+    q1 = q0 + h V1, P1 = p0 + h (F1 + R1), p1 = P1, 0 = k(t1, q1, v1) with P1, F1, R1 at
+    (t0, q0, V1); Euler II is q1 = q0 + h V1, P1 = p0, p1 = p0 + h (F1 + R1), 0 = k(t1, q1, v1)
+    with P1, F1, R1 at (t1, q1, V1). The time argument is visible only here (test_section7's
+    systems are autonomous): a node c of Euler I / II moved to the other end passes every other
+    check (planted). Control: the other end's time misses by > 1e-6."""
+    sysm, tab, bk, t0, q0, v0, h, r = _ivp(name)
+    f = _independent(sysm)
+    n, m = sysm.n, sysm.m
+    ev = lambda nm, t, q, v: np.array(f[nm](t, *q, *v), dtype=object)
+    V1, Psi1 = r.V[0], r.Psi[0]
+
+    def residual(tq):
+        tt, qq = tq
+        P1, F1 = ev("Lv", tt, qq, V1), ev("Lq", tt, qq, V1)
+        R1 = -ev("kv", tt, qq, V1).reshape(m, n).T.dot(Psi1)
+        res = list(r.q1 - q0 - h * V1) + list(ev("k", t1, r.q1, r.v1))
+        if name == "euler-i":
+            res += list(P1 - p0 - h * (F1 + R1)) + list(p1 - P1)
+        else:
+            res += list(P1 - p0) + list(p1 - p0 - h * (F1 + R1))
+        return max(abs(x) for x in res)
+
+    with bk.context():                                  # DPS digits for every operation
+        t1 = t0 + h
+        p0, p1 = ev("Lv", t0, q0, v0), ev("Lv", t1, r.q1, r.v1)
+        own, other = ((t0, q0), (t1, q0)) if name == "euler-i" else ((t1, r.q1), (t0, r.q1))
+        assert residual(own) <= TOL
+        assert residual(other) > 1e-6                               # negative control
 
 
 def _fd_columns(fun, x, delta):
@@ -150,9 +211,11 @@ def test_newton_matrix_is_the_derivative_of_21(name):
         assert _rel(Jbad, fd) > 1e-4
 
 
-def test_boundary_value_sensitivities_are_derivatives():
-    """dG/dx, dG/dq0 and dG/dq1 of the BVP residual (they give dV/dq in f_d^{+/-})."""
-    sysm, tab = _system(), _tableau("general-2")
+@pytest.mark.parametrize("name", ["general-2", "general-2-bhat"])
+def test_boundary_value_sensitivities_are_derivatives(name):
+    """dG/dx, dG/dq0 and dG/dq1 of the BVP residual (they give dV/dq in f_d^{+/-}); b_hat != b
+    too, so that b_hat's rows of dG/dq0 are seen."""
+    sysm, tab = _system(), _tableau(name)
     bk = Backend(DPS)
     t0, q0, v0 = rheonomic_initial(DPS)
     bvp = DiscreteBVP(sysm, tab, DPS)

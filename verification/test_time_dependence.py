@@ -116,3 +116,34 @@ def test_order_2s_against_the_ode_reference():
     for errs in (eq, ev):
         est = estimate_order(hs, errs, floor_for(None, 1.0))
         assert est.observed_order is not None and abs(est.observed_order - 4) < 0.3, errs
+
+
+@pytest.mark.parametrize("engine", ["integrate", "solve"])
+def test_reported_energy_8_and_k_at_the_step_times(engine):
+    """The energy (8) and k that a run reports at (t_n, q_n, v_n) are E(t_n, q_n, v_n) and
+    k(t_n, q_n, v_n), with E = L_v v - L and k from sympy here: on this system E depends on t
+    (through -(1 + t/5)(x^2 + y^2)/2), so a time argument other than t_n is visible. Both entry
+    points (``integrate`` of core.spark and ``ldaspark.integrate``) are checked. Tolerance:
+    float64 evaluations of the same expressions, 1e3 eps relative to max(1, |E|).
+    Control: E at t0 instead of t_n misses by > 1e-3."""
+    s = _system()
+    t, q, v = s.t, list(s.q), list(s.v)
+    E = sum(sympy.diff(s.L, x) * x for x in v) - s.L
+    Ef = sympy.lambdify([t] + q + v, E, modules="math")
+    kf = sympy.lambdify([t] + q + v, s.k[0], modules="math")
+    f0, fq, fv = rheonomic_initial(None)
+    if engine == "integrate":
+        sol = integrate(s, get_method("gauss-2"), f0, fq, fv, 0.1, n_steps=6)
+        ts, qs, vs, Es, ks = sol.t, sol.q, sol.v, sol.energy, sol.constraint
+    else:
+        import ldaspark
+        res = ldaspark.integrate(s, "gauss-2", t0=f0, q0=fq, v0=fv, h=0.1, n_steps=6, engine="generic")
+        ts, qs, vs, Es, ks = res.t, res.q, res.v, res.energy, res.constraint
+    eps = np.finfo(float).eps
+    for i in range(len(ts)):
+        e_ind = Ef(float(ts[i]), *map(float, qs[i]), *map(float, vs[i]))
+        assert abs(float(Es[i]) - e_ind) <= 1e3 * eps * max(1.0, abs(e_ind)), (i, Es[i], e_ind)
+        k_ind = kf(float(ts[i]), *map(float, qs[i]), *map(float, vs[i]))
+        assert abs(float(np.ravel(ks[i])[0]) - k_ind) <= 1e3 * eps, (i, ks[i], k_ind)
+    last = Ef(float(ts[0]), *map(float, qs[-1]), *map(float, vs[-1]))
+    assert abs(float(Es[-1]) - last) > 1e-3                       # negative control
