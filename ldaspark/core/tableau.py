@@ -362,15 +362,24 @@ class SparkTableau:
 
     # --- JSON ----------------------------------------------------------------------
     def to_json_dict(self, dps: int = 40) -> dict:
-        """Entries as exact strings when exact, else decimal strings with ``dps`` digits."""
+        """Entries as exact strings when exact, else decimal strings with ``dps`` significant
+        digits each (trailing zeros kept: a reader takes a literal as known to the digits it
+        shows), ``dps`` an integer in 1..DPS_MAX."""
+        from . import validate
+        dps = validate.count(dps, "dps", 1, validate.DPS_MAX)
         out = {"name": self.name}
         if self.exact is not None:
             for k, M in self.exact.items():
                 out[k] = _matrix_to_json(M, k, str)
         else:
-            ent = self.mp_entries(dps)
-            for k, v in ent.items():
-                out[k] = _map_nested(v, lambda x: mpmath.nstr(x, dps))
+            # every literal with dps significant digits (trailing zeros kept): a reader takes a
+            # literal as known to its digits (numbers.literal_radius), and "0.5" for a computed 1/2
+            # read back as known to +-0.05; computed 10 digits beyond, so that the written digits
+            # are the correctly rounded ones (half a unit in the last), not a double rounding
+            ent = self.mp_entries(dps + 10)
+            with mpmath.workdps(dps + 10):
+                for k, v in ent.items():
+                    out[k] = _map_nested(v, lambda x: mpmath.nstr(x, dps, strip_zeros=False))
         return out
 
     def save(self, path, dps: int = 40) -> None:

@@ -7,7 +7,7 @@ import pytest
 import sympy
 from sympy import Rational as R, sqrt
 
-from ldaspark.core.errors import TableauError
+from ldaspark.core.errors import LdasparkError, TableauError
 from ldaspark.core.tableau_file import from_json_dict, load_tableau
 from ldaspark.core.families import (euler_i, euler_ii, gauss, get_method, lobatto_coefficients, lobatto_iiia_iiib,
                                    lobatto_iiia_iiib_iiid)
@@ -145,6 +145,43 @@ def test_json_roundtrip_exact(tmp_path):
     assert t2.is_exact
     assert same(t2.exact["A"], t.exact["A"].tolist())
 
+
+
+@pytest.mark.parametrize("make, dps", [(lambda: gauss(1), 40), (lambda: lobatto_iiia_iiib(2), 40),
+                                       (lambda: lobatto_iiia_iiib_iiid(3), 25)])
+def test_json_roundtrip_computed_keeps_digits(tmp_path, make, dps):
+    """A computed tableau saved at dps digits is read back as known to dps digits: entries that are
+    short in binary (0.5, 1) were written "0.5", "1.0", and the reloaded gauss-1 was "known to 2
+    digits" (the audit's convergence check undecided, (22b) to +-0.16)."""
+    t = make()
+    p = tmp_path / "t.json"
+    t.save(p, dps=dps)
+    u = load_tableau(p)
+    assert u.precision_kind() == "decimal" and u.decimal_digits == dps
+    with mpmath.workdps(dps + 20):
+        ref = t.mp_entries(dps + 20)
+        for k, v in u.ball_entries(dps + 20).items():
+            for x, y in zip(_flat(v), _flat(ref[k])):
+                # a ball of half a unit in the dps-th digit that holds the computed value
+                assert float(x.rad()) <= 0.501 * 10.0 ** (1 - dps) * max(abs(float(y)), 1e-300) or y == 0
+                assert x.contains(flint_arb(y)), (k, x, y)
+
+
+@pytest.mark.parametrize("dps", ["40", 1.5, True, 0, -3, 10 ** 6])
+def test_to_json_dict_refuses_bad_dps(dps):
+    """dps="40" was a TypeError, 1.5 an IndexError-like TypeError, 0 and -3 wrote nonsense."""
+    with pytest.raises(LdasparkError, match="dps must be an integer"):
+        gauss(2).to_json_dict(dps)
+
+
+def _flat(v):
+    return [z for x in v for z in _flat(x)] if isinstance(v, list) else [v]
+
+
+def flint_arb(y):
+    import flint
+    with flint.ctx.workprec(int(mpmath.mp.dps * 3.33) + 16):
+        return flint.arb(mpmath.nstr(y, mpmath.mp.dps))
 
 def test_json_float_entries_not_exact():
     t = from_json_dict({"c": [0.5], "A": [[0.5]], "A_hat": [[0.5]], "A_tilde": [[0.5]], "b": [1.0],
