@@ -328,18 +328,22 @@ class SparkTableau:
     def with_entry(self, name: str, i: int, j: int | None, delta) -> "SparkTableau":
         """A copy with one entry changed by ``delta`` (negative controls)."""
         self._check_entry_change(name, i, j, delta)
+        # one sympy number for both kinds of tableau, read before anything is built (a computed
+        # tableau added mpmath.mpf(delta) in its builder: "sqrt(2)/1000", a Fraction or a NumPy
+        # scalar were accepted here and raised ValueError / TypeError at the first arrays())
+        if isinstance(delta, str):              # text is parsed (bounded), never nsimplify'd or evaluated
+            d = parse_exact_string(delta, f"delta of {name}")
+        else:
+            d = sympy.nsimplify(delta)
         if self.exact is not None:
-            if isinstance(delta, str):          # text is parsed (bounded), never nsimplify'd or evaluated
-                delta = parse_exact_string(delta, f"delta of {name}")
             ex = {k: sympy.Matrix(v) for k, v in self.exact.items()}
             if j is None:
-                ex[name][i, 0] += sympy.nsimplify(delta)
+                ex[name][i, 0] += d
             else:
-                ex[name][i, j] += sympy.nsimplify(delta)
+                ex[name][i, j] += d
             src = None
             if self.sources is not None:
                 src = {k: [list(r) if isinstance(r, list) else r for r in v] for k, v in self.sources.items()}
-                d = sympy.nsimplify(delta)
                 if j is None:
                     src[name][i] = (src[name][i], d)
                 else:
@@ -352,10 +356,11 @@ class SparkTableau:
 
         def builder(dps, base=base):
             ent = {k: [list(r) if isinstance(r, list) else r for r in v] for k, v in base(dps).items()}
+            dm = _sympy_to_mp(sympy.Matrix([[d]]), dps)[0][0]      # d at the builder's digits
             if j is None:
-                ent[name][i] = ent[name][i] + mpmath.mpf(delta)
+                ent[name][i] = ent[name][i] + dm
             else:
-                ent[name][i][j] = ent[name][i][j] + mpmath.mpf(delta)
+                ent[name][i][j] = ent[name][i][j] + dm
             return ent
         return SparkTableau(f"{self.name}+d{name}[{i},{j}]", self.s, builder=builder,
                             source_digits=self.source_digits, family="perturbed")
