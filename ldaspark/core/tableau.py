@@ -148,6 +148,39 @@ class SparkTableau:
                     raise TableauError(f"{self.name}: exact[{k!r}] must be a sympy Matrix of shape {want[k]}, "
                                        f"got {type(self.exact[k]).__name__} {shape}")
 
+    def _built(self, dps: int) -> dict:
+        """``builder(dps)``, checked as ``exact`` is in ``__post_init__``: a dict with every name of
+        NAMES, vectors of s numbers (flat or s x 1), A, A_hat, A_tilde s x s, omega (s-1) x s, each
+        entry a finite real number (an exported class: a builder of another shape was a numpy
+        reshape ValueError, one returning NaN a NaN trajectory)."""
+        raw = self.builder(dps)
+        s = self.s
+        if not isinstance(raw, dict) or set(NAMES) - set(raw):
+            raise TableauError(f"{self.name}: builder(dps) must return a dict with the keys {', '.join(NAMES)}, "
+                               f"got {type(raw).__name__}")
+        for k in NAMES:
+            v = raw[k]
+            rows = s if k != "omega" else s - 1
+            if k in VECTOR_NAMES:
+                ok = isinstance(v, list) and len(v) == s and all(
+                    not isinstance(x, list) or len(x) == 1 for x in v)
+                leaves = [x[0] if isinstance(x, list) else x for x in v] if ok else []
+            else:
+                ok = isinstance(v, list) and len(v) == rows and all(isinstance(r, list) and len(r) == s for r in v)
+                leaves = [x for r in v for x in r] if ok else []
+            if not ok:
+                want = f"a list of {s} numbers" if k in VECTOR_NAMES else f"a {rows} x {s} list of lists"
+                raise TableauError(f"{self.name}: builder(dps)[{k!r}] must be {want}")
+            for x in leaves:
+                try:
+                    good = not isinstance(x, (bool, str)) and mpmath.isfinite(mpmath.mpf(x))
+                except (TypeError, ValueError):
+                    good = False
+                if not good:
+                    raise TableauError(f"{self.name}: builder(dps)[{k!r}] has the entry {str(x)[:40]!r}, "
+                                       "not a finite real number")
+        return raw
+
     # --- numeric views ---------------------------------------------------------------
     def mp_entries(self, dps: int) -> dict:
         """Entries as nested lists of mpf, correct to ``dps`` digits (or to the input
@@ -156,7 +189,7 @@ class SparkTableau:
         if key not in self._cache:
             if self.builder is not None:
                 with mpmath.workdps(dps):
-                    raw = self.builder(dps)
+                    raw = self._built(dps)
             else:
                 with mpmath.workdps(dps + 10):
                     raw = {k: _sympy_to_mp(v, dps) for k, v in self.exact.items()}
@@ -291,7 +324,7 @@ class SparkTableau:
                            for k, M in self.exact.items()}
                 else:
                     with mpmath.workdps(digits + 10):
-                        raw = self.builder(digits + 10)
+                        raw = self._built(digits + 10)
                     rad = flint.arb(10) ** (-digits + 5)
                     ball = lambda x: flint.arb(_mpf_to_fmpq(x)) + flint.arb(0, rad * max(1, abs(float(x))))
                     out = {k: _map_nested(v, ball) for k, v in raw.items()}
@@ -304,7 +337,7 @@ class SparkTableau:
         """``with_entry``'s arguments: a coefficient of the tableau, indices in its range (no
         negative ones: they would silently wrap to the last entry), a finite real delta."""
         from . import validate
-        ent = self.exact if self.exact is not None else (self.builder(16) if self.builder is not None else None)
+        ent = self.exact if self.exact is not None else (self._built(16) if self.builder is not None else None)
         if not isinstance(name, str) or ent is None or name not in ent:
             raise TableauError(f"with_entry: name must be one of {', '.join(sorted(ent or {}))}, got "
                                f"{validate._describe(name)}")

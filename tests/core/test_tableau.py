@@ -7,7 +7,9 @@ import pytest
 import sympy
 from sympy import Rational as R, sqrt
 
+import ldaspark
 from ldaspark.core.errors import LdasparkError, TableauError
+from ldaspark.core.tableau import SparkTableau
 from ldaspark.core.tableau_file import from_json_dict, load_tableau
 from ldaspark.core.families import (euler_i, euler_ii, gauss, get_method, lobatto_coefficients, lobatto_iiia_iiib,
                                    lobatto_iiia_iiib_iiid)
@@ -253,3 +255,42 @@ def test_with_entry_copies_are_independent_of_the_source(exact):
     assert abs(np.array(d2.arrays(None).b_hat, float)[0] - b0[0] - 0.1) < 1e-15
     if exact:                                                                  # and the exact entries
         assert src.exact["A_hat"] == get_method("gauss-2", exact=True).exact["A_hat"]
+
+
+# --- a builder given directly: its entries are checked as exact ones are ------------------------
+def _half_builder(s, **change):
+    def builder(dps):
+        h = mpmath.mpf(1) / 2
+        ent = {k: [[h] * s for _ in range(s)] if k.startswith("A") else [h] * s
+               for k in ("c", "A", "A_hat", "A_tilde", "b", "b_hat", "b_tilde")}
+        ent["omega"] = [[h] * s for _ in range(s - 1)]
+        ent.update(change)
+        return ent
+    return builder
+
+
+@pytest.mark.parametrize("change, msg", [
+    ({"c": [0.5]}, "list of 2 numbers"),                         # was a numpy reshape ValueError
+    ({"A": [[0.5, 0.5, 0.5]] * 3}, "2 x 2 list"),
+    ({"omega": [[0.5, 0.5]] * 2}, "1 x 2 list"),
+    ({"b": [float("nan"), 0.5]}, "not a finite real"),           # was a NaN trajectory
+    ({"A_hat": [["x", 0.5], [0.5, 0.5]]}, "not a finite real"),
+    ({"b_tilde": [True, 0.5]}, "not a finite real"),
+])
+def test_builder_entries_checked(change, msg):
+    bad = SparkTableau("direct", 2, builder=_half_builder(2, **change))
+    with pytest.raises(TableauError, match=msg):
+        bad.arrays()
+    with pytest.raises(TableauError, match=msg):
+        bad.arrays(30)
+    with pytest.raises(TableauError, match=msg):
+        ldaspark.integrate("skate", bad, t_span=(0, 0.1), h=0.1, engine="generic")
+    # valid neighbour: the same builder unchanged, and vectors given as s x 1 lists
+    assert SparkTableau("ok", 2, builder=_half_builder(2)).arrays().A.shape == (2, 2)
+    col = SparkTableau("col", 2, builder=_half_builder(2, c=[[0.25], [0.75]])).arrays()
+    assert list(col.c) == [0.25, 0.75]
+
+
+def test_builder_not_a_dict():
+    with pytest.raises(TableauError, match="must return a dict"):
+        SparkTableau("direct", 1, builder=lambda dps: 5).arrays()
