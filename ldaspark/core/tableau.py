@@ -385,17 +385,7 @@ class SparkTableau:
                                 source_digits=self.source_digits, claimed_order=None, family="perturbed",
                                 sources=src, decimal_digits=self.decimal_digits,
                                 decimal_digits_min=self.decimal_digits_min, decimal_places=self.decimal_places)
-        base = self.builder
-
-        def builder(dps, base=base):
-            ent = {k: [list(r) if isinstance(r, list) else r for r in v] for k, v in base(dps).items()}
-            dm = _sympy_to_mp(sympy.Matrix([[d]]), dps)[0][0]      # d at the builder's digits
-            if j is None:
-                ent[name][i] = ent[name][i] + dm
-            else:
-                ent[name][i][j] = ent[name][i][j] + dm
-            return ent
-        return SparkTableau(f"{self.name}+d{name}[{i},{j}]", self.s, builder=builder,
+        return SparkTableau(f"{self.name}+d{name}[{i},{j}]", self.s, builder=_PerturbedBuilder(self.builder, name, i, j, d),
                             source_digits=self.source_digits, family="perturbed")
 
     # --- JSON ----------------------------------------------------------------------
@@ -423,6 +413,27 @@ class SparkTableau:
     def save(self, path, dps: int = 40) -> None:
         from .io import atomic_write_json
         atomic_write_json(path, self.to_json_dict(dps))
+
+
+class _PerturbedBuilder:
+    """The builder of ``with_entry`` on a computed tableau: the source's entries with ``d`` (a sympy
+    number) added to entry (i, j) of ``name`` at the digits asked for. A module-level class, not a
+    closure, so that the tableau pickles into the worker processes of an ensemble (as
+    ``families._FamilyBuilder``; a closure was "Can't pickle local object")."""
+
+    def __init__(self, base, name, i, j, d):
+        self.base, self.name, self.i, self.j, self.d = base, name, i, j, d
+
+    def __call__(self, dps):
+        base, name, i, j = self.base, self.name, self.i, self.j
+        ent = {k: [list(r) if isinstance(r, list) else r for r in v] for k, v in base(dps).items()}
+        dm = _sympy_to_mp(sympy.Matrix([[self.d]]), dps)[0][0]      # d at the builder's digits
+        if j is None:
+            x = ent[name][i]
+            ent[name][i] = [x[0] + dm] if isinstance(x, list) else x + dm      # a vector flat or s x 1
+        else:
+            ent[name][i][j] = ent[name][i][j] + dm
+        return ent
 
 
 @dataclass

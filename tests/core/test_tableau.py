@@ -294,3 +294,17 @@ def test_builder_entries_checked(change, msg):
 def test_builder_not_a_dict():
     with pytest.raises(TableauError, match="must return a dict"):
         SparkTableau("direct", 1, builder=lambda dps: 5).arrays()
+
+
+@pytest.mark.parametrize("exact", [True, False])
+def test_with_entry_tableau_pickles(exact):
+    """A negative control of a computed tableau goes to an ensemble's worker processes: its builder
+    was a closure ("Can't pickle local object 'SparkTableau.with_entry.<locals>.builder'")."""
+    import pickle
+    t = gauss(2, exact=exact).with_entry("A_hat", 0, 1, "1/1000").with_entry("b", 1, None, "1/10")
+    u = pickle.loads(pickle.dumps(t))
+    with mpmath.workdps(40):
+        for k in ("A_hat", "b", "A"):
+            x, y = getattr(t.arrays(40), k).reshape(-1), getattr(u.arrays(40), k).reshape(-1)
+            assert all(a == b for a, b in zip(x, y)), k
+    assert abs(float(u.arrays().A_hat[0, 1] - gauss(2).arrays().A_hat[0, 1]) - 1e-3) < 1e-15
