@@ -126,7 +126,10 @@ class SparkTableau:
         # bool or text s, no coefficients, or coefficients of another shape are one TableauError
         from .validate import MAX_STAGES_CEILING
         if not isinstance(self.name, str) or not 0 < len(self.name) <= 500:
-            raise TableauError(f"tableau name must be a non-empty string, got {type(self.name).__name__}")
+            # a 100000-character name was "must be a non-empty string, got str": say which rule failed
+            got = (f"a string of {len(self.name)} characters" if isinstance(self.name, str)
+                   else type(self.name).__name__)
+            raise TableauError(f"tableau name must be a non-empty string of at most 500 characters, got {got}")
         s = self.s
         if isinstance(s, (bool, np.bool_)) or not isinstance(s, (int, np.integer)) \
                 or not 1 <= s <= MAX_STAGES_CEILING:

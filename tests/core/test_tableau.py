@@ -308,3 +308,12 @@ def test_with_entry_tableau_pickles(exact):
             x, y = getattr(t.arrays(40), k).reshape(-1), getattr(u.arrays(40), k).reshape(-1)
             assert all(a == b for a, b in zip(x, y)), k
     assert abs(float(u.arrays().A_hat[0, 1] - gauss(2).arrays().A_hat[0, 1]) - 1e-3) < 1e-15
+
+
+@pytest.mark.parametrize("name, got", [("x" * 501, "a string of 501 characters"), ("", "a string of 0 characters"),
+                                       (5, "int")])
+def test_tableau_name_message_names_the_rule(name, got):
+    """A long name was refused with "must be a non-empty string, got str" (it is a string)."""
+    with pytest.raises(TableauError, match=f"at most 500 characters, got {got}"):
+        SparkTableau(name, 1, exact=gauss(1, exact=True).exact)
+    assert SparkTableau("x" * 500, 1, exact=gauss(1, exact=True).exact).s == 1
