@@ -150,6 +150,33 @@ class SparkTableau:
                 if not isinstance(self.exact[k], sympy.MatrixBase) or (shape != want[k] and self.exact[k].rows):
                     raise TableauError(f"{self.name}: exact[{k!r}] must be a sympy Matrix of shape {want[k]}, "
                                        f"got {type(self.exact[k]).__name__} {shape}")
+            self._check_exact_values()
+
+    def _check_exact_values(self) -> None:
+        """Every exact entry a finite real number, as the file reader requires (``numbers._parse_entry``):
+        given directly, 1/2 + I/10 was silently its real part (``_sympy_to_mp`` takes re() of a
+        numerically complex value), nan and zoo NaN coefficients, oo and a Symbol a ValueError."""
+        from .numbers import MAX_MAGNITUDE
+        for k in NAMES:
+            M = self.exact[k]
+            for i in range(M.rows):
+                for j in range(M.cols):
+                    e = M[i, j]
+                    ok = bool(getattr(e, "is_number", False)) and e.is_real is not False
+                    if ok:
+                        try:
+                            val = complex(sympy.N(e, 30))
+                        except (TypeError, ValueError, OverflowError):
+                            ok = False
+                        else:
+                            # a real number written with I (casus irreducibilis) evaluates with a
+                            # round-off imaginary part: the reader's bound
+                            ok = (math.isfinite(val.real) and abs(val.imag) <= 1e-25 * (1 + abs(val.real))
+                                  and abs(val.real) <= MAX_MAGNITUDE)
+                    if not ok:
+                        at = f"[{i}]" if k in VECTOR_NAMES else f"[{i}][{j}]"
+                        raise TableauError(f"{self.name}: exact[{k!r}]{at} = {str(e)[:40]} is not a finite real "
+                                           f"number of modulus <= {MAX_MAGNITUDE:g}")
 
     def _built(self, dps: int) -> dict:
         """``builder(dps)``, checked as ``exact`` is in ``__post_init__``: a dict with every name of

@@ -317,3 +317,17 @@ def test_tableau_name_message_names_the_rule(name, got):
     with pytest.raises(TableauError, match=f"at most 500 characters, got {got}"):
         SparkTableau(name, 1, exact=gauss(1, exact=True).exact)
     assert SparkTableau("x" * 500, 1, exact=gauss(1, exact=True).exact).s == 1
+
+
+@pytest.mark.parametrize("bad", [sympy.Rational(1, 2) + sympy.I / 10, sympy.oo, sympy.nan, sympy.zoo,
+                                 sympy.Symbol("x"), sympy.Integer(10) ** 400])
+def test_exact_entries_given_directly_are_finite_reals(bad):
+    """SparkTableau(exact=...) gets the file reader's value checks: 1/2 + I/10 ran as 1/2 (re() taken
+    silently), nan and zoo gave NaN coefficients (integrate status -1), oo and a Symbol a ValueError."""
+    ex = dict(gauss(1, exact=True).exact)
+    ex["A"] = sympy.Matrix([[bad]])
+    with pytest.raises(TableauError, match=r"exact\['A'\]\[0\]\[0\] .* is not a finite real number"):
+        SparkTableau("direct", 1, exact=ex)
+    # valid neighbours: a real number written with I, and the unchanged tableau
+    ex["A"] = sympy.Matrix([[(1 + sympy.I) * (1 - sympy.I) / 4]])
+    assert SparkTableau("direct", 1, exact=ex).arrays().A[0, 0] == 0.5
