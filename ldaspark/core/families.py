@@ -225,6 +225,8 @@ def lobatto_coefficients(s: int) -> dict:
     """Exact Lobatto coefficients for s stages: c, b and the matrices IIIA (C(s)), IIIB (D(s)),
     IIIC (a_i1 = b_1, C(s-1)), IIIC* (a_is = 0, C(s-1)) and IIID = (IIIC + IIIC*)/2, as sympy
     Matrices."""
+    _check_s(s, None, "lobatto_coefficients")      # an integer ("3" was a TypeError, 2.5 a sympy error)
+    s = int(s)
     if s < 2:
         raise TableauError(f"Lobatto coefficients need s >= 2, got {s}")
     F, c, b = _exact_nodes_weights("lobatto", s)

@@ -126,7 +126,10 @@ class SparkTableau:
         # bool or text s, no coefficients, or coefficients of another shape are one TableauError
         from .validate import MAX_STAGES_CEILING
         if not isinstance(self.name, str) or not 0 < len(self.name) <= 500:
-            raise TableauError(f"tableau name must be a non-empty string, got {type(self.name).__name__}")
+            # a 100000-character name was "must be a non-empty string, got str": say which rule failed
+            got = (f"a string of {len(self.name)} characters" if isinstance(self.name, str)
+                   else type(self.name).__name__)
+            raise TableauError(f"tableau name must be a non-empty string of at most 500 characters, got {got}")
         s = self.s
         if isinstance(s, (bool, np.bool_)) or not isinstance(s, (int, np.integer)) \
                 or not 1 <= s <= MAX_STAGES_CEILING:
@@ -147,6 +150,66 @@ class SparkTableau:
                 if not isinstance(self.exact[k], sympy.MatrixBase) or (shape != want[k] and self.exact[k].rows):
                     raise TableauError(f"{self.name}: exact[{k!r}] must be a sympy Matrix of shape {want[k]}, "
                                        f"got {type(self.exact[k]).__name__} {shape}")
+            self._check_exact_values()
+
+    def _check_exact_values(self) -> None:
+        """Every exact entry a finite real number, as the file reader requires (``numbers._parse_entry``):
+        given directly, 1/2 + I/10 was silently its real part (``_sympy_to_mp`` takes re() of a
+        numerically complex value), nan and zoo NaN coefficients, oo and a Symbol a ValueError."""
+        from .numbers import MAX_MAGNITUDE
+        for k in NAMES:
+            M = self.exact[k]
+            for i in range(M.rows):
+                for j in range(M.cols):
+                    e = M[i, j]
+                    ok = bool(getattr(e, "is_number", False)) and e.is_real is not False
+                    if ok:
+                        try:
+                            val = complex(sympy.N(e, 30))
+                        except (TypeError, ValueError, OverflowError):
+                            ok = False
+                        else:
+                            # a real number written with I (casus irreducibilis) evaluates with a
+                            # round-off imaginary part: the reader's bound
+                            ok = (math.isfinite(val.real) and abs(val.imag) <= 1e-25 * (1 + abs(val.real))
+                                  and abs(val.real) <= MAX_MAGNITUDE)
+                    if not ok:
+                        at = f"[{i}]" if k in VECTOR_NAMES else f"[{i}][{j}]"
+                        raise TableauError(f"{self.name}: exact[{k!r}]{at} = {str(e)[:40]} is not a finite real "
+                                           f"number of modulus <= {MAX_MAGNITUDE:g}")
+
+    def _built(self, dps: int) -> dict:
+        """``builder(dps)``, checked as ``exact`` is in ``__post_init__``: a dict with every name of
+        NAMES, vectors of s numbers (flat or s x 1), A, A_hat, A_tilde s x s, omega (s-1) x s, each
+        entry a finite real number (an exported class: a builder of another shape was a numpy
+        reshape ValueError, one returning NaN a NaN trajectory)."""
+        raw = self.builder(dps)
+        s = self.s
+        if not isinstance(raw, dict) or set(NAMES) - set(raw):
+            raise TableauError(f"{self.name}: builder(dps) must return a dict with the keys {', '.join(NAMES)}, "
+                               f"got {type(raw).__name__}")
+        for k in NAMES:
+            v = raw[k]
+            rows = s if k != "omega" else s - 1
+            if k in VECTOR_NAMES:
+                ok = isinstance(v, list) and len(v) == s and all(
+                    not isinstance(x, list) or len(x) == 1 for x in v)
+                leaves = [x[0] if isinstance(x, list) else x for x in v] if ok else []
+            else:
+                ok = isinstance(v, list) and len(v) == rows and all(isinstance(r, list) and len(r) == s for r in v)
+                leaves = [x for r in v for x in r] if ok else []
+            if not ok:
+                want = f"a list of {s} numbers" if k in VECTOR_NAMES else f"a {rows} x {s} list of lists"
+                raise TableauError(f"{self.name}: builder(dps)[{k!r}] must be {want}")
+            for x in leaves:
+                try:
+                    good = not isinstance(x, (bool, str)) and mpmath.isfinite(mpmath.mpf(x))
+                except (TypeError, ValueError):
+                    good = False
+                if not good:
+                    raise TableauError(f"{self.name}: builder(dps)[{k!r}] has the entry {str(x)[:40]!r}, "
+                                       "not a finite real number")
+        return raw
 
     # --- numeric views ---------------------------------------------------------------
     def mp_entries(self, dps: int) -> dict:
@@ -156,7 +219,7 @@ class SparkTableau:
         if key not in self._cache:
             if self.builder is not None:
                 with mpmath.workdps(dps):
-                    raw = self.builder(dps)
+                    raw = self._built(dps)
             else:
                 with mpmath.workdps(dps + 10):
                     raw = {k: _sympy_to_mp(v, dps) for k, v in self.exact.items()}
@@ -291,7 +354,7 @@ class SparkTableau:
                            for k, M in self.exact.items()}
                 else:
                     with mpmath.workdps(digits + 10):
-                        raw = self.builder(digits + 10)
+                        raw = self._built(digits + 10)
                     rad = flint.arb(10) ** (-digits + 5)
                     ball = lambda x: flint.arb(_mpf_to_fmpq(x)) + flint.arb(0, rad * max(1, abs(float(x))))
                     out = {k: _map_nested(v, ball) for k, v in raw.items()}
@@ -304,7 +367,7 @@ class SparkTableau:
         """``with_entry``'s arguments: a coefficient of the tableau, indices in its range (no
         negative ones: they would silently wrap to the last entry), a finite real delta."""
         from . import validate
-        ent = self.exact if self.exact is not None else (self.builder(16) if self.builder is not None else None)
+        ent = self.exact if self.exact is not None else (self._built(16) if self.builder is not None else None)
         if not isinstance(name, str) or ent is None or name not in ent:
             raise TableauError(f"with_entry: name must be one of {', '.join(sorted(ent or {}))}, got "
                                f"{validate._describe(name)}")
@@ -328,18 +391,22 @@ class SparkTableau:
     def with_entry(self, name: str, i: int, j: int | None, delta) -> "SparkTableau":
         """A copy with one entry changed by ``delta`` (negative controls)."""
         self._check_entry_change(name, i, j, delta)
+        # one sympy number for both kinds of tableau, read before anything is built (a computed
+        # tableau added mpmath.mpf(delta) in its builder: "sqrt(2)/1000", a Fraction or a NumPy
+        # scalar were accepted here and raised ValueError / TypeError at the first arrays())
+        if isinstance(delta, str):              # text is parsed (bounded), never nsimplify'd or evaluated
+            d = parse_exact_string(delta, f"delta of {name}")
+        else:
+            d = sympy.nsimplify(delta)
         if self.exact is not None:
-            if isinstance(delta, str):          # text is parsed (bounded), never nsimplify'd or evaluated
-                delta = parse_exact_string(delta, f"delta of {name}")
             ex = {k: sympy.Matrix(v) for k, v in self.exact.items()}
             if j is None:
-                ex[name][i, 0] += sympy.nsimplify(delta)
+                ex[name][i, 0] += d
             else:
-                ex[name][i, j] += sympy.nsimplify(delta)
+                ex[name][i, j] += d
             src = None
             if self.sources is not None:
                 src = {k: [list(r) if isinstance(r, list) else r for r in v] for k, v in self.sources.items()}
-                d = sympy.nsimplify(delta)
                 if j is None:
                     src[name][i] = (src[name][i], d)
                 else:
@@ -348,34 +415,55 @@ class SparkTableau:
                                 source_digits=self.source_digits, claimed_order=None, family="perturbed",
                                 sources=src, decimal_digits=self.decimal_digits,
                                 decimal_digits_min=self.decimal_digits_min, decimal_places=self.decimal_places)
-        base = self.builder
-
-        def builder(dps, base=base):
-            ent = {k: [list(r) if isinstance(r, list) else r for r in v] for k, v in base(dps).items()}
-            if j is None:
-                ent[name][i] = ent[name][i] + mpmath.mpf(delta)
-            else:
-                ent[name][i][j] = ent[name][i][j] + mpmath.mpf(delta)
-            return ent
-        return SparkTableau(f"{self.name}+d{name}[{i},{j}]", self.s, builder=builder,
+        return SparkTableau(f"{self.name}+d{name}[{i},{j}]", self.s, builder=_PerturbedBuilder(self.builder, name, i, j, d),
                             source_digits=self.source_digits, family="perturbed")
 
     # --- JSON ----------------------------------------------------------------------
     def to_json_dict(self, dps: int = 40) -> dict:
-        """Entries as exact strings when exact, else decimal strings with ``dps`` digits."""
+        """Entries as exact strings when exact, else decimal strings with ``dps`` significant
+        digits each (trailing zeros kept: a reader takes a literal as known to the digits it
+        shows), ``dps`` an integer in 1..DPS_MAX."""
+        from . import validate
+        dps = validate.count(dps, "dps", 1, validate.DPS_MAX)
         out = {"name": self.name}
         if self.exact is not None:
             for k, M in self.exact.items():
                 out[k] = _matrix_to_json(M, k, str)
         else:
-            ent = self.mp_entries(dps)
-            for k, v in ent.items():
-                out[k] = _map_nested(v, lambda x: mpmath.nstr(x, dps))
+            # every literal with dps significant digits (trailing zeros kept): a reader takes a
+            # literal as known to its digits (numbers.literal_radius), and "0.5" for a computed 1/2
+            # read back as known to +-0.05; computed 10 digits beyond, so that the written digits
+            # are the correctly rounded ones (half a unit in the last), not a double rounding
+            ent = self.mp_entries(dps + 10)
+            with mpmath.workdps(dps + 10):
+                for k, v in ent.items():
+                    out[k] = _map_nested(v, lambda x: mpmath.nstr(x, dps, strip_zeros=False))
         return out
 
     def save(self, path, dps: int = 40) -> None:
         from .io import atomic_write_json
         atomic_write_json(path, self.to_json_dict(dps))
+
+
+class _PerturbedBuilder:
+    """The builder of ``with_entry`` on a computed tableau: the source's entries with ``d`` (a sympy
+    number) added to entry (i, j) of ``name`` at the digits asked for. A module-level class, not a
+    closure, so that the tableau pickles into the worker processes of an ensemble (as
+    ``families._FamilyBuilder``; a closure was "Can't pickle local object")."""
+
+    def __init__(self, base, name, i, j, d):
+        self.base, self.name, self.i, self.j, self.d = base, name, i, j, d
+
+    def __call__(self, dps):
+        base, name, i, j = self.base, self.name, self.i, self.j
+        ent = {k: [list(r) if isinstance(r, list) else r for r in v] for k, v in base(dps).items()}
+        dm = _sympy_to_mp(sympy.Matrix([[self.d]]), dps)[0][0]      # d at the builder's digits
+        if j is None:
+            x = ent[name][i]
+            ent[name][i] = [x[0] + dm] if isinstance(x, list) else x + dm      # a vector flat or s x 1
+        else:
+            ent[name][i][j] = ent[name][i][j] + dm
+        return ent
 
 
 @dataclass

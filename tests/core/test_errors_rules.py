@@ -100,6 +100,25 @@ def test_with_entry_refuses_what_would_wrap_or_raise(exact, args):
     assert g.with_entry("b", 0, None, "1/10").s == 2
 
 
+@pytest.mark.parametrize("delta", ["sqrt(2)/1000", "1/3", Fraction(1, 10), np.float64(0.25), np.int64(1)])
+def test_with_entry_same_delta_on_exact_and_computed(delta):
+    """A delta means the same number on an exact and on a computed tableau: the computed one added
+    mpmath.mpf(delta), so "sqrt(2)/1000", a Fraction or a NumPy scalar passed with_entry and raised
+    ValueError / TypeError at the first arrays()."""
+    import mpmath
+    ex = ldaspark.gauss(2, exact=True).with_entry("A", 0, 1, delta).arrays(40)
+    nu = ldaspark.gauss(2).with_entry("A", 0, 1, delta).arrays(40)
+    with mpmath.workdps(40):
+        assert abs(ex.A[0, 1] - nu.A[0, 1]) < mpmath.mpf(10) ** -38
+
+
+@pytest.mark.parametrize("exact", [True, False])
+def test_with_entry_refuses_text_that_is_not_a_number(exact):
+    from ldaspark.core.errors import TableauError
+    with pytest.raises(TableauError, match="not a number"):
+        ldaspark.gauss(2, exact=exact).with_entry("A", 0, 1, "abc")
+
+
 def _skate_point():
     t0, q0, v0 = ldaspark.get_scene("skate").initial(None)
     return [float(x) for x in q0], [float(x) for x in v0]

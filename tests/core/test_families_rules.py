@@ -129,3 +129,14 @@ def test_mp_arithmetic_asked_for_is_used_even_for_exact_entries():
     assert not ar.exact
     ar, _, _ = au.decide_arith(get_method("gauss-2", exact=True), 30, "auto")
     assert ar.exact
+
+
+@pytest.mark.parametrize("s", ["3", 2.5, None, np.float64(3.0)])
+def test_lobatto_coefficients_refuses_a_stage_count_that_is_not_an_integer(s):
+    """lobatto_coefficients("3") was a TypeError ('<' between str and int), 2.5 a sympy
+    PolynomialError; the families' own check now applies (TableauError)."""
+    from ldaspark.core.errors import TableauError
+    from ldaspark.core.families import lobatto_coefficients
+    with pytest.raises(TableauError, match="integer"):
+        lobatto_coefficients(s)
+    assert lobatto_coefficients(np.int64(3))["IIIA"].shape == (3, 3)      # valid neighbour

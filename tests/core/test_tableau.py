@@ -7,7 +7,9 @@ import pytest
 import sympy
 from sympy import Rational as R, sqrt
 
-from ldaspark.core.errors import TableauError
+import ldaspark
+from ldaspark.core.errors import LdasparkError, TableauError
+from ldaspark.core.tableau import SparkTableau
 from ldaspark.core.tableau_file import from_json_dict, load_tableau
 from ldaspark.core.families import (euler_i, euler_ii, gauss, get_method, lobatto_coefficients, lobatto_iiia_iiib,
                                    lobatto_iiia_iiib_iiid)
@@ -146,6 +148,43 @@ def test_json_roundtrip_exact(tmp_path):
     assert same(t2.exact["A"], t.exact["A"].tolist())
 
 
+
+@pytest.mark.parametrize("make, dps", [(lambda: gauss(1), 40), (lambda: lobatto_iiia_iiib(2), 40),
+                                       (lambda: lobatto_iiia_iiib_iiid(3), 25)])
+def test_json_roundtrip_computed_keeps_digits(tmp_path, make, dps):
+    """A computed tableau saved at dps digits is read back as known to dps digits: entries that are
+    short in binary (0.5, 1) were written "0.5", "1.0", and the reloaded gauss-1 was "known to 2
+    digits" (the audit's convergence check undecided, (22b) to +-0.16)."""
+    t = make()
+    p = tmp_path / "t.json"
+    t.save(p, dps=dps)
+    u = load_tableau(p)
+    assert u.precision_kind() == "decimal" and u.decimal_digits == dps
+    with mpmath.workdps(dps + 20):
+        ref = t.mp_entries(dps + 20)
+        for k, v in u.ball_entries(dps + 20).items():
+            for x, y in zip(_flat(v), _flat(ref[k])):
+                # a ball of half a unit in the dps-th digit that holds the computed value
+                assert float(x.rad()) <= 0.501 * 10.0 ** (1 - dps) * max(abs(float(y)), 1e-300) or y == 0
+                assert x.contains(flint_arb(y)), (k, x, y)
+
+
+@pytest.mark.parametrize("dps", ["40", 1.5, True, 0, -3, 10 ** 6])
+def test_to_json_dict_refuses_bad_dps(dps):
+    """dps="40" was a TypeError, 1.5 an IndexError-like TypeError, 0 and -3 wrote nonsense."""
+    with pytest.raises(LdasparkError, match="dps must be an integer"):
+        gauss(2).to_json_dict(dps)
+
+
+def _flat(v):
+    return [z for x in v for z in _flat(x)] if isinstance(v, list) else [v]
+
+
+def flint_arb(y):
+    import flint
+    with flint.ctx.workprec(int(mpmath.mp.dps * 3.33) + 16):
+        return flint.arb(mpmath.nstr(y, mpmath.mp.dps))
+
 def test_json_float_entries_not_exact():
     t = from_json_dict({"c": [0.5], "A": [[0.5]], "A_hat": [[0.5]], "A_tilde": [[0.5]], "b": [1.0],
                         "b_hat": [1], "b_tilde": ["1"]})
@@ -216,3 +255,79 @@ def test_with_entry_copies_are_independent_of_the_source(exact):
     assert abs(np.array(d2.arrays(None).b_hat, float)[0] - b0[0] - 0.1) < 1e-15
     if exact:                                                                  # and the exact entries
         assert src.exact["A_hat"] == get_method("gauss-2", exact=True).exact["A_hat"]
+
+
+# --- a builder given directly: its entries are checked as exact ones are ------------------------
+def _half_builder(s, **change):
+    def builder(dps):
+        h = mpmath.mpf(1) / 2
+        ent = {k: [[h] * s for _ in range(s)] if k.startswith("A") else [h] * s
+               for k in ("c", "A", "A_hat", "A_tilde", "b", "b_hat", "b_tilde")}
+        ent["omega"] = [[h] * s for _ in range(s - 1)]
+        ent.update(change)
+        return ent
+    return builder
+
+
+@pytest.mark.parametrize("change, msg", [
+    ({"c": [0.5]}, "list of 2 numbers"),                         # was a numpy reshape ValueError
+    ({"A": [[0.5, 0.5, 0.5]] * 3}, "2 x 2 list"),
+    ({"omega": [[0.5, 0.5]] * 2}, "1 x 2 list"),
+    ({"b": [float("nan"), 0.5]}, "not a finite real"),           # was a NaN trajectory
+    ({"A_hat": [["x", 0.5], [0.5, 0.5]]}, "not a finite real"),
+    ({"b_tilde": [True, 0.5]}, "not a finite real"),
+])
+def test_builder_entries_checked(change, msg):
+    bad = SparkTableau("direct", 2, builder=_half_builder(2, **change))
+    with pytest.raises(TableauError, match=msg):
+        bad.arrays()
+    with pytest.raises(TableauError, match=msg):
+        bad.arrays(30)
+    with pytest.raises(TableauError, match=msg):
+        ldaspark.integrate("skate", bad, t_span=(0, 0.1), h=0.1, engine="generic")
+    # valid neighbour: the same builder unchanged, and vectors given as s x 1 lists
+    assert SparkTableau("ok", 2, builder=_half_builder(2)).arrays().A.shape == (2, 2)
+    col = SparkTableau("col", 2, builder=_half_builder(2, c=[[0.25], [0.75]])).arrays()
+    assert list(col.c) == [0.25, 0.75]
+
+
+def test_builder_not_a_dict():
+    with pytest.raises(TableauError, match="must return a dict"):
+        SparkTableau("direct", 1, builder=lambda dps: 5).arrays()
+
+
+@pytest.mark.parametrize("exact", [True, False])
+def test_with_entry_tableau_pickles(exact):
+    """A negative control of a computed tableau goes to an ensemble's worker processes: its builder
+    was a closure ("Can't pickle local object 'SparkTableau.with_entry.<locals>.builder'")."""
+    import pickle
+    t = gauss(2, exact=exact).with_entry("A_hat", 0, 1, "1/1000").with_entry("b", 1, None, "1/10")
+    u = pickle.loads(pickle.dumps(t))
+    with mpmath.workdps(40):
+        for k in ("A_hat", "b", "A"):
+            x, y = getattr(t.arrays(40), k).reshape(-1), getattr(u.arrays(40), k).reshape(-1)
+            assert all(a == b for a, b in zip(x, y)), k
+    assert abs(float(u.arrays().A_hat[0, 1] - gauss(2).arrays().A_hat[0, 1]) - 1e-3) < 1e-15
+
+
+@pytest.mark.parametrize("name, got", [("x" * 501, "a string of 501 characters"), ("", "a string of 0 characters"),
+                                       (5, "int")])
+def test_tableau_name_message_names_the_rule(name, got):
+    """A long name was refused with "must be a non-empty string, got str" (it is a string)."""
+    with pytest.raises(TableauError, match=f"at most 500 characters, got {got}"):
+        SparkTableau(name, 1, exact=gauss(1, exact=True).exact)
+    assert SparkTableau("x" * 500, 1, exact=gauss(1, exact=True).exact).s == 1
+
+
+@pytest.mark.parametrize("bad", [sympy.Rational(1, 2) + sympy.I / 10, sympy.oo, sympy.nan, sympy.zoo,
+                                 sympy.Symbol("x"), sympy.Integer(10) ** 400])
+def test_exact_entries_given_directly_are_finite_reals(bad):
+    """SparkTableau(exact=...) gets the file reader's value checks: 1/2 + I/10 ran as 1/2 (re() taken
+    silently), nan and zoo gave NaN coefficients (integrate status -1), oo and a Symbol a ValueError."""
+    ex = dict(gauss(1, exact=True).exact)
+    ex["A"] = sympy.Matrix([[bad]])
+    with pytest.raises(TableauError, match=r"exact\['A'\]\[0\]\[0\] .* is not a finite real number"):
+        SparkTableau("direct", 1, exact=ex)
+    # valid neighbours: a real number written with I, and the unchanged tableau
+    ex["A"] = sympy.Matrix([[(1 + sympy.I) * (1 - sympy.I) / 4]])
+    assert SparkTableau("direct", 1, exact=ex).arrays().A[0, 0] == 0.5

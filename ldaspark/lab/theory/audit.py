@@ -471,8 +471,10 @@ def verdict(res: AuditResult) -> str:
     for sc in ("skate", "particle"):
         r = f.get(f"convergence:{sc}")
         if r:
+            why = ("its errors are within the entries' uncertainty" if r.get("entry_floor", 0.0) >= r.get("floor", 0.0) > 0
+                   else "its errors are below the working precision's floor")
             obs.append(f"{r['observed']:.2f} on the {sc}" if math.isfinite(r["observed"]) else
-                       f"none measurable on the {sc} (its errors are within the entries' uncertainty)")
+                       f"none measurable on the {sc} ({why})")
     conv = [c for c in (res.get(f"convergence:{sc}") for sc in ("skate", "particle")) if c is not None]
     parts.append(f"The tree conditions give order {f['order:pair']} for the pair (A, A_hat) and {p}{cap} for "
                  f"(A; A_hat, A_tilde) on the forced ODE (6); observed orders {', '.join(obs) or '(none: runs failed)'} "
@@ -481,7 +483,7 @@ def verdict(res: AuditResult) -> str:
                      else "agree with it" + (" where measured." if any(c.status == INFO for c in conv) else "."))
                     if all(c.status in (PASS, INFO) for c in conv) and any(c.status == PASS for c in conv)
                     else "do NOT agree with it." if any(c.status == FAIL for c in conv)
-                    else "are not measurable at the precision of the entries.")
+                    else "are not measurable at the precision of the entries or of the arithmetic.")
                  + " This prediction ignores the index-2 coupling through psi: Jay proved order 2s for Gauss"
                  " and 2s-2 for Lobatto SPARK methods [26, 27]; for other tableaux, order reduction below the"
                  " tree prediction is possible and only the measurement decides.")

@@ -542,13 +542,23 @@ def _entry_floor_measured(tab, scene_name, N, t_end, wdps):
     return ENTRY_FLOOR * per * umax, per
 
 
+def _floor_limited(res, floor) -> bool:
+    """No slope of an ``observed_order`` result because its finest errors are at or below ``floor``:
+    every error finite and the finest one <= floor (a NaN or infinite error is a failure of the run,
+    not a floor)."""
+    errs = res["errors"]
+    return bool(errs) and all(math.isfinite(e) for e in errs) and errs[-1] <= floor
+
+
 def convergence_checks(tab, predicted, dps, quick, capped=False):
     """Observed order on the skate (exact solution) and the particle (reference solution).
     One-sided (docs/audit.md): an observed order below the prediction fails; one above it is
     reported (the tree prediction is a lower bound of what a scene shows: an error constant can
     vanish on it), not failed. Errors below the working precision's floor, or below what the
     entries' own uncertainty can contribute (measured: ``_entry_floor_measured``), are not used
-    for the slope; when that leaves no usable pair, coarser steps are added (down to h = t_end/2)."""
+    for the slope; when that leaves no usable pair, coarser steps are added (down to h = t_end), also
+    when the finest errors are below the working precision's floor (``_floor_limited``); none even
+    there is undecided (info), while a NaN error or no slope above the floor fails."""
     checks, facts = [], {}
     # float64 suffices while the finest error stays far above round-off (order <= 4 at the
     # step counts below); higher orders run at dps digits
@@ -566,9 +576,12 @@ def convergence_checks(tab, predicted, dps, quick, capped=False):
                 efloor, eper = 0.0, 0.0
             floor = max(wfloor, efloor)
             res = observed_order(tab, scene_name, Ns, t_end, wdps, floor)
-            while not math.isfinite(res["observed"]) and efloor > wfloor and Ns[0] >= 2:
+            while not math.isfinite(res["observed"]) and (efloor > wfloor or _floor_limited(res, floor)) \
+                    and Ns[0] >= 2:
                 # the entries' floor reached: measure at coarser steps, down to one step of t_end (an
-                # 8-digit Gauss-3 has only h = 1/2 above its floor on the skate)
+                # 8-digit Gauss-3 has only h = 1/2 above its floor on the skate); so too when the finest
+                # errors are below the working precision's floor (Gauss-12 at dps 30: 4.9e-32 at h = 1/4
+                # and 1/8 on the skate, an accurate method, not a failing one)
                 try:
                     more = observed_order(tab, scene_name, [Ns[0] // 2] + Ns, t_end, wdps, floor)
                 except LdasparkError:
@@ -590,6 +603,11 @@ def convergence_checks(tab, predicted, dps, quick, capped=False):
             # changes: the digits given cannot show the order here (not a failure of the method)
             status, what = INFO, ("undecided: no slope above what the entries' uncertainty changes, down to "
                                   f"h = {t_end}/{res['N'][0]} (more digits in the file would decide it)")
+        elif not math.isfinite(obs) and _floor_limited(res, floor):
+            # no two errors above the arithmetic's floor, down to h = t_end / N_0: the method is more
+            # accurate than the working precision can show (not a failure of it)
+            status, what = INFO, (f"undecided: no slope above the working precision's floor {floor:.0e}, down to "
+                                  f"h = {t_end}/{res['N'][0]} (a larger --dps would decide it)")
         elif not math.isfinite(obs):
             status, what = FAIL, "no usable slope (errors at the floor or zero)"
         elif obs < predicted - ORDER_SLACK:

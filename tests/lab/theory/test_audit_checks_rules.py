@@ -350,8 +350,8 @@ def test_convergence_floor_is_the_working_precision_or_the_measured_entries_floo
 def test_convergence_at_the_entries_floor_measures_at_coarser_steps(convenv, monkeypatch):
     """No usable pair above the entries' floor: coarser steps are added (N halved, down to 1)
     until a slope is found; none even there is undecided (info: the digits given cannot show the
-    order), not a failure; at the working precision's floor alone there is no such retry and no
-    slope fails."""
+    order), not a failure; at the working precision's floor alone, with errors above it (1e-3), there
+    is no such retry and no slope fails (errors below it: the test after this one)."""
     monkeypatch.setattr(ac, "_entry_floor_measured", lambda tab, sc, N, t, w: (1e-5, 1.0))
     seq = {"skate": [float("nan"), 4.1], "particle": [4.0]}
     calls = []
@@ -369,12 +369,43 @@ def test_convergence_at_the_entries_floor_measures_at_coarser_steps(convenv, mon
     C, _ = ac.convergence_checks(TABX, 4, 30, False)
     assert [n for sc, n in calls if sc == "skate"] == [[4, 8, 16], [2, 4, 8, 16], [1, 2, 4, 8, 16]]
     assert C[0].status == INFO and "undecided" in C[0].detail
-    # the working precision's floor only: no coarser steps, no usable slope fails
+    # the working precision's floor only, errors above it: no coarser steps, no usable slope fails
     monkeypatch.setattr(ac, "_entry_floor_measured", lambda tab, sc, N, t, w: (0.0, 0.0))
     seq.update(skate=[float("nan")], particle=[4.0])
     calls.clear()
     C, _ = ac.convergence_checks(TABX, 4, 30, False)
     assert [n for sc, n in calls if sc == "skate"] == [[4, 8, 16]] and C[0].status == FAIL
+
+
+def test_convergence_below_the_working_floor_measures_at_coarser_steps(monkeypatch):
+    """The finest errors below the working precision's floor (10^(4 - dps)): the method is more
+    accurate than the arithmetic shows, not failing. Gauss-12 saved at 40 digits exited 1
+    ('no usable slope': 4.9e-32 at h = 1/4 and 1/8 on the skate at dps 30). Coarser steps are
+    added as at the entries' floor; none even at h = t_end is undecided (info); a NaN error, or no
+    slope with the finest error above the floor, still fails without retries."""
+    monkeypatch.setattr(ac, "_entry_floor_measured", lambda tab, sc, N, t, w: (0.0, 0.0))
+    runs = {"skate": [([4, 8], [4.9e-32, 4.9e-32], float("nan")), ([2, 4, 8], [3e-25, 4.9e-32, 4.9e-32], 22.5)],
+            "particle": [([4, 8], [1.8e-27, 3e-31], float("nan")), ([2, 4, 8], [2e-28, 1.8e-27, 3e-31], float("nan")),
+                         ([1, 2, 4, 8], [1e-27, 2e-28, 1.8e-27, 3e-31], float("nan"))]}
+    calls = []
+
+    def fake(tab, scene, Ns, t_end, wdps, floor):
+        calls.append((scene, list(Ns), floor))
+        want_N, errs, o = runs[scene].pop(0)
+        assert list(Ns) == want_N
+        return {"observed": o, "N": Ns, "errors": errs, "reference": "R", "max_constraint": 0.0}
+    monkeypatch.setattr(ac, "observed_order", fake)
+    C, f = ac.convergence_checks(TABX, 8, 30, True, capped=True)
+    assert all(c[2] == approx(1e-26) for c in calls)
+    assert C[0].status == PASS and "22.50" in C[0].detail
+    assert C[1].status == INFO and "above the working precision's floor 1e-26" in C[1].detail and "1/1" in C[1].detail
+    # a NaN error (a broken run), or the finest error above the floor: no retry, no slope fails
+    for errs in ([float("nan"), 1e-30], [1e-3, 1e-4]):
+        runs.update(skate=[([4, 8], errs, float("nan"))], particle=[([4, 8], [1e-10, 1e-12], 6.6)])
+        calls.clear()
+        C, _ = ac.convergence_checks(TABX, 8, 30, True, capped=True)
+        assert [n for sc, n, _ in calls if sc == "skate"] == [[4, 8]] and C[0].status == FAIL
+        assert "no usable slope" in C[0].detail
 
 
 def test_convergence_constraint_is_the_worst_scene_and_failures_continue(convenv):
