@@ -545,9 +545,11 @@ def _entry_floor_measured(tab, scene_name, N, t_end, wdps):
 def _floor_limited(res, floor) -> bool:
     """No slope of an ``observed_order`` result because its finest errors are at or below ``floor``:
     every error finite and the finest one <= floor (a NaN or infinite error is a failure of the run,
-    not a floor)."""
+    not a floor), and not every error exactly zero (an error of exactly 0 at every step down to
+    h = t_end is no accurate method but a comparison that compared nothing: a failure)."""
     errs = res["errors"]
-    return bool(errs) and all(math.isfinite(e) for e in errs) and errs[-1] <= floor
+    return (bool(errs) and all(math.isfinite(e) for e in errs) and errs[-1] <= floor
+            and any(e != 0.0 for e in errs))
 
 
 def convergence_checks(tab, predicted, dps, quick, capped=False):

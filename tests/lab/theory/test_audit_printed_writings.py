@@ -116,8 +116,8 @@ def test_nested_calls_are_bounded():
 
 def test_convergence_hidden_by_the_entries_is_undecided_not_failed(monkeypatch):
     """When every error is within what the entries' uncertainty changes, down to one step of
-    t_end, the order is undecided (info), not a failure of the method; when the floor is round-off
-    (exact entries) no slope is still a failure (control)."""
+    t_end, the order is undecided (info), not a failure of the method; with exact entries and every
+    error exactly zero (a comparison that compared nothing) no slope is still a failure (control)."""
     from ldaspark.core.families import get_method
     tab = get_method("gauss-2")
     monkeypatch.setattr(ac, "_entry_floor_measured", lambda *a: (1.0, 1.0))
