@@ -167,10 +167,10 @@ class LagrangianSystem:
     @classmethod
     def mechanical_form(cls, M, U, K, b=None, q=None, v=None, name="system"):
         """L = 1/2 v^T M v - U(q), k = K(q) v + b(q) (section 7); M, K sympy matrices."""
-        n = len(M) if isinstance(M, (list, tuple)) else np.shape(M)[0] if isinstance(M, np.ndarray) else None
-        n = sympy.Matrix(M).rows if n is None else n
-        q = [_symbol(x, "q") for x in q] if q else list(sympy.symbols(f"q0:{n}"))
-        v = [_symbol(x, "v") for x in v] if v else list(sympy.symbols(f"v0:{n}"))
+        n = _matrix_rows(M, f"{name}: M")
+        # None (not any falsy value: q=[] or an empty array is a wrong length, not the default)
+        q = _symbol_list(q, "q") if q is not None else list(sympy.symbols(f"q0:{n}"))
+        v = _symbol_list(v, "v") if v is not None else list(sympy.symbols(f"v0:{n}"))
         names = _names(q, v)
         M, U, K, b = (_exprs(x, names, what) for x, what in ((M, "M"), (U, "U"), (K, "K"), (b, "b")))
         try:
@@ -187,10 +187,11 @@ class LagrangianSystem:
             raise SystemDefinitionError(f"{name}: K must be m x n (n = {n}) and b m x 1, got K {K.shape}, b {b.shape}")
         if isinstance(U, (list, tuple, np.ndarray, sympy.MatrixBase)):
             raise SystemDefinitionError(f"{name}: U must be one scalar expression, got {type(U).__name__}")
+        U = _scalar_expr(U, f"{name}: U")
         vv = sympy.Matrix(v)
-        L = (vv.T * M * vv)[0, 0] / 2 - sympy.sympify(U)
+        L = (vv.T * M * vv)[0, 0] / 2 - U
         k = list(K * vv + b)
-        return cls(L, k, q, v, name=name, mechanical={"M": M, "U": sympy.sympify(U), "K": K, "b": b})
+        return cls(L, k, q, v, name=name, mechanical={"M": M, "U": U, "K": K, "b": b})
 
     @classmethod
     def from_mechanics(cls, model, q=None, constraints=None, params=None, name: str = "system"):
@@ -540,6 +541,56 @@ def _symbol(x, what):
         if not (x.isidentifier() and x.isascii() and len(x) <= 100):
             raise SystemDefinitionError(f"{what}: {x[:60]!r} is not a symbol name")
         return sympy.Symbol(x)
+    return x
+
+
+def _symbol_list(x, what):
+    """The symbols of q, v or psi: a list, tuple, 1-D array or other iterable (not text, bytes or
+    a dict) of Symbols or names, as a list; anything else a SystemDefinitionError (not the
+    TypeError of ``list(None)``, nor bytes read as a list of small integers)."""
+    from .validate import _describe
+    if isinstance(x, (str, bytes, dict)) or not hasattr(x, "__iter__"):
+        raise SystemDefinitionError(f"{what} must be a list of symbols (or of names), got {_describe(x)}")
+    try:
+        items = list(x)
+    except TypeError:                   # a 0-d array has __iter__ but no items
+        raise SystemDefinitionError(f"{what} must be a list of symbols (or of names), got {_describe(x)}") from None
+    return [_symbol(e, what) for e in items]
+
+
+def _time_symbol(t):
+    """The time of the system: a sympy Symbol, or a name for one (``_symbol``)."""
+    from .validate import _describe
+    t = _symbol(t, "t")
+    if not isinstance(t, sympy.Symbol):
+        raise SystemDefinitionError(f"t must be a sympy Symbol (or a name), got {_describe(t)}")
+    return t
+
+
+def _matrix_rows(M, where) -> int:
+    """The number of rows n of a matrix argument (a sympy Matrix, an array or a list of rows), or
+    a SystemDefinitionError: M = None, a number or text has no rows."""
+    from .validate import _describe
+    if isinstance(M, (list, tuple)):
+        return len(M)
+    if isinstance(M, np.ndarray) and M.ndim >= 1:
+        return M.shape[0]
+    if isinstance(M, sympy.MatrixBase):
+        return M.rows
+    raise SystemDefinitionError(f"{where} must be an n x n matrix (a sympy Matrix, an array or a list of rows), "
+                                f"got {_describe(M)}")
+
+
+def _scalar_expr(e, where):
+    """``e`` as one scalar sympy expression (numbers included; not None, True, a dict, bytes or an
+    object sympy cannot take), else a SystemDefinitionError naming ``where``."""
+    from .validate import _describe
+    try:
+        x = sympy.sympify(e, strict=True)
+    except (sympy.SympifyError, TypeError, ValueError, AttributeError):
+        x = None
+    if not isinstance(x, sympy.Expr) or getattr(x, "is_Matrix", False):
+        raise SystemDefinitionError(f"{where} must be one scalar expression, got {_describe(e)}")
     return x
 
 
@@ -911,9 +962,9 @@ def _parse_strings(L, k, q, v, t, params, nonideal, psi, mechanical):
     ``numbers.parse_number``."""
     if isinstance(q, (str, bytes)) or isinstance(v, (str, bytes)):
         raise SystemDefinitionError("q and v must be lists of symbols (or of names), not strings")
-    q = [_symbol(x, "q") for x in q] if hasattr(q, "__iter__") else q
-    v = [_symbol(x, "v") for x in v] if hasattr(v, "__iter__") else v
-    t = _symbol(t, "t") if t is not None else None
+    q = _symbol_list(q, "q")
+    v = _symbol_list(v, "v")
+    t = _time_symbol(t) if t is not None else None
     if isinstance(params, dict):
         params = {_symbol(p, "parameter"): (_param_value(x, p) if isinstance(x, str) else x)
                   for p, x in params.items()}
@@ -921,8 +972,8 @@ def _parse_strings(L, k, q, v, t, params, nonideal, psi, mechanical):
         params = [_symbol(p, "parameter") for p in params]
     elif isinstance(params, str):
         raise SystemDefinitionError("params must be a list of symbols (or names) or a dict, not a string")
-    if psi is not None and isinstance(psi, (list, tuple)):
-        psi = [_symbol(x, "psi") for x in psi]
+    if psi is not None:
+        psi = _symbol_list(psi, "psi")
     m = len(k) if isinstance(k, (list, tuple, np.ndarray)) else getattr(k, "rows", 1)
     names = _names(q if isinstance(q, list) else [], v if isinstance(v, list) else [], [t or sympy.Symbol("t")],
                    list(params) if isinstance(params, (dict, list)) else [],
@@ -930,7 +981,11 @@ def _parse_strings(L, k, q, v, t, params, nonideal, psi, mechanical):
     L = _exprs(L, names, "L")
     k = _exprs(k, names, "k")
     if nonideal is not None:
-        nonideal = [sympy.sympify(e, strict=True) for e in _exprs(list(nonideal), names, "nonideal")]
+        if isinstance(nonideal, (str, bytes, dict)) or not hasattr(nonideal, "__iter__"):
+            from .validate import _describe
+            raise SystemDefinitionError(f"nonideal must be a list of n expressions, got {_describe(nonideal)}")
+        nonideal = [_scalar_expr(e, f"nonideal[{i}]")
+                    for i, e in enumerate(_exprs(list(nonideal), names, "nonideal"))]
     if isinstance(mechanical, dict):
         mechanical = {key: _exprs(val, names, f"mechanical[{key!r}]") for key, val in mechanical.items()}
     return L, k, q, v, t, params, nonideal, psi, mechanical

@@ -53,3 +53,48 @@ def test_physical_units_are_refused_at_build():
     with pytest.raises(SystemDefinitionError, match="physical units"):
         LagrangianSystem((vx ** 2 + vy ** 2 + vth ** 2) / 2, [vy - meter * vx], [x, y, th], [vx, vy, vth])
     assert _toy(2 * (vx ** 2 + vy ** 2 + vth ** 2) / 2 - x).lvv_problem is None     # control: numbers
+
+
+_L2, _K2 = "(v0**2 + v1**2)/2 - q0", ["v1 - q0*v0"]
+_q0, _v0, _v1 = sympy.symbols("q0 v0 v1")
+_LS, _KS = (_v0 ** 2 + _v1 ** 2) / 2 - _q0, [_v1 - _q0 * _v0]        # sympy: no name to resolve in q
+_BAD_ARGS = {
+    "q None": lambda: LagrangianSystem(_LS, _KS, None, ["v0", "v1"]),
+    "q a number": lambda: LagrangianSystem(_LS, _KS, 1, ["v0", "v1"]),
+    "q a Symbol": lambda: LagrangianSystem(_LS, _KS, _q0, ["v0", "v1"]),
+    "v an object": lambda: LagrangianSystem(_LS, _KS, ["q0", "q1"], object()),
+    "t a list": lambda: LagrangianSystem(_L2, _K2, ["q0", "q1"], ["v0", "v1"], t=[]),
+    "t a number": lambda: LagrangianSystem(_L2, _K2, ["q0", "q1"], ["v0", "v1"], t=1),
+    "t bytes": lambda: LagrangianSystem(_L2, _K2, ["q0", "q1"], ["v0", "v1"], t=b"t"),
+    "t an array": lambda: LagrangianSystem(_L2, _K2, ["q0", "q1"], ["v0", "v1"], t=np.array([])),
+    "nonideal a number": lambda: LagrangianSystem(_L2, _K2, ["q0", "q1"], ["v0", "v1"], nonideal=1),
+    "nonideal bytes": lambda: LagrangianSystem(_L2, _K2, ["q0", "q1"], ["v0", "v1"], nonideal=b"q0"),
+    "nonideal nested": lambda: LagrangianSystem(_L2, _K2, ["q0", "q1"], ["v0", "v1"], nonideal=[["q0"], [0]]),
+    "psi a number": lambda: LagrangianSystem(_L2, _K2, ["q0", "q1"], ["v0", "v1"], nonideal=["psi1", 0], psi=1),
+    "mechanical_form M None": lambda: LagrangianSystem.mechanical_form(None, "q0", [[1, 1]]),
+    "mechanical_form M a number": lambda: LagrangianSystem.mechanical_form(1.5, "q0", [[1, 1]]),
+    "mechanical_form M text": lambda: LagrangianSystem.mechanical_form("x", "q0", [[1, 1]]),
+    "mechanical_form U None": lambda: LagrangianSystem.mechanical_form(sympy.eye(2), None, [[1, 1]]),
+    "mechanical_form U a dict": lambda: LagrangianSystem.mechanical_form(sympy.eye(2), {}, [[1, 1]]),
+    "mechanical_form U bytes": lambda: LagrangianSystem.mechanical_form(sympy.eye(2), b"q0", [[1, 1]]),
+    "mechanical_form U True": lambda: LagrangianSystem.mechanical_form(sympy.eye(2), True, [[1, 1]]),
+    "mechanical_form U an object": lambda: LagrangianSystem.mechanical_form(sympy.eye(2), object(), [[1, 1]]),
+    "mechanical_form q a number": lambda: LagrangianSystem.mechanical_form(sympy.eye(2), "q0", [[1, 1]], q=1),
+    "mechanical_form q an array": lambda: LagrangianSystem.mechanical_form(sympy.eye(2), "x", [[1, 1]],
+                                                                         q=np.array([])),
+}
+
+
+@pytest.mark.parametrize("case", sorted(_BAD_ARGS))
+def test_arguments_of_the_wrong_type_are_one_system_definition_error(case):
+    """Each argument of the wrong type (a number, None, bytes, an object where a list of symbols,
+    a time symbol, a list of N components, a matrix or a scalar U belongs) is a
+    SystemDefinitionError, not the TypeError, SympifyError or ValueError of the code below; bytes
+    are not read as a list of small integers (nonideal=b"q0" was N = (113, 48)). Controls: the
+    well-typed neighbours build."""
+    with pytest.raises(SystemDefinitionError) as err:
+        _BAD_ARGS[case]()
+    assert "\n" not in str(err.value)
+    assert LagrangianSystem(_L2, _K2, ("q0", "q1"), np.array(["v0", "v1"]), t="t",
+                            nonideal=["psi1", 0], psi=("psi1",)).n == 2
+    assert LagrangianSystem.mechanical_form(np.eye(2), 1, [[1, 1]], q=("x", "y")).m == 1
