@@ -98,3 +98,32 @@ def test_arguments_of_the_wrong_type_are_one_system_definition_error(case):
     assert LagrangianSystem(_L2, _K2, ("q0", "q1"), np.array(["v0", "v1"]), t="t",
                             nonideal=["psi1", 0], psi=("psi1",)).n == 2
     assert LagrangianSystem.mechanical_form(np.eye(2), 1, [[1, 1]], q=("x", "y")).m == 1
+
+
+def _mech_off_box(U, c=1):
+    """L = |v|^2/2 - sqrt(q0 - 1), k = v1 - sqrt(q0 - 1) v0 with the mechanical parts U and
+    K = (-c sqrt(q0 - 1), 1): every test point in [0.3, 0.7] is outside the domain q0 >= 1 of L
+    and k, so the identities L = v^T M v / 2 - U, k = K v must be decided elsewhere."""
+    q0, q1, v0, v1 = sympy.symbols("q0 q1 v0 v1")
+    r = sympy.sqrt(q0 - 1)
+    return LagrangianSystem((v0 ** 2 + v1 ** 2) / 2 - r, [v1 - r * v0], [q0, q1], [v0, v1],
+                            mechanical={"M": sympy.eye(2), "U": U(r) if callable(U) else U,
+                                        "K": sympy.Matrix([[-c * r, 1]])})
+
+
+@pytest.mark.parametrize("U, c", [
+    (lambda r: 2 * r, 1),       # U twice L's: the compiled engine ran another system
+    (sympy.nan, 1),
+    (sympy.zoo, 1),
+    (lambda r: r, 2),           # K v != k
+])
+def test_mechanical_parts_are_compared_outside_the_first_test_box(U, c):
+    """The mechanical parts were compared with L and k only at points in [0.3, 0.7]; where L was
+    complex at all of them no point was tested and any U (2 sqrt(q0 - 1) for sqrt(q0 - 1), nan)
+    or K was accepted: with L = |v|^2/2 - sqrt(q0 - 1), k = v1 - v0 and U = 2 sqrt(q0 - 1), from
+    q0 = (2, 0), v0 = (1, 1), h = 0.1, t = 1 gauss-2 ended at q0 = 2.890 on the generic engine (L)
+    and 2.778 on the compiled one (U), energies 2.0 and 3.0, both status 0.
+    Control: the matching parts are accepted."""
+    with pytest.raises(SystemDefinitionError, match="mechanical parts do not match"):
+        _mech_off_box(U, c)
+    assert _mech_off_box(lambda r: r).mechanical is not None
