@@ -955,6 +955,14 @@ def _derived_nonzeros(system, name):
     return None if val is None else _nonzero_entries(sympy.Matrix(val))
 
 
+def _finite_param(x, p):
+    """A parameter's value as a sympy number, checked: text through ``_param_value``, a number a
+    finite real one (``_checked_param``: nan, inf, 1j, True refused). The scene builders' rule."""
+    if not isinstance(x, str):
+        _checked_param(p, x)
+    return _param_value(x, p)
+
+
 def _param_value(x, p):
     """A parameter's value as a sympy number: a string through the tableau entry parser
     (``numbers.parse_number``: "1/2", "sqrt(2)", "9.81"), never nsimplify or sympify of text."""

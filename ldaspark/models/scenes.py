@@ -23,12 +23,9 @@ from .scene import Scene
 
 def _number(x):
     """A scene parameter as a sympy number: text through the tableau entry parser ("1/2",
-    "sqrt(2)"), never sympify of text (which evaluates it); other values as sympy takes them."""
-    from ..core.system import _checked_param, _param_value
-    if not isinstance(x, str):
-        # a finite real number, as the system's own parameters (nan, inf, 1j, True refused)
-        _checked_param("of the scene", x)
-    return _param_value(x, "of the scene")
+    "sqrt(2)"), never sympify of text (which evaluates it); a number must be finite and real."""
+    from ..core.system import _finite_param
+    return _finite_param(x, "of the scene")     # a finite real number, as the system's own parameters
 
 
 def _syms(n):

@@ -154,4 +154,11 @@ def test_scene_parameters_are_finite_real_numbers(bad):
         scenes_mod.skate(m=bad)
     with pytest.raises(LdasparkError, match="parameter"):
         scenes_mod.relativistic(B=bad)
+    # the classic scenes' parameters too: chaplygin_sleigh(m=nan) raised TypeError "Invalid NaN
+    # comparison" from sympy, contact_oscillator(epsilon=1j) was built
+    from ldaspark.models import systems_classic
+    with pytest.raises(LdasparkError, match="parameter"):
+        systems_classic.chaplygin_sleigh(m=bad)
+    with pytest.raises(LdasparkError, match="parameter"):
+        systems_classic.contact_oscillator(epsilon=bad)
     assert float(scenes_mod.skate(m="1/2").params["m"]) == float(scenes_mod.skate(m=0.5).params["m"]) == 0.5
