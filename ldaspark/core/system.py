@@ -166,12 +166,13 @@ class LagrangianSystem:
 
     @classmethod
     def mechanical_form(cls, M, U, K, b=None, q=None, v=None, name="system"):
-        """L = 1/2 v^T M v - U(q), k = K(q) v + b(q) (section 7); M, K sympy matrices."""
+        """L = 1/2 v^T M v - U(q), k = K(q) v + b(q) (section 7); M, K sympy matrices. U, K and b
+        may also depend on the time t (the symbol ``t``, by that name in text too)."""
         n = _matrix_rows(M, f"{name}: M")
         # None (not any falsy value: q=[] or an empty array is a wrong length, not the default)
         q = _symbol_list(q, "q") if q is not None else list(sympy.symbols(f"q0:{n}"))
         v = _symbol_list(v, "v") if v is not None else list(sympy.symbols(f"v0:{n}"))
-        names = _names(q, v)
+        names = _names(q, v, [sympy.Symbol("t")])      # the system's t (t=None below), as in LagrangianSystem's text
         M, U, K, b = (_exprs(x, names, what) for x, what in ((M, "M"), (U, "U"), (K, "K"), (b, "b")))
         try:
             M = sympy.Matrix(M)

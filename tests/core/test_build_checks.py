@@ -127,3 +127,14 @@ def test_mechanical_parts_are_compared_outside_the_first_test_box(U, c):
     with pytest.raises(SystemDefinitionError, match="mechanical parts do not match"):
         _mech_off_box(U, c)
     assert _mech_off_box(lambda r: r).mechanical is not None
+
+
+def test_mechanical_form_text_may_use_the_time_t():
+    """The system's time t is a declared name of the text of mechanical_form, as it is of
+    LagrangianSystem's (U, K, b may depend on t: the compiled engine's U(t, q), b(t, q)):
+    b = ["sin(t)"] was refused (unknown name 't') while b = [sin(t)] in sympy was taken."""
+    t = sympy.Symbol("t")
+    text = LagrangianSystem.mechanical_form(sympy.eye(2), "q0**2 * (1 + cos(t))", [[1, 1]], b=["sin(t)"])
+    sym = LagrangianSystem.mechanical_form(sympy.eye(2), text.q[0] ** 2 * (1 + sympy.cos(t)), [[1, 1]],
+                                           b=[sympy.sin(t)])
+    assert text.L == sym.L and list(text.k) == list(sym.k) and text.t == sym.t == t
