@@ -328,6 +328,9 @@ _CONSTANTS = {"pi": sympy.pi}
 # expressions of the Python API (parse_expression): more functions, longer and deeper text
 _MAX_EXPR_LEN = 4000
 _MAX_EXPR_DEPTH = 64
+# sympy builds nested hyperbolic functions at a cost growing 3-5x per level (tanh(sin(...)) 7
+# pairs deep: 153 s, tanh 10 deep: 63 s); 6 deep: tanh^6 0.3 s (models nest 2 or 3: sqrt(1 - sin(q)**2))
+_MAX_EXPR_CALL_DEPTH = 6
 _SYMBOLIC_FUNCTIONS = dict(_FUNCTIONS, tan=sympy.tan, exp=sympy.exp, log=sympy.log, asin=sympy.asin,
                            acos=sympy.acos, atan=sympy.atan, sinh=sympy.sinh, cosh=sympy.cosh, tanh=sympy.tanh)
 _SYMBOLIC_CONSTANTS = {"E": sympy.E}
@@ -579,14 +582,14 @@ class _EntryBuilder:
             self.calls += 1
             if self.calls > _MAX_CALLS:
                 raise self.bad(f"more than {_MAX_CALLS} function calls")
-            self.call_depth += 1
-            if self.call_depth > _MAX_CALL_DEPTH:
-                raise self.bad(f"function calls nested deeper than {_MAX_CALL_DEPTH}")
+        self.call_depth += 1
+        limit = _MAX_EXPR_CALL_DEPTH if self.symbolic else _MAX_CALL_DEPTH
+        if self.call_depth > limit:
+            raise self.bad(f"function calls nested deeper than {limit}")
         try:
             args = [self.build(a, depth + 1, power) for a in node.args]
         finally:
-            if not self.symbolic:
-                self.call_depth -= 1
+            self.call_depth -= 1
         if fname == "Rational":
             if not all(a.is_Integer for a in args) or (len(args) == 2 and args[1] == 0):
                 raise self.bad("Rational needs integer arguments and a nonzero denominator")
@@ -643,7 +646,8 @@ def parse_expression(x, names: dict, where: str = "expression", error=TableauErr
     t, q, v, psi and parameters) as the only names besides pi and E, the functions sqrt, sin, cos,
     tan, exp, log, asin, acos, atan, sinh, cosh, tanh, Rational, literal integer or p/q exponents
     (the product of nested exponents at most 64), at most 4000 characters, depth 64 (a chain
-    a + b + c ... counts as one level), rational coefficients of at most 8192 bits, numeric
+    a + b + c ... counts as one level), function calls nested at most 6 deep, rational
+    coefficients of at most 8192 bits, numeric
     function arguments of modulus at most 1e6. Anything else raises ``error`` naming ``where``."""
     src, tree = _parse_source(x, where, _MAX_EXPR_LEN, error, _shown)
     b = _EntryBuilder(x, src, where, names=dict(names), error=error)
