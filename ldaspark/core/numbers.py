@@ -328,6 +328,9 @@ _CONSTANTS = {"pi": sympy.pi}
 # expressions of the Python API (parse_expression): more functions, longer and deeper text
 _MAX_EXPR_LEN = 4000
 _MAX_EXPR_DEPTH = 64
+# sympy builds nested hyperbolic functions at a cost growing 3-5x per level (tanh(sin(...)) 7
+# pairs deep: 153 s, tanh 10 deep: 63 s); 6 deep: tanh^6 0.3 s (models nest 2 or 3: sqrt(1 - sin(q)**2))
+_MAX_EXPR_CALL_DEPTH = 6
 _SYMBOLIC_FUNCTIONS = dict(_FUNCTIONS, tan=sympy.tan, exp=sympy.exp, log=sympy.log, asin=sympy.asin,
                            acos=sympy.acos, atan=sympy.atan, sinh=sympy.sinh, cosh=sympy.cosh, tanh=sympy.tanh)
 _SYMBOLIC_CONSTANTS = {"E": sympy.E}
@@ -438,6 +441,20 @@ class _EntryBuilder:
                     return False
         return True
 
+    def divides_by_zero(self, value, node) -> bool:
+        """Whether ``value`` (the sympy value of ``node``) is a zero denominator or the zero base of
+        a negative power. A symbolic value (an expression in the declared names) is zero only when
+        it is the number 0, as sympy builds it ((x - x) is 0); the ball evaluator knows numbers
+        only and read every name as pi, so (x - y)**-1 and sin(x)**-1 were 'zero'. A number is
+        tested by ``zero`` (in ball arithmetic) when its text is in the entry language, which
+        that evaluator knows (pi, sqrt, sin, cos, Rational, integer powers); else (E, exp, log,
+        p/q powers of an expression) by sympy's own zero test."""
+        if not getattr(value, "is_number", False):
+            return value == 0
+        if self.symbolic and not _entry_language(node):
+            return value == 0 or value.is_zero is True
+        return self.zero(value, node)
+
     def bad(self, why):
         what = "an expression" if self.symbolic else "a number"
         return self.error(f"{self.where}: {_shown(self.x) if self.symbolic else repr(self.x)} is not {what} ({why})")
@@ -504,7 +521,7 @@ class _EntryBuilder:
         if lit.value * power > _MAX_EXPONENT:
             raise self.bad(f"nested '**' with exponents multiplying to more than {_MAX_EXPONENT}")
         base = self.build(node.left, depth + 1, power * max(lit.value, 1))
-        if neg and lit.value != 0 and self.zero(base, node.left):
+        if neg and lit.value != 0 and self.divides_by_zero(base, node.left):
             raise self.bad("division by zero")
         r = base ** (-lit.value if neg else lit.value)
         if _bits(r) > _MAX_BITS:
@@ -543,7 +560,7 @@ class _EntryBuilder:
             terms = [self.build(chain[-1].left, depth + 1, power)]
             for nd in reversed(chain):
                 b = self.build(nd.right, depth + 1, power)
-                if isinstance(nd.op, ast.Div) and b == 0:
+                if isinstance(nd.op, ast.Div) and self.divides_by_zero(b, nd.right):
                     raise self.bad("division by zero")
                 op = type(nd.op)
                 terms.append(b if op in (ast.Add, ast.Mult) else (-b if op is ast.Sub else 1 / b))
@@ -565,25 +582,44 @@ class _EntryBuilder:
             self.calls += 1
             if self.calls > _MAX_CALLS:
                 raise self.bad(f"more than {_MAX_CALLS} function calls")
-            self.call_depth += 1
-            if self.call_depth > _MAX_CALL_DEPTH:
-                raise self.bad(f"function calls nested deeper than {_MAX_CALL_DEPTH}")
+        self.call_depth += 1
+        limit = _MAX_EXPR_CALL_DEPTH if self.symbolic else _MAX_CALL_DEPTH
+        if self.call_depth > limit:
+            raise self.bad(f"function calls nested deeper than {limit}")
         try:
             args = [self.build(a, depth + 1, power) for a in node.args]
         finally:
-            if not self.symbolic:
-                self.call_depth -= 1
+            self.call_depth -= 1
         if fname == "Rational":
             if not all(a.is_Integer for a in args) or (len(args) == 2 and args[1] == 0):
                 raise self.bad("Rational needs integer arguments and a nonzero denominator")
         elif len(args) != 1:
             raise self.bad(f"{fname} takes one argument")
-        elif fname in ("sin", "cos") and not _small(args[0], _MAX_TRIG_ARG):
-            if not (self.symbolic and not args[0].is_number):
-                raise self.bad(f"argument of {fname} is not a real number of modulus <= {_MAX_TRIG_ARG:g}")
-        elif self.symbolic and args[0].is_number and not _small(args[0], _MAX_TRIG_ARG):
+        elif ((fname in ("sin", "cos") or self.symbolic) and (not self.symbolic or args[0].is_number)
+              and not _small(args[0], _MAX_TRIG_ARG)):
+            # only a numeric argument is bounded (every one of an entry, sin/cos of a symbol-free one
+            # in an expression); sympy.N of a symbolic one costs 2.3x per level of nesting
+            # (sin(sin(...(x))) 12 deep: 51 s) and bounds nothing
             raise self.bad(f"argument of {fname} is not a real number of modulus <= {_MAX_TRIG_ARG:g}")
         return (_SYMBOLIC_FUNCTIONS if self.symbolic else _FUNCTIONS)[fname](*args)
+
+
+def _entry_language(node) -> bool:
+    """Whether the syntax tree ``node`` uses only what ``_BallEvaluator`` evaluates: numbers, pi,
+    + - * /, integer powers and the functions of ``_FUNCTIONS``."""
+    import ast
+    for n in ast.walk(node):
+        if isinstance(n, ast.Call):
+            if not (isinstance(n.func, ast.Name) and n.func.id in _FUNCTIONS):
+                return False
+        elif isinstance(n, ast.Name):
+            if n.id not in _CONSTANTS and n.id not in _FUNCTIONS:
+                return False            # a function's own name is checked at its call
+        elif isinstance(n, ast.BinOp) and isinstance(n.op, ast.Pow):
+            ex = n.right.operand if isinstance(n.right, ast.UnaryOp) else n.right
+            if not (isinstance(ex, ast.Constant) and type(ex.value) is int):
+                return False
+    return True
 
 
 def _coeff_bits(e) -> int:
@@ -610,7 +646,8 @@ def parse_expression(x, names: dict, where: str = "expression", error=TableauErr
     t, q, v, psi and parameters) as the only names besides pi and E, the functions sqrt, sin, cos,
     tan, exp, log, asin, acos, atan, sinh, cosh, tanh, Rational, literal integer or p/q exponents
     (the product of nested exponents at most 64), at most 4000 characters, depth 64 (a chain
-    a + b + c ... counts as one level), rational coefficients of at most 8192 bits, numeric
+    a + b + c ... counts as one level), function calls nested at most 6 deep, rational
+    coefficients of at most 8192 bits, numeric
     function arguments of modulus at most 1e6. Anything else raises ``error`` naming ``where``."""
     src, tree = _parse_source(x, where, _MAX_EXPR_LEN, error, _shown)
     b = _EntryBuilder(x, src, where, names=dict(names), error=error)

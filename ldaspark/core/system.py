@@ -166,12 +166,13 @@ class LagrangianSystem:
 
     @classmethod
     def mechanical_form(cls, M, U, K, b=None, q=None, v=None, name="system"):
-        """L = 1/2 v^T M v - U(q), k = K(q) v + b(q) (section 7); M, K sympy matrices."""
-        n = len(M) if isinstance(M, (list, tuple)) else np.shape(M)[0] if isinstance(M, np.ndarray) else None
-        n = sympy.Matrix(M).rows if n is None else n
-        q = [_symbol(x, "q") for x in q] if q else list(sympy.symbols(f"q0:{n}"))
-        v = [_symbol(x, "v") for x in v] if v else list(sympy.symbols(f"v0:{n}"))
-        names = _names(q, v)
+        """L = 1/2 v^T M v - U(q), k = K(q) v + b(q) (section 7); M, K sympy matrices. U, K and b
+        may also depend on the time t (the symbol ``t``, by that name in text too)."""
+        n = _matrix_rows(M, f"{name}: M")
+        # None (not any falsy value: q=[] or an empty array is a wrong length, not the default)
+        q = _symbol_list(q, "q") if q is not None else list(sympy.symbols(f"q0:{n}"))
+        v = _symbol_list(v, "v") if v is not None else list(sympy.symbols(f"v0:{n}"))
+        names = _names(q, v, [sympy.Symbol("t")])      # the system's t (t=None below), as in LagrangianSystem's text
         M, U, K, b = (_exprs(x, names, what) for x, what in ((M, "M"), (U, "U"), (K, "K"), (b, "b")))
         try:
             M = sympy.Matrix(M)
@@ -187,10 +188,11 @@ class LagrangianSystem:
             raise SystemDefinitionError(f"{name}: K must be m x n (n = {n}) and b m x 1, got K {K.shape}, b {b.shape}")
         if isinstance(U, (list, tuple, np.ndarray, sympy.MatrixBase)):
             raise SystemDefinitionError(f"{name}: U must be one scalar expression, got {type(U).__name__}")
+        U = _scalar_expr(U, f"{name}: U")
         vv = sympy.Matrix(v)
-        L = (vv.T * M * vv)[0, 0] / 2 - sympy.sympify(U)
+        L = (vv.T * M * vv)[0, 0] / 2 - U
         k = list(K * vv + b)
-        return cls(L, k, q, v, name=name, mechanical={"M": M, "U": sympy.sympify(U), "K": K, "b": b})
+        return cls(L, k, q, v, name=name, mechanical={"M": M, "U": U, "K": K, "b": b})
 
     @classmethod
     def from_mechanics(cls, model, q=None, constraints=None, params=None, name: str = "system"):
@@ -543,6 +545,56 @@ def _symbol(x, what):
     return x
 
 
+def _symbol_list(x, what):
+    """The symbols of q, v or psi: a list, tuple, 1-D array or other iterable (not text, bytes or
+    a dict) of Symbols or names, as a list; anything else a SystemDefinitionError (not the
+    TypeError of ``list(None)``, nor bytes read as a list of small integers)."""
+    from .validate import _describe
+    if isinstance(x, (str, bytes, dict)) or not hasattr(x, "__iter__"):
+        raise SystemDefinitionError(f"{what} must be a list of symbols (or of names), got {_describe(x)}")
+    try:
+        items = list(x)
+    except TypeError:                   # a 0-d array has __iter__ but no items
+        raise SystemDefinitionError(f"{what} must be a list of symbols (or of names), got {_describe(x)}") from None
+    return [_symbol(e, what) for e in items]
+
+
+def _time_symbol(t):
+    """The time of the system: a sympy Symbol, or a name for one (``_symbol``)."""
+    from .validate import _describe
+    t = _symbol(t, "t")
+    if not isinstance(t, sympy.Symbol):
+        raise SystemDefinitionError(f"t must be a sympy Symbol (or a name), got {_describe(t)}")
+    return t
+
+
+def _matrix_rows(M, where) -> int:
+    """The number of rows n of a matrix argument (a sympy Matrix, an array or a list of rows), or
+    a SystemDefinitionError: M = None, a number or text has no rows."""
+    from .validate import _describe
+    if isinstance(M, (list, tuple)):
+        return len(M)
+    if isinstance(M, np.ndarray) and M.ndim >= 1:
+        return M.shape[0]
+    if isinstance(M, sympy.MatrixBase):
+        return M.rows
+    raise SystemDefinitionError(f"{where} must be an n x n matrix (a sympy Matrix, an array or a list of rows), "
+                                f"got {_describe(M)}")
+
+
+def _scalar_expr(e, where):
+    """``e`` as one scalar sympy expression (numbers included; not None, True, a dict, bytes or an
+    object sympy cannot take), else a SystemDefinitionError naming ``where``."""
+    from .validate import _describe
+    try:
+        x = sympy.sympify(e, strict=True)
+    except (sympy.SympifyError, TypeError, ValueError, AttributeError):
+        x = None
+    if not isinstance(x, sympy.Expr) or getattr(x, "is_Matrix", False):
+        raise SystemDefinitionError(f"{where} must be one scalar expression, got {_describe(e)}")
+    return x
+
+
 def _names(*groups) -> dict:
     """name -> Symbol of the declared symbols (what a string expression may use)."""
     return {str(s): s for g in groups for s in g if isinstance(s, sympy.Symbol)}
@@ -774,11 +826,16 @@ def _check_mechanical_parts(system, mech, M, Mnz) -> None:
     fixed = {p: sympy.sympify(val) for p, val in system._param_values.items() if not isinstance(val, str)}
 
     def mismatch(lhs, rhs):
-        """(lhs, rhs) at a test point where they differ, None when they agree at two points.
+        """A description of a test point where lhs and rhs differ, None when they agree at two
+        points.
 
         Exact data must agree to 1e-25 of the terms' size (40 digits evaluated). A Float in the
         data carries its own precision (53 bits from Python floats), and the two sides may sum
-        its terms in different orders: then the tolerance is 2^-prec times 16 per term."""
+        its terms in different orders: then the tolerance is 2^-prec times 16 per term.
+        Six points in [0.3, 0.7] first; where fewer than two of them evaluate to finite real
+        values (L defined only for q0 >= 1, a nan or zoo in U), up to 24 points in [-10, 10], and
+        where those fail too the difference must simplify to 0: an identity left untested let any
+        U or K through (the engines then integrated different systems without a word)."""
         floats = [f for e in (lhs, rhs) for f in e.atoms(sympy.Float)]
         tol = 1e-25
         if floats:
@@ -786,8 +843,11 @@ def _check_mechanical_parts(system, mech, M, Mnz) -> None:
             tol = max(tol, 16.0 * nterms * 2.0 ** -min(f._prec for f in floats))
         tested = 0
         sides = [_point_evaluator(e) for e in (lhs, rhs)]
-        for _ in range(6):
-            pt = {x: sympy.Rational(rng.randint(300, 700), 1000) for x in syms}
+        for i in range(6 + 24):
+            if i == 6 and tested:
+                return None         # as before: the first box decides when one point evaluated there
+            lo, hi = (300, 700) if i < 6 else (-10000, 10000)
+            pt = {x: sympy.Rational(rng.randint(lo, hi), 1000) for x in syms}
             pt.update(fixed)
             try:
                 a, c = (sympy.N(at(pt), 40) for at in sides)
@@ -797,15 +857,19 @@ def _check_mechanical_parts(system, mech, M, Mnz) -> None:
             if not all(math.isfinite(z.real) and math.isfinite(z.imag) and z.imag == 0 for z in (fa, fc)):
                 continue
             if abs(a - c) > tol * (1 + abs(fa) + abs(fc)):
-                return a, c
+                return f"fails at a test point: {str(sympy.N(a, 6))} vs {str(sympy.N(c, 6))}"
             tested += 1
             if tested == 2:
                 return None
-        return None
+        if tested:
+            return None
+        d = sympy.sympify(lhs - rhs)
+        if d == 0 or sympy.expand(d) == 0 or sympy.simplify(d) == 0:
+            return None
+        return "cannot be evaluated at any test point and does not simplify to an identity"
 
-    def refuse(what, ac):
-        raise SystemDefinitionError(f"{system.name}: the mechanical parts do not match L and k ({what} fails at a "
-                                    f"test point: {str(sympy.N(ac[0], 6))} vs {str(sympy.N(ac[1], 6))}); "
+    def refuse(what, why):
+        raise SystemDefinitionError(f"{system.name}: the mechanical parts do not match L and k ({what} {why}); "
                                     "the engines would integrate different systems")
     bad = mismatch(system.L, quad / 2 - U)
     if bad is not None:
@@ -892,6 +956,14 @@ def _derived_nonzeros(system, name):
     return None if val is None else _nonzero_entries(sympy.Matrix(val))
 
 
+def _finite_param(x, p):
+    """A parameter's value as a sympy number, checked: text through ``_param_value``, a number a
+    finite real one (``_checked_param``: nan, inf, 1j, True refused). The scene builders' rule."""
+    if not isinstance(x, str):
+        _checked_param(p, x)
+    return _param_value(x, p)
+
+
 def _param_value(x, p):
     """A parameter's value as a sympy number: a string through the tableau entry parser
     (``numbers.parse_number``: "1/2", "sqrt(2)", "9.81"), never nsimplify or sympify of text."""
@@ -911,9 +983,9 @@ def _parse_strings(L, k, q, v, t, params, nonideal, psi, mechanical):
     ``numbers.parse_number``."""
     if isinstance(q, (str, bytes)) or isinstance(v, (str, bytes)):
         raise SystemDefinitionError("q and v must be lists of symbols (or of names), not strings")
-    q = [_symbol(x, "q") for x in q] if hasattr(q, "__iter__") else q
-    v = [_symbol(x, "v") for x in v] if hasattr(v, "__iter__") else v
-    t = _symbol(t, "t") if t is not None else None
+    q = _symbol_list(q, "q")
+    v = _symbol_list(v, "v")
+    t = _time_symbol(t) if t is not None else None
     if isinstance(params, dict):
         params = {_symbol(p, "parameter"): (_param_value(x, p) if isinstance(x, str) else x)
                   for p, x in params.items()}
@@ -921,8 +993,8 @@ def _parse_strings(L, k, q, v, t, params, nonideal, psi, mechanical):
         params = [_symbol(p, "parameter") for p in params]
     elif isinstance(params, str):
         raise SystemDefinitionError("params must be a list of symbols (or names) or a dict, not a string")
-    if psi is not None and isinstance(psi, (list, tuple)):
-        psi = [_symbol(x, "psi") for x in psi]
+    if psi is not None:
+        psi = _symbol_list(psi, "psi")
     m = len(k) if isinstance(k, (list, tuple, np.ndarray)) else getattr(k, "rows", 1)
     names = _names(q if isinstance(q, list) else [], v if isinstance(v, list) else [], [t or sympy.Symbol("t")],
                    list(params) if isinstance(params, (dict, list)) else [],
@@ -930,7 +1002,11 @@ def _parse_strings(L, k, q, v, t, params, nonideal, psi, mechanical):
     L = _exprs(L, names, "L")
     k = _exprs(k, names, "k")
     if nonideal is not None:
-        nonideal = [sympy.sympify(e, strict=True) for e in _exprs(list(nonideal), names, "nonideal")]
+        if isinstance(nonideal, (str, bytes, dict)) or not hasattr(nonideal, "__iter__"):
+            from .validate import _describe
+            raise SystemDefinitionError(f"nonideal must be a list of n expressions, got {_describe(nonideal)}")
+        nonideal = [_scalar_expr(e, f"nonideal[{i}]")
+                    for i, e in enumerate(_exprs(list(nonideal), names, "nonideal"))]
     if isinstance(mechanical, dict):
         mechanical = {key: _exprs(val, names, f"mechanical[{key!r}]") for key, val in mechanical.items()}
     return L, k, q, v, t, params, nonideal, psi, mechanical

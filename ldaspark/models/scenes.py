@@ -23,9 +23,9 @@ from .scene import Scene
 
 def _number(x):
     """A scene parameter as a sympy number: text through the tableau entry parser ("1/2",
-    "sqrt(2)"), never sympify of text (which evaluates it); other values as sympy takes them."""
-    from ..core.system import _param_value
-    return _param_value(x, "of the scene")
+    "sqrt(2)"), never sympify of text (which evaluates it); a number must be finite and real."""
+    from ..core.system import _finite_param
+    return _finite_param(x, "of the scene")     # a finite real number, as the system's own parameters
 
 
 def _syms(n):
@@ -83,6 +83,13 @@ def robot(m=1, I=1, I_w=1, ell=1) -> Scene:
 
 
 MP_CONSTRAINTS = ("printed", "nonholonomic")
+#: the largest m of mp_particles: n = 2m + 1 = 1001, the largest model the compiled engine is measured on
+MP_MAX_M = 500
+
+
+def _is_int(x) -> bool:
+    """An integer, not a bool (True is not 1)."""
+    return isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_))
 
 
 def mp_particles(m: int = 3, J: int = 9, j: int = 0, constraint: str = "printed") -> Scene:
@@ -95,12 +102,16 @@ def mp_particles(m: int = 3, J: int = 9, j: int = 0, constraint: str = "printed"
     constraint generalizing the nonholonomic particle of 8.1 (v3 - q2 v1 = 0), which is what a
     chaotic *nonholonomic* test problem needs; we take the printed q_i to be a typo for q_{i-m}
     and measure both (scene names ``mp-particles`` and ``mp-particles-nh``)."""
-    if m < 2:
-        raise InputError("mp-particles needs m >= 2")
+    from ..core.validate import count
+    # integers (no str, float or bool); m bounded: n = 2m + 1 symbols are built and derived
+    # (m = 400 takes minutes, m = 10**9 exhausts the memory)
+    m = count(m, "m of mp-particles (n = 2m + 1)", 2, MP_MAX_M)
     if constraint not in MP_CONSTRAINTS:
         raise InputError(f"constraint must be one of {MP_CONSTRAINTS}, got {constraint!r}")
-    if not (0 <= j <= J):
-        raise InputError(f"initial condition index j = {j} must be in 0..{J}")
+    J = count(J, "J (the number of initial conditions less one)", 0, 10 ** 6)
+    if not _is_int(j) or not (0 <= j <= J):
+        raise InputError(f"initial condition index j = {str(j)[:40]} must be an integer in 0..{J}")
+    j = int(j)
     n = 2 * m + 1
     q, v = _syms(n)
     # paper indices are 1-based: q_i -> q[i-1]

@@ -86,8 +86,8 @@ class ClassicScene(Scene):
 def _num(x):
     """A scene parameter as a sympy number: text through the tableau entry parser ("1/2",
     "sqrt(2)"; ``system._param_value``), never sympify of text, which evaluates it as Python."""
-    from ..core.system import _param_value
-    return _param_value(x, "of the scene")
+    from ..core.system import _finite_param
+    return _finite_param(x, "of the scene")     # a finite real number, as the system's own parameters
 
 
 def _psi_along(system, ts, qe):

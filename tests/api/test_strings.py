@@ -243,3 +243,75 @@ def test_parse_number_is_the_tableau_entry_parser():
         parse_number("x")
     with pytest.raises(LdasparkError):
         parse_number("sqrt(-1)")
+
+
+def test_nested_sin_cos_of_symbols_parse_in_linear_time(monkeypatch):
+    """The range check of a sin/cos argument (|x| <= 1e6) evaluated sympy.N of symbolic
+    arguments too, at a cost growing 2.3x per level of nesting: sin(sin(...(x*vx*vy))) 12 deep took
+    51 s, 20 deep hours (an L of 150 characters). Only numeric arguments are bounded now; a
+    numeric argument is still checked (control: sin(1e7) refused, sin(x + 1e7) taken)."""
+    import time
+    from ldaspark.core import numbers
+    x, vx, vy = sympy.symbols("x vx vy")
+    names = {"x": x, "vx": vx, "vy": vy}
+    seen = []
+    real_small = numbers._small
+    monkeypatch.setattr(numbers, "_small", lambda e, bound: seen.append(e) or real_small(e, bound))
+    parse_expression("sin(cos(sin(x*vx*vy)))", names)
+    assert all(e.is_number for e in seen), f"sympy.N of symbolic arguments: {seen}"
+    monkeypatch.setattr(numbers, "_small", real_small)
+    t = time.perf_counter()
+    e = parse_expression("vx**2/2 + " + "sin(cos(" * 3 + "x*vx*vy" + "))" * 3, names)    # 6 deep: the limit
+    assert time.perf_counter() - t < 5 and e.count(sympy.sin) == 3
+    with pytest.raises(LdasparkError, match="modulus"):
+        parse_expression("sin(10000000.0)", names)
+    assert parse_expression("sin(x + 10000000.0)", names).has(x)
+
+
+def test_negative_powers_of_symbolic_bases_are_not_division_by_zero():
+    """The zero test of a base raised to a negative power evaluated the text in ball arithmetic,
+    where every name stood for pi: (x - y)**-1 (pi - pi), sin(x)**-1 (sin(pi)) and (E - 3)**-1
+    ... were refused as 'division by zero' while 1/(x - y) and 1/sin(x) were taken. Now a
+    symbolic base is zero only when it is the number 0 (as for '/'), and a numeric one is tested
+    in ball arithmetic for '**-k' and '/' alike (1/(sin(1)**2 + cos(1)**2 - 1) was taken).
+    Controls: (x - x)**-1 and the numeric zeros are refused."""
+    x, y = sympy.symbols("x y")
+    names = {"x": x, "y": y}
+    assert parse_expression("(x - y)**-1", names) == 1 / (x - y)
+    assert parse_expression("sin(x)**-2", names) == 1 / sympy.sin(x) ** 2
+    assert parse_expression("(E - pi)**-1", names) == 1 / (sympy.E - sympy.pi)
+    assert parse_expression("(x - pi)**-1", names) == 1 / (x - sympy.pi)
+    for text in ("(x - x)**-1", "(sin(1)**2 + cos(1)**2 - 1)**-1", "1/(sin(1)**2 + cos(1)**2 - 1)",
+                 "x/(sqrt(2)**2 - 2)", "(E - E)**-3"):
+        with pytest.raises(LdasparkError, match="division by zero"):
+            parse_expression(text, names)
+
+
+@pytest.mark.parametrize("text, zero", [("(exp(1) - 3)**-1", False), ("1/(exp(1) - 3)", False),
+                                        ("1/(2**(1/2) - 1)", False), ("1/(log(2) - log(2))", True),
+                                        ("(E - E)**-1", True), ("1/(E**2 - exp(2))", True)])
+def test_denominators_outside_the_entry_language_are_decided_by_sympy(text, zero):
+    """A numeric denominator with exp, log, E or a p/q power is not one the ball evaluator knows
+    (KeyError 'exp', AttributeError of the p/q exponent): sympy decides whether it is zero."""
+    x = sympy.Symbol("x")
+    if zero:
+        with pytest.raises(LdasparkError, match="division by zero"):
+            parse_expression(text, {"x": x})
+    else:
+        assert parse_expression(text, {"x": x}).is_number
+
+
+def test_function_calls_in_expressions_nest_at_most_six_deep():
+    """sympy's construction of nested hyperbolic functions grows 3-5x per level (its assumption
+    queries recurse into the argument): tanh(sin(...)) 7 pairs deep (an L of 90 characters) took
+    153 s, tanh 10 deep 63 s, within the length and depth limits of the expression text. Function
+    calls now nest at most 6 deep in an expression (tanh 6 deep: 0.3 s). Controls: 6 deep is
+    taken, and a deep tree of arithmetic without calls still is."""
+    x, vx = sympy.symbols("x vx")
+    names = {"x": x, "vx": vx}
+    with pytest.raises(LdasparkError, match="nested deeper than 6"):
+        parse_expression("tanh(sin(" * 4 + "x*vx" + "))" * 4, names)
+    with pytest.raises(SystemDefinitionError, match="nested deeper than 6"):
+        ldaspark.LagrangianSystem("vx**2/2 + " + "cos(" * 7 + "x" + ")" * 7, [], ["x"], ["vx"])
+    assert parse_expression("tanh(sin(" * 3 + "x*vx" + "))" * 3, names).count(sympy.tanh) == 3
+    assert parse_expression("(" * 20 + "x" + "+1)*vx" * 20, names).has(vx)

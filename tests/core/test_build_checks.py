@@ -53,3 +53,88 @@ def test_physical_units_are_refused_at_build():
     with pytest.raises(SystemDefinitionError, match="physical units"):
         LagrangianSystem((vx ** 2 + vy ** 2 + vth ** 2) / 2, [vy - meter * vx], [x, y, th], [vx, vy, vth])
     assert _toy(2 * (vx ** 2 + vy ** 2 + vth ** 2) / 2 - x).lvv_problem is None     # control: numbers
+
+
+_L2, _K2 = "(v0**2 + v1**2)/2 - q0", ["v1 - q0*v0"]
+_q0, _v0, _v1 = sympy.symbols("q0 v0 v1")
+_LS, _KS = (_v0 ** 2 + _v1 ** 2) / 2 - _q0, [_v1 - _q0 * _v0]        # sympy: no name to resolve in q
+_BAD_ARGS = {
+    "q None": lambda: LagrangianSystem(_LS, _KS, None, ["v0", "v1"]),
+    "q a number": lambda: LagrangianSystem(_LS, _KS, 1, ["v0", "v1"]),
+    "q a Symbol": lambda: LagrangianSystem(_LS, _KS, _q0, ["v0", "v1"]),
+    "v an object": lambda: LagrangianSystem(_LS, _KS, ["q0", "q1"], object()),
+    "t a list": lambda: LagrangianSystem(_L2, _K2, ["q0", "q1"], ["v0", "v1"], t=[]),
+    "t a number": lambda: LagrangianSystem(_L2, _K2, ["q0", "q1"], ["v0", "v1"], t=1),
+    "t bytes": lambda: LagrangianSystem(_L2, _K2, ["q0", "q1"], ["v0", "v1"], t=b"t"),
+    "t an array": lambda: LagrangianSystem(_L2, _K2, ["q0", "q1"], ["v0", "v1"], t=np.array([])),
+    "nonideal a number": lambda: LagrangianSystem(_L2, _K2, ["q0", "q1"], ["v0", "v1"], nonideal=1),
+    "nonideal bytes": lambda: LagrangianSystem(_L2, _K2, ["q0", "q1"], ["v0", "v1"], nonideal=b"q0"),
+    "nonideal nested": lambda: LagrangianSystem(_L2, _K2, ["q0", "q1"], ["v0", "v1"], nonideal=[["q0"], [0]]),
+    "psi a number": lambda: LagrangianSystem(_L2, _K2, ["q0", "q1"], ["v0", "v1"], nonideal=["psi1", 0], psi=1),
+    "mechanical_form M None": lambda: LagrangianSystem.mechanical_form(None, "q0", [[1, 1]]),
+    "mechanical_form M a number": lambda: LagrangianSystem.mechanical_form(1.5, "q0", [[1, 1]]),
+    "mechanical_form M text": lambda: LagrangianSystem.mechanical_form("x", "q0", [[1, 1]]),
+    "mechanical_form U None": lambda: LagrangianSystem.mechanical_form(sympy.eye(2), None, [[1, 1]]),
+    "mechanical_form U a dict": lambda: LagrangianSystem.mechanical_form(sympy.eye(2), {}, [[1, 1]]),
+    "mechanical_form U bytes": lambda: LagrangianSystem.mechanical_form(sympy.eye(2), b"q0", [[1, 1]]),
+    "mechanical_form U True": lambda: LagrangianSystem.mechanical_form(sympy.eye(2), True, [[1, 1]]),
+    "mechanical_form U an object": lambda: LagrangianSystem.mechanical_form(sympy.eye(2), object(), [[1, 1]]),
+    "mechanical_form q a number": lambda: LagrangianSystem.mechanical_form(sympy.eye(2), "q0", [[1, 1]], q=1),
+    "mechanical_form q an array": lambda: LagrangianSystem.mechanical_form(sympy.eye(2), "x", [[1, 1]],
+                                                                         q=np.array([])),
+}
+
+
+@pytest.mark.parametrize("case", sorted(_BAD_ARGS))
+def test_arguments_of_the_wrong_type_are_one_system_definition_error(case):
+    """Each argument of the wrong type (a number, None, bytes, an object where a list of symbols,
+    a time symbol, a list of N components, a matrix or a scalar U belongs) is a
+    SystemDefinitionError, not the TypeError, SympifyError or ValueError of the code below; bytes
+    are not read as a list of small integers (nonideal=b"q0" was N = (113, 48)). Controls: the
+    well-typed neighbours build."""
+    with pytest.raises(SystemDefinitionError) as err:
+        _BAD_ARGS[case]()
+    assert "\n" not in str(err.value)
+    assert LagrangianSystem(_L2, _K2, ("q0", "q1"), np.array(["v0", "v1"]), t="t",
+                            nonideal=["psi1", 0], psi=("psi1",)).n == 2
+    assert LagrangianSystem.mechanical_form(np.eye(2), 1, [[1, 1]], q=("x", "y")).m == 1
+
+
+def _mech_off_box(U, c=1):
+    """L = |v|^2/2 - sqrt(q0 - 1), k = v1 - sqrt(q0 - 1) v0 with the mechanical parts U and
+    K = (-c sqrt(q0 - 1), 1): every test point in [0.3, 0.7] is outside the domain q0 >= 1 of L
+    and k, so the identities L = v^T M v / 2 - U, k = K v must be decided elsewhere."""
+    q0, q1, v0, v1 = sympy.symbols("q0 q1 v0 v1")
+    r = sympy.sqrt(q0 - 1)
+    return LagrangianSystem((v0 ** 2 + v1 ** 2) / 2 - r, [v1 - r * v0], [q0, q1], [v0, v1],
+                            mechanical={"M": sympy.eye(2), "U": U(r) if callable(U) else U,
+                                        "K": sympy.Matrix([[-c * r, 1]])})
+
+
+@pytest.mark.parametrize("U, c", [
+    (lambda r: 2 * r, 1),       # U twice L's: the compiled engine ran another system
+    (sympy.nan, 1),
+    (sympy.zoo, 1),
+    (lambda r: r, 2),           # K v != k
+])
+def test_mechanical_parts_are_compared_outside_the_first_test_box(U, c):
+    """The mechanical parts were compared with L and k only at points in [0.3, 0.7]; where L was
+    complex at all of them no point was tested and any U (2 sqrt(q0 - 1) for sqrt(q0 - 1), nan)
+    or K was accepted: with L = |v|^2/2 - sqrt(q0 - 1), k = v1 - v0 and U = 2 sqrt(q0 - 1), from
+    q0 = (2, 0), v0 = (1, 1), h = 0.1, t = 1 gauss-2 ended at q0 = 2.890 on the generic engine (L)
+    and 2.778 on the compiled one (U), energies 2.0 and 3.0, both status 0.
+    Control: the matching parts are accepted."""
+    with pytest.raises(SystemDefinitionError, match="mechanical parts do not match"):
+        _mech_off_box(U, c)
+    assert _mech_off_box(lambda r: r).mechanical is not None
+
+
+def test_mechanical_form_text_may_use_the_time_t():
+    """The system's time t is a declared name of the text of mechanical_form, as it is of
+    LagrangianSystem's (U, K, b may depend on t: the compiled engine's U(t, q), b(t, q)):
+    b = ["sin(t)"] was refused (unknown name 't') while b = [sin(t)] in sympy was taken."""
+    t = sympy.Symbol("t")
+    text = LagrangianSystem.mechanical_form(sympy.eye(2), "q0**2 * (1 + cos(t))", [[1, 1]], b=["sin(t)"])
+    sym = LagrangianSystem.mechanical_form(sympy.eye(2), text.q[0] ** 2 * (1 + sympy.cos(t)), [[1, 1]],
+                                           b=[sympy.sin(t)])
+    assert text.L == sym.L and list(text.k) == list(sym.k) and text.t == sym.t == t

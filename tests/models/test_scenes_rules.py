@@ -128,3 +128,37 @@ def test_flow_jacobian_of_a_bare_system_starts_at_t0_zero_by_default():
     b = flow_jacobian(sc.system, "gauss-1", q0, v0, 0.1, t0=0)
     assert a.full.shape == (2 * sc.system.n, 2 * sc.system.n)
     assert np.array_equal(np.asarray(a.full, dtype=float), np.asarray(b.full, dtype=float))
+
+
+# ==== scene builders: their arguments ==========================================================
+@pytest.mark.parametrize("kw", [dict(m="3"), dict(m=None), dict(m=2.5), dict(m=10 ** 9), dict(J="9"),
+                                dict(j="1"), dict(j=1.5), dict(J=9, j=10)])
+def test_mp_particles_takes_integer_sizes_and_indices(kw):
+    """m, J and j of ``mp_particles`` are integers (m in 2..500, n = 2m + 1 <= 1001; 0 <= j <= J):
+    m = "3", None or 2.5 raised a TypeError from a comparison or an index, j = 1.5 built the
+    initial condition cos(1.5 pi / 18) as if it were one of the J + 1, and m = 10**9 started
+    building a billion symbols (m = 400 ran for more than 20 s). Control: m = 2, J = 0, j = 0."""
+    from ldaspark.core.errors import InputError
+    with pytest.raises(InputError):
+        scenes_mod.mp_particles(**kw)
+    assert scenes_mod.mp_particles(m=2, J=0, j=0).system.n == 5
+
+
+@pytest.mark.parametrize("bad", [float("nan"), float("inf"), 1j, complex(1, 0), np.float64("nan"), True])
+def test_scene_parameters_are_finite_real_numbers(bad):
+    """A scene parameter given as a number is a finite real one, as the system's own parameters
+    are (``_checked_param``): skate(m=nan) and skate(m=1j) built a skate of mass nan or 1j
+    without a word. Control: 1/2 as a string and as a float."""
+    from ldaspark.core.errors import LdasparkError
+    with pytest.raises(LdasparkError, match="parameter"):
+        scenes_mod.skate(m=bad)
+    with pytest.raises(LdasparkError, match="parameter"):
+        scenes_mod.relativistic(B=bad)
+    # the classic scenes' parameters too: chaplygin_sleigh(m=nan) raised TypeError "Invalid NaN
+    # comparison" from sympy, contact_oscillator(epsilon=1j) was built
+    from ldaspark.models import systems_classic
+    with pytest.raises(LdasparkError, match="parameter"):
+        systems_classic.chaplygin_sleigh(m=bad)
+    with pytest.raises(LdasparkError, match="parameter"):
+        systems_classic.contact_oscillator(epsilon=bad)
+    assert float(scenes_mod.skate(m="1/2").params["m"]) == float(scenes_mod.skate(m=0.5).params["m"]) == 0.5
