@@ -80,6 +80,11 @@ def run(args) -> int:
         only_generated.append("--coverage-only")
     if only_generated and not getattr(args, "generated", None):
         raise CatalogueError(f"{', '.join(only_generated)}: only with --generated MODULE...")
+    # the user's own input is judged before the catalogue (a malformed --scheduler is one line
+    # about it, in a mutated copy too, where the catalogue itself is "out of date": that test would
+    # otherwise kill every mutant that reached it)
+    from ...executors import check_where
+    check_where(getattr(args, "scheduler", None))
     if getattr(args, "generated", None):
         if args.jobs < 1:
             raise CatalogueError("--jobs must be >= 1")
