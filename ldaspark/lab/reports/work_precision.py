@@ -637,6 +637,9 @@ def write_report(outdir, studies, sps, dps_rows, le, clock, command="ldaspark re
     data = {"studies": [dict(st, ratios={"error": ratios(st, key="error"),
                                          "energy_error": ratios(st, key="energy_error")}) for st in studies],
             "steps_per_second": sps, "steps_per_second_summary": sm, "dps": dps_rows,
+            # the strongest peers this run could not set up (the bench extra): their ratios are not
+            # "against the strongest peers", and ``summary`` does not quote them as such
+            "peers_skipped": list(skipped),
             "long": {k: {kk: vv for kk, vv in v.items() if kk not in ("t", "dE")} if isinstance(v, dict) else v
                      for k, v in le.items()}}
     atomic_write_json(os.path.join(outdir, "work_precision.json"), jsonable(data))

@@ -77,6 +77,19 @@ def test_work_precision_peer_ratios_only_where_measured():
     assert summary._r(None, at_most=4.94) == "<= 4.9x" and summary._r(None, at_least=12.3) == ">= 12x"
 
 
+def test_peer_ratios_of_a_run_without_the_strongest_peers_are_not_quoted():
+    """A main job run without the bench extra compares SPARK with scipy's and Fortran's loops only
+    (a fresh clone's run gave particle 5.5x / 8.1x / 10x where CyRK's nbsolve2_ivp gives 0.057x /
+    0.078x / 0.16x); README's row names CyRK, so those ratios are refused, not quoted."""
+    row = {"target": 1e-3, "scipy/spark-fast": 12.4, "peer/spark-fast": 5.5}
+    d = {"studies": [{"scene": "s", "ratios": {"error": [row]}}], "dps": [],
+         "peers_skipped": ['cyrk-nbsolve2-DOP853, cyrk-nbsolve2-Vern8 skipped: CyRK is not installed '
+                           '(pip install -e ".[bench]")']}
+    v = summary.work_precision_values(d)["wp.s.peer_ratios"]
+    assert "5.5x" not in v and v.startswith("not measured") and "cyrk-nbsolve2-Vern8" in v
+    assert summary.work_precision_values(dict(d, peers_skipped=[]))["wp.s.peer_ratios"] == "5.5x"   # control
+
+
 def test_residuals_agree_within_a_factor_ten_only():
     sm = summary.same_magnitude
     assert sm("1e0", "1e1") and sm("1e1", "1e0") and not sm("1e0", "1.01e1") and not sm("1.01e1", "1e0")
