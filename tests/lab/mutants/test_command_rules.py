@@ -39,3 +39,18 @@ def test_the_mutation_runs_identity_has_every_option_that_changes_its_records(mo
     assert excl["fp"] != base["fp"]
     # options that do not change a record keep it (a resumed run with more jobs is possible)
     assert _mutants_identity(monkeypatch, tmp_path, jobs=2)["fp"] == base["fp"]
+
+
+def test_a_malformed_scheduler_is_judged_before_the_catalogue(monkeypatch, tmp_path):
+    """In a mutated copy the catalogue is "out of date" (the mutant's snippet is gone): when the
+    command judged the catalogue first, ``ldaspark mutants --scheduler tcp://`` said that instead of
+    naming the address, so its CLI test failed in every copy and "killed" every mutant that reached
+    it. The user's own argument comes first (control: a good address reaches the catalogue check)."""
+    from ldaspark.core.errors import InputError
+    from ldaspark.lab.mutants import command as mutation
+    monkeypatch.setattr(mutation, "snippet_problems", lambda *a, **k: ["a snippet no longer in the source"])
+    args = dict(quick=False, outdir=str(tmp_path), jobs=1, only=None, exclude="", fresh=False, generated=None)
+    with pytest.raises(InputError, match="malformed Dask scheduler address"):
+        mutation.run(argparse.Namespace(scheduler="tcp://", **args))
+    with pytest.raises(mutation.CatalogueError, match="out of date"):
+        mutation.run(argparse.Namespace(scheduler="tcp://localhost:8786", **args))
