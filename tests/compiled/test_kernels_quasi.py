@@ -227,3 +227,15 @@ def test_a_rheonomic_scene_started_at_t0_not_zero_agrees_with_newton(scene):
         a = run_compiled(cs, fam, t1, q1, v1, H, 100, 1, kernel="spark")
         b = run_quasi(cs, fam, t1, q1, v1, H, 100, 1)
         assert b.t[0] == t1 and _difference(a, b) <= 1.0, (scene, fam, _difference(a, b))
+
+
+@pytest.mark.parametrize("scene", ["particle", "relativistic"])
+def test_the_quasi_root_finder_counts_its_factorisations(scene):
+    """``nlu`` counts LU factorisations on every engine; a quasi-Newton run factors one multiplier
+    matrix a step (``multiplier_lu``) and reported nlu = 0 (the mechanical and the general form).
+    Control: the kernels' Newton on the same run counts its own."""
+    q = ldaspark.integrate(scene, "gauss-2", t_span=(0, 1), h=0.1, engine="compiled", newton="quasi")
+    assert q.success and q.stats["multiplier_lu"] >= 10
+    assert q.nlu == q.stats["nlu"] >= q.stats["multiplier_lu"]
+    nw = ldaspark.integrate(scene, "gauss-2", t_span=(0, 1), h=0.1, engine="compiled", newton="full")
+    assert nw.nlu >= 10 and "multiplier_lu" not in nw.stats
