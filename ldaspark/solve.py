@@ -411,9 +411,7 @@ def _compiled_ensemble(system, params, Q0, V0, prob: _Problem, opts: Integration
         # member ends with its own status and the others are kept (the loop's numbers are the same)
         return None
     if prob.kind == "spark" and _saddle_may_change_sign(system) and any(
-            (_saddle_signs(system, ens.t, ens.q[r], ens.v[r]) != _saddle_signs(system, ens.t[:1], ens.q[r][:1],
-                                                                              ens.v[r][:1])[0]).any()
-            for r in range(len(ens.q))):
+            _sign_changes(_saddle_signs(system, ens.t, ens.q[r], ens.v[r])) for r in range(len(ens.q))):
         # a member crossed the singular set of (4): the loop of single runs, where that member
         # stops with the det (4) monitor's error as its single run does (``_saddle_scan``)
         return None
@@ -729,6 +727,11 @@ def _saddle_may_change_sign(system) -> bool:
     except LdasparkError:
         return True
     return not (cs.form == "mechanical" and cs.mass_positive_definite)
+
+
+def _sign_changes(signs) -> bool:
+    """Whether det (4) changes sign along a run from its sign at the first point (``_saddle_signs``)."""
+    return bool((signs[1:] != signs[0]).any())
 
 
 def _saddle_signs(system, t, Q, V) -> np.ndarray:
