@@ -520,6 +520,11 @@ def get_method(name: str, exact: bool = False, max_stages: int | None = None) ->
                     raise TableauError(f"{name}: s has {len(tail)} digits, beyond the stage limit "
                                        "(raise it with --max-stages / max_stages=)")
                 break
+            if len(tail) > 1 and tail[0] == "0":
+                # one spelling per method, the one its tableau carries (``gauss-irk-02`` is refused
+                # too): "gauss-02" would run as "gauss-2" under another name in results and reports
+                raise TableauError(f"unknown method {name!r}: write S without leading zeros "
+                                   f"({prefix}{int(tail)})")
             return fn(int(tail), exact=exact, max_stages=max_stages)
     raise TableauError(f"unknown method {name!r}; expected gauss-S, lobatto-iiia-iiib-S, "
                        "lobatto-iiia-iiib-iiid-S, euler-i, euler-ii or custom")

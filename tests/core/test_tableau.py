@@ -8,7 +8,7 @@ import sympy
 from sympy import Rational as R, sqrt
 
 import ldaspark
-from ldaspark.core.errors import LdasparkError, TableauError
+from ldaspark.core.errors import InputError, LdasparkError, TableauError
 from ldaspark.core.tableau import SparkTableau
 from ldaspark.core.tableau_file import from_json_dict, load_tableau
 from ldaspark.core.families import (euler_i, euler_ii, gauss, get_method, lobatto_coefficients, lobatto_iiia_iiib,
@@ -209,6 +209,18 @@ def test_unknown_method_name():
         get_method("gauss-x")
     with pytest.raises(TableauError):
         get_method("lobatto-iiia-iiib-1")
+
+
+@pytest.mark.parametrize("name", ["gauss-02", "lobatto-iiia-iiib-03", "lobatto-iiia-iiib-iiid-002"])
+def test_a_stage_count_with_leading_zeros_is_refused_like_the_comparators(name):
+    # one spelling per method: "gauss-02" ran as gauss-2 under another name while the
+    # comparator "gauss-irk-02" was refused
+    with pytest.raises(TableauError, match="leading zeros"):
+        get_method(name)
+    with pytest.raises(InputError, match="unknown method"):
+        ldaspark.integrate("particle", name, n_steps=1, h=0.1)
+    with pytest.raises(InputError, match="unknown method"):
+        ldaspark.integrate("particle", "gauss-irk-02", n_steps=1, h=0.1)
 
 
 @pytest.mark.parametrize("text", ["(lambda: 1)()", "__import__('os').getcwd()", "10**10**10", "x", "1e999",
