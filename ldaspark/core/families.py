@@ -188,6 +188,8 @@ def _assemble(c, A, A_hat, A_tilde, b, omega=None):
 
 
 _MP_BUILT: dict = {}
+#: tables kept by ``_mp_family`` (oldest dropped first): a job uses a few (family, s, dps)
+_MP_BUILT_MAX = 64
 
 
 def _mp_family(kind):
@@ -197,9 +199,14 @@ def _mp_family(kind):
         job. Callers copy before changing an entry (``SparkTableau.mp_entries`` rounds into new
         lists, ``with_entry`` copies the rows)."""
         key = (kind, int(s), int(dps))
-        if key not in _MP_BUILT:
-            _MP_BUILT[key] = _build(dps, s)
-        return _MP_BUILT[key]
+        hit = _MP_BUILT.get(key)
+        if hit is None:
+            hit = _build(dps, s)
+            # bounded: a sweep over dps or s would otherwise keep every table for the process's life
+            while len(_MP_BUILT) >= _MP_BUILT_MAX:
+                _MP_BUILT.pop(next(iter(_MP_BUILT)))
+            _MP_BUILT[key] = hit
+        return hit
 
     def _build(dps, s):
         with mpmath.workdps(dps + guard_digits(s)):

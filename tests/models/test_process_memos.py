@@ -69,6 +69,19 @@ def test_mp_tableau_entries_are_built_once_and_never_shared_mutably(monkeypatch)
     assert calls == [3, 2, 2]
 
 
+def test_the_mp_tableau_memo_is_bounded(monkeypatch):
+    # a sweep over dps kept every table for the life of the process
+    from ldaspark.core import families
+    monkeypatch.setattr(families, "_MP_BUILT", {})
+    monkeypatch.setattr(families, "_MP_BUILT_MAX", 4)
+    tab = families.get_method("gauss-2")
+    for dps in range(20, 30):
+        tab.mp_entries(dps)
+    assert 1 <= len(families._MP_BUILT) <= 4
+    assert ("gauss", 2, 29) in families._MP_BUILT        # the newest kept, the oldest dropped
+    assert ("gauss", 2, 20) not in families._MP_BUILT
+
+
 def test_stage_arrays_equal_the_plain_conversion_entry_by_entry():
     """LagrangianSystem._arrays converts only the entries that may not come back as mpf; on a
     system with integer, huge-integer, pi and Piecewise entries it gives the arrays (values and
