@@ -400,7 +400,7 @@ def load_equivalent(path=EQUIVALENT) -> dict:
 
 # --- coverage: which tests execute which lines ----------------------------------------------------
 _COV_DRIVER = r'''
-import sys, json, coverage, pytest
+import os, sys, json, coverage, pytest
 
 
 class Ctx:
@@ -428,8 +428,10 @@ if __name__ == "__main__":
     rc = pytest.main(["-q", "-p", "no:cacheprovider", *files], plugins=[ctx])
     cov.stop()
     cov.save()
-    with open(data + ".durations.json", "w") as fh:
+    # written whole then renamed: the parent reads it, and a killed run must leave none or all of it
+    with open(data + ".durations.json.part", "w") as fh:
         json.dump({"durations": ctx.dur, "failed": ctx.bad}, fh)
+    os.replace(data + ".durations.json.part", data + ".durations.json")
     sys.exit(int(rc))
 '''
 

@@ -122,6 +122,7 @@ def test_a_coverage_run_in_two_shards_is_combined_with_its_contexts(tmp_path):
     lc, ln, bc, bn = stats["analysis/memo.py"]
     assert 0 < lc < ln and 0 < bc < bn
     assert not list(tmp_path.glob("cov.shard*"))                  # the shards' files are gone
+    assert not list(tmp_path.glob("*.part"))                      # written by rename, none left half
     durations = json.loads((tmp_path / "cov.durations.json").read_text())["durations"]
     assert {k.split("::")[-1] for k in durations} == {"test_outside", "test_inside"}
     mutgen.write_coverage_report(files + ["verification/general_fixtures.py"], tmp_path / "cov", tmp_path,
