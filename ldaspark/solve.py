@@ -1038,8 +1038,11 @@ def _finish_prefix(res, exc, prep, start, engine, sliced=False) -> Result:
         # the stats every engine's Result carries (what ran, the guard), with no step counted
         stats = {"steps": 0, "newton_iterations": 0, "nfev": 0, "njev": 0, "nlu": 0, "engine": prep.support,
                  "root_finder": dict(prep.opts.newton.describe()), "guard": bool(opts.guard)}
+        # no step, no stage multipliers: an empty (0, s, m) psi as the generic engine's (None would
+        # make an ensemble's batch psi None, and its file lose every member's)
+        psi = np.zeros((0, prep.prob.what.s, system.m)) if prep.prob.kind == "spark" else None
         res = Result(np.array([float(t0)]), q[None], v[None], np.array([system.energy(bk, float(t0), q, v)]),
-                     system.constraint(bk, float(t0), q, v)[None], None, engine=engine.label, stats=stats)
+                     system.constraint(bk, float(t0), q, v)[None], psi, engine=engine.label, stats=stats)
     if exc is not None:
         (res.status, res.message), res.error = _failure(exc), exc
     stages = engine.stage_solver(prep) if (dense or events) and not sliced else None

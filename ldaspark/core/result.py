@@ -246,8 +246,12 @@ def stack(members: list) -> Result:
         out[name] = np.stack([pad(getattr(r, name), S) for r in members])
     t = np.stack([np.concatenate([r.t, long_t[len(r.t):]]) for r in members])
     psi = None
-    if all(r.psi is not None for r in members) and S > 1:
-        psi = np.stack([pad(r.psi, S - 1) if len(r.psi) else np.zeros((S - 1,) + r.psi.shape[1:])
+    # a member that failed in its first step has no multipliers (psi None on some paths): its
+    # rows are zeros like any member's past its end (n_valid), not a reason to drop everyone's
+    shaped = [r.psi for r in members if r.psi is not None and np.ndim(r.psi) == 3]
+    if shaped and S > 1 and all(r.psi is not None or len(r.t) == 1 for r in members):
+        tail = np.shape(shaped[0])[1:]
+        psi = np.stack([pad(r.psi, S - 1) if r.psi is not None and len(r.psi) else np.zeros((S - 1,) + tail)
                         for r in members])
     first = members[0]
     events, sol = batch_events_and_dense(members)

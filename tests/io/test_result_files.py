@@ -104,6 +104,28 @@ def test_an_ensemble_with_a_failed_member_reads_back_as_saved(tmp_path, ext):
     assert load_result(tmp_path / f"ok{ext}").raise_for_status().success
 
 
+@pytest.mark.parametrize("method, engine", [("gauss-2", "compiled"), ("gauss-2", "generic"),
+                                            ("gauss-irk-2", "generic")])
+def test_a_member_failing_in_its_first_step_keeps_the_others_multipliers(tmp_path, method, engine):
+    """A member that failed in step 0 had psi None on the compiled engine (and for a comparator):
+    the batch psi became None, and the file lost every member's multipliers."""
+    import sympy as sp
+    x, y, vx, vy = sp.symbols("x y vx vy")
+    root = ldaspark.LagrangianSystem((vx ** 2 + vy ** 2) / 2 - sp.sqrt(x), [vy - x * vx], [x, y], [vx, vy],
+                                     name="root")
+    # the second member leaves x >= 0 within its first step (x0 = 0.02, vx = -1, h = 0.1)
+    ens = ldaspark.integrate(root, method, t_span=(0, 2), h=0.1, q0=[[1.0, 0.0], [0.02, 0.0]],
+                             v0=[[0.1, 0.1], [-1.0, -0.02]], guard=False, engine=engine)
+    assert list(ens.status) == [0, -3] and list(ens.n_valid) == [21, 1]
+    good = ens.members[0].psi
+    assert good is not None and good.shape == (20, 2, 1)
+    assert ens.psi is not None and np.array_equal(ens.psi[0], good) and not ens.psi[1].any()
+    save_result(ens, tmp_path / "e.npz")
+    back = load_result(tmp_path / "e.npz")
+    assert np.array_equal(back.psi, ens.psi) and np.array_equal(back.members[0].psi, good)
+    assert len(back.members[1].psi) == 0
+
+
 @pytest.mark.parametrize("ext", [".npz", ".h5"])
 def test_an_ensembles_events_and_dense_output_read_back(tmp_path, ext):
     """save_result dropped an ensemble's events and dense output without a word (the loaded
