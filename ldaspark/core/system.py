@@ -152,6 +152,7 @@ class LagrangianSystem:
                 raise SystemDefinitionError(f"nonideal term N contains symbols other than t, q, v, psi: "
                                             f"{sorted(map(str, extra))}")
         self._derive()
+        self._N_built = self.N              # what the derivation saw (``check_nonideal_as_built``)
         d = self._derived
         if d.engine == "sympy":
             # symengine differentiates only the functions of _SE_NODES, whose derivatives stay
@@ -266,6 +267,8 @@ class LagrangianSystem:
 
     def __getattr__(self, name):
         d = self.__dict__.get("_derived")
+        if name in ("N_q", "N_v", "N_psi") and d is not None:
+            check_nonideal_as_built(self)   # N set by hand: its partials were never derived
         if d is None or name not in _DERIVED or name not in d:
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
         val = self.__dict__[name] = d.get(name)
@@ -622,6 +625,17 @@ def _exprs(obj, names, where):
     if isinstance(obj, (list, tuple)):
         return type(obj)(_exprs(x, names, f"{where}[{i}]") for i, x in enumerate(obj))
     return obj
+
+
+def check_nonideal_as_built(system) -> None:
+    """SystemDefinitionError when ``system.N``, the nonideal term of 3.3, is not the one the system
+    was built with (assigned afterwards): the derivation never saw it (no N_q, N_v, N_psi, or
+    those of the old N), and text in it would be evaluated by sympy.Matrix in the code generator.
+    The engines call this before reading N, so that none runs a term the others do not."""
+    built = system.__dict__.get("_N_built", system.__dict__.get("N"))
+    if system.__dict__.get("N") is not built:
+        raise SystemDefinitionError(f"{system.name}: N (the nonideal term) was set after the system was built; "
+                                    "give it as LagrangianSystem(..., nonideal=[...]), which derives its partials")
 
 
 def refuse_text(obj, where):
