@@ -152,7 +152,8 @@ class LagrangianSystem:
                 raise SystemDefinitionError(f"nonideal term N contains symbols other than t, q, v, psi: "
                                             f"{sorted(map(str, extra))}")
         self._derive()
-        self._N_built = self.N              # what the derivation saw (``check_nonideal_as_built``)
+        # what the derivation saw (``check_as_built``): sympy objects, immutable, compared by identity
+        self._built = {"L": self.L, "k": self.k, "N": self.N}
         d = self._derived
         if d.engine == "sympy":
             # symengine differentiates only the functions of _SE_NODES, whose derivatives stay
@@ -268,7 +269,7 @@ class LagrangianSystem:
     def __getattr__(self, name):
         d = self.__dict__.get("_derived")
         if name in ("N_q", "N_v", "N_psi") and d is not None:
-            check_nonideal_as_built(self)   # N set by hand: its partials were never derived
+            check_as_built(self)            # N set by hand: its partials were never derived
         if d is None or name not in _DERIVED or name not in d:
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
         val = self.__dict__[name] = d.get(name)
@@ -627,15 +628,23 @@ def _exprs(obj, names, where):
     return obj
 
 
-def check_nonideal_as_built(system) -> None:
-    """SystemDefinitionError when ``system.N``, the nonideal term of 3.3, is not the one the system
-    was built with (assigned afterwards): the derivation never saw it (no N_q, N_v, N_psi, or
-    those of the old N), and text in it would be evaluated by sympy.Matrix in the code generator.
-    The engines call this before reading N, so that none runs a term the others do not."""
-    built = system.__dict__.get("_N_built", system.__dict__.get("N"))
-    if system.__dict__.get("N") is not built:
-        raise SystemDefinitionError(f"{system.name}: N (the nonideal term) was set after the system was built; "
-                                    "give it as LagrangianSystem(..., nonideal=[...]), which derives its partials")
+_AS_BUILT = {"L": "L", "k": "k", "N": "N (the nonideal term)"}
+
+
+def check_as_built(system) -> None:
+    """SystemDefinitionError when ``system.L``, ``system.k`` or ``system.N`` (the nonideal term of
+    3.3) is not the object the system was built with (assigned afterwards): the derivation never
+    saw it (L_vv, k_v, N_q, ... are those of the old one, or missing), text in it would be
+    evaluated by sympify or sympy.Matrix, and the engines read different parts (the compiled one
+    ran the old constraint with the new k, the generic one the new). Every engine calls this
+    before reading them, so that none runs a system the others do not."""
+    built = system.__dict__.get("_built")
+    if built is None:
+        return
+    for attr, what in _AS_BUILT.items():
+        if system.__dict__.get(attr) is not built[attr]:
+            raise SystemDefinitionError(f"{system.name}: {what} was set after the system was built; give it to "
+                                        "LagrangianSystem(...) (nonideal=[...] for N), which derives from it")
 
 
 def refuse_text(obj, where):
