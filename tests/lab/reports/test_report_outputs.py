@@ -113,3 +113,17 @@ def test_claims_jobs_give_the_serial_ledger(tmp_path, monkeypatch):
     ser = ledger.run_ledger(max_s=1, scenes=("particle",)) + ledger.extra_records()   # + the groups, serially
     strip = lambda rs: [{k: v for k, v in r.items() if k != "seconds"} for r in rs]   # noqa: E731
     assert strip(got) == strip(ser)
+
+
+@pytest.mark.parametrize("figure", ["2", "4"])
+def test_report_energy_checks_json_before_the_figure_is_computed(figure, tmp_path, monkeypatch, capsys):
+    """``report energy --figure N --json DIR``: refused before the runs (Fig. 4 integrates to
+    t = 50000; the directory was refused after it), one line and exit 2."""
+    from ldaspark.lab.reports import energy
+    ran = []
+    monkeypatch.setattr(energy, "figure4", lambda **k: ran.append(4))
+    monkeypatch.setattr(energy, "figure_data", lambda *a, **k: ran.append(int(figure)))
+    rc = main(["report", "energy", "--figure", figure, "--json", str(tmp_path)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "directory" in err[0], err
+    assert ran == []
