@@ -127,3 +127,21 @@ def test_report_energy_checks_json_before_the_figure_is_computed(figure, tmp_pat
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "directory" in err[0], err
     assert ran == []
+
+
+@pytest.mark.parametrize("section", ["stability", "systems"])
+def test_report_outdir_that_is_not_a_directory_is_refused_before_the_section(section, tmp_path, monkeypatch,
+                                                                             capsys):
+    """``report SECTION --outdir FILE``: one line, exit 2, before the section's runs (they ran in
+    full and the writer failed on FILE/figures at the end); the file is untouched."""
+    import importlib
+    mod = importlib.import_module(available_sections()[section])
+    ran = []
+    monkeypatch.setattr(mod, "run", lambda args: ran.append(1) or 0)
+    monkeypatch.setattr(mod, "build_report", lambda *a, **k: ran.append(1), raising=False)
+    f = tmp_path / "notadir"
+    f.write_text("keep\n")
+    rc = main(["report", section, "--outdir", str(f)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "not a directory" in err[0], err
+    assert ran == [] and f.read_text() == "keep\n"
