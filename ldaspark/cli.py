@@ -62,12 +62,13 @@ def _add_integrate(sub):
 
 
 def _run_integrate(args) -> int:
-    from .core.resultio import save_result
+    from .core.resultio import check_output, save_result
     from .models.scenes import get_scene
     from .core.tableau_file import load_tableau
     from .core.errors import InputError
     from .solve import integrate
 
+    check_output(args.out)                  # a directory or socket at --out: refused now, not after the run
     if args.method == "custom":
         if not args.tableau:
             raise InputError("METHOD custom needs --tableau FILE")

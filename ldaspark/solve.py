@@ -116,6 +116,8 @@ def _resolve_system(system, dps):
     if isinstance(system, Scene):
         return system.system, system.name, system.initial(dps)
     if isinstance(system, LagrangianSystem):
+        from .core.system import check_as_built
+        check_as_built(system)              # every engine refuses an L, k or N set after construction
         return system, None, None
     raise InputError(f"system must be a LagrangianSystem, a Scene or a scene name, got {type(system).__name__}")
 

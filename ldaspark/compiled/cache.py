@@ -3,7 +3,8 @@
 Trust model (docs/reliability.md, "The kernel cache: what is trusted"): the only files loaded
 are files that a process of this user wrote into a directory that only this user can write.
 
-* Directory: ``$LDASPARK_CACHE_DIR``, else ``~/.cache/ldaspark/fast``, else
+* Directory: ``$LDASPARK_CACHE_DIR`` (when set, the only one: an unsafe one is a
+  CacheDirectoryError, never replaced by another), else ``~/.cache/ldaspark/fast``, else
   ``<tempdir>/ldaspark-fast-<uid>``. Used only when every component of its path is safe
   (``path_trust``): each ancestor a directory owned by this user or root that nobody else can
   write (or sticky, as /tmp), each symbolic link on the way owned by this user or root, and the
@@ -180,6 +181,11 @@ def cache_dir() -> str:
         ok, reason = secure_dir(d)
         if ok:
             return ok
+        if d == os.environ.get("LDASPARK_CACHE_DIR"):
+            # the directory the user chose: refused with its reason, never silently swapped for
+            # ~/.cache (as an unsafe NUMBA_CACHE_DIR refuses the compiled engine)
+            raise CacheDirectoryError(f"LDASPARK_CACHE_DIR={d} is not a safe cache directory for the compiled "
+                                      f"models ({reason}); point it at a directory only you can write, or unset it")
         why.append(reason)
     raise CacheDirectoryError("no private writable cache directory for the compiled models: " + "; ".join(why))
 

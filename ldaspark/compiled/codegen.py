@@ -71,11 +71,17 @@ class _Printer(PythonCodePrinter):
 
 
 def nonideal_term(system):
-    """The system's nonideal force N(t, q, v, psi) of 3.3 if it has one (not identically zero), else None."""
+    """The system's nonideal force N(t, q, v, psi) of 3.3 if it has one (not identically zero), else None;
+    SystemDefinitionError for an N assigned after a LagrangianSystem was built (never sympified:
+    ``system.check_as_built``) or text in any of the attributes read."""
+    from ..core.system import check_as_built, refuse_text
+    if "_built" in getattr(system, "__dict__", {}):
+        check_as_built(system)
     for attr in ("N", "nonideal", "N_expr"):
         val = getattr(system, attr, None)
         if val is None or isinstance(val, (int, str)) or callable(val):
             continue
+        refuse_text(val, f"{getattr(system, 'name', 'system')}: {attr}")    # sympy.Matrix would evaluate it
         try:
             if sympy.Matrix(val).is_zero_matrix:
                 continue

@@ -187,7 +187,8 @@ _BUILD = "import sys; from ldaspark.compiled.specialised import _main; sys.exit(
 
 
 def _command(key) -> list:
-    return [sys.executable, "-c", _BUILD, *map(str, key)]
+    from ..core.lifecycle import python_code     # never imports from the working directory
+    return [sys.executable, "-c", python_code(_BUILD), *map(str, key)]
 
 
 def _build_in_background(key) -> None:

@@ -274,7 +274,13 @@ def _flatten(x):
         for y in x:
             yield from _flatten(y)
     else:
-        yield sympy.sympify(x)
+        # strict: text is never parsed here (sympify of a str evaluates it); numbers and sympy
+        # objects as before
+        try:
+            yield sympy.sympify(x, strict=True)
+        except sympy.SympifyError:
+            raise SystemDefinitionError(f"an expression to compile is {type(x).__name__}, not a sympy "
+                                        "expression (text is parsed by LagrangianSystem, never here)") from None
 
 
 def _one_function(src: str) -> None:

@@ -7,7 +7,9 @@ here, in a child process given the open file's descriptor, and ends the child af
 bound: a damaged legacy file is an error, not a hang. Files of the current format (a scalar
 dataset of one fixed-length string) never come here.
 
-Run as ``python -m ldaspark.core.h5legacy FD``: prints the attribute's text on stdout.
+Run as ``python -m ldaspark.core.h5legacy FD`` (``read_legacy_metadata`` starts it with ``-c`` and
+``lifecycle.python_code``: nothing imported from the working directory): prints the attribute's
+text on stdout.
 """
 from __future__ import annotations
 
@@ -26,10 +28,12 @@ MAX_BYTES = 2 ** 20
 def read_legacy_metadata(fh) -> str:
     """The metadata attribute of the open legacy HDF5 file ``fh`` (a binary file object), read
     by a child process with a time bound."""
-    from .lifecycle import run_linked          # the child dies with this process
+    from .lifecycle import python_code, run_linked     # the child dies with this process
     fd = fh.fileno()
+    # -c with python_code, not -m: nothing is imported from the working directory
+    code = python_code("from ldaspark.core.h5legacy import main\nsys.exit(main(sys.argv[1:]))")
     try:
-        proc = run_linked([sys.executable, "-m", "ldaspark.core.h5legacy", str(fd)], pass_fds=(fd,),
+        proc = run_linked([sys.executable, "-c", code, str(fd)], pass_fds=(fd,),
                           stdin=subprocess.DEVNULL, capture_output=True, timeout=TIMEOUT)
     except subprocess.TimeoutExpired:
         raise InputError(f"the metadata attribute of this earlier-format HDF5 file was not read within "

@@ -311,7 +311,10 @@ def make_process_pool(max_workers=None, mp_context=None, initializer=None, inita
 
 # a child started by run_linked asks for the death signal before it becomes the program
 # (and unblocks the stop signals run_linked held back around its start: exec keeps the mask)
-_BOOT = ("import os, signal, sys\n"
+_BOOT = ("import sys\n"
+         "if sys.path and sys.path[0] == '':\n"      # -c: the working directory (a planted ctypes.py)
+         "    del sys.path[0]\n"
+         "import os, signal\n"
          "try:\n"
          "    import ctypes\n"
          "    ctypes.CDLL(None).prctl(1, int(sys.argv[1]), 0, 0, 0)\n"
@@ -322,6 +325,25 @@ _BOOT = ("import os, signal, sys\n"
          "if sys.argv[3]:\n"
          "    signal.pthread_sigmask(signal.SIG_UNBLOCK, [int(x) for x in sys.argv[3].split(',')])\n"
          "os.execv(sys.argv[4], sys.argv[4:])\n")
+
+
+#: the directory this process imported ldaspark from (the parent of the package)
+_PACKAGE_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def python_code(code: str) -> str:
+    """``code`` for a child ``python -c`` that imports ldaspark (and numpy, h5py, ...) as this
+    process does, never from its working directory: ``-c`` and ``-m`` put that directory first on
+    the child's sys.path, so a planted h5py.py, ctypes.py or ldaspark/ in the directory the user
+    runs from (a downloaded archive of result files) ran in the child, while the parent (a console
+    script) never looks there. The package's own root is put first when the child would not find
+    it (the parent imported it from its working directory, or through an editable install's hook)."""
+    root = _PACKAGE_ROOT
+    return ("import sys\n"
+            "if sys.path and sys.path[0] == '':\n"
+            "    del sys.path[0]\n"
+            f"if {root!r} not in sys.path:\n"
+            f"    sys.path.insert(0, {root!r})\n" + code)
 
 
 def linked_command(cmd: list) -> list:

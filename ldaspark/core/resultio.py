@@ -50,7 +50,7 @@ from typing import Any, Union
 import numpy as np
 
 from .errors import InputError
-from .io import atomic_write_bytes, atomic_write_json
+from .io import atomic_write_bytes, atomic_write_json, check_destination
 from .result import STATUS_EVENT, STATUS_GUARD, Result
 
 ARRAYS = ("t", "q", "v", "energy", "constraint", "psi")
@@ -306,6 +306,18 @@ def check_path(path, what: str = "result file") -> str:
     if "\0" in p:
         raise InputError(f"the {what} path contains a NUL character")
     return p
+
+
+def check_output(path: Union[str, os.PathLike]) -> str:
+    """``path`` (a str) if ``save_result`` could write a result there, else the LdasparkError it would
+    raise at the end: not a path, a directory, socket or other target that is not a regular file,
+    a device or FIFO (``core.io._destination``), an ``.h5`` without h5py. A run checks its output
+    with this before it starts, so that it never computes for a file it then refuses."""
+    path = check_path(path)
+    check_destination(path)
+    if _ext(path) in (".h5", ".hdf5"):
+        _h5py()
+    return path
 
 
 def save_result(result: Result, path: Union[str, os.PathLike]) -> None:

@@ -152,6 +152,8 @@ class LagrangianSystem:
                 raise SystemDefinitionError(f"nonideal term N contains symbols other than t, q, v, psi: "
                                             f"{sorted(map(str, extra))}")
         self._derive()
+        # what the derivation saw (``check_as_built``): sympy objects, immutable, compared by identity
+        self._built = {"L": self.L, "k": self.k, "N": self.N}
         d = self._derived
         if d.engine == "sympy":
             # symengine differentiates only the functions of _SE_NODES, whose derivatives stay
@@ -266,6 +268,8 @@ class LagrangianSystem:
 
     def __getattr__(self, name):
         d = self.__dict__.get("_derived")
+        if name in ("N_q", "N_v", "N_psi") and d is not None:
+            check_as_built(self)            # N set by hand: its partials were never derived
         if d is None or name not in _DERIVED or name not in d:
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
         val = self.__dict__[name] = d.get(name)
@@ -622,6 +626,25 @@ def _exprs(obj, names, where):
     if isinstance(obj, (list, tuple)):
         return type(obj)(_exprs(x, names, f"{where}[{i}]") for i, x in enumerate(obj))
     return obj
+
+
+_AS_BUILT = {"L": "L", "k": "k", "N": "N (the nonideal term)"}
+
+
+def check_as_built(system) -> None:
+    """SystemDefinitionError when ``system.L``, ``system.k`` or ``system.N`` (the nonideal term of
+    3.3) is not the object the system was built with (assigned afterwards): the derivation never
+    saw it (L_vv, k_v, N_q, ... are those of the old one, or missing), text in it would be
+    evaluated by sympify or sympy.Matrix, and the engines read different parts (the compiled one
+    ran the old constraint with the new k, the generic one the new). Every engine calls this
+    before reading them, so that none runs a system the others do not."""
+    built = system.__dict__.get("_built")
+    if built is None:
+        return
+    for attr, what in _AS_BUILT.items():
+        if system.__dict__.get(attr) is not built[attr]:
+            raise SystemDefinitionError(f"{system.name}: {what} was set after the system was built; give it to "
+                                        "LagrangianSystem(...) (nonideal=[...] for N), which derives from it")
 
 
 def refuse_text(obj, where):

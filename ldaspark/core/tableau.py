@@ -125,11 +125,15 @@ class SparkTableau:
         # constructed directly (it is exported), a tableau gets the checks of its readers: a
         # bool or text s, no coefficients, or coefficients of another shape are one TableauError
         from .validate import MAX_STAGES_CEILING
-        if not isinstance(self.name, str) or not 0 < len(self.name) <= 500:
-            # a 100000-character name was "must be a non-empty string, got str": say which rule failed
+        if not isinstance(self.name, str) or not 0 < len(self.name) <= 500 or not self.name.isprintable():
+            # a 100000-character name was "must be a non-empty string, got str": say which rule failed.
+            # The name is printed (the CLI's line, the audit's heading, result files): a newline or
+            # an escape sequence from a tableau file would forge lines there
             got = (f"a string of {len(self.name)} characters" if isinstance(self.name, str)
+                   and not 0 < len(self.name) <= 500 else repr(self.name[:40]) if isinstance(self.name, str)
                    else type(self.name).__name__)
-            raise TableauError(f"tableau name must be a non-empty string of at most 500 characters, got {got}")
+            raise TableauError(f"tableau name must be a non-empty printable string of at most 500 characters, "
+                               f"got {got}")
         s = self.s
         if isinstance(s, (bool, np.bool_)) or not isinstance(s, (int, np.integer)) \
                 or not 1 <= s <= MAX_STAGES_CEILING:

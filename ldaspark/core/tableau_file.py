@@ -75,6 +75,9 @@ def from_json_dict(d: dict, name: str | None = None, max_stages: int | None = No
         all_exact = all_exact and all(flag for _, flag in ent)
     if "omega" not in ex:
         ex["omega"] = _default_omega_exact([ex["b"][j] for j in range(s)], [ex["c"][j] for j in range(s)], s)
+    if d.get("name") is not None and not isinstance(d["name"], str):
+        # printed and written as the method's name: text only (a number or dict was its repr)
+        raise TableauError(f"the tableau's name must be a string, got {type(d['name']).__name__}")
     label = name or d.get("name") or "custom"
     # the entries as given, so that the audit decides at the precision they carry
     sources = {k: [list(r) if isinstance(r, list) else r for r in d[k]] for k in NAMES if k in d}

@@ -71,3 +71,29 @@ def test_methods_lists_22_23(capsys):
     assert "gauss-2" in out and "euler-i" in out
     line = [l for l in out.splitlines() if l.startswith("euler-i ")][0]
     assert line.split()[-2:] == ["yes", "no"]
+
+
+@pytest.mark.parametrize("target", ["dir", "link-to-dir", "socket"])
+def test_integrate_refuses_an_unwritable_out_before_the_run(target, capsys, tmp_path, monkeypatch):
+    """--out naming a directory (or a link to one, a socket) is refused before any step: it used to
+    run the whole integration (20 s for --h 1e-5 --t-end 20) and refuse the path at the end."""
+    import os
+    import socket
+    import ldaspark.solve
+    ran = []
+    monkeypatch.setattr(ldaspark.solve, "integrate", lambda *a, **k: ran.append(1))
+    out = tmp_path / "o"
+    if target == "dir":
+        out.mkdir()
+    elif target == "link-to-dir":
+        (tmp_path / "d").mkdir()
+        os.symlink(tmp_path / "d", out)
+    else:
+        monkeypatch.chdir(tmp_path)        # AF_UNIX paths are short: a relative one
+        sock = socket.socket(socket.AF_UNIX)
+        sock.bind("o")
+        monkeypatch.undo()
+    rc = main(["integrate", "particle", "gauss-1", "--h", "0.1", "--t-end", "1", "--out", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "refusing to replace it" in err[0], err
+    assert ran == []

@@ -292,6 +292,23 @@ def test_links_planted_under_the_caches_other_names_are_not_followed(cdir, tmp_p
 
 
 # --- every component of the directory's path -----------------------------------------------------------
+def test_an_unsafe_ldaspark_cache_dir_is_refused_not_replaced(tmp_path, monkeypatch):
+    """LDASPARK_CACHE_DIR below a directory others can write: refused with the reason, never
+    silently replaced by ~/.cache/ldaspark/fast (the directory the user chose not to use); the
+    compiled engine then falls back (auto) or is one error, as with an unsafe NUMBA_CACHE_DIR."""
+    loose = tmp_path / "loose"
+    loose.mkdir()
+    os.chmod(loose, 0o777)
+    monkeypatch.setenv("LDASPARK_CACHE_DIR", str(loose / "c"))
+    with pytest.raises(cache.CacheDirectoryError, match="LDASPARK_CACHE_DIR.*writable by other users"):
+        cache.cache_dir()
+    # control: a safe LDASPARK_CACHE_DIR is used, and unset the defaults are tried in order
+    os.chmod(loose, 0o755)
+    assert cache.cache_dir() == str(loose / "c")
+    monkeypatch.setenv("LDASPARK_CACHE_DIR", "")
+    assert cache.cache_dir() != str(loose / "c")
+
+
 def test_directory_below_a_world_writable_parent_is_refused(tmp_path):
     loose = tmp_path / "loose"
     loose.mkdir()

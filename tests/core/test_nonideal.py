@@ -96,3 +96,21 @@ def test_nonideal_definition_errors_and_refusals():
         mechanical_parts(fr)
     with pytest.raises(DiscreteSolveError):
         DiscreteBVP(fr, get_method("gauss-1"))
+
+
+@pytest.mark.parametrize("engine", ["compiled", "generic"])
+def test_a_nonideal_term_set_after_construction_is_refused_never_sympified(engine, capfd):
+    """``system.N = [...]`` after the system was built: text in it was executed by sympy.Matrix in
+    the code generator (the compiled engine ran with it, status 0), the generic engine raised a raw
+    AttributeError (no N_q: the derivation never saw N). Both refuse it in one SystemDefinitionError;
+    nothing of the text runs. Control: N given to LagrangianSystem runs on both."""
+    import ldaspark
+    S = LagrangianSystem("vx**2/2 + vy**2/2", ["vy - x*vx"], ["x", "y"], ["vx", "vy"])
+    kw = dict(t_span=(0, 0.2), h=0.1, q0=[0.5, 0], v0=[1, 0.5], engine=engine)
+    for N in (["print('EXECUTED-N') or 0", "0"], sympy.Matrix([0, S.q[0] * 0 + S.v[0] / 10])):
+        S.N = N
+        with pytest.raises(SystemDefinitionError, match="after the system was built"):
+            ldaspark.integrate(S, "gauss-1", **kw)
+    assert "EXECUTED-N" not in capfd.readouterr().out
+    ok = LagrangianSystem("vx**2/2 + vy**2/2", ["vy - x*vx"], ["x", "y"], ["vx", "vy"], nonideal=["0", "vx/10"])
+    assert ldaspark.integrate(ok, "gauss-1", **kw).status == 0

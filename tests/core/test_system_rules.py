@@ -101,3 +101,32 @@ def test_the_default_dependent_velocities_are_outside_the_rates():
     assert np.any(B[6:, :] != 0)
     assert fj.select == [0, 4, 5]
     assert json.dumps(fj.select)
+
+
+@pytest.mark.parametrize("engine", ["compiled", "generic"])
+@pytest.mark.parametrize("attr, val", [("k", ["print('EXECUTED-k') or vy"]), ("L", "print('EXECUTED-L') or vx**2"),
+                                       ("k", "sympy")])
+def test_L_and_k_set_after_construction_are_refused_by_every_engine(attr, val, engine, capfd):
+    """``system.k = [...]`` / ``system.L = ...`` after the system was built: the generic engine
+    sympified the text (printed EXECUTED-k), and a sympy k = [vy] ran on the compiled engine with
+    the old derivation (status 0) while the generic one judged the initial data by the new k (an
+    InconsistentInitialDataError). Both engines refuse it in one SystemDefinitionError."""
+    import ldaspark
+    from ldaspark.core.errors import SystemDefinitionError
+    S = LagrangianSystem("vx**2/2 + vy**2/2", ["vy - x*vx"], ["x", "y"], ["vx", "vy"])
+    setattr(S, attr, sympy.Matrix([S.v[1]]) if val == "sympy" else val)
+    with pytest.raises(SystemDefinitionError, match="set after the system was built"):
+        ldaspark.integrate(S, "gauss-1", t_span=(0, 0.2), h=0.1, q0=[0.5, 0], v0=[1, 0.5], engine=engine)
+    assert "EXECUTED" not in capfd.readouterr().out
+
+
+def test_the_lambdify_gate_never_sympifies_text(capfd):
+    """gensource.lambdify takes sympy expressions and numbers only: a string among the outputs was
+    sympify'd (evaluated) before any check."""
+    from ldaspark.core import gensource
+    from ldaspark.core.errors import SystemDefinitionError
+    x = sympy.Symbol("x")
+    with pytest.raises(SystemDefinitionError, match="not a sympy expression"):
+        gensource.lambdify([x], [x, "print('EXECUTED-G') or x"], "math")
+    assert "EXECUTED" not in capfd.readouterr().out
+    assert gensource.lambdify([x], [x, 2.5], "math")(2.0) == [2.0, 2.5]

@@ -223,6 +223,22 @@ def test_a_stage_count_with_leading_zeros_is_refused_like_the_comparators(name):
         ldaspark.integrate("particle", "gauss-irk-02", n_steps=1, h=0.1)
 
 
+@pytest.mark.parametrize("name", ["mid\nldaspark: error: fake", "a\x1b[31mred", "tab\tname", {"a": [1, 2]}, 5, ["x"]])
+def test_a_tableau_files_name_is_printable_text(name, tmp_path):
+    """The name of a tableau file is printed by ``ldaspark integrate`` and heads the audit report:
+    a newline or an escape sequence in it forged lines on the terminal and in the markdown, and a
+    number, list or dict was turned into its repr. Each is one TableauError; printable names load."""
+    d = {"c": ["1/2"], "A": [["1/2"]], "A_hat": [["1/2"]], "A_tilde": [["1/2"]], "b": [1], "b_hat": [1],
+         "b_tilde": [1], "name": name}
+    path = tmp_path / "t.json"
+    path.write_text(json.dumps(d))
+    with pytest.raises(TableauError, match="name"):
+        load_tableau(str(path))
+    with pytest.raises(TableauError, match="name"):
+        SparkTableau(name, 1, exact=from_json_dict(dict(d, name="ok")).exact)
+    assert from_json_dict(dict(d, name="midpoint (Gauss, s = 1) \u03c9")).name == "midpoint (Gauss, s = 1) \u03c9"
+
+
 @pytest.mark.parametrize("text", ["(lambda: 1)()", "__import__('os').getcwd()", "10**10**10", "x", "1e999",
                                   "[1]", "1/0", "Rational(1, 0)", "a" * 300])
 def test_string_entries_are_never_evaluated_as_python(text):

@@ -582,3 +582,25 @@ def test_legacy_h5_metadata_is_read_by_a_child_with_a_time_bound(res, good, tmp_
     monkeypatch.setattr(h5legacy, "TIMEOUT", 1e-3)     # the child cannot even start in 1 ms
     with pytest.raises(InputError, match="was not read within"):
         load_result(legacy)
+
+
+def test_the_legacy_reader_child_never_imports_from_the_working_directory(res, good, tmp_path, monkeypatch):
+    """``python -m`` / ``-c`` put the working directory first on the child's sys.path: loading a
+    legacy .h5 from a directory holding a planted h5py.py, ctypes.py or ldaspark/ ran them in the
+    child (the parent, a console script, never looks there). The child imports what the parent
+    did; the file loads and no planted module runs."""
+    import shutil
+    legacy = tmp_path / "legacy.h5"
+    shutil.copy(good / "good.h5", legacy)
+    with h5py.File(legacy, "a") as f:
+        del f["metadata"]
+    markers = []
+    for mod in ("h5py", "ctypes", "numpy", "ldaspark/__init__"):
+        marker = tmp_path / f"ran-{mod.replace('/', '-')}"
+        markers.append(marker)
+        (tmp_path / mod).parent.mkdir(exist_ok=True)
+        (tmp_path / f"{mod}.py").write_text(f"open({str(marker)!r}, 'w').close()\nraise SystemExit(3)\n")
+    monkeypatch.chdir(tmp_path)
+    got = load_result("legacy.h5")
+    assert [m.name for m in markers if m.exists()] == []
+    assert np.array_equal(got.q, res.q)

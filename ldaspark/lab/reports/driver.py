@@ -68,6 +68,11 @@ def run(args) -> int:
     # depend on when a build finished (benchmarks/quasi_step.py measures both; the results are the
     # same bits either way). The workers inherit this.
     os.environ["LDASPARK_SPECIALISE"] = "0"
+    outdir = getattr(args, "outdir", None)
+    if outdir is not None and os.path.lexists(outdir) and not os.path.isdir(outdir):
+        # refused now: every section writes OUTDIR/<name> and OUTDIR/figures at the end of its runs
+        from ...core.errors import InputError
+        raise InputError(f"--outdir {outdir} is not a directory")
     if getattr(args, "section", None):
         return int(args.section_run(args) or 0)
     from ...core.errors import InputError

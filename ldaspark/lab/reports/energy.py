@@ -277,6 +277,8 @@ def run(args) -> int:
     clock = Clock()
     if args.t_end is not None and not (math.isfinite(args.t_end) and args.t_end > 0):
         raise InputError(f"--t-end must be a finite positive number, got {args.t_end}")
+    from ...core.io import check_destination
+    check_destination(args.json)            # a directory at --json: refused now, not after the runs
     if args.figure is None:
         if args.json:
             raise InputError("--json needs --figure N")

@@ -644,6 +644,9 @@ def load_for_args(args) -> SparkTableau:
 
 
 def run(args) -> int:
+    from ...core.io import check_destination
+    for path in (args.out, args.json):     # refused now, not after the audit (nor one file of the two)
+        check_destination(path)
     tab = load_for_args(args)
     progress = (lambda msg: print(f"[audit] {msg}", file=sys.stderr, flush=True))
     res = audit(tab, dps=args.dps, quick=args.quick, arith=args.arith, progress=progress)

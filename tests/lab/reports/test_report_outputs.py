@@ -113,3 +113,35 @@ def test_claims_jobs_give_the_serial_ledger(tmp_path, monkeypatch):
     ser = ledger.run_ledger(max_s=1, scenes=("particle",)) + ledger.extra_records()   # + the groups, serially
     strip = lambda rs: [{k: v for k, v in r.items() if k != "seconds"} for r in rs]   # noqa: E731
     assert strip(got) == strip(ser)
+
+
+@pytest.mark.parametrize("figure", ["2", "4"])
+def test_report_energy_checks_json_before_the_figure_is_computed(figure, tmp_path, monkeypatch, capsys):
+    """``report energy --figure N --json DIR``: refused before the runs (Fig. 4 integrates to
+    t = 50000; the directory was refused after it), one line and exit 2."""
+    from ldaspark.lab.reports import energy
+    ran = []
+    monkeypatch.setattr(energy, "figure4", lambda **k: ran.append(4))
+    monkeypatch.setattr(energy, "figure_data", lambda *a, **k: ran.append(int(figure)))
+    rc = main(["report", "energy", "--figure", figure, "--json", str(tmp_path)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "directory" in err[0], err
+    assert ran == []
+
+
+@pytest.mark.parametrize("section", ["stability", "systems"])
+def test_report_outdir_that_is_not_a_directory_is_refused_before_the_section(section, tmp_path, monkeypatch,
+                                                                             capsys):
+    """``report SECTION --outdir FILE``: one line, exit 2, before the section's runs (they ran in
+    full and the writer failed on FILE/figures at the end); the file is untouched."""
+    import importlib
+    mod = importlib.import_module(available_sections()[section])
+    ran = []
+    monkeypatch.setattr(mod, "run", lambda args: ran.append(1) or 0)
+    monkeypatch.setattr(mod, "build_report", lambda *a, **k: ran.append(1), raising=False)
+    f = tmp_path / "notadir"
+    f.write_text("keep\n")
+    rc = main(["report", section, "--outdir", str(f)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "not a directory" in err[0], err
+    assert ran == [] and f.read_text() == "keep\n"

@@ -575,6 +575,20 @@ def test_run_writes_report_and_json_and_returns_exit_code(monkeypatch, tmp_path,
     assert rc == 0 and "--method gauss-1 --dps 30 --quick`" in capsys.readouterr().out
 
 
+@pytest.mark.parametrize("which", ["out", "json"])
+def test_run_checks_its_output_paths_before_the_audit(which, monkeypatch, tmp_path):
+    """--out or --json naming a directory: refused before the audit runs (it ran the whole audit,
+    minutes at s = 5, and then refused; --json a directory left the --out report written alone)."""
+    from ldaspark.core.errors import LdasparkError
+    ran = []
+    monkeypatch.setattr(au, "audit", lambda tab, **kw: ran.append(1) or _vres())
+    (tmp_path / "d").mkdir()
+    paths = {"out": str(tmp_path / "a.md"), "json": str(tmp_path / "a.json"), which: str(tmp_path / "d")}
+    with pytest.raises(LdasparkError, match="directory"):
+        au.run(_args(method="gauss-1", arith="mp", quick=False, **paths))
+    assert ran == [] and not (tmp_path / "a.md").exists() and not (tmp_path / "a.json").exists()
+
+
 # ==== survivors of the sampled run ============================================================
 def test_theorem1_scene_teeth_boundary_is_inclusive(t1env):
     """A numerical tolerance exactly at TEETH still has teeth (``tol_num > TEETH`` skips): at dps 12
