@@ -47,8 +47,8 @@ def _mpf(x) -> mpmath.mpf:
     """x at the working precision: int, float and mpf as they are; a NumPy float (float16, float32,
     longdouble; a 0-d array too) by the binary number it holds, as the float64 engines read it
     (its shortest decimal repr, str(np.float32(0.1)) = "0.1", is another number: the run stepped
-    with another h); anything else (decimal strings, Decimal, Fraction) by its text, which keeps
-    its digits."""
+    with another h); an exact sympy number evaluated at this precision; anything else (decimal
+    strings, Decimal, Fraction) by its text, which keeps its digits."""
     if isinstance(x, np.ndarray) and x.shape == ():
         x = x[()]
     if isinstance(x, (mpmath.mpf, int, float)):
@@ -58,6 +58,10 @@ def _mpf(x) -> mpmath.mpf:
     if isinstance(x, np.floating):
         num, den = x.as_integer_ratio()       # den is a power of 2: the division is exact
         return mpmath.mpf(num) / den
+    if hasattr(x, "evalf") and getattr(x, "is_number", False):
+        # an exact sympy number (sqrt(2)/2 in q0, a parsed parameter string): its value at this
+        # precision (mpmath does not parse the text "sqrt(2)/2")
+        return mpmath.mpf(str(x.evalf(mpmath.mp.dps + 10)))
     return mpmath.mpf(str(x))
 
 
@@ -106,8 +110,6 @@ class Backend:
 
     def scalar(self, x):
         if self.is_mp:
-            if hasattr(x, "evalf") and getattr(x, "is_number", False):   # an exact sympy number (a parsed
-                return mpmath.mpf(str(x.evalf(mpmath.mp.dps + 10)))      # parameter string): at this precision
             return _mpf(x)
         return float(x)
 

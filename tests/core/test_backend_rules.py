@@ -61,3 +61,22 @@ def test_numpy_floats_are_read_by_value_at_mpmath_precision():
     r = ldaspark.integrate("pendulum", "gauss-2", n_steps=1, h=np.float32(0.1), dps=30, guard=False)
     with mpmath.workdps(30):
         assert r.t[1] == mpmath.mpf(float(np.float32(0.1)))   # float32 -> float64 is exact
+
+
+def test_exact_sympy_numbers_in_arrays_are_read_at_mpmath_precision():
+    """q0 = [sqrt(2)/2, sqrt(2)/2] (exact sympy numbers) ran on the float64 engines and was refused
+    at dps ("t0, q0 and v0 must be numbers: invalid literal for int() ... 'sqrt(2)'"): the array
+    conversion read them by str(), which mpmath does not parse; ``Backend.scalar`` evaluated them
+    (h = pi/30 ran). Both now evaluate them at the working precision."""
+    import sympy as sp
+    with mpmath.workdps(60):              # the references, rounded once to 30 digits below
+        refs = (mpmath.sqrt(2) / 2, mpmath.cos(mpmath.mpf(1) / 3), mpmath.pi / 30)
+    bk = Backend(30)
+    with bk.context():
+        got = list(bk.array([sp.sqrt(2) / 2, sp.cos(sp.Rational(1, 3))])) + [bk.scalar(sp.pi / 30)]
+        assert all(mpmath.almosteq(g, r, rel_eps=mpmath.mpf(10) ** -29) for g, r in zip(got, refs)), got
+    s2 = sp.sqrt(2) / 2
+    r = ldaspark.integrate("pendulum", "gauss-2", q0=[s2, s2], v0=[-s2 / 2, s2 / 2], n_steps=2, h=0.1, dps=30,
+                           guard=False)
+    with mpmath.workdps(30):
+        assert r.status == 0 and mpmath.almosteq(r.q[0][0], refs[0], rel_eps=mpmath.mpf(10) ** -29)
