@@ -51,10 +51,12 @@ def _add_integrate(sub):
     p.add_argument("--tableau", default=None, help="tableau JSON file for METHOD custom")
     p.add_argument("--max-stages", type=int, default=None, help="allow methods with more than 20 stages")
     p.add_argument("--newton", choices=("full", "simplified", "auto", "mixed"), default="auto",
-                   help="generic engine's Newton variant (default: auto = simplified, full on slow contraction)")
+                   help="the root finder's kind on every engine (ldaspark.Newton; default: auto = simplified, "
+                        "full on slow contraction; mixed: float64 matrix at --dps)")
     p.add_argument("--project", action="store_true", help="project v0 onto k = 0 instead of failing")
     p.add_argument("--out", required=True, help="output file, format by extension: .npz, .h5 (h5py), else JSON "
-                                                "(psi needs the generic engine); written atomically")
+                                                "(psi on every engine, not from the semi-implicit kernel of "
+                                                "lobatto-iiia-iiib-2 nor the comparators); written atomically")
     p.add_argument("--engine", choices=("auto", "compiled", "generic"), default="auto",
                    help="auto (default): compiled kernels when the scene and method qualify, else generic")
     p.add_argument("--every", type=int, default=1, help="save every k-th step (and the last); default 1")

@@ -43,6 +43,28 @@ class SingularMatrixError(LdasparkError):
     """A linear system of the Newton iteration is (numerically) singular."""
 
 
+def _mpf(x) -> mpmath.mpf:
+    """x at the working precision: int, float and mpf as they are; a NumPy float (float16, float32,
+    longdouble; a 0-d array too) by the binary number it holds, as the float64 engines read it
+    (its shortest decimal repr, str(np.float32(0.1)) = "0.1", is another number: the run stepped
+    with another h); an exact sympy number evaluated at this precision; anything else (decimal
+    strings, Decimal, Fraction) by its text, which keeps its digits."""
+    if isinstance(x, np.ndarray) and x.shape == ():
+        x = x[()]
+    if isinstance(x, (mpmath.mpf, int, float)):
+        return mpmath.mpf(x)
+    if isinstance(x, np.integer):
+        return mpmath.mpf(int(x))
+    if isinstance(x, np.floating):
+        num, den = x.as_integer_ratio()       # den is a power of 2: the division is exact
+        return mpmath.mpf(num) / den
+    if hasattr(x, "evalf") and getattr(x, "is_number", False):
+        # an exact sympy number (sqrt(2)/2 in q0, a parsed parameter string): its value at this
+        # precision (mpmath does not parse the text "sqrt(2)/2")
+        return mpmath.mpf(str(x.evalf(mpmath.mp.dps + 10)))
+    return mpmath.mpf(str(x))
+
+
 class Backend:
     """Arithmetic context. ``dps`` None is float64; an int is mpmath at that many digits."""
 
@@ -82,17 +104,13 @@ class Backend:
             arr = np.array(x, dtype=object)
             flat = arr.reshape(-1)
             for i, v in enumerate(flat):
-                flat[i] = mpmath.mpf(str(v)) if not isinstance(v, (mpmath.mpf, int, float)) else mpmath.mpf(v)
+                flat[i] = _mpf(v)
             return arr
         return np.array(x, dtype=float)
 
     def scalar(self, x):
         if self.is_mp:
-            if isinstance(x, (int, float, mpmath.mpf)):
-                return mpmath.mpf(x)
-            if hasattr(x, "evalf") and getattr(x, "is_number", False):   # an exact sympy number (a parsed
-                return mpmath.mpf(str(x.evalf(mpmath.mp.dps + 10)))      # parameter string): at this precision
-            return mpmath.mpf(str(x))
+            return _mpf(x)
         return float(x)
 
     def zeros(self, shape) -> np.ndarray:

@@ -173,12 +173,14 @@ class Result:
             bad = np.flatnonzero(np.asarray(self.status) < 0)
             if len(bad):
                 msg = self.message[bad[0]] if isinstance(self.message, list) else self.message
-                raise LdasparkError(f"ensemble member {int(bad[0])}: {msg}")
+                raise _status_error(int(np.asarray(self.status)[bad[0]]))(f"ensemble member {int(bad[0])}: {msg}")
             return self
         if self.status < 0:
             if self.error is not None:
                 raise self.error
-            raise LdasparkError(self.message)
+            # a Result read from a file keeps status and message, not the exception: the class
+            # of its status, so that ``except NewtonError`` catches it as it caught the run's
+            raise _status_error(int(self.status))(self.message)
         return self
 
     def __iter__(self):
@@ -189,6 +191,16 @@ class Result:
         b = f"batch={self.batch}, " if self.members is not None else ""
         return (f"Result({b}system={self.system!r}, method={self.method!r}, engine={self.engine!r}, "
                 f"points={np.shape(self.t)[-1]}, status={self.status!r}, message={self.message!r})")
+
+
+def _status_error(status: int) -> type:
+    """The exception class of a failure status (module docstring): -1 NewtonError, -2
+    SingularSaddleError, -4 RootMismatchError; -3 (non-finite values, the energy monitor, other
+    step failures) and anything else LdasparkError, their common base."""
+    from .errors import NewtonError, SingularSaddleError
+    from .guard import RootMismatchError
+    return {STATUS_NEWTON: NewtonError, STATUS_SADDLE: SingularSaddleError,
+            STATUS_GUARD: RootMismatchError}.get(status, LdasparkError)
 
 
 def float_array(x: Any) -> np.ndarray:

@@ -79,8 +79,10 @@ def _json_value(x: Any) -> Any:
         return {str(k): _json_value(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
         return [_json_value(v) for v in x]
-    if isinstance(x, np.ndarray) and x.dtype.kind in "biuf":     # an ensemble's counters
-        return [_json_value(v) for v in x.tolist()]
+    if isinstance(x, np.ndarray) and x.dtype.kind in "biuf":
+        # an ensemble's counters; a 0-d array (h = np.array(0.1), which integrate takes and
+        # keeps in Result.h) is its number: tolist() gives the number, nested lists otherwise
+        return _json_value(x.tolist())
     if isinstance(x, (str, int, float, bool)) or x is None:
         return x
     return str(x)

@@ -78,3 +78,35 @@ def test_raise_for_status_of_a_batch_without_members():
         bad.raise_for_status()
     good = dataclasses.replace(bad, status=np.array([0, 1]))
     assert good.raise_for_status() is good
+
+
+def test_a_loaded_failure_raises_the_class_of_its_status(tmp_path):
+    """``raise_for_status`` of a Result read back from a file (which keeps status and message, not
+    the exception object) raised a bare LdasparkError where the run's own Result raised
+    NewtonError: ``except NewtonError`` caught the failure of the run and missed the same failure
+    saved and loaded. Now the class of the documented status: -1 NewtonError, -2
+    SingularSaddleError, -4 RootMismatchError (-3 and others: LdasparkError), batch or single."""
+    import pytest
+
+    import ldaspark
+    from ldaspark.core.errors import LdasparkError, NewtonError, SingularSaddleError
+    from ldaspark.core.guard import RootMismatchError
+    r = ldaspark.integrate("pendulum", "gauss-2", n_steps=3, h=0.2, engine="generic", guard=False,
+                           newton=ldaspark.Newton(max_iter=2))
+    assert r.status == -1 and isinstance(r.error, NewtonError)
+    for ext in ("json", "npz"):
+        ldaspark.save_result(r, tmp_path / f"f.{ext}")
+        back = ldaspark.load_result(tmp_path / f"f.{ext}")
+        assert back.error is None
+        with pytest.raises(NewtonError, match="did not converge"):
+            back.raise_for_status()
+    z = np.zeros((1, 2, 1))
+    for status, cls in ((-1, NewtonError), (-2, SingularSaddleError), (-4, RootMismatchError), (-3, LdasparkError)):
+        one = Result(np.zeros(2), z[0], z[0], np.zeros(2), z[0], status=status, message="why")
+        with pytest.raises(cls, match="why") as info:
+            one.raise_for_status()
+        assert type(info.value) is cls
+        batch = Result(np.zeros((1, 2)), z, z, np.zeros((1, 2)), z, status=np.array([status]), message=["why"])
+        with pytest.raises(cls, match="member 0: why") as info:
+            batch.raise_for_status()
+        assert type(info.value) is cls

@@ -97,3 +97,18 @@ def test_integrate_refuses_an_unwritable_out_before_the_run(target, capsys, tmp_
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "refusing to replace it" in err[0], err
     assert ran == []
+
+
+def test_integrate_help_says_what_the_compiled_engine_does(tmp_path):
+    """--newton is the root finder of every engine (the compiled kernels run "full" when asked)
+    and the compiled engine writes psi; the help said "generic engine's Newton variant" and
+    "(psi needs the generic engine)"."""
+    from ldaspark.cli import build_parser
+    sub = next(a for a in build_parser("integrate")._actions if a.dest == "command").choices["integrate"]
+    helps = {a.dest: a.help for a in sub._actions}
+    out = tmp_path / "c.json"
+    assert main(["integrate", "pendulum", "gauss-2", "--h", "0.1", "--t-end", "0.3", "--engine", "compiled",
+                 "--newton", "full", "--out", str(out)]) == 0
+    d = json.loads(out.read_text())
+    assert d["engine"] == "compiled" and len(d["psi"]) == 3 and d["stats"]["root_finder"]["runs"] == "full"
+    assert "generic engine" not in helps["newton"] and "psi needs" not in helps["out"], helps

@@ -165,3 +165,15 @@ def test_a_guard_stop_round_trips(tmp_path, ext):
     back = load_result(tmp_path / f"g{ext}")
     assert (back.status, back.message) == (r.status, r.message) and not back.success
     assert np.array_equal(back.q, r.q)
+
+
+@pytest.mark.parametrize("ext", FORMATS)
+def test_a_step_given_as_a_zero_dimensional_array_round_trips(tmp_path, ext):
+    """integrate takes h as a NumPy 0-d array (``validate.real_number``) and keeps it as given in
+    ``Result.h``; writing the metadata raised a raw TypeError ('float' object is not iterable)
+    from the JSON conversion of the array (``tolist()`` of a 0-d array is a number)."""
+    res = ldaspark.integrate("skate", "gauss-2", n_steps=3, h=np.array(0.1), engine="generic")
+    save_result(res, tmp_path / f"r{ext}")
+    back = load_result(tmp_path / f"r{ext}")
+    assert back.h == 0.1 and type(back.h) is float
+    assert np.array_equal(np.asarray(back.q, float), np.asarray(res.q, float))
