@@ -617,17 +617,7 @@ def _run_checked(cs, method, start, grid, opts: KernelOptions):
         NN = s_ * (cs.n + cs.m) + cs.n
         out_x = np.zeros(NN + (S - 1) * s_ * cs.m)          # the last unknowns, then psi per sample
         structure = _sparse_structure(cs, what[1].shape[0], linear_solver)
-        if structure is not None:
-            solver = "sparse"
-            _entry("spark_sparse_run")(model, what, cs.M, *run, *outs, stats, out_x, *structure.arrays())
-            if linear_solver == "auto" and stats[mt.FAILED_STEP] >= 0 and stats[mt.FAILURE] == mt.FAIL_SINGULAR:
-                # a block pivot too small for the unpivoted block order: the dense LU pivots freely
-                solver = "dense"
-                for arr in outs + (stats, out_x):
-                    arr[...] = 0
-        if solver == "dense":
-            _entry("spark_run" if cs.form == "mechanical" else "general_run")(model, what, cs.M, *run, *outs,
-                                                                               stats, out_x)
+        solver = _spark_kernel(cs, what, run, outs, stats, out_x, structure, linear_solver == "auto")
     st = dict(zip(STAT_NAMES, stats.tolist()))          # Python ints
     if st["failed_step"] >= 0:
         # the SPARK kernels leave the residual at the last iterate in out_x[0] (kernels.spark_loop)
@@ -645,6 +635,24 @@ def _run_checked(cs, method, start, grid, opts: KernelOptions):
     st["newton_kind"] = "lf2" if kind == "lf2" else opts.newton_kind
     psi = None if kind == "lf2" else out_x[NN:].reshape(S - 1, s_, cs.m)
     return FastSolution(*outs, psi=psi, stats=st)
+
+
+def _spark_kernel(cs, what, run, outs, stats, out_x, structure, retry_dense) -> str:
+    """One call of the SPARK kernel over ``run`` into zeroed ``outs``, ``stats``, ``out_x``: the
+    block-sparse one for ``structure`` (not None), else the dense one of the system's form; the
+    solver that ran ("sparse" or "dense"). retry_dense: a run the block LU fails with a singular
+    matrix is repeated with the dense LU (its unpivoted block order can meet a zero pivot the
+    dense LU pivots past)."""
+    if structure is not None:
+        _entry("spark_sparse_run")(cs.model, what, cs.M, *run, *outs, stats, out_x, *structure.arrays())
+        if retry_dense and stats[mt.FAILED_STEP] >= 0 and stats[mt.FAILURE] == mt.FAIL_SINGULAR:
+            for arr in outs + (stats, out_x):
+                arr[...] = 0
+        else:
+            return "sparse"
+    _entry("spark_run" if cs.form == "mechanical" else "general_run")(cs.model, what, cs.M, *run, *outs, stats,
+                                                                       out_x)
+    return "dense"
 
 
 class StageSolver:
@@ -669,26 +677,15 @@ class StageSolver:
         self.out_x = np.zeros(self.NN)          # the step's unknowns only (no multipliers stored)
         self.structure = _sparse_structure(cs, self.s, "auto")
 
-    def _run(self, run, structure):
-        for arr in self.outs + (self.stats, self.out_x):
-            arr[...] = 0
-        if structure is not None:
-            _entry("spark_sparse_run")(self.cs.model, self.what, self.cs.M, *run, *self.outs, self.stats, self.out_x,
-                                       *structure.arrays())
-        else:
-            _entry("spark_run" if self.cs.form == "mechanical" else "general_run")(
-                self.cs.model, self.what, self.cs.M, *run, *self.outs, self.stats, self.out_x)
-        return self.stats[mt.FAILED_STEP] < 0
-
     def __call__(self, t, q, v, h):
         q0 = np.array(q, dtype=float)
         v0 = np.array(v, dtype=float)
         # predictor 0 (zero increments), no matrix reuse, Newton mode 1 (full): ``kernels.NEWTON_MODE``
         run = (float(t), q0, v0, float(h), 1, 1, True, self.tol, self.max_iter, 8 * NEWTON_MODES["full"])
-        ok = self._run(run, self.structure)
-        if not ok and self.structure is not None and self.stats[mt.FAILURE] == mt.FAIL_SINGULAR:
-            ok = self._run(run, None)           # a block pivot too small: the dense LU pivots freely
-        if not ok:
+        for arr in self.outs + (self.stats, self.out_x):
+            arr[...] = 0
+        _spark_kernel(self.cs, self.what, run, self.outs, self.stats, self.out_x, self.structure, True)
+        if self.stats[mt.FAILED_STEP] >= 0:
             return None
         V = v0[None, :] + self.out_x[:self.s * self.cs.n].reshape(self.s, self.cs.n)
         return V, self.outs[1][1].copy(), self.outs[2][1].copy()

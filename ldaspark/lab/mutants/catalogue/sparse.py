@@ -30,7 +30,7 @@ MUTANTS = (
        "no small-pivot test in the diagonal blocks (a zero block pivot gives inf, not a dense fallback)",
        "compiled", TSN),
     _m("sparse-dense-fallback-skipped", "compiled/runner.py",
-       "if linear_solver == \"auto\" and stats[mt.FAILED_STEP] >= 0 and stats[mt.FAILURE] == mt.FAIL_SINGULAR:",
+       "if retry_dense and stats[mt.FAILED_STEP] >= 0 and stats[mt.FAILURE] == mt.FAIL_SINGULAR:",
        "if False:",
        "auto keeps the block LU's singular-matrix failure instead of repeating the run with the dense LU",
        "compiled", TSN),
