@@ -1,9 +1,11 @@
 """One initial-point check (``ldaspark.core.validate.initial_point``) for every engine and entry
 point: each refuses an inconsistent start with the same message, and each goes through that one
 function (replaced here by one that raises a sentinel: every path raises the sentinel)."""
+import math
 import warnings
 from concurrent.futures import ThreadPoolExecutor
 
+import numpy as np
 import pytest
 
 import ldaspark
@@ -116,3 +118,39 @@ def test_a_given_tol_sets_the_consistency_tolerance_to_ten_tol(engine):
     assert go(1.5e-9).status == 0
     with pytest.raises(InconsistentInitialDataError, match=r"\|k\(t0, q0, v0\)\| = 3\.000e-09 > 2\.0e-09 "):
         go(3e-9)
+
+
+def _knife_at_large_t():
+    """The knife edge of 8.2 on an incline, rheonomic: k = sin(q3) v1 - cos(q3) v2 - 3/10 sin(2 t)
+    (k_t = -3/5 cos(2 t), up to 0.6)."""
+    import sympy
+    t = sympy.Symbol("t")
+    x, y, th = sympy.symbols("x y theta")
+    vx, vy, vth = sympy.symbols("vx vy vtheta")
+    L = (vx ** 2 + vy ** 2 + vth ** 2) / 2 - x / 2
+    k = [sympy.sin(th) * vx - sympy.cos(th) * vy - sympy.Rational(3, 10) * sympy.sin(2 * t)]
+    return ldaspark.LagrangianSystem(L, k, [x, y, th], [vx, vy, vth], t=t, name="knife-rheonomic")
+
+
+@pytest.mark.parametrize("engine", ["generic", "compiled"])
+def test_a_rheonomic_run_at_large_t_continues_from_its_own_saved_states(engine):
+    """(1c) at t0 ~ 1e4 is known only to |k_t| ulp(t0): the time's own rounding (a decimal t0, or a
+    step ending at fl(t_n + h) where the grid saves fl(t0 + (n+1) h)) moves k by up to 0.6 x 1.8e-12.
+    Before, the consistency check ignored it: the saved state of step 130 of this run (|k| = 1.09e-12)
+    was refused as inconsistent initial data (> 4.4e-13) by the next chunk. A violation far beyond
+    the time's rounding (1e-9) is still refused."""
+    system = _knife_at_large_t()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = ldaspark.integrate(system, "gauss-2", t0=1e4, n_steps=200, q0=[0, 0, 0.2], v0=[1, 0, 1], h=0.01,
+                               engine=engine, project=True)
+    assert r.status == 0
+    worst = int(np.argmax(np.abs(np.asarray(r.constraint, float))))
+    assert abs(float(r.constraint[worst][0])) > 4.4e-13           # the time's rounding, measured 1.09e-12
+    nxt = ldaspark.integrate(system, "gauss-2", t0=r.t[worst], n_steps=2, q0=r.q[worst], v0=r.v[worst], h=0.01,
+                             engine=engine)
+    assert nxt.status == 0
+    v_off = np.array(r.v[worst], float) + [0.0, 1e-9 / math.cos(float(r.q[worst][2])), 0.0]
+    with pytest.raises(InconsistentInitialDataError):
+        ldaspark.integrate(system, "gauss-2", t0=r.t[worst], n_steps=2, q0=r.q[worst], v0=v_off, h=0.01,
+                           engine=engine)
