@@ -456,7 +456,12 @@ class LagrangianSystem:
         return flag
 
     def project_velocity(self, backend, t, q, v, maxiter=50):
-        """Closest v (in the L_vv metric) with k(t, q, v) = 0, by Newton on the KKT system."""
+        """Closest v (in the L_vv metric) with k(t, q, v) = 0, by Newton on the KKT system
+        L_vv (v - v0) + K^T mu = 0, k = 0: its matrix is (4) with sum_i mu_i (k_i)_vv added to L_vv
+        (= -R_v at lam = mu), zero for k linear in v; without it the iteration diverges for k
+        nonlinear in v once |mu| (k_i)_vv is comparable to L_vv (v0 = (3, 4, 0) onto |v| = 1)."""
+        # the sparse derivative says whether there is a term (no n x n sympy matrix for a linear k)
+        curv = self._fn("proj_Rv", [self.R_v], backend, with_lam=True) if self._derived.nonzeros("R_v") else None
         with backend.context():
             v = backend.array(v).copy()
             v_ref = v.copy()
@@ -467,6 +472,9 @@ class LagrangianSystem:
                 kv = S[self.n:, :self.n]
                 r1 = Lvv.dot(v - v_ref) + kv.T.dot(mu)
                 r2 = self.constraint(backend, t, q, v)
+                if curv is not None:
+                    S = S.copy()
+                    S[:self.n, :self.n] = Lvv - _arr(curv(t, *q, *v, *mu)[0], backend).reshape(self.n, self.n)
                 dx = backend.solve(S, -np.concatenate([r1, r2]))
                 v = v + dx[:self.n]
                 mu = mu + dx[self.n:]

@@ -154,3 +154,31 @@ def test_a_rheonomic_run_at_large_t_continues_from_its_own_saved_states(engine):
     with pytest.raises(InconsistentInitialDataError):
         ldaspark.integrate(system, "gauss-2", t0=r.t[worst], n_steps=2, q0=r.q[worst], v0=v_off, h=0.01,
                            engine=engine)
+
+
+@pytest.mark.parametrize("engine,dps", [("generic", None), ("compiled", None), ("generic", 30)])
+def test_project_reaches_a_constraint_nonlinear_in_v_far_from_v0(engine, dps):
+    """project=True is Newton on the KKT system of min (v - v0)^T L_vv (v - v0) / 2 subject to
+    k(t0, q0, v) = 0: for k nonlinear in v its matrix needs sum_i mu_i (k_i)_vv next to L_vv. Before,
+    it had L_vv alone and diverged for the constant-speed constraint k = v1^2 + v2^2 - 1 from
+    v0 = (3, 4, 0) (mu = 2: the iteration's rate 2 mu = 4 > 1), 'projection of v0 onto k = 0 did not
+    converge' on every engine; the closest point is (3, 4, 0) / 5. With L_vv = diag(2, 1, 1) the
+    answer is checked by (1c) and the stationarity L_vv (v - v0) parallel to k_v(v) = 2 (v1, v2, 0)."""
+    import sympy
+    x, y, z = sympy.symbols("x y z")
+    vx, vy, vz = sympy.symbols("vx vy vz")
+    for mass, want in ((1, [0.6, 0.8, 0.0]), (2, None)):
+        L = (mass * vx ** 2 + vy ** 2 + vz ** 2) / 2 - z ** 2 / 2
+        system = ldaspark.LagrangianSystem(L, [vx ** 2 + vy ** 2 - 1], [x, y, z], [vx, vy, vz], name="constant-speed")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            r = ldaspark.integrate(system, "gauss-2", t0=0, n_steps=2, q0=[0, 0, 0.1], v0=[3, 4, 0], h=0.1,
+                                   engine=engine, dps=dps, project=True)
+        assert r.status == 0
+        v = np.array([float(c) for c in r.v[0]])
+        assert abs(v[0] ** 2 + v[1] ** 2 - 1) <= 4 * np.finfo(float).eps and v[2] == 0
+        g = np.array([mass * (v[0] - 3), v[1] - 4])            # L_vv (v - v0), first two components
+        assert abs(g[0] * v[1] - g[1] * v[0]) <= 1e-14 * np.abs(g).max()     # parallel to (v1, v2)
+        assert g.dot(v[:2]) < 0                                  # toward v0's side: the closest point
+        if want is not None:
+            assert np.abs(v - want).max() <= 4 * np.finfo(float).eps
