@@ -16,7 +16,7 @@ import mpmath
 import numpy as np
 import sympy
 
-from .backend import Backend, fmt
+from .backend import Backend, SingularMatrixError, fmt
 from . import gensource
 from .derive import install, real_jacobian  # noqa: F401 (real_jacobian: its old home)
 from .gensource import SUPPORTED_FUNCTIONS  # noqa: F401 (its old home)
@@ -475,7 +475,15 @@ class LagrangianSystem:
                 if curv is not None:
                     S = S.copy()
                     S[:self.n, :self.n] = Lvv - _arr(curv(t, *q, *v, *mu)[0], backend).reshape(self.n, self.n)
-                dx = backend.solve(S, -np.concatenate([r1, r2]))
+                try:
+                    dx = backend.solve(S, -np.concatenate([r1, r2]))
+                except SingularMatrixError:
+                    # k has no zero near v0 (k = |v|^2 + 1), or K lost rank on the way: the
+                    # projection's failure, not a Newton iteration's of (21)
+                    raise InconsistentInitialDataError(
+                        f"projection of v0 onto k = 0 failed: the KKT matrix became singular at v = "
+                        f"{np.array2string(np.asarray([float(x) for x in v]), precision=6)} "
+                        f"(|k| = {fmt(backend.norm_inf(r2))}; does k(t0, q0, v) = 0 have a solution?)") from None
                 v = v + dx[:self.n]
                 mu = mu + dx[self.n:]
                 if backend.norm_inf(dx) <= 10 * backend.eps * (1 + backend.norm_inf(v)):

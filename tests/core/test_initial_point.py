@@ -182,3 +182,18 @@ def test_project_reaches_a_constraint_nonlinear_in_v_far_from_v0(engine, dps):
         assert g.dot(v[:2]) < 0                                  # toward v0's side: the closest point
         if want is not None:
             assert np.abs(v - want).max() <= 4 * np.finfo(float).eps
+
+
+@pytest.mark.parametrize("engine", ["generic", "compiled"])
+def test_project_onto_a_constraint_without_zeros_names_the_projection(engine):
+    """k = v1^2 + v2^2 + 1 has no real zero: project=True fails as the projection, one
+    InconsistentInitialDataError naming it; before, the KKT solve's SingularMatrixError said
+    'Newton matrix is numerically singular (pivot ratio 0.0e+00)', as if a step of (21) had failed."""
+    import sympy
+    x, y, z = sympy.symbols("x y z")
+    vx, vy, vz = sympy.symbols("vx vy vz")
+    system = ldaspark.LagrangianSystem((vx ** 2 + vy ** 2 + vz ** 2) / 2, [vx ** 2 + vy ** 2 + 1], [x, y, z],
+                                       [vx, vy, vz], name="no-zero")
+    with pytest.raises(InconsistentInitialDataError, match=r"^projection of v0 onto k = 0 failed"):
+        ldaspark.integrate(system, "gauss-2", t0=0, n_steps=2, q0=[0, 0, 0], v0=[1, 0, 0], h=0.1, engine=engine,
+                           project=True)
