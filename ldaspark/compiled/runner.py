@@ -602,10 +602,16 @@ def _run_checked(cs, method, start, grid, opts: KernelOptions):
     outs = (np.zeros(S), np.zeros((S, cs.n)), np.zeros((S, cs.n)), np.zeros(S), np.zeros((S, cs.m)))
     stats = np.zeros(len(STAT_NAMES), dtype=np.int64)
     # reuse_matrix (SPARK kernels): the previous step's Newton matrix (kernels.REUSE_MATRIX)
+    full = kind != "lf2" and int(opts.newton_mode) == NEWTON_MODES["full"]
     if isinstance(reuse_matrix, str) and reuse_matrix == "auto":
-        reuse_matrix = cs.n >= REUSE_AUTO_MIN_N
+        # full Newton forms the matrix at every iteration: the kernels drop the reuse bit there
+        reuse_matrix = cs.n >= REUSE_AUTO_MIN_N and not full
     elif not isinstance(reuse_matrix, (bool, np.bool_)):
         raise InputError(f"reuse_matrix must be True, False or 'auto', got {reuse_matrix!r:.60}")
+    elif reuse_matrix and full:
+        raise InputError(f"newton kind '{opts.newton_kind}' on the compiled engine: reuse=True is not honoured "
+                         "(full Newton forms the Newton matrix at every iteration); use 'auto' or False, or the "
+                         "kind 'simplified' or 'auto'")
     pflag = int(predictor) + (4 if reuse_matrix else 0) + 8 * int(opts.newton_mode)
     run = (float(t0), q0, v0, h, int(n_steps), int(every), bool(compensated), tol, int(max_iter), pflag)
     model = cs.model

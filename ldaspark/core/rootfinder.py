@@ -91,7 +91,9 @@ class Newton:
         The Newton matrix's factorisation: "sparse" is the compiled engine's block LU
         (mechanical form).
     reuse : {"auto", True, False}
-        Start a step from the previous step's factored Newton matrix (compiled engine).
+        Start a step from the previous step's factored Newton matrix (compiled engine, kinds
+        "auto" and "simplified"; full Newton forms its matrix at every iteration and refuses
+        True).
 
     Examples
     --------

@@ -16,7 +16,7 @@ import mpmath
 import numpy as np
 import sympy
 
-from .backend import Backend, fmt
+from .backend import Backend, SingularMatrixError, fmt
 from . import gensource
 from .derive import install, real_jacobian  # noqa: F401 (real_jacobian: its old home)
 from .gensource import SUPPORTED_FUNCTIONS  # noqa: F401 (its old home)
@@ -433,20 +433,39 @@ class LagrangianSystem:
         return r
 
     def check_consistent(self, backend, t, q, v, tol=None, k=None):
-        """Raise InconsistentInitialDataError unless |k(t, q, v)| <= tol (1 + |v|) (``k``: the
-        value k(t, q, v) when the caller has it)."""
+        """Raise InconsistentInitialDataError unless |k(t, q, v)| <= tol (1 + |v|) + 2 eps |t| |k_t|
+        (``k``: the value k(t, q, v) when the caller has it). The last term is the rounding of the
+        time itself (1c): a rheonomic k at t ~ 1e4 is known only to |k_t| ulp(t) (a decimal t0, or a
+        step of (21f) ending at fl(t_n + h) that the grid saves at fl(t0 + (n+1) h), one ulp apart),
+        so a run's own saved state stays a valid start for the next chunk."""
         with backend.context():
             res = backend.norm_inf(self.constraint(backend, t, q, v) if k is None else k)
             scale = 1 + backend.norm_inf(backend.array(v))
-        tol = tol if tol is not None else 1e3 * backend.eps
-        if not math.isfinite(res) or res > tol * scale:
+            tol = tol if tol is not None else 1e3 * backend.eps
+            bound = tol * scale
+            if math.isfinite(res) and res > bound and self._rheonomic_k():
+                kt = _arr(self._fn("kt", [self.k_t], backend)(t, *q, *v)[0], backend)[:, 0]
+                bound = bound + 2 * backend.eps * abs(float(t)) * backend.norm_inf(kt)
+        if not math.isfinite(res) or res > bound:
             raise InconsistentInitialDataError(
-                f"initial data are inconsistent: |k(t0, q0, v0)| = {fmt(res)} > {fmt(tol * scale, 2)} "
+                f"initial data are inconsistent: |k(t0, q0, v0)| = {fmt(res)} > {fmt(bound, 2)} "
                 "(pass project=True / --project to project v0 onto k = 0)")
         return res
 
+    def _rheonomic_k(self) -> bool:
+        """k depends on t (then (1c) at t0 carries the rounding of t0, ``check_consistent``)."""
+        flag = self.__dict__.get("_k_has_t")
+        if flag is None:
+            flag = self.__dict__["_k_has_t"] = self.t in self.k.free_symbols
+        return flag
+
     def project_velocity(self, backend, t, q, v, maxiter=50):
-        """Closest v (in the L_vv metric) with k(t, q, v) = 0, by Newton on the KKT system."""
+        """Closest v (in the L_vv metric) with k(t, q, v) = 0, by Newton on the KKT system
+        L_vv (v - v0) + K^T mu = 0, k = 0: its matrix is (4) with sum_i mu_i (k_i)_vv added to L_vv
+        (= -R_v at lam = mu), zero for k linear in v; without it the iteration diverges for k
+        nonlinear in v once |mu| (k_i)_vv is comparable to L_vv (v0 = (3, 4, 0) onto |v| = 1)."""
+        # the sparse derivative says whether there is a term (no n x n sympy matrix for a linear k)
+        curv = self._fn("proj_Rv", [self.R_v], backend, with_lam=True) if self._derived.nonzeros("R_v") else None
         with backend.context():
             v = backend.array(v).copy()
             v_ref = v.copy()
@@ -457,7 +476,18 @@ class LagrangianSystem:
                 kv = S[self.n:, :self.n]
                 r1 = Lvv.dot(v - v_ref) + kv.T.dot(mu)
                 r2 = self.constraint(backend, t, q, v)
-                dx = backend.solve(S, -np.concatenate([r1, r2]))
+                if curv is not None:
+                    S = S.copy()
+                    S[:self.n, :self.n] = Lvv - _arr(curv(t, *q, *v, *mu)[0], backend).reshape(self.n, self.n)
+                try:
+                    dx = backend.solve(S, -np.concatenate([r1, r2]))
+                except SingularMatrixError:
+                    # k has no zero near v0 (k = |v|^2 + 1), or K lost rank on the way: the
+                    # projection's failure, not a Newton iteration's of (21)
+                    raise InconsistentInitialDataError(
+                        f"projection of v0 onto k = 0 failed: the KKT matrix became singular at v = "
+                        f"{np.array2string(np.asarray([float(x) for x in v]), precision=6)} "
+                        f"(|k| = {fmt(backend.norm_inf(r2))}; does k(t0, q0, v) = 0 have a solution?)") from None
                 v = v + dx[:self.n]
                 mu = mu + dx[self.n:]
                 if backend.norm_inf(dx) <= 10 * backend.eps * (1 + backend.norm_inf(v)):

@@ -79,3 +79,18 @@ def test_auto_reuses_the_matrix_from_REUSE_AUTO_MIN_N_on():
     for bad in ("yes", np.array([1, 0]), None, 1):
         with pytest.raises(InputError, match="reuse_matrix"):
             run_compiled(cb, "gauss-2", *big.initial(), 0.001, 5, reuse_matrix=bad)
+
+
+@pytest.mark.parametrize("kind", ["full", "mixed"])
+def test_full_newton_refuses_matrix_reuse(kind):
+    """Full Newton (and "mixed", which is full Newton in float64) forms the Newton matrix at every
+    iteration: the kernel drops the reuse bit then (kernels.py: ``mode != 1``). Before,
+    Newton(kind, reuse=True) on the compiled engine ran 1500 factorisations for 1500 iterations on a
+    500-step run, bitwise the run of reuse=False, and stats["reuse_matrix"] said True: accepted and
+    ignored. Now refused in one line, as the quasi kind and the semi-implicit kernel refuse it."""
+    import ldaspark
+    with pytest.raises(InputError, match=f"newton kind '{kind}' on the compiled engine: reuse=True is not honoured"):
+        ldaspark.integrate("skate", "gauss-2", t_span=(0, 1), h=0.1, engine="compiled",
+                           newton=ldaspark.Newton(kind, reuse=True))
+    r = ldaspark.integrate("skate", "gauss-2", t_span=(0, 1), h=0.1, engine="compiled", newton=ldaspark.Newton(kind))
+    assert r.status == 0 and r.stats["reuse_matrix"] is False

@@ -1,9 +1,11 @@
 """One initial-point check (``ldaspark.core.validate.initial_point``) for every engine and entry
 point: each refuses an inconsistent start with the same message, and each goes through that one
 function (replaced here by one that raises a sentinel: every path raises the sentinel)."""
+import math
 import warnings
 from concurrent.futures import ThreadPoolExecutor
 
+import numpy as np
 import pytest
 
 import ldaspark
@@ -116,3 +118,82 @@ def test_a_given_tol_sets_the_consistency_tolerance_to_ten_tol(engine):
     assert go(1.5e-9).status == 0
     with pytest.raises(InconsistentInitialDataError, match=r"\|k\(t0, q0, v0\)\| = 3\.000e-09 > 2\.0e-09 "):
         go(3e-9)
+
+
+def _knife_at_large_t():
+    """The knife edge of 8.2 on an incline, rheonomic: k = sin(q3) v1 - cos(q3) v2 - 3/10 sin(2 t)
+    (k_t = -3/5 cos(2 t), up to 0.6)."""
+    import sympy
+    t = sympy.Symbol("t")
+    x, y, th = sympy.symbols("x y theta")
+    vx, vy, vth = sympy.symbols("vx vy vtheta")
+    L = (vx ** 2 + vy ** 2 + vth ** 2) / 2 - x / 2
+    k = [sympy.sin(th) * vx - sympy.cos(th) * vy - sympy.Rational(3, 10) * sympy.sin(2 * t)]
+    return ldaspark.LagrangianSystem(L, k, [x, y, th], [vx, vy, vth], t=t, name="knife-rheonomic")
+
+
+@pytest.mark.parametrize("engine", ["generic", "compiled"])
+def test_a_rheonomic_run_at_large_t_continues_from_its_own_saved_states(engine):
+    """(1c) at t0 ~ 1e4 is known only to |k_t| ulp(t0): the time's own rounding (a decimal t0, or a
+    step ending at fl(t_n + h) where the grid saves fl(t0 + (n+1) h)) moves k by up to 0.6 x 1.8e-12.
+    Before, the consistency check ignored it: the saved state of step 130 of this run (|k| = 1.09e-12)
+    was refused as inconsistent initial data (> 4.4e-13) by the next chunk. A violation far beyond
+    the time's rounding (1e-9) is still refused."""
+    system = _knife_at_large_t()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = ldaspark.integrate(system, "gauss-2", t0=1e4, n_steps=200, q0=[0, 0, 0.2], v0=[1, 0, 1], h=0.01,
+                               engine=engine, project=True)
+    assert r.status == 0
+    worst = int(np.argmax(np.abs(np.asarray(r.constraint, float))))
+    assert abs(float(r.constraint[worst][0])) > 4.4e-13           # the time's rounding, measured 1.09e-12
+    nxt = ldaspark.integrate(system, "gauss-2", t0=r.t[worst], n_steps=2, q0=r.q[worst], v0=r.v[worst], h=0.01,
+                             engine=engine)
+    assert nxt.status == 0
+    v_off = np.array(r.v[worst], float) + [0.0, 1e-9 / math.cos(float(r.q[worst][2])), 0.0]
+    with pytest.raises(InconsistentInitialDataError):
+        ldaspark.integrate(system, "gauss-2", t0=r.t[worst], n_steps=2, q0=r.q[worst], v0=v_off, h=0.01,
+                           engine=engine)
+
+
+@pytest.mark.parametrize("engine,dps", [("generic", None), ("compiled", None), ("generic", 30)])
+def test_project_reaches_a_constraint_nonlinear_in_v_far_from_v0(engine, dps):
+    """project=True is Newton on the KKT system of min (v - v0)^T L_vv (v - v0) / 2 subject to
+    k(t0, q0, v) = 0: for k nonlinear in v its matrix needs sum_i mu_i (k_i)_vv next to L_vv. Before,
+    it had L_vv alone and diverged for the constant-speed constraint k = v1^2 + v2^2 - 1 from
+    v0 = (3, 4, 0) (mu = 2: the iteration's rate 2 mu = 4 > 1), 'projection of v0 onto k = 0 did not
+    converge' on every engine; the closest point is (3, 4, 0) / 5. With L_vv = diag(2, 1, 1) the
+    answer is checked by (1c) and the stationarity L_vv (v - v0) parallel to k_v(v) = 2 (v1, v2, 0)."""
+    import sympy
+    x, y, z = sympy.symbols("x y z")
+    vx, vy, vz = sympy.symbols("vx vy vz")
+    for mass, want in ((1, [0.6, 0.8, 0.0]), (2, None)):
+        L = (mass * vx ** 2 + vy ** 2 + vz ** 2) / 2 - z ** 2 / 2
+        system = ldaspark.LagrangianSystem(L, [vx ** 2 + vy ** 2 - 1], [x, y, z], [vx, vy, vz], name="constant-speed")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            r = ldaspark.integrate(system, "gauss-2", t0=0, n_steps=2, q0=[0, 0, 0.1], v0=[3, 4, 0], h=0.1,
+                                   engine=engine, dps=dps, project=True)
+        assert r.status == 0
+        v = np.array([float(c) for c in r.v[0]])
+        assert abs(v[0] ** 2 + v[1] ** 2 - 1) <= 4 * np.finfo(float).eps and v[2] == 0
+        g = np.array([mass * (v[0] - 3), v[1] - 4])            # L_vv (v - v0), first two components
+        assert abs(g[0] * v[1] - g[1] * v[0]) <= 1e-14 * np.abs(g).max()     # parallel to (v1, v2)
+        assert g.dot(v[:2]) < 0                                  # toward v0's side: the closest point
+        if want is not None:
+            assert np.abs(v - want).max() <= 4 * np.finfo(float).eps
+
+
+@pytest.mark.parametrize("engine", ["generic", "compiled"])
+def test_project_onto_a_constraint_without_zeros_names_the_projection(engine):
+    """k = v1^2 + v2^2 + 1 has no real zero: project=True fails as the projection, one
+    InconsistentInitialDataError naming it; before, the KKT solve's SingularMatrixError said
+    'Newton matrix is numerically singular (pivot ratio 0.0e+00)', as if a step of (21) had failed."""
+    import sympy
+    x, y, z = sympy.symbols("x y z")
+    vx, vy, vz = sympy.symbols("vx vy vz")
+    system = ldaspark.LagrangianSystem((vx ** 2 + vy ** 2 + vz ** 2) / 2, [vx ** 2 + vy ** 2 + 1], [x, y, z],
+                                       [vx, vy, vz], name="no-zero")
+    with pytest.raises(InconsistentInitialDataError, match=r"^projection of v0 onto k = 0 failed"):
+        ldaspark.integrate(system, "gauss-2", t0=0, n_steps=2, q0=[0, 0, 0], v0=[1, 0, 0], h=0.1, engine=engine,
+                           project=True)
