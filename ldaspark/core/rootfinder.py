@@ -83,7 +83,13 @@ class Newton:
     tol : float, optional
         The increment tolerance (relative); None: the round-off of the stage values.
     max_iter : int, optional
-        Iterations per step before the step fails (None: 50).
+        Iterations of one Newton attempt before it gives up (None: 50). The generic engine makes
+        one attempt per step, so its step fails after max_iter iterations. The compiled engine
+        makes up to four, each limited to max_iter (the quasi-Newton iteration to at most 30):
+        the kernel's first root finder, simplified Newton from the predictor, full Newton from
+        zero increments, then the generic engine's full Newton step (``compiled.rescue``); its
+        step fails only where the last fails, so near the Newton limit a step the generic engine
+        gives up on can converge there (counted in ``stats["generic_steps"]``).
     predictor : {"auto", "extrapolate", "previous", "zero"}
         Where a step's iteration starts (``PREDICTORS``); the compiled kernels also take the
         codes 2, 1, 0.
