@@ -351,3 +351,16 @@ def test_a_file_whose_only_json_numbers_are_zeros_is_described_and_audited(tmp_p
     C, facts = au.algebraic_checks(t, ar, e, 30)
     st = {c.name: c.status for c in C}
     assert st["22a"] == st["22b"] == "pass" and facts["order:pair"] == 2
+
+
+@pytest.mark.parametrize("name, got", [({"a": 1}, "dict"), (5, "int"), ("", "a string of 0 characters"),
+                                       (["x"], "list")])
+def test_a_file_name_that_is_not_a_nonempty_string_is_refused(name, got):
+    # the file's "name" was str()-ed ({"a": 1} audited as "{'a': 1}") or, when falsy ("", []),
+    # replaced by "custom" in silence; it now gets the rule of SparkTableau's name
+    d = {"c": ["1/2"], "A": [["1/2"]], "A_hat": [["1/2"]], "A_tilde": [["1/2"]], "b": ["1"], "b_hat": ["1"],
+         "b_tilde": ["1"], "name": name}
+    with pytest.raises(TableauError, match=f"tableau name must be a non-empty string.*got {got}"):
+        from_json_dict(d)
+    assert from_json_dict(dict(d, name=None)).name == "custom" == from_json_dict({k: v for k, v in d.items() if k != "name"}).name
+    assert from_json_dict(dict(d, name="midpoint")).name == "midpoint"
