@@ -279,13 +279,28 @@ def _symmetry_checks(tab, d, scenes, entry_tol=None):
                         f"can contribute {bound:.0e} here: response {per:.1e} per unit change, measured)")
         facts[f"symmetry:{name}"] = {k: v for k, v in r.items() if isinstance(v, (int, float, str))}
         note = "" if judged == keys else "; f_d parts not judged: BVP singular, f_d not unique"
+        if tol > max(tol_num, TEETH):
+            # an allowance above TEETH cannot tell (23) from its violation (a non-symmetric method of
+            # order p misses the identities by O(h^(p+1)), 1e-5 at order 4 and h = 1/10); 10-digit Lobatto
+            # IIIA-IIIB 3 passed here at 3e+02 (a response of 1e10 per unit change: the moved tableau's
+            # BVP is of another class)
+            checks.append(Check(
+                f"symmetry:{name}", SKIP, res,
+                f"{ENTRY_UNDECIDED} on this scene, {tol:.0e}, is above {TEETH:.0e}: it could not tell (23) from "
+                f"its violation (residual {res:.1e}; BVP {r['wellposed']}{note}); more digits in the file would "
+                "decide it", tolerance=tol))
+            continue
         checks.append(Check(
             f"symmetry:{name}", PASS if res <= tol else FAIL, res,
             "L_d(t1,q1,t0,q0) + L_d, f_d^+(rev) + f_d^-, f_d^-(rev) + f_d^+, Phi_-h(Phi_h(y)) - y: "
             + ", ".join(f"{r[k]:.1e}" for k in keys) + f" (tolerance {tol:.0e}; BVP {r['wellposed']}{note}){held}",
             tolerance=tol))
     dec = [c for c in checks if c.status != SKIP]
-    if checks:
+    if checks and not dec and all(c.detail.startswith(ENTRY_UNDECIDED) for c in checks):
+        # undecided by the entries' digits on every scene (not by a failed solve): no failure of the tableau
+        checks.append(Check("symmetry", INFO, None, f"not decided at the precision of the entries on any of "
+                            f"{len(checks)} scenes (more digits in the file would decide it)"))
+    elif checks:
         nf = sum(c.status == FAIL for c in dec)
         checks.append(Check("symmetry", FAIL if (nf or not dec) else PASS,
                             max([(c.residual or 0.0) for c in dec] or [0.0]),
