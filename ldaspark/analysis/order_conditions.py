@@ -244,8 +244,10 @@ def ball_arith(tab, dps: int, reason: str = "") -> tuple[Arith, dict]:
     kind, D, Dmin = tab.precision_kind(), tab.decimal_digits, tab.decimal_digits_min
     given = f"the {Dmin} to {D} digits given" if Dmin and Dmin < D else f"the {D} digits given"
     scope = {"decimal": given,
-             "float": (f"the {D} digits given as JSON numbers (and half an ulp of float64)" if tab.json_numbers
-                       else "the float64 precision of the entries (~16 digits)"),
+             "float": (f"the {D} digits given as JSON numbers (and half an ulp of float64)" if tab.json_numbers and D
+                       # JSON numbers that are all zeros carry no digits: exact, as the other entries
+                       else f"{dps} digits, numerically (exact entries, zeros written as JSON numbers)"
+                       if tab.json_numbers else "the float64 precision of the entries (~16 digits)"),
              "decimal+float": f"{given} and float64 precision",
              "exact": f"{dps} digits, numerically (exact entries; no exact decision, see the arithmetic)",
              "computed": f"{dps} digits, numerically"}[kind]

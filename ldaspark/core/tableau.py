@@ -324,7 +324,10 @@ class SparkTableau:
             dec += (f"; one of at most {FLOAT64_REPR_DIGITS} digits also to half an ulp of float64 (it may be a "
                     "float64's writing)")
         flt = "float64 entries (each known to half a unit in the last place, 2^-53 ~ 1.1e-16 relative)"
-        if self.json_numbers:
+        if self.json_numbers and not D:
+            # every JSON number is a zero ("0.0" beside exact strings): exact, no digits to quote
+            flt = "JSON numbers that are all zeros (exact: a zero coefficient is zero by structure)"
+        elif self.json_numbers:
             flt = (f"JSON numbers read as decimal texts with up to {D} significant digits (each known to half "
                    f"a unit in its last digit, a short one (a terminating expansion) in the {_ordinal(D)}, and "
                    f"one of at most {FLOAT64_REPR_DIGITS} digits also to half an ulp of float64, 2^-53 ~ 1.1e-16 "

@@ -75,10 +75,10 @@ def from_json_dict(d: dict, name: str | None = None, max_stages: int | None = No
         all_exact = all_exact and all(flag for _, flag in ent)
     if "omega" not in ex:
         ex["omega"] = _default_omega_exact([ex["b"][j] for j in range(s)], [ex["c"][j] for j in range(s)], s)
-    if d.get("name") is not None and not isinstance(d["name"], str):
-        # printed and written as the method's name: text only (a number or dict was its repr)
-        raise TableauError(f"the tableau's name must be a string, got {type(d['name']).__name__}")
-    label = name or d.get("name") or "custom"
+    # a "name" that is not a string ({"a": 1}, 5, "") was str()-ed or replaced by "custom" in silence:
+    # it gets the rule of SparkTableau's name (a non-empty printable string of at most 500
+    # characters: it is printed and written as the method's name); null or absent is "custom"
+    label = name if name is not None else d.get("name") if d.get("name") is not None else "custom"
     # the entries as given, so that the audit decides at the precision they carry
     sources = {k: [list(r) if isinstance(r, list) else r for r in d[k]] for k in NAMES if k in d}
     digits = info["digits"] or None
@@ -86,12 +86,12 @@ def from_json_dict(d: dict, name: str | None = None, max_stages: int | None = No
     kw = dict(family="custom", sources=sources, decimal_digits=digits, decimal_digits_min=min(longs) if longs else None,
               decimal_places=fixed_places(info.get("shapes", ())) if digits else None)
     if all_exact:
-        return _rank_checked(SparkTableau(str(label), s, exact=ex, **kw))
+        return _rank_checked(SparkTableau(label, s, exact=ex, **kw))
     # float64 entries carry ~15 digits; JSON numbers longer than a float64's writing their own
     pyfloat = any(isinstance(x, float) for v in sources.values() for x in _flatten(v))
     jd = info.get("json")
     digits_carried = jd if jd is not None and jd > FLOAT64_REPR_DIGITS and not pyfloat else 15
-    return _rank_checked(SparkTableau(str(label), s, exact=ex, source_digits=digits_carried, **kw))
+    return _rank_checked(SparkTableau(label, s, exact=ex, source_digits=digits_carried, **kw))
 
 
 def _rank_checked(tab: SparkTableau) -> SparkTableau:

@@ -359,3 +359,36 @@ def test_exact_entries_given_directly_are_finite_reals(bad):
     # valid neighbours: a real number written with I, and the unchanged tableau
     ex["A"] = sympy.Matrix([[(1 + sympy.I) * (1 - sympy.I) / 4]])
     assert SparkTableau("direct", 1, exact=ex).arrays().A[0, 0] == 0.5
+
+
+@pytest.mark.parametrize("zero", ["0.0", "-0.0", "0e0"])
+def test_a_file_whose_only_json_numbers_are_zeros_is_described_and_audited(tmp_path, zero):
+    # Lobatto IIIA-IIIB 2 in exact strings, its zeros written as JSON numbers: these have no
+    # significant digits (decimal_digits None), and precision_text raised a TypeError (_ordinal(None))
+    # in every audit of such a file: `ldaspark audit` printed a traceback, exit 1
+    from ldaspark.lab.theory import audit as au
+    q = tmp_path / "lobatto2.json"
+    q.write_text('{"c": [' + zero + ', "1"], "A": [[' + zero + ', ' + zero + '], ["1/2", "1/2"]], '
+                 '"A_hat": [["1/2", ' + zero + '], ["1/2", ' + zero + ']], "A_tilde": [["1/2", 0], ["1/2", 0]], '
+                 '"b": ["1/2", "1/2"], "b_hat": ["1/2", "1/2"], "b_tilde": ["1/2", "1/2"]}')
+    t = load_tableau(q)
+    text = t.precision_text()
+    assert "zero" in text and "None" not in text
+    ar, e, reason = au.decide_arith(t, 30)
+    assert "None" not in ar.scope and "None" not in ar.label   # "to the None digits given as JSON numbers"
+    C, facts = au.algebraic_checks(t, ar, e, 30)
+    st = {c.name: c.status for c in C}
+    assert st["22a"] == st["22b"] == "pass" and facts["order:pair"] == 2
+
+
+@pytest.mark.parametrize("name, got", [({"a": 1}, "dict"), (5, "int"), ("", "a string of 0 characters"),
+                                       (["x"], "list")])
+def test_a_file_name_that_is_not_a_nonempty_string_is_refused(name, got):
+    # the file's "name" was str()-ed ({"a": 1} audited as "{'a': 1}") or, when falsy ("", []),
+    # replaced by "custom" in silence; it now gets the rule of SparkTableau's name
+    d = {"c": ["1/2"], "A": [["1/2"]], "A_hat": [["1/2"]], "A_tilde": [["1/2"]], "b": ["1"], "b_hat": ["1"],
+         "b_tilde": ["1"], "name": name}
+    with pytest.raises(TableauError, match=f"tableau name must be a non-empty printable string.*got {got}"):
+        from_json_dict(d)
+    assert from_json_dict(dict(d, name=None)).name == "custom" == from_json_dict({k: v for k, v in d.items() if k != "name"}).name
+    assert from_json_dict(dict(d, name="midpoint")).name == "midpoint"

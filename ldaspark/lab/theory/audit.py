@@ -90,6 +90,8 @@ def theorem1_checks(tab, hyp22, hyp23, dps, quick, scenes=PAPER_SCENES, entry_to
 
 
 TEETH = 1e-6        # a Theorem 1 tolerance above this could not tell (22) from its violation
+#: how a scene left undecided by the entries' digits begins (``_theorem1_scene``, ``_theorem1_summary``)
+ENTRY_UNDECIDED = "not decided: what the entries' uncertainty can contribute"
 THEOREM_H = "1/10"   # step of the base point (t0, q0) -> (t1, q1) for Theorem 1 and symmetry
 #: kept for the gate of ``entry_tolerances`` (nonzero: (22), resp. (23), holds only to the
 #: precision the entries carry); the allowance itself is measured per scene (``entry_effect``)
@@ -189,8 +191,16 @@ def _theorem1_scene(tab, name, hyp22, d, quick, entry_tol=None):
     claim = ("agrees with Theorem 1" if hyp22 else
              "holds although (22) fails" if ok else "fails, as expected without (22)")
     status = PASS if ok else FAIL
+    forces = r.get("without_forces_q0")
     if tol_num > TEETH:
         status, claim = SKIP, f"not decided (tolerance {tol_num:.0e} above {TEETH:.0e} at dps {r['dps']})"
+    elif ent is not None and tol > tol_num and forces is not None and tol >= forces:
+        # the entries' allowance is as large as what the forces f_d contribute (the residual of the
+        # claim without them): a pass could not tell Theorem 1 from its claim without f_d
+        status, claim = SKIP, (f"{ENTRY_UNDECIDED} on this scene, "
+                               f"{tol:.0e} (a response of {ent[1]:.1e} per unit change, measured), is not below "
+                               f"what the forces f_d contribute, {forces:.1e} (the residual without them); "
+                               f"more digits in the file would decide it (residual {res:.1e})")
     elif ent is not None and res > tol_num:
         claim += (f" to the precision of the entries: holds to {digits_of(res)} digits (residual {res:.1e}, "
                   f"within {tol:.0e}, what the entries' uncertainty can contribute on this scene: a response "
@@ -218,6 +228,14 @@ def _theorem1_summary(checks):
     decided = [c for c in th if c.status != SKIP]
     nfail = sum(c.status == FAIL for c in decided)
     need = min(2, len(th))
+    limited = [c for c in th if c.status == SKIP and c.detail.startswith(ENTRY_UNDECIDED)]
+    if len(decided) < need and limited and len(limited) == len(th) - len(decided) and not nfail:
+        # every scene left undecided is undecided by the entries' digits (not by a failed solve): the
+        # digits given cannot decide Theorem 1 numerically, which is no failure of the tableau
+        return Check("theorem1", INFO, max((c.residual or 0.0) for c in decided) if decided else None,
+                     f"not decided at the precision of the entries: decided on {len(decided)} of {len(th)} scenes "
+                     f"(at least {need} needed); on {', '.join(c.name.split(':', 1)[1] for c in limited)} the entries' "
+                     "uncertainty can contribute as much as the forces f_d (more digits in the file would decide it)")
     if len(decided) < need:
         return Check("theorem1", FAIL, None, f"decided on only {len(decided)} of {len(th)} scenes "
                                              f"(at least {need} needed)")
@@ -261,13 +279,28 @@ def _symmetry_checks(tab, d, scenes, entry_tol=None):
                         f"can contribute {bound:.0e} here: response {per:.1e} per unit change, measured)")
         facts[f"symmetry:{name}"] = {k: v for k, v in r.items() if isinstance(v, (int, float, str))}
         note = "" if judged == keys else "; f_d parts not judged: BVP singular, f_d not unique"
+        if tol > max(tol_num, TEETH):
+            # an allowance above TEETH cannot tell (23) from its violation (a non-symmetric method of
+            # order p misses the identities by O(h^(p+1)), 1e-5 at order 4 and h = 1/10); 10-digit Lobatto
+            # IIIA-IIIB 3 passed here at 3e+02 (a response of 1e10 per unit change: the moved tableau's
+            # BVP is of another class)
+            checks.append(Check(
+                f"symmetry:{name}", SKIP, res,
+                f"{ENTRY_UNDECIDED} on this scene, {tol:.0e}, is above {TEETH:.0e}: it could not tell (23) from "
+                f"its violation (residual {res:.1e}; BVP {r['wellposed']}{note}); more digits in the file would "
+                "decide it", tolerance=tol))
+            continue
         checks.append(Check(
             f"symmetry:{name}", PASS if res <= tol else FAIL, res,
             "L_d(t1,q1,t0,q0) + L_d, f_d^+(rev) + f_d^-, f_d^-(rev) + f_d^+, Phi_-h(Phi_h(y)) - y: "
             + ", ".join(f"{r[k]:.1e}" for k in keys) + f" (tolerance {tol:.0e}; BVP {r['wellposed']}{note}){held}",
             tolerance=tol))
     dec = [c for c in checks if c.status != SKIP]
-    if checks:
+    if checks and not dec and all(c.detail.startswith(ENTRY_UNDECIDED) for c in checks):
+        # undecided by the entries' digits on every scene (not by a failed solve): no failure of the tableau
+        checks.append(Check("symmetry", INFO, None, f"not decided at the precision of the entries on any of "
+                            f"{len(checks)} scenes (more digits in the file would decide it)"))
+    elif checks:
         nf = sum(c.status == FAIL for c in dec)
         checks.append(Check("symmetry", FAIL if (nf or not dec) else PASS,
                             max([(c.residual or 0.0) for c in dec] or [0.0]),
@@ -453,6 +486,7 @@ def verdict(res: AuditResult) -> str:
         undecided = [c.name.split(":", 1)[1] for c in th if c.status == SKIP]
         parts.append("The numerical check of Theorem 1 on the paper scenes "
                      + ("agrees" if nfail == 0 and summ.status == PASS
+                        else "is not decided at the precision of the entries" if summ.status == INFO
                         else f"fails on {nfail} of {len(decided)} decided scenes" if nfail
                         else "is decided on too few scenes")
                      + f" (largest residual {worst:.1e})"

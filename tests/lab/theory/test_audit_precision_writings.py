@@ -123,3 +123,24 @@ def test_no_allowance_when_the_moved_tableau_cannot_be_solved(monkeypatch, tmp_p
     monkeypatch.setattr(au, "entry_effect", lambda tab, radii, f: (1e-11, 1e3))
     ch, _ = au.theorem1_checks(tab, True, False, 30, True, ("skate",), (1.0, 0.0))
     assert ch[0].status == au.PASS and ch[0].tolerance == pytest.approx(1e-11)
+
+
+def test_an_allowance_as_large_as_the_forces_leaves_the_scene_undecided(monkeypatch, tmp_path):
+    """A measured allowance at least as large as what the forces f_d contribute (the residual
+    without them) cannot tell Theorem 1 from the claim without the forces: the scene is not decided.
+    Before, Lobatto IIIA-IIIB 4 printed to 8 places passed mp-particles at a tolerance of 1.0 (the
+    forces' part 7.7e-5) and Gauss-5 to 10 digits the robot at 2e-2 (the forces' part 3.9e-7): checks
+    that pass on the fault. Control: forces of size 1 and the same allowance: decided, pass."""
+    from ldaspark.analysis import discrete
+    fake = {"theorem1-q0": 1e-8, "theorem1-q1": 1e-8, "fd_error": 1e-30, "dps": 30, "wellposed": "well-posed",
+            "rank_deficiency": 0, "dps_fd": 50, "without_forces_q0": 3.9e-7}
+    monkeypatch.setattr(discrete, "theorem1_residuals", lambda *a, **k: dict(fake))
+    monkeypatch.setattr(au, "entry_effect", lambda tab, radii, f: (2e-2, 4.7e5))
+    tab = load_tableau(_file(tmp_path, "gauss-2", "float64"))
+    ch, _ = au.theorem1_checks(tab, True, False, 30, True, ("robot",), (1.0, 0.0))
+    assert ch[0].status == au.SKIP and "not decided" in ch[0].detail and "forces" in ch[0].detail
+    # no scene decided, by the entries' digits: not a pass, and no failure of the tableau either
+    assert ch[1].name == "theorem1" and ch[1].status == au.INFO and "precision of the entries" in ch[1].detail
+    fake["without_forces_q0"] = 1.0
+    ch, _ = au.theorem1_checks(tab, True, False, 30, True, ("robot",), (1.0, 0.0))
+    assert ch[0].status == au.PASS and ch[0].tolerance == pytest.approx(2e-2) and ch[1].status == au.PASS

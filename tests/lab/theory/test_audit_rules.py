@@ -410,6 +410,21 @@ def test_symmetry_entry_allowance_is_measured_on_the_scene(symenv, effect):
     assert c.status == FAIL and "holds to" not in c.detail
 
 
+def test_a_symmetry_allowance_above_teeth_leaves_the_scene_undecided(symenv, effect):
+    # an allowance above TEETH (1e-6) cannot tell (23) from its violation: 10-digit Lobatto IIIA-IIIB 3
+    # passed the skate and the particle at a tolerance of 3e+02 (relative identities); now not decided,
+    # and the summary says so (info), neither pass nor fail. Control: an allowance of 1e-11 decides.
+    effect.bound = 3e2
+    symenv.results = {0: _sym(ld=1.6e-12)}
+    checks, _ = au._symmetry_checks(TABD, 30, ["skate"], entry_tol=1e-20)
+    assert checks[0].status == SKIP and checks[0].detail.startswith(au.ENTRY_UNDECIDED) and "above 1e-06" in checks[0].detail
+    assert checks[-1].name == "symmetry" and checks[-1].status == INFO
+    symenv.scene.calls.clear()
+    effect.bound = 1e-11
+    checks, _ = au._symmetry_checks(TABD, 30, ["skate"], entry_tol=1e-20)
+    assert [c.status for c in checks] == [PASS, PASS]
+
+
 def test_inconsistent_method_is_order_0_and_fails():
     C, f = _alg(_tab(b=["1/2"], b_hat=["1/2"], b_tilde=["1/2"], A=[["1/4"]], A_hat=[["1/4"]], A_tilde=[["1/4"]],
                      c=["1/4"]))
