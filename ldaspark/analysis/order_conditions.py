@@ -237,17 +237,20 @@ def mp_arith(tab, dps: int) -> tuple[Arith, dict]:
 
 def ball_arith(tab, dps: int, reason: str = "") -> tuple[Arith, dict]:
     """Ball arithmetic at ``dps`` working digits on balls enclosing what the entries stand for
-    (``SparkTableau.ball_entries``: decimals to the digits given, float64 to half an ulp, exact
-    entries to the working precision). ``reason``: why no exact decision (for the label)."""
+    (``SparkTableau.ball_entries``: decimals to the digits given, float64 to half an ulp and the
+    rounding of a float64 computation (``float_computation_ulps``), exact entries to the working
+    precision). ``reason``: why no exact decision (for the label)."""
     ent = tab.ball_entries(dps)
     ent = {k: [list(r) if isinstance(r, list) else r for r in v] for k, v in ent.items()}
     kind, D, Dmin = tab.precision_kind(), tab.decimal_digits, tab.decimal_digits_min
     given = f"the {Dmin} to {D} digits given" if Dmin and Dmin < D else f"the {D} digits given"
     scope = {"decimal": given,
-             "float": (f"the {D} digits given as JSON numbers (and half an ulp of float64)" if tab.json_numbers and D
+             "float": (f"the {D} digits given as JSON numbers (and the rounding of a float64 computation, "
+                       f"{tab.float_computation_ulps():.3g} ulps)" if tab.json_numbers and D
                        # JSON numbers that are all zeros carry no digits: exact, as the other entries
                        else f"{dps} digits, numerically (exact entries, zeros written as JSON numbers)"
-                       if tab.json_numbers else "the float64 precision of the entries (~16 digits)"),
+                       if tab.json_numbers else "the float64 precision of the entries (~16 digits, and the rounding "
+                       f"of a float64 computation, {tab.float_computation_ulps():.3g} ulps)"),
              "decimal+float": f"{given} and float64 precision",
              "exact": f"{dps} digits, numerically (exact entries; no exact decision, see the arithmetic)",
              "computed": f"{dps} digits, numerically"}[kind]

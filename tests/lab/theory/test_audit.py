@@ -99,12 +99,13 @@ def test_22b_check_names_the_worst_entry():
 
 def test_float_tableau_tolerance_and_worst_entry():
     """Float entries: (22b) holds to ~1e-17, within the uncertainty float64 entries carry (half an
-    ulp each: a few 1e-16 on the condition); a 1e-8 change does not."""
+    ulp each, and cond(V) = 24 ulps of the array's largest entry for the rounding of a float64
+    computation: ~1e-15 on the condition); a 1e-8 change does not."""
     tab = load_tableau(EX / "lobatto3-float.json")
     assert not tab.is_exact and tab.precision_kind() == "float"
     ar, e = au.oc.arith_for(tab, 30)
     c = au.check_22b(ar, e)
-    assert ar.ball and c.status == au.PASS and 1e-17 < c.tolerance < 1e-15 and c.residual < c.tolerance
+    assert ar.ball and c.status == au.PASS and 1e-17 < c.tolerance < 1e-14 and c.residual < c.tolerance
     bad = tab.with_entry("A_hat", 1, 2, 1e-8)
     ar2, e2 = au.oc.arith_for(bad, 30)
     c = au.check_22b(ar2, e2)
