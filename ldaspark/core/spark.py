@@ -345,10 +345,14 @@ class SparkMethod:
                 # RADAU5's rate test (Hairer-Wanner IV.8): a contracting iteration (theta < 1) leaves
                 # an error of at most theta / (1 - theta) |dx| after this increment; theta the
                 # geometric mean of the last two rates (one sudden drop is no evidence of contraction)
-                theta_k = dn / prev if prev else None
+                # at mpmath precision in mpf: with |dx| a float above 1e-308 and theta tiny, a float
+                # theta |dx| (or theta_k theta_prev) underflowed to 0.0 and passed against any tol_abs
+                # (simplified Newton stopped at 1e-341 at 1000 digits)
+                dn_r = mpmath.mpf(dn) if bk.is_mp else dn
+                theta_k = dn_r / prev if prev else None
                 if theta_k is not None and theta_prev is not None:
                     theta = (theta_k * theta_prev) ** 0.5
-                    if theta < 1 and theta / (1 - theta) * dn <= RATE_KAPPA * tol_abs:
+                    if theta < 1 and theta / (1 - theta) * dn_r <= RATE_KAPPA * tol_abs:
                         return self._finish(t0, q0, h, x_new, it, res, step_index)
                 theta_prev = theta_k
                 # round-off floor: increments stopped shrinking at the noise level
