@@ -290,6 +290,11 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
     validate.real_vector(q0, "q0")
     validate.real_vector(v0, "v0")
     opts = opts.with_events(events)
+    if dps is not None and (opts.dense_output or opts.events):
+        # the interpolant and the event search run on the float64 grid (``core.dense``): a step
+        # that advances t only in the digits would end the run, after every step, in a
+        # refusal of non-monotone times
+        validate.step_advances(t0, h, N, None, what="h (dense output and events interpolate on a float64 grid)")
     prob = _Problem(kind, what, name, t0, h, N, scene)
     batch_params = isinstance(params, (list, tuple))
     # (B, n) initial data is an ensemble at any precision (at dps it ran the last row alone)
