@@ -28,3 +28,25 @@ def test_nonlinear_run_defaults_and_outputs(monkeypatch):
                     "raise_on_failure": True}
     assert list(out["lean"]) == [0.0, 0.1] and list(out["steer"]) == [0.0, -0.2]
     assert list(out["k"]) == [2e-16, 3e-16] and list(out["f"]) == [0.0, 9.0] and list(out["t"]) == [0.0, 0.01]
+
+
+def test_time_grid_at_dps_is_counted_at_the_working_precision():
+    """The number of steps to t_end was counted in float64 with a fixed 1e-9 tolerance also at
+    dps: h = "1e-420" at 400 digits (a nonzero number there) was refused as 'step size h must
+    be finite and nonzero, got 0.0', and t_span = ("0", "1") with h = "0.10000000001" at 30 digits
+    ran 10 steps to t = 1.0000000001 (status 0) instead of refusing a t_end that is not on the
+    grid. Two-sided: the exact multiples run and end on t_end to the digits."""
+    import mpmath
+    import pytest
+    import ldaspark
+    from ldaspark.core.errors import InputError
+    r = ldaspark.integrate("particle", "gauss-1", t_span=("0", "2e-420"), h="1e-420", dps=400, engine="generic")
+    assert r.status == 0 and len(r.t) == 3
+    with mpmath.workdps(400):
+        assert abs(r.t[-1] - mpmath.mpf("2e-420")) <= mpmath.mpf("1e-819")
+    with pytest.raises(InputError, match="not an integer multiple"):
+        ldaspark.integrate("particle", "gauss-1", t_span=("0", "1"), h="0.10000000001", dps=30, engine="generic")
+    r = ldaspark.integrate("particle", "gauss-1", t_span=("0", "1"), h="0.1", dps=30, engine="generic")
+    assert r.status == 0 and len(r.t) == 11
+    with mpmath.workdps(30):
+        assert abs(r.t[-1] - 1) <= mpmath.mpf("1e-29")
