@@ -582,8 +582,15 @@ def n_steps_for(t0, t_end, h, dps=None) -> int:
     N = int(round(span / float(h)))
     if N <= 0:
         raise InputError(f"t_end = {t_end} is not reached from t0 = {t0} with h = {h}")
-    if abs(N * float(h) - span) > 1e-9 * max(1.0, abs(span)):
-        raise InputError(f"(t_end - t0) = {span} is not an integer multiple of h = {h}")
+    # t_end on the grid to the float rounding of the data (half an ulp of t0, t_end and N h, and
+    # of the computed span, in exact rationals): a fixed 1e-9 max(1, |span|) let t_span = (0,
+    # 1e-12), h = 3e-13 end at 9e-13
+    from fractions import Fraction
+    a, b, hq = Fraction(float(t0)), Fraction(float(t_end)), Fraction(float(h))
+    allow = Fraction(2) ** -53 * 2 * (abs(a) + abs(b) + N * abs(hq))
+    if abs(N * hq - (b - a)) > allow:
+        raise InputError(f"(t_end - t0) = {span} is not an integer multiple of h = {h} (off by "
+                         f"{float(abs(N * hq - (b - a))):.3g}, float64 round-off {float(allow):.3g})")
     return N
 
 
