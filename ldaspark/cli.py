@@ -86,7 +86,9 @@ def _run_integrate(args) -> int:
         t_end = float(args.t_end)
     except ValueError:
         raise InputError(f"--h and --t-end must be numbers, got {args.h!r}, {args.t_end!r}") from None
-    res = integrate(scene, method, h=args.h if args.dps else h, t_end=t_end, dps=args.dps, project=args.project,
+    # with --dps both texts keep their digits (float('2e-420') is 0.0)
+    res = integrate(scene, method, h=args.h if args.dps else h, t_end=args.t_end if args.dps else t_end,
+                    dps=args.dps, project=args.project,
                     newton=args.newton, engine=args.engine, save_every=args.every, raise_on_failure=True,
                     max_stages=args.max_stages if isinstance(method, str) else None)
     save_result(res, args.out)

@@ -122,7 +122,9 @@ def _resolve_system(system, dps):
     raise InputError(f"system must be a LagrangianSystem, a Scene or a scene name, got {type(system).__name__}")
 
 
-def _time_grid(t_span, t0, t_end, n_steps, h, default_t0):
+def _time_grid(t_span, t0, t_end, n_steps, h, start):
+    """(t0, N) of the run; ``start`` is (the scene's t0 or None, dps)."""
+    default_t0, dps = start
     if t_span is not None:
         if t0 is not None or t_end is not None:
             raise InputError("give t_span or t0/t_end, not both")
@@ -141,7 +143,10 @@ def _time_grid(t_span, t0, t_end, n_steps, h, default_t0):
         raise InputError("give exactly one of t_span / t_end or n_steps")
     if n_steps is None:
         from .core.spark import n_steps_for
-        n_steps = n_steps_for(float(t0), float(validate.real_number(t_end, "t_end")), float(h))
+        te = validate.real_number(t_end, "t_end")
+        # at dps the grid is counted at the digits (h = "1e-420" is 0.0 as a float)
+        n_steps = (n_steps_for(float(t0), float(te), float(h)) if dps is None
+                   else n_steps_for(t0, t_end, h, dps=dps))
     validate.count(n_steps, "n_steps")
     return t0, n_steps
 
@@ -280,7 +285,7 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
     dps = opts.dps
     sysm, scene, init = _resolve_system(system, dps)
     kind, what, name = resolve_method(method, max_stages)
-    t0, N = _time_grid(t_span, t0, t_end, n_steps, h, init[0] if init else None)
+    t0, N = _time_grid(t_span, t0, t_end, n_steps, h, (init[0] if init else None, dps))
     validate.step_advances(t0, h, N, dps, s=_stages(kind, what), n=sysm.n, m=sysm.m)
     if q0 is None or v0 is None:
         if init is None:
@@ -290,6 +295,11 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
     validate.real_vector(q0, "q0")
     validate.real_vector(v0, "v0")
     opts = opts.with_events(events)
+    if dps is not None and (opts.dense_output or opts.events):
+        # the interpolant and the event search run on the float64 grid (``core.dense``): a step
+        # that advances t only in the digits would end the run, after every step, in a
+        # refusal of non-monotone times
+        validate.step_advances(t0, h, N, None, what="h (dense output and events interpolate on a float64 grid)")
     prob = _Problem(kind, what, name, t0, h, N, scene)
     batch_params = isinstance(params, (list, tuple))
     # (B, n) initial data is an ensemble at any precision (at dps it ran the last row alone)

@@ -345,10 +345,14 @@ class SparkMethod:
                 # RADAU5's rate test (Hairer-Wanner IV.8): a contracting iteration (theta < 1) leaves
                 # an error of at most theta / (1 - theta) |dx| after this increment; theta the
                 # geometric mean of the last two rates (one sudden drop is no evidence of contraction)
-                theta_k = dn / prev if prev else None
+                # at mpmath precision in mpf: with |dx| a float above 1e-308 and theta tiny, a float
+                # theta |dx| (or theta_k theta_prev) underflowed to 0.0 and passed against any tol_abs
+                # (simplified Newton stopped at 1e-341 at 1000 digits)
+                dn_r = mpmath.mpf(dn) if bk.is_mp else dn
+                theta_k = dn_r / prev if prev else None
                 if theta_k is not None and theta_prev is not None:
                     theta = (theta_k * theta_prev) ** 0.5
-                    if theta < 1 and theta / (1 - theta) * dn <= RATE_KAPPA * tol_abs:
+                    if theta < 1 and theta / (1 - theta) * dn_r <= RATE_KAPPA * tol_abs:
                         return self._finish(t0, q0, h, x_new, it, res, step_index)
                 theta_prev = theta_k
                 # round-off floor: increments stopped shrinking at the noise level
@@ -563,7 +567,11 @@ def _saddle_sign(system, bk, t, q, v) -> int:
     return int(sgn) if np.isfinite(sgn) else 0
 
 
-def n_steps_for(t0, t_end, h) -> int:
+def n_steps_for(t0, t_end, h, dps=None) -> int:
+    """N with t0 + N h = t_end: in float64 (``dps`` None), or at ``dps`` digits, where h, t0 and
+    t_end may lie beyond float64's range or precision (``_n_steps_mp``)."""
+    if dps is not None:
+        return _n_steps_mp(t0, t_end, h, int(dps))
     if h == 0 or not math.isfinite(float(h)):
         raise InputError(f"step size h must be finite and nonzero, got {h}")
     if not (math.isfinite(float(t0)) and math.isfinite(float(t_end))):
@@ -574,8 +582,48 @@ def n_steps_for(t0, t_end, h) -> int:
     N = int(round(span / float(h)))
     if N <= 0:
         raise InputError(f"t_end = {t_end} is not reached from t0 = {t0} with h = {h}")
-    if abs(N * float(h) - span) > 1e-9 * max(1.0, abs(span)):
-        raise InputError(f"(t_end - t0) = {span} is not an integer multiple of h = {h}")
+    # t_end on the grid to the float rounding of the data (half an ulp of t0, t_end and N h, and
+    # of the computed span, in exact rationals): a fixed 1e-9 max(1, |span|) let t_span = (0,
+    # 1e-12), h = 3e-13 end at 9e-13
+    from fractions import Fraction
+    a, b, hq = Fraction(float(t0)), Fraction(float(t_end)), Fraction(float(h))
+    allow = Fraction(2) ** -53 * 2 * (abs(a) + abs(b) + N * abs(hq))
+    if abs(N * hq - (b - a)) > allow:
+        raise InputError(f"(t_end - t0) = {span} is not an integer multiple of h = {h} (off by "
+                         f"{float(abs(N * hq - (b - a))):.3g}, float64 round-off {float(allow):.3g})")
+    return N
+
+
+def _n_steps_mp(t0, t_end, h, dps: int) -> int:
+    """``n_steps_for`` at dps digits: in mpf (h = "1e-420" is 0.0 as a float), and t_end on the
+    grid to the precision of the data: a float input stands for its value to half an ulp (2^-53
+    relative: h = 0.1 and t_end = 1 are 10 steps), any other (int, decimal text, Fraction, sympy)
+    is exact up to its conversion at dps digits; the sum over t0, t_end and N h of those radii,
+    with 10 units of the digits for the arithmetic, bounds |N h - (t_end - t0)|."""
+    from .backend import _mpf
+
+    def radius(x, val):
+        return abs(val) * (mpmath.mpf(2) ** -53 if isinstance(x, (float, np.floating)) else mpmath.mpf(10) ** -dps)
+
+    with mpmath.workdps(dps + 10):
+        h_, a, b = _mpf(h), _mpf(t0), _mpf(t_end)
+        if h_ == 0 or not mpmath.isfinite(h_):
+            raise InputError(f"step size h must be finite and nonzero, got {h}")
+        if not (mpmath.isfinite(a) and mpmath.isfinite(b)):
+            raise InputError(f"t0 and t_end must be finite, got t0 = {t0}, t_end = {t_end}")
+        span = b - a
+        ratio = span / h_
+        if abs(ratio) > MAX_STEPS:
+            raise InputError(f"h = {h} needs {mpmath.nstr(abs(ratio), 3)} steps to reach t_end = {t_end} "
+                             f"(limit {MAX_STEPS:.0e})")
+        N = int(mpmath.nint(ratio))
+        if N <= 0:
+            raise InputError(f"t_end = {t_end} is not reached from t0 = {t0} with h = {h}")
+        allow = (radius(t0, a) + radius(t_end, b) + N * radius(h, h_)
+                 + 10 * mpmath.mpf(10) ** -dps * max(abs(a), abs(b), N * abs(h_)))
+        if abs(N * h_ - span) > allow:
+            raise InputError(f"(t_end - t0) = {mpmath.nstr(span, 12)} is not an integer multiple of h = {h} "
+                             f"at {dps} digits (off by {mpmath.nstr(abs(N * h_ - span), 3)})")
     return N
 
 

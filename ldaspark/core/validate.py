@@ -557,16 +557,28 @@ def step_advances(t0, h, n_steps=1, dps=None, what: str = "h", *, s=None, n=None
     several output times to one, while the state moves by h: refused, naming the smallest step
     that resolves."""
     import numpy as np
-    h_, t_ = abs(float(h)), abs(float(t0))
-    T = max(t_, abs(float(t0) + int(n_steps) * float(h))) if math.isfinite(t_) else t_
     if dps is None:
+        h_, t_ = abs(float(h)), abs(float(t0))
+        T = max(t_, abs(float(t0) + int(n_steps) * float(h))) if math.isfinite(t_) else t_
         need = 2 * float(np.spacing(T)) if T > 0 else 0.0
+        if h_ < need or float(t0) + float(h) == float(t0):
+            raise InputError(f"{what} = {float(h):.3g} does not advance t near {T:.3g} in float64 (times would "
+                             f"repeat): use |h| >= {need:.3g} or a t0 closer to 0")
     else:
-        need = 2 * T * 10.0 ** (1 - int(dps))
-    if h_ < need or (dps is None and float(t0) + float(h) == float(t0)):
-        prec = "float64" if dps is None else f"{dps} digits"
-        raise InputError(f"{what} = {float(h):.3g} does not advance t near {T:.3g} in {prec} (times would repeat): "
-                         f"use |h| >= {need:.3g} or a t0 closer to 0")
+        # in mpf: 10^(1 - dps) is below float64's range from dps ~ 310 on (a float need of 0.0
+        # accepted h = 1e-420 at 400 digits, t0 = 1: every time equal), and so is such an h
+        import mpmath
+        from .backend import _mpf
+        with mpmath.workdps(int(dps) + 10):
+            h_, t_ = abs(_mpf(h)), abs(_mpf(t0))
+            T = max(t_, abs(_mpf(t0) + int(n_steps) * _mpf(h)))
+            need = 2 * T * mpmath.mpf(10) ** (1 - int(dps))
+            # the bound is two units of the digits; a float h given at that bound (2 * 10.0**-29,
+            # 1 ulp below 2e-29) is not refused for the last bits of the factor
+            if not h_ * (1 + mpmath.mpf(2) ** -40) >= need:
+                raise InputError(f"{what} = {mpmath.nstr(_mpf(h), 3)} does not advance t near {mpmath.nstr(T, 3)} "
+                                 f"in {dps} digits (times would repeat): use |h| >= {mpmath.nstr(need, 3)} "
+                                 f"or a t0 closer to 0")
     # the time grid is the run's plan: its work (digits x steps x stage system) is bounded here,
     # before any step
     check_work(n_steps, dps, s=s, n=n, m=m)

@@ -19,6 +19,21 @@ def test_integrate_json_contract(tmp_path):
     assert max(abs(r[0]) for r in d["constraint"]) < 1e-14
 
 
+def test_integrate_dps_t_end_keeps_its_digits(tmp_path, capsys):
+    """With --dps, --h kept its digits but --t-end was read as a float: --t-end 2e-420 at 400
+    digits became 0.0 ('t_end = 0.0 is not reached', exit 2) while --h 1e-420 was fine. Now the
+    run takes its 2 steps and ends at 2e-420; a t_end off the grid is still one line, exit 2."""
+    out = tmp_path / "o.json"
+    assert main(["integrate", "particle", "gauss-1", "--h", "1e-420", "--t-end", "2e-420", "--dps", "400",
+                 "--engine", "generic", "--out", str(out)]) == 0
+    d = json.loads(out.read_text())
+    with mpmath.workdps(400):
+        assert len(d["t"]) == 3 and abs(mpmath.mpf(d["t"][-1]) - mpmath.mpf("2e-420")) <= mpmath.mpf("1e-819")
+    assert main(["integrate", "particle", "gauss-1", "--h", "0.10000000001", "--t-end", "1", "--dps", "30",
+                 "--out", str(out)]) == 2
+    assert "integer multiple" in capsys.readouterr().err
+
+
 def test_integrate_dps_strings_carry_precision(tmp_path):
     out = tmp_path / "o.json"
     assert main(["integrate", "skate", "gauss-2", "--h", "0.1", "--t-end", "0.3", "--dps", "40", "--out", str(out)]) == 0

@@ -195,6 +195,27 @@ def test_float_eps_at_400_digits_is_the_old_failure(monkeypatch):
         integrate(sc.system, get_method("gauss-2"), t0, q0, v0, "1/10", n_steps=3, dps=400)
 
 
+@pytest.mark.parametrize("newton", ["auto", "simplified", "mixed"])
+def test_rate_test_at_1000_digits_does_not_underflow_to_float_zero(newton):
+    """The rate test theta / (1 - theta) |dx| <= kappa tol_abs with |dx| a float (above float64's
+    smallest normal) and theta tiny: the product underflowed to 0.0 and passed against any
+    tol_abs (10^-999 here). Relativistic, gauss-2, 3 steps at 1000 digits, before: simplified
+    1e-341, auto 6e-545, mixed 2e-554 off the 1040-digit run (full: 2e-1001, the digits'
+    round-off). Two-sided: within 1e-995 of the 1040-digit run, and the float64 run differs from
+    it by float64's round-off (> 0, < 1e-14)."""
+    from ldaspark import integrate as api_integrate
+    a = api_integrate("relativistic", "gauss-2", n_steps=3, h=0.1, dps=1000, newton=newton, engine="generic")
+    b = api_integrate("relativistic", "gauss-2", n_steps=3, h=0.1, dps=1040, newton="full", engine="generic")
+    assert a.status == 0 and b.status == 0
+    with mpmath.workdps(1040):
+        d = max(abs(mpmath.mpf(x) - mpmath.mpf(y)) for x, y in
+                zip(list(a.q[-1]) + list(a.v[-1]), list(b.q[-1]) + list(b.v[-1])))
+    assert d <= mpmath.mpf("1e-995"), mpmath.nstr(d, 3)
+    f = api_integrate("relativistic", "gauss-2", n_steps=3, h=0.1, engine="generic")
+    e = max(abs(float(x) - y) for x, y in zip(list(b.q[-1]) + list(b.v[-1]), list(f.q[-1]) + list(f.v[-1])))
+    assert 0 < e < 1e-14
+
+
 def test_dps_2000_a_few_steps():
     """dps at the upper bound of core.validate (2000): 3 steps of the skate, gauss-2, against
     the closed form: error = the method's O(h^5) local error (~1e-7 at h = 1/10), identical to the

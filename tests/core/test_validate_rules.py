@@ -67,6 +67,25 @@ def test_step_advances_boundary_in_float64_and_digits():
         validate.step_advances(0.0, 1.0, 10 ** 17)
 
 
+def test_step_advances_beyond_float_range_of_the_digits():
+    """At dps >= ~310 the spacing 2 T 10^(1 - dps) underflowed to 0.0 in float (and so did a
+    string h such as "1e-420"): a step that leaves t where it is was accepted, and the run
+    returned status 0 with every time equal (dps 400, t0 = 1, h = "1e-420"; dps 2000, t0 = 1e6,
+    h = "1e-1999"). Two-sided: the smallest step that resolves passes, 0.99 of it is refused."""
+    from ldaspark.core import validate
+    validate.step_advances("1", "2e-399", 1, dps=400)
+    with pytest.raises(InputError, match="400 digits"):
+        validate.step_advances("1", "1.98e-399", 1, dps=400)
+    with pytest.raises(InputError, match="400 digits"):
+        validate.step_advances("1", "1e-420", 3, dps=400)
+    with pytest.raises(InputError, match="2000 digits"):
+        validate.step_advances("1e6", "1e-1999", 2, dps=2000)
+    validate.step_advances("1e6", "2.1e-1993", 2, dps=2000)
+    import ldaspark
+    with pytest.raises(InputError, match="does not advance"):
+        ldaspark.integrate("particle", "gauss-1", t0="1", h="1e-420", n_steps=2, dps=400, engine="generic")
+
+
 def test_fmt_int_names_huge_integers_by_their_decimal_exponent():
     from ldaspark.core import validate
     assert validate._fmt_int(10 ** 30 - 1) == str(10 ** 30 - 1)
