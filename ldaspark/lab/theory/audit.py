@@ -232,7 +232,8 @@ def _theorem1_summary(checks):
     if len(decided) < need and limited and len(limited) == len(th) - len(decided) and not nfail:
         # every scene left undecided is undecided by the entries' digits (not by a failed solve): the
         # digits given cannot decide Theorem 1 numerically, which is no failure of the tableau
-        return Check("theorem1", INFO, max((c.residual or 0.0) for c in decided) if decided else None,
+        # fewer decided scenes than needed (need <= 2): at most one, its residual
+        return Check("theorem1", INFO, (decided[0].residual or 0.0) if decided else None,
                      f"not decided at the precision of the entries: decided on {len(decided)} of {len(th)} scenes "
                      f"(at least {need} needed); on {', '.join(c.name.split(':', 1)[1] for c in limited)} the entries' "
                      "uncertainty can contribute as much as the forces f_d (more digits in the file would decide it)")
