@@ -51,6 +51,9 @@ class Stats:
     nfev: int = 0          # stage-function evaluations (one per stage point)
     njev: int = 0          # Jacobian assemblies
     nlu: int = 0           # LU factorisations
+    # the largest |G|_inf over the steps, each G evaluated at the iterate before the step's last
+    # increment (the accepted x is not evaluated again: one more residual a step); the accepted
+    # stage values are closer to the root than this says (quadratically so for full Newton)
     max_residual: float = 0.0
     iterations_per_step: list = field(default_factory=list)
 
