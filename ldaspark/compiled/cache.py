@@ -180,7 +180,9 @@ def cache_dir() -> str:
             continue
         ok, reason = secure_dir(d)
         if ok:
-            return ok
+            # absolute: a relative LDASPARK_CACHE_DIR would name another directory after a chdir
+            # (and in a child started elsewhere)
+            return os.path.abspath(ok)
         if d == os.environ.get("LDASPARK_CACHE_DIR"):
             # the directory the user chose: refused with its reason, never silently swapped for
             # ~/.cache (as an unsafe NUMBA_CACHE_DIR refuses the compiled engine)

@@ -309,6 +309,16 @@ def test_an_unsafe_ldaspark_cache_dir_is_refused_not_replaced(tmp_path, monkeypa
     assert cache.cache_dir() != str(loose / "c")
 
 
+def test_a_relative_ldaspark_cache_dir_is_made_absolute(tmp_path, monkeypatch):
+    """A relative LDASPARK_CACHE_DIR was returned as given: after a chdir (or in a child started in
+    another directory) it named another directory."""
+    os.chmod(tmp_path, 0o755)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("LDASPARK_CACHE_DIR", "rel-cache")
+    d = cache.cache_dir()
+    assert os.path.isabs(d) and d == str(tmp_path / "rel-cache")
+
+
 def test_directory_below_a_world_writable_parent_is_refused(tmp_path):
     loose = tmp_path / "loose"
     loose.mkdir()
