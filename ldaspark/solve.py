@@ -41,7 +41,8 @@ from .core.dense import CollocationDense, EventTracker, HermiteDense, step_piece
 from .core.errors import InputError, LdasparkError, NewtonError, SingularSaddleError, TableauError
 from .core.options import ENGINES as ENGINE_CHOICES, IntegrationOptions  # noqa: F401 (the engine option's values)
 from .core.guard import STATUS_GUARD
-from .core.result import (STATUS_EVENT, STATUS_NEWTON, STATUS_OTHER, STATUS_SADDLE, Result, float_array,
+from .core.result import (COUNTERS, STATUS_EVENT, STATUS_NEWTON, STATUS_OTHER, STATUS_SADDLE, Result, add_counters,
+                          attach_counters, failure_counters, float_array,
                           save_indices, stack)
 from .core.system import LagrangianSystem
 from .core.tableau import SparkTableau
@@ -687,7 +688,9 @@ def _drive_steps(engine, prep, start) -> Result:
         E = [system.energy(bk, ts[j], Qs[j], Vs[j]) for j in range(len(ts))]
         K = [system.constraint(bk, ts[j], Qs[j], Vs[j]) for j in range(len(ts))]
     dt = object if bk.is_mp else float
-    st = engine.stats(prep)
+    # the counters of every step worked on (the failed one too); "steps" the accepted ones (a step
+    # the saddle monitor, the guard or the energy monitor refused was solved but not accepted)
+    st = dict(engine.stats(prep), steps=done)
     psi = np.array(Ps[:len(ts) - 1], dtype=dt).reshape(len(ts) - 1, s, m)
     guard_stats = watch.stats() if watch is not None and watch.test is not None else {"guard": False}
     res = Result(np.array(ts, dtype=dt), np.array(Qs, dtype=dt), np.array(Vs, dtype=dt), np.array(E, dtype=dt),
@@ -718,7 +721,11 @@ def _drive_blocks(engine, prep, start) -> Result:
         return _chunked(engine, prep, start, n, e, boundaries=inner)
     res, exc = _prefix_run(run, N, inner)
     if exc is not None:
+        # the diagnosis's own steps are not the run's work: the failed run's counters stay
+        spent = failure_counters(exc)
         exc = engine.explain(prep, exc, res, start)
+        if failure_counters(exc) is None:
+            attach_counters(exc, spent)
     res, exc = _saddle_scan(res, exc, prep, inner, (lambda n: run(n, 1)) if inner > 1 else None)
     res, exc = _guard_scan(res, exc, engine, prep, (lambda n: run(n, 1)) if engine.samples else None)
     if exc is None:
@@ -915,7 +922,9 @@ def _prefix_run(run: Callable, N: int, every: int) -> tuple:
     the comparators do not return partial trajectories) and mark the failure. The rerun may fail
     at an earlier step j < k (a comparator checks its points' energies only at the end of a run: a
     point outside the domain of L made by step j is met inside a later step k of the long run):
-    then step j ends the run, with the prefix of j steps."""
+    then step j ends the run, with the prefix of j steps. Counters (``core.result``): those the
+    failure carries (``failure_counters``: the failed run's work, its failed step included), not
+    the rerun's, which repeats work already counted."""
     try:
         return run(N, every), None
     except LdasparkError as exc:
@@ -927,9 +936,19 @@ def _prefix_run(run: Callable, N: int, every: int) -> tuple:
         if k == 0:
             return None, err
         try:
-            return run(k, every), err
+            return _charge(run(k, every), failure_counters(err)), err
         except LdasparkError as exc:
             err, N = exc, k
+
+
+def _charge(res: Result, counters: Optional[dict]) -> Result:
+    """``res`` with the counters ``counters`` (``FAILURE_COUNTERS``; None: its own)."""
+    if counters is not None:
+        for c in COUNTERS:
+            setattr(res, c, counters[c])
+        res.stats.update(counters)
+        res.stats["mean_iterations"] = counters["newton_iterations"] / max(counters["steps"], 1)
+    return res
 
 
 #: steps of one block of a chunked engine (the compiled kernels): a long run is a sequence of
@@ -968,6 +987,8 @@ def _chunked(engine, prep, start, n, every, boundaries=None) -> Result:
         try:
             fs = engine.run(prep, (t0f + done * hf, q, v), L, e)
         except LdasparkError as exc:
+            if parts and failure_counters(exc) is not None:    # the blocks before count too
+                attach_counters(exc, add_counters(stats, failure_counters(exc)))
             if isinstance(getattr(exc, "step", None), int):
                 old = exc.step
                 exc.step += done
@@ -1047,15 +1068,22 @@ def _finish_prefix(res, exc, prep, start, engine, sliced=False) -> Result:
     if res is None:        # failure in the first step: the initial point only
         bk = Backend(None)
         q, v = bk.array(q0), bk.array(v0)
-        # the stats every engine's Result carries (what ran, the guard), with no step counted
-        stats = {"steps": 0, "newton_iterations": 0, "nfev": 0, "njev": 0, "nlu": 0, "engine": prep.support,
+        # the stats every engine's Result carries (what ran, the guard), with no step accepted and
+        # the failed step's work (the counters its error carries, ``core.result``)
+        spent = add_counters(failure_counters(exc), None)
+        stats = {**spent, "steps": 0, "engine": prep.support,
                  "root_finder": dict(prep.opts.newton.describe()), "guard": bool(opts.guard)}
         # no step, no stage multipliers: an empty (0, s, m) psi as the generic engine's (None would
         # make an ensemble's batch psi None, and its file lose every member's)
         psi = np.zeros((0, prep.prob.what.s, system.m)) if prep.prob.kind == "spark" else None
         res = Result(np.array([float(t0)]), q[None], v[None], np.array([system.energy(bk, float(t0), q, v)]),
-                     system.constraint(bk, float(t0), q, v)[None], psi, engine=engine.label, stats=stats)
+                     system.constraint(bk, float(t0), q, v)[None], psi, engine=engine.label, stats=stats,
+                     **{c: spent[c] for c in COUNTERS})
     if exc is not None:
         (res.status, res.message), res.error = _failure(exc), exc
     stages = engine.stage_solver(prep) if (dense or events) and not sliced else None
-    return _post_process(res, every, dense, events, sliced, stages)
+    res = _post_process(res, every, dense, events, sliced, stages)
+    # the accepted steps: up to the last good point (a monitor's cut or a terminal event: the
+    # block ran further, its work is counted, its later steps are not the run's)
+    res.stats["steps"] = int(round((float(float_array(res.t)[-1]) - float(t0)) / float(prep.prob.h)))
+    return res

@@ -303,7 +303,10 @@ def run_engine(system, method, start, grid, kopts, fallback=True) -> FastSolutio
         if name in LF2_VARIANTS:        # a comparator: no generic SPARK step to take over
             if isinstance(exc, NonFiniteError):
                 raise
-            raise _diagnose_newton_failure(exc, system, cs, method, (t0, q0, v0), h, kopts) from None
+            from ..core.result import attach_counters, failure_counters
+            # the diagnosis's own steps are not the run's work: the failed run's counters
+            raise attach_counters(_diagnose_newton_failure(exc, system, cs, method, (t0, q0, v0), h, kopts),
+                                  failure_counters(exc)) from None
         # the last link of the fallback chain: the generic full-Newton step (``rescue``)
         from .rescue import run_with_rescue
         return run_with_rescue(system, what, cs, method, t0, q0, v0, h, int(n_steps), int(every), compensated,

@@ -15,7 +15,11 @@ iterate; the kernel's increments (Z_i = V_i - v0) round differently from the gen
 h = 32, step 0). Steps that converge in the kernel are not touched.
 
 The kernel reports only the failing step; the state there is recomputed by running the kernel
-again from the last restart point (the same arithmetic, so the same state). Each restart begins
+again from the last restart point (the same arithmetic, so the same state). Counters
+(``core.result``): the failed kernel run's (its accepted steps and the whole chain at the
+failing step, carried by its error) plus the generic steps' (their failed attempts included);
+the recomputed prefix repeats counted work and is not counted again. A generic step that fails
+raises with the run's counters attached (``core.result.attach_counters``). Each restart begins
 with the zero-increment predictor and a fresh Kahan compensation. Samples stay at the global
 steps 0, every, 2 every, ... and the last step.
 """
@@ -43,6 +47,7 @@ def run_with_rescue(system, tab, cs, method, t0, q0, v0, h, n_steps, every, comp
     (``runner.KernelOptions``): the kernel runs' options as given (the root finder's kind, linear
     solver and matrix reuse among them); None: those of the other arguments."""
     from ..core.backend import Backend
+    from ..core.result import FAILURE_COUNTERS, attach_counters, failure_counters
     from ..core.spark import SparkMethod
     from .runner import FastSolution, _run_checked, run_kernels
 
@@ -59,15 +64,18 @@ def run_with_rescue(system, tab, cs, method, t0, q0, v0, h, n_steps, every, comp
     kern = {}
     last = None                 # (step after the last generic step, its StepResult, v before it)
 
-    def keep(sol, start, n, e):
+    def keep(sol, start, n, e, skip=()):
         kern["kernel"] = sol.stats["kernel"]
         for j, loc in enumerate(_local_indices(n, e)):
             if start + loc in want:
                 samples[start + loc] = (sol.t[j], sol.q[j], sol.v[j], sol.energy[j], sol.constraint[j])
                 if j < len(sol.t) - 1 and sol.psi is not None:
                     psis[start + loc] = sol.psi[j]
-        for key, val in sol.stats.items():
-            if isinstance(val, (int, np.integer)) and not isinstance(val, bool):
+        add(sol.stats, skip)
+
+    def add(stats, skip=()):
+        for key, val in stats.items():
+            if isinstance(val, (int, np.integer)) and not isinstance(val, bool) and key not in skip:
                 totals[key] = max(totals.get(key, 0), val) if key == "max_iterations" else totals.get(key, 0) + val
 
     def point(t, q, v, E=None):
@@ -95,27 +103,27 @@ def run_with_rescue(system, tab, cs, method, t0, q0, v0, h, n_steps, every, comp
                 start += n
                 continue
         k = failure.step            # local to this segment
+        failed = failure_counters(failure)
         failure = None
+        if failed is not None:      # the failed kernel run: its accepted steps and the failing step's chain
+            add(failed)
         if k:
             pre = run(k, e if k >= e else k)
-            keep(pre, start, k, e if k >= e else k)
+            # a recomputed prefix: its steps and work are in the failed run's counters
+            keep(pre, start, k, e if k >= e else k, skip=FAILURE_COUNTERS if failed is not None else ())
             t, q, v = float(pre.t[-1]), pre.q[-1].copy(), pre.v[-1].copy()
             start += k
         if start in want and start not in samples:      # a failure at a segment's first step
             samples[start] = point(t, q, v)
-        # the generic engine's full Newton at this state: from its own predictor when the step
-        # before was generic too (as ``march``), else (or if that fails) from its default guess;
-        # its NewtonError if both fail
-        res = None
-        if last is not None and last[0] == start:
-            Vp, Lp, v1p = generic.unpack(last[1].x)
-            dv = v - last[2]
-            try:
-                res = generic.step(t, q, v, h, x0=generic.pack(Vp + dv, Lp, v1p + dv), step_index=start)
-            except NewtonError:
-                res = None
-        if res is None:
-            res = generic.step(t, q, v, h, step_index=start)
+        # the generic engine's full Newton at this state (``_generic_step``), its work counted
+        # whether it converges or not
+        before = generic.stats.as_dict()
+        try:
+            res = _generic_step(generic, last, start, t, q, v, h)
+        except (NewtonError, NonFiniteError) as exc:
+            add(_spent(generic, before))
+            raise attach_counters(exc, {c: totals.get(c, 0) for c in FAILURE_COUNTERS})
+        add(_spent(generic, before))
         last = (start + 1, res, v.copy())
         if start in want:
             psis[start] = np.asarray(res.Psi, float)
@@ -124,8 +132,6 @@ def run_with_rescue(system, tab, cs, method, t0, q0, v0, h, n_steps, every, comp
         t, q, v = float(t0) + start * h, np.asarray(res.q1, float), np.asarray(res.v1, float)
         if start in want:
             samples[start] = point(t, q, v, float(res.energy))
-        totals["steps"] = totals.get("steps", 0) + 1
-        totals["newton_iterations"] = totals.get("newton_iterations", 0) + res.iterations
     order = sorted(samples)
     st = dict(totals)
     st["generic_steps"] = rescues
@@ -137,3 +143,24 @@ def run_with_rescue(system, tab, cs, method, t0, q0, v0, h, n_steps, every, comp
                         np.array([samples[i][4] for i in order]),
                         psi=np.array([psis[i] for i in order[:-1]]).reshape(len(order) - 1, tab.s, cs.m)
                         if all(i in psis for i in order[:-1]) else None, stats=st)
+
+
+def _spent(generic, before) -> dict:
+    """The work of the generic method since its stats were ``before`` (``FAILURE_COUNTERS``)."""
+    from ..core.result import FAILURE_COUNTERS
+    now = generic.stats.as_dict()
+    return {c: now[c] - before[c] for c in FAILURE_COUNTERS}
+
+
+def _generic_step(generic, last, start, t, q, v, h):
+    """The generic engine's full-Newton step ``start`` from (t, q, v): from its own predictor when
+    the step before was generic too (``last`` = (step after it, its StepResult, v before it), as
+    ``march``), else (or if that fails) from its default guess; its error if both fail."""
+    if last is not None and last[0] == start:
+        Vp, Lp, v1p = generic.unpack(last[1].x)
+        dv = v - last[2]
+        try:
+            return generic.step(t, q, v, h, x0=generic.pack(Vp + dv, Lp, v1p + dv), step_index=start)
+        except NewtonError:
+            pass
+    return generic.step(t, q, v, h, step_index=start)

@@ -698,6 +698,14 @@ class StageSolver:
 
 
 def _failure(st, name, t0, h, residual=None):
+    """The error of a kernel run that failed at step st["failed_step"], carrying the run's
+    counters (``core.result.attach_counters``: the accepted steps and the work of every step,
+    the failed step's whole fallback chain included)."""
+    from ..core.result import attach_counters
+    return attach_counters(_failure_error(st, name, t0, h, residual), st)
+
+
+def _failure_error(st, name, t0, h, residual=None):
     k = st["failed_step"]
     tk = t0 + k * h
     where = f"step {k}, t = {tk:.6g}, h = {h:.3g}"

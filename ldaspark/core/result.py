@@ -19,7 +19,14 @@ Shapes for one run with S saved points (S = N + 1 for ``save_every = 1``):
   ``ldaspark.Newton``), the rescues (``full_newton_steps``, ``rescued_steps`` on the compiled
   engine) and the guard's ``guard_flagged`` / ``guard_confirmed`` / ``guard_unverified``.
 * counters ``nfev`` (stage points evaluated), ``njev`` (Jacobian assemblies), ``nlu`` (LU
-  factorisations), ``newton_iterations``.
+  factorisations), ``newton_iterations``. One meaning on every engine and path, success or
+  failure: each counts the work of every step the run attempted, the failed step included, with
+  every retry of a step (the compiled kernels' fallback chain, the generic step that rescues a
+  kernel step); ``stats["steps"]`` is the number of accepted steps (the rows of the trajectory
+  up to its last good point). A block engine's rerun of the prefix of a failed block repeats
+  steps already counted and is not counted again, nor are the diagnoses of a failure
+  (``Engine.explain``) and the guard's re-solves. The compiled chain may try a step more ways
+  than the generic engine (more work counted for the same step; see ``compiled.rescue``).
 * ``sol``: the dense output (``ldaspark.core.dense``) when asked for, ``sol(t) -> (q, v)``.
 * ``t_events`` / ``q_events`` / ``v_events``: one array per event function.
 * ``coordinate_names``: the names of the coordinates (columns of q and v), or None.
@@ -46,6 +53,9 @@ STATUS_OTHER = -3
 STATUS_GUARD = -4
 
 COUNTERS = ("nfev", "njev", "nlu", "newton_iterations")
+#: the counters a step failure carries to the driver (``failure_counters``): the work of the
+#: failed call up to and including its failed step, and its accepted steps
+FAILURE_COUNTERS = ("steps",) + COUNTERS
 #: the leading fields of ``Result`` and, in the same order, of the deprecated result types
 #: (``core.spark.Solution``, ``compiled.runner.FastSolution``, ``ensemble.EnsembleResult``)
 LEADING_FIELDS = ("t", "q", "v", "energy", "constraint", "psi")
@@ -79,8 +89,10 @@ class Result:
     message : str
         The reason for ``status`` in words.
     nfev, njev, nlu, newton_iterations : int
-        Counters: residual evaluations, Jacobian evaluations, LU factorisations, Newton
-        iterations.
+        Counters: stage-point evaluations, Jacobian evaluations, LU factorisations, Newton
+        iterations. On every engine and path they include the work of the failed step and of
+        every retry and rescue of a step (module docstring); ``stats["steps"]`` counts the
+        accepted steps.
     method, system, scene, engine : str
         What ran: method name, system name, scene name (or None), engine.
     h : float
@@ -201,6 +213,26 @@ def _status_error(status: int) -> type:
     from .guard import RootMismatchError
     return {STATUS_NEWTON: NewtonError, STATUS_SADDLE: SingularSaddleError,
             STATUS_GUARD: RootMismatchError}.get(status, LdasparkError)
+
+
+def attach_counters(exc: BaseException, counters: Optional[dict]) -> BaseException:
+    """``exc`` carrying ``counters`` (``FAILURE_COUNTERS``: the work of the call that failed with
+    it, the failed step included, and its accepted steps); read back by ``failure_counters``.
+    None leaves ``exc`` as it is."""
+    if counters is not None:
+        exc.counters = {c: int(counters.get(c, 0)) for c in FAILURE_COUNTERS}
+    return exc
+
+
+def failure_counters(exc: Optional[BaseException]) -> Optional[dict]:
+    """The counters a step failure carries (``attach_counters``), or None."""
+    hit = getattr(exc, "counters", None)
+    return dict(hit) if isinstance(hit, dict) else None
+
+
+def add_counters(a: Optional[dict], b: Optional[dict]) -> dict:
+    """The sum of two ``FAILURE_COUNTERS`` dicts (None counts as zeros)."""
+    return {c: int((a or {}).get(c, 0)) + int((b or {}).get(c, 0)) for c in FAILURE_COUNTERS}
 
 
 def float_array(x: Any) -> np.ndarray:

@@ -325,6 +325,7 @@ class SparkMethod:
                     try:
                         fac = bk.factor_float64(J) if low else bk.factor(J)
                     except SingularMatrixError as exc:
+                        self.stats.newton_iterations += it      # a failed step's work counts too
                         raise NewtonError(
                             f"step {step_index} at t = {float(t0):.6g}: {exc} (iteration {it}, residual {fmt(res)})",
                             step=step_index, time=float(t0), residual=res, iterations=it) from None
@@ -384,6 +385,7 @@ class SparkMethod:
             # a NaN, infinite or complex residual or increment: not a slow iteration but a point
             # outside the domain of L or k (or an overflow), status -3 as on the compiled engine
             err = NewtonError if math.isfinite(res) else NonFiniteStepError
+            self.stats.newton_iterations += it      # a failed step's work counts too (``Result``)
             raise err(
                 f"Newton did not converge at step {step_index}, t = {float(t0):.6g}, h = {float(h):.3g}: "
                 f"residual {fmt(res)} after {it} iterations{why}", step=step_index, time=float(t0),
@@ -429,10 +431,10 @@ class SparkMethod:
         V, Lam, v1 = self.unpack(x)
         q1 = q0 + tab.b.dot(V) * h
         Q = q0 + tab.A.dot(V) * h
-        energy = self._check_values(t0 + h, q1, v1, x, step_index, t0)
         st = self.stats
+        st.newton_iterations += it          # before the checks: a step they refuse was worked on too
+        energy = self._check_values(t0 + h, q1, v1, x, step_index, t0)
         st.steps += 1
-        st.newton_iterations += it
         st.iterations_per_step.append(it)
         st.max_residual = max(st.max_residual, res)
         return StepResult(t0 + h, q1, v1.copy(), V.copy(), Q, Lam / h, it, res, x, energy)

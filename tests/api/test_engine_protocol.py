@@ -198,3 +198,106 @@ def test_every_engine_counts_its_work(method, engine):
         assert c in r.stats and r.stats[c] == getattr(r, c), c
     assert r.nfev >= r.newton_iterations and r.njev >= 1 and r.nlu >= 1
 
+
+
+# --- counters on failure: one meaning on every path (``ldaspark.core.result``) -----------------
+def _accepted_steps(r) -> int:
+    return int(round((float(r.t[-1]) - float(r.t[0])) / float(r.h)))
+
+
+def _check_counters(r, kind, what):
+    """The counters' invariants of one run that worked on at least one step (``Result``): every
+    counter in ``stats`` too, nonzero once an iteration ran, a residual per iteration, a matrix
+    factorised, ``steps`` the accepted steps; full Newton: one LU per Jacobian (one less for each
+    attempt that met a singular or non-finite matrix: at most 3 attempts of a step on the
+    compiled chain, the kernel's two and the rescuing generic step)."""
+    for c in ("nfev", "njev", "nlu", "newton_iterations"):
+        assert r.stats[c] == getattr(r, c), (what, c, r.stats[c], getattr(r, c))
+    assert r.stats["steps"] == _accepted_steps(r), (what, r.stats["steps"], _accepted_steps(r))
+    assert r.newton_iterations > 0 and r.nfev >= r.newton_iterations and r.nlu > 0, (what, r.nfev, r.nlu)
+    if kind == "full":
+        assert 0 <= r.njev - r.nlu <= 3 and r.njev > 0, (what, r.njev, r.nlu)
+
+
+FAILING = {   # scene, method, run, newton fields: a failure at step 0 and at step 1
+    "max_iter=2, step 0": ("pendulum", "gauss-2", dict(h=0.1, n_steps=8), dict(max_iter=2)),
+    "huge h, step 1": ("pendulum", "gauss-2", dict(h=5.0, n_steps=3), {}),
+}
+
+
+@pytest.mark.parametrize("case", sorted(FAILING))
+@pytest.mark.parametrize("dense", [False, True])
+def test_a_failed_run_counts_its_failed_step_on_every_engine_and_kind(case, dense):
+    """A failed run's counters include the work of the failed step (its retries and rescues too),
+    with one meaning on every engine: the compiled engine reported nfev = njev = nlu =
+    newton_iterations = 0 for a failure at step 0 (3/1/1 on the generic engine) and only its rerun
+    prefix for a failure at step k; the generic engine counted the failed step's residuals but not
+    its iterations (newton_iterations 23 of 53 on the pendulum at h = 5); the rescue counted the
+    generic steps' iterations but not their residuals and matrices. The failure's status class
+    is the same on every path (the compiled chain may fail a step later: its rescue)."""
+    scene, method, run, fields = FAILING[case]
+    runs = {}
+    for engine, kinds in (("generic", ("auto", "full", "simplified")),
+                          ("compiled", ("auto", "full", "simplified", "quasi"))):
+        for kind in kinds:
+            r = ldaspark.integrate(scene, method, engine=engine, newton=ldaspark.Newton(kind=kind, **fields),
+                                   dense_output=dense, **run)
+            assert r.status < 0, (engine, kind, r.message)
+            _check_counters(r, kind, (engine, kind))
+            runs[engine, kind] = r
+    assert {r.status for (_, kind), r in runs.items() if kind != "simplified"} == {-1}
+    assert runs["generic", "full"].stats["steps"] == runs["compiled", "full"].stats["steps"]
+
+
+def test_a_failed_chunked_run_counts_the_blocks_before_its_failure(monkeypatch):
+    """Cut into blocks of one step, the pendulum at h = 5 fails at step 1, in the second block:
+    its counters are the first block's work plus the failed block's (its failed step's whole
+    chain), not the rerun prefix's alone."""
+    kw = dict(engine="compiled", h=5.0, n_steps=3, newton=ldaspark.Newton(kind="full"))
+    one = ldaspark.integrate("pendulum", "gauss-2", **kw)
+    monkeypatch.setattr(solve, "COMPILED_CHUNK", 1)
+    cut = ldaspark.integrate("pendulum", "gauss-2", **kw)
+    assert one.status == cut.status == -1 and cut.error.step == one.error.step == 1
+    _check_counters(cut, "full", "chunked")
+    # the blocks: step 0, then step 1 from its end (the predictor restarts there, so the numbers
+    # are not one call's): the sum of the two runs' counters, the failed one's whole
+    prefix = ldaspark.integrate("pendulum", "gauss-2", **dict(kw, n_steps=1))
+    rest = ldaspark.integrate("pendulum", "gauss-2", **dict(kw, n_steps=2, t0=5.0, q0=prefix.q[-1], v0=prefix.v[-1]))
+    assert prefix.status == 0 and rest.status == -1 and rest.error.step == 0
+    for c in ("nfev", "njev", "nlu", "newton_iterations"):
+        assert getattr(cut, c) == getattr(prefix, c) + getattr(rest, c) > getattr(prefix, c), c
+
+
+@pytest.mark.parametrize("engine, dps", [("generic", None), ("generic", 30), ("compiled", None)])
+def test_failed_ensemble_members_count_as_their_single_runs(engine, dps):
+    """Each member of an ensemble (one failing at step 0 with max_iter = 2, one at h = 5) counts
+    as its single run, failed step included; dps runs too."""
+    nw = ldaspark.Newton(max_iter=2)
+    kw = dict(engine=engine, dps=dps, h=0.1, n_steps=4, newton=nw)
+    q0, v0 = [[1.0, 0.0], [0.0, -1.0]], [[0.0, 0.5], [0.5, 0.0]]
+    ens = ldaspark.integrate("pendulum", "gauss-2", q0=q0, v0=v0, **kw)
+    for j in range(2):
+        one = ldaspark.integrate("pendulum", "gauss-2", q0=q0[j], v0=v0[j], **kw)
+        assert one.status == int(ens.status[j]) == -1
+        _check_counters(one, "auto", (engine, dps, j))
+        assert [int(getattr(ens, c)[j]) for c in ("nfev", "njev", "nlu", "newton_iterations")] == \
+            [getattr(one, c) for c in ("nfev", "njev", "nlu", "newton_iterations")]
+
+
+def test_a_crossing_of_4_and_a_second_root_count_the_accepted_steps():
+    """A step the saddle monitor or the guard refuses was worked on (counted) but not accepted:
+    ``steps`` is the rows of the trajectory on every engine (the generic engine counted the refused
+    step as a step)."""
+    from tests.core.test_guard import WELL, START
+    import sympy
+    q, v = list(sympy.symbols("q1:4")), list(sympy.symbols("v1:4"))
+    L = (1 - q[0] ** 2) * v[0] ** 2 / 2 + (v[1] ** 2 + v[2] ** 2) / 2
+    mass = ldaspark.LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name="mass-vanishing")
+    for engine in ("generic", "compiled"):
+        r = ldaspark.integrate(mass, "gauss-2", q0=[0.9, 0.3, 0.0], v0=[1.0, 0.1, 0.3], t_span=(0, 2), h=0.02,
+                               engine=engine)
+        assert r.status == -2
+        _check_counters(r, "auto", (engine, "saddle"))
+        g = ldaspark.integrate(WELL, "gauss-1", engine=engine, newton=ldaspark.Newton(predictor="zero"), **START)
+        assert g.status == -4
+        _check_counters(g, "auto", (engine, "guard"))
