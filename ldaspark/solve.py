@@ -691,6 +691,7 @@ def _drive_steps(engine, prep, start) -> Result:
     # the counters of every step worked on (the failed one too); "steps" the accepted ones (a step
     # the saddle monitor, the guard or the energy monitor refused was solved but not accepted)
     st = dict(engine.stats(prep), steps=done)
+    st["mean_iterations"] = st["newton_iterations"] / max(done, 1)
     psi = np.array(Ps[:len(ts) - 1], dtype=dt).reshape(len(ts) - 1, s, m)
     guard_stats = watch.stats() if watch is not None and watch.test is not None else {"guard": False}
     res = Result(np.array(ts, dtype=dt), np.array(Qs, dtype=dt), np.array(Vs, dtype=dt), np.array(E, dtype=dt),
@@ -1071,8 +1072,11 @@ def _finish_prefix(res, exc, prep, start, engine, sliced=False) -> Result:
         # the stats every engine's Result carries (what ran, the guard), with no step accepted and
         # the failed step's work (the counters its error carries, ``core.result``)
         spent = add_counters(failure_counters(exc), None)
-        stats = {**spent, "steps": 0, "engine": prep.support,
-                 "root_finder": dict(prep.opts.newton.describe()), "guard": bool(opts.guard)}
+        stats = {**spent, "steps": 0, "mean_iterations": float(spent["newton_iterations"]), "path": engine.path,
+                 "engine": prep.support, "root_finder": dict(prep.opts.newton.describe()), "guard": bool(opts.guard)}
+        if opts.guard:      # no step judged: the guard's counters as a run of the same engine has them
+            from .core.guard import counters
+            stats.update(counters())
         # no step, no stage multipliers: an empty (0, s, m) psi as the generic engine's (None would
         # make an ensemble's batch psi None, and its file lose every member's)
         psi = np.zeros((0, prep.prob.what.s, system.m)) if prep.prob.kind == "spark" else None

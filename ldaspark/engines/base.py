@@ -74,6 +74,8 @@ class Engine(abc.ABC):
     name: str = ""
     #: what ``Result.engine`` says of its runs ("generic" for the comparators, as before)
     label: str = ""
+    #: what ``Result.stats["path"]`` says of its runs (a run that failed at its first step too)
+    path: str = "generic"
     #: the key of ``ldaspark.core.rootfinder.SUPPORT`` whose fields this engine honours
     support: str = ""
     #: "steps" (``steps``) or "block" (``run``)

@@ -29,6 +29,7 @@ class CompiledEngine(Engine):
 
     name = "compiled"
     label = "compiled"
+    path = "fast"
     support = "compiled"
     mode = "block"
     samples = True

@@ -301,3 +301,23 @@ def test_a_crossing_of_4_and_a_second_root_count_the_accepted_steps():
         g = ldaspark.integrate(WELL, "gauss-1", engine=engine, newton=ldaspark.Newton(predictor="zero"), **START)
         assert g.status == -4
         _check_counters(g, "auto", (engine, "guard"))
+
+
+@pytest.mark.parametrize("engine", ["generic", "compiled"])
+def test_a_failure_at_the_first_step_has_the_stats_keys_of_every_other_run(engine):
+    """``Result.stats`` carries the same keys whether the run succeeded, failed at step k or at step
+    0: a compiled run that failed at its first step lacked ``path``, ``mean_iterations`` and the
+    guard's counters (``guard_flagged``, ``guard_confirmed``, ``guard_unverified``), which its run
+    failing at step 1 and the generic engine's failure at step 0 have. Keys every engine reports:
+    the generic engine's, but for its own ``max_residual``."""
+    nw = ldaspark.Newton(max_iter=2)
+    ok = ldaspark.integrate("pendulum", "gauss-2", engine=engine, h=0.1, n_steps=3)
+    first = ldaspark.integrate("pendulum", "gauss-2", engine=engine, h=0.1, n_steps=3, newton=nw)
+    later = ldaspark.integrate("pendulum", "gauss-2", engine=engine, h=5.0, n_steps=3)
+    assert ok.status == 0 and first.status == later.status == -1
+    assert first.stats["steps"] == 0 and later.stats["steps"] == 1
+    common = set(ldaspark.integrate("pendulum", "gauss-2", engine="generic", h=0.1, n_steps=3).stats) - {"max_residual"}
+    for r in (ok, first, later):
+        assert common <= set(r.stats), sorted(common - set(r.stats))
+    assert first.stats["path"] == ok.stats["path"] and first.stats["guard_flagged"] == 0
+    assert first.stats["mean_iterations"] == first.newton_iterations    # one step worked on, none accepted
