@@ -25,8 +25,12 @@ Shapes for one run with S saved points (S = N + 1 for ``save_every = 1``):
   kernel step); ``stats["steps"]`` is the number of accepted steps (the rows of the trajectory
   up to its last good point). A block engine's rerun of the prefix of a failed block repeats
   steps already counted and is not counted again, nor are the diagnoses of a failure
-  (``Engine.explain``) and the guard's re-solves. The compiled chain may try a step more ways
-  than the generic engine (more work counted for the same step; see ``compiled.rescue``).
+  (``Engine.explain``), the guard's re-solves and the stage re-solves of a block engine's dense
+  output and events. Where the counts differ by engine for the same run: the compiled chain may
+  try a step more ways than the generic engine (more work counted for the same step; see
+  ``compiled.rescue``), and a block engine has run its whole block when a monitor (det (4), the
+  guard, ``energy_jump``) or a terminal event cuts the run, so it counts the steps after the cut
+  too (``steps`` still counts the accepted ones).
 * ``sol``: the dense output (``ldaspark.core.dense``) when asked for, ``sol(t) -> (q, v)``.
 * ``t_events`` / ``q_events`` / ``v_events``: one array per event function.
 * ``coordinate_names``: the names of the coordinates (columns of q and v), or None.
