@@ -31,13 +31,14 @@ import contextlib
 
 import math
 import re
+from typing import Callable
 
 import mpmath
 import numpy as np
 import sympy
 
 from .backend import Backend, SingularMatrixError, fmt
-from .errors import InputError, NewtonError, NonFiniteStepError
+from .errors import InputError, LdasparkError, NewtonError, NonFiniteStepError
 from .spark import Solution, SparkMethod
 from .derive import real_jacobian
 from .system import _NONSMOOTH, LagrangianSystem, _arr
@@ -139,6 +140,8 @@ def _newton(fun, x0, bk: Backend, tol, max_iter, step_index, t, counts=None):
             G, J = fun(x)
         counts["nfev"] = counts.get("nfev", 0) + 1
         counts["njev"] = counts.get("njev", 0) + 1
+        # every iteration run, a failed step's too (``Result``: the counters' one meaning)
+        counts["newton_iterations"] = counts.get("newton_iterations", 0) + 1
         res = bk.norm_inf(G)
         if not math.isfinite(res):
             break
@@ -238,7 +241,13 @@ class ModifiedLobatto2(SparkMethod):
 # --- drivers ------------------------------------------------------------------------------
 def _finish_solution(system, bk, ts, Qs, Vs, Ps, stats, dps, name):
     with bk.context():
-        E = [_energy_checked(system, bk, ts, Qs, Vs, i) for i in range(len(ts))]
+        # the run's work was done to its end: a point outside the domain of L made by step k
+        # carries the run's counters, k steps accepted
+        try:
+            E = [_energy_checked(system, bk, ts, Qs, Vs, i) for i in range(len(ts))]
+        except LdasparkError as exc:
+            from .result import attach_counters
+            raise attach_counters(exc, dict(stats, steps=int(getattr(exc, "step", 0) or 0)))
         K = [system.constraint(bk, ts[i], Qs[i], Vs[i]) for i in range(len(ts))]
     dt = object if bk.is_mp else float
     return Solution(t=np.array(ts, dtype=dt), q=np.array(Qs, dtype=dt), v=np.array(Vs, dtype=dt),
@@ -274,12 +283,19 @@ def _spark_variant_loop(method_objs, system, t0, q0, v0, h, n_steps, name, progr
         q, v = bk.array(q0), bk.array(v0)
         ts, Qs, Vs, Ps = [t], [q], [v], []
         guesses = [None] * len(method_objs)
+        done = [0]
+
+        def spent():
+            return {"steps": done[0], **{c: sum(meth.stats.as_dict()[c] for meth, _ in method_objs)
+                                         for c in ("newton_iterations", "nfev", "njev", "nlu")}}
         for k in range(n_steps):
             psi = []
             tk = t
+            done[0] = k
             for idx, (meth, frac) in enumerate(method_objs):
                 hh = h_ * frac
-                r = meth.step(tk, q, v, hh, x0=guesses[idx], step_index=k)
+                with _counted(spent):
+                    r = meth.step(tk, q, v, hh, x0=guesses[idx], step_index=k)
                 guesses[idx] = r.x
                 q, v, tk = r.q1, r.v1, tk + hh
                 psi.extend(list(r.Psi))
@@ -298,6 +314,19 @@ def _spark_variant_loop(method_objs, system, t0, q0, v0, h, n_steps, name, progr
     st["n_grad_U"] = st["nfev"]          # every stage evaluation evaluates grad_q L
     st["mean_iterations"] = st["newton_iterations"] / max(n_steps, 1)
     return _finish_solution(system, bk, ts, Qs, Vs, Ps, st, method_objs[0][0].dps, name)
+
+
+@contextlib.contextmanager
+def _counted(spent: Callable):
+    """A step failure raised inside carries the run's counters so far (``spent()``, the
+    ``FAILURE_COUNTERS`` of ``ldaspark.core.result``: the accepted steps and the work of every
+    step, the failed one included), as the compiled kernels' failures do."""
+    from .result import attach_counters
+    try:
+        yield
+    except LdasparkError as exc:
+        attach_counters(exc, spent())
+        raise
 
 
 @contextlib.contextmanager
@@ -327,52 +356,54 @@ def _leapfrog(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, constraint, na
     grad U(q_k) is evaluated once per step and shared by both uses."""
     with _semi_implicit(system, dps, tol, h, t0, q0, v0) as (bk, mp, tol, h_, half, t0_, q, v):
         n, m, M, iters = mp.n, mp.m, mp.M, 0
-        counts = {"nfev": 0, "njev": 0, "nlu": 0}
+        counts = {"nfev": 0, "njev": 0, "nlu": 0, "newton_iterations": 0}
         ts, Qs, Vs, Ps = [t0_], [q], [v], []
         g = mp.grad_U(q)
         w = None                 # v_{k-1/2}
         psi2_prev = bk.zeros(m)  # Psi_{2,k-1}
         x = np.concatenate([v, bk.zeros(m)])
-        for k in range(n_steps):
-            with _domain(k, ts[-1]):
-                Kk, bk_k = mp.K_b(q)
-            rhs = M.dot(v) - half * g if k == 0 else M.dot(w) - h_ * g
+        # a failure in a step (its Newton, or a point outside the domain) carries the counters
+        with _counted(lambda: dict(counts, steps=len(ts) - 1)):
+            for k in range(n_steps):
+                with _domain(k, ts[-1]):
+                    Kk, bk_k = mp.K_b(q)
+                rhs = M.dot(v) - half * g if k == 0 else M.dot(w) - h_ * g
 
-            def fun(z, q=q, Kk=Kk, bk_k=bk_k, rhs=rhs):
-                vh, lam = z[:n], z[n:]
-                r1 = M.dot(vh) + Kk.T.dot(lam) - rhs
-                if constraint == "mean":
-                    q1 = q + h_ * vh
-                    K1, b1 = mp.K_b(q1)
-                    r2 = (Kk.dot(vh) + bk_k + K1.dot(vh) + b1) / 2
-                    Cv = (Kk + K1 + h_ * mp.k_q(q1, vh)) / 2
-                else:
-                    qm = q + half * vh
-                    Km, bm = mp.K_b(qm)
-                    r2 = Km.dot(vh) + bm
-                    Cv = Km + half * mp.k_q(qm, vh)
-                return np.concatenate([r1, r2]), _saddle(bk, M, Kk.T, Cv)
+                def fun(z, q=q, Kk=Kk, bk_k=bk_k, rhs=rhs):
+                    vh, lam = z[:n], z[n:]
+                    r1 = M.dot(vh) + Kk.T.dot(lam) - rhs
+                    if constraint == "mean":
+                        q1 = q + h_ * vh
+                        K1, b1 = mp.K_b(q1)
+                        r2 = (Kk.dot(vh) + bk_k + K1.dot(vh) + b1) / 2
+                        Cv = (Kk + K1 + h_ * mp.k_q(q1, vh)) / 2
+                    else:
+                        qm = q + half * vh
+                        Km, bm = mp.K_b(qm)
+                        r2 = Km.dot(vh) + bm
+                        Cv = Km + half * mp.k_q(qm, vh)
+                    return np.concatenate([r1, r2]), _saddle(bk, M, Kk.T, Cv)
 
-            x, it = _newton(fun, x, bk, tol, max_iter, k, ts[-1], counts)
-            iters += it
-            w, lam = x[:n], x[n:]
-            q = q + h_ * w
-            # output v_{k+1} and Psi_{2,k} from the (otherwise unneeded) linear system
-            with _domain(k, ts[-1]):          # q_{k+1} outside the domain: step k failed
-                g = mp.grad_U(q)
-                K1, b1 = mp.K_b(q)
-                sol = bk.solve(_saddle(bk, M, K1.T, K1), np.concatenate([M.dot(w) - half * g, -b1]))
-            counts["nlu"] += 1
-            v, mu = sol[:n], sol[n:]
-            psi2 = mu / half
-            psi1 = lam / half - psi2_prev
-            psi2_prev = psi2
-            ts.append(t0_ + (k + 1) * h_)
-            Qs.append(q)
-            Vs.append(v)
-            Ps.append([psi1, psi2])
-            if progress is not None:
-                progress(k + 1, n_steps)
+                x, it = _newton(fun, x, bk, tol, max_iter, k, ts[-1], counts)
+                iters += it
+                w, lam = x[:n], x[n:]
+                q = q + h_ * w
+                # output v_{k+1} and Psi_{2,k} from the (otherwise unneeded) linear system
+                with _domain(k, ts[-1]):          # q_{k+1} outside the domain: step k failed
+                    g = mp.grad_U(q)
+                    K1, b1 = mp.K_b(q)
+                    sol = bk.solve(_saddle(bk, M, K1.T, K1), np.concatenate([M.dot(w) - half * g, -b1]))
+                counts["nlu"] += 1
+                v, mu = sol[:n], sol[n:]
+                psi2 = mu / half
+                psi1 = lam / half - psi2_prev
+                psi2_prev = psi2
+                ts.append(t0_ + (k + 1) * h_)
+                Qs.append(q)
+                Vs.append(v)
+                Ps.append([psi1, psi2])
+                if progress is not None:
+                    progress(k + 1, n_steps)
     st = {"steps": n_steps, "newton_iterations": iters, **counts, "n_grad_U": mp.n_grad_U,
           "mean_iterations": iters / max(n_steps, 1)}
     return _finish_solution(system, bk, ts, Qs, Vs, Ps, st, dps, name)
@@ -384,35 +415,37 @@ def _mp_iiib_a(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, name, progres
     q1 = q0 + h/2 (v0 + v1), 0 = K(q1) v1 + b(q1). One grad U per step."""
     with _semi_implicit(system, dps, tol, h, t0, q0, v0) as (bk, mp, tol, h_, half, t0_, q, v):
         n, m, M, iters = mp.n, mp.m, mp.M, 0
-        counts = {"nfev": 0, "njev": 0, "nlu": 0}
+        counts = {"nfev": 0, "njev": 0, "nlu": 0, "newton_iterations": 0}
         ts, Qs, Vs, Ps = [t0_], [q], [v], []
         x = np.concatenate([v, bk.zeros(m)])
-        for k in range(n_steps):
-            Q1 = q + half * v                                   # (26a)
-            with _domain(k, ts[-1]):
-                g = mp.grad_U(Q1)
-                KQ, _ = mp.K_b(Q1)
-            rhs = M.dot(v) - h_ * g
+        # a failure in a step (its Newton, or a point outside the domain) carries the counters
+        with _counted(lambda: dict(counts, steps=len(ts) - 1)):
+            for k in range(n_steps):
+                Q1 = q + half * v                                   # (26a)
+                with _domain(k, ts[-1]):
+                    g = mp.grad_U(Q1)
+                    KQ, _ = mp.K_b(Q1)
+                rhs = M.dot(v) - h_ * g
 
-            def fun(z, q=q, v=v, KQ=KQ, rhs=rhs):
-                v1, lam = z[:n], z[n:]
-                r1 = M.dot(v1) + KQ.T.dot(lam) - rhs            # (26b), lam = h Psi_1
-                q1 = q + half * (v + v1)                        # (26c)
-                K1, b1 = mp.K_b(q1)
-                r2 = K1.dot(v1) + b1                            # (26d)
-                return np.concatenate([r1, r2]), _saddle(bk, M, KQ.T, K1 + half * mp.k_q(q1, v1))
+                def fun(z, q=q, v=v, KQ=KQ, rhs=rhs):
+                    v1, lam = z[:n], z[n:]
+                    r1 = M.dot(v1) + KQ.T.dot(lam) - rhs            # (26b), lam = h Psi_1
+                    q1 = q + half * (v + v1)                        # (26c)
+                    K1, b1 = mp.K_b(q1)
+                    r2 = K1.dot(v1) + b1                            # (26d)
+                    return np.concatenate([r1, r2]), _saddle(bk, M, KQ.T, K1 + half * mp.k_q(q1, v1))
 
-            x, it = _newton(fun, x, bk, tol, max_iter, k, ts[-1], counts)
-            iters += it
-            v1, lam = x[:n], x[n:]
-            q = q + half * (v + v1)
-            v = v1
-            ts.append(t0_ + (k + 1) * h_)
-            Qs.append(q)
-            Vs.append(v)
-            Ps.append([lam / h_])
-            if progress is not None:
-                progress(k + 1, n_steps)
+                x, it = _newton(fun, x, bk, tol, max_iter, k, ts[-1], counts)
+                iters += it
+                v1, lam = x[:n], x[n:]
+                q = q + half * (v + v1)
+                v = v1
+                ts.append(t0_ + (k + 1) * h_)
+                Qs.append(q)
+                Vs.append(v)
+                Ps.append([lam / h_])
+                if progress is not None:
+                    progress(k + 1, n_steps)
     st = {"steps": n_steps, "newton_iterations": iters, **counts, "n_grad_U": mp.n_grad_U,
           "mean_iterations": iters / max(n_steps, 1)}
     return _finish_solution(system, bk, ts, Qs, Vs, Ps, st, dps, name)
