@@ -339,3 +339,14 @@ def test_a_failed_comparator_run_counts_its_failed_step(method, engine):
     if r.stats["steps"]:          # a failure after accepted steps: more than their work
         ok = ldaspark.integrate("pendulum", method, h=5.0, n_steps=r.stats["steps"], engine=engine)
         assert ok.status == 0 and r.newton_iterations > ok.newton_iterations and r.nfev > ok.nfev
+
+
+def test_a_rescued_run_counts_the_generic_steps_work():
+    """mp-particles, gauss-2 at h = 32: the kernels' Newton fails at two steps which the generic
+    full-Newton step takes (``compiled.rescue``). Full Newton assembles a Jacobian and evaluates
+    the residual at the s + 1 = 3 points at every iteration; the rescue counted the generic
+    steps' iterations but not their residuals, Jacobians and LUs (njev < newton_iterations)."""
+    r = ldaspark.integrate("mp-particles", "gauss-2", h=32.0, n_steps=3, engine="compiled", newton="full")
+    assert r.status == 0 and r.stats["rescued_steps"] >= 1
+    _check_counters(r, "full", "rescued")
+    assert r.njev >= r.newton_iterations and r.nfev >= 3 * r.newton_iterations, (r.njev, r.nfev, r.newton_iterations)
