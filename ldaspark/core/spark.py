@@ -46,6 +46,10 @@ class StepResult:
 
 @dataclass
 class Stats:
+    """The counters of a ``SparkMethod``: the work of every step it was asked for, a failed one
+    included (nfev, njev, nlu, newton_iterations; ``ldaspark.core.result``), and the steps it
+    solved (``steps``)."""
+
     steps: int = 0
     newton_iterations: int = 0
     nfev: int = 0          # stage-function evaluations (one per stage point)
