@@ -401,8 +401,16 @@ class _Problem:
 
 def _member(system, prob: _Problem, opts: IntegrationOptions, job) -> Result:
     """One member of an ensemble over parameters or initial data (the fallback notice once per
-    ensemble, not once per member)."""
-    return _single(system, job[1:], prob, opts, quiet=job[0] > 0)
+    ensemble, not once per member). An error that ends the call (a member's bad parameter value or
+    initial point, an event function that raises, a failure with raise_on_failure) names the member,
+    as the initial-point check of every member does (``_check_initial_point``), on every path."""
+    try:
+        return _single(system, job[1:], prob, opts, quiet=job[0] > 0)
+    except LdasparkError as exc:
+        tag = f"ensemble member {job[0]}: "
+        if exc.args and isinstance(exc.args[0], str) and not exc.args[0].startswith("ensemble member "):
+            exc.args = (tag + exc.args[0],) + exc.args[1:]
+        raise
 
 
 def _portable(system):

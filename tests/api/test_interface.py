@@ -230,3 +230,35 @@ def test_an_ensemble_whose_samples_cannot_fit_is_refused_before_any_member_runs(
     assert ran == []
     # one member alone fits
     assert ldaspark.integrate("skate", "gauss-2", h=0.01, n_steps=100).status == 0
+
+
+def _raises_in_member_1(t, q, v):
+    """An event function that raises in the member started at q[0] = 0.5 (module level: pickles)."""
+    if abs(q[0] - 0.5) < 0.05:
+        raise ZeroDivisionError("boom")
+    return 1.0
+
+
+@pytest.mark.parametrize("where", ["loop", "threads"])
+@pytest.mark.parametrize("fault", ["inconsistent v0", "parameter", "event"])
+def test_an_ensemble_error_names_the_member_on_every_path(where, fault):
+    """A member whose set-up or event function fails ends the call with an error naming the member
+    (the executor path's initial-point check said "ensemble member 1:", the loop did not, and no
+    path named a member with a bad parameter value or a raising event function)."""
+    from concurrent.futures import ThreadPoolExecutor
+    sc = get_scene("particle")
+    Q0 = [[1, 0, 0], [0.5, 0, 0], [0.2, 0, 0]]
+    V0 = [[0, 1, 0], [0, 0.5, 0], [0, 0.3, 0]]
+    kw = dict(n_steps=5, h=0.1, q0=Q0, v0=V0)
+    if fault == "inconsistent v0":
+        kw["v0"] = [V0[0], [1, 1, 1], V0[2]]
+    elif fault == "event":
+        kw["events"] = _raises_in_member_1
+    system = sc.system
+    if fault == "parameter":
+        system = LagrangianSystem("(vx**2 + vy**2 + vz**2)/2 - g*z", ["vz - x*vy"], ["x", "y", "z"],
+                                  ["vx", "vy", "vz"], params=["g"], name="knife")
+        kw = dict(n_steps=5, h=0.1, q0=[0, 0, 0], v0=[1, 0, 0], params=[{"g": 1}, {"g": "foo"}, {"g": 2}])
+    ex = ThreadPoolExecutor(1) if where == "threads" else None
+    with pytest.raises(ldaspark.LdasparkError, match=r"^ensemble member 1: "):
+        ldaspark.integrate(system, "gauss-2", executor=ex, **kw)
