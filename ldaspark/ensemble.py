@@ -256,7 +256,8 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
             raise InputError(f"run_many needs RunSpec objects, got {type(sp).__name__} at position {k}")
         for fn, args in sp.tasks(chunk):
             plan.append((k, fn, args))
-    results = _run_plan(plan, len(specs), executor if executor is not None else where, max_workers, progress)
+    results = _run_plan(plan, len(specs), executor if executor is not None else where, max_workers, progress,
+                        check=_task_output)
     seconds = time.perf_counter() - t_start
     out = []
     for rs in results:
@@ -274,10 +275,12 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
     return out
 
 
-def _run_plan(plan, n_specs, executor=None, max_workers=None, progress=None):
+def _run_plan(plan, n_specs, executor=None, max_workers=None, progress=None, check=None):
     """Run the (k, fn, args) tasks where ``executor`` says (``ldaspark.executors.run_units``:
     a worker that dies gets its task retried, Ctrl-C cancels what is pending and stops a pool
-    created here); results grouped by k, in plan order whatever the order of completion."""
+    created here); results grouped by k, in plan order whatever the order of completion.
+    ``check(output, args, executor)``: a task's output checked (``_task_output``) before it is
+    grouped."""
     from .executors import Unit, run_units
     units = [Unit(str(i), fn, tuple(args)) for i, (k, fn, args) in enumerate(plan)]
     count = 0
@@ -290,9 +293,25 @@ def _run_plan(plan, n_specs, executor=None, max_workers=None, progress=None):
     res = run_units(units, executor, None if executor is not None else (max_workers or os.cpu_count() or 1),
                     on_done=done)
     results = [[] for _ in range(n_specs)]
-    for i, (k, _, _) in enumerate(plan):
-        results[k].extend(res[str(i)])
+    for i, (k, _, args) in enumerate(plan):
+        results[k].extend(res[str(i)] if check is None else check(res[str(i)], args, executor))
     return results
+
+
+def _task_output(val, args, executor):
+    """A task's output as ``_fast_task`` / ``_generic_task`` return it: a list of ``rows`` runs,
+    each (t, q, v, energy, constraint, stats, psi). An executor whose futures hand back anything
+    else (a user's Executor subclass) is one LdasparkError naming it, never a TypeError or an
+    IndexError while the members are assembled."""
+    from .core.errors import LdasparkError
+    from .core.validate import _describe
+    rows = len(args[3])             # the task's initial data (``RunSpec.tasks``)
+    if not (isinstance(val, list) and len(val) == rows
+            and all(isinstance(r, tuple) and len(r) == 7 and isinstance(r[5], dict) for r in val)):
+        from .executors import describe
+        raise LdasparkError(f"{describe(executor)} returned {_describe(val)} for a task of {rows} ensemble member(s), "
+                            "not their runs")
+    return val
 
 
 def ensemble_integrate(system, method, t0, Q0, V0, h, n_steps, every=1, compensated=True, tol=None,
