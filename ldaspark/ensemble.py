@@ -47,13 +47,38 @@ class EnsembleResult:
     seconds: float = 0.0
 
 
+class _KernelBlocks:
+    """``run_kernels`` as the block engine that ``ldaspark.solve._chunked`` drives: a member runs in
+    the blocks of COMPILED_CHUNK steps of its single ``integrate`` run (the predictor restarts at
+    each block's start), so the two agree bit for bit past one block, and a worker's kernel call
+    returns between blocks."""
+
+    chunked = True
+    label = "compiled"
+
+    def __init__(self, cs, spec, h, compensated, tol):
+        from types import SimpleNamespace
+        self.cs, self.spec, self.compensated, self.tol = cs, spec, compensated, tol
+        self.prep = SimpleNamespace(prob=SimpleNamespace(h=h))      # what _chunked reads of a run
+
+    def run(self, prep, start, n_steps, every):
+        from types import SimpleNamespace
+        from .compiled.runner import run_kernels
+        t0, q0, v0 = start
+        fs = run_kernels(self.cs, self.spec, t0, q0, v0, prep.prob.h, n_steps, every, self.compensated, self.tol)
+        return SimpleNamespace(t=fs.t, q=fs.q, v=fs.v, energy=fs.energy, constraint=fs.constraint, psi=fs.psi,
+                               stats=fs.stats, engine=self.label)
+
+    def member(self, t0, q0, v0, n_steps, every, boundaries=None) -> tuple:
+        """(t, q, v, energy, constraint, stats, psi) of one member, as ``_fast_task`` returns it."""
+        from .solve import _chunked
+        r = _chunked(self, self.prep, (t0, q0, v0), n_steps, every, boundaries=boundaries)
+        return (r.t, r.q, r.v, r.energy, r.constraint, r.stats, r.psi)
+
+
 def _fast_task(cs, spec, t0, ics, h, n_steps, every, compensated, tol):
-    from .compiled.runner import run_kernels
-    out = []
-    for q0, v0 in ics:
-        fs = run_kernels(cs, spec, t0, q0, v0, h, n_steps, every, compensated, tol)
-        out.append(tuple(fs) + (fs.psi,))
-    return out
+    blocks = _KernelBlocks(cs, spec, h, compensated, tol)
+    return [blocks.member(t0, q0, v0, n_steps, every) for q0, v0 in ics]
 
 
 def _generic_task(system, method, t0, ics, h, n_steps, every, tol):
@@ -151,9 +176,12 @@ class RunSpec:
         """The first ``n_steps`` of the member from (q0, v0) again with every step kept, on the path
         its task ran (the kernels, or the generic path of a system that does not compile)."""
         if self._kernels is not None:
-            from .compiled.runner import run_kernels
+            # the blocks of the run it judges (``_chunked``'s boundaries), as a single run's guard
+            from types import SimpleNamespace
             cs, spec = self._kernels
-            return run_kernels(cs, spec, self.t0, q0, v0, self.h, n_steps, 1, self.compensated, self.tol)
+            t, q, v, energy, constraint, stats, psi = _KernelBlocks(cs, spec, self.h, self.compensated, self.tol).member(
+                self.t0, q0, v0, n_steps, 1, boundaries=self.every)
+            return SimpleNamespace(t=t, q=q, v=v, energy=energy, constraint=constraint, stats=stats, psi=psi)
         from .compiled.fast import generic_integrate
         return generic_integrate(self.system, self.method, self.t0, q0, v0, self.h, n_steps, 1, self.tol)
 
@@ -256,7 +284,8 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
             raise InputError(f"run_many needs RunSpec objects, got {type(sp).__name__} at position {k}")
         for fn, args in sp.tasks(chunk):
             plan.append((k, fn, args))
-    results = _run_plan(plan, len(specs), executor if executor is not None else where, max_workers, progress)
+    results = _run_plan(plan, len(specs), executor if executor is not None else where, max_workers, progress,
+                        check=_task_output)
     seconds = time.perf_counter() - t_start
     out = []
     for rs in results:
@@ -274,10 +303,12 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
     return out
 
 
-def _run_plan(plan, n_specs, executor=None, max_workers=None, progress=None):
+def _run_plan(plan, n_specs, executor=None, max_workers=None, progress=None, check=None):
     """Run the (k, fn, args) tasks where ``executor`` says (``ldaspark.executors.run_units``:
     a worker that dies gets its task retried, Ctrl-C cancels what is pending and stops a pool
-    created here); results grouped by k, in plan order whatever the order of completion."""
+    created here); results grouped by k, in plan order whatever the order of completion.
+    ``check(output, args, executor)``: a task's output checked (``_task_output``) before it is
+    grouped."""
     from .executors import Unit, run_units
     units = [Unit(str(i), fn, tuple(args)) for i, (k, fn, args) in enumerate(plan)]
     count = 0
@@ -290,9 +321,25 @@ def _run_plan(plan, n_specs, executor=None, max_workers=None, progress=None):
     res = run_units(units, executor, None if executor is not None else (max_workers or os.cpu_count() or 1),
                     on_done=done)
     results = [[] for _ in range(n_specs)]
-    for i, (k, _, _) in enumerate(plan):
-        results[k].extend(res[str(i)])
+    for i, (k, _, args) in enumerate(plan):
+        results[k].extend(res[str(i)] if check is None else check(res[str(i)], args, executor))
     return results
+
+
+def _task_output(val, args, executor):
+    """A task's output as ``_fast_task`` / ``_generic_task`` return it: a list of ``rows`` runs,
+    each (t, q, v, energy, constraint, stats, psi). An executor whose futures hand back anything
+    else (a user's Executor subclass) is one LdasparkError naming it, never a TypeError or an
+    IndexError while the members are assembled."""
+    from .core.errors import LdasparkError
+    from .core.validate import _describe
+    rows = len(args[3])             # the task's initial data (``RunSpec.tasks``)
+    if not (isinstance(val, list) and len(val) == rows
+            and all(isinstance(r, tuple) and len(r) == 7 and isinstance(r[5], dict) for r in val)):
+        from .executors import describe
+        raise LdasparkError(f"{describe(executor)} returned {_describe(val)} for a task of {rows} ensemble member(s), "
+                            "not their runs")
+    return val
 
 
 def ensemble_integrate(system, method, t0, Q0, V0, h, n_steps, every=1, compensated=True, tol=None,

@@ -313,6 +313,7 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
         V0 = list(v0) if batch_ic else [v0]
         if batch_ic and len(Q0) != len(V0):
             raise InputError(f"q0 has {len(Q0)} rows but v0 has {len(V0)}")
+        _check_ensemble_storage(sysm, prob, opts, len(plist) * len(Q0))
         if executor is not None and batch_ic and not batch_params:
             if params is None:
                 _check_initial_point(_with_params(sysm, None), (t0, q0, v0), dps, opts=opts)     # every member
@@ -329,6 +330,20 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
                                 prob, member_opts)
         return stack(_run_members(executor, run, jobs))
     return _single(sysm, (params, q0, v0), prob, opts)
+
+
+def _check_ensemble_storage(system, prob: _Problem, opts: IntegrationOptions, members: int) -> None:
+    """The storage bound of ``_drive_steps`` for the ensemble as a whole, before any member runs:
+    the batched Result holds every member's samples (t, q, v, E, k, psi: 2 + 2n + m + s m numbers
+    each), and with dense output or events each member's steps, so ``members`` runs that each fit
+    can together not (each member's own check would let it run, until stacking them ran out of
+    memory)."""
+    from .compiled.fast import n_samples
+    s, n, m = _stages(prob.kind, prob.what), system.n, system.m
+    validate.check_storage(n_samples(prob.N, opts.save_every) * members, 2 + 2 * n + m + s * m,
+                           mp=opts.dps is not None, what="the ensemble samples")
+    if opts.dense_output or opts.events:
+        validate.check_storage((prob.N + 1) * members, n + s * n, what="the ensemble's dense output")
 
 
 def _ndim(x) -> int:
@@ -387,8 +402,16 @@ class _Problem:
 
 def _member(system, prob: _Problem, opts: IntegrationOptions, job) -> Result:
     """One member of an ensemble over parameters or initial data (the fallback notice once per
-    ensemble, not once per member)."""
-    return _single(system, job[1:], prob, opts, quiet=job[0] > 0)
+    ensemble, not once per member). An error that ends the call (a member's bad parameter value or
+    initial point, an event function that raises, a failure with raise_on_failure) names the member,
+    as the initial-point check of every member does (``_check_initial_point``), on every path."""
+    try:
+        return _single(system, job[1:], prob, opts, quiet=job[0] > 0)
+    except LdasparkError as exc:
+        tag = f"ensemble member {job[0]}: "
+        if exc.args and isinstance(exc.args[0], str) and not exc.args[0].startswith("ensemble member "):
+            exc.args = (tag + exc.args[0],) + exc.args[1:]
+        raise
 
 
 def _portable(system):

@@ -203,3 +203,62 @@ def test_compiled_ensemble_kernel_tasks_honour_tol(tol):
     loose = ldaspark.integrate("particle", "gauss-2", q0=Q0[0], v0=V0[0], **dict(kw, tol=1e-6))
     tight = ldaspark.integrate("particle", "gauss-2", q0=Q0[0], v0=V0[0], **dict(kw, tol=None))
     assert loose.newton_iterations < tight.newton_iterations     # the option is observable here
+
+
+@pytest.mark.parametrize("how", ["loop", "executor", "params"])
+def test_an_ensemble_whose_samples_cannot_fit_is_refused_before_any_member_runs(monkeypatch, how):
+    """The storage bound holds for the ensemble as a whole on every path (the kernel tasks of
+    run_many bounded it, the loop of single runs bounded each member alone): a memory limit that
+    fits one member of 101 samples but not 100 of them refuses the ensemble before any step."""
+    from concurrent.futures import ThreadPoolExecutor
+    from ldaspark import solve
+    from ldaspark.core import validate
+    sc = get_scene("skate")
+    # gauss-2 on the skate: 2 + 2n + m + s m = 11 numbers a sample, 40 bytes each (float64)
+    one = 101 * 11 * 40
+    monkeypatch.setattr(validate, "physical_memory", lambda: int(4 * one / validate.MEMORY_FRACTION))
+    B = 100
+    kw = dict(q0=np.tile(sc.q0, (B, 1)), v0=np.tile(np.asarray(sc.v0, dtype=float), (B, 1)))
+    if how == "executor":
+        kw["executor"] = ThreadPoolExecutor(1)
+    elif how == "params":
+        kw = dict(params=[{}] * B)
+    ran = []
+    monkeypatch.setattr(solve, "_member", lambda *a: ran.append(a) or pytest.fail("a member ran"))
+    with pytest.raises(InputError, match=r"storing the ensemble samples \(1\.01e\+04 points x 11 numbers\)"):
+        ldaspark.integrate("skate", "gauss-2", h=0.01, n_steps=100, **kw)
+    assert ran == []
+    # one member alone fits
+    assert ldaspark.integrate("skate", "gauss-2", h=0.01, n_steps=100).status == 0
+
+
+def _raises_in_member_1(t, q, v):
+    """An event function that raises in the member started at q[0] = 0.5 (module level: pickles)."""
+    if abs(q[0] - 0.5) < 0.05:
+        raise ZeroDivisionError("boom")
+    return 1.0
+
+
+@pytest.mark.parametrize("where", ["loop", "threads"])
+@pytest.mark.parametrize("fault", ["inconsistent v0", "parameter", "event"])
+def test_an_ensemble_error_names_the_member_on_every_path(where, fault):
+    """A member whose set-up or event function fails ends the call with an error naming the member
+    (the executor path's initial-point check said "ensemble member 1:", the loop did not, and no
+    path named a member with a bad parameter value or a raising event function)."""
+    from concurrent.futures import ThreadPoolExecutor
+    sc = get_scene("particle")
+    Q0 = [[1, 0, 0], [0.5, 0, 0], [0.2, 0, 0]]
+    V0 = [[0, 1, 0], [0, 0.5, 0], [0, 0.3, 0]]
+    kw = dict(n_steps=5, h=0.1, q0=Q0, v0=V0)
+    if fault == "inconsistent v0":
+        kw["v0"] = [V0[0], [1, 1, 1], V0[2]]
+    elif fault == "event":
+        kw["events"] = _raises_in_member_1
+    system = sc.system
+    if fault == "parameter":
+        system = LagrangianSystem("(vx**2 + vy**2 + vz**2)/2 - g*z", ["vz - x*vy"], ["x", "y", "z"],
+                                  ["vx", "vy", "vz"], params=["g"], name="knife")
+        kw = dict(n_steps=5, h=0.1, q0=[0, 0, 0], v0=[1, 0, 0], params=[{"g": 1}, {"g": "foo"}, {"g": 2}])
+    ex = ThreadPoolExecutor(1) if where == "threads" else None
+    with pytest.raises(ldaspark.LdasparkError, match=r"^ensemble member 1: "):
+        ldaspark.integrate(system, "gauss-2", executor=ex, **kw)

@@ -75,3 +75,38 @@ def test_negative_control_a_lambda_event_with_threads_is_accepted():
     with cf.ThreadPoolExecutor(1) as ex:
         res = ldaspark.integrate("particle", "gauss-1", events=lambda t, q, v: q[0], executor=ex, **ENS)
     assert res.q.shape[0] == 2
+
+
+class ResolvesToInt(cf.Executor):
+    """Runs nothing; every future it returns resolves to 42."""
+
+    def submit(self, fn, /, *args, **kwargs):
+        f = cf.Future()
+        f.set_result(42)
+        return f
+
+
+class DropsARun(cf.Executor):
+    """Runs each task in this process and drops the last run of its output."""
+
+    def submit(self, fn, /, *args, **kwargs):
+        f = cf.Future()
+        f.set_result(fn(*args, **kwargs)[:-1])
+        return f
+
+
+@pytest.mark.parametrize("ex, match", [(ResolvesToInt(), r"ResolvesToInt returned int 42 for a task of \d ensemble member"),
+                                       (DropsARun(), r"DropsARun returned list .* for a task of \d ensemble member")])
+def test_an_executor_whose_futures_return_no_runs_is_one_error_naming_it(ex, match):
+    # the kernel tasks of run_many (guard=False sends an executor's ensemble there): a future that
+    # resolves to something other than the task's runs was a TypeError ('int' object is not
+    # iterable) or a short ensemble
+    sc = ldaspark.get_scene("skate")
+    kw = dict(q0=[sc.q0, sc.q0], v0=[sc.v0, sc.v0], h=0.1, n_steps=3, guard=False)
+    from ldaspark.ensemble import RunSpec, run_many
+    with pytest.raises(LdasparkError, match=match):
+        ldaspark.integrate("skate", "gauss-2", executor=ex, **kw)
+    with pytest.raises(LdasparkError, match=match):
+        run_many([RunSpec(sc.system, "gauss-2", 0.0, kw["q0"], kw["v0"], 0.1, 3)], where=ex, chunk=2)
+    with cf.ThreadPoolExecutor(1) as good:      # negative control
+        assert ldaspark.integrate("skate", "gauss-2", executor=good, **kw).q.shape == (2, 4, 3)
