@@ -37,7 +37,7 @@ from . import modeltypes as mt
 # it compiles in live in sibling modules. Their digest is written here so that editing a helper
 # changes this file too (tests/compiled/test_compiled_general.py checks it; update it after an edit).
 HELPERS = ("newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py", "modeltypes.py")
-HELPERS_SHA256 = "cabc65c38f3aa8c90e29c3c7f2fa8ecac9f93c712037676ec32f919639152eb9"
+HELPERS_SHA256 = "3b6c7eddc91c962c5017ada5bff1819889ed9cfb67b81f389bcbc26da4fbf396"
 
 from .newton import (FAIL_NONFINITE, FAIL_SINGULAR, accept_step, advance, end_newton, factor_newton,  # noqa: E402
                      fail, lu_factor, lu_solve, newton_increment, newton_status, norm_inf, predict, record, shift)

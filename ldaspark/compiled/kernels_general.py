@@ -75,7 +75,7 @@ def general_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
     """Residual G of (21b, d, e, f) in x = [Z | Lambda | dv] (V_i = v0 + Z_i, v1 = v0 + dv) and,
     if jac, its Jacobian J. The first call of a step (jac) also sets ws[27] = p0 = grad_v L(t0,
     q0, v0). M is unused (the signature is that of ``kernels_mech.spark_eval``). Returns the
-    number of points evaluated."""
+    stage points of the residual, s + 1 (``nfev``'s meaning on every engine)."""
     point_val, point_jac = model[1], model[2]
     if jac:
         point_val(t0, q0, v0, ws[27], ws[17], ws[18], ws[19])
@@ -122,8 +122,7 @@ def general_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
         general_jacobian(tab, h, ws, J)
         if model[6]:
             nonideal_jacobian(tab, h, ws[28], m, J)
-        return 2 * s + 3
-    return s + 1
+    return s + 1          # nfev counts the residual's stage points on every engine; njev the Jacobians
 
 
 @numba.njit(cache=True, _nrt=False)

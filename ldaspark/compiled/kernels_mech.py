@@ -73,12 +73,12 @@ def mech_begin(model, t0, q0, v0, ws):
 @numba.njit(cache=True, _nrt=False)
 def spark_eval(model, tab, jac, x, t0, q0, v0, h, M, ws, G, J):
     """Residual G of (21b, d, e, f) in the increment unknowns x = [Z | Lambda | dv] and, if jac,
-    its Jacobian J (dense). Returns the number of points evaluated."""
+    its Jacobian J (dense). Returns the stage points of the residual (s + 1: the meaning of
+    ``nfev`` on every engine; the Jacobian's own evaluations are counted by ``njev``)."""
     mech_residual(model, tab, x, t0, q0, v0, h, ws, G)
     if jac:
         mech_jacobian_parts(model, tab, x, t0, h, ws)
         spark_jacobian(tab, h, M, ws, J)
-        return 2 * tab[0].shape[0] + 1
     return tab[0].shape[0] + 1
 
 
@@ -90,7 +90,6 @@ def spark_eval_sparse(model, tab, jac, x, t0, q0, v0, h, M, ws, G, sp):
     if jac:
         mech_jacobian_parts(model, tab, x, t0, h, ws)
         sparse_assemble(tab, h, M, ws[8], ws[9], ws[5], ws[10], ws[13], ws[15], sp)
-        return 2 * tab[0].shape[0] + 1
     return tab[0].shape[0] + 1
 
 

@@ -52,7 +52,7 @@ from .newton import (FAIL_NONFINITE, RATE_KAPPA, end_newton, fail, lu_factor, lu
 # digest is written here so that editing one changes this file too (tests/test_kernels_quasi.py).
 HELPERS = ("kernels.py", "newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py",
            "modeltypes.py")
-HELPERS_SHA256 = "f05a3ce699d22044b2a7f8630ce5ca27313c1a0cad421a167bf4834c32aee799"
+HELPERS_SHA256 = "15774c5b0e1b4319b3938e08eadd1d962a6d1628bf1d99c6a2993fc813567b92"
 
 #: a quasi-Newton increment that contracts by less than this (|dx_k| > QUASI_THETA |dx_k-1|)
 #: sends the step to the Newton chain: at rate 1/2 the ~50 bits from a predictor error of 1e-2

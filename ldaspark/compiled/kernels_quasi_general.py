@@ -36,7 +36,7 @@ from .newton import (FAIL_NONFINITE, RATE_KAPPA, end_newton, fail, lu_factor, lu
 # compiles in (tests/compiled/test_quasi_general.py checks it)
 HELPERS = ("kernels.py", "newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py",
            "modeltypes.py", "kernels_quasi.py")
-HELPERS_SHA256 = "735471f821b2732ffdf123c7959fb1447d02d959a287e3a76243d9a48716ca5b"
+HELPERS_SHA256 = "19732cb24dc0d5c2cf99ade1dcf54c7128cf02b59b53f745c5252c0d5b9b2d75"
 
 
 @numba.njit(cache=True)

@@ -349,3 +349,22 @@ def test_a_rescued_run_counts_the_generic_steps_work():
     assert r.status == 0 and r.stats["rescued_steps"] >= 1
     _check_counters(r, "full", "rescued")
     assert r.njev >= r.newton_iterations and r.nfev >= 3 * r.newton_iterations, (r.njev, r.nfev, r.newton_iterations)
+
+
+@pytest.mark.parametrize("scene", ["skate", "relativistic"])
+def test_nfev_counts_the_residuals_stage_points_on_every_engine(scene):
+    """``nfev`` is the stage points of the residual evaluations (s + 1 each) on every engine; the
+    Jacobians are ``njev``. The compiled kernels counted a Jacobian's evaluations in ``nfev`` too
+    (2 s + 1 per residual with Jacobian on the mechanical kernel, 2 s + 3 on the general one):
+    skate gauss-2 full Newton, 20/20/20 iterations/njev/nlu on both engines, nfev 60 generic and
+    100 compiled. Full Newton evaluates one residual per iteration, so nfev = (s + 1) iterations
+    on both engines (skate: the mechanical kernel; relativistic: the general one)."""
+    s = 2
+    runs = {eng: ldaspark.integrate(scene, f"gauss-{s}", h=0.1, n_steps=10, engine=eng,
+                                    newton=ldaspark.Newton(kind="full"))
+            for eng in ("generic", "compiled")}
+    assert runs["compiled"].stats["path"] != "generic"
+    for eng, r in runs.items():
+        assert r.status == 0 and r.newton_iterations > 0, (eng, r.message)
+        assert r.nfev == (s + 1) * r.newton_iterations, (eng, r.nfev, r.newton_iterations)
+        assert r.njev == r.nlu == r.newton_iterations, (eng, r.njev, r.nlu)
