@@ -98,6 +98,18 @@ def _main_options_to_section(args) -> None:
         setattr(args, dest, val)
 
 
+def _check_outdir_writable(outdir) -> None:
+    """OUTDIR made now and a file created (and removed) in it, as the sections will at the end of
+    their runs: ``--outdir /proc/x`` or a read-only directory ran the whole job, then failed."""
+    from ...core.errors import InputError
+    from ...core.io import check_destination
+    try:
+        os.makedirs(outdir, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"--outdir {outdir}: cannot be created ({exc.strerror or exc})") from None
+    check_destination(os.path.join(outdir, "report_timing.json"))
+
+
 def run(args) -> int:
     # the reports time the kernel every run gets from its first call (the generic one), not the one
     # specialised per (s, n, m) that a long-lived process builds in the background: a row must not
@@ -111,6 +123,8 @@ def run(args) -> int:
         # refused now: every section writes OUTDIR/<name> and OUTDIR/figures at the end of its runs
         from ...core.errors import InputError
         raise InputError(f"--outdir {outdir} is not a directory")
+    if outdir is not None:
+        _check_outdir_writable(outdir)
     if getattr(args, "section", None):
         return int(args.section_run(args) or 0)
     from ...core.errors import InputError

@@ -86,7 +86,31 @@ def test_main_job_options_before_a_section_reach_it_or_are_refused(section, tmp_
         args = p.parse_args(["report", "--outdir", "a", section, "--outdir", "b"])
         with pytest.raises(InputError, match="before and after"):
             driver.run(args)
-    assert list(tmp_path.iterdir()) == []
+    assert [f for f in tmp_path.rglob("*") if not f.is_dir()] == []       # OUTDIR made, nothing written
+
+
+@pytest.mark.parametrize("argv", [["report", "--outdir", "/proc/ldaspark-no-such-dir"],
+                                  ["report", "energy", "--figure", "2", "--outdir", "/proc/ldaspark-no-such-dir"],
+                                  ["report", "systems", "--outdir", "/proc/ldaspark-no-such-dir"]])
+def test_an_outdir_that_cannot_be_written_is_refused_before_the_run(argv, capsys, monkeypatch):
+    """``ldaspark report --outdir /proc/x`` (a directory that cannot be made or written) ran the
+    sections (energy 15 s, the main job to the end) and then failed writing; one line and exit 2
+    before any work now (the sections' work is replaced by a marker that must not run)."""
+    import os
+    from ldaspark.lab.reports import driver
+    if not os.path.isdir("/proc/self"):
+        pytest.skip("needs procfs")
+    from ldaspark.core.errors import LdasparkError
+    ran = []
+    args = build_parser("report").parse_args(argv)
+    monkeypatch.setattr(driver, "available_sections", lambda: {})
+    monkeypatch.setattr("ldaspark.lab.reports.jobs.run_sections", lambda *a, **k: ran.append(1) or {})
+    monkeypatch.setattr("ldaspark.lab.reports.timing.probe_cpu", lambda: ran.append(1))
+    if getattr(args, "section", None):
+        args.section_run = lambda a: ran.append(1) or 0
+    with pytest.raises(LdasparkError, match="ldaspark-no-such-dir"):
+        driver.run(args)
+    assert ran == []
 
 
 def _fake_section():
