@@ -35,8 +35,11 @@ _PATH_OPTIONS = ("out", "json", "outdir", "tableau", "keep_killed", "fill", "fil
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message):  # argparse's own usage errors: one line, exit 2
-        self.exit(2, f"ldaspark: error: {message}\n")
+    def error(self, message):
+        # argparse's own usage errors: one line, exit 2. Its message quotes the user's words raw
+        # ("unrecognized arguments: ..."): line breaks and terminal controls are written as escapes
+        from .core.errors import one_line
+        self.exit(2, f"ldaspark: error: {one_line(message)}\n")
 
 
 def _add_integrate(sub):

@@ -362,9 +362,10 @@ def run_units_partial(units: Iterable[Unit], where=None, jobs=None, retries: int
     return results, failed
 
 
-def add_scheduler_argument(parser):
-    """``--scheduler ADDRESS``: the one command-line option naming where work runs."""
-    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
+def add_scheduler_argument(parser, action="store"):
+    """``--scheduler ADDRESS``: the one command-line option naming where work runs (``action``:
+    argparse's, for a command that needs to know the option was given)."""
+    parser.add_argument("--scheduler", default=None, metavar="ADDRESS", action=action,
                         help="run the work units on a Dask cluster (e.g. tcp://host:8786; needs the dist "
                              "extra) instead of local worker processes; results do not depend on it")
 

@@ -84,8 +84,36 @@ def check_destination(path) -> None:
     """Refuse now (LdasparkError, one line) an output path the writers would refuse at the end (a
     directory, a socket, an unreadable component): a long run checks its outputs before it starts,
     so that it never computes for nothing nor leaves half of a pair of files written."""
-    if path is not None:
-        _destination(os.fspath(path))
+    if path is None:
+        return
+    path = os.fspath(path)
+    kind, target = _destination(path)
+    if kind == "replace":
+        _check_replaceable(path, target)
+
+
+def _check_replaceable(path, target) -> None:
+    """The writers' own first steps, tried now: the target's directory can be made and holds a new
+    file (a temporary file created and removed at once, as ``_atomic_replace`` creates it). A type
+    check alone let ``/proc/version`` or a file in a read-only directory through: the run computed,
+    then failed to write."""
+    d = os.path.dirname(os.path.abspath(target))
+    probe = d
+    while not os.path.lexists(probe):          # the writer makes the missing directories
+        probe = os.path.dirname(probe)
+    if probe != d:
+        if not os.path.isdir(probe):
+            raise LdasparkError(f"cannot write {path}: {probe} is not a directory")
+        if not os.access(probe, os.W_OK | os.X_OK):
+            raise LdasparkError(f"cannot write {path}: {probe} is not writable (Permission denied)")
+        return
+    tmp = TempFile(target)
+    try:
+        tmp.create()
+    except OSError as exc:
+        raise LdasparkError(f"cannot write {path}: {exc.strerror or exc}") from None
+    finally:
+        tmp.remove()
 
 
 def atomic_write_bytes(path, data: bytes) -> None:

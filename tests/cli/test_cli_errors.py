@@ -94,6 +94,21 @@ def test_an_empty_output_path_is_refused_not_ignored(capsys, tmp_path, monkeypat
     assert main(["methods", "--max-s", "1", "--json", "m.json"]) == 0 and (tmp_path / "m.json").is_file()
 
 
+@pytest.mark.parametrize("argv", [
+    ["methods", "\x1b[31mred\nline two"],                 # unrecognized arguments: quoted raw
+    ["integrate", "skate", "gauss-1", "--h", "0.5", "--t-end", "1", "--out", "o.json", "x\x1b]0;t\x07\ry"],
+    ["methods", "--max-s", "1", "--bogus\x1b[2J"],
+])
+def test_argparse_errors_escape_the_users_control_characters(capsys, tmp_path, monkeypatch, argv):
+    """argparse's own usage errors quote the user's words raw ("unrecognized arguments: ..."): a
+    line break gave two lines on stderr, an ESC reached the terminal. One line now, with the
+    controls written as escapes (as every LdasparkError message writes them)."""
+    monkeypatch.chdir(tmp_path)
+    line = _one_error_line(capsys, argv, match="unrecognized arguments")
+    assert not any(ord(c) < 0x20 or ord(c) == 0x7f for c in line), repr(line)
+    assert "\\x1b" in line                       # the escape is shown, not dropped
+
+
 @pytest.mark.parametrize("text, match", [
     ("{not json", "not valid JSON"),
     ('{"c": [0.5]}', "missing"),

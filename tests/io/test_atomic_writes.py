@@ -209,3 +209,24 @@ def test_new_file_gets_the_mode_open_would_give(tmp_path):
         assert (q.stat().st_mode & 0o777) == 0o640
     finally:
         os.umask(old)
+
+
+def test_check_destination_tries_the_writers_first_step(tmp_path, capsys):
+    """check_destination looked at the target's type only: ``/proc/version`` (a regular file in a
+    directory that holds no new file) passed, so ``ldaspark audit --out /proc/version`` ran the
+    whole audit and then failed to write. It now creates (and removes) a temporary file beside
+    the target, as the writer will; a directory still to be made needs a writable ancestor."""
+    if os.path.isfile("/proc/version"):
+        with pytest.raises(LdasparkError, match="cannot write /proc/version"):
+            lio.check_destination("/proc/version")
+        rc = main(["audit", "--method", "gauss-1", "--quick", "--out", "/proc/version"])
+        out, err = capsys.readouterr()
+        assert rc == 2 and "[audit]" not in err and len(err.strip().splitlines()) == 1, err   # before any work
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    with pytest.raises(LdasparkError, match="(?i)not a directory"):
+        lio.check_destination(str(blocker / "new" / "out.json"))
+    # controls: a new file, a new directory, an existing file; nothing is left behind
+    for ok in (tmp_path / "out.json", tmp_path / "a" / "b" / "out.json", blocker):
+        lio.check_destination(str(ok))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file"] and blocker.read_text() == "x"

@@ -40,41 +40,50 @@ NOT_MEASURED = re.compile(
     r"\(\d+[a-f]?(?:-[a-f])?\)"          # equation references (22a), (23a-d), (3a-b)
     r"|\bs = \d\b|\b\d+ digits\b"          # stage counts, working precision
     r"|\bh = [\d.]+|\brtol [\d.e-]+"        # step sizes and tolerances of the runs
+    r"|\[0, [\d.e+]*\]|\bat \d[\d.e+-]*:"      # the runs' intervals [0, 1e4], target errors "at 1e-9:"
     r"|_\{[^}]*\}|[A-Za-z][\w-]*\d\w*"      # subscripts v_{k+1/2}, names q0, t1, gauss-2
     r"|!?= 0\b")                            # "k != 0"
 
 
 def _quoted_tables(text):
-    """(heading, rows as lists of cells) of README's findings and speed tables."""
+    """(heading, rows as lists of cells, index of the measured column) of each table of README's
+    findings and speed sections. The measured column is the one headed "verdict" or "measured"
+    (the third of the "situation | use | measured" table, not always the second)."""
     out = []
     for heading in ("## What the suite found", "## Speed and accuracy"):
         assert heading in text, f"README lost its table '{heading}'"
         block = text.split(heading, 1)[1].split("\n## ", 1)[0]
-        rows = [ln for ln in block.split("\n") if ln.startswith("|")][2:]     # skip header, delimiter
-        cells = []
-        for ln in rows:
-            parts = [c.strip() for c in re.split(r"(?<!\\)\|", ln.strip())[1:-1]]
-            assert len(parts) >= 2, ln
-            cells.append(parts)
-        out.append((heading, cells))
+        for table in re.split(r"\n(?!\|)[^\n]*", "\n" + block):       # runs of consecutive table lines
+            lines = [ln for ln in table.split("\n") if ln.startswith("|")]
+            if len(lines) < 3:
+                continue
+            cells = []
+            for ln in lines:
+                parts = [c.strip() for c in re.split(r"(?<!\\)\|", ln.strip())[1:-1]]
+                assert len(parts) >= 2, ln
+                cells.append(parts)
+            header = [c.lower() for c in cells[0]]
+            col = next((i for i, c in enumerate(header) if c.startswith(("measured", "verdict"))), None)
+            assert col is not None, f"{heading}: a table without a measured / verdict column: {lines[0]}"
+            out.append((heading, cells[2:], col))                  # skip header, delimiter
     return out
 
 
 def check_readme_quotes(text, values, reports_dir=None, snap=None):
     """Problems: marked values that differ from the reports (by the key's kind: exact, residual
     class, timing against the committed snapshot; ``summary.quote_problem``), unknown keys,
-    unmarked numbers."""
+    unmarked numbers in the measured column."""
     from ldaspark.lab.reports.summary import quote_problem
     problems = []
-    for heading, cells in _quoted_tables(text):
+    for heading, cells, col in _quoted_tables(text):
         for row in cells:
             for key, shown in MARK.findall(" | ".join(row)):
                 p = quote_problem(key, shown, values, reports_dir, snap)
                 if p is not None:
                     problems.append(f"{heading}: {p}")
-            rest = NOT_MEASURED.sub("", MARK.sub("", row[1]))       # the verdict / measured column
+            rest = NOT_MEASURED.sub("", MARK.sub("", row[col]))      # the verdict / measured column
             if re.search(r"\d", rest):
-                problems.append(f"{heading}: unmarked number in {row[1]!r}")
+                problems.append(f"{heading}: unmarked number in {row[col]!r}")
     return problems
 
 
@@ -108,6 +117,24 @@ def test_readme_quote_check_catches_a_stale_number():
     assert len(check_readme_quotes(ok, {"convergence.spark": "120 of 120"}, snap={"values": {}})) == 1
     assert len(check_readme_quotes(ok, {"convergence.spark": "120 of 120"},
                                    snap={"values": {"wp.sps.median": "180x"}})) == 1
+
+
+def test_readme_quote_check_reads_the_measured_column_of_every_table():
+    """The unmarked-number check read the second column of every row; in the "situation | use |
+    measured" table that is the method's name, so an unmarked measured number there passed (a
+    check that could not fail). Each table's measured column is found from its header now; a
+    run's interval and target ("t in [0, 100]", "at 1e-9:") are settings, not measurements."""
+    text = ("## What the suite found\n\n| claim | verdict | where |\n|---|---|---|\n"
+            "| orders | <!--convergence.spark-->120 of 120<!--/--> hold | tests/x.py |\n\n"
+            "## Speed and accuracy\n\n| what | measured |\n|---|---|\n| steps/s | <!--wp.sps.median-->178x<!--/--> |\n\n"
+            "prose between the tables\n\n| situation | use | measured |\n|---|---|---|\n"
+            "| short runs | SPARK gauss-8 | speed-up on the skate, t in [0, 100]: 3.1x (at 1e-9: "
+            "<!--wp.sps.median-->178x<!--/-->) |\n")
+    vals, snap = {"convergence.spark": "120 of 120", "wp.sps.median": "178x"}, {"values": {"wp.sps.median": "178x"}}
+    problems = check_readme_quotes(text, vals, snap=snap)
+    assert len(problems) == 1 and "unmarked number" in problems[0] and "3.1x" in problems[0], problems
+    assert check_readme_quotes(text.replace("3.1x", "<!--wp.sps.median-->178x<!--/-->"), vals, snap=snap) == []
+    assert [col for _, _, col in _quoted_tables(text)] == [1, 1, 2]
 
 
 def test_readme_interface_example_runs(tmp_path, monkeypatch, capsys):

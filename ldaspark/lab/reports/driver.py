@@ -17,6 +17,7 @@ installed are skipped (and not offered on the command line).
 """
 from __future__ import annotations
 
+import argparse
 import importlib
 import importlib.util
 import os
@@ -46,20 +47,67 @@ def available_sections():
 
 
 # --- dispatcher -----------------------------------------------------------------------------
+class _MainJobOption(argparse.Action):
+    """An option of the main job (``ldaspark report --outdir X``). Given before a section's name
+    (``ldaspark report --outdir X systems``) argparse let the section's option of the same name,
+    or its default, overwrite it in silence (the section wrote to reports/); the value is also
+    kept aside in ``main_options``, and ``run`` hands it to the section or refuses it."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        val = self.const if self.nargs == 0 else values
+        setattr(namespace, self.dest, val)
+        given = dict(getattr(namespace, "main_options", None) or {})
+        given[self.dest] = (option_string, val)
+        namespace.main_options = given
+
+
 def add_arguments(p):
-    p.add_argument("--outdir", default=REPORT_DIR, help="directory of the reports (main job)")
-    p.add_argument("--full", action="store_true",
+    p.add_argument("--outdir", default=REPORT_DIR, action=_MainJobOption,
+                   help="directory of the reports (main job; before a section: that section's --outdir)")
+    p.add_argument("--full", nargs=0, const=True, default=False, action=_MainJobOption,
                    help="main job: the exhaustive sweeps of the sections that have them (stability)")
-    p.add_argument("--workers", type=int, default=None,
+    p.add_argument("--workers", type=int, default=None, action=_MainJobOption,
                    help="main job: worker processes (default: the number of cores)")
     from ...executors import add_scheduler_argument
-    add_scheduler_argument(p)
+    add_scheduler_argument(p, action=_MainJobOption)
     sub = p.add_subparsers(dest="section", parser_class=type(p))
     for name, mod in available_sections().items():
         sp = sub.add_parser(name, help=f"{name} report")
         module = importlib.import_module(mod)
         module.add_arguments(sp)
-        sp.set_defaults(section_run=module.run)
+        sp.set_defaults(section_run=module.run,
+                        section_options={a.dest: a.default for a in sp._actions if a.option_strings})
+
+
+def _main_options_to_section(args) -> None:
+    """The main job's options given before the section's name: the section's own option of that
+    name takes the value (unless it was given after the name too, with another value); an option
+    the section does not have is refused (it would be ignored)."""
+    from ...core.errors import InputError
+    own = getattr(args, "section_options", None) or {}
+    for dest, (opt, val) in (getattr(args, "main_options", None) or {}).items():
+        if dest not in own:
+            raise InputError(f"{opt} is an option of the main job (ldaspark report without a section); "
+                             f"the {args.section} section does not take it")
+        now = getattr(args, dest, None)
+        if now != own[dest] and now != val:
+            raise InputError(f"{opt} given before and after {args.section} with different values: "
+                             f"{val!r} and {now!r}")
+        if dest == "outdir" and isinstance(val, str) and not val.strip():
+            raise InputError("--outdir is an empty path")
+        setattr(args, dest, val)
+
+
+def _check_outdir_writable(outdir) -> None:
+    """OUTDIR made now and a file created (and removed) in it, as the sections will at the end of
+    their runs: ``--outdir /proc/x`` or a read-only directory ran the whole job, then failed."""
+    from ...core.errors import InputError
+    from ...core.io import check_destination
+    try:
+        os.makedirs(outdir, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"--outdir {outdir}: cannot be created ({exc.strerror or exc})") from None
+    check_destination(os.path.join(outdir, "report_timing.json"))
 
 
 def run(args) -> int:
@@ -68,11 +116,15 @@ def run(args) -> int:
     # depend on when a build finished (benchmarks/quasi_step.py measures both; the results are the
     # same bits either way). The workers inherit this.
     os.environ["LDASPARK_SPECIALISE"] = "0"
+    if getattr(args, "section", None):
+        _main_options_to_section(args)
     outdir = getattr(args, "outdir", None)
     if outdir is not None and os.path.lexists(outdir) and not os.path.isdir(outdir):
         # refused now: every section writes OUTDIR/<name> and OUTDIR/figures at the end of its runs
         from ...core.errors import InputError
         raise InputError(f"--outdir {outdir} is not a directory")
+    if outdir is not None:
+        _check_outdir_writable(outdir)
     if getattr(args, "section", None):
         return int(args.section_run(args) or 0)
     from ...core.errors import InputError

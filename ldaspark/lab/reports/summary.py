@@ -329,6 +329,7 @@ def _us(x):
 
 def readme_values(reports_dir="reports") -> dict:
     """{key: text} for every value README quotes (keys of absent reports are missing)."""
+    from ...core.errors import InputError
     out = {}
     for name, fn in (("convergence.json", convergence_values), ("claims.json", claims_values),
                      ("energy.json", energy_values), ("work_precision.json", work_precision_values),
@@ -336,9 +337,16 @@ def readme_values(reports_dir="reports") -> dict:
                      ("peers.json", peers_values), ("scaling.json", scaling_values),
                      ("quasi_step.json", quasi_step_values),
                      ("mutation-generated.json", mutgen_values), ("coverage-checking.json", coverage_values)):
-        d = _load(reports_dir, name)
-        if d is not None:
-            out.update(fn(d))
+        path = os.path.join(reports_dir, name)
+        try:
+            d = _load(reports_dir, name)
+            if d is not None:
+                out.update(fn(d))
+        except (ValueError, KeyError, TypeError, AttributeError, IndexError) as exc:
+            # a malformed file or one of another layout (not the main job's): one line naming it,
+            # not a traceback from deep inside the value functions
+            raise InputError(f"report file {path} is not a report of the layout summary reads "
+                             f"({type(exc).__name__}: {str(exc)[:120]})") from None
     return out
 
 
@@ -453,28 +461,51 @@ def fill(text, values):
     return MARK.sub(lambda m: f"<!--{m.group(1)}-->{values.get(m.group(1), m.group(2))}<!--/-->", text)
 
 
+#: the largest file ``--fill`` reads (README.md is ~45 kB; /dev/zero or a runaway file is refused)
+FILL_MAX_BYTES = 2 ** 24
+
+
 def main(argv=None):
     """``python -m ldaspark.lab.reports.summary [--reports DIR] [--fill FILE]``: list every key with its
-    current text, or rewrite the marked values of FILE (README.md) from the reports."""
+    current text, or rewrite the marked values of FILE (README.md) from the reports. A bad input
+    (no such directory, FILE not a regular UTF-8 text file of at most 16 MiB, a malformed report)
+    is one line on stderr and exit 2, as for ``ldaspark``'s commands."""
     import argparse
+
+    from ...core.errors import InputError, LdasparkError
+    from ...core.validate import read_regular
     ap = argparse.ArgumentParser(prog="python -m ldaspark.lab.reports.summary", description=main.__doc__)
     ap.add_argument("--reports", default="reports")
     ap.add_argument("--fill", default=None, help="rewrite the <!--KEY-->value<!--/--> marks of this file")
     args = ap.parse_args(argv)
-    values = readme_values(args.reports)
-    if args.fill:
-        with open(args.fill) as f:
-            text = f.read()
-        new = fill(text, values)
-        if new != text:
-            from ...core.io import atomic_write_text
-            atomic_write_text(args.fill, new)
-        write_snapshot(args.reports, values)
-        print(f"{args.fill}: {'updated' if new != text else 'already current'}; timing snapshot in "
-              f"{os.path.join(args.reports, 'report_timing.json')}")
-        return 0
-    for k, v in values.items():
-        print(f"<!--{k}-->{v}<!--/-->")
+    try:
+        if not os.path.isdir(args.reports):     # else every key is silently absent: nothing listed or filled
+            raise InputError(f"--reports {args.reports} is not a directory")
+        if args.fill is not None:
+            from ...core.io import check_destination
+            # read bounded, through the checked opener: a FIFO or /dev/zero is refused, never read
+            raw = read_regular(args.fill, FILL_MAX_BYTES, "--fill file")
+            try:
+                text = raw.decode("utf-8")
+            except UnicodeDecodeError:
+                raise InputError(f"--fill file {args.fill} is not UTF-8 text") from None
+            check_destination(args.fill)
+        values = readme_values(args.reports)
+        if args.fill is not None:
+            new = fill(text, values)
+            if new != text:
+                from ...core.io import atomic_write_text
+                atomic_write_text(args.fill, new)
+            write_snapshot(args.reports, values)
+            print(f"{args.fill}: {'updated' if new != text else 'already current'}; timing snapshot in "
+                  f"{os.path.join(args.reports, 'report_timing.json')}")
+            return 0
+    except LdasparkError as exc:
+        print(f"summary: error: {exc}", file=sys.stderr)
+        return 2
+    from ...core.errors import one_line
+    for k, v in values.items():     # scene and method names come from the files: no raw controls
+        print(one_line(f"<!--{k}-->{v}<!--/-->"))
     return 0
 
 

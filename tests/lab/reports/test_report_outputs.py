@@ -45,6 +45,74 @@ def test_main_job_takes_outdir_full_and_workers():
     assert args.outdir == "x" and args.full and args.workers == 1 and args.section is None
 
 
+def _section_dests(parser, section):
+    """The option dests of ``ldaspark report SECTION`` (its subparser's own options)."""
+    import argparse
+    rep = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices["report"]
+    sub = next(a for a in rep._actions if isinstance(a, argparse._SubParsersAction)).choices[section]
+    return {a.dest for a in sub._actions if a.option_strings}
+
+
+@pytest.mark.parametrize("section", sorted(available_sections()))
+def test_main_job_options_before_a_section_reach_it_or_are_refused(section, tmp_path, monkeypatch, capsys):
+    """``ldaspark report --outdir X systems`` parsed to outdir = reports (the section's default
+    overwrote X in silence: the section wrote into the repository's reports/); ``--workers 3
+    convergence`` ran with 2 workers, ``--full convergence`` / ``--workers 3 stability`` were
+    ignored. The section now gets the value when it has the option, else one line and exit 2."""
+    from ldaspark.core.errors import InputError
+    from ldaspark.lab.reports import driver
+    monkeypatch.chdir(tmp_path)
+    p = build_parser("report")
+    own = _section_dests(p, section)
+    seen = {}
+    for opt, val, want in (("--outdir", str(tmp_path / "x"), str(tmp_path / "x")), ("--workers", "3", 3),
+                           ("--full", None, True), ("--scheduler", "tcp://127.0.0.1:1", "tcp://127.0.0.1:1")):
+        dest = opt[2:]
+        args = p.parse_args(["report", opt] + ([val] if val else []) + [section])
+        args.section_run = lambda a: seen.update(value=getattr(a, dest, None)) or 0     # the section's work
+        seen.clear()
+        if dest in own:
+            assert driver.run(args) == 0 and seen["value"] == want, (opt, seen)
+        else:
+            with pytest.raises(InputError, match="option of the main job"):
+                driver.run(args)
+            assert not seen
+    # through the command line: one line, exit 2, before any work (nothing written)
+    if "full" not in own:
+        assert main(["report", "--full", section]) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "--full is an option of the main job" in err
+    if "outdir" in own:
+        args = p.parse_args(["report", "--outdir", "a", section, "--outdir", "b"])
+        with pytest.raises(InputError, match="before and after"):
+            driver.run(args)
+    assert [f for f in tmp_path.rglob("*") if not f.is_dir()] == []       # OUTDIR made, nothing written
+
+
+@pytest.mark.parametrize("argv", [["report", "--outdir", "/proc/ldaspark-no-such-dir"],
+                                  ["report", "energy", "--figure", "2", "--outdir", "/proc/ldaspark-no-such-dir"],
+                                  ["report", "systems", "--outdir", "/proc/ldaspark-no-such-dir"]])
+def test_an_outdir_that_cannot_be_written_is_refused_before_the_run(argv, capsys, monkeypatch):
+    """``ldaspark report --outdir /proc/x`` (a directory that cannot be made or written) ran the
+    sections (energy 15 s, the main job to the end) and then failed writing; one line and exit 2
+    before any work now (the sections' work is replaced by a marker that must not run)."""
+    import os
+    from ldaspark.lab.reports import driver
+    if not os.path.isdir("/proc/self"):
+        pytest.skip("needs procfs")
+    from ldaspark.core.errors import LdasparkError
+    ran = []
+    args = build_parser("report").parse_args(argv)
+    monkeypatch.setattr(driver, "available_sections", lambda: {})
+    monkeypatch.setattr("ldaspark.lab.reports.jobs.run_sections", lambda *a, **k: ran.append(1) or {})
+    monkeypatch.setattr("ldaspark.lab.reports.timing.probe_cpu", lambda: ran.append(1))
+    if getattr(args, "section", None):
+        args.section_run = lambda a: ran.append(1) or 0
+    with pytest.raises(LdasparkError, match="ldaspark-no-such-dir"):
+        driver.run(args)
+    assert ran == []
+
+
 def _fake_section():
     mod = types.ModuleType("ldaspark_fake_section")
     mod.square = lambda x: x * x

@@ -134,6 +134,42 @@ def test_fill_and_snapshot_through_main(tmp_path, capsys):
     assert "<!--run.cores-->2<!--/-->" in capsys.readouterr().out.splitlines()
 
 
+def test_main_bad_inputs_are_one_line_and_exit_2(tmp_path, capsys):
+    """``--fill /dev/zero`` read without bound (memory filled); a missing --fill file, a directory,
+    a report of another layout gave tracebacks (exit 1); a --reports directory that does not exist
+    listed nothing and exited 0. One line on stderr and exit 2 now, before anything is written."""
+    import os
+    rep = tmp_path / "reports"
+    rep.mkdir()
+    (rep / "report_timing.json").write_text(json.dumps({"wall": 12.0, "cpu": 34.0, "cpu_count": 2, "date": "x"}))
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    bad_claims = tmp_path / "bad"
+    bad_claims.mkdir()
+    (bad_claims / "claims.json").write_text('{"x": 1}')
+    (bad_claims / "energy.json").write_text('{not json')
+    binary = tmp_path / "bin.md"
+    binary.write_bytes(b"\xff\xfe\x00junk")
+    for argv, match in ((["--fill", "/dev/zero"], "not a regular file"), (["--fill", str(fifo)], "not a regular file"),
+                        (["--fill", str(tmp_path / "none.md")], "no such"), (["--fill", str(tmp_path)], "regular"),
+                        (["--fill", str(binary)], "UTF-8"), (["--reports", str(tmp_path / "none")], "not a directory"),
+                        (["--reports", str(bad_claims)], "claims.json"),
+                        (["--reports", str(rep / "report_timing.json")], "not a directory")):
+        args = (["--reports", str(rep)] if "--reports" not in argv else []) + argv
+        assert summary.main(args) == 2, argv
+        out, err = capsys.readouterr()
+        assert out == "" and len(err.strip().splitlines()) == 1 and match in err and "Traceback" not in err, err
+    (bad_claims / "claims.json").unlink()
+    assert summary.main(["--reports", str(bad_claims)]) == 2 and "energy.json" in capsys.readouterr().err
+    assert json.loads((rep / "report_timing.json").read_text()).get("readme") is None   # nothing written
+    # control: a good run lists the keys; names from the files are printed with their controls escaped
+    (rep / "claims.json").write_text(json.dumps([_claim("implicit-function", wellposed="singular",
+                                                        method="e\x1b[31m", scene="s\nx")]))
+    assert summary.main(["--reports", str(rep)]) == 0
+    out = capsys.readouterr().out
+    assert "<!--run.wall-->12 s<!--/-->" in out and "\x1b" not in out and "e\\x1b[31m on s\\nx" in out
+
+
 def _rec(method, scene, variable, observed, claimed=2, scope="variable"):
     return {"method": method, "scene": scene, "variable": variable, "observed_order": observed,
             "claimed_order": claimed, "claim_scope": scope}
