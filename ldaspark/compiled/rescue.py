@@ -38,8 +38,8 @@ def run_with_rescue(system, tab, cs, method, t0, q0, v0, h, n_steps, every, comp
                     kernel, predictor, first_failure, kopts=None):
     """Finish the run that failed with ``first_failure`` (the kernel's NewtonError or
     NonFiniteError, local step from t0) by generic full-Newton steps at the failing steps; returns a FastSolution with the
-    kernel's statistics summed and stats["generic_steps"] = the number of steps taken by the
-    generic engine. Raises the generic step's NewtonError (or NonFiniteError) where that fails too. ``kopts``
+    kernel's statistics summed, the generic steps' iterations, nfev, njev and nlu added, and
+    stats["generic_steps"] = the number of steps taken by the generic engine. Raises the generic step's NewtonError (or NonFiniteError) where that fails too. ``kopts``
     (``runner.KernelOptions``): the kernel runs' options as given (the root finder's kind, linear
     solver and matrix reuse among them); None: those of the other arguments."""
     from ..core.backend import Backend
@@ -126,6 +126,10 @@ def run_with_rescue(system, tab, cs, method, t0, q0, v0, h, n_steps, every, comp
             samples[start] = point(t, q, v, float(res.energy))
         totals["steps"] = totals.get("steps", 0) + 1
         totals["newton_iterations"] = totals.get("newton_iterations", 0) + res.iterations
+    # the generic steps' stage evaluations, Jacobians and LUs (a failed first attempt from the
+    # predictor's guess included): the run's counters are the work it did, the rescued steps too
+    for key in ("nfev", "njev", "nlu"):
+        totals[key] = totals.get(key, 0) + int(getattr(generic.stats, key))
     order = sorted(samples)
     st = dict(totals)
     st["generic_steps"] = rescues
