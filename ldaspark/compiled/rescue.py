@@ -42,8 +42,8 @@ def run_with_rescue(system, tab, cs, method, t0, q0, v0, h, n_steps, every, comp
                     kernel, predictor, first_failure, kopts=None):
     """Finish the run that failed with ``first_failure`` (the kernel's NewtonError or
     NonFiniteError, local step from t0) by generic full-Newton steps at the failing steps; returns a FastSolution with the
-    kernel's statistics summed and stats["generic_steps"] = the number of steps taken by the
-    generic engine. Raises the generic step's NewtonError (or NonFiniteError) where that fails too. ``kopts``
+    kernel's statistics summed, the generic steps' iterations, nfev, njev and nlu added, and
+    stats["generic_steps"] = the number of steps taken by the generic engine. Raises the generic step's NewtonError (or NonFiniteError) where that fails too. ``kopts``
     (``runner.KernelOptions``): the kernel runs' options as given (the root finder's kind, linear
     solver and matrix reuse among them); None: those of the other arguments."""
     from ..core.backend import Backend

@@ -30,6 +30,28 @@ def test_max_iterations_is_the_maximum_over_the_blocks(monkeypatch):
     assert blocks == one and one > 30          # was the first block's (36 against 69)
 
 
+def test_the_counters_add_up_over_the_blocks(monkeypatch):
+    """steps, nfev, njev, nlu, newton_iterations and full_newton_steps of a run in blocks are the
+    sums of its blocks' (each block's run recorded as the engine returns it), in ``stats`` and in
+    the Result's nfev, njev, nlu; with full Newton every Jacobian is factored once, so nlu = njev
+    over the run as within a block. Control: the run has more than one block."""
+    from ldaspark.engines.compiled import CompiledEngine
+    seen = []
+    real = CompiledEngine.run
+
+    def recording(self, prepared, start, n_steps, every):
+        res = real(self, prepared, start, n_steps, every)
+        seen.append(dict(res.stats))
+        return res
+    monkeypatch.setattr(CompiledEngine, "run", recording)
+    r = _run(10, monkeypatch, "gauss-3", h=0.2, n_steps=50, newton="full")
+    assert len(seen) == 5 and r.stats["steps"] == 50
+    for key in ("steps", "nfev", "njev", "nlu", "newton_iterations", "full_newton_steps"):
+        assert r.stats[key] == sum(st[key] for st in seen), (key, r.stats[key], [st[key] for st in seen])
+    assert (r.nfev, r.njev, r.nlu) == (r.stats["nfev"], r.stats["njev"], r.stats["nlu"])
+    assert r.nlu == r.njev >= 50
+
+
 @pytest.mark.parametrize("every", [1, 3])
 def test_the_saved_times_are_those_of_one_call(monkeypatch, every):
     """Each block started at t0 + done h and added j h: 10 of 41 times were an ulp off the generic

@@ -40,3 +40,56 @@ def test_exponent_check_detects_linear_drift(decimal_h):
     shift of ~1e-18 per step; the same exponent check sees the linear phase drift (Kahan does not
     remove it: it is in the increments, not in the sums)."""
     assert growth_exponent(decimal_h["N"], decimal_h["rms"]["compensated"]) > 0.8
+
+
+def _drift_system():
+    """A free particle in the plane kept on the line y = 0 (k = v_y): x(t) = x0 + v_x t exactly,
+    with every stage value V_i = v0 and every multiplier 0 (the residual of (21) vanishes at the
+    zero increments on every path), so each step adds exactly h b_j-sum v_x = h v_x to x."""
+    import sympy
+
+    from ldaspark.core.system import LagrangianSystem
+    x, y, vx, vy = sympy.symbols("x y vx vy")
+    return LagrangianSystem((vx ** 2 + vy ** 2) / 2, [vy], [x, y], [vx, vy], name="kahan-drift")
+
+
+def _kernel_paths():
+    """(label, run(compensated) -> FastSolution) for every compiled step loop that sums q and v:
+    the SPARK kernel with the dense and the block LU, the general-form kernel, the quasi-Newton
+    kernels of both forms and the semi-implicit kernel (25)."""
+    from ldaspark.compiled.quasi import run_quasi
+    from ldaspark.compiled.runner import compile_system, run_kernels
+    system = _drift_system()
+    mech, gen = compile_system(system), compile_system(system, form="general")
+    assert (mech.form, gen.form) == ("mechanical", "general")
+    q0, v0, h, n = [1.0, 0.0], [2.0 ** -60, 0.0], 2.0 ** -4, 2 ** 13
+    return q0, v0, h, n, {
+        "spark dense": lambda c: run_kernels(mech, "gauss-2", 0.0, q0, v0, h, n, n, c, kernel="spark",
+                                             linear_solver="dense", reuse_matrix=False),
+        "spark sparse": lambda c: run_kernels(mech, "gauss-2", 0.0, q0, v0, h, n, n, c, kernel="spark",
+                                              linear_solver="sparse", reuse_matrix=False),
+        "general": lambda c: run_kernels(gen, "gauss-2", 0.0, q0, v0, h, n, n, c, kernel="spark"),
+        "quasi": lambda c: run_quasi(mech, "gauss-2", 0.0, q0, v0, h, n, n, c),
+        "quasi general": lambda c: run_quasi(gen, "gauss-2", 0.0, q0, v0, h, n, n, c),
+        "semi-implicit (25)": lambda c: run_kernels(mech, "lobatto-iiia-iiib-2", 0.0, q0, v0, h, n, n, c),
+    }
+
+
+def test_every_kernel_sums_as_asked():
+    """x0 = 1, v_x = 2^-60, h = 2^-4: each step adds 2^-64 to x, below half an ulp of 1 (2^-53),
+    so plain summation never moves x (exactly x0 after any number of steps), while the
+    compensated sum keeps the lost bits and after N = 2^13 steps is within one ulp (2^-52) of the
+    exact x0 + N h v_x = 1 + 2^-51 (Kahan's bound; GNI VIII.5). On every kernel: a kernel that
+    ignored ``compensated`` (or dropped the correction) is 2 ulps off, one that compensated when
+    asked not to lands on 1 + 2^-51."""
+    q0, v0, h, n, paths = _kernel_paths()
+    exact = q0[0] + n * h * v0[0]
+    ulp = 2.0 ** -52
+    assert exact - q0[0] == 2 * ulp
+    for label, run in paths.items():
+        comp, plain = run(True), run(False)
+        assert comp.stats["compensated"] is True and plain.stats["compensated"] is False, label
+        assert comp.stats["steps"] == plain.stats["steps"] == n, label
+        assert abs(float(comp.q[-1][0]) - exact) <= ulp, (label, float(comp.q[-1][0]) - exact)
+        assert float(plain.q[-1][0]) == q0[0], (label, float(plain.q[-1][0]) - q0[0])
+        assert float(comp.q[-1][1]) == float(plain.q[-1][1]) == 0.0, label

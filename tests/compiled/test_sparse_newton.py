@@ -165,7 +165,7 @@ def test_assembled_matrix_and_solve_equal_the_dense_ones(method):
     ("robot", "gauss-2", 0.05, 200), ("skate", "gauss-3", 0.05, 200), ("particle", "gauss-1", 0.02, 200)])
 def test_runs_agree_with_the_dense_lu(scene, method, h, steps):
     """Whole runs: the same samples as the dense LU to 1e-12 (relative to max(1, |x|)), the same
-    Newton work (iterations, Jacobians), stats naming the solver."""
+    Newton work (iterations, Jacobians, one LU per Jacobian), stats naming the solver."""
     sc = _coupled() if scene == "coupled" else get_scene(scene)
     cs = compile_system(sc.system)
     t0, q0, v0 = _initial(sc)
@@ -179,6 +179,9 @@ def test_runs_agree_with_the_dense_lu(scene, method, h, steps):
     assert abs(a.stats["newton_iterations"] - b.stats["newton_iterations"]) <= 0.02 * steps
     assert abs(a.stats["njev"] - b.stats["njev"]) <= 0.02 * steps
     assert a.stats["full_newton_steps"] == b.stats["full_newton_steps"] == 0
+    # every Newton matrix assembled is factored once (none is non-finite or singular on these
+    # runs): nlu = njev on both solvers, as ``newton.factor_newton`` and ``kernels_sparse.sparse_factor`` count
+    assert a.stats["nlu"] == a.stats["njev"] >= 1 and b.stats["nlu"] == b.stats["njev"], (a.stats, b.stats)
 
 
 def test_auto_picks_by_operation_count():

@@ -152,6 +152,37 @@ def test_generic_step_is_the_last_fallback(monkeypatch, fail_at, every):
         fast.run_compiled(compile_system(sc.system), "gauss-2", 0.0, [0, 0, 0], [0, 0, 1], 0.1, 20)
 
 
+def test_the_rescued_step_counts_its_evaluations(monkeypatch):
+    """The generic full-Newton step that rescues a kernel failure (``compiled.rescue``) evaluates
+    the stage functions and factors Newton matrices like any step: the run's nfev, njev and nlu
+    are the kernel segments' plus the rescued step's. Each full-Newton iteration of the generic
+    step evaluates one residual (s + 1 points, ``SparkMethod``'s count) and assembles and factors
+    one matrix, so with the generic iterations (the run's newton_iterations minus the segments')
+    the counters exceed the segments' by at least that much (before: exactly the segments',
+    the rescued step's work left out)."""
+    from ldaspark.compiled import runner
+    sc = get_scene("skate")
+    real = runner._run_checked
+    segments = []
+
+    def failing(cs, method, start, grid, opts):
+        if not segments:
+            segments.append(None)
+            raise NewtonError("simulated", step=5, time=start[0] + 5 * grid[0])
+        out = real(cs, method, start, grid, opts)
+        segments.append(out.stats)
+        return out
+    monkeypatch.setattr(runner, "_run_checked", failing)
+    sol = fast_integrate(sc, "gauss-2", h=0.1, n_steps=20)
+    assert sol.stats["generic_steps"] == 1 and sol.stats["steps"] == 20
+    kern = {c: sum(st[c] for st in segments[1:]) for c in ("nfev", "njev", "nlu", "newton_iterations")}
+    it = sol.stats["newton_iterations"] - kern["newton_iterations"]
+    assert it >= 1, sol.stats
+    s = get_method("gauss-2").s
+    assert sol.stats["nfev"] >= kern["nfev"] + (s + 1) * it, (sol.stats, kern)
+    assert sol.stats["njev"] >= kern["njev"] + it and sol.stats["nlu"] >= kern["nlu"] + it, (sol.stats, kern)
+
+
 # --- extreme precision ------------------------------------------------------------------------
 def test_eps_follows_the_working_precision_beyond_float_range():
     bk = Backend(400)

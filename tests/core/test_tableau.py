@@ -392,3 +392,32 @@ def test_a_file_name_that_is_not_a_nonempty_string_is_refused(name, got):
         from_json_dict(d)
     assert from_json_dict(dict(d, name=None)).name == "custom" == from_json_dict({k: v for k, v in d.items() if k != "name"}).name
     assert from_json_dict(dict(d, name="midpoint")).name == "midpoint"
+
+
+def _flat(v):
+    return [y for x in v for y in _flat(x)] if isinstance(v, (list, tuple)) else [v]
+
+
+@pytest.mark.parametrize("name", ["gauss-2", "gauss-3", "lobatto-iiia-iiib-3"])
+def test_mpmath_coefficients_carry_the_working_precision(name):
+    """The coefficients the mpmath engine runs with (``arrays(dps)``, ``SparkMethod.tab``) are the
+    tableau's entries to dps digits: against the same entries at dps + 20 digits, off by at most
+    one unit in the last place, 10^(1 - dps) max(1, |entry|), at dps below and above the 20
+    digits the float64 conversion starts from. (Coefficients fixed at 20 digits are off by
+    ~1e-22 at dps = 30, which no run comparison saw: test_dps_400_runs_and_agree_with_dps_440
+    compares two runs with the same wrong coefficients, and the theorem checks passed.)"""
+    from ldaspark.core.spark import SparkMethod
+    from ldaspark.models.scenes import get_scene
+    tab = get_method(name)
+    system = get_scene("particle").system
+    for dps in (16, 30, 60):
+        with mpmath.workdps(dps + 20):
+            ref = tab.mp_entries(dps + 20)
+            bound = mpmath.mpf(10) ** (1 - dps)
+            for got in (tab.arrays(dps), SparkMethod(system, tab, dps=dps).tab):
+                assert got.dps == dps
+                for key, want in ref.items():
+                    g, w = list(getattr(got, key).reshape(-1)), _flat(want)
+                    assert len(g) == len(w), (name, key)
+                    err = max((abs(mpmath.mpf(x) - y) / max(1, abs(y)) for x, y in zip(g, w)), default=0)
+                    assert err <= bound, (name, dps, key, mpmath.nstr(err, 3))
