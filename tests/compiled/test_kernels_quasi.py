@@ -241,7 +241,7 @@ def test_the_quasi_root_finder_counts_its_factorisations(scene):
     assert nw.nlu >= 10 and "multiplier_lu" not in nw.stats
 
 
-def test_a_loose_tol_stops_after_one_increment_on_the_carried_rate():
+def test_a_loose_tol_stops_after_one_increment_on_the_carried_rate(monkeypatch):
     """Newton(tol=...) trades accuracy for speed: RADAU5's first-iteration test (``kernels_quasi.
     quasi_newton``'s eta, the rate theta / (1 - theta) of the last measured step grown as
     max(eta, eps)^0.8 per step) accepts the first increment when eta |dx_1| <= RATE_KAPPA tol
@@ -265,3 +265,9 @@ def test_a_loose_tol_stops_after_one_increment_on_the_carried_rate():
                            newton=ldaspark.Newton(tol=1e-8))
     assert r.stats["root_finder"]["runs"] == "quasi" and r.stats["rate_first_steps"] == loose.stats["rate_first_steps"]
     assert np.array_equal(r.q, loose.q)
+    # a chunked run (solve.COMPILED_CHUNK lowered to 200) sums the counter over its blocks
+    from ldaspark import solve
+    monkeypatch.setattr(solve, "COMPILED_CHUNK", 200)
+    c = ldaspark.integrate("skate", "gauss-4", h=0.2, n_steps=500, engine="compiled",
+                           newton=ldaspark.Newton(tol=1e-8))
+    assert c.stats["rate_first_steps"] >= 250 and abs(c.stats["rate_first_steps"] - r.stats["rate_first_steps"]) <= 6
