@@ -16,7 +16,12 @@ max energy error 1e-10; SPARK gauss-2, 3, 4, 6, 8 with each of the three, gauss-
 step grids fine enough that the best step for a target is among them (``STUDIES``). Every task
 runs for at least MIN_CPU seconds a round (short runs repeated), its CPU the minimum of all runs.
 
-    python benchmarks/quasi_step.py [--rounds 3] [--quick] [--out reports/quasi_step.json]
+    python benchmarks/quasi_step.py [--rounds 3] [--quick] [--tol-kappa K] [--out reports/quasi_step.json]
+
+--tol-kappa K: the quasi rows (specialised kernel) also run with ``ldaspark.Newton(tol=K * target)``
+for each target of a study, the speed-up at a target taken from its own rows ("quasi_tol"): the
+rule a user trading accuracy for speed would apply (one K for every scene; K = 1 keeps the
+estimated error a step leaves at RATE_KAPPA * target * max|x, v0|, docs/performance.md).
 """
 from __future__ import annotations
 
@@ -73,8 +78,10 @@ STUDIES = (
 MIN_CPU = 0.05
 
 
-def spark_task(scene, method, h, t_end, n_out, newton):
-    """(label, go, finish) of one run through ldaspark.integrate (compiled once outside the clock)."""
+def spark_task(scene, method, h, t_end, n_out, newton, tol=None):
+    """(label, go, finish) of one run through ldaspark.integrate (compiled once outside the clock);
+    tol: the Newton increment tolerance (``ldaspark.Newton(tol=...)``, None: round-off), the
+    "quasi" variant only (``--tol-kappa``)."""
     sc = get_scene(scene)
     t0 = float(sc.initial()[0])
     n = int(round((t_end - t0) / h))
@@ -84,7 +91,7 @@ def spark_task(scene, method, h, t_end, n_out, newton):
     # off either way. "auto" (the default) runs the quasi iteration on these scenes: the "quasi" rows.
     # "quasi-generic": the same root finder with the generic kernel (what a run gets before the
     # kernel specialised to its (s, n, m) is built: compiled.specialised)
-    kw = {"newton": ldaspark.Newton(reuse=False)} if newton == "newton" else {"newton": "quasi"}
+    kw = {"newton": ldaspark.Newton(reuse=False)} if newton == "newton" else {"newton": ldaspark.Newton("quasi", tol=tol)}
     special = "1" if newton == "quasi" else "0"
     if newton == "quasi":
         sc_ = get_scene(scene)
@@ -107,13 +114,16 @@ def spark_task(scene, method, h, t_end, n_out, newton):
                 raise RuntimeError(f"{scene} {method}: kernel_specialised={st.get('kernel_specialised')} "
                                    f"in a {newton} row")
         kind = {"quasi": "spark-quasi", "quasi-generic": "spark-quasi-generic", "newton": "spark"}[newton]
-        return {"kind": kind, "method": method, "param": h, "specialised": bool(st.get("kernel_specialised")),
+        if tol is not None:
+            kind += f"-tol{tol:g}"
+        return {"kind": kind, "method": method, "param": h, "tol": tol, "specialised": bool(st.get("kernel_specialised")),
                 "cpu": cpu, "steps": n, "q_final": [float(x) for x in r.q[-1]],
                 "energy_error": float(np.max(np.abs(r.energy - r.energy[0]))),
                 "constraint": float(np.max(np.abs(r.constraint))),
                 "iterations_per_step": st["newton_iterations"] / max(st["steps"], 1),
-                "fallbacks": st.get("quasi_fallbacks"), "curvature_steps": st.get("curvature_steps")}
-    return f"{scene} {method} h={h:g} T={t_end:g} {newton}", go, finish
+                "fallbacks": st.get("quasi_fallbacks"), "curvature_steps": st.get("curvature_steps"),
+                "rate_first_steps": st.get("rate_first_steps")}
+    return f"{scene} {method} h={h:g} T={t_end:g} {newton}" + (f" tol={tol:g}" if tol is not None else ""), go, finish
 
 
 #: the yardstick rate of docs/performance.md's "The step at its operation count" (flops per
@@ -177,11 +187,17 @@ def per_step(rounds, quick):
     return out
 
 
-def study(scene, t_end, key, targets, hs, rtols, n_out, rounds, quick):
+def study(scene, t_end, key, targets, hs, rtols, n_out, rounds, quick, tol_kappa=None):
+    """One study of STUDIES. tol_kappa: the quasi rows also run with the Newton tolerance a user
+    trading accuracy for speed would set from the target, tol = tol_kappa * target (the same
+    rule for every scene and target; ``--tol-kappa``), compared with the peers at that target only."""
     sc = get_scene(scene)
     if quick:
         t_end = min(t_end, 100.0)
     sp = [spark_task(scene, m, h, t_end, n_out, nw) for m, hl in hs.items() for h in hl for nw in VARIANTS]
+    if tol_kappa is not None:
+        sp += [spark_task(scene, m, h, t_end, n_out, "quasi", tol_kappa * tgt)
+               for tgt in targets for m, hl in hs.items() for h in hl]
     pt = []
     failed = []
     for p in PEERS:
@@ -204,6 +220,10 @@ def study(scene, t_end, key, targets, hs, rtols, n_out, rounds, quick):
            "quasi": P.speedups(rows, targets, key=key, spark="spark-quasi"),
            "quasi_generic": P.speedups(rows, targets, key=key, spark="spark-quasi-generic"),
            "newton": P.speedups(rows, targets, key=key, spark="spark")}
+    if tol_kappa is not None:
+        res["tol_kappa"] = tol_kappa
+        res["quasi_tol"] = [P.speedups(rows, (tgt,), key=key, spark=f"spark-quasi-tol{tol_kappa * tgt:g}")[0]
+                            for tgt in targets]
     return res
 
 
@@ -222,7 +242,13 @@ def main(argv=None):
     ap.add_argument("--skip-steps", action="store_true")
     ap.add_argument("--studies", default="0,1,2")
     ap.add_argument("--out", default=os.path.join("reports", "quasi_step.json"))
+    ap.add_argument("--tol-kappa", type=float, default=None,
+                    help="also run the quasi rows with Newton(tol = KAPPA * target) per target (a user's "
+                         "accuracy-for-speed rule; the first increment is then accepted on the carried rate)")
     a = ap.parse_args(argv)
+    if a.tol_kappa is not None and not (a.tol_kappa > 0 and np.isfinite(a.tol_kappa)):
+        print("quasi_step.py: --tol-kappa must be a finite positive number", file=sys.stderr)
+        return 2
     load0 = os.getloadavg()[0]
     c0 = time.process_time()
     out = {"load_average_1min_at_start": load0, "cpu_count": os.cpu_count(), "rounds": a.rounds}
@@ -239,11 +265,13 @@ def main(argv=None):
                   f"counted {r['counted_flops']:.0f} flops = {r['counted_us']:.2f} us")
     out["studies"] = []
     for i in (int(x) for x in a.studies.split(",") if x):
-        st = study(*STUDIES[i], rounds=a.rounds, quick=a.quick)
+        st = study(*STUDIES[i], rounds=a.rounds, quick=a.quick, tol_kappa=a.tol_kappa)
         out["studies"].append(st)
         print(f"{st['scene']} T = {st['t_end']:g}, {st['key']}: cpu(best of {', '.join(PEERS)}) / cpu(best SPARK)")
         for q, qg, nw in zip(st["quasi"], st["quasi_generic"], st["newton"]):
             print(f"  target {q['target']:.0e}: quasi {_ratio(q)}; generic kernel {_ratio(qg)}; newton {_ratio(nw)}")
+        for qt in st.get("quasi_tol", ()):
+            print(f"  target {qt['target']:.0e}: quasi with tol = {a.tol_kappa:g} * target {_ratio(qt)}")
         for f in st["failed"]:
             print(f"  failed: {f}")
     out["load_average_1min_at_end"] = os.getloadavg()[0]

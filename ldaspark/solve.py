@@ -984,7 +984,7 @@ COMPILED_CHUNK = 2 ** 18
 #: the counters that add up over the blocks of a chunked run
 _BLOCK_SUMS = ("steps", "nfev", "njev", "nlu", "newton_iterations", "full_newton_steps", "quasi_iterations",
                "quasi_steps", "quasi_fallbacks", "multiplier_lu", "quasi_skipped", "generic_steps", "rescued_steps",
-               "curvature_refreshes", "curvature_steps")
+               "curvature_refreshes", "curvature_steps", "rate_first_steps")
 
 
 def _chunked(engine, prep, start, n, every, boundaries=None) -> Result:

@@ -21,7 +21,11 @@ polynomial through (0, v0) and (c_j, V_j) evaluated at 1 + c_i and 2, the multip
 (c_j, Psi_j) at 1 + c_i (``quasi.extrapolation``). Stopping rule: ``newton.newton_status``
 (RADAU5's rate test, lim = tol (|x| + |v0|), the round-off of the stage values), never the
 round-off-floor clause (the matrix is not exact); at the second increment also RADAU5's test with
-the one ratio there, while |dx_2| <= FIRST_RATE_FACTOR lim. Fallback: a step whose increments contract by
+the one ratio there, while |dx_2| <= FIRST_RATE_FACTOR lim; at the first, RADAU5's test with the
+rate carried from the previous steps, eta |dx_1| <= RATE_KAPPA lim (eta = theta / (1 - theta) of
+the last step that measured it, grown as max(eta, eps)^RATE_GROWTH per step; none after a
+fallback or a change of the frozen block), which a user's tol = ``Newton(tol=...)`` above round-off
+turns into one-increment steps (counted in qstats[QS_RATE_FIRST]). Fallback: a step whose increments contract by
 less than QUASI_THETA, or that has not converged after QUASI_MAX_ITER increments, or meets a
 singular multiplier matrix or a non-finite increment, is solved again by the compiled Newton
 chain of ``kernels.spark_newton`` (simplified Newton with fresh matrices, then full Newton from
@@ -74,6 +78,11 @@ QUASI_WAIT_MAX = 64
 FIRST_RATE_FACTOR = 1e3
 #: ``predictor`` value selecting the collocation extrapolation (0-2: ``newton.predict``)
 PREDICT_COLLOCATION = 3
+#: the carried rate estimate eta of ``quasi_newton``'s first-increment test grows as
+#: max(eta, EPS)^RATE_GROWTH at every step that does not measure it (RADAU5's FACCON), so that a
+#: run of one-increment steps soon takes a second increment and measures the rate again
+RATE_GROWTH = 0.8
+EPS = float(np.finfo(np.float64).eps)
 
 
 @numba.njit(cache=True)
@@ -297,6 +306,8 @@ CURV_WARMUP = 32
 CURV_REFRESH_EVERY = 8
 #: qstats entry: Hessian decompositions (``curvature_refresh``) and steps iterated with the curvature
 QS_CURV_REFRESH, QS_CURV_STEPS = 5, 6
+#: qstats entry: steps accepted after one increment by the carried rate (``quasi_newton``'s eta)
+QS_RATE_FIRST = 7
 
 
 @numba.njit(cache=True)
@@ -515,27 +526,34 @@ def curvature_increment(tab, h, qw, cw, G, x):
 
 
 @numba.njit(cache=True, _nrt=False)
-def quasi_newton(model, tab, ws, qw, cw, curv, x, t, q, v, h, G, tol, max_iter, stats, qstats):
+def quasi_newton(model, tab, ws, qw, cw, curv, x, t, q, v, h, G, tol, max_iter, stats, qstats, eta):
     """The quasi-Newton iteration from the guess in x, with the velocity block frozen at M (curv
-    False) or at I (x) M + h^2 P (x) H (``curvature_matrix``); (status, iterations): 1 converged, 0
-    not converged, slow (rate > QUASI_THETA) or singular (the caller falls back), -1 not finite."""
+    False) or at I (x) M + h^2 P (x) H (``curvature_matrix``); (status, iterations, rate): status 1
+    converged, 0 not converged, slow (rate > QUASI_THETA) or singular (the caller falls back), -1
+    not finite; rate the last contraction ratio |dx_k| / |dx_k-1| measured (-1 if one increment).
+    eta > 0: the rate estimate theta / (1 - theta) carried from the previous steps
+    (``quasi_loop``); the first increment is accepted when eta |dx_1| <= RATE_KAPPA lim (RADAU5's
+    test at its first iteration, Hairer-Wanner IV.8: the error left after it is eta |dx_1|)."""
     scale = norm_inf(v)
     mech_residual(model, tab, x, t, q, v, h, ws, G)
     stats[2] += tab[0].shape[0] + 1
     qstats[QS_LU] += 1
     if curv:
         if not curvature_matrix(model, tab, h, t, ws, qw, cw):
-            return 0, 0
+            return 0, 0, -1.0
     elif not multiplier_matrix(model, tab, h, t, ws, qw):
-        return 0, 0
+        return 0, 0, -1.0
     prev = -1.0
     theta = -1.0
+    rate = -1.0
     it = 0
     status = 0
     while it < max_iter:
         it += 1
         dn = curvature_increment(tab, h, qw, cw, G, x) if curv else quasi_increment(tab, h, qw, G, x)
         status = newton_status(dn, prev, theta, norm_inf(x), scale, tol, False)
+        if status == 0 and prev <= 0.0 and eta > 0.0 and eta * dn <= RATE_KAPPA * tol * (norm_inf(x) + scale):
+            status = 1
         if status == 0 and prev > 0.0 and theta <= 0.0:
             # RADAU5 at its second increment: the rate of the one ratio there, theta_1 =
             # |dx_2| / |dx_1|, stops the iteration when theta_1 / (1 - theta_1) |dx_2| <= kappa lim,
@@ -545,6 +563,8 @@ def quasi_newton(model, tab, ws, qw, cw, curv, x, t, q, v, h, G, tol, max_iter, 
             lim = tol * (norm_inf(x) + scale)
             if th < 1.0 and th / (1.0 - th) * dn <= RATE_KAPPA * lim and dn <= FIRST_RATE_FACTOR * lim:
                 status = 1
+        if prev > 0.0:
+            rate = dn / prev
         if status != 0:
             break
         if prev > 0.0 and dn > QUASI_THETA * prev:
@@ -553,7 +573,7 @@ def quasi_newton(model, tab, ws, qw, cw, curv, x, t, q, v, h, G, tol, max_iter, 
         prev = dn
         mech_residual(model, tab, x, t, q, v, h, ws, G)
         stats[2] += tab[0].shape[0] + 1
-    return status, it
+    return status, it, rate
 
 
 @numba.njit(cache=True, _nrt=False)
@@ -609,6 +629,10 @@ def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compe
     qmid = np.zeros(n)
     hpm = h * h * cinfo[0] * cinfo[1]
     wait, backoff = 0, 1
+    # the rate estimate theta / (1 - theta) of the last steps (-1: none, e.g. after a fallback or
+    # a change of the frozen block) and the block it was measured with
+    eta = -1.0
+    curv_last = False
     stats[mt.FAILED_STEP] = -1
     if not store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
         fail(stats, 0, FAIL_NONFINITE)
@@ -625,9 +649,11 @@ def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compe
         if wait > 0:
             wait -= 1
             status, it = 0, 0
+            eta = -1.0
             qstats[QS_SKIPPED] += 1
         else:
             curv = False
+            refreshes = qstats[QS_CURV_REFRESH]
             if use_curv:
                 # Hess U at the predicted midpoint; the frozen one kept while the difference
                 # would contract at most CURV_STALE
@@ -655,13 +681,26 @@ def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compe
                     if step >= CURV_WARMUP and (qstats[QS_CURV_REFRESH] - 1) * CURV_REFRESH_EVERY > step:
                         use_curv = False
                         curv = False
-            status, it = quasi_newton(model, tab, ws, qw, cw, curv, x, t, q, v, h, G, tol, quasi_max, stats, qstats)
+            if curv != curv_last or qstats[QS_CURV_REFRESH] != refreshes:
+                eta = -1.0                      # another frozen block: its rate is not known yet
+            curv_last = curv
+            if eta >= 0.0:
+                eta = max(eta, EPS) ** RATE_GROWTH
+            status, it, rate = quasi_newton(model, tab, ws, qw, cw, curv, x, t, q, v, h, G, tol, quasi_max, stats,
+                                            qstats, eta)
             qstats[QS_ITERATIONS] += it
             if curv and status == 1:
                 qstats[QS_CURV_STEPS] += 1
             if status == 1:
                 backoff = 1
+                if it == 1 and eta > 0.0:
+                    qstats[QS_RATE_FIRST] += 1
+                if 0.0 <= rate < 1.0:
+                    eta = rate / (1.0 - rate)
+                elif rate >= 1.0:
+                    eta = -1.0                  # stopped on the round-off limit while not contracting
             else:
+                eta = -1.0
                 wait = backoff
                 backoff = min(2 * backoff, QUASI_WAIT_MAX)
         if status == 1:

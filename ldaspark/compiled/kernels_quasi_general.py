@@ -26,9 +26,9 @@ from numba import types
 from . import modeltypes as mt
 from .kernels import finish_step, spark_newton, evaluate, store   # noqa: F401 (evaluate: the overload spark_newton uses)
 from .kernels_general import general_begin, general_eval, workspace
-from .kernels_quasi import (FIRST_RATE_FACTOR, PREDICT_COLLOCATION, QS_FALLBACKS, QS_ITERATIONS, QS_LU, QS_SKIPPED,
-                            QS_STEPS, QUASI_MAX_ITER, QUASI_THETA, QUASI_WAIT_MAX, collocation_predict,
-                            constraint_apply)
+from .kernels_quasi import (EPS, FIRST_RATE_FACTOR, PREDICT_COLLOCATION, QS_FALLBACKS, QS_ITERATIONS, QS_LU,
+                            QS_RATE_FIRST, QS_SKIPPED, QS_STEPS, QUASI_MAX_ITER, QUASI_THETA, QUASI_WAIT_MAX,
+                            RATE_GROWTH, collocation_predict, constraint_apply)
 from .newton import (FAIL_NONFINITE, RATE_KAPPA, end_newton, fail, lu_factor, lu_solve, newton_status,
                      norm_inf, predict)
 
@@ -36,7 +36,7 @@ from .newton import (FAIL_NONFINITE, RATE_KAPPA, end_newton, fail, lu_factor, lu
 # compiles in (tests/compiled/test_quasi_general.py checks it)
 HELPERS = ("kernels.py", "newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py",
            "modeltypes.py", "kernels_quasi.py")
-HELPERS_SHA256 = "19732cb24dc0d5c2cf99ade1dcf54c7128cf02b59b53f745c5252c0d5b9b2d75"
+HELPERS_SHA256 = "a299248ceedd08f4e790e0b54747ea3b075d875fa5ba2fbaac247f67e41fe38a"
 
 
 @numba.njit(cache=True)
@@ -136,28 +136,34 @@ def general_quasi_increment(tab, h, gw, G, x):
 
 
 @numba.njit(cache=True, _nrt=False)
-def general_quasi_newton(model, tab, M, ws, gw, x, t, q, v, h, G, J, tol, max_iter, stats, qstats):
-    """``kernels_quasi.quasi_newton`` for the general form: (status, iterations)."""
+def general_quasi_newton(model, tab, M, ws, gw, x, t, q, v, h, G, J, tol, max_iter, stats, qstats, eta):
+    """``kernels_quasi.quasi_newton`` for the general form: (status, iterations, rate), eta the
+    carried rate estimate of the first-increment test."""
     scale = norm_inf(v)
     general_begin(model, t, q, v, ws)
     stats[2] += general_eval(model, tab, False, x, t, q, v, h, M, ws, G, J)
     qstats[QS_LU] += 1
     stats[2] += tab[0].shape[0] + 1
     if not general_multiplier_matrix(model, tab, h, t, x, ws, gw):
-        return 0, 0
+        return 0, 0, -1.0
     prev = -1.0
     theta = -1.0
+    rate = -1.0
     it = 0
     status = 0
     while it < max_iter:
         it += 1
         dn = general_quasi_increment(tab, h, gw, G, x)
         status = newton_status(dn, prev, theta, norm_inf(x), scale, tol, False)
+        if status == 0 and prev <= 0.0 and eta > 0.0 and eta * dn <= RATE_KAPPA * tol * (norm_inf(x) + scale):
+            status = 1
         if status == 0 and prev > 0.0 and theta <= 0.0:
             th = dn / prev
             lim = tol * (norm_inf(x) + scale)
             if th < 1.0 and th / (1.0 - th) * dn <= RATE_KAPPA * lim and dn <= FIRST_RATE_FACTOR * lim:
                 status = 1
+        if prev > 0.0:
+            rate = dn / prev
         if status != 0:
             break
         if prev > 0.0 and dn > QUASI_THETA * prev:
@@ -165,7 +171,7 @@ def general_quasi_newton(model, tab, M, ws, gw, x, t, q, v, h, G, J, tol, max_it
         theta = dn / prev if prev > 0.0 else -1.0
         prev = dn
         stats[2] += general_eval(model, tab, False, x, t, q, v, h, M, ws, G, J)
-    return status, it
+    return status, it, rate
 
 
 @numba.njit(cache=True)
@@ -191,6 +197,7 @@ def general_quasi_loop(model, tab, M, Ev, El, t0, q0, v0, h, n_steps, every, com
         sb += bw[j]
     quasi_max = min(max_iter, QUASI_MAX_ITER)
     wait, backoff = 0, 1
+    eta = -1.0                                  # as in kernels_quasi.quasi_loop
     stats[mt.FAILED_STEP] = -1
     if not store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
         fail(stats, 0, FAIL_NONFINITE)
@@ -207,14 +214,21 @@ def general_quasi_loop(model, tab, M, Ev, El, t0, q0, v0, h, n_steps, every, com
         if wait > 0:
             wait -= 1
             status, it = 0, 0
+            eta = -1.0
             qstats[QS_SKIPPED] += 1
         else:
-            status, it = general_quasi_newton(model, tab, M, ws, gw, x, t, q, v, h, G, J, tol, quasi_max, stats,
-                                              qstats)
+            if eta >= 0.0:
+                eta = max(eta, EPS) ** RATE_GROWTH
+            status, it, rate = general_quasi_newton(model, tab, M, ws, gw, x, t, q, v, h, G, J, tol, quasi_max,
+                                                    stats, qstats, eta)
             qstats[QS_ITERATIONS] += it
             if status == 1:
                 backoff = 1
+                if it == 1 and eta > 0.0:
+                    qstats[QS_RATE_FIRST] += 1
+                eta = rate / (1.0 - rate) if 0.0 <= rate < 1.0 else (-1.0 if rate >= 1.0 else eta)
             else:
+                eta = -1.0
                 wait = backoff
                 backoff = min(2 * backoff, QUASI_WAIT_MAX)
         if status == 1:

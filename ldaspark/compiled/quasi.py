@@ -20,9 +20,11 @@ from . import runner, specialised
 #: the counters ``run_quasi`` adds to the stats of ``runner.run_compiled``: quasi-Newton
 #: iterations, steps it solved, steps sent to the Newton chain, multiplier matrices factored,
 #: steps sent there without an attempt (``kernels_quasi.QS_SKIPPED``), Hessian decompositions and
-#: steps solved with the velocity block carrying Hess U (``kernels_quasi.curvature_matrix``)
+#: steps solved with the velocity block carrying Hess U (``kernels_quasi.curvature_matrix``) and
+#: steps accepted after one increment by the rate carried from the previous steps
+#: (``kernels_quasi.quasi_newton``'s eta, RADAU5's first-iteration test)
 QUASI_STAT_NAMES = ("quasi_iterations", "quasi_steps", "quasi_fallbacks", "multiplier_lu", "quasi_skipped",
-                    "curvature_refreshes", "curvature_steps")
+                    "curvature_refreshes", "curvature_steps", "rate_first_steps")
 
 
 def lagrange_weights(nodes, points) -> np.ndarray:

@@ -81,7 +81,12 @@ class Newton:
     kind : {"auto", "full", "simplified", "mixed"}
         The Newton variant (module docstring); "auto" is the default of every engine.
     tol : float, optional
-        The increment tolerance (relative); None: the round-off of the stage values.
+        The increment tolerance (relative); None: the round-off of the stage values. A
+        larger tol trades accuracy for speed: on the compiled quasi-Newton step a step may then
+        stop after one increment, on the rate carried from the previous steps (RADAU5's test;
+        ``Result.stats["rate_first_steps"]``). Where the iteration contracts slowly a loose tol
+        makes the step unsymmetric and the energy drifts: keep tol at or below the target error
+        (docs/performance.md, "Trading accuracy for speed").
     max_iter : int, optional
         Iterations of one Newton attempt before it gives up (None: 50). The generic engine makes
         one attempt per step, so its step fails after max_iter iterations. The compiled engine

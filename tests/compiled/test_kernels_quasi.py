@@ -239,3 +239,35 @@ def test_the_quasi_root_finder_counts_its_factorisations(scene):
     assert q.nlu == q.stats["nlu"] >= q.stats["multiplier_lu"]
     nw = ldaspark.integrate(scene, "gauss-2", t_span=(0, 1), h=0.1, engine="compiled", newton="full")
     assert nw.nlu >= 10 and "multiplier_lu" not in nw.stats
+
+
+def test_a_loose_tol_stops_after_one_increment_on_the_carried_rate(monkeypatch):
+    """Newton(tol=...) trades accuracy for speed: RADAU5's first-iteration test (``kernels_quasi.
+    quasi_newton``'s eta, the rate theta / (1 - theta) of the last measured step grown as
+    max(eta, eps)^0.8 per step) accepts the first increment when eta |dx_1| <= RATE_KAPPA tol
+    (|x| + |v0|). skate, gauss-4, h = 0.2, 500 steps (the predictor's error |dx_1| ~ 1e-4, the
+    rate ~ 1e-12): at tol = 1e-8 most steps take one increment (measured 1.25 a step, 376 of 500
+    accepted on the rate; before the test every step took 2 at any tol <= 1e-4), and the
+    trajectory is the default tol's within the bound of the looser limit, 2 N tol scale (the
+    module docstring's bound with tol for 8 eps; measured 2e-15). Control: at the default tol
+    (8 eps) |dx_1| is far above round-off, no step stops after one increment."""
+    sc = get_scene("skate")
+    t0, q0, v0 = sc.initial()
+    cs = compile_system(sc.system)
+    tight = run_quasi(cs, "gauss-4", t0, q0, v0, 0.2, 500, 1)
+    loose = run_quasi(cs, "gauss-4", t0, q0, v0, 0.2, 500, 1, True, 1e-8)
+    assert tight.stats["rate_first_steps"] == 0 and tight.stats["mean_iterations"] >= 2.0
+    assert loose.stats["rate_first_steps"] >= 250 and loose.stats["mean_iterations"] <= 1.5, loose.stats
+    assert loose.stats["quasi_fallbacks"] == 0
+    assert _difference(tight, loose) * 8 * EPS <= 1e-8
+    # through ldaspark.integrate, with the public option
+    r = ldaspark.integrate("skate", "gauss-4", h=0.2, n_steps=500, engine="compiled",
+                           newton=ldaspark.Newton(tol=1e-8))
+    assert r.stats["root_finder"]["runs"] == "quasi" and r.stats["rate_first_steps"] == loose.stats["rate_first_steps"]
+    assert np.array_equal(r.q, loose.q)
+    # a chunked run (solve.COMPILED_CHUNK lowered to 200) sums the counter over its blocks
+    from ldaspark import solve
+    monkeypatch.setattr(solve, "COMPILED_CHUNK", 200)
+    c = ldaspark.integrate("skate", "gauss-4", h=0.2, n_steps=500, engine="compiled",
+                           newton=ldaspark.Newton(tol=1e-8))
+    assert c.stats["rate_first_steps"] >= 250 and abs(c.stats["rate_first_steps"] - r.stats["rate_first_steps"]) <= 6
