@@ -142,8 +142,7 @@ def general_quasi_newton(model, tab, M, ws, gw, x, t, q, v, h, G, J, tol, max_it
     scale = norm_inf(v)
     general_begin(model, t, q, v, ws)
     stats[2] += general_eval(model, tab, False, x, t, q, v, h, M, ws, G, J)
-    qstats[QS_LU] += 1
-    stats[2] += tab[0].shape[0] + 1
+    qstats[QS_LU] += 1       # the multiplier matrix: derivatives, not residual points (nfev)
     if not general_multiplier_matrix(model, tab, h, t, x, ws, gw):
         return 0, 0, -1.0
     prev = -1.0

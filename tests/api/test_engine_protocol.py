@@ -368,3 +368,8 @@ def test_nfev_counts_the_residuals_stage_points_on_every_engine(scene):
         assert r.status == 0 and r.newton_iterations > 0, (eng, r.message)
         assert r.nfev == (s + 1) * r.newton_iterations, (eng, r.nfev, r.newton_iterations)
         assert r.njev == r.nlu == r.newton_iterations, (eng, r.njev, r.nlu)
+    # the quasi-Newton kernels (mechanical and general form): one residual per increment, the
+    # frozen multiplier matrix not counted as residual points (the general one added s + 1 a step)
+    r = ldaspark.integrate(scene, f"gauss-{s}", h=0.1, n_steps=10, engine="compiled", newton="quasi")
+    assert r.status == 0 and r.stats["kernel"] == "quasi" and r.stats["quasi_fallbacks"] == 0, r.stats
+    assert r.nfev == (s + 1) * r.newton_iterations, (r.nfev, r.newton_iterations)
