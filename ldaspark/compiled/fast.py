@@ -21,7 +21,7 @@ stagnate at round-off level with an exact matrix (``newton.newton_status``); tol
 unit round-offs. Fallback chain (``kernels.spark_newton``): a fresh matrix at the iterate when
 an increment does not contract by 1/2, then full Newton from the generic engine's starting guess,
 then a NewtonError naming step, time, residual and iterations. Counters: steps,
-newton_iterations, nfev (stage points evaluated), njev, nlu, max_iterations, full_newton_steps
+newton_iterations, nfev (the residual's stage points, s + 1 per residual), njev, nlu, max_iterations, full_newton_steps
 (steps that needed the full-Newton fallback).
 
 A run that meets NaN or inf (L or k evaluated outside their domain, overflow) stops with

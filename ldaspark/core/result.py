@@ -18,7 +18,8 @@ Shapes for one run with S saved points (S = N + 1 for ``save_every = 1``):
 * ``stats``: the engine's counters, and what ran: ``engine``, ``root_finder`` (the fields of
   ``ldaspark.Newton``), the rescues (``full_newton_steps``, ``rescued_steps`` on the compiled
   engine) and the guard's ``guard_flagged`` / ``guard_confirmed`` / ``guard_unverified``.
-* counters ``nfev`` (stage points evaluated), ``njev`` (Jacobian assemblies), ``nlu`` (LU
+* counters ``nfev`` (the stage points of the residual evaluations, s + 1 each; the model's
+  derivatives for a Jacobian are ``njev``'s), ``njev`` (Jacobian assemblies), ``nlu`` (LU
   factorisations), ``newton_iterations``. One meaning on every engine and path, success or
   failure: each counts the work of every step the run attempted, the failed step included, with
   every retry of a step (the compiled kernels' fallback chain, the generic step that rescues a
