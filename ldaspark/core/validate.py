@@ -632,15 +632,30 @@ def mp_step_cost(dps: int, s=None, n=None, m=None) -> float:
     return cost * (1.0 + (r - 1.0) * (1.0 + max(int(dps), 0) / 1000.0)) if r > 1 else cost
 
 
-def check_work(n_steps, dps, what: str = "this run", *, s=None, n=None, m=None) -> float:
+#: a float64 step of the generic engine (Python loops over numpy arrays), in ``check_work``'s unit
+#: (the robot's gauss-3 step at low precision): the robot with gauss-3 and the particle with
+#: gauss-2 took 1-2 ms a float64 generic step against 7.2 and 5 ms at 50 digits (measured, shared
+#: host); 0.3 keeps ~7 * 10**6 such steps (2-4 hours) and refuses the 10**9 that ``MAX_STEPS``
+#: alone let through (weeks). The compiled engine is bounded by ``MAX_STEPS`` alone (~1 us a step).
+FLOAT_GENERIC_STEP_COST = 0.3
+
+
+def check_work(n_steps, dps, what: str = "this run", *, s=None, n=None, m=None,
+               float_generic: bool = False) -> float:
     """The work bound of an mpmath run, fixed before it starts: ``n_steps * mp_step_cost(dps, s,
     n, m)`` at most ``MP_WORK_MAX`` (float64 runs, ``dps`` None, are bounded by ``MAX_STEPS``
-    alone; without ``s``, ``n``, ``m`` the cost of the digits alone). Returns the estimate;
-    refuses with one InputError naming the estimate, the limit and what to reduce
-    (docs/reliability.md, "Every unit of work is bounded")."""
-    if dps is None:
+    alone, except on the generic engine, ``float_generic``: ``FLOAT_GENERIC_STEP_COST`` times the
+    size factor of ``mp_step_cost`` a step; without ``s``, ``n``, ``m`` the cost of the digits
+    alone). Returns the estimate; refuses with one InputError naming the estimate, the limit and
+    what to reduce (docs/reliability.md, "Every unit of work is bounded")."""
+    if dps is None and not float_generic:
         return float(n_steps)
-    cost = mp_step_cost(dps, s, n, m)
+    if dps is None:
+        cost = FLOAT_GENERIC_STEP_COST * mp_step_cost(0, s, n, m)
+        where, fewer = "in float64 on the generic engine", " (or engine='compiled')"
+    else:
+        cost = mp_step_cost(dps, s, n, m)
+        where, fewer = f"at dps = {int(dps)}", " or fewer digits"
     work = int(n_steps) * cost
     if work > MP_WORK_MAX:
         fits = int(MP_WORK_MAX // cost)
@@ -648,10 +663,12 @@ def check_work(n_steps, dps, what: str = "this run", *, s=None, n=None, m=None) 
         size = (f" with s = {int(s)} stages, n = {int(n)}, m = {int(m)} (a stage system of "
                 f"{int(s) * (int(n) + int(m)) + int(n)} unknowns: {cost:.3g} low-precision steps each)" if sized
                 else f" ({cost:.3g} low-precision steps each)")
-        fewer = ", fewer digits or fewer stages" if sized else " or fewer digits"
-        raise InputError(f"{what}: {_fmt_int(int(n_steps))} steps at dps = {int(dps)}{size} is an estimated work "
+        if sized:
+            fewer = (", fewer digits or fewer stages" if dps is not None
+                     else ", fewer stages or engine='compiled'")
+        raise InputError(f"{what}: {_fmt_int(int(n_steps))} steps {where}{size} is an estimated work "
                          f"of {work:.3g} low-precision steps, more than the limit {MP_WORK_MAX:.3g}: use at most "
-                         f"{fits} steps at this dps (a larger h or a shorter t_end){fewer}")
+                         f"{fits} steps there (a larger h or a shorter t_end){fewer}")
     return work
 
 

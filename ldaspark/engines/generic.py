@@ -40,6 +40,11 @@ class GenericEngine(Engine):
                 raise InputError(f"h must be a number: {exc}") from None
             if not math.isfinite(float(h)) or h == 0:
                 raise InputError(f"step size h must be finite and nonzero, got {prob.h}")
+        if opts.dps is None:
+            # float64 Python steps: bounded like the mpmath runs (``validate.check_work``), 10**9
+            # steps would run for weeks
+            from ..core.validate import check_work
+            check_work(prob.N, None, s=prob.what.s, n=system.n, m=system.m, float_generic=True)
         c = np.asarray(float_array(prob.what.arrays(None).c))
         return Prepared(system, prob, opts, root, support, {"method": method, "h": h, "c": c})
 

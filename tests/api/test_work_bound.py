@@ -101,3 +101,23 @@ def test_the_estimate_grows_with_the_stages_and_the_coordinates():
     assert 11 < V.mp_step_cost(2000, 4, 7, 1) / d < 15 and 100 < V.mp_step_cost(2000, 10, 7, 1) / d < 200
     # control: the digits alone do not see the stages (the old estimate, kept without s, n, m)
     assert V.mp_step_cost(2000, None, 7, 1) == V.mp_step_cost(2000, 20, 7, None) == d
+
+
+def test_a_float64_generic_run_is_bounded_and_the_compiled_one_by_max_steps():
+    """The float64 generic engine takes 1-2 ms a step (Python loops): 10**9 steps (MAX_STEPS,
+    weeks) were accepted; refused now before any step, naming the compiled engine, while the
+    largest run that fits the bound is accepted by the check (two-sided) and the same step count
+    on the compiled engine is not refused by it."""
+    s, n, m = 2, 3, 1                                      # the particle with gauss-2
+    cost = V.FLOAT_GENERIC_STEP_COST * V.mp_step_cost(0, s, n, m)
+    fits = int(V.MP_WORK_MAX // cost)
+    assert 10 ** 6 < fits < 10 ** 8                        # hours of generic steps, not weeks
+    assert V.check_work(fits, None, s=s, n=n, m=m, float_generic=True) <= V.MP_WORK_MAX
+    with pytest.raises(InputError, match=r"float64 on the generic engine.*engine='compiled'"):
+        V.check_work(fits + 1, None, s=s, n=n, m=m, float_generic=True)
+    assert V.check_work(V.MAX_STEPS, None, s=s, n=n, m=m) == V.MAX_STEPS
+    t = time.process_time()
+    with pytest.raises(InputError, match=rf"{V.MAX_STEPS} steps in float64 on the generic engine"):
+        ldaspark.integrate("particle", "gauss-2", t0=0, h=1e-6, n_steps=V.MAX_STEPS, engine="generic",
+                           save_every=10 ** 6)
+    assert time.process_time() - t < 5
