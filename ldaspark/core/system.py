@@ -140,6 +140,7 @@ class LagrangianSystem:
             raise SystemDefinitionError(
                 f"L or k contain symbols other than t, q, v: {sorted(map(str, extra))}; "
                 "substitute them or declare them with params=[...]")
+        _check_denominators(self, [self.L, *self.k, *nonideal_exprs])
         self.mechanical = mechanical
         self.N = None
         if nonideal is not None:
@@ -939,6 +940,39 @@ def _check_mechanical_parts(system, mech, M, Mnz) -> None:
         bad = mismatch(lhs, rhs)
         if bad is not None:
             refuse(what, bad)
+
+
+#: distinct denominators ``_check_denominators`` tests (each costs a few 40-digit evaluations);
+#: beyond them a system is built as before
+MAX_DENOMINATOR_CHECKS = 32
+
+
+def _check_denominators(system, exprs) -> None:
+    """SystemDefinitionError naming a denominator of L, k or N that vanishes identically although
+    it is not written as 0: (sin(q)^2 + cos(q)^2 - 1)^-1 is kept by sympy, and the engines then
+    divided by its round-off (energy -9e15 with status 0). Tested by ``numerically_zero`` at
+    40 digits (no simplify: unbounded on user expressions), at most MAX_DENOMINATOR_CHECKS
+    distinct ones, numbers excluded (the parser refuses 1/0)."""
+    seen = []
+    for e in exprs:
+        for node in sympy.preorder_traversal(sympy.sympify(e)):
+            if (isinstance(node, sympy.Pow) and node.exp.is_negative and not node.base.is_number
+                    and node.base not in seen):
+                seen.append(node.base)
+                if len(seen) >= MAX_DENOMINATOR_CHECKS:
+                    break
+        if len(seen) >= MAX_DENOMINATOR_CHECKS:
+            break
+    syms = list(system.q) + list(system.v) + [system.t] + list(system.params)
+    for base in seen:
+        if numerically_zero(base, syms):
+            raise SystemDefinitionError(f"{system.name}: the denominator {_short(base)} vanishes identically "
+                                        "(it is 0 to 40 digits at every test point): the system is undefined")
+
+
+def _short(e, limit: int = 80) -> str:
+    text = str(e)
+    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 def numerically_zero(e, syms, fixed=None, points: int = 3) -> bool:

@@ -130,3 +130,26 @@ def test_the_lambdify_gate_never_sympifies_text(capfd):
         gensource.lambdify([x], [x, "print('EXECUTED-G') or x"], "math")
     assert "EXECUTED" not in capfd.readouterr().out
     assert gensource.lambdify([x], [x, 2.5], "math")(2.0) == [2.0, 2.5]
+
+
+@pytest.mark.parametrize("where", ["L", "k", "nonideal"])
+def test_a_denominator_that_vanishes_identically_is_refused_at_build(where):
+    """(sin(q0)^2 + cos(q0)^2 - 1)^-1 is not 0 as written: sympy keeps it, and the engines divided
+    by its round-off (energy -9e15, status 0). Refused when the system is built, naming it; a
+    denominator that vanishes only at points (1/q0, 1/(1 + q0^2 - 1)) is accepted (negative
+    control: the rule does not refuse every quotient)."""
+    from ldaspark.core.errors import SystemDefinitionError
+    zero = "1/(sin(q0)**2 + cos(q0)**2 - 1)"
+    q, v = ["q0", "q1", "q2"], ["v0", "v1", "v2"]
+    L, k, N = "v0**2/2 + v1**2/2 + v2**2/2", ["v2 - q0*v1"], None
+
+    def build(d):
+        if where == "L":
+            return LagrangianSystem(f"{L} + {d}", k, q, v)
+        if where == "k":
+            return LagrangianSystem(L, [f"v2 - q0*v1 + 0*v0 + v0*{d}"], q, v)
+        return LagrangianSystem(L, k, q, v, nonideal=[f"psi1*{d}", "0", "0"], psi=["psi1"])
+    with pytest.raises(SystemDefinitionError, match=r"denominator sin\(q0\)\*\*2 \+ cos\(q0\)\*\*2 - 1 vanishes"):
+        build(zero)
+    for fine in ("1/q0", "1/(1 + q0**2 - 1)"):
+        assert build(fine).n == 3
