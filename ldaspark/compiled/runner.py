@@ -33,6 +33,8 @@ FAST_METHODS = ("any SPARK tableau (gauss-S, lobatto-iiia-iiib-S, lobatto-iiia-i
                 ) + tuple(LF2_VARIANTS)
 STAT_NAMES = ("steps", "newton_iterations", "nfev", "njev", "nlu", "max_iterations", "failed_step", "failure",
               "full_newton_steps", "failed_iterations")
+#: the work counters among STAT_NAMES (indices), kept across a kernel's dense retry
+_WORK_STATS = tuple(STAT_NAMES.index(c) for c in ("newton_iterations", "nfev", "njev", "nlu"))
 
 
 # --- mechanical form ---------------------------------------------------------------------
@@ -652,12 +654,18 @@ def _spark_kernel(cs, what, run, outs, stats, out_x, structure, retry_dense) -> 
     if structure is not None:
         _entry("spark_sparse_run")(cs.model, what, cs.M, *run, *outs, stats, out_x, *structure.arrays())
         if retry_dense and stats[mt.FAILED_STEP] >= 0 and stats[mt.FAILURE] == mt.FAIL_SINGULAR:
+            # the block-LU attempt's work stays counted (``Result``: every retry is work done)
+            spent = {i: int(stats[i]) for i in _WORK_STATS}
             for arr in outs + (stats, out_x):
                 arr[...] = 0
         else:
             return "sparse"
+    else:
+        spent = {}
     _entry("spark_run" if cs.form == "mechanical" else "general_run")(cs.model, what, cs.M, *run, *outs, stats,
                                                                        out_x)
+    for i, c in spent.items():
+        stats[i] += c
     return "dense"
 
 

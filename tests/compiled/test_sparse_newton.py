@@ -223,6 +223,9 @@ def test_small_block_pivot_falls_back_to_the_dense_lu(monkeypatch):
     d = run_compiled(cs, "gauss-2", t0, q0, v0, 0.01, 20, kernel="spark", linear_solver="dense")
     a = run_compiled(cs, "gauss-2", t0, q0, v0, 0.01, 20, kernel="spark", linear_solver="auto")
     assert a.stats["linear_solver"] == "dense" and np.array_equal(a.q, d.q)
+    # the block LU's failed attempt is work done: counted beside the dense run's (it was zeroed)
+    assert a.stats["nlu"] > d.stats["nlu"] and a.stats["njev"] > d.stats["njev"], (a.stats, d.stats)
+    assert a.stats["steps"] == d.stats["steps"]
 
 
 def test_linear_solver_option_is_checked():
