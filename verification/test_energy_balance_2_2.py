@@ -67,7 +67,8 @@ def test_energy_balance_exhaustive(name, method, exact_method):
     tab = exact_method(method)
     d = discrete_balance(name, tab, hs=("0.1", "0.05", "0.025"))
     p = tab.claimed_order
-    assert max(d["mismatch"]) < 1e-25 or d["order_mismatch"] > p + 1 - 0.4, d
+    # the finest mismatch at the round-off floor: the balance holds to working precision (no order)
+    assert d["mismatch"][-1] <= d["floor"] or d["order_mismatch"] > p + 1 - 0.4, d
 
 
 def test_discrete_order_is_the_finest_pair_of_a_pre_asymptotic_sweep(exact_method):

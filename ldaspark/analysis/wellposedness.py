@@ -19,7 +19,10 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
 
     For each dps in ``dps`` and each step h f, the singular values of J. A structurally zero
     sigma sits at the precision floor (sigma / sigma_max ~ 10^-dps: it moves with dps); a
-    genuinely small one scales like a power of h and does not move with dps.
+    genuinely small one scales like a power of h and does not move with dps. The lowest and the
+    highest precision given are compared (in any order): a sigma is structural when it drops by
+    more than 10^-(gap / 2) between them, gap = their difference in digits (half the drop of a
+    floor sigma; a genuine one agrees to many more digits).
 
     Parameters
     ----------
@@ -34,7 +37,7 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
     h : float
         Step size (nonzero).
     dps : tuple of int, optional
-        The precisions compared (default (30, 50)).
+        The precisions compared, lowest against highest (default (30, 50)).
     h_factors : tuple, optional
         Factors f of the steps h f (default (1, "1/2")).
 
@@ -72,6 +75,7 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
         if fr is None or fr <= 0 or fr.denominator > 10 ** 6 or fr.numerator > 10 ** 6:
             raise InputError(f"classify_wellposedness: h_factors must be positive rationals such as 1 or \"1/2\", "
                              f"got {validate._describe(f)}")
+    d_lo, d_hi = min(dps), max(dps)
     out = {"sigma": {}, "deficiency": {}}
     nz = {}
     sig_rel = {}
@@ -96,28 +100,30 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
                 out["sigma"][key] = rel[-min(len(rel), 3):]
                 out["deficiency"][key] = r
                 nz[(d, f)] = (float(hf), rel[len(rel) - 1 - r])
-                if d == dps[-1] and f == h_factors[0]:
+                if d == d_hi and f == h_factors[0]:
                     keep = (bvp, J, Vh, bk)
-    # structural zeros follow the precision: index-wise (from the bottom), sigma at the higher dps
-    # is more than 8 orders below sigma at the lower dps; genuine small sigma agree to many digits
+    # structural zeros follow the precision: index-wise (from the bottom), sigma at the highest dps
+    # is below sigma at the lowest dps by more than half their digit gap (a floor sigma ~ c 10^-d
+    # drops by ~10^-gap, c within a few orders of 1); genuine small sigma agree to many digits
+    drop = 10.0 ** (-(int(d_hi) - int(d_lo)) / 2)
     struct = {}
     for f in h_factors:
-        lo, hi = sig_rel[(dps[0], f)][::-1], sig_rel[(dps[1], f)][::-1]   # ascending
+        lo, hi = sig_rel[(d_lo, f)][::-1], sig_rel[(d_hi, f)][::-1]   # ascending
         k = 0
-        while k < len(lo) and hi[k] < 1e-8 * lo[k]:
+        while k < len(lo) and hi[k] < drop * lo[k]:
             k += 1
         struct[f] = k
     out["structural"] = {str(f): k for f, k in struct.items()}
     r = max(struct.values())
     for f in h_factors:   # the smallest genuine sigma per h
-        nz[(dps[0], f)] = (nz[(dps[0], f)][0], sig_rel[(dps[0], f)][len(sig_rel[(dps[0], f)]) - 1 - r])
-        nz[(dps[1], f)] = (nz[(dps[1], f)][0], sig_rel[(dps[1], f)][len(sig_rel[(dps[1], f)]) - 1 - r])
-    (h1, s1), (h2, s2) = nz[(dps[0], h_factors[0])], nz[(dps[0], h_factors[1])]
+        nz[(d_lo, f)] = (nz[(d_lo, f)][0], sig_rel[(d_lo, f)][len(sig_rel[(d_lo, f)]) - 1 - r])
+        nz[(d_hi, f)] = (nz[(d_hi, f)][0], sig_rel[(d_hi, f)][len(sig_rel[(d_hi, f)]) - 1 - r])
+    (h1, s1), (h2, s2) = nz[(d_lo, h_factors[0])], nz[(d_lo, h_factors[1])]
     p = math.log(s1 / s2) / math.log(h1 / h2) if s1 > 0 and s2 > 0 else float("nan")
-    stable = abs(nz[(dps[0], h_factors[0])][1] / nz[(dps[1], h_factors[0])][1] - 1) < 1e-10
+    stable = abs(nz[(d_lo, h_factors[0])][1] / nz[(d_hi, h_factors[0])][1] - 1) < 1e-10
     tracks = r > 0
     bvp, J, Vh, bk = keep
-    if r and r < len(sig_rel[(dps[-1], h_factors[0])]) and sig_rel[(dps[-1], h_factors[0])][-1 - r] < 1e-12:
+    if r and r < len(sig_rel[(d_hi, h_factors[0])]) and sig_rel[(d_hi, h_factors[0])][-1 - r] < 1e-12:
         # a genuine sigma below float64 resolution: float64 vectors would mix it into the null space
         with bk.context():
             Vh = _svd(bk, J)[2]

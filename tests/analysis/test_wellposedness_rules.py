@@ -69,7 +69,7 @@ def test_wellposed_when_no_sigma_follows_the_precision(monkeypatch):
 
 
 def test_structural_zero_is_a_gauge_or_singular_by_the_null_support(monkeypatch):
-    # the last sigma sits at the precision floor 10^-d: it moves with dps (more than 1e8 apart)
+    # the last sigma sits at the precision floor 10^-d: it moves with dps (1e20 apart, more than the 1e10 of half the gap)
     sig = lambda d, h: [1, 2 * h, 10.0 ** -d]
     _fake_wellposed(monkeypatch, sig, GOOD)
     out = _classify()
@@ -88,10 +88,10 @@ def test_structural_rank_changing_with_h_is_singular(monkeypatch):
     _fake_wellposed(monkeypatch, lambda d, h: [1, 0.5, 10.0 ** -d if h > 0.07 else 1e-3], GOOD)
     out = _classify()
     assert out["structural"] == {"1": 1, "1/2": 0} and out["class"] == W.SINGULAR
-    # a factor 1e-8 between the precisions is not enough (strict): 1e-20 vs 1e-28
-    _fake_wellposed(monkeypatch, lambda d, h: [1, 0.5, 1e-20 if d == 30 else 1e-28], GOOD)
+    # a drop of 10^-(gap/2) = 1e-10 between 30 and 50 digits is not enough (strict): 1e-20 vs 1e-30
+    _fake_wellposed(monkeypatch, lambda d, h: [1, 0.5, 1e-20 if d == 30 else 1e-30], GOOD)
     assert _classify()["structural"] == {"1": 0, "1/2": 0}
-    _fake_wellposed(monkeypatch, lambda d, h: [1, 0.5, 1e-20 if d == 30 else 0.99e-28], GOOD)
+    _fake_wellposed(monkeypatch, lambda d, h: [1, 0.5, 1e-20 if d == 30 else 0.99e-30], GOOD)
     assert _classify()["structural"] == {"1": 1, "1/2": 1}
 
 
@@ -145,3 +145,28 @@ def test_the_null_vectors_are_recomputed_only_under_a_genuine_sigma_below_float6
     assert _classify()["rank_deficiency"] == 1 and seen["Vh"] == "Vh-float" and calls == []
     seen = _fake_wellposed(monkeypatch, lambda d, h: [1, 1e-14 * h, 10.0 ** -d], GOOD, svd_calls=calls)
     assert _classify()["rank_deficiency"] == 1 and seen["Vh"] == "Vh-full" and len(calls) == 1
+
+
+def test_a_structural_zero_is_told_by_the_precisions_given(monkeypatch):
+    """A sigma at the precision floor 10^-d drops by 10^-(d_hi - d_lo) between the lowest and the
+    highest precision given, whatever their order and gap; the threshold is derived from that gap
+    (half of it: 10^-3 for 30 and 36 digits, 10^-10 for 30 and 50). Before, a fixed 1e-8 missed a
+    6-digit gap and precisions given in decreasing order: the gauge-deficient Lobatto IIIA-B 2 on
+    the particle (sigma 9.9e-32 at 30 digits, 9.4e-38 at 36) was classified well-posed."""
+    sig = lambda d, h: [1, 2 * h, 10.0 ** -d]
+    _fake_wellposed(monkeypatch, sig, GOOD)
+    for dps in ((30, 36), (50, 30), (50, 30, 40)):
+        out = _classify(dps=dps)
+        assert out["class"] == W.GAUGE and out["rank_deficiency"] == 1, (dps, out)
+    # a genuine sigma (the same at every precision) stays genuine at a small gap
+    _fake_wellposed(monkeypatch, lambda d, h: [1, 0.5, 3 * h * h], GOOD)
+    assert _classify(dps=(30, 36))["rank_deficiency"] == 0
+    monkeypatch.undo()
+    from ldaspark.core.families import get_method
+    from ldaspark.models.scenes import get_scene
+    sc = get_scene("particle")
+    t0, q0, v0 = sc.initial(60)
+    tab = get_method("lobatto-iiia-iiib-2", exact=True)
+    for dps in ((30, 36), (50, 30)):
+        out = W.classify_wellposedness(sc.system, tab, t0, q0, v0, "0.1", dps=dps)
+        assert out["class"] == W.GAUGE and out["rank_deficiency"] == 1, (dps, out["sigma"])

@@ -343,9 +343,17 @@ def holonomic_order(tab, hs=("0.1", "0.05", "0.025"), dps=DPS):
             full.append(float(max(bk.norm_inf(r.f_d_minus), bk.norm_inf(r.f_d_plus))))
     hf = [float(h) for h in hs]
     p = (math.log(tang[-2] / tang[-1]) / math.log(hf[-2] / hf[-1])
-         if tang[-1] > 1e-30 and tang[-2] > 1e-30 else float("inf"))
-    pf = math.log(full[-2] / full[-1]) / math.log(hf[-2] / hf[-1]) if full[-1] > 0 else float("inf")
+         if tang[-1] > 1e-30 and tang[-2] > 1e-30 else _rate_at_zero(tang))
+    pf = (math.log(full[-2] / full[-1]) / math.log(hf[-2] / hf[-1])
+          if full[-1] > 1e-30 and full[-2] > 1e-30 else _rate_at_zero(full))
     return {"h": hf, "tangential": tang, "full": full, "p_tangential": p, "p_full": pf, "wellposed": cls}
+
+
+def _rate_at_zero(values):
+    """The rate of the finest pair when one of its values is zero to working precision (< 1e-30
+    at 40 digits): +inf when the finest vanishes, -inf when the finest grew out of a zero (no
+    decay; a log of the ratio would be +inf or a log(0) error)."""
+    return float("inf") if values[-1] <= 1e-30 else -float("inf")
 
 
 def holonomic_records(tab, expected):

@@ -30,6 +30,7 @@ from ...core.errors import InputError
 from ...core.spark import SparkMethod
 from ...core.system import LagrangianSystem
 from .exact_flow import ExactFlow
+from .orders import floor_for
 
 SYSTEMS = ("time-L", "affine-b", "nonlinear-k", "rheonomic-linear", "particle")
 
@@ -116,7 +117,10 @@ def predicted_mismatch_order(tab) -> int:
 def discrete_balance(name, tab, hs=("0.2", "0.1", "0.05"), dps=30):
     """One SPARK step from the system's data for each h: |Delta E|, the mismatch
     |Delta E - h sum b_i rhs_i| with stage values, and the control without -L_t; with the
-    observed orders (log-log slopes over the last two h)."""
+    observed orders (log-log slopes over the last two h). ``floor`` is the round-off plateau of
+    these differences of energies, 1e3 eps max(1, |E|) at ``dps`` digits (``orders.floor_for``):
+    an order needs both errors of the pair above it, else it is None (a slope of round-off, e.g.
+    Gauss on a quadratic E with L_t = 0, is no order)."""
     sysm, q0s, v0s = energy_system(name)
     f = _fns(sysm)
     meth = SparkMethod(sysm, tab, dps=dps)
@@ -126,10 +130,12 @@ def discrete_balance(name, tab, hs=("0.2", "0.1", "0.05"), dps=30):
         q0, v0 = bk.array(q0s), bk.array(v0s)
         t0 = mpmath.mpf(0)
         E0 = f(t0, *q0, *v0)[0]
+        E_scale = abs(E0)
         for hs_ in hs:
             h = mpmath.mpf(hs_)
             r = meth.step(t0, q0, v0, h)
             E1 = f(t0 + h, *r.q1, *r.v1)[0]
+            E_scale = max(E_scale, abs(E1))
             quad, quad_nolt = 0, 0
             for i in range(tab.s):
                 ps, lt = rhs_terms(f, t0 + meth.tab.c[i] * h, r.Q[i], r.V[i], r.Psi[i])
@@ -138,8 +144,9 @@ def discrete_balance(name, tab, hs=("0.2", "0.1", "0.05"), dps=30):
             out["delta_E"].append(float(abs(E1 - E0)))
             out["mismatch"].append(float(abs(E1 - E0 - quad)))
             out["mismatch_without_L_t"].append(float(abs(E1 - E0 - quad_nolt)))
+    floor = out["floor"] = floor_for(dps, float(E_scale))
     for key in ("delta_E", "mismatch", "mismatch_without_L_t"):
         e = out[key]
         out["order_" + key] = (math.log(e[-2] / e[-1]) / math.log(out["h"][-2] / out["h"][-1])
-                               if e[-1] > 0 and e[-2] > 0 else None)
+                               if e[-1] > floor and e[-2] > floor else None)
     return out

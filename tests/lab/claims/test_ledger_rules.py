@@ -477,6 +477,26 @@ def test_holonomic_order_takes_the_larger_of_the_two_covectors(monkeypatch):
     assert out["p_tangential"] == pytest.approx(3.0)
 
 
+def test_holonomic_forces_that_grow_out_of_zero_do_not_decay(monkeypatch):
+    """Tangential forces 0 at h = 0.1 and 1e-10 at h = 0.05 grew: no decay, the 5.1 record fails
+    (the rate was +inf from the zero at the coarser h, and the record passed); the unprojected
+    covector, 0 then 0.05, gives a rate of -inf (it raised ValueError from log(0))."""
+    def fake_lagrangian(S, tab, t0, q0, t1, q1, dps, x_guess):
+        h = float(t1)
+        f = ([mpmath.mpf(0), mpmath.mpf(0)] if h > 0.075 else [mpmath.mpf(h), mpmath.mpf("1e-10")])
+        return types.SimpleNamespace(wellposed=LG.WELLPOSED, f_d_minus=np.array(f, dtype=object),
+                                     f_d_plus=np.array(f, dtype=object))
+
+    monkeypatch.setattr(LG, "base_point", lambda S, tab, t0, q0, v0, h, dps: (mpmath.mpf(h), list(q0), None))
+    monkeypatch.setattr(LG, "discrete_lagrangian", fake_lagrangian)
+    out = LG.holonomic_order(None, hs=("0.1", "0.05"), dps=30)
+    assert out["tangential"] == pytest.approx([0.0, 1e-10]) and out["full"] == pytest.approx([0.0, 0.05])
+    assert out["p_tangential"] == -float("inf") and out["p_full"] == -float("inf")
+    monkeypatch.setattr(LG, "holonomic_order", lambda tab: out)
+    recs = LG.holonomic_records(_tab(), "pass")
+    assert [r["status"] for r in recs] == ["fail", "fail"], recs
+
+
 def test_a_bad_number_names_its_bound_only_when_there_is_one():
     import pytest
 

@@ -181,3 +181,18 @@ def test_energy_balance_8_reports_the_worst_collocation_node(monkeypatch):
     assert out["pointwise"] == _close(1e-3, rel=1e-3)       # node 0 (node 1: 1e-4, node 2: ~1e-21)
     assert out["without_L_t"] == _close(1e-4, rel=1e-3)     # node 1 (the others ~1e-21)
     assert out["without_psi_term"] == _close(1e-3, rel=1e-2)   # node 0 (the others |psi^T K v| < 1e-5)
+
+
+def test_discrete_balance_measures_no_order_from_round_off():
+    """Gauss-2 satisfies the discrete balance exactly on affine-b (L_t = 0, E quadratic): the
+    mismatches at h = 0.2, 0.1, 0.05 are round-off of the 30-digit step (2.4e-31, 5.5e-32, 4.1e-31,
+    measured), below the floor 1e3 eps max(1, |E|) = 1e-27. Their log-log slope (-2.90) is no order:
+    order_mismatch is None and the floor is reported. Control: Lobatto IIIA-B 2, whose mismatch is
+    not an identity, keeps its order (3)."""
+    from ldaspark.core.families import get_method
+    out = EB.discrete_balance("affine-b", get_method("gauss-2", exact=True))
+    assert max(out["mismatch"]) <= out["floor"] <= 1e-26, out
+    assert out["order_mismatch"] is None, out
+    assert out["order_delta_E"] is not None          # Delta E itself is O(h), far above the floor
+    ctl = EB.discrete_balance("affine-b", get_method("lobatto-iiia-iiib-2", exact=True))
+    assert min(ctl["mismatch"]) > ctl["floor"] and abs(ctl["order_mismatch"] - 3) <= 0.4, ctl
