@@ -264,7 +264,8 @@ def quasi_step_values(d):
     (``reports/quasi_step.json``, from ``benchmarks/quasi_step.py``): the range of the per-step
     speed-ups, and per study and target cpu(best peer) / cpu(best SPARK) with the quasi root
     finder (``qs.<scene>.<key>.<target>``), the same with the generic kernel (``...generic``; the
-    plain keys run the kernel specialised per (s, n, m)) and with the kernels' Newton (``...newton``)."""
+    plain keys run the kernel specialised per (s, n, m)), with the kernels' Newton (``...newton``)
+    and, when the study ran with ``--tol-kappa K``, with ``Newton(tol = K * target)`` (``...tol``)."""
     sp = [r["speedup"] for r in d.get("per_step", [])]
     out = {"qs.per_step.range": f"{min(sp):.3g}-{max(sp):.2g}x"} if sp else {}
     # the kernel specialised per (s, n, m) against the generic one (rows with a specialised kernel)
@@ -275,7 +276,8 @@ def quasi_step_values(d):
     if gs:
         out["qs.per_step.generic.range"] = f"{min(gs):.3g}-{max(gs):.2g}x"
     for st in d.get("studies", []):
-        for side, suffix in (("quasi", ""), ("quasi_generic", ".generic"), ("newton", ".newton")):
+        for side, suffix in (("quasi", ""), ("quasi_generic", ".generic"), ("newton", ".newton"),
+                             ("quasi_tol", ".tol")):
             for r in st.get(side, []):
                 key = f"qs.{st['scene']}.{st['key']}.{r['target']:.0e}{suffix}"
                 if r.get("speedup") is not None:

@@ -258,6 +258,10 @@ def test_quasi_step_values_quote_each_side_the_right_way_up():
     assert (out["qs.skate.error.1e-09"], out["qs.skate.error.1e-09.newton"]) == (">= 1.50x", "<= 0.25x")
     study["newton"] = side(0.008, speedup=None)
     assert quasi_step_values(d)["qs.skate.error.1e-09.newton"] == "-"
+    # a study run with --tol-kappa: its Newton(tol = K * target) rows under '.tol', absent without
+    assert "qs.skate.error.1e-09.tol" not in quasi_step_values(d)
+    study["quasi_tol"] = side(0.002)
+    assert quasi_step_values(d)["qs.skate.error.1e-09.tol"] == "2.00x"
 
 
 def test_quasi_step_values_quote_the_specialised_kernel_against_the_generic_one():
