@@ -595,3 +595,17 @@ def test_ledger_jobs_floor_at_one_and_follow_the_environment(monkeypatch):
     assert ledger_jobs() == 1
     monkeypatch.setenv("LDASPARK_JOBS", "5")
     assert ledger_jobs() == 5
+
+
+def test_theorem1_threshold_follows_the_working_digits(monkeypatch):
+    """The pass threshold is half the working digits (``ledger.theorem1_tolerance``): 1e-20 at the
+    ledger's 40 digits, 1e-15 at 30; a residual of 1e-17 passes at 30 digits and fails at 40
+    (a fixed 1e-20 failed every correct claim checked at 30 digits)."""
+    assert ledger.theorem1_tolerance(ledger.DPS) == ledger.TOL_THEOREM1 == 1e-20
+    assert ledger.theorem1_tolerance(30) == 1e-15
+    monkeypatch.setattr(ledger, "theorem1_residuals", lambda *a, **k: _ledger_t1(1e-17, 1e-17))
+    exp = {"theorem1-q0": "pass", "theorem1-q1": "pass"}
+    at30, _ = ledger.theorem1_records(_scene(), _tab(), exp, "base", 0, [0], [0], dps=30)
+    at40, _ = ledger.theorem1_records(_scene(), _tab(), exp, "base", 0, [0], [0])
+    assert [x["status"] for x in at30] == ["pass", "pass"] and at30[0]["threshold"] == 1e-15
+    assert [x["status"] for x in at40] == ["fail", "fail"] and at40[0]["threshold"] == 1e-20
