@@ -169,7 +169,10 @@ def test_general_nonideal_control_stalls_below_order_one_half(monkeypatch):
         errs["e"] = e
         out = cg._nonideal_records(True)
         assert [r["claim"] for r in out] == ["nonideal-3.3", "nonideal-3.3"] and out[-1]["status"] == st
-        assert out[-1]["residual"] == e[-1] and out[-1]["expected"] == "fail"
+        # the record carries what decided it: the observed order (None when none) against 0.5
+        order = out[-1]["residual"]
+        assert out[-1]["threshold"] == 0.5 and out[-1]["expected"] == "fail"
+        assert (order is None or order < 0.5) == (st == "fail") and f"{e[-1]:.1e}" in out[-1]["note"]
 
 
 def test_dop853_reference_failure_is_an_error(monkeypatch):
