@@ -48,7 +48,7 @@ class EnsembleResult:
 
 
 class _KernelBlocks:
-    """``run_kernels`` as the block engine that ``ldaspark.solve._chunked`` drives: a member runs in
+    """``run_kernels`` as the block engine that ``ldaspark.core.chunks.run_in_blocks`` drives: a member runs in
     the blocks of COMPILED_CHUNK steps of its single ``integrate`` run (the predictor restarts at
     each block's start), so the two agree bit for bit past one block, and a worker's kernel call
     returns between blocks."""
@@ -71,8 +71,8 @@ class _KernelBlocks:
 
     def member(self, t0, q0, v0, n_steps, every, boundaries=None) -> tuple:
         """(t, q, v, energy, constraint, stats, psi) of one member, as ``_fast_task`` returns it."""
-        from .solve import _chunked
-        r = _chunked(self, self.prep, (t0, q0, v0), n_steps, every, boundaries=boundaries)
+        from .core.chunks import run_in_blocks
+        r = run_in_blocks(self, self.prep, (t0, q0, v0), n_steps, every, boundaries=boundaries)
         return (r.t, r.q, r.v, r.energy, r.constraint, r.stats, r.psi)
 
 

@@ -57,6 +57,9 @@ STATUS_SADDLE = -2
 STATUS_OTHER = -3
 STATUS_GUARD = -4
 
+#: the message of a run that reached t_end (every engine)
+MSG_DONE = "The integration reached t_end."
+
 COUNTERS = ("nfev", "njev", "nlu", "newton_iterations")
 #: the counters a step failure carries to the driver (``failure_counters``): the work of the
 #: failed call up to and including its failed step, and its accepted steps

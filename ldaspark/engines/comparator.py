@@ -14,7 +14,7 @@ from ..core.errors import LdasparkError
 from ..core.result import Result
 from .base import Engine, Prepared
 
-MSG_DONE = "The integration reached t_end."
+from ..core.result import MSG_DONE
 
 
 class ComparatorSafeRoot:

@@ -6,7 +6,7 @@ root-finder kinds run by modules of their own, ``compiled.runner.KIND_RUNNERS``,
 A block engine (``Engine.mode = "block"``): ``run`` is one kernel call of n steps keeping every
 ``every``-th sample (``compiled.fast.run_engine``: the kernel, with the generic full-Newton step
 where a kernel's Newton fails, ``compiled.rescue``); the driver cuts long runs into blocks of
-``solve.COMPILED_CHUNK`` steps. Walk: driver -> ``CompiledEngine.run`` -> ``fast.run_engine`` ->
+``core.chunks.COMPILED_CHUNK`` steps. Walk: driver -> ``CompiledEngine.run`` -> ``fast.run_engine`` ->
 ``runner._run_checked`` -> the kernels.
 """
 from __future__ import annotations
@@ -16,12 +16,11 @@ from typing import Optional
 import numpy as np
 
 from ..core.errors import InputError, LdasparkError, NewtonError, NonFiniteError
-from ..core.result import Result
+from ..core.result import MSG_DONE, Result
 from ..core.tableau import SparkTableau
 from .base import Engine, Prepared
 from ..core.guard import SparkSafeRoot
 
-MSG_DONE = "The integration reached t_end."
 
 
 class CompiledEngine(Engine):

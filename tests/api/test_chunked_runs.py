@@ -1,4 +1,4 @@
-"""A run cut into blocks (``solve._chunked``, runs longer than COMPILED_CHUNK steps; made small
+"""A run cut into blocks (``chunks.run_in_blocks``, runs longer than COMPILED_CHUNK steps; made small
 here) is the run of one call to what it reports: the saved times t0 + i h as one call computes
 them, the counters' maximum over the blocks, a failure's step number in its message, and the
 guard's rerun of the first steps with the blocks of the run it judges. Each check has the
@@ -9,6 +9,7 @@ import sympy
 
 import ldaspark
 from ldaspark import solve
+from ldaspark.core import chunks
 
 x, y, th, vx, vy, vth = sympy.symbols("x y th vx vy vth")
 # a stiff quartic spring with a nonholonomic constraint: gauss-3 at h = 0.2 takes up to ~70
@@ -19,7 +20,7 @@ IC = dict(q0=[0.5, 0.1, 0.3], v0=[1.0, 0.75, 0.5], engine="compiled")
 
 
 def _run(chunk, monkeypatch, method="gauss-2", **kw):
-    monkeypatch.setattr(solve, "COMPILED_CHUNK", chunk)
+    monkeypatch.setattr("ldaspark.core.chunks.COMPILED_CHUNK", chunk)
     return ldaspark.integrate(QUARTIC, method, **dict(IC, **kw))
 
 
@@ -83,15 +84,15 @@ def test_the_guard_reruns_the_blocks_of_the_run_it_judges(monkeypatch):
     (``boundaries``) the rerun's every third step is the run's sample, bit for bit; control: with
     its own blocks it is not."""
     from ldaspark.engines import ENGINES
-    monkeypatch.setattr(solve, "COMPILED_CHUNK", 4)
+    monkeypatch.setattr("ldaspark.core.chunks.COMPILED_CHUNK", 4)
     opts = solve.IntegrationOptions.checked(engine="compiled", save_every=3)
     prob = solve._Problem("spark", solve.resolve_method("gauss-2")[1], "gauss-2", 0.0, 0.05, 30, None)
     eng = ENGINES["compiled"]
     prep = eng.prepare(QUARTIC, prob, opts)
     start = (0.0, np.array(IC["q0"]), np.array(IC["v0"]))
-    run = solve._chunked(eng, prep, start, 30, 3)
-    rerun = solve._chunked(eng, prep, start, 30, 1, boundaries=3)
-    own = solve._chunked(eng, prep, start, 30, 1)
+    run = chunks.run_in_blocks(eng, prep, start, 30, 3)
+    rerun = chunks.run_in_blocks(eng, prep, start, 30, 1, boundaries=3)
+    own = chunks.run_in_blocks(eng, prep, start, 30, 1)
     np.testing.assert_array_equal(np.asarray(rerun.q)[::3], np.asarray(run.q))
     assert not np.array_equal(np.asarray(own.q)[::3], np.asarray(run.q))
 
@@ -104,7 +105,7 @@ def test_an_ensemble_through_an_executor_is_cut_into_the_blocks_of_its_single_ru
     now bit for bit, counters too, and the guard's rerun of ``run_many`` likewise."""
     from concurrent.futures import ThreadPoolExecutor
     from ldaspark.ensemble import RunSpec, run_many
-    monkeypatch.setattr(solve, "COMPILED_CHUNK", 8)
+    monkeypatch.setattr("ldaspark.core.chunks.COMPILED_CHUNK", 8)
     Q0, V0 = [IC["q0"], [0.45, 0.1, 0.2]], [IC["v0"], [1.0, 0.27, 0.2]]
     kw = dict(q0=Q0, v0=V0, h=0.05, n_steps=50, save_every=every, engine="compiled", guard=False)
     loop = ldaspark.integrate(QUARTIC, "gauss-2", **kw)

@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 
 import ldaspark
-from ldaspark import solve
 from ldaspark.core.errors import InputError
 from ldaspark.engines import ENGINES, Engine, get_engine, register
 from ldaspark.engines.generic import GenericEngine
@@ -87,7 +86,7 @@ def test_the_driver_chunks_a_chunked_engine_and_keeps_the_samples(monkeypatch):
     # negative control: a short run is one block; then the driver's guard judges the first saved
     # interval on a rerun of its 3 steps with every step kept (the guard is the driver's)
     assert whole.blocks == [(12, 3), (3, 1)]
-    monkeypatch.setattr(solve, "COMPILED_CHUNK", 4)
+    monkeypatch.setattr("ldaspark.core.chunks.COMPILED_CHUNK", 4)
     cut = _with(monkeypatch, StepsAsBlocks(samples=True, chunked=True))
     res = ldaspark.integrate("skate", "gauss-2", engine="generic", save_every=3, guard=False, **RUN)
     assert len(cut.blocks) == 4 and all(n <= 4 for n, _ in cut.blocks), cut.blocks
@@ -159,7 +158,7 @@ def test_a_failure_in_a_later_block_names_the_step_and_time_of_the_whole_run(mon
     # one step, the failure is in the second block: the same step and time (t0 + k h) as one call
     kw = dict(engine="compiled", t0=5.0, n_steps=6, h=1.0, newton=ldaspark.Newton(max_iter=4), guard=False)
     one = ldaspark.integrate("pendulum", "lobatto-iiia-iiib-2-leapfrog", **kw)
-    monkeypatch.setattr(solve, "COMPILED_CHUNK", 1)
+    monkeypatch.setattr("ldaspark.core.chunks.COMPILED_CHUNK", 1)
     cut = ldaspark.integrate("pendulum", "lobatto-iiia-iiib-2-leapfrog", **kw)
     assert one.status == cut.status < 0 and one.error.step == cut.error.step == 1
     assert cut.error.time == one.error.time == 6.0 == float(cut.t[-1])
@@ -255,7 +254,7 @@ def test_a_failed_chunked_run_counts_the_blocks_before_its_failure(monkeypatch):
     chain), not the rerun prefix's alone."""
     kw = dict(engine="compiled", h=5.0, n_steps=3, newton=ldaspark.Newton(kind="full"))
     one = ldaspark.integrate("pendulum", "gauss-2", **kw)
-    monkeypatch.setattr(solve, "COMPILED_CHUNK", 1)
+    monkeypatch.setattr("ldaspark.core.chunks.COMPILED_CHUNK", 1)
     cut = ldaspark.integrate("pendulum", "gauss-2", **kw)
     assert one.status == cut.status == -1 and cut.error.step == one.error.step == 1
     _check_counters(cut, "full", "chunked")

@@ -21,6 +21,7 @@ from hypothesis import Phase, given, seed, settings
 
 import ldaspark
 from ldaspark import solve
+from ldaspark.core import chunks
 from ldaspark.core.errors import InputError
 from verification.harness import (SEED, agreement_tol, consistent_neighbour, harness_cases, max_diff,
                                   mechanical_cases, trajectory_diff)
@@ -133,12 +134,12 @@ def check_chunked_compiled_run_agrees_with_one_call(case):
     chunk continues t0 + i h; the predictor restarts at each chunk (Newton then stops at another
     point of the same ball: the same tolerance)."""
     one = case.run(engine="compiled")
-    old = solve.COMPILED_CHUNK
-    solve.COMPILED_CHUNK = case.chunk
+    old = chunks.COMPILED_CHUNK
+    chunks.COMPILED_CHUNK = case.chunk
     try:
         cut = case.run(engine="compiled")
     finally:
-        solve.COMPILED_CHUNK = old
+        chunks.COMPILED_CHUNK = old
     grid = case.t0 + np.arange(case.n_steps + 1) * case.h
     assert max_diff(cut.t, grid) <= 4 * case.n_steps * np.finfo(float).eps * (abs(case.t0) + 1)
     _agree(cut, one, case.tol(), f"chunks of {case.chunk} vs one call")

@@ -7,7 +7,6 @@ import pytest
 import sympy as sp
 
 import ldaspark
-import ldaspark.solve as solve
 
 # The engines solve the same step equations to the Newton tolerance (8 eps of the stage values),
 # and Psi = Lambda / h carries that error divided by h times cond of the Newton matrix: measured
@@ -40,7 +39,7 @@ def test_compiled_psi_equals_generic_psi(scene, method, every):
 def test_chunked_runs_keep_the_psi_of_their_saved_steps(monkeypatch, every):
     kw = dict(t_span=(0, 2.4), h=0.1, save_every=every, engine="compiled")
     whole = ldaspark.integrate("skate", "gauss-2", **kw)
-    monkeypatch.setattr(solve, "COMPILED_CHUNK", 4)      # every = 6 > the chunk: one sample per chunks
+    monkeypatch.setattr("ldaspark.core.chunks.COMPILED_CHUNK", 4)      # every = 6 > the chunk: one sample per chunks
     parts = ldaspark.integrate("skate", "gauss-2", **kw)
     assert np.abs(parts.t - whole.t).max() <= 1e-14      # t0 + done h + j h against t0 + step h: rounding
     assert _close(parts.psi, whole.psi)

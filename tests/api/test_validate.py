@@ -66,12 +66,18 @@ def test_step_count_is_bounded_on_every_engine(engine):
         run(t_span=None, n_steps=10 ** 12, engine=engine)
 
 
-def test_generic_engine_has_the_storage_check_of_the_compiled_one():
-    # before: --engine generic --h 1e-9 --t-end 1 grew memory; now refused before allocating
-    with pytest.raises(InputError, match="GiB"):
+def test_generic_engine_has_the_storage_check_of_the_compiled_one(monkeypatch):
+    # before: --engine generic --h 1e-9 --t-end 1 grew memory; now refused before allocating. That
+    # run is now refused by the float64 generic work bound first (test_work_bound.py), so the
+    # storage check is seen with the machine's memory made 1 KiB: 11 samples need ~6 KiB.
+    with pytest.raises(InputError, match="work"):
         run(t_span=(0, 1), h=1e-9, engine="generic")
-    # control: the same engine with 10 steps stores nothing large
+    # control: with the machine's memory, 10 steps store nothing large
     assert run(t_span=(0, 0.5), h=0.05, engine="generic").status == 0
+    monkeypatch.setattr(validate, "physical_memory", lambda: 2 ** 10)
+    for engine in ("generic", "compiled"):
+        with pytest.raises(InputError, match="GiB"):
+            run(t_span=(0, 0.5), h=0.05, engine=engine)
 
 
 def test_runspec_and_run_many_bound_the_steps_and_refuse_zero_rows():
@@ -97,7 +103,6 @@ def test_long_compiled_run_is_chunked_with_the_same_samples(monkeypatch):
     (Python handles the signal between two calls). The chunked run keeps the same saved steps and
     agrees with one call to the Newton tolerance (the predictor restarts at a chunk boundary;
     8 eps relative per step over 40 steps and an O(1) solution: 1e-12 is ample)."""
-    from ldaspark import solve
     from ldaspark.compiled import runner
     calls = []
     real = runner._run_checked        # the kernel call behind fast_integrate and run_compiled
@@ -106,7 +111,7 @@ def test_long_compiled_run_is_chunked_with_the_same_samples(monkeypatch):
         calls.append(a[3][1])          # grid = (h, n_steps, every)
         return real(*a, **k)
     one = run(t_span=(0, 2), h=0.05, save_every=3)
-    monkeypatch.setattr(solve, "COMPILED_CHUNK", 7)
+    monkeypatch.setattr("ldaspark.core.chunks.COMPILED_CHUNK", 7)
     monkeypatch.setattr(runner, "_run_checked", spy)
     chunked = run(t_span=(0, 2), h=0.05, save_every=3)
     assert one.engine == chunked.engine == "compiled"
@@ -118,7 +123,7 @@ def test_long_compiled_run_is_chunked_with_the_same_samples(monkeypatch):
     # save_every larger than the chunk: samples at 0, 9, 18, 27, 36, 40 as in one call
     big = run(t_span=(0, 2), h=0.05, save_every=9)
     assert list(np.round(big.t / 0.05).astype(int)) == [0, 9, 18, 27, 36, 40]
-    monkeypatch.setattr(solve, "COMPILED_CHUNK", 2 ** 18)
+    monkeypatch.setattr("ldaspark.core.chunks.COMPILED_CHUNK", 2 ** 18)
     calls.clear()
     run(t_span=(0, 2), h=0.05)
     assert len(calls) == 1                            # negative control: short runs are one call

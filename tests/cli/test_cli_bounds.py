@@ -109,10 +109,10 @@ def test_interrupt_message_says_whether_the_output_was_written(tmp_path, monkeyp
 _LONG_COMPILED = """
 import sys
 import ldaspark
-from ldaspark import solve
+from ldaspark.core import chunks
 from ldaspark.cli import main
 if len(sys.argv) > 2:
-    solve.COMPILED_CHUNK = int(sys.argv[2])
+    chunks.COMPILED_CHUNK = int(sys.argv[2])
 ldaspark.integrate("skate", "gauss-2", t_span=(0, 0.1), h=0.05, engine="compiled")   # compile / load first
 print("ready", flush=True)
 sys.exit(main(["integrate", "skate", "gauss-2", "--h", "0.001", "--t-end", "1000000", "--every", "100000000",

@@ -155,11 +155,10 @@ def test_integrate_newton_quasi():
 
 
 def test_chunked_run_sums_the_quasi_counters(monkeypatch):
-    """A run longer than one kernel call (solve.COMPILED_CHUNK, lowered to 50 here) is a sequence of
+    """A run longer than one kernel call (chunks.COMPILED_CHUNK, lowered to 50 here) is a sequence of
     quasi-Newton calls: the counters add up over the chunks and the trajectory agrees with one call."""
-    from ldaspark import solve
     one = ldaspark.integrate("skate", "gauss-2", h=0.1, n_steps=120, engine="compiled", newton="quasi")
-    monkeypatch.setattr(solve, "COMPILED_CHUNK", 50)
+    monkeypatch.setattr("ldaspark.core.chunks.COMPILED_CHUNK", 50)
     b = ldaspark.integrate("skate", "gauss-2", h=0.1, n_steps=120, engine="compiled", newton="quasi")
     assert b.stats["quasi_steps"] == b.stats["multiplier_lu"] == 120 and b.stats["root_finder"]["kind"] == "quasi"
     assert one.stats["quasi_steps"] == 120 and len(b.t) == 121
@@ -265,9 +264,8 @@ def test_a_loose_tol_stops_after_one_increment_on_the_carried_rate(monkeypatch):
                            newton=ldaspark.Newton(tol=1e-8))
     assert r.stats["root_finder"]["runs"] == "quasi" and r.stats["rate_first_steps"] == loose.stats["rate_first_steps"]
     assert np.array_equal(r.q, loose.q)
-    # a chunked run (solve.COMPILED_CHUNK lowered to 200) sums the counter over its blocks
-    from ldaspark import solve
-    monkeypatch.setattr(solve, "COMPILED_CHUNK", 200)
+    # a chunked run (chunks.COMPILED_CHUNK lowered to 200) sums the counter over its blocks
+    monkeypatch.setattr("ldaspark.core.chunks.COMPILED_CHUNK", 200)
     c = ldaspark.integrate("skate", "gauss-4", h=0.2, n_steps=500, engine="compiled",
                            newton=ldaspark.Newton(tol=1e-8))
     assert c.stats["rate_first_steps"] >= 250 and abs(c.stats["rate_first_steps"] - r.stats["rate_first_steps"]) <= 6

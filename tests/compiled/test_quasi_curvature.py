@@ -166,13 +166,12 @@ def test_refresh_inverts_the_frozen_velocity_block(method):
 
 def test_integrate_sums_the_curvature_counters_over_chunks(monkeypatch):
     """Through ldaspark.integrate(..., newton="quasi") on the particle: every step a curvature step;
-    a run cut into kernel calls of 50 steps (solve.COMPILED_CHUNK lowered) decomposes the Hessian
+    a run cut into kernel calls of 50 steps (chunks.COMPILED_CHUNK lowered) decomposes the Hessian
     once per call (3 calls for 120 steps: the counters add up; one call: 1) and agrees with the
     one-call run within the bound."""
     import ldaspark
-    from ldaspark import solve
     one = ldaspark.integrate("particle", "gauss-4", h=0.2, n_steps=120, engine="compiled", newton="quasi")
-    monkeypatch.setattr(solve, "COMPILED_CHUNK", 50)
+    monkeypatch.setattr("ldaspark.core.chunks.COMPILED_CHUNK", 50)
     b = ldaspark.integrate("particle", "gauss-4", h=0.2, n_steps=120, engine="compiled", newton="quasi")
     assert one.stats["curvature_steps"] == b.stats["curvature_steps"] == 120
     assert one.stats["curvature_refreshes"] == 1 and b.stats["curvature_refreshes"] == 3

@@ -54,7 +54,7 @@ MUTANTS = (
        "    # without dense output, events",
        "energy_jump silently ignored by the compiled engine", "validation",
        TV + "::test_energy_jump_is_accepted_by_integrate_on_every_engine", TV),
-    _m("relvalid-compiled-not-chunked", "solve.py",
+    _m("relvalid-compiled-not-chunked", "core/chunks.py",
        "    if not engine.chunked or n <= chunk:\n        return engine.run(", "    if True:\n        return engine.run(",
        "a long compiled run is one kernel call (Ctrl-C waits for it)", "validation",
        TV + "::test_long_compiled_run_is_chunked_with_the_same_samples", TV),
