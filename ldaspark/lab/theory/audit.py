@@ -511,7 +511,8 @@ def verdict(res: AuditResult) -> str:
             obs.append(f"{r['observed']:.2f} on the {sc}" if math.isfinite(r["observed"]) else
                        f"none measurable on the {sc} ({why})")
     conv = [c for c in (res.get(f"convergence:{sc}") for sc in ("skate", "particle")) if c is not None]
-    parts.append(f"The tree conditions give order {f['order:pair']} for the pair (A, A_hat) and {p}{cap} for "
+    pair_cap = "+" if f.get("order:pair-capped") else ""
+    parts.append(f"The tree conditions give order {f['order:pair']}{pair_cap} for the pair (A, A_hat) and {p}{cap} for "
                  f"(A; A_hat, A_tilde) on the forced ODE (6); observed orders {', '.join(obs) or '(none: runs failed)'} "
                  + (("are above it on some scene (reported: the check is one-sided, faster than predicted is "
                      "not a failure)." if any("faster than the trees predict" in c.detail for c in conv)

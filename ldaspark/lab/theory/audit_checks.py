@@ -340,6 +340,7 @@ def order_checks(ar, e) -> tuple[list, dict]:
                             + ("; L-stable-type damping" if st.r_inf == 0 else ""), ar.label))
     pr = oc.pair_order(ar, e["A"], e["b"], e["A_hat"], e["b_hat"])
     facts["order:pair"] = pr.order
+    facts["order:pair-capped"] = pr.complete     # every tree checked holds: a lower bound
     more = "" if pr.failing is None else f"; first failing tree {pr.failing} (residual {pr.residual:.3g})"
     checks.append(Check("order:pair(A,A_hat)", INFO, pr.residual,
                         f"partitioned pair (A, b) for q' = v, (A_hat, b_hat) for p' = F: order "

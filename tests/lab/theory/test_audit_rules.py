@@ -455,6 +455,15 @@ def test_predicted_order_reads_the_forced_ode_order():
     assert au.predicted_order(None, {"order:forced-ode": 3, "order:pair": 5}) == 3
 
 
+def test_verdict_marks_the_pair_order_a_lower_bound_when_every_tree_checked_holds():
+    """gauss-5's verdict said "order 8 for the pair (A, A_hat)" beside the table's "order 8+ (bi-coloured
+    trees to order 8)": its order 10 is beyond the trees checked, so 8 is a lower bound (the "+")."""
+    capped = au.verdict(_vres(p=8, **{"order:pair-capped": True, "order:forced-ode-capped": True}))
+    assert "order 8+ for the pair (A, A_hat) and 8+ for" in capped
+    exact = au.verdict(_vres(p=8, **{"order:pair-capped": False}))        # control: a failing tree bounds it
+    assert "order 8 for the pair (A, A_hat) and 8 for" in exact
+
+
 def test_verdict_22_and_theorem1_sentences():
     v = au.verdict(_vres(th=[_th(PASS, 1e-20, "a"), _th(PASS, 3e-20, "b")]))
     assert "satisfies (22a) and (22b) exactly" in v and "agrees (largest residual 3.0e-20)" in v
