@@ -424,12 +424,16 @@ def _check_options(n_steps, every, predictor, tol, max_iter, n_dof, n_con):
     key = (type(n_steps), n_steps, type(every), every, type(predictor), predictor, type(tol), tol,
            type(max_iter), max_iter, n_dof, n_con)
     try:
-        if key in _OPTIONS_OK:           # a repeated call's options passed already (types in the key:
-            return                       # True == 1, but predictor=True must still be refused)
-    except TypeError:                    # unhashable option: the checks below say what is wrong
-        key = None
-    _check_options_now(n_steps, every, predictor, tol, max_iter, n_dof, n_con)
-    if key is not None:
+        known = key in _OPTIONS_OK       # a repeated call's options passed already (types in the key:
+    except TypeError:                    # True == 1, but predictor=True must still be refused)
+        key, known = None, False         # unhashable option: the checks below say what is wrong
+    if not known:
+        _check_options_now(n_steps, every, predictor, tol, max_iter, n_dof, n_con)
+    # the storage bound depends on the machine's memory, not on the options alone: checked at every
+    # call (it was cached with them, so a run that fit once was never checked again)
+    from ..core.validate import check_storage
+    check_storage(n_samples(int(n_steps), int(every)), 2 + 2 * n_dof + n_con, what="the samples")
+    if key is not None and not known:
         if len(_OPTIONS_OK) >= 256:
             _OPTIONS_OK.clear()
         _OPTIONS_OK.add(key)
@@ -440,13 +444,12 @@ _OPTIONS_OK: set = set()
 
 
 def _check_options_now(n_steps, every, predictor, tol, max_iter, n_dof, n_con):
-    from ..core.validate import MAX_STEPS, check_newton_options, check_storage, count
+    from ..core.validate import MAX_STEPS, check_newton_options, count
     if predictor not in (0, 1, 2) or isinstance(predictor, bool):
         raise InputError(f"predictor must be 0, 1 or 2, got {predictor!r}")
     count(n_steps, "n_steps", 1, MAX_STEPS)     # 10**12 steps with a large every never end
     count(every, "every", 1, MAX_STEPS)
     check_newton_options(tol, max_iter)
-    check_storage(n_samples(int(n_steps), int(every)), 2 + 2 * n_dof + n_con, what="the samples")
 
 
 def _kernels():

@@ -36,15 +36,15 @@ def test_the_counters_add_up_over_the_blocks(monkeypatch):
     sums of its blocks' (each block's run recorded as the engine returns it), in ``stats`` and in
     the Result's nfev, njev, nlu; with full Newton every Jacobian is factored once, so nlu = njev
     over the run as within a block. Control: the run has more than one block."""
-    from ldaspark.engines.compiled import CompiledEngine
+    from ldaspark.engines import ENGINES
     seen = []
-    real = CompiledEngine.run
+    real = ENGINES["compiled"].run
 
-    def recording(self, prepared, start, n_steps, every):
-        res = real(self, prepared, start, n_steps, every)
+    def recording(prepared, start, n_steps, every):
+        res = real(prepared, start, n_steps, every)
         seen.append(dict(res.stats))
         return res
-    monkeypatch.setattr(CompiledEngine, "run", recording)
+    monkeypatch.setitem(vars(ENGINES["compiled"]), "run", recording)    # the registered instance's
     r = _run(10, monkeypatch, "gauss-3", h=0.2, n_steps=50, newton="full")
     assert len(seen) == 5 and r.stats["steps"] == 50
     for key in ("steps", "nfev", "njev", "nlu", "newton_iterations", "full_newton_steps"):

@@ -66,7 +66,7 @@ def _spy(monkeypatch, name):
     def spy(system, prob, opts):
         seen.append((prob, opts))
         return real(system, prob, opts)
-    monkeypatch.setattr(engine, "prepare", spy)
+    monkeypatch.setitem(vars(engine), "prepare", spy)     # removed at teardown (see test_engine_protocol)
     return seen
 
 
