@@ -44,7 +44,7 @@ from .core.guard import STATUS_GUARD
 from .core.chunks import run_in_blocks as _chunked
 from .core.result import (COUNTERS, MSG_DONE, STATUS_EVENT, STATUS_NEWTON, STATUS_OTHER, STATUS_SADDLE, Result, add_counters,
                           attach_counters, failure_counters, float_array,
-                          save_indices, stack)
+                          save_indices, stack, steps_between)
 from .core.system import LagrangianSystem
 from .core.tableau import SparkTableau
 MSG_EVENT = "A termination event occurred."
@@ -830,7 +830,7 @@ def _saddle_scan(res, exc, prep, every, rerun=None) -> tuple:
         return res, exc
     steps, i = res, j
     if every > 1:                               # the step that crossed, between samples j - 1 and j
-        at = save_indices(int(round((float_array(res.t)[-1] - t0) / float(prob.h))), every)
+        at = save_indices(steps_between(res.t[0], res.t[-1], prob.h), every)
         steps = rerun(int(at[j]))
         i = first_change(steps, int(at[j - 1]) + 1)
         i = int(at[j]) if i is None else i
@@ -1031,5 +1031,6 @@ def _finish_prefix(res, exc, prep, start, engine, sliced=False) -> Result:
     res = _post_process(res, every, dense, events, sliced, stages)
     # the accepted steps: up to the last good point (a monitor's cut or a terminal event: the
     # block ran further, its work is counted, its later steps are not the run's)
-    res.stats["steps"] = int(round((float(float_array(res.t)[-1]) - float(t0)) / float(prep.prob.h)))
+    # (in the run's numbers: at dps digits h may be below the float range, h = 1e-400 was 0.0)
+    res.stats["steps"] = steps_between(t0, res.t[-1], prep.prob.h)
     return res

@@ -51,6 +51,7 @@ from collections import deque
 import numpy as np
 
 from .errors import LdasparkError
+from .result import steps_between
 
 STATUS_GUARD = -4
 #: previous steps whose energy changes estimate the local error
@@ -292,7 +293,7 @@ def judge(samples, every, h, resolve, rerun=None, floats_per_step=0, tol=None):
     if every > 1:       # locate: the prefix to the end of the last flagged interval, every step
         t = np.asarray(samples.t, dtype=float)
         j = bad[-1] + 1 if len(bad) else 1
-        last = int(round((t[min(j, len(t) - 1)] - t[0]) / float(h)))
+        last = steps_between(samples.t[0], samples.t[min(j, len(t) - 1)], h)
         if (last + 1) * floats_per_step > EVERY_STEP_FLOATS:
             st["guard_flagged"] = st["guard_unverified"] = int(len(bad))
             return st, None

@@ -110,3 +110,20 @@ def test_a_loaded_failure_raises_the_class_of_its_status(tmp_path):
         with pytest.raises(cls, match="member 0: why") as info:
             batch.raise_for_status()
         assert type(info.value) is cls
+
+
+def test_steps_between_counts_in_the_run_numbers():
+    """round((t_b - t_a) / h) as the driver, the guard and the det (4) scan count steps: float64
+    inputs in float64; mpf times and a decimal-string h (a run at dps digits) in mpmath at the
+    precision the grid needs. In float64 h = 1e-400 is 0.0 (ZeroDivisionError before); 1 + 7e-25
+    is 1.0 (0 steps, wrong) at 53 bits."""
+    import mpmath
+    from ldaspark.core.result import steps_between
+    assert steps_between(0.0, 0.30000000000000004, 0.1) == 3            # float64 control
+    assert steps_between(0, mpmath.mpf("3e-400"), "1e-400") == 3
+    with mpmath.workdps(40):
+        t1 = mpmath.mpf(1) + 7 * mpmath.mpf("1e-25")
+        far = mpmath.mpf(-5) + 123456789 * mpmath.mpf("1e-30")
+    assert steps_between(mpmath.mpf(1), t1, "1e-25") == 7
+    assert steps_between(-5, far, "1e-30") == 123456789
+    assert steps_between(mpmath.mpf(1), t1, 1e-25) == 7                  # a float h beside mpf times

@@ -52,6 +52,21 @@ def test_time_grid_at_dps_is_counted_at_the_working_precision():
         assert abs(r.t[-1] - 1) <= mpmath.mpf("1e-29")
 
 
+def test_a_block_engine_at_dps_counts_its_steps_in_the_run_numbers():
+    """The comparators (a block engine) counted Result.stats['steps'] as (t_end - t0) / h in
+    float64: at 30 digits h = "1e-400" is 0.0 there, and the run ended in ZeroDivisionError after
+    its steps. Counted in mpf now; control: the same run at h = "0.1" and in float64."""
+    import mpmath
+    import ldaspark
+    for h, dps in (("1e-400", 30), ("0.1", 30), (0.1, None)):
+        r = ldaspark.integrate("skate", "gauss-irk-2", h=h, n_steps=3, dps=dps, engine="generic")
+        assert r.status == 0 and r.stats["steps"] == 3 and len(r.t) == 4
+    with mpmath.workdps(30):
+        assert r.t[-1] == 0.30000000000000004          # float64 control: t0 + 3 h in float64
+        tiny = ldaspark.integrate("skate", "gauss-irk-2", h="1e-400", n_steps=3, dps=30, engine="generic")
+        assert abs(tiny.t[-1] - mpmath.mpf("3e-400")) <= mpmath.mpf("1e-429")
+
+
 def test_time_grid_in_float64_has_t_end_on_the_grid_to_round_off():
     """The float64 count accepted |N h - (t_end - t0)| up to 1e-9 max(1, |span|), an absolute
     1e-9 for short spans: t_span = (0, 1e-12), h = 3e-13 ran 3 steps to t = 9e-13 (status 0,
