@@ -53,9 +53,12 @@ def _add_integrate(sub):
     p.add_argument("--ic", type=int, default=None, help="initial condition j (mp-particles)")
     p.add_argument("--tableau", default=None, help="tableau JSON file for METHOD custom")
     p.add_argument("--max-stages", type=int, default=None, help="allow methods with more than 20 stages")
-    p.add_argument("--newton", choices=("full", "simplified", "auto", "mixed"), default="auto",
-                   help="the root finder's kind on every engine (ldaspark.Newton; default: auto = simplified, "
-                        "full on slow contraction; mixed: float64 matrix at --dps)")
+    # the kinds of ldaspark.Newton (core.rootfinder.KINDS, written out: the CLI does not import
+    # numpy before parsing; tests/cli compares the two)
+    p.add_argument("--newton", choices=("full", "simplified", "auto", "mixed", "quasi"), default="auto",
+                   help="the root finder's kind (ldaspark.Newton; default: auto = simplified, "
+                        "full on slow contraction; mixed: float64 matrix at --dps; quasi: the compiled "
+                        "engine's multiplier-only iteration, full Newton on slow contraction)")
     p.add_argument("--project", action="store_true", help="project v0 onto k = 0 instead of failing")
     p.add_argument("--out", required=True, help="output file, format by extension: .npz, .h5 (h5py), else JSON "
                                                 "(psi on every engine, not from the semi-implicit kernel of "

@@ -127,3 +127,24 @@ def test_integrate_help_says_what_the_compiled_engine_does(tmp_path):
     d = json.loads(out.read_text())
     assert d["engine"] == "compiled" and len(d["psi"]) == 3 and d["stats"]["root_finder"]["runs"] == "full"
     assert "generic engine" not in helps["newton"] and "psi needs" not in helps["out"], helps
+
+
+def test_integrate_offers_every_root_finder_kind(tmp_path, capsys):
+    """--newton offered full, simplified, auto, mixed but not quasi (ldaspark.Newton's fifth kind, the
+    compiled engine's root finder of issue 48): 'invalid choice', exit 2. The choices are the kinds
+    of core.rootfinder.KINDS; quasi runs and says so in the file's stats, and on the generic engine
+    it is refused in one line (as the API refuses it)."""
+    import argparse
+    from ldaspark.cli import build_parser
+    from ldaspark.core.rootfinder import KINDS
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    newton = next(a for a in sub.choices["integrate"]._actions if a.dest == "newton")
+    assert sorted(newton.choices) == sorted(KINDS)
+    out = tmp_path / "o.json"
+    assert main(["integrate", "skate", "gauss-2", "--h", "0.1", "--t-end", "0.3", "--newton", "quasi",
+                 "--engine", "compiled", "--out", str(out)]) == 0
+    assert json.loads(out.read_text())["stats"]["root_finder"]["kind"] == "quasi"
+    assert main(["integrate", "skate", "gauss-2", "--h", "0.1", "--t-end", "0.3", "--newton", "quasi",
+                 "--engine", "generic", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "quasi" in err and err.count("\n") == 1
