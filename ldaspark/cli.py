@@ -44,7 +44,8 @@ class _Parser(argparse.ArgumentParser):
 
 def _add_integrate(sub):
     p = sub.add_parser("integrate", help="integrate a scene with a SPARK method and write JSON, npz or h5")
-    p.add_argument("scene", help="particle, skate, robot, mp-particles (also pendulum, rolling-disk)")
+    p.add_argument("scene", help="a built-in scene: the paper's particle, skate, robot, mp-particles, and the others "
+                                 "of ldaspark.get_scene (an unknown name lists them all)")
     p.add_argument("method", help="gauss-S, lobatto-iiia-iiib-S, lobatto-iiia-iiib-iiid-S, euler-i, "
                                   "euler-ii, or custom with --tableau FILE")
     p.add_argument("--h", required=True, help="step size (a decimal string keeps full precision with --dps)")
