@@ -44,7 +44,8 @@ from .core.guard import STATUS_GUARD
 from .core.chunks import run_in_blocks as _chunked
 from .core.result import (COUNTERS, MSG_DONE, STATUS_EVENT, STATUS_NEWTON, STATUS_OTHER, STATUS_SADDLE, Result, add_counters,
                           attach_counters, failure_counters, float_array,
-                          save_indices, stack, steps_between)
+                          save_indices, stack)
+from .core.grid import steps_between
 from .core.system import LagrangianSystem
 from .core.tableau import SparkTableau
 MSG_EVENT = "A termination event occurred."

@@ -51,7 +51,7 @@ from collections import deque
 import numpy as np
 
 from .errors import LdasparkError
-from .result import steps_between
+from .grid import steps_between
 
 STATUS_GUARD = -4
 #: previous steps whose energy changes estimate the local error

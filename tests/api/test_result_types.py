@@ -118,7 +118,7 @@ def test_steps_between_counts_in_the_run_numbers():
     precision the grid needs. In float64 h = 1e-400 is 0.0 (ZeroDivisionError before); 1 + 7e-25
     is 1.0 (0 steps, wrong) at 53 bits."""
     import mpmath
-    from ldaspark.core.result import steps_between
+    from ldaspark.core.grid import steps_between
     assert steps_between(0.0, 0.30000000000000004, 0.1) == 3            # float64 control
     assert steps_between(0, mpmath.mpf("3e-400"), "1e-400") == 3
     with mpmath.workdps(40):

@@ -152,8 +152,8 @@ MUTANTS = (
        "with save_every > 1 the first saved interval is never judged", "paths",
        TG + "::test_a_second_root_between_saved_samples_is_located", TG),
     _m("paths-guard-rerun-length-without-t0", "core/guard.py",
-       "last = int(round((t[min(j, len(t) - 1)] - t[0]) / float(h)))",
-       "last = int(round(t[min(j, len(t) - 1)] / float(h)))",
+       "last = steps_between(samples.t[0], samples.t[min(j, len(t) - 1)], h)",
+       "last = steps_between(0, samples.t[min(j, len(t) - 1)], h)",
        "the guard's rerun length counted from t = 0, not t0 (t0 < 0: a negative length; large t0: "
        "the flagged interval left unverified)", "paths",
        TG + "::test_a_second_root_between_saved_samples_is_located_from_any_t0", TG),
