@@ -692,8 +692,9 @@ def _drive_steps(engine, prep, start) -> Result:
                 dense_q.append(float_array(q))
                 dense_v.append(float_array(v))
                 dense_V.append(float_array(st.V))
+            t1 = t0_ + (i + 1) * h_           # the grid's t_n+1: the piece ends where the search looks
             stop = tracker is not None and tracker.after_step(
-                ti, t0_ + (i + 1) * h_, st.q1, st.v1, step_piece(ti, h_, (q, v), (st.q1, st.v1), c, st.V))
+                ti, t1, st.q1, st.v1, step_piece(ti, h_, (q, v), (st.q1, st.v1), c, st.V, t1=t1))
             q, v = st.q1, st.v1
             done = i + 1
             if done % every == 0 or done == N or stop:

@@ -232,3 +232,27 @@ def test_events_of_a_run_that_fails_in_its_first_step(monkeypatch, path):
         got = getattr(r, name)
         assert len(got) == 2 and all(len(a) == 0 for a in got), (name, got)
     assert r.q_events[0].shape == (0, 2)
+
+
+@pytest.mark.parametrize("path", ["generic", "mpmath", "compiled"])
+def test_events_far_from_t_zero(path):
+    """t0 = 1000, h = 0.05: the run's grid t0 + 2 h is one ulp (1.1e-13) above (t0 + h) + h, and
+    the generic engine located an event of step 1 on a piece built on [t_1, t_1 + h], then asked
+    it for g at the grid's t_2, outside by more than its slack (1e-12 of the step, 5e-14): every
+    event crossing in such a step (every other step here) ended the run with InputError 'dense
+    output is defined on [1000.05, 1000.1], got t outside it'. The compiled engine built its piece
+    on [t_1, t_2] and was right."""
+    t0, h = 1000.0, 0.05
+    assert (t0 + h) + h < t0 + 2 * h           # the grid that made the generic piece miss its end
+    clock = lambda t, q, v: t - (t0 + 1.5 * h)     # noqa: E731  (crosses in step 1)
+    opts = dict(PATHS[path])
+    r = ldaspark.integrate("particle", "gauss-2", t0=t0, n_steps=4, h=h, events=clock, dense_output=True, **opts)
+    # g linear in t: brentq's xtol 4 eps max(1, |t|) = 9e-13 bounds the error
+    assert r.status == 0 and len(r.t_events[0]) == 1 and abs(r.t_events[0][0] - (t0 + 1.5 * h)) < 1e-12
+    # the state at the event is the dense output's there (the same piece of the same step)
+    q, v = r.sol(r.t_events[0][0])
+    assert np.abs(r.q_events[0][0] - q).max() <= 8 * EPS and np.abs(r.v_events[0][0] - v).max() <= 8 * EPS
+    # control: a crossing in step 0, where (t0 + 0 h) + h is the grid's t_1, was located before too
+    at0 = ldaspark.integrate("particle", "gauss-2", t0=t0, n_steps=4, h=h, events=lambda t, q, v: t - (t0 + 0.5 * h),
+                             **opts)
+    assert abs(at0.t_events[0][0] - (t0 + 0.5 * h)) < 1e-12
