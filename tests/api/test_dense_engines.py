@@ -184,17 +184,20 @@ def _clock(at, terminal=True):
 
 
 #: every engine and path: generic float64 and mpmath, compiled with Newton and the quasi-Newton
-#: iteration, compiled in blocks of 4 steps (the event in the second block, the failure in the fourth)
+#: iteration, compiled in blocks of 4 steps (the event in the second block, the failure in the fourth),
+#: a comparator (the block engine of the comparators, post-processed as the compiled engine)
 PATHS = {"generic": dict(engine="generic"), "mpmath": dict(engine="generic", dps=20),
          "compiled": dict(engine="compiled"), "quasi": dict(engine="compiled", newton="quasi"),
-         "chunked": dict(engine="compiled", chunk=4)}
+         "chunked": dict(engine="compiled", chunk=4),
+         "comparator": dict(engine="generic", method="gauss-irk-2")}
 
 
 def _run_path(monkeypatch, path, **kw):
     from ldaspark.core import chunks
     opts = dict(PATHS[path])
     monkeypatch.setattr(chunks, "COMPILED_CHUNK", opts.pop("chunk", chunks.COMPILED_CHUNK))
-    return ldaspark.integrate(_dies(), "gauss-2", t_span=(0, 3), h=0.1, q0=[0, 0], v0=[0, 0], **opts, **kw)
+    return ldaspark.integrate(_dies(), opts.pop("method", "gauss-2"), t_span=(0, 3), h=0.1, q0=[0, 0], v0=[0, 0],
+                              **opts, **kw)
 
 
 @pytest.mark.parametrize("path", list(PATHS))
@@ -225,7 +228,7 @@ def test_events_of_a_run_that_fails_in_its_first_step(monkeypatch, path):
     from ldaspark.core import chunks
     opts = dict(PATHS[path])
     monkeypatch.setattr(chunks, "COMPILED_CHUNK", opts.pop("chunk", chunks.COMPILED_CHUNK))
-    r = ldaspark.integrate(_dies(), "gauss-2", t0=1.45, n_steps=5, h=0.1, q0=[0, 0], v0=[0, 0],
+    r = ldaspark.integrate(_dies(), opts.pop("method", "gauss-2"), t0=1.45, n_steps=5, h=0.1, q0=[0, 0], v0=[0, 0],
                            events=[_clock(2.0), _clock(1.5, terminal=False)], dense_output=True, **opts)
     assert r.status == -3 and len(r.t) == 1 and r.sol is None
     for name in ("t_events", "q_events", "v_events"):
