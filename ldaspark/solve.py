@@ -693,8 +693,9 @@ def _drive_steps(engine, prep, start) -> Result:
                 dense_q.append(float_array(q))
                 dense_v.append(float_array(v))
                 dense_V.append(float_array(st.V))
+            t1 = t0_ + (i + 1) * h_           # the grid's t_n+1: the piece ends where the search looks
             stop = tracker is not None and tracker.after_step(
-                ti, t0_ + (i + 1) * h_, st.q1, st.v1, step_piece(ti, h_, (q, v), (st.q1, st.v1), c, st.V))
+                ti, t1, st.q1, st.v1, step_piece(ti, h_, (q, v), (st.q1, st.v1), c, st.V, t1=t1))
             q, v = st.q1, st.v1
             done = i + 1
             if done % every == 0 or done == N or stop:
@@ -909,15 +910,18 @@ def _post_process(full: Result, every: int, dense: bool, events, sliced: bool = 
         if stages is None:
             return HermiteDense(t[i:i + 2], q[i:i + 2], v[i:i + 2])
         return step_piece(t[i], t[i + 1] - t[i], (q[i], v[i]), (q[i + 1], v[i + 1]), stages.c, stage_V(i))
-    if events and done > 0:
+    if events:
+        # g at t0 and one array per event function also when the first step failed (done = 0),
+        # as the stepping engine, which sets up the tracker before its first step
         tracker = EventTracker(events, t[0], q[0], v[0])
         for i in range(done):
             # the step's interpolant is built (its stages solved) only where an event changes sign
             local = functools.partial(_lazy_piece, [None], piece, i)
             if tracker.after_step(t[i], t[i + 1], q[i + 1], v[i + 1], local):
                 done = i + 1
-                if full.status >= 0:
-                    full.status, full.message = STATUS_EVENT, MSG_EVENT
+                # the run ends here, before any later step's failure or monitor cut (the block ran
+                # past the event; the stepping engine never takes those steps): status 1, no error
+                full.status, full.message, full.error = STATUS_EVENT, MSG_EVENT, None
                 break
         full.t_events, full.q_events, full.v_events = tracker.arrays()
     if dense and done > 0:

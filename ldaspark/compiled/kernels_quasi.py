@@ -22,8 +22,8 @@ polynomial through (0, v0) and (c_j, V_j) evaluated at 1 + c_i and 2, the multip
 (RADAU5's rate test, lim = tol (|x| + |v0|), the round-off of the stage values), never the
 round-off-floor clause (the matrix is not exact); at the second increment also RADAU5's test with
 the one ratio there, while |dx_2| <= FIRST_RATE_FACTOR lim; at the first, RADAU5's test with the
-rate carried from the previous steps, eta |dx_1| <= RATE_KAPPA lim (eta = theta / (1 - theta) of
-the last step that measured it, grown as max(eta, eps)^RATE_GROWTH per step; none after a
+rate carried from the previous steps, eta |dx_1| <= RATE_KAPPA lim (eta = theta / (1 - theta), theta
+the slowest ratio |dx_k| / |dx_k-1| of the last step that measured one, grown as max(eta, eps)^RATE_GROWTH per step; none after a
 fallback or a change of the frozen block), which a user's tol = ``Newton(tol=...)`` above round-off
 turns into one-increment steps (counted in qstats[QS_RATE_FIRST]). Fallback: a step whose increments contract by
 less than QUASI_THETA, or that has not converged after QUASI_MAX_ITER increments, or meets a
@@ -564,7 +564,10 @@ def quasi_newton(model, tab, ws, qw, cw, curv, x, t, q, v, h, G, tol, max_iter, 
             if th < 1.0 and th / (1.0 - th) * dn <= RATE_KAPPA * lim and dn <= FIRST_RATE_FACTOR * lim:
                 status = 1
         if prev > 0.0:
-            rate = dn / prev
+            # the slowest ratio the step measured, carried as the rate: a last increment at
+            # round-off makes a ratio that is no rate (particle, lobatto-iiia-iiib-2, step 0:
+            # 5e-3 then 8.6e-19 / 9.9e-4; carried, it accepted first increments of 0.29)
+            rate = max(rate, dn / prev)
         if status != 0:
             break
         if prev > 0.0 and dn > QUASI_THETA * prev:

@@ -36,7 +36,7 @@ from .newton import (FAIL_NONFINITE, RATE_KAPPA, end_newton, fail, lu_factor, lu
 # compiles in (tests/compiled/test_quasi_general.py checks it)
 HELPERS = ("kernels.py", "newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py",
            "modeltypes.py", "kernels_quasi.py")
-HELPERS_SHA256 = "a299248ceedd08f4e790e0b54747ea3b075d875fa5ba2fbaac247f67e41fe38a"
+HELPERS_SHA256 = "9bbf4d23414048da7ff716b02ffd9d46075ab606e1145e624cc39daff925af5b"
 
 
 @numba.njit(cache=True)
@@ -161,8 +161,8 @@ def general_quasi_newton(model, tab, M, ws, gw, x, t, q, v, h, G, J, tol, max_it
             lim = tol * (norm_inf(x) + scale)
             if th < 1.0 and th / (1.0 - th) * dn <= RATE_KAPPA * lim and dn <= FIRST_RATE_FACTOR * lim:
                 status = 1
-        if prev > 0.0:
-            rate = dn / prev
+        if prev > 0.0:          # the slowest ratio of the step (``kernels_quasi.quasi_newton``)
+            rate = max(rate, dn / prev)
         if status != 0:
             break
         if prev > 0.0 and dn > QUASI_THETA * prev:

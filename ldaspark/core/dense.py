@@ -365,12 +365,14 @@ def float_vec(x) -> np.ndarray:
     return a.astype(float)
 
 
-def step_piece(t0: Any, h: Any, start: tuple, end: tuple, c: Any, V: Any) -> CollocationDense:
+def step_piece(t0: Any, h: Any, start: tuple, end: tuple, c: Any, V: Any, t1: Any = None) -> CollocationDense:
     """Dense output of one step from its stage velocities V (s, n) and its ends ``start`` =
     (q_n, v_n), ``end`` = (q_n+1, v_n+1) (used while stepping, for events; None for V: the cubic
-    Hermite interpolant)."""
+    Hermite interpolant). ``t1``: the step's end on the run's grid t0 + (n + 1) h, where the event
+    search evaluates it; t_n + h can miss it by an ulp of t, more than the piece's slack at large
+    t (None: t_n + h)."""
     t0f = float(t0)
-    t = np.array([t0f, t0f + float(h)])
+    t = np.array([t0f, t0f + float(h) if t1 is None else float(t1)])
     q = np.array([float_vec(start[0]), float_vec(end[0])])
     v = np.array([float_vec(start[1]), float_vec(end[1])])
     if V is None:

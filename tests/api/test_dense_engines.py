@@ -160,3 +160,102 @@ def test_the_compiled_engine_solves_only_the_steps_that_are_evaluated(monkeypatc
     np.testing.assert_array_equal(q, q2)
     np.testing.assert_array_equal(v, v2)
     assert r.sol.V.shape == (2000, 4, 3) and len(calls) == 2000
+
+
+# --- a run that the engines end differently after the event: L has sqrt(1.5 - t), so the step
+# that reaches t = 1.5 is outside the domain of L (every engine fails there, status -3); a clock
+# event g = t - 0.55 fires in step 5 (t 0.5 -> 0.6), long before
+DIES = None
+
+
+def _dies():
+    global DIES
+    if DIES is None:
+        from ldaspark.core.system import LagrangianSystem
+        DIES = LagrangianSystem("vx**2/2 + vy**2/2 + x*sqrt(1.5 - t)", ["vy - x*vx/10"], ["x", "y"], ["vx", "vy"],
+                                name="dies at t = 1.5")
+    return DIES
+
+
+def _clock(at, terminal=True):
+    g = lambda t, q, v: t - at       # noqa: E731
+    g.terminal = terminal
+    return g
+
+
+#: every engine and path: generic float64 and mpmath, compiled with Newton and the quasi-Newton
+#: iteration, compiled in blocks of 4 steps (the event in the second block, the failure in the fourth),
+#: a comparator (the block engine of the comparators, post-processed as the compiled engine)
+PATHS = {"generic": dict(engine="generic"), "mpmath": dict(engine="generic", dps=20),
+         "compiled": dict(engine="compiled"), "quasi": dict(engine="compiled", newton="quasi"),
+         "chunked": dict(engine="compiled", chunk=4),
+         "comparator": dict(engine="generic", method="gauss-irk-2")}
+
+
+def _run_path(monkeypatch, path, **kw):
+    from ldaspark.core import chunks
+    opts = dict(PATHS[path])
+    monkeypatch.setattr(chunks, "COMPILED_CHUNK", opts.pop("chunk", chunks.COMPILED_CHUNK))
+    return ldaspark.integrate(_dies(), opts.pop("method", "gauss-2"), t_span=(0, 3), h=0.1, q0=[0, 0], v0=[0, 0],
+                              **opts, **kw)
+
+
+@pytest.mark.parametrize("path", list(PATHS))
+def test_a_terminal_event_ends_the_run_before_a_later_failure(monkeypatch, path):
+    """The run ends at the terminal event (status 1, no error) on every engine: the stepping
+    engine never takes the failing step. Before, the compiled engine (which runs the whole grid,
+    then looks for events in the prefix before its failure) cut the trajectory at the event but
+    kept the failure's status -3, message and error (of step 15, t = 1.5, past the end of the
+    returned run), and raise_on_failure=True raised it; the generic engine said status 1."""
+    r = _run_path(monkeypatch, path, events=_clock(0.55), raise_on_failure=True)
+    assert (r.status, r.message, r.error) == (1, "A termination event occurred.", None), (r.status, r.message)
+    assert r.success and r.stats["steps"] == 6 and float(r.t[-1]) == pytest.approx(0.6, abs=1e-15)
+    # the clock g = t - 0.55 is linear in t: brentq's xtol 4 eps max(1, |t|) bounds the error
+    assert len(r.t_events[0]) == 1 and abs(r.t_events[0][0] - 0.55) < 1e-14, r.t_events
+    # control: without the event, the same run fails later (step 14 or 15: t_n + h and t0 + (n + 1) h
+    # straddle t = 1.5 by an ulp); a non-terminal event keeps that failure, its crossing recorded
+    f = _run_path(monkeypatch, path, events=_clock(0.55, terminal=False))
+    assert f.status == -3 and f.error is not None and float(f.t[-1]) >= 1.4 - 1e-12
+    assert abs(f.t_events[0][0] - 0.55) < 1e-14
+
+
+@pytest.mark.parametrize("path", list(PATHS))
+def test_events_of_a_run_that_fails_in_its_first_step(monkeypatch, path):
+    """One (empty) array per event function on every engine when the first step fails (the run
+    from t0 = 1.45: its first step reaches t = 1.55). Before, the compiled engine returned
+    t_events = [] (no entry per event: t_events[0] an IndexError), the generic engine [array([])]
+    per event; a terminal event does not hide the failure (it never fired)."""
+    from ldaspark.core import chunks
+    opts = dict(PATHS[path])
+    monkeypatch.setattr(chunks, "COMPILED_CHUNK", opts.pop("chunk", chunks.COMPILED_CHUNK))
+    r = ldaspark.integrate(_dies(), opts.pop("method", "gauss-2"), t0=1.45, n_steps=5, h=0.1, q0=[0, 0], v0=[0, 0],
+                           events=[_clock(2.0), _clock(1.5, terminal=False)], dense_output=True, **opts)
+    assert r.status == -3 and len(r.t) == 1 and r.sol is None
+    for name in ("t_events", "q_events", "v_events"):
+        got = getattr(r, name)
+        assert len(got) == 2 and all(len(a) == 0 for a in got), (name, got)
+    assert r.q_events[0].shape == (0, 2)
+
+
+@pytest.mark.parametrize("path", ["generic", "mpmath", "compiled"])
+def test_events_far_from_t_zero(path):
+    """t0 = 1000, h = 0.05: the run's grid t0 + 2 h is one ulp (1.1e-13) above (t0 + h) + h, and
+    the generic engine located an event of step 1 on a piece built on [t_1, t_1 + h], then asked
+    it for g at the grid's t_2, outside by more than its slack (1e-12 of the step, 5e-14): every
+    event crossing in such a step (every other step here) ended the run with InputError 'dense
+    output is defined on [1000.05, 1000.1], got t outside it'. The compiled engine built its piece
+    on [t_1, t_2] and was right."""
+    t0, h = 1000.0, 0.05
+    assert (t0 + h) + h < t0 + 2 * h           # the grid that made the generic piece miss its end
+    clock = lambda t, q, v: t - (t0 + 1.5 * h)     # noqa: E731  (crosses in step 1)
+    opts = dict(PATHS[path])
+    r = ldaspark.integrate("particle", "gauss-2", t0=t0, n_steps=4, h=h, events=clock, dense_output=True, **opts)
+    # g linear in t: brentq's xtol 4 eps max(1, |t|) = 9e-13 bounds the error
+    assert r.status == 0 and len(r.t_events[0]) == 1 and abs(r.t_events[0][0] - (t0 + 1.5 * h)) < 1e-12
+    # the state at the event is the dense output's there (the same piece of the same step)
+    q, v = r.sol(r.t_events[0][0])
+    assert np.abs(r.q_events[0][0] - q).max() <= 8 * EPS and np.abs(r.v_events[0][0] - v).max() <= 8 * EPS
+    # control: a crossing in step 0, where (t0 + 0 h) + h is the grid's t_1, was located before too
+    at0 = ldaspark.integrate("particle", "gauss-2", t0=t0, n_steps=4, h=h, events=lambda t, q, v: t - (t0 + 0.5 * h),
+                             **opts)
+    assert abs(at0.t_events[0][0] - (t0 + 0.5 * h)) < 1e-12
