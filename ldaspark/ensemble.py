@@ -190,16 +190,22 @@ class RunSpec:
         ensemble ``ens`` (spec number k of ``run_many``): each member's stats get the guard's
         counters; a member with another root of (21) at some step raises RootMismatchError naming
         the spec, the member, the step and both roots. A comparator of sections 7-8 (the Fig. 4
-        variants of LF2) has no SPARK safe root: its members say ``guard: False``."""
+        variants of LF2) is judged with its own step from a fresh start (``ComparatorSafeRoot``),
+        as its single ``integrate`` run is."""
         from types import SimpleNamespace
         from .compiled.fast import _resolve
         from .core import guard
+        from .core.rootfinder import MAX_ITER_DEFAULT
         kind, what, name = _resolve(self.method)
         if kind != "spark":
-            for st in ens.stats:
-                st["guard"] = False
-            return
-        safe = guard.SparkSafeRoot(self.system, what, None, self.tol, 50, self.h)
+            # the safe root of the single run's engine (it had no guard here: guard=True was
+            # accepted and the members said guard: False)
+            from .core.options import IntegrationOptions
+            from .engines.comparator import ComparatorSafeRoot
+            safe = ComparatorSafeRoot(self.system, SimpleNamespace(name=name, h=self.h),
+                                      IntegrationOptions.checked(tol=self.tol))
+        else:
+            safe = guard.SparkSafeRoot(self.system, what, None, self.tol, MAX_ITER_DEFAULT, self.h)
         for r, (q0, v0) in enumerate(zip(self.Q0, self.V0)):
             member = SimpleNamespace(t=ens.t, q=ens.q[r], v=ens.v[r], energy=ens.energy[r])
             st, cut = guard.judge(member, self.every, self.h, lambda n, state, before: safe(n, state, None, before),
