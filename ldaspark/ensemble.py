@@ -133,8 +133,8 @@ class RunSpec:
         check_storage(n_samples(int(n_steps), int(every)) * len(Q0), 2 + 2 * system.n + system.m,
                       what="the ensemble samples")
         self._check_members(system, t0, Q0, V0)
-        from .compiled.fast import kernel_spec
-        kernel_spec(method, kernel)          # an unknown method name here, not in run_many
+        from .compiled.runner import checked_kernel_spec
+        checked_kernel_spec(method, kernel)  # an unknown method name (or kernel='spark' of a comparator) here
         self.system, self.method, self.t0, self.Q0, self.V0 = system, method, t0, Q0, V0
         self.h, self.n_steps, self.every, self.compensated, self.tol, self.kernel = (
             h, int(n_steps), int(every), bool(compensated), tol, kernel)

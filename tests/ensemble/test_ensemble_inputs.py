@@ -110,3 +110,29 @@ def test_ctrl_c_cancels_pending_tasks_and_stops_workers():
             os.killpg(p.pid, signal.SIGKILL)
     assert p.returncode == 130 and "interrupted" in out
     assert elapsed < 12, f"took {elapsed:.1f} s to stop (the queue holds 30 s)"
+
+
+@pytest.mark.parametrize("entry", ["RunSpec", "fast_integrate", "run_compiled"])
+def test_kernel_spark_of_a_comparator_is_refused(skate, entry):
+    # kernel="spark" forces the SPARK kernel; a comparator of Fig. 4 has no SPARK tableau and ran on
+    # the semi-implicit kernel whatever kernel said (accepted and ignored: the same numbers as
+    # kernel="auto"). Control: kernel="auto" of the comparator, and kernel="spark" of the SPARK
+    # method lobatto-iiia-iiib-2 (the same method (25) on the general kernel), are accepted.
+    import warnings
+    from ldaspark.compiled import fast, runner
+    t0, Q0, V0 = _ics(skate)
+
+    def go(method, kernel):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            if entry == "RunSpec":
+                return RunSpec(skate.system, method, t0, Q0, V0, 0.1, 3, kernel=kernel)
+            if entry == "fast_integrate":
+                return fast.fast_integrate(skate, method, h=0.1, n_steps=3, kernel=kernel)
+            return runner.run_compiled(fast.compile_system(skate.system), method, t0, Q0[0], V0[0], 0.1, 3,
+                                       kernel=kernel)
+    with pytest.raises(InputError, match=r"kernel='spark' runs SPARK tableaus; lobatto-iiia-iiib-2-leapfrog is a "
+                                         "comparator"):
+        go("lobatto-iiia-iiib-2-leapfrog", "spark")
+    assert go("lobatto-iiia-iiib-2-leapfrog", "auto") is not None
+    assert go("lobatto-iiia-iiib-2", "spark") is not None
