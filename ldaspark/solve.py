@@ -232,7 +232,8 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
     tol : float, optional
         Newton tolerance; default: the round-off of the stage values.
     executor : concurrent.futures.Executor, optional
-        Where ensemble members run (default: a loop in this process).
+        Where ensemble members run (default: a loop in this process); a single run is one
+        member, run there too.
     energy_jump : float, optional
         End the run with status -3 at the first step whose energy (8) changes by more than
         ``energy_jump (1 + |E|)``.
@@ -329,6 +330,12 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
         run = functools.partial(_member, sysm if isinstance(executor, ThreadPoolExecutor) else _portable(sysm),
                                 prob, member_opts)
         return stack(_run_members(executor, run, jobs))
+    if executor is not None:
+        # one run is an ensemble of one member: it runs on the executor asked for, as every member
+        # does (the executor was accepted and the run made here)
+        run = functools.partial(_solo, sysm if isinstance(executor, ThreadPoolExecutor) else _portable(sysm), prob,
+                                opts.replace(executor=None))
+        return _run_members(executor, run, [(params, q0, v0)])[0]
     return _single(sysm, (params, q0, v0), prob, opts)
 
 
@@ -412,6 +419,11 @@ def _member(system, prob: _Problem, opts: IntegrationOptions, job) -> Result:
         if exc.args and isinstance(exc.args[0], str) and not exc.args[0].startswith("ensemble member "):
             exc.args = (tag + exc.args[0],) + exc.args[1:]
         raise
+
+
+def _solo(system, prob: _Problem, opts: IntegrationOptions, member) -> Result:
+    """A single run (``member`` = (params, q0, v0)) as a task of the executor asked for."""
+    return _single(system, member, prob, opts)
 
 
 def _portable(system):

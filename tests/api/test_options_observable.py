@@ -150,6 +150,22 @@ def test_executor_runs_the_members(engine):
         run(engine, executor="threads")
 
 
+@pytest.mark.parametrize("engine", ENGINES)
+def test_executor_runs_a_single_run(engine):
+    # executor= with one run (q0 of shape (n,), params a dict or None) was accepted and the run
+    # made in this process (the executor never called). A single run is an ensemble of one member:
+    # it runs on the executor, its Result that of the run without one, bit for bit (the same
+    # float64 operations in another thread). Control: without an executor nothing is submitted.
+    _CountingExecutor.calls = 0
+    ref = run(engine, dense_output=True)
+    assert _CountingExecutor.calls == 0
+    with _CountingExecutor(max_workers=1) as ex:
+        r = run(engine, executor=ex, dense_output=True)
+    assert _CountingExecutor.calls >= 1
+    assert np.array_equal(np.asarray(r.q, float), np.asarray(ref.q, float)) and r.engine == ref.engine
+    assert np.array_equal(r.sol(0.125)[0], ref.sol(0.125)[0])
+
+
 def test_max_stages_raises_the_stage_limit():
     with pytest.raises(LdasparkError, match="more than the limit"):
         ldaspark.integrate("skate", "gauss-21", h=0.1, n_steps=1, engine="generic")
