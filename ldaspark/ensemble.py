@@ -231,7 +231,8 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
     executor : concurrent.futures.Executor, optional
         Kept for compatibility: the same as ``where`` with an executor.
     max_workers : int, optional
-        Size of the default local process pool (default: all cores).
+        Size of the local process pool (``where`` None or "local"; default: all cores); refused
+        with another executor, which runs the tasks on its own workers.
     chunk : int, optional
         Initial-data rows per task.
     progress : callable, optional
@@ -272,6 +273,11 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
     flag(guard, "run_many: guard")
     if executor is not None and where is not None:
         raise InputError("give executor or where, not both")
+    place = executor if executor is not None else where
+    if max_workers is not None and place is not None and not _is_local(place):
+        # the executor or cluster given runs the tasks on its own workers: refused, not ignored
+        raise InputError("max_workers sizes the local process pool (where=None or 'local'); the executor given "
+                         "runs the tasks on its own workers")
     check_executor(executor)
     count(chunk, "chunk", 1, 10 ** 9)
     if max_workers is not None:
@@ -324,12 +330,18 @@ def _run_plan(plan, n_specs, executor=None, max_workers=None, progress=None, che
         count += 1
         if progress is not None:
             progress(count, len(units))
-    res = run_units(units, executor, None if executor is not None else (max_workers or os.cpu_count() or 1),
+    # the local pool (where None or "local") has max_workers workers, all cores by default
+    res = run_units(units, executor, (max_workers or os.cpu_count() or 1) if _is_local(executor) else None,
                     on_done=done)
     results = [[] for _ in range(n_specs)]
     for i, (k, _, args) in enumerate(plan):
         results[k].extend(res[str(i)] if check is None else check(res[str(i)], args, executor))
     return results
+
+
+def _is_local(where) -> bool:
+    """``where`` names the local process pool made here (None or "local", ``executors._Place``)."""
+    return where is None or (isinstance(where, str) and where == "local")
 
 
 def _task_output(val, args, executor):
