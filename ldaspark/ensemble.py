@@ -151,7 +151,7 @@ class RunSpec:
 
     def tasks(self, chunk):
         """(callable, args) per chunk of initial data; compiles in this process first."""
-        from .compiled.fast import NotCompilableError, _notice, compile_system, kernel_spec
+        from .compiled.fast import LF2_VARIANTS, NotCompilableError, _notice, compile_system, kernel_spec
         from .compiled.runner import run_kernels
         spec = kernel_spec(self.method, self.kernel)
         rows = list(zip(self.Q0, self.V0))
@@ -163,6 +163,13 @@ class RunSpec:
             run_kernels(cs, spec, self.t0, self.Q0[0], self.V0[0], self.h, 1, 1, self.compensated, self.tol)
             self._kernels = (cs, spec)
         except NotCompilableError as exc:
+            if spec[0] == "lf2" and spec[2] in LF2_VARIANTS:
+                # a comparator of Fig. 4 on a system not of the mechanical form: the generic path
+                # refuses it too, so refused here, before any work is sent (it was an InputError in
+                # every worker, reported as failed work units)
+                from .core.backend import Backend
+                from .core.comparators import MechanicalParts
+                MechanicalParts(self.system, Backend(None))
             _notice(str(exc))
             sysm = copy.copy(self.system)
             sysm._compiled = {}          # lambdified functions do not pickle; rebuilt in the worker

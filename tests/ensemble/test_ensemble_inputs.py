@@ -136,3 +136,24 @@ def test_kernel_spark_of_a_comparator_is_refused(skate, entry):
         go("lobatto-iiia-iiib-2-leapfrog", "spark")
     assert go("lobatto-iiia-iiib-2-leapfrog", "auto") is not None
     assert go("lobatto-iiia-iiib-2", "spark") is not None
+
+
+def test_a_comparator_on_a_system_not_of_the_mechanical_form_is_refused_before_any_work(skate):
+    # run_many sent the members of a Fig. 4 comparator on a general system (L quartic in v, k
+    # nonlinear in v) to the workers, where the generic comparator refused each: failed work units
+    # (UnitsFailed), not the InputError integrate raises for the same run. Control: the same
+    # comparator on the skate (mechanical form) runs.
+    from concurrent.futures import ThreadPoolExecutor
+    from ldaspark.ensemble import run_many
+    from ldaspark.executors import UnitsFailed
+    from verification.general_fixtures import rheonomic_initial, rheonomic_system
+    t0, q0, v0 = rheonomic_initial()
+    spec = RunSpec(rheonomic_system(), "lobatto-iiia-iiib-2-leapfrog", t0, [np.asarray(q0, float)],
+                   [np.asarray(v0, float)], 0.1, 3)
+    with ThreadPoolExecutor(1) as ex:
+        with pytest.raises(InputError, match="not of the mechanical form") as err:
+            run_many([spec], where=ex)
+        assert not isinstance(err.value, UnitsFailed)
+        st0, sq0, sv0 = _ics(skate)
+        (ok,) = run_many([RunSpec(skate.system, "lobatto-iiia-iiib-2-leapfrog", st0, sq0, sv0, 0.1, 3)], where=ex)
+    assert ok.q.shape == (3, 4, 3)
