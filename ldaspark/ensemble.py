@@ -208,7 +208,7 @@ class RunSpec:
             # the safe root of the single run's engine (it had no guard here: guard=True was
             # accepted and the members said guard: False)
             from .core.options import IntegrationOptions
-            from .engines.comparator import ComparatorSafeRoot
+            from .core.comparators import ComparatorSafeRoot
             safe = ComparatorSafeRoot(self.system, SimpleNamespace(name=name, h=self.h),
                                       IntegrationOptions.checked(tol=self.tol))
         else:
