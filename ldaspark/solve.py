@@ -621,7 +621,9 @@ class _StepWatch:
         self.engine, self.prep, self.h = engine, prep, h
         self.jump = prep.opts.energy_jump
         self.test = StepGuard(prep.opts.tol) if prep.opts.guard else None
-        self.E = E0
+        # the energy in the run's numbers (mpmath at dps: its change is taken there, then made a
+        # float, so that a jump below float64's resolution of E is seen) and as a float
+        self.Ex, self.E = E0, float(E0)
         self.prev = None            # (V, Psi, h) of the previous step
         self.flagged = self.confirmed = self.unverified = 0
 
@@ -630,11 +632,12 @@ class _StepWatch:
         from .core import guard
         from .core.errors import NonFiniteError
         E1 = float(st.energy)
-        if self.jump is not None and abs(E1 - self.E) > float(self.jump) * (1 + abs(self.E)):
+        dE = float(abs(st.energy - self.Ex)) if self.jump is not None else 0.0
+        if self.jump is not None and dE > float(self.jump) * (1 + abs(self.E)):
             return NonFiniteError(
                 f"step {st.index} (t = {float(st.t):.6g} -> {float(st.t + self.h):.6g}): energy jumped from "
-                f"{self.E:.6g} to {E1:.6g} (more than energy_jump = {float(self.jump):g} relative): a collision "
-                "with a singularity of L or a step too large", step=st.index, time=float(st.t))
+                f"{self.E:.6g} to {E1:.6g} (by {dE:.3g}, more than energy_jump = {float(self.jump):g} relative): a "
+                "collision with a singularity of L or a step too large", step=st.index, time=float(st.t))
         if self.test is not None:
             if self.test.suspect(st.index, self.E, E1, st.iterations):
                 self.flagged += 1
@@ -646,7 +649,7 @@ class _StepWatch:
                 else:
                     return guard.mismatch(st.index, st.t, self.h, (st.q1, st.v1, E1), safe, label)
             self.test.accept(self.E, E1, st.iterations)
-        self.E = E1
+        self.Ex, self.E = st.energy, E1
         self.prev = (st.V, st.Psi, self.h)
         return None
 
@@ -681,7 +684,7 @@ def _drive_steps(engine, prep, start) -> Result:
         saved_i, Qs, Vs, Ps = [0], [q], [v], []
         dense_q, dense_v, dense_V = [], [], []
         done = 0
-        watch = _StepWatch(engine, prep, float(system.energy(bk, t0_, q, v)), h_) \
+        watch = _StepWatch(engine, prep, system.energy(bk, t0_, q, v), h_) \
             if opts.guard or opts.energy_jump is not None else None
         steps = engine.steps(prep, (t0_, q, v), N)
         while True:
@@ -868,14 +871,17 @@ def _energy_jump_cut(res: Result, energy_jump) -> tuple:
     if energy_jump is None or res is None or len(res.t) < 2:
         return res, None
     E = float_array(res.energy)
-    jump = np.abs(np.diff(E)) > float(energy_jump) * (1 + np.abs(E[:-1]))
+    # the changes in the run's numbers (mpmath at dps), then as floats: a jump below float64's
+    # resolution of E is seen at the digits the run has
+    dE = float_array(np.abs(np.diff(np.asarray(res.energy))))
+    jump = dE > float(energy_jump) * (1 + np.abs(E[:-1]))
     if not jump.any():
         return res, None
     k = int(np.argmax(jump))
     t = float_array(res.t)
     exc = NonFiniteError(f"step {k} (t = {t[k]:.6g} -> {t[k + 1]:.6g}): energy jumped from {E[k]:.6g} to "
-                         f"{E[k + 1]:.6g} (more than energy_jump = {float(energy_jump):g} relative): a collision "
-                         "with a singularity of L or a step too large", step=k, time=t[k])
+                         f"{E[k + 1]:.6g} (by {dE[k]:.3g}, more than energy_jump = {float(energy_jump):g} relative): "
+                         "a collision with a singularity of L or a step too large", step=k, time=t[k])
     for nm in ("t", "q", "v", "energy", "constraint"):
         setattr(res, nm, np.asarray(getattr(res, nm))[:k + 1])
     if res.psi is not None:
