@@ -165,11 +165,18 @@ class RunSpec:
         except NotCompilableError as exc:
             if spec[0] == "lf2" and spec[2] in LF2_VARIANTS:
                 # a comparator of Fig. 4 on a system not of the mechanical form: the generic path
-                # refuses it too, so refused here, before any work is sent (it was an InputError in
-                # every worker, reported as failed work units)
-                from .core.backend import Backend
-                from .core.comparators import MechanicalParts
-                MechanicalParts(self.system, Backend(None))
+                # takes the modified method of 8.4 and refuses the leapfrog forms of (25) and (26),
+                # which are refused here, before any work is sent (an InputError in every worker was
+                # reported as failed work units): the generic comparator's first step of member 0
+                from .core.comparators import integrate_comparator
+                from .core.errors import LdasparkError
+                try:
+                    integrate_comparator(spec[2], self.system, self.t0, self.Q0[0], self.V0[0], self.h, 1,
+                                         tol=self.tol)
+                except InputError:
+                    raise
+                except LdasparkError:
+                    pass            # a step failure: the member's task reports it, as before
             _notice(str(exc))
             sysm = copy.copy(self.system)
             sysm._compiled = {}          # lambdified functions do not pickle; rebuilt in the worker

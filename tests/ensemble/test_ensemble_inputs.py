@@ -10,6 +10,8 @@ import time
 import numpy as np
 import pytest
 
+import ldaspark
+
 from ldaspark.ensemble import RunSpec, _run_plan, ensemble_integrate
 from ldaspark.core.errors import InconsistentInitialDataError, InputError, SingularSaddleError
 from ldaspark.models.scenes import get_scene
@@ -156,4 +158,12 @@ def test_a_comparator_on_a_system_not_of_the_mechanical_form_is_refused_before_a
         assert not isinstance(err.value, UnitsFailed)
         st0, sq0, sv0 = _ics(skate)
         (ok,) = run_many([RunSpec(skate.system, "lobatto-iiia-iiib-2-leapfrog", st0, sq0, sv0, 0.1, 3)], where=ex)
+        # the modified method of 8.4 needs no mechanical form: its generic path runs the general system
+        # (the kernels do not), as integrate does
+        mod = RunSpec(rheonomic_system(), "lobatto-iiia-iiib-2-modified", t0, [np.asarray(q0, float)],
+                      [np.asarray(v0, float)], 0.1, 3)
+        (gen,) = run_many([mod], where=ex)
     assert ok.q.shape == (3, 4, 3)
+    single = ldaspark.integrate(rheonomic_system(), "lobatto-iiia-iiib-2-modified", q0=np.asarray(q0, float),
+                                v0=np.asarray(v0, float), t0=float(t0), h=0.1, n_steps=3)
+    assert gen.stats[0]["path"] == "generic" and np.array_equal(gen.q[0], np.asarray(single.q, float))
