@@ -133,8 +133,8 @@ class RunSpec:
         check_storage(n_samples(int(n_steps), int(every)) * len(Q0), 2 + 2 * system.n + system.m,
                       what="the ensemble samples")
         self._check_members(system, t0, Q0, V0)
-        from .compiled.fast import kernel_spec
-        kernel_spec(method, kernel)          # an unknown method name here, not in run_many
+        from .compiled.runner import checked_kernel_spec
+        checked_kernel_spec(method, kernel)  # an unknown method name (or kernel='spark' of a comparator) here
         self.system, self.method, self.t0, self.Q0, self.V0 = system, method, t0, Q0, V0
         self.h, self.n_steps, self.every, self.compensated, self.tol, self.kernel = (
             h, int(n_steps), int(every), bool(compensated), tol, kernel)
@@ -151,7 +151,7 @@ class RunSpec:
 
     def tasks(self, chunk):
         """(callable, args) per chunk of initial data; compiles in this process first."""
-        from .compiled.fast import NotCompilableError, _notice, compile_system, kernel_spec
+        from .compiled.fast import LF2_VARIANTS, NotCompilableError, _notice, compile_system, kernel_spec
         from .compiled.runner import run_kernels
         spec = kernel_spec(self.method, self.kernel)
         rows = list(zip(self.Q0, self.V0))
@@ -163,6 +163,20 @@ class RunSpec:
             run_kernels(cs, spec, self.t0, self.Q0[0], self.V0[0], self.h, 1, 1, self.compensated, self.tol)
             self._kernels = (cs, spec)
         except NotCompilableError as exc:
+            if spec[0] == "lf2" and spec[2] in LF2_VARIANTS:
+                # a comparator of Fig. 4 on a system not of the mechanical form: the generic path
+                # takes the modified method of 8.4 and refuses the leapfrog forms of (25) and (26),
+                # which are refused here, before any work is sent (an InputError in every worker was
+                # reported as failed work units): the generic comparator's first step of member 0
+                from .core.comparators import integrate_comparator
+                from .core.errors import LdasparkError
+                try:
+                    integrate_comparator(spec[2], self.system, self.t0, self.Q0[0], self.V0[0], self.h, 1,
+                                         tol=self.tol)
+                except InputError:
+                    raise
+                except LdasparkError:
+                    pass            # a step failure: the member's task reports it, as before
             _notice(str(exc))
             sysm = copy.copy(self.system)
             sysm._compiled = {}          # lambdified functions do not pickle; rebuilt in the worker
@@ -190,16 +204,22 @@ class RunSpec:
         ensemble ``ens`` (spec number k of ``run_many``): each member's stats get the guard's
         counters; a member with another root of (21) at some step raises RootMismatchError naming
         the spec, the member, the step and both roots. A comparator of sections 7-8 (the Fig. 4
-        variants of LF2) has no SPARK safe root: its members say ``guard: False``."""
+        variants of LF2) is judged with its own step from a fresh start (``ComparatorSafeRoot``),
+        as its single ``integrate`` run is."""
         from types import SimpleNamespace
         from .compiled.fast import _resolve
         from .core import guard
+        from .core.rootfinder import MAX_ITER_DEFAULT
         kind, what, name = _resolve(self.method)
         if kind != "spark":
-            for st in ens.stats:
-                st["guard"] = False
-            return
-        safe = guard.SparkSafeRoot(self.system, what, None, self.tol, 50, self.h)
+            # the safe root of the single run's engine (it had no guard here: guard=True was
+            # accepted and the members said guard: False)
+            from .core.options import IntegrationOptions
+            from .core.comparators import ComparatorSafeRoot
+            safe = ComparatorSafeRoot(self.system, SimpleNamespace(name=name, h=self.h),
+                                      IntegrationOptions.checked(tol=self.tol))
+        else:
+            safe = guard.SparkSafeRoot(self.system, what, None, self.tol, MAX_ITER_DEFAULT, self.h)
         for r, (q0, v0) in enumerate(zip(self.Q0, self.V0)):
             member = SimpleNamespace(t=ens.t, q=ens.q[r], v=ens.v[r], energy=ens.energy[r])
             st, cut = guard.judge(member, self.every, self.h, lambda n, state, before: safe(n, state, None, before),
@@ -225,7 +245,8 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
     executor : concurrent.futures.Executor, optional
         Kept for compatibility: the same as ``where`` with an executor.
     max_workers : int, optional
-        Size of the default local process pool (default: all cores).
+        Size of the local process pool (``where`` None or "local"; default: all cores); refused
+        with another executor, which runs the tasks on its own workers.
     chunk : int, optional
         Initial-data rows per task.
     progress : callable, optional
@@ -266,6 +287,11 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
     flag(guard, "run_many: guard")
     if executor is not None and where is not None:
         raise InputError("give executor or where, not both")
+    place = executor if executor is not None else where
+    if max_workers is not None and place is not None and not _is_local(place):
+        # the executor or cluster given runs the tasks on its own workers: refused, not ignored
+        raise InputError("max_workers sizes the local process pool (where=None or 'local'); the executor given "
+                         "runs the tasks on its own workers")
     check_executor(executor)
     count(chunk, "chunk", 1, 10 ** 9)
     if max_workers is not None:
@@ -318,12 +344,18 @@ def _run_plan(plan, n_specs, executor=None, max_workers=None, progress=None, che
         count += 1
         if progress is not None:
             progress(count, len(units))
-    res = run_units(units, executor, None if executor is not None else (max_workers or os.cpu_count() or 1),
+    # the local pool (where None or "local") has max_workers workers, all cores by default
+    res = run_units(units, executor, (max_workers or os.cpu_count() or 1) if _is_local(executor) else None,
                     on_done=done)
     results = [[] for _ in range(n_specs)]
     for i, (k, _, args) in enumerate(plan):
         results[k].extend(res[str(i)] if check is None else check(res[str(i)], args, executor))
     return results
+
+
+def _is_local(where) -> bool:
+    """``where`` names the local process pool made here (None or "local", ``executors._Place``)."""
+    return where is None or (isinstance(where, str) and where == "local")
 
 
 def _task_output(val, args, executor):

@@ -233,7 +233,8 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
     tol : float, optional
         Newton tolerance; default: the round-off of the stage values.
     executor : concurrent.futures.Executor, optional
-        Where ensemble members run (default: a loop in this process).
+        Where ensemble members run (default: a loop in this process); a single run is one
+        member, run there too.
     energy_jump : float, optional
         End the run with status -3 at the first step whose energy (8) changes by more than
         ``energy_jump (1 + |E|)``.
@@ -330,6 +331,12 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
         run = functools.partial(_member, sysm if isinstance(executor, ThreadPoolExecutor) else _portable(sysm),
                                 prob, member_opts)
         return stack(_run_members(executor, run, jobs))
+    if executor is not None:
+        # one run is an ensemble of one member: it runs on the executor asked for, as every member
+        # does (the executor was accepted and the run made here)
+        run = functools.partial(_solo, sysm if isinstance(executor, ThreadPoolExecutor) else _portable(sysm), prob,
+                                opts.replace(executor=None))
+        return _run_members(executor, run, [(params, q0, v0)])[0]
     return _single(sysm, (params, q0, v0), prob, opts)
 
 
@@ -413,6 +420,11 @@ def _member(system, prob: _Problem, opts: IntegrationOptions, job) -> Result:
         if exc.args and isinstance(exc.args[0], str) and not exc.args[0].startswith("ensemble member "):
             exc.args = (tag + exc.args[0],) + exc.args[1:]
         raise
+
+
+def _solo(system, prob: _Problem, opts: IntegrationOptions, member) -> Result:
+    """A single run (``member`` = (params, q0, v0)) as a task of the executor asked for."""
+    return _single(system, member, prob, opts)
 
 
 def _portable(system):
@@ -610,7 +622,9 @@ class _StepWatch:
         self.engine, self.prep, self.h = engine, prep, h
         self.jump = prep.opts.energy_jump
         self.test = StepGuard(prep.opts.tol) if prep.opts.guard else None
-        self.E = E0
+        # the energy in the run's numbers (mpmath at dps: its change is taken there, then made a
+        # float, so that a jump below float64's resolution of E is seen) and as a float
+        self.Ex, self.E = E0, float(E0)
         self.prev = None            # (V, Psi, h) of the previous step
         self.flagged = self.confirmed = self.unverified = 0
 
@@ -619,11 +633,12 @@ class _StepWatch:
         from .core import guard
         from .core.errors import NonFiniteError
         E1 = float(st.energy)
-        if self.jump is not None and abs(E1 - self.E) > float(self.jump) * (1 + abs(self.E)):
+        dE = float(abs(st.energy - self.Ex)) if self.jump is not None else 0.0
+        if self.jump is not None and dE > float(self.jump) * (1 + abs(self.E)):
             return NonFiniteError(
                 f"step {st.index} (t = {float(st.t):.6g} -> {float(st.t + self.h):.6g}): energy jumped from "
-                f"{self.E:.6g} to {E1:.6g} (more than energy_jump = {float(self.jump):g} relative): a collision "
-                "with a singularity of L or a step too large", step=st.index, time=float(st.t))
+                f"{self.E:.6g} to {E1:.6g} (by {dE:.3g}, more than energy_jump = {float(self.jump):g} relative): a "
+                "collision with a singularity of L or a step too large", step=st.index, time=float(st.t))
         if self.test is not None:
             if self.test.suspect(st.index, self.E, E1, st.iterations):
                 self.flagged += 1
@@ -635,7 +650,7 @@ class _StepWatch:
                 else:
                     return guard.mismatch(st.index, st.t, self.h, (st.q1, st.v1, E1), safe, label)
             self.test.accept(self.E, E1, st.iterations)
-        self.E = E1
+        self.Ex, self.E = st.energy, E1
         self.prev = (st.V, st.Psi, self.h)
         return None
 
@@ -670,7 +685,7 @@ def _drive_steps(engine, prep, start) -> Result:
         saved_i, Qs, Vs, Ps = [0], [q], [v], []
         dense_q, dense_v, dense_V = [], [], []
         done = 0
-        watch = _StepWatch(engine, prep, float(system.energy(bk, t0_, q, v)), h_) \
+        watch = _StepWatch(engine, prep, system.energy(bk, t0_, q, v), h_) \
             if opts.guard or opts.energy_jump is not None else None
         steps = engine.steps(prep, (t0_, q, v), N)
         while True:
@@ -858,14 +873,17 @@ def _energy_jump_cut(res: Result, energy_jump) -> tuple:
     if energy_jump is None or res is None or len(res.t) < 2:
         return res, None
     E = float_array(res.energy)
-    jump = np.abs(np.diff(E)) > float(energy_jump) * (1 + np.abs(E[:-1]))
+    # the changes in the run's numbers (mpmath at dps), then as floats: a jump below float64's
+    # resolution of E is seen at the digits the run has
+    dE = float_array(np.abs(np.diff(np.asarray(res.energy))))
+    jump = dE > float(energy_jump) * (1 + np.abs(E[:-1]))
     if not jump.any():
         return res, None
     k = int(np.argmax(jump))
     t = float_array(res.t)
     exc = NonFiniteError(f"step {k} (t = {t[k]:.6g} -> {t[k + 1]:.6g}): energy jumped from {E[k]:.6g} to "
-                         f"{E[k + 1]:.6g} (more than energy_jump = {float(energy_jump):g} relative): a collision "
-                         "with a singularity of L or a step too large", step=k, time=t[k])
+                         f"{E[k + 1]:.6g} (by {dE[k]:.3g}, more than energy_jump = {float(energy_jump):g} relative): "
+                         "a collision with a singularity of L or a step too large", step=k, time=t[k])
     for nm in ("t", "q", "v", "energy", "constraint"):
         setattr(res, nm, np.asarray(getattr(res, nm))[:k + 1])
     if res.psi is not None:

@@ -259,7 +259,7 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
     _check_options(n_steps, every, predictor, tol, max_iter, len(q0), system.m)
     from ..core.validate import step_advances
     step_advances(t0, h, n_steps, None)         # t0 = 1e17, h = 1: the times would repeat
-    kernel_spec(method, kernel)
+    runner.checked_kernel_spec(method, kernel)        # kernel='spark' of a comparator: refused
     if linear_solver not in LINEAR_SOLVERS:
         raise InputError(f"linear_solver must be one of {LINEAR_SOLVERS}, got {linear_solver!r}")
     _setup_checks(system, t0, q0, v0, _loaded(system))

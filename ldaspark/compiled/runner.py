@@ -407,6 +407,17 @@ def kernel_spec(method, kernel="auto"):
     return spec
 
 
+def checked_kernel_spec(method, kernel="auto"):
+    """``kernel_spec`` at a caller's boundary (``RunSpec``, ``fast_integrate``, ``run_kernels``):
+    kernel="spark" of a comparator of Fig. 4 (``LF2_VARIANTS``: no SPARK tableau, the semi-implicit
+    kernel runs it whatever ``kernel`` says) is refused, not accepted and ignored."""
+    spec = kernel_spec(method, kernel)
+    if kernel == "spark" and spec[0] == "lf2" and spec[2] in LF2_VARIANTS:
+        raise InputError(f"kernel='spark' runs SPARK tableaus; {spec[2]} is a comparator of Fig. 4, which only the "
+                         "semi-implicit kernel runs: use kernel='auto'")
+    return spec
+
+
 def _make_spec(method, kernel):
     kind, what, name = _resolve(method)
     if kind == "spark" and kernel == "auto" and what.name == "lobatto-iiia-iiib-2":
@@ -519,6 +530,8 @@ def run_kernels(cs: CompiledSystem, method, t0, q0, v0, h, n_steps, every=1, com
     "auto" = from n >= REUSE_AUTO_MIN_N. stats["reuse_matrix"] says whether it was on.
     Raises NewtonError, NonFiniteError."""
     _check_options(n_steps, every, predictor, tol, max_iter, cs.n, cs.m)
+    if not isinstance(method, tuple):
+        checked_kernel_spec(method, kernel)
     return _run_checked(cs, method, (t0, q0, v0), (h, n_steps, every),
                         KernelOptions(compensated, tol, max_iter, kernel, predictor, reuse_matrix, linear_solver))
 

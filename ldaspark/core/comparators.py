@@ -484,3 +484,22 @@ def integrate_comparator(name: str, system: LagrangianSystem, t0, q0, v0, h, n_s
     if name == "mp-lobatto-iiib-a-2":
         return _mp_iiib_a(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, name, progress)
     raise InputError(f"unknown comparator {name!r}; choose from gauss-irk-S, {', '.join(FIXED_NAMES)}")
+
+
+class ComparatorSafeRoot:
+    """The guard's safe root for a comparator: its own step from the same state, started afresh
+    (its default guess)."""
+
+    def __init__(self, system, prob, opts):
+        self.system, self.prob, self.opts = system, prob, opts
+
+    def __call__(self, n, state, prev=None, before=None):
+        t, q, v = state
+        o = self.opts
+        try:
+            sol = integrate_comparator(self.prob.name, self.system, t, q, v, self.prob.h, 1, dps=o.dps, tol=o.tol,
+                                       max_iter=o.newton.iterations, max_stages=o.max_stages)
+        except LdasparkError:
+            return None, None
+        return "the comparator's own start", (np.asarray(sol.q[-1], float), np.asarray(sol.v[-1], float),
+                                              float(sol.energy[-1]))

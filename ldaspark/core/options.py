@@ -25,7 +25,7 @@ class IntegrationOptions:
     guard: the step-acceptance guard (``ldaspark.core.guard``, on by default);
     save_every: keep every k-th step and the last; dense_output; events: the checked events
     (``ldaspark.core.dense.Event``); energy_jump: the energy monitor's relative jump (None: off);
-    executor: where ensemble members run (None: a loop here); max_stages: the stage limit of
+    executor: where ensemble members (and a single run, one member) run (None: here); max_stages: the stage limit of
     built-in method names; project: project v0 onto k = 0; raise_on_failure."""
 
     engine: str = "auto"

@@ -467,12 +467,15 @@ class SparkMethod:
                                  "the solution left the domain of L", step=step_index, time=float(t0))
         if self.energy_jump is not None:
             E0 = self._energy_at(t0, step_index)
-            if E0 is not None and abs(float(E) - E0) > self.energy_jump * (1 + abs(E0)):
+            # the change in the step's numbers (mpmath at dps), then a float: a change below
+            # float64's resolution of E is seen at the digits of the run
+            dE = None if E0 is None else float(abs(E - E0))
+            if dE is not None and dE > self.energy_jump * (1 + abs(float(E0))):
                 raise NonFiniteError(
-                    f"{where}: energy jumped from {E0:.6g} to {float(E):.6g} (more than energy_jump = "
-                    f"{self.energy_jump:g} relative): a collision with a singularity of L or a step too large",
-                    step=step_index, time=float(t0))
-            self._last_energy = (step_index + 1, float(E))
+                    f"{where}: energy jumped from {float(E0):.6g} to {float(E):.6g} (by {dE:.3g}, more than "
+                    f"energy_jump = {self.energy_jump:g} relative): a collision with a singularity of L or a step "
+                    "too large", step=step_index, time=float(t0))
+            self._last_energy = (step_index + 1, E)
         return E
 
     def _energy_at(self, t0, step_index):
@@ -481,10 +484,11 @@ class SparkMethod:
         if last is not None and last[0] == step_index:
             return last[1]
         try:
-            E0 = float(self.system.energy(self.backend, *self._step_start))
+            E0 = self.system.energy(self.backend, *self._step_start)
+            finite = math.isfinite(float(E0))
         except (ValueError, ZeroDivisionError, OverflowError, TypeError):
             return None
-        return E0 if math.isfinite(E0) else None
+        return E0 if finite else None
 
 
 def _magnitudes(a):

@@ -10,31 +10,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.errors import LdasparkError
 from ..core.result import Result
 from .base import Engine, Prepared
+# the guard's safe root of a comparator lives beside the comparators (``run_many`` judges with it too)
+from ..core.comparators import ComparatorSafeRoot
 
 from ..core.result import MSG_DONE
-
-
-class ComparatorSafeRoot:
-    """The guard's safe root for a comparator: its own step from the same state, started afresh
-    (its default guess)."""
-
-    def __init__(self, system, prob, opts):
-        self.system, self.prob, self.opts = system, prob, opts
-
-    def __call__(self, n, state, prev=None, before=None):
-        from ..core.comparators import integrate_comparator
-        t, q, v = state
-        o = self.opts
-        try:
-            sol = integrate_comparator(self.prob.name, self.system, t, q, v, self.prob.h, 1, dps=o.dps, tol=o.tol,
-                                       max_iter=o.newton.iterations, max_stages=o.max_stages)
-        except LdasparkError:
-            return None, None
-        return "the comparator's own start", (np.asarray(sol.q[-1], float), np.asarray(sol.v[-1], float),
-                                              float(sol.energy[-1]))
 
 
 class ComparatorEngine(Engine):

@@ -91,6 +91,23 @@ def test_energy_jump_stops_the_run_and_raise_on_failure_raises(engine):
         run(engine, energy_jump=1e-300, raise_on_failure=True)
 
 
+@pytest.mark.parametrize("method, h", [("gauss-2", "1e-3"), ("lobatto-iiia-iiib-2-leapfrog", "1e-5")])
+def test_energy_jump_at_dps_is_judged_at_the_runs_digits(method, h):
+    """At 30 digits the energy monitor compared float64 energies: a change of the energy below
+    float64's resolution of E (ulp(1.5) = 2.2e-16) was 0 whatever energy_jump said. The particle's
+    energy changes by 2.2e-19 .. 1.1e-18 a step with gauss-2 at h = 1e-3 (the stepping engine) and
+    by 1.5e-20 .. 7.5e-20 with the leapfrog comparator at h = 1e-5 (a block engine): thresholds
+    1e-21 (x 2.5 = 2.5e-21, 6x below the smallest change) stop at step 0; 1e-16 (2.5e-16, 2000x
+    above the largest) does not (control)."""
+    kw = dict(h=h, n_steps=3, dps=30)
+    free = ldaspark.integrate("particle", method, **kw)
+    E = np.asarray(free.energy, float)
+    assert free.status == 0 and np.all(E == E[0])            # the changes are below float64's resolution
+    r = ldaspark.integrate("particle", method, energy_jump=1e-21, **kw)
+    assert r.status == -3 and len(r.t) == 1 and "step 0" in r.message
+    assert ldaspark.integrate("particle", method, energy_jump=1e-16, **kw).status == 0
+
+
 @pytest.mark.parametrize("engine", ENGINES)
 def test_project_makes_inconsistent_data_consistent(engine):
     scene = ldaspark.get_scene("skate")
@@ -148,6 +165,22 @@ def test_executor_runs_the_members(engine):
     assert _CountingExecutor.calls >= 1 and r.q.shape[0] == 2
     with pytest.raises(InputError):
         run(engine, executor="threads")
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_executor_runs_a_single_run(engine):
+    # executor= with one run (q0 of shape (n,), params a dict or None) was accepted and the run
+    # made in this process (the executor never called). A single run is an ensemble of one member:
+    # it runs on the executor, its Result that of the run without one, bit for bit (the same
+    # float64 operations in another thread). Control: without an executor nothing is submitted.
+    _CountingExecutor.calls = 0
+    ref = run(engine, dense_output=True)
+    assert _CountingExecutor.calls == 0
+    with _CountingExecutor(max_workers=1) as ex:
+        r = run(engine, executor=ex, dense_output=True)
+    assert _CountingExecutor.calls >= 1
+    assert np.array_equal(np.asarray(r.q, float), np.asarray(ref.q, float)) and r.engine == ref.engine
+    assert np.array_equal(r.sol(0.125)[0], ref.sol(0.125)[0])
 
 
 def test_max_stages_raises_the_stage_limit():

@@ -74,6 +74,20 @@ def test_energy_jump_monitor_catches_the_collision(coulomb):
         integrate(coulomb, get_method("gauss-2"), 0, [1, 0, 0], [-1, 0, 0], 0.1, n_steps=30, energy_jump=0.1)
 
 
+def test_energy_jump_monitor_at_dps_judges_the_change_at_the_runs_digits():
+    # at 30 digits the monitor compared float64 energies: the particle's change of 2.2e-19 .. 1.1e-18
+    # a step (gauss-2, h = 1e-3; below float64's resolution of E = 1.5, 2.2e-16) was 0, so
+    # energy_jump = 1e-21 (x 2.5 = 2.5e-21, 90x below the change) never fired. Control: 1e-16
+    # (2.5e-16, 200x above the largest change) runs the 3 steps.
+    sc = get_scene("particle")
+    t0, q0, v0 = sc.initial(30)
+    kw = dict(n_steps=3, dps=30)
+    with pytest.raises(NonFiniteError, match=r"step 0 .*energy jumped from 1.5 to 1.5 \(by 2.2\de-19"):
+        integrate(sc.system, get_method("gauss-2"), t0, q0, v0, "1e-3", energy_jump=1e-21, **kw)
+    sol = integrate(sc.system, get_method("gauss-2"), t0, q0, v0, "1e-3", energy_jump=1e-16, **kw)
+    assert len(sol.t) == 4
+
+
 def test_energy_jump_monitor_is_quiet_on_a_regular_run():
     # negative control: the monitor does not fire on the skate (energy error ~1e-6 per step at h = 0.1)
     sc = get_scene("skate")

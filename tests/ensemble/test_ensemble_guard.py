@@ -75,3 +75,36 @@ def test_the_guard_reruns_a_member_from_its_own_t0():
         run_many([sampled], where=ex, guard=False)            # sets up the path its tasks ran
     again = sampled.rerun(q0, v0, 8)
     assert np.array_equal(np.asarray(again.t), ens.t) and np.array_equal(np.asarray(again.q), ens.q[0])
+
+
+@pytest.mark.parametrize("every", [1, 3])
+def test_run_many_judges_comparator_members_as_their_single_runs(every):
+    # guard=True on a spec of a comparator of Fig. 4 (the leapfrog form of (25)) was accepted and
+    # not run: its members said guard: False, while the single integrate run of the same member
+    # judges its steps with the comparator's own step (``ComparatorSafeRoot``). On the double well
+    # at h = 0.8 the single runs flag and confirm 3 and 4 steps in 6; the members' counters are
+    # theirs (integers compared exactly: the flags are decided on the same float64 energies, the
+    # member being its single run bit for bit), also with samples 3 steps apart (the guard's rerun).
+    # Control: guard=False says guard: False.
+    method, kw = "lobatto-iiia-iiib-2-leapfrog", dict(START, h=0.8, n_steps=6, save_every=every)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        singles = [ldaspark.integrate(WELL, method, engine="compiled", **dict(kw, q0=q, v0=v)) for q, v in zip(Q0, V0)]
+    assert [r.stats["guard_flagged"] for r in singles] == [3, 4]
+    spec = RunSpec(WELL, method, START["t0"], Q0, V0, 0.8, 6, every)
+    with ThreadPoolExecutor(1) as ex:
+        (ens,) = run_many([spec], where=ex)
+        (off,) = run_many([spec], where=ex, guard=False)
+    assert [{k: st[k] for k in KEYS} for st in ens.stats] == [{k: r.stats[k] for k in KEYS} for r in singles]
+    assert [st["guard"] for st in off.stats] == [False, False]
+    assert np.array_equal(ens.q, np.array([r.q for r in singles]))
+
+
+def test_run_many_stops_on_a_comparator_member_with_another_root(monkeypatch):
+    # the wiring of the comparator's safe root: one that never agrees names the spec and member
+    monkeypatch.setattr(guard, "same_root", lambda *a: False)
+    spec = RunSpec(WELL, "lobatto-iiia-iiib-2-leapfrog", START["t0"], Q0, V0, 0.8, 6)
+    with ThreadPoolExecutor(1) as ex:
+        with pytest.raises(guard.RootMismatchError, match=r"run_many: spec 0 \(lobatto-iiia-iiib-2-leapfrog\), "
+                                                          r"member 0: step \d+ "):
+            run_many([spec], where=ex)

@@ -10,6 +10,8 @@ import time
 import numpy as np
 import pytest
 
+import ldaspark
+
 from ldaspark.ensemble import RunSpec, _run_plan, ensemble_integrate
 from ldaspark.core.errors import InconsistentInitialDataError, InputError, SingularSaddleError
 from ldaspark.models.scenes import get_scene
@@ -110,3 +112,58 @@ def test_ctrl_c_cancels_pending_tasks_and_stops_workers():
             os.killpg(p.pid, signal.SIGKILL)
     assert p.returncode == 130 and "interrupted" in out
     assert elapsed < 12, f"took {elapsed:.1f} s to stop (the queue holds 30 s)"
+
+
+@pytest.mark.parametrize("entry", ["RunSpec", "fast_integrate", "run_compiled"])
+def test_kernel_spark_of_a_comparator_is_refused(skate, entry):
+    # kernel="spark" forces the SPARK kernel; a comparator of Fig. 4 has no SPARK tableau and ran on
+    # the semi-implicit kernel whatever kernel said (accepted and ignored: the same numbers as
+    # kernel="auto"). Control: kernel="auto" of the comparator, and kernel="spark" of the SPARK
+    # method lobatto-iiia-iiib-2 (the same method (25) on the general kernel), are accepted.
+    import warnings
+    from ldaspark.compiled import fast, runner
+    t0, Q0, V0 = _ics(skate)
+
+    def go(method, kernel):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            if entry == "RunSpec":
+                return RunSpec(skate.system, method, t0, Q0, V0, 0.1, 3, kernel=kernel)
+            if entry == "fast_integrate":
+                return fast.fast_integrate(skate, method, h=0.1, n_steps=3, kernel=kernel)
+            return runner.run_compiled(fast.compile_system(skate.system), method, t0, Q0[0], V0[0], 0.1, 3,
+                                       kernel=kernel)
+    with pytest.raises(InputError, match=r"kernel='spark' runs SPARK tableaus; lobatto-iiia-iiib-2-leapfrog is a "
+                                         "comparator"):
+        go("lobatto-iiia-iiib-2-leapfrog", "spark")
+    assert go("lobatto-iiia-iiib-2-leapfrog", "auto") is not None
+    assert go("lobatto-iiia-iiib-2", "spark") is not None
+
+
+def test_a_comparator_on_a_system_not_of_the_mechanical_form_is_refused_before_any_work(skate):
+    # run_many sent the members of a Fig. 4 comparator on a general system (L quartic in v, k
+    # nonlinear in v) to the workers, where the generic comparator refused each: failed work units
+    # (UnitsFailed), not the InputError integrate raises for the same run. Control: the same
+    # comparator on the skate (mechanical form) runs.
+    from concurrent.futures import ThreadPoolExecutor
+    from ldaspark.ensemble import run_many
+    from ldaspark.executors import UnitsFailed
+    from verification.general_fixtures import rheonomic_initial, rheonomic_system
+    t0, q0, v0 = rheonomic_initial()
+    spec = RunSpec(rheonomic_system(), "lobatto-iiia-iiib-2-leapfrog", t0, [np.asarray(q0, float)],
+                   [np.asarray(v0, float)], 0.1, 3)
+    with ThreadPoolExecutor(1) as ex:
+        with pytest.raises(InputError, match="not of the mechanical form") as err:
+            run_many([spec], where=ex)
+        assert not isinstance(err.value, UnitsFailed)
+        st0, sq0, sv0 = _ics(skate)
+        (ok,) = run_many([RunSpec(skate.system, "lobatto-iiia-iiib-2-leapfrog", st0, sq0, sv0, 0.1, 3)], where=ex)
+        # the modified method of 8.4 needs no mechanical form: its generic path runs the general system
+        # (the kernels do not), as integrate does
+        mod = RunSpec(rheonomic_system(), "lobatto-iiia-iiib-2-modified", t0, [np.asarray(q0, float)],
+                      [np.asarray(v0, float)], 0.1, 3)
+        (gen,) = run_many([mod], where=ex)
+    assert ok.q.shape == (3, 4, 3)
+    single = ldaspark.integrate(rheonomic_system(), "lobatto-iiia-iiib-2-modified", q0=np.asarray(q0, float),
+                                v0=np.asarray(v0, float), t0=float(t0), h=0.1, n_steps=3)
+    assert gen.stats[0]["path"] == "generic" and np.array_equal(gen.q[0], np.asarray(single.q, float))

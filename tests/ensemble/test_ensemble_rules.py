@@ -9,6 +9,9 @@ import pytest
 import ldaspark
 from ldaspark.core.errors import InputError
 import concurrent.futures as cf
+from concurrent.futures import ThreadPoolExecutor
+
+from ldaspark.ensemble import RunSpec
 from ldaspark.core.errors import InputError
 from system_fakes import _one_line, no_client  # noqa: F401 (pytest fixtures)
 
@@ -108,3 +111,39 @@ def test_malformed_addresses_refused_at_once(addr, no_client):
     with pytest.raises(InputError, match="malformed"):
         ldaspark.run_many([spec], where=addr)
     assert no_client == []
+
+
+class _PoolMade(Exception):
+    pass
+
+
+def test_max_workers_sizes_the_local_pool_or_is_refused(monkeypatch):
+    # max_workers was ignored with where="local" (the pool had os.cpu_count() workers) and with an
+    # executor of the caller's (which runs the tasks on its own workers). The local pool's size is
+    # seen without starting processes: a pool of one is the inline executor, larger ones are made
+    # by make_process_pool (patched to record its size and stop). cpu_count is patched to 4, so
+    # the test does not depend on the machine.
+    from ldaspark import executors
+    made = []
+
+    def pool(n, **kw):
+        made.append(n)
+        raise _PoolMade
+    monkeypatch.setattr(executors.os, "cpu_count", lambda: 4)
+    monkeypatch.setattr(executors, "make_process_pool", pool)
+    sc = ldaspark.get_scene("skate")
+    t0, q0, v0 = sc.initial(None)
+    spec = RunSpec(sc.system, "gauss-2", t0, [q0], [v0], 0.1, 3)
+    with pytest.raises(_PoolMade):                      # control: the default local pool, all 4 "cores"
+        ldaspark.run_many([spec], where="local")
+    with pytest.raises(_PoolMade):
+        ldaspark.run_many([spec], where="local", max_workers=3)
+    assert made == [4, 3]
+    (out,) = ldaspark.run_many([spec], where="local", max_workers=1)      # inline: no pool
+    assert made == [4, 3] and out.q.shape == (1, 4, 3)
+    with ThreadPoolExecutor(1) as ex:
+        with pytest.raises(InputError, match="max_workers sizes the local process pool"):
+            ldaspark.run_many([spec], where=ex, max_workers=2)
+        with pytest.raises(InputError, match="max_workers sizes the local process pool"):
+            ldaspark.run_many([spec], executor=ex, max_workers=2)
+        assert ldaspark.run_many([spec], where=ex)[0].q.shape == (1, 4, 3)       # control: no max_workers

@@ -198,6 +198,11 @@ def run(args) -> int:
     if getattr(args, "jobs", None) is not None:
         from ...core.validate import count
         count(args.jobs, "--jobs", 1, 1024)     # 0 or -3 used to run the full ledger
+        if getattr(args, "scheduler", None) is not None:
+            # the cluster's workers run the units: --jobs was accepted and ignored there
+            from ...core.errors import InputError
+            raise InputError("--jobs sets the local worker processes; with --scheduler the cluster's workers run "
+                             "the ledger: give one of them")
     cmd = "ldaspark verify" + (" --quick" if args.quick else "")
     recs = run_verify(args.outdir, args.quick, args.json, cmd, getattr(args, "jobs", None),
                       where=getattr(args, "scheduler", None), resume=not getattr(args, "fresh", False))

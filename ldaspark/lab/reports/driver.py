@@ -131,6 +131,10 @@ def run(args) -> int:
     from ...executors import check_where
     from .jobs import run_sections
     check_where(getattr(args, "scheduler", None))    # before the CPU probe and the section imports
+    if args.workers is not None and getattr(args, "scheduler", None) is not None:
+        # the cluster's workers run the jobs: --workers was accepted and ignored there
+        raise InputError("--workers sets the local worker processes; with --scheduler the cluster's workers run "
+                         "the jobs: give one of them")
     workers = args.workers or os.cpu_count() or 1
     if workers < 1:
         raise InputError(f"--workers must be positive, got {workers}")

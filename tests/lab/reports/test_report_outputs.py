@@ -213,3 +213,36 @@ def test_report_outdir_that_is_not_a_directory_is_refused_before_the_section(sec
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "not a directory" in err[0], err
     assert ran == [] and f.read_text() == "keep\n"
+
+
+def test_local_worker_counts_with_a_scheduler_are_refused(tmp_path, monkeypatch, capsys):
+    """``verify --jobs N --scheduler ADDR`` and ``report --workers N --scheduler ADDR`` ran on the
+    cluster's workers and dropped N (accepted and ignored). One line and exit 2 before any work now
+    (the ledger and the jobs are replaced by markers that record a run). Controls: each count
+    alone, and the scheduler alone, reach the work."""
+    ran = []
+
+    def verify(outdir, quick, js, cmd, jobs_, where=None, resume=True):
+        ran.append(("verify", jobs_, where))
+        return []
+
+    def sections(modules, outdir, full=False, workers=2, say=print, where=None):
+        ran.append(("report", workers, where))
+        return {}
+    monkeypatch.setattr(claims, "run_verify", verify)
+    monkeypatch.setattr(jobs, "run_sections", sections)
+    from ldaspark.lab.reports import driver, timing
+    monkeypatch.setattr(timing, "probe_cpu", lambda: {})
+    monkeypatch.setattr(driver, "write_run_timing", lambda *a, **k: None)
+    out, addr = str(tmp_path), "tcp://127.0.0.1:1"
+    assert main(["verify", "--jobs", "2", "--scheduler", addr, "--outdir", out]) == 2
+    assert main(["report", "--workers", "2", "--scheduler", addr, "--outdir", out]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert ran == [] and len(err) == 2
+    assert "--jobs sets the local worker processes" in err[0] and "--workers sets the local" in err[1]
+    assert main(["verify", "--jobs", "2", "--outdir", out]) == 0
+    assert main(["verify", "--scheduler", addr, "--outdir", out]) == 0
+    assert main(["report", "--workers", "2", "--outdir", out]) == 0
+    assert main(["report", "--scheduler", addr, "--outdir", out]) == 0
+    assert ran[0] == ("verify", 2, None) and ran[1] == ("verify", None, addr)
+    assert ran[2] == ("report", 2, None) and ran[3][2] == addr
