@@ -90,7 +90,7 @@ MUTANTS = (
        "the generic engine's guard never re-solves from the previous step's collocation polynomial",
        "paths", TG + "::test_a_second_root_stops_the_run_on_every_engine", TG),
     _m("paths-watch-energy-from-start", "solve.py",
-       "        self.E = E1\n        self.prev", "        self.prev",
+       "        self.Ex, self.E = st.energy, E1\n        self.prev", "        self.prev",
        "the stepping engines' energy monitor and guard compare each step with the initial energy",
        "paths", TPA + "::test_energy_monitor_sees_every_step_with_save_every", TPA, TG),
     _m("paths-steps-psi-of-step-ending", "solve.py",
