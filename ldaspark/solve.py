@@ -512,6 +512,11 @@ def _choose_engine(system, prob: _Problem, opts: IntegrationOptions, quiet: bool
             elif use == "compiled":
                 raise InputError(f"engine 'compiled' cannot run this: {reason}")
             else:
+                if prob.kind == "comparator":
+                    # a comparator the generic engine refuses too: its refusal, not a notice of a
+                    # fallback and then the refusal (two lines)
+                    from .core.comparators import require_mechanical
+                    require_mechanical(prob.name, system)
                 use = "generic"
                 if not quiet:
                     _notice(reason)

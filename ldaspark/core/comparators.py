@@ -50,6 +50,18 @@ FIXED_NAMES = ("lobatto-iiia-iiib-2-leapfrog", "lobatto-iiia-iiib-2-modified",
                "euler-i-ii-composition", "euler-ii-i-composition")
 
 
+#: the comparators of Fig. 4 whose semi-implicit steps need the mechanical form (M, grad U, K, b)
+#: on every engine (the modified method of 8.4 and the others run general systems generically)
+MECHANICAL_ONLY = ("lobatto-iiia-iiib-2-leapfrog", "lobatto-iiia-iiib-2-modified-leapfrog", "mp-lobatto-iiib-a-2")
+
+
+def require_mechanical(name: str, system: LagrangianSystem) -> None:
+    """The InputError comparator ``name`` gives a system it cannot run, before any step (None when
+    it can): what the driver raises instead of falling back to an engine that refuses it too."""
+    if name in MECHANICAL_ONLY:
+        MechanicalParts(system, Backend(None))
+
+
 def comparator_names(max_s: int = 4) -> list[str]:
     return [f"gauss-irk-{s}" for s in range(1, max_s + 1)] + list(FIXED_NAMES)
 

@@ -263,3 +263,19 @@ def test_long_reports_refuse_their_bad_arguments_before_the_run(capsys, tmp_path
     argv = [str(tmp_path / a) if a in ("DIR", "OUT") else a for a in argv]
     _one_error_line(capsys, argv, match=match)
     assert not (tmp_path / "OUT").exists() or not any((tmp_path / "OUT").iterdir())
+
+
+def test_a_comparator_no_engine_runs_is_one_line_not_a_notice_and_an_error(tmp_path):
+    """`integrate relativistic mp-lobatto-iiib-a-2` printed the fallback notice ('needs a system in
+    mechanical form; using the generic engine') and then the generic comparator's refusal: two
+    lines for one error. The refusal alone now (one line, exit 2); control: the modified method of
+    8.4, which the generic engine runs on general systems, falls back with its notice and runs."""
+    import subprocess
+    import sys
+    base = [sys.executable, "-m", "ldaspark", "integrate", "relativistic"]
+    tail = ["--h", "0.1", "--t-end", "0.3", "--out", str(tmp_path / "o.json")]
+    p = subprocess.run(base + ["mp-lobatto-iiib-a-2"] + tail, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 2 and p.stderr.count("\n") == 1 and "mechanical form" in p.stderr, p.stderr
+    assert not (tmp_path / "o.json").exists()
+    p = subprocess.run(base + ["lobatto-iiia-iiib-2-modified"] + tail, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0 and "using the generic engine" in p.stderr and (tmp_path / "o.json").exists()
