@@ -313,8 +313,9 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
         plist = list(params) if batch_params else [params]
         Q0 = list(q0) if batch_ic else [q0]
         V0 = list(v0) if batch_ic else [v0]
-        if batch_ic and len(Q0) != len(V0):
-            raise InputError(f"q0 has {len(Q0)} rows but v0 has {len(V0)}")
+        if batch_ic and (_ndim(v0) != 2 or len(Q0) != len(V0)):
+            got = f"{len(V0)} rows" if _ndim(v0) == 2 else "one vector (give one row per member)"
+            raise InputError(f"q0 has {len(Q0)} rows (an ensemble) but v0 has {got}")
         _check_ensemble_storage(sysm, prob, opts, len(plist) * len(Q0))
         if executor is not None and batch_ic and not batch_params:
             if params is None:

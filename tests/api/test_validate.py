@@ -292,3 +292,16 @@ def test_initial_point_is_checked_by_fast_integrate_and_compiled_ensembles():
         ldaspark.integrate(coulomb, "gauss-2", t_span=(0, 0.2), h=0.1, q0=[[1, 0, 0], [0, 0, 0]],
                            v0=[[0, 0, 0], [0, 0, 0]], executor=ex)
     assert_finite_result(fast_integrate(coulomb, "gauss-2", 0, [1, 0, 0], [0, 0, 0], 0.1, 3))     # control
+
+
+def test_ensemble_rows_of_q0_with_one_v0_vector_name_what_is_missing():
+    """q0 with 2 rows and one v0 vector of 3 entries said 'q0 has 2 rows but v0 has 3' (3 entries
+    read as rows); with 2 entries it said 'member 0: shapes q: (3,), v: ()'. Both name the one
+    vector now; control: 3 rows of v0 against 2 of q0 is a row count."""
+    q0 = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]])
+    for v0 in (np.zeros(3), np.zeros(2)):
+        with pytest.raises(InputError, match="v0 has one vector"):
+            run(q0=q0, v0=v0)
+    with pytest.raises(InputError, match="v0 has 3 rows"):
+        run(q0=q0, v0=np.zeros((3, 3)))
+    assert np.asarray(run(q0=q0, v0=np.zeros((2, 3))).status).tolist() == [0, 0]
