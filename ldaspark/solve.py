@@ -257,9 +257,20 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
     Raises
     ------
     InputError
-        When an argument is invalid: every argument is checked before any work.
+        When an argument is invalid: every argument is checked before any work (a method name
+        with more stages than ``max_stages`` is a ``TableauError``).
+    InconsistentInitialDataError
+        When k(t0, q0, v0) = 0 does not hold to rounding and ``project`` is False.
+    SingularSaddleError
+        When the saddle matrix (4) is singular at the initial point; with
+        ``raise_on_failure=True`` also a step failure of status -2.
     NewtonError
-        On a step failure, only with ``raise_on_failure=True``.
+        On a step failure of status -1, only with ``raise_on_failure=True``.
+    NonFiniteError
+        On a step failure of status -3 (non-finite values, the ``energy_jump`` monitor), only
+        with ``raise_on_failure=True``.
+    RootMismatchError
+        On a step failure of status -4 (the ``guard``), only with ``raise_on_failure=True``.
 
     See Also
     --------
