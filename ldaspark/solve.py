@@ -219,13 +219,16 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
         ensemble over parameter values.
     raise_on_failure : bool, optional
         Raise the step failure instead of returning a Result with negative ``status``.
-    newton : Newton or {"auto", "full", "simplified", "mixed"}, optional
+    newton : Newton or {"auto", "full", "simplified", "mixed", "quasi"}, optional
         The root finder of the stage equations (``ldaspark.Newton``: kind, tol, max_iter,
         predictor, linear_solver, reuse), which every engine receives: each field is honoured
         or refused with one InputError naming the engine and the field. A name is the kind:
         "auto" (simplified Newton continuing as full Newton when it contracts slowly), "full",
-        "simplified", and at mpmath precision "mixed" (Newton matrix in float64, residual at
-        full precision; "full" in float64). ``Result.stats["root_finder"]`` says what ran.
+        "simplified", at mpmath precision "mixed" (Newton matrix in float64, residual at
+        full precision; "full" in float64), and on the compiled engine "quasi" (the
+        multiplier-only quasi-Newton iteration, which "auto" picks there where it pays).
+        ``Result.stats["root_finder"]`` says what was asked for, and on the compiled engine
+        ``["runs"]`` what ran.
     project : bool, optional
         Project v0 onto the constraint k(t0, q0, v) = 0 (in the L_vv metric) before the first
         step.
