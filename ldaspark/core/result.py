@@ -6,8 +6,9 @@ Shapes for one run with S saved points (S = N + 1 for ``save_every = 1``):
 * ``t`` (S,), ``q`` and ``v`` (S, n), ``energy`` (S,) = E of (8), ``constraint`` (S, m) = k(t, q, v)
   of (1c), ``psi`` (S - 1, s, m): the stage multipliers Psi_i of (21b) of the step starting at
   ``t[j]``, on the generic, mpmath and compiled engines alike (``None`` only where the method does
-  not form stage multipliers: the semi-implicit kernel of (25), which runs lobatto-iiia-iiib-2 on
-  mechanical systems on the compiled engine). The comparators of sections 7-8 on the generic
+  not form stage multipliers: the semi-implicit kernel of (25), which runs lobatto-iiia-iiib-2 and
+  the semi-implicit comparators of (25), 8.4 and (26) on mechanical systems on the compiled
+  engine). The comparators of sections 7-8 on the generic
   engine give the multipliers of their own stage equations in the same layout (the Gauss IRK's
   and 8.4's stage multipliers, a composition's two sub-steps' side by side, and the leapfrog
   forms' those of the Lobatto IIIA-B method they equal; (S - 1, 1, m) for mp-lobatto-iiib-a-2),
