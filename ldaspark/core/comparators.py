@@ -204,7 +204,8 @@ class GaussIRK(SparkMethod):
         # k, k_q, k_v at the stages (T_i, Q_i, V_i) do not depend on the multipliers: those of the
         # stage evaluations of (21b) just made (evaluated again, they were counted twice in nfev,
         # 2 s + 1 points per residual instead of the s + 1 of ``Result``)
-        for i, e in enumerate(self._stage_evals):
+        for i in range(s):
+            e = self._stage_evals[i]
             G[r0 + i * m:r0 + (i + 1) * m] = e.k
             if jacobian:
                 J[r0 + i * m:r0 + (i + 1) * m, :] = 0
