@@ -216,7 +216,8 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
         along the integration, also for h < 0).
     params : dict or list of dict, optional
         ``{symbol or name: value}`` for the system's symbolic parameters; a list runs an
-        ensemble over parameter values.
+        ensemble over parameter values. A list of P dicts with (B, n) initial data runs every
+        pair, P B members, parameter-major: member p B + b has dict p and initial row b.
     raise_on_failure : bool, optional
         Raise the step failure instead of returning a Result with negative ``status``.
     newton : Newton or {"auto", "full", "simplified", "mixed", "quasi"}, optional
