@@ -111,8 +111,9 @@ class Result:
         accepted steps.
     method, system, scene, engine : str
         What ran: method name, system name, scene name (or None), engine.
-    h : float
-        The step size.
+    h : float, str or mpf
+        The step size as ``integrate`` was given it (a decimal text or an mpf keeps its digits
+        at mpmath precision; ``float(h)`` is the float64 step).
     dps : int, optional
         Decimal digits of an mpmath run; None for float64.
     save_every : int
