@@ -63,7 +63,8 @@ def _add_integrate(sub):
     p.add_argument("--project", action="store_true", help="project v0 onto k = 0 instead of failing")
     p.add_argument("--out", required=True, help="output file, format by extension: .npz, .h5 (h5py), else JSON "
                                                 "(psi on every engine, not from the semi-implicit kernel of "
-                                                "lobatto-iiia-iiib-2 nor the comparators); written atomically")
+                                                "lobatto-iiia-iiib-2; a comparator's are its own); written "
+                                                "atomically")
     p.add_argument("--engine", choices=("auto", "compiled", "generic"), default="auto",
                    help="auto (default): compiled kernels when the scene and method qualify, else generic")
     p.add_argument("--every", type=int, default=1, help="save every k-th step (and the last); default 1")

@@ -217,16 +217,20 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
         along the integration, also for h < 0).
     params : dict or list of dict, optional
         ``{symbol or name: value}`` for the system's symbolic parameters; a list runs an
-        ensemble over parameter values.
+        ensemble over parameter values. A list of P dicts with (B, n) initial data runs every
+        pair, P B members, parameter-major: member p B + b has dict p and initial row b.
     raise_on_failure : bool, optional
         Raise the step failure instead of returning a Result with negative ``status``.
-    newton : Newton or {"auto", "full", "simplified", "mixed"}, optional
+    newton : Newton or {"auto", "full", "simplified", "mixed", "quasi"}, optional
         The root finder of the stage equations (``ldaspark.Newton``: kind, tol, max_iter,
         predictor, linear_solver, reuse), which every engine receives: each field is honoured
         or refused with one InputError naming the engine and the field. A name is the kind:
         "auto" (simplified Newton continuing as full Newton when it contracts slowly), "full",
-        "simplified", and at mpmath precision "mixed" (Newton matrix in float64, residual at
-        full precision; "full" in float64). ``Result.stats["root_finder"]`` says what ran.
+        "simplified", at mpmath precision "mixed" (Newton matrix in float64, residual at
+        full precision; "full" in float64), and on the compiled engine "quasi" (the
+        multiplier-only quasi-Newton iteration, which "auto" picks there where it pays).
+        ``Result.stats["root_finder"]`` says what was asked for, and on the compiled engine
+        ``["runs"]`` what ran.
     project : bool, optional
         Project v0 onto the constraint k(t0, q0, v) = 0 (in the L_vv metric) before the first
         step.
@@ -259,9 +263,24 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
     Raises
     ------
     InputError
-        When an argument is invalid: every argument is checked before any work.
+        When an argument is invalid: every argument is checked before any work (a method name
+        with more stages than ``max_stages`` is a ``TableauError``).
+    SystemDefinitionError
+        When ``params`` lacks a value for a symbolic parameter of the system or gives text
+        that is not a number (as ``LagrangianSystem.with_params``; a non-finite, complex or
+        non-numeric value is an InputError).
+    InconsistentInitialDataError
+        When k(t0, q0, v0) = 0 does not hold to rounding and ``project`` is False.
+    SingularSaddleError
+        When the saddle matrix (4) is singular at the initial point; with
+        ``raise_on_failure=True`` also a step failure of status -2.
     NewtonError
-        On a step failure, only with ``raise_on_failure=True``.
+        On a step failure of status -1, only with ``raise_on_failure=True``.
+    NonFiniteError
+        On a step failure of status -3 (non-finite values, the ``energy_jump`` monitor), only
+        with ``raise_on_failure=True``.
+    RootMismatchError
+        On a step failure of status -4 (the ``guard``), only with ``raise_on_failure=True``.
 
     See Also
     --------

@@ -656,7 +656,8 @@ def _run_checked(cs, method, start, grid, opts: KernelOptions):
     st["compensated"] = bool(compensated)
     st["linear_solver"] = solver
     st["reuse_matrix"] = bool(reuse_matrix) and kind != "lf2"
-    st["newton_kind"] = "lf2" if kind == "lf2" else opts.newton_kind
+    # what ran (``Result.stats["root_finder"]["runs"]``): "mixed" is full Newton in float64
+    st["newton_kind"] = "lf2" if kind == "lf2" else "full" if opts.newton_kind == "mixed" else opts.newton_kind
     psi = None if kind == "lf2" else out_x[NN:].reshape(S - 1, s_, cs.m)
     return FastSolution(*outs, psi=psi, stats=st)
 

@@ -211,11 +211,13 @@ class GaussIRK(SparkMethod):
 
     def residual(self, t0, q0, p0, h, x, jacobian=True):
         G, J, (T, Q, q1) = super().residual(t0, q0, p0, h, x, jacobian)
-        s, n, m, bk = self.s, self.n, self.m, self.backend
-        V, _, _ = self.unpack(x)
+        s, n, m = self.s, self.n, self.m
         r0 = s * n + n                    # first row of (21e-f), s*m rows in all
+        # k, k_q, k_v at the stages (T_i, Q_i, V_i) do not depend on the multipliers: those of the
+        # stage evaluations of (21b) just made (evaluated again, they were counted twice in nfev,
+        # 2 s + 1 points per residual instead of the s + 1 of ``Result``)
         for i in range(s):
-            e = self.system.stage(bk, T[i], Q[i], V[i], bk.zeros(m), jacobian)
+            e = self._stage_evals[i]
             G[r0 + i * m:r0 + (i + 1) * m] = e.k
             if jacobian:
                 J[r0 + i * m:r0 + (i + 1) * m, :] = 0
@@ -224,7 +226,6 @@ class GaussIRK(SparkMethod):
                     if i == j:
                         blk = blk + e.k_v
                     J[r0 + i * m:r0 + (i + 1) * m, j * n:(j + 1) * n] = blk
-        self.stats.nfev += s
         return G, J, (T, Q, q1)
 
 

@@ -6,8 +6,13 @@ Shapes for one run with S saved points (S = N + 1 for ``save_every = 1``):
 * ``t`` (S,), ``q`` and ``v`` (S, n), ``energy`` (S,) = E of (8), ``constraint`` (S, m) = k(t, q, v)
   of (1c), ``psi`` (S - 1, s, m): the stage multipliers Psi_i of (21b) of the step starting at
   ``t[j]``, on the generic, mpmath and compiled engines alike (``None`` only where the method does
-  not form SPARK stage multipliers: the semi-implicit kernel of (25), which runs
-  lobatto-iiia-iiib-2 on mechanical systems, and the comparators). Sign: psi is the multiplier of
+  not form stage multipliers: the semi-implicit kernel of (25), which runs lobatto-iiia-iiib-2 and
+  the semi-implicit comparators of (25), 8.4 and (26) on mechanical systems on the compiled
+  engine). The comparators of sections 7-8 on the generic
+  engine give the multipliers of their own stage equations in the same layout (the Gauss IRK's
+  and 8.4's stage multipliers, a composition's two sub-steps' side by side, and the leapfrog
+  forms' those of the Lobatto IIIA-B method they equal; (S - 1, 1, m) for mp-lobatto-iiib-a-2),
+  not those of (21) for their own tableau. Sign: psi is the multiplier of
   (1), d/dt grad_v L = grad_q L - K^T psi; sympy.physics.mechanics' ``LagrangesMethod`` writes the
   same equations with +K^T lam, so for the same constraint expressions psi = -lam.
 * ``status``: 0 success, 1 a terminal event stopped the run, negative failure (scipy's
@@ -18,8 +23,10 @@ Shapes for one run with S saved points (S = N + 1 for ``save_every = 1``):
 * ``stats``: the engine's counters, and what ran: ``engine``, ``root_finder`` (the fields of
   ``ldaspark.Newton``), the rescues (``full_newton_steps``, ``rescued_steps`` on the compiled
   engine) and the guard's ``guard_flagged`` / ``guard_confirmed`` / ``guard_unverified``.
-* counters ``nfev`` (the stage points of the residual evaluations, s + 1 each; the model's
-  derivatives for a Jacobian are ``njev``'s), ``njev`` (Jacobian assemblies), ``nlu`` (LU
+* counters ``nfev`` (the stage points of the residual evaluations, s + 1 each for (21) and the
+  Gauss IRK, s + 2 for the modified method of 8.4 with its midpoint; the semi-implicit forms of
+  (25), 8.4 and (26) count the evaluations of their multiplier solve, which are not the same on
+  the generic and compiled engines; the model's derivatives for a Jacobian are ``njev``'s), ``njev`` (Jacobian assemblies), ``nlu`` (LU
   factorisations), ``newton_iterations``. One meaning on every engine and path, success or
   failure: each counts the work of every step the run attempted, the failed step included, with
   every retry of a step (the compiled kernels' fallback chain, the generic step that rescues a
@@ -89,22 +96,24 @@ class Result:
     psi : ndarray, shape (S - 1, s, m), optional
         The stage multipliers Psi_i of (21) of the step starting at each output time, in the
         sign of (1) (d/dt grad_v L = grad_q L - K^T psi: the negative of sympy's
-        ``LagrangesMethod`` multipliers); None only for the semi-implicit kernel of (25) and the
-        comparators.
+        ``LagrangesMethod`` multipliers); None only for the semi-implicit kernel of (25) (the
+        comparators give the multipliers of their own stage equations: module docstring).
     status : int
         0: t_end reached; 1: a terminal event; negative: a step failed (-1 Newton, -2 singular
-        saddle matrix (4), -3 other, e.g. non-finite values or the energy monitor).
+        saddle matrix (4), -3 other, e.g. non-finite values or the energy monitor, -4 the
+        step-acceptance guard found another root of (21), ``RootMismatchError``).
     message : str
         The reason for ``status`` in words.
     nfev, njev, nlu, newton_iterations : int
-        Counters: stage-point evaluations, Jacobian evaluations, LU factorisations, Newton
-        iterations. On every engine and path they include the work of the failed step and of
+        Counters: the stage points of the residual evaluations (s + 1 each for (21)), Jacobian
+        evaluations, LU factorisations, Newton iterations. On every engine and path they include the work of the failed step and of
         every retry and rescue of a step (module docstring); ``stats["steps"]`` counts the
         accepted steps.
     method, system, scene, engine : str
         What ran: method name, system name, scene name (or None), engine.
-    h : float
-        The step size.
+    h : float, str or mpf
+        The step size as ``integrate`` was given it (a decimal text or an mpf keeps its digits
+        at mpmath precision; ``float(h)`` is the float64 step).
     dps : int, optional
         Decimal digits of an mpmath run; None for float64.
     save_every : int

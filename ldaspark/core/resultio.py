@@ -330,8 +330,11 @@ def save_result(result: Result, path: Union[str, os.PathLike]) -> None:
     result : Result
         What `integrate` returned.
     path : str or os.PathLike
-        ``.json``, ``.npz`` or ``.h5`` (h5py needed); the file is written to a temporary name
-        beside it and renamed, so an existing file is replaced whole or not at all.
+        ``.npz``, ``.h5`` / ``.hdf5`` (h5py needed), any other name JSON (the ``ldaspark
+        integrate --out`` contract); the file is written to a temporary name beside it and
+        renamed, so an existing file is replaced whole or not at all. A character device or a
+        FIFO is written directly, as a shell redirection would (a FIFO blocks until a reader
+        opens it); a symbolic link's target is replaced, the link kept (``ldaspark.core.io``).
 
     Returns
     -------
@@ -340,10 +343,13 @@ def save_result(result: Result, path: Union[str, os.PathLike]) -> None:
     Raises
     ------
     InputError
-        For an unknown extension, a target that is not a regular file, a ``path`` that is not
-        a str or os.PathLike, or values no format holds: NaN, infinity and complex values are
-        refused in every format, in the arrays, the events, the dense output, the metadata and
-        ``stats`` alike (nothing is written).
+        For a ``path`` that is not a str or os.PathLike, an ensemble written as JSON, or values
+        no format holds: NaN, infinity and complex values are refused in every format, in the
+        arrays, the events, the dense output, the metadata and ``stats`` alike (nothing is
+        written).
+    LdasparkError
+        For a target that cannot be written or must not be replaced (a directory, a socket, a
+        block device, a place the process may not write), in one line.
 
     See Also
     --------

@@ -78,8 +78,9 @@ class Newton:
 
     Parameters
     ----------
-    kind : {"auto", "full", "simplified", "mixed"}
-        The Newton variant (module docstring); "auto" is the default of every engine.
+    kind : {"auto", "full", "simplified", "mixed", "quasi"}
+        The Newton variant (module docstring); "auto" is the default of every engine; "quasi"
+        (the multiplier-only quasi-Newton iteration) runs on the compiled engine only.
     tol : float, optional
         The increment tolerance (relative); None: the round-off of the stage values. A
         larger tol trades accuracy for speed: on the compiled quasi-Newton step a step may then

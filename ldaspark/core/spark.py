@@ -158,6 +158,7 @@ class SparkMethod:
         st = [sysm.stage(bk, T[i], Q[i], V[i], Lam[i], jacobian, h=h) for i in range(s)]   # h: nonideal N (3.3)
         fin = sysm.stage(bk, t1, q1, v1, bk.zeros(m), jacobian)
         self.stats.nfev += s + 1
+        self._stage_evals = st          # for variants with other constraint rows (comparators.GaussIRK)
         F = np.array([e.L_q for e in st])
         Rl = np.array([e.R_lam for e in st])
         Kst = np.array([e.k for e in st])

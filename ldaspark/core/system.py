@@ -87,8 +87,9 @@ class LagrangianSystem:
 
     Raises
     ------
-    InputError
-        When an expression, a symbol list or a parameter is invalid.
+    SystemDefinitionError
+        When an expression, a symbol list or a parameter is invalid (an ``LdasparkError``, not
+        an ``InputError``).
 
     See Also
     --------

@@ -352,6 +352,19 @@ def test_a_rescued_run_counts_the_generic_steps_work():
     assert r.njev >= r.newton_iterations and r.nfev >= 3 * r.newton_iterations, (r.njev, r.nfev, r.newton_iterations)
 
 
+@pytest.mark.parametrize("s", [1, 2, 3])
+def test_gauss_irk_counts_its_residuals_stage_points_once(s):
+    """The standard Gauss IRK (7.3-7.4) imposes k = 0 at its s stages instead of (21e-f): its
+    residual evaluates the model at the same s + 1 points as (21) (the stages and the end point
+    of (21d)), and it counted the s stages a second time for its k rows (2 s + 1 per residual:
+    gauss-irk-3 on the skate, nfev 42 for 6 iterations; now 24). One residual per iteration
+    (``SparkMethod.step``); control: the SPARK method of s stages on the same engine, s + 1."""
+    for method in (f"gauss-irk-{s}", f"gauss-{s}"):
+        r = ldaspark.integrate("skate", method, h=0.1, n_steps=3, engine="generic")
+        assert r.status == 0 and r.newton_iterations > 0, (method, r.message)
+        assert r.nfev == (s + 1) * r.newton_iterations, (method, r.nfev, r.newton_iterations)
+
+
 @pytest.mark.parametrize("scene", ["skate", "relativistic"])
 def test_nfev_counts_the_residuals_stage_points_on_every_engine(scene):
     """``nfev`` is the stage points of the residual evaluations (s + 1 each) on every engine; the

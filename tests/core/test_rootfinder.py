@@ -53,6 +53,19 @@ def test_kinds_change_the_counters_as_documented(base):
     assert full.stats["root_finder"]["kind"] == "full" and auto.stats["root_finder"]["kind"] == "auto"
 
 
+def test_what_ran_names_full_for_mixed_in_float64():
+    """``stats["root_finder"]["runs"]`` names what ran on the compiled engine (module docstring of
+    ``core.rootfinder``); "mixed" in float64 is full Newton (its counters are full Newton's,
+    ``test_kinds_change_the_counters_as_documented``), but "runs" said "mixed". The kind asked for
+    stays "mixed"; control: "full" and "simplified" name themselves."""
+    runs = {k: run("compiled", Newton(kind=k), n_steps=3) for k in ("mixed", "full", "simplified")}
+    for k, r in runs.items():
+        assert r.status == 0 and r.engine == "compiled" and r.stats["root_finder"]["kind"] == k, (k, r.stats)
+    assert runs["mixed"].stats["root_finder"]["runs"] == "full"
+    assert runs["full"].stats["root_finder"]["runs"] == "full"
+    assert runs["simplified"].stats["root_finder"]["runs"] == "simplified"
+
+
 def test_old_kind_names_map_to_the_option_object(base):
     engine, auto = base
     by_name = run(engine, "full")

@@ -226,8 +226,8 @@ CATALOGUE: tuple[Mutant, ...] = (
        "symmetry residual L_d(t1,q1,t0,q0) - L_d(t0,q0,t1,q1) instead of +", "symmetry", VSY),
     # --- comparators, core/comparators.py -----------------------------------------------------
     _m("irk-stage-constraint-V1", "core/comparators.py",
-       "e = self.system.stage(bk, T[i], Q[i], V[i], bk.zeros(m), jacobian)",
-       "e = self.system.stage(bk, T[i], Q[i], V[0], bk.zeros(m), jacobian)",
+       "e = self._stage_evals[i]",
+       "e = self.system.stage(self.backend, T[i], Q[i], self.unpack(x)[0][0], self.backend.zeros(m), jacobian)",
        "standard Gauss IRK: stage constraint k(T_i, Q_i, V_1) instead of V_i", "comparator", VRED),
     _m("modified-full-step", "core/comparators.py",
        "e = self.system.stage(bk, t0 + half, q0 + half * V[0], V[0]",
