@@ -537,6 +537,9 @@ def _choose_engine(system, prob: _Problem, opts: IntegrationOptions, quiet: bool
                     # fallback and then the refusal (two lines)
                     from .core.comparators import require_mechanical
                     require_mechanical(prob.name, system)
+                if opts.newton == "quasi":       # refused below: one line, not a notice first
+                    raise InputError(f"newton='quasi' runs on the compiled engine only, which cannot run this: "
+                                     f"{reason}")
                 use = "generic"
                 if not quiet:
                     _notice(reason)

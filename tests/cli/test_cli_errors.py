@@ -279,3 +279,9 @@ def test_a_comparator_no_engine_runs_is_one_line_not_a_notice_and_an_error(tmp_p
     assert not (tmp_path / "o.json").exists()
     p = subprocess.run(base + ["lobatto-iiia-iiib-2-modified"] + tail, capture_output=True, text=True, timeout=300)
     assert p.returncode == 0 and "using the generic engine" in p.stderr and (tmp_path / "o.json").exists()
+    # the same with --newton quasi where the compiled engine cannot run the method: the notice of
+    # the fallback, then the refusal of quasi on the generic engine (two lines); one now
+    skate = [sys.executable, "-m", "ldaspark", "integrate", "skate", "gauss-irk-2", "--newton", "quasi"]
+    p = subprocess.run(skate + tail, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 2 and p.stderr.count("\n") == 1 and "quasi" in p.stderr and "no compiled kernel" in p.stderr, \
+        p.stderr
