@@ -516,10 +516,12 @@ def _with_params(system: LagrangianSystem, params) -> LagrangianSystem:
 def _choose_engine(system, prob: _Problem, opts: IntegrationOptions, quiet: bool):
     """The registered engine (``ldaspark.engines.ENGINES``) that runs this problem: "compiled"
     when asked for or, with "auto", whenever it can run the system and method in float64; else the
-    generic SPARK engine, or the comparator engine for a comparator. "auto" falls back with one
-    notice on stderr (unless ``quiet``); an explicit "compiled" that cannot run is refused."""
+    generic SPARK engine, or the comparator engine for a comparator. (engine, notice): "auto"
+    falls back with one notice on stderr (unless ``quiet``), which the caller prints once the
+    fallback engine has taken the run (a refusal there is then the one line the user sees); an
+    explicit "compiled" that cannot run is refused."""
     from .engines import ENGINES
-    use = opts.engine
+    use, notice = opts.engine, None
     if use != "generic":
         if opts.dps is not None:
             use = "generic"
@@ -542,13 +544,13 @@ def _choose_engine(system, prob: _Problem, opts: IntegrationOptions, quiet: bool
                                      f"{reason}")
                 use = "generic"
                 if not quiet:
-                    _notice(reason)
+                    notice = reason
     if use != "compiled" and opts.newton == "quasi":       # (Newton.__eq__ is not cheap)
         raise InputError(f"newton='quasi' runs on the compiled engine only; the generic engine would run {prob.name} "
                          "here")
     if use == "generic" and prob.kind == "comparator":
         use = "comparator"
-    return ENGINES[use]
+    return ENGINES[use], notice
 
 
 def _single(system, member, prob: _Problem, opts: IntegrationOptions, quiet=False) -> Result:
@@ -558,10 +560,12 @@ def _single(system, member, prob: _Problem, opts: IntegrationOptions, quiet=Fals
     (params, q0, v0), t0, dps = member, prob.t0, opts.dps
     system = _with_params(system, params)
     pvals = {str(k): v for k, v in system.param_values().items()}
-    engine = _choose_engine(system, prob, opts, quiet)
+    engine, notice = _choose_engine(system, prob, opts, quiet)
     prep = engine.prepare(system, prob, opts)
     bk = engine.backend(prep, opts)
     start = _check_initial_point(prep.system, (t0, q0, v0), dps, bk=bk, opts=opts, model=engine.point_model(prep))
+    if notice is not None:          # after the fallback engine's refusals: one line, not two
+        _notice(notice)
     res = _drive(engine, prep, start)
     res.method, res.system, res.scene, res.h, res.dps, res.save_every, res.params = \
         prob.name, system.name, prob.scene, prob.h, dps, opts.save_every, pvals

@@ -285,3 +285,7 @@ def test_a_comparator_no_engine_runs_is_one_line_not_a_notice_and_an_error(tmp_p
     p = subprocess.run(skate + tail, capture_output=True, text=True, timeout=300)
     assert p.returncode == 2 and p.stderr.count("\n") == 1 and "quasi" in p.stderr and "no compiled kernel" in p.stderr, \
         p.stderr
+    # and a Newton option the comparator engine refuses: its refusal alone (the notice of the
+    # fallback was printed first; it now waits until the fallback engine has taken the run)
+    p = subprocess.run(skate[:-2] + ["--newton", "full"] + tail, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 2 and p.stderr.count("\n") == 1 and "refuses Newton kind='full'" in p.stderr, p.stderr
