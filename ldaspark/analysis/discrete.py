@@ -501,7 +501,7 @@ def discrete_lagrangian(system, tableau, t0, q0, t1, q1, dps=40, v0_guess=None, 
     system, _ = arguments.as_system(system, "discrete_lagrangian: system")
     tableau = arguments.as_tableau(tableau, "discrete_lagrangian: tableau")
     dps = validate.check_dps(dps)      # None: the float64 path of the same code
-    validate.point(system, t0, q0, q1, "discrete_lagrangian: ")     # q1 checked like v0
+    validate.point(system, t0, q0, q1, "discrete_lagrangian: ", names=("q0", "q1"))     # q1 checked like v0
     validate.real_number(t1, "discrete_lagrangian: t1")
     if v0_guess is not None:
         validate.real_vector(v0_guess, "discrete_lagrangian: v0_guess")

@@ -530,9 +530,10 @@ def initial_point(system, bk, t0, q0, v0, *, member: str = "", project: bool = F
 # same kinds of values as ``integrate``; these helpers check them the same way, so that every
 # exported name refuses a wrong value with one InputError naming it, before any work.
 
-def point(system, t0, q0, v0, what: str = "", scene=None, dps=None):
+def point(system, t0, q0, v0, what: str = "", scene=None, dps=None, names=("q0", "v0")):
     """(t0, q0, v0) checked: t0 a real number, q0 and v0 vectors of n real numbers; None takes
-    the scene's initial data (when ``scene`` is given)."""
+    the scene's initial data (when ``scene`` is given). ``names``: what the caller calls the two
+    vectors in its messages (``discrete_lagrangian`` checks its q1 in v0's place)."""
     import numpy as np
     if scene is not None and (q0 is None or v0 is None or t0 is None):
         ts, qs, vs = scene.initial(dps)
@@ -542,7 +543,7 @@ def point(system, t0, q0, v0, what: str = "", scene=None, dps=None):
     if q0 is None or v0 is None:
         raise InputError(f"{what}give q0 and v0 (or a Scene / scene name for its initial data)")
     real_number(t0, f"{what}t0")
-    for name, x in (("q0", q0), ("v0", v0)):
+    for name, x in zip(names, (q0, v0)):
         real_vector(x, f"{what}{name}")
         if np.ndim(np.asarray(x, dtype=object)) != 1 or len(x) != system.n:
             raise InputError(f"{what}{name} must have n = {system.n} entries, got {_describe(x)}")

@@ -202,6 +202,11 @@ def test_discrete_lagrangian_input_errors():
         D.discrete_lagrangian(sk, g, 0, [0, 0, 0], 0.1, [0.1, 0, 0.1], dps=20, gauge_ref=[0.0] * 3)
     with pytest.raises(InputError, match="v0_guess must have n"):
         D.discrete_lagrangian(sk, g, 0, [0, 0, 0], 0.1, [0.1, 0, 0.1], dps=20, v0_guess=[0.0] * 2)
+    # q1 is named q1 (it was checked in v0's place and called v0: "v0[0] must be finite")
+    with pytest.raises(InputError, match=r"discrete_lagrangian: q1\[0\] must be finite"):
+        D.discrete_lagrangian(sk, g, 0, [0, 0, 0], 0.1, [float("nan"), 0, 0.1], dps=20)
+    with pytest.raises(InputError, match="discrete_lagrangian: q1 must have n = 3"):
+        D.discrete_lagrangian(sk, g, 0, [0, 0, 0], 0.1, [0.1, 0], dps=20)
 
 
 def test_theorem1_with_a_shifted_q0_solves_at_the_shifted_point():
