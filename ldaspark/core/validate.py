@@ -46,7 +46,7 @@ def check_tol_resolvable(tol, dps=None, what: str = "tol") -> None:
     low = smallest_tol(dps)
     if float(tol) < low:
         arith = "float64" if dps is None else f"{int(dps)}-digit arithmetic"
-        more = "; dps= gives more digits (engine='generic')" if dps is None else ""
+        more = "; dps= gives more digits" if dps is None else ""
         raise InputError(f"{what} = {tol!r} is below the unit round-off of {arith}: the smallest tol it can "
                          f"honour is {low:.6g} (None: the engine's default){more}")
 

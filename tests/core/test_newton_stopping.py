@@ -319,7 +319,8 @@ def test_a_tol_below_the_unit_round_off_is_refused_by_every_engine():
         r = ldaspark.integrate("particle", "gauss-2", h=0.1, n_steps=n, tol=low, **kw)
         scale = max(1.0, float(np.abs(ref.q).max()), float(np.abs(ref.v).max()))
         assert r.status == 0 and np.abs(r.q - ref.q).max() <= 2 * n * 10 * EPS * scale, kw
-    # the same through Newton(tol=...), with dps digits, an ensemble, the deprecated fast path, the class
+    # the same through Newton(tol=...), with dps digits, an ensemble, the deprecated fast path, the
+    # class, the step map's Jacobian
     with pytest.raises(InputError, match="the smallest tol it can honour is 2.22045e-16"):
         ldaspark.integrate("particle", "gauss-2", h=0.1, n_steps=n, newton=ldaspark.Newton(kind="quasi", tol=1e-25))
     with pytest.raises(InputError, match="of 20-digit arithmetic: the smallest tol it can honour is 1e-20"):
@@ -332,3 +333,5 @@ def test_a_tol_below_the_unit_round_off_is_refused_by_every_engine():
     with pytest.raises(InputError, match="tol = 1e-25 is below"):
         SparkMethod(sc.system, get_method("gauss-2"), tol=1e-25)
     assert SparkMethod(sc.system, get_method("gauss-2"), dps=30, tol=1e-25).tol == 1e-25
+    with pytest.raises(InputError, match="flow_jacobian: tol = 1e-25 is below"):
+        ldaspark.flow_jacobian("particle", "gauss-2", q0, v0, 0.1, tol=1e-25)
