@@ -130,6 +130,7 @@ class RunSpec:
             raise InputError(f"h must be finite and nonzero and t0 finite, got h = {h}, t0 = {t0}")
         validate.step_advances(t0, h, n_steps, None, what="RunSpec: h")
         check_newton_options(tol, 1)
+        validate.check_tol_resolvable(tol, None, what="RunSpec: tol")     # the compiled kernels: float64
         check_storage(n_samples(int(n_steps), int(every)) * len(Q0), 2 + 2 * system.n + system.m,
                       what="the ensemble samples")
         self._check_members(system, t0, Q0, V0)

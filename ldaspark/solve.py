@@ -235,7 +235,8 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
         Project v0 onto the constraint k(t0, q0, v) = 0 (in the L_vv metric) before the first
         step.
     tol : float, optional
-        Newton tolerance; default: the round-off of the stage values.
+        Newton tolerance; default: the round-off of the stage values. At least the unit
+        round-off of the arithmetic (2^-52; 10^-dps with dps), else an InputError.
     executor : concurrent.futures.Executor, optional
         Where ensemble members run (default: a loop in this process); a single run is one
         member, run there too.

@@ -167,6 +167,7 @@ def flow_jacobian(system, method, q0, v0, h, *, t0=None, dps=None, coords=None, 
     dps = V.check_dps(dps)
     V.check_choice(how, "flow_jacobian: how", ("ift", "difference"))
     V.check_newton_options(tol, 1, what="flow_jacobian: tol")
+    V.check_tol_resolvable(tol, dps, what="flow_jacobian: tol")
     if t0 is not None:
         V.real_number(t0, "flow_jacobian: t0")
     system, scene = arguments.as_system(system, "flow_jacobian: system")

@@ -257,7 +257,8 @@ def fast_integrate(scene_or_system, method, t0=None, q0=None, v0=None, h=None, n
     real_vector(q0, "q0")
     real_vector(v0, "v0")
     _check_options(n_steps, every, predictor, tol, max_iter, len(q0), system.m)
-    from ..core.validate import step_advances
+    from ..core.validate import check_tol_resolvable, step_advances
+    check_tol_resolvable(tol)                   # float64, as integrate refuses it
     step_advances(t0, h, n_steps, None)         # t0 = 1e17, h = 1: the times would repeat
     runner.checked_kernel_spec(method, kernel)        # kernel='spark' of a comparator: refused
     if linear_solver not in LINEAR_SOLVERS:

@@ -24,7 +24,7 @@ round-off-floor clause (the matrix is not exact); at the second increment also R
 the one ratio there, while |dx_2| <= FIRST_RATE_FACTOR lim; at the first, RADAU5's test with the
 rate carried from the previous steps, eta |dx_1| <= RATE_KAPPA lim (eta = theta / (1 - theta), theta
 the slowest ratio |dx_k| / |dx_k-1| of the last step that measured one, grown as max(eta, eps)^RATE_GROWTH per step; none after a
-fallback or a change of the frozen block), which a user's tol = ``Newton(tol=...)`` above round-off
+fallback or a change of the frozen block; only for a |dx_1| within RATE_SPAN of the first increment it was measured on), which a user's tol = ``Newton(tol=...)`` above round-off
 turns into one-increment steps (counted in qstats[QS_RATE_FIRST]). Fallback: a step whose increments contract by
 less than QUASI_THETA, or that has not converged after QUASI_MAX_ITER increments, or meets a
 singular multiplier matrix or a non-finite increment, is solved again by the compiled Newton
@@ -82,6 +82,13 @@ PREDICT_COLLOCATION = 3
 #: max(eta, EPS)^RATE_GROWTH at every step that does not measure it (RADAU5's FACCON), so that a
 #: run of one-increment steps soon takes a second increment and measures the rate again
 RATE_GROWTH = 0.8
+#: the carried rate is applied to a first increment within a factor RATE_SPAN of the first increment of
+#: the step that measured it: a ratio is evidence about the predictor error it was measured on, and a
+#: first increment far from that size comes from another error (ball-turntable, gauss-5, h = 0.8: step
+#: 0's zero-increment guess measured 0.065 then 1.2e-13, a ratio at round-off, and steps 1 and 2
+#: accepted first increments of 1.9e-6 on it, where the collocation predictor's error contracts at
+#: 0.1-0.25 and one increment left 1e-9 at tol = 1e-12)
+RATE_SPAN = 100.0
 EPS = float(np.finfo(np.float64).eps)
 
 
@@ -526,24 +533,26 @@ def curvature_increment(tab, h, qw, cw, G, x):
 
 
 @numba.njit(cache=True, _nrt=False)
-def quasi_newton(model, tab, ws, qw, cw, curv, x, t, q, v, h, G, tol, max_iter, stats, qstats, eta):
+def quasi_newton(model, tab, ws, qw, cw, curv, x, t, q, v, h, G, tol, max_iter, stats, qstats, eta, dref):
     """The quasi-Newton iteration from the guess in x, with the velocity block frozen at M (curv
-    False) or at I (x) M + h^2 P (x) H (``curvature_matrix``); (status, iterations, rate): status 1
-    converged, 0 not converged, slow (rate > QUASI_THETA) or singular (the caller falls back), -1
-    not finite; rate the last contraction ratio |dx_k| / |dx_k-1| measured (-1 if one increment).
-    eta > 0: the rate estimate theta / (1 - theta) carried from the previous steps
-    (``quasi_loop``); the first increment is accepted when eta |dx_1| <= RATE_KAPPA lim (RADAU5's
-    test at its first iteration, Hairer-Wanner IV.8: the error left after it is eta |dx_1|)."""
+    False) or at I (x) M + h^2 P (x) H (``curvature_matrix``); (status, iterations, rate, |dx_1|):
+    status 1 converged, 0 not converged, slow (rate > QUASI_THETA) or singular (the caller falls
+    back), -1 not finite; rate the slowest contraction ratio |dx_k| / |dx_k-1| measured (-1 if one
+    increment). eta > 0: the rate estimate theta / (1 - theta) carried from the previous steps
+    (``quasi_loop``), measured on a first increment of dref; the first increment is accepted when
+    eta |dx_1| <= RATE_KAPPA lim (RADAU5's test at its first iteration, Hairer-Wanner IV.8: the
+    error left after it is eta |dx_1|) and |dx_1| is within a factor RATE_SPAN of dref."""
     scale = norm_inf(v)
     mech_residual(model, tab, x, t, q, v, h, ws, G)
     stats[2] += tab[0].shape[0] + 1
     qstats[QS_LU] += 1
     if curv:
         if not curvature_matrix(model, tab, h, t, ws, qw, cw):
-            return 0, 0, -1.0
+            return 0, 0, -1.0, -1.0
     elif not multiplier_matrix(model, tab, h, t, ws, qw):
-        return 0, 0, -1.0
+        return 0, 0, -1.0, -1.0
     prev = -1.0
+    d1 = -1.0
     theta = -1.0
     rate = -1.0
     it = 0
@@ -552,8 +561,11 @@ def quasi_newton(model, tab, ws, qw, cw, curv, x, t, q, v, h, G, tol, max_iter, 
         it += 1
         dn = curvature_increment(tab, h, qw, cw, G, x) if curv else quasi_increment(tab, h, qw, G, x)
         status = newton_status(dn, prev, theta, norm_inf(x), scale, tol, False)
-        if status == 0 and prev <= 0.0 and eta > 0.0 and eta * dn <= RATE_KAPPA * tol * (norm_inf(x) + scale):
-            status = 1
+        if prev <= 0.0:
+            d1 = dn
+            if (status == 0 and eta > 0.0 and eta * dn <= RATE_KAPPA * tol * (norm_inf(x) + scale)
+                    and dref <= RATE_SPAN * dn and dn <= RATE_SPAN * dref):
+                status = 1
         if status == 0 and prev > 0.0 and theta <= 0.0:
             # RADAU5 at its second increment: the rate of the one ratio there, theta_1 =
             # |dx_2| / |dx_1|, stops the iteration when theta_1 / (1 - theta_1) |dx_2| <= kappa lim,
@@ -576,7 +588,7 @@ def quasi_newton(model, tab, ws, qw, cw, curv, x, t, q, v, h, G, tol, max_iter, 
         prev = dn
         mech_residual(model, tab, x, t, q, v, h, ws, G)
         stats[2] += tab[0].shape[0] + 1
-    return status, it, rate
+    return status, it, rate, d1
 
 
 @numba.njit(cache=True, _nrt=False)
@@ -633,8 +645,9 @@ def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compe
     hpm = h * h * cinfo[0] * cinfo[1]
     wait, backoff = 0, 1
     # the rate estimate theta / (1 - theta) of the last steps (-1: none, e.g. after a fallback or
-    # a change of the frozen block) and the block it was measured with
+    # a change of the frozen block), the first increment it was measured on and the block
     eta = -1.0
+    dref = -1.0
     curv_last = False
     stats[mt.FAILED_STEP] = -1
     if not store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
@@ -689,8 +702,8 @@ def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compe
             curv_last = curv
             if eta >= 0.0:
                 eta = max(eta, EPS) ** RATE_GROWTH
-            status, it, rate = quasi_newton(model, tab, ws, qw, cw, curv, x, t, q, v, h, G, tol, quasi_max, stats,
-                                            qstats, eta)
+            status, it, rate, d1 = quasi_newton(model, tab, ws, qw, cw, curv, x, t, q, v, h, G, tol, quasi_max,
+                                                stats, qstats, eta, dref)
             qstats[QS_ITERATIONS] += it
             if curv and status == 1:
                 qstats[QS_CURV_STEPS] += 1
@@ -700,6 +713,7 @@ def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compe
                     qstats[QS_RATE_FIRST] += 1
                 if 0.0 <= rate < 1.0:
                     eta = rate / (1.0 - rate)
+                    dref = d1
                 elif rate >= 1.0:
                     eta = -1.0                  # stopped on the round-off limit while not contracting
             else:

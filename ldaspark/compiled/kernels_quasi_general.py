@@ -28,7 +28,7 @@ from .kernels import finish_step, spark_newton, evaluate, store   # noqa: F401 (
 from .kernels_general import general_begin, general_eval, workspace
 from .kernels_quasi import (EPS, FIRST_RATE_FACTOR, PREDICT_COLLOCATION, QS_FALLBACKS, QS_ITERATIONS, QS_LU,
                             QS_RATE_FIRST, QS_SKIPPED, QS_STEPS, QUASI_MAX_ITER, QUASI_THETA, QUASI_WAIT_MAX,
-                            RATE_GROWTH, collocation_predict, constraint_apply)
+                            RATE_GROWTH, RATE_SPAN, collocation_predict, constraint_apply)
 from .newton import (FAIL_NONFINITE, RATE_KAPPA, end_newton, fail, lu_factor, lu_solve, newton_status,
                      norm_inf, predict)
 
@@ -36,7 +36,7 @@ from .newton import (FAIL_NONFINITE, RATE_KAPPA, end_newton, fail, lu_factor, lu
 # compiles in (tests/compiled/test_quasi_general.py checks it)
 HELPERS = ("kernels.py", "newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py",
            "modeltypes.py", "kernels_quasi.py")
-HELPERS_SHA256 = "9bbf4d23414048da7ff716b02ffd9d46075ab606e1145e624cc39daff925af5b"
+HELPERS_SHA256 = "d7aa3cf808675cbc31eac513299610bdee7a611680e62419126741a3be1c4846"
 
 
 @numba.njit(cache=True)
@@ -136,16 +136,17 @@ def general_quasi_increment(tab, h, gw, G, x):
 
 
 @numba.njit(cache=True, _nrt=False)
-def general_quasi_newton(model, tab, M, ws, gw, x, t, q, v, h, G, J, tol, max_iter, stats, qstats, eta):
-    """``kernels_quasi.quasi_newton`` for the general form: (status, iterations, rate), eta the
-    carried rate estimate of the first-increment test."""
+def general_quasi_newton(model, tab, M, ws, gw, x, t, q, v, h, G, J, tol, max_iter, stats, qstats, eta, dref):
+    """``kernels_quasi.quasi_newton`` for the general form: (status, iterations, rate, |dx_1|), eta
+    the carried rate estimate of the first-increment test, measured on a first increment of dref."""
     scale = norm_inf(v)
     general_begin(model, t, q, v, ws)
     stats[2] += general_eval(model, tab, False, x, t, q, v, h, M, ws, G, J)
     qstats[QS_LU] += 1       # the multiplier matrix: derivatives, not residual points (nfev)
     if not general_multiplier_matrix(model, tab, h, t, x, ws, gw):
-        return 0, 0, -1.0
+        return 0, 0, -1.0, -1.0
     prev = -1.0
+    d1 = -1.0
     theta = -1.0
     rate = -1.0
     it = 0
@@ -154,8 +155,11 @@ def general_quasi_newton(model, tab, M, ws, gw, x, t, q, v, h, G, J, tol, max_it
         it += 1
         dn = general_quasi_increment(tab, h, gw, G, x)
         status = newton_status(dn, prev, theta, norm_inf(x), scale, tol, False)
-        if status == 0 and prev <= 0.0 and eta > 0.0 and eta * dn <= RATE_KAPPA * tol * (norm_inf(x) + scale):
-            status = 1
+        if prev <= 0.0:
+            d1 = dn
+            if (status == 0 and eta > 0.0 and eta * dn <= RATE_KAPPA * tol * (norm_inf(x) + scale)
+                    and dref <= RATE_SPAN * dn and dn <= RATE_SPAN * dref):
+                status = 1
         if status == 0 and prev > 0.0 and theta <= 0.0:
             th = dn / prev
             lim = tol * (norm_inf(x) + scale)
@@ -170,7 +174,7 @@ def general_quasi_newton(model, tab, M, ws, gw, x, t, q, v, h, G, J, tol, max_it
         theta = dn / prev if prev > 0.0 else -1.0
         prev = dn
         stats[2] += general_eval(model, tab, False, x, t, q, v, h, M, ws, G, J)
-    return status, it, rate
+    return status, it, rate, d1
 
 
 @numba.njit(cache=True)
@@ -197,6 +201,7 @@ def general_quasi_loop(model, tab, M, Ev, El, t0, q0, v0, h, n_steps, every, com
     quasi_max = min(max_iter, QUASI_MAX_ITER)
     wait, backoff = 0, 1
     eta = -1.0                                  # as in kernels_quasi.quasi_loop
+    dref = -1.0
     stats[mt.FAILED_STEP] = -1
     if not store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
         fail(stats, 0, FAIL_NONFINITE)
@@ -218,14 +223,17 @@ def general_quasi_loop(model, tab, M, Ev, El, t0, q0, v0, h, n_steps, every, com
         else:
             if eta >= 0.0:
                 eta = max(eta, EPS) ** RATE_GROWTH
-            status, it, rate = general_quasi_newton(model, tab, M, ws, gw, x, t, q, v, h, G, J, tol, quasi_max,
-                                                    stats, qstats, eta)
+            status, it, rate, d1 = general_quasi_newton(model, tab, M, ws, gw, x, t, q, v, h, G, J, tol, quasi_max,
+                                                        stats, qstats, eta, dref)
             qstats[QS_ITERATIONS] += it
             if status == 1:
                 backoff = 1
                 if it == 1 and eta > 0.0:
                     qstats[QS_RATE_FIRST] += 1
-                eta = rate / (1.0 - rate) if 0.0 <= rate < 1.0 else (-1.0 if rate >= 1.0 else eta)
+                if 0.0 <= rate < 1.0:
+                    eta, dref = rate / (1.0 - rate), d1
+                elif rate >= 1.0:
+                    eta = -1.0
             else:
                 eta = -1.0
                 wait = backoff

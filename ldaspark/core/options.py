@@ -86,6 +86,7 @@ class IntegrationOptions:
         validate.check_newton_options(tol, 1)
         newton = Newton.coerce(newton, tol)
         tol = newton.tol
+        validate.check_tol_resolvable(tol, dps)     # every engine: float64's, or dps digits'
         if energy_jump is not None:
             validate.check_newton_options(energy_jump, 1, what="energy_jump")
         for flag, val in (("dense_output", dense_output), ("raise_on_failure", raise_on_failure),

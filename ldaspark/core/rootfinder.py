@@ -87,7 +87,9 @@ class Newton:
         stop after one increment, on the rate carried from the previous steps (RADAU5's test;
         ``Result.stats["rate_first_steps"]``). Where the iteration contracts slowly a loose tol
         makes the step unsymmetric and the energy drifts: keep tol at or below the target error
-        (docs/performance.md, "Trading accuracy for speed").
+        (docs/performance.md, "Trading accuracy for speed"). A tol below the unit round-off of
+        the arithmetic (2^-52 in float64, 10^-dps with dps digits) cannot be reached and is refused
+        by every engine with an InputError (``core.validate.smallest_tol``).
     max_iter : int, optional
         Iterations of one Newton attempt before it gives up (None: 50). The generic engine makes
         one attempt per step, so its step fails after max_iter iterations. The compiled engine

@@ -105,12 +105,13 @@ class SparkMethod:
 
     def __init__(self, system: LagrangianSystem, tableau: SparkTableau, dps: int | None = None,
                  tol: float | None = None, newton: str = "full", max_iter: int = 50, energy_jump=None):
-        from .validate import check_dps, check_newton_options, check_system_and_tableau
+        from .validate import check_dps, check_newton_options, check_system_and_tableau, check_tol_resolvable
         check_dps(dps)          # [DPS_MIN, DPS_MAX] for every entry point
         if newton not in ("auto", "full", "simplified", "mixed"):
             raise InputError(f"newton must be 'auto', 'full', 'simplified' or 'mixed', got {newton!r}")
         check_system_and_tableau(system, tableau)
         check_newton_options(tol, max_iter)
+        check_tol_resolvable(tol, dps)
         if energy_jump is not None:
             check_newton_options(energy_jump, 1, what="energy_jump")
         self.system = system

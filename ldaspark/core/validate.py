@@ -28,6 +28,29 @@ def check_newton_options(tol, max_iter, what: str = "Newton tolerance") -> None:
         raise InputError(f"max_iter must be an integer between 1 and {MAX_NEWTON_ITER}, got {max_iter!r}")
 
 
+def smallest_tol(dps=None):
+    """The smallest Newton tolerance the arithmetic can honour: its unit round-off
+    (``Backend.eps``: 2^-52 in float64, 10^-dps with mpmath). The stopping limit is tol (|x| +
+    |v0|) on increments of the stage values V_i = v0 + Z_i, which carry a rounding of eps (|v0| +
+    |Z_i|): a smaller limit asks for increments below one rounding of the numbers they correct,
+    which no iteration can show (float64, particle, gauss-2, tol = 1e-25: the generic step ends at
+    round-off anyway, the compiled kernels spent 15x its iterations and sent 7 of 10 steps to it)."""
+    return 2.0 ** -52 if dps is None else float(f"1e-{int(dps)}")     # the literal a user would type
+
+
+def check_tol_resolvable(tol, dps=None, what: str = "tol") -> None:
+    """tol (already a positive number or None) is at least ``smallest_tol(dps)``: a tolerance the
+    arithmetic cannot reach is refused (house rule: honoured or refused, never changed)."""
+    if tol is None:
+        return
+    low = smallest_tol(dps)
+    if float(tol) < low:
+        arith = "float64" if dps is None else f"{int(dps)}-digit arithmetic"
+        more = "; dps= gives more digits" if dps is None else ""
+        raise InputError(f"{what} = {tol!r} is below the unit round-off of {arith}: the smallest tol it can "
+                         f"honour is {low:.6g} (None: the engine's default){more}")
+
+
 def check_system_and_tableau(system, tableau) -> None:
     """The integrators' first two arguments have the right types (a clear error, not an
     AttributeError several calls deep). Duck-typed, so that subclasses and variants of

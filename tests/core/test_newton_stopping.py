@@ -285,3 +285,53 @@ def test_million_steps_at_h_1e_7(scene, method):
     from ldaspark.lab.reports.stability_stiff import tiny_step_run
     r = tiny_step_run(scene, method, 1e-7, 1_000_000)
     assert r["outcome"] == "ok" and r["max_k"] <= 64 * EPS
+
+
+# --- a tol the arithmetic cannot reach ---------------------------------------------------------------
+def test_a_tol_below_the_unit_round_off_is_refused_by_every_engine():
+    """Newton(tol=1e-25) in float64 asks for increments below one rounding of the stage values:
+    before, every engine accepted it and did something else, the generic step ending at round-off
+    (particle, gauss-2, h = 0.1, 10 steps: 56 iterations), the compiled Newton kernel after 744
+    iterations handing 6 steps to the generic step, the quasi kernel after 843 handing 7. Now each
+    entry point refuses it with an InputError naming the smallest tol the arithmetic honours, its
+    unit round-off (``validate.smallest_tol``: 2^-52; 10^-dps with dps digits). Control: that
+    smallest tol runs on every engine, to the default tol's numbers within the two limits' bound 2 N
+    lim, lim <= 10 eps scale (the generic default; the kernels' is 8 eps)."""
+    import ldaspark
+    from ldaspark.core.errors import InputError
+    from ldaspark.core.spark import SparkMethod
+    from ldaspark.core.validate import smallest_tol
+    from ldaspark.ensemble import RunSpec
+    low = smallest_tol()
+    assert low == EPS and smallest_tol(20) == 1e-20
+    runs = (dict(engine="compiled", newton=ldaspark.Newton(kind="quasi")), dict(engine="compiled", newton="full"),
+            dict(engine="generic"), dict(engine="auto"))
+    sc = get_scene("particle")
+    t0, q0, v0 = sc.initial()
+    n = 10
+    for kw in runs:
+        for tol in (1e-25, 0.5 * EPS):
+            with pytest.raises(InputError, match=r"below the unit round-off of float64: the smallest tol it can honour "
+                                                 r"is 2\.22045e-16") as ei:
+                ldaspark.integrate("particle", "gauss-2", h=0.1, n_steps=n, tol=tol, **kw)
+            assert "\n" not in str(ei.value)
+        ref = ldaspark.integrate("particle", "gauss-2", h=0.1, n_steps=n, **kw)
+        r = ldaspark.integrate("particle", "gauss-2", h=0.1, n_steps=n, tol=low, **kw)
+        scale = max(1.0, float(np.abs(ref.q).max()), float(np.abs(ref.v).max()))
+        assert r.status == 0 and np.abs(r.q - ref.q).max() <= 2 * n * 10 * EPS * scale, kw
+    # the same through Newton(tol=...), with dps digits, an ensemble, the deprecated fast path, the
+    # class, the step map's Jacobian
+    with pytest.raises(InputError, match="the smallest tol it can honour is 2.22045e-16"):
+        ldaspark.integrate("particle", "gauss-2", h=0.1, n_steps=n, newton=ldaspark.Newton(kind="quasi", tol=1e-25))
+    with pytest.raises(InputError, match="of 20-digit arithmetic: the smallest tol it can honour is 1e-20"):
+        ldaspark.integrate("particle", "gauss-2", h=0.1, n_steps=2, engine="generic", dps=20, tol=1e-21)
+    assert ldaspark.integrate("particle", "gauss-2", h=0.1, n_steps=2, engine="generic", dps=20, tol=1e-20).status == 0
+    with pytest.raises(InputError, match="RunSpec: tol = 1e-25 is below"):
+        RunSpec("particle", "gauss-2", t0, [q0], [v0], 0.1, n, tol=1e-25)
+    with pytest.raises(InputError, match="tol = 1e-25 is below"):
+        fast_integrate(sc, "gauss-2", h=0.1, n_steps=n, tol=1e-25)
+    with pytest.raises(InputError, match="tol = 1e-25 is below"):
+        SparkMethod(sc.system, get_method("gauss-2"), tol=1e-25)
+    assert SparkMethod(sc.system, get_method("gauss-2"), dps=30, tol=1e-25).tol == 1e-25
+    with pytest.raises(InputError, match="flow_jacobian: tol = 1e-25 is below"):
+        ldaspark.flow_jacobian("particle", "gauss-2", q0, v0, 0.1, tol=1e-25)

@@ -72,6 +72,21 @@ MUTANTS = (
        "the mechanical quasi-Newton kernel's stage times k h + c_i h, without t0 (the saved times "
        "stay right)", "paths",
        TQ + "::test_a_rheonomic_scene_started_at_t0_not_zero_agrees_with_newton", TQ),
+    _m("paths-quasi-rate-span-dropped", "compiled/kernels_quasi.py",
+       "and dref <= RATE_SPAN * dn and dn <= RATE_SPAN * dref):", "):",
+       "the mechanical quasi-Newton kernel's carried rate applied to a first increment of any size "
+       "(particle gauss-6, tol = 1e-8: one step off by 1.6e-7)", "paths",
+       TQ + "::test_a_carried_rate_is_applied_only_to_first_increments_of_its_size", TQ),
+    _m("paths-quasi-general-rate-span-dropped", "compiled/kernels_quasi_general.py",
+       "and dref <= RATE_SPAN * dn and dn <= RATE_SPAN * dref):", "):",
+       "the general quasi-Newton kernel's carried rate applied to a first increment of any size "
+       "(ball-turntable gauss-5, tol = 1e-12: 5x the bound)", "paths",
+       TQ + "::test_a_carried_rate_is_applied_only_to_first_increments_of_its_size", TQ),
+    _m("paths-tol-below-round-off-accepted", "core/options.py",
+       "validate.check_tol_resolvable(tol, dps)", "None",
+       "integrate accepts a tol below the unit round-off and each engine does something else with it",
+       "paths", "tests/core/test_newton_stopping.py::test_a_tol_below_the_unit_round_off_is_refused_by_every_engine",
+       "tests/core/test_newton_stopping.py"),
     _m("paths-compiled-explain-t0-dropped", "engines/compiled.py",
        "tk = float(t0) + k * float(h)", "tk = k * float(h)",
        "a compiled Newton failure examined (and reported) at k h instead of t0 + k h", "paths",
