@@ -141,6 +141,8 @@ class LagrangianSystem:
             raise SystemDefinitionError(
                 f"L or k contain symbols other than t, q, v: {sorted(map(str, extra))}; "
                 "substitute them or declare them with params=[...]")
+        _check_infinite_constants([("L", self.L)] + [(f"k[{i}]", e) for i, e in enumerate(self.k)]
+                                  + [(f"nonideal[{i}]", e) for i, e in enumerate(nonideal_exprs)])
         _check_denominators(self, [self.L, *self.k, *nonideal_exprs])
         self.mechanical = mechanical
         self.N = None
@@ -941,6 +943,19 @@ def _check_mechanical_parts(system, mech, M, Mnz) -> None:
         bad = mismatch(lhs, rhs)
         if bad is not None:
             refuse(what, bad)
+
+
+def _check_infinite_constants(named) -> None:
+    """SystemDefinitionError naming an expression that holds sympy's zoo, nan, oo or -oo (a sympy
+    L + zoo, or 1/0 evaluated by sympy before it reached here): the engines evaluated it and
+    blamed the initial point ("the energy (8) at the initial point is nan: q0, v0 lie outside
+    the domain") where the system itself is undefined everywhere."""
+    bad = (sympy.zoo, sympy.nan, sympy.oo, -sympy.oo)
+    for what, e in named:
+        if e.has(*bad):
+            found = sorted({str(a) for a in sympy.preorder_traversal(e) if a in bad})
+            raise SystemDefinitionError(f"{what} contains {', '.join(found)} (an infinite or undefined constant): "
+                                        "the system is not defined at any point")
 
 
 #: distinct denominators ``_check_denominators`` tests (each costs a few 40-digit evaluations);

@@ -153,3 +153,21 @@ def test_a_denominator_that_vanishes_identically_is_refused_at_build(where):
         build(zero)
     for fine in ("1/q0", "1/(1 + q0**2 - 1)"):
         assert build(fine).n == 3
+
+
+@pytest.mark.parametrize("bad", ["zoo", "nan", "oo", "-oo", "zoo*x"])
+def test_an_infinite_or_undefined_constant_is_refused_at_build(bad):
+    """L + zoo (sympy's complex infinity, e.g. from an evaluated 1/0), nan, oo built and then failed
+    at integrate with 'the energy (8) at the initial point is nan: q0, v0 lie outside the domain'
+    (the system is defined nowhere). Refused when built, naming the expression; control: the same
+    system with the term 0 builds and runs."""
+    from ldaspark.core.errors import SystemDefinitionError
+    import ldaspark
+    x, y, vx, vy = sympy.symbols("x y vx vy")
+    term = sympy.sympify(bad, locals={"x": x})
+    with pytest.raises(SystemDefinitionError, match=r"L contains .*infinite or undefined"):
+        LagrangianSystem((vx**2 + vy**2) / 2 + term, [vy - x * vx], [x, y], [vx, vy])
+    with pytest.raises(SystemDefinitionError, match=r"k\[0\] contains"):
+        LagrangianSystem((vx**2 + vy**2) / 2, [vy - x * vx + term], [x, y], [vx, vy])
+    ok = LagrangianSystem((vx**2 + vy**2) / 2 + 0 * x, [vy - x * vx], [x, y], [vx, vy])
+    assert ldaspark.integrate(ok, "gauss-2", q0=[0.1, 0.0], v0=[0.0, 0.0], h=0.1, n_steps=2).status == 0
