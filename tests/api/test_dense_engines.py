@@ -259,3 +259,32 @@ def test_events_far_from_t_zero(path):
     at0 = ldaspark.integrate("particle", "gauss-2", t0=t0, n_steps=4, h=h, events=lambda t, q, v: t - (t0 + 0.5 * h),
                              **opts)
     assert abs(at0.t_events[0][0] - (t0 + 0.5 * h)) < 1e-12
+
+
+def test_the_compiled_engine_s_stages_are_the_kernel_s_one_step_solve(monkeypatch):
+    """``SparkStages`` takes the SPARK kernel's one-step solve where its end point is the run's
+    saved one, else the generic full-Newton step: two paths to the same root. The kernel's was
+    never checked to be taken (comparing v_1 with q_1, it was refused at every step and the
+    generic step solved them again, the same numbers). Control: with the kernel solver
+    unavailable the generic step solves every evaluated step, and the dense output agrees."""
+    from ldaspark.compiled import runner
+    from ldaspark.core.errors import LdasparkError
+    from ldaspark.core.guard import ROOT_AGREE
+    from ldaspark.core.spark import SparkMethod
+    ts = (np.arange(10) + 0.5) * 0.05                      # the midpoints of steps 0..9
+    calls, real = [], SparkMethod.step
+    monkeypatch.setattr(SparkMethod, "step", lambda self, *a, **kw: calls.append(1) or real(self, *a, **kw))
+    r = ldaspark.integrate("skate", "gauss-4", n_steps=20, h=0.05, engine="compiled", dense_output=True)
+    q, v = r.sol(ts)
+    assert r.status == 0 and not calls
+
+    def no_kernel(*a, **kw):
+        raise LdasparkError("no stage kernel")
+    monkeypatch.setattr(runner, "StageSolver", no_kernel)
+    g = ldaspark.integrate("skate", "gauss-4", n_steps=20, h=0.05, engine="compiled", dense_output=True)
+    qg, vg = g.sol(ts)
+    assert len(calls) == 10
+    # both V solve the same step to its end point within same_root's bound (ROOT_AGREE relative to
+    # 1 + |state|, state ~ 1 on the skate); the interpolant is q0 + h sum b_i(theta) V_i with
+    # sum |b_i| <= ~2 over a step: 4 ROOT_AGREE bounds the difference
+    assert np.abs(q - qg).max() <= 4 * ROOT_AGREE and np.abs(v - vg).max() <= 4 * ROOT_AGREE
