@@ -220,6 +220,22 @@ def test_a_terminal_event_ends_the_run_before_a_later_failure(monkeypatch, path)
 
 
 @pytest.mark.parametrize("path", list(PATHS))
+def test_the_dense_output_of_a_run_ended_by_a_terminal_event_ends_at_its_last_step(monkeypatch, path):
+    """A block engine runs past a terminal event and the driver cuts the run at the event's step
+    (``_post_process``): the dense output is built on the kept steps only, [t0, t_6] on every path,
+    as the stepping engine's; one step more (t_7 on the comparator's cubic Hermite) went unseen,
+    no test asked a cut run for its dense output's domain. Control: the same run without the event
+    has its dense output up to its failure, further."""
+    r = _run_path(monkeypatch, path, events=_clock(0.55), dense_output=True)
+    assert r.status == 1 and len(r.t) == 7
+    assert (r.sol.t_min, r.sol.t_max) == (float(r.t[0]), float(r.t[-1])), (r.sol.t_min, r.sol.t_max, r.t[-1])
+    with pytest.raises(InputError, match="defined on"):
+        r.sol(float(r.t[-1]) + 0.05)
+    f = _run_path(monkeypatch, path, dense_output=True)
+    assert f.status == -3 and f.sol.t_max == float(f.t[-1]) > float(r.t[-1]) + 0.5
+
+
+@pytest.mark.parametrize("path", list(PATHS))
 def test_events_of_a_run_that_fails_in_its_first_step(monkeypatch, path):
     """One (empty) array per event function on every engine when the first step fails (the run
     from t0 = 1.45: its first step reaches t = 1.55). Before, the compiled engine returned
