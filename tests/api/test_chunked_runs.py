@@ -121,3 +121,28 @@ def test_an_ensemble_through_an_executor_is_cut_into_the_blocks_of_its_single_ru
         (ens,) = run_many([RunSpec(QUARTIC, "gauss-2", 0.0, Q0, V0, 0.05, 50, every)], where=ex)
     np.testing.assert_array_equal(ens.q, loop.q)
     assert [st["guard"] for st in ens.stats] == [True, True]
+
+
+
+@pytest.mark.parametrize("chunk, every, calls", [(None, 1, [(300, 1)]), (128, 1, [(128, 1), (128, 1), (44, 1)]),
+                                                 (None, 7, [(300, 7)])])
+def test_a_run_shorter_than_the_chunk_is_one_kernel_call_keeping_its_samples(monkeypatch, chunk, every, calls):
+    """``COMPILED_CHUNK`` promises that runs up to 2**18 steps are one kernel call (bit for bit the
+    unchunked run: the predictor never restarts); every other test lowers the chunk, so a block
+    of 2*18 = 36 steps went unseen (300 steps became 9 calls). The kernel keeps every
+    ``save_every``-th sample itself (``CompiledEngine.samples``): with samples = False it stored
+    every step for the driver to slice, the same numbers (which every other test compares) at
+    save_every times the memory. Control: a chunk of 128 cuts the same run into 128 + 128 + 44.
+    guard=False: the guard's rerun of the first steps (every step kept) is another call."""
+    from ldaspark.engines import ENGINES
+    seen = []
+    real = ENGINES["compiled"].run
+
+    def recording(prepared, start, n_steps, every):
+        seen.append((n_steps, every))
+        return real(prepared, start, n_steps, every)
+    monkeypatch.setitem(vars(ENGINES["compiled"]), "run", recording)
+    if chunk is not None:
+        monkeypatch.setattr(chunks, "COMPILED_CHUNK", chunk)
+    r = ldaspark.integrate(QUARTIC, "gauss-2", **dict(IC, h=0.01, n_steps=300, save_every=every, guard=False))
+    assert r.status == 0 and len(r.t) == len(range(0, 300, every)) + 1 and seen == calls

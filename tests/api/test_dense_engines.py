@@ -220,6 +220,22 @@ def test_a_terminal_event_ends_the_run_before_a_later_failure(monkeypatch, path)
 
 
 @pytest.mark.parametrize("path", list(PATHS))
+def test_the_dense_output_of_a_run_ended_by_a_terminal_event_ends_at_its_last_step(monkeypatch, path):
+    """A block engine runs past a terminal event and the driver cuts the run at the event's step
+    (``_post_process``): the dense output is built on the kept steps only, [t0, t_6] on every path,
+    as the stepping engine's; one step more (t_7 on the comparator's cubic Hermite) went unseen,
+    no test asked a cut run for its dense output's domain. Control: the same run without the event
+    has its dense output up to its failure, further."""
+    r = _run_path(monkeypatch, path, events=_clock(0.55), dense_output=True)
+    assert r.status == 1 and len(r.t) == 7
+    assert (r.sol.t_min, r.sol.t_max) == (float(r.t[0]), float(r.t[-1])), (r.sol.t_min, r.sol.t_max, r.t[-1])
+    with pytest.raises(InputError, match="defined on"):
+        r.sol(float(r.t[-1]) + 0.05)
+    f = _run_path(monkeypatch, path, dense_output=True)
+    assert f.status == -3 and f.sol.t_max == float(f.t[-1]) > float(r.t[-1]) + 0.5
+
+
+@pytest.mark.parametrize("path", list(PATHS))
 def test_events_of_a_run_that_fails_in_its_first_step(monkeypatch, path):
     """One (empty) array per event function on every engine when the first step fails (the run
     from t0 = 1.45: its first step reaches t = 1.55). Before, the compiled engine returned
@@ -259,3 +275,32 @@ def test_events_far_from_t_zero(path):
     at0 = ldaspark.integrate("particle", "gauss-2", t0=t0, n_steps=4, h=h, events=lambda t, q, v: t - (t0 + 0.5 * h),
                              **opts)
     assert abs(at0.t_events[0][0] - (t0 + 0.5 * h)) < 1e-12
+
+
+def test_the_compiled_engine_s_stages_are_the_kernel_s_one_step_solve(monkeypatch):
+    """``SparkStages`` takes the SPARK kernel's one-step solve where its end point is the run's
+    saved one, else the generic full-Newton step: two paths to the same root. The kernel's was
+    never checked to be taken (comparing v_1 with q_1, it was refused at every step and the
+    generic step solved them again, the same numbers). Control: with the kernel solver
+    unavailable the generic step solves every evaluated step, and the dense output agrees."""
+    from ldaspark.compiled import runner
+    from ldaspark.core.errors import LdasparkError
+    from ldaspark.core.guard import ROOT_AGREE
+    from ldaspark.core.spark import SparkMethod
+    ts = (np.arange(10) + 0.5) * 0.05                      # the midpoints of steps 0..9
+    calls, real = [], SparkMethod.step
+    monkeypatch.setattr(SparkMethod, "step", lambda self, *a, **kw: calls.append(1) or real(self, *a, **kw))
+    r = ldaspark.integrate("skate", "gauss-4", n_steps=20, h=0.05, engine="compiled", dense_output=True)
+    q, v = r.sol(ts)
+    assert r.status == 0 and not calls
+
+    def no_kernel(*a, **kw):
+        raise LdasparkError("no stage kernel")
+    monkeypatch.setattr(runner, "StageSolver", no_kernel)
+    g = ldaspark.integrate("skate", "gauss-4", n_steps=20, h=0.05, engine="compiled", dense_output=True)
+    qg, vg = g.sol(ts)
+    assert len(calls) == 10
+    # both V solve the same step to its end point within same_root's bound (ROOT_AGREE relative to
+    # 1 + |state|, state ~ 1 on the skate); the interpolant is q0 + h sum b_i(theta) V_i with
+    # sum |b_i| <= ~2 over a step: 4 ROOT_AGREE bounds the difference
+    assert np.abs(q - qg).max() <= 4 * ROOT_AGREE and np.abs(v - vg).max() <= 4 * ROOT_AGREE

@@ -387,3 +387,24 @@ def test_nfev_counts_the_residuals_stage_points_on_every_engine(scene):
     r = ldaspark.integrate(scene, f"gauss-{s}", h=0.1, n_steps=10, engine="compiled", newton="quasi")
     assert r.status == 0 and r.stats["kernel"] == "quasi" and r.stats["quasi_fallbacks"] == 0, r.stats
     assert r.nfev == (s + 1) * r.newton_iterations, (r.nfev, r.newton_iterations)
+
+
+def test_the_comparator_engine_bounds_the_steps_it_stores_not_the_samples_kept(monkeypatch):
+    """The comparator engine returns every step (``samples`` False) and the driver slices
+    save_every: its ``check_block`` bounds (n + 1) points x (2 + 2n + m) numbers (mpmath: 3 x
+    the bytes) where the driver's check saw only the samples kept. Memory set to hold 1.5 x the
+    101 float64 points of gauss-irk-2 on the skate (n = 3, m = 1: 9 numbers a point, 40 bytes
+    each): 100 steps run (control); 200 steps kept every 100th are refused naming the 201 steps,
+    as are 101 points at 20 digits; a SPARK method on the compiled kernel, which keeps its
+    samples, runs those 200 steps."""
+    from ldaspark.core import validate
+    one = 101 * 9 * 40
+    monkeypatch.setattr(validate, "physical_memory", lambda: int(1.5 * one / validate.MEMORY_FRACTION))
+    kw = dict(h=0.01, engine="generic")
+    assert ldaspark.integrate("skate", "gauss-irk-2", n_steps=100, **kw).status == 0
+    with pytest.raises(InputError, match=r"storing the comparator's steps \(201 points x 9 numbers\)"):
+        ldaspark.integrate("skate", "gauss-irk-2", n_steps=200, save_every=100, **kw)
+    with pytest.raises(InputError, match=r"storing the comparator's steps \(101 points x 9 numbers\)"):
+        ldaspark.integrate("skate", "gauss-irk-2", n_steps=100, dps=20, **kw)
+    r = ldaspark.integrate("skate", "gauss-2", n_steps=200, save_every=100, h=0.01, engine="compiled")
+    assert r.status == 0 and len(r.t) == 3

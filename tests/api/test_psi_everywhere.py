@@ -86,3 +86,20 @@ def test_ensembles_return_psi_per_member():
         one = ldaspark.integrate("skate", "gauss-2", q0=q0[j], v0=v0[j], engine="generic", **kw)
         assert _close(ens.psi[j], one.psi)
     assert not _close(ens.psi[0], ens.psi[1])           # control: the members differ
+
+
+
+@pytest.mark.parametrize("every", [1, 3])
+@pytest.mark.parametrize("form", ["lobatto-iiia-iiib-2-leapfrog", "lobatto-iiia-iiib-2-modified"])
+def test_a_comparator_s_psi_is_that_of_the_spark_method_it_rewrites(form, every):
+    """The leapfrog form of (25) and the modified Lobatto method of 8.4 on the comparator engine
+    (``integrate_comparator``) against lobatto-iiia-iiib-2 on the generic SPARK engine, on a
+    mechanical system where they are the same step: the same Psi_1, Psi_2 (measured 2e-15). The
+    comparator engine's psi was never compared with another path: returned as None, every test
+    still passed. (The compiled comparator kernels return no psi, docs/changelog.md.)"""
+    kw = dict(t_span=(0, 1), h=0.1, save_every=every, engine="generic")
+    spark = ldaspark.integrate("skate", "lobatto-iiia-iiib-2", **kw)
+    comp = ldaspark.integrate("skate", form, **kw)
+    assert comp.stats["engine"] == "comparator" and comp.psi is not None
+    assert _close(comp.psi, spark.psi)
+    assert not _close(comp.psi[1:], spark.psi[:-1])          # control: the neighbouring step's psi

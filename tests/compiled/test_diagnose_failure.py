@@ -3,6 +3,7 @@ generic full-Newton step at the state the same compiled arithmetic reaches after
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 import ldaspark
 from ldaspark.compiled import fast, runner
@@ -75,3 +76,40 @@ def test_the_failure_message_names_the_root_finder_that_ran():
         msgs[newton] = res.message
     assert "quasi-Newton iteration" in msgs["auto"] and "quasi" not in msgs["full"]
     assert "Newton (full)" in msgs["full"]
+
+
+@pytest.mark.parametrize("chunk", [None, 4])
+def test_a_later_step_s_failure_is_examined_from_the_state_the_run_returned(monkeypatch, chunk):
+    """``CompiledEngine.explain`` retries the failed step k with the generic step from the end of
+    the run's prefix, the state the Result ends at (t_k, q_k, v_k), in one kernel call or in
+    blocks of 4 steps; every other test fails at step 0 (no prefix), so a retry from another
+    row of the prefix (v_1 for v_k) went unseen. Control: the failure is at a step k >= 4 (a
+    prefix of several rows, q_1 != q_k)."""
+    import sympy
+    from ldaspark.core import chunks
+    from ldaspark.core.spark import SparkMethod
+    x, y, th, vx, vy, vth = sympy.symbols("x y th vx vy vth")
+    # a stiff quartic spring with a nonholonomic constraint: gauss-2 at h = 0.7 fails after a few
+    # steps with full Newton (tests/api/test_chunked_runs.py)
+    quartic = ldaspark.LagrangianSystem((vx**2 + vy**2) / 2 + vth**2 / 2 - 1e4 * (x**4 / 4 + x**2 * y**2 / 2)
+                                        - 3 * sympy.cos(th), [vy - 3 * x * vth], [x, y, th], [vx, vy, vth],
+                                        name="quartic")
+    seen, real = [], SparkMethod.step
+
+    def recording(self, t, q, v, h, *a, **kw):
+        if "step_index" in kw:          # explain's retry (and the kernels' rescue of a step) names it
+            seen.append((kw["step_index"], t, np.array(q, float), np.array(v, float)))
+        return real(self, t, q, v, h, *a, **kw)
+    monkeypatch.setattr(SparkMethod, "step", recording)
+    if chunk is not None:
+        monkeypatch.setattr(chunks, "COMPILED_CHUNK", chunk)
+    res = ldaspark.integrate(quartic, "gauss-2", q0=[0.5, 0.1, 0.3], v0=[1.0, 0.75, 0.5], h=0.7, n_steps=30,
+                             engine="compiled", newton="full", guard=False)
+    k = res.error.step
+    assert res.status < 0 and isinstance(res.error, NewtonError) and k >= 4 and len(res.t) == k + 1
+    assert not np.array_equal(np.asarray(res.q)[1], np.asarray(res.q)[-1])
+    assert seen and seen[-1][0] == k            # explain's retry comes last, after the run
+    _, t, q, v = seen[-1]
+    assert t == float(res.t[-1])
+    np.testing.assert_array_equal(q, np.asarray(res.q, float)[-1])
+    np.testing.assert_array_equal(v, np.asarray(res.v, float)[-1])
