@@ -391,7 +391,11 @@ def algebraic_checks(tab, ar, e, dps):
     C.append(Check("consistent", PASS if p >= 1 else FAIL, None,
                    f"the conditions predict order {p} ({how})" + (
                        " >= 1: the method converges" if p >= 1 else
-                       ": sum b != 1 or similar by more than the entries' precision, the method cannot converge"),
+                       ": sum b != 1 or similar by more than the entries' precision, the method cannot converge"
+                       + ("" if ar.exact else
+                          " (decimal entries are read as rounded, known to half a unit in their last digit: "
+                          "digits printed by truncation are off by up to a whole unit; give them rounded or "
+                          "with more digits)")),
                    ar.label))
     return C, facts
 

@@ -417,3 +417,46 @@ def test_a_gauss_tableau_computed_in_float64_gets_its_verdicts(s):
     d["A_hat"][0][1] += 1e-9
     by, _, _ = algebraic(from_json_dict(d))
     assert by["22b"].status == au.FAIL and by["22b"].residual > 1e-10
+
+
+def _gauss3_digits(digits, truncate):
+    """Gauss-3 written with ``digits`` significant digits as JSON numbers, rounded or truncated."""
+    e = get_method("gauss-3").mp_entries(60)
+
+    def one(x):
+        with mpmath.workdps(60):
+            x = mpmath.mpf(x)
+            if x == 0:
+                return "0"
+            ex = int(mpmath.floor(mpmath.log10(abs(x))))
+            sc = mpmath.mpf(10) ** (digits - 1 - ex)
+            y = (mpmath.sign(x) * mpmath.floor(abs(x) * sc) / sc) if truncate else x
+            return mpmath.nstr(y, digits, strip_zeros=False, min_fixed=-10 ** 9, max_fixed=10 ** 9)
+
+    def walk(a):
+        a = a.tolist() if hasattr(a, "tolist") else a
+        return [walk(y) for y in a] if isinstance(a, (list, tuple)) else one(a)
+    d = {k: walk(v) for k, v in e.items() if k != "omega"}
+    import re
+    return json.loads(re.sub(r'"(-?[0-9.]+)"', r"\1", json.dumps(d)))
+
+
+def test_inconsistency_of_decimal_entries_names_truncated_digits():
+    """Gauss-3 printed by truncation at 12 digits (sum b = 1 - 2e-12 against a ball radius 1.5e-12:
+    the half-unit model of rounded digits) fails 'consistent', the verdict of the documented model;
+    its message now says that digits printed by truncation are off by a whole unit. Control: the
+    same table rounded to 12 digits is consistent; an exact inconsistent table gets no such hint."""
+    for truncate, want in ((True, "fail"), (False, "pass")):
+        tab = from_json_dict(_gauss3_digits(12, truncate))
+        ar, e, _ = au.decide_arith(tab, 30)
+        checks, _ = au.algebraic_checks(tab, ar, e, 30)
+        c = next(c for c in checks if c.name == "consistent")
+        assert c.status == want, (truncate, c.detail)
+        assert ("printed by truncation" in c.detail) == truncate
+    # control: exact entries (sum b = 1/2) fail without the hint about printed digits
+    d = {"c": ["1/2"], "A": [["1/2"]], "A_hat": [["1/2"]], "A_tilde": [["1/2"]], "b": ["1/2"], "b_hat": ["1/2"],
+         "b_tilde": ["1"]}
+    tab = from_json_dict(d)
+    ar, e, _ = au.decide_arith(tab, 30)
+    c = next(c for c in au.algebraic_checks(tab, ar, e, 30)[0] if c.name == "consistent")
+    assert ar.exact and c.status == "fail" and "truncation" not in c.detail
