@@ -4,7 +4,10 @@ L_d (see ``ldaspark.analysis.discrete`` for the bordered gauge-fixed solve)."""
 from __future__ import annotations
 
 import math
+import re
 from fractions import Fraction
+
+import numpy as np
 
 from ..core.backend import Backend
 from ..models import arguments
@@ -12,6 +15,34 @@ from .discrete import (GAUGE, SINGULAR, WELLPOSED, DiscreteBVP, _null_support, _
                        discrete_lagrangian)
 
 NEWTON = "mixed"     # the IVP step to the point where J is classified
+
+
+#: a step factor's text: "p/q" or a decimal with an exponent of at most _FACTOR_EXPONENT digits'
+#: magnitude (Fraction("1e999999999") builds 10^999999999: minutes of CPU for one argument)
+_FACTOR_TEXT = re.compile(r"\s*(?:[+-]?\d{1,20}\s*/\s*\d{1,20}|[+-]?(?:\d{1,20}(?:\.\d{0,20})?|\.\d{1,20})"
+                          r"(?:[eE][+-]?\d{1,3})?)\s*")
+
+
+def _step_factor(f):
+    """A step factor of ``classify_wellposedness`` as an exact Fraction (None: not a finite
+    rational): integers, finite floats (their shortest repr: 0.5 is 1/2, 0.1 is 1/10), Fractions,
+    and strings "p/q" or decimals, parsed within bounds (digits and exponent) so that no text makes
+    the conversion itself run long; whether the value is a usable factor is the caller's check."""
+    from ..core.validate import _is_bool
+    if _is_bool(f):
+        return None
+    if isinstance(f, Fraction):
+        return f
+    if isinstance(f, (int, np.integer)):
+        return Fraction(int(f))
+    if isinstance(f, (float, np.floating)):
+        return Fraction(repr(float(f))) if math.isfinite(f) else None
+    if isinstance(f, str) and _FACTOR_TEXT.fullmatch(f):
+        try:
+            return Fraction(f.strip().replace(" ", ""))
+        except (ValueError, ZeroDivisionError):
+            return None
+    return None
 
 
 def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_factors=(1, "1/2")):
@@ -67,14 +98,13 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
     if not isinstance(h_factors, (list, tuple)) or len(h_factors) < 2 or len(set(map(str, h_factors))) != len(h_factors):
         raise InputError(f"classify_wellposedness: h_factors must be two or more distinct step factors, got "
                          f"{validate._describe(h_factors)}")
+    factors = {}
     for f in h_factors:
-        try:
-            fr = None if validate._is_bool(f) or isinstance(f, float) and not math.isfinite(f) else Fraction(str(f))
-        except (ValueError, ZeroDivisionError):
-            fr = None
+        fr = _step_factor(f)
         if fr is None or fr <= 0 or fr.denominator > 10 ** 6 or fr.numerator > 10 ** 6:
             raise InputError(f"classify_wellposedness: h_factors must be positive rationals such as 1 or \"1/2\", "
                              f"got {validate._describe(f)}")
+        factors[str(f)] = fr
     d_lo, d_hi = min(dps), max(dps)
     out = {"sigma": {}, "deficiency": {}}
     nz = {}
@@ -84,7 +114,7 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
         for f in h_factors:
             bk = Backend(d)
             with bk.context():
-                fr = Fraction(str(f))
+                fr = factors[str(f)]
                 hf = bk.scalar(h) * fr.numerator / fr.denominator
                 # mixed Newton (float64 Newton matrix, residual at d digits): the same point to
                 # the step's tolerance; only J there is used (its rank and sigma to a few digits)

@@ -583,6 +583,11 @@ def step_advances(t0, h, n_steps=1, dps=None, what: str = "h", *, s=None, n=None
     import numpy as np
     if dps is None:
         h_, t_ = abs(float(h)), abs(float(t0))
+        if h_ == 0.0:
+            # a nonzero h below float64's range ("1e-99999999" passed the nonzero check in its own
+            # digits): the message below would advise |h| >= 0
+            raise InputError(f"{what} = {h if isinstance(h, str) else repr(h)} rounds to 0 in float64 (below its "
+                             "smallest positive number, 4.9e-324): a step that small needs dps= digits")
         T = max(t_, abs(float(t0) + int(n_steps) * float(h))) if math.isfinite(t_) else t_
         need = 2 * float(np.spacing(T)) if T > 0 else 0.0
         if h_ < need or float(t0) + float(h) == float(t0):

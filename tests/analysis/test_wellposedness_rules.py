@@ -122,6 +122,20 @@ def test_wellposedness_argument_checks():
             _classify(h_factors=(1, bad))
 
 
+def test_a_step_factor_with_a_huge_exponent_is_refused_without_building_it():
+    """Fraction("1e999999999") builds 10^999999999 before any bound is checked: the argument check
+    ran for minutes (killed at 600 s). The text is parsed within bounds (at most 3 exponent digits):
+    refused at once. Controls: the same forms with small exponents and "p/q" are read exactly."""
+    from fractions import Fraction
+    from ldaspark.analysis.wellposedness import _step_factor
+    for bad in ("1e999999999", "1e-999999999", "1" * 30, "1/" + "7" * 30, "1e1000"):
+        assert _step_factor(bad) is None
+        with pytest.raises(InputError, match="positive rationals"):
+            _classify(h_factors=(1, bad))
+    assert _step_factor("5e-1") == Fraction(1, 2) and _step_factor(" 1 / 4 ") == Fraction(1, 4)
+    assert _step_factor(0.1) == Fraction(1, 10) and _step_factor(Fraction(2, 3)) == Fraction(2, 3)
+
+
 def test_the_null_vectors_and_their_recomputation_are_those_of_the_highest_precision(monkeypatch):
     """With three precisions the null space is read at the last (highest) one, and whether a
     genuine sigma is below float64 resolution is decided there too."""
