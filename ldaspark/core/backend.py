@@ -62,7 +62,17 @@ def _mpf(x) -> mpmath.mpf:
         # an exact sympy number (sqrt(2)/2 in q0, a parsed parameter string): its value at this
         # precision (mpmath does not parse the text "sqrt(2)/2")
         return mpmath.mpf(str(x.evalf(mpmath.mp.dps + 10)))
-    return mpmath.mpf(str(x))
+    try:
+        text = str(x)
+    except ValueError:
+        # a Fraction of integers beyond 4300 digits cannot be printed: its value rounded once,
+        # as mpmath reads the text "p/q" of a smaller one
+        p, q = getattr(x, "numerator", None), getattr(x, "denominator", None)
+        if not (isinstance(p, int) and isinstance(q, int) and q):
+            raise
+        from mpmath.libmp import from_rational, round_nearest
+        return mpmath.mpf(from_rational(p, q, mpmath.mp.prec, round_nearest))
+    return mpmath.mpf(text)
 
 
 class Backend:

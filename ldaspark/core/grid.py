@@ -19,10 +19,23 @@ def steps_between(t_a, t_b, h) -> int:
         return int(round((float(t_b) - float(t_a)) / float(h)))
     import mpmath
     with mpmath.workprec(128):
-        a, b, hh = mpmath.mpf(t_a), mpmath.mpf(t_b), mpmath.mpf(h)
+        a, b, hh = _mpf(t_a), _mpf(t_b), _mpf(h)
         if not hh:
             raise InputError(f"step size h must be nonzero, got {h}")
         top = max(abs(a), abs(b))
         span = 0 if not top else int(mpmath.floor(mpmath.log(top / abs(hh), 2)))
     with mpmath.workprec(min(max(span, 0) + 64 + 64, 10 ** 5)):
-        return int(mpmath.nint((mpmath.mpf(t_b) - mpmath.mpf(t_a)) / mpmath.mpf(h)))
+        return int(mpmath.nint((_mpf(t_b) - _mpf(t_a)) / _mpf(h)))
+
+
+def _mpf(x):
+    """x as an mpf at the working precision: what ``validate.real_number`` accepts, sympy's real
+    numbers too (mpmath.mpf(sympy.pi) is a TypeError: h = pi ran and then failed here)."""
+    import mpmath
+    try:
+        return mpmath.mpf(x)
+    except (TypeError, ValueError):
+        to = getattr(x, "_to_mpmath", None)           # sympy numbers: evaluated at this precision
+        if to is not None:
+            return mpmath.mpf(to(mpmath.mp.prec))
+        return mpmath.mpf(float(x))

@@ -19,13 +19,16 @@ def check_newton_options(tol, max_iter, what: str = "Newton tolerance") -> None:
     """tol: None or a finite positive real number; max_iter: an integer in [1, MAX_NEWTON_ITER]."""
     if tol is not None:
         try:
-            ok = not (_is_bool(tol) or isinstance(tol, (str, bytes))) and math.isfinite(float(tol)) and float(tol) > 0
+            # a complex tol (np.complex128(1) converted by float() with a warning) is not a tolerance
+            ok = not (_is_bool(tol) or isinstance(tol, (str, bytes, complex))
+                      or getattr(getattr(tol, "dtype", None), "kind", "") == "c") \
+                and math.isfinite(float(tol)) and float(tol) > 0
         except (TypeError, ValueError, OverflowError):
             ok = False
         if not ok:
-            raise InputError(f"{what} must be a finite positive number, got {tol!r}")
+            raise InputError(f"{what} must be a finite positive number, got {_repr(tol)}")
     if _is_bool(max_iter) or not isinstance(max_iter, numbers.Integral) or not 1 <= max_iter <= MAX_NEWTON_ITER:
-        raise InputError(f"max_iter must be an integer between 1 and {MAX_NEWTON_ITER}, got {max_iter!r}")
+        raise InputError(f"max_iter must be an integer between 1 and {MAX_NEWTON_ITER}, got {_repr(max_iter)}")
 
 
 def smallest_tol(dps=None):
@@ -47,7 +50,7 @@ def check_tol_resolvable(tol, dps=None, what: str = "tol") -> None:
     if float(tol) < low:
         arith = "float64" if dps is None else f"{int(dps)}-digit arithmetic"
         more = "; dps= gives more digits" if dps is None else ""
-        raise InputError(f"{what} = {tol!r} is below the unit round-off of {arith}: the smallest tol it can "
+        raise InputError(f"{what} = {_repr(tol)} is below the unit round-off of {arith}: the smallest tol it can "
                          f"honour is {low:.6g} (None: the engine's default){more}")
 
 
@@ -133,7 +136,7 @@ def real_number(x, what: str, *, positive: bool = False, nonzero: bool = False):
             val = float(s)
             ok = True
         except ValueError:
-            raise InputError(f"{what} must be a real number, got the string {x!r:.80}") from None
+            raise InputError(f"{what} must be a real number, got the string {_repr(x)}") from None
     elif isinstance(x, numbers.Real) or type(x).__module__ == "decimal":
         try:
             val, ok = float(x), True
@@ -160,11 +163,11 @@ def real_number(x, what: str, *, positive: bool = False, nonzero: bool = False):
     if val == 0 and _nonzero(x):
         val = 5e-324            # below float64's range but not zero: h = mpf('1e-400'), "1e-400"
     if not math.isfinite(val):
-        raise InputError(f"{what} must be finite, got {x!r:.80}")
+        raise InputError(f"{what} must be finite, got {_repr(x)}")
     if positive and not val > 0:
-        raise InputError(f"{what} must be positive, got {x!r:.80}")
+        raise InputError(f"{what} must be positive, got {_repr(x)}")
     if nonzero and val == 0:
-        raise InputError(f"{what} must be nonzero, got {x!r:.80}")
+        raise InputError(f"{what} must be nonzero, got {_repr(x)}")
     return x
 
 
@@ -189,9 +192,28 @@ def _nonzero(x) -> bool:
         return False
 
 
+def _repr(x, limit: int = 80) -> str:
+    """repr(x) for an error message, at most ``limit`` characters, never raising: an integer of
+    more than 4300 digits (or a Fraction or sympy number holding one) raises ValueError in repr,
+    which escaped as that ValueError in place of the InputError being formatted (h = 10**5000)."""
+    try:
+        r = repr(x)
+    except Exception:                   # noqa: BLE001 (a number too large to print, a broken __repr__)
+        try:
+            if isinstance(x, numbers.Integral) or type(x).__name__ == "Integer":
+                r = _fmt_int(int(x))
+            elif isinstance(x, numbers.Rational) or type(x).__name__ == "Rational":
+                r = f"{_fmt_int(int(x.numerator))}/{_fmt_int(int(x.denominator))}"
+            else:
+                r = f"<{type(x).__name__} that cannot be printed>"
+        except Exception:               # noqa: BLE001
+            r = f"<{type(x).__name__} that cannot be printed>"
+    return r[:limit]
+
+
 def _describe(x) -> str:
     """A short description of a bad value for an error message (never its full repr)."""
-    r = " ".join(repr(x).split())       # one line: the repr of an array or a dict spans several
+    r = " ".join(_repr(x, 10 ** 4).split())       # one line: the repr of an array or a dict spans several
     return f"{type(x).__name__} {r[:60]}{'...' if len(r) > 60 else ''}"
 
 
@@ -586,7 +608,7 @@ def step_advances(t0, h, n_steps=1, dps=None, what: str = "h", *, s=None, n=None
         if h_ == 0.0:
             # a nonzero h below float64's range ("1e-99999999" passed the nonzero check in its own
             # digits): the message below would advise |h| >= 0
-            raise InputError(f"{what} = {h if isinstance(h, str) else repr(h)} rounds to 0 in float64 (below its "
+            raise InputError(f"{what} = {h if isinstance(h, str) else _repr(h)} rounds to 0 in float64 (below its "
                              "smallest positive number, 4.9e-324): a step that small needs dps= digits")
         T = max(t_, abs(float(t0) + int(n_steps) * float(h))) if math.isfinite(t_) else t_
         need = 2 * float(np.spacing(T)) if T > 0 else 0.0

@@ -104,6 +104,53 @@ def test_a_float64_step_below_its_range_is_named_as_such():
         validate.step_advances(1.0, "1e-99999999", 2, dps=30)
 
 
+@pytest.mark.parametrize("where", ["h", "q0", "tol", "n_steps", "h at dps"])
+def test_numbers_too_large_to_print_get_an_input_error(where):
+    """An integer beyond 4300 digits (or a Fraction, sympy Integer or Rational holding one) as h,
+    q0, tol or n_steps: the InputError's message called repr, which raises ValueError for such an
+    integer, so the user got "ValueError: Exceeds the limit (4300 digits) for integer string
+    conversion" (16 of 20 cases before). Controls: the message names the size; a Fraction h that
+    mpmath can read at 30 digits runs (1/10^5000 is a step there)."""
+    import sympy
+    from fractions import Fraction
+    import ldaspark
+    big = [10 ** 5000, Fraction(1, 10 ** 5000), sympy.Integer(10) ** 5000, sympy.Rational(1, 10 ** 5000)]
+    sc = ldaspark.get_scene("particle")
+    for x in big:
+        kw = dict(h=0.1, n_steps=2)
+        q0 = [float(c) for c in sc.initial()[1]]
+        if where == "q0":
+            if isinstance(x, (Fraction, sympy.Rational)) and not isinstance(x, sympy.Integer):
+                continue                      # a tiny coordinate is a valid one
+            q0[0] = x
+        elif where == "h at dps":
+            kw.update(h=x, dps=30)
+            if isinstance(x, (Fraction, sympy.Rational)) and not isinstance(x, sympy.Integer):
+                r = ldaspark.integrate(sc, "gauss-1", q0=q0, v0=sc.initial()[2], **kw)
+                assert r.status == 0 and r.stats["steps"] == 2 and r.t[-1] > 0
+                continue
+        else:
+            kw[where] = x
+        with pytest.raises(InputError, match="10\\^5000"):
+            ldaspark.integrate(sc, "gauss-1", q0=q0, v0=sc.initial()[2], **kw)
+
+
+def test_sympy_real_numbers_and_complex_tolerances():
+    """h = pi/10 as a sympy number passed the number check and then failed the step count of the
+    finished run with "TypeError: cannot create mpf from pi/10" (float64; at dps it ran); a
+    complex tol (np.complex128(1e-10)) was accepted. Controls: the sympy h runs bit for bit as its
+    float; a real tol of the same value is accepted."""
+    import sympy
+    import numpy as np
+    import ldaspark
+    r1 = ldaspark.integrate("particle", "gauss-1", h=sympy.pi / 10, n_steps=3)
+    r2 = ldaspark.integrate("particle", "gauss-1", h=float(sympy.pi / 10), n_steps=3)
+    assert r1.status == 0 and r1.stats["steps"] == 3 and np.array_equal(r1.q, r2.q)
+    with pytest.raises(InputError, match="tolerance must be a finite positive number"):
+        ldaspark.integrate("particle", "gauss-1", h=0.1, n_steps=2, tol=np.complex128(1e-10))
+    assert ldaspark.integrate("particle", "gauss-1", h=0.1, n_steps=2, tol=np.float64(1e-10)).status == 0
+
+
 def test_fmt_int_names_huge_integers_by_their_decimal_exponent():
     from ldaspark.core import validate
     assert validate._fmt_int(10 ** 30 - 1) == str(10 ** 30 - 1)
