@@ -171,14 +171,18 @@ class LagrangianSystem:
         self._fn_exprs = {}
 
     @classmethod
-    def mechanical_form(cls, M, U, K, b=None, q=None, v=None, name="system"):
+    def mechanical_form(cls, M, U, K, b=None, q=None, v=None, name="system", params=None, t=None):
         """L = 1/2 v^T M v - U(q), k = K(q) v + b(q) (section 7); M, K sympy matrices. U, K and b
-        may also depend on the time t (the symbol ``t``, by that name in text too)."""
+        may also depend on the time t (the symbol ``t``, by that name in text too, or the symbol
+        given as ``t``); ``params`` as in LagrangianSystem (M, U, K, b may contain them)."""
         n = _matrix_rows(M, f"{name}: M")
         # None (not any falsy value: q=[] or an empty array is a wrong length, not the default)
         q = _symbol_list(q, "q") if q is not None else list(sympy.symbols(f"q0:{n}"))
         v = _symbol_list(v, "v") if v is not None else list(sympy.symbols(f"v0:{n}"))
-        names = _names(q, v, [sympy.Symbol("t")])      # the system's t (t=None below), as in LagrangianSystem's text
+        t = _time_symbol(t) if t is not None else sympy.Symbol("t")     # the constructor's default t
+        # the names text may use: those of LagrangianSystem (q, v, t, the parameters)
+        pnames = [_symbol(p, "parameter") for p in params] if isinstance(params, (list, tuple, dict)) else []
+        names = _names(q, v, [t], pnames)
         M, U, K, b = (_exprs(x, names, what) for x, what in ((M, "M"), (U, "U"), (K, "K"), (b, "b")))
         try:
             M = sympy.Matrix(M)
@@ -198,7 +202,7 @@ class LagrangianSystem:
         vv = sympy.Matrix(v)
         L = (vv.T * M * vv)[0, 0] / 2 - U
         k = list(K * vv + b)
-        return cls(L, k, q, v, name=name, mechanical={"M": M, "U": U, "K": K, "b": b})
+        return cls(L, k, q, v, t=t, name=name, mechanical={"M": M, "U": U, "K": K, "b": b}, params=params)
 
     @classmethod
     def from_mechanics(cls, model, q=None, constraints=None, params=None, name: str = "system"):

@@ -138,3 +138,33 @@ def test_mechanical_form_text_may_use_the_time_t():
     sym = LagrangianSystem.mechanical_form(sympy.eye(2), text.q[0] ** 2 * (1 + sympy.cos(t)), [[1, 1]],
                                            b=[sympy.sin(t)])
     assert text.L == sym.L and list(text.k) == list(sym.k) and text.t == sym.t == t
+
+
+def test_mechanical_form_takes_parameters_and_the_time_symbol():
+    """mechanical_form had neither ``params`` nor ``t``: M = diag(a, 1) was refused with "declare them
+    with params=[...]", and params=[a] was a TypeError (not an LdasparkError); a time symbol with
+    assumptions (Symbol("t", real=True)) in U was refused as a second 't' that could not be
+    renamed. Both are taken now, as by LagrangianSystem: the same L, k and parameters as the
+    system built from L and k, the same numbers from integrate (generic engine, 20 steps: equal to
+    the last bit, the same derived expressions). Control: an undeclared symbol is still refused."""
+    a = sympy.Symbol("a", positive=True)
+    t = sympy.Symbol("t", real=True)
+    M, U, K = sympy.diag(a, 1, 1), a * x ** 2 / 2 + sympy.sin(t) * y, [[-sympy.sin(th), 1, 0]]
+    mech = LagrangianSystem.mechanical_form(M, U, K, q=[x, y, th], v=[vx, vy, vth], params=[a], t=t)
+    text = LagrangianSystem.mechanical_form([["a", 0, 0], [0, 1, 0], [0, 0, 1]], "a*x**2/2 + sin(t)*y",
+                                            [["-sin(th)", 1, 0]], q=["x", "y", "th"], v=["vx", "vy", "vth"],
+                                            params=[a], t=t)
+    V = sympy.Matrix([vx, vy, vth])
+    direct = LagrangianSystem((V.T * M * V)[0, 0] / 2 - U, [vy - sympy.sin(th) * vx], [x, y, th], [vx, vy, vth],
+                              t=t, params=[a])
+    assert mech.params == text.params == direct.params == (a,) and mech.t is t and text.t is t
+    assert sympy.expand(mech.L - direct.L) == 0 and sympy.expand(text.L - direct.L) == 0
+    assert list(mech.k) == list(direct.k)
+    runs = [ldaspark.integrate(s, "gauss-2", t_span=(0, 0.4), q0=Q0, v0=V0, h=0.02, params={"a": 1.5},
+                               engine="generic") for s in (mech, direct)]
+    assert runs[0].status == runs[1].status == 0
+    assert np.array_equal(runs[0].q, runs[1].q) and np.array_equal(runs[0].v, runs[1].v)
+    with pytest.raises(SystemDefinitionError, match="params"):
+        LagrangianSystem.mechanical_form(M, U, K, q=[x, y, th], v=[vx, vy, vth], t=t)
+    with pytest.raises(SystemDefinitionError, match="'t'"):
+        LagrangianSystem.mechanical_form(M, U, K, q=[x, y, th], v=[vx, vy, vth], params=[a])
