@@ -48,14 +48,13 @@ def mechanical_parts(system) -> dict:
     q, v, t = list(system.q), list(system.v), system.t
     mech = system.mechanical
     if mech is not None:
-        from ..core.system import check_mechanical, refuse_text
+        from ..core.system import check_mechanical, mechanical_parts as parts, refuse_text
         refuse_text(mech, f"{system.name}: mechanical")     # set by hand after construction: never sympify text
         check_mechanical(system, mech)                       # the generic engine's M (L_vv), symmetric
+        mech = parts(mech)                                   # U and b default to 0, as on every engine
         M = _matrix(mech["M"])
         U = sympy.sympify(mech["U"], strict=True)
-        K = _matrix(mech["K"])
-        b = sympy.Matrix(mech.get("b") if mech.get("b") is not None else sympy.zeros(K.rows, 1))
-        b = b.reshape(K.rows, 1)
+        K, b = mech["K"], mech["b"]
     else:
         # on the nonzero entries of the sparse derivation: the dense L_vv, M v and simplify of
         # every row cost 2.7 s at n = 121 (what a first integrate of such a system waited)

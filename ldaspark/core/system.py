@@ -804,13 +804,33 @@ def _check_functions(named_exprs, derived: bool = False) -> None:
     gensource.check_expressions(named_exprs, derived=derived)
 
 
+#: the parts of the mechanical form (section 7): L = 1/2 v^T M v - U, k = K v + b
+MECHANICAL_KEYS = ("M", "U", "K", "b")
+
+
+def mechanical_parts(mech) -> dict:
+    """The four parts of a checked ``mechanical`` dict, U and b defaulting to 0 (b as an m x 1
+    column), for the engines that read them (``check_mechanical`` first)."""
+    K = mech["K"] if isinstance(mech["K"], sympy.MatrixBase) else sympy.Matrix(mech["K"])
+    b = mech.get("b")
+    b = sympy.zeros(K.rows, 1) if b is None else sympy.Matrix(b).reshape(K.rows, 1)
+    return {"M": mech["M"], "U": mech.get("U", sympy.S.Zero), "K": K, "b": b}
+
+
 def check_mechanical(system, mech) -> None:
     """The mechanical form's M (used by the compiled engine and the semi-implicit comparators)
     is square, symmetric and equal to L_vv (used by the generic engine): one mass matrix for
     every engine. A non-symmetric M gave the compiled engine M and the generic one its
-    symmetric part, 4e-2 apart, without a word."""
+    symmetric part, 4e-2 apart, without a word. The keys are M, U, K and b, K required."""
     if not isinstance(mech, dict) or "M" not in mech:
         raise SystemDefinitionError(f"{system.name}: mechanical must be a dict with M, U, K (and b)")
+    # every engine reads the same four parts: an unknown key ("B" for b) or a missing K was
+    # accepted here and then a KeyError of one engine, while another ran without it
+    unknown = sorted(map(str, set(mech) - set(MECHANICAL_KEYS)))
+    if unknown or mech.get("K") is None:
+        what = f"has keys {unknown} it does not know" if unknown else "has no K"
+        raise SystemDefinitionError(f"{system.name}: mechanical {what}: it takes M, U, K (m x n, 0 x n without "
+                                    "constraints) and b (U and b default to 0)")
     refuse_text(mech, f"{system.name}: mechanical")
     try:
         M = mech["M"] if isinstance(mech["M"], sympy.MatrixBase) else sympy.Matrix(mech["M"])

@@ -168,3 +168,31 @@ def test_mechanical_form_takes_parameters_and_the_time_symbol():
         LagrangianSystem.mechanical_form(M, U, K, q=[x, y, th], v=[vx, vy, vth], t=t)
     with pytest.raises(SystemDefinitionError, match="'t'"):
         LagrangianSystem.mechanical_form(M, U, K, q=[x, y, th], v=[vx, vy, vth], params=[a])
+
+
+def _plane(mech):
+    """The toy's kinetic part with a heading constraint, with the mechanical parts ``mech`` (the
+    value 0 of M or K: the system's own)."""
+    V = sympy.Matrix([vx, vy, vth])
+    M, K = sympy.diag(2, 2, 1), sympy.Matrix([[-sympy.sin(th), 1, 0]])
+    return LagrangianSystem((V.T * M * V)[0, 0] / 2, list(K * V), [x, y, th], [vx, vy, vth], name="plane",
+                            mechanical={key: {"M": M, "K": K}[key] if val == 0 and key in "MK" else val
+                                                for key, val in mech.items()})
+
+
+@pytest.mark.parametrize("mech, why", [({"M": 0}, "has no K"), ({"M": 0, "U": 0, "K": None}, "has no K"),
+                                       ({"M": 0, "K": 0, "B": [0]}, r"keys \['B'\]")])
+def test_mechanical_parts_without_K_or_with_an_unknown_key_are_refused_at_build(mech, why):
+    """A mechanical dict without K (or K None), or with a key it does not know ("B" for b), was
+    built; then the compiled engine failed with "compilation failed (KeyError)" and fell back,
+    and the generic semi-implicit comparators raised a bare KeyError 'K' (or 'b', where the
+    compiled kernel had taken b = 0). Refused at build now, naming the key. Control: M and K
+    alone (U and b omitted, both 0) run every engine with the same numbers."""
+    with pytest.raises(SystemDefinitionError, match=why):
+        _plane(mech)
+    system = _plane({"M": 0, "K": 0})
+    runs = [ldaspark.integrate(system, "lobatto-iiia-iiib-2-leapfrog", t_span=(0, 0.2), q0=Q0, v0=V0, h=0.02,
+                               engine=engine) for engine in ("generic", "compiled")]
+    assert runs[0].status == runs[1].status == 0
+    # 10 steps solved to round-off (2.2e-16) of states ~1, saddle matrices (4) of condition ~2: 1e-13
+    assert np.abs(np.asarray(runs[0].q, float) - runs[1].q).max() < 1e-13
