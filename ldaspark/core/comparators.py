@@ -111,7 +111,8 @@ class MechanicalParts:
 
     def K_b(self, t, q):
         K, b = self._K(t, *q)
-        return _arr(K, self.bk).reshape(self.m, self.n), _arr(b, self.bk)[:, 0]
+        # reshaped, not indexed: m = 0 prints b as [] (shape (0,), no column to index)
+        return _arr(K, self.bk).reshape(self.m, self.n), _arr(b, self.bk).reshape(self.m)
 
     def k_q(self, t, q, v):
         return _arr(self._kq(t, *q, *v), self.bk).reshape(self.m, self.n)

@@ -81,3 +81,25 @@ def test_a_mass_matrix_depending_on_q_is_still_refused_by_the_semi_implicit_comp
         with pytest.raises(InputError, match="mechanical"):
             ldaspark.integrate(system, "mp-lobatto-iiib-a-2", t_span=(0, 0.1), q0=[0.1, 0.0], v0=[1.0, 0.1],
                                h=0.05, engine=engine)
+
+
+@pytest.mark.parametrize("dps", [None, 30])
+@pytest.mark.parametrize("method", SEMI_IMPLICIT)
+def test_the_generic_semi_implicit_comparators_run_without_constraints(method, dps):
+    """m = 0 (a system from ``mechanical_form`` with K 0 x n): the generic comparators indexed b's
+    column, which m = 0 prints as [], and raised IndexError ("too many indices for array") at the
+    first step, where the compiled kernel ran. Now both engines agree (TOL: see above), and the
+    leapfrog form is Lobatto IIIA-B-2 (Stormer-Verlet at m = 0); control: McLachlan-Perlmutter's
+    method (26) is another method, 1e-4 away on this oscillator."""
+    x, y = sympy.symbols("x y")
+    system = LagrangianSystem.mechanical_form(sympy.diag(1, 2), x ** 2 / 2 + y ** 2 + x ** 3 / 3,
+                                              sympy.zeros(0, 2), q=[x, y], v=sympy.symbols("vx vy"))
+    kw = dict(t_span=(0, 1), q0=[1.0, 0.2], v0=[0.0, 1.0], h=0.05)
+    gen = ldaspark.integrate(system, method, engine="generic", dps=dps, **kw)
+    comp = ldaspark.integrate(system, method, engine="compiled", **kw)
+    spark = ldaspark.integrate(system, "lobatto-iiia-iiib-2", engine="generic", **kw)
+    assert gen.status == comp.status == 0
+    assert np.abs(np.asarray(gen.q, float) - comp.q).max() < TOL
+    assert np.abs(np.asarray(gen.v, float) - comp.v).max() < TOL
+    gap = np.abs(np.asarray(gen.q, float) - spark.q).max()
+    assert gap < TOL if method != "mp-lobatto-iiib-a-2" else gap > 1e-6
