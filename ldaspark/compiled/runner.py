@@ -272,25 +272,41 @@ def compile_system(system, form: str = "auto") -> CompiledSystem:
     shared = system.__dict__.get("_compiled") if getattr(system, "params", ()) else None
     tpl = None if shared is None else shared.get(("compiled.runner", form))
     if tpl is not None:
-        cs = _with_values(system, tpl)
+        try:
+            cs = _with_values(system, tpl)
+        except SingularMassError:
+            if form == "mechanical":
+                raise
+            # M singular at these values only: the general form, as when they came first
+            cs = compile_system(system, "general")
         _COMPILED[key] = (system, cs)
         return cs
-    cs = None
+    cs, by_value = None, False
     if form in ("auto", "mechanical"):
         try:
             cs = _mechanical(system)
-        except NotCompilableError:
+        except NotCompilableError as exc:
             if form == "mechanical":
                 raise
-    if cs is None:
+            # a mass matrix singular at these parameter values is no reason to give every other
+            # value the general form: the form must not depend on the values run first
+            by_value = isinstance(exc, SingularMassError) and shared is not None
+    if by_value:
+        cs = compile_system(system, "general")
+    elif cs is None:
         eye = np.eye(system.n)
         cs = CompiledSystem(system.name, system.n, system.m, general_source(system), eye, eye, "general",
                             _param_floats(system))
     _COMPILED[key] = (system, cs)
-    if shared is not None:
+    if shared is not None and not by_value:
         M = _mechanical_matrix(system) if cs.form == "mechanical" else None
         shared[("compiled.runner", form)] = (cs, M)
     return cs
+
+
+class SingularMassError(NotCompilableError):
+    """The mechanical form's M is singular (at the run's parameter values, for a system with
+    parameters): no M^-1 for the mechanical kernels; the general form runs it."""
 
 
 def _with_values(system, tpl):
@@ -318,7 +334,7 @@ def _numeric_mass(system, Msym):
     try:
         Minv = np.linalg.inv(M)
     except np.linalg.LinAlgError:
-        raise NotCompilableError(f"{system.name}: mass matrix M is singular") from None
+        raise SingularMassError(f"{system.name}: mass matrix M is singular") from None
     return np.ascontiguousarray(M), np.ascontiguousarray(Minv)
 
 

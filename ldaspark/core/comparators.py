@@ -59,7 +59,9 @@ def require_mechanical(name: str, system: LagrangianSystem) -> None:
     """The InputError comparator ``name`` gives a system it cannot run, before any step (None when
     it can): what the driver raises instead of falling back to an engine that refuses it too."""
     if name in MECHANICAL_ONLY:
-        MechanicalParts(system, Backend(None))
+        # at the run's parameter values, as the comparator engine runs it (``engines.comparator``):
+        # a mass matrix with a parameter is constant, not a refusal
+        MechanicalParts(system.substituted() if getattr(system, "params", ()) else system, Backend(None))
 
 
 def comparator_names(max_s: int = 4) -> list[str]:
