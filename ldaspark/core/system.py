@@ -254,8 +254,13 @@ class LagrangianSystem:
             return self
         vals = self._param_arg_values(None)
         sub = {p: _param_value(x, p) for p, x in zip(self.params, vals)}
-        mech = None if self.mechanical is None else {
-            key: (sympy.sympify(val).subs(sub) if val is not None else None) for key, val in self.mechanical.items()}
+        mech = None
+        if self.mechanical is not None:
+            refuse_text(self.mechanical, f"{self.name}: mechanical")    # set by hand: never sympify text
+            # parts given as lists of rows (or arrays) are matrices (sympify keeps a list, without subs)
+            mech = {key: None if val is None else (sympy.Matrix(val) if isinstance(val, (list, tuple, np.ndarray))
+                                                   else sympy.sympify(val)).subs(sub)
+                    for key, val in self.mechanical.items()}
         N = None if self.N is None else [e.subs(sub) for e in self.N]
         return LagrangianSystem(self.L.subs(sub), [e.subs(sub) for e in self.k], self.q, self.v, self.t,
                                 name=self.name, mechanical=mech, nonideal=N, psi=self.psi)

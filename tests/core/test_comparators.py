@@ -137,3 +137,23 @@ def test_terms_that_are_not_mechanical_are_refused_by_both_engines(extra):
     for engine in ("generic", "compiled"):
         with pytest.raises(InputError, match="mechanical form"):
             ldaspark.integrate(system, "mp-lobatto-iiib-a-2", engine=engine, **kw)
+
+
+@pytest.mark.parametrize("as_text", [False, True], ids=["sympy", "text"])
+def test_mechanical_parts_given_as_lists_run_the_generic_comparators_with_parameters(as_text):
+    """``mechanical={"M": [[a, 0], [0, 1]], "K": [[1, -1]], ...}`` (lists of rows, as the docs allow)
+    with a parameter a: the comparator engine substitutes the values (``substituted``), which
+    called .subs on the lists: AttributeError "'list' object has no attribute 'subs'" on the
+    generic engine, where the compiled one ran. Now the same numbers (TOL) on both; control: the
+    system at a = 2 and a = 3 differs."""
+    x, y, vx, vy, a = sympy.symbols("x y vx vy a")
+    mech = ({"M": [["a", 0], [0, 1]], "U": "x**2/2", "K": [[1, "-1"]], "b": ["0"]} if as_text else
+            {"M": [[a, 0], [0, 1]], "U": x ** 2 / 2, "K": [[1, -1]], "b": [0]})
+    system = LagrangianSystem((a * vx ** 2 + vy ** 2) / 2 - x ** 2 / 2, [vx - vy], [x, y], [vx, vy], params=[a],
+                              mechanical=mech)
+    kw = dict(t_span=(0, 0.5), h=0.05, q0=[1.0, 0.0], v0=[0.3, 0.3])
+    gen, comp, other = (ldaspark.integrate(system, "lobatto-iiia-iiib-2-leapfrog", engine=engine, params={"a": val},
+                                           **kw) for engine, val in (("generic", 2), ("compiled", 2), ("generic", 3)))
+    assert gen.status == comp.status == 0
+    assert np.abs(np.asarray(gen.q, float) - comp.q).max() < TOL
+    assert np.abs(np.asarray(gen.q, float) - np.asarray(other.q, float)).max() > 1e3 * TOL
