@@ -71,7 +71,7 @@ def mechanical_parts(system) -> dict:
             gyro = Lv.get((i, 0), sympy.S.Zero) - sympy.Add(*rows.get(i, ()))
             # decided at random points (parameters too: one model serves every value), not by
             # sympy.simplify (minutes for a large power)
-            if gyro != 0 and not numerically_zero(gyro, q + v + [t] + list(system.params)):
+            if gyro != 0 and not numerically_zero(gyro, q + v + [t] + list(system.params), signs=True):
                 raise NotCompilableError(f"{system.name}: grad_v L is not M v (terms linear in v); not mechanical "
                                          "form")
         M = sympy.SparseMatrix(system.n, system.n, Mnz)

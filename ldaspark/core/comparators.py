@@ -139,7 +139,7 @@ def derive_mechanical(system: LagrangianSystem) -> dict:
     gyro = system.L_v - M * sympy.Matrix(v)
     ok = (not (M.free_symbols & (set(q) | set(v) | {t}))
           and not (K.free_symbols & set(v))
-          and all(e == 0 or numerically_zero(e, syms) for e in gyro))
+          and all(e == 0 or numerically_zero(e, syms, signs=True) for e in gyro))
     if not ok:
         raise InputError(f"{system.name} is not of the mechanical form L = v^T M v/2 - U(t, q), "
                          "k = K(t, q) v + b(t, q) with constant M needed by this comparator")

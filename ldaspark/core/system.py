@@ -929,26 +929,46 @@ def _check_mechanical_parts(system, mech, M, Mnz) -> None:
             tol = max(tol, 16.0 * nterms * 2.0 ** -min(f._prec for f in floats))
         tested = 0
         sides = [_point_evaluator(e) for e in (lhs, rhs)]
-        for i in range(6 + 24):
-            if i == 6 and tested:
-                return None         # as before: the first box decides when one point evaluated there
-            lo, hi = (300, 700) if i < 6 else (-10000, 10000)
-            pt = {x: sympy.Rational(rng.randint(lo, hi), 1000) for x in syms}
+
+        def differ(pt):
+            """A description where the sides differ at ``pt``, True where they agree, None where
+            either side does not evaluate to a finite real number."""
             pt.update(fixed)
             try:
                 a, c = (sympy.N(at(pt), 40) for at in sides)
                 fa, fc = complex(a), complex(c)
             except (TypeError, ValueError, ZeroDivisionError, ArithmeticError):
-                continue
+                return None
             if not all(math.isfinite(z.real) and math.isfinite(z.imag) and z.imag == 0 for z in (fa, fc)):
-                continue
+                return None
             if abs(a - c) > tol * (1 + abs(fa) + abs(fc)):
                 return f"fails at a test point: {str(sympy.N(a, 6))} vs {str(sympy.N(c, 6))}"
+            return True
+
+        def on_every_sign():
+            # sides equal on the box only (U = x against Abs(x) in L): the engines integrated
+            # different systems wherever a coordinate is negative (``signed_points``)
+            if box_decides(lhs, rhs):
+                return None
+            for pt in signed_points(syms, rng):
+                got = differ(pt)
+                if got is not None and got is not True:
+                    return got
+            return None
+        for i in range(6 + 24):
+            if i == 6 and tested:
+                return on_every_sign()  # the first box decides when one point evaluated there
+            lo, hi = (300, 700) if i < 6 else (-10000, 10000)
+            got = differ({x: sympy.Rational(rng.randint(lo, hi), 1000) for x in syms})
+            if got is None:
+                continue
+            if got is not True:
+                return got
             tested += 1
             if tested == 2:
-                return None
+                return on_every_sign()
         if tested:
-            return None
+            return on_every_sign()
         # no point evaluated: only a difference that is structurally 0 passes (no simplify(): on
         # user expressions it is unbounded, the reason system.numerically_zero replaced it)
         if sympy.sympify(lhs - rhs) == 0:
@@ -1020,12 +1040,16 @@ def _short(e, limit: int = 80) -> str:
     return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
-def numerically_zero(e, syms, fixed=None, points: int = 3) -> bool:
+def numerically_zero(e, syms, fixed=None, points: int = 3, signs: bool = False) -> bool:
     """Whether the expression ``e`` in ``syms`` vanishes: at ``points`` random rational points in
     [0.3, 0.7] (``fixed``: values of parameters) evaluated to 40 digits, each finite value within
     1e-25 of 0 relative to the size of its terms. A nonzero expression differs from 0 at almost
     every point; sympy.simplify of a large one (a power (q0 + ... + q7)^16) ran for minutes. Where
-    fewer than two points evaluate (domain errors), False: the caller keeps the safe answer."""
+    fewer than two points evaluate (domain errors), False: the caller keeps the safe answer.
+
+    ``signs``: also 0 at every point of ``signed_points`` where it evaluates. An analytic expression
+    that vanishes on the box vanishes everywhere, but Abs(x) - x, sqrt(x^2) - x or Max(0, x - 1) vanish
+    on the box only: the mechanical-form detectors took such a gyroscopic term for 0 and dropped it."""
     import random
     e = sympy.sympify(e)
     if e == 0:
@@ -1033,23 +1057,65 @@ def numerically_zero(e, syms, fixed=None, points: int = 3) -> bool:
     rng = random.Random(271828)
     at = _point_evaluator(e)
     terms = [_point_evaluator(t) for t in sympy.Add.make_args(e)][:64]
-    tested = 0
-    for _ in range(2 * points):
-        pt = {x: sympy.Rational(rng.randint(300, 700), 1000) for x in syms}
+
+    def value(pt):
+        """|e| and the size of its terms at ``pt``, or None where it does not evaluate to a finite number."""
         pt.update(fixed or {})
         try:
             val = complex(sympy.N(at(pt), 40))
             scale = sum(abs(complex(sympy.N(t(pt), 20))) for t in terms)
         except (TypeError, ValueError, ZeroDivisionError, ArithmeticError):
-            continue
+            return None
         if not (math.isfinite(val.real) and math.isfinite(val.imag) and math.isfinite(scale)):
+            return None
+        return abs(val), scale
+    tested = 0
+    for _ in range(2 * points):
+        got = value({x: sympy.Rational(rng.randint(300, 700), 1000) for x in syms})
+        if got is None:
             continue
-        if abs(val) > 1e-25 * (1 + scale):
+        if got[0] > 1e-25 * (1 + got[1]):
             return False
         tested += 1
         if tested == points:
-            return True
-    return tested >= 2
+            break
+    if tested < 2:
+        return False
+    if signs and not box_decides(e):
+        for pt in signed_points(syms, rng):
+            got = value(pt)
+            if got is not None and got[0] > 1e-25 * (1 + got[1]):
+                return False
+    return True
+
+
+#: functions meromorphic in the whole plane (or real-analytic on the whole line): an identity of
+#: expressions built from them, +, * and integer powers that holds on a box holds everywhere
+_MEROMORPHIC = (sympy.sin, sympy.cos, sympy.tan, sympy.cot, sympy.sec, sympy.csc, sympy.exp, sympy.sinh,
+                sympy.cosh, sympy.tanh, sympy.coth, sympy.sech, sympy.csch, sympy.atan, sympy.erf, sympy.erfc,
+                sympy.sinc)
+
+
+def box_decides(*exprs) -> bool:
+    """Whether equality on [0.3, 0.7] implies equality everywhere (the identity theorem): no node
+    but +, *, integer powers and ``_MEROMORPHIC`` functions. Abs, Max, Piecewise, sqrt, asin, log
+    and the like agree with another expression on a box and not beyond it (``signed_points``)."""
+    for e in exprs:
+        for node in sympy.preorder_traversal(e):
+            if isinstance(node, sympy.Pow):
+                if not node.exp.is_Integer:
+                    return False
+            elif node.args and not isinstance(node, (sympy.Add, sympy.Mul) + _MEROMORPHIC):
+                return False        # Abs, Max (not a sympy Function), Piecewise, asin, log, ...
+    return True
+
+
+def signed_points(syms, rng, count: int = 8) -> list:
+    """``count`` exact points {symbol: Rational} with magnitudes in [0.3, 10] and, for every three
+    consecutive symbols, all eight sign patterns: where an identity tested on [0.3, 0.7] alone
+    holds on the positive orthant only (Abs(x) = x), one of them tells."""
+    return [{x: (-1 if (k >> (j % 3)) & 1 else 1) * sympy.Rational(rng.randint(300, 10000), 1000)
+             for j, x in enumerate(syms)} for k in range(count)]
 
 
 def _point_evaluator(e):

@@ -196,3 +196,18 @@ def test_mechanical_parts_without_K_or_with_an_unknown_key_are_refused_at_build(
     assert runs[0].status == runs[1].status == 0
     # 10 steps solved to round-off (2.2e-16) of states ~1, saddle matrices (4) of condition ~2: 1e-13
     assert np.abs(np.asarray(runs[0].q, float) - runs[1].q).max() < 1e-13
+
+
+@pytest.mark.parametrize("U", [x, sympy.Max(0, x)])
+def test_mechanical_parts_equal_to_L_on_the_test_box_only_are_refused(U):
+    """L = |v|^2/2 - Abs(x) with the mechanical part U = x: equal on [0.3, 0.7], where the parts were
+    compared with L, and not for x < 0, where the compiled engine (U) and the generic one (L)
+    integrate different systems. Compared at points of every sign too now (``signed_points``).
+    Control: U = Abs(x), and Max(x, -x) (the same function spelt otherwise), are built."""
+    def build(u):
+        return LagrangianSystem((vx ** 2 + vy ** 2 + vth ** 2) / 2 - sympy.Abs(x), [vth - sympy.sin(x) * vy],
+                                [x, y, th], [vx, vy, vth],
+                                mechanical={"M": sympy.eye(3), "U": u, "K": [[0, -sympy.sin(x), 1]]})
+    with pytest.raises(SystemDefinitionError, match="do not match L and k"):
+        build(U)
+    assert build(sympy.Abs(x)).mechanical is not None and build(sympy.Max(x, -x)).mechanical is not None
