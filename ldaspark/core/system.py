@@ -909,7 +909,11 @@ def _check_mechanical_parts(system, mech, M, Mnz) -> None:
     rows = [(f"k[{i}] = (K v + b)[{i}]", system.k[i], sympy.Add(*Kv[i]) + b[i]) for i in range(system.m)]
     rng = random.Random(12345)
     syms = list(system.q) + list(system.v) + [system.t] + list(system.params)
-    fixed = {p: sympy.sympify(val) for p, val in system._param_values.items() if not isinstance(val, str)}
+    # a parameter's float value as the exact rational it is: a Float (53 bits) bounds the precision
+    # of the whole 40-digit evaluation, and the two sides, summed in different orders, then differ
+    # far above 1e-25 (c = 0.7 in U refused a matching U: "-0.0621196 vs -0.0621196")
+    fixed = {p: (sympy.Rational(val) if isinstance(val, (float, sympy.Float)) else sympy.sympify(val))
+             for p, val in system._param_values.items() if not isinstance(val, str)}
 
     def mismatch(lhs, rhs):
         """A description of a test point where lhs and rhs differ, None when they agree at two

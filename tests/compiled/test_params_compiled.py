@@ -18,7 +18,7 @@ import sympy
 import ldaspark
 from ldaspark.compiled import codegen, native, runner
 from ldaspark.compiled.fast import compile_system
-from ldaspark.core.errors import InputError
+from ldaspark.core.errors import InputError, SystemDefinitionError
 from ldaspark.core.system import LagrangianSystem
 
 x, y, th, vx, vy, vth = sympy.symbols("x y th vx vy vth")
@@ -161,3 +161,28 @@ def test_auto_checks_a_comparator_at_the_parameter_values_where_the_compiled_eng
     with pytest.raises(InputError, match="with constant M"):
         ldaspark.integrate(varying, "lobatto-iiia-iiib-2-leapfrog", engine="auto", params={"m": 2.0},
                            **{k: v for k, v in kw.items() if k != "params"})
+
+
+def test_a_float_parameter_value_passes_the_check_of_matching_mechanical_parts():
+    """The mechanical parts are compared with L at 40 digits, with the parameters at their values:
+    c = 0.7 (a Python float, 53 bits) bounded the precision of both sides, which sympy sums in
+    different orders, and a matching U failed ("-0.0621196 vs -0.0621196"): the compiled engine
+    refused the run ("compilation failed (SystemDefinitionError)"; auto fell back) that c = "0.7"
+    or 0.5 ran. The value enters the check as the exact rational it is now. Control: a U off by
+    1e-6 x is still refused."""
+    c = sympy.Symbol("c")
+    V = sympy.Matrix([vx, vy, vth])
+    M = sympy.Matrix([[2, 0, sympy.Rational(1, 2)], [0, 2, 0], [sympy.Rational(1, 2), 0, 1]])
+    U = c * (x ** 2 + 2 * y ** 2) / 2 + sympy.cos(th) / 5
+    K = sympy.Matrix([[sympy.sin(th), -sympy.cos(th), 0]])
+
+    def build(u):
+        return LagrangianSystem((V.T * M * V)[0, 0] / 2 - U, list(K * V), [x, y, th], [vx, vy, vth], params=[c],
+                                mechanical={"M": M, "U": u, "K": K})
+    system = build(U)
+    assert compile_system(system.with_params(c=0.7)).form == "mechanical"
+    r = ldaspark.integrate(system, "gauss-2", engine="compiled", t_span=(0, 0.2), h=0.02, q0=[0.3, -0.2, 0.4],
+                           v0=[0.5, 0.5 * np.tan(0.4), 0.7], params={"c": 0.7})
+    assert r.status == 0 and r.stats["form"] == "mechanical"
+    with pytest.raises(SystemDefinitionError, match="do not match"):
+        build(U + x / 10 ** 6)
