@@ -7,7 +7,7 @@ gyroscopic term or M(q)) and gives the numbers of the 30-digit generic run on ev
 Tolerance: 50 steps of h = 0.02, each solved to the round-off of states of size ~1 (2.2e-16),
 amplified by the condition of the saddle matrix (4) (~10 for M with entries 1/2..2 and a unit row
 K): 50 * 10 * 2.2e-16 ~ 1e-13; TOL = 1e-12. The multipliers are solved as Lambda = h Psi, so Psi
-carries that error divided by h: TOL / h = 5e-11. Measured: q, v, E, k <= 2e-15, Psi <= 2e-13."""
+carries that error divided by h: TOL / h = 5e-11. Measured: q, v, E, k <= 6e-15, Psi <= 2e-13."""
 import numpy as np
 import pytest
 import sympy
