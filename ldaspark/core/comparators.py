@@ -128,7 +128,7 @@ def derive_mechanical(system: LagrangianSystem) -> dict:
     points (``numerically_zero``; then L = v^T M v / 2 - U exactly), k_v free of v (then k = K v + b).
     sympy.simplify of L - (v^T M v / 2 - U) missed identities the compiled engine found (a term
     vx (log(exp(x)) - x): the compiled comparator ran, the generic one refused)."""
-    from .system import numerically_zero
+    from .system import _derived_nonzeros, numerically_zero
     q, v, t = list(system.q), list(system.v), system.t
     zero_v = {x: 0 for x in v}
     M = system.L_vv
@@ -136,7 +136,12 @@ def derive_mechanical(system: LagrangianSystem) -> dict:
     K = system.k_v
     b = system.k.xreplace(zero_v)
     syms = q + v + [t] + list(getattr(system, "params", ()))
-    gyro = system.L_v - M * sympy.Matrix(v)
+    # grad_v L - M v row by row over the nonzero entries (the dense M v is n^2 sympy products)
+    rows: dict = {}
+    for (i, j), e in _derived_nonzeros(system, "L_vv").items():
+        rows.setdefault(i, []).append(e * v[j])
+    Lv = _derived_nonzeros(system, "L_v")
+    gyro = [Lv.get((i, 0), sympy.S.Zero) - sympy.Add(*rows.get(i, ())) for i in sorted(set(rows) | {i for i, _ in Lv})]
     ok = (not (M.free_symbols & (set(q) | set(v) | {t}))
           and not (K.free_symbols & set(v))
           and all(e == 0 or numerically_zero(e, syms, signs=True) for e in gyro))
