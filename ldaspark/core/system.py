@@ -1093,11 +1093,12 @@ def numerically_zero(e, syms, fixed=None, points: int = 3, signs: bool = False) 
     return True
 
 
-#: functions meromorphic in the whole plane (or real-analytic on the whole line): an identity of
-#: expressions built from them, +, * and integer powers that holds on a box holds everywhere
+#: functions meromorphic in the whole plane: an expression built from them, +, * and integer powers
+#: is meromorphic, analytic off a discrete set whose complement is connected, so an identity that
+#: holds on a box holds at every point where it is defined (not atan: atan(1/x) + atan(x) = pi/2 for
+#: x > 0 only, the branch points of atan met through the pole of 1/x)
 _MEROMORPHIC = (sympy.sin, sympy.cos, sympy.tan, sympy.cot, sympy.sec, sympy.csc, sympy.exp, sympy.sinh,
-                sympy.cosh, sympy.tanh, sympy.coth, sympy.sech, sympy.csch, sympy.atan, sympy.erf, sympy.erfc,
-                sympy.sinc)
+                sympy.cosh, sympy.tanh, sympy.coth, sympy.sech, sympy.csch, sympy.erf, sympy.erfc, sympy.sinc)
 
 
 def box_decides(*exprs) -> bool:

@@ -389,18 +389,20 @@ def _box_only_gyro(term):
     + vy a(x), k = vth - sin(x) vy, with a(x) = 0 for 0 < x < pi/2 but not elsewhere."""
     x, y, th, vx, vy, vth = sympy.symbols("x y th vx vy vth")
     a = {"sqrt": sympy.sqrt(x ** 2) - x, "asin": sympy.asin(sympy.sin(x)) - x,
+         "atan": sympy.atan(1 / x) + sympy.atan(x) - sympy.pi / 2,
          "zero": sympy.sin(x) ** 2 + sympy.cos(x) ** 2 - 1}[term]
     L = (2 * vx ** 2 + 2 * vy ** 2 + vth ** 2 + vx * vth) / 2 - (x ** 2 + 2 * y ** 2) / 2 + vy * a
     return LagrangianSystem(L, [vth - sympy.sin(x) * vy], [x, y, th], [vx, vy, vth], name=f"gyro-{term}")
 
 
-@pytest.mark.parametrize("term, q0", [("sqrt", [-1.5, -0.2, 0.4]), ("asin", [1.9, -0.2, 0.4])])
+@pytest.mark.parametrize("term, q0", [("sqrt", [-1.5, -0.2, 0.4]), ("asin", [1.9, -0.2, 0.4]),
+                                     ("atan", [-1.5, -0.2, 0.4])])
 def test_a_gyroscopic_term_zero_on_the_test_box_only_is_not_dropped(term, q0):
     """The mechanical-form detector decided grad_v L - M v = 0 at points in [0.3, 0.7] only: a term
     vy (sqrt(x^2) - x) or vy (asin(sin(x)) - x), zero there but not for x < 0 or x > pi/2, was taken
     for 0 and dropped; from x = -1.5 (1.9) gauss-2 ended 0.19 (0.22) away from the generic engine
-    (which integrates L), both status 0. Tested at points of every sign too now
-    (``numerically_zero(signs=True)``): the general form, the generic engine's numbers to AGREE;
+    (which integrates L), both status 0; likewise vy (atan(1/x) + atan(x) - pi/2), zero for x > 0.
+    Tested at points of every sign too now (``numerically_zero(signs=True)``): the general form, the generic engine's numbers to AGREE;
     the semi-implicit comparators refuse it on both engines."""
     system = _box_only_gyro(term)
     assert can_compile(system) == (True, "general")
