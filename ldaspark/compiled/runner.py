@@ -48,10 +48,10 @@ def mechanical_parts(system) -> dict:
     q, v, t = list(system.q), list(system.v), system.t
     mech = system.mechanical
     if mech is not None:
-        from ..core.system import check_mechanical, mechanical_parts as parts, refuse_text
+        from ..core.system import check_mechanical, completed_mechanical, refuse_text
         refuse_text(mech, f"{system.name}: mechanical")     # set by hand after construction: never sympify text
         check_mechanical(system, mech)                       # the generic engine's M (L_vv), symmetric
-        mech = parts(mech)                                   # U and b default to 0, as on every engine
+        mech = completed_mechanical(mech)                    # U and b default to 0, as on every engine
         M = _matrix(mech["M"])
         U = sympy.sympify(mech["U"], strict=True)
         K, b = mech["K"], mech["b"]

@@ -81,11 +81,11 @@ class MechanicalParts:
         if getattr(system, "N", None) is not None:
             raise InputError(f"{system.name}: the semi-implicit comparators have no nonideal term (3.3)")
         mech = system.mechanical or derive_mechanical(system)
-        from .system import check_mechanical, mechanical_parts, refuse_text
+        from .system import check_mechanical, completed_mechanical, refuse_text
         refuse_text(mech, f"{system.name}: mechanical")     # set by hand after construction: never sympify text
         if system.mechanical is not None:
             check_mechanical(system, mech)                   # the generic engine's M (L_vv), symmetric
-            mech = mechanical_parts(mech)                    # U and b default to 0, as on every engine
+            mech = completed_mechanical(mech)                # U and b default to 0, as on every engine
         q, v = system.q, system.v
         M = sympy.Matrix(mech["M"])
         if M.free_symbols:

@@ -813,7 +813,7 @@ def _check_functions(named_exprs, derived: bool = False) -> None:
 MECHANICAL_KEYS = ("M", "U", "K", "b")
 
 
-def mechanical_parts(mech) -> dict:
+def completed_mechanical(mech) -> dict:
     """The four parts of a checked ``mechanical`` dict, U and b defaulting to 0 (b as an m x 1
     column), for the engines that read them (``check_mechanical`` first)."""
     K = mech["K"] if isinstance(mech["K"], sympy.MatrixBase) else sympy.Matrix(mech["K"])
