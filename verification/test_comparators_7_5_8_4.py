@@ -173,9 +173,9 @@ def test_grad_U_once_per_step(name, per_step, extra, monkeypatch):
     calls = []
     orig = comparators.MechanicalParts.grad_U
 
-    def counting(self, q):
+    def counting(self, t, q):
         calls.append(1)
-        return orig(self, q)
+        return orig(self, t, q)
     monkeypatch.setattr(comparators.MechanicalParts, "grad_U", counting)
     sol = _run(name, "mp-particles", n=25)
     assert len(calls) == per_step * 25 + extra == sol.stats["n_grad_U"]

@@ -48,14 +48,13 @@ def mechanical_parts(system) -> dict:
     q, v, t = list(system.q), list(system.v), system.t
     mech = system.mechanical
     if mech is not None:
-        from ..core.system import check_mechanical, refuse_text
+        from ..core.system import check_mechanical, completed_mechanical, refuse_text
         refuse_text(mech, f"{system.name}: mechanical")     # set by hand after construction: never sympify text
         check_mechanical(system, mech)                       # the generic engine's M (L_vv), symmetric
+        mech = completed_mechanical(mech)                    # U and b default to 0, as on every engine
         M = _matrix(mech["M"])
         U = sympy.sympify(mech["U"], strict=True)
-        K = _matrix(mech["K"])
-        b = sympy.Matrix(mech.get("b") if mech.get("b") is not None else sympy.zeros(K.rows, 1))
-        b = b.reshape(K.rows, 1)
+        K, b = mech["K"], mech["b"]
     else:
         # on the nonzero entries of the sparse derivation: the dense L_vv, M v and simplify of
         # every row cost 2.7 s at n = 121 (what a first integrate of such a system waited)
@@ -72,7 +71,7 @@ def mechanical_parts(system) -> dict:
             gyro = Lv.get((i, 0), sympy.S.Zero) - sympy.Add(*rows.get(i, ()))
             # decided at random points (parameters too: one model serves every value), not by
             # sympy.simplify (minutes for a large power)
-            if gyro != 0 and not numerically_zero(gyro, q + v + [t] + list(system.params)):
+            if gyro != 0 and not numerically_zero(gyro, q + v + [t] + list(system.params), signs=True):
                 raise NotCompilableError(f"{system.name}: grad_v L is not M v (terms linear in v); not mechanical "
                                          "form")
         M = sympy.SparseMatrix(system.n, system.n, Mnz)
@@ -273,25 +272,41 @@ def compile_system(system, form: str = "auto") -> CompiledSystem:
     shared = system.__dict__.get("_compiled") if getattr(system, "params", ()) else None
     tpl = None if shared is None else shared.get(("compiled.runner", form))
     if tpl is not None:
-        cs = _with_values(system, tpl)
+        try:
+            cs = _with_values(system, tpl)
+        except SingularMassError:
+            if form == "mechanical":
+                raise
+            # M singular at these values only: the general form, as when they came first
+            cs = compile_system(system, "general")
         _COMPILED[key] = (system, cs)
         return cs
-    cs = None
+    cs, by_value = None, False
     if form in ("auto", "mechanical"):
         try:
             cs = _mechanical(system)
-        except NotCompilableError:
+        except NotCompilableError as exc:
             if form == "mechanical":
                 raise
-    if cs is None:
+            # a mass matrix singular at these parameter values is no reason to give every other
+            # value the general form: the form must not depend on the values run first
+            by_value = isinstance(exc, SingularMassError) and shared is not None
+    if by_value:
+        cs = compile_system(system, "general")
+    elif cs is None:
         eye = np.eye(system.n)
         cs = CompiledSystem(system.name, system.n, system.m, general_source(system), eye, eye, "general",
                             _param_floats(system))
     _COMPILED[key] = (system, cs)
-    if shared is not None:
+    if shared is not None and not by_value:
         M = _mechanical_matrix(system) if cs.form == "mechanical" else None
         shared[("compiled.runner", form)] = (cs, M)
     return cs
+
+
+class SingularMassError(NotCompilableError):
+    """The mechanical form's M is singular (at the run's parameter values, for a system with
+    parameters): no M^-1 for the mechanical kernels; the general form runs it."""
 
 
 def _with_values(system, tpl):
@@ -319,7 +334,7 @@ def _numeric_mass(system, Msym):
     try:
         Minv = np.linalg.inv(M)
     except np.linalg.LinAlgError:
-        raise NotCompilableError(f"{system.name}: mass matrix M is singular") from None
+        raise SingularMassError(f"{system.name}: mass matrix M is singular") from None
     return np.ascontiguousarray(M), np.ascontiguousarray(Minv)
 
 

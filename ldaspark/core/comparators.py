@@ -20,7 +20,7 @@ Names (shared contract between engineers):
 * ``euler-i-ii-composition``, ``euler-ii-i-composition``: "symplectic" Euler SPARK I then II
   (resp. II then I), each with step h/2 (7.5: neither equals Lobatto IIIA-B).
 
-Mechanical systems are L = 1/2 v^T M v - U(q), k = K(q) v + b(q) with constant M; the parts
+Mechanical systems are L = 1/2 v^T M v - U(t, q), k = K(t, q) v + b(t, q) with constant M; the parts
 are taken from ``system.mechanical`` or derived from L and k (``mechanical_parts``).
 Every Solution's ``stats`` carries ``n_grad_U`` (evaluations of grad U, or of grad_q L for the
 SPARK-based comparators, one per stage point per Newton iteration).
@@ -59,7 +59,9 @@ def require_mechanical(name: str, system: LagrangianSystem) -> None:
     """The InputError comparator ``name`` gives a system it cannot run, before any step (None when
     it can): what the driver raises instead of falling back to an engine that refuses it too."""
     if name in MECHANICAL_ONLY:
-        MechanicalParts(system, Backend(None))
+        # at the run's parameter values, as the comparator engine runs it (``engines.comparator``):
+        # a mass matrix with a parameter is constant, not a refusal
+        MechanicalParts(system.substituted() if getattr(system, "params", ()) else system, Backend(None))
 
 
 def comparator_names(max_s: int = 4) -> list[str]:
@@ -79,10 +81,11 @@ class MechanicalParts:
         if getattr(system, "N", None) is not None:
             raise InputError(f"{system.name}: the semi-implicit comparators have no nonideal term (3.3)")
         mech = system.mechanical or derive_mechanical(system)
-        from .system import check_mechanical, refuse_text
+        from .system import check_mechanical, completed_mechanical, refuse_text
         refuse_text(mech, f"{system.name}: mechanical")     # set by hand after construction: never sympify text
         if system.mechanical is not None:
             check_mechanical(system, mech)                   # the generic engine's M (L_vv), symmetric
+            mech = completed_mechanical(mech)                # U and b default to 0, as on every engine
         q, v = system.q, system.v
         M = sympy.Matrix(mech["M"])
         if M.free_symbols:
@@ -90,48 +93,61 @@ class MechanicalParts:
         K = sympy.Matrix(mech["K"])
         b = sympy.Matrix(mech["b"]).reshape(K.rows, 1)
         U = sympy.sympify(mech["U"], strict=True)
-        gU = real_jacobian([U], q, list(q)).T
-        kq = real_jacobian(K * sympy.Matrix(v) + b, q, list(q) + list(v))
+        tq = [system.t] + list(q)       # U, K, b may depend on t (section 7 with U(t, q), K(t, q), b(t, q))
+        gU = real_jacobian([U], q, tq).T
+        kq = real_jacobian(K * sympy.Matrix(v) + b, q, tq + list(v))
         mod = [_NONSMOOTH, backend.lambdify_module]      # Abs' = sign, sign' = 0 off its jump
         self.bk = backend
         self.n, self.m = system.n, K.rows
         with backend.context():
             self.M = backend.array([[M[i, j] for j in range(self.n)] for i in range(self.n)])
         from .gensource import lambdify      # no user text in generated source
-        self._gU = lambdify(list(q), gU.tolist(), mod[1], namespaces=mod[:1])
-        self._K = lambdify(list(q), [K.tolist(), b.tolist()], mod[1], namespaces=mod[:1])
-        self._kq = lambdify(list(q) + list(v), kq.tolist(), mod[1], namespaces=mod[:1])
+        self._gU = lambdify(tq, gU.tolist(), mod[1], namespaces=mod[:1])
+        self._K = lambdify(tq, [K.tolist(), b.tolist()], mod[1], namespaces=mod[:1])
+        self._kq = lambdify(tq + list(v), kq.tolist(), mod[1], namespaces=mod[:1])
         self.n_grad_U = 0
 
-    def grad_U(self, q):
+    def grad_U(self, t, q):
         self.n_grad_U += 1
-        return _arr(self._gU(*q), self.bk)[:, 0]
+        return _arr(self._gU(t, *q), self.bk)[:, 0]
 
-    def K_b(self, q):
-        K, b = self._K(*q)
-        return _arr(K, self.bk).reshape(self.m, self.n), _arr(b, self.bk)[:, 0]
+    def K_b(self, t, q):
+        K, b = self._K(t, *q)
+        # reshaped, not indexed: m = 0 prints b as [] (shape (0,), no column to index)
+        return _arr(K, self.bk).reshape(self.m, self.n), _arr(b, self.bk).reshape(self.m)
 
-    def k_q(self, q, v):
-        return _arr(self._kq(*q, *v), self.bk).reshape(self.m, self.n)
+    def k_q(self, t, q, v):
+        return _arr(self._kq(t, *q, *v), self.bk).reshape(self.m, self.n)
 
 
 def derive_mechanical(system: LagrangianSystem) -> dict:
-    """M, U, K, b with L = 1/2 v^T M v - U(q) and k = K(q) v + b(q), or InputError."""
-    v = sympy.Matrix(system.v)
-    zero_v = {x: 0 for x in system.v}
+    """M, U, K, b with L = 1/2 v^T M v - U(t, q) and k = K(t, q) v + b(t, q), M constant (the form
+    the compiled engine detects, ``compiled.runner.mechanical_parts``), or InputError.
+
+    Decided as the compiled engine decides it: L_vv free of (t, q, v), grad_v L - M v = 0 at random
+    points (``numerically_zero``; then L = v^T M v / 2 - U exactly), k_v free of v (then k = K v + b).
+    sympy.simplify of L - (v^T M v / 2 - U) missed identities the compiled engine found (a term
+    vx (log(exp(x)) - x): the compiled comparator ran, the generic one refused)."""
+    from .system import _derived_nonzeros, numerically_zero
+    q, v, t = list(system.q), list(system.v), system.t
+    zero_v = {x: 0 for x in v}
     M = system.L_vv
-    U = -system.L.subs(zero_v)
+    U = -system.L.xreplace(zero_v)
     K = system.k_v
-    b = system.k.subs(zero_v)
-    ok = (not (M.free_symbols & (set(system.q) | set(system.v) | {system.t}))
-          and sympy.simplify(system.L - ((v.T * M * v)[0, 0] / 2 - U)) == 0
-          and not (U.free_symbols & (set(system.v) | {system.t}))
-          and not (K.free_symbols & (set(system.v) | {system.t}))
-          and not (b.free_symbols & {system.t})
-          and sympy.simplify(system.k - (K * v + b)) == sympy.zeros(system.m, 1))
+    b = system.k.xreplace(zero_v)
+    syms = q + v + [t] + list(getattr(system, "params", ()))
+    # grad_v L - M v row by row over the nonzero entries (the dense M v is n^2 sympy products)
+    rows: dict = {}
+    for (i, j), e in _derived_nonzeros(system, "L_vv").items():
+        rows.setdefault(i, []).append(e * v[j])
+    Lv = _derived_nonzeros(system, "L_v")
+    gyro = [Lv.get((i, 0), sympy.S.Zero) - sympy.Add(*rows.get(i, ())) for i in sorted(set(rows) | {i for i, _ in Lv})]
+    ok = (not (M.free_symbols & (set(q) | set(v) | {t}))
+          and not (K.free_symbols & set(v))
+          and all(e == 0 or numerically_zero(e, syms, signs=True) for e in gyro))
     if not ok:
-        raise InputError(f"{system.name} is not of the mechanical form L = v^T M v/2 - U(q), "
-                         "k = K(q) v + b(q) with constant M needed by this comparator")
+        raise InputError(f"{system.name} is not of the mechanical form L = v^T M v/2 - U(t, q), "
+                         "k = K(t, q) v + b(t, q) with constant M needed by this comparator")
     return {"M": M, "U": U, "K": K, "b": b}
 
 
@@ -371,47 +387,50 @@ def _leapfrog(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, constraint, na
         n, m, M, iters = mp.n, mp.m, mp.M, 0
         counts = {"nfev": 0, "njev": 0, "nlu": 0, "newton_iterations": 0}
         ts, Qs, Vs, Ps = [t0_], [q], [v], []
-        g = mp.grad_U(q)
+        g = mp.grad_U(t0_, q)
         w = None                 # v_{k-1/2}
         psi2_prev = bk.zeros(m)  # Psi_{2,k-1}
         x = np.concatenate([v, bk.zeros(m)])
         # a failure in a step (its Newton, or a point outside the domain) carries the counters
         with _counted(lambda: dict(counts, steps=len(ts) - 1)):
             for k in range(n_steps):
-                with _domain(k, ts[-1]):
-                    Kk, bk_k = mp.K_b(q)
+                # t_k, and where the constraint is imposed: t_{k+1} (mean) or t_k + h/2 (midpoint)
+                tk, t1 = ts[-1], t0_ + (k + 1) * h_
+                tc = t1 if constraint == "mean" else tk + half
+                with _domain(k, tk):
+                    Kk, bk_k = mp.K_b(tk, q)
                 rhs = M.dot(v) - half * g if k == 0 else M.dot(w) - h_ * g
 
-                def fun(z, q=q, Kk=Kk, bk_k=bk_k, rhs=rhs):
+                def fun(z, q=q, Kk=Kk, bk_k=bk_k, rhs=rhs, tc=tc):
                     vh, lam = z[:n], z[n:]
                     r1 = M.dot(vh) + Kk.T.dot(lam) - rhs
                     if constraint == "mean":
                         q1 = q + h_ * vh
-                        K1, b1 = mp.K_b(q1)
+                        K1, b1 = mp.K_b(tc, q1)
                         r2 = (Kk.dot(vh) + bk_k + K1.dot(vh) + b1) / 2
-                        Cv = (Kk + K1 + h_ * mp.k_q(q1, vh)) / 2
+                        Cv = (Kk + K1 + h_ * mp.k_q(tc, q1, vh)) / 2
                     else:
                         qm = q + half * vh
-                        Km, bm = mp.K_b(qm)
+                        Km, bm = mp.K_b(tc, qm)
                         r2 = Km.dot(vh) + bm
-                        Cv = Km + half * mp.k_q(qm, vh)
+                        Cv = Km + half * mp.k_q(tc, qm, vh)
                     return np.concatenate([r1, r2]), _saddle(bk, M, Kk.T, Cv)
 
-                x, it = _newton(fun, x, bk, tol, max_iter, k, ts[-1], counts)
+                x, it = _newton(fun, x, bk, tol, max_iter, k, tk, counts)
                 iters += it
                 w, lam = x[:n], x[n:]
                 q = q + h_ * w
                 # output v_{k+1} and Psi_{2,k} from the (otherwise unneeded) linear system
-                with _domain(k, ts[-1]):          # q_{k+1} outside the domain: step k failed
-                    g = mp.grad_U(q)
-                    K1, b1 = mp.K_b(q)
+                with _domain(k, tk):              # q_{k+1} outside the domain: step k failed
+                    g = mp.grad_U(t1, q)
+                    K1, b1 = mp.K_b(t1, q)
                     sol = bk.solve(_saddle(bk, M, K1.T, K1), np.concatenate([M.dot(w) - half * g, -b1]))
                 counts["nlu"] += 1
                 v, mu = sol[:n], sol[n:]
                 psi2 = mu / half
                 psi1 = lam / half - psi2_prev
                 psi2_prev = psi2
-                ts.append(t0_ + (k + 1) * h_)
+                ts.append(t1)
                 Qs.append(q)
                 Vs.append(v)
                 Ps.append([psi1, psi2])
@@ -434,26 +453,27 @@ def _mp_iiib_a(system, t0, q0, v0, h, n_steps, dps, tol, max_iter, name, progres
         # a failure in a step (its Newton, or a point outside the domain) carries the counters
         with _counted(lambda: dict(counts, steps=len(ts) - 1)):
             for k in range(n_steps):
-                Q1 = q + half * v                                   # (26a)
-                with _domain(k, ts[-1]):
-                    g = mp.grad_U(Q1)
-                    KQ, _ = mp.K_b(Q1)
+                tk, t1 = ts[-1], t0_ + (k + 1) * h_
+                Q1 = q + half * v                                   # (26a), at t_k + h/2
+                with _domain(k, tk):
+                    g = mp.grad_U(tk + half, Q1)
+                    KQ, _ = mp.K_b(tk + half, Q1)
                 rhs = M.dot(v) - h_ * g
 
-                def fun(z, q=q, v=v, KQ=KQ, rhs=rhs):
+                def fun(z, q=q, v=v, KQ=KQ, rhs=rhs, t1=t1):
                     v1, lam = z[:n], z[n:]
                     r1 = M.dot(v1) + KQ.T.dot(lam) - rhs            # (26b), lam = h Psi_1
                     q1 = q + half * (v + v1)                        # (26c)
-                    K1, b1 = mp.K_b(q1)
-                    r2 = K1.dot(v1) + b1                            # (26d)
-                    return np.concatenate([r1, r2]), _saddle(bk, M, KQ.T, K1 + half * mp.k_q(q1, v1))
+                    K1, b1 = mp.K_b(t1, q1)
+                    r2 = K1.dot(v1) + b1                            # (26d), at t_{k+1}
+                    return np.concatenate([r1, r2]), _saddle(bk, M, KQ.T, K1 + half * mp.k_q(t1, q1, v1))
 
-                x, it = _newton(fun, x, bk, tol, max_iter, k, ts[-1], counts)
+                x, it = _newton(fun, x, bk, tol, max_iter, k, tk, counts)
                 iters += it
                 v1, lam = x[:n], x[n:]
                 q = q + half * (v + v1)
                 v = v1
-                ts.append(t0_ + (k + 1) * h_)
+                ts.append(t1)
                 Qs.append(q)
                 Vs.append(v)
                 Ps.append([lam / h_])

@@ -171,14 +171,18 @@ class LagrangianSystem:
         self._fn_exprs = {}
 
     @classmethod
-    def mechanical_form(cls, M, U, K, b=None, q=None, v=None, name="system"):
+    def mechanical_form(cls, M, U, K, b=None, q=None, v=None, name="system", params=None, t=None):
         """L = 1/2 v^T M v - U(q), k = K(q) v + b(q) (section 7); M, K sympy matrices. U, K and b
-        may also depend on the time t (the symbol ``t``, by that name in text too)."""
+        may also depend on the time t (the symbol ``t``, by that name in text too, or the symbol
+        given as ``t``); ``params`` as in LagrangianSystem (M, U, K, b may contain them)."""
         n = _matrix_rows(M, f"{name}: M")
         # None (not any falsy value: q=[] or an empty array is a wrong length, not the default)
         q = _symbol_list(q, "q") if q is not None else list(sympy.symbols(f"q0:{n}"))
         v = _symbol_list(v, "v") if v is not None else list(sympy.symbols(f"v0:{n}"))
-        names = _names(q, v, [sympy.Symbol("t")])      # the system's t (t=None below), as in LagrangianSystem's text
+        t = _time_symbol(t) if t is not None else sympy.Symbol("t")     # the constructor's default t
+        # the names text may use: those of LagrangianSystem (q, v, t, the parameters)
+        pnames = [_symbol(p, "parameter") for p in params] if isinstance(params, (list, tuple, dict)) else []
+        names = _names(q, v, [t], pnames)
         M, U, K, b = (_exprs(x, names, what) for x, what in ((M, "M"), (U, "U"), (K, "K"), (b, "b")))
         try:
             M = sympy.Matrix(M)
@@ -198,7 +202,7 @@ class LagrangianSystem:
         vv = sympy.Matrix(v)
         L = (vv.T * M * vv)[0, 0] / 2 - U
         k = list(K * vv + b)
-        return cls(L, k, q, v, name=name, mechanical={"M": M, "U": U, "K": K, "b": b})
+        return cls(L, k, q, v, t=t, name=name, mechanical={"M": M, "U": U, "K": K, "b": b}, params=params)
 
     @classmethod
     def from_mechanics(cls, model, q=None, constraints=None, params=None, name: str = "system"):
@@ -250,8 +254,13 @@ class LagrangianSystem:
             return self
         vals = self._param_arg_values(None)
         sub = {p: _param_value(x, p) for p, x in zip(self.params, vals)}
-        mech = None if self.mechanical is None else {
-            key: (sympy.sympify(val).subs(sub) if val is not None else None) for key, val in self.mechanical.items()}
+        mech = None
+        if self.mechanical is not None:
+            refuse_text(self.mechanical, f"{self.name}: mechanical")    # set by hand: never sympify text
+            # parts given as lists of rows (or arrays) are matrices (sympify keeps a list, without subs)
+            mech = {key: None if val is None else (sympy.Matrix(val) if isinstance(val, (list, tuple, np.ndarray))
+                                                   else sympy.sympify(val)).subs(sub)
+                    for key, val in self.mechanical.items()}
         N = None if self.N is None else [e.subs(sub) for e in self.N]
         return LagrangianSystem(self.L.subs(sub), [e.subs(sub) for e in self.k], self.q, self.v, self.t,
                                 name=self.name, mechanical=mech, nonideal=N, psi=self.psi)
@@ -800,13 +809,33 @@ def _check_functions(named_exprs, derived: bool = False) -> None:
     gensource.check_expressions(named_exprs, derived=derived)
 
 
+#: the parts of the mechanical form (section 7): L = 1/2 v^T M v - U, k = K v + b
+MECHANICAL_KEYS = ("M", "U", "K", "b")
+
+
+def completed_mechanical(mech) -> dict:
+    """The four parts of a checked ``mechanical`` dict, U and b defaulting to 0 (b as an m x 1
+    column), for the engines that read them (``check_mechanical`` first)."""
+    K = mech["K"] if isinstance(mech["K"], sympy.MatrixBase) else sympy.Matrix(mech["K"])
+    b = mech.get("b")
+    b = sympy.zeros(K.rows, 1) if b is None else sympy.Matrix(b).reshape(K.rows, 1)
+    return {"M": mech["M"], "U": mech.get("U", sympy.S.Zero), "K": K, "b": b}
+
+
 def check_mechanical(system, mech) -> None:
     """The mechanical form's M (used by the compiled engine and the semi-implicit comparators)
     is square, symmetric and equal to L_vv (used by the generic engine): one mass matrix for
     every engine. A non-symmetric M gave the compiled engine M and the generic one its
-    symmetric part, 4e-2 apart, without a word."""
+    symmetric part, 4e-2 apart, without a word. The keys are M, U, K and b, K required."""
     if not isinstance(mech, dict) or "M" not in mech:
         raise SystemDefinitionError(f"{system.name}: mechanical must be a dict with M, U, K (and b)")
+    # every engine reads the same four parts: an unknown key ("B" for b) or a missing K was
+    # accepted here and then a KeyError of one engine, while another ran without it
+    unknown = sorted(map(str, set(mech) - set(MECHANICAL_KEYS)))
+    if unknown or mech.get("K") is None:
+        what = f"has keys {unknown} it does not know" if unknown else "has no K"
+        raise SystemDefinitionError(f"{system.name}: mechanical {what}: it takes M, U, K (m x n, 0 x n without "
+                                    "constraints) and b (U and b default to 0)")
     refuse_text(mech, f"{system.name}: mechanical")
     try:
         M = mech["M"] if isinstance(mech["M"], sympy.MatrixBase) else sympy.Matrix(mech["M"])
@@ -880,7 +909,11 @@ def _check_mechanical_parts(system, mech, M, Mnz) -> None:
     rows = [(f"k[{i}] = (K v + b)[{i}]", system.k[i], sympy.Add(*Kv[i]) + b[i]) for i in range(system.m)]
     rng = random.Random(12345)
     syms = list(system.q) + list(system.v) + [system.t] + list(system.params)
-    fixed = {p: sympy.sympify(val) for p, val in system._param_values.items() if not isinstance(val, str)}
+    # a parameter's float value as the exact rational it is: a Float (53 bits) bounds the precision
+    # of the whole 40-digit evaluation, and the two sides, summed in different orders, then differ
+    # far above 1e-25 (c = 0.7 in U refused a matching U: "-0.0621196 vs -0.0621196")
+    fixed = {p: (sympy.Rational(val) if isinstance(val, (float, sympy.Float)) else sympy.sympify(val))
+             for p, val in system._param_values.items() if not isinstance(val, str)}
 
     def mismatch(lhs, rhs):
         """A description of a test point where lhs and rhs differ, None when they agree at two
@@ -900,26 +933,46 @@ def _check_mechanical_parts(system, mech, M, Mnz) -> None:
             tol = max(tol, 16.0 * nterms * 2.0 ** -min(f._prec for f in floats))
         tested = 0
         sides = [_point_evaluator(e) for e in (lhs, rhs)]
-        for i in range(6 + 24):
-            if i == 6 and tested:
-                return None         # as before: the first box decides when one point evaluated there
-            lo, hi = (300, 700) if i < 6 else (-10000, 10000)
-            pt = {x: sympy.Rational(rng.randint(lo, hi), 1000) for x in syms}
+
+        def differ(pt):
+            """A description where the sides differ at ``pt``, True where they agree, None where
+            either side does not evaluate to a finite real number."""
             pt.update(fixed)
             try:
                 a, c = (sympy.N(at(pt), 40) for at in sides)
                 fa, fc = complex(a), complex(c)
             except (TypeError, ValueError, ZeroDivisionError, ArithmeticError):
-                continue
+                return None
             if not all(math.isfinite(z.real) and math.isfinite(z.imag) and z.imag == 0 for z in (fa, fc)):
-                continue
+                return None
             if abs(a - c) > tol * (1 + abs(fa) + abs(fc)):
                 return f"fails at a test point: {str(sympy.N(a, 6))} vs {str(sympy.N(c, 6))}"
+            return True
+
+        def on_every_sign():
+            # sides equal on the box only (U = x against Abs(x) in L): the engines integrated
+            # different systems wherever a coordinate is negative (``signed_points``)
+            if box_decides(lhs, rhs):
+                return None
+            for pt in signed_points(syms, rng):
+                got = differ(pt)
+                if got is not None and got is not True:
+                    return got
+            return None
+        for i in range(6 + 24):
+            if i == 6 and tested:
+                return on_every_sign()  # the first box decides when one point evaluated there
+            lo, hi = (300, 700) if i < 6 else (-10000, 10000)
+            got = differ({x: sympy.Rational(rng.randint(lo, hi), 1000) for x in syms})
+            if got is None:
+                continue
+            if got is not True:
+                return got
             tested += 1
             if tested == 2:
-                return None
+                return on_every_sign()
         if tested:
-            return None
+            return on_every_sign()
         # no point evaluated: only a difference that is structurally 0 passes (no simplify(): on
         # user expressions it is unbounded, the reason system.numerically_zero replaced it)
         if sympy.sympify(lhs - rhs) == 0:
@@ -991,12 +1044,16 @@ def _short(e, limit: int = 80) -> str:
     return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
-def numerically_zero(e, syms, fixed=None, points: int = 3) -> bool:
+def numerically_zero(e, syms, fixed=None, points: int = 3, signs: bool = False) -> bool:
     """Whether the expression ``e`` in ``syms`` vanishes: at ``points`` random rational points in
     [0.3, 0.7] (``fixed``: values of parameters) evaluated to 40 digits, each finite value within
     1e-25 of 0 relative to the size of its terms. A nonzero expression differs from 0 at almost
     every point; sympy.simplify of a large one (a power (q0 + ... + q7)^16) ran for minutes. Where
-    fewer than two points evaluate (domain errors), False: the caller keeps the safe answer."""
+    fewer than two points evaluate (domain errors), False: the caller keeps the safe answer.
+
+    ``signs``: also 0 at every point of ``signed_points`` where it evaluates. An analytic expression
+    that vanishes on the box vanishes everywhere, but Abs(x) - x, sqrt(x^2) - x or Max(0, x - 1) vanish
+    on the box only: the mechanical-form detectors took such a gyroscopic term for 0 and dropped it."""
     import random
     e = sympy.sympify(e)
     if e == 0:
@@ -1004,23 +1061,66 @@ def numerically_zero(e, syms, fixed=None, points: int = 3) -> bool:
     rng = random.Random(271828)
     at = _point_evaluator(e)
     terms = [_point_evaluator(t) for t in sympy.Add.make_args(e)][:64]
-    tested = 0
-    for _ in range(2 * points):
-        pt = {x: sympy.Rational(rng.randint(300, 700), 1000) for x in syms}
+
+    def value(pt):
+        """|e| and the size of its terms at ``pt``, or None where it does not evaluate to a finite number."""
         pt.update(fixed or {})
         try:
             val = complex(sympy.N(at(pt), 40))
             scale = sum(abs(complex(sympy.N(t(pt), 20))) for t in terms)
         except (TypeError, ValueError, ZeroDivisionError, ArithmeticError):
-            continue
+            return None
         if not (math.isfinite(val.real) and math.isfinite(val.imag) and math.isfinite(scale)):
+            return None
+        return abs(val), scale
+    tested = 0
+    for _ in range(2 * points):
+        got = value({x: sympy.Rational(rng.randint(300, 700), 1000) for x in syms})
+        if got is None:
             continue
-        if abs(val) > 1e-25 * (1 + scale):
+        if got[0] > 1e-25 * (1 + got[1]):
             return False
         tested += 1
         if tested == points:
-            return True
-    return tested >= 2
+            break
+    if tested < 2:
+        return False
+    if signs and not box_decides(e):
+        for pt in signed_points(syms, rng):
+            got = value(pt)
+            if got is not None and got[0] > 1e-25 * (1 + got[1]):
+                return False
+    return True
+
+
+#: functions meromorphic in the whole plane: an expression built from them, +, * and integer powers
+#: is meromorphic, analytic off a discrete set whose complement is connected, so an identity that
+#: holds on a box holds at every point where it is defined (not atan: atan(1/x) + atan(x) = pi/2 for
+#: x > 0 only, the branch points of atan met through the pole of 1/x)
+_MEROMORPHIC = (sympy.sin, sympy.cos, sympy.tan, sympy.cot, sympy.sec, sympy.csc, sympy.exp, sympy.sinh,
+                sympy.cosh, sympy.tanh, sympy.coth, sympy.sech, sympy.csch, sympy.erf, sympy.erfc, sympy.sinc)
+
+
+def box_decides(*exprs) -> bool:
+    """Whether equality on [0.3, 0.7] implies equality everywhere (the identity theorem): no node
+    but +, *, integer powers and ``_MEROMORPHIC`` functions. Abs, Max, Piecewise, sqrt, asin, log
+    and the like agree with another expression on a box and not beyond it (``signed_points``)."""
+    for e in exprs:
+        for node in sympy.preorder_traversal(e):
+            if isinstance(node, sympy.Pow):
+                if not node.exp.is_Integer:
+                    return False
+            elif node.args and not isinstance(node, (sympy.Add, sympy.Mul) + _MEROMORPHIC):
+                return False        # Abs, Max (not a sympy Function), Piecewise, asin, log, ...
+    return True
+
+
+def signed_points(syms, rng, count: int = 8) -> list:
+    """``count`` exact points {symbol: Rational} with magnitudes in [0.3, 10] and, for every three
+    consecutive symbols, all eight sign patterns: where an identity tested on [0.3, 0.7] alone
+    holds on the positive orthant only (Abs(x) = x), one of them tells."""
+    return [{x: (-1 if (k >> (j % 3)) & 1 else 1) * sympy.Rational(rng.randint(300, 10000), 1000)
+             for j, x in enumerate(syms)} for k in range(count)]
 
 
 def _point_evaluator(e):

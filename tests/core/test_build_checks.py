@@ -138,3 +138,76 @@ def test_mechanical_form_text_may_use_the_time_t():
     sym = LagrangianSystem.mechanical_form(sympy.eye(2), text.q[0] ** 2 * (1 + sympy.cos(t)), [[1, 1]],
                                            b=[sympy.sin(t)])
     assert text.L == sym.L and list(text.k) == list(sym.k) and text.t == sym.t == t
+
+
+def test_mechanical_form_takes_parameters_and_the_time_symbol():
+    """mechanical_form had neither ``params`` nor ``t``: M = diag(a, 1) was refused with "declare them
+    with params=[...]", and params=[a] was a TypeError (not an LdasparkError); a time symbol with
+    assumptions (Symbol("t", real=True)) in U was refused as a second 't' that could not be
+    renamed. Both are taken now, as by LagrangianSystem: the same L, k and parameters as the
+    system built from L and k, the same numbers from integrate (generic engine, 20 steps: equal to
+    the last bit, the same derived expressions). Control: an undeclared symbol is still refused."""
+    a = sympy.Symbol("a", positive=True)
+    t = sympy.Symbol("t", real=True)
+    M, U, K = sympy.diag(a, 1, 1), a * x ** 2 / 2 + sympy.sin(t) * y, [[-sympy.sin(th), 1, 0]]
+    mech = LagrangianSystem.mechanical_form(M, U, K, q=[x, y, th], v=[vx, vy, vth], params=[a], t=t)
+    text = LagrangianSystem.mechanical_form([["a", 0, 0], [0, 1, 0], [0, 0, 1]], "a*x**2/2 + sin(t)*y",
+                                            [["-sin(th)", 1, 0]], q=["x", "y", "th"], v=["vx", "vy", "vth"],
+                                            params=[a], t=t)
+    V = sympy.Matrix([vx, vy, vth])
+    direct = LagrangianSystem((V.T * M * V)[0, 0] / 2 - U, [vy - sympy.sin(th) * vx], [x, y, th], [vx, vy, vth],
+                              t=t, params=[a])
+    assert mech.params == text.params == direct.params == (a,) and mech.t is t and text.t is t
+    assert sympy.expand(mech.L - direct.L) == 0 and sympy.expand(text.L - direct.L) == 0
+    assert list(mech.k) == list(direct.k)
+    runs = [ldaspark.integrate(s, "gauss-2", t_span=(0, 0.4), q0=Q0, v0=V0, h=0.02, params={"a": 1.5},
+                               engine="generic") for s in (mech, direct)]
+    assert runs[0].status == runs[1].status == 0
+    assert np.array_equal(runs[0].q, runs[1].q) and np.array_equal(runs[0].v, runs[1].v)
+    with pytest.raises(SystemDefinitionError, match="params"):
+        LagrangianSystem.mechanical_form(M, U, K, q=[x, y, th], v=[vx, vy, vth], t=t)
+    with pytest.raises(SystemDefinitionError, match="'t'"):
+        LagrangianSystem.mechanical_form(M, U, K, q=[x, y, th], v=[vx, vy, vth], params=[a])
+
+
+def _plane(mech):
+    """The toy's kinetic part with a heading constraint, with the mechanical parts ``mech`` (the
+    value 0 of M or K: the system's own)."""
+    V = sympy.Matrix([vx, vy, vth])
+    M, K = sympy.diag(2, 2, 1), sympy.Matrix([[-sympy.sin(th), 1, 0]])
+    return LagrangianSystem((V.T * M * V)[0, 0] / 2, list(K * V), [x, y, th], [vx, vy, vth], name="plane",
+                            mechanical={key: {"M": M, "K": K}[key] if val == 0 and key in "MK" else val
+                                                for key, val in mech.items()})
+
+
+@pytest.mark.parametrize("mech, why", [({"M": 0}, "has no K"), ({"M": 0, "U": 0, "K": None}, "has no K"),
+                                       ({"M": 0, "K": 0, "B": [0]}, r"keys \['B'\]")])
+def test_mechanical_parts_without_K_or_with_an_unknown_key_are_refused_at_build(mech, why):
+    """A mechanical dict without K (or K None), or with a key it does not know ("B" for b), was
+    built; then the compiled engine failed with "compilation failed (KeyError)" and fell back,
+    and the generic semi-implicit comparators raised a bare KeyError 'K' (or 'b', where the
+    compiled kernel had taken b = 0). Refused at build now, naming the key. Control: M and K
+    alone (U and b omitted, both 0) run every engine with the same numbers."""
+    with pytest.raises(SystemDefinitionError, match=why):
+        _plane(mech)
+    system = _plane({"M": 0, "K": 0})
+    runs = [ldaspark.integrate(system, "lobatto-iiia-iiib-2-leapfrog", t_span=(0, 0.2), q0=Q0, v0=V0, h=0.02,
+                               engine=engine) for engine in ("generic", "compiled")]
+    assert runs[0].status == runs[1].status == 0
+    # 10 steps solved to round-off (2.2e-16) of states ~1, saddle matrices (4) of condition ~2: 1e-13
+    assert np.abs(np.asarray(runs[0].q, float) - runs[1].q).max() < 1e-13
+
+
+@pytest.mark.parametrize("U", [x, sympy.Max(0, x)])
+def test_mechanical_parts_equal_to_L_on_the_test_box_only_are_refused(U):
+    """L = |v|^2/2 - Abs(x) with the mechanical part U = x: equal on [0.3, 0.7], where the parts were
+    compared with L, and not for x < 0, where the compiled engine (U) and the generic one (L)
+    integrate different systems. Compared at points of every sign too now (``signed_points``).
+    Control: U = Abs(x), and Max(x, -x) (the same function spelt otherwise), are built."""
+    def build(u):
+        return LagrangianSystem((vx ** 2 + vy ** 2 + vth ** 2) / 2 - sympy.Abs(x), [vth - sympy.sin(x) * vy],
+                                [x, y, th], [vx, vy, vth],
+                                mechanical={"M": sympy.eye(3), "U": u, "K": [[0, -sympy.sin(x), 1]]})
+    with pytest.raises(SystemDefinitionError, match="do not match L and k"):
+        build(U)
+    assert build(sympy.Abs(x)).mechanical is not None and build(sympy.Max(x, -x)).mechanical is not None
