@@ -564,7 +564,7 @@ def _single(system, member, prob: _Problem, opts: IntegrationOptions, quiet=Fals
     engine, notice = _choose_engine(system, prob, opts, quiet)
     prep = engine.prepare(system, prob, opts)
     bk = engine.backend(prep, opts)
-    start = _check_initial_point(prep.system, (t0, q0, v0), dps, bk=bk, opts=opts, model=engine.point_model(prep))
+    start, notes = _check_initial_point(prep.system, (t0, q0, v0), dps, bk=bk, opts=opts, model=engine.point_model(prep))
     if notice is not None:          # after the fallback engine's refusals: one line, not two
         _notice(notice)
     res = _drive(engine, prep, start)
@@ -573,9 +573,27 @@ def _single(system, member, prob: _Problem, opts: IntegrationOptions, quiet=Fals
     res.coordinate_names = _coordinate_names(system)
     if opts.project and len(res.t):
         _note_projection(res, v0)
+    if notes and res.status >= 0:
+        _warn_regular(system, notes)
     if opts.raise_on_failure and res.status < 0:
         res.raise_for_status()
     return res
+
+
+def _warn_regular(system, notes) -> None:
+    """A run that ended well from a point where L_vv is singular while (4) holds: (5), the regular
+    Lagrangian, fails, and the stage equations (21) need not determine the stage velocities. The
+    numbers may be a root the method does not define (gauss-1 on L = (vx + vy)^2 / 2 - U, k = vx - vy:
+    the two engines 2-9e-2 apart, both status 0), so the result comes with one LdasparkWarning; a
+    failed run says its own error, alone."""
+    import warnings
+
+    from .core.errors import LdasparkWarning
+    warnings.warn(f"{system.name}: L_vv is singular at t = {notes['t']:g} (reciprocal condition "
+                  f"{notes['lvv_rcond']:.2e} after equilibration): the regular Lagrangian (5) fails while (4) "
+                  "holds, so the stage equations (21) need not determine the stage velocities; a Gauss method "
+                  "can then converge to different roots on different engines. Compare with another method or "
+                  "step size", LdasparkWarning, stacklevel=3)
 
 
 def _coordinate_names(system) -> list:
@@ -617,21 +635,21 @@ def _check_initial_point(system, start, dps, bk=None, opts: Optional[Integration
     finite, the energy (8) and k finite real numbers (U = 1/x at x = 0, oo or zoo in L, v0 = 1e200,
     sqrt(x) at x = -1 are one error here, never a NaN, inf or complex energy[0] in a returned
     Result, nor a ZeroDivisionError printed by a compiled kernel), (4) regular, v0 projected with
-    ``opts.project``, (1c). ``start`` = (t0, q0, v0); returns it in ``bk``'s numbers (of the last
-    member)."""
+    ``opts.project``, (1c). ``start`` = (t0, q0, v0); returns (start in ``bk``'s numbers (of the
+    last member), notes: what the check found without refusing, ``validate.initial_point``)."""
     (t0, q0, v0), bk = start, Backend(dps) if bk is None else bk
     if _ndim(q0) == 2:                            # an initial-data ensemble: every member
         rows = list(zip(np.asarray(q0, dtype=object), np.asarray(v0, dtype=object)))
     else:
         rows = [(q0, v0)]
     project, tol = (False, None) if opts is None else (opts.project, opts.tol)
-    start = None
+    start, notes = None, {}
     with bk.context():
         for j, (q, v) in enumerate(rows):
             member = f"ensemble member {j}: " if len(rows) > 1 else ""
             start = validate.initial_point(system, bk, t0, q, v, member=member, project=project, tol=tol,
-                                           model=model)
-    return start
+                                           model=model, notes=notes)
+    return start, notes
 
 
 # --- the driver -----------------------------------------------------------------------------

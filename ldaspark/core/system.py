@@ -405,7 +405,7 @@ class LagrangianSystem:
         S[self.n:, :self.n] = kv
         return S
 
-    def check_saddle(self, backend, t, q, v, rcond: float | None = None, S=None):
+    def check_saddle(self, backend, t, q, v, rcond: float | None = None, S=None, notes: dict | None = None):
         """Raise SingularSaddleError when (4) fails (numerically) at (t, q, v).
 
         The test is scale invariant: the saddle matrix is equilibrated symmetrically,
@@ -414,7 +414,9 @@ class LagrangianSystem:
         not mistaken for singularity while a genuine rank loss (which no diagonal scaling
         removes) still is. Returns the reciprocal condition number of the scaled matrix.
         ``S``: the matrix (4) at (t, q, v) when the caller has it (the compiled path evaluates it
-        with its own model functions); the same test is applied."""
+        with its own model functions); the same test is applied. ``notes`` (a run's set-up): a
+        dict that gets "lvv_rcond" and "t" when L_vv is singular there, i.e. (5) fails while (4)
+        holds (the driver warns with a result, ``solve._warn_regular``)."""
         with backend.context():
             S = self.saddle_matrix(backend, t, q, v) if S is None else S
             Sf = np.array([[float(x) for x in row] for row in S]) if backend.is_mp else np.asarray(S, float)
@@ -443,6 +445,23 @@ class LagrangianSystem:
                 f"(reciprocal condition {r:.2e} <= {tol:.1e} after equilibration)")
         if getattr(self, "lvv_problem", None):
             raise SingularSaddleError(self.lvv_problem)
+        if notes is not None:
+            # (5), a regular Lagrangian, is not the paper's hypothesis ((4) is), and a singular
+            # L_vv that is not identically so (``lvv_problem`` refuses that) leaves the run to
+            # the method: measured on L = (vx + vy)^2 / 2 - U, k = vx - vy, lobatto-iiia-iiib-3
+            # converges while gauss-1 ended 2-9e-2 apart on the two engines with status 0.
+            # L_vv equilibrated by its own rows (by those of (4), a row of K would make a small
+            # but regular mass look singular: masses 1 and 1e-12 with k = vx - 1000 vy)
+            Lv = Sf[:self.n, :self.n]
+            lmax = np.max(np.abs(Lv), axis=1)
+            if np.any(lmax == 0):
+                lr = 0.0
+            else:
+                dl = 1 / np.sqrt(lmax)
+                lsv = np.linalg.svd(dl[:, None] * Lv * dl[None, :], compute_uv=False)
+                lr = float(lsv[-1] / lsv[0])
+            if lr <= tol:
+                notes.update(lvv_rcond=lr, t=float(t))
         return r
 
     def check_consistent(self, backend, t, q, v, tol=None, k=None):

@@ -510,7 +510,7 @@ _CHECKED: dict = {}
 
 
 def initial_point(system, bk, t0, q0, v0, *, member: str = "", project: bool = False, tol=None,
-                  consistent: bool = True, model=None):
+                  consistent: bool = True, model=None, notes: dict | None = None):
     """The one initial-point check of every engine and entry point: (t0, q0, v0) converted by
     ``bk`` (call inside ``bk.context()``), returned as (t, q, v) with v projected onto k = 0 when
     ``project``. In order, each failure one error (``member`` prefixes its message, e.g.
@@ -524,6 +524,8 @@ def initial_point(system, bk, t0, q0, v0, *, member: str = "", project: bool = F
        (1c) with tol' = 10 tol, or the backend's default when ``tol`` is None ->
        InconsistentInitialDataError.
 
+    ``notes``: a dict that gets what the check found without refusing (a singular L_vv while (4)
+    holds: "lvv_rcond", "t"; ``System.check_saddle``).
     ``model(t, q, v) -> (S, k)`` or None: the matrix (4) and k from the caller's own model (the
     compiled engine's generated functions), the same tests applied. A float64 point that passed for
     this system object (without ``project``) is remembered, so repeating a run skips the checks."""
@@ -543,6 +545,8 @@ def initial_point(system, bk, t0, q0, v0, *, member: str = "", project: bool = F
         key = (float(t), q.tobytes(), v.tobytes(), tol)
         memo = _CHECKED.get(id(system))
         if memo is not None and memo[0] is system and key in memo[1]:
+            if notes is not None and memo[1][key] is not True:
+                notes.update(memo[1][key])          # what the check found there (a singular L_vv)
             return t, q, v
     if not (math.isfinite(float(t)) and bk.isfinite(q) and bk.isfinite(v)):
         raise InputError(f"{member}initial data contain NaN or infinity")
@@ -551,7 +555,10 @@ def initial_point(system, bk, t0, q0, v0, *, member: str = "", project: bool = F
         return t, q, v
     try:
         S, k = (None, None) if model is None else (model(t, q, v) or (None, None))
-        system.check_saddle(bk, t, q, v, S=S)
+        found: dict = {}
+        system.check_saddle(bk, t, q, v, S=S, notes=found)
+        if notes is not None:
+            notes.update(found)
         if project:
             v, k = system.project_velocity(bk, t, q, v), None
         system.check_consistent(bk, t, q, v, tol=None if tol is None else 10 * tol, k=k)
@@ -566,7 +573,7 @@ def initial_point(system, bk, t0, q0, v0, *, member: str = "", project: bool = F
             memo = _CHECKED[id(system)] = (system, {})
         if len(memo[1]) >= 64:
             memo[1].clear()
-        memo[1][key] = True
+        memo[1][key] = dict(found) if found else True
     return t, q, v
 
 
