@@ -323,7 +323,7 @@ class SparkMethod:
                     res, why = float("nan"), f" ({type(exc).__name__}: {exc} evaluating L or k)"
                     break
                 res = bk.norm_inf(G)
-                if not math.isfinite(res) or not _is_real(bk, G):
+                if not _finite(res) or not _is_real(bk, G):
                     res, why = float("nan"), why or " (complex or non-finite residual: L or k evaluated outside its domain)"
                     break
                 J_last = J if J is not None else J_last
@@ -347,7 +347,7 @@ class SparkMethod:
                 x_new = x + dx
                 # relative to the current iterate, not the starting guess (|Lambda| ~ 1/eps for near-rank-loss K)
                 tol_abs = self.tol * (bk.norm_inf(x_new) + v_scale)
-                if not math.isfinite(dn):
+                if not _finite(dn):
                     res = float("nan")
                     break
                 if dn <= tol_abs:
@@ -390,7 +390,7 @@ class SparkMethod:
                 prev = dn
             # a NaN, infinite or complex residual or increment: not a slow iteration but a point
             # outside the domain of L or k (or an overflow), status -3 as on the compiled engine
-            err = NewtonError if math.isfinite(res) else NonFiniteStepError
+            err = NewtonError if _finite(res) else NonFiniteStepError
             self.stats.newton_iterations += it      # a failed step's work counts too (``Result``)
             raise err(
                 f"Newton did not converge at step {step_index}, t = {float(t0):.6g}, h = {float(h):.3g}: "
@@ -566,6 +566,14 @@ class Solution:
 def _is_real(bk, a) -> bool:
     """No mpc among the entries (mpmath returns complex numbers outside a real domain)."""
     return not bk.is_mp or not any(isinstance(e, mpmath.mpc) for e in np.asarray(a).reshape(-1))
+
+
+def _finite(x) -> bool:
+    """x is a finite number: a float, or at mpmath precision an mpf, which may lie beyond
+    float64's range (``Backend.norm_inf``): math.isfinite rounds it to a float first, and a
+    residual of 1.5e319 at 400 digits (h = 1e160) was taken for a NaN and the step ended as
+    "L or k evaluated outside its domain"."""
+    return bool(mpmath.isfinite(x)) if isinstance(x, mpmath.mpf) else math.isfinite(x)
 
 
 def _is_real_scalar(e) -> bool:
