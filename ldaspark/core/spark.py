@@ -584,8 +584,15 @@ MAX_STEPS = 10 ** 9  # beyond this a run cannot finish; reject instead of hangin
 
 
 def _saddle_sign(system, bk, t, q, v) -> int:
-    """sign(det (4)) in float64 (0 when it is not finite)."""
-    S = system.saddle_matrix(bk, t, q, v)
+    """sign(det (4)) at the working precision (0 when it is not finite): float64, or mpmath at
+    dps digits, where (4) is accepted down to a reciprocal condition of 1e3 10^-dps
+    (``check_saddle``): rounded to float64, det (4) of a K K^T of condition 1e16 is 0 at some
+    points and positive at others, and a sign change the motion did not make stopped the run."""
+    with bk.context():
+        S = system.saddle_matrix(bk, t, q, v)
+        if bk.is_mp:
+            d = mpmath.det(mpmath.matrix(S.tolist()))
+            return int(mpmath.sign(d)) if mpmath.isfinite(d) else 0
     sgn, _ = np.linalg.slogdet(np.asarray(S, dtype=float))
     return int(sgn) if np.isfinite(sgn) else 0
 

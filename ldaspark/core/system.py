@@ -408,7 +408,11 @@ class LagrangianSystem:
         with its own model functions); the same test is applied."""
         with backend.context():
             S = self.saddle_matrix(backend, t, q, v) if S is None else S
-            Sf = np.array([[float(x) for x in row] for row in S]) if backend.is_mp else np.asarray(S, float)
+            if backend.is_mp:
+                # at the run's digits: float64's 1e3 ulps refused (4) with K K^T of condition
+                # 1e16 (rank_loss eps = 1e-8) at dps = 30 or 100, where (21) is solved to 1e-38
+                return self._check_saddle_mp(backend, t, S, rcond)
+            Sf = np.asarray(S, float)
         if not np.all(np.isfinite(Sf)):
             raise SingularSaddleError(f"saddle matrix (4) has non-finite entries at t = {float(t):g}")
         rowmax = np.max(np.abs(Sf), axis=1)
@@ -432,6 +436,42 @@ class LagrangianSystem:
             raise SingularSaddleError(
                 f"saddle matrix (4) [[L_vv, K^T], [K, 0]] is singular at t = {float(t):g} "
                 f"(reciprocal condition {r:.2e} <= {tol:.1e} after equilibration)")
+        if getattr(self, "lvv_problem", None):
+            raise SingularSaddleError(self.lvv_problem)
+        return r
+
+    def _check_saddle_mp(self, backend, t, S, rcond):
+        """``check_saddle`` at mpmath precision (inside ``backend.context()``): the same
+        equilibration and singular-value tests in mpf, with the tolerance 1e3 eps of the working
+        precision (10^-dps) instead of float64's, so that (4) is judged by the digits that solve
+        (21). Returns the reciprocal condition number (an mpf)."""
+        S = np.asarray(S, dtype=object)
+        if not all(mpmath.isfinite(x) for x in S.reshape(-1)):
+            raise SingularSaddleError(f"saddle matrix (4) has non-finite entries at t = {float(t):g}")
+        rowmax = [max(abs(x) for x in row) for row in S]
+        if any(not r for r in rowmax):
+            raise SingularSaddleError(f"saddle matrix (4) has a zero row at t = {float(t):g}; assumption (4) fails")
+        d = [1 / mpmath.sqrt(r) for r in rowmax]
+        N = len(d)
+        Ss = np.array([[d[i] * S[i, j] * d[j] for j in range(N)] for i in range(N)], dtype=object)
+        tol = mpmath.mpf(rcond) if rcond is not None else 1000 * mpmath.mpf(10) ** (-backend.dps)
+        if self.m:
+            kv = S[self.n:, :self.n]
+            kv = np.array([[x / max(max(abs(y) for y in row), mpmath.mpf(10) ** -300) for x in row]
+                           for row in kv], dtype=object)
+            # the m singular values of the m x n matrix K (the flint path returns n, from K^T K)
+            ksv = backend.singular_values(kv)[:min(self.m, self.n)]
+            kr = ksv[-1] / ksv[0] if ksv[0] else mpmath.mpf(0)
+            if kr <= tol:
+                raise SingularSaddleError(
+                    f"constraint Jacobian K = k_v is rank deficient at t = {float(t):g} "
+                    f"(sigma_min/sigma_max = {fmt(kr, 3)} at {backend.dps} digits); assumption (4) fails")
+        sv = backend.singular_values(Ss)
+        r = sv[-1] / sv[0]
+        if r <= tol:
+            raise SingularSaddleError(
+                f"saddle matrix (4) [[L_vv, K^T], [K, 0]] is singular at t = {float(t):g} "
+                f"(reciprocal condition {fmt(r, 3)} <= {fmt(tol, 2)} after equilibration, at {backend.dps} digits)")
         if getattr(self, "lvv_problem", None):
             raise SingularSaddleError(self.lvv_problem)
         return r

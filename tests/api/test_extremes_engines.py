@@ -9,7 +9,7 @@ import pytest
 import sympy
 
 import ldaspark
-from ldaspark.core.errors import NonFiniteError
+from ldaspark.core.errors import NonFiniteError, SingularSaddleError
 
 x, y, vx, vy, w = sympy.symbols("x y vx vy w")
 #: a particle in the plane, k = v_y - x v_x, U = w x^2 / 2 (tests/api/test_option_matrix.py's system)
@@ -45,3 +45,59 @@ def test_a_non_finite_residual_is_still_a_non_finite_step():
                                engine=engine, q0=[0.3, 0.0], v0=[0.2, 0.06])
         assert r.status == -3 and isinstance(r.error, NonFiniteError), (engine, r.message)
         assert np.all(np.isfinite(np.asarray(r.q, float)))
+
+
+q1, q2, q3, v1, v2, v3, ep = sympy.symbols("q1 q2 q3 v1 v2 v3 ep")
+#: two constraints that differ by ep v2: K K^T has an eigenvalue ~ ep^2 (the report's rank_loss
+#: scene); v2 = 0, v3 = q2 v1 is consistent for every ep, and the exact motion keeps v2 = 0
+RANK_LOW = ldaspark.LagrangianSystem((v1 ** 2 + v2 ** 2 + v3 ** 2) / 2 - (q1 ** 2 + q2 ** 2) / 2,
+                                     [v3 - q2 * v1, v3 - q2 * v1 + ep * v2], [q1, q2, q3], [v1, v2, v3],
+                                     params=[ep], name="rank-low")
+
+
+def _rank_low(eps, dps):
+    return ldaspark.integrate(RANK_LOW, "gauss-2", t0=0, n_steps=10, h="0.05", params={"ep": eps}, dps=dps,
+                              q0=["0.1", "0.5", "0"], v0=["1", "0", "0.5"], engine="generic")
+
+
+@pytest.mark.parametrize("eps, dps", [("1e-8", 30), ("1e-12", 100)])
+def test_the_saddle_check_at_dps_judges_4_at_the_runs_digits(eps, dps):
+    # (4) with cond(K K^T) ~ 1/eps^2 = 1e16 (1e24): before, check_saddle rounded (4) to float64
+    # and refused it with float64's tolerance (reciprocal condition 3.1e-17 <= 2.2e-13) at any dps
+    r = _rank_low(eps, dps)
+    assert r.status == 0, r.message
+    # v2 = 0 exactly; the a-priori bound is the round-off 10^-dps times cond (4) ~ eps^-2
+    # (1e-14 at 30 digits, 1e-76 at 100; measured 4e-36 and 6e-102)
+    bound = mpmath.mpf(10) ** -dps / mpmath.mpf(eps) ** 2
+    assert max(abs(v[1]) for v in r.v) < bound
+
+
+@pytest.mark.parametrize("eps, dps", [("1e-14", 30), ("0", 30), ("1e-8", None)])
+def test_the_saddle_check_still_refuses_what_the_digits_cannot_resolve(eps, dps):
+    # controls: cond (4) ~ 1e28 above 10^30 / 1e3 at 30 digits, an exactly rank-deficient K, and
+    # float64 at cond 1e16 (unchanged) are refused at set-up on the engine that runs them
+    with pytest.raises(SingularSaddleError, match=r"\(4\)"):
+        _rank_low(eps, dps) if dps else ldaspark.integrate(
+            RANK_LOW, "gauss-2", t0=0.0, n_steps=10, h=0.05, params={"ep": float(eps)},
+            q0=[0.1, 0.5, 0.0], v0=[1.0, 0.0, 0.5])
+
+
+#: the same pair of constraints with K depending on q1, which moves: rounded to float64, det (4)
+#: is 0 at some points of the motion and positive at others (the singular value ~ eps |K| is below
+#: float64's resolution of (4))
+RANK_LOW_Q1 = ldaspark.LagrangianSystem((v1 ** 2 + v2 ** 2 + v3 ** 2) / 2 - (q1 ** 2 + q2 ** 2) / 2,
+                                        [v3 - q1 * v1, v3 - q1 * v1 + ep * v2], [q1, q2, q3], [v1, v2, v3],
+                                        params=[ep], name="rank-low-q1")
+
+
+@pytest.mark.parametrize("q1_0", ["0.12", "0.5"])
+def test_the_saddle_monitor_at_dps_reads_the_sign_of_det_4_at_the_runs_digits(q1_0):
+    # before: det (4) rounded to float64 was positive at t = 0 and 0 after the first step from
+    # q1 = 0.12, and the run stopped with status -2, "crossed the singular set of (4)", although
+    # det (4) keeps its sign (K has full rank, L_vv = I); q1 = 0.5 (float64 sign 0 at t = 0, the
+    # monitor off) is the control that passed before
+    r = ldaspark.integrate(RANK_LOW_Q1, "gauss-2", t0=0, n_steps=40, h="0.05", params={"ep": "1e-8"}, dps=30,
+                           q0=[q1_0, "0.5", "0"], v0=["1", "0", q1_0], engine="generic")
+    assert r.status == 0, r.message
+    # v2 = 0 exactly: the bound of the test above, 10^-30 eps^-2 = 1e-14 (measured 6e-33)
+    assert max(abs(v[1]) for v in r.v) < mpmath.mpf("1e-14")
