@@ -160,12 +160,40 @@ def real_number(x, what: str, *, positive: bool = False, nonzero: bool = False):
     if val == 0 and _nonzero(x):
         val = 5e-324            # below float64's range but not zero: h = mpf('1e-400'), "1e-400"
     if not math.isfinite(val):
-        raise InputError(f"{what} must be finite, got {x!r:.80}")
+        raise InputError(f"{what} must be finite, got {x!r:.80}{_range_hint(x)}")
     if positive and not val > 0:
         raise InputError(f"{what} must be positive, got {x!r:.80}")
     if nonzero and val == 0:
         raise InputError(f"{what} must be nonzero, got {x!r:.80}")
     return x
+
+
+def _range_hint(x) -> str:
+    """Why a number that is finite in its own type (the string "1e400", mpf('1e400'), 10**400) is
+    refused as not finite: it rounds to inf in float64, the range of every engine's inputs (also at
+    dps, where only the digits, not the exponent range, grow; h = "1e400" at 1000 digits was
+    refused as "must be finite" with no reason). Empty for NaN, inf and what is not a number."""
+    import decimal
+    import fractions
+    import sys
+    big = sys.float_info.max
+    try:
+        if isinstance(x, str):
+            d = decimal.Decimal(x.strip())
+            far = d.is_finite() and abs(d) > decimal.Decimal(big)
+        elif isinstance(x, decimal.Decimal):
+            far = x.is_finite() and abs(x) > decimal.Decimal(big)
+        elif isinstance(x, (int, fractions.Fraction)):
+            far = abs(x) > big                  # exact comparison with the float
+        elif type(x).__name__ == "mpf":
+            import mpmath
+            far = bool(mpmath.isfinite(x)) and abs(x) > big
+        else:
+            return ""
+    except (ArithmeticError, ValueError, TypeError):
+        return ""
+    return (" (beyond float64's range, |x| <= 1.8e308, which bounds every engine's inputs, also at dps)"
+            if far else "")
 
 
 def real_value(x, what: str) -> float:

@@ -9,7 +9,7 @@ import pytest
 import sympy
 
 import ldaspark
-from ldaspark.core.errors import NonFiniteError, SingularSaddleError
+from ldaspark.core.errors import InputError, NonFiniteError, SingularSaddleError
 
 x, y, vx, vy, w = sympy.symbols("x y vx vy w")
 #: a particle in the plane, k = v_y - x v_x, U = w x^2 / 2 (tests/api/test_option_matrix.py's system)
@@ -101,3 +101,20 @@ def test_the_saddle_monitor_at_dps_reads_the_sign_of_det_4_at_the_runs_digits(q1
     assert r.status == 0, r.message
     # v2 = 0 exactly: the bound of the test above, 10^-30 eps^-2 = 1e-14 (measured 6e-33)
     assert max(abs(v[1]) for v in r.v) < mpmath.mpf("1e-14")
+
+
+@pytest.mark.parametrize("where", ["h", "q0", "t0"])
+def test_a_number_beyond_float64s_range_is_refused_saying_why(where):
+    # h = "1e400" at 1000 digits is a finite number there; every engine's inputs are bounded by
+    # float64's range (|x| <= 1.8e308), and the refusal said only "h must be finite, got '1e400'"
+    args = dict(t0="0", n_steps=1, h="0.1", q0=["0.3", "0"], v0=["0.2", "0.06"])
+    if where == "q0":
+        args["q0"] = ["1e400", "0"]
+    else:
+        args[where] = "1e400"
+    with pytest.raises(InputError, match=r"must be finite, got '1e400' \(beyond float64's range"):
+        ldaspark.integrate(PARTICLE, "gauss-2", params={"w": "1.5"}, engine="generic", dps=1000, **args)
+    # control: an infinite value gets no such hint
+    args[where if where != "q0" else "h"] = "inf"
+    with pytest.raises(InputError, match=r"must be finite, got 'inf'$"):
+        ldaspark.integrate(PARTICLE, "gauss-2", params={"w": "1.5"}, engine="generic", dps=1000, **args)
