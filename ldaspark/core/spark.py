@@ -652,8 +652,11 @@ def _n_steps_mp(t0, t_end, h, dps: int) -> int:
         allow = (radius(t0, a) + radius(t_end, b) + N * radius(h, h_)
                  + 10 * mpmath.mpf(10) ** -dps * max(abs(a), abs(b), N * abs(h_)))
         if abs(N * h_ - span) > allow:
-            raise InputError(f"(t_end - t0) = {mpmath.nstr(span, 12)} is not an integer multiple of h = {h} "
-                             f"at {dps} digits (off by {mpmath.nstr(abs(N * h_ - span), 3)})")
+            off = abs(N * h_ - span)
+            # digits enough to show the offset (t_end = 1.000000000001 printed as 1.0 at 12 digits)
+            shown = min(dps, 12 + max(0, int(mpmath.ceil(mpmath.log10(abs(span) / off))))) if span else 12
+            raise InputError(f"(t_end - t0) = {mpmath.nstr(span, shown)} is not an integer multiple of h = {h} "
+                             f"at {dps} digits (off by {mpmath.nstr(off, 3)})")
     return N
 
 

@@ -1,7 +1,10 @@
-"""The extremes of ``ldaspark.integrate`` (probe t8): huge steps at mpmath precision, and the
-set-up check of (4) at the run's digits. Each case with its control (the case that passed before
-and the case that must still fail)."""
+"""The extremes of ``ldaspark.integrate`` (probe t8): huge steps at mpmath precision, the set-up
+check of (4) and the det (4) monitor at the run's digits, and the refusals of inputs at the
+extremes (numbers beyond float64's range, t_end off the grid). Each case with its control (the
+case that passed before, or the case that must still fail)."""
 from __future__ import annotations
+
+import re
 
 import mpmath
 import numpy as np
@@ -118,3 +121,15 @@ def test_a_number_beyond_float64s_range_is_refused_saying_why(where):
     args[where if where != "q0" else "h"] = "inf"
     with pytest.raises(InputError, match=r"must be finite, got 'inf'$"):
         ldaspark.integrate(PARTICLE, "gauss-2", params={"w": "1.5"}, engine="generic", dps=1000, **args)
+
+
+@pytest.mark.parametrize("t_end, shown", [("1.000000000001", "1.000000000001"),
+                                          ("1.0000000000000000000001", "1.0000000000000000000001"),
+                                          ("1.05", "1.05")])
+def test_t_end_off_the_grid_at_dps_is_shown_with_the_digits_that_differ(t_end, shown):
+    # the refusal printed (t_end - t0) at 12 digits: "(t_end - t0) = 1.0 is not an integer multiple of
+    # h = 0.1 ... (off by 1.0e-12)"; now with 12 digits plus those down to the offset. 1.05 is the
+    # control (12 digits were enough before); float64 prints repr(span), which shows it too
+    with pytest.raises(InputError, match=rf"^\(t_end - t0\) = {re.escape(shown)} is not an integer multiple"):
+        ldaspark.integrate(PARTICLE, "gauss-2", t_span=("0", t_end), h="0.1", params={"w": "1.5"}, dps=30,
+                           q0=["0.3", "0"], v0=["0.2", "0.06"])
