@@ -324,7 +324,7 @@ class SparkMethod:
                     break
                 res = bk.norm_inf(G)
                 if not _finite(res) or not _is_real(bk, G):
-                    res, why = float("nan"), why or " (complex or non-finite residual: L or k evaluated outside its domain)"
+                    res, why = float("nan"), why or _nonfinite_why(bk, G)
                     break
                 J_last = J if J is not None else J_last
                 if need_j:
@@ -566,6 +566,16 @@ class Solution:
 def _is_real(bk, a) -> bool:
     """No mpc among the entries (mpmath returns complex numbers outside a real domain)."""
     return not bk.is_mp or not any(isinstance(e, mpmath.mpc) for e in np.asarray(a).reshape(-1))
+
+
+def _nonfinite_why(bk, G) -> str:
+    """Why a residual of (21) is not a finite real number: in float64 an infinite entry is an
+    overflow (one gauss-2 step of h = 1e300 on the particle: h^2 w x ~ 1e600), which was blamed on
+    L or k alone; NaN or complex entries are a point outside the domain of L or k."""
+    if not bk.is_mp and np.isinf(np.asarray(G, dtype=float)).any():
+        return (" (infinite residual: a float64 overflow, h, q or v too large for L and k, or L or k "
+                "evaluated outside its domain)")
+    return " (complex or non-finite residual: L or k evaluated outside its domain)"
 
 
 def _finite(x) -> bool:

@@ -48,6 +48,19 @@ def test_a_non_finite_residual_is_still_a_non_finite_step():
                                engine=engine, q0=[0.3, 0.0], v0=[0.2, 0.06])
         assert r.status == -3 and isinstance(r.error, NonFiniteError), (engine, r.message)
         assert np.all(np.isfinite(np.asarray(r.q, float)))
+        # the message names the overflow (it blamed "L or k evaluated outside its domain" alone)
+        assert "float64 overflow" in r.message, (engine, r.message)
+
+
+def test_a_domain_error_is_not_called_an_overflow():
+    # control of the message above: L = |v|^2 / 2 + sqrt(1 - x) evaluated at a stage beyond x = 1
+    xs, ys, vxs, vys = sympy.symbols("x y vx vy")
+    system = ldaspark.LagrangianSystem((vxs ** 2 + vys ** 2) / 2 + sympy.sqrt(1 - xs), [vys - xs * vxs],
+                                       [xs, ys], [vxs, vys], name="sqrt-well")
+    for engine in ("generic", "compiled"):
+        r = ldaspark.integrate(system, "gauss-2", t0=0.0, n_steps=3, h=0.5, q0=[0.9, 0.0], v0=[1.0, 0.9],
+                               engine=engine)
+        assert r.status == -3 and "evaluating L or k" in r.message and "overflow" not in r.message, r.message
 
 
 q1, q2, q3, v1, v2, v3, ep = sympy.symbols("q1 q2 q3 v1 v2 v3 ep")
@@ -133,3 +146,15 @@ def test_t_end_off_the_grid_at_dps_is_shown_with_the_digits_that_differ(t_end, s
     with pytest.raises(InputError, match=rf"^\(t_end - t0\) = {re.escape(shown)} is not an integer multiple"):
         ldaspark.integrate(PARTICLE, "gauss-2", t_span=("0", t_end), h="0.1", params={"w": "1.5"}, dps=30,
                            q0=["0.3", "0"], v0=["0.2", "0.06"])
+
+
+def test_the_det_4_monitor_at_dps_still_sees_a_crossing():
+    # control of the two monitor tests above: L_vv = diag(1 - q1^2, 1, 1) is singular at q1 = 1,
+    # where det (4) changes sign; from q1 = 0.9, v1 = 1 (h = 0.02) the float64 run stops at step 4
+    # (tests/api/test_paths_agree.py), and so does the 30-digit run with the sign read in mpf
+    q, v = list(sympy.symbols("q1:4")), list(sympy.symbols("v1:4"))
+    system = ldaspark.LagrangianSystem((1 - q[0] ** 2) * v[0] ** 2 / 2 + (v[1] ** 2 + v[2] ** 2) / 2,
+                                       [v[2] - q[1] * v[0]], q, v, name="mass-vanishing")
+    r = ldaspark.integrate(system, "gauss-2", t_span=("0", "2"), h="0.02", dps=30, engine="generic",
+                           q0=["0.9", "0.3", "0"], v0=["1", "0.1", "0.3"])
+    assert r.status == -2 and "step 4 " in r.message and "crossed the singular set" in r.message, r.message
