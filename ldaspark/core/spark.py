@@ -568,6 +568,33 @@ def _is_real(bk, a) -> bool:
     return not bk.is_mp or not any(isinstance(e, mpmath.mpc) for e in np.asarray(a).reshape(-1))
 
 
+def _det_sign_mp(S) -> int:
+    """sign(det S) of an mpf matrix by LU with partial pivoting, 0 only for an exactly zero pivot
+    or a non-finite entry, as numpy's slogdet in float64 (mpmath.det returns 0 for a pivot below
+    eps times the largest entry: (4) with entries 1 and 1e559 was "singular" and the monitor
+    reported a sign change)."""
+    a = [list(row) for row in S.tolist()]
+    if not all(mpmath.isfinite(x) for row in a for x in row):
+        return 0
+    n, sign = len(a), 1
+    for k in range(n):
+        p = max(range(k, n), key=lambda i: abs(a[i][k]))
+        if not a[p][k]:
+            return 0
+        if p != k:
+            a[k], a[p] = a[p], a[k]
+            sign = -sign
+        piv = a[k][k]
+        if piv < 0:
+            sign = -sign
+        for i in range(k + 1, n):
+            f = a[i][k] / piv
+            if f:
+                for j in range(k + 1, n):
+                    a[i][j] -= f * a[k][j]
+    return sign
+
+
 def _nonfinite_why(bk, G) -> str:
     """Why a residual of (21) is not a finite real number: in float64 an infinite entry is an
     overflow (one gauss-2 step of h = 1e300 on the particle: h^2 w x ~ 1e600), which was blamed on
@@ -601,8 +628,7 @@ def _saddle_sign(system, bk, t, q, v) -> int:
     with bk.context():
         S = system.saddle_matrix(bk, t, q, v)
         if bk.is_mp:
-            d = mpmath.det(mpmath.matrix(S.tolist()))
-            return int(mpmath.sign(d)) if mpmath.isfinite(d) else 0
+            return _det_sign_mp(S)
     sgn, _ = np.linalg.slogdet(np.asarray(S, dtype=float))
     return int(sgn) if np.isfinite(sgn) else 0
 

@@ -148,6 +148,28 @@ def test_t_end_off_the_grid_at_dps_is_shown_with_the_digits_that_differ(t_end, s
                            q0=["0.3", "0"], v0=["0.2", "0.06"])
 
 
+def test_the_det_4_monitor_at_dps_reads_the_sign_with_entries_far_apart():
+    # (4) of the particle at x = 2e559 (euler-i, one step of h = 1e300 at 30 digits):
+    # det [[1, 0, x], [0, 1, 1], [x, 1, 0]] = -(1 + x^2) < 0, the sign at t = 0 as well. mpmath.det
+    # called it 0 (a pivot below 10^-30 of the largest entry) and the run stopped with status -2,
+    # "det (4) changed sign"; the sign is read by LU as numpy's slogdet does in float64
+    from ldaspark.core.spark import _det_sign_mp
+    with mpmath.workdps(30):
+        big = mpmath.mpf("2e559")
+        S = np.array([[1, 0, big], [0, 1, 1], [big, 1, 0]], dtype=object) * mpmath.mpf(1)
+        assert _det_sign_mp(S) == -1
+        # controls: the signs of random matrices agree with float64's; a singular one is 0
+        rng = np.random.default_rng(7)
+        for _ in range(20):
+            A = rng.normal(size=(5, 5))
+            assert _det_sign_mp(np.array([[mpmath.mpf(x) for x in row] for row in A], dtype=object)) \
+                == int(np.linalg.slogdet(A)[0])
+        assert _det_sign_mp(np.array([[mpmath.mpf(1), mpmath.mpf(2)], [mpmath.mpf(2), mpmath.mpf(4)]])) == 0
+    r = ldaspark.integrate(PARTICLE, "euler-i", t0=0, n_steps=1, h="1e300", dps=30, q0=["0.3", "0"],
+                           v0=["0.2", "0.06"], params={"w": "1.5"}, engine="generic")
+    assert r.status == 0, r.message
+
+
 def test_the_det_4_monitor_at_dps_still_sees_a_crossing():
     # control of the two monitor tests above: L_vv = diag(1 - q1^2, 1, 1) is singular at q1 = 1,
     # where det (4) changes sign; from q1 = 0.9, v1 = 1 (h = 0.02) the float64 run stops at step 4
