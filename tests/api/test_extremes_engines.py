@@ -180,3 +180,18 @@ def test_the_det_4_monitor_at_dps_still_sees_a_crossing():
     r = ldaspark.integrate(system, "gauss-2", t_span=("0", "2"), h="0.02", dps=30, engine="generic",
                            q0=["0.9", "0.3", "0"], v0=["1", "0.1", "0.3"])
     assert r.status == -2 and "step 4 " in r.message and "crossed the singular set" in r.message, r.message
+
+
+def test_a_singular_newton_matrix_at_dps_is_named_by_its_pivot_ratio():
+    # one gauss-2 step of h = 1e150: the Newton matrix has entries 1 and ~h^2 w = 5.9e299. At 30
+    # digits the message said "numerically singular (pivot 1.0 at column 1)", as if a pivot of 1
+    # were singular; it gives the ratio to the largest entry now, as float64's message does
+    # (the control: "pivot ratio 4.8e-301", unchanged)
+    r = _huge_step("1e150", dps=30)
+    assert r.status == -1 and re.search(r"numerically singular \(pivot ratio 1\.7e-300 at column 1: pivot 1\.0, "
+                                        r"largest entry 5\.92e\+299\)", r.message), r.message
+    r64 = ldaspark.integrate(PARTICLE, "gauss-2", t0=0.0, n_steps=1, h=1e150, params={"w": 1.5}, engine="generic",
+                             q0=[0.3, 0.0], v0=[0.2, 0.06])
+    # (LAPACK's pivots: the ratio's exponent only, not its digits)
+    assert r64.status == -1 and re.search(r"numerically singular \(pivot ratio \d\.\de-30[01]\)", r64.message), \
+        r64.message
