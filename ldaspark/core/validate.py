@@ -613,6 +613,11 @@ def step_advances(t0, h, n_steps=1, dps=None, what: str = "h", *, s=None, n=None
         h_, t_ = abs(float(h)), abs(float(t0))
         T = max(t_, abs(float(t0) + int(n_steps) * float(h))) if math.isfinite(t_) else t_
         need = 2 * float(np.spacing(T)) if T > 0 else 0.0
+        if h_ == 0:
+            # a nonzero h below float64's range ("1e-400", kept at dps digits): it read "h = 0 does
+            # not advance t near 0 ...: use |h| >= 0 or a t0 closer to 0"
+            raise InputError(f"{what} = {h!s:.40} does not advance t in float64: it rounds to 0 there "
+                             "(float64 holds |h| >= 5e-324)")
         if h_ < need or float(t0) + float(h) == float(t0):
             raise InputError(f"{what} = {float(h):.3g} does not advance t near {T:.3g} in float64 (times would "
                              f"repeat): use |h| >= {need:.3g} or a t0 closer to 0")

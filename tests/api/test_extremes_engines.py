@@ -195,3 +195,22 @@ def test_a_singular_newton_matrix_at_dps_is_named_by_its_pivot_ratio():
     # (LAPACK's pivots: the ratio's exponent only, not its digits)
     assert r64.status == -1 and re.search(r"numerically singular \(pivot ratio \d\.\de-30[01]\)", r64.message), \
         r64.message
+
+
+@pytest.mark.parametrize("dps, dense", [(None, False), (500, True)])
+def test_a_step_below_float64s_range_is_refused_saying_it_rounds_to_0(dps, dense):
+    # h = "1e-400" in float64, or at 500 digits with dense output (whose grid is float64): the
+    # refusal read "h = 0 does not advance t near 0 in float64 (times would repeat): use |h| >= 0 or
+    # a t0 closer to 0"
+    args = dict(t0="0", n_steps=3, h="1e-400", params={"w": "1.5"}, engine="generic", dps=dps,
+                dense_output=dense, q0=["0.3", "0"], v0=["0.2", "0.06"])
+    with pytest.raises(InputError, match=r"= 1e-400 does not advance t in float64: it rounds to 0 there"):
+        ldaspark.integrate(PARTICLE, "gauss-2", **args)
+    if dps:     # control: without dense output the 500-digit grid holds the step
+        args["dense_output"] = False
+        assert ldaspark.integrate(PARTICLE, "gauss-2", **args).status == 0
+    # control: a step that rounds to a number but not past t0 keeps its message
+    with pytest.raises(InputError, match=r"h = 2e-08 does not advance t near 1e\+08 in float64 \(times would "
+                                         r"repeat\): use \|h\| >= 2.98e-08"):
+        ldaspark.integrate(PARTICLE, "gauss-2", t0=1e8, n_steps=3, h=2e-8, params={"w": 1.5},
+                           q0=[0.3, 0.0], v0=[0.2, 0.06])
