@@ -681,7 +681,8 @@ class _StepWatch:
                 elif guard.same_root(st.q1, st.v1, safe[0], safe[1], self.prep.opts.tol):
                     self.confirmed += 1
                 else:
-                    return guard.mismatch(st.index, st.t, self.h, (st.q1, st.v1, E1), safe, label)
+                    # the energy in the run's numbers: E1 is inf beyond float64's range at dps
+                    return guard.mismatch(st.index, st.t, self.h, (st.q1, st.v1, st.energy), safe, label)
             self.test.accept(self.E, E1, st.iterations)
         self.Ex, self.E = st.energy, E1
         self.prev = (st.V, st.Psi, self.h)

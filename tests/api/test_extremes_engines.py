@@ -214,3 +214,33 @@ def test_a_step_below_float64s_range_is_refused_saying_it_rounds_to_0(dps, dense
                                          r"repeat\): use \|h\| >= 2.98e-08"):
         ldaspark.integrate(PARTICLE, "gauss-2", t0=1e8, n_steps=3, h=2e-8, params={"w": 1.5},
                            q0=[0.3, 0.0], v0=[0.2, 0.06])
+
+
+def test_the_guard_names_roots_beyond_float64s_range_by_their_digits():
+    # euler-i, h = 1e300 at 30 digits: step 1 has two roots (q1 = -1.6e1088 and -3.7e1102). The
+    # message printed both as "q1 = [-inf -inf]" with "E = inf", two equal-looking roots; it gives
+    # the run's numbers now. Control: a float64 run's message keeps its format (10 digits)
+    r = ldaspark.integrate(PARTICLE, "euler-i", t0=0, n_steps=2, h="1e300", dps=30, q0=["0.3", "0"],
+                           v0=["0.2", "0.06"], params={"w": "1.5"}, engine="generic")
+    assert r.status == -4 and "inf" not in r.message, r.message
+    assert re.search(r"the engine's q1 = \[-1\.5611285324e\+1088 -4\.5e\+600\].* E = 1\.827841721e\+2176, and "
+                     r"from .* q1 = \[-3\.7362301351e\+1102 ", r.message), r.message
+    from ldaspark.core import guard
+    err = guard.mismatch(3, 0.3, 0.1, (np.array([1.5, -2.0]), np.array([0.25, 1e-3]), 0.125),
+                         (np.array([1.5, 2.0]), np.array([0.25, 1e-3]), 2.5), "a start")
+    assert "the engine's q1 = [ 1.5 -2. ], v1 = [0.25  0.001] with energy (8) E = 0.125, and from a start " \
+           "q1 = [1.5 2. ], v1 = [0.25  0.001] with E = 2.5;" in str(err), str(err)
+
+
+def test_the_guard_compares_roots_beyond_float64s_range_in_the_runs_numbers():
+    # same_root rounded the roots to float64: two equal roots at 1e400 (30 digits) were inf - inf =
+    # NaN apart, "two roots", a status -4 for a step that stands; controls: roots 1e-3 apart
+    # (relative) differ, and float64 roots keep their verdicts
+    from ldaspark.core import guard
+    with mpmath.workdps(30):
+        q = np.array([mpmath.mpf("1e400"), mpmath.mpf("-2.5e401")], dtype=object)
+        v = np.array([mpmath.mpf("3e350"), mpmath.mpf(1)], dtype=object)
+        assert guard.same_root(q, v, q.copy(), v.copy())
+        assert not guard.same_root(q, v, q * (1 + mpmath.mpf("1e-3")), v)
+    assert guard.same_root(np.array([1.0, 2.0]), np.array([0.5]), np.array([1.0, 2.0 + 1e-12]), np.array([0.5]))
+    assert not guard.same_root(np.array([1.0, 2.0]), np.array([0.5]), np.array([1.0, 2.1]), np.array([0.5]))
