@@ -70,18 +70,26 @@ def physical_memory() -> int | None:
         return None
 
 
-def check_storage(n_points: int, floats_per_point: int, mp: bool = False, what: str = "the trajectory") -> None:
+#: the advice of ``check_storage``; where the points are the samples ``save_every`` keeps,
+#: ``EVERY_ADVICE`` follows it (n_steps = 10**9 at save_every = 1 told only to take fewer steps)
+STORAGE_ADVICE = "use fewer steps (a larger h or a shorter t_end)"
+EVERY_ADVICE = " or keep fewer samples (a larger save_every; --every at the command line)"
+
+
+def check_storage(n_points: int, floats_per_point: int, mp: bool = False, what: str = "the trajectory",
+                  every: bool = False) -> None:
     """Refuse a run whose stored samples cannot fit in memory (before allocating them): an
     InputError naming the size, instead of a MemoryError or swapping. mpmath numbers cost ~100
-    bytes each, float64 8 bytes plus list overhead."""
+    bytes each, float64 8 bytes plus list overhead. ``every``: the points are the samples
+    ``save_every`` keeps (the message says so)."""
     per = 120 if mp else 40
     need = int(n_points) * int(floats_per_point) * per
     mem = physical_memory()
     limit = MEMORY_FRACTION * mem if mem else 64 * 2 ** 30
     if need > limit:
         raise InputError(f"storing {what} ({n_points:.3g} points x {floats_per_point} numbers) needs about "
-                         f"{need / 2 ** 30:.3g} GiB, more than {limit / 2 ** 30:.3g} GiB: use fewer steps "
-                         "(a larger h or a shorter t_end)")
+                         f"{need / 2 ** 30:.3g} GiB, more than {limit / 2 ** 30:.3g} GiB: {STORAGE_ADVICE}"
+                         + (EVERY_ADVICE if every else ""))
 
 
 # --- the API boundary: one check per kind of user value ------------------------------------

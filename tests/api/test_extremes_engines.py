@@ -244,3 +244,17 @@ def test_the_guard_compares_roots_beyond_float64s_range_in_the_runs_numbers():
         assert not guard.same_root(q, v, q * (1 + mpmath.mpf("1e-3")), v)
     assert guard.same_root(np.array([1.0, 2.0]), np.array([0.5]), np.array([1.0, 2.0 + 1e-12]), np.array([0.5]))
     assert not guard.same_root(np.array([1.0, 2.0]), np.array([0.5]), np.array([1.0, 2.1]), np.array([0.5]))
+
+
+@pytest.mark.parametrize("engine, dense", [("generic", False), ("compiled", False), ("compiled", True)])
+def test_a_trajectory_that_cannot_be_stored_is_refused_naming_save_every(engine, dense, monkeypatch):
+    # n_steps = 5 10**6 at save_every = 1 is refused before any step (the samples need 1.3-1.7 GiB;
+    # the machine's memory is fixed at 1 GiB here, half of it the bound); the advice named only
+    # fewer steps, while a larger save_every keeps the run. With dense output every step is stored:
+    # no such advice (control)
+    from ldaspark.core import validate
+    monkeypatch.setattr(validate, "physical_memory", lambda: 2 ** 30)
+    with pytest.raises(InputError, match="needs about") as ei:
+        ldaspark.integrate(PARTICLE, "gauss-2", t0=0.0, n_steps=5 * 10 ** 6, h=1e-6, params={"w": 1.5}, engine=engine,
+                           dense_output=dense, q0=[0.3, 0.0], v0=[0.2, 0.06])
+    assert ("a larger save_every" in str(ei.value)) is (not dense), str(ei.value)
