@@ -370,7 +370,7 @@ def _check_ensemble_storage(system, prob: _Problem, opts: IntegrationOptions, me
     from .compiled.fast import n_samples
     s, n, m = _stages(prob.kind, prob.what), system.n, system.m
     validate.check_storage(n_samples(prob.N, opts.save_every) * members, 2 + 2 * n + m + s * m,
-                           mp=opts.dps is not None, what="the ensemble samples")
+                           mp=opts.dps is not None, what="the ensemble samples", every=True)
     if opts.dense_output or opts.events:
         validate.check_storage((prob.N + 1) * members, n + s * n, what="the ensemble's dense output")
 
@@ -699,7 +699,8 @@ class _StepWatch:
                 elif guard.same_root(st.q1, st.v1, safe[0], safe[1], self.prep.opts.tol):
                     self.confirmed += 1
                 else:
-                    return guard.mismatch(st.index, st.t, self.h, (st.q1, st.v1, E1), safe, label)
+                    # the energy in the run's numbers: E1 is inf beyond float64's range at dps
+                    return guard.mismatch(st.index, st.t, self.h, (st.q1, st.v1, st.energy), safe, label)
             self.test.accept(self.E, E1, st.iterations)
         self.Ex, self.E = st.energy, E1
         self.prev = (st.V, st.Psi, self.h)
@@ -724,7 +725,7 @@ def _drive_steps(engine, prep, start) -> Result:
     # events the nodes and stage velocities of every step (refused before allocating, as the
     # compiled engine does)
     s, n, m = len(c), system.n, system.m
-    validate.check_storage(n_samples(N, every), 2 + 2 * n + m + s * m, mp=dps is not None)
+    validate.check_storage(n_samples(N, every), 2 + 2 * n + m + s * m, mp=dps is not None, every=True)
     if dense or events:
         validate.check_storage(N + 1, n + s * n, what="the dense output")
     bk = engine.backend(prep, opts)
@@ -807,7 +808,13 @@ def _drive_blocks(engine, prep, start) -> Result:
     prob, opts = prep.prob, prep.opts
     N, energy_jump = prob.N, opts.energy_jump
     inner = opts.save_every if engine.samples and not opts.every_step else 1
-    engine.check_block(prep, N, inner)
+    try:
+        engine.check_block(prep, N, inner)
+    except InputError as exc:
+        # the kernel's storage bound on the samples save_every keeps: say that a larger one fits
+        if not (engine.samples and not opts.every_step) or not str(exc).endswith(validate.STORAGE_ADVICE):
+            raise
+        raise InputError(f"{exc}{validate.EVERY_ADVICE}") from None
 
     def run(n, e):      # block ends on the saved points of the run (``inner``), for its reruns too
         return _chunked(engine, prep, start, n, e, boundaries=inner)

@@ -278,8 +278,11 @@ def _mp_lu(J):
     for k in range(n):
         p = max(range(k, n), key=lambda i: abs(a[i][k]))
         if abs(a[p][k]) <= tiny:
-            raise SingularMatrixError(f"Newton matrix is numerically singular (pivot {mpmath.nstr(abs(a[p][k]), 3)} "
-                                      f"at column {k})")
+            # the ratio to the largest entry, as float64's message gives it: "pivot 1.0" alone read as
+            # a contradiction (h = 1e150 at 30 digits: the largest entry 1.5e299)
+            raise SingularMatrixError(f"Newton matrix is numerically singular (pivot ratio "
+                                      f"{mpmath.nstr(abs(a[p][k]) / scale, 2)} at column {k}: pivot "
+                                      f"{mpmath.nstr(abs(a[p][k]), 3)}, largest entry {mpmath.nstr(scale, 3)})")
         if p != k:
             a[k], a[p] = a[p], a[k]
             perm[k], perm[p] = perm[p], perm[k]

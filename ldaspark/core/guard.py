@@ -48,6 +48,7 @@ from __future__ import annotations
 import math
 from collections import deque
 
+import mpmath
 import numpy as np
 
 from .errors import LdasparkError
@@ -206,15 +207,34 @@ def safe_root(methods, t, q, v, h, prev=None, step_index=0):
 def same_root(q1, v1, q1s, v1s, tol=None) -> bool:
     """Whether (q1, v1) and (q1s, v1s) are one root: within ROOT_AGREE, or ROOT_TOL_FACTOR times
     the run's Newton tolerance ``tol`` when that is larger (None: the default tolerance)."""
+    agree = ROOT_AGREE if tol is None else max(ROOT_AGREE, ROOT_TOL_FACTOR * float(tol))
+    if _is_mp(q1, v1, q1s, v1s):
+        # in the run's numbers: rounded to float64, two equal roots beyond its range (euler-i,
+        # h = 1e300 at 30 digits: q1 = -2.1e559) were inf - inf = NaN apart, "two roots", status -4
+        a = [mpmath.mpf(e) for x in (q1, v1) for e in np.asarray(x).reshape(-1)]
+        b = [mpmath.mpf(e) for x in (q1s, v1s) for e in np.asarray(x).reshape(-1)]
+        scale = 1 + max((abs(e) for e in b), default=mpmath.mpf(0))
+        diff = max((abs(x - y) for x, y in zip(a, b)), default=mpmath.mpf(0))
+        return bool(mpmath.isfinite(diff)) and diff <= agree * scale
     q1, v1, q1s, v1s = (np.asarray(x, dtype=float) for x in (q1, v1, q1s, v1s))
     scale = 1.0 + max(float(np.max(np.abs(q1s), initial=0.0)), float(np.max(np.abs(v1s), initial=0.0)))
     diff = max(float(np.max(np.abs(q1 - q1s), initial=0.0)), float(np.max(np.abs(v1 - v1s), initial=0.0)))
-    agree = ROOT_AGREE if tol is None else max(ROOT_AGREE, ROOT_TOL_FACTOR * float(tol))
     return math.isfinite(diff) and diff <= agree * scale
 
 
+def _is_mp(*arrays) -> bool:
+    """Whether any entry is an mpf (a run at dps digits)."""
+    return any(isinstance(e, mpmath.mpf) for a in arrays for e in np.asarray(a, dtype=object).reshape(-1))
+
+
 def _fmt(a) -> str:
+    if _is_mp(a):      # mpf beyond float64's range printed as inf before
+        return "[" + " ".join(mpmath.nstr(mpmath.mpf(e), 11) for e in np.asarray(a).reshape(-1)) + "]"
     return np.array2string(np.asarray(a, dtype=float), precision=10, max_line_width=10 ** 6)
+
+
+def _fmt_energy(E) -> str:
+    return mpmath.nstr(E, 10) if isinstance(E, mpmath.mpf) else f"{float(E):.10g}"
 
 
 def mismatch(n, t, h, engine_root, safe, label) -> RootMismatchError:
@@ -224,7 +244,7 @@ def mismatch(n, t, h, engine_root, safe, label) -> RootMismatchError:
     return RootMismatchError(
         f"step {n} (t = {float(t):.6g} -> {float(t) + float(h):.6g}): the step-acceptance guard found two roots "
         f"of the stage equations (21): the engine's q1 = {_fmt(q1)}, v1 = {_fmt(v1)} with energy (8) "
-        f"E = {float(E1):.10g}, and from {label} q1 = {_fmt(q1s)}, v1 = {_fmt(v1s)} with E = {float(E1s):.10g}; "
+        f"E = {_fmt_energy(E1)}, and from {label} q1 = {_fmt(q1s)}, v1 = {_fmt(v1s)} with E = {_fmt_energy(E1s)}; "
         "the step is beyond the Newton limit of this h (reduce h, or guard=False to keep the engine's root)",
         step=n, time=float(t))
 
@@ -259,7 +279,10 @@ class SparkSafeRoot:
             except LdasparkError:
                 prev = None
         label, r = safe_root(methods, t, q, v, self.h, prev, step_index=int(n))
-        return (None, None) if r is None else (label, (r.q1, r.v1, float(r.energy)))
+        # the energy in the run's numbers (an mpf at dps may lie beyond float64's range)
+        if r is None:
+            return None, None
+        return label, (r.q1, r.v1, r.energy if _is_mp([r.energy]) else float(r.energy))
 
 
 def counters() -> dict:

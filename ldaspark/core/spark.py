@@ -323,8 +323,8 @@ class SparkMethod:
                     res, why = float("nan"), f" ({type(exc).__name__}: {exc} evaluating L or k)"
                     break
                 res = bk.norm_inf(G)
-                if not math.isfinite(res) or not _is_real(bk, G):
-                    res, why = float("nan"), why or " (complex or non-finite residual: L or k evaluated outside its domain)"
+                if not _finite(res) or not _is_real(bk, G):
+                    res, why = float("nan"), why or _nonfinite_why(bk, G)
                     break
                 J_last = J if J is not None else J_last
                 if need_j:
@@ -347,7 +347,7 @@ class SparkMethod:
                 x_new = x + dx
                 # relative to the current iterate, not the starting guess (|Lambda| ~ 1/eps for near-rank-loss K)
                 tol_abs = self.tol * (bk.norm_inf(x_new) + v_scale)
-                if not math.isfinite(dn):
+                if not _finite(dn):
                     res = float("nan")
                     break
                 if dn <= tol_abs:
@@ -390,7 +390,7 @@ class SparkMethod:
                 prev = dn
             # a NaN, infinite or complex residual or increment: not a slow iteration but a point
             # outside the domain of L or k (or an overflow), status -3 as on the compiled engine
-            err = NewtonError if math.isfinite(res) else NonFiniteStepError
+            err = NewtonError if _finite(res) else NonFiniteStepError
             self.stats.newton_iterations += it      # a failed step's work counts too (``Result``)
             raise err(
                 f"Newton did not converge at step {step_index}, t = {float(t0):.6g}, h = {float(h):.3g}: "
@@ -568,6 +568,51 @@ def _is_real(bk, a) -> bool:
     return not bk.is_mp or not any(isinstance(e, mpmath.mpc) for e in np.asarray(a).reshape(-1))
 
 
+def _det_sign_mp(S) -> int:
+    """sign(det S) of an mpf matrix by LU with partial pivoting, 0 only for an exactly zero pivot
+    or a non-finite entry, as numpy's slogdet in float64 (mpmath.det returns 0 for a pivot below
+    eps times the largest entry: (4) with entries 1 and 1e559 was "singular" and the monitor
+    reported a sign change)."""
+    a = [list(row) for row in S.tolist()]
+    if not all(mpmath.isfinite(x) for row in a for x in row):
+        return 0
+    n, sign = len(a), 1
+    for k in range(n):
+        p = max(range(k, n), key=lambda i: abs(a[i][k]))
+        if not a[p][k]:
+            return 0
+        if p != k:
+            a[k], a[p] = a[p], a[k]
+            sign = -sign
+        piv = a[k][k]
+        if piv < 0:
+            sign = -sign
+        for i in range(k + 1, n):
+            f = a[i][k] / piv
+            if f:
+                for j in range(k + 1, n):
+                    a[i][j] -= f * a[k][j]
+    return sign
+
+
+def _nonfinite_why(bk, G) -> str:
+    """Why a residual of (21) is not a finite real number: in float64 an infinite entry is an
+    overflow (one gauss-2 step of h = 1e300 on the particle: h^2 w x ~ 1e600), which was blamed on
+    L or k alone; NaN or complex entries are a point outside the domain of L or k."""
+    if not bk.is_mp and np.isinf(np.asarray(G, dtype=float)).any():
+        return (" (infinite residual: a float64 overflow, h, q or v too large for L and k, or L or k "
+                "evaluated outside its domain)")
+    return " (complex or non-finite residual: L or k evaluated outside its domain)"
+
+
+def _finite(x) -> bool:
+    """x is a finite number: a float, or at mpmath precision an mpf, which may lie beyond
+    float64's range (``Backend.norm_inf``): math.isfinite rounds it to a float first, and a
+    residual of 1.5e319 at 400 digits (h = 1e160) was taken for a NaN and the step ended as
+    "L or k evaluated outside its domain"."""
+    return bool(mpmath.isfinite(x)) if isinstance(x, mpmath.mpf) else math.isfinite(x)
+
+
 def _is_real_scalar(e) -> bool:
     return not isinstance(e, (complex, mpmath.mpc))
 
@@ -576,8 +621,14 @@ MAX_STEPS = 10 ** 9  # beyond this a run cannot finish; reject instead of hangin
 
 
 def _saddle_sign(system, bk, t, q, v) -> int:
-    """sign(det (4)) in float64 (0 when it is not finite)."""
-    S = system.saddle_matrix(bk, t, q, v)
+    """sign(det (4)) at the working precision (0 when it is not finite): float64, or mpmath at
+    dps digits, where (4) is accepted down to a reciprocal condition of 1e3 10^-dps
+    (``check_saddle``): rounded to float64, det (4) of a K K^T of condition 1e16 is 0 at some
+    points and positive at others, and a sign change the motion did not make stopped the run."""
+    with bk.context():
+        S = system.saddle_matrix(bk, t, q, v)
+        if bk.is_mp:
+            return _det_sign_mp(S)
     sgn, _ = np.linalg.slogdet(np.asarray(S, dtype=float))
     return int(sgn) if np.isfinite(sgn) else 0
 
@@ -637,8 +688,11 @@ def _n_steps_mp(t0, t_end, h, dps: int) -> int:
         allow = (radius(t0, a) + radius(t_end, b) + N * radius(h, h_)
                  + 10 * mpmath.mpf(10) ** -dps * max(abs(a), abs(b), N * abs(h_)))
         if abs(N * h_ - span) > allow:
-            raise InputError(f"(t_end - t0) = {mpmath.nstr(span, 12)} is not an integer multiple of h = {h} "
-                             f"at {dps} digits (off by {mpmath.nstr(abs(N * h_ - span), 3)})")
+            off = abs(N * h_ - span)
+            # digits enough to show the offset (t_end = 1.000000000001 printed as 1.0 at 12 digits)
+            shown = min(dps, 12 + max(0, int(mpmath.ceil(mpmath.log10(abs(span) / off))))) if span else 12
+            raise InputError(f"(t_end - t0) = {mpmath.nstr(span, shown)} is not an integer multiple of h = {h} "
+                             f"at {dps} digits (off by {mpmath.nstr(off, 3)})")
     return N
 
 

@@ -419,7 +419,11 @@ class LagrangianSystem:
         holds (the driver warns with a result, ``solve._warn_regular``)."""
         with backend.context():
             S = self.saddle_matrix(backend, t, q, v) if S is None else S
-            Sf = np.array([[float(x) for x in row] for row in S]) if backend.is_mp else np.asarray(S, float)
+            if backend.is_mp:
+                # at the run's digits: float64's 1e3 ulps refused (4) with K K^T of condition
+                # 1e16 (rank_loss eps = 1e-8) at dps = 30 or 100, where (21) is solved to 1e-38
+                return self._check_saddle_mp(backend, t, S, rcond, notes)
+            Sf = np.asarray(S, float)
         if not np.all(np.isfinite(Sf)):
             raise SingularSaddleError(f"saddle matrix (4) has non-finite entries at t = {float(t):g}")
         rowmax = np.max(np.abs(Sf), axis=1)
@@ -462,6 +466,55 @@ class LagrangianSystem:
                 lr = float(lsv[-1] / lsv[0])
             if lr <= tol:
                 notes.update(lvv_rcond=lr, t=float(t))
+        return r
+
+    def _check_saddle_mp(self, backend, t, S, rcond, notes=None):
+        """``check_saddle`` at mpmath precision (inside ``backend.context()``): the same
+        equilibration and singular-value tests in mpf, with the tolerance 1e3 eps of the working
+        precision (10^-dps) instead of float64's, so that (4) is judged by the digits that solve
+        (21). Returns the reciprocal condition number (an mpf)."""
+        S = np.asarray(S, dtype=object)
+        if not all(mpmath.isfinite(x) for x in S.reshape(-1)):
+            raise SingularSaddleError(f"saddle matrix (4) has non-finite entries at t = {float(t):g}")
+        rowmax = [max(abs(x) for x in row) for row in S]
+        if any(not r for r in rowmax):
+            raise SingularSaddleError(f"saddle matrix (4) has a zero row at t = {float(t):g}; assumption (4) fails")
+        d = [1 / mpmath.sqrt(r) for r in rowmax]
+        N = len(d)
+        Ss = np.array([[d[i] * S[i, j] * d[j] for j in range(N)] for i in range(N)], dtype=object)
+        tol = mpmath.mpf(rcond) if rcond is not None else 1000 * mpmath.mpf(10) ** (-backend.dps)
+        if self.m:
+            kv = S[self.n:, :self.n]
+            kv = np.array([[x / max(max(abs(y) for y in row), mpmath.mpf(10) ** -300) for x in row]
+                           for row in kv], dtype=object)
+            # the m singular values of the m x n matrix K (the flint path returns n, from K^T K)
+            ksv = backend.singular_values(kv)[:min(self.m, self.n)]
+            kr = ksv[-1] / ksv[0] if ksv[0] else mpmath.mpf(0)
+            if kr <= tol:
+                raise SingularSaddleError(
+                    f"constraint Jacobian K = k_v is rank deficient at t = {float(t):g} "
+                    f"(sigma_min/sigma_max = {fmt(kr, 3)} at {backend.dps} digits); assumption (4) fails")
+        sv = backend.singular_values(Ss)
+        r = sv[-1] / sv[0]
+        if r <= tol:
+            raise SingularSaddleError(
+                f"saddle matrix (4) [[L_vv, K^T], [K, 0]] is singular at t = {float(t):g} "
+                f"(reciprocal condition {fmt(r, 3)} <= {fmt(tol, 2)} after equilibration, at {backend.dps} digits)")
+        if getattr(self, "lvv_problem", None):
+            raise SingularSaddleError(self.lvv_problem)
+        if notes is not None:
+            # (5) at the run's digits, L_vv equilibrated by its own rows (``check_saddle``)
+            Lv = S[:self.n, :self.n]
+            lmax = [max(abs(x) for x in row) for row in Lv]
+            if any(not x for x in lmax):
+                lr = mpmath.mpf(0)
+            else:
+                dl = [1 / mpmath.sqrt(x) for x in lmax]
+                lsv = backend.singular_values(np.array([[dl[i] * Lv[i, j] * dl[j] for j in range(self.n)]
+                                                        for i in range(self.n)], dtype=object))
+                lr = lsv[-1] / lsv[0]
+            if lr <= tol:
+                notes.update(lvv_rcond=float(lr), t=float(t))
         return r
 
     def check_consistent(self, backend, t, q, v, tol=None, k=None):

@@ -73,18 +73,26 @@ def physical_memory() -> int | None:
         return None
 
 
-def check_storage(n_points: int, floats_per_point: int, mp: bool = False, what: str = "the trajectory") -> None:
+#: the advice of ``check_storage``; where the points are the samples ``save_every`` keeps,
+#: ``EVERY_ADVICE`` follows it (n_steps = 10**9 at save_every = 1 told only to take fewer steps)
+STORAGE_ADVICE = "use fewer steps (a larger h or a shorter t_end)"
+EVERY_ADVICE = " or keep fewer samples (a larger save_every; --every at the command line)"
+
+
+def check_storage(n_points: int, floats_per_point: int, mp: bool = False, what: str = "the trajectory",
+                  every: bool = False) -> None:
     """Refuse a run whose stored samples cannot fit in memory (before allocating them): an
     InputError naming the size, instead of a MemoryError or swapping. mpmath numbers cost ~100
-    bytes each, float64 8 bytes plus list overhead."""
+    bytes each, float64 8 bytes plus list overhead. ``every``: the points are the samples
+    ``save_every`` keeps (the message says so)."""
     per = 120 if mp else 40
     need = int(n_points) * int(floats_per_point) * per
     mem = physical_memory()
     limit = MEMORY_FRACTION * mem if mem else 64 * 2 ** 30
     if need > limit:
         raise InputError(f"storing {what} ({n_points:.3g} points x {floats_per_point} numbers) needs about "
-                         f"{need / 2 ** 30:.3g} GiB, more than {limit / 2 ** 30:.3g} GiB: use fewer steps "
-                         "(a larger h or a shorter t_end)")
+                         f"{need / 2 ** 30:.3g} GiB, more than {limit / 2 ** 30:.3g} GiB: {STORAGE_ADVICE}"
+                         + (EVERY_ADVICE if every else ""))
 
 
 # --- the API boundary: one check per kind of user value ------------------------------------
@@ -163,12 +171,40 @@ def real_number(x, what: str, *, positive: bool = False, nonzero: bool = False):
     if val == 0 and _nonzero(x):
         val = 5e-324            # below float64's range but not zero: h = mpf('1e-400'), "1e-400"
     if not math.isfinite(val):
-        raise InputError(f"{what} must be finite, got {_repr(x)}")
+        raise InputError(f"{what} must be finite, got {_repr(x)}{_range_hint(x)}")
     if positive and not val > 0:
         raise InputError(f"{what} must be positive, got {_repr(x)}")
     if nonzero and val == 0:
         raise InputError(f"{what} must be nonzero, got {_repr(x)}")
     return x
+
+
+def _range_hint(x) -> str:
+    """Why a number that is finite in its own type (the string "1e400", mpf('1e400'), 10**400) is
+    refused as not finite: it rounds to inf in float64, the range of every engine's inputs (also at
+    dps, where only the digits, not the exponent range, grow; h = "1e400" at 1000 digits was
+    refused as "must be finite" with no reason). Empty for NaN, inf and what is not a number."""
+    import decimal
+    import fractions
+    import sys
+    big = sys.float_info.max
+    try:
+        if isinstance(x, str):
+            d = decimal.Decimal(x.strip())
+            far = d.is_finite() and abs(d) > decimal.Decimal(big)
+        elif isinstance(x, decimal.Decimal):
+            far = x.is_finite() and abs(x) > decimal.Decimal(big)
+        elif isinstance(x, (int, fractions.Fraction)):
+            far = abs(x) > big                  # exact comparison with the float
+        elif type(x).__name__ == "mpf":
+            import mpmath
+            far = bool(mpmath.isfinite(x)) and abs(x) > big
+        else:
+            return ""
+    except (ArithmeticError, ValueError, TypeError):
+        return ""
+    return (" (beyond float64's range, |x| <= 1.8e308, which bounds every engine's inputs, also at dps)"
+            if far else "")
 
 
 def real_value(x, what: str) -> float:
@@ -612,13 +648,13 @@ def step_advances(t0, h, n_steps=1, dps=None, what: str = "h", *, s=None, n=None
     import numpy as np
     if dps is None:
         h_, t_ = abs(float(h)), abs(float(t0))
-        if h_ == 0.0:
-            # a nonzero h below float64's range ("1e-99999999" passed the nonzero check in its own
-            # digits): the message below would advise |h| >= 0
-            raise InputError(f"{what} = {h if isinstance(h, str) else _repr(h)} rounds to 0 in float64 (below its "
-                             "smallest positive number, 4.9e-324): a step that small needs dps= digits")
         T = max(t_, abs(float(t0) + int(n_steps) * float(h))) if math.isfinite(t_) else t_
         need = 2 * float(np.spacing(T)) if T > 0 else 0.0
+        if h_ == 0:
+            # a nonzero h below float64's range ("1e-400", "1e-99999999": nonzero in its own digits):
+            # it read "h = 0 does not advance t near 0 ...: use |h| >= 0 or a t0 closer to 0"
+            raise InputError(f"{what} = {(h if isinstance(h, str) else _repr(h))[:40]} does not advance t in float64: "
+                             "it rounds to 0 there (float64 holds |h| >= 5e-324; a step that small needs dps= digits)")
         if h_ < need or float(t0) + float(h) == float(t0):
             raise InputError(f"{what} = {float(h):.3g} does not advance t near {T:.3g} in float64 (times would "
                              f"repeat): use |h| >= {need:.3g} or a t0 closer to 0")

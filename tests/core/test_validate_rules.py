@@ -89,15 +89,15 @@ def test_step_advances_beyond_float_range_of_the_digits():
 def test_a_float64_step_below_its_range_is_named_as_such():
     """h = "1e-99999999" in float64 passed the nonzero check (read in its own digits), became 0.0,
     and was refused with "h = 0 does not advance t near 0 ...: use |h| >= 0" (advice no step can
-    follow). Now it says the step rounds to 0 in float64 and needs dps=; controls: a subnormal
+    follow). Now it says the step rounds to 0 in float64 and needs dps= digits; controls: a subnormal
     step (1e-310) passes this check at t0 = 0, and the same text at 30 digits is judged there."""
     from ldaspark.core import validate
     import ldaspark
     for h in ("1e-99999999", "-1e-400", 1e-330):
-        with pytest.raises(InputError, match="rounds to 0 in float64") as e:
+        with pytest.raises(InputError, match="rounds to 0 there") as e:
             validate.step_advances(0.0, h, 2)
         assert ">= 0 " not in str(e.value)
-    with pytest.raises(InputError, match="rounds to 0 in float64"):
+    with pytest.raises(InputError, match="rounds to 0 there"):
         ldaspark.integrate("particle", "gauss-1", h="1e-99999999", n_steps=2)
     validate.step_advances(0.0, 1e-310, 2)
     with pytest.raises(InputError, match="30 digits"):
