@@ -50,6 +50,7 @@ from typing import Any, Union
 import numpy as np
 
 from .errors import InputError
+from .validate import _describe
 from .io import atomic_write_bytes, atomic_write_json, check_destination
 from .result import STATUS_EVENT, STATUS_GUARD, Result
 
@@ -479,7 +480,7 @@ def _check_metadata(md) -> dict:
     if not (isinstance(st, int) and not isinstance(st, bool) and lo <= st <= hi) and not (
             isinstance(st, list) and st and all(isinstance(x, int) and not isinstance(x, bool) and lo <= x <= hi
                                                 for x in st)):
-        raise InputError(f"metadata: status must be an integer in {lo}..{hi} (or a list of them), got {str(st)[:40]}")
+        raise InputError(f"metadata: status must be an integer in {lo}..{hi} (or a list of them), got {_describe(st)}")
     for key in ("stats", "params"):
         if md.get(key) is not None and not isinstance(md[key], dict):
             raise InputError(f"metadata: {key} must be a JSON object, got {type(md[key]).__name__}")
@@ -492,7 +493,7 @@ def _check_metadata(md) -> dict:
         x = md.get(key)
         if x is not None and not (isinstance(x, int) and not isinstance(x, bool) and x >= 0) and not (
                 isinstance(x, list) and all(isinstance(y, int) and not isinstance(y, bool) and y >= 0 for y in x)):
-            raise InputError(f"metadata: {key} must be a non-negative integer, got {str(x)[:40]}")
+            raise InputError(f"metadata: {key} must be a non-negative integer, got {_describe(x)}")
     h = md.get("h")
     if h is not None and (isinstance(h, bool) or not isinstance(h, (int, float, str))):
         raise InputError(f"metadata: h must be a number or a decimal string, got {type(h).__name__}")
@@ -500,12 +501,12 @@ def _check_metadata(md) -> dict:
         raise InputError(f"metadata: version must be a string, got {type(md['version']).__name__}")
     se = md.get("save_every", 1)
     if se is not None and (isinstance(se, bool) or not isinstance(se, int) or se < 1):
-        raise InputError(f"metadata: save_every must be a positive integer, got {str(se)[:40]}")
+        raise InputError(f"metadata: save_every must be a positive integer, got {_describe(se)}")
     _check_names(md.get("coordinate_names"))
     nv = md.get("n_valid")
     if nv is not None and not (isinstance(nv, list) and nv and all(
             isinstance(x, int) and not isinstance(x, bool) and x >= 1 for x in nv)):
-        raise InputError(f"metadata: n_valid must be a list of positive integers, got {str(nv)[:40]}")
+        raise InputError(f"metadata: n_valid must be a list of positive integers, got {_describe(nv)}")
     return md
 
 

@@ -46,3 +46,22 @@ def test_a_boolean_parameter_value_is_refused(tmp_path, written):
     d["params"] = {"m": 1.0}
     p.write_text(json.dumps(d))
     assert ldaspark.load_result(p).params == {"m": 1.0}
+
+
+def test_metadata_values_of_the_wrong_type_are_named_with_their_type(tmp_path):
+    """A result file whose status is the string "0" was refused with "status must be an integer
+    in -4..1 ..., got 0": the message printed the string without quotes, so it read as refusing a
+    valid status. Now it names the type and the repr ("str '0'"). Control: the file with the
+    integer 0 loads."""
+    import json
+    import ldaspark
+    from ldaspark.core.errors import InputError
+    r = ldaspark.integrate("skate", "gauss-2", h=0.1, n_steps=3)
+    path = tmp_path / "r.json"
+    ldaspark.save_result(r, str(path))
+    d = json.loads(path.read_text())
+    assert ldaspark.load_result(str(path)).status == 0
+    d["status"] = "0"
+    path.write_text(json.dumps(d))
+    with pytest.raises(InputError, match=r"status must be an integer in -4\.\.1 .*got str '0'"):
+        ldaspark.load_result(str(path))
