@@ -293,6 +293,15 @@ class SparkTableau:
             _leaf_is_float(x) for v in self.sources.values() for x in _flatten(v))
 
     @property
+    def has_float64_values(self) -> bool:
+        """Some entry may be a float64 value (``_may_be_float64``): its array is then known only to
+        the rounding of a float64 computation (``float_computation_ulps``). Not so a file of
+        30-digit JSON numbers whose only short ones are terminating expansions (0.5, 1.0, 0.0)."""
+        long_file = (self.decimal_digits or 0) > FLOAT64_REPR_DIGITS
+        return self.sources is not None and any(
+            _may_be_float64(x, long_file) for v in self.sources.values() for x in _flatten(v))
+
+    @property
     def float_like_digits(self) -> bool:
         """Some decimal literal has LONG_DECIMAL to FLOAT64_REPR_DIGITS significant digits: it may be a
         float64's writing (repr, %.17g), so each literal of at most that many digits is also known only
@@ -333,7 +342,7 @@ class SparkTableau:
                    f"a unit in its last digit, a short one (a terminating expansion) in the {_ordinal(D)}, and "
                    f"one of at most {FLOAT64_REPR_DIGITS} digits also to half an ulp of float64, 2^-53 ~ 1.1e-16 "
                    "relative: it may be a float64's shortest writing)")
-        if self.has_float_entries and (D or not self.json_numbers):
+        if self.has_float64_values and (D or not self.json_numbers):
             flt += (f"; a float64 value also to {self.float_computation_ulps():.3g} ulps of its array's largest "
                     "entry, cond(V) of the nodes' Vandermonde matrix: the rounding a float64 computation of the "
                     "coefficients leaves, which is not correct rounding")
@@ -357,11 +366,12 @@ class SparkTableau:
                 if self.sources is not None:
                     ev = _BallEvaluator(self.decimal_digits, self.decimal_places, self.float_like_digits)
                     out = {k: _map_nested(v, ev.leaf) for k, v in self.sources.items()}
-                    ulps = self.float_computation_ulps() if self.has_float_entries else 0.0
+                    ulps = self.float_computation_ulps() if self.has_float64_values else 0.0
                     if ulps > 0:
                         # omega is chosen, not computed by the solves of the coefficients: half an ulp
+                        long_file = (self.decimal_digits or 0) > FLOAT64_REPR_DIGITS
                         for k in [k for k in self.sources if k != "omega"]:
-                            out[k] = _widen_floats(out[k], self.sources[k], ulps)
+                            out[k] = _widen_floats(out[k], self.sources[k], ulps, long_file)
                     if "omega" not in out:
                         out["omega"] = [[_sympy_ball(self.exact["omega"][i, j], digits, None)
                                          for j in range(self.s)] for i in range(self.s - 1)]
@@ -544,10 +554,10 @@ def _nested_float(v):
     return float(v)
 
 
-def _widen_floats(balls, src, ulps):
+def _widen_floats(balls, src, ulps, long_file: bool = False):
     """``balls`` (an array's entries, nested as ``src``) with ``ulps`` * 2^-53 * (the largest
     midpoint of the array) added to the radius of every entry that ``src`` gives as a float64
-    (``SparkTableau.float_computation_ulps``)."""
+    (``SparkTableau.float_computation_ulps``; ``long_file``: see ``_may_be_float64``)."""
     import flint
 
     def mids(v):
@@ -558,18 +568,25 @@ def _widen_floats(balls, src, ulps):
     def walk(b, x):
         if isinstance(b, list):
             return [walk(bi, xi) for bi, xi in zip(b, x if isinstance(x, list) else [x] * len(b))]
-        return b + flint.arb(0, rad) if _may_be_float64(x) else b
+        return b + flint.arb(0, rad) if _may_be_float64(x, long_file) else b
     return walk(balls, src)
 
 
-def _may_be_float64(x) -> bool:
+def _may_be_float64(x, long_file: bool = False) -> bool:
     """A float entry, or a JSON number short enough to be a float64's writing (at most
-    FLOAT64_REPR_DIGITS significant digits; a longer one was not computed in float64)."""
+    FLOAT64_REPR_DIGITS significant digits; a longer one was not computed in float64). In a
+    ``long_file`` (a literal of more than FLOAT64_REPR_DIGITS digits) a JSON number of fewer than
+    LONG_DECIMAL digits (0.5, 1.0, 0.0 beside 30-digit ones) is a terminating expansion, known to
+    the file's digits as ``numbers.literal_radius`` reads it: as a float64 value its zeros were
+    +- 2.2e-15 and a_hat_13 = 1e-20 in Lobatto IIIB passed (22b)."""
     while isinstance(x, tuple):
         x = x[0]
     if isinstance(x, float):
         return True
-    return isinstance(x, JsonNumber) and decimal_info(x.strip().lstrip("+-"))[1] <= FLOAT64_REPR_DIGITS
+    if not isinstance(x, JsonNumber):
+        return False
+    sig = decimal_info(x.strip().lstrip("+-"))[1]
+    return sig <= FLOAT64_REPR_DIGITS and not (long_file and sig < LONG_DECIMAL)
 
 
 def _map_nested(v, f):

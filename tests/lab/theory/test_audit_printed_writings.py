@@ -133,3 +133,36 @@ def test_convergence_hidden_by_the_entries_is_undecided_not_failed(monkeypatch):
         "reference": "-", "max_constraint": 0.0})
     ch, _ = ac.convergence_checks(tab, 4, 30, True)
     assert all(c.status == ac.FAIL for c in ch if c.name.startswith("convergence:"))
+
+
+def test_short_json_numbers_beside_30_digit_ones_are_terminating_expansions(tmp_path):
+    """A file of 30-digit JSON numbers writes 1/2, 1 and 0 as 0.5, 1.0, 0.0 (mpmath.nstr drops
+    trailing zeros): terminating expansions, known to the file's 30 digits as the same texts in
+    strings are, not float64 values off by cond(V) ulps (2.2e-15 for Lobatto IIIB's zeros). Read
+    as float64, a_hat_13 = 1e-20 in Lobatto IIIA-IIIB 3 (exactly 0) passed (22), (23) and order
+    4. (22b) at (1, 3) misses by b_1 1e-20 = 1.7e-21; its ball sums products of 30-digit entries
+    (|b|, |a| <= 1, half-units <= 5e-31 each), so the tolerance stays below 1e-29, eight orders
+    under the residual."""
+    from audit_writings import JsonText
+    name = "lobatto-iiia-iiib-3"
+    c, A, b, Ah, At = builtin(name)
+    # the correct case: the 30-digit JSON writing passes (22) and (23) with order 4 (control)
+    by, facts = _algebraic(load_tableau(write(tmp_path / "ok.json", written(c, A, b, "json30", Ah, At))))
+    assert facts["22"] and facts["23"] and facts["predicted_order"] == 4, by["22b"].detail
+    # 0.5 (c_2) is known to the 30 digits, as the string "0.5" is: (23a) c_1 + c_3 = 1, c_2 + c_2 = 1
+    assert by["23a"].tolerance < 1e-29
+    for kind, fault in (("json30", JsonText("1e-20")), ("30", "1e-20")):   # strings: the control
+        d = written(c, A, b, kind, Ah, At)
+        assert float(d["A_hat"][0][2]) == 0.0
+        d["A_hat"][0][2] = fault
+        by, facts = _algebraic(load_tableau(write(tmp_path / f"fault-{kind}.json", d)))
+        c22 = by["22b"]
+        assert c22.status == au.FAIL and c22.tolerance < 1e-29 < 1.6e-21 < c22.residual, (kind, c22.detail)
+        assert facts["predicted_order"] == 1 and not facts["23"], kind
+        assert "float64" not in c22.detail, c22.detail
+    # a 17-digit float64 JSON number beside 30-digit ones is still a float64's writing (mixed30):
+    # cond(V) = 24 ulps of max |A_hat| = 5/6, 24 2^-53 5/6 = 2.22e-15, and half an ulp of 1/6,
+    # 1.9e-17, on 1/6 (control: the fix leaves float64 writings alone)
+    tab = load_tableau(write(tmp_path / "mixed.json", written(c, A, b, "mixed30", Ah, At)))
+    assert 2.2e-15 < float(tab.ball_entries(60)["A_hat"][0][0].rad()) < 2.3e-15
+
