@@ -623,7 +623,6 @@ def omega_rank(tab: "SparkTableau", dps: int | None = None, extra_rows=None) -> 
     that of the working precision only). ``extra_rows``: rows stacked under omega (mpf lists at
     ``w`` digits; ``check_omega_default``). Returns {"rank", "sigma" (descending floats), "bound",
     "dps", "radius"}."""
-    import flint
     s = tab.s
     D = max(tab.decimal_digits or 0, tab.source_digits or 0)
     w = dps or max(60, D + 30, 3 * s + 30)
@@ -632,19 +631,10 @@ def omega_rank(tab: "SparkTableau", dps: int | None = None, extra_rows=None) -> 
     balls = tab.ball_entries(digits)
     given = tab.sources is not None and "omega" in tab.sources
     if tab.sources is not None and not given:
-        with flint.ctx.workprec(int(digits * 3.33) + 16):
-            bv, cv = balls["b"], balls["c"]
-            # b_j c_j^i by repeated products: arb's ** is NaN on a ball containing 0 ("0.0000000")
-            obs, row = [], list(bv)
-            for i in range(s - 1):
-                obs.append(row)
-                row = [row[j] * cv[j] for j in range(s)]
+        obs = _default_omega_balls(balls, s, digits)
     else:
         obs = balls["omega"]
-    # ||Delta omega||_F by hypot: the squares of radii of entries up to MAX_MAGNITUDE overflow
-    rad = math.hypot(*(float(x.rad()) for r in obs for x in r))
-    if tab.known_exactly or tab.exact is None:
-        rad = 0.0                       # the entries stand for themselves
+    rad = _frobenius_radius(tab, obs)
     with mpmath.workdps(w):
         rows = [list(r) for r in ent["omega"]] + [list(r) for r in (extra_rows or [])]
         sv = mpmath.svd_r(mpmath.matrix(rows), compute_uv=False) if rows else []
@@ -653,6 +643,38 @@ def omega_rank(tab: "SparkTableau", dps: int | None = None, extra_rows=None) -> 
     bound = rad + s * s * 10.0 ** (5 - w) * max(smax, 1e-300)
     return {"rank": sum(x > bound for x in sig), "sigma": sig, "bound": bound, "dps": w,
             "radius": rad}
+
+
+def _default_omega_balls(balls, s: int, digits: int) -> list:
+    """The rows b_j c_j^(i-1), i < s, as arb balls from the balls of b and c (``ball_entries``)."""
+    import flint
+    with flint.ctx.workprec(int(digits * 3.33) + 16):
+        bv, cv = balls["b"], balls["c"]
+        # b_j c_j^i by repeated products: arb's ** is NaN on a ball containing 0 ("0.0000000")
+        obs, row = [], list(bv)
+        for i in range(s - 1):
+            obs.append(row)
+            row = [row[j] * cv[j] for j in range(s)]
+    return obs
+
+
+def _frobenius_radius(tab, rows) -> float:
+    """||Delta||_F of the balls ``rows``, 0 when the entries stand for themselves (exact, or a
+    built-in computed to any precision)."""
+    if tab.known_exactly or tab.exact is None:
+        return 0.0
+    # by hypot: the squares of radii of entries up to MAX_MAGNITUDE overflow
+    return math.hypot(*(float(x.rad()) for r in rows for x in r))
+
+
+def default_rows_radius(tab) -> float:
+    """||Delta||_F of the rows b_j c_j^(i-1), i < s, made from the entries b and c as the file
+    gives them (what ``check_omega_default`` stacks under omega)."""
+    D = max(tab.decimal_digits or 0, tab.source_digits or 0)
+    digits = max(D + 20, 40)
+    if tab.sources is None:
+        return 0.0
+    return _frobenius_radius(tab, _default_omega_balls(tab.ball_entries(digits), tab.s, digits))
 
 
 def _default_omega_exact(b, c, s):

@@ -183,7 +183,7 @@ def check_omega_default(tab: SparkTableau, dps) -> Check:
     """Whether the rows of omega span {(b_j c_j^(i-1))_j : i = 1..s-1}, the choice after (21e)
     under which the Gauss and Lobatto convergence results [26, 27] are stated (information):
     the rank of omega stacked on those rows (``omega_rank``), s-1 when they span the same space."""
-    from ...core.tableau import omega_rank
+    from ...core.tableau import default_rows_radius, omega_rank
     s = tab.s
     if s == 1:
         return Check("omega-span", INFO, None, "s = 1: no (21e) rows")
@@ -195,8 +195,10 @@ def check_omega_default(tab: SparkTableau, dps) -> Check:
         dflt = [[b[j] * c[j] ** i for j in range(s)] for i in range(s - 1)]
     r = omega_rank(tab, w, dflt)
     sv, rank = r["sigma"], r["rank"]
-    # the stacked rows carry the uncertainty of omega and of the default rows: twice omega's
-    tol = 2 * r["bound"]
+    # the stacked rows carry the uncertainty of omega (in the bound) and that of the default rows,
+    # from b and c: twice omega's was 2e-58 for an exact omega beside 10-digit b, c (Weyl: the
+    # sum of the two Frobenius radii bounds the stacked one)
+    tol = r["bound"] + default_rows_radius(tab) + (r["bound"] - r["radius"])
     rank = sum(x > tol for x in sv)
     how = f"mpmath singular values at dps {w}"
     if rank == s - 1:

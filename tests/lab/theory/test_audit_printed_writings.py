@@ -166,3 +166,21 @@ def test_short_json_numbers_beside_30_digit_ones_are_terminating_expansions(tmp_
     tab = load_tableau(write(tmp_path / "mixed.json", written(c, A, b, "mixed30", Ah, At)))
     assert 2.2e-15 < float(tab.ball_entries(60)["A_hat"][0][0].rad()) < 2.3e-15
 
+
+@pytest.mark.parametrize("kind", ("float64", "10", "16", "30"))
+def test_an_exact_omega_beside_rounded_b_and_c_spans_the_default_rows(kind, tmp_path):
+    """omega-span stacks omega on the rows b_j c_j^(i-1) made from the file's b and c and counts
+    singular values above the uncertainty; it took twice omega's uncertainty for both, so an
+    omega written exactly (uncertainty 0) beside b, c known to 10 digits or float64 "did not span"
+    the rows it is made of (Gauss-3: stacked sigma_3 ~ 1e-11 against a tolerance of ~1e-58). The
+    default rows now carry the uncertainty of b and c. Control: an omega with rows b and c (c is
+    not in span{b, b c}: sigma_3 = O(0.01)) still does not span, at every writing."""
+    c, A, b, Ah, At = builtin("gauss-3")
+    d = written(c, A, b, kind, Ah, At)
+    d["omega"] = [[str(b[j] * c[j] ** i) for j in range(3)] for i in range(2)]
+    tab = load_tableau(write(tmp_path / "span.json", d))
+    chk = ac.check_omega_default(tab, 30)
+    assert chk.status == au.PASS, chk.detail
+    d["omega"][1] = [str(x) for x in c]
+    chk = ac.check_omega_default(load_tableau(write(tmp_path / "nospan.json", d)), 30)
+    assert chk.status == au.INFO and chk.residual > 1e3 * chk.tolerance, (chk.residual, chk.tolerance)
