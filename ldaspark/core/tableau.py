@@ -180,7 +180,8 @@ class SparkTableau:
                                   and abs(val.real) <= MAX_MAGNITUDE)
                     if not ok:
                         at = f"[{i}]" if k in VECTOR_NAMES else f"[{i}][{j}]"
-                        raise TableauError(f"{self.name}: exact[{k!r}]{at} = {str(e)[:40]} is not a finite real "
+                        shown = str(e) if len(str(e)) <= 40 else f"{str(e)[:37]}..."   # 10**308 is not 10**39
+                        raise TableauError(f"{self.name}: exact[{k!r}]{at} = {shown} is not a finite real "
                                            f"number of modulus <= {MAX_MAGNITUDE:g}")
 
     def _built(self, dps: int) -> dict:

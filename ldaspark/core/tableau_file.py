@@ -12,7 +12,6 @@ its entries carry (``omega_rank``): (21e) with (21f) would not determine the s m
 from __future__ import annotations
 
 import json
-import math
 
 import sympy
 
@@ -108,9 +107,11 @@ def _rank_checked(tab: SparkTableau) -> SparkTableau:
 
 
 def _json_number(text: str):
-    """``parse_float`` of the tableau loader: the text of a JSON number (JsonNumber); one that is
-    not finite as a float64 (1e999) stays a float, refused by ``_parse_entry`` as before."""
-    return JsonNumber(text) if math.isfinite(float(text)) else float(text)
+    """``parse_float`` of the tableau loader: the text of a JSON number (JsonNumber), also one
+    beyond float64 (1e999999), which ``_parse_entry`` refuses naming the text written (as a float
+    it read "entry inf is not finite"). NaN and Infinity are JSON constants, not numbers: they
+    stay floats (``parse_constant``) and are refused as not finite."""
+    return JsonNumber(text)
 
 
 def max_file_bytes(max_stages: int | None = None) -> int:

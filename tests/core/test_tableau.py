@@ -421,3 +421,33 @@ def test_mpmath_coefficients_carry_the_working_precision(name):
                     assert len(g) == len(w), (name, key)
                     err = max((abs(mpmath.mpf(x) - y) / max(1, abs(y)) for x, y in zip(g, w)), default=0)
                     assert err <= bound, (name, dps, key, mpmath.nstr(err, 3))
+
+
+@pytest.mark.parametrize("text, shown", [("1e301", "1e301"), ("1e308", "1e308"), ("-1.5e305", "-1.5e305"),
+                                         ("1e400", "1e400"), ("1e999999", "1e999999")])
+def test_a_json_number_beyond_1e300_is_refused_as_written(text, shown, tmp_path):
+    """A JSON number above the entries' bound 1e300 skipped the reader's magnitude check: 1e308
+    reached the tableau's own check, whose message printed the first 40 digits of its integer,
+    "exact['c'][0] = 1000000000000000000000000000000000000000" (10^39, not the 1e308 written),
+    and 1e999999 (inf as a float64) read "entry inf is not finite". Each names the entry and the
+    text written; 1e300 itself loads (the bound is inclusive), and a string entry "1e301" gets the
+    same one-line refusal (controls)."""
+    ok = '{"c": [%s], "A": [["1/2"]], "A_hat": [["1/2"]], "A_tilde": [["1/2"]], "b": ["1"], "b_hat": ["1"], ' \
+         '"b_tilde": ["1"]}'
+    p = tmp_path / "t.json"
+    p.write_text(ok % text)
+    with pytest.raises(TableauError) as exc:
+        load_tableau(str(p))
+    msg = str(exc.value)
+    assert msg.startswith("c[0]: ") and shown in msg and "\n" not in msg, msg
+    assert "0" * 30 not in msg and "inf" not in msg.replace("1e999999", ""), msg
+    p.write_text(ok % "1e300")
+    assert load_tableau(str(p)).s == 1
+    p.write_text(ok % '"1e301"')
+    with pytest.raises(TableauError, match=r"^c\[0\]: '1e301' exceeds 1e\+300 in modulus$"):
+        load_tableau(str(p))
+    # the tableau's own check (an exact entry given to the API) marks a shortened number as such
+    ex = dict(from_json_dict(json.loads(ok % '"1/2"')).exact, c=sympy.Matrix([[sympy.Integer(10) ** 308]]))
+    with pytest.raises(TableauError, match=r"= 1000000000000000000000000000000000000\.\.\. is not a finite"):
+        SparkTableau("big", 1, exact=ex)
+
