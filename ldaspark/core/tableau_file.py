@@ -166,6 +166,9 @@ def load_tableau(path, max_stages: int | None = None) -> SparkTableau:
     try:
         # the one checked opener: a regular file of bounded size, checked again on the descriptor
         if not os.path.exists(path):
+            if os.path.lexists(path):       # a link loop is not "not found": say what it is
+                raise TableauError(f"tableau file {os.fsdecode(path)} is a symbolic link that does not resolve "
+                                   "(its target is missing or the links form a loop)")
             raise FileNotFoundError(path)
         raw = read_regular(path, limit, "tableau file", TableauError)
         # a JSON number is a decimal text with its digits (JsonNumber): 0.1127016653792583 is known

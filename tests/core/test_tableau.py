@@ -451,3 +451,23 @@ def test_a_json_number_beyond_1e300_is_refused_as_written(text, shown, tmp_path)
     with pytest.raises(TableauError, match=r"= 1000000000000000000000000000000000000\.\.\. is not a finite"):
         SparkTableau("big", 1, exact=ex)
 
+
+def test_a_symbolic_link_loop_is_named_as_such(tmp_path):
+    """A tableau path that is a link loop (a -> b -> a) was reported "not found", which sends the
+    user looking for a missing file; a link that does not resolve is now named as one (a loop or a
+    missing target). Controls: a plain missing path is "not found", a link to a good file loads."""
+    import os
+    (tmp_path / "a.json").symlink_to(tmp_path / "b.json")
+    (tmp_path / "b.json").symlink_to(tmp_path / "a.json")
+    (tmp_path / "dangling.json").symlink_to(tmp_path / "nowhere.json")
+    for name in ("a.json", "dangling.json"):
+        with pytest.raises(TableauError, match="symbolic link that does not resolve"):
+            load_tableau(str(tmp_path / name))
+    with pytest.raises(TableauError, match="not found$"):
+        load_tableau(str(tmp_path / "missing.json"))
+    good = tmp_path / "good.json"
+    good.write_text(json.dumps({"c": ["1/2"], "A": [["1/2"]], "A_hat": [["1/2"]], "A_tilde": [["1/2"]],
+                                "b": ["1"], "b_hat": ["1"], "b_tilde": ["1"]}))
+    os.symlink(good, tmp_path / "link.json")
+    assert load_tableau(str(tmp_path / "link.json")).s == 1
+
