@@ -114,6 +114,21 @@ def _json_number(text: str):
     return JsonNumber(text)
 
 
+class _DuplicateKey(Exception):
+    """A key given twice in one JSON object of a tableau file (``_unique_keys``)."""
+
+
+def _unique_keys(pairs) -> dict:
+    """``object_pairs_hook`` of the tableau loader: json.loads keeps the last of two equal keys in
+    silence, and the audit judged whichever of two A_hat came last; a key given twice is refused."""
+    d = {}
+    for k, v in pairs:
+        if k in d:
+            raise _DuplicateKey(str(k)[:40])
+        d[k] = v
+    return d
+
+
 def max_file_bytes(max_stages: int | None = None) -> int:
     """Largest tableau file read: 4000 bytes per coefficient slot (s^2 of them), at least 1 MiB."""
     s = MAX_STAGES if max_stages is None else max_stages
@@ -173,9 +188,12 @@ def load_tableau(path, max_stages: int | None = None) -> SparkTableau:
         raw = read_regular(path, limit, "tableau file", TableauError)
         # a JSON number is a decimal text with its digits (JsonNumber): 0.1127016653792583 is known
         # to its 16 digits and half an ulp, a published 15-digit coefficient to its 15 digits
-        d = json.loads(raw.decode("utf-8"), parse_float=_json_number)
+        # utf-8-sig: a byte-order mark (Windows editors) is not part of the JSON text
+        d = json.loads(raw.decode("utf-8-sig"), parse_float=_json_number, object_pairs_hook=_unique_keys)
     except FileNotFoundError:
         raise TableauError(f"tableau file {path} not found") from None
+    except _DuplicateKey as exc:
+        raise TableauError(f"tableau file {path}: key {exc.args[0]!r} is given twice") from None
     except json.JSONDecodeError as exc:
         raise TableauError(f"tableau file {path} is not valid JSON: {exc.msg} at line {exc.lineno}") from None
     except (OSError, UnicodeDecodeError) as exc:

@@ -471,3 +471,23 @@ def test_a_symbolic_link_loop_is_named_as_such(tmp_path):
     os.symlink(good, tmp_path / "link.json")
     assert load_tableau(str(tmp_path / "link.json")).s == 1
 
+
+def test_a_key_given_twice_is_refused_and_a_utf8_bom_is_read(tmp_path):
+    """json.loads keeps the last of two "A_hat" keys in silence: the audit judged a tableau the
+    file gives two ways (a first A_hat satisfying (22b), a second violating it, passed or failed
+    by which came last). A key given twice is one TableauError naming it. A UTF-8 byte-order mark (Windows editors write one) was refused with
+    Python's advice "decode using utf-8-sig"; it is read. Controls: the file without the second
+    key and without the BOM loads to the same tableau; non-UTF-8 bytes are still refused."""
+    text = ('{"c": ["1/2"], "A": [["1/2"]], "A_hat": [["1/2"]], "A_tilde": [["1/2"]], "b": ["1"], '
+            '"b_hat": ["1"], "b_tilde": ["1"]%s}')
+    p = tmp_path / "t.json"
+    p.write_text(text % ', "A_hat": [["1/3"]]')
+    with pytest.raises(TableauError, match=r"key 'A_hat' is given twice$"):
+        load_tableau(str(p))
+    p.write_text(text % "")
+    ref = load_tableau(str(p))
+    p.write_bytes(b"\xef\xbb\xbf" + (text % "").encode())
+    assert load_tableau(str(p)).exact == ref.exact
+    p.write_bytes(b"\xff\xfe" + (text % "").encode())
+    with pytest.raises(TableauError, match="cannot read tableau file"):
+        load_tableau(str(p))
