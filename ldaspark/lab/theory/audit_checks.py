@@ -208,6 +208,34 @@ def check_omega_default(tab: SparkTableau, dps) -> Check:
                  f"> s-1 = {s - 1}): convergence results of [26, 27] are stated for that choice", how, tol)
 
 
+def check_23_omega(tab: SparkTableau) -> Check:
+    """The hypothesis on omega that (23a-d) leave implicit: the adjoint method (reversed stages)
+    imposes sum_j omega_(i,s+1-j) K_j = 0 in (21e), the same equations exactly when the reversed
+    rows span omega's rows. [26, 27]'s omega_ij = b_j c_j^(i-1) does under (23a) and b_(s+1-j) = b_j
+    (b_j (1 - c_j)^(i-1) is a combination of its rows); Gauss-3 with the rows of the identity is not
+    symmetric (the identities miss by 1.7e-7 on the particle). The rank of omega stacked on its
+    reversal (``omega_rank``), s-1 when the rows span the same space; the reversed rows carry
+    omega's uncertainty, so twice omega's bound."""
+    from ...core.tableau import omega_rank
+    s = tab.s
+    if s <= 1:
+        return Check("23-omega", PASS, None, "s = 1: omega has no rows")
+    w = omega_rank(tab)["dps"]
+    with mpmath.workdps(w):
+        rev = [list(reversed(r)) for r in tab.mp_entries(w)["omega"]]
+    r = omega_rank(tab, w, rev)
+    sv, tol = r["sigma"], 2 * r["bound"]
+    rank = sum(x > tol for x in sv)
+    how = f"mpmath singular values at dps {w}"
+    if rank == s - 1:
+        return Check("23-omega", PASS, sv[s - 1] if len(sv) >= s else 0.0,
+                     "the rows of omega reversed, omega_(i,s+1-j), span omega's rows: the adjoint method "
+                     "imposes the same (21e)", how, tol)
+    return Check("23-omega", INFO, sv[s - 1], f"the rows of omega reversed, omega_(i,s+1-j), leave omega's row "
+                 f"space (stacked rank {rank} > s-1 = {s - 1}): the adjoint method's (21e) is another equation, "
+                 "so (23) does not make the method symmetric", how, tol)
+
+
 def check_solvable(tab: SparkTableau) -> Check:
     """Whether (21) determines its unknowns for small h: eliminating V_i - v_0 (from (21b), M
     invertible) and v_1 - v_0 (from (21d)), (21e) and (21f) at h -> 0 read
