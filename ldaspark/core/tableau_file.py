@@ -43,6 +43,7 @@ def from_json_dict(d: dict, name: str | None = None, max_stages: int | None = No
     At most ``max_stages`` (default MAX_STAGES) stages."""
     if not isinstance(d, dict):
         raise TableauError("tableau JSON must be an object with keys c, A, A_hat, A_tilde, b, b_hat, b_tilde")
+    _refuse_misspelt_keys(d)
     missing = [k for k in NAMES if k != "omega" and k not in d]
     if missing:
         raise TableauError(f"tableau is missing key(s): {', '.join(missing)}")
@@ -91,6 +92,26 @@ def from_json_dict(d: dict, name: str | None = None, max_stages: int | None = No
     jd = info.get("json")
     digits_carried = jd if jd is not None and jd > FLOAT64_REPR_DIGITS and not pyfloat else 15
     return _rank_checked(SparkTableau(label, s, exact=ex, source_digits=digits_carried, **kw))
+
+
+def _key_form(k: str) -> str:
+    return "".join(ch for ch in k.lower() if ch not in "_- ")
+
+
+def _refuse_misspelt_keys(d: dict) -> None:
+    """Keys besides the tableau's are metadata ("comment", "source") and ignored, but one that is a
+    near miss of a tableau key ("Omega", "omgea", "A-hat": the same letters up to case and _ - space,
+    or a difflib ratio >= 0.8) is refused naming the key meant: ignored, a misspelt omega made the
+    audit judge the default omega instead of the file's."""
+    import difflib
+    known = NAMES + ("name",)
+    for k in d:
+        if not isinstance(k, str) or k in known:
+            continue
+        same = [n for n in known if _key_form(n) == _key_form(k)]
+        near = same or difflib.get_close_matches(k, known, n=1, cutoff=0.8)
+        if near:
+            raise TableauError(f"tableau key {k[:40]!r} is not one of {', '.join(known)}: did you mean {near[0]!r}?")
 
 
 def _rank_checked(tab: SparkTableau) -> SparkTableau:

@@ -491,3 +491,26 @@ def test_a_key_given_twice_is_refused_and_a_utf8_bom_is_read(tmp_path):
     p.write_bytes(b"\xff\xfe" + (text % "").encode())
     with pytest.raises(TableauError, match="cannot read tableau file"):
         load_tableau(str(p))
+
+
+@pytest.mark.parametrize("typo, key", [("Omega", "omega"), ("omgea", "omega"), ("A-hat", "A_hat"), ("Name", "name"),
+                                       ("a_tilde", "A_tilde")])
+def test_a_misspelt_tableau_key_is_refused_not_ignored(typo, key, tmp_path):
+    """Keys other than the tableau's were ignored in silence, so a misspelt optional key changed
+    the method audited: Gauss-3 with its omega under "Omega" (rows of the identity: measured order 4,
+    not symmetric) was audited with the default omega, exit 0, "symmetric", order 6. A key that
+    is a near miss of a tableau key (the same letters up to case and _ - space, or difflib ratio
+    >= 0.8) is refused naming the key meant; a required key misspelt was "missing key(s)" without
+    the hint. Controls: the correct key loads; metadata keys ("comment", "source", "order",
+    "reference") are still accepted."""
+    d = {"c": ["1/2"], "A": [["1/2"]], "A_hat": [["1/2"]], "A_tilde": [["1/2"]], "b": ["1"], "b_hat": ["1"],
+         "b_tilde": ["1"]}
+    bad = dict(d, **{typo: d.get(key, [] if key == "omega" else "midpoint")})
+    if key in d and typo != key:
+        bad.pop(key)
+    p = tmp_path / "t.json"
+    p.write_text(json.dumps(bad))
+    with pytest.raises(TableauError, match=rf"key '{typo}' .*did you mean '{key}'"):
+        load_tableau(str(p))
+    p.write_text(json.dumps(dict(d, comment="Gauss 1", source="Jay 2009", order=2, reference="[27]")))
+    assert load_tableau(str(p)).s == 1
