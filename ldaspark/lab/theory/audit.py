@@ -483,6 +483,8 @@ def verdict(res: AuditResult) -> str:
         parts.append(f"{res.tableau} ({s} stage{'s' if s > 1 else ''}) violates "
                      + " and ".join(f"({c.name}) ({c.detail})" for c in bad)
                      + ", so Theorem 1 does not apply.")
+    if sv is not None and sv.status == SKIP:
+        parts.append(f"Whether (21) is solvable for the method the entries stand for is {sv.detail}.")
     th = [c for c in res.checks if c.name.startswith("theorem1:")]
     summ = res.get("theorem1")
     if summ is not None and summ.status == SKIP:
