@@ -403,7 +403,7 @@ class SparkTableau:
         Theorem 1 to fail, and the method not to be symmetric."""
         key = ("float-ulps",)
         if key not in self._cache:
-            c = sorted({float(x) for x in np.asarray(self.arrays(None).c, dtype=float).ravel()})
+            c = _one_per_node(np.asarray(self.arrays(None).c, dtype=float).ravel())
             V = np.vander(np.array(c), len(c), increasing=True)
             with np.errstate(all="ignore"):
                 cond = float(np.linalg.cond(V, np.inf)) if len(c) > 1 else 1.0
@@ -553,6 +553,19 @@ def _nested_float(v):
     if isinstance(v, list):
         return [_nested_float(x) for x in v]
     return float(v)
+
+
+def _one_per_node(c) -> list:
+    """The distinct nodes of ``c`` (sorted), nodes within 2^-40 relative counted once: a node a
+    float64 computation returns twice with different last bits (Tsit5's FSAL 1.0 and
+    0.9999999999999998) is one node; as two, cond(V) was 5.3e17 and every float64 entry was known
+    to ~1e2 only. Two distinct nodes that close would make cond(V) > 1e12, beyond what float64
+    entries carry."""
+    out = []
+    for x in sorted(float(v) for v in c):
+        if not out or abs(x - out[-1]) > 2.0 ** -40 * max(1.0, abs(x)):
+            out.append(x)
+    return out
 
 
 def _widen_floats(balls, src, ulps, long_file: bool = False):

@@ -206,3 +206,33 @@ def test_solvability_within_the_digits_given_is_undecided_not_failed(tmp_path):
     assert chk.status == au.FAIL and chk.residual == 0.0 and "never enter" in chk.detail
 
 
+
+def _fsal(tab_name):
+    """``tab_name``'s coefficients with a last stage repeating the last node, weight 0 (FSAL-like):
+    row s+1 of A and A_hat = row s, column s+1 zero, b_(s+1) = 0; (22) still holds."""
+    c, A, b, Ah, At = builtin(tab_name)
+    grow = lambda M: [r + [0] for r in M] + [M[-1] + [0]]
+    return c + [c[-1]], grow(A), b + [0], grow(Ah), grow(At)
+
+
+def test_a_node_computed_twice_in_float64_is_one_node_for_the_rounding_estimate(tmp_path):
+    """float64 entries are known to cond(V) ulps, V the Vandermonde matrix of the distinct nodes;
+    a node that a float64 computation returns twice with different last bits (Tsit5's FSAL nodes
+    1.0 and 0.9999999999999998) counted as two nodes 2.2e-16 apart: cond(V) = 5.3e17 ulps, every
+    entry known to ~1e2, and Tsit5's float64 writing was refused, "omega is singular ... within
+    3.9e+11", while its 17- and 40-digit writings load. Nodes within 2^-40 (relative) are one node:
+    distinct nodes that close would need cond(V) > 1e12, beyond what float64 entries carry.
+    Lobatto IIIA-IIIB 3 with an FSAL stage (c = 0, 1/2, 1, 1) in float64, c_4 = 0.9999999999999998:
+    cond(V) of (0, 1/2, 1) = 24 ulps as with c_4 = 1.0, it loads and (22) holds. Control: nodes
+    1e-6 apart stay two nodes (cond(V) > 1e5)."""
+    c, A, b, Ah, At = _fsal("lobatto-iiia-iiib-3")
+    d = written(c, A, b, "float64", Ah, At)
+    ref = load_tableau(write(tmp_path / "ref.json", d)).float_computation_ulps()
+    d["c"][3] = 0.9999999999999998
+    tab = load_tableau(write(tmp_path / "twice.json", d))
+    assert tab.float_computation_ulps() == pytest.approx(ref) and ref == pytest.approx(24.0)
+    by, facts = _algebraic(tab)
+    assert facts["22"], by["22b"].detail
+    # two genuinely distinct nodes 1e-6 apart: cond(V) far above 24 (control of the merging)
+    d["c"][3] = 1 - 1e-6
+    assert load_tableau(write(tmp_path / "close.json", d)).float_computation_ulps() > 1e5
