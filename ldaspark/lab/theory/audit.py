@@ -499,7 +499,8 @@ def verdict(res: AuditResult) -> str:
                         else "is not decided at the precision of the entries" if summ.status == INFO
                         else f"fails on {nfail} of {len(decided)} decided scenes" if nfail
                         else "is decided on too few scenes")
-                     + f" (largest residual {worst:.1e})"
+                     # no decided scene measured a residual: none to quote (not "0.0e+00")
+                     + (f" (largest residual {worst:.1e})" if decided else "")
                      + (f"; not decided on {', '.join(undecided)} (see the checks)" if undecided else "")
                      + ".")
         d = disagreement(res)
