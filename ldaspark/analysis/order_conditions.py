@@ -245,8 +245,9 @@ def ball_arith(tab, dps: int, reason: str = "") -> tuple[Arith, dict]:
     kind, D, Dmin = tab.precision_kind(), tab.decimal_digits, tab.decimal_digits_min
     given = f"the {Dmin} to {D} digits given" if Dmin and Dmin < D else f"the {D} digits given"
     scope = {"decimal": given,
-             "float": (f"the {D} digits given as JSON numbers (and the rounding of a float64 computation, "
-                       f"{tab.float_computation_ulps():.3g} ulps)" if tab.json_numbers and D
+             "float": (f"the {D} digits given as JSON numbers" + (
+                           f" (and the rounding of a float64 computation, {tab.float_computation_ulps():.3g} ulps)"
+                           if tab.has_float64_values else "") if tab.json_numbers and D
                        # JSON numbers that are all zeros carry no digits: exact, as the other entries
                        else f"{dps} digits, numerically (exact entries, zeros written as JSON numbers)"
                        if tab.json_numbers else "the float64 precision of the entries (~16 digits, and the rounding "

@@ -697,6 +697,10 @@ def _parse_entry(x, where, info: dict | None = None):
     if isinstance(x, str):
         e = parse_exact_string(x, where, info)
         if isinstance(x, JsonNumber):
+            # the bound of every entry, checked here on the text written: past it, 1e308 reached the
+            # tableau's check, which printed it as its first 40 digits (10^39)
+            if abs(e) > sympy.Integer(10) ** 300:
+                raise TableauError(f"{where}: {x.strip()} exceeds {MAX_MAGNITUDE:g} in modulus")
             # known to its digits (and half an ulp), not exactly: the tableau is not exact
             sig = decimal_info(x.strip().lstrip("-"))[1]
             if info is not None and sig >= LONG_DECIMAL:      # short ones are terminating expansions

@@ -180,7 +180,8 @@ class SparkTableau:
                                   and abs(val.real) <= MAX_MAGNITUDE)
                     if not ok:
                         at = f"[{i}]" if k in VECTOR_NAMES else f"[{i}][{j}]"
-                        raise TableauError(f"{self.name}: exact[{k!r}]{at} = {str(e)[:40]} is not a finite real "
+                        shown = str(e) if len(str(e)) <= 40 else f"{str(e)[:37]}..."   # 10**308 is not 10**39
+                        raise TableauError(f"{self.name}: exact[{k!r}]{at} = {shown} is not a finite real "
                                            f"number of modulus <= {MAX_MAGNITUDE:g}")
 
     def _built(self, dps: int) -> dict:
@@ -293,6 +294,15 @@ class SparkTableau:
             _leaf_is_float(x) for v in self.sources.values() for x in _flatten(v))
 
     @property
+    def has_float64_values(self) -> bool:
+        """Some entry may be a float64 value (``_may_be_float64``): its array is then known only to
+        the rounding of a float64 computation (``float_computation_ulps``). Not so a file of
+        30-digit JSON numbers whose only short ones are terminating expansions (0.5, 1.0, 0.0)."""
+        long_file = (self.decimal_digits or 0) > FLOAT64_REPR_DIGITS
+        return self.sources is not None and any(
+            _may_be_float64(x, long_file) for v in self.sources.values() for x in _flatten(v))
+
+    @property
     def float_like_digits(self) -> bool:
         """Some decimal literal has LONG_DECIMAL to FLOAT64_REPR_DIGITS significant digits: it may be a
         float64's writing (repr, %.17g), so each literal of at most that many digits is also known only
@@ -333,7 +343,7 @@ class SparkTableau:
                    f"a unit in its last digit, a short one (a terminating expansion) in the {_ordinal(D)}, and "
                    f"one of at most {FLOAT64_REPR_DIGITS} digits also to half an ulp of float64, 2^-53 ~ 1.1e-16 "
                    "relative: it may be a float64's shortest writing)")
-        if self.has_float_entries and (D or not self.json_numbers):
+        if self.has_float64_values and (D or not self.json_numbers):
             flt += (f"; a float64 value also to {self.float_computation_ulps():.3g} ulps of its array's largest "
                     "entry, cond(V) of the nodes' Vandermonde matrix: the rounding a float64 computation of the "
                     "coefficients leaves, which is not correct rounding")
@@ -357,11 +367,12 @@ class SparkTableau:
                 if self.sources is not None:
                     ev = _BallEvaluator(self.decimal_digits, self.decimal_places, self.float_like_digits)
                     out = {k: _map_nested(v, ev.leaf) for k, v in self.sources.items()}
-                    ulps = self.float_computation_ulps() if self.has_float_entries else 0.0
+                    ulps = self.float_computation_ulps() if self.has_float64_values else 0.0
                     if ulps > 0:
                         # omega is chosen, not computed by the solves of the coefficients: half an ulp
+                        long_file = (self.decimal_digits or 0) > FLOAT64_REPR_DIGITS
                         for k in [k for k in self.sources if k != "omega"]:
-                            out[k] = _widen_floats(out[k], self.sources[k], ulps)
+                            out[k] = _widen_floats(out[k], self.sources[k], ulps, long_file)
                     if "omega" not in out:
                         out["omega"] = [[_sympy_ball(self.exact["omega"][i, j], digits, None)
                                          for j in range(self.s)] for i in range(self.s - 1)]
@@ -392,7 +403,7 @@ class SparkTableau:
         Theorem 1 to fail, and the method not to be symmetric."""
         key = ("float-ulps",)
         if key not in self._cache:
-            c = sorted({float(x) for x in np.asarray(self.arrays(None).c, dtype=float).ravel()})
+            c = _one_per_node(np.asarray(self.arrays(None).c, dtype=float).ravel())
             V = np.vander(np.array(c), len(c), increasing=True)
             with np.errstate(all="ignore"):
                 cond = float(np.linalg.cond(V, np.inf)) if len(c) > 1 else 1.0
@@ -544,10 +555,23 @@ def _nested_float(v):
     return float(v)
 
 
-def _widen_floats(balls, src, ulps):
+def _one_per_node(c) -> list:
+    """The distinct nodes of ``c`` (sorted), nodes within 2^-40 relative counted once: a node a
+    float64 computation returns twice with different last bits (Tsit5's FSAL 1.0 and
+    0.9999999999999998) is one node; as two, cond(V) was 5.3e17 and every float64 entry was known
+    to ~1e2 only. Two distinct nodes that close would make cond(V) > 1e12, beyond what float64
+    entries carry."""
+    out = []
+    for x in sorted(float(v) for v in c):
+        if not out or abs(x - out[-1]) > 2.0 ** -40 * max(1.0, abs(x)):
+            out.append(x)
+    return out
+
+
+def _widen_floats(balls, src, ulps, long_file: bool = False):
     """``balls`` (an array's entries, nested as ``src``) with ``ulps`` * 2^-53 * (the largest
     midpoint of the array) added to the radius of every entry that ``src`` gives as a float64
-    (``SparkTableau.float_computation_ulps``)."""
+    (``SparkTableau.float_computation_ulps``; ``long_file``: see ``_may_be_float64``)."""
     import flint
 
     def mids(v):
@@ -558,18 +582,25 @@ def _widen_floats(balls, src, ulps):
     def walk(b, x):
         if isinstance(b, list):
             return [walk(bi, xi) for bi, xi in zip(b, x if isinstance(x, list) else [x] * len(b))]
-        return b + flint.arb(0, rad) if _may_be_float64(x) else b
+        return b + flint.arb(0, rad) if _may_be_float64(x, long_file) else b
     return walk(balls, src)
 
 
-def _may_be_float64(x) -> bool:
+def _may_be_float64(x, long_file: bool = False) -> bool:
     """A float entry, or a JSON number short enough to be a float64's writing (at most
-    FLOAT64_REPR_DIGITS significant digits; a longer one was not computed in float64)."""
+    FLOAT64_REPR_DIGITS significant digits; a longer one was not computed in float64). In a
+    ``long_file`` (a literal of more than FLOAT64_REPR_DIGITS digits) a JSON number of fewer than
+    LONG_DECIMAL digits (0.5, 1.0, 0.0 beside 30-digit ones) is a terminating expansion, known to
+    the file's digits as ``numbers.literal_radius`` reads it: as a float64 value its zeros were
+    +- 2.2e-15 and a_hat_13 = 1e-20 in Lobatto IIIB passed (22b)."""
     while isinstance(x, tuple):
         x = x[0]
     if isinstance(x, float):
         return True
-    return isinstance(x, JsonNumber) and decimal_info(x.strip().lstrip("+-"))[1] <= FLOAT64_REPR_DIGITS
+    if not isinstance(x, JsonNumber):
+        return False
+    sig = decimal_info(x.strip().lstrip("+-"))[1]
+    return sig <= FLOAT64_REPR_DIGITS and not (long_file and sig < LONG_DECIMAL)
 
 
 def _map_nested(v, f):
@@ -606,7 +637,6 @@ def omega_rank(tab: "SparkTableau", dps: int | None = None, extra_rows=None) -> 
     that of the working precision only). ``extra_rows``: rows stacked under omega (mpf lists at
     ``w`` digits; ``check_omega_default``). Returns {"rank", "sigma" (descending floats), "bound",
     "dps", "radius"}."""
-    import flint
     s = tab.s
     D = max(tab.decimal_digits or 0, tab.source_digits or 0)
     w = dps or max(60, D + 30, 3 * s + 30)
@@ -615,19 +645,10 @@ def omega_rank(tab: "SparkTableau", dps: int | None = None, extra_rows=None) -> 
     balls = tab.ball_entries(digits)
     given = tab.sources is not None and "omega" in tab.sources
     if tab.sources is not None and not given:
-        with flint.ctx.workprec(int(digits * 3.33) + 16):
-            bv, cv = balls["b"], balls["c"]
-            # b_j c_j^i by repeated products: arb's ** is NaN on a ball containing 0 ("0.0000000")
-            obs, row = [], list(bv)
-            for i in range(s - 1):
-                obs.append(row)
-                row = [row[j] * cv[j] for j in range(s)]
+        obs = _default_omega_balls(balls, s, digits)
     else:
         obs = balls["omega"]
-    # ||Delta omega||_F by hypot: the squares of radii of entries up to MAX_MAGNITUDE overflow
-    rad = math.hypot(*(float(x.rad()) for r in obs for x in r))
-    if tab.known_exactly or tab.exact is None:
-        rad = 0.0                       # the entries stand for themselves
+    rad = _frobenius_radius(tab, obs)
     with mpmath.workdps(w):
         rows = [list(r) for r in ent["omega"]] + [list(r) for r in (extra_rows or [])]
         sv = mpmath.svd_r(mpmath.matrix(rows), compute_uv=False) if rows else []
@@ -636,6 +657,38 @@ def omega_rank(tab: "SparkTableau", dps: int | None = None, extra_rows=None) -> 
     bound = rad + s * s * 10.0 ** (5 - w) * max(smax, 1e-300)
     return {"rank": sum(x > bound for x in sig), "sigma": sig, "bound": bound, "dps": w,
             "radius": rad}
+
+
+def _default_omega_balls(balls, s: int, digits: int) -> list:
+    """The rows b_j c_j^(i-1), i < s, as arb balls from the balls of b and c (``ball_entries``)."""
+    import flint
+    with flint.ctx.workprec(int(digits * 3.33) + 16):
+        bv, cv = balls["b"], balls["c"]
+        # b_j c_j^i by repeated products: arb's ** is NaN on a ball containing 0 ("0.0000000")
+        obs, row = [], list(bv)
+        for i in range(s - 1):
+            obs.append(row)
+            row = [row[j] * cv[j] for j in range(s)]
+    return obs
+
+
+def _frobenius_radius(tab, rows) -> float:
+    """||Delta||_F of the balls ``rows``, 0 when the entries stand for themselves (exact, or a
+    built-in computed to any precision)."""
+    if tab.known_exactly or tab.exact is None:
+        return 0.0
+    # by hypot: the squares of radii of entries up to MAX_MAGNITUDE overflow
+    return math.hypot(*(float(x.rad()) for r in rows for x in r))
+
+
+def default_rows_radius(tab) -> float:
+    """||Delta||_F of the rows b_j c_j^(i-1), i < s, made from the entries b and c as the file
+    gives them (what ``check_omega_default`` stacks under omega)."""
+    D = max(tab.decimal_digits or 0, tab.source_digits or 0)
+    digits = max(D + 20, 40)
+    if tab.sources is None:
+        return 0.0
+    return _frobenius_radius(tab, _default_omega_balls(tab.ball_entries(digits), tab.s, digits))
 
 
 def _default_omega_exact(b, c, s):

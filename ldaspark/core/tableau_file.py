@@ -12,7 +12,6 @@ its entries carry (``omega_rank``): (21e) with (21f) would not determine the s m
 from __future__ import annotations
 
 import json
-import math
 
 import sympy
 
@@ -44,6 +43,7 @@ def from_json_dict(d: dict, name: str | None = None, max_stages: int | None = No
     At most ``max_stages`` (default MAX_STAGES) stages."""
     if not isinstance(d, dict):
         raise TableauError("tableau JSON must be an object with keys c, A, A_hat, A_tilde, b, b_hat, b_tilde")
+    _refuse_misspelt_keys(d)
     missing = [k for k in NAMES if k != "omega" and k not in d]
     if missing:
         raise TableauError(f"tableau is missing key(s): {', '.join(missing)}")
@@ -94,6 +94,26 @@ def from_json_dict(d: dict, name: str | None = None, max_stages: int | None = No
     return _rank_checked(SparkTableau(label, s, exact=ex, source_digits=digits_carried, **kw))
 
 
+def _key_form(k: str) -> str:
+    return "".join(ch for ch in k.lower() if ch not in "_- ")
+
+
+def _refuse_misspelt_keys(d: dict) -> None:
+    """Keys besides the tableau's are metadata ("comment", "source") and ignored, but one that is a
+    near miss of a tableau key ("Omega", "omgea", "A-hat": the same letters up to case and _ - space,
+    or a difflib ratio >= 0.8) is refused naming the key meant: ignored, a misspelt omega made the
+    audit judge the default omega instead of the file's."""
+    import difflib
+    known = NAMES + ("name",)
+    for k in d:
+        if not isinstance(k, str) or k in known:
+            continue
+        same = [n for n in known if _key_form(n) == _key_form(k)]
+        near = same or difflib.get_close_matches(k, known, n=1, cutoff=0.8)
+        if near:
+            raise TableauError(f"tableau key {k[:40]!r} is not one of {', '.join(known)}: did you mean {near[0]!r}?")
+
+
 def _rank_checked(tab: SparkTableau) -> SparkTableau:
     """``tab`` when omega has rank s-1 at the precision its entries carry (``omega_rank``), else a
     TableauError: (21e) with (21f) would not determine the s multipliers."""
@@ -108,9 +128,26 @@ def _rank_checked(tab: SparkTableau) -> SparkTableau:
 
 
 def _json_number(text: str):
-    """``parse_float`` of the tableau loader: the text of a JSON number (JsonNumber); one that is
-    not finite as a float64 (1e999) stays a float, refused by ``_parse_entry`` as before."""
-    return JsonNumber(text) if math.isfinite(float(text)) else float(text)
+    """``parse_float`` of the tableau loader: the text of a JSON number (JsonNumber), also one
+    beyond float64 (1e999999), which ``_parse_entry`` refuses naming the text written (as a float
+    it read "entry inf is not finite"). NaN and Infinity are JSON constants, not numbers: they
+    stay floats (``parse_constant``) and are refused as not finite."""
+    return JsonNumber(text)
+
+
+class _DuplicateKey(Exception):
+    """A key given twice in one JSON object of a tableau file (``_unique_keys``)."""
+
+
+def _unique_keys(pairs) -> dict:
+    """``object_pairs_hook`` of the tableau loader: json.loads keeps the last of two equal keys in
+    silence, and the audit judged whichever of two A_hat came last; a key given twice is refused."""
+    d = {}
+    for k, v in pairs:
+        if k in d:
+            raise _DuplicateKey(str(k)[:40])
+        d[k] = v
+    return d
 
 
 def max_file_bytes(max_stages: int | None = None) -> int:
@@ -165,13 +202,19 @@ def load_tableau(path, max_stages: int | None = None) -> SparkTableau:
     try:
         # the one checked opener: a regular file of bounded size, checked again on the descriptor
         if not os.path.exists(path):
+            if os.path.lexists(path):       # a link loop is not "not found": say what it is
+                raise TableauError(f"tableau file {os.fsdecode(path)} is a symbolic link that does not resolve "
+                                   "(its target is missing or the links form a loop)")
             raise FileNotFoundError(path)
         raw = read_regular(path, limit, "tableau file", TableauError)
         # a JSON number is a decimal text with its digits (JsonNumber): 0.1127016653792583 is known
         # to its 16 digits and half an ulp, a published 15-digit coefficient to its 15 digits
-        d = json.loads(raw.decode("utf-8"), parse_float=_json_number)
+        # utf-8-sig: a byte-order mark (Windows editors) is not part of the JSON text
+        d = json.loads(raw.decode("utf-8-sig"), parse_float=_json_number, object_pairs_hook=_unique_keys)
     except FileNotFoundError:
         raise TableauError(f"tableau file {path} not found") from None
+    except _DuplicateKey as exc:
+        raise TableauError(f"tableau file {path}: key {exc.args[0]!r} is given twice") from None
     except json.JSONDecodeError as exc:
         raise TableauError(f"tableau file {path} is not valid JSON: {exc.msg} at line {exc.lineno}") from None
     except (OSError, UnicodeDecodeError) as exc:

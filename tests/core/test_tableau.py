@@ -421,3 +421,96 @@ def test_mpmath_coefficients_carry_the_working_precision(name):
                     assert len(g) == len(w), (name, key)
                     err = max((abs(mpmath.mpf(x) - y) / max(1, abs(y)) for x, y in zip(g, w)), default=0)
                     assert err <= bound, (name, dps, key, mpmath.nstr(err, 3))
+
+
+@pytest.mark.parametrize("text, shown", [("1e301", "1e301"), ("1e308", "1e308"), ("-1.5e305", "-1.5e305"),
+                                         ("1e400", "1e400"), ("1e999999", "1e999999")])
+def test_a_json_number_beyond_1e300_is_refused_as_written(text, shown, tmp_path):
+    """A JSON number above the entries' bound 1e300 skipped the reader's magnitude check: 1e308
+    reached the tableau's own check, whose message printed the first 40 digits of its integer,
+    "exact['c'][0] = 1000000000000000000000000000000000000000" (10^39, not the 1e308 written),
+    and 1e999999 (inf as a float64) read "entry inf is not finite". Each names the entry and the
+    text written; 1e300 itself loads (the bound is inclusive), and a string entry "1e301" gets the
+    same one-line refusal (controls)."""
+    ok = '{"c": [%s], "A": [["1/2"]], "A_hat": [["1/2"]], "A_tilde": [["1/2"]], "b": ["1"], "b_hat": ["1"], ' \
+         '"b_tilde": ["1"]}'
+    p = tmp_path / "t.json"
+    p.write_text(ok % text)
+    with pytest.raises(TableauError) as exc:
+        load_tableau(str(p))
+    msg = str(exc.value)
+    assert msg.startswith("c[0]: ") and shown in msg and "\n" not in msg, msg
+    assert "0" * 30 not in msg and "inf" not in msg.replace("1e999999", ""), msg
+    p.write_text(ok % "1e300")
+    assert load_tableau(str(p)).s == 1
+    p.write_text(ok % '"1e301"')
+    with pytest.raises(TableauError, match=r"^c\[0\]: '1e301' exceeds 1e\+300 in modulus$"):
+        load_tableau(str(p))
+    # the tableau's own check (an exact entry given to the API) marks a shortened number as such
+    ex = dict(from_json_dict(json.loads(ok % '"1/2"')).exact, c=sympy.Matrix([[sympy.Integer(10) ** 308]]))
+    with pytest.raises(TableauError, match=r"= 1000000000000000000000000000000000000\.\.\. is not a finite"):
+        SparkTableau("big", 1, exact=ex)
+
+
+def test_a_symbolic_link_loop_is_named_as_such(tmp_path):
+    """A tableau path that is a link loop (a -> b -> a) was reported "not found", which sends the
+    user looking for a missing file; a link that does not resolve is now named as one (a loop or a
+    missing target). Controls: a plain missing path is "not found", a link to a good file loads."""
+    import os
+    (tmp_path / "a.json").symlink_to(tmp_path / "b.json")
+    (tmp_path / "b.json").symlink_to(tmp_path / "a.json")
+    (tmp_path / "dangling.json").symlink_to(tmp_path / "nowhere.json")
+    for name in ("a.json", "dangling.json"):
+        with pytest.raises(TableauError, match="symbolic link that does not resolve"):
+            load_tableau(str(tmp_path / name))
+    with pytest.raises(TableauError, match="not found$"):
+        load_tableau(str(tmp_path / "missing.json"))
+    good = tmp_path / "good.json"
+    good.write_text(json.dumps({"c": ["1/2"], "A": [["1/2"]], "A_hat": [["1/2"]], "A_tilde": [["1/2"]],
+                                "b": ["1"], "b_hat": ["1"], "b_tilde": ["1"]}))
+    os.symlink(good, tmp_path / "link.json")
+    assert load_tableau(str(tmp_path / "link.json")).s == 1
+
+
+def test_a_key_given_twice_is_refused_and_a_utf8_bom_is_read(tmp_path):
+    """json.loads keeps the last of two "A_hat" keys in silence: the audit judged a tableau the
+    file gives two ways (a first A_hat satisfying (22b), a second violating it, passed or failed
+    by which came last). A key given twice is one TableauError naming it. A UTF-8 byte-order mark (Windows editors write one) was refused with
+    Python's advice "decode using utf-8-sig"; it is read. Controls: the file without the second
+    key and without the BOM loads to the same tableau; non-UTF-8 bytes are still refused."""
+    text = ('{"c": ["1/2"], "A": [["1/2"]], "A_hat": [["1/2"]], "A_tilde": [["1/2"]], "b": ["1"], '
+            '"b_hat": ["1"], "b_tilde": ["1"]%s}')
+    p = tmp_path / "t.json"
+    p.write_text(text % ', "A_hat": [["1/3"]]')
+    with pytest.raises(TableauError, match=r"key 'A_hat' is given twice$"):
+        load_tableau(str(p))
+    p.write_text(text % "")
+    ref = load_tableau(str(p))
+    p.write_bytes(b"\xef\xbb\xbf" + (text % "").encode())
+    assert load_tableau(str(p)).exact == ref.exact
+    p.write_bytes(b"\xff\xfe" + (text % "").encode())
+    with pytest.raises(TableauError, match="cannot read tableau file"):
+        load_tableau(str(p))
+
+
+@pytest.mark.parametrize("typo, key", [("Omega", "omega"), ("omgea", "omega"), ("A-hat", "A_hat"), ("Name", "name"),
+                                       ("a_tilde", "A_tilde")])
+def test_a_misspelt_tableau_key_is_refused_not_ignored(typo, key, tmp_path):
+    """Keys other than the tableau's were ignored in silence, so a misspelt optional key changed
+    the method audited: Gauss-3 with its omega under "Omega" (rows of the identity: measured order 4,
+    not symmetric) was audited with the default omega, exit 0, "symmetric", order 6. A key that
+    is a near miss of a tableau key (the same letters up to case and _ - space, or difflib ratio
+    >= 0.8) is refused naming the key meant; a required key misspelt was "missing key(s)" without
+    the hint. Controls: the correct key loads; metadata keys ("comment", "source", "order",
+    "reference") are still accepted."""
+    d = {"c": ["1/2"], "A": [["1/2"]], "A_hat": [["1/2"]], "A_tilde": [["1/2"]], "b": ["1"], "b_hat": ["1"],
+         "b_tilde": ["1"]}
+    bad = dict(d, **{typo: d.get(key, [] if key == "omega" else "midpoint")})
+    if key in d and typo != key:
+        bad.pop(key)
+    p = tmp_path / "t.json"
+    p.write_text(json.dumps(bad))
+    with pytest.raises(TableauError, match=rf"key '{typo}' .*did you mean '{key}'"):
+        load_tableau(str(p))
+    p.write_text(json.dumps(dict(d, comment="Gauss 1", source="Jay 2009", order=2, reference="[27]")))
+    assert load_tableau(str(p)).s == 1

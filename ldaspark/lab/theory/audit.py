@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 
 from ...analysis import order_conditions as oc
 from .audit_checks import (FAIL, INFO, ORDER_SLACK, PASS, SKIP, Check, _coefficient_strings, _fmt, _jsonable,  # noqa: F401
-                           check_22a, check_22b, check_23, check_omega, check_solvable, check_omega_default, check_row_sums,
+                           check_22a, check_22b, check_23, check_23_omega, check_omega, check_solvable, check_omega_default, check_row_sums,
                            check_shapes, convergence_checks, digits_of, energy_check, entry_effect, entry_radii,
                            observed_order, order_checks, probe_step)
 from ...core.errors import InputError, LdasparkError
@@ -382,6 +382,9 @@ def algebraic_checks(tab, ar, e, dps):
     C.extend(check_23(ar, e))
     facts["22"] = C[-6].status == PASS and C[-5].status == PASS
     facts["23"] = all(c.status == PASS for c in C[-4:])
+    # (23a-d) make the method symmetric only when omega's rows are closed under reversal
+    C.append(check_23_omega(tab))
+    facts["23"] = facts["23"] and C[-1].status == PASS
     chk, f = order_checks(ar, e)
     C.extend(chk)
     facts.update(f)
@@ -480,6 +483,8 @@ def verdict(res: AuditResult) -> str:
         parts.append(f"{res.tableau} ({s} stage{'s' if s > 1 else ''}) violates "
                      + " and ".join(f"({c.name}) ({c.detail})" for c in bad)
                      + ", so Theorem 1 does not apply.")
+    if sv is not None and sv.status == SKIP:
+        parts.append(f"Whether (21) is solvable for the method the entries stand for is {sv.detail}.")
     th = [c for c in res.checks if c.name.startswith("theorem1:")]
     summ = res.get("theorem1")
     if summ is not None and summ.status == SKIP:
@@ -494,7 +499,8 @@ def verdict(res: AuditResult) -> str:
                         else "is not decided at the precision of the entries" if summ.status == INFO
                         else f"fails on {nfail} of {len(decided)} decided scenes" if nfail
                         else "is decided on too few scenes")
-                     + f" (largest residual {worst:.1e})"
+                     # no decided scene measured a residual: none to quote (not "0.0e+00")
+                     + (f" (largest residual {worst:.1e})" if decided else "")
                      + (f"; not decided on {', '.join(undecided)} (see the checks)" if undecided else "")
                      + ".")
         d = disagreement(res)
@@ -502,6 +508,9 @@ def verdict(res: AuditResult) -> str:
             parts.append(d)
     if f["23"]:
         parts.append("It satisfies the symmetry conditions (23), so the method is symmetric.")
+    elif all(res.get(k) is not None and res.get(k).status == PASS for k in ("23a", "23b", "23c", "23d")):
+        parts.append("It satisfies (23a-d), but the rows of omega reversed leave omega's row space (see "
+                     "'23-omega'): the adjoint method's (21e) is another equation, so no symmetry is claimed.")
     else:
         parts.append("It does not satisfy (23): no symmetry is claimed.")
     p = f["predicted_order"]

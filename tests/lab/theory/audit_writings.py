@@ -13,7 +13,7 @@ WRITINGS = ("exact", "float64", "17", "40")
 # besides: "15json" (JSON numbers of 15 digits), any other integer string (decimal strings of that many
 # digits), "fN" (strings printed to N decimal places, fixed point: "0.0416667" for f7), "repr" (a float64's
 # repr as a string), "g17" ("%.17g" of the float64 as a string), "mixed30" (30-digit JSON numbers, with
-# A_hat and A_tilde as float64 JSON numbers)
+# A_hat and A_tilde as float64 JSON numbers), "json30" (every entry a 30-digit JSON number)
 
 
 def builtin(name):
@@ -60,7 +60,7 @@ def written(c, A, b, kind, A_hat=None, A_tilde=None, name="m"):
                 return repr(float(v))
             if kind == "g17":
                 return "%.17g" % float(v)
-            if kind == "mixed30":
+            if kind in ("mixed30", "json30"):
                 return JsonText(mpmath.nstr(v, 30, min_fixed=-5, max_fixed=5))
             if kind == "15json":            # a published 15-digit coefficient, as a JSON number
                 return float(mpmath.nstr(v, 15))

@@ -281,3 +281,42 @@ def test_symmetry_summary_fails_when_nothing_is_decided(monkeypatch):
     monkeypatch.setattr(symmetry, "check_symmetry", _raising("reverse BVP failed"))
     by = _statuses(hyp23=True)
     assert by["symmetry:skate"] == au.SKIP and by["symmetry"] == au.FAIL
+
+
+def _gauss3_with_omega(omega, kind="exact"):
+    import sys
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+    from audit_writings import builtin, written
+    from ldaspark.core.tableau_file import from_json_dict
+    c, A, b, Ah, At = builtin("gauss-3")
+    d = written(c, A, b, kind, Ah, At)
+    if omega is not None:
+        d["omega"] = omega
+    return from_json_dict(d)
+
+
+def test_symmetry_needs_omegas_rows_to_be_closed_under_reversal():
+    """(23a-d) make the method symmetric for the omega of [26, 27] (rows b_j c_j^(i-1): reversed,
+    b_j (1 - c_j)^(i-1), they span the same rows); for an omega whose reversed rows
+    omega_(i,s+1-j) leave its row space, the adjoint's (21e) is another equation and the method is
+    not symmetric. Gauss-3 with omega = rows of the identity passed (23) ("the method is
+    symmetric") while the symmetry identities fail on the particle by 1.7e-7 (tolerance 1e-15).
+    The check '23-omega' decides the rank of [omega; omega reversed] like omega's (identity: sigma_3
+    = 1). Controls: omega = [1 1 1; 1 0 -1] (reversal-invariant, not the default) passes and the
+    particle's identities hold to 1e-30; the default omega passes exactly and printed to 10 digits."""
+    by = lambda tab: {c.name: c for c in au.algebraic_checks(tab, *au.decide_arith(tab, 30)[:2], 30)[0]}
+    facts = lambda tab: au.algebraic_checks(tab, *au.decide_arith(tab, 30)[:2], 30)[1]
+    bad = _gauss3_with_omega([["1", "0", "0"], ["0", "1", "0"]])
+    chk = by(bad)["23-omega"]
+    assert chk.status == au.INFO and chk.residual > 0.5 > 1e-10 > chk.tolerance, (chk.residual, chk.tolerance)
+    assert all(by(bad)[k].status == au.PASS for k in ("23a", "23b", "23c", "23d")) and not facts(bad)["23"]
+    good = _gauss3_with_omega([["1", "1", "1"], ["1", "0", "-1"]])
+    assert by(good)["23-omega"].status == au.PASS and facts(good)["23"]
+    for kind in ("exact", "10"):
+        tab = _gauss3_with_omega(None, kind)
+        assert by(tab)["23-omega"].status == au.PASS and facts(tab)["23"], kind
+    # the measurement the condition predicts: the identities fail without it, hold with it
+    sym = lambda tab: next(c for c in au.theorem1_checks(tab, True, True, 30, True, ("particle",))[0]
+                           if c.name == "symmetry:particle")
+    assert sym(bad).status == au.FAIL and sym(bad).residual > 1e-8
+    assert sym(good).status == au.PASS and sym(good).residual < 1e-25

@@ -28,9 +28,8 @@ SAMPLE = ("RK44", "SSP33", "GL2", "RadauIIA2", "LobattoIIIC3", "SDIRK23")
 #: methods on which nodepy's fixed 1e-14 decides otherwise than the audit's exact or ball decision,
 #: with the fact concerned (docs/audit.md, "nodepy as an oracle"); empty when they all agree
 NODEPY_TOLERANCE_CASES = {
-    # nodepy's 15-digit coefficients miss B(2) (b . c = 1/2) by 1.12e-15, more than rounding to 15
-    # digits explains (<= 7.9e-16 here): the audit says order 1, nodepy's 1e-14 accepts order 2
-    "SSP22star": ["order 1 vs nodepy 2"],
+    # (SSP22star agrees since float64 values carry cond(V) ulps: its 15-digit coefficients miss B(2)
+    # by 1.12e-15, within the 1.3e-15 that 4.4 ulps on top of the 15 digits give: order 2 for both)
     # an order-5 condition misses by 1.005e-14 in nodepy's float arithmetic, just above its 1e-14;
     # within the uncertainty of the float64 entries for the audit: order 5 (as Tsitouras designed it)
     "Tsit5": ["order 5 vs nodepy 4"],

@@ -825,3 +825,15 @@ def test_the_symmetry_fact_needs_all_four_of_23_and_22_needs_both(monkeypatch):
         monkeypatch.setattr(mod, "check_23", lambda ar, e, c=cs[2:]: list(c))
         _, facts = au.algebraic_checks(tab, ar, e, 30)
         assert (facts["22"], facts["23"]) == ((False, True) if k < 2 else (True, False)), k
+
+
+def test_a_theorem1_check_decided_nowhere_quotes_no_residual():
+    """With no scene decided (each undecided by the entries' digits: Gauss-4 printed to 3 digits)
+    the verdict read "is not decided at the precision of the entries (largest residual 0.0e+00)",
+    a perfect residual that no scene measured. The residual is quoted only when some scene was
+    decided; control: one decided scene at 3.0e-20 is quoted."""
+    th = [Check(f"theorem1:{sc}", SKIP, None, "not decided") for sc in ("particle", "skate", "robot")]
+    text = au.verdict(_vres(th=th, summ=INFO))
+    assert "not decided at the precision of the entries" in text and "largest residual" not in text, text
+    th[0] = Check("theorem1:particle", PASS, 3e-20, "agrees")
+    assert "(largest residual 3.0e-20)" in au.verdict(_vres(th=th, summ=INFO))
