@@ -454,16 +454,8 @@ class LagrangianSystem:
             # L_vv that is not identically so (``lvv_problem`` refuses that) leaves the run to
             # the method: measured on L = (vx + vy)^2 / 2 - U, k = vx - vy, lobatto-iiia-iiib-3
             # converges while gauss-1 ended 2-9e-2 apart on the two engines with status 0.
-            # L_vv equilibrated by its own rows (by those of (4), a row of K would make a small
-            # but regular mass look singular: masses 1 and 1e-12 with k = vx - 1000 vy)
-            Lv = Sf[:self.n, :self.n]
-            lmax = np.max(np.abs(Lv), axis=1)
-            if np.any(lmax == 0):
-                lr = 0.0
-            else:
-                dl = 1 / np.sqrt(lmax)
-                lsv = np.linalg.svd(dl[:, None] * Lv * dl[None, :], compute_uv=False)
-                lr = float(lsv[-1] / lsv[0])
+            lr = _lvv_rcond(Sf[:self.n, :self.n], math.sqrt,
+                            lambda A: np.linalg.svd(np.asarray(A, float), compute_uv=False))
             if lr <= tol:
                 notes.update(lvv_rcond=lr, t=float(t))
         return r
@@ -503,16 +495,7 @@ class LagrangianSystem:
         if getattr(self, "lvv_problem", None):
             raise SingularSaddleError(self.lvv_problem)
         if notes is not None:
-            # (5) at the run's digits, L_vv equilibrated by its own rows (``check_saddle``)
-            Lv = S[:self.n, :self.n]
-            lmax = [max(abs(x) for x in row) for row in Lv]
-            if any(not x for x in lmax):
-                lr = mpmath.mpf(0)
-            else:
-                dl = [1 / mpmath.sqrt(x) for x in lmax]
-                lsv = backend.singular_values(np.array([[dl[i] * Lv[i, j] * dl[j] for j in range(self.n)]
-                                                        for i in range(self.n)], dtype=object))
-                lr = lsv[-1] / lsv[0]
+            lr = _lvv_rcond(S[:self.n, :self.n], mpmath.sqrt, backend.singular_values)    # at the run's digits
             if lr <= tol:
                 notes.update(lvv_rcond=float(lr), t=float(t))
         return r
@@ -617,6 +600,20 @@ class LagrangianSystem:
                 return sol
             prev = dn
         raise SingularSaddleError(f"(3a) with the nonideal term: Newton for psi did not converge at t = {float(t):g}")
+
+
+def _lvv_rcond(Lv, sqrt, singular_values):
+    """The reciprocal condition number of L_vv (n x n, floats or mpf) equilibrated by its own rows,
+    D L_vv D with D = diag(1 / sqrt(max_j |L_ij|)) (by the rows of (4), a row of K would make a
+    small but regular mass look singular: masses 1 and 1e-12 with k = vx - 1000 vy); 0 for a zero
+    row. ``sqrt`` and ``singular_values`` (descending) of the run's numbers."""
+    lmax = [max(abs(x) for x in row) for row in Lv]
+    if any(not x for x in lmax):
+        return 0.0
+    d = [1 / sqrt(x) for x in lmax]
+    n = len(d)
+    sv = singular_values(np.array([[d[i] * Lv[i][j] * d[j] for j in range(n)] for i in range(n)], dtype=object))
+    return float(sv[-1] / sv[0])
 
 
 def _check_build(system) -> None:
