@@ -200,6 +200,24 @@ class RunSpec:
         from .compiled.fast import generic_integrate
         return generic_integrate(self.system, self.method, self.t0, q0, v0, self.h, n_steps, 1, self.tol)
 
+    def saddle_check(self, k, ens):
+        """The det (4) monitor of a single ``integrate`` run (``solve._saddle_scan``) on every member
+        of this spec's ensemble ``ens``: the kernel tasks solve (21) with no such check and go on
+        across the singular set of (4) on another branch; a member whose det (4) changed sign
+        raises SingularSaddleError naming the spec, the member and the step."""
+        from .compiled.fast import _resolve
+        from .core.errors import SingularSaddleError
+        from .solve import _saddle_may_change_sign, first_saddle_crossing, saddle_crossing
+        kind, _, name = _resolve(self.method)
+        if kind != "spark" or not _saddle_may_change_sign(self.system):
+            return
+        for r, (q0, v0) in enumerate(zip(self.Q0, self.V0)):
+            i = first_saddle_crossing(self.system, ens.t, ens.q[r], ens.v[r], self.n_steps, self.every,
+                                      lambda n: self.rerun(q0, v0, n))
+            if i is not None:
+                raise SingularSaddleError(f"run_many: spec {k} ({name}), member {r}: "
+                                          f"{saddle_crossing(i, self.t0 + i * self.h, self.h)}")
+
     def judge(self, k, ens):
         """The step-acceptance guard (``ldaspark.core.guard.judge``) on every member of this spec's
         ensemble ``ens`` (spec number k of ``run_many``): each member's stats get the guard's
@@ -322,6 +340,7 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
                                   psi=None if any(r[6] is None for r in rs) else np.array([r[6] for r in rs]),
                                   stats=[r[5] for r in rs], seconds=seconds))
     for k, (sp, ens) in enumerate(zip(specs, out)):
+        sp.saddle_check(k, ens)         # before the guard, in the order of a single run (``_drive_blocks``)
         if guard:
             sp.judge(k, ens)
         else:

@@ -911,15 +911,38 @@ def _saddle_scan(res, exc, prep, every, rerun=None) -> tuple:
         i = int(at[j]) if i is None else i
     k = i - 1                                   # step k ends at point i: the prefix ends at point k
     tk = t0 + k * float(prob.h)
-    err = SingularSaddleError(
-        f"step {k} (t = {tk:.6g} -> {tk + float(prob.h):.6g}) crossed the singular set of the saddle matrix (4): "
-        "det (4) changed sign, so the step solved (21) on the wrong branch or the solution left the region where "
-        "(4) holds")
+    err = SingularSaddleError(saddle_crossing(k, tk, float(prob.h)))
     idx = np.arange(k + 1) if every == 1 else save_indices(k, every) if k > 0 else np.array([0])
     for nm in ("t", "q", "v", "energy", "constraint"):
         setattr(res, nm, np.asarray(getattr(steps, nm))[idx])
     res.psi = None if steps.psi is None else np.asarray(steps.psi)[idx[:-1]]
     return res, err
+
+
+def saddle_crossing(k: int, tk: float, h: float) -> str:
+    """The message of a step k from tk that crossed the singular set of (4), as the block engines
+    and ``run_many`` say it (the stepping engines' ``core.spark.march`` adds its option)."""
+    return (f"step {k} (t = {tk:.6g} -> {tk + h:.6g}) crossed the singular set of the saddle matrix (4): "
+            "det (4) changed sign, so the step solved (21) on the wrong branch or the solution left the region "
+            "where (4) holds")
+
+
+def first_saddle_crossing(system, t, Q, V, n_steps, every, rerun) -> Optional[int]:
+    """The first step whose end point has another sign of det (4) than the start, or None, on a
+    whole run of ``n_steps`` sampled every ``every`` steps (``save_indices``); ``rerun(n)``: the
+    first n steps with every step kept, to name the step between two samples (``_saddle_scan``)."""
+    signs = _saddle_signs(system, t, Q, V)
+    change = np.nonzero(signs[1:] != signs[0])[0] if signs[0] else ()
+    if not len(change):
+        return None
+    j = int(change[0]) + 1
+    if every == 1:
+        return j - 1
+    at = save_indices(n_steps, every)
+    steps = rerun(int(at[j]))
+    fine = _saddle_signs(system, float_array(steps.t), float_array(steps.q), float_array(steps.v))
+    later = np.nonzero(fine[int(at[j - 1]) + 1:] != signs[0])[0]
+    return (int(later[0]) + int(at[j - 1]) + 1 if len(later) else int(at[j])) - 1
 
 
 def _energy_jump_cut(res: Result, energy_jump) -> tuple:
