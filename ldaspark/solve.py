@@ -475,15 +475,12 @@ def _compiled_ensemble(system, params, Q0, V0, prob: _Problem, opts: Integration
     try:
         ens = run_ensemble(system, prob.method, prob.t0, Q0, V0, prob.h, prob.N, every=opts.save_every,
                            tol=opts.tol, executor=opts.executor, guard=False)
-    except UnitsFailed:
-        # a member's step failed (NonFiniteError, NewtonError): the kernel task has no rescue chain
-        # and no partial Result, so the ensemble runs again as the loop of single runs, where that
-        # member ends with its own status and the others are kept (the loop's numbers are the same)
-        return None
-    if prob.kind == "spark" and _saddle_may_change_sign(system) and any(
-            _sign_changes(_saddle_signs(system, ens.t, ens.q[r], ens.v[r])) for r in range(len(ens.q))):
-        # a member crossed the singular set of (4): the loop of single runs, where that member
-        # stops with the det (4) monitor's error as its single run does (``_saddle_scan``)
+    except (UnitsFailed, SingularSaddleError):
+        # a member's step failed (NonFiniteError, NewtonError), or a member crossed the singular
+        # set of (4) (``RunSpec.saddle_check``): the kernel task has no rescue chain and no partial
+        # Result, so the ensemble runs again as the loop of single runs, where that member ends
+        # with its own status (-2 with the det (4) monitor's error, ``_saddle_scan``) and the
+        # others are kept (the loop's numbers are the same)
         return None
     # each member says what ran as a single run's Result does: the root finder asked for, and the
     # kernel's choice ("runs"), not the kernel's bare kind name
@@ -845,11 +842,6 @@ def _saddle_may_change_sign(system) -> bool:
     except LdasparkError:
         return True
     return not (cs.form == "mechanical" and cs.mass_positive_definite)
-
-
-def _sign_changes(signs) -> bool:
-    """Whether det (4) changes sign along a run from its sign at the first point (``_saddle_signs``)."""
-    return bool((signs[1:] != signs[0]).any())
 
 
 def _saddle_signs(system, t, Q, V) -> np.ndarray:

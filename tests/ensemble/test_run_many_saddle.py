@@ -49,3 +49,16 @@ def test_run_many_before_the_crossing_is_unchanged():
     assert one.status == 0
     for r in range(2):
         np.testing.assert_array_equal(ens.q[r], np.asarray(one.q, float))
+
+
+def test_integrate_ensemble_through_an_executor_gives_each_member_status_minus_2():
+    """``integrate`` with (B, n) initial data and an executor (guard=False: the kernel tasks of
+    ``run_ensemble``) catches the crossing that run_many now raises and runs the loop of single
+    runs: every member ends with status -2 at step 8, as without an executor (the control)."""
+    kw = dict(t_span=(0, 30 * H), q0=[Q0, Q0], v0=[V0, V0], h=H, guard=False)
+    with ThreadPoolExecutor(1) as ex:
+        pooled = ldaspark.integrate(LORENTZ, "gauss-2", executor=ex, **kw)
+    loop = ldaspark.integrate(LORENTZ, "gauss-2", **kw)
+    assert list(pooled.status) == list(loop.status) == [-2, -2]
+    assert all("step 8 (t = 0.4 -> 0.45)" in m for m in pooled.message)
+    np.testing.assert_array_equal(np.asarray(pooled.q, float), np.asarray(loop.q, float))
