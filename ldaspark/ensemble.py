@@ -24,7 +24,9 @@ from typing import Optional
 
 import numpy as np
 
-from .core.errors import InputError
+from .core.backend import Backend
+from .core.errors import InputError, LdasparkError
+from .core.result import float_array, save_indices
 from .models import arguments
 
 
@@ -200,6 +202,23 @@ class RunSpec:
         from .compiled.fast import generic_integrate
         return generic_integrate(self.system, self.method, self.t0, q0, v0, self.h, n_steps, 1, self.tol)
 
+    def saddle_check(self, k, ens):
+        """The det (4) monitor of a single ``integrate`` run (``solve._saddle_scan``) on every member
+        of this spec's ensemble ``ens``: the kernel tasks solve (21) with no such check and go on
+        across the singular set of (4) on another branch; a member whose det (4) changed sign
+        raises SingularSaddleError naming the spec, the member and the step."""
+        from .compiled.fast import _resolve
+        from .core.errors import SingularSaddleError
+        kind, _, name = _resolve(self.method)
+        if kind != "spark" or not _saddle_may_change_sign(self.system):
+            return
+        for r, (q0, v0) in enumerate(zip(self.Q0, self.V0)):
+            i = first_saddle_crossing(self.system, ens.t, ens.q[r], ens.v[r], self.n_steps, self.every,
+                                      lambda n: self.rerun(q0, v0, n))
+            if i is not None:
+                raise SingularSaddleError(f"run_many: spec {k} ({name}), member {r}: "
+                                          f"{saddle_crossing(i, self.t0 + i * self.h, self.h)}")
+
     def judge(self, k, ens):
         """The step-acceptance guard (``ldaspark.core.guard.judge``) on every member of this spec's
         ensemble ``ens`` (spec number k of ``run_many``): each member's stats get the guard's
@@ -322,6 +341,7 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
                                   psi=None if any(r[6] is None for r in rs) else np.array([r[6] for r in rs]),
                                   stats=[r[5] for r in rs], seconds=seconds))
     for k, (sp, ens) in enumerate(zip(specs, out)):
+        sp.saddle_check(k, ens)         # before the guard, in the order of a single run (``_drive_blocks``)
         if guard:
             sp.judge(k, ens)
         else:
@@ -396,3 +416,72 @@ def run_ensemble(system, method, t0, Q0, V0, h, n_steps, every=1, compensated=Tr
     count(chunk, "chunk", 1, 10 ** 9)
     spec = RunSpec(system, method, t0, Q0, V0, h, n_steps, every, compensated, tol, kernel)
     return run_many([spec], executor=executor, max_workers=max_workers, chunk=chunk, progress=progress, guard=guard)[0]
+
+
+# --- the det (4) monitor of a run (``solve._saddle_scan``, ``RunSpec.saddle_check``) ---------------------------
+def _saddle_may_change_sign(system) -> bool:
+    """Whether det (4) can change sign along a run: not for the mechanical form with a constant
+    symmetric positive definite M (det (4) = det M det(-K M^-1 K^T) keeps the sign (-1)^m wherever
+    K has full rank); otherwise (L_vv depending on (t, q, v), K on v, an indefinite M) it can."""
+    from .compiled import fast
+    try:
+        cs = fast.compile_system(system)
+    except LdasparkError:
+        return True
+    return not (cs.form == "mechanical" and cs.mass_positive_definite)
+
+
+def _saddle_signs(system, t, Q, V) -> np.ndarray:
+    """sign(det (4)) at the points (t[j], Q[j], V[j]) (0 where it is not finite), as
+    ``core.spark._saddle_sign`` point by point (~50 us a point, 5x a compiled step of a small
+    system), here with L_vv and K evaluated on all points at once (numpy) and one batched slogdet."""
+    from .core import gensource
+    from .core.spark import _saddle_sign
+    n, m, N = system.n, system.m, len(t)
+    try:
+        f = system._compiled.get(("saddle", "numpy-points"))
+        if f is None:
+            args = [system.t] + list(system.q) + list(system.v) + list(system.params)
+            f = system._compiled[("saddle", "numpy-points")] = gensource.lambdify(
+                args, [system.L_vv.tolist(), system.k_v.tolist()], "numpy", order="none")
+        pv = [float(x) for x in system._param_arg_values(None)] if system.params else []
+        with np.errstate(all="ignore"):
+            Lvv, kv = f(np.asarray(t, float), *np.asarray(Q, float).T, *np.asarray(V, float).T, *pv)
+            S = np.zeros((N, n + m, n + m))
+            for a in range(n):
+                for b in range(n):
+                    S[:, a, b] = Lvv[a][b]          # an array over the points, or a constant
+            for l in range(m):
+                for a in range(n):
+                    S[:, n + l, a] = S[:, a, n + l] = kv[l][a]
+            sgn = np.linalg.slogdet(S)[0]
+        return np.where(np.isfinite(sgn), sgn, 0.0)
+    except (LdasparkError, TypeError, ValueError, ArithmeticError, np.linalg.LinAlgError):
+        bk = Backend(None)       # what numpy does not evaluate on arrays: point by point
+        return np.array([_saddle_sign(system, bk, t[j], Q[j], V[j]) for j in range(N)], dtype=float)
+
+
+def saddle_crossing(k: int, tk: float, h: float) -> str:
+    """The message of a step k from tk that crossed the singular set of (4), as the block engines
+    and ``run_many`` say it (the stepping engines' ``core.spark.march`` adds its option)."""
+    return (f"step {k} (t = {tk:.6g} -> {tk + h:.6g}) crossed the singular set of the saddle matrix (4): "
+            "det (4) changed sign, so the step solved (21) on the wrong branch or the solution left the region "
+            "where (4) holds")
+
+
+def first_saddle_crossing(system, t, Q, V, n_steps, every, rerun) -> Optional[int]:
+    """The first step whose end point has another sign of det (4) than the start, or None, on a
+    whole run of ``n_steps`` sampled every ``every`` steps (``save_indices``); ``rerun(n)``: the
+    first n steps with every step kept, to name the step between two samples (``_saddle_scan``)."""
+    signs = _saddle_signs(system, t, Q, V)
+    change = np.nonzero(signs[1:] != signs[0])[0] if signs[0] else ()
+    if not len(change):
+        return None
+    j = int(change[0]) + 1
+    if every == 1:
+        return j - 1
+    at = save_indices(n_steps, every)
+    steps = rerun(int(at[j]))
+    fine = _saddle_signs(system, float_array(steps.t), float_array(steps.q), float_array(steps.v))
+    later = np.nonzero(fine[int(at[j - 1]) + 1:] != signs[0])[0]
+    return (int(later[0]) + int(at[j - 1]) + 1 if len(later) else int(at[j])) - 1

@@ -46,6 +46,8 @@ from .core.result import (COUNTERS, MSG_DONE, STATUS_EVENT, STATUS_NEWTON, STATU
                           attach_counters, failure_counters, float_array,
                           save_indices, stack)
 from .core.grid import steps_between
+# the det (4) scan of a run (shared with run_many, a layer below)
+from .ensemble import _saddle_may_change_sign, _saddle_signs, first_saddle_crossing, saddle_crossing  # noqa: F401
 from .core.system import LagrangianSystem
 from .core.tableau import SparkTableau
 MSG_EVENT = "A termination event occurred."
@@ -475,15 +477,12 @@ def _compiled_ensemble(system, params, Q0, V0, prob: _Problem, opts: Integration
     try:
         ens = run_ensemble(system, prob.method, prob.t0, Q0, V0, prob.h, prob.N, every=opts.save_every,
                            tol=opts.tol, executor=opts.executor, guard=False)
-    except UnitsFailed:
-        # a member's step failed (NonFiniteError, NewtonError): the kernel task has no rescue chain
-        # and no partial Result, so the ensemble runs again as the loop of single runs, where that
-        # member ends with its own status and the others are kept (the loop's numbers are the same)
-        return None
-    if prob.kind == "spark" and _saddle_may_change_sign(system) and any(
-            _sign_changes(_saddle_signs(system, ens.t, ens.q[r], ens.v[r])) for r in range(len(ens.q))):
-        # a member crossed the singular set of (4): the loop of single runs, where that member
-        # stops with the det (4) monitor's error as its single run does (``_saddle_scan``)
+    except (UnitsFailed, SingularSaddleError):
+        # a member's step failed (NonFiniteError, NewtonError), or a member crossed the singular
+        # set of (4) (``RunSpec.saddle_check``): the kernel task has no rescue chain and no partial
+        # Result, so the ensemble runs again as the loop of single runs, where that member ends
+        # with its own status (-2 with the det (4) monitor's error, ``_saddle_scan``) and the
+        # others are kept (the loop's numbers are the same)
         return None
     # each member says what ran as a single run's Result does: the root finder asked for, and the
     # kernel's choice ("runs"), not the kernel's bare kind name
@@ -835,53 +834,6 @@ def _drive_blocks(engine, prep, start) -> Result:
     return _finish_prefix(res, exc, prep, start, engine, sliced=engine.samples and not opts.every_step)
 
 
-def _saddle_may_change_sign(system) -> bool:
-    """Whether det (4) can change sign along a run: not for the mechanical form with a constant
-    symmetric positive definite M (det (4) = det M det(-K M^-1 K^T) keeps the sign (-1)^m wherever
-    K has full rank); otherwise (L_vv depending on (t, q, v), K on v, an indefinite M) it can."""
-    from .compiled import fast
-    try:
-        cs = fast.compile_system(system)
-    except LdasparkError:
-        return True
-    return not (cs.form == "mechanical" and cs.mass_positive_definite)
-
-
-def _sign_changes(signs) -> bool:
-    """Whether det (4) changes sign along a run from its sign at the first point (``_saddle_signs``)."""
-    return bool((signs[1:] != signs[0]).any())
-
-
-def _saddle_signs(system, t, Q, V) -> np.ndarray:
-    """sign(det (4)) at the points (t[j], Q[j], V[j]) (0 where it is not finite), as
-    ``core.spark._saddle_sign`` point by point (~50 us a point, 5x a compiled step of a small
-    system), here with L_vv and K evaluated on all points at once (numpy) and one batched slogdet."""
-    from .core import gensource
-    from .core.spark import _saddle_sign
-    n, m, N = system.n, system.m, len(t)
-    try:
-        f = system._compiled.get(("saddle", "numpy-points"))
-        if f is None:
-            args = [system.t] + list(system.q) + list(system.v) + list(system.params)
-            f = system._compiled[("saddle", "numpy-points")] = gensource.lambdify(
-                args, [system.L_vv.tolist(), system.k_v.tolist()], "numpy", order="none")
-        pv = [float(x) for x in system._param_arg_values(None)] if system.params else []
-        with np.errstate(all="ignore"):
-            Lvv, kv = f(np.asarray(t, float), *np.asarray(Q, float).T, *np.asarray(V, float).T, *pv)
-            S = np.zeros((N, n + m, n + m))
-            for a in range(n):
-                for b in range(n):
-                    S[:, a, b] = Lvv[a][b]          # an array over the points, or a constant
-            for l in range(m):
-                for a in range(n):
-                    S[:, n + l, a] = S[:, a, n + l] = kv[l][a]
-            sgn = np.linalg.slogdet(S)[0]
-        return np.where(np.isfinite(sgn), sgn, 0.0)
-    except (LdasparkError, TypeError, ValueError, ArithmeticError, np.linalg.LinAlgError):
-        bk = Backend(None)       # what numpy does not evaluate on arrays: point by point
-        return np.array([_saddle_sign(system, bk, t[j], Q[j], V[j]) for j in range(N)], dtype=float)
-
-
 def _saddle_scan(res, exc, prep, every, rerun=None) -> tuple:
     """The det (4) monitor of the stepping engines (``core.spark.march``: a sign change of det (4)
     between t0 and a step point is a SingularSaddleError, status -2) on a SPARK run of a block
@@ -911,10 +863,7 @@ def _saddle_scan(res, exc, prep, every, rerun=None) -> tuple:
         i = int(at[j]) if i is None else i
     k = i - 1                                   # step k ends at point i: the prefix ends at point k
     tk = t0 + k * float(prob.h)
-    err = SingularSaddleError(
-        f"step {k} (t = {tk:.6g} -> {tk + float(prob.h):.6g}) crossed the singular set of the saddle matrix (4): "
-        "det (4) changed sign, so the step solved (21) on the wrong branch or the solution left the region where "
-        "(4) holds")
+    err = SingularSaddleError(saddle_crossing(k, tk, float(prob.h)))
     idx = np.arange(k + 1) if every == 1 else save_indices(k, every) if k > 0 else np.array([0])
     for nm in ("t", "q", "v", "energy", "constraint"):
         setattr(res, nm, np.asarray(getattr(steps, nm))[idx])
