@@ -240,6 +240,13 @@ def _check_tangent(tangent, n, dps):
         if isinstance(e, str):
             raise InputError(f"flow_jacobian: tangent entry {i} must be a number, got {V._describe(e)}")
         V.real_number(e, f"flow_jacobian: tangent entry {i}")
+    # a basis: dependent columns gave a zero / repeated column of J and a spurious multiplier
+    # (as coords=['x', 'x'] would, which is refused); decided in float64, dependent to its
+    # resolution (sigma_min <= 2n eps sigma_max), so an exact basis is never refused
+    sig = np.linalg.svd(np.array([[float(x) for x in row] for row in B]), compute_uv=False)
+    if sig[0] == 0 or sig[-1] <= 2 * n * np.finfo(float).eps * sig[0]:
+        raise InputError(f"flow_jacobian: the columns of tangent must be linearly independent (a basis of "
+                         f"{B.shape[1]} directions), got singular values {', '.join(f'{x:.2g}' for x in sig)}")
     return tangent
 
 
