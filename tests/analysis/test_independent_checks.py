@@ -342,3 +342,24 @@ def test_a_cyclic_coordinate_is_not_a_gauge():
     s2 = ldaspark.classify_wellposedness(hol, "gauss-2", T0, Q0, v0, H)
     assert (s2["class"], s2["rank_deficiency"]) == ("singular", 1)
     assert ldaspark.classify_wellposedness(hol, "gauss-1", T0, Q0, v0, H)["class"] == "well-posed"
+
+
+def test_check_symmetry_needs_consistent_data():
+    """(23)'s symmetry is a property of the step on consistent data: the step ends on k = 0,
+    so Phi_-h(Phi_h(y)) cannot return to a y off it, and the reversed BVP (whose (21f) imposes
+    k = 0 at the forward t0) is another solution (_tangent_projector's assumption). With v0 off
+    k = 0 by 0.12 the symmetric Gauss 2 was reported asymmetric: symmetry-Phi 0.12,
+    symmetry-Ld 2.8e-5; with v0 rounded to float64 (|k| = 3.5e-18) symmetry-Phi 3.4e-18 at 30
+    digits, where the floor is 1e-30. Now refused (|k| above check_consistent's 1e3 eps (1 + |v|),
+    as integrate refuses such data). Control: the projected v0 passes and gives residuals at the
+    floor (test_theorem1_and_symmetry_two_sided); the same data stay accepted by
+    theorem1_residuals, whose Theorem 1 needs no consistency (v0 is an unknown of the BVP)."""
+    from ldaspark.core.errors import InconsistentInitialDataError
+    tab = ldaspark.gauss(2)
+    for v0 in (["0.5", "0.2", "0.1"], [float(x) for x in V0]):
+        with pytest.raises(InconsistentInitialDataError, match="check_symmetry: .*k = 0"):
+            ldaspark.check_symmetry(SYS, tab, T0, Q0, v0, H, dps=30)
+    ok = ldaspark.check_symmetry(SYS, tab, T0, Q0, V0, H, dps=30)
+    assert ok["symmetry-Phi"] <= 1e-27
+    th = ldaspark.theorem1_residuals(SYS, tab, T0, Q0, ["0.5", "0.2", "0.1"], H, dps=30)
+    assert th["theorem1-q0"] <= 1e-27
