@@ -105,6 +105,9 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
             raise InputError(f"classify_wellposedness: h_factors must be positive rationals such as 1 or \"1/2\", "
                              f"got {validate._describe(f)}")
         factors[str(f)] = fr
+    if len(set(factors.values())) != len(factors):    # 1 and 1.0, "1/2" and 0.5: one step twice
+        raise InputError(f"classify_wellposedness: h_factors must be two or more distinct step factors, got "
+                         f"{validate._describe(h_factors)} (equal values)")
     d_lo, d_hi = min(dps), max(dps)
     out = {"sigma": {}, "deficiency": {}}
     nz = {}

@@ -363,3 +363,14 @@ def test_check_symmetry_needs_consistent_data():
     assert ok["symmetry-Phi"] <= 1e-27
     th = ldaspark.theorem1_residuals(SYS, tab, T0, Q0, ["0.5", "0.2", "0.1"], H, dps=30)
     assert th["theorem1-q0"] <= 1e-27
+
+
+@pytest.mark.parametrize("factors", [(1, 1.0), (1, "2/2"), ("1/2", 0.5)])
+def test_equal_step_factors_written_differently_are_refused(factors):
+    """h_factors (1, 1.0), (1, "2/2"), ("1/2", 0.5) passed the distinctness check (made on the
+    text) and ended in a raw ZeroDivisionError from log(h1 / h2) = 0 (the observed power of h).
+    Now refused as duplicates by value. Control: (1, "1/2") classifies (well-posed)."""
+    v0 = consistent_v0(SYS, 40)
+    with pytest.raises(InputError, match="distinct step factors"):
+        ldaspark.classify_wellposedness(SYS, "gauss-2", T0, Q0, v0, H, h_factors=factors)
+    assert ldaspark.classify_wellposedness(SYS, "gauss-2", T0, Q0, v0, H, h_factors=(1, "1/2"))["class"] == "well-posed"
