@@ -195,7 +195,10 @@ def test_edge_arguments_are_refused_with_one_message():
 # flow_jacobian: 'ift' against 'difference', float64 against digits, the restriction against
 # differences along the constraint manifold
 def _diff(a, b):
-    return max(abs(mpmath.mpf(x) - mpmath.mpf(y)) for x, y in zip(np.asarray(a).reshape(-1), np.asarray(b).reshape(-1)))
+    """max |a - b| at 60 digits (mpf(x) rounds to the ambient precision: at mpmath's default 15
+    digits two 30-digit entries 1e-21 apart became equal and the difference 0)."""
+    with mpmath.workdps(60):
+        return max(abs(mpmath.mpf(x) - mpmath.mpf(y)) for x, y in zip(np.asarray(a).reshape(-1), np.asarray(b).reshape(-1)))
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -291,7 +294,9 @@ def test_tangent_must_be_a_basis():
         ldaspark.flow_jacobian(SYS, "gauss-2", Q0, V0, H, coords=["x", "x"], **kw)
     B[1, 1] = 1
     fj = ldaspark.flow_jacobian(SYS, "gauss-2", Q0, V0, H, tangent=B, select=[0, 1], **kw)
-    assert _diff(fj.J, fj.full[[0, 1], :].dot(np.asarray(B, dtype=object))) == 0
+    with mpmath.workdps(30):                              # the working precision of fj
+        expected = fj.full[[0, 1], :].dot(np.asarray(B, dtype=object))
+    assert _diff(fj.J, expected) == 0
 
 
 # ---------------------------------------------------------------------------------------------
