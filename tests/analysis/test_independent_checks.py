@@ -379,3 +379,23 @@ def test_equal_step_factors_written_differently_are_refused(factors):
     with pytest.raises(InputError, match="distinct step factors"):
         ldaspark.classify_wellposedness(SYS, "gauss-2", T0, Q0, v0, H, h_factors=factors)
     assert ldaspark.classify_wellposedness(SYS, "gauss-2", T0, Q0, v0, H, h_factors=(1, "1/2"))["class"] == "well-posed"
+
+
+@pytest.mark.parametrize("dps", [None, 30])
+def test_dependent_velocities_with_a_singular_block_of_K(dps):
+    """k = r - x u - t w / 5 at x = 0: K's column for u is 0, so dependent=['u'] cannot be solved
+    from the linearised constraint. It was a SingularMatrixError saying "Newton matrix is
+    numerically singular" (float64) / "zero or has non-finite entries" (30 digits), about a matrix
+    the user never chose; now an InputError naming the dependent velocities. All three velocities
+    as rates left none to be dependent, and the message advised "give dependent=", which cannot
+    help (dependent must be disjoint from the rates); now it says how many rates fit (n - m).
+    Control: dependent=['r'] (K's column 1) gives the restricted J."""
+    cyc = _cyclic_z()[0]
+    args = (cyc, "gauss-2", [0.0, 0.1, 0.2], [0.3, 0.2, 0.0], 0.1)
+    for kw in (dict(coords=["x"], dependent=["u"]), dict(rates=["w"], dependent=["u"])):
+        with pytest.raises(InputError, match=r"dependent velocities \['u'\]"):
+            ldaspark.flow_jacobian(*args, t0=0, dps=dps, **kw)
+    with pytest.raises(InputError, match="at most n - m = 2 rates"):
+        ldaspark.flow_jacobian(*args, t0=0, dps=dps, coords=["x"], rates=["u", "w", "r"])
+    fj = ldaspark.flow_jacobian(*args, t0=0, dps=dps, coords=["x"], rates=["w"], dependent=["r"])
+    assert np.asarray(fj.J).shape == (2, 2)
