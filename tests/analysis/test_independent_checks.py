@@ -399,3 +399,17 @@ def test_dependent_velocities_with_a_singular_block_of_K(dps):
         ldaspark.flow_jacobian(*args, t0=0, dps=dps, coords=["x"], rates=["u", "w", "r"])
     fj = ldaspark.flow_jacobian(*args, t0=0, dps=dps, coords=["x"], rates=["w"], dependent=["r"])
     assert np.asarray(fj.J).shape == (2, 2)
+
+
+@pytest.mark.parametrize("method,expected,deficiency", [("lobatto-iiia-iiib-2", "gauge-deficient", 2),
+                                                        ("gauss-2", "well-posed", 0)])
+def test_classification_above_float64_range(method, expected, deficiency):
+    """dps may reach 2000, but sigma / sigma_max was taken in float64: a floor sigma ~10^-dps
+    below 10^-324 became 0.0 at both precisions, '0 < drop * 0' found no structural zero, and the
+    stability ratio divided by it: dps = (330, 360) ended in a raw ZeroDivisionError (had it not,
+    the gauge-deficient Lobatto 2 would have been 'well-posed'). Now the ratios are compared in
+    mpmath. Control: Gauss 2 stays well-posed there, and both as at (30, 50)."""
+    r = ldaspark.classify_wellposedness(SYS, method, T0, Q0, V0, H, dps=(330, 360))
+    assert (r["class"], r["rank_deficiency"]) == (expected, deficiency)
+    assert all(isinstance(v, float) and np.isfinite(v) for v in (r["sigma_min_nonzero_rel"], r["sigma_min_power_of_h"]))
+    assert ldaspark.classify_wellposedness(SYS, method, T0, Q0, V0, H)["class"] == expected
