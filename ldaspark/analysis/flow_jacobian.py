@@ -240,6 +240,13 @@ def _check_tangent(tangent, n, dps):
         if isinstance(e, str):
             raise InputError(f"flow_jacobian: tangent entry {i} must be a number, got {V._describe(e)}")
         V.real_number(e, f"flow_jacobian: tangent entry {i}")
+    # a basis: dependent columns gave a zero / repeated column of J and a spurious multiplier
+    # (as coords=['x', 'x'] would, which is refused); decided in float64, dependent to its
+    # resolution (sigma_min <= 2n eps sigma_max), so an exact basis is never refused
+    sig = np.linalg.svd(np.array([[float(x) for x in row] for row in B]), compute_uv=False)
+    if sig[0] == 0 or sig[-1] <= 2 * n * np.finfo(float).eps * sig[0]:
+        raise InputError(f"flow_jacobian: the columns of tangent must be linearly independent (a basis of "
+                         f"{B.shape[1]} directions), got singular values {', '.join(f'{x:.2g}' for x in sig)}")
     return tangent
 
 
@@ -347,6 +354,13 @@ def _restriction(system, bk, t0, q0, v0, coords, rates, dependent, tangent, sele
     if len(dep) != m or set(dep) & set(ri):
         raise InputError(f"flow_jacobian: need m = {m} dependent velocities disjoint from the rates, got {dep}")
     Kd = kv[:, dep]
+    # the dependent rates are solved from k_q dq + K_dep dv_dep = -K_free dv_free: K_dep must be
+    # invertible (decided as _choose_dependent decides), else the solve below failed as a "Newton
+    # matrix" error about a matrix the caller never chose
+    if np.linalg.matrix_rank(np.array([[float(x) for x in row] for row in np.asarray(Kd)])) < m:
+        names = [str(system.v[j]) for j in dep]
+        raise InputError(f"flow_jacobian: the dependent velocities {names} cannot be solved from the linearised "
+                         f"constraint: their block of K = dk/dv is singular at (t0, q0, v0); choose others")
     r = len(ci) + len(ri)
     B = bk.zeros((2 * n, r))
     for col, i in enumerate(ci):
@@ -368,6 +382,10 @@ def _choose_dependent(kv, rates, m):
     import scipy.linalg
     K = np.array([[float(x) for x in row] for row in np.asarray(kv)])
     others = [j for j in range(K.shape[1]) if j not in rates]
+    if len(others) < m:       # no dependent= can help: it must be disjoint from the rates
+        raise InputError(f"flow_jacobian: K has no invertible m x m block outside the chosen rates: {len(rates)} rates "
+                         f"leave {len(others)} velocities for the m = {m} dependent ones; give at most n - m = "
+                         f"{K.shape[1] - m} rates")
     _, _, piv = scipy.linalg.qr(K[:, others], pivoting=True)
     dep = sorted(others[p] for p in piv[:m])
     if np.linalg.matrix_rank(K[:, dep]) < m:

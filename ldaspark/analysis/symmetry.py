@@ -29,7 +29,9 @@ def check_symmetry(system, tableau, t0, q0, v0, h, dps=40):
     t0 : float
         Initial time.
     q0, v0 : array_like or None
-        The base point; None with a scene.
+        The base point, consistent: k(t0, q0, v0) = 0 to the working precision (refused with
+        ``InconsistentInitialDataError`` otherwise: the step ends on k = 0, so the round trip and
+        the reversed BVP cannot return to data off it); None with a scene.
     h : float
         Step size.
     dps : int, optional
@@ -50,7 +52,8 @@ def check_symmetry(system, tableau, t0, q0, v0, h, dps=40):
     True
     """
     from ..core import validate
-    system, tableau, t0, q0, v0 = arguments.theory_args(system, tableau, t0, q0, v0, h, dps, "check_symmetry")
+    system, tableau, t0, q0, v0 = arguments.theory_args(system, tableau, t0, q0, v0, h, dps, "check_symmetry",
+                                                         consistent=True)
     t_start = time.time()
     bk = Backend(dps)
     with bk.context():

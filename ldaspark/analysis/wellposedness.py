@@ -7,6 +7,7 @@ import math
 import re
 from fractions import Fraction
 
+import mpmath
 import numpy as np
 
 from ..core.backend import Backend
@@ -105,6 +106,9 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
             raise InputError(f"classify_wellposedness: h_factors must be positive rationals such as 1 or \"1/2\", "
                              f"got {validate._describe(f)}")
         factors[str(f)] = fr
+    if len(set(factors.values())) != len(factors):    # 1 and 1.0, "1/2" and 0.5: one step twice
+        raise InputError(f"classify_wellposedness: h_factors must be two or more distinct step factors, got "
+                         f"{validate._describe(h_factors)} (equal values)")
     d_lo, d_hi = min(dps), max(dps)
     out = {"sigma": {}, "deficiency": {}}
     nz = {}
@@ -123,11 +127,12 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
                 t0_ = bk.scalar(t0)
                 G, J, _, _ = bvp.evaluate(t0_, bk.array(q0), t1, q1, xg)
                 sig, r, U, Vh = _rank_info(bk, J, d)
-                smax = float(sig[0])
-                rel = [float(x) / smax for x in sig]
+                # sigma / sigma_max in mpmath: a floor sigma ~10^-d is below float64's range from
+                # d ~ 324 (dps goes to 2000), where float64 ratios became 0.0 at both precisions
+                rel = [mpmath.mpf(x) / sig[0] for x in sig]
                 sig_rel[(d, f)] = rel
                 key = f"dps={d},h={float(hf):.4g}"
-                out["sigma"][key] = rel[-min(len(rel), 3):]
+                out["sigma"][key] = [float(x) for x in rel[-min(len(rel), 3):]]
                 out["deficiency"][key] = r
                 nz[(d, f)] = (float(hf), rel[len(rel) - 1 - r])
                 if d == d_hi and f == h_factors[0]:
@@ -135,7 +140,7 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
     # structural zeros follow the precision: index-wise (from the bottom), sigma at the highest dps
     # is below sigma at the lowest dps by more than half their digit gap (a floor sigma ~ c 10^-d
     # drops by ~10^-gap, c within a few orders of 1); genuine small sigma agree to many digits
-    drop = 10.0 ** (-(int(d_hi) - int(d_lo)) / 2)
+    drop = mpmath.mpf(10) ** (mpmath.mpf(-(int(d_hi) - int(d_lo))) / 2)
     struct = {}
     for f in h_factors:
         lo, hi = sig_rel[(d_lo, f)][::-1], sig_rel[(d_hi, f)][::-1]   # ascending
@@ -150,7 +155,7 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
         nz[(d_hi, f)] = (nz[(d_hi, f)][0], sig_rel[(d_hi, f)][len(sig_rel[(d_hi, f)]) - 1 - r])
     (h1, s1), (h2, s2) = nz[(d_lo, h_factors[0])], nz[(d_lo, h_factors[1])]
     p = math.log(s1 / s2) / math.log(h1 / h2) if s1 > 0 and s2 > 0 else float("nan")
-    stable = abs(nz[(d_lo, h_factors[0])][1] / nz[(d_hi, h_factors[0])][1] - 1) < 1e-10
+    stable = abs(float(nz[(d_lo, h_factors[0])][1] / nz[(d_hi, h_factors[0])][1]) - 1) < 1e-10   # a ratio ~1
     tracks = r > 0
     bvp, J, Vh, bk = keep
     if r and r < len(sig_rel[(d_hi, h_factors[0])]) and sig_rel[(d_hi, h_factors[0])][-1 - r] < 1e-12:
@@ -165,7 +170,7 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
     else:
         small = 1e-8
         cls = GAUGE if support["V"] <= small and support["v1"] <= small else SINGULAR
-    out.update({"class": cls, "rank_deficiency": r, "sigma_min_nonzero_rel": s1,
+    out.update({"class": cls, "rank_deficiency": r, "sigma_min_nonzero_rel": float(s1),
                 "sigma_min_power_of_h": p, "sigma_stable_across_dps": stable,
                 "floor_tracks_precision": tracks, "null_support": support})
     return out

@@ -40,12 +40,16 @@ def as_tableau(method, what: str = "method", max_stages=None):
         raise InputError(f"{what}: {exc}") from None
 
 
-def theory_args(system, tableau, t0, q0, v0, h, dps, what: str, several: bool = False):
+def theory_args(system, tableau, t0, q0, v0, h, dps, what: str, several: bool = False,
+                consistent: bool = False):
     """The common arguments of the Theorem 1 checks (``theorem1_residuals``,
     ``classify_wellposedness``, ``check_symmetry``, ``gauge_invariance``): system a
     LagrangianSystem, a Scene or a scene name (q0, v0 None: the scene's initial data), tableau a
     SparkTableau or a SPARK method name, t0 / h real (h nonzero, advancing t at every precision in
-    ``dps``), q0 / v0 n real numbers. Returns (system, tableau, t0, q0, v0)."""
+    ``dps``), q0 / v0 n real numbers; with ``consistent`` also k(t0, q0, v0) = 0 to the working
+    precision (``check_symmetry``: the step ends on k = 0, so (23)'s round trip and reversed BVP
+    cannot return to data off it; a residual would measure |k|, not the method). Returns
+    (system, tableau, t0, q0, v0)."""
     if isinstance(dps, (list, tuple)) and not several:
         raise InputError(f"{what}: dps must be one integer number of digits, got {_describe(dps)}")
     dlist = list(dps) if isinstance(dps, (list, tuple)) else [dps]
@@ -63,4 +67,15 @@ def theory_args(system, tableau, t0, q0, v0, h, dps, what: str, several: bool = 
     real_number(h if hf is None else hf, f"{what}: h", nonzero=True)
     for d in dlist:
         step_advances(t0, h if hf is None else hf, 1, int(d), what=f"{what}: h", s=tab.s, n=sysm.n, m=sysm.m)
+    if consistent:
+        from ..core.backend import Backend
+        from ..core.errors import InconsistentInitialDataError
+        bk = Backend(max(int(d) for d in dlist))
+        with bk.context():
+            try:
+                sysm.check_consistent(bk, bk.scalar(t0), bk.array(q0), bk.array(v0))
+            except InconsistentInitialDataError as exc:
+                found = str(exc).split(" (pass ")[0]          # the numbers, not integrate's project hint
+                raise InconsistentInitialDataError(f"{what}: {found}; the symmetry (23) is checked on consistent "
+                                                   "data (project v0 onto k = 0 first: system.project_velocity)") from None
     return sysm, tab, t0, q0, v0

@@ -23,7 +23,7 @@ def _symmetry_with(monkeypatch, d):
              p1=np.array(d["p1"]), x="XF", wellposed="regular", rank_deficiency=0)
     rev = mk(L_d=d["L"][1], f_d_minus=np.array(d["fm"][1]), f_d_plus=np.array(d["fp"][1]), p0=None, p1=None,
              x="XR", wellposed="?", rank_deficiency=7)
-    monkeypatch.setattr(arguments, "theory_args", lambda *a: a[:5])
+    monkeypatch.setattr(arguments, "theory_args", lambda *a, **k: a[:5])
     monkeypatch.setattr(sy, "base_point", lambda S, T, t0, q0, v0, h, dps: (t0 + h, "Q1", "XG"))
 
     def dl(S, T, ta, qa, tb, qb, dps=None, x_guess=None, gauge_ref=None):
@@ -125,7 +125,7 @@ def _fake_symmetry(monkeypatch, rev_fp, rev_fm):
     rev = res(rev_fm, rev_fp, (1, 0))
     bvps = [fwd, rev]
     q0, v0 = _mpv("0.5", 0), _mpv("0.25", 0)
-    monkeypatch.setattr(arguments, "theory_args", lambda *a: a[:5])
+    monkeypatch.setattr(arguments, "theory_args", lambda *a, **k: a[:5])
     monkeypatch.setattr(symmetry, "base_point", lambda system, tab, t0, q0, v0, h, dps: (t0 + mpmath.mpf(h), q0, None))
     monkeypatch.setattr(symmetry, "discrete_lagrangian", lambda *a, **k: bvps.pop(0))
     monkeypatch.setattr(symmetry, "DiscreteBVP", lambda *a: SimpleNamespace(
