@@ -534,6 +534,12 @@ class LagrangianSystem:
         nonlinear in v once |mu| (k_i)_vv is comparable to L_vv (v0 = (3, 4, 0) onto |v| = 1)."""
         # the sparse derivative says whether there is a term (no n x n sympy matrix for a linear k)
         curv = self._fn("proj_Rv", [self.R_v], backend, with_lam=True) if self._derived.nonzeros("R_v") else None
+        # L_vv depending on v: the term L_vvv (v - v0) of the matrix, left out above, made the
+        # iteration linear (0.4 digits an iteration for L = vx^4/12 + |v|^2/2 - U from |v - v0| =
+        # 0.4): 50 iterations reached ~25 digits and a projection at dps 100 "did not converge".
+        # At mpmath precision it is taken by differences of L_vv (a step of sqrt(eps): the
+        # iteration then gains ~dps/2 digits a step); float64 keeps its iteration as it was
+        varies = backend.is_mp and any(e.free_symbols & set(self.v) for e in self._derived.nonzeros("L_vv").values())
         with backend.context():
             v = backend.array(v).copy()
             v_ref = v.copy()
@@ -544,9 +550,12 @@ class LagrangianSystem:
                 kv = S[self.n:, :self.n]
                 r1 = Lvv.dot(v - v_ref) + kv.T.dot(mu)
                 r2 = self.constraint(backend, t, q, v)
-                if curv is not None:
+                if curv is not None or varies:
                     S = S.copy()
+                if curv is not None:
                     S[:self.n, :self.n] = Lvv - _arr(curv(t, *q, *v, *mu)[0], backend).reshape(self.n, self.n)
+                if varies:
+                    S[:self.n, :self.n] = S[:self.n, :self.n] + self._lvv_slope(backend, t, q, v, Lvv, v - v_ref)
                 try:
                     dx = backend.solve(S, -np.concatenate([r1, r2]))
                 except SingularMatrixError:
@@ -561,6 +570,18 @@ class LagrangianSystem:
                 if backend.norm_inf(dx) <= 10 * backend.eps * (1 + backend.norm_inf(v)):
                     return v
         raise InconsistentInitialDataError("projection of v0 onto k = 0 did not converge")
+
+    def _lvv_slope(self, backend, t, q, v, Lvv, w):
+        """d(L_vv(v) w)/dv for a fixed w, column k by a forward difference of L_vv along v_k with
+        the step sqrt(eps) (1 + |v|) (``project_velocity``; error ~sqrt(eps) relative)."""
+        step = mpmath.sqrt(backend.eps) * (1 + backend.norm_inf(v))
+        cols = []
+        for k in range(self.n):
+            vk = v.copy()
+            vk[k] = vk[k] + step
+            Lk = self.saddle_matrix(backend, t, q, vk)[:self.n, :self.n]
+            cols.append((Lk - Lvv).dot(w) / step)
+        return np.column_stack(cols)
 
     def ode_rhs(self, backend, t, q, v):
         """Underlying ODE (3a-b): returns (dv/dt, psi) from the saddle system (4)."""
