@@ -269,9 +269,10 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
         When an argument is invalid: every argument is checked before any work (a method name
         with more stages than ``max_stages`` is a ``TableauError``).
     SystemDefinitionError
-        When ``params`` lacks a value for a symbolic parameter of the system or gives text
-        that is not a number (as ``LagrangianSystem.with_params``; a non-finite, complex or
-        non-numeric value is an InputError).
+        When ``params`` lacks a value for a symbolic parameter of the system, gives one
+        parameter two different values (as "m" and Symbol("m")) or gives text that is not a
+        number (as ``LagrangianSystem.with_params``; a non-finite, complex or non-numeric value
+        is an InputError).
     InconsistentInitialDataError
         When k(t0, q0, v0) = 0 does not hold to rounding and ``project`` is False.
     SingularSaddleError

@@ -229,6 +229,7 @@ class LagrangianSystem:
                                         f"keywords), got {type(values).__name__}")
         items = list((values or {}).items()) + list(by_name.items())
         names = {str(p): p for p in self.params}
+        given = {}
         for key, val in items:
             sym = key if key in self.params else names.get(str(key))
             if sym is None:
@@ -241,6 +242,13 @@ class LagrangianSystem:
                 continue
             new._param_values[sym] = (_check_assumptions(sym, _param_value(val, sym)) if isinstance(val, str)
                                       else _checked_param(sym, val))
+            # one parameter named twice ("m" and Symbol("m"), or a dict and a keyword): two
+            # different values are refused (the last one ran and the other was dropped silently)
+            if sym in given and (_param_value(new._param_values[sym], sym) - _param_value(given[sym], sym)).is_zero \
+                    is not True:
+                raise SystemDefinitionError(f"{self.name}: parameter {sym} is given twice, as {given[sym]!r} and "
+                                            f"{new._param_values[sym]!r}: give it one value")
+            given[sym] = new._param_values[sym]
         return new
 
     def param_values(self) -> dict:
