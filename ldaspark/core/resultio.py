@@ -2,7 +2,9 @@
 
 * ``.json`` (and any name without one of the other extensions): the ``ldaspark integrate`` contract (keys scene, method, h, dps, t, q, v, energy,
   constraint, psi, stats; numbers as floats, or as strings of ``dps`` digits after an mpmath
-  run), plus engine, status, message, save_every, params, version, coordinate_names.
+  run), plus engine, status, message, save_every, params, version, coordinate_names, and
+  ``psi_shape`` when psi is formed but empty (a run that failed at its first step: ``psi`` is
+  then ``[]``, as for a kernel without psi, and reads back as None without it).
 * ``.npz``: named arrays t, q, v, energy, constraint (and psi when the engine forms it) and
   the metadata as a JSON string in the array ``metadata``; no pickled objects.
 * ``.h5`` / ``.hdf5``: the same arrays as HDF5 datasets, the metadata as the scalar dataset
@@ -114,6 +116,10 @@ def _to_json(result: Result) -> dict:
     for name in ARRAYS:
         a = getattr(result, name)
         out[name] = [] if a is None else _numbers(a, result.dps).tolist()
+    if result.psi is not None and np.size(result.psi) == 0 and np.ndim(result.psi) > 1:
+        # an empty psi (a run that failed at its first step) is "[]" in JSON, which is also what
+        # a kernel without psi writes: its shape says it was formed (.npz and .h5 keep it)
+        out["psi_shape"] = [int(e) for e in np.shape(result.psi)]
     out["stats"] = _json_value(result.stats)
     out["extra_arrays"] = {k: {"shape": list(a.shape), "data": a.reshape(-1).tolist()}
                            for k, a in _extra_arrays(result).items()}
@@ -543,8 +549,20 @@ def _check_shapes(got: dict, batch: bool) -> None:
     if got["v"].shape != got["q"].shape or got["q"].shape[-1] == 0:
         raise InputError(f"q and v have shapes {got['q'].shape} and {got['v'].shape}")
     psi = got.get("psi")
-    if psi is not None and psi.size and (psi.ndim != 3 + lead or psi.shape[lead] != S - 1):
+    if psi is not None and (psi.size or psi.ndim > 1) and (psi.ndim != 3 + lead or psi.shape[lead] != S - 1):
         raise InputError(f"psi has shape {psi.shape}, not matching t {t.shape}")
+
+
+def _json_empty_psi(d: dict) -> np.ndarray:
+    """The empty psi of a .json file with ``psi_shape`` (``_to_json``): a list of 3 or 4
+    non-negative integers with a zero among them, and ``psi`` the empty list."""
+    shape = d["psi_shape"]
+    if not (isinstance(shape, list) and len(shape) in (3, 4) and all(
+            isinstance(e, int) and not isinstance(e, bool) and 0 <= e <= 2 ** 31 for e in shape)
+            and 0 in shape and d.get("psi") == []):
+        raise InputError(f"psi_shape must be the shape of an empty psi (3 or 4 non-negative integers, one of them 0, "
+                         f"and psi []), got {_describe(shape)}")
+    return np.zeros(shape, dtype=str if d.get("dps") else float)
 
 
 def _build(md: dict, arrays: dict) -> Result:
@@ -556,8 +574,8 @@ def _build(md: dict, arrays: dict) -> Result:
     got = {k: _from_numbers(arrays[k], dps, k) for k in ARRAYS if k in arrays}
     _check_shapes(got, isinstance(md.get("status"), list))
     psi = got.get("psi")
-    if psi is not None and psi.size == 0:
-        psi = None
+    if psi is not None and psi.size == 0 and psi.ndim != np.ndim(got["t"]) + 2:
+        psi = None          # "[]": no psi formed; an empty (S - 1, s, m) psi is kept as it was written
     n = got["q"].shape[-1] if got["q"].ndim > 1 else 0
     t = got["t"]
     m = np.asarray(got["constraint"]).shape[-1] if np.asarray(got["constraint"]).ndim > 1 else 0
@@ -867,6 +885,8 @@ def _load(path, ext, fh, size) -> Result:
                         raise InputError(f"{k} is not an array of numbers (rows of equal length)") from None
             if "psi" in arrays and d.get("dps"):
                 arrays["psi"] = np.array(d["psi"], dtype=str) if d["psi"] else np.zeros(0)
+            if "psi_shape" in d:
+                arrays["psi"] = _json_empty_psi(d)
             for k in ARRAYS:
                 if k in arrays and d.get("dps"):
                     arrays[k] = np.asarray(arrays[k]).astype(str)
