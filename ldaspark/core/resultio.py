@@ -91,9 +91,26 @@ def _json_value(x: Any) -> Any:
     return str(x)
 
 
+def _mp_digits(x: Any, dps) -> Any:
+    """``x`` (params: a dict, an ensemble's {"members": [...]}) with every mpmath number as the
+    decimal string of ``dps`` significant digits that the arrays are stored with (17 for a float64
+    run): ``str(mpf)`` prints at mpmath's global precision, 15 digits."""
+    import mpmath
+    if isinstance(x, dict):
+        return {k: _mp_digits(v, dps) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_mp_digits(v, dps) for v in x]
+    if isinstance(x, mpmath.mpf):
+        digits = dps if isinstance(dps, int) and not isinstance(dps, bool) and dps > 0 else 17
+        with mpmath.workdps(max(digits, mpmath.mp.dps)):
+            return mpmath.nstr(x, digits, strip_zeros=False)
+    return x
+
+
 def metadata(result: Result) -> dict:
     from .._version import __version__
     md = {k: getattr(result, k, None) for k in META if k != "version"}
+    md["params"] = _mp_digits(md["params"], result.dps)
     md["version"] = __version__
     if result.members is not None:
         md["status"] = [int(s) for s in np.asarray(result.status)]
