@@ -92,7 +92,7 @@ def _json_value(x: Any) -> Any:
 
 
 def _mp_digits(x: Any, dps) -> Any:
-    """``x`` (params: a dict, an ensemble's {"members": [...]}) with every mpmath number as the
+    """``x`` (h; params: a dict, an ensemble's {"members": [...]}) with every mpmath number as the
     decimal string of ``dps`` significant digits that the arrays are stored with (17 for a float64
     run): ``str(mpf)`` prints at mpmath's global precision, 15 digits."""
     import mpmath
@@ -110,7 +110,7 @@ def _mp_digits(x: Any, dps) -> Any:
 def metadata(result: Result) -> dict:
     from .._version import __version__
     md = {k: getattr(result, k, None) for k in META if k != "version"}
-    md["params"] = _mp_digits(md["params"], result.dps)
+    md["params"], md["h"] = _mp_digits(md["params"], result.dps), _mp_digits(md["h"], result.dps)
     md["version"] = __version__
     if result.members is not None:
         md["status"] = [int(s) for s in np.asarray(result.status)]

@@ -56,3 +56,24 @@ def test_control_other_parameter_values_are_written_as_before(tmp_path, ext):
         r = ldaspark.integrate(sysm, "gauss-2", params={"m": value}, **KW)
         save_result(r, tmp_path / f"r{ext}")
         assert load_result(tmp_path / f"r{ext}").params == {"m": stored}
+
+
+@pytest.mark.parametrize("ext", FORMATS)
+def test_an_mpmath_step_keeps_the_runs_digits(tmp_path, ext):
+    """The same for h given as an mpf (integrate keeps it as given in Result.h): h = 1/30 at
+    dps = 30 was stored as '0.0333333333333333' (15 digits); the run's t is n h to 30 digits."""
+    if ext == ".h5":
+        pytest.importorskip("h5py")
+    with mpmath.workdps(30):
+        h = mpmath.mpf(1) / 30
+        want = mpmath.nstr(h, 30, strip_zeros=False)
+    r = ldaspark.integrate("skate", "gauss-2", t0=0, n_steps=3, h=h, dps=30)
+    save_result(r, tmp_path / f"r{ext}")
+    back = load_result(tmp_path / f"r{ext}")
+    assert back.h == want, back.h
+    with mpmath.workdps(30):     # the file's h gives the file's t to its 30 digits
+        assert abs(3 * mpmath.mpf(back.h) - back.t[-1]) < mpmath.mpf(10) ** -28
+    # control: a decimal-string step is stored as given
+    r = ldaspark.integrate("skate", "gauss-2", t0=0, n_steps=3, h="0.1", dps=30)
+    save_result(r, tmp_path / f"s{ext}")
+    assert load_result(tmp_path / f"s{ext}").h == "0.1"
