@@ -310,7 +310,7 @@ def stack(members: list) -> Result:
     # a member that failed in its first step has no multipliers (psi None on some paths): its
     # rows are zeros like any member's past its end (n_valid), not a reason to drop everyone's
     shaped = [r.psi for r in members if r.psi is not None and np.ndim(r.psi) == 3]
-    if shaped and S > 1 and all(r.psi is not None or len(r.t) == 1 for r in members):
+    if shaped and all(r.psi is not None or len(r.t) == 1 for r in members):     # S = 1: (B, 0, s, m)
         tail = np.shape(shaped[0])[1:]
         psi = np.stack([pad(r.psi, S - 1) if r.psi is not None and len(r.psi) else np.zeros((S - 1,) + tail)
                         for r in members])

@@ -72,3 +72,22 @@ def test_a_json_psi_shape_that_does_not_fit_is_refused(tmp_path):
         (tmp_path / "b.json").write_text(json.dumps(d))
         with pytest.raises(ldaspark.core.errors.LdasparkError, match="psi"):
             load_result(tmp_path / "b.json")
+
+
+@pytest.mark.parametrize("ext", (".npz", ".h5"))
+def test_an_ensemble_failed_at_step_0_keeps_its_members_empty_psi(tmp_path, ext):
+    """Every member fails at step 0: each member's psi is (0, s, m); the batch's psi was None
+    (``core.result.stack`` stacked psi only for S > 1), so the members read back from the file
+    had psi None. The batch's psi is now (B, 0, s, m) and the members' come back as they were."""
+    if ext == ".h5":
+        pytest.importorskip("h5py")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = ldaspark.integrate("skate", "gauss-2", t_span=(0, 1), h=0.5, q0=[[0, 0, 0], [0, 0, 0]],
+                               v0=[[1, 0, 1], [2, 0, 1]], newton=ldaspark.Newton(max_iter=1))
+    assert list(r.status) == [-1, -1] and [m.psi.shape for m in r.members] == [(0, 2, 1)] * 2
+    assert r.psi is not None and r.psi.shape == (2, 0, 2, 1)
+    save_result(r, tmp_path / f"r{ext}")
+    back = load_result(tmp_path / f"r{ext}")
+    assert back.psi.shape == (2, 0, 2, 1)
+    assert [m.psi.shape for m in back.members] == [(0, 2, 1)] * 2
