@@ -389,7 +389,9 @@ def save_result(result: Result, path: Union[str, os.PathLike]) -> None:
     (3, 3)
     """
     if not isinstance(result, Result):
-        raise InputError(f"save_result needs a Result, got {type(result).__name__}")
+        hint = (" (a run_many ensemble: ldaspark.core.result.from_ensemble(ens, method=..., h=...) makes it one "
+                "batched Result, saved as .npz or .h5)" if type(result).__name__ == "EnsembleResult" else "")
+        raise InputError(f"save_result needs a Result, got {type(result).__name__}{hint}")
     path = check_path(path)
     if result.members is not None and _ext(path) == ".json":
         raise InputError("ensemble results are written as .npz or .h5")

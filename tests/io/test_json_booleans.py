@@ -65,3 +65,21 @@ def test_metadata_values_of_the_wrong_type_are_named_with_their_type(tmp_path):
     path.write_text(json.dumps(d))
     with pytest.raises(InputError, match=r"status must be an integer in -4\.\.1 .*got str '0'"):
         ldaspark.load_result(str(path))
+
+
+def test_saving_a_run_many_ensemble_says_how(tmp_path):
+    """save_result(run_many's EnsembleResult) said only "needs a Result, got EnsembleResult"; it
+    now names core.result.from_ensemble, and what that makes saves and loads back (control)."""
+    import numpy as np
+    import ldaspark
+    from ldaspark.core.errors import InputError
+    from ldaspark.core.result import from_ensemble
+    from ldaspark.ensemble import RunSpec, run_many
+    sc = ldaspark.get_scene("particle")
+    t0, q0, v0 = (float(sc.initial()[0]), [float(x) for x in sc.initial()[1]], [float(x) for x in sc.initial()[2]])
+    (ens,) = run_many([RunSpec(sc.system, "gauss-2", t0, [q0, q0], [v0, v0], 0.1, 4)])
+    path = str(tmp_path / "e.npz")
+    with pytest.raises(InputError, match="from_ensemble"):
+        ldaspark.save_result(ens, path)
+    ldaspark.save_result(from_ensemble(ens, method="gauss-2", h=0.1), path)
+    assert np.array_equal(ldaspark.load_result(path).q, np.asarray(ens.q))
