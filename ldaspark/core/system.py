@@ -455,18 +455,23 @@ class LagrangianSystem:
             raise SingularSaddleError(
                 f"saddle matrix (4) [[L_vv, K^T], [K, 0]] is singular at t = {float(t):g} "
                 f"(reciprocal condition {r:.2e} <= {tol:.1e} after equilibration)")
+        self._lvv_checks(notes, Sf[:self.n, :self.n], math.sqrt,
+                         lambda A: np.linalg.svd(np.asarray(A, float), compute_uv=False), tol, t)
+        return r
+
+    def _lvv_checks(self, notes, Lv, sqrt, singular_values, tol, t):
+        """After (4) passed: an L_vv singular along some velocities identically is refused
+        (``lvv_problem``); with ``notes`` (a run's set-up), a numerically singular L_vv there is
+        noted. (5), a regular Lagrangian, is not the paper's hypothesis ((4) is), and such an L_vv
+        leaves the run to the method: measured on L = (vx + vy)^2 / 2 - U, k = vx - vy,
+        lobatto-iiia-iiib-3 converges while gauss-1 ended 2-9e-2 apart on the two engines with
+        status 0 (``solve._warn_regular`` warns with the result)."""
         if getattr(self, "lvv_problem", None):
             raise SingularSaddleError(self.lvv_problem)
         if notes is not None:
-            # (5), a regular Lagrangian, is not the paper's hypothesis ((4) is), and a singular
-            # L_vv that is not identically so (``lvv_problem`` refuses that) leaves the run to
-            # the method: measured on L = (vx + vy)^2 / 2 - U, k = vx - vy, lobatto-iiia-iiib-3
-            # converges while gauss-1 ended 2-9e-2 apart on the two engines with status 0.
-            lr = _lvv_rcond(Sf[:self.n, :self.n], math.sqrt,
-                            lambda A: np.linalg.svd(np.asarray(A, float), compute_uv=False))
+            lr = _lvv_rcond(Lv, sqrt, singular_values)
             if lr <= tol:
-                notes.update(lvv_rcond=lr, t=float(t))
-        return r
+                notes.update(lvv_rcond=float(lr), t=float(t))
 
     def _check_saddle_mp(self, backend, t, S, rcond, notes=None):
         """``check_saddle`` at mpmath precision (inside ``backend.context()``): the same
@@ -500,12 +505,7 @@ class LagrangianSystem:
             raise SingularSaddleError(
                 f"saddle matrix (4) [[L_vv, K^T], [K, 0]] is singular at t = {float(t):g} "
                 f"(reciprocal condition {fmt(r, 3)} <= {fmt(tol, 2)} after equilibration, at {backend.dps} digits)")
-        if getattr(self, "lvv_problem", None):
-            raise SingularSaddleError(self.lvv_problem)
-        if notes is not None:
-            lr = _lvv_rcond(S[:self.n, :self.n], mpmath.sqrt, backend.singular_values)    # at the run's digits
-            if lr <= tol:
-                notes.update(lvv_rcond=float(lr), t=float(t))
+        self._lvv_checks(notes, S[:self.n, :self.n], mpmath.sqrt, backend.singular_values, tol, t)   # at the run's digits
         return r
 
     def check_consistent(self, backend, t, q, v, tol=None, k=None):
