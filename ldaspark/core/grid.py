@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .backend import _mpf     # the run's numbers: sympy reals, decimal strings, mpf alike
 from .errors import InputError
 
 
@@ -27,15 +28,3 @@ def steps_between(t_a, t_b, h) -> int:
     with mpmath.workprec(min(max(span, 0) + 64 + 64, 10 ** 5)):
         return int(mpmath.nint((_mpf(t_b) - _mpf(t_a)) / _mpf(h)))
 
-
-def _mpf(x):
-    """x as an mpf at the working precision: what ``validate.real_number`` accepts, sympy's real
-    numbers too (mpmath.mpf(sympy.pi) is a TypeError: h = pi ran and then failed here)."""
-    import mpmath
-    try:
-        return mpmath.mpf(x)
-    except (TypeError, ValueError):
-        to = getattr(x, "_to_mpmath", None)           # sympy numbers: evaluated at this precision
-        if to is not None:
-            return mpmath.mpf(to(mpmath.mp.prec))
-        return mpmath.mpf(float(x))
