@@ -239,3 +239,21 @@ def test_projection_converges_at_the_runs_digits_when_L_vv_depends_on_v(dps):
         assert abs(vy - x * vx) <= 10 * mpmath.mpf(10) ** -dps
         assert max(abs(a - b) for a, b in zip(r.v[0], r30.v[0])) <= mpmath.mpf(10) ** -28
         assert abs(vy - mpmath.mpf("0.2")) > mpmath.mpf("0.1")      # control: v0 did move (by 0.41)
+
+
+def test_ode_rhs_takes_the_time_derivative_of_the_momentum():
+    """(3a) with L_vt != 0: a mass growing in time, L = m(t) |v|^2 / 2, m = 1 + t/2, and k = vy:
+    d/dt (m v) = 0 gives v' = -(m'/m) v, psi = 0 (float64 and 30 digits; tolerance 10 eps of the
+    2 x 2 saddle solve). Control: the other sign of the L_vt term gives +(m'/m) v, 0.47 away."""
+    from ldaspark.core.backend import Backend
+    t, x, y, vx, vy = sympy.symbols("t x y vx vy")
+    sysm = LagrangianSystem((1 + t / 2) * (vx**2 + vy**2) / 2, [vy], [x, y], [vx, vy], t=t, name="growing-mass")
+    for dps in (None, 30):
+        bk = Backend(dps)
+        with bk.context():
+            acc, psi = sysm.ode_rhs(bk, bk.array([1])[0], bk.array([0.3, 0.2]), bk.array([0.7, 0]))
+            want = np.array([-0.7 * 0.5 / 1.5, 0.0])
+            got = np.array([float(a) for a in acc])
+            assert np.max(np.abs(got - want)) <= 10 * 2.3e-16
+            assert abs(float(psi[0])) <= 10 * 2.3e-16
+            assert np.max(np.abs(got + want)) > 0.4              # the other sign is far
