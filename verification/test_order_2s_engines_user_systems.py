@@ -254,8 +254,9 @@ def _orders(name, method, n_list, fracs=(2, 1)):
         with mpmath.workdps(DPS):
             Er = s.energy(bk, mpmath.mpf(T_END) / frac, np.array(qr, dtype=object), np.array(vr, dtype=object))
         refs.append((frac, qr, vr, Er))
-    errs = {"q": [], "v": [], "E": []}
+    errs = {"q": [], "v": [], "E": [], "psi": []}
     hs, kmax, dE = [], 0.0, []
+    c = tab.arrays(DPS).c
     for N in n_list:
         with mpmath.workdps(DPS):
             h = mpmath.mpf(T_END) / N
@@ -266,6 +267,9 @@ def _orders(name, method, n_list, fracs=(2, 1)):
         errs["q"].append(max(float(max(abs(a - b) for a, b in zip(r.q[N // f], qr))) for f, qr, _, _ in refs))
         errs["v"].append(max(float(max(abs(a - b) for a, b in zip(r.v[N // f], vr))) for f, _, vr, _ in refs))
         errs["E"].append(max(float(abs(r.energy[N // f] - Er)) for f, _, _, Er in refs))
+        # Psi (no claim, docs/convergence.md): the last step's stages against psi(T - h + c_i h)
+        errs["psi"].append(max(float(max(abs(a - b) for a, b in zip(r.psi[-1][i], ref(T_END - h + c[i] * h)[2])))
+                               for i in range(len(c))))
         dE.append(float(abs(r.energy[-1] - r.energy[0])))
         kmax = max(kmax, float(max(abs(x) for x in np.ravel(r.constraint))))
     floor = 1e3 * 10.0 ** -DPS
@@ -287,6 +291,9 @@ def _assert_order(name, method, p):
     # E(8) at t = 1 converges to the reference's E(T) (its balance (2.2) integrated), one-sided:
     # a quadratic E may do better
     assert orders["E"].observed_order is not None and orders["E"].observed_order > p - TOL_ORDER, orders["E"]
+    # Psi has no claim: it converges (measured orders s - 1 .. s + 1, never below 1 but for Lobatto 2)
+    po = orders["psi"]
+    assert po.observed_order is not None and po.observed_order > 0.5, po
     # (21f): k(t_n, q_n, v_n) = 0 is imposed at each step: at the run's round-off (10 units of 1e-30)
     assert kmax <= 10 * 10.0 ** -DPS, kmax
     return dE
