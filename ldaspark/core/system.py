@@ -552,7 +552,6 @@ class LagrangianSystem:
             v = backend.array(v).copy()
             v_ref = v.copy()
             mu = backend.zeros(self.m)
-            prev = None
             for _ in range(maxiter):
                 S = self.saddle_matrix(backend, t, q, v)
                 Lvv = S[:self.n, :self.n]
@@ -583,12 +582,6 @@ class LagrangianSystem:
                            backend.norm_inf(dx[self.n:]) / (1 + backend.norm_inf(mu)) if self.m else 0)
                 if step <= 10 * backend.eps:
                     return v
-                # the rounding floor of the solve, cond(4) eps: the increment stops shrinking with
-                # k = 0 to round-off (``check_consistent`` judges the returned v)
-                if prev is not None and step >= prev / 2 and (
-                        backend.norm_inf(self.constraint(backend, t, q, v)) <= 1e3 * backend.eps * (1 + backend.norm_inf(v))):
-                    return v
-                prev = step
         raise InconsistentInitialDataError("projection of v0 onto k = 0 did not converge")
 
     def _lvv_slope(self, backend, t, q, v, Lvv, w):

@@ -279,8 +279,8 @@ def test_projection_converges_when_the_rows_of_K_nearly_align(d, dps):
 
 
 def test_projection_without_a_solution_is_still_refused():
-    """Negative control of the stagnation rule above: k = vx^2 + vy^2 + 1 has no zero; the
-    iteration must not return a v whose k is not at round-off."""
+    """Negative control of the looser stopping rule above (mu judged against |mu|): k = vx^2 + vy^2 + 1
+    has no zero; the iteration must not return a v whose k is not at round-off."""
     x, y, vx, vy = sp.symbols("x y vx vy")
     S = ldaspark.LagrangianSystem((vx ** 2 + vy ** 2) / 2 - x ** 2 / 2, [vx ** 2 + vy ** 2 + 1], [x, y], [vx, vy])
     with pytest.raises(ldaspark.LdasparkError, match="projection"):
