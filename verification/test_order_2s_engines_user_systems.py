@@ -140,7 +140,8 @@ def _f(a):
 ENGINES = {"generic": dict(engine="generic"), "compiled-newton": dict(engine="compiled", newton="full"),
            "compiled-quasi": dict(engine="compiled", newton="quasi"), "auto": dict()}
 N_STEPS, H = 20, 0.05
-#: Lipschitz bound of the step map over [0, 1] for these systems: |d(v, a)/d(q, v)| <= 3 at the data
+#: Lipschitz bound of the flow over [0, 1] for these systems, |d(v, a)/d(q, v)| <= 3 (an upper
+#: estimate: unit masses and stiffnesses, fields and rotation rates <= 1, M^-1 <= 2)
 L_BOUND = 3.0
 
 
@@ -168,7 +169,10 @@ def _engine_gaps(name, method, system=None, q0=None, v0=None):
         r = ldaspark.integrate(system, method, t_span=(0, N_STEPS * H), q0=[float(x) for x in q0],
                                v0=[float(x) for x in v0], h=H, project=True, **kw)
         assert r.status == 0, (label, r.message)
+        # every system here qualifies: "auto" must not fall back to the generic engine
+        assert label != "auto" or r.stats["engine"].startswith("compiled"), r.stats["engine"]
         gap = float(np.abs(np.concatenate([_f(r.q[-1]), _f(r.v[-1])]) - yr).max())
+        # psi None: the semi-implicit kernel of (25), which "auto" picks for Lobatto IIIA-B 2
         gap_psi = float(np.abs(_f(r.psi[-1]) - pr).max()) if r.psi is not None else 0.0
         out[label] = (gap, gap_psi, _tolerance(np.abs(yr).max(), N_STEPS),
                       _tolerance(np.abs(pr).max(), N_STEPS, cond))
