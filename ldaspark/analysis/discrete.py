@@ -106,6 +106,9 @@ class DiscreteBVP:
         self.bk = self.method.backend
         self.tab = self.method.tab
         self.dps = dps
+        # the entries' relative uncertainty (float64 or short decimals; 0 for exact ones): where a
+        # Newton without the gauge border fails, a singular value below it is taken as zero
+        self.rank_floor = entries_floor(tableau)
         s, n, m = tableau.s, system.n, system.m
         self.s, self.n, self.m = s, n, m
         self.size = s * n + s * m + 2 * n
@@ -232,10 +235,39 @@ def _svd(bk, J):
 RANK_BY_SCHUR = True     # False: the full-precision SVD of all of J (benchmarks/rank_decisions.py compares the two)
 
 
-def _rank_info(bk, J, dps):
+#: in ``theorem1_residuals``' retry after a failed solve, a singular value of the BVP Jacobian
+#: below this factor times the tableau entries' relative uncertainty (``entries_floor``) is zero to
+#: the precision of the entries: rounding an exactly gauge-deficient method's coefficients to
+#: float64 moves its zero singular value to 5e-25 sigma_max (gauss-6 written in float64,
+#: mp-particles, h = 1/10; entries' floor 1.3e-12 with the ulps of their computation; next value
+#: 6.1e-5), where the finite-difference solves without the gauge border crept along it and stopped
+#: at 60 iterations (the audit's Theorem 1 check "not decided"); 1e3: three orders above the floor.
+#: Not the rule for every solve: a genuine small value can lie below it (gauss-6, skate: 8.5e-14)
+ENTRY_RANK_FACTOR = 1e3
+
+
+def entries_floor(tableau) -> float:
+    """The largest radius of the tableau's entries (``SparkTableau.ball_entries``: decimals to the
+    digits given, float64 to half an ulp) over the largest entry: 0.0 for exact entries and
+    built-ins computed to any precision."""
+    if getattr(tableau, "exact", None) is None or tableau.known_exactly:
+        return 0.0
+    from .order_conditions import ball_digits
+    balls = tableau.ball_entries(ball_digits(tableau, 30))
+    rad, mag = 0.0, 0.0
+    for key in ("c", "A", "A_hat", "A_tilde", "b", "b_hat", "b_tilde"):
+        for row in balls[key]:
+            for x in (row if isinstance(row, list) else [row]):
+                rad = max(rad, float(x.rad()))
+                mag = max(mag, abs(float(x.mid())))
+    return rad / mag if mag > 0 else 0.0
+
+
+def _rank_info(bk, J, dps, entries=0.0):
     """(sigma, r, U, Vh): singular values (the candidates for zero at working precision, from
     the Schur complement of ``Backend.small_singular_values``; the others from float64),
-    the deficiency r decided relative to the precision, and float64 singular vectors, which
+    the deficiency r decided relative to the precision (and, ``entries`` > 0, to the relative
+    uncertainty of the tableau's entries: ``entries_floor``), and float64 singular vectors, which
     are ample for pinning/bordering (any transversal choice works) and for the null support."""
     Jf = np.array([[float(v) for v in row] for row in J]) if bk.is_mp else J
     if not np.all(np.isfinite(Jf)):     # a step far too large for the system: no rank to decide
@@ -258,7 +290,7 @@ def _rank_info(bk, J, dps):
         sig = np.array([mpmath.mpf(float(v)) for v in s64], dtype=object)
     else:
         sig = s64
-    return sig, _deficiency(sig, dps), U, Vh
+    return sig, _deficiency(sig, dps, entries), U, Vh
 
 
 @dataclass
@@ -272,11 +304,12 @@ class Gauge:
     fac: object = None                   # factorisation of the bordered J it was checked with
 
 
-def _deficiency(sig, dps):
+def _deficiency(sig, dps, entries=0.0):
     """Number of singular values that are zero to working precision: sigma/sigma_max below
-    10^(-dps/2) (mpmath) or 1e-9 (float64). Genuine small values scale like h^k >> these."""
+    10^(-dps/2) (mpmath) or 1e-9 (float64), or below ENTRY_RANK_FACTOR times ``entries`` (the
+    tableau entries' relative uncertainty). Genuine small values scale like h^k >> these."""
     smax = float(sig[0])
-    thr = 10.0 ** (-dps / 2) if dps is not None else 1e-9
+    thr = max(10.0 ** (-dps / 2) if dps is not None else 1e-9, ENTRY_RANK_FACTOR * entries)
     return sum(1 for x in sig if float(x) <= thr * smax)
 
 
@@ -533,22 +566,26 @@ def discrete_lagrangian(system, tableau, t0, q0, t1, q1, dps=40, v0_guess=None, 
                      lambda: _solve_and_differentiate(bvp, t0, q0, t1, q1, x, gauge_ref))
 
 
-def _solve_and_differentiate(bvp, t0, q0, t1, q1, x, gauge_ref=None, gauge=None):
+def _solve_and_differentiate(bvp, t0, q0, t1, q1, x, gauge_ref=None, gauge=None, entries=0.0):
+    """The BVP solved from x and differentiated (``discrete_lagrangian``). entries > 0: singular
+    values below ENTRY_RANK_FACTOR times it count as zero (``_rank_info``; the tableau entries'
+    relative uncertainty, ``DiscreteBVP.rank_floor``, in ``theorem1_residuals``' retry)."""
     bk = bvp.bk
     sol = _Solver(bvp)
     x_in = x
     # rank at the guess decides whether Newton needs the gauge-fixing border
     G, J, _, _ = bvp.evaluate(t0, q0, t1, q1, x)
-    sig, r, U, Vh = _rank_info(bk, J, bvp.dps)
+    sig, r, U, Vh = _rank_info(bk, J, bvp.dps, entries)
     first_fac = None
+    x_ref = x if gauge_ref is None else _as_backend(bk, gauge_ref)
     if r and gauge is None:
-        gauge = _make_gauge(bvp, J, x if gauge_ref is None else _as_backend(bk, gauge_ref), sig, U, Vh, r)
+        gauge = _make_gauge(bvp, J, x_ref, sig, U, Vh, r)
         first_fac = gauge.fac          # the bordered J at x, factored once for the check
     # Newton's first iteration is at x too: G, J (and the bordered factorisation) are reused
     x, mu, it, res = sol.newton(t0, q0, t1, q1, x, gauge, first=(G, J, first_fac))
     G, J, dq0, dq1 = bvp.evaluate(t0, q0, t1, q1, x)
     if bk.norm_inf(x - x_in) > 1e-8:
-        sig, r, U, Vh = _rank_info(bk, J, bvp.dps)
+        sig, r, U, Vh = _rank_info(bk, J, bvp.dps, entries)
     support = _null_support(bvp, Vh, r)
     if r == 0:
         cls = WELLPOSED
@@ -658,17 +695,30 @@ def theorem1_residuals(system, tableau, t0, q0, v0, h, dps=40, q1_shift=None, q0
     t_start = time.time()
     err = None
     out = None
-    for attempt in range(max_refine + 1):
+    # entries known to a few digits (float64, short decimals) can move an exact zero singular value
+    # of the BVP off zero (gauss-6 in float64 on mp-particles: 5e-25 sigma_max at every dps), and the
+    # finite-difference solves without the gauge border then creep along it; after a failed solve the
+    # zeros are decided at the entries' precision (a genuine small value may lie there too: gauss-6
+    # on the skate has 8.5e-14, so this is a retry, not the rule)
+    entries_rank = False
+    attempt = 0
+    while attempt <= max_refine:
         try:
             out = _theorem1_once(system, tableau, t0, q0, v0, h, dps, q1_shift, q0_shift,
                                  dps_fd=dps + 20 + 15 * attempt,
-                                 delta=mpmath.mpf(10) ** (-(dps // 4) - 5 * attempt))
+                                 delta=mpmath.mpf(10) ** (-(dps // 4) - 5 * attempt), entries_rank=entries_rank)
         except DiscreteSolveError as exc:   # delta too large for a nearly singular J: refine
             err = exc
+            if not entries_rank and entries_floor(tableau) > 0:
+                entries_rank = True
+            else:
+                attempt += 1
             continue
         out["fd_refinements"] = attempt
+        out["rank_at_entries_precision"] = entries_rank
         if out["fd_error"] <= fd_target:
             break
+        attempt += 1
     if out is None:
         raise err
     bad = [k for k, x in out.items() if isinstance(x, (float, mpmath.mpf)) and not mpmath.isfinite(x)]
@@ -680,16 +730,23 @@ def theorem1_residuals(system, tableau, t0, q0, v0, h, dps=40, q1_shift=None, q0
     return out
 
 
-def _theorem1_once(system, tableau, t0, q0, v0, h, dps, q1_shift, q0_shift, dps_fd, delta):
+def _theorem1_once(system, tableau, t0, q0, v0, h, dps, q1_shift, q0_shift, dps_fd, delta, entries_rank=False):
     """Theorem 1 at the endpoints reached by one IVP step from (t0, q0, v0) (optionally with
     q0, q1 shifted by small vectors): dL_d/dq0 = -p0^T - f_d^-^T, dL_d/dq1 = p1^T - f_d^+^T.
 
     dL_d/dq is measured by central differences on the BVP solution at ``dps_fd`` (>= dps + 20) digits,
     Richardson-extrapolated over delta, delta/2, delta/4 (first try delta = 10^-(dps/4)); the error
     estimate is the difference of the two extrapolants. Residuals are relative to
-    max(|p0|, |p1|, |dL_d/dq|)."""
+    max(|p0|, |p1|, |dL_d/dq|). entries_rank: the BVP's zero singular values decided at the
+    precision of the tableau's entries (``DiscreteBVP.rank_floor``), not only the working one."""
     t_start = time.time()
     bk_fd = Backend(dps_fd)
+    bvp = DiscreteBVP(system, tableau, dps_fd)
+
+    def solve(qa, qb, xg):
+        if not entries_rank:
+            return discrete_lagrangian(system, tableau, t0_, qa, t1, qb, dps=dps_fd, x_guess=xg)
+        return _solve_and_differentiate(bvp, t0_, qa, t1, qb, xg, entries=bvp.rank_floor)
     with bk_fd.context():
         t1, q1, xg = base_point(system, tableau, t0, q0, v0, h, dps_fd)
         t0_ = bk_fd.scalar(t0)
@@ -698,14 +755,13 @@ def _theorem1_once(system, tableau, t0, q0, v0, h, dps, q1_shift, q0_shift, dps_
             q0_ = q0_ + bk_fd.array(q0_shift)
         if q0_shift is not None or q1_shift is not None:
             # first-order predictor from the unshifted solve: off C_d Newton needs a good start
-            r0 = discrete_lagrangian(system, tableau, t0_, bk_fd.array(q0), t1, q1, dps=dps_fd, x_guess=xg)
+            r0 = solve(bk_fd.array(q0), q1, xg)
             dq = np.concatenate([bk_fd.array(q0_shift) if q0_shift is not None else bk_fd.zeros(system.n),
                                  bk_fd.array(q1_shift) if q1_shift is not None else bk_fd.zeros(system.n)])
             xg = r0.x + r0.extra["dx_dq"][:len(r0.x)].dot(dq)
         if q1_shift is not None:
             q1 = q1 + bk_fd.array(q1_shift)
-        res = discrete_lagrangian(system, tableau, t0_, q0_, t1, q1, dps=dps_fd, x_guess=xg)
-        bvp = DiscreteBVP(system, tableau, dps_fd)
+        res = solve(q0_, q1, xg)
         sol = _Solver(bvp)
         gauge = res.extra["gauge"]
         fac = res.extra["fac"]

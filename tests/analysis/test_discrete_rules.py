@@ -156,9 +156,9 @@ def test_theorem1_refinement_loop(monkeypatch):
     calls = []
 
     def fake(plan):
-        def once(system, tableau, t0, q0, v0, h, dps, q1s, q0s, dps_fd, delta):
+        def once(system, tableau, t0, q0, v0, h, dps, q1s, q0s, dps_fd, delta, entries_rank=False):
             a = len(calls)
-            calls.append((dps_fd, delta))
+            calls.append((dps_fd, delta, entries_rank))
             kind = plan[a]
             if kind == "raise":
                 raise D.DiscreteSolveError("nearly singular")
@@ -177,6 +177,16 @@ def test_theorem1_refinement_loop(monkeypatch):
     calls.clear()
     monkeypatch.setattr(D, "_theorem1_once", fake([1e-26]))
     assert D.theorem1_residuals(*args, dps=40, fd_target=1e-26)["fd_refinements"] == 0   # <= target
+    assert not any(c[2] for c in calls)          # exact entries: no retry at their precision
+    # entries known to a few digits: a failed solve is retried at the same digits with the zeros
+    # decided at the entries' precision, before any refinement
+    calls.clear()
+    monkeypatch.setattr(D, "entries_floor", lambda tab: 1e-16)
+    monkeypatch.setattr(D, "_theorem1_once", fake(["raise", 1e-30]))
+    out = D.theorem1_residuals(*args, dps=40, fd_target=1e-26, max_refine=4)
+    assert [c[0] for c in calls] == [60, 60] and [c[2] for c in calls] == [False, True]
+    assert out["fd_refinements"] == 0 and out["rank_at_entries_precision"] is True
+    monkeypatch.setattr(D, "entries_floor", lambda tab: 0.0)
     calls.clear()
     monkeypatch.setattr(D, "_theorem1_once", fake(["raise", "raise"]))
     with pytest.raises(D.DiscreteSolveError, match="nearly singular"):
@@ -281,3 +291,52 @@ def test_bvp_newton_tolerance_is_100_eps_relative():
     s = Scripted()
     _, _, it, res = D._Solver(s).newton(0, 0, 1, 0, np.zeros(1), fac=s.bk.factor(np.eye(1)), stencil=True)
     assert it == 2 and res is None
+
+
+def _float64_tableau(name, tmp_path):
+    """A built-in written as a user's file with its entries rounded to float64 (repr digits)."""
+    import json
+    d = ldaspark.get_method(name).to_json_dict()
+    for k in ("c", "A", "A_hat", "A_tilde", "b", "b_hat", "b_tilde", "omega"):
+        if k in d:
+            d[k] = _as_floats(d[k])
+    p = tmp_path / f"{name}-float64.json"
+    p.write_text(json.dumps(d))
+    return ldaspark.load_tableau(str(p))
+
+
+def _as_floats(v):
+    if isinstance(v, list):
+        return [_as_floats(x) for x in v]
+    return float(mpmath.mpf(str(v)))
+
+
+def test_entries_floor_is_the_entries_uncertainty():
+    """0 for exact and built-in entries; for float64 entries at least half an ulp of the largest
+    entry relative to it (the balls also carry the ulps of the entries' own computation)."""
+    import tempfile
+    import pathlib
+    assert D.entries_floor(ldaspark.get_method("gauss-6")) == 0.0
+    with tempfile.TemporaryDirectory() as d:
+        f = D.entries_floor(_float64_tableau("gauss-2", pathlib.Path(d)))
+    assert 1.1e-16 <= f <= 1e-12
+
+
+def test_theorem1_on_a_float64_tableau_decides_the_gauge_at_the_entries_precision(tmp_path):
+    """gauss-6 written in float64 on mp-particles (h = 1/10): the exact method's BVP has one zero
+    singular value (gauge), which the rounded entries move to 5e-25 sigma_max at every dps; without
+    the gauge border the finite-difference solves crept along it and stopped after 60 iterations
+    (DiscreteSolveError, the audit's "not decided"). After that failure theorem1_residuals decides
+    the zeros at the entries' precision: one zero, Theorem 1 holds to 8.5e-17 (the entries carry
+    ~1e-16; tolerance 1e-12, three orders above it, seven below the 1.0 without the forces).
+    Control: the exact gauss-6 needs no retry (rank_at_entries_precision False, residual 8e-44)."""
+    from ldaspark.models.scenes import get_scene
+    sc = get_scene("mp-particles")
+    t0, q0, v0 = sc.initial(75)
+    tab = _float64_tableau("gauss-6", tmp_path)
+    r = D.theorem1_residuals(sc.system, tab, t0, q0, v0, "1/10", dps=30)
+    assert r["rank_at_entries_precision"] is True and r["rank_deficiency"] == 1
+    assert max(r["theorem1-q0"], r["theorem1-q1"]) <= 1e-12
+    exact = D.theorem1_residuals(sc.system, ldaspark.get_method("gauss-6"), t0, q0, v0, "1/10", dps=30)
+    assert exact["rank_at_entries_precision"] is False and exact["rank_deficiency"] == 1
+    assert max(exact["theorem1-q0"], exact["theorem1-q1"]) <= 1e-40

@@ -171,6 +171,10 @@ def _theorem1_scene(tab, name, hyp22, d, quick, entry_tol=None):
             wp = f"{wp} (classification failed: {exc})"
     else:
         wp = f"{wp} (rank deficiency {r['rank_deficiency']} at dps {r['dps_fd']})"
+    if r.get("rank_at_entries_precision"):
+        # the solve without the gauge border failed: its zeros were taken at the entries' precision
+        wp += (f"; the finite-difference solves took singular values below "
+               f"{discrete.ENTRY_RANK_FACTOR:.0e} x the entries' relative uncertainty as zero")
     res = max(r["theorem1-q0"], r["theorem1-q1"])
     # the numerical part of the tolerance (finite differences, working precision) must have teeth
     tol_num = _theorem1_tol(tab, r["dps"], r["fd_error"], 0.0)
