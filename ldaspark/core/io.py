@@ -92,6 +92,26 @@ def check_destination(path) -> None:
         _check_replaceable(path, target)
 
 
+def check_distinct_outputs(*named) -> None:
+    """Refuse (LdasparkError, one line) two outputs of one run that name the same file: ``named``
+    is (option, path) pairs, None paths skipped. The writer that came second replaced what the
+    first wrote (``audit --out F --json F`` left the JSON and no report). Files are compared after
+    resolving symbolic links; devices and FIFOs (``/dev/null``, ``/dev/stdout``) take both writes,
+    as a shell redirection would, and are not compared."""
+    seen = {}
+    for opt, path in named:
+        if path is None:
+            continue
+        kind, target = _destination(os.fspath(path))
+        if kind != "replace":
+            continue
+        key = os.path.realpath(os.path.abspath(target))
+        if key in seen:
+            raise LdasparkError(f"{seen[key]} and {opt} name the same file {os.fspath(path)}: the second "
+                                "write would replace the first; give two paths")
+        seen[key] = opt
+
+
 def _check_replaceable(path, target) -> None:
     """The writers' own first steps, tried now: the target's directory can be made and holds a new
     file (a temporary file created and removed at once, as ``_atomic_replace`` creates it). A type

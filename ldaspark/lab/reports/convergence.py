@@ -399,13 +399,15 @@ def run(args) -> int:
     if not 0 < args.t_end <= T_END_MAX:
         raise InputError(f"--t-end must be in (0, {T_END_MAX:g}] (the references are mpmath Taylor solutions, "
                          f"seconds per unit of time), got {args.t_end:g}")
-    from ...core.io import check_destination
+    from ...core.io import check_destination, check_distinct_outputs
     from ...solve import resolve_method
     for m in args.methods or ():
         resolve_method(m)               # an unknown method is one line before any reference is built
     check_destination(args.json)
     if args.outdir or not args.json:
-        check_destination(os.path.join(args.outdir or REPORT_DIR, "convergence.md"))
+        md = os.path.join(args.outdir or REPORT_DIR, "convergence.md")
+        check_destination(md)
+        check_distinct_outputs(("the report OUTDIR/convergence.md", md), ("--json", args.json))
     clock = Clock()
     recs = compute(args.scenes, args.methods, args.t_end, args.workers)
     if args.json:

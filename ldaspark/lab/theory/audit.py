@@ -693,9 +693,10 @@ def load_for_args(args) -> SparkTableau:
 
 
 def run(args) -> int:
-    from ...core.io import check_destination
+    from ...core.io import check_destination, check_distinct_outputs
     for path in (args.out, args.json):     # refused now, not after the audit (nor one file of the two)
         check_destination(path)
+    check_distinct_outputs(("--out", args.out), ("--json", args.json))
     tab = load_for_args(args)
     progress = (lambda msg: print(f"[audit] {msg}", file=sys.stderr, flush=True))
     res = audit(tab, dps=args.dps, quick=args.quick, arith=args.arith, progress=progress)

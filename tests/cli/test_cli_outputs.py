@@ -1,0 +1,71 @@
+"""Two outputs of one command never name the same file: the second write replaced the first, and
+the run ended with exit 0 and one of the two files missing (found by probe t17)."""
+import os
+
+import pytest
+
+from ldaspark.cli import main
+
+
+class _Reached(Exception):
+    """The command got past its checks and started its computation (a stand-in here)."""
+
+
+def _rc_err(capsys, argv):
+    try:
+        rc = main(argv)
+    except SystemExit as exc:
+        rc = exc.code
+    return rc, capsys.readouterr().err
+
+
+def _refused_as_same_file(rc, err):
+    assert rc == 2 and err.count("\n") == 1 and "name the same file" in err and "Traceback" not in err, (rc, err)
+
+
+def test_audit_out_and_json_on_one_file_is_refused(capsys, tmp_path):
+    """``audit --out F --json F`` wrote the report, then replaced it with the JSON (exit 0); through
+    a symbolic link too. Control: two paths get both files, and /dev/null takes both writes."""
+    base = ["audit", "--example", "gauss2", "--quick"]
+    rc, _ = _rc_err(capsys, base + ["--out", str(tmp_path / "r.md"), "--json", str(tmp_path / "r.json")])
+    assert rc == 0 and (tmp_path / "r.md").read_text().startswith("#") and (tmp_path / "r.json").exists()
+    rc, _ = _rc_err(capsys, base + ["--out", os.devnull, "--json", os.devnull])
+    assert rc == 0
+    same = str(tmp_path / "same.out")
+    _refused_as_same_file(*_rc_err(capsys, base + ["--out", same, "--json", same]))
+    assert not os.path.exists(same)
+    os.symlink("same.out", tmp_path / "link.out")
+    _refused_as_same_file(*_rc_err(capsys, base + ["--out", same, "--json", str(tmp_path / "link.out")]))
+
+
+def test_verify_json_on_its_own_ledger_is_refused(capsys, tmp_path, monkeypatch):
+    """``verify --json OUTDIR/claims-quick.md`` replaced the markdown ledger by the JSON records, and
+    the summary line pointed at it for the findings. Refused before the ledger runs (a stand-in
+    here); control: another --json path reaches the run."""
+    from ldaspark.lab.reports import claims
+
+    def reached(*a, **k):
+        raise _Reached
+    monkeypatch.setattr(claims, "run_ledger", reached)
+    out = tmp_path / "rep"
+    argv = ["verify", "--quick", "--jobs", "1", "--outdir", str(out)]
+    with pytest.raises(_Reached):
+        main(argv + ["--json", str(tmp_path / "records.json")])
+    _refused_as_same_file(*_rc_err(capsys, argv + ["--json", str(out / "claims-quick.md")]))
+
+
+def test_report_convergence_json_on_its_markdown_is_refused(capsys, tmp_path, monkeypatch):
+    """``report convergence --json OUTDIR/convergence.md --outdir OUTDIR``: the report replaced the
+    JSON records. Control: --json OUTDIR/convergence.json (the same records the section writes
+    there) reaches the run."""
+    from ldaspark.lab.reports import convergence
+
+    def reached(*a, **k):
+        raise _Reached
+    monkeypatch.setattr(convergence, "compute", reached)
+    out = tmp_path / "rep"
+    argv = ["report", "convergence", "--scenes", "particle", "--methods", "gauss-1", "--t-end", "0.5",
+            "--outdir", str(out)]
+    with pytest.raises(_Reached):
+        main(argv + ["--json", str(out / "convergence.json")])
+    _refused_as_same_file(*_rc_err(capsys, argv + ["--json", str(out / "convergence.md")]))
