@@ -123,8 +123,11 @@ def _add_methods(sub):
 def _run_methods(args) -> int:
     from .analysis.conditions import method_table
     from .core.errors import InputError
-    if not 1 <= args.max_s <= 5:    # the table is exact; exact Gauss nodes exist up to s = 5
-        raise InputError(f"--max-s must be between 1 and 5 (exact coefficients), got {args.max_s}")
+    if not 1 <= args.max_s <= _MAX_S:
+        raise InputError(f"--max-s must be between 1 and {_MAX_S} (exact coefficients), got {args.max_s}")
+    if args.json:
+        from .core.io import check_destination
+        check_destination(args.json)    # refused before the table is printed, not after
     rows = method_table(args.max_s)
     print(f"{'method':28s} {'s':>2s} {'order':>5s}  (22)  (23)")
     for r in rows:
@@ -146,10 +149,14 @@ def _count_checker(dest: str):
         "jobs": lambda x: V.count(x, "--jobs", 1, _MAX_WORKERS),
         "workers": lambda x: V.count(x, "--workers", 1, _MAX_WORKERS),
         "mutant_timeout": lambda x: V.count(x, "--mutant-timeout (seconds)", 1, 86400),
+        # the exact method table's own range (``_run_methods``): 0 said "between 1 and 1e+09", 6 "1 and 5"
+        "max_s": lambda x: V.count(x, "--max-s (exact coefficients)", 1, _MAX_S),
     }
     return table.get(dest, lambda x: V.count(x, f"--{dest.replace('_', '-')}", 1, V.MAX_STEPS))
 
 
+#: the largest s of ``ldaspark methods`` (the table is exact; exact Gauss nodes exist up to s = 5)
+_MAX_S = 5
 #: most worker processes an option may ask for (more is a typo, and would fork that many)
 _MAX_WORKERS = 1024
 #: integer options left to their command's own range check (--dps is 16..2000 for integrate and
