@@ -69,3 +69,22 @@ def test_report_convergence_json_on_its_markdown_is_refused(capsys, tmp_path, mo
     with pytest.raises(_Reached):
         main(argv + ["--json", str(out / "convergence.json")])
     _refused_as_same_file(*_rc_err(capsys, argv + ["--json", str(out / "convergence.md")]))
+
+
+def test_report_convergence_runs_a_repeated_scene_or_method_once(capsys, tmp_path, monkeypatch):
+    """``--scenes particle particle --methods gauss-1 gauss-1`` computed the particle's reference
+    twice and wrote every record four times (12 records for 3). Control: distinct names keep their
+    order."""
+    from ldaspark.lab.reports import convergence
+    seen = []
+
+    def compute(scenes, methods, t_end, workers):
+        seen.append((list(scenes), list(methods)))
+        raise _Reached
+    monkeypatch.setattr(convergence, "compute", compute)
+    base = ["report", "convergence", "--t-end", "0.5", "--json", str(tmp_path / "c.json")]
+    for scenes, methods in ((["skate", "particle"], ["gauss-2", "gauss-1"]),
+                            (["particle", "particle"], ["gauss-1", "gauss-1"])):
+        with pytest.raises(_Reached):
+            main(base + ["--scenes", *scenes, "--methods", *methods])
+    assert seen == [(["skate", "particle"], ["gauss-2", "gauss-1"]), (["particle"], ["gauss-1"])]

@@ -401,6 +401,10 @@ def run(args) -> int:
                          f"seconds per unit of time), got {args.t_end:g}")
     from ...core.io import check_destination, check_distinct_outputs
     from ...solve import resolve_method
+    # a scene or method named twice runs once (it ran twice: its records twice in the JSON, the
+    # table and the figures, and its reference computed twice)
+    args.scenes = list(dict.fromkeys(args.scenes))
+    args.methods = list(dict.fromkeys(args.methods)) if args.methods else args.methods
     for m in args.methods or ():
         resolve_method(m)               # an unknown method is one line before any reference is built
     check_destination(args.json)
