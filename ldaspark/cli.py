@@ -241,7 +241,7 @@ def main(argv=None) -> int:
         return 130
     with lifecycle.stop_on_signals(line=_forced_line) as stop:
         try:
-            return _main(argv)
+            rc = _main(argv)
         except KeyboardInterrupt as exc:
             return _stopped(exc, "")
         except ImportError:
@@ -249,6 +249,12 @@ def main(argv=None) -> int:
             if stop.received is not None:
                 return _stopped(lifecycle.Stopped(stop.received), "")
             raise
+        if rc == 0 and stop.received is not None:
+            # the stop reached no handler of the run (code that swallows BaseException): the run
+            # finished, but its caller asked it to stop and reads 128 + the signal, not 0
+            return _stopped(lifecycle.Stopped(stop.received), "it arrived where the run could not stop; "
+                                                                "the run finished and wrote its outputs")
+        return rc
 
 
 def _stopped(exc, why: str) -> int:
