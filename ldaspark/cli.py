@@ -296,6 +296,8 @@ def _main(argv=None) -> int:
         parser.print_help()
         print("ldaspark: error: give a command (integrate, methods, report, verify, audit)", file=sys.stderr)
         return 2
+    from .core import io as _io
+    first_write = len(_io.COMPLETED)    # the files this command completes from here on
     try:
         rc = int(args.func(args) or 0)
         sys.stdout.flush()          # a write error on stdout (``> /dev/full``) surfaces here, as one line
@@ -311,7 +313,7 @@ def _main(argv=None) -> int:
         kept = ("the finished units are kept in OUTDIR's *.partial.jsonl; a rerun resumes from them"
                 if getattr(args, "command", None) in ("verify", "mutants") else None)
         return _stopped(exc, f"after the complete result was written to {done}" if done else
-                        kept or "no partial output was written")
+                        kept or _completed_before_stop(_io.COMPLETED[first_write:]))
     except BrokenPipeError:
         # ``ldaspark methods | head -1``: the reader closed the pipe. Further writes to stdout
         # go to /dev/null so that the interpreter's final flush does not raise again.
@@ -330,6 +332,19 @@ def _main(argv=None) -> int:
         where = f" {exc.filename}" if getattr(exc, "filename", None) else " the output"
         print(f"ldaspark: error: cannot write{where}: {exc.strerror or type(exc).__name__}", file=sys.stderr)
         return 2
+
+
+def _completed_before_stop(paths) -> str:
+    """What a stopped command keeps when it wrote some of its files: each is complete (written
+    atomically), none partial. ``report energy --json F --outdir D`` stopped while plotting said
+    "no partial output was written" of a complete F."""
+    from .core.errors import one_line
+    if not paths:
+        return "no partial output was written"
+    paths = list(dict.fromkeys(paths))
+    shown = ", ".join(one_line(p) for p in paths[:3]) + (f" and {len(paths) - 3} more" if len(paths) > 3 else "")
+    return (f"{len(paths)} complete file{'s' if len(paths) > 1 else ''} written before it: {shown}; "
+            "no partial output was written")
 
 
 def _drop_stdout() -> None:

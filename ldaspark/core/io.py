@@ -28,6 +28,10 @@ from .errors import LdasparkError
 from .lifecycle import TempFile, raise_on_stop_signals
 
 
+#: the paths this process has written atomically, in order: the command line names those a
+#: stopped run had completed ("no partial output was written" said nothing of them)
+COMPLETED: list = []
+
 _FD_PATH = re.compile(r"^/(?:dev/(?:(stdout|stderr)|fd/(\d+))|proc/(self|\d+)/fd/(\d+))$")
 
 
@@ -202,6 +206,7 @@ def _atomic_replace(path, target, data: bytes | None, write=None) -> None:
                 os.fsync(f.fileno())
             os.replace(tmp.name, target)
             tmp.forget()
+            COMPLETED.append(os.fspath(path))
         except BaseException as exc:
             tmp.remove()
             if isinstance(exc, OSError):

@@ -542,3 +542,25 @@ def test_a_stop_swallowed_by_the_run_still_sets_the_exit_status(monkeypatch, cap
     rc = _main_with_a_stop(monkeypatch, swallowing)
     err = capsys.readouterr().err
     assert rc == 143 and err.count("\n") == 1 and "the run finished" in err, (rc, err)
+
+
+def test_a_stopped_command_names_the_complete_files_it_wrote(monkeypatch, capsys, tmp_path):
+    """``report energy --figure 1 --json F --outdir D`` stopped while it plotted (F written,
+    complete) said "no partial output was written", as if nothing had been: the line says what is
+    kept (docs/reliability.md, "Signals"). Control: a stop before any write keeps the old words."""
+    import ldaspark.cli as cli
+    from ldaspark.lab.reports import energy
+
+    def ctrl_c(*a, **k):
+        raise KeyboardInterrupt
+    argv = ["report", "energy", "--figure", "1", "--t-end", "1", "--outdir", str(tmp_path / "d")]
+    monkeypatch.setattr(energy, "plot_energy", ctrl_c)           # after the JSON, during the PNG
+    rc = cli.main(argv + ["--json", str(tmp_path / "f1.json")])
+    err = capsys.readouterr().err
+    assert rc == 130 and err.count("\n") == 1, err
+    assert "1 complete file written before it: " + str(tmp_path / "f1.json") in err, err
+    assert (tmp_path / "f1.json").is_file()
+    monkeypatch.setattr(energy, "figure_data", ctrl_c)           # before any write
+    rc = cli.main(argv + ["--json", str(tmp_path / "g1.json")])
+    err = capsys.readouterr().err
+    assert rc == 130 and err == "ldaspark: interrupted (no partial output was written)\n", err
