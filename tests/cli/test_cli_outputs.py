@@ -88,3 +88,27 @@ def test_report_convergence_runs_a_repeated_scene_or_method_once(capsys, tmp_pat
         with pytest.raises(_Reached):
             main(base + ["--scenes", *scenes, "--methods", *methods])
     assert seen == [(["skate", "particle"], ["gauss-2", "gauss-1"]), (["particle"], ["gauss-1"])]
+
+
+def test_audit_command_reproduces_the_audit(capsys, tmp_path):
+    """The JSON's ``command`` ("the command line that reproduces the audit", docs/audit.md) wrote a
+    path with a space unquoted (three words) and left out --max-stages. Now it is shell-quoted and
+    complete: run again, it gives the same checks. Control: a built-in's command keeps its words."""
+    import json
+    import shlex
+    import shutil
+    import ldaspark
+    src = tmp_path / "a b ü.json"
+    shutil.copy(os.path.join(os.path.dirname(ldaspark.__file__), "data", "tableaux", "gauss2.json"), src)
+    first = tmp_path / "first.json"
+    assert main(["audit", str(src), "--quick", "--max-stages", "25", "--json", str(first)]) == 0
+    d = json.loads(first.read_text())
+    words = shlex.split(d["command"])
+    assert words[:3] == ["ldaspark", "audit", str(src)] and words[-2:] == ["--max-stages", "25"], d["command"]
+    again = tmp_path / "again.json"
+    assert main(words[1:] + ["--json", str(again)]) == 0
+    e = json.loads(again.read_text())
+    assert [(c["name"], c["status"]) for c in e["checks"]] == [(c["name"], c["status"]) for c in d["checks"]]
+    assert main(["audit", "--method", "gauss-1", "--quick", "--json", str(tmp_path / "m.json")]) in (0, 1)
+    assert json.loads((tmp_path / "m.json").read_text())["command"] == "ldaspark audit --method gauss-1 --dps 30 --quick"
+    capsys.readouterr()
