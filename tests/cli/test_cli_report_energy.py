@@ -69,3 +69,24 @@ def test_figs_1_to_3_run_to_the_t_end_they_record(capsys, tmp_path):
                                str(tmp_path / "bad.json")])
     assert rc == 2 and err.count("\n") == 1 and "not a multiple of Fig. 1's step h = 0.2" in err, err
     assert not (tmp_path / "bad.json").exists()
+
+
+@pytest.mark.parametrize("extra", [["--figure", "1", "--t-end", "1"], ["--t-end", "15"]])
+def test_mp_constraint_without_figure_4_is_refused_not_ignored(capsys, tmp_path, fig4_stand_in, monkeypatch, extra):
+    """``--mp-constraint nonholonomic`` chooses Fig. 4's scene: with --figure 1 it was accepted and
+    ignored, and without --figure Fig. 4 ran both constraints whatever it said. Control: with
+    --figure 4 it reaches Fig. 4 (and --figure 4 alone keeps the printed constraint)."""
+    from ldaspark.lab.reports import energy
+    seen = []
+
+    def figure4(t_end=50000.0, constraint="printed", **kw):
+        seen.append(constraint)
+        raise _Reached(t_end)
+    monkeypatch.setattr(energy, "figure4", figure4)
+    for c in (["--mp-constraint", "nonholonomic"], []):
+        with pytest.raises(_Reached):
+            main(["report", "energy", "--figure", "4", "--t-end", "15", *c, "--json", str(tmp_path / "f.json")])
+    assert seen == ["nonholonomic", "printed"]
+    rc, err = _rc_err(capsys, ["report", "energy", *extra, "--mp-constraint", "nonholonomic",
+                               "--outdir", str(tmp_path / "r")])
+    assert rc == 2 and err.count("\n") == 1 and "--mp-constraint chooses the scene of Fig. 4" in err, err

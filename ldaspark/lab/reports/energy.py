@@ -294,8 +294,11 @@ def add_arguments(p):
     p.add_argument("--t-end", type=float, default=None, help="shorter interval (default: the paper's)")
     p.add_argument("--json", default=None, help="write the figure data (JSON) to FILE")
     p.add_argument("--outdir", default=None, help="also write the PNG(s) here (default: reports/ when no --json)")
-    p.add_argument("--mp-constraint", choices=("printed", "nonholonomic"), default="printed",
-                   help="Fig. 4 scene: the constraint as printed in 8.4 (integrable) or its nonholonomic variant")
+    # default None (= printed with --figure 4): given with another figure, or without --figure
+    # (which runs Fig. 4 for both constraints), it is refused, not ignored
+    p.add_argument("--mp-constraint", choices=("printed", "nonholonomic"), default=None,
+                   help="with --figure 4: the constraint as printed in 8.4 (integrable, the default) or its "
+                        "nonholonomic variant")
 
 
 def run(args) -> int:
@@ -304,6 +307,9 @@ def run(args) -> int:
         raise InputError(f"--t-end must be a finite positive number, got {args.t_end}")
     from ...core.io import check_destination
     check_destination(args.json)            # a directory at --json: refused now, not after the runs
+    if getattr(args, "mp_constraint", None) is not None and args.figure != 4:
+        raise InputError("--mp-constraint chooses the scene of Fig. 4: give it with --figure 4 (without --figure "
+                         "Fig. 4 runs with both constraints; Figs. 1-3 have no such scene)")
     if args.figure is None:
         if args.json:
             raise InputError("--json needs --figure N")
@@ -313,7 +319,7 @@ def run(args) -> int:
         return 0
     if args.figure == 4:
         check_fig4_t_end(args.t_end)
-        d = figure4(t_end=args.t_end if args.t_end is not None else 50000.0, constraint=args.mp_constraint)
+        d = figure4(t_end=args.t_end if args.t_end is not None else 50000.0, constraint=args.mp_constraint or "printed")
         if args.json:
             atomic_write_json(args.json, d)
         if args.outdir or not args.json:
