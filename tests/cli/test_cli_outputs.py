@@ -112,3 +112,32 @@ def test_audit_command_reproduces_the_audit(capsys, tmp_path):
     assert main(["audit", "--method", "gauss-1", "--quick", "--json", str(tmp_path / "m.json")]) in (0, 1)
     assert json.loads((tmp_path / "m.json").read_text())["command"] == "ldaspark audit --method gauss-1 --dps 30 --quick"
     capsys.readouterr()
+
+
+@pytest.mark.parametrize("section, stand_in, extra", [
+    ("convergence", "compute", ["--scenes", "particle", "--methods", "gauss-1", "--t-end", "0.5"]),
+    ("energy", "figure_data", ["--figure", "1", "--t-end", "1"]),
+    ("systems", "build", ["--systems", "suslov"]),
+    ("work-precision", "run_study", ["--quick"]),
+    ("stability", "build_report", []),
+])
+def test_a_report_section_refuses_a_figures_path_that_is_no_directory_before_it_runs(
+        capsys, tmp_path, monkeypatch, section, stand_in, extra):
+    """``report SECTION --outdir D`` with D/figures a regular file computed the whole section, then
+    failed on its first plot ("cannot write D/figures/convergence_gauss.png: Not a directory"; the
+    systems section also reported its bicycle part failed). Now refused before the run (a stand-in
+    here). Control: the same D without that file reaches the run."""
+    import importlib
+    mod = importlib.import_module("ldaspark.lab.reports." + section.replace("-", "_"))
+
+    def reached(*a, **k):
+        raise _Reached
+    monkeypatch.setattr(mod, stand_in, reached)
+    good, bad = tmp_path / "good", tmp_path / "bad"
+    bad.mkdir()
+    (bad / "figures").write_text("not a directory")
+    with pytest.raises(_Reached):
+        main(["report", section, *extra, "--outdir", str(good)])
+    rc, err = _rc_err(capsys, ["report", section, *extra, "--outdir", str(bad)])
+    assert rc == 2 and err.count("\n") == 1 and "figures is not a directory" in err, (rc, err)
+    assert (bad / "figures").read_text() == "not a directory"

@@ -412,6 +412,8 @@ def run(args) -> int:
         md = os.path.join(args.outdir or REPORT_DIR, "convergence.md")
         check_destination(md)
         check_distinct_outputs(("the report OUTDIR/convergence.md", md), ("--json", args.json))
+        from .driver import check_figures_dir
+        check_figures_dir(args.outdir or REPORT_DIR)
     clock = Clock()
     recs = compute(args.scenes, args.methods, args.t_end, args.workers)
     if args.json:

@@ -307,6 +307,9 @@ def run(args) -> int:
         raise InputError(f"--t-end must be a finite positive number, got {args.t_end}")
     from ...core.io import check_destination
     check_destination(args.json)            # a directory at --json: refused now, not after the runs
+    if args.outdir or not args.json:        # the PNGs go to OUTDIR/figures (reports/ by default)
+        from .driver import check_figures_dir
+        check_figures_dir(args.outdir or REPORT_DIR)
     if getattr(args, "mp_constraint", None) is not None and args.figure != 4:
         raise InputError("--mp-constraint chooses the scene of Fig. 4: give it with --figure 4 (without --figure "
                          "Fig. 4 runs with both constraints; Figs. 1-3 have no such scene)")
