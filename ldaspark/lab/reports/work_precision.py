@@ -754,12 +754,15 @@ def check_t_long(t_long) -> None:
     numpy's "zero-size array to reduction operation maximum"); the SPARK run takes whole steps of
     LONG_H (a tenth of a step off was rounded, and the run ended elsewhere than it said)."""
     from ...core.errors import InputError
+    from ...core.validate import MAX_STEPS
     if t_long is None:
         return
     n = round(t_long / LONG_H)
     if t_long < LONG_SAMPLE or abs(n * LONG_H - t_long) > 1e-9 * max(1.0, t_long):
         raise InputError(f"--t-long must be at least {LONG_SAMPLE:g} (the long runs sample every {LONG_SAMPLE:g}; "
                          f"each half needs a sample) and a multiple of the SPARK step h = {LONG_H:g}, got {t_long:g}")
+    if n > MAX_STEPS:       # refused by the SPARK run itself, but only after the whole study
+        raise InputError(f"--t-long {t_long:g} is {n:.3g} steps of h = {LONG_H:g}, more than the limit {MAX_STEPS:.0e}")
 
 
 def run(args) -> int:
