@@ -412,6 +412,11 @@ def run(args) -> int:
             raise InputError(f"unknown system(s) {', '.join(unknown)}; choose from {', '.join(SYSTEMS)}")
     if not (math.isfinite(args.t_long) and args.t_long >= 10 * H_LONG):
         raise InputError(f"--t-long must be finite and >= {10 * H_LONG:g}, got {args.t_long}")
+    from ...core.validate import MAX_STEPS
+    if args.t_long / H_LONG > MAX_STEPS:
+        # refused by the first run too, but after a system's set-up and a progress line on stderr
+        raise InputError(f"--t-long {args.t_long:g} is {args.t_long / H_LONG:.3g} steps of h = {H_LONG:g}, "
+                         f"more than the limit {MAX_STEPS:.0e}")
     build(args.outdir, systems, args.t_long)
     return 0
 

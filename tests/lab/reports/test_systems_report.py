@@ -99,3 +99,20 @@ def test_systems_option_empty_subset_is_refused(monkeypatch, capsys, tmp_path, g
         assert main(argv) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "names no system" in err, err
+
+
+def test_a_t_long_beyond_the_step_limit_is_one_line_before_any_system(monkeypatch, capsys, tmp_path):
+    """``--t-long 1e9`` (1e10 steps of h = 0.1) set up the first system and printed its progress
+    line, then the step limit: two lines on stderr. Control: 1e8 (1e9 steps, the limit) reaches
+    the run (a stand-in)."""
+    from ldaspark.cli import main
+
+    def build(outdir, systems_, t_long):
+        raise _Reached(t_long)
+    monkeypatch.setattr(systems, "build", build)
+    argv = ["report", "systems", "--outdir", str(tmp_path), "--systems", "suslov", "--t-long"]
+    with pytest.raises(_Reached):
+        main(argv + ["1e8"])
+    assert main(argv + ["1e9"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "more than the limit" in err, err
