@@ -106,7 +106,9 @@ def compute(scenes=DEFAULT_SCENES, methods=None, t_end=T_END, workers=2):
           f"{workers} worker(s)", flush=True)
     if workers > 1 and len(jobs) > 1:
         from ...core.lifecycle import make_process_pool
-        with make_process_pool(max_workers=workers) as ex:   # workers die with this process
+        # no more workers than scenes: a fork pool starts all of them at once (--workers 24
+        # forked 24 processes for 2 scenes)
+        with make_process_pool(max_workers=min(workers, len(jobs))) as ex:   # workers die with this process
             parts = list(ex.map(_scene_job, jobs))
     else:
         parts = [_scene_job(j) for j in jobs]
