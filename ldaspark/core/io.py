@@ -111,8 +111,8 @@ def check_distinct_outputs(*named) -> None:
             continue
         key = os.path.realpath(os.path.abspath(target))
         if key in seen:
-            raise LdasparkError(f"{seen[key]} and {opt} name the same file {os.fspath(path)}: the second "
-                                "write would replace the first; give two paths")
+            raise LdasparkError(f"{seen[key]} and {opt} name the same file {os.fspath(path)}: one would "
+                                "replace or remove the other; give two paths")
         seen[key] = opt
 
 

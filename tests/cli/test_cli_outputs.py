@@ -52,6 +52,9 @@ def test_verify_json_on_its_own_ledger_is_refused(capsys, tmp_path, monkeypatch)
     with pytest.raises(_Reached):
         main(argv + ["--json", str(tmp_path / "records.json")])
     _refused_as_same_file(*_rc_err(capsys, argv + ["--json", str(out / "claims-quick.md")]))
+    # the checkpoint's name: the records were written there, then removed with the checkpoint
+    # once the ledger was written (exit 0 and no --json file)
+    _refused_as_same_file(*_rc_err(capsys, argv + ["--json", str(out / "claims-quick.partial.jsonl")]))
 
 
 def test_report_convergence_json_on_its_markdown_is_refused(capsys, tmp_path, monkeypatch):
