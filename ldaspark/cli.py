@@ -79,6 +79,8 @@ def _run_integrate(args) -> int:
     from .solve import integrate
 
     check_output(args.out)                  # a directory or socket at --out: refused now, not after the run
+    from .core.io import check_distinct_outputs
+    check_distinct_outputs(("--tableau", args.tableau), ("--out", args.out))    # the result replaced the tableau
     if args.method == "custom":
         if not args.tableau:
             raise InputError("METHOD custom needs --tableau FILE")

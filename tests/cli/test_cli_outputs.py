@@ -144,3 +144,22 @@ def test_a_report_section_refuses_a_figures_path_that_is_no_directory_before_it_
     rc, err = _rc_err(capsys, ["report", section, *extra, "--outdir", str(bad)])
     assert rc == 2 and err.count("\n") == 1 and "figures is not a directory" in err, (rc, err)
     assert (bad / "figures").read_text() == "not a directory"
+
+
+def test_an_output_on_the_input_tableau_is_refused(capsys, tmp_path):
+    """``audit t.json --json t.json`` and ``integrate ... custom --tableau t.json --out t.json``
+    replaced the tableau file by the audit or the result (exit 0: the input was lost). Control:
+    another output path runs, and the tableau is left as it was."""
+    import shutil
+    import ldaspark
+    tab = tmp_path / "t.json"
+    shutil.copy(os.path.join(os.path.dirname(ldaspark.__file__), "data", "tableaux", "gauss2.json"), tab)
+    before = tab.read_bytes()
+    integrate = ["integrate", "skate", "custom", "--tableau", str(tab), "--h", "0.5", "--t-end", "1"]
+    assert main(integrate + ["--out", str(tmp_path / "r.json")]) == 0
+    assert main(["audit", str(tab), "--quick", "--json", str(tmp_path / "a.json")]) == 0
+    capsys.readouterr()
+    _refused_as_same_file(*_rc_err(capsys, ["audit", str(tab), "--quick", "--json", str(tab)]))
+    _refused_as_same_file(*_rc_err(capsys, ["audit", str(tab), "--quick", "--out", str(tab)]))
+    _refused_as_same_file(*_rc_err(capsys, integrate + ["--out", str(tab)]))
+    assert tab.read_bytes() == before

@@ -709,7 +709,8 @@ def run(args) -> int:
     from ...core.io import check_destination, check_distinct_outputs
     for path in (args.out, args.json):     # refused now, not after the audit (nor one file of the two)
         check_destination(path)
-    check_distinct_outputs(("--out", args.out), ("--json", args.json))
+    # the tableau FILE too: --json FILE replaced the tableau by its audit
+    check_distinct_outputs(("the tableau FILE", getattr(args, "file", None)), ("--out", args.out), ("--json", args.json))
     tab = load_for_args(args)
     progress = (lambda msg: print(f"[audit] {msg}", file=sys.stderr, flush=True))
     res = audit(tab, dps=args.dps, quick=args.quick, arith=args.arith, progress=progress)
