@@ -127,3 +127,21 @@ def test_steps_between_counts_in_the_run_numbers():
     assert steps_between(mpmath.mpf(1), t1, "1e-25") == 7
     assert steps_between(-5, far, "1e-30") == 123456789
     assert steps_between(mpmath.mpf(1), t1, 1e-25) == 7                  # a float h beside mpf times
+
+
+def test_steps_between_spans_the_grids_whole_range_of_magnitudes():
+    """A grid at 1e100 with h = 1e-100 (a run at 250 digits) needs ~670 bits to tell t0 + 7 h from
+    t0: steps_between divides at log2(|t| / h) + 128 bits. Controls: the same quotient at a fixed
+    128 bits (what a precision that ignores the span gives) rounds the 7 steps away, and at
+    log3 instead of log2 of the span (419 + 128 bits) as well."""
+    import mpmath
+    from ldaspark.core.grid import steps_between
+    with mpmath.workdps(250):
+        t0 = mpmath.mpf(10) ** 100
+        t1 = t0 + 7 * mpmath.mpf("1e-100")
+        assert t1 != t0
+    assert steps_between(t0, t1, "1e-100") == 7
+    assert steps_between(t1, t0, "1e-100") == -7
+    for bits in (128, int(mpmath.log(t0 / mpmath.mpf("1e-100"), 3)) + 128):
+        with mpmath.workprec(bits):
+            assert int(mpmath.nint((mpmath.mpf(t1) - mpmath.mpf(t0)) / mpmath.mpf("1e-100"))) != 7

@@ -239,3 +239,66 @@ def test_projection_converges_at_the_runs_digits_when_L_vv_depends_on_v(dps):
         assert abs(vy - x * vx) <= 10 * mpmath.mpf(10) ** -dps
         assert max(abs(a - b) for a, b in zip(r.v[0], r30.v[0])) <= mpmath.mpf(10) ** -28
         assert abs(vy - mpmath.mpf("0.2")) > mpmath.mpf("0.1")      # control: v0 did move (by 0.41)
+
+
+def test_ode_rhs_takes_the_time_derivative_of_the_momentum():
+    """(3a) with L_vt != 0: a mass growing in time, L = m(t) |v|^2 / 2, m = 1 + t/2, and k = vy:
+    d/dt (m v) = 0 gives v' = -(m'/m) v, psi = 0 (float64 and 30 digits; tolerance 10 eps of the
+    2 x 2 saddle solve). Control: the other sign of the L_vt term gives +(m'/m) v, 0.47 away."""
+    from ldaspark.core.backend import Backend
+    t, x, y, vx, vy = sympy.symbols("t x y vx vy")
+    sysm = LagrangianSystem((1 + t / 2) * (vx**2 + vy**2) / 2, [vy], [x, y], [vx, vy], t=t, name="growing-mass")
+    for dps in (None, 30):
+        bk = Backend(dps)
+        with bk.context():
+            acc, psi = sysm.ode_rhs(bk, bk.array([1])[0], bk.array([0.3, 0.2]), bk.array([0.7, 0]))
+            want = np.array([-0.7 * 0.5 / 1.5, 0.0])
+            got = np.array([float(a) for a in acc])
+            assert np.max(np.abs(got - want)) <= 10 * 2.3e-16
+            assert abs(float(psi[0])) <= 10 * 2.3e-16
+            assert np.max(np.abs(got + want)) > 0.4              # the other sign is far
+# --- ``project=True`` when the rows of K nearly align (det (4) small but nonzero; probe t15).
+def _snakeboard_wheels():
+    """The two wheel constraints of a snakeboard (n = 4, m = 2): at theta = 0 their rows are
+    (-cos d, sin d, sin d, 0) and (cos d, sin d, -sin d, 0) for phi = pi/2 - d, nearly opposite:
+    sigma_min(K) ~ d, cond (4) ~ 1/d^2, |mu| of the projection ~ 1/d."""
+    x, y, th, ph, vx, vy, vth, vph = sp.symbols("x y th ph vx vy vth vph")
+    L = (vx ** 2 + vy ** 2 + vth ** 2 + vph ** 2) / 2 - ph ** 2 / 2
+    k = [-sp.sin(th + ph) * vx + sp.cos(th + ph) * vy + sp.cos(ph) * vth,
+         -sp.sin(th - ph) * vx + sp.cos(th - ph) * vy - sp.cos(ph) * vth]
+    return ldaspark.LagrangianSystem(L, k, [x, y, th, ph], [vx, vy, vth, vph], name="snakeboard-wheels")
+
+
+@pytest.mark.parametrize("d,dps", [(1e-1, None), (1e-3, None), (1e-6, None), (1e-4, 40)])
+def test_projection_converges_when_the_rows_of_K_nearly_align(d, dps):
+    """The KKT iteration stopped on |dx| <= 10 eps (1 + |v|) with dx holding mu too: at d = 1e-3
+    |mu| = 150 and its increments stay at ~1e-14 (its own round-off), so a start that (4) accepts
+    (rcond 1e-6, 1e-12 at d = 1e-6) ended in "did not converge" in float64 and at dps 40 (d = 1e-4).
+    Two-sided: k = 0 to 10 eps (1 + |v|), and v equals the 60-digit projection to
+    10 eps |v0| / sigma_min(K) (the rounding of K's entries turns its row space by eps / sigma_min;
+    measured <= 3e-17). d = 1e-1 is the control that passed before."""
+    S = _snakeboard_wheels()
+    q0 = [0, 0, 0, float(mpmath.pi / 2) - d]
+    v0 = [0.3, 0.3, 0.3, 0.0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LdasparkWarning)       # "project=True changed v0 by ..."
+        kw = dict(q0=q0, v0=v0, h=0.1, n_steps=1, project=True, engine="generic")
+        r = ldaspark.integrate(S, "gauss-1", dps=dps, **kw)
+        r60 = ldaspark.integrate(S, "gauss-1", dps=60, **kw)
+    eps = 2.0 ** -52 if dps is None else 10.0 ** -dps
+    v = [float(a) for a in r.v[0]]
+    k = float(max(abs(x) for x in r.constraint[0]))
+    assert k <= 10 * eps * (1 + max(map(abs, v))), k
+    sigma_min = 2 * mpmath.sin(d) / mpmath.sqrt(2)       # of the two rows at theta = 0 (|r1 + r2| / sqrt 2)
+    assert max(abs(a - b) for a, b in zip(r.v[0], r60.v[0])) <= 10 * eps * 0.3 / sigma_min
+    assert max(abs(a - b) for a, b in zip(v, v0)) > 0.1       # control: v0 moved (by ~0.27)
+
+
+def test_projection_without_a_solution_is_still_refused():
+    """Negative control of the looser stopping rule above (mu judged against |mu|): k = vx^2 + vy^2 + 1
+    has no zero; the iteration must not return a v whose k is not at round-off."""
+    x, y, vx, vy = sp.symbols("x y vx vy")
+    S = ldaspark.LagrangianSystem((vx ** 2 + vy ** 2) / 2 - x ** 2 / 2, [vx ** 2 + vy ** 2 + 1], [x, y], [vx, vy])
+    with pytest.raises(ldaspark.LdasparkError, match="projection"):
+        ldaspark.integrate(S, "gauss-1", q0=[0.1, 0.0], v0=[0.3, 0.2], h=0.1, n_steps=1, project=True,
+                           engine="generic")
