@@ -79,6 +79,8 @@ def _run_integrate(args) -> int:
     from .solve import integrate
 
     check_output(args.out)                  # a directory or socket at --out: refused now, not after the run
+    from .core.io import check_distinct_outputs
+    check_distinct_outputs(("--tableau", args.tableau), ("--out", args.out))    # the result replaced the tableau
     if args.method == "custom":
         if not args.tableau:
             raise InputError("METHOD custom needs --tableau FILE")
@@ -123,8 +125,11 @@ def _add_methods(sub):
 def _run_methods(args) -> int:
     from .analysis.conditions import method_table
     from .core.errors import InputError
-    if not 1 <= args.max_s <= 5:    # the table is exact; exact Gauss nodes exist up to s = 5
-        raise InputError(f"--max-s must be between 1 and 5 (exact coefficients), got {args.max_s}")
+    if not 1 <= args.max_s <= _MAX_S:
+        raise InputError(f"--max-s must be between 1 and {_MAX_S} (exact coefficients), got {args.max_s}")
+    if args.json:
+        from .core.io import check_destination
+        check_destination(args.json)    # refused before the table is printed, not after
     rows = method_table(args.max_s)
     print(f"{'method':28s} {'s':>2s} {'order':>5s}  (22)  (23)")
     for r in rows:
@@ -146,10 +151,14 @@ def _count_checker(dest: str):
         "jobs": lambda x: V.count(x, "--jobs", 1, _MAX_WORKERS),
         "workers": lambda x: V.count(x, "--workers", 1, _MAX_WORKERS),
         "mutant_timeout": lambda x: V.count(x, "--mutant-timeout (seconds)", 1, 86400),
+        # the exact method table's own range (``_run_methods``): 0 said "between 1 and 1e+09", 6 "1 and 5"
+        "max_s": lambda x: V.count(x, "--max-s (exact coefficients)", 1, _MAX_S),
     }
     return table.get(dest, lambda x: V.count(x, f"--{dest.replace('_', '-')}", 1, V.MAX_STEPS))
 
 
+#: the largest s of ``ldaspark methods`` (the table is exact; exact Gauss nodes exist up to s = 5)
+_MAX_S = 5
 #: most worker processes an option may ask for (more is a typo, and would fork that many)
 _MAX_WORKERS = 1024
 #: integer options left to their command's own range check (--dps is 16..2000 for integrate and
@@ -234,7 +243,7 @@ def main(argv=None) -> int:
         return 130
     with lifecycle.stop_on_signals(line=_forced_line) as stop:
         try:
-            return _main(argv)
+            rc = _main(argv)
         except KeyboardInterrupt as exc:
             return _stopped(exc, "")
         except ImportError:
@@ -242,6 +251,12 @@ def main(argv=None) -> int:
             if stop.received is not None:
                 return _stopped(lifecycle.Stopped(stop.received), "")
             raise
+        if rc == 0 and stop.received is not None:
+            # the stop reached no handler of the run (code that swallows BaseException): the run
+            # finished, but its caller asked it to stop and reads 128 + the signal, not 0
+            return _stopped(lifecycle.Stopped(stop.received), "it arrived where the run could not stop; "
+                                                                "the run finished and wrote its outputs")
+        return rc
 
 
 def _stopped(exc, why: str) -> int:
@@ -283,6 +298,8 @@ def _main(argv=None) -> int:
         parser.print_help()
         print("ldaspark: error: give a command (integrate, methods, report, verify, audit)", file=sys.stderr)
         return 2
+    from .core import io as _io
+    first_write = len(_io.COMPLETED)    # the files this command completes from here on
     try:
         rc = int(args.func(args) or 0)
         sys.stdout.flush()          # a write error on stdout (``> /dev/full``) surfaces here, as one line
@@ -298,7 +315,7 @@ def _main(argv=None) -> int:
         kept = ("the finished units are kept in OUTDIR's *.partial.jsonl; a rerun resumes from them"
                 if getattr(args, "command", None) in ("verify", "mutants") else None)
         return _stopped(exc, f"after the complete result was written to {done}" if done else
-                        kept or "no partial output was written")
+                        kept or _completed_before_stop(_io.COMPLETED[first_write:]))
     except BrokenPipeError:
         # ``ldaspark methods | head -1``: the reader closed the pipe. Further writes to stdout
         # go to /dev/null so that the interpreter's final flush does not raise again.
@@ -317,6 +334,19 @@ def _main(argv=None) -> int:
         where = f" {exc.filename}" if getattr(exc, "filename", None) else " the output"
         print(f"ldaspark: error: cannot write{where}: {exc.strerror or type(exc).__name__}", file=sys.stderr)
         return 2
+
+
+def _completed_before_stop(paths) -> str:
+    """What a stopped command keeps when it wrote some of its files: each is complete (written
+    atomically), none partial. ``report energy --json F --outdir D`` stopped while plotting said
+    "no partial output was written" of a complete F."""
+    from .core.errors import one_line
+    if not paths:
+        return "no partial output was written"
+    paths = list(dict.fromkeys(paths))
+    shown = ", ".join(one_line(p) for p in paths[:3]) + (f" and {len(paths) - 3} more" if len(paths) > 3 else "")
+    return (f"{len(paths)} complete file{'s' if len(paths) > 1 else ''} written before it: {shown}; "
+            "no partial output was written")
 
 
 def _drop_stdout() -> None:

@@ -164,9 +164,12 @@ class _Place:
     """The executor behind ``where`` for the duration of a run; ``renew()`` replaces a local pool
     that broke (a worker died); ``abort()`` stops what this object started, without waiting."""
 
-    def __init__(self, where, jobs, mp_context, inline_single=True):
+    def __init__(self, where, jobs, mp_context, inline_single=True, units=None):
         self.where, self.jobs, self.mp_context = where, jobs, mp_context
         self.inline_single = inline_single
+        # a local pool of more workers than units forks them all (CPython's fork pools start
+        # max_workers at once): ``verify --quick --jobs 64`` forked 64 for 18 units
+        self.units = units
         self.client = None
         self.own_pool = False
         self.executor = self._open()
@@ -174,8 +177,8 @@ class _Place:
     def _open(self):
         w = self.where
         if w is None or w == "local":
-            n = max(1, self.jobs or os.cpu_count() or 1)
-            if n == 1 and self.inline_single:
+            n = self._local_workers()
+            if max(1, self.jobs or os.cpu_count() or 1) == 1 and self.inline_single:   # as asked, not capped
                 return InlineExecutor()
             self.own_pool = True
             return make_process_pool(n, mp_context=self.mp_context)
@@ -199,6 +202,10 @@ class _Place:
             return client.get_executor(pure=False)
         return w
 
+    def _local_workers(self) -> int:
+        n = max(1, self.jobs or os.cpu_count() or 1)
+        return max(1, min(n, self.units)) if self.units is not None else n
+
     @property
     def local_pool(self) -> bool:
         return self.own_pool
@@ -206,8 +213,7 @@ class _Place:
     def renew(self):
         if self.own_pool:
             _stop_pool(self.executor)
-            self.executor = make_process_pool(max(1, self.jobs or os.cpu_count() or 1),
-                                              mp_context=self.mp_context)
+            self.executor = make_process_pool(self._local_workers(), mp_context=self.mp_context)
 
     def cancel(self, futures):
         for f in futures:
@@ -312,7 +318,7 @@ def run_units_partial(units: Iterable[Unit], where=None, jobs=None, retries: int
         raise InputError(f"retries must be >= 0, got {retries}")
     results, failed = {}, {}
     attempts = {u.name: 0 for u in units}
-    place = _Place(where, jobs, mp_context)
+    place = _Place(where, jobs, mp_context, units=len(units))
     try:
         # a function that cannot reach a process pool (a local function, a lambda) is refused
         # before anything runs, not reported as every unit failing with a PicklingError

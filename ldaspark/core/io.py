@@ -28,6 +28,10 @@ from .errors import LdasparkError
 from .lifecycle import TempFile, raise_on_stop_signals
 
 
+#: the paths this process has written atomically, in order: the command line names those a
+#: stopped run had completed ("no partial output was written" said nothing of them)
+COMPLETED: list = []
+
 _FD_PATH = re.compile(r"^/(?:dev/(?:(stdout|stderr)|fd/(\d+))|proc/(self|\d+)/fd/(\d+))$")
 
 
@@ -90,6 +94,26 @@ def check_destination(path) -> None:
     kind, target = _destination(path)
     if kind == "replace":
         _check_replaceable(path, target)
+
+
+def check_distinct_outputs(*named) -> None:
+    """Refuse (LdasparkError, one line) two outputs of one run that name the same file: ``named``
+    is (option, path) pairs, None paths skipped. The writer that came second replaced what the
+    first wrote (``audit --out F --json F`` left the JSON and no report). Files are compared after
+    resolving symbolic links; devices and FIFOs (``/dev/null``, ``/dev/stdout``) take both writes,
+    as a shell redirection would, and are not compared."""
+    seen = {}
+    for opt, path in named:
+        if path is None:
+            continue
+        kind, target = _destination(os.fspath(path))
+        if kind != "replace":
+            continue
+        key = os.path.realpath(os.path.abspath(target))
+        if key in seen:
+            raise LdasparkError(f"{seen[key]} and {opt} name the same file {os.fspath(path)}: one would "
+                                "replace or remove the other; give two paths")
+        seen[key] = opt
 
 
 def _check_replaceable(path, target) -> None:
@@ -182,6 +206,7 @@ def _atomic_replace(path, target, data: bytes | None, write=None) -> None:
                 os.fsync(f.fileno())
             os.replace(tmp.name, target)
             tmp.forget()
+            COMPLETED.append(os.fspath(path))
         except BaseException as exc:
             tmp.remove()
             if isinstance(exc, OSError):

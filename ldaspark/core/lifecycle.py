@@ -427,6 +427,8 @@ class stop_on_signals:
         self.old = {}
         self._timer = None
         self.pid = os.getpid()
+        self._redeliver = False
+        self._old_hook = None
 
     def __enter__(self):
         if threading.current_thread() is threading.main_thread():
@@ -434,11 +436,41 @@ class stop_on_signals:
                 if _takes_default(s):
                     with contextlib.suppress(ValueError, OSError):
                         self.old[s] = signal.signal(s, self._handler)
+            if self.old:
+                self._old_hook, sys.unraisablehook = sys.unraisablehook, self._unraisable
         return self
+
+    def _unraisable(self, unraisable):
+        """``sys.unraisablehook`` while the policy holds. A handler runs at the next bytecode of the
+        main thread, which may be inside a weakref callback, a ``__del__`` or a GC callback, where
+        Python cannot propagate an exception: it printed "Exception ignored in ... Stopped:
+        SIGTERM" and the run went on to exit 0. The stop is raised again at the next opportunity
+        (``_thread.interrupt_main`` runs ``_handler`` again, flagged as this re-delivery, not as a
+        second signal that forces the end); anything else goes to the previous hook."""
+        if isinstance(unraisable.exc_value, Stopped) and os.getpid() == self.pid and self.received is not None:
+            self._redeliver = True
+            self._schedule_redelivery()
+            return
+        (self._old_hook or sys.__unraisablehook__)(unraisable)
+
+    def _schedule_redelivery(self):
+        """``_thread.interrupt_main`` from a timer thread, so that the handler runs after this hook
+        has returned (called from the hook itself it ran inside it, and the hook's own exception
+        was reported as "Exception ignored in sys.unraisablehook")."""
+        import _thread
+        t = threading.Timer(0.01, _thread.interrupt_main, args=(self.received,))
+        t.daemon = True
+        t.start()
+        self._redelivery = t
 
     def _handler(self, signum, frame):
         if os.getpid() != self.pid:
             return _as_default(signum)    # a forked worker before its initializer reset this
+        if self._redeliver:               # a stop that was swallowed (``_unraisable``), raised again
+            if _runs_inside(frame, stop_on_signals._unraisable.__code__):
+                return self._schedule_redelivery()      # still inside the hook: once it returned
+            self._redeliver = False
+            raise Stopped(self.received)
         if self.received is None:
             self.received = signum
             self._timer = threading.Timer(self.deadline, self.force, args=(signum,))
@@ -463,7 +495,20 @@ class stop_on_signals:
         for s, old in self.old.items():
             with contextlib.suppress(ValueError, OSError, TypeError):
                 signal.signal(s, old)
+        if self._old_hook is not None and sys.unraisablehook == self._unraisable:
+            sys.unraisablehook = self._old_hook
+        if getattr(self, "_redelivery", None) is not None:
+            self._redelivery.cancel()
         return False
+
+
+def _runs_inside(frame, code, depth: int = 64) -> bool:
+    """Whether ``frame`` or one of its callers (up to ``depth``) runs ``code``."""
+    while frame is not None and depth > 0:
+        if frame.f_code is code:
+            return True
+        frame, depth = frame.f_back, depth - 1
+    return False
 
 
 class raise_on_stop_signals:

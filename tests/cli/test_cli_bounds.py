@@ -155,3 +155,34 @@ def test_ctrl_c_negative_control_without_chunks(tmp_path):
     # one kernel call for the whole run: SIGINT waits for the kernel, which does not end in 20 s
     rc, err = _interrupt_long_run(tmp_path / "o.json", chunk=10 ** 9, wait=20)
     assert rc is None and err == "still running"
+
+
+class _PoolAsked(Exception):
+    pass
+
+
+def test_no_more_pool_workers_than_work_units(monkeypatch, tmp_path):
+    """CPython's fork pools start max_workers processes at once: ``report convergence --scenes
+    particle skate --workers 24`` forked 24 processes for 2 scenes (counted with ps), and
+    ``run_units`` (``verify``, ``mutants``, ``run_many``'s ledger) a pool of --jobs whatever the
+    number of units. Now min(workers, units). Control: fewer workers than units stay as asked."""
+    import contextlib
+    from ldaspark import executors
+    from ldaspark.cli import main
+    from ldaspark.core import lifecycle
+    asked = []
+
+    def pool(max_workers=None, **kw):
+        asked.append(max_workers)
+        raise _PoolAsked
+    monkeypatch.setattr(lifecycle, "make_process_pool", pool)
+    monkeypatch.setattr(executors, "make_process_pool", pool)
+    for workers in ("24", "1"):     # 1: the scenes run in this process, no pool (control)
+        with pytest.raises(_PoolAsked) if workers != "1" else contextlib.nullcontext():
+            main(["report", "convergence", "--scenes", "particle", "skate", "--methods", "gauss-1", "--t-end",
+                  "0.25", "--workers", workers, "--json", str(tmp_path / "c.json")])
+    units = [executors.Unit(f"u{i}", abs, (-i,)) for i in range(3)]
+    for jobs in (64, 2):
+        with pytest.raises(_PoolAsked):
+            executors.run_units(units, jobs=jobs)
+    assert asked == [2, 3, 2], asked

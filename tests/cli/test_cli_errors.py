@@ -289,3 +289,22 @@ def test_a_comparator_no_engine_runs_is_one_line_not_a_notice_and_an_error(tmp_p
     # fallback was printed first; it now waits until the fallback engine has taken the run)
     p = subprocess.run(skate[:-2] + ["--newton", "full"] + tail, capture_output=True, text=True, timeout=300)
     assert p.returncode == 2 and p.stderr.count("\n") == 1 and "refuses Newton kind='full'" in p.stderr, p.stderr
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "6", str(10 ** 30)])
+def test_methods_max_s_names_its_own_range(capsys, value):
+    """``methods --max-s 0`` said "must be an integer between 1 and 1e+09" (the generic count
+    bound) and 6 then "between 1 and 5": two ranges for one option. Control: 5 runs."""
+    line = _one_error_line(capsys, ["methods", "--max-s", value])
+    assert "between 1 and 5" in line and "1e+09" not in line, line
+    assert main(["methods", "--max-s", "5"]) == 0
+
+
+def test_methods_json_refused_before_the_table_is_printed(capsys, tmp_path):
+    """``methods --json DIR`` printed the whole table, then refused DIR (exit 2 after output on
+    stdout). Control: a file path gets the table and the file."""
+    assert main(["methods", "--max-s", "2", "--json", str(tmp_path)]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.count("\n") == 1 and "it is a directory" in err, (out, err)
+    assert main(["methods", "--max-s", "2", "--json", str(tmp_path / "m.json")]) == 0
+    assert "gauss-2" in capsys.readouterr().out and (tmp_path / "m.json").is_file()

@@ -159,6 +159,9 @@ if sys.argv[1] == "unblocked":      # the negative control: the spawn as before 
     lifecycle.LinkedProcessPool._spawn_process = lambda self: (
         setattr(self, "_initargs", self._link_args()),
         super(lifecycle.LinkedProcessPool, self)._spawn_process())[1]
+    # and without the later re-delivery of a stop Python swallowed (probe t17), which would
+    # raise this one again after the fork and hide where it landed
+    lifecycle.stop_on_signals._unraisable = lambda self, u: sys.__unraisablehook__(u)
 armed = [True]
 def land():
     if armed[0]:

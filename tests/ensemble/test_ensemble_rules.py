@@ -134,10 +134,13 @@ def test_max_workers_sizes_the_local_pool_or_is_refused(monkeypatch):
     sc = ldaspark.get_scene("skate")
     t0, q0, v0 = sc.initial(None)
     spec = RunSpec(sc.system, "gauss-2", t0, [q0], [v0], 0.1, 3)
+    # five members, five units: a pool is no larger than its units (probe t17), so the sizes asked
+    # for here (4, 3) are reached
+    five = RunSpec(sc.system, "gauss-2", t0, [q0] * 5, [v0] * 5, 0.1, 3)
     with pytest.raises(_PoolMade):                      # control: the default local pool, all 4 "cores"
-        ldaspark.run_many([spec], where="local")
+        ldaspark.run_many([five], where="local")
     with pytest.raises(_PoolMade):
-        ldaspark.run_many([spec], where="local", max_workers=3)
+        ldaspark.run_many([five], where="local", max_workers=3)
     assert made == [4, 3]
     (out,) = ldaspark.run_many([spec], where="local", max_workers=1)      # inline: no pool
     assert made == [4, 3] and out.q.shape == (1, 4, 3)

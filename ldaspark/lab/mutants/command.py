@@ -10,7 +10,8 @@ import time
 from ...core.errors import LdasparkError
 from ...executors import UnitsFailed, add_scheduler_argument
 from ..checkpoint import Checkpoint
-from .mutation import (PROJECT, QUICK, CATALOGUE, TIMEOUT, CatalogueError, by_id, ordered_targets,
+from .mutation import (PROJECT, QUICK, CATALOGUE, EXCLUDED_TESTS, TIMEOUT, CatalogueError, all_test_files, by_id,
+                       ordered_targets,
                        require_tests, run_catalogue, run_mutant, snippet_problems, verdict_fingerprint, write_reports)
 from .mutgen import quick_generated, run_generated
 
@@ -20,7 +21,8 @@ def add_arguments(parser):
     parser.add_argument("--quick", action="store_true",
                         help=f"only the fixed subset {', '.join(QUICK)}, with their hint files")
     parser.add_argument("--outdir", default="reports", help="directory for mutation.md and mutation.json")
-    parser.add_argument("--jobs", type=int, default=2, help="mutants run in parallel (default 2)")
+    # default None, resolved to 2 in run(): a --jobs given with --scheduler is refused, not ignored
+    parser.add_argument("--jobs", type=int, default=None, help="mutants run in parallel (default 2)")
     parser.add_argument("--only", default=None, help="comma-separated mutant ids (default: the whole catalogue); "
                         "with --generated also @FILE (one id per line), and with --keep-killed an update of that "
                         "report: these mutants run again, every other one keeps its earlier record")
@@ -80,15 +82,36 @@ def run(args) -> int:
         only_generated.append("--coverage-only")
     if only_generated and not getattr(args, "generated", None):
         raise CatalogueError(f"{', '.join(only_generated)}: only with --generated MODULE...")
+    # options of the catalogue run that the generated run has no use for: refused, not ignored
+    # (``--generated M --quick`` ran every generated mutant of M, hours instead of a quick set)
+    not_generated = [o for o, given in (("--quick", getattr(args, "quick", False)),
+                                        ("--exclude", bool((getattr(args, "exclude", "") or "").strip())))
+                     if given]
+    if not_generated and getattr(args, "generated", None):
+        raise CatalogueError(f"{', '.join(not_generated)}: not with --generated (the catalogue's options; "
+                             "--generated selects its mutants with --only, --sample, --kinds, --limit)")
     # the user's own input is judged before the catalogue (a malformed --scheduler is one line
     # about it, in a mutated copy too, where the catalogue itself is "out of date": that test would
     # otherwise kill every mutant that reached it)
     from ...executors import check_where
     check_where(getattr(args, "scheduler", None))
+    if getattr(args, "jobs", None) is None:
+        args.jobs = 2
+    elif getattr(args, "scheduler", None) is not None and not getattr(args, "generated", None):
+        # the cluster's workers run the catalogue's units: --jobs was accepted and ignored there
+        # (with --generated it still sets the local processes of the coverage map)
+        raise CatalogueError("--jobs sets the mutants run in parallel on this machine; with --scheduler the "
+                             "cluster's workers run them: give one of them")
     if getattr(args, "generated", None):
         if args.jobs < 1:
             raise CatalogueError("--jobs must be >= 1")
         return run_generated(args)
+    exclude = tuple(x.strip() for x in args.exclude.split(",") if x.strip())
+    known = set(all_test_files(PROJECT)) | set(EXCLUDED_TESTS)
+    unknown = [x for x in exclude if x not in known]
+    if unknown:     # a misspelt file excluded nothing, and the run answered another question
+        raise CatalogueError(f"--exclude {unknown[0][:80]!r} is not a test file of the suite (a path such as "
+                             "tests/core/test_spark.py or verification/test_theorem1.py, relative to the project)")
     problems = snippet_problems()
     if problems:
         raise CatalogueError("mutation catalogue out of date: " + "; ".join(problems))
@@ -114,7 +137,6 @@ def run(args) -> int:
     def progress(r):
         print(f"{r['mutant']:32s} {r['status']:9s} {r['seconds']:7.1f}s  {r['first_failing_test'] or ''}",
               flush=True)
-    exclude = tuple(x.strip() for x in args.exclude.split(",") if x.strip())
     from .mutgen import make_outdir
     make_outdir(args.outdir)
     ck = Checkpoint(pathlib.Path(args.outdir) / "mutation.partial.jsonl",

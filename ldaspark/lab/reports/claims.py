@@ -109,10 +109,15 @@ def run_verify(outdir=REPORT_DIR, quick=False, json_path=None, command="ldaspark
     # the claim groups' pieces run in the same worker processes as the ledger's units
     groups = _ledger.CLAIM_GROUPS
     md, js = file_names(quick)
-    from ...core.io import check_destination
+    from ...core.io import check_destination, check_distinct_outputs
     for out in (json_path, os.path.join(outdir, md), os.path.join(outdir, js)):
         check_destination(out)          # before the run, not after it
-    ck = Checkpoint(os.path.join(outdir, md[:-3] + ".partial.jsonl"), source_fingerprint("ledger", quick, groups))
+    partial = os.path.join(outdir, md[:-3] + ".partial.jsonl")
+    # the checkpoint too: written during the run and removed after the ledger, it took a --json of
+    # that name with it (exit 0, no records file)
+    check_distinct_outputs((f"the ledger OUTDIR/{md}", os.path.join(outdir, md)),
+                           (f"the checkpoint OUTDIR/{os.path.basename(partial)}", partial), ("--json", json_path))
+    ck = Checkpoint(partial, source_fingerprint("ledger", quick, groups))
     if not resume:
         ck.discard()
     say = lambda msg: print(f"[claims] {msg}", file=sys.stderr, flush=True)   # noqa: E731

@@ -106,7 +106,9 @@ def compute(scenes=DEFAULT_SCENES, methods=None, t_end=T_END, workers=2):
           f"{workers} worker(s)", flush=True)
     if workers > 1 and len(jobs) > 1:
         from ...core.lifecycle import make_process_pool
-        with make_process_pool(max_workers=workers) as ex:   # workers die with this process
+        # no more workers than scenes: a fork pool starts all of them at once (--workers 24
+        # forked 24 processes for 2 scenes)
+        with make_process_pool(max_workers=min(workers, len(jobs))) as ex:   # workers die with this process
             parts = list(ex.map(_scene_job, jobs))
     else:
         parts = [_scene_job(j) for j in jobs]
@@ -399,13 +401,21 @@ def run(args) -> int:
     if not 0 < args.t_end <= T_END_MAX:
         raise InputError(f"--t-end must be in (0, {T_END_MAX:g}] (the references are mpmath Taylor solutions, "
                          f"seconds per unit of time), got {args.t_end:g}")
-    from ...core.io import check_destination
+    from ...core.io import check_destination, check_distinct_outputs
     from ...solve import resolve_method
+    # a scene or method named twice runs once (it ran twice: its records twice in the JSON, the
+    # table and the figures, and its reference computed twice)
+    args.scenes = list(dict.fromkeys(args.scenes))
+    args.methods = list(dict.fromkeys(args.methods)) if args.methods else args.methods
     for m in args.methods or ():
         resolve_method(m)               # an unknown method is one line before any reference is built
     check_destination(args.json)
     if args.outdir or not args.json:
-        check_destination(os.path.join(args.outdir or REPORT_DIR, "convergence.md"))
+        md = os.path.join(args.outdir or REPORT_DIR, "convergence.md")
+        check_destination(md)
+        check_distinct_outputs(("the report OUTDIR/convergence.md", md), ("--json", args.json))
+        from .driver import check_figures_dir
+        check_figures_dir(args.outdir or REPORT_DIR)
     clock = Clock()
     recs = compute(args.scenes, args.methods, args.t_end, args.workers)
     if args.json:

@@ -110,6 +110,19 @@ def _check_outdir_writable(outdir) -> None:
     check_destination(os.path.join(outdir, "report_timing.json"))
 
 
+def check_figures_dir(outdir) -> None:
+    """OUTDIR/figures can hold a new figure (made now if missing): a regular file of that name
+    let every section compute to the end and then fail on its first plot ("cannot write
+    OUTDIR/figures/convergence_gauss.png: Not a directory"; the systems section's bicycle part
+    also reported a FileExistsError)."""
+    from ...core.errors import InputError
+    from ...core.io import check_destination
+    figdir = os.path.join(outdir, "figures")
+    if os.path.lexists(figdir) and not os.path.isdir(figdir):
+        raise InputError(f"{figdir} is not a directory: the report's figures go there")
+    check_destination(os.path.join(figdir, "figure.png"))     # writable (made if missing)
+
+
 def run(args) -> int:
     # the reports time the kernel every run gets from its first call (the generic one), not the one
     # specialised per (s, n, m) that a long-lived process builds in the background: a row must not
@@ -125,6 +138,8 @@ def run(args) -> int:
         raise InputError(f"--outdir {outdir} is not a directory")
     if outdir is not None:
         _check_outdir_writable(outdir)
+        if getattr(args, "section", None) != "claims":     # every other section plots into OUTDIR/figures
+            check_figures_dir(outdir)
     if getattr(args, "section", None):
         return int(args.section_run(args) or 0)
     from ...core.errors import InputError

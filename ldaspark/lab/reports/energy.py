@@ -45,6 +45,11 @@ FIGURES = {
 }
 
 
+#: Fig. 4's step, samples (one per FIG4_EVERY steps) and the fewest samples its growth fit over
+#: [t_end / 100, t_end] takes (``fig4.fit_growth``)
+FIG4_H, FIG4_EVERY, FIG4_MIN_SAMPLES = 0.05, 100, 3
+
+
 def boundedness(t, dE):
     """Max |E - E0| overall, per half and per quarter; last/first quarter ratio; LS trend."""
     t = np.asarray(t, float)
@@ -75,6 +80,11 @@ def figure_data(fig, t_end=None):
     n = int(round((T - float(t0)) / spec["h"]))
     if n <= 0:
         raise InputError(f"t_end = {T} gives no step of h = {spec['h']}")
+    if abs(n * spec["h"] - (T - float(t0))) > 1e-9 * max(1.0, abs(T)):
+        # rounded to the nearest step, the run ended elsewhere than the t_end it recorded
+        # (--t-end 1.1 on Fig. 1 ran to 1.2); 1e-9 relative: decimal texts of multiples of h
+        # (0.6 = 3 x 0.2 is 0.6000000000000001 in float64) are multiples, a tenth of a step is not
+        raise InputError(f"t_end = {T:g} is not a multiple of Fig. {fig}'s step h = {spec['h']:g}")
     out = {"figure": fig, "scene": spec["scene"], "h": spec["h"], "t_end": T, "caption": spec["caption"],
            "bounded_ratio_threshold": BOUNDED_RATIO, "methods": {}}
     for m in spec["methods"]:
@@ -114,7 +124,7 @@ def fig4_available() -> bool:
     return importlib.util.find_spec("ldaspark.lab.reports.fig4") is not None
 
 
-def figure4(t_end=50000.0, h=0.05, J=9, every=100, constraint="printed", executor=None):
+def figure4(t_end=50000.0, h=FIG4_H, J=9, every=FIG4_EVERY, constraint="printed", executor=None):
     """Call ``ldaspark.lab.reports.fig4.figure4_data`` and add checks: E0 = 3.06 and an independent LS fit
     of log(mu/h^4) against log t over t >= t_end/100 (the paper: mu/h^4 ~ O(t))."""
     if not fig4_available():
@@ -139,6 +149,21 @@ def figure4(t_end=50000.0, h=0.05, J=9, every=100, constraint="printed", executo
         out["own_fit"][m] = (float(np.polyfit(np.log(t[sel]), np.log(y[sel]), 1)[0])
                              if sel.sum() >= 2 else None)
     return out
+
+
+def check_fig4_t_end(t_end) -> None:
+    """Refuse, in words of the command line, a --t-end that Fig. 4 cannot take: a whole number of
+    its sampling intervals (FIG4_EVERY steps of FIG4_H = 5 time units) and at least
+    FIG4_MIN_SAMPLES of them (the fit). ``fig4.figure4_data`` refuses the same with its internal
+    names ("n_steps = 240 must be a multiple of every = 100"), which no option of the command sets."""
+    if t_end is None:
+        return
+    dt = FIG4_H * FIG4_EVERY
+    k = round(t_end / dt)
+    if abs(k * dt - t_end) > 1e-9 * max(1.0, abs(t_end)) or k < FIG4_MIN_SAMPLES:
+        raise InputError(f"--t-end of Fig. 4 must be a multiple of {dt:g} (one sample every {FIG4_EVERY} steps of "
+                         f"h = {FIG4_H:g}) and at least {FIG4_MIN_SAMPLES * dt:g} (the growth fit takes "
+                         f"{FIG4_MIN_SAMPLES} samples), got {t_end:g}")
 
 
 def plot_fig4(data, path):
@@ -269,8 +294,11 @@ def add_arguments(p):
     p.add_argument("--t-end", type=float, default=None, help="shorter interval (default: the paper's)")
     p.add_argument("--json", default=None, help="write the figure data (JSON) to FILE")
     p.add_argument("--outdir", default=None, help="also write the PNG(s) here (default: reports/ when no --json)")
-    p.add_argument("--mp-constraint", choices=("printed", "nonholonomic"), default="printed",
-                   help="Fig. 4 scene: the constraint as printed in 8.4 (integrable) or its nonholonomic variant")
+    # default None (= printed with --figure 4): given with another figure, or without --figure
+    # (which runs Fig. 4 for both constraints), it is refused, not ignored
+    p.add_argument("--mp-constraint", choices=("printed", "nonholonomic"), default=None,
+                   help="with --figure 4: the constraint as printed in 8.4 (integrable, the default) or its "
+                        "nonholonomic variant")
 
 
 def run(args) -> int:
@@ -279,13 +307,22 @@ def run(args) -> int:
         raise InputError(f"--t-end must be a finite positive number, got {args.t_end}")
     from ...core.io import check_destination
     check_destination(args.json)            # a directory at --json: refused now, not after the runs
+    if args.outdir or not args.json:        # the PNGs go to OUTDIR/figures (reports/ by default)
+        from .driver import check_figures_dir
+        check_figures_dir(args.outdir or REPORT_DIR)
+    if getattr(args, "mp_constraint", None) is not None and args.figure != 4:
+        raise InputError("--mp-constraint chooses the scene of Fig. 4: give it with --figure 4 (without --figure "
+                         "Fig. 4 runs with both constraints; Figs. 1-3 have no such scene)")
     if args.figure is None:
         if args.json:
             raise InputError("--json needs --figure N")
+        if fig4_available():
+            check_fig4_t_end(args.t_end)    # the default run's Fig. 4 is shortened too
         run_default(args.outdir or REPORT_DIR, t_end=args.t_end)
         return 0
     if args.figure == 4:
-        d = figure4(t_end=args.t_end if args.t_end is not None else 50000.0, constraint=args.mp_constraint)
+        check_fig4_t_end(args.t_end)
+        d = figure4(t_end=args.t_end if args.t_end is not None else 50000.0, constraint=args.mp_constraint or "printed")
         if args.json:
             atomic_write_json(args.json, d)
         if args.outdir or not args.json:
@@ -310,15 +347,16 @@ def run(args) -> int:
 FIG4_CONSTRAINTS = ("printed", "nonholonomic")
 
 
-def fig4_job(constraint, inline=True):
+def fig4_job(constraint, inline=True, t_end=None):
     """Fig. 4 for one constraint; ``inline``: its runs one after the other in this process (in
-    the main job, which already keeps every core busy). A failure is reported in energy.md, not
-    hidden."""
+    the main job, which already keeps every core busy); ``t_end``: a shorter interval (default the
+    paper's). A failure is reported in energy.md, not hidden."""
     from .jobs import InlineExecutor
     if not fig4_available():
         return {"note": "Fig. 4 pending: `ldaspark.lab.reports.fig4` (the compiled fast path) is not installed yet."}
     try:
-        return figure4(constraint=constraint, executor=InlineExecutor() if inline else None)
+        return figure4(t_end=50000.0 if t_end is None else t_end, constraint=constraint,
+                       executor=InlineExecutor() if inline else None)
     except Exception as exc:  # the fast path is another module: report, do not hide
         note = f"Fig. 4 ({constraint}) failed: {type(exc).__name__}: {exc}"
         print(note, file=sys.stderr, flush=True)
@@ -366,5 +404,6 @@ def run_default(outdir=REPORT_DIR, t_end=None, with_fig4=True):
         if key[0] == "fig4" and not with_fig4:
             continue
         print(f"[energy] {key[0]} {key[1]} ...", flush=True)
-        results[key] = fig4_job(args[0], inline=False) if key[0] == "fig4" else figure_data(*args)
+        # --t-end shortens Fig. 4 too (it ran the paper's 1e6 steps per run whatever --t-end said)
+        results[key] = fig4_job(args[0], inline=False, t_end=t_end) if key[0] == "fig4" else figure_data(*args)
     write(results, outdir, clock=clock)

@@ -250,6 +250,22 @@ def plot(results, path):
     atomic_save_figure(fig, path, dpi=80)
 
 
+def long_intervals(results) -> dict:
+    """{system: the T of its long symmetric runs}, as they ran: ``--t-long`` or the defaults
+    (T_LONG, T_LONG_OF). The report and the JSON state these, not the defaults (``report systems
+    --t-long 1`` said "over [0, 500]" and ``"t_long": 500`` about runs over [0, 1])."""
+    return {n: float(d["runs"]["gauss-2"]["T"]) for n, d in results.items()}
+
+
+def _t_long_text(results) -> str:
+    T = long_intervals(results)
+    rest = sorted({t for n, t in T.items() if n != "suslov"})
+    text = ", ".join(f"[0, {t:g}]" for t in rest)
+    if "suslov" in T and T["suslov"] not in rest:
+        text += f" (Suslov: [0, {T['suslov']:g}])" if rest else f"[0, {T['suslov']:g}] (Suslov)"
+    return text or f"[0, {T_LONG:g}]"
+
+
 def markdown(results, bicycle=None, clock=None, command="ldaspark report systems"):
     names = [n for n in SYSTEMS if n in results]
     L = ["# Classic nonholonomic systems: a benchmark set with reference solutions", "",
@@ -260,8 +276,7 @@ def markdown(results, bicycle=None, clock=None, command="ldaspark report systems
          "Columns: **orders** observed (least squares over the asymptotic window, q / v) from N = 4, 8, 16, 32"
          " steps over [0, 1] on the compiled engine, claimed in parentheses (Gauss s: 2s, Lobatto IIIA-B s: 2s - 2);"
          " **max abs(k)**: over the long runs of the symmetric methods;"
-         f" **long-time**: the largest error of each invariant over [0, {T_LONG:g}]"
-         f" (Suslov: [0, {T_LONG_OF['suslov']:g}])"
+         f" **long-time**: the largest error of each invariant over {_t_long_text(results)}"
          f" with h = {H_LONG} for Gauss-2 and"
          " Lobatto IIIA-B 3, *bounded* when max over the last quarter / max over the first quarter <= 1.5,"
          " *round-off* when <= 100 eps sqrt(N) (1 + |I(0)|); **control**: the non-symmetric Euler I (drift: ratio"
@@ -334,7 +349,13 @@ def _thin(d, points=100):
 
 
 def _json(results, bicycle):
-    d = {"systems": {n: _thin(results[n]) for n in SYSTEMS if n in results}, "t_long": T_LONG, "h_long": H_LONG,
+    T = long_intervals(results)
+    rest = sorted({t for n, t in T.items() if n != "suslov"})
+    # "t_long": the interval of the long runs of every system but Suslov (one value: --t-long or
+    # T_LONG); "t_long_of": each system's, as run
+    d = {"systems": {n: _thin(results[n]) for n in SYSTEMS if n in results},
+         "t_long": rest[0] if len(rest) == 1 else (T["suslov"] if not rest and "suslov" in T else T_LONG),
+         "t_long_of": {n: T[n] for n in SYSTEMS if n in T}, "h_long": H_LONG,
          "bounded_ratio": BOUNDED_RATIO, "drift_ratio": DRIFT_RATIO,
          "bicycle": None if bicycle is None else bicycle.get("json", bicycle)}
     return jsonable(d)
@@ -380,13 +401,22 @@ def add_arguments(p):
 def run(args) -> int:
     from ...core.errors import InputError
     systems = SYSTEMS
-    if args.systems:
-        systems = tuple(s.strip() for s in args.systems.split(",") if s.strip())
+    if args.systems is not None:
+        # an empty subset is refused, not read as "all" ('' ran every system, ',' none); a name
+        # given twice runs once (its second run replaced the first)
+        systems = tuple(dict.fromkeys(s.strip() for s in args.systems.split(",") if s.strip()))
+        if not systems:
+            raise InputError(f"--systems {args.systems[:40]!r} names no system; choose from {', '.join(SYSTEMS)}")
         unknown = [s for s in systems if s not in SYSTEMS]
         if unknown:
             raise InputError(f"unknown system(s) {', '.join(unknown)}; choose from {', '.join(SYSTEMS)}")
     if not (math.isfinite(args.t_long) and args.t_long >= 10 * H_LONG):
         raise InputError(f"--t-long must be finite and >= {10 * H_LONG:g}, got {args.t_long}")
+    from ...core.validate import MAX_STEPS
+    if args.t_long / H_LONG > MAX_STEPS:
+        # refused by the first run too, but after a system's set-up and a progress line on stderr
+        raise InputError(f"--t-long {args.t_long:g} is {args.t_long / H_LONG:.3g} steps of h = {H_LONG:g}, "
+                         f"more than the limit {MAX_STEPS:.0e}")
     build(args.outdir, systems, args.t_long)
     return 0
 

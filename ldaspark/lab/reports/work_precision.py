@@ -343,7 +343,12 @@ def dps_cost(dps_list=(16, 30, 50, 100, 200), n_steps=8, method="gauss-2", scene
 LONG_RUNS = ("spark", "dop853", "dop853_projected")
 
 
-def long_part(which, t_long=2500.0, h=0.1, rtol=1e-6, every=10):
+#: the long-time energy run's horizon: default, with --quick; the DOP853 runs' sampling interval
+#: (``long_part``: t_eval every 5) and the SPARK run's step
+T_LONG, T_LONG_QUICK, LONG_SAMPLE, LONG_H = 2500.0, 250.0, 5.0, 0.1
+
+
+def long_part(which, t_long=2500.0, h=LONG_H, rtol=1e-6, every=10):
     """One run of ``long_energy``: "spark" (gauss-2 SPARK fast), "dop853" or "dop853_projected"."""
     from ...compiled.fast import fast_integrate
     from ...models.scenes import get_scene
@@ -647,11 +652,15 @@ def write_report(outdir, studies, sps, dps_rows, le, clock, command="ldaspark re
 
 
 # --- sizes, jobs of the main job, the section's own command -----------------------------------
-def sizes(quick=False, t_long=2500.0):
-    """(hs_fast, hs_generic, rtols, rtols_radau, ((scene, t_end), ...), t_long, n_generic, n_fast, dps_steps)."""
+def sizes(quick=False, t_long=None):
+    """(hs_fast, hs_generic, rtols, rtols_radau, ((scene, t_end), ...), t_long, n_generic, n_fast, dps_steps);
+    ``t_long`` None: T_LONG, or T_LONG_QUICK with ``quick`` (a given one is used either way: --quick
+    replaced it by 250 in silence)."""
+    if t_long is None:
+        t_long = T_LONG_QUICK if quick else T_LONG
     if quick:
         return ((0.2, 0.05, 0.0125), (0.2,), (1e-4, 1e-8), (1e-4,), (("particle", 50.0), ("skate", 20.0)),
-                250.0, 20, 5000, 3)
+                t_long, 20, 5000, 3)
     return ((0.4, 0.2, 0.1, 0.05, 0.025, 0.0125, 0.00625), (0.2, 0.1, 0.05), (1e-3, 1e-5, 1e-7, 1e-9, 1e-11),
             (1e-3, 1e-5, 1e-7), (("particle", 250.0), ("skate", 100.0)), t_long, 40, 20000, 8)
 
@@ -673,7 +682,7 @@ def _run_groups(kind, method, params):
 COMPILED_JOBS = ("scene_runs", "scene_reference", "long_part", "sps_job", "dps_job")
 
 
-def jobs(full=False, quick=False, t_long=2500.0):
+def jobs(full=False, quick=False, t_long=None):
     hs_fast, hs_gen, rtols, rtols_r, cfg, t_long, n_gen, n_fast, dps_steps = sizes(quick, t_long)
     J = []
     for name, t_end in cfg:
@@ -699,7 +708,7 @@ def dps_job(n_steps):
 
 
 def write(results, outdir="reports", full=False, clock=None, command="ldaspark report work-precision",
-          quick=False, t_long=2500.0):
+          quick=False, t_long=None):
     hs_fast, hs_gen, rtols, rtols_r, cfg, t_long, *_ = sizes(quick, t_long)
     figdir = os.path.join(outdir, "figures")
     studies = []
@@ -717,7 +726,7 @@ def write(results, outdir="reports", full=False, clock=None, command="ldaspark r
     return {"studies": studies, "steps_per_second": sps, "dps": results[("dps",)], "long": le, "path": path}
 
 
-def run_study(outdir="reports", quick=False, t_long=2500.0, progress=print):
+def run_study(outdir="reports", quick=False, t_long=None, progress=print):
     """The whole section in this process: every job in turn, then the report."""
     clock = Clock()
     os.makedirs(os.path.join(outdir, "figures"), exist_ok=True)
@@ -733,10 +742,31 @@ def run_study(outdir="reports", quick=False, t_long=2500.0, progress=print):
 def add_arguments(p):
     p.add_argument("--outdir", default="reports", help="report directory (figures in OUTDIR/figures)")
     p.add_argument("--quick", action="store_true", help="few points, short intervals (smoke run)")
-    p.add_argument("--t-long", type=float, default=2500.0, help="horizon of the long-time energy run")
+    p.add_argument("--t-long", type=float, default=None,
+                   help=f"horizon of the long-time energy run (default {T_LONG:g}, {T_LONG_QUICK:g} with --quick; "
+                        f"at least {LONG_SAMPLE:g}, a multiple of {LONG_H:g})")
+
+
+def check_t_long(t_long) -> None:
+    """Refuse before the study a --t-long its long run cannot take: the report compares the
+    largest energy error of the two halves and the DOP853 runs sample every LONG_SAMPLE, so the
+    second half needs t_long >= LONG_SAMPLE (``--t-long 3`` ran the whole study, then failed with
+    numpy's "zero-size array to reduction operation maximum"); the SPARK run takes whole steps of
+    LONG_H (a tenth of a step off was rounded, and the run ended elsewhere than it said)."""
+    from ...core.errors import InputError
+    from ...core.validate import MAX_STEPS
+    if t_long is None:
+        return
+    n = round(t_long / LONG_H)
+    if t_long < LONG_SAMPLE or abs(n * LONG_H - t_long) > 1e-9 * max(1.0, t_long):
+        raise InputError(f"--t-long must be at least {LONG_SAMPLE:g} (the long runs sample every {LONG_SAMPLE:g}; "
+                         f"each half needs a sample) and a multiple of the SPARK step h = {LONG_H:g}, got {t_long:g}")
+    if n > MAX_STEPS:       # refused by the SPARK run itself, but only after the whole study
+        raise InputError(f"--t-long {t_long:g} is {n:.3g} steps of h = {LONG_H:g}, more than the limit {MAX_STEPS:.0e}")
 
 
 def run(args) -> int:
+    check_t_long(args.t_long)
     run_study(args.outdir, quick=args.quick, t_long=args.t_long)
     return 0
 

@@ -696,16 +696,29 @@ def load_for_args(args) -> SparkTableau:
     return safe_load_tableau(args.file, getattr(args, "max_stages", None))
 
 
+def audit_command(args) -> str:
+    """The command line that reproduces the audit (the JSON's ``command``, the report's first
+    lines): the file shell-quoted (a path with a space was three words) and every option that
+    changes what is audited, --max-stages included (without it a 25-stage file is refused)."""
+    import shlex
+    words = ["ldaspark", "audit"] + (["--method", args.method] if args.method else [str(args.file)])
+    words += ["--dps", str(args.dps)] + (["--quick"] if args.quick else [])
+    words += ["--arith", args.arith] if args.arith != "auto" else []
+    ms = getattr(args, "max_stages", None)
+    words += ["--max-stages", str(ms)] if ms is not None else []
+    return " ".join(shlex.quote(w) for w in words)
+
+
 def run(args) -> int:
-    from ...core.io import check_destination
+    from ...core.io import check_destination, check_distinct_outputs
     for path in (args.out, args.json):     # refused now, not after the audit (nor one file of the two)
         check_destination(path)
+    # the tableau FILE too: --json FILE replaced the tableau by its audit
+    check_distinct_outputs(("the tableau FILE", getattr(args, "file", None)), ("--out", args.out), ("--json", args.json))
     tab = load_for_args(args)
     progress = (lambda msg: print(f"[audit] {msg}", file=sys.stderr, flush=True))
     res = audit(tab, dps=args.dps, quick=args.quick, arith=args.arith, progress=progress)
-    cmd = "ldaspark audit " + (f"--method {args.method}" if args.method else str(args.file)) \
-        + f" --dps {args.dps}" + (" --quick" if args.quick else "") \
-        + (f" --arith {args.arith}" if args.arith != "auto" else "")
+    cmd = audit_command(args)
     md = to_markdown(res, cmd)
     if args.out:
         from ...core.io import atomic_write_text

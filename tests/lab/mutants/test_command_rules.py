@@ -49,8 +49,65 @@ def test_a_malformed_scheduler_is_judged_before_the_catalogue(monkeypatch, tmp_p
     from ldaspark.core.errors import InputError
     from ldaspark.lab.mutants import command as mutation
     monkeypatch.setattr(mutation, "snippet_problems", lambda *a, **k: ["a snippet no longer in the source"])
-    args = dict(quick=False, outdir=str(tmp_path), jobs=1, only=None, exclude="", fresh=False, generated=None)
+    # jobs=None: --jobs not given (the CLI's default; given with --scheduler it is refused)
+    args = dict(quick=False, outdir=str(tmp_path), jobs=None, only=None, exclude="", fresh=False, generated=None)
     with pytest.raises(InputError, match="malformed Dask scheduler address"):
         mutation.run(argparse.Namespace(scheduler="tcp://", **args))
     with pytest.raises(mutation.CatalogueError, match="out of date"):
         mutation.run(argparse.Namespace(scheduler="tcp://localhost:8786", **args))
+
+
+def _cli_reaches(monkeypatch, capsys, tmp_path, *argv):
+    """``ldaspark mutants ARGV`` with the runs replaced by stand-ins: "catalogue" or "generated" when
+    the command got as far as starting that run, else (rc, stderr) of its refusal."""
+    from ldaspark.cli import main
+    from ldaspark.lab.mutants import command as mutation
+
+    def reached(what):
+        def stub(*a, **k):
+            raise _Stop(what)
+        return stub
+    monkeypatch.setattr(mutation, "run_catalogue", reached("catalogue"))
+    monkeypatch.setattr(mutation, "run_generated", reached("generated"))
+    monkeypatch.setattr(mutation, "run_control", lambda *a, **k: {})
+    monkeypatch.setattr(mutation, "snippet_problems", lambda *a, **k: [])
+    try:
+        rc = main(["mutants", "--outdir", str(tmp_path / "o"), *argv])
+    except _Stop as exc:
+        return exc.args[0]
+    return rc, capsys.readouterr().err
+
+
+@pytest.mark.parametrize("extra, option", [(["--quick"], "--quick"),
+                                           (["--exclude", "tests/core/test_spark.py"], "--exclude")])
+def test_catalogue_options_are_refused_with_generated_not_ignored(monkeypatch, capsys, tmp_path, extra, option):
+    """``--generated M --quick`` ran every generated mutant of M (--quick was read by the catalogue
+    run only), ``--exclude`` excluded nothing there: both were accepted and ignored. Control: the same
+    command without them starts the generated run."""
+    gen = ["--generated", "ldaspark/core/validate.py"]
+    assert _cli_reaches(monkeypatch, capsys, tmp_path, *gen) == "generated"
+    rc, err = _cli_reaches(monkeypatch, capsys, tmp_path, *gen, *extra)
+    assert rc == 2 and err.count("\n") == 1 and f"{option}: not with --generated" in err, err
+
+
+def test_jobs_with_a_scheduler_is_refused_for_the_catalogue(monkeypatch, capsys, tmp_path):
+    """The cluster's workers run the catalogue's units, so ``--jobs`` was ignored with ``--scheduler``
+    (``verify`` and ``report`` refuse the pair). Controls: each alone starts the run, and with
+    --generated --jobs still sets the local coverage map's processes, so the pair is taken there."""
+    addr = ["--scheduler", "tcp://localhost:8786"]        # parsed, never connected to: the run is a stand-in
+    assert _cli_reaches(monkeypatch, capsys, tmp_path, *addr) == "catalogue"
+    assert _cli_reaches(monkeypatch, capsys, tmp_path, "--jobs", "3") == "catalogue"
+    assert _cli_reaches(monkeypatch, capsys, tmp_path, *addr, "--jobs", "3", "--generated",
+                        "ldaspark/core/validate.py") == "generated"
+    rc, err = _cli_reaches(monkeypatch, capsys, tmp_path, *addr, "--jobs", "3")
+    assert rc == 2 and err.count("\n") == 1 and "with --scheduler" in err, err
+
+
+@pytest.mark.parametrize("name", ["tests/core/test_sparkk.py", "./tests/core/test_spark.py", "test_spark.py"])
+def test_an_exclude_that_names_no_test_file_is_refused(monkeypatch, capsys, tmp_path, name):
+    """``--exclude`` compares exact paths: a misspelt one excluded nothing, and the run reported which
+    mutants the whole suite misses instead of the suite without that file. Control: the real path
+    reaches the catalogue run."""
+    assert _cli_reaches(monkeypatch, capsys, tmp_path, "--exclude", "tests/core/test_spark.py") == "catalogue"
+    rc, err = _cli_reaches(monkeypatch, capsys, tmp_path, "--exclude", name)
+    assert rc == 2 and err.count("\n") == 1 and "is not a test file of the suite" in err, err

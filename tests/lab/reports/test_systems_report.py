@@ -57,3 +57,62 @@ def test_bicycle_hook_appends_the_section_or_its_failure(job, monkeypatch):
     fake.bicycle_section = lambda outdir: 1 / 0
     failed = systems.bicycle_job("unused")
     assert "ZeroDivisionError" in systems.markdown({"contact-oscillator": job}, failed)
+
+
+def test_report_and_json_state_the_interval_that_ran(job):
+    """``report systems --t-long 200`` wrote "over [0, 500]" into systems.md and ``"t_long": 500``
+    into systems.json about runs over [0, 200] (the defaults, not the runs). Control: a job whose
+    runs are the default length (the same job with T = 500 written in) says 500."""
+    import copy
+    assert job["runs"]["gauss-2"]["T"] == 200.0
+    md = systems.markdown({"contact-oscillator": job})
+    assert "each invariant over [0, 200]" in md and "[0, 500]" not in md
+    assert systems._json({"contact-oscillator": job}, None)["t_long"] == 200.0
+    default = copy.deepcopy(job)
+    for r in default["runs"].values():
+        r["T"] = systems.T_LONG if r is not default["runs"]["euler-i"] else r["T"]
+    assert "each invariant over [0, 500]" in systems.markdown({"contact-oscillator": default})
+    assert systems._json({"contact-oscillator": default}, None)["t_long"] == 500.0
+
+
+class _Reached(Exception):
+    pass
+
+
+@pytest.mark.parametrize("given, runs", [("suslov", ("suslov",)),                 # control
+                                         ("suslov,suslov", ("suslov",)),          # once, not twice
+                                         ("", None), (",", None), (" , ", None)])  # refused
+def test_systems_option_empty_subset_is_refused(monkeypatch, capsys, tmp_path, given, runs):
+    """``--systems ''`` ran all seven systems (an empty value read as not given) and ``--systems ,``
+    ran none and wrote a report without systems, both with exit 0."""
+    from ldaspark.cli import main
+
+    def build(outdir, systems_, t_long):
+        raise _Reached(systems_)
+    monkeypatch.setattr(systems, "build", build)
+    argv = ["report", "systems", "--outdir", str(tmp_path), "--systems", given]
+    if runs is not None:
+        with pytest.raises(_Reached) as got:
+            main(argv)
+        assert got.value.args == (runs,)
+    else:
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "names no system" in err, err
+
+
+def test_a_t_long_beyond_the_step_limit_is_one_line_before_any_system(monkeypatch, capsys, tmp_path):
+    """``--t-long 1e9`` (1e10 steps of h = 0.1) set up the first system and printed its progress
+    line, then the step limit: two lines on stderr. Control: 1e8 (1e9 steps, the limit) reaches
+    the run (a stand-in)."""
+    from ldaspark.cli import main
+
+    def build(outdir, systems_, t_long):
+        raise _Reached(t_long)
+    monkeypatch.setattr(systems, "build", build)
+    argv = ["report", "systems", "--outdir", str(tmp_path), "--systems", "suslov", "--t-long"]
+    with pytest.raises(_Reached):
+        main(argv + ["1e8"])
+    assert main(argv + ["1e9"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "more than the limit" in err, err
