@@ -270,6 +270,22 @@ def _stop_pool(ex):
             p.join(timeout=2)
 
 
+def _completed(futures, poll: float = 0.5):
+    """The futures as they finish (``cf.as_completed``), a cancelled one included: a future that an
+    executor cancelled without notifying its waiters (``cancel()`` with no
+    ``set_running_or_notify_cancel()``, which the standard pools call but a user's Executor need
+    not) is never done for ``as_completed``, and a run waited for it forever; here it is looked
+    for every ``poll`` seconds and handed back, its ``result()`` raising CancelledError (the
+    unit is reported failed by name). The poll only bounds how late such a future is seen."""
+    order = {f: i for i, f in enumerate(futures)}
+    pending = set(futures)
+    while pending:
+        done, pending = cf.wait(pending, timeout=poll, return_when=cf.FIRST_COMPLETED)
+        stuck = {f for f in pending if f.cancelled()}
+        pending -= stuck
+        yield from sorted(done | stuck, key=order.__getitem__)     # those found together: in submission order
+
+
 def _worker_lost(exc) -> bool:
     """A worker died under the unit (not an error of the unit's own computation)."""
     from concurrent.futures.process import BrokenProcessPool
@@ -349,7 +365,7 @@ def run_units_partial(units: Iterable[Unit], where=None, jobs=None, retries: int
                     continue
                 for u in batch:
                     futs[_submit(place.executor, u)] = u
-                for f in cf.as_completed(futs):
+                for f in _completed(futs):
                     broken = handle(f, futs[f]) or broken
             except BaseException:
                 place.cancel(list(futs))

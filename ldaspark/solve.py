@@ -388,28 +388,48 @@ def _ndim(x) -> int:
 
 
 def _run_members(executor, run, jobs) -> list:
-    """The members' Results from ``executor`` (its ``map``, which submits every member now): a
-    member's LdasparkError as it is; an executor that is shut down, whose ``submit`` raises or
-    returns something other than a future, or that hands back something other than a Result:
-    one LdasparkError naming the executor."""
+    """The members' Results from ``executor``, each member submitted now and checked as
+    ``run_many``'s work units are (``executors._submit``): a ``submit`` that raises or returns
+    something other than a future is the same InputError naming the executor on every path (its
+    ``map`` made it an AttributeError's text in an LdasparkError here); a member's LdasparkError
+    as it is; a future that fails otherwise, or that hands back something other than a Result:
+    one LdasparkError naming the executor. Any exception (Ctrl-C) cancels the pending members."""
     name = type(executor).__name__
+    futures = []
     try:
-        members = list(executor.map(run, jobs))
-        # a dask.distributed Client's map returns its futures (check_executor accepts a Client)
-        members = [m.result() if not isinstance(m, Result) and callable(getattr(m, "result", None)) else m
-                   for m in members]
+        for job in jobs:
+            try:
+                fut = executor.submit(run, job)
+            except Exception as exc:  # noqa: BLE001  (a user's executor's own error: one line)
+                raise validate.submit_error(executor, exc) from exc
+            futures.append(validate.submitted(executor, fut))
+        members = [f.result() for f in futures]
     except LdasparkError:
+        _cancel(futures)
         raise
     except RuntimeError as exc:     # "cannot schedule new futures after shutdown" and the like
+        _cancel(futures)
         raise validate.executor_shut_down(exc) from exc
-    except Exception as exc:       # a third-party executor's own failure (submit returned None, ...)
+    except Exception as exc:       # a third-party executor's own failure (a cancelled future, ...)
+        _cancel(futures)
         raise LdasparkError(f"the executor {name} failed to run the ensemble members "
                             f"({type(exc).__name__}: {str(exc)[:120]})") from exc
+    except BaseException:          # Ctrl-C: what has not started does not start
+        _cancel(futures)
+        raise
     bad = [type(m).__name__ for m in members if not isinstance(m, Result)]
     if bad or len(members) != len(jobs):
         raise LdasparkError(f"the executor {name} returned {len(members)} results for {len(jobs)} ensemble members"
                             + (f", not Results ({bad[0]})" if bad else ""))
     return members
+
+
+def _cancel(futures) -> None:
+    for f in futures:
+        try:
+            f.cancel()
+        except Exception:  # noqa: BLE001  (a user's future's own error: the first error is the one said)
+            pass
 
 
 @dataclass(frozen=True)
