@@ -352,15 +352,17 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
             return stack([_member(sysm, prob, member_opts, j) for j in jobs])
         # a module-level task over a system without its lambdified functions (rebuilt in the
         # worker), so that process pools and clusters can run the members as well as threads
-        run = functools.partial(_member, sysm if isinstance(executor, ThreadPoolExecutor) else _portable(sysm),
-                                prob, member_opts)
-        return stack(_run_members(executor, run, jobs))
+        threads = isinstance(executor, ThreadPoolExecutor)
+        run = functools.partial(_captured, _member, not threads, sysm if threads else _portable(sysm), prob,
+                                member_opts)
+        return stack(_run_members(executor, run, jobs, captured=not threads))
     if executor is not None:
         # one run is an ensemble of one member: it runs on the executor asked for, as every member
         # does (the executor was accepted and the run made here)
-        run = functools.partial(_solo, sysm if isinstance(executor, ThreadPoolExecutor) else _portable(sysm), prob,
+        threads = isinstance(executor, ThreadPoolExecutor)
+        run = functools.partial(_captured, _solo, not threads, sysm if threads else _portable(sysm), prob,
                                 opts.replace(executor=None))
-        return _run_members(executor, run, [(params, q0, v0)])[0]
+        return _run_members(executor, run, [(params, q0, v0)], captured=not threads)[0]
     return _single(sysm, (params, q0, v0), prob, opts)
 
 
@@ -387,13 +389,15 @@ def _ndim(x) -> int:
     return np.ndim(np.asarray(x, dtype=object))
 
 
-def _run_members(executor, run, jobs) -> list:
+def _run_members(executor, run, jobs, captured=False) -> list:
     """The members' Results from ``executor``, each member submitted now and checked as
     ``run_many``'s work units are (``executors._submit``): a ``submit`` that raises or returns
     something other than a future is the same InputError naming the executor on every path (its
     ``map`` made it an AttributeError's text in an LdasparkError here); a member's LdasparkError
     as it is; a future that fails otherwise, or that hands back something other than a Result:
-    one LdasparkError naming the executor. Any exception (Ctrl-C) cancels the pending members."""
+    one LdasparkError naming the executor. Any exception (Ctrl-C) cancels the pending members.
+    ``captured``: each task hands back (Result, its warnings) (``_captured``), said here in member
+    order, as the run in this process says them."""
     name = type(executor).__name__
     futures = []
     try:
@@ -417,11 +421,35 @@ def _run_members(executor, run, jobs) -> list:
     except BaseException:          # Ctrl-C: what has not started does not start
         _cancel(futures)
         raise
+    said = []
+    if captured:
+        members, said = ([m[0] for m in members], [m[1] for m in members]) if all(
+            isinstance(m, tuple) and len(m) == 2 and isinstance(m[1], list) for m in members) else (members, [])
     bad = [type(m).__name__ for m in members if not isinstance(m, Result)]
     if bad or len(members) != len(jobs):
         raise LdasparkError(f"the executor {name} returned {len(members)} results for {len(jobs)} ensemble members"
                             + (f", not Results ({bad[0]})" if bad else ""))
+    import warnings
+    for ws in said:
+        for category, text in ws:
+            warnings.warn(text, category, stacklevel=3)
     return members
+
+
+def _captured(task, capture: bool, *args):
+    """``task(*args)``, and with ``capture`` the warnings it raised as (category, text), for a
+    task that runs in another process (a process pool, a cluster), where a warning said there
+    never reached the caller: ``project=True``'s change of v0, the singular L_vv of (5) and a
+    params key that is no parameter were lost, while the run in this process says them. Not for
+    a thread pool (its threads warn in this process already, and ``catch_warnings`` is not
+    thread safe): ``capture`` False returns the Result alone."""
+    if not capture:
+        return task(*args)
+    import warnings
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        res = task(*args)
+    return res, [(w.category, str(w.message)) for w in rec]
 
 
 def _cancel(futures) -> None:
