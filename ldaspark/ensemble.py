@@ -163,7 +163,17 @@ class RunSpec:
         try:
             cs = compile_system(self.system)
             # warm the numba cache here so that local workers load instead of compile
-            run_kernels(cs, spec, self.t0, self.Q0[0], self.V0[0], self.h, 1, 1, self.compensated, self.tol)
+            try:
+                run_kernels(cs, spec, self.t0, self.Q0[0], self.V0[0], self.h, 1, 1, self.compensated, self.tol)
+            except NotCompilableError:
+                raise
+            except LdasparkError:
+                # member 0's first step failed (NewtonError, NonFiniteError): its task reports it, by
+                # name, as any other member's failure (UnitsFailed; integrate's executor path then
+                # runs the loop of single runs); raised here it was a bare kernel error that named
+                # no member and ended integrate(q0=(B, n), executor=..., guard=False), whose loop
+                # of single runs rescues the step
+                pass
             self._kernels = (cs, spec)
         except NotCompilableError as exc:
             if spec[0] == "lf2" and spec[2] in LF2_VARIANTS:
@@ -172,7 +182,6 @@ class RunSpec:
                 # which are refused here, before any work is sent (an InputError in every worker was
                 # reported as failed work units): the generic comparator's first step of member 0
                 from .core.comparators import integrate_comparator
-                from .core.errors import LdasparkError
                 try:
                     integrate_comparator(spec[2], self.system, self.t0, self.Q0[0], self.V0[0], self.h, 1,
                                          tol=self.tol)

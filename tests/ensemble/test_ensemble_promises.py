@@ -50,3 +50,28 @@ def test_a_process_pool_says_the_warnings_of_the_run_in_this_process():
             one = dict(kw_sys, q0=kw_sys["q0"][0], v0=kw_sys["v0"][0])
             assert _said(lambda: ldaspark.integrate(system, "gauss-2", executor=ex, **one))[1] == \
                 _said(lambda: ldaspark.integrate(system, "gauss-2", **one))[1]
+
+
+def test_member_0_failing_its_first_kernel_step_is_reported_as_any_member():
+    """run_many warmed the kernels on member 0's first step in this process and let its failure
+    escape: a bare NewtonError naming no member (member 1 failing is UnitsFailed), and
+    integrate(q0=(B, n), executor=..., guard=False) raised it where the same call without an
+    executor returns status 0 for both members (2 steps rescued by the generic step each, singular
+    L_vv of (5), gauss-2). Now it is UnitsFailed naming the unit, and integrate falls back to the
+    loop of single runs: the same numbers bit for bit. Control: a regular L runs on the kernels."""
+    from ldaspark.ensemble import RunSpec, run_many
+    from ldaspark.executors import UnitsFailed
+    Q, V = [[1.0, 0.5], [0.9, 0.4]], [[0.3, 0.3], [0.2, 0.2]]
+    kw = dict(q0=Q, v0=V, h=0.05, n_steps=2, guard=False)
+    S = _singular_mass()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LdasparkWarning)
+        loop = ldaspark.integrate(S, "gauss-2", **kw)
+        with cf.ThreadPoolExecutor(2) as ex:
+            with pytest.raises(UnitsFailed, match=r"^2 work unit\(s\) failed \(0 finished\): 0: NewtonError"):
+                run_many([RunSpec(S, "gauss-2", 0.0, Q, V, 0.05, 2)], where=ex)
+            there = ldaspark.integrate(S, "gauss-2", executor=ex, **kw)
+            ok = run_many([RunSpec(_regular(), "gauss-2", 0.0, Q, V, 0.05, 2)], where=ex)[0]
+    assert list(loop.status) == [0, 0] and [m.stats["rescued_steps"] for m in loop.members] == [2, 2]
+    assert list(there.status) == [0, 0] and np.array_equal(there.q, loop.q) and np.array_equal(there.v, loop.v)
+    assert ok.q.shape == (2, 3, 2)
