@@ -135,7 +135,7 @@ class RunSpec:
         validate.check_tol_resolvable(tol, None, what="RunSpec: tol")     # the compiled kernels: float64
         check_storage(n_samples(int(n_steps), int(every)) * len(Q0), 2 + 2 * system.n + system.m,
                       what="the ensemble samples")
-        self._check_members(system, t0, Q0, V0)
+        self._notes = self._check_members(system, t0, Q0, V0)
         from .compiled.runner import checked_kernel_spec
         checked_kernel_spec(method, kernel)  # an unknown method name (or kernel='spark' of a comparator) here
         self.system, self.method, self.t0, self.Q0, self.V0 = system, method, t0, Q0, V0
@@ -143,14 +143,38 @@ class RunSpec:
             h, int(n_steps), int(every), bool(compensated), tol, kernel)
 
     @staticmethod
-    def _check_members(system, t0, Q0, V0):
+    def _check_members(system, t0, Q0, V0) -> list:
         """The set-up checks of ``integrate`` for every member: finite data, (4) regular with K of
         full rank, consistent v0 (an inconsistent v0 would otherwise run, its energy jumping in
-        the first step); the error names the member."""
+        the first step); the error names the member. Returns each member's notes (a singular
+        L_vv of (5) there, said with the results as a single run says it)."""
         from .core.backend import Backend
         from .core.validate import initial_point
+        notes = []
         for j, (q0, v0) in enumerate(zip(Q0, V0)):       # the one initial-point check, per member
-            initial_point(system, Backend(None), t0, q0, v0, member=f"ensemble member {j}: ")
+            notes.append({})
+            initial_point(system, Backend(None), t0, q0, v0, member=f"ensemble member {j}: ", notes=notes[-1])
+        return notes
+
+    def finish(self, ens):
+        """What a single ``integrate`` run of each member says besides its numbers: the stats of
+        the compiled engine's Result (``engines.compiled``: ``root_finder`` as asked for with what
+        ran, ``rescued_steps``, ``engine`` "compiled-lf2" for the semi-implicit kernel of (25)),
+        and the LdasparkWarning of a singular L_vv of (5) at the member's initial point."""
+        from .core.options import IntegrationOptions
+        from .core.validate import warn_singular_lvv
+        if self._kernels is not None:
+            asked = IntegrationOptions.checked(tol=self.tol).newton.describe()
+            support = "compiled-lf2" if self._kernels[1][0] == "lf2" else "compiled"
+            for st in ens.stats:
+                fast = st.get("path") == "fast"
+                st["root_finder"] = dict(asked, runs=st.get("newton_kind", "generic") if fast else "generic")
+                st.setdefault("rescued_steps", st.get("generic_steps", 0))
+                if fast:
+                    st["engine"] = support
+        for notes in self._notes:
+            if notes:
+                warn_singular_lvv(self.system, notes, stacklevel=3)
 
     def tasks(self, chunk):
         """(callable, args) per chunk of initial data; compiles in this process first."""
@@ -356,6 +380,8 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
         else:
             for st in ens.stats:
                 st["guard"] = False
+    for sp, ens in zip(specs, out):     # once every member ended well, as a single run's warning
+        sp.finish(ens)
     return out
 
 

@@ -629,19 +629,10 @@ def _single(system, member, prob: _Problem, opts: IntegrationOptions, quiet=Fals
 
 
 def _warn_regular(system, notes) -> None:
-    """A run that ended well from a point where L_vv is singular while (4) holds: (5), the regular
-    Lagrangian, fails, and the stage equations (21) need not determine the stage velocities. The
-    numbers may be a root the method does not define (gauss-1 on L = (vx + vy)^2 / 2 - U, k = vx - vy:
-    the two engines 2-9e-2 apart, both status 0), so the result comes with one LdasparkWarning; a
-    failed run says its own error, alone."""
-    import warnings
-
-    from .core.errors import LdasparkWarning
-    warnings.warn(f"{system.name}: L_vv is singular at t = {notes['t']:g} (reciprocal condition "
-                  f"{notes['lvv_rcond']:.2e} after equilibration): the regular Lagrangian (5) fails while (4) "
-                  "holds, so the stage equations (21) need not determine the stage velocities; a Gauss method "
-                  "can then converge to different roots on different engines. Compare with another method or "
-                  "step size", LdasparkWarning, stacklevel=3)
+    """A run that ended well from a point where L_vv is singular while (4) holds: one
+    LdasparkWarning (``validate.warn_singular_lvv``, which run_many's members say too); a failed
+    run says its own error, alone."""
+    validate.warn_singular_lvv(system, notes, stacklevel=3)     # at integrate, as before
 
 
 def _coordinate_names(system) -> list:
