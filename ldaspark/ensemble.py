@@ -97,7 +97,9 @@ class RunSpec:
     to put several methods' runs into one executor (Fig. 4: 3 methods x 10 initial data)."""
 
     def __init__(self, system, method, t0, Q0, V0, h, n_steps, every=1, compensated=True, tol=None,
-                 kernel="auto"):
+                 kernel="auto", **unknown):
+        if unknown:
+            _refuse_unknown("RunSpec", RunSpec.__init__, unknown)
         from .core import validate
         from .core.validate import check_newton_options, check_storage, count, real_number
         from .compiled.fast import n_samples
@@ -288,7 +290,35 @@ def default_executor(max_workers=None):
     return make_process_pool(max_workers=max_workers or os.cpu_count() or 1)
 
 
-def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, where=None, guard=True):
+#: options of ``integrate`` that a RunSpec does not take (its members run in float64 from (Q0, V0)
+#: without them), with the name a RunSpec gives the same thing where it has one
+_INTEGRATE_ONLY = {"save_every": "every", "t_span": None, "t_end": None, "engine": None, "dps": None,
+                   "dense_output": None, "events": None, "params": None, "raise_on_failure": None, "newton": None,
+                   "project": None, "executor": None, "energy_jump": None, "max_stages": None, "q0": "Q0",
+                   "v0": "V0"}
+
+
+def _refuse_unknown(what, fn, unknown: dict) -> None:
+    """An option ``fn`` (RunSpec, run_many) does not take: one InputError naming it, the closest
+    option, or what runs an ensemble with an option of ``integrate`` (was a TypeError, or for an
+    option of integrate silently nowhere to go)."""
+    import difflib
+    import inspect
+    known = [p for p, par in inspect.signature(fn).parameters.items()
+             if p != "self" and par.kind not in (par.VAR_KEYWORD, par.VAR_POSITIONAL)]
+    key = sorted(map(str, unknown))[0]
+    if key in _INTEGRATE_ONLY:
+        alias = _INTEGRATE_ONLY[key]
+        hint = (f" (a RunSpec calls it {alias})" if alias else
+                "; ldaspark.integrate(system, method, q0=Q0, v0=V0, executor=...) runs an ensemble with it")
+        raise InputError(f"{what} does not take integrate's option {key!r}{hint}; the options are "
+                         f"{', '.join(known)}")
+    close = difflib.get_close_matches(key, known, n=1)
+    hint = f" (did you mean {close[0]}?)" if close else ""
+    raise InputError(f"{what}: unknown option {key[:40]!r}{hint}; the options are {', '.join(known)}")
+
+
+def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, where=None, guard=True, **unknown):
     """Run several ensembles (`RunSpec` objects) through one executor.
 
     Parameters
@@ -337,6 +367,8 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
     """
     from .core.validate import _describe, callable_or_none, check_executor, count, flag
     from .executors import check_where
+    if unknown:
+        _refuse_unknown("run_many", run_many, unknown)
     flag(guard, "run_many: guard")
     if executor is not None and where is not None:
         raise InputError("give executor or where, not both")

@@ -118,3 +118,25 @@ def test_run_many_says_the_singular_L_vv_warning_of_the_single_run():
                                                where=ex)[0])
             assert len(said) == expect and said == [w for ws in singles for w in ws]
             assert ens.q.shape == (2, 3, 2)
+
+
+@pytest.mark.parametrize("key, match", [
+    ("project", r"RunSpec does not take integrate's option 'project'; ldaspark.integrate\(system, method, "
+                r"q0=Q0, v0=V0, executor=\.\.\.\) runs an ensemble with it"),
+    ("dense_output", r"does not take integrate's option 'dense_output'"),
+    ("save_every", r"does not take integrate's option 'save_every' \(a RunSpec calls it every\)"),
+    ("evry", r"RunSpec: unknown option 'evry' \(did you mean every\?\)")])
+def test_an_option_runspec_does_not_take_is_one_input_error(key, match):
+    """RunSpec(..., project=True) and a misspelt option were a raw TypeError ("unexpected keyword
+    argument"), where integrate refuses an unknown option with an InputError naming the closest
+    one; an option of integrate that a RunSpec does not take now says where it is taken.
+    run_many's own keywords likewise. Control: the same RunSpec without it is made."""
+    from ldaspark.core.errors import InputError
+    from ldaspark.ensemble import RunSpec, run_many
+    sc = ldaspark.get_scene("skate")
+    args = (sc.system, "gauss-2", 0.0, [sc.q0], [sc.v0], 0.1, 3)
+    with pytest.raises(InputError, match=match):
+        RunSpec(*args, **{key: 2})
+    with pytest.raises(InputError, match=r"run_many: unknown option 'gaurd' \(did you mean guard\?\)"):
+        run_many([RunSpec(*args)], gaurd=False)
+    assert RunSpec(*args).n_steps == 3
