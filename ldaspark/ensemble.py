@@ -47,6 +47,9 @@ class EnsembleResult:
     psi: Optional[np.ndarray] = None
     stats: list = field(default_factory=list)
     seconds: float = 0.0
+    #: the names of the coordinates q as printed (a single run's ``Result.coordinate_names``), which
+    #: ``from_ensemble`` gives each member (its files keep them, as the single runs' files do)
+    coordinate_names: Optional[list] = None
 
 
 class _KernelBlocks:
@@ -399,12 +402,13 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
                         check=_task_output)
     seconds = time.perf_counter() - t_start
     out = []
-    for rs in results:
+    for sp, rs in zip(specs, results):
         t = rs[0][0]
         out.append(EnsembleResult(t, np.array([r[1] for r in rs]), np.array([r[2] for r in rs]),
                                   np.array([r[3] for r in rs]), np.array([r[4] for r in rs]),
                                   psi=None if any(r[6] is None for r in rs) else np.array([r[6] for r in rs]),
-                                  stats=[r[5] for r in rs], seconds=seconds))
+                                  stats=[r[5] for r in rs], seconds=seconds,
+                                  coordinate_names=[str(x) for x in sp.system.q]))
     for k, (sp, ens) in enumerate(zip(specs, out)):
         sp.saddle_check(k, ens)         # before the guard, in the order of a single run (``_drive_blocks``)
         if guard:

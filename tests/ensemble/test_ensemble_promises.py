@@ -140,3 +140,31 @@ def test_an_option_runspec_does_not_take_is_one_input_error(key, match):
     with pytest.raises(InputError, match=r"run_many: unknown option 'gaurd' \(did you mean guard\?\)"):
         run_many([RunSpec(*args)], gaurd=False)
     assert RunSpec(*args).n_steps == 3
+
+
+def test_from_ensemble_of_run_many_keeps_the_coordinate_names_through_a_file(tmp_path):
+    """``from_ensemble`` of run_many's result had coordinate_names None (its file none), where the
+    single runs, their ``stack`` and integrate's executor ensemble have the names (['q1', 'q2',
+    'q3'] on the skate). EnsembleResult now carries them. The .npz round trip of both ensembles
+    gives the same arrays and names. Control: names given to from_ensemble are kept."""
+    from ldaspark import load_result, save_result
+    from ldaspark.core.result import from_ensemble, stack
+    from ldaspark.ensemble import RunSpec, run_many
+    sc = ldaspark.get_scene("skate")
+    q0, v0 = np.asarray(sc.q0, float), np.asarray(sc.v0, float)
+    Q, V = np.array([q0, q0 + [0.01, 0, 0]]), np.array([v0, v0])
+    with cf.ThreadPoolExecutor(1) as ex:
+        ens = run_many([RunSpec(sc.system, "lobatto-iiia-iiib-2", 0.3, Q, V, -0.1, 7, 2)], where=ex)[0]
+    meta = dict(method="lobatto-iiia-iiib-2", h=-0.1, save_every=2, system=sc.system.name, scene="skate")
+    R = from_ensemble(ens, **meta)
+    S = stack([ldaspark.integrate("skate", "lobatto-iiia-iiib-2", q0=Q[j], v0=V[j], t0=0.3, h=-0.1, n_steps=7,
+                                  save_every=2) for j in range(2)])
+    assert R.coordinate_names == S.coordinate_names == ["q1", "q2", "q3"]
+    assert [m.coordinate_names for m in R.members] == [["q1", "q2", "q3"]] * 2
+    save_result(R, tmp_path / "r.npz")
+    save_result(S, tmp_path / "s.npz")
+    r, s = load_result(tmp_path / "r.npz"), load_result(tmp_path / "s.npz")
+    assert r.coordinate_names == s.coordinate_names == ["q1", "q2", "q3"]
+    for a in ("t", "q", "v", "energy", "constraint", "psi"):
+        assert np.array_equal(getattr(r, a), getattr(s, a))
+    assert from_ensemble(ens, coordinate_names=["x", "y", "th"], **meta).coordinate_names == ["x", "y", "th"]
