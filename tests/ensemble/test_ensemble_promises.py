@@ -168,3 +168,42 @@ def test_from_ensemble_of_run_many_keeps_the_coordinate_names_through_a_file(tmp
     for a in ("t", "q", "v", "energy", "constraint", "psi"):
         assert np.array_equal(getattr(r, a), getattr(s, a))
     assert from_ensemble(ens, coordinate_names=["x", "y", "th"], **meta).coordinate_names == ["x", "y", "th"]
+
+
+class _InterruptedAtSecond(cf.Executor):
+    """Runs the first task at once; the second future holds a KeyboardInterrupt (Ctrl-C while
+    waiting for it); the later ones stay queued, never started."""
+
+    def __init__(self, interrupt=True):
+        self.futures, self.interrupt = [], interrupt
+
+    def submit(self, fn, /, *args, **kwargs):
+        f = cf.Future()
+        if not self.futures:
+            f.set_result(fn(*args, **kwargs))
+        elif len(self.futures) == 1:
+            if self.interrupt:
+                f.set_exception(KeyboardInterrupt())
+            else:
+                f.set_result(fn(*args, **kwargs))
+        self.futures.append(f)
+        return f
+
+
+def test_ctrl_c_in_integrates_executor_ensemble_cancels_the_queued_members():
+    """docs/reliability.md "Interrupting ensembles" for integrate's loop of members on an executor
+    (each member submitted and checked since probe t16, no longer through ``map``): the
+    KeyboardInterrupt reaches the caller as it is (not an LdasparkError) and the members still
+    queued are cancelled. Control: the same executor without the interrupt leaves its third
+    future queued (the call then waits for it: not run here), so the cancellation is the
+    interrupt's doing; the first member's future is done, not cancelled."""
+    sc = ldaspark.get_scene("skate")
+    kw = dict(q0=[sc.q0] * 3, v0=[sc.v0] * 3, h=0.1, n_steps=2, engine="generic")
+    ex = _InterruptedAtSecond()
+    with pytest.raises(KeyboardInterrupt):
+        ldaspark.integrate("skate", "gauss-2", executor=ex, **kw)
+    assert [f.cancelled() for f in ex.futures] == [False, False, True]
+    calm = _InterruptedAtSecond(interrupt=False)
+    for j in range(3):
+        calm.submit(abs, -j)
+    assert [f.done() for f in calm.futures] == [True, True, False]
