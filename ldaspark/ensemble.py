@@ -392,14 +392,21 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
     specs = list(specs)
     if not specs:
         raise InputError("run_many needs at least one RunSpec")
-    plan = []
+    plan, names = [], []
     for k, sp in enumerate(specs):
         if not isinstance(sp, RunSpec):
             raise InputError(f"run_many needs RunSpec objects, got {type(sp).__name__} at position {k}")
+        first = 0
         for fn, args in sp.tasks(chunk):
             plan.append((k, fn, args))
+            # a failed task names its spec and members, as the guard and the det (4) monitor do
+            # (its position in the plan named neither: task 3 of two specs, chunk 2, was spec 1's
+            # members 2-3)
+            last = first + len(args[3]) - 1
+            names.append(f"spec {k}, member {first}" if last == first else f"spec {k}, members {first}-{last}")
+            first = last + 1
     results = _run_plan(plan, len(specs), executor if executor is not None else where, max_workers, progress,
-                        check=_task_output)
+                        check=_task_output, names=names)
     seconds = time.perf_counter() - t_start
     out = []
     for sp, rs in zip(specs, results):
@@ -421,14 +428,15 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
     return out
 
 
-def _run_plan(plan, n_specs, executor=None, max_workers=None, progress=None, check=None):
+def _run_plan(plan, n_specs, executor=None, max_workers=None, progress=None, check=None, names=None):
     """Run the (k, fn, args) tasks where ``executor`` says (``ldaspark.executors.run_units``:
     a worker that dies gets its task retried, Ctrl-C cancels what is pending and stops a pool
     created here); results grouped by k, in plan order whatever the order of completion.
     ``check(output, args, executor)``: a task's output checked (``_task_output``) before it is
-    grouped."""
+    grouped. ``names``: each task's name in a failure (``UnitsFailed``; default its position)."""
     from .executors import Unit, run_units
-    units = [Unit(str(i), fn, tuple(args)) for i, (k, fn, args) in enumerate(plan)]
+    names = [str(i) for i in range(len(plan))] if names is None else list(names)
+    units = [Unit(names[i], fn, tuple(args)) for i, (k, fn, args) in enumerate(plan)]
     count = 0
 
     def done(name, val):
@@ -441,7 +449,7 @@ def _run_plan(plan, n_specs, executor=None, max_workers=None, progress=None, che
                     on_done=done)
     results = [[] for _ in range(n_specs)]
     for i, (k, _, args) in enumerate(plan):
-        results[k].extend(res[str(i)] if check is None else check(res[str(i)], args, executor))
+        results[k].extend(res[names[i]] if check is None else check(res[names[i]], args, executor))
     return results
 
 

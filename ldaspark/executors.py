@@ -375,7 +375,8 @@ def run_units_partial(units: Iterable[Unit], where=None, jobs=None, retries: int
             pending.sort(key=lambda u: names.index(u.name))
     finally:
         place.close()
-    return results, failed
+    # in the units' order, whatever the order they finished in (UnitsFailed lists them so)
+    return ({n: results[n] for n in names if n in results}, {n: failed[n] for n in names if n in failed})
 
 
 def add_scheduler_argument(parser, action="store"):

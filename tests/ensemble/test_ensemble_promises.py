@@ -68,7 +68,7 @@ def test_member_0_failing_its_first_kernel_step_is_reported_as_any_member():
         warnings.simplefilter("ignore", LdasparkWarning)
         loop = ldaspark.integrate(S, "gauss-2", **kw)
         with cf.ThreadPoolExecutor(2) as ex:
-            with pytest.raises(UnitsFailed, match=r"^2 work unit\(s\) failed \(0 finished\): 0: NewtonError"):
+            with pytest.raises(UnitsFailed, match=r"^2 work unit\(s\) failed \(0 finished\): spec 0, member 0: NewtonError"):
                 run_many([RunSpec(S, "gauss-2", 0.0, Q, V, 0.05, 2)], where=ex)
             there = ldaspark.integrate(S, "gauss-2", executor=ex, **kw)
             ok = run_many([RunSpec(_regular(), "gauss-2", 0.0, Q, V, 0.05, 2)], where=ex)[0]
@@ -207,3 +207,20 @@ def test_ctrl_c_in_integrates_executor_ensemble_cancels_the_queued_members():
     for j in range(3):
         calm.submit(abs, -j)
     assert [f.done() for f in calm.futures] == [True, True, False]
+
+
+def test_a_failed_task_of_run_many_names_its_spec_and_members():
+    """A task that failed was named by its position in the plan: two specs of 3 members with
+    chunk=2 failing in spec 1 said "2: NewtonError ...; 3: NewtonError ..." (read as members 2 and
+    3 of spec 0, which ran well), where the guard and the det (4) monitor name "spec k, member r".
+    Now "spec 1, members 0-1" and "spec 1, member 2". Control: spec 0 (a regular L) finished."""
+    from ldaspark.ensemble import RunSpec, run_many
+    from ldaspark.executors import UnitsFailed
+    Q, V = [[1.0, 0.5], [0.9, 0.4], [0.8, 0.4]], [[0.3, 0.3], [0.2, 0.2], [0.1, 0.1]]
+    specs = [RunSpec(_regular(), "gauss-2", 0.0, Q, V, 0.05, 2), RunSpec(_singular_mass(), "gauss-2", 0.0, Q, V, 0.05, 2)]
+    with cf.ThreadPoolExecutor(2) as ex:
+        with pytest.raises(UnitsFailed) as err:
+            run_many(specs, where=ex, chunk=2)
+    assert list(err.value.failed) == ["spec 1, members 0-1", "spec 1, member 2"]
+    assert sorted(err.value.results) == ["spec 0, member 2", "spec 0, members 0-1"]
+    assert str(err.value).startswith("2 work unit(s) failed (2 finished): spec 1, members 0-1: NewtonError")
