@@ -168,7 +168,15 @@ class RunSpec:
         and the LdasparkWarning of a singular L_vv of (5) at the member's initial point."""
         from .core.options import IntegrationOptions
         from .core.validate import warn_singular_lvv
-        if self._kernels is not None:
+        if self._kernels is None:
+            # the generic path of a system the kernels cannot run: the generic engine's
+            # ``root_finder``, the Newton asked for as that engine honours it
+            from .compiled.fast import _resolve
+            support = "generic" if _resolve(self.method)[0] == "spark" else "comparator"
+            root = IntegrationOptions.checked(tol=self.tol).newton.check_for(support).describe()
+            for st in ens.stats:
+                st.setdefault("root_finder", dict(root))
+        else:
             asked = IntegrationOptions.checked(tol=self.tol).newton.describe()
             support = "compiled-lf2" if self._kernels[1][0] == "lf2" else "compiled"
             for st in ens.stats:

@@ -224,3 +224,31 @@ def test_a_failed_task_of_run_many_names_its_spec_and_members():
     assert list(err.value.failed) == ["spec 1, members 0-1", "spec 1, member 2"]
     assert sorted(err.value.results) == ["spec 0, member 2", "spec 0, members 0-1"]
     assert str(err.value).startswith("2 work unit(s) failed (2 finished): spec 1, members 0-1: NewtonError")
+
+
+def test_run_many_members_on_the_generic_path_have_the_stats_of_their_single_runs(monkeypatch):
+    """A system the kernels cannot run goes to the generic path in run_many's tasks and to the
+    generic engine in integrate: the numbers agreed bit for bit but the members lacked the single
+    run's ``root_finder`` (the Newton asked for, as the generic engine honours it). Now the stats
+    dicts are equal (t0 = 0.2, h = -0.1, save_every 3, tol 1e-10). Control: the numbers of the two
+    members differ."""
+    from ldaspark.compiled import runner
+    from ldaspark.compiled.codegen import NotCompilableError
+    from ldaspark.core.result import from_ensemble
+    from ldaspark.ensemble import RunSpec, run_many
+    q, v = list(sp.symbols("q1:4")), list(sp.symbols("v1:4"))
+    L = (v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 + v[0] ** 4 / 12 - (q[0] ** 2 + q[1] ** 2)
+    S = ldaspark.LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name="quartic", nonideal=[q[1] * v[0], 0, 0])
+
+    def refuse(system):      # as an expression without a numba translation (test_ensemble)
+        raise NotCompilableError(f"{system.name}: an expression has no numba translation (refused here)")
+    monkeypatch.setattr(runner, "general_source", refuse)
+    Q, V = [[1.0, 0.0, 0.0], [0.5, 0.0, 0.0]], [[0.0, 1.0, 0.0], [0.0, 0.5, 0.0]]
+    with cf.ThreadPoolExecutor(1) as ex:
+        ens = run_many([RunSpec(S, "gauss-2", 0.2, Q, V, -0.1, 10, 3, tol=1e-10)], where=ex)[0]
+    res = from_ensemble(ens, method="gauss-2", h=-0.1, save_every=3)
+    for j in range(2):
+        one = ldaspark.integrate(S, "gauss-2", q0=Q[j], v0=V[j], t0=0.2, h=-0.1, n_steps=10, save_every=3, tol=1e-10)
+        assert one.stats["path"] == "generic" and res.members[j].stats == one.stats
+        assert np.array_equal(res.q[j], one.q) and np.array_equal(res.psi[j], one.psi)
+    assert not np.array_equal(res.q[0], res.q[1])
