@@ -437,19 +437,18 @@ def _run_members(executor, run, jobs, captured=False) -> list:
 
 
 def _captured(task, capture: bool, *args):
-    """``task(*args)``, and with ``capture`` the warnings it raised as (category, text), for a
-    task that runs in another process (a process pool, a cluster), where a warning said there
+    """``task(*args)``, and with ``capture`` the warnings of the run as (category, text), for a
+    task that may run in another process (a process pool, a cluster), where a warning said there
     never reached the caller: ``project=True``'s change of v0, the singular L_vv of (5) and a
-    params key that is no parameter were lost, while the run in this process says them. Not for
-    a thread pool (its threads warn in this process already, and ``catch_warnings`` is not
-    thread safe): ``capture`` False returns the Result alone."""
+    params key that is no parameter were lost, while the run in this process says them. The run
+    hands them over (``said``) instead of warning: no ``warnings.catch_warnings``, which is not
+    thread safe (a cluster's threads in this process, or a worker's threads, would swap each
+    other's and the caller's warning state). ``capture`` False (a thread pool, whose threads
+    warn in this process) returns the Result alone."""
     if not capture:
         return task(*args)
-    import warnings
-    with warnings.catch_warnings(record=True) as rec:
-        warnings.simplefilter("always")
-        res = task(*args)
-    return res, [(w.category, str(w.message)) for w in rec]
+    said = []
+    return task(*args, said=said), said
 
 
 def _cancel(futures) -> None:
@@ -480,13 +479,13 @@ class _Problem:
         return self.what if self.kind == "spark" else self.name
 
 
-def _member(system, prob: _Problem, opts: IntegrationOptions, job) -> Result:
+def _member(system, prob: _Problem, opts: IntegrationOptions, job, said=None) -> Result:
     """One member of an ensemble over parameters or initial data (the fallback notice once per
     ensemble, not once per member). An error that ends the call (a member's bad parameter value or
     initial point, an event function that raises, a failure with raise_on_failure) names the member,
     as the initial-point check of every member does (``_check_initial_point``), on every path."""
     try:
-        return _single(system, job[1:], prob, opts, quiet=job[0] > 0)
+        return _single(system, job[1:], prob, opts, quiet=job[0] > 0, said=said)
     except LdasparkError as exc:
         tag = f"ensemble member {job[0]}: "
         if exc.args and isinstance(exc.args[0], str) and not exc.args[0].startswith("ensemble member "):
@@ -494,9 +493,9 @@ def _member(system, prob: _Problem, opts: IntegrationOptions, job) -> Result:
         raise
 
 
-def _solo(system, prob: _Problem, opts: IntegrationOptions, member) -> Result:
+def _solo(system, prob: _Problem, opts: IntegrationOptions, member, said=None) -> Result:
     """A single run (``member`` = (params, q0, v0)) as a task of the executor asked for."""
-    return _single(system, member, prob, opts)
+    return _single(system, member, prob, opts, said=said)
 
 
 def _portable(system):
@@ -550,7 +549,7 @@ def _compiled_ensemble(system, params, Q0, V0, prob: _Problem, opts: Integration
     return res
 
 
-def _with_params(system: LagrangianSystem, params) -> LagrangianSystem:
+def _with_params(system: LagrangianSystem, params, said=None) -> LagrangianSystem:
     if params is None:
         if system.params:
             system._param_arg_values(None)     # raises if a value is missing
@@ -559,6 +558,14 @@ def _with_params(system: LagrangianSystem, params) -> LagrangianSystem:
         raise InputError(f"params must be a dict (or a list of dicts for an ensemble), got {validate._describe(params)}")
     for key, val in params.items():
         validate.param_value(key, val)
+    if said is not None:
+        # the note of a key that is no parameter (``with_params``), said by the caller
+        # (``_captured``): the value changes nothing, so the key is left out here
+        from .core.errors import LdasparkWarning
+        names = {str(p) for p in system.params}
+        for key in [k for k in params if k not in system.params and str(k) not in names]:
+            said.append((LdasparkWarning, system.not_a_parameter(key)))
+        params = {k: v for k, v in params.items() if k in system.params or str(k) in names}
     return system.with_params(params)
 
 
@@ -602,12 +609,12 @@ def _choose_engine(system, prob: _Problem, opts: IntegrationOptions, quiet: bool
     return ENGINES[use], notice
 
 
-def _single(system, member, prob: _Problem, opts: IntegrationOptions, quiet=False) -> Result:
+def _single(system, member, prob: _Problem, opts: IntegrationOptions, quiet=False, said=None) -> Result:
     """The driver, for one run of ``member`` = (params, q0, v0): parameters applied, the engine
     chosen (``_choose_engine``) and prepared (its root finder honoured or refused), the one
     initial-point check, then the engine driven (``_drive``) into one Result."""
     (params, q0, v0), t0, dps = member, prob.t0, opts.dps
-    system = _with_params(system, params)
+    system = _with_params(system, params, said)
     pvals = {str(k): v for k, v in system.param_values().items()}
     engine, notice = _choose_engine(system, prob, opts, quiet)
     prep = engine.prepare(system, prob, opts)
@@ -620,18 +627,22 @@ def _single(system, member, prob: _Problem, opts: IntegrationOptions, quiet=Fals
         prob.name, system.name, prob.scene, prob.h, dps, opts.save_every, pvals
     res.coordinate_names = _coordinate_names(system)
     if opts.project and len(res.t):
-        _note_projection(res, v0)
+        _note_projection(res, v0, said)
     if notes and res.status >= 0:
-        _warn_regular(system, notes)
+        _warn_regular(system, notes, said)
     if opts.raise_on_failure and res.status < 0:
         res.raise_for_status()
     return res
 
 
-def _warn_regular(system, notes) -> None:
+def _warn_regular(system, notes, said=None) -> None:
     """A run that ended well from a point where L_vv is singular while (4) holds: one
     LdasparkWarning (``validate.warn_singular_lvv``, which run_many's members say too); a failed
-    run says its own error, alone."""
+    run says its own error, alone. ``said``: a list that gets (category, text) instead (``_captured``)."""
+    if said is not None:
+        from .core.errors import LdasparkWarning
+        said.append((LdasparkWarning, validate.singular_lvv_message(system, notes)))
+        return
     validate.warn_singular_lvv(system, notes, stacklevel=3)     # at integrate, as before
 
 
@@ -651,7 +662,7 @@ def _coordinate_names(system) -> list:
 _NAMES: dict = {}
 
 
-def _note_projection(res: Result, v0) -> None:
+def _note_projection(res: Result, v0, said=None) -> None:
     """``project=True`` replaced the user's v0 by its projection onto k = 0: the change is
     recorded (``stats["projected_v0_change"]``, max abs over the components) and, where it is
     above the rounding of v0 (64 ulps of its largest component: the projection of consistent data
@@ -664,8 +675,12 @@ def _note_projection(res: Result, v0) -> None:
     change = float(np.max(np.abs(float_array(res.v[0]) - given), initial=0.0))
     res.stats["projected_v0_change"] = change
     if change > 64 * np.finfo(float).eps * max(1.0, float(np.max(np.abs(given), initial=0.0))):
-        warnings.warn(f"project=True changed v0 by up to {change:.3g} (to {np.array2string(float_array(res.v[0]), precision=6)}) "
-                      "so that k(t0, q0, v0) = 0", LdasparkWarning, stacklevel=3)
+        text = (f"project=True changed v0 by up to {change:.3g} (to {np.array2string(float_array(res.v[0]), precision=6)}) "
+                "so that k(t0, q0, v0) = 0")
+        if said is not None:        # said by the caller (``_captured``)
+            said.append((LdasparkWarning, text))
+        else:
+            warnings.warn(text, LdasparkWarning, stacklevel=3)
 
 
 def _check_initial_point(system, start, dps, bk=None, opts: Optional[IntegrationOptions] = None, model=None):

@@ -555,11 +555,16 @@ def warn_singular_lvv(system, notes: dict, stacklevel: int = 2) -> None:
     import warnings
 
     from .errors import LdasparkWarning
-    warnings.warn(f"{system.name}: L_vv is singular at t = {notes['t']:g} (reciprocal condition "
-                  f"{notes['lvv_rcond']:.2e} after equilibration): the regular Lagrangian (5) fails while (4) "
-                  "holds, so the stage equations (21) need not determine the stage velocities; a Gauss method "
-                  "can then converge to different roots on different engines. Compare with another method or "
-                  "step size", LdasparkWarning, stacklevel=stacklevel + 1)
+    warnings.warn(singular_lvv_message(system, notes), LdasparkWarning, stacklevel=stacklevel + 1)
+
+
+def singular_lvv_message(system, notes: dict) -> str:
+    """The text of ``warn_singular_lvv``."""
+    return (f"{system.name}: L_vv is singular at t = {notes['t']:g} (reciprocal condition "
+            f"{notes['lvv_rcond']:.2e} after equilibration): the regular Lagrangian (5) fails while (4) "
+            "holds, so the stage equations (21) need not determine the stage velocities; a Gauss method "
+            "can then converge to different roots on different engines. Compare with another method or "
+            "step size")
 
 
 def initial_point(system, bk, t0, q0, v0, *, member: str = "", project: bool = False, tol=None,

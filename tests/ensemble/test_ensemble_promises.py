@@ -252,3 +252,61 @@ def test_run_many_members_on_the_generic_path_have_the_stats_of_their_single_run
         assert one.stats["path"] == "generic" and res.members[j].stats == one.stats
         assert np.array_equal(res.q[j], one.q) and np.array_equal(res.psi[j], one.psi)
     assert not np.array_equal(res.q[0], res.q[1])
+
+
+class _TwoThreads(cf.Executor):
+    """Not a ThreadPoolExecutor (so integrate treats it as a cluster's executor, whose tasks may
+    run elsewhere), but its tasks run on two threads of this process, as a Dask cluster with
+    processes=False does."""
+
+    def __init__(self):
+        self.pool = cf.ThreadPoolExecutor(2)
+
+    def submit(self, fn, /, *args, **kwargs):
+        return self.pool.submit(fn, *args, **kwargs)
+
+    def shutdown(self, wait=True, **kw):
+        self.pool.shutdown(wait)
+
+
+def test_members_on_threads_of_a_foreign_executor_keep_every_warning(monkeypatch):
+    """Two members on threads of an executor that is not a ThreadPoolExecutor (Dask with
+    processes=False): with the members' warnings recorded by ``warnings.catch_warnings`` in each
+    task (the first fix for process pools), member 1 leaving its context after member 0 restored
+    member 0's recorder as the process's: the caller then got 1 of the 3 warnings (Dask with
+    threads: 3 and then 0 of 5, in two calls). The runs now hand their warnings over without touching
+    the warning state. The order is forced: both members inside their run, member 0 finishes,
+    then member 1 (no timing). Also a params key that is no parameter, through a params ensemble.
+    Control: the same calls without an executor say the same list."""
+    from ldaspark import solve
+    single, barrier, first = solve._single, __import__("threading").Barrier(2), []
+
+    def forced(*args, **kwargs):
+        barrier.wait()                        # both members inside their task
+        member = args[1]
+        if member[1] != [1.0, 0.5]:           # member 1 ends after member 0's task returned
+            first[0].result()
+        return single(*args, **kwargs)
+    kw = dict(q0=[[1.0, 0.5], [0.9, 0.4]], v0=[[0.3, 0.2], [0.2, 0.2]], h=0.05, n_steps=2, project=True,
+              engine="generic")
+    S = _singular_mass()
+    expected = _said(lambda: ldaspark.integrate(S, "gauss-2", **kw))[1]
+    assert len(expected) == 3
+    ex = _TwoThreads()
+    monkeypatch.setattr(solve, "_single", forced)
+    real_submit = ex.pool.submit
+
+    def submit(fn, *args, **kwargs):
+        f = real_submit(fn, *args, **kwargs)
+        first.append(f)
+        return f
+    monkeypatch.setattr(ex.pool, "submit", submit)
+    with ex:
+        got = _said(lambda: ldaspark.integrate(S, "gauss-2", executor=ex, **kw))[1]
+    monkeypatch.setattr(solve, "_single", single)
+    assert got == expected
+    pkw = dict(q0=[1.0, 0.5], v0=[0.3, 0.3], h=0.05, n_steps=2, engine="generic", params=[{"nope": 1.0}] * 2)
+    with cf.ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork")) as pool:
+        there = _said(lambda: ldaspark.integrate(S, "gauss-2", executor=pool, **pkw))[1]
+    here = _said(lambda: ldaspark.integrate(S, "gauss-2", **pkw))[1]
+    assert len(here) == 4 and there == here      # (5) and the key's note, for each member
