@@ -353,16 +353,16 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
         # a module-level task over a system without its lambdified functions (rebuilt in the
         # worker), so that process pools and clusters can run the members as well as threads
         threads = isinstance(executor, ThreadPoolExecutor)
-        run = functools.partial(_captured, _member, not threads, sysm if threads else _portable(sysm), prob,
+        run = functools.partial(_captured, _member, sysm if threads else _portable(sysm), prob,
                                 member_opts)
-        return stack(_run_members(executor, run, jobs, captured=not threads))
+        return stack(_run_members(executor, run, jobs, captured=True))
     if executor is not None:
         # one run is an ensemble of one member: it runs on the executor asked for, as every member
         # does (the executor was accepted and the run made here)
         threads = isinstance(executor, ThreadPoolExecutor)
-        run = functools.partial(_captured, _solo, not threads, sysm if threads else _portable(sysm), prob,
+        run = functools.partial(_captured, _solo, sysm if threads else _portable(sysm), prob,
                                 opts.replace(executor=None))
-        return _run_members(executor, run, [(params, q0, v0)], captured=not threads)[0]
+        return _run_members(executor, run, [(params, q0, v0)], captured=True)[0]
     return _single(sysm, (params, q0, v0), prob, opts)
 
 
@@ -436,17 +436,17 @@ def _run_members(executor, run, jobs, captured=False) -> list:
     return members
 
 
-def _captured(task, capture: bool, *args):
-    """``task(*args)``, and with ``capture`` the warnings of the run as (category, text), for a
-    task that may run in another process (a process pool, a cluster), where a warning said there
-    never reached the caller: ``project=True``'s change of v0, the singular L_vv of (5) and a
-    params key that is no parameter were lost, while the run in this process says them. The run
+def _captured(task, *args):
+    """``task(*args)`` and the warnings of its run as (category, text): for a task of an executor,
+    which may run in another process (a process pool, a cluster), where a warning said there
+    never reached the caller (``project=True``'s change of v0, the singular L_vv of (5) and a
+    params key that is no parameter were lost, while the run in this process says them). The run
     hands them over (``said``) instead of warning: no ``warnings.catch_warnings``, which is not
     thread safe (a cluster's threads in this process, or a worker's threads, would swap each
-    other's and the caller's warning state). ``capture`` False (a thread pool, whose threads
-    warn in this process) returns the Result alone."""
-    if not capture:
-        return task(*args)
+    other's and the caller's warning state). A thread pool's members too: their warnings came in
+    the order the threads ran, and a thread's warning need not reach the caller's
+    ``catch_warnings`` (Python 3.14's context-aware warnings); ``_run_members`` says them in
+    member order."""
     said = []
     return task(*args, said=said), said
 

@@ -310,3 +310,31 @@ def test_members_on_threads_of_a_foreign_executor_keep_every_warning(monkeypatch
         there = _said(lambda: ldaspark.integrate(S, "gauss-2", executor=pool, **pkw))[1]
     here = _said(lambda: ldaspark.integrate(S, "gauss-2", **pkw))[1]
     assert len(here) == 4 and there == here      # (5) and the key's note, for each member
+
+
+def test_a_thread_pools_members_say_their_warnings_in_member_order(monkeypatch):
+    """On a ThreadPoolExecutor the members warned from their threads, in the order they ran: with
+    member 1 ending first the caller saw member 1's (5) warning before member 0's projection and
+    (5) warnings, another list than the run without an executor (and on Python 3.14 a thread's
+    warning need not reach the caller's catch_warnings at all). Now said here in member order.
+    The order is forced (member 0 ends after member 1's task returned; no timing). Control: the
+    run without an executor."""
+    import threading
+    from ldaspark import solve
+    single, barrier, futs = solve._single, threading.Barrier(2), []
+
+    def forced(*args, **kwargs):
+        barrier.wait()
+        if args[1][1] == [1.0, 0.5]:          # member 0 ends after member 1
+            futs[1].result()
+        return single(*args, **kwargs)
+    kw = dict(q0=[[1.0, 0.5], [0.9, 0.4]], v0=[[0.3, 0.2], [0.2, 0.2]], h=0.05, n_steps=2, project=True,
+              engine="generic")
+    S = _singular_mass()
+    expected = _said(lambda: ldaspark.integrate(S, "gauss-2", **kw))[1]
+    monkeypatch.setattr(solve, "_single", forced)
+    with cf.ThreadPoolExecutor(2) as ex:
+        real_submit = ex.submit
+        monkeypatch.setattr(ex, "submit", lambda fn, *a, **k: futs.append(real_submit(fn, *a, **k)) or futs[-1])
+        got = _said(lambda: ldaspark.integrate(S, "gauss-2", executor=ex, **kw))[1]
+    assert len(expected) == 3 and got == expected
