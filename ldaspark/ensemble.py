@@ -353,6 +353,9 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
         this process once the tasks are done: a step with another root of (21) raises
         RootMismatchError naming the spec, the member and the step; each member's stats get
         the guard's counters.
+    **unknown
+        Any other keyword is refused with an `InputError` naming the closest option (a
+        misspelt option must not be a raw TypeError).
 
     Returns
     -------
