@@ -202,8 +202,8 @@ class RunSpec:
             # warm the numba cache here so that local workers load instead of compile
             try:
                 run_kernels(cs, spec, self.t0, self.Q0[0], self.V0[0], self.h, 1, 1, self.compensated, self.tol)
-            except NotCompilableError:
-                raise
+            except (NotCompilableError, InputError):
+                raise           # a refusal: before any work is sent, as before
             except LdasparkError:
                 # member 0's first step failed (NewtonError, NonFiniteError): its task reports it, by
                 # name, as any other member's failure (UnitsFailed; integrate's executor path then
