@@ -176,6 +176,7 @@ class RunSpec:
             root = IntegrationOptions.checked(tol=self.tol).newton.check_for(support).describe()
             for st in ens.stats:
                 st.setdefault("root_finder", dict(root))
+                st["engine"] = support          # a comparator's single run says "comparator"
         else:
             asked = IntegrationOptions.checked(tol=self.tol).newton.describe()
             support = "compiled-lf2" if self._kernels[1][0] == "lf2" else "compiled"

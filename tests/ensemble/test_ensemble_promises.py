@@ -338,3 +338,24 @@ def test_a_thread_pools_members_say_their_warnings_in_member_order(monkeypatch):
         monkeypatch.setattr(ex, "submit", lambda fn, *a, **k: futs.append(real_submit(fn, *a, **k)) or futs[-1])
         got = _said(lambda: ldaspark.integrate(S, "gauss-2", executor=ex, **kw))[1]
     assert len(expected) == 3 and got == expected
+
+
+def test_a_comparator_member_on_the_generic_path_says_the_comparator_engine():
+    """The modified method of 8.4 on a system not of the mechanical form runs the generic
+    comparator in run_many's tasks and in integrate: the numbers agreed bit for bit, but the
+    members' stats said engine "generic" where the single run says "comparator". Control: the
+    whole stats dicts equal after, and the members differ."""
+    from ldaspark.core.result import from_ensemble
+    from ldaspark.ensemble import RunSpec, run_many
+    x, y, vx, vy = sp.symbols("x y vx vy")
+    S = ldaspark.LagrangianSystem(vx ** 4 / 12 + (vx ** 2 + vy ** 2) / 2 - (x ** 2 + y ** 2) / 2, [vy - x * vx],
+                                  [x, y], [vx, vy], name="quartic")
+    Q, V, m = [[0.5, 0.1], [0.4, 0.1]], [[1.3, 0.65], [1.0, 0.4]], "lobatto-iiia-iiib-2-modified"
+    with cf.ThreadPoolExecutor(1) as ex:
+        ens = run_many([RunSpec(S, m, 0.0, Q, V, 0.05, 5)], where=ex)[0]
+    res = from_ensemble(ens, method=m, h=0.05)
+    for j in range(2):
+        one = ldaspark.integrate(S, m, q0=Q[j], v0=V[j], h=0.05, n_steps=5)
+        assert one.stats["engine"] == "comparator" and res.members[j].stats == one.stats
+        assert np.array_equal(res.q[j], one.q)
+    assert not np.array_equal(res.q[0], res.q[1])
