@@ -9,6 +9,7 @@ import pytest
 import sympy as sp
 
 import ldaspark
+import ldaspark.executors
 from ldaspark.core.errors import LdasparkWarning
 
 
@@ -359,3 +360,47 @@ def test_a_comparator_member_on_the_generic_path_says_the_comparator_engine():
         assert one.stats["engine"] == "comparator" and res.members[j].stats == one.stats
         assert np.array_equal(res.q[j], one.q)
     assert not np.array_equal(res.q[0], res.q[1])
+
+
+class _Reversed(cf.Executor):
+    """Holds every task until the n-th is submitted, then runs them on one thread last first:
+    the futures complete in reverse order (no timing)."""
+
+    def __init__(self, n):
+        self.n, self.calls, self.order = n, [], []
+
+    def submit(self, fn, /, *args, **kwargs):
+        f = cf.Future()
+        self.calls.append((f, fn, args, kwargs))
+        if len(self.calls) == self.n:
+            import threading
+
+            def run():
+                for i, (g, fn2, a2, k2) in reversed(list(enumerate(self.calls))):
+                    g.set_running_or_notify_cancel()
+                    g.set_result(fn2(*a2, **k2))
+                    self.order.append(i)
+            threading.Thread(target=run, daemon=True).start()
+        return f
+
+
+def test_members_completed_in_reverse_order_are_assembled_in_member_order():
+    """run_many (3 tasks) and integrate's members (3) on an executor that completes the last task
+    first: the results equal the serial run's bit for bit, in member order. Control: the executor
+    did complete them in reverse order."""
+    from ldaspark.ensemble import RunSpec, run_many
+    sc = ldaspark.get_scene("skate")
+    q0, v0 = np.asarray(sc.q0, float), np.asarray(sc.v0, float)
+    Q, V = np.array([q0 + [0.01 * j, 0, 0] for j in range(3)]), np.array([v0] * 3)
+    spec = lambda: [RunSpec(sc.system, "gauss-2", 0.0, Q, V, 0.1, 10)]       # noqa: E731
+    serial = run_many(spec(), where=ldaspark.executors.InlineExecutor())[0]
+    ex = _Reversed(3)
+    out = run_many(spec(), where=ex)[0]
+    assert ex.order == [2, 1, 0]
+    assert np.array_equal(out.q, serial.q) and out.stats == serial.stats
+    loop = ldaspark.integrate(sc.system, "gauss-2", q0=Q, v0=V, h=0.1, n_steps=10)
+    ex = _Reversed(3)
+    there = ldaspark.integrate(sc.system, "gauss-2", q0=Q, v0=V, h=0.1, n_steps=10, executor=ex)
+    assert ex.order == [2, 1, 0]
+    assert np.array_equal(there.q, loop.q) and [m.stats for m in there.members] == [m.stats for m in loop.members]
+    assert not np.array_equal(out.q[0], out.q[2])
