@@ -47,6 +47,9 @@ class EnsembleResult:
     psi: Optional[np.ndarray] = None
     stats: list = field(default_factory=list)
     seconds: float = 0.0
+    #: the names of the coordinates q as printed (a single run's ``Result.coordinate_names``), which
+    #: ``from_ensemble`` gives each member (its files keep them, as the single runs' files do)
+    coordinate_names: Optional[list] = None
 
 
 class _KernelBlocks:
@@ -97,7 +100,9 @@ class RunSpec:
     to put several methods' runs into one executor (Fig. 4: 3 methods x 10 initial data)."""
 
     def __init__(self, system, method, t0, Q0, V0, h, n_steps, every=1, compensated=True, tol=None,
-                 kernel="auto"):
+                 kernel="auto", **unknown):
+        if unknown:
+            _refuse_unknown("RunSpec", RunSpec.__init__, unknown)
         from .core import validate
         from .core.validate import check_newton_options, check_storage, count, real_number
         from .compiled.fast import n_samples
@@ -135,7 +140,7 @@ class RunSpec:
         validate.check_tol_resolvable(tol, None, what="RunSpec: tol")     # the compiled kernels: float64
         check_storage(n_samples(int(n_steps), int(every)) * len(Q0), 2 + 2 * system.n + system.m,
                       what="the ensemble samples")
-        self._check_members(system, t0, Q0, V0)
+        self._notes = self._check_members(system, t0, Q0, V0)
         from .compiled.runner import checked_kernel_spec
         checked_kernel_spec(method, kernel)  # an unknown method name (or kernel='spark' of a comparator) here
         self.system, self.method, self.t0, self.Q0, self.V0 = system, method, t0, Q0, V0
@@ -143,14 +148,47 @@ class RunSpec:
             h, int(n_steps), int(every), bool(compensated), tol, kernel)
 
     @staticmethod
-    def _check_members(system, t0, Q0, V0):
+    def _check_members(system, t0, Q0, V0) -> list:
         """The set-up checks of ``integrate`` for every member: finite data, (4) regular with K of
         full rank, consistent v0 (an inconsistent v0 would otherwise run, its energy jumping in
-        the first step); the error names the member."""
+        the first step); the error names the member. Returns each member's notes (a singular
+        L_vv of (5) there, said with the results as a single run says it)."""
         from .core.backend import Backend
         from .core.validate import initial_point
+        notes = []
         for j, (q0, v0) in enumerate(zip(Q0, V0)):       # the one initial-point check, per member
-            initial_point(system, Backend(None), t0, q0, v0, member=f"ensemble member {j}: ")
+            notes.append({})
+            initial_point(system, Backend(None), t0, q0, v0, member=f"ensemble member {j}: ", notes=notes[-1])
+        return notes
+
+    def finish(self, ens):
+        """What a single ``integrate`` run of each member says besides its numbers: the stats of
+        the compiled engine's Result (``engines.compiled``: ``root_finder`` as asked for with what
+        ran, ``rescued_steps``, ``engine`` "compiled-lf2" for the semi-implicit kernel of (25)),
+        and the LdasparkWarning of a singular L_vv of (5) at the member's initial point."""
+        from .core.options import IntegrationOptions
+        from .core.validate import warn_singular_lvv
+        if self._kernels is None:
+            # the generic path of a system the kernels cannot run: the generic engine's
+            # ``root_finder``, the Newton asked for as that engine honours it
+            from .compiled.fast import _resolve
+            support = "generic" if _resolve(self.method)[0] == "spark" else "comparator"
+            root = IntegrationOptions.checked(tol=self.tol).newton.check_for(support).describe()
+            for st in ens.stats:
+                st.setdefault("root_finder", dict(root))
+                st["engine"] = support          # a comparator's single run says "comparator"
+        else:
+            asked = IntegrationOptions.checked(tol=self.tol).newton.describe()
+            support = "compiled-lf2" if self._kernels[1][0] == "lf2" else "compiled"
+            for st in ens.stats:
+                fast = st.get("path") == "fast"
+                st["root_finder"] = dict(asked, runs=st.get("newton_kind", "generic") if fast else "generic")
+                st.setdefault("rescued_steps", st.get("generic_steps", 0))
+                if fast:
+                    st["engine"] = support
+        for notes in self._notes:
+            if notes:
+                warn_singular_lvv(self.system, notes, stacklevel=3)
 
     def tasks(self, chunk):
         """(callable, args) per chunk of initial data; compiles in this process first."""
@@ -163,7 +201,17 @@ class RunSpec:
         try:
             cs = compile_system(self.system)
             # warm the numba cache here so that local workers load instead of compile
-            run_kernels(cs, spec, self.t0, self.Q0[0], self.V0[0], self.h, 1, 1, self.compensated, self.tol)
+            try:
+                run_kernels(cs, spec, self.t0, self.Q0[0], self.V0[0], self.h, 1, 1, self.compensated, self.tol)
+            except (NotCompilableError, InputError):
+                raise           # a refusal: before any work is sent, as before
+            except LdasparkError:
+                # member 0's first step failed (NewtonError, NonFiniteError): its task reports it, by
+                # name, as any other member's failure (UnitsFailed; integrate's executor path then
+                # runs the loop of single runs); raised here it was a bare kernel error that named
+                # no member and ended integrate(q0=(B, n), executor=..., guard=False), whose loop
+                # of single runs rescues the step
+                pass
             self._kernels = (cs, spec)
         except NotCompilableError as exc:
             if spec[0] == "lf2" and spec[2] in LF2_VARIANTS:
@@ -172,7 +220,6 @@ class RunSpec:
                 # which are refused here, before any work is sent (an InputError in every worker was
                 # reported as failed work units): the generic comparator's first step of member 0
                 from .core.comparators import integrate_comparator
-                from .core.errors import LdasparkError
                 try:
                     integrate_comparator(spec[2], self.system, self.t0, self.Q0[0], self.V0[0], self.h, 1,
                                          tol=self.tol)
@@ -255,7 +302,35 @@ def default_executor(max_workers=None):
     return make_process_pool(max_workers=max_workers or os.cpu_count() or 1)
 
 
-def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, where=None, guard=True):
+#: options of ``integrate`` that a RunSpec does not take (its members run in float64 from (Q0, V0)
+#: without them), with the name a RunSpec gives the same thing where it has one
+_INTEGRATE_ONLY = {"save_every": "every", "t_span": None, "t_end": None, "engine": None, "dps": None,
+                   "dense_output": None, "events": None, "params": None, "raise_on_failure": None, "newton": None,
+                   "project": None, "executor": None, "energy_jump": None, "max_stages": None, "q0": "Q0",
+                   "v0": "V0"}
+
+
+def _refuse_unknown(what, fn, unknown: dict) -> None:
+    """An option ``fn`` (RunSpec, run_many) does not take: one InputError naming it, the closest
+    option, or what runs an ensemble with an option of ``integrate`` (was a TypeError, or for an
+    option of integrate silently nowhere to go)."""
+    import difflib
+    import inspect
+    known = [p for p, par in inspect.signature(fn).parameters.items()
+             if p != "self" and par.kind not in (par.VAR_KEYWORD, par.VAR_POSITIONAL)]
+    key = sorted(map(str, unknown))[0]
+    if key in _INTEGRATE_ONLY:
+        alias = _INTEGRATE_ONLY[key]
+        hint = (f" (a RunSpec calls it {alias})" if alias else
+                "; ldaspark.integrate(system, method, q0=Q0, v0=V0, executor=...) runs an ensemble with it")
+        raise InputError(f"{what} does not take integrate's option {key!r}{hint}; the options are "
+                         f"{', '.join(known)}")
+    close = difflib.get_close_matches(key, known, n=1)
+    hint = f" (did you mean {close[0]}?)" if close else ""
+    raise InputError(f"{what}: unknown option {key[:40]!r}{hint}; the options are {', '.join(known)}")
+
+
+def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, where=None, guard=True, **unknown):
     """Run several ensembles (`RunSpec` objects) through one executor.
 
     Parameters
@@ -279,6 +354,9 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
         this process once the tasks are done: a step with another root of (21) raises
         RootMismatchError naming the spec, the member and the step; each member's stats get
         the guard's counters.
+    **unknown
+        Any other keyword is refused with an `InputError` naming the closest option (a
+        misspelt option must not be a raw TypeError).
 
     Returns
     -------
@@ -304,6 +382,8 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
     """
     from .core.validate import _describe, callable_or_none, check_executor, count, flag
     from .executors import check_where
+    if unknown:
+        _refuse_unknown("run_many", run_many, unknown)
     flag(guard, "run_many: guard")
     if executor is not None and where is not None:
         raise InputError("give executor or where, not both")
@@ -324,22 +404,30 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
     specs = list(specs)
     if not specs:
         raise InputError("run_many needs at least one RunSpec")
-    plan = []
+    plan, names = [], []
     for k, sp in enumerate(specs):
         if not isinstance(sp, RunSpec):
             raise InputError(f"run_many needs RunSpec objects, got {type(sp).__name__} at position {k}")
+        first = 0
         for fn, args in sp.tasks(chunk):
             plan.append((k, fn, args))
+            # a failed task names its spec and members, as the guard and the det (4) monitor do
+            # (its position in the plan named neither: task 3 of two specs, chunk 2, was spec 1's
+            # members 2-3)
+            last = first + len(args[3]) - 1
+            names.append(f"spec {k}, member {first}" if last == first else f"spec {k}, members {first}-{last}")
+            first = last + 1
     results = _run_plan(plan, len(specs), executor if executor is not None else where, max_workers, progress,
-                        check=_task_output)
+                        check=_task_output, names=names)
     seconds = time.perf_counter() - t_start
     out = []
-    for rs in results:
+    for sp, rs in zip(specs, results):
         t = rs[0][0]
         out.append(EnsembleResult(t, np.array([r[1] for r in rs]), np.array([r[2] for r in rs]),
                                   np.array([r[3] for r in rs]), np.array([r[4] for r in rs]),
                                   psi=None if any(r[6] is None for r in rs) else np.array([r[6] for r in rs]),
-                                  stats=[r[5] for r in rs], seconds=seconds))
+                                  stats=[r[5] for r in rs], seconds=seconds,
+                                  coordinate_names=[str(x) for x in sp.system.q]))
     for k, (sp, ens) in enumerate(zip(specs, out)):
         sp.saddle_check(k, ens)         # before the guard, in the order of a single run (``_drive_blocks``)
         if guard:
@@ -347,17 +435,20 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
         else:
             for st in ens.stats:
                 st["guard"] = False
+    for sp, ens in zip(specs, out):     # once every member ended well, as a single run's warning
+        sp.finish(ens)
     return out
 
 
-def _run_plan(plan, n_specs, executor=None, max_workers=None, progress=None, check=None):
+def _run_plan(plan, n_specs, executor=None, max_workers=None, progress=None, check=None, names=None):
     """Run the (k, fn, args) tasks where ``executor`` says (``ldaspark.executors.run_units``:
     a worker that dies gets its task retried, Ctrl-C cancels what is pending and stops a pool
     created here); results grouped by k, in plan order whatever the order of completion.
     ``check(output, args, executor)``: a task's output checked (``_task_output``) before it is
-    grouped."""
+    grouped. ``names``: each task's name in a failure (``UnitsFailed``; default its position)."""
     from .executors import Unit, run_units
-    units = [Unit(str(i), fn, tuple(args)) for i, (k, fn, args) in enumerate(plan)]
+    names = [str(i) for i in range(len(plan))] if names is None else list(names)
+    units = [Unit(names[i], fn, tuple(args)) for i, (k, fn, args) in enumerate(plan)]
     count = 0
 
     def done(name, val):
@@ -370,7 +461,7 @@ def _run_plan(plan, n_specs, executor=None, max_workers=None, progress=None, che
                     on_done=done)
     results = [[] for _ in range(n_specs)]
     for i, (k, _, args) in enumerate(plan):
-        results[k].extend(res[str(i)] if check is None else check(res[str(i)], args, executor))
+        results[k].extend(res[names[i]] if check is None else check(res[names[i]], args, executor))
     return results
 
 

@@ -276,6 +276,28 @@ def _stop_pool(ex):
             p.join(timeout=2)
 
 
+def _completed(futures, poll: float = 0.5):
+    """The futures as they finish (``cf.as_completed``), a cancelled one included: a future that an
+    executor cancelled without notifying its waiters (``cancel()`` with no
+    ``set_running_or_notify_cancel()``, which the standard pools call but a user's Executor need
+    not) is never done for ``as_completed``, and a run waited for it forever; here it is looked
+    for every ``poll`` seconds and handed back, its ``result()`` raising CancelledError (the
+    unit is reported failed by name). The poll only bounds how late such a future is seen; one
+    ``as_completed`` per poll keeps the work linear in the number of futures (``cf.wait`` per
+    finished future was quadratic)."""
+    order = {f: i for i, f in enumerate(futures)}
+    pending = set(futures)
+    while pending:
+        try:
+            for f in cf.as_completed(pending, timeout=poll):
+                pending.discard(f)
+                yield f
+        except cf.TimeoutError:
+            stuck = sorted((f for f in pending if f.cancelled()), key=order.__getitem__)
+            pending.difference_update(stuck)
+            yield from stuck
+
+
 def _worker_lost(exc) -> bool:
     """A worker died under the unit (not an error of the unit's own computation)."""
     from concurrent.futures.process import BrokenProcessPool
@@ -355,7 +377,7 @@ def run_units_partial(units: Iterable[Unit], where=None, jobs=None, retries: int
                     continue
                 for u in batch:
                     futs[_submit(place.executor, u)] = u
-                for f in cf.as_completed(futs):
+                for f in _completed(futs):
                     broken = handle(f, futs[f]) or broken
             except BaseException:
                 place.cancel(list(futs))
@@ -365,7 +387,8 @@ def run_units_partial(units: Iterable[Unit], where=None, jobs=None, retries: int
             pending.sort(key=lambda u: names.index(u.name))
     finally:
         place.close()
-    return results, failed
+    # in the units' order, whatever the order they finished in (UnitsFailed lists them so)
+    return ({n: results[n] for n in names if n in results}, {n: failed[n] for n in names if n in failed})
 
 
 def add_scheduler_argument(parser, action="store"):

@@ -352,15 +352,17 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
             return stack([_member(sysm, prob, member_opts, j) for j in jobs])
         # a module-level task over a system without its lambdified functions (rebuilt in the
         # worker), so that process pools and clusters can run the members as well as threads
-        run = functools.partial(_member, sysm if isinstance(executor, ThreadPoolExecutor) else _portable(sysm),
-                                prob, member_opts)
-        return stack(_run_members(executor, run, jobs))
+        threads = isinstance(executor, ThreadPoolExecutor)
+        run = functools.partial(_captured, _member, sysm if threads else _portable(sysm), prob,
+                                member_opts)
+        return stack(_run_members(executor, run, jobs, captured=True))
     if executor is not None:
         # one run is an ensemble of one member: it runs on the executor asked for, as every member
         # does (the executor was accepted and the run made here)
-        run = functools.partial(_solo, sysm if isinstance(executor, ThreadPoolExecutor) else _portable(sysm), prob,
+        threads = isinstance(executor, ThreadPoolExecutor)
+        run = functools.partial(_captured, _solo, sysm if threads else _portable(sysm), prob,
                                 opts.replace(executor=None))
-        return _run_members(executor, run, [(params, q0, v0)])[0]
+        return _run_members(executor, run, [(params, q0, v0)], captured=True)[0]
     return _single(sysm, (params, q0, v0), prob, opts)
 
 
@@ -387,29 +389,74 @@ def _ndim(x) -> int:
     return np.ndim(np.asarray(x, dtype=object))
 
 
-def _run_members(executor, run, jobs) -> list:
-    """The members' Results from ``executor`` (its ``map``, which submits every member now): a
-    member's LdasparkError as it is; an executor that is shut down, whose ``submit`` raises or
-    returns something other than a future, or that hands back something other than a Result:
-    one LdasparkError naming the executor."""
+def _run_members(executor, run, jobs, captured=False) -> list:
+    """The members' Results from ``executor``, each member submitted now and checked as
+    ``run_many``'s work units are (``executors._submit``): a ``submit`` that raises or returns
+    something other than a future is the same InputError naming the executor on every path (its
+    ``map`` made it an AttributeError's text in an LdasparkError here); a member's LdasparkError
+    as it is; a future that fails otherwise, or that hands back something other than a Result:
+    one LdasparkError naming the executor. Any exception (Ctrl-C) cancels the pending members.
+    ``captured``: each task hands back (Result, its warnings) (``_captured``), said here in member
+    order, as the run in this process says them."""
     name = type(executor).__name__
+    futures = []
     try:
-        members = list(executor.map(run, jobs))
-        # a dask.distributed Client's map returns its futures (check_executor accepts a Client)
-        members = [m.result() if not isinstance(m, Result) and callable(getattr(m, "result", None)) else m
-                   for m in members]
+        for job in jobs:
+            try:
+                fut = executor.submit(run, job)
+            except Exception as exc:  # noqa: BLE001  (a user's executor's own error: one line)
+                raise validate.submit_error(executor, exc) from exc
+            futures.append(validate.submitted(executor, fut))
+        members = [f.result() for f in futures]
     except LdasparkError:
+        _cancel(futures)
         raise
     except RuntimeError as exc:     # "cannot schedule new futures after shutdown" and the like
+        _cancel(futures)
         raise validate.executor_shut_down(exc) from exc
-    except Exception as exc:       # a third-party executor's own failure (submit returned None, ...)
+    except Exception as exc:       # a third-party executor's own failure (a cancelled future, ...)
+        _cancel(futures)
         raise LdasparkError(f"the executor {name} failed to run the ensemble members "
                             f"({type(exc).__name__}: {str(exc)[:120]})") from exc
+    except BaseException:          # Ctrl-C: what has not started does not start
+        _cancel(futures)
+        raise
+    said = []
+    if captured:
+        members, said = ([m[0] for m in members], [m[1] for m in members]) if all(
+            isinstance(m, tuple) and len(m) == 2 and isinstance(m[1], list) for m in members) else (members, [])
     bad = [type(m).__name__ for m in members if not isinstance(m, Result)]
     if bad or len(members) != len(jobs):
         raise LdasparkError(f"the executor {name} returned {len(members)} results for {len(jobs)} ensemble members"
                             + (f", not Results ({bad[0]})" if bad else ""))
+    import warnings
+    for ws in said:
+        for category, text in ws:
+            warnings.warn(text, category, stacklevel=3)
     return members
+
+
+def _captured(task, *args):
+    """``task(*args)`` and the warnings of its run as (category, text): for a task of an executor,
+    which may run in another process (a process pool, a cluster), where a warning said there
+    never reached the caller (``project=True``'s change of v0, the singular L_vv of (5) and a
+    params key that is no parameter were lost, while the run in this process says them). The run
+    hands them over (``said``) instead of warning: no ``warnings.catch_warnings``, which is not
+    thread safe (a cluster's threads in this process, or a worker's threads, would swap each
+    other's and the caller's warning state). A thread pool's members too: their warnings came in
+    the order the threads ran, and a thread's warning need not reach the caller's
+    ``catch_warnings`` (Python 3.14's context-aware warnings); ``_run_members`` says them in
+    member order."""
+    said = []
+    return task(*args, said=said), said
+
+
+def _cancel(futures) -> None:
+    for f in futures:
+        try:
+            f.cancel()
+        except Exception:  # noqa: BLE001  (a user's future's own error: the first error is the one said)
+            pass
 
 
 @dataclass(frozen=True)
@@ -432,13 +479,13 @@ class _Problem:
         return self.what if self.kind == "spark" else self.name
 
 
-def _member(system, prob: _Problem, opts: IntegrationOptions, job) -> Result:
+def _member(system, prob: _Problem, opts: IntegrationOptions, job, said=None) -> Result:
     """One member of an ensemble over parameters or initial data (the fallback notice once per
     ensemble, not once per member). An error that ends the call (a member's bad parameter value or
     initial point, an event function that raises, a failure with raise_on_failure) names the member,
     as the initial-point check of every member does (``_check_initial_point``), on every path."""
     try:
-        return _single(system, job[1:], prob, opts, quiet=job[0] > 0)
+        return _single(system, job[1:], prob, opts, quiet=job[0] > 0, said=said)
     except LdasparkError as exc:
         tag = f"ensemble member {job[0]}: "
         if exc.args and isinstance(exc.args[0], str) and not exc.args[0].startswith("ensemble member "):
@@ -446,9 +493,9 @@ def _member(system, prob: _Problem, opts: IntegrationOptions, job) -> Result:
         raise
 
 
-def _solo(system, prob: _Problem, opts: IntegrationOptions, member) -> Result:
+def _solo(system, prob: _Problem, opts: IntegrationOptions, member, said=None) -> Result:
     """A single run (``member`` = (params, q0, v0)) as a task of the executor asked for."""
-    return _single(system, member, prob, opts)
+    return _single(system, member, prob, opts, said=said)
 
 
 def _portable(system):
@@ -502,7 +549,7 @@ def _compiled_ensemble(system, params, Q0, V0, prob: _Problem, opts: Integration
     return res
 
 
-def _with_params(system: LagrangianSystem, params) -> LagrangianSystem:
+def _with_params(system: LagrangianSystem, params, said=None) -> LagrangianSystem:
     if params is None:
         if system.params:
             system._param_arg_values(None)     # raises if a value is missing
@@ -511,6 +558,14 @@ def _with_params(system: LagrangianSystem, params) -> LagrangianSystem:
         raise InputError(f"params must be a dict (or a list of dicts for an ensemble), got {validate._describe(params)}")
     for key, val in params.items():
         validate.param_value(key, val)
+    if said is not None:
+        # the note of a key that is no parameter (``with_params``), said by the caller
+        # (``_captured``): the value changes nothing, so the key is left out here
+        from .core.errors import LdasparkWarning
+        names = {str(p) for p in system.params}
+        for key in [k for k in params if k not in system.params and str(k) not in names]:
+            said.append((LdasparkWarning, system.not_a_parameter(key)))
+        params = {k: v for k, v in params.items() if k in system.params or str(k) in names}
     return system.with_params(params)
 
 
@@ -554,12 +609,12 @@ def _choose_engine(system, prob: _Problem, opts: IntegrationOptions, quiet: bool
     return ENGINES[use], notice
 
 
-def _single(system, member, prob: _Problem, opts: IntegrationOptions, quiet=False) -> Result:
+def _single(system, member, prob: _Problem, opts: IntegrationOptions, quiet=False, said=None) -> Result:
     """The driver, for one run of ``member`` = (params, q0, v0): parameters applied, the engine
     chosen (``_choose_engine``) and prepared (its root finder honoured or refused), the one
     initial-point check, then the engine driven (``_drive``) into one Result."""
     (params, q0, v0), t0, dps = member, prob.t0, opts.dps
-    system = _with_params(system, params)
+    system = _with_params(system, params, said)
     pvals = {str(k): v for k, v in system.param_values().items()}
     engine, notice = _choose_engine(system, prob, opts, quiet)
     prep = engine.prepare(system, prob, opts)
@@ -572,28 +627,23 @@ def _single(system, member, prob: _Problem, opts: IntegrationOptions, quiet=Fals
         prob.name, system.name, prob.scene, prob.h, dps, opts.save_every, pvals
     res.coordinate_names = _coordinate_names(system)
     if opts.project and len(res.t):
-        _note_projection(res, v0)
+        _note_projection(res, v0, said)
     if notes and res.status >= 0:
-        _warn_regular(system, notes)
+        _warn_regular(system, notes, said)
     if opts.raise_on_failure and res.status < 0:
         res.raise_for_status()
     return res
 
 
-def _warn_regular(system, notes) -> None:
-    """A run that ended well from a point where L_vv is singular while (4) holds: (5), the regular
-    Lagrangian, fails, and the stage equations (21) need not determine the stage velocities. The
-    numbers may be a root the method does not define (gauss-1 on L = (vx + vy)^2 / 2 - U, k = vx - vy:
-    the two engines 2-9e-2 apart, both status 0), so the result comes with one LdasparkWarning; a
-    failed run says its own error, alone."""
-    import warnings
-
-    from .core.errors import LdasparkWarning
-    warnings.warn(f"{system.name}: L_vv is singular at t = {notes['t']:g} (reciprocal condition "
-                  f"{notes['lvv_rcond']:.2e} after equilibration): the regular Lagrangian (5) fails while (4) "
-                  "holds, so the stage equations (21) need not determine the stage velocities; a Gauss method "
-                  "can then converge to different roots on different engines. Compare with another method or "
-                  "step size", LdasparkWarning, stacklevel=3)
+def _warn_regular(system, notes, said=None) -> None:
+    """A run that ended well from a point where L_vv is singular while (4) holds: one
+    LdasparkWarning (``validate.warn_singular_lvv``, which run_many's members say too); a failed
+    run says its own error, alone. ``said``: a list that gets (category, text) instead (``_captured``)."""
+    if said is not None:
+        from .core.errors import LdasparkWarning
+        said.append((LdasparkWarning, validate.singular_lvv_message(system, notes)))
+        return
+    validate.warn_singular_lvv(system, notes, stacklevel=3)     # at integrate, as before
 
 
 def _coordinate_names(system) -> list:
@@ -612,7 +662,7 @@ def _coordinate_names(system) -> list:
 _NAMES: dict = {}
 
 
-def _note_projection(res: Result, v0) -> None:
+def _note_projection(res: Result, v0, said=None) -> None:
     """``project=True`` replaced the user's v0 by its projection onto k = 0: the change is
     recorded (``stats["projected_v0_change"]``, max abs over the components) and, where it is
     above the rounding of v0 (64 ulps of its largest component: the projection of consistent data
@@ -625,8 +675,12 @@ def _note_projection(res: Result, v0) -> None:
     change = float(np.max(np.abs(float_array(res.v[0]) - given), initial=0.0))
     res.stats["projected_v0_change"] = change
     if change > 64 * np.finfo(float).eps * max(1.0, float(np.max(np.abs(given), initial=0.0))):
-        warnings.warn(f"project=True changed v0 by up to {change:.3g} (to {np.array2string(float_array(res.v[0]), precision=6)}) "
-                      "so that k(t0, q0, v0) = 0", LdasparkWarning, stacklevel=3)
+        text = (f"project=True changed v0 by up to {change:.3g} (to {np.array2string(float_array(res.v[0]), precision=6)}) "
+                "so that k(t0, q0, v0) = 0")
+        if said is not None:        # said by the caller (``_captured``)
+            said.append((LdasparkWarning, text))
+        else:
+            warnings.warn(text, LdasparkWarning, stacklevel=3)
 
 
 def _check_initial_point(system, start, dps, bk=None, opts: Optional[IntegrationOptions] = None, model=None):

@@ -344,11 +344,13 @@ def from_ensemble(ens: Any, **meta: Any) -> Result:
     """A batched Result from ``ldaspark.ensemble.EnsembleResult`` (t (S,), q (R, S, n),
     ...; one stats dict per run); ``meta`` sets method, system, h, ... ."""
     R = len(ens.stats)
+    names = meta.pop("coordinate_names", getattr(ens, "coordinate_names", None))     # each member its own list
     counters = {c: np.array([int(st.get(c, 0)) for st in ens.stats]) for c in COUNTERS}
     psi = getattr(ens, "psi", None)
     members = [Result(np.asarray(ens.t), ens.q[r], ens.v[r], ens.energy[r], ens.constraint[r],
                       None if psi is None else psi[r], **{c: int(counters[c][r]) for c in COUNTERS}, stats=ens.stats[r],
-                      engine="compiled" if ens.stats[r].get("path") == "fast" else "generic", **meta)
+                      engine="compiled" if ens.stats[r].get("path") == "fast" else "generic",
+                      coordinate_names=None if names is None else list(names), **meta)
                for r in range(R)]
     for m in members:
         m.stats = {**m.stats, "engine": m.stats.get("engine", m.engine)}

@@ -212,6 +212,11 @@ class LagrangianSystem:
         return from_mechanics(model, q=q, constraints=constraints, params=params, name=name, cls=cls)
 
     # --- parameters ----------------------------------------------------------------------------
+    def not_a_parameter(self, key) -> str:
+        """The note of a value given for ``key``, which is no parameter of the model (``with_params``)."""
+        return (f"{self.name}: {key} is not a parameter "
+                f"(parameters: {', '.join(map(str, self.params)) or 'none'}); its value is ignored")
+
     def with_params(self, values=None, **by_name) -> "LagrangianSystem":
         """A view of this system with parameter values set (symbol or name -> number); shares
         the derived expressions and compiled functions, so nothing is derived again."""
@@ -236,9 +241,7 @@ class LagrangianSystem:
                 # a value for a symbol the model does not use changes nothing, so it is accepted
                 # with a note (a shared params dict over several models is the usual cause); a
                 # misspelled name still fails, as the missing value of the real parameter
-                warnings.warn(f"{self.name}: {key} is not a parameter "
-                              f"(parameters: {', '.join(map(str, self.params)) or 'none'}); its value is ignored",
-                              LdasparkWarning, stacklevel=2)
+                warnings.warn(self.not_a_parameter(key), LdasparkWarning, stacklevel=2)
                 continue
             new._param_values[sym] = (_check_assumptions(sym, _param_value(val, sym)) if isinstance(val, str)
                                       else _checked_param(sym, val))

@@ -545,6 +545,28 @@ def finite_initial_point(system, bk, t, q, v, member: str = "") -> None:
 _CHECKED: dict = {}
 
 
+def warn_singular_lvv(system, notes: dict, stacklevel: int = 2) -> None:
+    """A run that ended well from a point where L_vv is singular while (4) holds (``notes`` of
+    ``initial_point``): (5), the regular Lagrangian, fails, and the stage equations (21) need not
+    determine the stage velocities. The numbers may be a root the method does not define (gauss-1
+    on L = (vx + vy)^2 / 2 - U, k = vx - vy: the two engines 2-9e-2 apart, both status 0), so the
+    result comes with one LdasparkWarning: a single run's (``solve._warn_regular``) and each such
+    member's of run_many, the same text."""
+    import warnings
+
+    from .errors import LdasparkWarning
+    warnings.warn(singular_lvv_message(system, notes), LdasparkWarning, stacklevel=stacklevel + 1)
+
+
+def singular_lvv_message(system, notes: dict) -> str:
+    """The text of ``warn_singular_lvv``."""
+    return (f"{system.name}: L_vv is singular at t = {notes['t']:g} (reciprocal condition "
+            f"{notes['lvv_rcond']:.2e} after equilibration): the regular Lagrangian (5) fails while (4) "
+            "holds, so the stage equations (21) need not determine the stage velocities; a Gauss method "
+            "can then converge to different roots on different engines. Compare with another method or "
+            "step size")
+
+
 def initial_point(system, bk, t0, q0, v0, *, member: str = "", project: bool = False, tol=None,
                   consistent: bool = True, model=None, notes: dict | None = None):
     """The one initial-point check of every engine and entry point: (t0, q0, v0) converted by

@@ -110,3 +110,80 @@ def test_an_executor_whose_futures_return_no_runs_is_one_error_naming_it(ex, mat
         run_many([RunSpec(sc.system, "gauss-2", 0.0, kw["q0"], kw["v0"], 0.1, 3)], where=ex, chunk=2)
     with cf.ThreadPoolExecutor(1) as good:      # negative control
         assert ldaspark.integrate("skate", "gauss-2", executor=good, **kw).q.shape == (2, 4, 3)
+
+
+class CancelsEverything(cf.Executor):
+    """Hands back each future cancelled, its waiters never notified (``cancel()`` without
+    ``set_running_or_notify_cancel()``): a user's executor that drops its work."""
+
+    def submit(self, fn, /, *args, **kwargs):
+        f = cf.Future()
+        f.cancel()
+        return f
+
+
+def _within(seconds, call):
+    """``call()``'s outcome, or a failure when it has not returned after ``seconds``: the bound
+    catches a wait forever, not the machine's speed (the call itself takes well under a second)."""
+    import threading
+    out = {}
+
+    def target():
+        try:
+            out["value"] = call()
+        except BaseException as exc:  # noqa: BLE001  (handed to the test)
+            out["error"] = exc
+    th = threading.Thread(target=target, daemon=True)
+    th.start()
+    th.join(seconds)
+    assert not th.is_alive(), f"still waiting after {seconds} s"
+    if "error" in out:
+        raise out["error"]
+    return out["value"]
+
+
+def test_an_executor_that_cancels_its_futures_is_reported_not_waited_for():
+    """``run_units`` waited in ``cf.as_completed`` for a future cancelled without notification
+    forever (run_many, and integrate(q0=(B, n), executor=..., guard=False) through it, hung);
+    now each such unit is reported failed by name. The loop of single runs (integrate with the
+    guard) already said so through ``Future.result``. Control: a thread pool runs them."""
+    from concurrent.futures import CancelledError  # noqa: F401  (what each unit's reason names)
+    from ldaspark.ensemble import RunSpec, run_many
+    from ldaspark.executors import UnitsFailed
+    with pytest.raises(UnitsFailed, match=r"2 work unit\(s\) failed \(0 finished\): a: CancelledError"):
+        _within(120, lambda: run_units([Unit("a", square, (2,)), Unit("b", square, (3,))], where=CancelsEverything()))
+    sc = ldaspark.get_scene("skate")
+    kw = dict(q0=[sc.q0, sc.q0], v0=[sc.v0, sc.v0], h=0.1, n_steps=3)
+    with pytest.raises(UnitsFailed, match="CancelledError"):
+        _within(120, lambda: run_many([RunSpec(sc.system, "gauss-2", 0.0, kw["q0"], kw["v0"], 0.1, 3)],
+                                      where=CancelsEverything()))
+    for guard in (True, False):
+        with pytest.raises(LdasparkError, match="CancelledError"):
+            _within(120, lambda: ldaspark.integrate("skate", "gauss-2", executor=CancelsEverything(), guard=guard,
+                                                    **kw))
+    with cf.ThreadPoolExecutor(2) as good:      # control
+        assert _within(120, lambda: run_units([Unit("a", square, (2,))], where=good)) == {"a": 4}
+        assert ldaspark.integrate("skate", "gauss-2", executor=good, guard=False, **kw).q.shape == (2, 4, 3)
+
+
+@pytest.mark.parametrize("ex, match", [(ReturnsNone(), "ReturnsNone's submit returned NoneType None, not a future"),
+                                       (Raises(), "Raises's submit raised ValueError: no capacity")])
+def test_a_bad_submit_is_the_same_error_on_every_ensemble_path(ex, match):
+    """run_many (and integrate with guard=False, the kernel tasks) refused such an executor with
+    this InputError, while the loop of single runs (integrate's default guard=True) and a single
+    run with an executor went through its ``map`` and said LdasparkError "failed to run the
+    ensemble members (AttributeError: 'NoneType' object has no attribute 'cancel')" (3 of 4 paths
+    differed before). Control: the same calls on a thread pool run."""
+    from ldaspark.ensemble import RunSpec, run_many
+    sc = ldaspark.get_scene("skate")
+    kw = dict(q0=[sc.q0, sc.q0], v0=[sc.v0, sc.v0], h=0.1, n_steps=3)
+    calls = [lambda e: run_many([RunSpec(sc.system, "gauss-2", 0.0, kw["q0"], kw["v0"], 0.1, 3)], where=e),
+             lambda e: ldaspark.integrate("skate", "gauss-2", executor=e, guard=False, **kw),
+             lambda e: ldaspark.integrate("skate", "gauss-2", executor=e, **kw),
+             lambda e: ldaspark.integrate("skate", "gauss-2", executor=e, **dict(kw, q0=sc.q0, v0=sc.v0))]
+    for call in calls:
+        with pytest.raises(InputError, match=match):
+            call(ex)
+    with cf.ThreadPoolExecutor(2) as good:
+        for call in calls:
+            assert call(good) is not None
