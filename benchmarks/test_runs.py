@@ -26,8 +26,9 @@ import tempfile
 import time
 
 KEEP = 20
-#: pytest -q's last line: "4553 passed, 733 skipped, 5 warnings in 249.12s (0:04:09)"
-PYTEST_LINE = re.compile(r"^(?:=+ )?(?P<body>\d+ passed.*?) in (?P<sec>[0-9.]+)s")
+#: pytest -q's last line: "4553 passed, 733 skipped, 5 warnings in 249.12s (0:04:09)", or with
+#: failures first: "2 failed, 4551 passed, 733 skipped, 1 error in 250.31s"
+PYTEST_LINE = re.compile(r"^(?:=+ )?(?P<body>\d+ (?:failed|passed|skipped|errors?)\b.*?) in (?P<sec>[0-9.]+)s")
 #: the quick mutation set's verdict line in mutation.md / its output: "**17 of 17 mutants killed**"
 MUTANTS_LINE = re.compile(r"(\d+) of (\d+) mutants killed")
 README_TESTS = 'python -m pytest -q -n 2 --dist loadfile'

@@ -106,7 +106,12 @@ def check_distinct_outputs(*named) -> None:
     for opt, path in named:
         if path is None:
             continue
-        kind, target = _destination(os.fspath(path))
+        try:
+            kind, target = _destination(os.fspath(path))
+        except LdasparkError:
+            # not a file that could be written (a directory, ...): its own check says so, the
+            # output's (``check_destination``) or an input's reader ("audit ." is "not a regular file")
+            continue
         if kind != "replace":
             continue
         key = os.path.realpath(os.path.abspath(target))

@@ -197,6 +197,33 @@ def run_values(d):
     return out
 
 
+def test_run_values(d):
+    """The latest CI run and newcomer run (``reports/test_runs.json``, from
+    ``benchmarks/test_runs.py``): counts, seconds, commit and date, as README quotes them."""
+    out = {}
+    for kind in ("ci", "newcomer"):
+        runs = [r for r in d["runs"] if r["kind"] == kind]
+        if not runs:
+            continue
+        r = runs[-1]
+        k = f"tests.{kind}"
+        out.update({f"{k}.passed": str(r["passed"]), f"{k}.skipped": str(r["skipped"]),
+                    f"{k}.test_seconds": f"{r['test_seconds']:.0f} s", f"{k}.commit": r["commit"][:8],
+                    f"{k}.date": r["date"][:10], f"{k}.load": f"{r['load_start']:.1f}"})
+        if kind == "ci":
+            out[f"{k}.wall"] = f"{r['wall_seconds'] / 60:.1f} min"
+            out[f"{k}.rc"] = str(r["rc"])
+            if "mutants" in r:
+                out[f"{k}.mutants"] = f"{r['mutants_killed']} of {r['mutants']}"
+        else:
+            out[f"{k}.rc"] = f"{r['rc_first']} and {r['rc_second']}"
+            out[f"{k}.first"] = f"{r['first_seconds']:.0f} s"
+            out[f"{k}.second"] = f"{r['second_seconds']:.0f} s"
+            if "main_job_wall" in r:
+                out[f"{k}.main_job"] = f"{r['main_job_wall']:.0f} s wall, {r['main_job_cpu']:.0f} s CPU"
+    return out
+
+
 def _r(x, at_least=None, at_most=None):
     """A speed-up as README quotes it: two significant digits ('0.45x', '1.1x', '14x'); '>= 4.9x'
     for a lower bound, '<= 4.9x' for an upper one (``peers.speedups``)."""
@@ -338,7 +365,8 @@ def readme_values(reports_dir="reports") -> dict:
                      ("report_timing.json", run_values), ("peer_odelab.json", peer_values),
                      ("peers.json", peers_values), ("scaling.json", scaling_values),
                      ("quasi_step.json", quasi_step_values),
-                     ("mutation-generated.json", mutgen_values), ("coverage-checking.json", coverage_values)):
+                     ("mutation-generated.json", mutgen_values), ("coverage-checking.json", coverage_values),
+                     ("test_runs.json", test_run_values)):
         path = os.path.join(reports_dir, name)
         try:
             d = _load(reports_dir, name)
@@ -371,7 +399,7 @@ RESIDUAL = re.compile(r"^claims\.[\w.-]+\.(max|negctl_min)$")
 SOURCE = {"convergence": "convergence.json", "claims": "claims.json", "energy": "energy.json",
           "wp": "work_precision.json", "run": "report_timing.json", "peer": "peer_odelab.json",
           "peers": "peers.json", "scaling": "scaling.json", "mutgen": "mutation-generated.json",
-          "coverage": "coverage-checking.json", "qs": "quasi_step.json"}
+          "coverage": "coverage-checking.json", "qs": "quasi_step.json", "tests": "test_runs.json"}
 
 
 def quote_kind(key: str) -> str:

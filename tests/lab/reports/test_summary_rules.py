@@ -280,3 +280,41 @@ def test_quasi_step_values_quote_the_specialised_kernel_against_the_generic_one(
     assert out["qs.specialised.range"] == "1.34-1.5x"
     assert out["qs.per_step.generic.range"] == "1-3x" and out["qs.per_step.range"] == "1-4x"
     assert (out["qs.skate.error.1e-09"], out["qs.skate.error.1e-09.generic"]) == ("0.70x", "0.50x")
+
+
+def test_test_run_values_quote_the_latest_record_of_each_kind():
+    """README's test-run numbers (``reports/test_runs.json``, from ``benchmarks/test_runs.py``): the
+    latest "ci" and "newcomer" records, an earlier one ignored (control: the first CI record's
+    counts are not what is quoted)."""
+    base = {"date": "2026-12-07 18:00", "load_start": 0.42, "load_end": 1.0, "cpu_count": 2,
+            "test_seconds": 249.4, "skipped": 733, "failed": 0, "errors": 0}
+    d = {"runs": [{**base, "kind": "ci", "commit": "a" * 40, "rc": 1, "passed": 10, "wall_seconds": 300.0},
+                  {**base, "kind": "newcomer", "commit": "b" * 40, "rc_first": 0, "rc_second": 0, "passed": 4545,
+                   "first_seconds": 213.2, "second_seconds": 185.0, "main_job_wall": 179.4, "main_job_cpu": 326.0},
+                  {**base, "kind": "ci", "commit": "c" * 40, "rc": 0, "passed": 4553, "wall_seconds": 372.0,
+                   "mutants": 17, "mutants_killed": 17}]}
+    v = summary.test_run_values(d)
+    assert v["tests.ci.passed"] == "4553" and v["tests.ci.commit"] == "cccccccc" and v["tests.ci.rc"] == "0"
+    assert v["tests.ci.wall"] == "6.2 min" and v["tests.ci.mutants"] == "17 of 17" and v["tests.ci.load"] == "0.4"
+    assert v["tests.newcomer.rc"] == "0 and 0" and v["tests.newcomer.first"] == "213 s"
+    assert v["tests.newcomer.main_job"] == "179 s wall, 326 s CPU" and v["tests.newcomer.passed"] == "4545"
+    assert summary.quote_kind("tests.ci.passed") == "exact"
+
+
+def test_test_runs_parses_pytests_last_summary_line():
+    """``benchmarks/test_runs.pytest_summary``: the counts and seconds of the last summary line
+    (an earlier run's line in the same output is not taken); {} without one."""
+    import importlib.util
+    import pathlib
+    path = pathlib.Path(__file__).resolve().parents[3] / "benchmarks" / "test_runs.py"
+    spec = importlib.util.spec_from_file_location("test_runs_bench", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    out = ("3 passed in 1.00s\n....\n4553 passed, 733 skipped, 5 warnings in 249.12s (0:04:09)\n"
+           "17 of 17 mutants killed -> /tmp/x/mutation.md\n")
+    assert mod.pytest_summary(out) == {"passed": 4553, "skipped": 733, "failed": 0, "errors": 0,
+                                       "test_seconds": 249.12}
+    assert mod.pytest_summary("2 failed, 7 passed, 1 error in 3.5s") == {"passed": 7, "skipped": 0, "failed": 2,
+                                                                      "errors": 1, "test_seconds": 3.5}
+    assert mod.pytest_summary("no summary here") == {}
+    assert mod.MUTANTS_LINE.findall(out)[-1] == ("17", "17")
