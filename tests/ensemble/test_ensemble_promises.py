@@ -323,12 +323,22 @@ def test_a_thread_pools_members_say_their_warnings_in_member_order(monkeypatch):
     import threading
     from ldaspark import solve
     single, barrier, futs = solve._single, threading.Barrier(2), []
+    # both members run once the caller holds both futures: the barrier alone let member 0 ask for
+    # futs[1] before the caller's submit had appended it (IndexError on a fresh clone)
+    both = threading.Event()
 
     def forced(*args, **kwargs):
         barrier.wait()
         if args[1][1] == [1.0, 0.5]:          # member 0 ends after member 1
+            assert both.wait(60)
             futs[1].result()
         return single(*args, **kwargs)
+
+    def submit(real_submit, fn, *a, **k):
+        futs.append(real_submit(fn, *a, **k))
+        if len(futs) == 2:
+            both.set()
+        return futs[-1]
     kw = dict(q0=[[1.0, 0.5], [0.9, 0.4]], v0=[[0.3, 0.2], [0.2, 0.2]], h=0.05, n_steps=2, project=True,
               engine="generic")
     S = _singular_mass()
@@ -336,7 +346,7 @@ def test_a_thread_pools_members_say_their_warnings_in_member_order(monkeypatch):
     monkeypatch.setattr(solve, "_single", forced)
     with cf.ThreadPoolExecutor(2) as ex:
         real_submit = ex.submit
-        monkeypatch.setattr(ex, "submit", lambda fn, *a, **k: futs.append(real_submit(fn, *a, **k)) or futs[-1])
+        monkeypatch.setattr(ex, "submit", lambda fn, *a, **k: submit(real_submit, fn, *a, **k))
         got = _said(lambda: ldaspark.integrate(S, "gauss-2", executor=ex, **kw))[1]
     assert len(expected) == 3 and got == expected
 
