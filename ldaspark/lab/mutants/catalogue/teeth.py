@@ -199,4 +199,10 @@ MUTANTS = (
        "st = _status(r[c], TOL_SYMMETRY)", "st = _status(r[c], TOL_THEOREM1)",
        "symmetry-fd records judged at Theorem 1's 1e-20 instead of 1e-25", "ledger-verdict",
        f"{CV}::test_ledger_verdicts"),
+    _m("teeth-symmetry-control-at-claim-threshold", "lab/claims/ledger.py",
+       'return "fail" if residual is not None and residual >= TOL_NEGATIVE else "pass"',
+       'return "fail" if residual is not None and residual > TOL_SYMMETRY else "pass"',
+       "symmetry controls (Euler I/II, ledger and general scenes) count any residual above 1e-25 as the "
+       "expected failure (a reported instance: they were judged at the claim's threshold)", "ledger-verdict",
+       f"{CV}::test_symmetry_controls_fail_only_at_tol_negative"),
 )
