@@ -26,6 +26,7 @@ from ldaspark.lab.claims.ledger import TOL_NEGATIVE, TOL_SYMMETRY, TOL_THEOREM1
 from ldaspark.analysis.symmetry import check_symmetry
 from ldaspark.analysis.wellposedness import classify_wellposedness
 
+from general_fixtures import theorem1_tol
 from strategies import builtin_tableaux, general_systems, spark_tableaux
 
 H = "0.1"
@@ -56,6 +57,7 @@ def _assert_theorem1(case, tab):
     assert r["fd_error"] < 1e-25, r                       # the differences resolve the threshold
     assert r["theorem1-q0"] <= TOL_THEOREM1, r
     assert r["theorem1-q1"] <= TOL_THEOREM1, r
+    assert max(r["theorem1-q0"], r["theorem1-q1"]) <= theorem1_tol(r), (theorem1_tol(r), r)
     # perturbed formula (negative control): the bare momentum -p0 without f_d^- is not dL_d/dq0
     if r["f_d_minus_norm"] > 1e-10:
         assert r["without_forces_q0"] >= TOL_NEGATIVE, r

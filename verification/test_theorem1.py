@@ -11,6 +11,7 @@ import mpmath
 import numpy as np
 import pytest
 
+from general_fixtures import theorem1_tol
 from ldaspark.core.backend import Backend
 from ldaspark.analysis.discrete import GAUGE, SINGULAR, WELLPOSED, base_point, discrete_lagrangian, theorem1_residuals
 from ldaspark.analysis.wellposedness import classify_wellposedness, gauge_invariance
@@ -20,20 +21,6 @@ from ldaspark.lab.claims.ledger import TOL_NEGATIVE, TOL_THEOREM1, negative_cont
 
 H = "0.1"
 DEFAULT_METHODS = builtin_method_names(3)
-
-
-def derived_tol(r):
-    """What the residual of Theorem 1 can carry when the identities hold exactly: the error of the
-    Richardson-extrapolated differences (bounded by their estimate ``fd_error``, |R2 - R1|, which
-    bounds the error of the coarser extrapolant R1; factor 10 for the estimate itself) plus the
-    round-off of the printed side at ``dps_fd`` digits, amplified by the condition number of the
-    BVP Jacobian (dV/dq = -J^-1 dG/dq; 10^3 units for the accumulation). Measured on the default
-    cases (mpmath only, no BLAS): residuals 0 .. 1.4e-40 against bounds 6.5e-52 .. 8.4e-26, at most
-    0.22 of the bound (Lobatto IIIA-B 2 on the skate, 1.6e-52 of 7.3e-52). TOL_THEOREM1 (1e-20,
-    the ledger's) passed tableau coefficients correct to 20 digits only (planted in
-    SparkTableau.arrays: residuals 1.9e-23 .. 9.2e-26 at dps_fd 60); this bound does not."""
-    cond = r["sigma_max"] / r["sigma_min_nonzero"]
-    return 10 * r["fd_error"] + 1e3 * cond * 10.0 ** -r["dps_fd"]
 
 
 def _t1(scene, tab, point="base", q1_shift=None):
@@ -51,7 +38,7 @@ def test_theorem1_builtin(name, scn, exact_method, scene):
     assert r["fd_error"] < 1e-25, r                 # the finite differences resolve 1e-20
     assert r["theorem1-q0"] <= TOL_THEOREM1, r
     assert r["theorem1-q1"] <= TOL_THEOREM1, r
-    assert max(r["theorem1-q0"], r["theorem1-q1"]) <= derived_tol(r), (derived_tol(r), r)
+    assert max(r["theorem1-q0"], r["theorem1-q1"]) <= theorem1_tol(r), (theorem1_tol(r), r)
     # the forces are not negligible where they should not be: without them the identity fails
     if r["f_d_minus_norm"] > 1e-10:
         assert r["without_forces_q0"] > 1e-6
@@ -61,13 +48,13 @@ def test_theorem1_builtin(name, scn, exact_method, scene):
 def test_theorem1_robot(name, exact_method, scene):
     r = _t1(scene("robot"), exact_method(name))
     assert r["theorem1-q0"] <= TOL_THEOREM1 and r["theorem1-q1"] <= TOL_THEOREM1, r
-    assert max(r["theorem1-q0"], r["theorem1-q1"]) <= derived_tol(r), (derived_tol(r), r)
+    assert max(r["theorem1-q0"], r["theorem1-q1"]) <= theorem1_tol(r), (theorem1_tol(r), r)
 
 
 def test_theorem1_mp_particles(exact_method, scene):
     r = _t1(scene("mp-particles"), exact_method("gauss-1"))
     assert r["theorem1-q0"] <= TOL_THEOREM1 and r["theorem1-q1"] <= TOL_THEOREM1, r
-    assert max(r["theorem1-q0"], r["theorem1-q1"]) <= derived_tol(r), (derived_tol(r), r)
+    assert max(r["theorem1-q0"], r["theorem1-q1"]) <= theorem1_tol(r), (theorem1_tol(r), r)
 
 
 @pytest.mark.parametrize("name", ["gauss-2", "lobatto-iiia-iiib-3"])
@@ -75,7 +62,7 @@ def test_theorem1_perturbed_points(name, exact_method, scene):
     sc = scene("skate")
     r = _t1(sc, exact_method(name), point="perturbed")
     assert r["theorem1-q0"] <= TOL_THEOREM1 and r["theorem1-q1"] <= TOL_THEOREM1, r
-    assert max(r["theorem1-q0"], r["theorem1-q1"]) <= derived_tol(r), (derived_tol(r), r)
+    assert max(r["theorem1-q0"], r["theorem1-q1"]) <= theorem1_tol(r), (theorem1_tol(r), r)
     if r["wellposed"] == WELLPOSED:  # off the constraint manifold: v0 inconsistent, still a solve
         shift = [mpmath.mpf(1) / 1000 * (-1) ** k for k in range(3)]
         r = _t1(sc, exact_method(name), point="perturbed", q1_shift=shift)
