@@ -2,7 +2,8 @@
 
 dL_d/dq by Richardson-extrapolated central differences of the boundary-value solve at 60
 digits (error estimate included) against the printed formulas evaluated with the
-implicit-differentiation sensitivities dV/dq0, dV/dq1; residual <= 1e-20 relative at 40 digits.
+implicit-differentiation sensitivities dV/dq0, dV/dq1; residual <= 1e-20 relative at 40 digits
+(the ledger's threshold) and <= the residual's own error (``general_fixtures.theorem1_tol``).
 Also: the sensitivities against finite differences of V, the well-posedness classes, the
 gauge invariance, negative controls (residual >= 1e-6) and the ledger writer."""
 import json
