@@ -60,10 +60,11 @@ class GeneralCase:
 
 
 @st.composite
-def general_systems(draw, n_range=(2, 3), m_max=2, dps=60):
-    """A random rheonomic system with a constraint nonlinear in v and b != 0 (module docstring)."""
+def general_systems(draw, n_range=(2, 3), m_max=2, dps=60, m_min=1):
+    """A random rheonomic system with a constraint nonlinear in v and b != 0 (module docstring);
+    ``m_min`` forces several constraints (hypothesis draws the smallest m first)."""
     n = draw(st.integers(*n_range))
-    m = draw(st.integers(1, min(m_max, n - 1)))
+    m = draw(st.integers(min(m_min, n - 1), min(m_max, n - 1)))
     q = list(sympy.symbols(f"q1:{n + 1}"))
     v = list(sympy.symbols(f"v1:{n + 1}"))
     t = sympy.Symbol("t")

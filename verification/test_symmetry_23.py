@@ -53,6 +53,41 @@ def test_symmetry_fails_for_perturbed_A_tilde(exact_method, scene):
     assert min(r["symmetry-fd-plus"], r["symmetry-fd-minus"]) > 1e-7, r
 
 
+def _lobatto3_own_b_tilde(b_tilde):
+    """Lobatto IIIA-IIIB 3 with A_tilde = IIIB + (w - b) / 2 in every row, w = (1/4, 1/2, 1/4):
+    (23d) a~_(s+1-i,s+1-j) + a~_ij = w_j holds, so with b_tilde = w the tableau satisfies (23)
+    with b_tilde != b_hat (the built-ins have b_tilde = b_hat = b, where a (23d) read with b_hat
+    and a (21d) run with b_hat on the constraint forces are invisible); with b_tilde = b_hat it
+    does not. (22) holds for both (A_tilde and b_tilde are free there)."""
+    from ldaspark.core.tableau_file import from_json_dict
+    d = {"c": ["0", "1/2", "1"],
+         "A": [["0", "0", "0"], ["5/24", "1/3", "-1/24"], ["1/6", "2/3", "1/6"]],
+         "A_hat": [["1/6", "-1/6", "0"], ["1/6", "1/3", "0"], ["1/6", "5/6", "0"]],
+         "A_tilde": [["5/24", "-1/4", "1/24"], ["5/24", "1/4", "1/24"], ["5/24", "3/4", "1/24"]],
+         "b": ["1/6", "2/3", "1/6"], "b_hat": ["1/6", "2/3", "1/6"], "b_tilde": list(b_tilde),
+         "omega": [["1/6", "2/3", "1/6"], ["0", "1/3", "1/6"]]}
+    return from_json_dict(d, name="lobatto3-b_tilde=" + "/".join(b_tilde))
+
+
+@pytest.mark.parametrize("scn", ["particle", "skate"])
+def test_23d_with_b_tilde_decides_the_symmetry(scn, scene):
+    """(23) is a statement about b_tilde, not b_hat: the tableau with b_tilde = (1/4, 1/2, 1/4)
+    != b_hat satisfies (23) and its step is symmetric (Phi_-h o Phi_h - id measured 1.4e-42,
+    1.0e-42 at 40 digits); the same A_tilde with b_tilde = b_hat breaks (23d) and misses the
+    round trip by 1.4e-5, 8.8e-6 (control, >= TOL_NEGATIVE 1e-6). The BVP is singular here (f_d
+    depend on the pin), so the round trip Phi decides. Planted (23d) checked with b_hat
+    (analysis/conditions.py, mutant teeth-conditions-23d-bhat): 55 tests of the verification
+    files that call check_23 passed it (the built-ins and the random tableaux have b_tilde =
+    b_hat); this test fails on it (check_23 rejects the symmetric tableau)."""
+    from ldaspark.analysis.conditions import check_22a, check_22b, check_23
+    from ldaspark.lab.claims.ledger import TOL_NEGATIVE
+    good, bad = _lobatto3_own_b_tilde(("1/4", "1/2", "1/4")), _lobatto3_own_b_tilde(("1/6", "2/3", "1/6"))
+    assert all(check_22a(t) and check_22b(t) for t in (good, bad))
+    assert check_23(good) and not check_23(bad)
+    assert _sym(scene(scn), good)["symmetry-Phi"] <= TOL_SYMMETRY
+    assert _sym(scene(scn), bad)["symmetry-Phi"] >= TOL_NEGATIVE
+
+
 def test_fd_symmetry_only_on_C_d(exact_method, scene):
     r = _sym(scene("particle"), exact_method("gauss-2"))
     assert r["symmetry-fd-plus"] <= TOL_SYMMETRY

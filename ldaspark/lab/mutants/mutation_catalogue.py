@@ -176,6 +176,15 @@ CATALOGUE: tuple[Mutant, ...] = (
        "R1 = (4 * D[1] - D[0]) / 3", "R1 = (2 * D[1] - D[0])",
        "Richardson weights of an order-1 stencil on a central difference", "fd", VFD, VT1),
     # --- tableaux, core/families.py -----------------------------------------------------------
+    _m("tableau-arrays-20-digit-entries", "core/tableau.py",
+       "ent = self.mp_entries(max(dps or 0, 20))", "ent = self.mp_entries(20)",
+       "mpmath coefficients from 20-digit entries at every dps ((22) off by ~1e-21; Theorem 1's "
+       "1e-20 threshold passed it)", "tableau", VT1, TTAB),
+    _m("bvp-dq0-21e-constraint-major", "analysis/discrete.py",
+       'np.einsum("lj,jab->lab", tab.omega, kq).reshape((s - 1) * m, n)',
+       'np.einsum("lj,jab->alb", tab.omega, kq).reshape((s - 1) * m, n)',
+       "(21e) rows of dG/dq0 ordered constraint-major (the same for s = 2 or m = 1: only s >= 3 with "
+       "m >= 2 sees it)", "bvp", "verification/test_general_systems.py"),
     _m("iiid-exact-is-iiic", "core/families.py",
        "At = [[(C[i][j] + Cs[i][j]) * half for j in range(s)] for i in range(s)]",
        "At = C",

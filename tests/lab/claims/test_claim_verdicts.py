@@ -315,6 +315,40 @@ def test_ledger_gauge_invariance_verdict(monkeypatch):
     assert _status(recs, "gauge-invariance") == ["fail"]
 
 
+@pytest.mark.parametrize("residual,status", [(1e-20, "pass"), (1e-7, "pass"), (1e-6, "fail"), (1e-2, "fail")])
+def test_symmetry_controls_fail_only_at_tol_negative(monkeypatch, residual, status):
+    """The symmetry records of Euler I (expected fail) are negative controls: they count as the
+    failure that shows the check's teeth only at >= TOL_NEGATIVE (1e-6), as Theorem 1's and every
+    other control; they were judged at the claim's 1e-25, so a control missing (23) by 1e-20 (a
+    method all but symmetric, or a checker that compares a quantity with itself up to round-off)
+    counted as the expected failure. Measured: Euler I/II miss by >= 3.6e-6 on every scene."""
+    tab, scene = get_method("euler-i", exact=True), lg.get_scene("particle")
+    t0, q0, v0 = scene.initial(60)
+    keys = ("symmetry-Ld", "symmetry-Phi", "symmetry-fd-plus", "symmetry-fd-minus")
+    _override(monkeypatch, lg, "check_symmetry", **{k: residual for k in keys})
+    recs = lg.symmetry_records(scene, tab, "fail", t0, q0, v0, "base", "well-posed")
+    assert {r["claim"]: (r["status"], r["threshold"]) for r in recs} == {k: (status, lg.TOL_NEGATIVE) for k in keys}
+    # the claims themselves (expected pass) keep the 1e-25 threshold
+    recs = lg.symmetry_records(scene, tab, "pass", t0, q0, v0, "base", "well-posed")
+    assert {r["threshold"] for r in recs} == {lg.TOL_SYMMETRY}
+    _override(monkeypatch, cg, "check_symmetry", **{k: residual for k in keys})
+    sc = cg.get_scene("rheonomic-skate")
+    t0, q0, v0 = sc.initial(60)
+    rec = cg._symmetry_record(sc, get_method("euler-i"), "fail", t0, q0, v0)
+    assert (rec["status"], rec["threshold"]) == (status, lg.TOL_NEGATIVE)
+
+
+def test_symmetry_controls_fail_as_expected_on_the_real_residuals():
+    """Control of the test above: unpatched, Euler I's residuals (>= 1e-3 here) fail as expected."""
+    tab, scene = get_method("euler-i", exact=True), lg.get_scene("particle")
+    t0, q0, v0 = scene.initial(60)
+    recs = lg.symmetry_records(scene, tab, "fail", t0, q0, v0, "base", "well-posed")
+    assert [r["status"] for r in recs] == ["fail"] * 4, recs
+    sc = cg.get_scene("rheonomic-skate")
+    t0, q0, v0 = sc.initial(60)
+    assert cg._symmetry_record(sc, get_method("euler-i"), "fail", t0, q0, v0)["status"] == "fail"
+
+
 @pytest.mark.parametrize("p,status", [(2.0, "pass"), (1.6, "pass"), (1.2, "fail"), (0.9, "fail")])
 def test_holonomic_verdict(monkeypatch, p, status):
     """One-sided (no rate is predicted, see ledger.HOLONOMIC_RATE): a slow decay fails."""

@@ -100,7 +100,8 @@ MUTANTS = (
        "audit (23d) checked against b_hat instead of b_tilde", "fixture", f"{OC}::test_23d_reads_b_tilde_not_b_hat"),
     _m("teeth-conditions-23d-bhat", "analysis/conditions.py",
        '("A_tilde", "b_tilde")):', '("A_tilde", "b_hat")):',
-       "exact (23d) checked against b_hat instead of b_tilde", "fixture", f"{OC}::test_23d_reads_b_tilde_not_b_hat"),
+       "exact (23d) checked against b_hat instead of b_tilde", "fixture", f"{OC}::test_23d_reads_b_tilde_not_b_hat",
+       "verification/test_symmetry_23.py::test_23d_with_b_tilde_decides_the_symmetry"),
     _m("teeth-march-time-origin-dropped", "core/spark.py",
        "ti = t0 + i * h", "ti = i * h",
        "generic stepping loop: step i at t = i h instead of t0 + i h (same only for t0 = 0, as in every scene)",
@@ -199,4 +200,10 @@ MUTANTS = (
        "st = _status(r[c], TOL_SYMMETRY)", "st = _status(r[c], TOL_THEOREM1)",
        "symmetry-fd records judged at Theorem 1's 1e-20 instead of 1e-25", "ledger-verdict",
        f"{CV}::test_ledger_verdicts"),
+    _m("teeth-symmetry-control-at-claim-threshold", "lab/claims/ledger.py",
+       'return "fail" if residual is not None and residual >= TOL_NEGATIVE else "pass"',
+       'return "fail" if residual is not None and residual > TOL_SYMMETRY else "pass"',
+       "symmetry controls (Euler I/II, ledger and general scenes) count any residual above 1e-25 as the "
+       "expected failure (a reported instance: they were judged at the claim's threshold)", "ledger-verdict",
+       f"{CV}::test_symmetry_controls_fail_only_at_tol_negative"),
 )
