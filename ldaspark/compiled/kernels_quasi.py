@@ -566,6 +566,9 @@ def quasi_newton(model, tab, ws, qw, cw, curv, x, t, q, v, h, G, tol, max_iter, 
             if (status == 0 and eta > 0.0 and eta * dn <= RATE_KAPPA * tol * (norm_inf(x) + scale)
                     and dref <= RATE_SPAN * dn and dn <= RATE_SPAN * dref):
                 status = 1
+                # counted here, where the carried rate decides: a first increment that passed
+                # the plain test |dx_1| <= lim was counted too (skate, gauss-4, tol = 0.1: 99 of 100)
+                qstats[QS_RATE_FIRST] += 1
         if status == 0 and prev > 0.0 and theta <= 0.0:
             # RADAU5 at its second increment: the rate of the one ratio there, theta_1 =
             # |dx_2| / |dx_1|, stops the iteration when theta_1 / (1 - theta_1) |dx_2| <= kappa lim,
@@ -709,8 +712,6 @@ def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compe
                 qstats[QS_CURV_STEPS] += 1
             if status == 1:
                 backoff = 1
-                if it == 1 and eta > 0.0:
-                    qstats[QS_RATE_FIRST] += 1
                 if 0.0 <= rate < 1.0:
                     eta = rate / (1.0 - rate)
                     dref = d1
