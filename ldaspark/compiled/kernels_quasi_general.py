@@ -36,7 +36,7 @@ from .newton import (FAIL_NONFINITE, RATE_KAPPA, end_newton, fail, lu_factor, lu
 # compiles in (tests/compiled/test_quasi_general.py checks it)
 HELPERS = ("kernels.py", "newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py",
            "modeltypes.py", "kernels_quasi.py")
-HELPERS_SHA256 = "23848c7b429c1ce63c97e6f7b558d06e332110340c54d36471631fdae88b9586"
+HELPERS_SHA256 = "302463fd47aeaf6c710963e8f1724335230330d56aa222149e1f1b2381788238"
 
 
 @numba.njit(cache=True)
