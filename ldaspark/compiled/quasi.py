@@ -149,7 +149,8 @@ def run_quasi(cs, method, t0, q0, v0, h, n_steps, every=1, compensated=True, tol
         st.pop(k)
     st.update(zip(QUASI_STAT_NAMES, (int(x) for x in qstats)))
     # nlu counts LU factorisations on every engine (``Result``): here the multiplier matrices as
-    # well as the Newton chain's (a quasi run said 0 after factoring one matrix a step)
+    # well as the Newton chain's (a quasi run said 0 after factoring one matrix a step); the
+    # general form's s + 1 L_vv factorisations a step are counted in the kernel
     st["nlu"] += st["multiplier_lu"]
     st["mean_iterations"] = st["newton_iterations"] / max(st["steps"], 1)
     st.update(path="fast", kernel="quasi", form=cs.form, compensated=bool(compensated), linear_solver="dense",

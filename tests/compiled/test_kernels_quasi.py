@@ -271,6 +271,30 @@ def test_a_loose_tol_stops_after_one_increment_on_the_carried_rate(monkeypatch):
     assert c.stats["rate_first_steps"] >= 250 and abs(c.stats["rate_first_steps"] - r.stats["rate_first_steps"]) <= 6
 
 
+@pytest.mark.parametrize("scene,method,h,tol", [("skate", "gauss-4", 0.2, 1e-1), ("particle", "gauss-4", 0.2, 1e-1),
+                                                ("relativistic", "gauss-2", 0.05, 1e-2)])
+def test_rate_first_steps_counts_only_the_steps_the_carried_rate_accepted(scene, method, h, tol):
+    """``rate_first_steps`` counts the steps accepted after one increment by the carried rate
+    (RADAU5's first-iteration test, eta |dx_1| <= RATE_KAPPA lim); it counted every one-increment
+    step while a rate was carried, also those whose |dx_1| <= lim passed the plain test, where the
+    rate decides nothing (100 steps: skate and particle at tol = 0.1, relativistic (general form)
+    at tol = 1e-2: 99 each, every step after step 0). At these tol the plain test passes every
+    first increment after step 0 (|dx_1| ~ 1e-4 relative from the collocation predictor; lim = tol
+    (|x| + |v0|)): one increment a step, none accepted by the rate. Control: at tol = 1e-8 the
+    plain test fails on the skate (|dx_1| >> 1e-8 lim) and the rate accepts most first increments
+    (measured 74 of 100, before and after)."""
+    sc = get_scene(scene)
+    t0, q0, v0 = sc.initial()
+    cs = compile_system(sc.system)
+    st = run_quasi(cs, method, t0, q0, v0, h, 100, 1, True, tol).stats
+    # step 0 (from the zero guess) takes 2 increments and measures a rate; every later step 1
+    assert st["quasi_fallbacks"] == 0 and st["quasi_iterations"] == 101, st
+    assert st["rate_first_steps"] == 0, st
+    if scene == "skate":
+        tight = run_quasi(cs, method, t0, q0, v0, h, 100, 1, True, 1e-8).stats
+        assert 50 <= tight["rate_first_steps"] < 100 and tight["quasi_iterations"] > 101, tight
+
+
 @pytest.mark.parametrize("scene", ["particle", "robot", "chaplygin-sleigh"])
 def test_a_ratio_at_round_off_is_not_carried_as_the_rate(scene):
     """The first-increment test carries the step's rate theta / (1 - theta); it took the LAST

@@ -176,3 +176,21 @@ def test_integrate_sums_the_curvature_counters_over_chunks(monkeypatch):
     assert one.stats["curvature_steps"] == b.stats["curvature_steps"] == 120
     assert one.stats["curvature_refreshes"] == 1 and b.stats["curvature_refreshes"] == 3
     assert _difference(one, b) <= 1.0
+
+
+@pytest.mark.parametrize("method,s", [("gauss-2", 2), ("gauss-4", 4)])
+def test_nlu_counts_the_factorisations_of_a_curvature_refresh(method, s):
+    """A Hessian decomposition (``curvature_refresh``) factors n matrices I + h^2 mu_a (A^ A) of
+    size s; ``nlu`` counts LU factorisations on every engine, so they are in it (before: nlu =
+    multiplier_lu; particle, 10 steps of h = 0.05, one refresh: 10 for 13). Exact count: no step
+    fell back (the Newton chain factored nothing), one multiplier matrix a step. Control: with
+    the curvature off (``run_quasi(curvature=False)``) no refresh and nlu = multiplier_lu."""
+    sc = get_scene("particle")
+    cs = compile_system(sc.system)
+    t0, q0, v0 = sc.initial()
+    r = run_quasi(cs, method, t0, q0, v0, 0.05, 10, 1)
+    st = r.stats
+    assert st["quasi_fallbacks"] == 0 and st["curvature_refreshes"] >= 1 and st["multiplier_lu"] == 10, st
+    assert st["nlu"] == st["multiplier_lu"] + cs.n * st["curvature_refreshes"], st
+    off = run_quasi(cs, method, t0, q0, v0, 0.05, 10, 1, curvature=False).stats
+    assert off["curvature_refreshes"] == 0 and off["quasi_fallbacks"] == 0 and off["nlu"] == off["multiplier_lu"] == 10

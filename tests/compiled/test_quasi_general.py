@@ -100,3 +100,21 @@ def test_integrate_general_form_and_nonideal_refused():
         ldaspark.integrate("friction-skate", "gauss-2", h=0.05, n_steps=3, engine="compiled", newton="quasi")
     with pytest.raises(InputError, match="quasi"):
         ldaspark.integrate("relativistic", "gauss-2", h=0.05, n_steps=3, engine="generic", newton="quasi")
+
+
+@pytest.mark.parametrize("fam,s", [("gauss-2", 2), ("lobatto-iiia-iiib-3", 3)])
+def test_nlu_counts_the_frozen_velocity_blocks(fam, s):
+    """A general-form quasi-Newton attempt factors s + 1 matrices L_vv (the stages and the end
+    point) and the multiplier matrix S: s + 2 LU factorisations, all of them in ``nlu`` (its one
+    meaning on every engine, ``Result``). Before: nlu = multiplier_lu, 1 a step (relativistic,
+    gauss-2, 10 steps: nlu 10 for 40 factorisations). Exact counts: no step fell back here, so
+    the Newton chain factored nothing. Control: the mechanical form without curvature (the skate,
+    Hess U = 0) factors only S per step (M is factored once per run, outside the step) and keeps
+    nlu = multiplier_lu."""
+    g = ldaspark.integrate("relativistic", fam, h=0.05, n_steps=10, engine="compiled", newton="quasi")
+    st = g.stats
+    assert st["quasi_fallbacks"] == 0 and st["multiplier_lu"] == 10, st
+    assert g.nlu == st["nlu"] == (s + 2) * st["multiplier_lu"], st
+    m = ldaspark.integrate("skate", fam, h=0.05, n_steps=10, engine="compiled", newton="quasi")
+    assert m.stats["quasi_fallbacks"] == 0 and m.stats["curvature_refreshes"] == 0, m.stats
+    assert m.nlu == m.stats["multiplier_lu"] == 10, m.stats
