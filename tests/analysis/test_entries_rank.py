@@ -1,0 +1,65 @@
+"""The rank of Theorem 1's boundary-value Jacobian J for a tableau whose entries are known only to
+their digits (float64, as users publish them): rounding moves an exact zero singular value of J off
+zero by the same amount at every dps, so the working precision alone cannot call it zero.
+
+Gauss-2 on mp-particles (h = 1/10) is singular for the exact method (one zero sigma, at the
+precision floor 10^-dps); written in float64 that sigma sits at 4.8e-22 sigma_max at dps 30 and 50
+(not a floor: it does not move with dps), inside what the entries' uncertainty (6.8e-16) can move it
+(a response of 6.8e-2 per unit change, measured, times 10 sqrt(20): 2.1e-15). Before the fix
+``classify_wellposedness`` called it "well-posed", and ``check_symmetry`` at dps 50 (threshold
+10^-25) solved the reversed BVP without the gauge border along that direction: L_d(t1,q1,t0,q0) +
+L_d missed by 1.3e-3 (the exact method: 0), and ``ldaspark audit --dps 50`` failed the float64
+Gauss-2's symmetry (exit 1)."""
+from __future__ import annotations
+
+import sympy
+
+import ldaspark
+from ldaspark.core.families import get_method
+from ldaspark.core.tableau_file import from_json_dict
+
+
+def _float64(name):
+    """The built-in written as its users write it in float64: every entry a Python float."""
+    d = get_method(name, exact=True).to_json_dict()
+    f = lambda x: float(sympy.N(sympy.sympify(x), 30))
+    return from_json_dict({k: (v if k == "name" else [[f(x) for x in r] if isinstance(r, list) else f(r) for r in v])
+                           for k, v in d.items()})
+
+
+def _scene(name, dps):
+    sc = ldaspark.get_scene(name)
+    t0, q0, v0 = sc.initial(dps + 45)
+    return sc.system, t0, q0, v0
+
+
+def test_float64_gauss2_rank_is_not_decided_where_the_exact_method_is_singular():
+    f64, exact = _float64("gauss-2"), get_method("gauss-2", exact=True)
+    system, t0, q0, v0 = _scene("mp-particles", 50)
+    r = ldaspark.classify_wellposedness(system, f64, t0, q0, v0, 0.1, dps=(30, 50))
+    # before the fix: "well-posed" (rank deficiency 0)
+    assert r["class"] == "not decided", r["class"]
+    u = r["entries_undecided"]
+    assert u["class_if_zero"] == "singular" and u["count"] == 1
+    assert u["sigma_rel"] <= u["bound"]
+    # the exact method: singular, decided by the precision floor (no entries' uncertainty)
+    re = ldaspark.classify_wellposedness(system, exact, t0, q0, v0, 0.1, dps=(30, 50))
+    assert re["class"] == "singular" and "entries_undecided" not in re
+    # control: a genuine small sigma above the entries' reach stays decided (skate: 4.4e-5 sigma_max)
+    system, t0, q0, v0 = _scene("skate", 50)
+    rs = ldaspark.classify_wellposedness(system, f64, t0, q0, v0, 0.1, dps=(30, 50))
+    assert rs["class"] == "well-posed" and "entries_undecided" not in rs
+
+
+def test_float64_gauss2_is_symmetric_at_dps_50_on_mp_particles():
+    f64, exact = _float64("gauss-2"), get_method("gauss-2", exact=True)
+    system, t0, q0, v0 = _scene("mp-particles", 50)
+    r = ldaspark.check_symmetry(system, f64, t0, q0, v0, 0.1, dps=50)
+    # before the fix: symmetry-Ld 1.3e-3, "well-posed". The float64 entries are ~1e-16 off (23);
+    # the identities respond with O(1) per unit change on this scene (the audit measures 8.8e4 at
+    # most, with the f_d parts): 1e-10 is above anything the entries can explain and far below 1.3e-3
+    assert r["symmetry-Ld"] < 1e-10 and r["symmetry-Phi"] < 1e-10, r
+    assert r["wellposed"] == "singular" and r["rank_at_entries_precision"]
+    # the exact method, for comparison: the same class, L_d symmetric to the working precision
+    re = ldaspark.check_symmetry(system, exact, t0, q0, v0, 0.1, dps=50)
+    assert re["wellposed"] == "singular" and re["symmetry-Ld"] < 1e-40 and not re["rank_at_entries_precision"]
