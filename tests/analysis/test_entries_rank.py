@@ -12,19 +12,24 @@ L_d missed by 1.3e-3 (the exact method: 0), and ``ldaspark audit --dps 50`` fail
 Gauss-2's symmetry (exit 1)."""
 from __future__ import annotations
 
+import json
+
 import sympy
 
 import ldaspark
 from ldaspark.core.families import get_method
+from ldaspark.core.numbers import JsonNumber
 from ldaspark.core.tableau_file import from_json_dict
 
 
 def _float64(name):
-    """The built-in written as its users write it in float64: every entry a Python float."""
+    """The built-in as its users publish it in float64: a JSON file, every entry a JSON number (the
+    float's shortest repr, read back as the decimal text it is)."""
     d = get_method(name, exact=True).to_json_dict()
     f = lambda x: float(sympy.N(sympy.sympify(x), 30))
-    return from_json_dict({k: (v if k == "name" else [[f(x) for x in r] if isinstance(r, list) else f(r) for r in v])
-                           for k, v in d.items()})
+    text = json.dumps({k: (v if k == "name" else [[f(x) for x in r] if isinstance(r, list) else f(r) for r in v])
+                       for k, v in d.items()})
+    return from_json_dict(json.loads(text, parse_float=JsonNumber))
 
 
 def _scene(name, dps):
@@ -63,3 +68,23 @@ def test_float64_gauss2_is_symmetric_at_dps_50_on_mp_particles():
     # the exact method, for comparison: the same class, L_d symmetric to the working precision
     re = ldaspark.check_symmetry(system, exact, t0, q0, v0, 0.1, dps=50)
     assert re["wellposed"] == "singular" and re["symmetry-Ld"] < 1e-40 and not re["rank_at_entries_precision"]
+
+
+def test_theorem1_residuals_does_not_call_a_float64_rank_the_exact_method_lacks_well_posed():
+    """Lobatto IIIA-IIIB-IIID 3 on the particle: singular for the exact method; in float64 the zero
+    sigma sits at 9.6e-24 sigma_max, above the working precision's 10^-25 at dps_fd = 50, and the
+    solve (which succeeds: no retry at the entries' precision) called J "well-posed"."""
+    f64, exact = _float64("lobatto-iiia-iiib-iiid-3"), get_method("lobatto-iiia-iiib-iiid-3", exact=True)
+    system, t0, q0, v0 = _scene("particle", 30)
+    r = ldaspark.theorem1_residuals(system, f64, t0, q0, v0, 0.1, dps=30)
+    assert r["wellposed"] == "not decided", r["wellposed"]       # before the fix: "well-posed"
+    assert r["entries_undecided"]["count"] == 1 and r["rank_deficiency"] == 0
+    # Theorem 1 itself holds: relative residual 2.1e-32 (the entries' effect on this scene is below
+    # the dps-30 tolerance 1e-15 of the audit)
+    assert max(r["theorem1-q0"], r["theorem1-q1"]) < 1e-15
+    re = ldaspark.theorem1_residuals(system, exact, t0, q0, v0, 0.1, dps=30)
+    assert re["wellposed"] == "singular" and "entries_undecided" not in re
+    # control: a well-posed J stays so in float64 (Gauss-2 on the skate, sigma_min 4.4e-5 sigma_max)
+    system, t0, q0, v0 = _scene("skate", 30)
+    rs = ldaspark.theorem1_residuals(system, _float64("gauss-2"), t0, q0, v0, 0.1, dps=30)
+    assert rs["wellposed"] == "well-posed" and "entries_undecided" not in rs

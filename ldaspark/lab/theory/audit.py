@@ -175,6 +175,8 @@ def _theorem1_scene(tab, name, hyp22, d, quick, entry_tol=None):
             wp = f"{wp} (classification failed: {exc})"
     else:
         wp = f"{wp} (rank deficiency {r['rank_deficiency']} at dps {r['dps_fd']})"
+        if "entries_undecided" in r:       # a sigma the entries' digits cannot tell from zero
+            wp += f": rank not decided at the precision of the entries ({r['entries_undecided']['reason']})"
     if r.get("rank_at_entries_precision"):
         # the solve without the gauge border failed: its zeros were taken at the entries' precision
         wp += (f"; the finite-difference solves took singular values below "
