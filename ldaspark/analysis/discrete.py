@@ -323,9 +323,12 @@ def entries_undecided(system, tableau, t0, q0, v0, h, d, rel, r):
         T = _moved_tableau(tableau, radii, umax, ENTRY_PROBE, seed)
         bk = Backend(d)
         with bk.context():
-            t1, q1, xg = base_point(system, T, t0, q0, v0, bk.scalar(h), d, newton="mixed")
-            J = DiscreteBVP(system, T, d).evaluate(bk.scalar(t0), bk.array(q0), t1, q1, xg)[1]
-            sig = _rank_info(bk, J, d)[0]
+            try:
+                t1, q1, xg = base_point(system, T, t0, q0, v0, bk.scalar(h), d, newton="mixed")
+                J = DiscreteBVP(system, T, d).evaluate(bk.scalar(t0), bk.array(q0), t1, q1, xg)[1]
+                sig = _rank_info(bk, J, d)[0]
+            except LdasparkError:      # the moved tableau's step failed: nothing measured, rank as before
+                return None
             resp = max(resp, abs(mpmath.mpf(sig[k]) / sig[0] - rel[k]))
     bound = ENTRY_SAFETY * math.sqrt(len(rads)) * resp / ENTRY_PROBE * umax
     count = 0

@@ -88,3 +88,22 @@ def test_theorem1_residuals_does_not_call_a_float64_rank_the_exact_method_lacks_
     system, t0, q0, v0 = _scene("skate", 30)
     rs = ldaspark.theorem1_residuals(system, _float64("gauss-2"), t0, q0, v0, 0.1, dps=30)
     assert rs["wellposed"] == "well-posed" and "entries_undecided" not in rs
+
+
+def test_a_failed_probe_leaves_the_rank_as_the_working_precision_decides_it(monkeypatch):
+    """When the step of a moved tableau fails nothing is measured: the class stays the one the
+    working precision gives (no error, no 'not decided' without a measurement)."""
+    from ldaspark.analysis import discrete as D
+    f64 = _float64("gauss-2")
+    system, t0, q0, v0 = _scene("mp-particles", 50)
+    real = D.base_point
+
+    def failing(system, tab, *a, **k):
+        if tab.name.endswith(" moved"):
+            raise D.DiscreteSolveError("probe step failed (test)")
+        return real(system, tab, *a, **k)
+    monkeypatch.setattr(D, "base_point", failing)
+    r = ldaspark.classify_wellposedness(system, f64, t0, q0, v0, 0.1, dps=(30, 50))
+    assert r["class"] == "well-posed" and "entries_undecided" not in r
+    monkeypatch.setattr(D, "base_point", real)           # control: measured, not decided
+    assert ldaspark.classify_wellposedness(system, f64, t0, q0, v0, 0.1, dps=(30, 50))["class"] == "not decided"
