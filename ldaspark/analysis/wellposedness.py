@@ -17,9 +17,6 @@ from .discrete import (GAUGE, SINGULAR, UNDECIDED, WELLPOSED, DiscreteBVP, _null
 
 NEWTON = "mixed"     # the IVP step to the point where J is classified
 
-#: the class of a J whose rank the tableau's entries cannot decide (float64, short decimals)
-UNDECIDED = "not decided"
-
 
 #: a step factor's text: "p/q" or a decimal with an exponent of at most _FACTOR_EXPONENT digits'
 #: magnitude (Fraction("1e999999999") builds 10^999999999: minutes of CPU for one argument)
@@ -166,8 +163,10 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
         with bk.context():
             Vh = _svd(bk, J)[2]
     fr = factors[str(h_factors[0])]
-    undecided = entries_undecided(system, tableau, t0, q0, v0, mpmath.mpf(h) * fr.numerator / fr.denominator,
-                                  d_hi, sig_rel[(d_hi, h_factors[0])], r)
+    bk_hi = Backend(d_hi)
+    with bk_hi.context():     # the step of sig_rel[(d_hi, h_factors[0])], at its precision
+        undecided = entries_undecided(system, tableau, t0, q0, v0, bk_hi.scalar(h) * fr.numerator / fr.denominator,
+                                      d_hi, sig_rel[(d_hi, h_factors[0])], r)
     support = _null_support(bvp, Vh, r)
     if undecided is not None:
         # a sigma the entries' uncertainty can move to zero: the rank is not decided at their digits;
