@@ -60,6 +60,8 @@ from ..models import arguments
 WELLPOSED = "well-posed"
 GAUGE = "gauge-deficient"
 SINGULAR = "singular"
+#: the class of a J whose rank the tableau's entries cannot decide (float64, short decimals)
+UNDECIDED = "not decided"
 
 
 class DiscreteSolveError(LdasparkError):
@@ -245,6 +247,21 @@ RANK_BY_SCHUR = True     # False: the full-precision SVD of all of J (benchmarks
 #: Not the rule for every solve: a genuine small value can lie below it (gauss-6, skate: 8.5e-14)
 ENTRY_RANK_FACTOR = 1e3
 
+#: entries known only to their digits move an exact zero singular value off zero, by the same amount
+#: at every dps (float64 gauss-2 on mp-particles: 4.8e-22 sigma_max, classified "well-posed" where
+#: the exact method is "singular"). A genuine small sigma is told from such a one as the audit's
+#: allowances are (``lab.theory.audit_checks.entry_effect``): J's sigma for the tableau moved by
+#: ENTRY_PROBE in the shape of the entries' radii (far above the working precision's noise, far
+#: below 1: linear), ENTRY_PROBES directions; a sigma within ENTRY_SAFETY sqrt(n) x that response,
+#: rescaled to the largest radius, can be zero for a tableau the entries stand for
+ENTRY_PROBE = 1e-10
+ENTRY_PROBES = 2
+ENTRY_SAFETY = 10.0
+#: only sigma below this multiple of the entries' relative uncertainty are probed (a response above
+#: 1e7 per unit change of the entries, beyond ENTRY_SAFETY sqrt(n), is not met: 4.5e3 on mp-particles)
+ENTRY_GATE = 1e7
+_PROBED = ("c", "A", "A_hat", "A_tilde", "b", "b_hat", "b_tilde")
+
 
 def entries_floor(tableau) -> float:
     """The largest radius of the tableau's entries (``SparkTableau.ball_entries``: decimals to the
@@ -261,6 +278,69 @@ def entries_floor(tableau) -> float:
                 rad = max(rad, float(x.rad()))
                 mag = max(mag, abs(float(x.mid())))
     return rad / mag if mag > 0 else 0.0
+
+
+def _moved_tableau(tableau, radii, umax, eps, seed):
+    """``tableau`` with every entry moved by eps * (its radius / umax), pseudo-random signs (``seed``)."""
+    import random
+    rng = random.Random(seed)
+    dirs = {k: [[rng.choice((-1, 1)) * float(x.rad()) / umax for x in r] if isinstance(r, list)
+                else rng.choice((-1, 1)) * float(r.rad()) / umax for r in v] for k, v in radii.items()}
+
+    def builder(dps):
+        ent = tableau.mp_entries(dps + 10)
+        out = {}
+        with mpmath.workdps(dps + 10):
+            for k, v in ent.items():
+                if k not in dirs:
+                    out[k] = [list(r) if isinstance(r, list) else r for r in v]
+                    continue
+                flat = [x[0] if isinstance(x, list) and k in ("c", "b", "b_hat", "b_tilde") else x for x in v]
+                out[k] = [[y + eps * dd for y, dd in zip(r, dr)] if isinstance(r, list) else r + eps * dr
+                          for r, dr in zip(flat, dirs[k])]
+        return out
+    return SparkTableau(f"{tableau.name} moved", tableau.s, builder=builder, family="perturbed")
+
+
+def entries_undecided(system, tableau, t0, q0, v0, h, d, rel, r):
+    """None, or how many of J's smallest genuine singular values (``rel``: sigma / sigma_max at dps
+    d and step h at the base point from (t0, q0, v0), largest first; the last r are zero at working
+    precision) the uncertainty of the tableau's entries can move to zero (see ENTRY_PROBE), with
+    the numbers: ``bound`` (relative to sigma_max; measured on the smallest) and the ``reason``."""
+    floor = entries_floor(tableau)
+    k = len(rel) - 1 - r                      # the smallest genuine sigma
+    if floor <= 0 or k < 0 or rel[k] > ENTRY_GATE * floor:
+        return None
+    from .order_conditions import ball_digits
+    balls = tableau.ball_entries(ball_digits(tableau, 30))
+    radii = {key: balls[key] for key in _PROBED}
+    rads = [float(x.rad()) for v in radii.values() for row in v for x in (row if isinstance(row, list) else [row])]
+    umax = max(rads)
+    if umax <= 0:
+        return None
+    resp = mpmath.mpf(0)
+    for seed in range(ENTRY_PROBES):
+        T = _moved_tableau(tableau, radii, umax, ENTRY_PROBE, seed)
+        bk = Backend(d)
+        with bk.context():
+            try:
+                t1, q1, xg = base_point(system, T, t0, q0, v0, bk.scalar(h), d, newton="mixed")
+                J = DiscreteBVP(system, T, d).evaluate(bk.scalar(t0), bk.array(q0), t1, q1, xg)[1]
+                sig = _rank_info(bk, J, d)[0]
+            except LdasparkError:      # the moved tableau's step failed: nothing measured, rank as before
+                return None
+            resp = max(resp, abs(mpmath.mpf(sig[k]) / sig[0] - rel[k]))
+    bound = ENTRY_SAFETY * math.sqrt(len(rads)) * resp / ENTRY_PROBE * umax
+    count = 0
+    while k - count >= 0 and rel[k - count] <= bound:
+        count += 1
+    if not count:
+        return None
+    return {"count": count, "sigma_rel": float(rel[k]), "bound": float(bound),
+            "response": float(resp / ENTRY_PROBE), "entries_radius": umax,
+            "reason": (f"sigma_min/sigma_max = {float(rel[k]):.1e} is within {float(bound):.1e}, what the entries' "
+                       f"uncertainty ({umax:.1e}) can move it (a response of {float(resp / ENTRY_PROBE):.1e} per unit "
+                       "change of the entries, measured): zero for some tableau the entries stand for")}
 
 
 def _rank_info(bk, J, dps, entries=0.0):
@@ -668,7 +748,9 @@ def theorem1_residuals(system, tableau, t0, q0, v0, h, dps=40, q1_shift=None, q0
     -------
     dict
         ``theorem1-q0`` and ``theorem1-q1`` (relative residuals of the two identities),
-        ``fd_error`` (the difference estimate's error), ``wellposed``, ``rank_deficiency``,
+        ``fd_error`` (the difference estimate's error), ``wellposed`` ("not decided" with
+        ``entries_undecided`` when a singular value of J is within what the uncertainty of the
+        tableau's entries can move to zero), ``rank_deficiency``,
         ``L_d``, singular values of the BVP Jacobian and timings.
 
     See Also
@@ -721,6 +803,15 @@ def theorem1_residuals(system, tableau, t0, q0, v0, h, dps=40, q1_shift=None, q0
         attempt += 1
     if out is None:
         raise err
+    sig = out.pop("_sigma_rel", None)
+    if sig is not None and out["wellposed"] == WELLPOSED and not entries_rank and entries_floor(tableau) > 0:
+        # the rank decided at working precision only: a sigma the entries' uncertainty can move to
+        # zero (float64 Lobatto IIIA-IIIB-IIID 3 on the particle: 9.6e-24 sigma_max, where the exact
+        # method is singular) leaves the class undecided at their digits
+        with Backend(out["dps_fd"]).context():
+            u = entries_undecided(system, tableau, t0, q0, v0, h, out["dps_fd"], sig, 0)
+        if u is not None:
+            out["wellposed"], out["entries_undecided"] = UNDECIDED, u
     bad = [k for k, x in out.items() if isinstance(x, (float, mpmath.mpf)) and not mpmath.isfinite(x)]
     if bad:                             # no NaN or infinity is returned as a residual
         from ..core.errors import NonFiniteError
@@ -791,6 +882,7 @@ def _theorem1_once(system, tableau, t0, q0, v0, h, dps, q1_shift, q0_shift, dps_
                "wellposed": res.wellposed, "rank_deficiency": res.rank_deficiency,
                "sigma_min": float(res.sigma[-1]), "sigma_max": float(res.sigma[0]),
                "sigma_min_nonzero": float(res.sigma[len(res.sigma) - 1 - res.rank_deficiency]),
+               "_sigma_rel": [mpmath.mpf(x) / res.sigma[0] for x in res.sigma],
                "mu_norm": res.mu_norm, "bvp_residual": res.residual, "dps": dps, "dps_fd": dps_fd,
                "fd_delta": float(delta), "seconds": time.time() - t_start,
                "null_support": res.extra["null_support"]}

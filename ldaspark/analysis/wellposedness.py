@@ -12,8 +12,8 @@ import numpy as np
 
 from ..core.backend import Backend
 from ..models import arguments
-from .discrete import (GAUGE, SINGULAR, WELLPOSED, DiscreteBVP, _null_support, _rank_info, _svd, base_point,
-                       discrete_lagrangian)
+from .discrete import (GAUGE, SINGULAR, UNDECIDED, WELLPOSED, DiscreteBVP, _null_support, _rank_info, _svd,
+                       base_point, discrete_lagrangian, entries_undecided)
 
 NEWTON = "mixed"     # the IVP step to the point where J is classified
 
@@ -162,8 +162,22 @@ def classify_wellposedness(system, tableau, t0, q0, v0, h, dps=(30, 50), h_facto
         # a genuine sigma below float64 resolution: float64 vectors would mix it into the null space
         with bk.context():
             Vh = _svd(bk, J)[2]
+    fr = factors[str(h_factors[0])]
+    bk_hi = Backend(d_hi)
+    with bk_hi.context():     # the step of sig_rel[(d_hi, h_factors[0])], at its precision
+        undecided = entries_undecided(system, tableau, t0, q0, v0, bk_hi.scalar(h) * fr.numerator / fr.denominator,
+                                      d_hi, sig_rel[(d_hi, h_factors[0])], r)
     support = _null_support(bvp, Vh, r)
-    if len(set(struct.values())) > 1:
+    if undecided is not None:
+        # a sigma the entries' uncertainty can move to zero: the rank is not decided at their digits;
+        # the class it would have as zero is reported beside
+        r0 = r + undecided["count"]
+        sup0 = _null_support(bvp, Vh, r0)
+        undecided["class_if_zero"] = GAUGE if sup0["V"] <= 1e-8 and sup0["v1"] <= 1e-8 else SINGULAR
+        out["entries_undecided"] = undecided
+    if undecided is not None:
+        cls = UNDECIDED
+    elif len(set(struct.values())) > 1:
         cls = SINGULAR      # structural rank changes with h: not a clean property
     elif r == 0:
         cls = WELLPOSED

@@ -29,8 +29,8 @@ import mpmath
 import numpy as np
 
 from ...core.backend import Backend
-from ...analysis.discrete import (WELLPOSED, GAUGE, SINGULAR, base_point, discrete_lagrangian, perturbed_initial,
-                               theorem1_residuals)
+from ...analysis.discrete import (WELLPOSED, GAUGE, SINGULAR, UNDECIDED, base_point, discrete_lagrangian,
+                               perturbed_initial, theorem1_residuals)
 from ...analysis.memo import memoized
 from ...analysis.symmetry import check_symmetry
 from ...analysis.wellposedness import classify_wellposedness, gauge_invariance
@@ -102,7 +102,7 @@ def record(claim, method, scene, status, residual, expected, dps=None, wellposed
 RECORD_KEYS = frozenset(("claim", "method", "scene", "point", "status", "expected", "residual", "threshold", "dps",
                          "wellposed", "seconds", "note"))
 _STATUSES = ("pass", "fail", "not-applicable")
-_WELLPOSED = (WELLPOSED, GAUGE, SINGULAR, "n/a")
+_WELLPOSED = (WELLPOSED, GAUGE, SINGULAR, UNDECIDED, "n/a")   # UNDECIDED: a tableau read with finite digits
 
 
 def _number_or_none(x, what, low=None):

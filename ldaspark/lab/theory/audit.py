@@ -167,10 +167,16 @@ def _theorem1_scene(tab, name, hyp22, d, quick, entry_tol=None):
         try:
             wpc = wellposedness.classify_wellposedness(sc.system, tab, t0, q0, v0, THEOREM_H, dps=(d, d + 20))
             wp = f"{wpc['class']} (rank deficiency {wpc['rank_deficiency']}, decided at dps {d}, {d + 20} and h, h/2)"
+            if "entries_undecided" in wpc:     # a sigma the entries' digits cannot tell from zero
+                u = wpc["entries_undecided"]
+                wp = (f"rank not decided at the precision of the entries ({u['reason']}; "
+                      f"{u['class_if_zero']} if it is zero; rank deficiency {wpc['rank_deficiency']} at dps {d}, {d + 20})")
         except LdasparkError as exc:
             wp = f"{wp} (classification failed: {exc})"
     else:
         wp = f"{wp} (rank deficiency {r['rank_deficiency']} at dps {r['dps_fd']})"
+        if "entries_undecided" in r:       # a sigma the entries' digits cannot tell from zero
+            wp += f": rank not decided at the precision of the entries ({r['entries_undecided']['reason']})"
     if r.get("rank_at_entries_precision"):
         # the solve without the gauge border failed: its zeros were taken at the entries' precision
         wp += (f"; the finite-difference solves took singular values below "
@@ -284,6 +290,8 @@ def _symmetry_checks(tab, d, scenes, entry_tol=None):
                         f"can contribute {bound:.0e} here: response {per:.1e} per unit change, measured)")
         facts[f"symmetry:{name}"] = {k: v for k, v in r.items() if isinstance(v, (int, float, str))}
         note = "" if judged == keys else "; f_d parts not judged: BVP singular, f_d not unique"
+        if r.get("rank_at_entries_precision"):
+            note += (f"; J's sigma_min taken as zero: {r['entries_undecided']['reason']}")
         if tol > max(tol_num, TEETH):
             # an allowance above TEETH cannot tell (23) from its violation (a non-symmetric method of
             # order p misses the identities by O(h^(p+1)), 1e-5 at order 4 and h = 1/10); 10-digit Lobatto
