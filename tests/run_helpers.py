@@ -57,3 +57,14 @@ def two_line_error(cls, first, second, **kw):
     exc = cls(first, **kw)
     exc.args = (f"{first}\n{second}",)
     return exc
+
+
+def main_rc_err(capsys, argv):
+    """(exit code, stderr) of ``ldaspark.cli.main(argv)`` in this process (SystemExit's code as argparse
+    exits), for tests that monkeypatch the computation behind a command."""
+    from ldaspark.cli import main
+    try:
+        rc = main(argv)
+    except SystemExit as exc:
+        rc = exc.code
+    return rc, capsys.readouterr().err

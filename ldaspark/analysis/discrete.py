@@ -280,13 +280,11 @@ def entries_floor(tableau) -> float:
     return rad / mag if mag > 0 else 0.0
 
 
-def _moved_tableau(tableau, radii, umax, eps, seed):
-    """``tableau`` with every entry moved by eps * (its radius / umax), pseudo-random signs (``seed``)."""
-    import random
-    rng = random.Random(seed)
-    dirs = {k: [[rng.choice((-1, 1)) * float(x.rad()) / umax for x in r] if isinstance(r, list)
-                else rng.choice((-1, 1)) * float(r.rad()) / umax for r in v] for k, v in radii.items()}
-
+def moved_tableau(tableau, dirs: dict, eps, label: str = "moved") -> SparkTableau:
+    """``tableau`` with every entry of the keys of ``dirs`` moved by eps * dirs[key] (nested as
+    ``SparkTableau.ball_entries``: vectors flat, matrices as lists of rows), built at any digits from
+    the entries at 10 more: the audit's perturbed tableaux (``audit_checks.perturbed_tableau``) and
+    the rank probe below."""
     def builder(dps):
         ent = tableau.mp_entries(dps + 10)
         out = {}
@@ -299,7 +297,16 @@ def _moved_tableau(tableau, radii, umax, eps, seed):
                 out[k] = [[y + eps * dd for y, dd in zip(r, dr)] if isinstance(r, list) else r + eps * dr
                           for r, dr in zip(flat, dirs[k])]
         return out
-    return SparkTableau(f"{tableau.name} moved", tableau.s, builder=builder, family="perturbed")
+    return SparkTableau(f"{tableau.name} {label}", tableau.s, builder=builder, family="perturbed")
+
+
+def _moved_tableau(tableau, radii, umax, eps, seed):
+    """``tableau`` with every entry moved by eps * (its radius / umax), pseudo-random signs (``seed``)."""
+    import random
+    rng = random.Random(seed)
+    dirs = {k: [[rng.choice((-1, 1)) * float(x.rad()) / umax for x in r] if isinstance(r, list)
+                else rng.choice((-1, 1)) * float(r.rad()) / umax for r in v] for k, v in radii.items()}
+    return moved_tableau(tableau, dirs, eps)
 
 
 def entries_undecided(system, tableau, t0, q0, v0, h, d, rel, r):

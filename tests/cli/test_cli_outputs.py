@@ -5,6 +5,7 @@ import os
 import pytest
 
 from ldaspark.cli import main
+from run_helpers import main_rc_err
 
 
 class _Reached(Exception):
@@ -12,11 +13,7 @@ class _Reached(Exception):
 
 
 def _rc_err(capsys, argv):
-    try:
-        rc = main(argv)
-    except SystemExit as exc:
-        rc = exc.code
-    return rc, capsys.readouterr().err
+    return main_rc_err(capsys, argv)
 
 
 def _refused_as_same_file(rc, err):

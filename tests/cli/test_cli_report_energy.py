@@ -5,6 +5,7 @@ import json
 import pytest
 
 from ldaspark.cli import main
+from run_helpers import main_rc_err
 
 
 class _Reached(BaseException):
@@ -22,11 +23,7 @@ def fig4_stand_in(monkeypatch):
 
 
 def _rc_err(capsys, argv):
-    try:
-        rc = main(argv)
-    except SystemExit as exc:
-        rc = exc.code
-    return rc, capsys.readouterr().err
+    return main_rc_err(capsys, argv)
 
 
 @pytest.mark.parametrize("extra", [["--figure", "4", "--t-end", "12"],     # 240 steps, not whole samples

@@ -433,25 +433,12 @@ def perturbed_tableau(tab, radii: dict, eps: float, seed: int):
     """``tab`` with every entry moved by eps * (its radius / the largest radius) with a pseudo-random
     sign (``seed``): a tableau off by the shape of the entries' uncertainty, scaled to ``eps``."""
     import random
-    from ...core.tableau import SparkTableau
     umax = max(_flat(radii.values()))
     rng = random.Random(seed)
     dirs = {k: [[rng.choice((-1, 1)) * x / umax for x in r] if isinstance(r, list) else rng.choice((-1, 1)) * r / umax
                 for r in v] for k, v in radii.items()}
-
-    def builder(dps):
-        ent = tab.mp_entries(dps + 10)
-        out = {}
-        with mpmath.workdps(dps + 10):
-            for k, v in ent.items():
-                if k not in dirs:
-                    out[k] = [list(r) if isinstance(r, list) else r for r in v]
-                    continue
-                flat = [x[0] if isinstance(x, list) and k in ("c", "b", "b_hat", "b_tilde") else x for x in v]
-                out[k] = [[y + eps * d for y, d in zip(r, dr)] if isinstance(r, list) else r + eps * dr
-                          for r, dr in zip(flat, dirs[k])]
-        return out
-    return SparkTableau(f"{tab.name} perturbed", tab.s, builder=builder, family="perturbed")
+    from ...analysis.discrete import moved_tableau
+    return moved_tableau(tab, dirs, eps, "perturbed")
 
 
 def entry_effect(tab, radii: dict, response) -> tuple[float, float]:
