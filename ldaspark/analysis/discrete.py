@@ -108,9 +108,6 @@ class DiscreteBVP:
         self.bk = self.method.backend
         self.tab = self.method.tab
         self.dps = dps
-        # the entries' relative uncertainty (float64 or short decimals; 0 for exact ones): where a
-        # Newton without the gauge border fails, a singular value below it is taken as zero
-        self.rank_floor = entries_floor(tableau)
         s, n, m = tableau.s, system.n, system.m
         self.s, self.n, self.m = s, n, m
         self.size = s * n + s * m + 2 * n
@@ -269,15 +266,22 @@ def entries_floor(tableau) -> float:
     built-ins computed to any precision."""
     if getattr(tableau, "exact", None) is None or tableau.known_exactly:
         return 0.0
+    balls = list(_flat_balls(_entry_balls(tableau)))
+    mag = max(abs(float(x.mid())) for x in balls)
+    return max(float(x.rad()) for x in balls) / mag if mag > 0 else 0.0
+
+
+def _entry_balls(tableau) -> dict:
+    """The balls of the coefficients the rank decisions look at (omega left out), by key."""
     from .order_conditions import ball_digits
     balls = tableau.ball_entries(ball_digits(tableau, 30))
-    rad, mag = 0.0, 0.0
-    for key in ("c", "A", "A_hat", "A_tilde", "b", "b_hat", "b_tilde"):
-        for row in balls[key]:
-            for x in (row if isinstance(row, list) else [row]):
-                rad = max(rad, float(x.rad()))
-                mag = max(mag, abs(float(x.mid())))
-    return rad / mag if mag > 0 else 0.0
+    return {key: balls[key] for key in _PROBED}
+
+
+def _flat_balls(radii: dict):
+    for v in radii.values():
+        for row in v:
+            yield from (row if isinstance(row, list) else [row])
 
 
 def moved_tableau(tableau, dirs: dict, eps, label: str = "moved") -> SparkTableau:
@@ -318,10 +322,8 @@ def entries_undecided(system, tableau, t0, q0, v0, h, d, rel, r):
     k = len(rel) - 1 - r                      # the smallest genuine sigma
     if floor <= 0 or k < 0 or rel[k] > ENTRY_GATE * floor:
         return None
-    from .order_conditions import ball_digits
-    balls = tableau.ball_entries(ball_digits(tableau, 30))
-    radii = {key: balls[key] for key in _PROBED}
-    rads = [float(x.rad()) for v in radii.values() for row in v for x in (row if isinstance(row, list) else [row])]
+    radii = _entry_balls(tableau)
+    rads = [float(x.rad()) for x in _flat_balls(radii)]
     umax = max(rads)
     if umax <= 0:
         return None
@@ -656,7 +658,7 @@ def discrete_lagrangian(system, tableau, t0, q0, t1, q1, dps=40, v0_guess=None, 
 def _solve_and_differentiate(bvp, t0, q0, t1, q1, x, gauge_ref=None, gauge=None, entries=0.0):
     """The BVP solved from x and differentiated (``discrete_lagrangian``). entries > 0: singular
     values below ENTRY_RANK_FACTOR times it count as zero (``_rank_info``; the tableau entries'
-    relative uncertainty, ``DiscreteBVP.rank_floor``, in ``theorem1_residuals``' retry)."""
+    relative uncertainty, ``entries_floor``, in ``theorem1_residuals``' retry)."""
     bk = bvp.bk
     sol = _Solver(bvp)
     x_in = x
@@ -836,15 +838,16 @@ def _theorem1_once(system, tableau, t0, q0, v0, h, dps, q1_shift, q0_shift, dps_
     Richardson-extrapolated over delta, delta/2, delta/4 (first try delta = 10^-(dps/4)); the error
     estimate is the difference of the two extrapolants. Residuals are relative to
     max(|p0|, |p1|, |dL_d/dq|). entries_rank: the BVP's zero singular values decided at the
-    precision of the tableau's entries (``DiscreteBVP.rank_floor``), not only the working one."""
+    precision of the tableau's entries (``entries_floor``), not only the working one."""
     t_start = time.time()
     bk_fd = Backend(dps_fd)
     bvp = DiscreteBVP(system, tableau, dps_fd)
+    floor = entries_floor(tableau) if entries_rank else 0.0
 
     def solve(qa, qb, xg):
         if not entries_rank:
             return discrete_lagrangian(system, tableau, t0_, qa, t1, qb, dps=dps_fd, x_guess=xg)
-        return _solve_and_differentiate(bvp, t0_, qa, t1, qb, xg, entries=bvp.rank_floor)
+        return _solve_and_differentiate(bvp, t0_, qa, t1, qb, xg, entries=floor)
     with bk_fd.context():
         t1, q1, xg = base_point(system, tableau, t0, q0, v0, h, dps_fd)
         t0_ = bk_fd.scalar(t0)
