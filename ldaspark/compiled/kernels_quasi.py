@@ -56,7 +56,7 @@ from .newton import (FAIL_NONFINITE, RATE_KAPPA, end_newton, fail, lu_factor, lu
 # digest is written here so that editing one changes this file too (tests/test_kernels_quasi.py).
 HELPERS = ("kernels.py", "newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py",
            "modeltypes.py")
-HELPERS_SHA256 = "15774c5b0e1b4319b3938e08eadd1d962a6d1628bf1d99c6a2993fc813567b92"
+HELPERS_SHA256 = "1712884590b8ce971c5a2cf68ab3f5c9a4b386d59c5dc2e3c1f60e5cf2b92f02"
 
 #: a quasi-Newton increment that contracts by less than this (|dx_k| > QUASI_THETA |dx_k-1|)
 #: sends the step to the Newton chain: at rate 1/2 the ~50 bits from a predictor error of 1e-2
@@ -211,7 +211,7 @@ def multiplier_matrix(model, tab, h, t, ws, qw):
     return lu_factor(S, spiv)
 
 
-@numba.njit(cache=True, _nrt=False)
+@numba.njit(cache=True, _nrt=False, inline="always")
 def quasi_increment(tab, h, qw, G, x):
     """x += dx with dx the solution of the frozen system above for the residual G; |dx|_inf.
     y_k = M^-1 G_k; S dLambda = G_c - C_Z y - C_dv y_s with C_Z y formed from the frozen K_k y_k and
@@ -418,7 +418,7 @@ def curvature_refresh(tab, h, cw):
     return True
 
 
-@numba.njit(cache=True, _nrt=False)
+@numba.njit(cache=True, _nrt=False, inline="always")
 def constraint_apply(A, bw, om, h, Kf, kqf, K1f, kq1f, z, Ky, kz, y, out):
     """out = C_Z y_Z + C_dv y_s, the frozen (21e, f) rows, y = [y_Z (s, n) | y_s (n)] flat:
     sum_k omega_rk K_k y_k + h sum_j omega_rj k_q,j sum_k a_jk y_k (r < s - 1); h k_q(q1, v1)
@@ -486,7 +486,7 @@ def curvature_matrix(model, tab, h, t, ws, qw, cw):
     return lu_factor(S, spiv)
 
 
-@numba.njit(cache=True, _nrt=False)
+@numba.njit(cache=True, _nrt=False, inline="always")
 def curvature_increment(tab, h, qw, cw, G, x):
     """``quasi_increment`` with the velocity block of ``curvature_matrix``: y = R [G_Z; G_d],
     S dLambda = G_c - C_Z y_Z - C_dv y_s, [dZ; ddv] = -y - sum w dLambda; |dx|_inf."""
@@ -607,49 +607,39 @@ def collocation_predict(Ev, El, hist, x, s, n, m):
             x[sn + i * m + ll] = acc
 
 
-@numba.njit(cache=True)
-def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter,
-               predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x, qstats, curvature):
-    """The step loop of ``spark_loop`` (same sampling, counters, failure codes and out_x layout)
-    with the quasi-Newton iteration first and the Newton chain as the fallback; curvature: the
-    velocity block with Hess U where it pays (CURV_N_MAX, CURV_MIN, CURV_STALE)."""
+#: ``quasi_steps``' integer state (``istate``): the steps still sent straight to the Newton chain,
+#: the next wait, the last step's block had Hess U, a frozen decomposition exists, the curvature
+#: block is in use, the next sample's index, the refresh asked for at this step was done (the
+#: step re-entered after ``curvature_refresh``)
+IS_WAIT, IS_BACKOFF, IS_CURV_LAST, IS_HAVE_FROZEN, IS_USE_CURV, IS_J_OUT, IS_REFRESHED = 0, 1, 2, 3, 4, 5, 6
+#: its float state (``fstate``): the carried rate estimate eta and the first increment it was measured on
+FS_ETA, FS_DREF = 0, 1
+#: ``quasi_steps`` returns this instead of a step index when the run has failed (recorded in stats)
+STEPS_FAILED = -1
+
+
+@numba.njit(cache=True, _nrt=False)
+def quasi_steps(model, tab, M, Ev, El, t0, h, n_steps, every, compensated, tol, max_iter, predictor, quasi_max,
+                ws, qw, cw, J, piv, G, x, x_last, x_prev, x_pred, q, v, dq, dv, cq, cv, qmid, sb, step0, istate,
+                fstate, out_t, out_q, out_v, out_E, out_k, stats, out_x, qstats):
+    """Steps step0, step0 + 1, ... of ``quasi_loop`` (the whole loop body; the state carried in
+    istate (IS_*) and fstate (FS_*)). Returns n_steps when done, STEPS_FAILED when a step failed,
+    or the step at which the curvature block needs a new decomposition (``curvature_refresh``
+    allocates and calls LAPACK, so the caller runs it and re-enters at that step with
+    istate[IS_REFRESHED] set: the step's predictor is computed again, the same). Not reference
+    counted: the per-step work runs in one call with the workspaces passed once, not one call of
+    ``quasi_newton`` with every workspace array passed by value per step (skate, gauss-8: ~8% of
+    the step was that call), and NRT reference counting of the arrays (``finish_step``)."""
     s = tab[1].shape[0]
-    n = q0.shape[0]
+    n = q.shape[0]
     m = out_k.shape[1]
     sn, sm = s * n, s * m
     NN = sn + sm + n
-    ws = mech_workspace(s, n, m, M)
-    qw = quasi_workspace(tab, n, m, Minv)
-    J = np.zeros((NN, NN))
-    piv = np.zeros(NN, dtype=np.int64)
-    G = np.zeros(NN)
-    x, x_last, x_prev, x_pred = np.zeros(NN), np.zeros(NN), np.zeros(NN), np.zeros(NN)
-    dq, dv, cq, cv = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
-    q, v = q0.copy(), v0.copy()
     bw = tab[4]
-    sb = 0.0
-    for j in range(s):
-        sb += bw[j]
-    quasi_max = min(max_iter, QUASI_MAX_ITER)
     hess_U = model[2]
-    cw = curvature_workspace(tab, n, m, M, Minv)
     cinfo, Hf, Hn = cw[3], cw[4], cw[5]
-    use_curv = curvature and n <= CURV_N_MAX and cinfo[0] > 0.0
-    have_frozen = False
-    qmid = np.zeros(n)
     hpm = h * h * cinfo[0] * cinfo[1]
-    wait, backoff = 0, 1
-    # the rate estimate theta / (1 - theta) of the last steps (-1: none, e.g. after a fallback or
-    # a change of the frozen block), the first increment it was measured on and the block
-    eta = -1.0
-    dref = -1.0
-    curv_last = False
-    stats[mt.FAILED_STEP] = -1
-    if not store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
-        fail(stats, 0, FAIL_NONFINITE)
-        return
-    j_out = 1
-    for step in range(n_steps):
+    for step in range(step0, n_steps):
         t = t0 + step * h
         if predictor == PREDICT_COLLOCATION and step >= 1:
             collocation_predict(Ev, El, x_last, x, s, n, m)
@@ -657,64 +647,72 @@ def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compe
             predict(x, x_last, x_prev, step, 2 if predictor == PREDICT_COLLOCATION else predictor)
         for r in range(NN):
             x_pred[r] = x[r]
-        if wait > 0:
-            wait -= 1
+        if istate[IS_WAIT] > 0:
+            istate[IS_WAIT] -= 1
             status, it = 0, 0
-            eta = -1.0
+            fstate[FS_ETA] = -1.0
             qstats[QS_SKIPPED] += 1
         else:
             curv = False
             refreshes = qstats[QS_CURV_REFRESH]
-            if use_curv:
-                # Hess U at the predicted midpoint; the frozen one kept while the difference
-                # would contract at most CURV_STALE
-                for a in range(n):
-                    qmid[a] = q[a] + 0.5 * h * v[a]
-                hess_U(t + 0.5 * h, qmid, Hn)
-                hn = 0.0
-                dh = 0.0
-                for a in range(n):
-                    acc = 0.0
-                    acc2 = 0.0
-                    for b in range(n):
-                        acc += abs(Hn[a, b])
-                        acc2 += abs(Hn[a, b] - Hf[a, b])
-                    hn = max(hn, acc)
-                    dh = max(dh, acc2)
-                if hpm * hn >= CURV_MIN:
-                    if not have_frozen or not (hpm * dh <= max(CURV_STALE, CURV_STALE_REL * hpm * hn)):
-                        for a in range(n):
-                            for b in range(n):
-                                Hf[a, b] = Hn[a, b]
-                        have_frozen = curvature_refresh(tab, h, cw)
-                        qstats[QS_CURV_REFRESH] += 1
-                        # nlu: its n LUs of I + h^2 mu_a P (uncounted before: particle, 1 refresh, 3)
-                        stats[4] += int(cinfo[2])
-                    curv = have_frozen
-                    if step >= CURV_WARMUP and (qstats[QS_CURV_REFRESH] - 1) * CURV_REFRESH_EVERY > step:
-                        use_curv = False
-                        curv = False
-            if curv != curv_last or qstats[QS_CURV_REFRESH] != refreshes:
-                eta = -1.0                      # another frozen block: its rate is not known yet
-            curv_last = curv
+            if istate[IS_USE_CURV] != 0:
+                active = False              # Hess U large enough for the curvature block
+                if istate[IS_REFRESHED] != 0:
+                    # re-entered after the refresh this step asked for (counted there)
+                    istate[IS_REFRESHED] = 0
+                    refreshes -= 1
+                    curv = istate[IS_HAVE_FROZEN] != 0
+                    active = True
+                else:
+                    # Hess U at the predicted midpoint; the frozen one kept while the difference
+                    # would contract at most CURV_STALE
+                    for a in range(n):
+                        qmid[a] = q[a] + 0.5 * h * v[a]
+                    hess_U(t + 0.5 * h, qmid, Hn)
+                    hn = 0.0
+                    dh = 0.0
+                    for a in range(n):
+                        acc = 0.0
+                        acc2 = 0.0
+                        for b in range(n):
+                            acc += abs(Hn[a, b])
+                            acc2 += abs(Hn[a, b] - Hf[a, b])
+                        hn = max(hn, acc)
+                        dh = max(dh, acc2)
+                    if hpm * hn >= CURV_MIN:
+                        if istate[IS_HAVE_FROZEN] == 0 or not (hpm * dh <= max(CURV_STALE, CURV_STALE_REL * hpm * hn)):
+                            for a in range(n):
+                                for b in range(n):
+                                    Hf[a, b] = Hn[a, b]
+                            return step
+                        curv = True
+                        active = True
+                if active and step >= CURV_WARMUP and (qstats[QS_CURV_REFRESH] - 1) * CURV_REFRESH_EVERY > step:
+                    istate[IS_USE_CURV] = 0
+                    curv = False
+            if curv != (istate[IS_CURV_LAST] != 0) or qstats[QS_CURV_REFRESH] != refreshes:
+                fstate[FS_ETA] = -1.0           # another frozen block: its rate is not known yet
+            istate[IS_CURV_LAST] = 1 if curv else 0
+            eta = fstate[FS_ETA]
             if eta >= 0.0:
                 eta = max(eta, EPS) ** RATE_GROWTH
             status, it, rate, d1 = quasi_newton(model, tab, ws, qw, cw, curv, x, t, q, v, h, G, tol, quasi_max,
-                                                stats, qstats, eta, dref)
+                                                stats, qstats, eta, fstate[FS_DREF])
             qstats[QS_ITERATIONS] += it
             if curv and status == 1:
                 qstats[QS_CURV_STEPS] += 1
             if status == 1:
-                backoff = 1
+                istate[IS_BACKOFF] = 1
                 if 0.0 <= rate < 1.0:
                     eta = rate / (1.0 - rate)
-                    dref = d1
+                    fstate[FS_DREF] = d1
                 elif rate >= 1.0:
                     eta = -1.0                  # stopped on the round-off limit while not contracting
             else:
                 eta = -1.0
-                wait = backoff
-                backoff = min(2 * backoff, QUASI_WAIT_MAX)
+                istate[IS_WAIT] = istate[IS_BACKOFF]
+                istate[IS_BACKOFF] = min(2 * istate[IS_BACKOFF], QUASI_WAIT_MAX)
+            fstate[FS_ETA] = eta
         if status == 1:
             qstats[QS_STEPS] += 1
         else:
@@ -737,11 +735,70 @@ def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compe
                 stats[2] += evaluate(model, tab, False, x, t, q, v, h, M, ws, G, J)
                 out_x[0] = norm_inf(G)
         if not end_newton(stats, step, it, status):
-            return
+            return STEPS_FAILED
         j_out = finish_step(model, M, ws, x, x_last, x_prev, q, v, cq, cv, dq, dv, bw, sb, h, t0, step, n_steps,
-                            every, compensated, stats, j_out, out_t, out_q, out_v, out_E, out_k, out_x)
+                            every, compensated, stats, istate[IS_J_OUT], out_t, out_q, out_v, out_E, out_k, out_x)
         if j_out < 0:
+            return STEPS_FAILED
+        istate[IS_J_OUT] = j_out
+    return n_steps
+
+
+@numba.njit(cache=True)
+def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter,
+               predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x, qstats, curvature):
+    """The step loop of ``spark_loop`` (same sampling, counters, failure codes and out_x layout)
+    with the quasi-Newton iteration first and the Newton chain as the fallback; curvature: the
+    velocity block with Hess U where it pays (CURV_N_MAX, CURV_MIN, CURV_STALE). The workspaces
+    are allocated here and the steps run in ``quasi_steps``, left only for a new decomposition of
+    the curvature block (``curvature_refresh``)."""
+    s = tab[1].shape[0]
+    n = q0.shape[0]
+    m = out_k.shape[1]
+    sn, sm = s * n, s * m
+    NN = sn + sm + n
+    ws = mech_workspace(s, n, m, M)
+    qw = quasi_workspace(tab, n, m, Minv)
+    J = np.zeros((NN, NN))
+    piv = np.zeros(NN, dtype=np.int64)
+    G = np.zeros(NN)
+    x, x_last, x_prev, x_pred = np.zeros(NN), np.zeros(NN), np.zeros(NN), np.zeros(NN)
+    dq, dv, cq, cv = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+    q, v = q0.copy(), v0.copy()
+    bw = tab[4]
+    sb = 0.0
+    for j in range(s):
+        sb += bw[j]
+    quasi_max = min(max_iter, QUASI_MAX_ITER)
+    cw = curvature_workspace(tab, n, m, M, Minv)
+    cinfo = cw[3]
+    qmid = np.zeros(n)
+    istate = np.zeros(7, dtype=np.int64)
+    istate[IS_BACKOFF] = 1
+    istate[IS_USE_CURV] = 1 if (curvature and n <= CURV_N_MAX and cinfo[0] > 0.0) else 0
+    istate[IS_J_OUT] = 1
+    # the rate estimate theta / (1 - theta) of the last steps (-1: none, e.g. after a fallback or
+    # a change of the frozen block) and the first increment it was measured on
+    fstate = np.zeros(2)
+    fstate[FS_ETA] = -1.0
+    fstate[FS_DREF] = -1.0
+    stats[mt.FAILED_STEP] = -1
+    if not store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
+        fail(stats, 0, FAIL_NONFINITE)
+        return
+    step = 0
+    while step < n_steps:
+        step = quasi_steps(model, tab, M, Ev, El, t0, h, n_steps, every, compensated, tol, max_iter, predictor,
+                           quasi_max, ws, qw, cw, J, piv, G, x, x_last, x_prev, x_pred, q, v, dq, dv, cq, cv, qmid,
+                           sb, step, istate, fstate, out_t, out_q, out_v, out_E, out_k, stats, out_x, qstats)
+        if step == STEPS_FAILED:
             return
+        if step < n_steps:
+            istate[IS_HAVE_FROZEN] = 1 if curvature_refresh(tab, h, cw) else 0
+            qstats[QS_CURV_REFRESH] += 1
+            # nlu: its n LUs of I + h^2 mu_a P (uncounted before: particle, 1 refresh, 3)
+            stats[4] += int(cinfo[2])
+            istate[IS_REFRESHED] = 1
     for r in range(NN):
         out_x[r] = x_last[r]
 

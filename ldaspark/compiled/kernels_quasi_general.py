@@ -36,7 +36,7 @@ from .newton import (FAIL_NONFINITE, RATE_KAPPA, end_newton, fail, lu_factor, lu
 # compiles in (tests/compiled/test_quasi_general.py checks it)
 HELPERS = ("kernels.py", "newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py",
            "modeltypes.py", "kernels_quasi.py")
-HELPERS_SHA256 = "302463fd47aeaf6c710963e8f1724335230330d56aa222149e1f1b2381788238"
+HELPERS_SHA256 = "26469d20e6c13e16252590486e1e2b0997c507725bba382e559b2b16fb7e469d"
 
 
 @numba.njit(cache=True)
