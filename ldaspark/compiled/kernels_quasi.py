@@ -524,7 +524,7 @@ def curvature_increment(tab, h, qw, cw, G, x):
     return dn
 
 
-@numba.njit(cache=True, _nrt=False)
+@numba.njit(cache=True, _nrt=False, inline="always")
 def quasi_newton(model, tab, ws, qw, cw, curv, x, t, q, v, h, G, tol, max_iter, stats, qstats, eta, dref):
     """The quasi-Newton iteration from the guess in x, with the velocity block frozen at M (curv
     False) or at I (x) M + h^2 P (x) H (``curvature_matrix``); (status, iterations, rate, |dx_1|):

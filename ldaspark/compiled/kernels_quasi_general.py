@@ -36,7 +36,7 @@ from .newton import (FAIL_NONFINITE, RATE_KAPPA, end_newton, fail, lu_factor, lu
 # compiles in (tests/compiled/test_quasi_general.py checks it)
 HELPERS = ("kernels.py", "newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py",
            "modeltypes.py", "kernels_quasi.py")
-HELPERS_SHA256 = "26469d20e6c13e16252590486e1e2b0997c507725bba382e559b2b16fb7e469d"
+HELPERS_SHA256 = "abbb80aebb00ea6e8d191b8b2f3dbfc0eb5c0db0253e20f4c4595a845f53df55"
 
 
 @numba.njit(cache=True)
