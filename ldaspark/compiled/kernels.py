@@ -37,7 +37,7 @@ from . import modeltypes as mt
 # it compiles in live in sibling modules. Their digest is written here so that editing a helper
 # changes this file too (tests/compiled/test_compiled_general.py checks it; update it after an edit).
 HELPERS = ("newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py", "modeltypes.py")
-HELPERS_SHA256 = "3b6c7eddc91c962c5017ada5bff1819889ed9cfb67b81f389bcbc26da4fbf396"
+HELPERS_SHA256 = "81000f5cfcb710a9b341bb0bcdf1d8e8446ca5cd67d3523d5337b258ccb11b99"
 
 from .newton import (FAIL_NONFINITE, FAIL_SINGULAR, accept_step, advance, end_newton, factor_newton,  # noqa: E402
                      fail, lu_factor, lu_solve, newton_increment, newton_status, norm_inf, predict, record, shift)
@@ -196,7 +196,7 @@ def spark_newton(model, tab, M, ws, x, t, q, v, h, G, J, piv, tol, max_iter, mod
     return status, it, worst
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def finish_step(model, M, ws, x, x_last, x_prev, q, v, cq, cv, dq, dv, bw, sb, h, t0, step, n_steps, every,
                 compensated, stats, j_out, out_t, out_q, out_v, out_E, out_k, out_x):
     """The end of step ``step`` of every step loop once (21) is solved in x = [Z | Lambda | dv]:

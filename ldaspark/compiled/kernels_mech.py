@@ -93,7 +93,7 @@ def spark_eval_sparse(model, tab, jac, x, t0, q0, v0, h, M, ws, G, sp):
     return tab[0].shape[0] + 1
 
 
-@numba.njit(cache=True, _nrt=False)
+@numba.njit(cache=True, _nrt=False, inline="always")
 def mech_residual(model, tab, x, t0, q0, v0, h, ws, G):
     """Residual G of (21b, d, e, f) in the increment unknowns x = [Z | Lambda | dv].
     gU = grad U = -F, KTL_j = K_j^T Lambda_j = -h R_j; P_i - p0 = M Z_i exactly."""

@@ -56,7 +56,7 @@ from .newton import (FAIL_NONFINITE, RATE_KAPPA, end_newton, fail, lu_factor, lu
 # digest is written here so that editing one changes this file too (tests/test_kernels_quasi.py).
 HELPERS = ("kernels.py", "newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py",
            "modeltypes.py")
-HELPERS_SHA256 = "15774c5b0e1b4319b3938e08eadd1d962a6d1628bf1d99c6a2993fc813567b92"
+HELPERS_SHA256 = "1712884590b8ce971c5a2cf68ab3f5c9a4b386d59c5dc2e3c1f60e5cf2b92f02"
 
 #: a quasi-Newton increment that contracts by less than this (|dx_k| > QUASI_THETA |dx_k-1|)
 #: sends the step to the Newton chain: at rate 1/2 the ~50 bits from a predictor error of 1e-2
@@ -95,10 +95,10 @@ EPS = float(np.finfo(np.float64).eps)
 @numba.njit(cache=True)
 def quasi_workspace(tab, n, m, Minv):
     """Minv in CSR (row pointers, columns, values); W_j = M^-1 K_j^T (s, n, m); the frozen K_j,
-    k_q,j at the stages and K, k_q at the end point (at the predictor); P_kj = K_k W_j and
-    Q_kj = k_q,k W_j (s, s, m, m); S and its pivots; y_k = M^-1 G_k (s + 1, n); the multiplier
-    right-hand side; u_j = W_j dLambda_j (s, n); z_j = sum_k a_jk y_k (s, n); the tableau
-    products omega_rj (A A~)_jj' as OAAt (s - 1, s, s) and (b A~)_j (s); K_k y_k and k_q,j z_j (s, m)."""
+    k_q,j at the stages and K, k_q at the end point (at the predictor); a column of
+    ``multiplier_matrix``'s B (s); the tableau product A A~ (s, s); S and its pivots; y_k = M^-1 G_k
+    (s + 1, n); the multiplier right-hand side; u_j = W_j dLambda_j (s, n); z_j = sum_k a_jk y_k
+    (s, n); (b A~)_j (s); K_k y_k and k_q,j z_j (s, m)."""
     c, A, Ah, At, bw, bh, bt, om = tab
     s = A.shape[0]
     nnz = 0
@@ -116,24 +116,23 @@ def quasi_workspace(tab, n, m, Minv):
                 e += 1
         Np[a + 1] = e
     sm = s * m
-    OAAt = np.zeros((max(s - 1, 1), s, s))
+    AAt = np.zeros((s, s))
     bAt = np.zeros(s)
     for jp in range(s):
         acc = 0.0
         for k in range(s):
             acc += bw[k] * At[k, jp]
         bAt[jp] = acc
-    for r in range(s - 1):
+    for j in range(s):
         for jp in range(s):
-            for j in range(s):
-                acc = 0.0
-                for k in range(s):
-                    acc += A[j, k] * At[k, jp]
-                OAAt[r, j, jp] = om[r, j] * acc
+            acc = 0.0
+            for k in range(s):
+                acc += A[j, k] * At[k, jp]
+            AAt[j, jp] = acc
     return (Np, Nj, Nx, np.zeros((s, n, m)), np.zeros((s, m, n)), np.zeros((s, m, n)), np.zeros((m, n)),
-            np.zeros((m, n)), np.zeros((s, s, m, m)), np.zeros((s, s, m, m)), np.zeros((sm, sm)),
+            np.zeros((m, n)), np.zeros(s), AAt, np.zeros((sm, sm)),
             np.zeros(sm, dtype=np.int64), np.zeros((s + 1, n)), np.zeros(sm), np.zeros((s, n)), np.zeros((s, n)),
-            OAAt, bAt, np.zeros((s, m)), np.zeros((s, m)))
+            bAt, np.zeros((s, m)), np.zeros((s, m)))
 
 
 @numba.njit(cache=True, _nrt=False)
@@ -171,14 +170,16 @@ def multiplier_matrix(model, tab, h, t, ws, qw):
     residual (K_j there from ``mech_residual``; k_q evaluated here). False if S is singular.
 
     With C_Z[r, k] = omega_rk K_k + h sum_j omega_rj a_jk k_q,j (21e) and h b_k k_q(q1, v1) (21f):
-    S[r, j'] = sum_k omega_rk a~_kj' K_k W_j' + h sum_j omega_rj (A A~)_jj' k_q,j W_j' (r < s - 1),
-    S[s - 1, j'] = (h (b A~)_j' k_q(q1, v1) + b~_j' K(q1)) W_j': O(s^3 m^2 + s^2 m^2 n), C_Z never formed."""
-    A, At, bt, om = tab[1], tab[3], tab[6], tab[7]
+    S[r, j'] = sum_k omega_rk B_kj' (r < s - 1), B_kj' = a~_kj' K_k W_j' + h (A A~)_kj' k_q,k W_j',
+    S[s - 1, j'] = (h (b A~)_j' k_q(q1, v1) + b~_j' K(q1)) W_j': O(s^3 m^2 + s^2 m^2 n), C_Z never
+    formed; B a column at a time, so that omega multiplies one sum (s^2 (s - 1) m^2 products, not
+    twice that: ~0.3 us of the ~1.1 us this took for gauss-8, n = 3, m = 1)."""
+    At, bt, om = tab[3], tab[6], tab[7]
     q1, K1 = ws[11], ws[13]
-    Np, Nj, Nx, W, Kf, kqf, K1f, kq1f, Pm, Qm, S, spiv = (qw[0], qw[1], qw[2], qw[3], qw[4], qw[5], qw[6], qw[7],
-                                                        qw[8], qw[9], qw[10], qw[11])
-    OAAt, bAt = qw[16], qw[17]
-    s, n, m = A.shape[0], q1.shape[0], K1.shape[0]
+    Np, Nj, Nx, W, Kf, kqf, K1f, kq1f, Bv, AAt, S, spiv = (qw[0], qw[1], qw[2], qw[3], qw[4], qw[5], qw[6], qw[7],
+                                                         qw[8], qw[9], qw[10], qw[11])
+    bAt = qw[16]
+    s, n, m = At.shape[0], q1.shape[0], K1.shape[0]
     freeze_constraint(model, h, t, ws, qw)
     # W_j = M^-1 K_j^T
     for j in range(s):
@@ -188,40 +189,29 @@ def multiplier_matrix(model, tab, h, t, ws, qw):
                 for e in range(Np[a], Np[a + 1]):
                     acc += Nx[e] * Kf[j, ll, Nj[e]]
                 W[j, a, ll] = acc
-    # P_kj = K_k W_j, Q_kj = k_q,k W_j
-    for k in range(s):
-        for j in range(s):
-            for mm in range(m):
-                for ll in range(m):
-                    p = 0.0
-                    qq = 0.0
-                    for b in range(n):
-                        p += Kf[k, mm, b] * W[j, b, ll]
-                        qq += kqf[k, mm, b] * W[j, b, ll]
-                    Pm[k, j, mm, ll] = p
-                    Qm[k, j, mm, ll] = qq
-    for r in range(s - 1):
-        for jp in range(s):
-            for mm in range(m):
-                for ll in range(m):
-                    acc = 0.0
-                    acc2 = 0.0
-                    for k in range(s):
-                        acc += om[r, k] * At[k, jp] * Pm[k, jp, mm, ll]
-                        acc2 += OAAt[r, k, jp] * Qm[k, jp, mm, ll]
-                    S[r * m + mm, jp * m + ll] = acc + h * acc2
-    r = s - 1
     for jp in range(s):
         for mm in range(m):
             for ll in range(m):
+                for k in range(s):
+                    p = 0.0
+                    qq = 0.0
+                    for b in range(n):
+                        p += Kf[k, mm, b] * W[jp, b, ll]
+                        qq += kqf[k, mm, b] * W[jp, b, ll]
+                    Bv[k] = At[k, jp] * p + h * (AAt[k, jp] * qq)
+                for r in range(s - 1):
+                    acc = 0.0
+                    for k in range(s):
+                        acc += om[r, k] * Bv[k]
+                    S[r * m + mm, jp * m + ll] = acc
                 acc = 0.0
                 for b in range(n):
                     acc += (h * bAt[jp] * kq1f[mm, b] + bt[jp] * K1f[mm, b]) * W[jp, b, ll]
-                S[r * m + mm, jp * m + ll] = acc
+                S[(s - 1) * m + mm, jp * m + ll] = acc
     return lu_factor(S, spiv)
 
 
-@numba.njit(cache=True, _nrt=False)
+@numba.njit(cache=True, _nrt=False, inline="always")
 def quasi_increment(tab, h, qw, G, x):
     """x += dx with dx the solution of the frozen system above for the residual G; |dx|_inf.
     y_k = M^-1 G_k; S dLambda = G_c - C_Z y - C_dv y_s with C_Z y formed from the frozen K_k y_k and
@@ -229,7 +219,7 @@ def quasi_increment(tab, h, qw, G, x):
     and ddv = -y_s - sum_j b~_j W_j dLambda_j."""
     A, At, bw, bt, om = tab[1], tab[3], tab[4], tab[6], tab[7]
     Np, Nj, Nx, W, Kf, kqf, K1f, kq1f = qw[0], qw[1], qw[2], qw[3], qw[4], qw[5], qw[6], qw[7]
-    S, spiv, y, rhs, u, z, Ky, kz = qw[10], qw[11], qw[12], qw[13], qw[14], qw[15], qw[18], qw[19]
+    S, spiv, y, rhs, u, z, Ky, kz = qw[10], qw[11], qw[12], qw[13], qw[14], qw[15], qw[17], qw[18]
     s, n, m = A.shape[0], y.shape[1], Kf.shape[1]
     sn, sm = s * n, s * m
     re0 = sn + n
@@ -428,7 +418,7 @@ def curvature_refresh(tab, h, cw):
     return True
 
 
-@numba.njit(cache=True, _nrt=False)
+@numba.njit(cache=True, _nrt=False, inline="always")
 def constraint_apply(A, bw, om, h, Kf, kqf, K1f, kq1f, z, Ky, kz, y, out):
     """out = C_Z y_Z + C_dv y_s, the frozen (21e, f) rows, y = [y_Z (s, n) | y_s (n)] flat:
     sum_k omega_rk K_k y_k + h sum_j omega_rj k_q,j sum_k a_jk y_k (r < s - 1); h k_q(q1, v1)
@@ -477,7 +467,7 @@ def curvature_matrix(model, tab, h, t, ws, qw, cw):
     A, bw, om = tab[1], tab[4], tab[7]
     q1, K1 = ws[11], ws[13]
     Kf, kqf, K1f, kq1f, S, spiv = qw[4], qw[5], qw[6], qw[7], qw[10], qw[11]
-    z, Ky, kz = qw[15], qw[18], qw[19]
+    z, Ky, kz = qw[15], qw[17], qw[18]
     Tw, Wc, rhs = cw[10], cw[12], cw[16]
     s, n, m = A.shape[0], q1.shape[0], K1.shape[0]
     N1 = (s + 1) * n
@@ -496,13 +486,13 @@ def curvature_matrix(model, tab, h, t, ws, qw, cw):
     return lu_factor(S, spiv)
 
 
-@numba.njit(cache=True, _nrt=False)
+@numba.njit(cache=True, _nrt=False, inline="always")
 def curvature_increment(tab, h, qw, cw, G, x):
     """``quasi_increment`` with the velocity block of ``curvature_matrix``: y = R [G_Z; G_d],
     S dLambda = G_c - C_Z y_Z - C_dv y_s, [dZ; ddv] = -y - sum w dLambda; |dx|_inf."""
     A, bw, om = tab[1], tab[4], tab[7]
     Kf, kqf, K1f, kq1f, S, spiv = qw[4], qw[5], qw[6], qw[7], qw[10], qw[11]
-    rhs, z, Ky, kz = qw[13], qw[15], qw[18], qw[19]
+    rhs, z, Ky, kz = qw[13], qw[15], qw[17], qw[18]
     R, Wc, y, r2 = cw[11], cw[12], cw[13], cw[16]
     s, n, m = A.shape[0], Kf.shape[2], Kf.shape[1]
     sn, sm = s * n, s * m
@@ -534,7 +524,7 @@ def curvature_increment(tab, h, qw, cw, G, x):
     return dn
 
 
-@numba.njit(cache=True, _nrt=False)
+@numba.njit(cache=True, _nrt=False, inline="always")
 def quasi_newton(model, tab, ws, qw, cw, curv, x, t, q, v, h, G, tol, max_iter, stats, qstats, eta, dref):
     """The quasi-Newton iteration from the guess in x, with the velocity block frozen at M (curv
     False) or at I (x) M + h^2 P (x) H (``curvature_matrix``); (status, iterations, rate, |dx_1|):
@@ -617,49 +607,39 @@ def collocation_predict(Ev, El, hist, x, s, n, m):
             x[sn + i * m + ll] = acc
 
 
-@numba.njit(cache=True)
-def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter,
-               predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x, qstats, curvature):
-    """The step loop of ``spark_loop`` (same sampling, counters, failure codes and out_x layout)
-    with the quasi-Newton iteration first and the Newton chain as the fallback; curvature: the
-    velocity block with Hess U where it pays (CURV_N_MAX, CURV_MIN, CURV_STALE)."""
+#: ``quasi_steps``' integer state (``istate``): the steps still sent straight to the Newton chain,
+#: the next wait, the last step's block had Hess U, a frozen decomposition exists, the curvature
+#: block is in use, the next sample's index, the refresh asked for at this step was done (the
+#: step re-entered after ``curvature_refresh``)
+IS_WAIT, IS_BACKOFF, IS_CURV_LAST, IS_HAVE_FROZEN, IS_USE_CURV, IS_J_OUT, IS_REFRESHED = 0, 1, 2, 3, 4, 5, 6
+#: its float state (``fstate``): the carried rate estimate eta and the first increment it was measured on
+FS_ETA, FS_DREF = 0, 1
+#: ``quasi_steps`` returns this instead of a step index when the run has failed (recorded in stats)
+STEPS_FAILED = -1
+
+
+@numba.njit(cache=True, _nrt=False)
+def quasi_steps(model, tab, M, Ev, El, t0, h, n_steps, every, compensated, tol, max_iter, predictor, quasi_max,
+                ws, qw, cw, J, piv, G, x, x_last, x_prev, x_pred, q, v, dq, dv, cq, cv, qmid, sb, step0, istate,
+                fstate, out_t, out_q, out_v, out_E, out_k, stats, out_x, qstats):
+    """Steps step0, step0 + 1, ... of ``quasi_loop`` (the whole loop body; the state carried in
+    istate (IS_*) and fstate (FS_*)). Returns n_steps when done, STEPS_FAILED when a step failed,
+    or the step at which the curvature block needs a new decomposition (``curvature_refresh``
+    allocates and calls LAPACK, so the caller runs it and re-enters at that step with
+    istate[IS_REFRESHED] set: the step's predictor is computed again, the same). Not reference
+    counted: the per-step work runs in one call with the workspaces passed once, not one call of
+    ``quasi_newton`` with every workspace array passed by value per step (skate, gauss-8: ~8% of
+    the step was that call), and NRT reference counting of the arrays (``finish_step``)."""
     s = tab[1].shape[0]
-    n = q0.shape[0]
+    n = q.shape[0]
     m = out_k.shape[1]
     sn, sm = s * n, s * m
     NN = sn + sm + n
-    ws = mech_workspace(s, n, m, M)
-    qw = quasi_workspace(tab, n, m, Minv)
-    J = np.zeros((NN, NN))
-    piv = np.zeros(NN, dtype=np.int64)
-    G = np.zeros(NN)
-    x, x_last, x_prev, x_pred = np.zeros(NN), np.zeros(NN), np.zeros(NN), np.zeros(NN)
-    dq, dv, cq, cv = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
-    q, v = q0.copy(), v0.copy()
     bw = tab[4]
-    sb = 0.0
-    for j in range(s):
-        sb += bw[j]
-    quasi_max = min(max_iter, QUASI_MAX_ITER)
     hess_U = model[2]
-    cw = curvature_workspace(tab, n, m, M, Minv)
     cinfo, Hf, Hn = cw[3], cw[4], cw[5]
-    use_curv = curvature and n <= CURV_N_MAX and cinfo[0] > 0.0
-    have_frozen = False
-    qmid = np.zeros(n)
     hpm = h * h * cinfo[0] * cinfo[1]
-    wait, backoff = 0, 1
-    # the rate estimate theta / (1 - theta) of the last steps (-1: none, e.g. after a fallback or
-    # a change of the frozen block), the first increment it was measured on and the block
-    eta = -1.0
-    dref = -1.0
-    curv_last = False
-    stats[mt.FAILED_STEP] = -1
-    if not store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
-        fail(stats, 0, FAIL_NONFINITE)
-        return
-    j_out = 1
-    for step in range(n_steps):
+    for step in range(step0, n_steps):
         t = t0 + step * h
         if predictor == PREDICT_COLLOCATION and step >= 1:
             collocation_predict(Ev, El, x_last, x, s, n, m)
@@ -667,64 +647,72 @@ def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compe
             predict(x, x_last, x_prev, step, 2 if predictor == PREDICT_COLLOCATION else predictor)
         for r in range(NN):
             x_pred[r] = x[r]
-        if wait > 0:
-            wait -= 1
+        if istate[IS_WAIT] > 0:
+            istate[IS_WAIT] -= 1
             status, it = 0, 0
-            eta = -1.0
+            fstate[FS_ETA] = -1.0
             qstats[QS_SKIPPED] += 1
         else:
             curv = False
             refreshes = qstats[QS_CURV_REFRESH]
-            if use_curv:
-                # Hess U at the predicted midpoint; the frozen one kept while the difference
-                # would contract at most CURV_STALE
-                for a in range(n):
-                    qmid[a] = q[a] + 0.5 * h * v[a]
-                hess_U(t + 0.5 * h, qmid, Hn)
-                hn = 0.0
-                dh = 0.0
-                for a in range(n):
-                    acc = 0.0
-                    acc2 = 0.0
-                    for b in range(n):
-                        acc += abs(Hn[a, b])
-                        acc2 += abs(Hn[a, b] - Hf[a, b])
-                    hn = max(hn, acc)
-                    dh = max(dh, acc2)
-                if hpm * hn >= CURV_MIN:
-                    if not have_frozen or not (hpm * dh <= max(CURV_STALE, CURV_STALE_REL * hpm * hn)):
-                        for a in range(n):
-                            for b in range(n):
-                                Hf[a, b] = Hn[a, b]
-                        have_frozen = curvature_refresh(tab, h, cw)
-                        qstats[QS_CURV_REFRESH] += 1
-                        # nlu: its n LUs of I + h^2 mu_a P (uncounted before: particle, 1 refresh, 3)
-                        stats[4] += int(cinfo[2])
-                    curv = have_frozen
-                    if step >= CURV_WARMUP and (qstats[QS_CURV_REFRESH] - 1) * CURV_REFRESH_EVERY > step:
-                        use_curv = False
-                        curv = False
-            if curv != curv_last or qstats[QS_CURV_REFRESH] != refreshes:
-                eta = -1.0                      # another frozen block: its rate is not known yet
-            curv_last = curv
+            if istate[IS_USE_CURV] != 0:
+                active = False              # Hess U large enough for the curvature block
+                if istate[IS_REFRESHED] != 0:
+                    # re-entered after the refresh this step asked for (counted there)
+                    istate[IS_REFRESHED] = 0
+                    refreshes -= 1
+                    curv = istate[IS_HAVE_FROZEN] != 0
+                    active = True
+                else:
+                    # Hess U at the predicted midpoint; the frozen one kept while the difference
+                    # would contract at most CURV_STALE
+                    for a in range(n):
+                        qmid[a] = q[a] + 0.5 * h * v[a]
+                    hess_U(t + 0.5 * h, qmid, Hn)
+                    hn = 0.0
+                    dh = 0.0
+                    for a in range(n):
+                        acc = 0.0
+                        acc2 = 0.0
+                        for b in range(n):
+                            acc += abs(Hn[a, b])
+                            acc2 += abs(Hn[a, b] - Hf[a, b])
+                        hn = max(hn, acc)
+                        dh = max(dh, acc2)
+                    if hpm * hn >= CURV_MIN:
+                        if istate[IS_HAVE_FROZEN] == 0 or not (hpm * dh <= max(CURV_STALE, CURV_STALE_REL * hpm * hn)):
+                            for a in range(n):
+                                for b in range(n):
+                                    Hf[a, b] = Hn[a, b]
+                            return step
+                        curv = True
+                        active = True
+                if active and step >= CURV_WARMUP and (qstats[QS_CURV_REFRESH] - 1) * CURV_REFRESH_EVERY > step:
+                    istate[IS_USE_CURV] = 0
+                    curv = False
+            if curv != (istate[IS_CURV_LAST] != 0) or qstats[QS_CURV_REFRESH] != refreshes:
+                fstate[FS_ETA] = -1.0           # another frozen block: its rate is not known yet
+            istate[IS_CURV_LAST] = 1 if curv else 0
+            eta = fstate[FS_ETA]
             if eta >= 0.0:
                 eta = max(eta, EPS) ** RATE_GROWTH
             status, it, rate, d1 = quasi_newton(model, tab, ws, qw, cw, curv, x, t, q, v, h, G, tol, quasi_max,
-                                                stats, qstats, eta, dref)
+                                                stats, qstats, eta, fstate[FS_DREF])
             qstats[QS_ITERATIONS] += it
             if curv and status == 1:
                 qstats[QS_CURV_STEPS] += 1
             if status == 1:
-                backoff = 1
+                istate[IS_BACKOFF] = 1
                 if 0.0 <= rate < 1.0:
                     eta = rate / (1.0 - rate)
-                    dref = d1
+                    fstate[FS_DREF] = d1
                 elif rate >= 1.0:
                     eta = -1.0                  # stopped on the round-off limit while not contracting
             else:
                 eta = -1.0
-                wait = backoff
-                backoff = min(2 * backoff, QUASI_WAIT_MAX)
+                istate[IS_WAIT] = istate[IS_BACKOFF]
+                istate[IS_BACKOFF] = min(2 * istate[IS_BACKOFF], QUASI_WAIT_MAX)
+            fstate[FS_ETA] = eta
         if status == 1:
             qstats[QS_STEPS] += 1
         else:
@@ -747,11 +735,70 @@ def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compe
                 stats[2] += evaluate(model, tab, False, x, t, q, v, h, M, ws, G, J)
                 out_x[0] = norm_inf(G)
         if not end_newton(stats, step, it, status):
-            return
+            return STEPS_FAILED
         j_out = finish_step(model, M, ws, x, x_last, x_prev, q, v, cq, cv, dq, dv, bw, sb, h, t0, step, n_steps,
-                            every, compensated, stats, j_out, out_t, out_q, out_v, out_E, out_k, out_x)
+                            every, compensated, stats, istate[IS_J_OUT], out_t, out_q, out_v, out_E, out_k, out_x)
         if j_out < 0:
+            return STEPS_FAILED
+        istate[IS_J_OUT] = j_out
+    return n_steps
+
+
+@numba.njit(cache=True)
+def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter,
+               predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x, qstats, curvature):
+    """The step loop of ``spark_loop`` (same sampling, counters, failure codes and out_x layout)
+    with the quasi-Newton iteration first and the Newton chain as the fallback; curvature: the
+    velocity block with Hess U where it pays (CURV_N_MAX, CURV_MIN, CURV_STALE). The workspaces
+    are allocated here and the steps run in ``quasi_steps``, left only for a new decomposition of
+    the curvature block (``curvature_refresh``)."""
+    s = tab[1].shape[0]
+    n = q0.shape[0]
+    m = out_k.shape[1]
+    sn, sm = s * n, s * m
+    NN = sn + sm + n
+    ws = mech_workspace(s, n, m, M)
+    qw = quasi_workspace(tab, n, m, Minv)
+    J = np.zeros((NN, NN))
+    piv = np.zeros(NN, dtype=np.int64)
+    G = np.zeros(NN)
+    x, x_last, x_prev, x_pred = np.zeros(NN), np.zeros(NN), np.zeros(NN), np.zeros(NN)
+    dq, dv, cq, cv = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+    q, v = q0.copy(), v0.copy()
+    bw = tab[4]
+    sb = 0.0
+    for j in range(s):
+        sb += bw[j]
+    quasi_max = min(max_iter, QUASI_MAX_ITER)
+    cw = curvature_workspace(tab, n, m, M, Minv)
+    cinfo = cw[3]
+    qmid = np.zeros(n)
+    istate = np.zeros(7, dtype=np.int64)
+    istate[IS_BACKOFF] = 1
+    istate[IS_USE_CURV] = 1 if (curvature and n <= CURV_N_MAX and cinfo[0] > 0.0) else 0
+    istate[IS_J_OUT] = 1
+    # the rate estimate theta / (1 - theta) of the last steps (-1: none, e.g. after a fallback or
+    # a change of the frozen block) and the first increment it was measured on
+    fstate = np.zeros(2)
+    fstate[FS_ETA] = -1.0
+    fstate[FS_DREF] = -1.0
+    stats[mt.FAILED_STEP] = -1
+    if not store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
+        fail(stats, 0, FAIL_NONFINITE)
+        return
+    step = 0
+    while step < n_steps:
+        step = quasi_steps(model, tab, M, Ev, El, t0, h, n_steps, every, compensated, tol, max_iter, predictor,
+                           quasi_max, ws, qw, cw, J, piv, G, x, x_last, x_prev, x_pred, q, v, dq, dv, cq, cv, qmid,
+                           sb, step, istate, fstate, out_t, out_q, out_v, out_E, out_k, stats, out_x, qstats)
+        if step == STEPS_FAILED:
             return
+        if step < n_steps:
+            istate[IS_HAVE_FROZEN] = 1 if curvature_refresh(tab, h, cw) else 0
+            qstats[QS_CURV_REFRESH] += 1
+            # nlu: its n LUs of I + h^2 mu_a P (uncounted before: particle, 1 refresh, 3)
+            stats[4] += int(cinfo[2])
+            istate[IS_REFRESHED] = 1
     for r in range(NN):
         out_x[r] = x_last[r]
 

@@ -28,7 +28,8 @@ from .kernels import finish_step, spark_newton, evaluate, store   # noqa: F401 (
 from .kernels_general import general_begin, general_eval, workspace
 from .kernels_quasi import (EPS, FIRST_RATE_FACTOR, PREDICT_COLLOCATION, QS_FALLBACKS, QS_ITERATIONS, QS_LU,
                             QS_RATE_FIRST, QS_SKIPPED, QS_STEPS, QUASI_MAX_ITER, QUASI_THETA, QUASI_WAIT_MAX,
-                            RATE_GROWTH, RATE_SPAN, collocation_predict, constraint_apply)
+                            RATE_GROWTH, RATE_SPAN, collocation_predict, constraint_apply, FS_DREF, FS_ETA,
+                            IS_BACKOFF, IS_J_OUT, IS_WAIT, STEPS_FAILED)
 from .newton import (FAIL_NONFINITE, RATE_KAPPA, end_newton, fail, lu_factor, lu_solve, newton_status,
                      norm_inf, predict)
 
@@ -36,7 +37,7 @@ from .newton import (FAIL_NONFINITE, RATE_KAPPA, end_newton, fail, lu_factor, lu
 # compiles in (tests/compiled/test_quasi_general.py checks it)
 HELPERS = ("kernels.py", "newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py",
            "modeltypes.py", "kernels_quasi.py")
-HELPERS_SHA256 = "302463fd47aeaf6c710963e8f1724335230330d56aa222149e1f1b2381788238"
+HELPERS_SHA256 = "abbb80aebb00ea6e8d191b8b2f3dbfc0eb5c0db0253e20f4c4595a845f53df55"
 
 
 @numba.njit(cache=True)
@@ -182,36 +183,19 @@ def general_quasi_newton(model, tab, M, ws, gw, x, t, q, v, h, G, J, tol, max_it
     return status, it, rate, d1
 
 
-@numba.njit(cache=True)
-def general_quasi_loop(model, tab, M, Ev, El, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter,
-                       predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x, qstats):
-    """``kernels_quasi.quasi_loop`` for the general form (no curvature variant: L_vv is the block)."""
+@numba.njit(cache=True, _nrt=False)
+def general_quasi_steps(model, tab, M, Ev, El, t0, h, n_steps, every, compensated, tol, max_iter, predictor,
+                        quasi_max, ws, gw, J, piv, G, x, x_last, x_prev, x_pred, q, v, dq, dv, cq, cv, sb, istate,
+                        fstate, out_t, out_q, out_v, out_E, out_k, stats, out_x, qstats):
+    """The steps of ``general_quasi_loop`` in one call that is not reference counted (as
+    ``kernels_quasi.quasi_steps``; the state in istate, fstate with its IS_*, FS_* entries);
+    n_steps when done, STEPS_FAILED when a step failed (recorded in stats)."""
     s = tab[1].shape[0]
-    n = q0.shape[0]
+    n = q.shape[0]
     m = out_k.shape[1]
     sn, sm = s * n, s * m
     NN = sn + sm + n
-    ws = workspace(s, n, m)
-    gw = general_quasi_workspace(s, n, m)
-    J = np.zeros((NN, NN))
-    piv = np.zeros(NN, dtype=np.int64)
-    G = np.zeros(NN)
-    x, x_last, x_prev, x_pred = np.zeros(NN), np.zeros(NN), np.zeros(NN), np.zeros(NN)
-    dq, dv, cq, cv = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
-    q, v = q0.copy(), v0.copy()
     bw = tab[4]
-    sb = 0.0
-    for j in range(s):
-        sb += bw[j]
-    quasi_max = min(max_iter, QUASI_MAX_ITER)
-    wait, backoff = 0, 1
-    eta = -1.0                                  # as in kernels_quasi.quasi_loop
-    dref = -1.0
-    stats[mt.FAILED_STEP] = -1
-    if not store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
-        fail(stats, 0, FAIL_NONFINITE)
-        return
-    j_out = 1
     for step in range(n_steps):
         t = t0 + step * h
         if predictor == PREDICT_COLLOCATION and step >= 1:
@@ -220,27 +204,30 @@ def general_quasi_loop(model, tab, M, Ev, El, t0, q0, v0, h, n_steps, every, com
             predict(x, x_last, x_prev, step, 2 if predictor == PREDICT_COLLOCATION else predictor)
         for r in range(NN):
             x_pred[r] = x[r]
-        if wait > 0:
-            wait -= 1
+        if istate[IS_WAIT] > 0:
+            istate[IS_WAIT] -= 1
             status, it = 0, 0
-            eta = -1.0
+            fstate[FS_ETA] = -1.0
             qstats[QS_SKIPPED] += 1
         else:
+            eta = fstate[FS_ETA]
             if eta >= 0.0:
                 eta = max(eta, EPS) ** RATE_GROWTH
             status, it, rate, d1 = general_quasi_newton(model, tab, M, ws, gw, x, t, q, v, h, G, J, tol, quasi_max,
-                                                        stats, qstats, eta, dref)
+                                                        stats, qstats, eta, fstate[FS_DREF])
             qstats[QS_ITERATIONS] += it
             if status == 1:
-                backoff = 1
+                istate[IS_BACKOFF] = 1
                 if 0.0 <= rate < 1.0:
-                    eta, dref = rate / (1.0 - rate), d1
+                    eta = rate / (1.0 - rate)
+                    fstate[FS_DREF] = d1
                 elif rate >= 1.0:
                     eta = -1.0
             else:
                 eta = -1.0
-                wait = backoff
-                backoff = min(2 * backoff, QUASI_WAIT_MAX)
+                istate[IS_WAIT] = istate[IS_BACKOFF]
+                istate[IS_BACKOFF] = min(2 * istate[IS_BACKOFF], QUASI_WAIT_MAX)
+            fstate[FS_ETA] = eta
         if status == 1:
             qstats[QS_STEPS] += 1
         else:
@@ -261,11 +248,52 @@ def general_quasi_loop(model, tab, M, Ev, El, t0, q0, v0, h, n_steps, every, com
                 stats[2] += evaluate(model, tab, False, x, t, q, v, h, M, ws, G, J)
                 out_x[0] = norm_inf(G)
         if not end_newton(stats, step, it, status):
-            return
+            return STEPS_FAILED
         j_out = finish_step(model, M, ws, x, x_last, x_prev, q, v, cq, cv, dq, dv, bw, sb, h, t0, step, n_steps,
-                            every, compensated, stats, j_out, out_t, out_q, out_v, out_E, out_k, out_x)
+                            every, compensated, stats, istate[IS_J_OUT], out_t, out_q, out_v, out_E, out_k, out_x)
         if j_out < 0:
-            return
+            return STEPS_FAILED
+        istate[IS_J_OUT] = j_out
+    return n_steps
+
+
+@numba.njit(cache=True)
+def general_quasi_loop(model, tab, M, Ev, El, t0, q0, v0, h, n_steps, every, compensated, tol, max_iter,
+                       predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x, qstats):
+    """``kernels_quasi.quasi_loop`` for the general form (no curvature variant: L_vv is the block):
+    the workspaces allocated here, the steps run in ``general_quasi_steps``."""
+    s = tab[1].shape[0]
+    n = q0.shape[0]
+    m = out_k.shape[1]
+    sn, sm = s * n, s * m
+    NN = sn + sm + n
+    ws = workspace(s, n, m)
+    gw = general_quasi_workspace(s, n, m)
+    J = np.zeros((NN, NN))
+    piv = np.zeros(NN, dtype=np.int64)
+    G = np.zeros(NN)
+    x, x_last, x_prev, x_pred = np.zeros(NN), np.zeros(NN), np.zeros(NN), np.zeros(NN)
+    dq, dv, cq, cv = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+    q, v = q0.copy(), v0.copy()
+    bw = tab[4]
+    sb = 0.0
+    for j in range(s):
+        sb += bw[j]
+    quasi_max = min(max_iter, QUASI_MAX_ITER)
+    istate = np.zeros(7, dtype=np.int64)
+    istate[IS_BACKOFF] = 1
+    istate[IS_J_OUT] = 1
+    fstate = np.zeros(2)
+    fstate[FS_ETA] = -1.0                       # as in kernels_quasi.quasi_loop
+    fstate[FS_DREF] = -1.0
+    stats[mt.FAILED_STEP] = -1
+    if not store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
+        fail(stats, 0, FAIL_NONFINITE)
+        return
+    if general_quasi_steps(model, tab, M, Ev, El, t0, h, n_steps, every, compensated, tol, max_iter, predictor,
+                           quasi_max, ws, gw, J, piv, G, x, x_last, x_prev, x_pred, q, v, dq, dv, cq, cv, sb, istate,
+                           fstate, out_t, out_q, out_v, out_E, out_k, stats, out_x, qstats) == STEPS_FAILED:
+        return
     for r in range(NN):
         out_x[r] = x_last[r]
 

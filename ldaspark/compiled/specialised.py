@@ -113,6 +113,7 @@ def specialised_source(s, n, m) -> str:
                      (r"^(\s+)s, n = [A-Za-z_]+\.shape\[0\], [A-Za-z0-9_]+\.shape\[\d\]$", r"\1s, n = S_, N_"),
                      (r"^(\s+)s = (?:tab\[1\]|A)\.shape\[0\]$", r"\1s = S_"),
                      (r"^(\s+)n = q0\.shape\[0\]$", r"\1n = N_"),
+                     (r"^(\s+)n = q\.shape\[0\]$", r"\1n = N_"),
                      (r"^(\s+)m = out_k\.shape\[1\]$", r"\1m = M_")):
         src, k = re.subn(pat, rep, src, flags=re.M)
         if k == 0:
