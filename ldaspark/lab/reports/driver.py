@@ -95,6 +95,9 @@ def _main_options_to_section(args) -> None:
                              f"{val!r} and {now!r}")
         if dest == "outdir" and isinstance(val, str) and not val.strip():
             raise InputError("--outdir is an empty path")
+        if dest == "outdir" and val == "-":         # the command line's check saw the section's default
+            from ...cli import dash_message
+            raise InputError(dash_message(opt))
         setattr(args, dest, val)
 
 
