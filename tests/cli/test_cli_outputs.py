@@ -143,6 +143,43 @@ def test_a_report_section_refuses_a_figures_path_that_is_no_directory_before_it_
     assert (bad / "figures").read_text() == "not a directory"
 
 
+@pytest.mark.parametrize("section, stand_in, extra, name", [
+    ("energy", "run_default", ["--t-end", "15"], "energy.md"),
+    ("energy", "run_default", ["--t-end", "15"], "energy.json"),
+    ("convergence", "compute", ["--scenes", "particle", "--methods", "gauss-1", "--t-end", "0.5"], "convergence.json"),
+    ("systems", "build", ["--systems", "suslov"], "systems.md"),
+    ("work-precision", "run_study", ["--quick"], "work_precision.md"),
+    ("stability", "build_report", [], "stability.json"),
+    ("claims", "run_ledger", ["--quick"], "claims-quick.md"),       # control: refused before too
+    (None, "run_sections", [], "energy.md"),                        # the main job: every section's files
+    (None, "run_sections", [], "claims.json"),
+])
+def test_a_report_section_refuses_its_own_report_path_that_is_no_file_before_it_runs(
+        capsys, tmp_path, monkeypatch, section, stand_in, extra, name):
+    """``report energy --outdir D`` with D/energy.md a directory computed every figure (minutes
+    for the paper's intervals), wrote the PNGs, then failed on energy.md; likewise the other
+    sections' .md / .json and the main job. Now refused before the run (a stand-in here). Control:
+    the same D without that directory reaches the run."""
+    import importlib
+    import ldaspark.lab.reports.timing as timing
+    mod = importlib.import_module("ldaspark.lab.reports." + (section or "jobs").replace("-", "_"))
+
+    def reached(*a, **k):
+        raise _Reached
+    monkeypatch.setattr(mod, stand_in, reached)
+    monkeypatch.setattr(timing, "probe_cpu", lambda: 1.0)     # the main job's CPU probe: not under test
+    words = ["report", section, *extra] if section else ["report", "--workers", "1"]
+    good, bad = tmp_path / "good", tmp_path / "bad"
+    (bad / name).mkdir(parents=True)
+    with pytest.raises(_Reached):
+        main([*words, "--outdir", str(good)])
+    rc, err = _rc_err(capsys, [*words, "--outdir", str(bad)])
+    assert rc == 2 and err.count("\n") == 1 and f"{name}: it is a directory" in err, (rc, err)
+    # nothing computed, nothing written: OUTDIR/figures is made (empty) by the check of that directory
+    assert set(os.listdir(bad)) <= {name, "figures"} and not os.listdir(bad / name)
+    assert not (bad / "figures").exists() or not os.listdir(bad / "figures")
+
+
 def test_an_output_on_the_input_tableau_is_refused(capsys, tmp_path):
     """``audit t.json --json t.json`` and ``integrate ... custom --tableau t.json --out t.json``
     replaced the tableau file by the audit or the result (exit 0: the input was lost). Control:

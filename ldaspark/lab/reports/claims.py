@@ -96,6 +96,10 @@ def file_names(quick=False):
     return ("claims-quick.md", "claims-quick.json") if quick else ("claims.md", "claims.json")
 
 
+#: the ledger's files in OUTDIR from the main job (``driver.check_report_files``)
+REPORT_FILES = file_names(False)
+
+
 def run_verify(outdir=REPORT_DIR, quick=False, json_path=None, command="ldaspark verify", jobs=None,
                where=None, resume=True):
     """Run the ledger where ``where`` says (``ldaspark.executors``) and write its files. Each

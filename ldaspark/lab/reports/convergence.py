@@ -21,6 +21,8 @@ from .plotting import colours, figure
 from .timing import Clock
 
 REPORT_DIR = "reports"
+#: the files of the report in OUTDIR (``driver.check_report_files``)
+REPORT_FILES = ("convergence.md", "convergence.json")
 T_END = 1.0
 MP_DPS = 25
 REF_DPS = 40
@@ -411,10 +413,10 @@ def run(args) -> int:
         resolve_method(m)               # an unknown method is one line before any reference is built
     check_destination(args.json)
     if args.outdir or not args.json:
+        from .driver import check_figures_dir, check_report_files
+        check_report_files(args.outdir or REPORT_DIR, REPORT_FILES)      # convergence.json too
         md = os.path.join(args.outdir or REPORT_DIR, "convergence.md")
-        check_destination(md)
         check_distinct_outputs(("the report OUTDIR/convergence.md", md), ("--json", args.json))
-        from .driver import check_figures_dir
         check_figures_dir(args.outdir or REPORT_DIR)
     clock = Clock()
     recs = compute(args.scenes, args.methods, args.t_end, args.workers)
