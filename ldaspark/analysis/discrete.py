@@ -830,6 +830,22 @@ def theorem1_residuals(system, tableau, t0, q0, v0, h, dps=40, q1_shift=None, q0
     return out
 
 
+def theorem1_residual_bound(r) -> float:
+    """What a residual of ``theorem1_residuals`` (``r``, its result) can carry when the identities
+    of Theorem 1 hold exactly: the error of the Richardson-extrapolated differences (bounded by
+    their estimate ``fd_error`` = |R2 - R1|, which bounds the error of the coarser extrapolant R1;
+    factor 10 for the estimate itself) plus the round-off of the printed side at ``dps_fd`` digits,
+    amplified by the condition number of the BVP Jacobian (dV/dq = -J^-1 dG/dq; 10^3 units for the
+    accumulation). The bound of every Theorem 1 check, the ledger's (``ledger.theorem1_threshold``,
+    capped at 1e-20) and the verification suite's. Measured there: residuals 0 .. 1.4e-40 against bounds 6.5e-52 .. 8.4e-26 (at most
+    0.22 of the bound). A fixed 1e-20 passed a tableau correct to 20 digits only (residuals
+    1.9e-23 .. 9.2e-26 at dps_fd 60); this bound does not."""
+    smin, smax = float(r["sigma_min_nonzero"]), float(r["sigma_max"])
+    if not (smin > 0 and math.isfinite(smax / smin)):
+        return 0.0      # no conditioning to derive a bound from: only an exact zero passes
+    return 10 * float(r["fd_error"]) + 1e3 * (smax / smin) * 10.0 ** -int(r["dps_fd"])
+
+
 def _theorem1_once(system, tableau, t0, q0, v0, h, dps, q1_shift, q0_shift, dps_fd, delta, entries_rank=False):
     """Theorem 1 at the endpoints reached by one IVP step from (t0, q0, v0) (optionally with
     q0, q1 shifted by small vectors): dL_d/dq0 = -p0^T - f_d^-^T, dL_d/dq1 = p1^T - f_d^+^T.
