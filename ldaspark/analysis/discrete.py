@@ -278,6 +278,14 @@ def _entry_balls(tableau) -> dict:
     return {key: balls[key] for key in _PROBED}
 
 
+def entry_radii_of(tableau) -> dict:
+    """The radius of every probed entry's ball (``_entry_balls``) as a float, nested as
+    ``SparkTableau.ball_entries`` (vectors flat, matrices as lists of rows), omega left out: the
+    one reading of the entries' uncertainty, the audit's too (``audit_checks.entry_radii``)."""
+    return {k: [[float(x.rad()) for x in r] if isinstance(r, list) else float(r.rad()) for r in v]
+            for k, v in _entry_balls(tableau).items()}
+
+
 def _flat_balls(radii: dict):
     for v in radii.values():
         for row in v:
