@@ -32,6 +32,12 @@ def plugin_commands() -> dict:
 
 #: the destinations of the commands' file and directory options (``--out``, ``--json``, ...)
 _PATH_OPTIONS = ("out", "json", "outdir", "tableau", "keep_killed", "fill", "file")
+#: the outputs among them: a bare "-" there is refused, not written as a file named "-" (several
+#: commands print their own text to stdout, so "-" as stdout would mix two outputs in one stream;
+#: /dev/stdout names standard output explicitly, ./- a file named "-")
+_OUTPUT_OPTIONS = ("out", "json", "outdir")
+_DASH_HELP = ("output paths (--out, --json, --outdir): '-' is refused, not read as standard output; "
+              "--out/--json /dev/stdout writes to standard output, ./- names a file or directory '-'")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -206,6 +212,22 @@ def _check_numeric_options(parser) -> None:
             action.type = _duration_type
 
 
+def dash_message(option: str) -> str:
+    """The refusal of a bare "-" as an output path (``_OUTPUT_OPTIONS``)."""
+    return (f"{option} -: '-' is not standard output here; give /dev/stdout for that (--out, --json), "
+            "or ./- for a file named '-'")
+
+
+def _note_dash(parser) -> None:
+    """One line in the help of every (sub)command that takes an output path: what '-' means."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                _note_dash(sub)
+        elif action.dest in _OUTPUT_OPTIONS and action.option_strings and not parser.epilog:
+            parser.epilog = _DASH_HELP
+
+
 def build_parser(command: str | None = "*") -> argparse.ArgumentParser:
     """The parser; plugin modules are imported only for ``command`` ("*" = all of them)."""
     from ._version import __version__
@@ -222,6 +244,7 @@ def build_parser(command: str | None = "*") -> argparse.ArgumentParser:
         module.add_arguments(p)
         p.set_defaults(func=module.run)
     _check_numeric_options(parser)
+    _note_dash(parser)
     return parser
 
 
@@ -293,6 +316,10 @@ def _main(argv=None) -> int:
         if isinstance(val, str) and not val.strip():
             name = "FILE" if dest == "file" else "--" + dest.replace("_", "-")
             print(f"ldaspark: error: {name} is an empty path", file=sys.stderr)
+            return 2
+    for dest in _OUTPUT_OPTIONS:    # "-" was written as a file named "-": refused before any work
+        if getattr(args, dest, None) == "-":
+            print(f"ldaspark: error: {dash_message('--' + dest)}", file=sys.stderr)
             return 2
     if not getattr(args, "func", None):
         parser.print_help()

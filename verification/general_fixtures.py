@@ -11,24 +11,21 @@ from fractions import Fraction as Fr
 import mpmath
 import sympy
 
+from ldaspark.analysis.discrete import theorem1_residual_bound
 from ldaspark.core.system import LagrangianSystem
 from ldaspark.core.tableau_file import from_json_dict
 
 
 def theorem1_tol(r):
-    """What the residual of Theorem 1 can carry when the identities hold exactly: the error of the
-    Richardson-extrapolated differences (bounded by their estimate ``fd_error``, |R2 - R1|, which
-    bounds the error of the coarser extrapolant R1; factor 10 for the estimate itself) plus the
-    round-off of the printed side at ``dps_fd`` digits, amplified by the condition number of the
-    BVP Jacobian (dV/dq = -J^-1 dG/dq; 10^3 units for the accumulation). Measured on the default
-    cases of test_theorem1, test_time_dependence, test_nonlinear_constraint and
-    test_general_systems (mpmath only, no BLAS): residuals 0 .. 1.4e-40 against bounds
-    6.5e-52 .. 8.4e-26, at most 0.22 of the bound (Lobatto IIIA-B 2 on the skate, 1.6e-52 of
-    7.3e-52). TOL_THEOREM1 (1e-20,
-    the ledger's) passed tableau coefficients correct to 20 digits only (planted in
+    """What the residual of Theorem 1 can carry when the identities hold exactly:
+    ``ldaspark.analysis.discrete.theorem1_residual_bound`` (10 fd_error + 1e3 cond(J) 10^-dps_fd),
+    the ledger's threshold too. Measured on the default cases of test_theorem1,
+    test_time_dependence, test_nonlinear_constraint and test_general_systems (mpmath only, no
+    BLAS): residuals 0 .. 1.4e-40 against bounds 6.5e-52 .. 8.4e-26, at most 0.22 of the bound
+    (Lobatto IIIA-B 2 on the skate, 1.6e-52 of 7.3e-52). TOL_THEOREM1 (1e-20, the ledger's
+    earlier threshold) passed tableau coefficients correct to 20 digits only (planted in
     SparkTableau.arrays: residuals 1.9e-23 .. 9.2e-26 at dps_fd 60); this bound does not."""
-    cond = r["sigma_max"] / r["sigma_min_nonzero"]
-    return 10 * r["fd_error"] + 1e3 * cond * 10.0 ** -r["dps_fd"]
+    return theorem1_residual_bound(r)
 
 
 T = sympy.Symbol("t")

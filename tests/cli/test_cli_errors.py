@@ -94,6 +94,55 @@ def test_an_empty_output_path_is_refused_not_ignored(capsys, tmp_path, monkeypat
     assert main(["methods", "--max-s", "1", "--json", "m.json"]) == 0 and (tmp_path / "m.json").is_file()
 
 
+@pytest.mark.parametrize("argv, name", [
+    (["methods", "--json", "-"], "--json"),
+    (["verify", "--json", "-"], "--json"),
+    (["audit", "--method", "gauss-1", "--quick", "--json", "-"], "--json"),
+    (["audit", "--method", "gauss-1", "--quick", "--out", "-"], "--out"),
+    (["integrate", "skate", "gauss-1", "--h", "0.5", "--t-end", "1", "--out", "-"], "--out"),
+    (["report", "energy", "--json", "-"], "--json"),
+    (["report", "claims", "--outdir", "-"], "--outdir"),
+    (["report", "--outdir", "-", "energy"], "--outdir"),      # the main job's option, given to a section
+    (["mutants", "--outdir", "-"], "--outdir"),
+])
+def test_a_dash_output_path_is_refused_not_written_as_a_file(capfd, tmp_path, monkeypatch, argv, name):
+    """``verify --json -`` (and every other output option) wrote a regular file (or made a
+    directory) named "-": one line, exit 2, before any work, and nothing named "-" made. Controls:
+    ``./-`` is a file named "-", and /dev/stdout is standard output."""
+    import ldaspark.cli as cli
+    import ldaspark.lab.mutants.command as mutants
+    import ldaspark.lab.reports.claims as claims
+    import ldaspark.lab.reports.energy as energy
+    import ldaspark.lab.theory.audit as audit
+
+    def work(args):
+        raise AssertionError("the command ran before its output path was checked")
+    for mod, attr in ((cli, "_run_integrate"), (mutants, "run"), (claims, "run"), (energy, "run"), (audit, "run")):
+        monkeypatch.setattr(mod, attr, work)        # the parser takes them when it is built, in main()
+    monkeypatch.chdir(tmp_path)
+    _one_error_line(capfd, argv, match=f"{name} -: '-' is not standard output")     # fd 1 and 2 captured
+    assert not os.path.lexists(tmp_path / "-")
+    monkeypatch.undo()
+    monkeypatch.chdir(tmp_path)
+    assert main(["methods", "--max-s", "1", "--json", "./-"]) == 0 and (tmp_path / "-").is_file()
+    capfd.readouterr()
+    assert main(["methods", "--max-s", "1", "--json", "/dev/stdout"]) == 0
+    assert '"method": "gauss-1"' in capfd.readouterr().out
+
+
+def test_the_help_of_each_output_option_says_what_a_dash_means(capsys):
+    """One line of help (the epilog) on every command with --out / --json / --outdir, and none on
+    a command without them (control: the walk looks at the options, not at every parser)."""
+    from ldaspark.cli import _DASH_HELP, build_parser
+    parser = build_parser()
+    subs = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction").choices
+    for name in ("integrate", "methods", "verify", "audit", "mutants", "report"):
+        assert subs[name].epilog == _DASH_HELP, name
+    sections = next(a for a in subs["report"]._actions if a.__class__.__name__ == "_SubParsersAction").choices
+    assert all(p.epilog == _DASH_HELP for p in sections.values())
+    assert parser.epilog is None
+
+
 @pytest.mark.parametrize("argv", [
     ["methods", "\x1b[31mred\nline two"],                 # unrecognized arguments: quoted raw
     ["integrate", "skate", "gauss-1", "--h", "0.5", "--t-end", "1", "--out", "o.json", "x\x1b]0;t\x07\ry"],

@@ -1,6 +1,8 @@
 """Two outputs of one command never name the same file: the second write replaced the first, and
 the run ended with exit 0 and one of the two files missing (found by probe t17)."""
+import io
 import os
+import types
 
 import pytest
 
@@ -143,6 +145,43 @@ def test_a_report_section_refuses_a_figures_path_that_is_no_directory_before_it_
     assert (bad / "figures").read_text() == "not a directory"
 
 
+@pytest.mark.parametrize("section, stand_in, extra, name", [
+    ("energy", "run_default", ["--t-end", "15"], "energy.md"),
+    ("energy", "run_default", ["--t-end", "15"], "energy.json"),
+    ("convergence", "compute", ["--scenes", "particle", "--methods", "gauss-1", "--t-end", "0.5"], "convergence.json"),
+    ("systems", "build", ["--systems", "suslov"], "systems.md"),
+    ("work-precision", "run_study", ["--quick"], "work_precision.md"),
+    ("stability", "build_report", [], "stability.json"),
+    ("claims", "run_ledger", ["--quick"], "claims-quick.md"),       # control: refused before too
+    (None, "run_sections", [], "energy.md"),                        # the main job: every section's files
+    (None, "run_sections", [], "claims.json"),
+])
+def test_a_report_section_refuses_its_own_report_path_that_is_no_file_before_it_runs(
+        capsys, tmp_path, monkeypatch, section, stand_in, extra, name):
+    """``report energy --outdir D`` with D/energy.md a directory computed every figure (minutes
+    for the paper's intervals), wrote the PNGs, then failed on energy.md; likewise the other
+    sections' .md / .json and the main job. Now refused before the run (a stand-in here). Control:
+    the same D without that directory reaches the run."""
+    import importlib
+    import ldaspark.lab.reports.timing as timing
+    mod = importlib.import_module("ldaspark.lab.reports." + (section or "jobs").replace("-", "_"))
+
+    def reached(*a, **k):
+        raise _Reached
+    monkeypatch.setattr(mod, stand_in, reached)
+    monkeypatch.setattr(timing, "probe_cpu", lambda: 1.0)     # the main job's CPU probe: not under test
+    words = ["report", section, *extra] if section else ["report", "--workers", "1"]
+    good, bad = tmp_path / "good", tmp_path / "bad"
+    (bad / name).mkdir(parents=True)
+    with pytest.raises(_Reached):
+        main([*words, "--outdir", str(good)])
+    rc, err = _rc_err(capsys, [*words, "--outdir", str(bad)])
+    assert rc == 2 and err.count("\n") == 1 and f"{name}: it is a directory" in err, (rc, err)
+    # nothing computed, nothing written: OUTDIR/figures is made (empty) by the check of that directory
+    assert set(os.listdir(bad)) <= {name, "figures"} and not os.listdir(bad / name)
+    assert not (bad / "figures").exists() or not os.listdir(bad / "figures")
+
+
 def test_an_output_on_the_input_tableau_is_refused(capsys, tmp_path):
     """``audit t.json --json t.json`` and ``integrate ... custom --tableau t.json --out t.json``
     replaced the tableau file by the audit or the result (exit 0: the input was lost). Control:
@@ -160,3 +199,33 @@ def test_an_output_on_the_input_tableau_is_refused(capsys, tmp_path):
     _refused_as_same_file(*_rc_err(capsys, ["audit", str(tab), "--quick", "--out", str(tab)]))
     _refused_as_same_file(*_rc_err(capsys, integrate + ["--out", str(tab)]))
     assert tab.read_bytes() == before
+
+
+def test_report_convergence_refuses_a_comparator_the_scene_cannot_run_before_it_runs(capsys, tmp_path, monkeypatch):
+    """``report convergence --scenes bicycle`` ran every method (5 min at --t-end 0.1), then
+    mp-lobatto-iiib-a-2 (semi-implicit: the mechanical form) raised and nothing was written. Named
+    in --methods it is refused now, one line, before any reference (a stand-in here); in the
+    default list it is skipped on such a scene, with a line saying why (the general scenes' rule).
+    Controls: the same method on the particle reaches the run and is measured there."""
+    from ldaspark.lab.reports import convergence
+
+    def reached(*a, **k):
+        raise _Reached
+    monkeypatch.setattr(convergence, "compute", reached)
+    argv = ["report", "convergence", "--methods", "gauss-1", "mp-lobatto-iiib-a-2", "--t-end", "0.1",
+            "--json", str(tmp_path / "c.json")]
+    with pytest.raises(_Reached):
+        main(argv + ["--scenes", "particle"])
+    rc, err = _rc_err(capsys, argv + ["--scenes", "particle", "bicycle"])
+    assert rc == 2 and err.count("\n") == 1, (rc, err)
+    assert "mp-lobatto-iiib-a-2 cannot run on the scene bicycle" in err and "mechanical form" in err
+
+    measured = []
+    monkeypatch.setattr(convergence, "reference_for", lambda *a, **k: types.SimpleNamespace(kind="stand-in"))
+    monkeypatch.setattr(convergence, "measure_errors", lambda meth, *a, **k: measured.append(meth) or {})
+    monkeypatch.setattr(convergence, "order_records", lambda *a, **k: [])
+    log = io.StringIO()
+    convergence.run_scene("bicycle", ["mp-lobatto-iiib-a-2", "gauss-1"], 0.1, log=log)
+    assert measured == ["gauss-1"] and "mp-lobatto-iiib-a-2" in log.getvalue() and "skipped" in log.getvalue()
+    convergence.run_scene("particle", ["mp-lobatto-iiib-a-2"], 0.1, log=io.StringIO())
+    assert measured == ["gauss-1", "mp-lobatto-iiib-a-2"]

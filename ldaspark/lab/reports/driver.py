@@ -95,6 +95,9 @@ def _main_options_to_section(args) -> None:
                              f"{val!r} and {now!r}")
         if dest == "outdir" and isinstance(val, str) and not val.strip():
             raise InputError("--outdir is an empty path")
+        if dest == "outdir" and val == "-":         # the command line's check saw the section's default
+            from ...cli import dash_message
+            raise InputError(dash_message(opt))
         setattr(args, dest, val)
 
 
@@ -108,6 +111,16 @@ def _check_outdir_writable(outdir) -> None:
     except OSError as exc:
         raise InputError(f"--outdir {outdir}: cannot be created ({exc.strerror or exc})") from None
     check_destination(os.path.join(outdir, "report_timing.json"))
+
+
+def check_report_files(outdir, names) -> None:
+    """OUTDIR/<name> of each of a section's own files (``REPORT_FILES``: its markdown and JSON)
+    can be written: a directory or socket of that name was refused at the end of the section's
+    runs (``report energy`` with OUTDIR/energy.md a directory computed every figure, wrote them,
+    then failed on energy.md)."""
+    from ...core.io import check_destination
+    for name in names:
+        check_destination(os.path.join(outdir, name))
 
 
 def check_figures_dir(outdir) -> None:
@@ -153,6 +166,8 @@ def run(args) -> int:
     workers = args.workers or os.cpu_count() or 1
     if workers < 1:
         raise InputError(f"--workers must be positive, got {workers}")
+    for mod in available_sections().values():      # each section's files, before any of them runs
+        check_report_files(args.outdir, importlib.import_module(mod).REPORT_FILES)
     from .timing import probe_cpu
     probe = probe_cpu()                  # before the workers start: the machine's speed, not the job's
     clock = Clock()

@@ -30,6 +30,8 @@ from .plotting import colours, figure
 from .timing import Clock
 
 REPORT_DIR = "reports"
+#: the files of the default report in OUTDIR (``driver.check_report_files``)
+REPORT_FILES = ("energy.md", "energy.json")
 BOUNDED_RATIO = 1.5
 E0_PAPER = 3.06
 
@@ -318,6 +320,8 @@ def run(args) -> int:
             raise InputError("--json needs --figure N")
         if fig4_available():
             check_fig4_t_end(args.t_end)    # the default run's Fig. 4 is shortened too
+        from .driver import check_report_files
+        check_report_files(args.outdir or REPORT_DIR, REPORT_FILES)
         run_default(args.outdir or REPORT_DIR, t_end=args.t_end)
         return 0
     if args.figure == 4:

@@ -35,6 +35,7 @@ from .stability_stiff import (DE_GROWTH, HW, N_STIFF, OMEGA, STIFF_METHODS, STIF
 
 REPORT = "stability.md"
 JSON = "stability.json"
+REPORT_FILES = (REPORT, JSON)           # ``driver.check_report_files``
 DEFAULT_SWEEP = ("euler-i", "gauss-1", "gauss-2", "gauss-3", "lobatto-iiia-iiib-3")
 SYMMETRIC = ("gauss-1", "gauss-2", "gauss-3", "lobatto-iiia-iiib-2", "lobatto-iiia-iiib-3",
              "lobatto-iiia-iiib-iiid-3")
@@ -436,6 +437,8 @@ def add_arguments(p):
 
 
 def run(args) -> int:
+    from .driver import check_report_files
+    check_report_files(args.outdir, REPORT_FILES)
     build_report(full=args.full, outdir=args.outdir)
     return 0
 

@@ -35,6 +35,7 @@ from .timing import Clock
 
 REPORT = "systems.md"
 JSON = "systems.json"
+REPORT_FILES = (REPORT, JSON)           # ``driver.check_report_files``
 FIG = "systems_invariants.png"
 SYSTEMS = ("chaplygin-sleigh", "tilted-disk", "chaplygin-sphere", "suslov", "contact-oscillator",
            "ball-turntable", "ball-turntable-rheonomic")
@@ -417,6 +418,8 @@ def run(args) -> int:
         # refused by the first run too, but after a system's set-up and a progress line on stderr
         raise InputError(f"--t-long {args.t_long:g} is {args.t_long / H_LONG:.3g} steps of h = {H_LONG:g}, "
                          f"more than the limit {MAX_STEPS:.0e}")
+    from .driver import check_report_files
+    check_report_files(args.outdir, REPORT_FILES)
     build(args.outdir, systems, args.t_long)
     return 0
 

@@ -765,8 +765,14 @@ def check_t_long(t_long) -> None:
         raise InputError(f"--t-long {t_long:g} is {n:.3g} steps of h = {LONG_H:g}, more than the limit {MAX_STEPS:.0e}")
 
 
+#: the files of the report in OUTDIR (``driver.check_report_files``)
+REPORT_FILES = ("work_precision.md", "work_precision.json")
+
+
 def run(args) -> int:
     check_t_long(args.t_long)
+    from .driver import check_report_files
+    check_report_files(args.outdir, REPORT_FILES)
     run_study(args.outdir, quick=args.quick, t_long=args.t_long)
     return 0
 

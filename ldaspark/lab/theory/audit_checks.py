@@ -405,6 +405,7 @@ ENTRY_SAMPLES = 2
 #: does not: a sum of n terms is at most sqrt(n) times its root-mean-square; a random-sign sample is
 #: at least a tenth of that (ENTRY_SAMPLES): the bound is 10 sqrt(n) times the measured response
 ENTRY_SAFETY = 10.0
+#: the entries the audit moves: those whose balls the rank probe reads (``discrete._PROBED``)
 PERTURBED = ("c", "A", "A_hat", "A_tilde", "b", "b_hat", "b_tilde")
 
 
@@ -414,9 +415,8 @@ def entry_radii(tab) -> dict | None:
     None when the entries are known exactly or computed to any precision (nothing to propagate)."""
     if tab.exact is None or tab.known_exactly:
         return None
-    balls = tab.ball_entries(oc.ball_digits(tab, 30))
-    rad = {k: [[float(x.rad()) for x in r] if isinstance(r, list) else float(r.rad()) for r in balls[k]]
-           for k in PERTURBED}
+    from ...analysis.discrete import entry_radii_of
+    rad = entry_radii_of(tab)          # the rank probe's reading of the balls, not a second one
     umax = max(_flat(rad.values()), default=0.0)
     return rad if umax > 0 else None
 

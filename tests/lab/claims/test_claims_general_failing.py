@@ -115,3 +115,26 @@ def test_the_nonideal_control_stalls_only_against_a_reference_with_N(monkeypatch
         monkeypatch.setattr(cg, "nonideal_orders", lambda *a, _r=ref, **k: ([], _r))
         recs = cg._nonideal_records(quick=True)
         assert [(r["status"], r["expected"]) for r in recs] == [(want, "fail")], recs
+
+
+def _gauss2_to_20_digits():
+    """Gauss 2 computing with entries correct to 20 digits at every precision (the catalogued
+    fault tableau-arrays-20-digit-entries, planted in one fresh copy)."""
+    tab = get_method("gauss-2", exact=True).with_entry("A", 0, 0, "0")     # a fresh copy, own caches
+    full = tab.mp_entries
+    tab.mp_entries = lambda dps: full(20)
+    tab.name = "gauss-2-20-digits"
+    return tab
+
+
+def test_general_theorem1_fails_for_a_tableau_correct_to_20_digits_only():
+    """The general scenes' Theorem 1 records used the fixed 1e-20 too (residuals of a 20-digit
+    tableau pass it); judged now against ``theorem1_residual_bound`` like the ledger's. Control:
+    exact Gauss 2 passes on the same scene."""
+    scn = get_scene("rheonomic-skate")
+    t0, q0, v0 = scn.initial(60)
+    bad = cg._theorem1_records(scn, _gauss2_to_20_digits(), "pass", t0, q0, v0)
+    assert [r["status"] for r in bad] == ["fail", "fail"], bad
+    assert max(r["residual"] for r in bad) < cg.TOL_THEOREM1       # what the fixed 1e-20 let through
+    good = cg._theorem1_records(scn, get_method("gauss-2", exact=True), "pass", t0, q0, v0)
+    assert [r["status"] for r in good] == ["pass", "pass"], good

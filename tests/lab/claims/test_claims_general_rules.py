@@ -24,7 +24,8 @@ def _scene(name="scene-x", L_q=(0, 0)):
 
 def _t1_result(q0, q1):
     return {"theorem1-q0": q0, "theorem1-q1": q1, "fd_error": 1e-40, "without_forces_q0": 1e-3,
-            "rank_deficiency": 0, "wellposed": "well-posed", "seconds": 2.0}
+            "rank_deficiency": 0, "wellposed": "well-posed", "seconds": 2.0,
+            "sigma_max": 1.0, "sigma_min_nonzero": 1e-3, "dps_fd": 60}
 
 
 # ============================== claims_general ==============================================
@@ -39,7 +40,9 @@ def test_order_plan_switches_at_orders_2_and_4():
 def test_general_theorem1_rule_thresholds_and_vacuous_control(monkeypatch):
     res = {}
     monkeypatch.setattr(cg, "theorem1_residuals", lambda *a, **k: res["r"])
-    T, N = cg.TOL_THEOREM1, cg.TOL_NEGATIVE
+    # the derived bound of these results: 10 x 1e-40 + 1e3 x 1e3 x 1e-60 = 1e-39 (below the 1e-20 cap)
+    T, N = cg.theorem1_threshold(_t1_result(0.0, 0.0)), cg.TOL_NEGATIVE
+    assert T == pytest.approx(1e-39, rel=1e-12)
     # expected pass: <= TOL (at the threshold passes, just above fails), each identity on its own
     res["r"] = _t1_result(T, T * 1.5)
     out = cg._theorem1_records(_scene(L_q=(1, 0)), _tab(), "pass", 0, [0], [0])

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import functools
 
+import pytest
+
 from ldaspark.analysis.discrete import perturbed_initial
 from ldaspark.core.families import get_method
 from ldaspark.lab.claims import ledger as lg
@@ -81,3 +83,36 @@ def test_the_holonomic_rate_rule_fails_on_the_normal_part_of_the_forces(monkeypa
     # and a control whose covector decayed fast would be reported (pass where fail is expected)
     monkeypatch.setattr(lg, "holonomic_order", lambda tab: {**r, "full": r["tangential"], "p_full": r["p_tangential"]})
     assert [x["status"] for x in lg.holonomic_records(get_method("gauss-1", exact=True), "pass")] == ["pass", "pass"]
+
+
+def _gauss2_to_20_digits():
+    """Gauss 2 that says it is exact but computes with entries correct to 20 digits at every
+    precision (the catalogued fault tableau-arrays-20-digit-entries, planted in one fresh copy):
+    (22) then holds to ~1e-21 only."""
+    tab = get_method("gauss-2", exact=True).with_entry("A", 0, 0, "0")     # a fresh copy, own caches
+    full = tab.mp_entries
+    tab.mp_entries = lambda dps: full(20)
+    tab.name = "gauss-2-20-digits"
+    return tab
+
+
+@pytest.mark.parametrize("scene_name", ["skate", "mp-particles"])
+def test_theorem1_fails_for_a_tableau_correct_to_20_digits_only(scene_name):
+    """The ledger judged Theorem 1 at a fixed 1e-20: a tableau correct to 20 digits passed on the
+    skate (residuals 1.9e-23). Judged now at ``theorem1_threshold``: the residual's own bound
+    (``theorem1_residual_bound``, 10 fd_error + 1e3 cond(J) 10^-dps_fd, the verification
+    suite's; 6.2e-35 there), at most 1e-20. On mp-particles the same tableau makes the singular
+    BVP near-singular (cond 1e26): the bound (7e-11) does not resolve 1e-20 and the cap fails the
+    residual (6e-18). Both identities fail by more than 100 x their threshold. Control: exact
+    Gauss 2 passes under the same rule (residuals <= 2.1e-40 against >= 8.6e-41 .. 1e-20)."""
+    scene = lg.get_scene(scene_name)
+    t0, q0, v0 = scene.initial(60)
+    want = {"theorem1-q0": "pass", "theorem1-q1": "pass"}
+    recs, r = lg.theorem1_records(scene, _gauss2_to_20_digits(), want, "base", t0, q0, v0)
+    assert [x["status"] for x in recs] == ["fail", "fail"], recs
+    from ldaspark.analysis.discrete import theorem1_residual_bound
+    tol = min(theorem1_residual_bound(r), lg.TOL_THEOREM1)
+    assert all(x["threshold"] == tol and x["residual"] > 100 * tol for x in recs), (tol, recs)
+    good, g = lg.theorem1_records(scene, get_method("gauss-2", exact=True), want, "base", t0, q0, v0)
+    assert [x["status"] for x in good] == ["pass", "pass"], good
+    assert all(x["threshold"] == min(theorem1_residual_bound(g), lg.TOL_THEOREM1) for x in good)

@@ -26,10 +26,10 @@ def _scene(name="scene-x", L_q=(0, 0)):
     return SimpleNamespace(name=name, system=SimpleNamespace(L_q=list(L_q)))
 
 
-def _ledger_t1(q0, q1, mu=0.0, wellposed="well-posed"):
-    return {"theorem1-q0": q0, "theorem1-q1": q1, "fd_error": 1e-40, "f_d_minus_norm": 1.0, "without_forces_q0": 1.0,
+def _ledger_t1(q0, q1, mu=0.0, wellposed="well-posed", fd_error=1e-40):
+    return {"theorem1-q0": q0, "theorem1-q1": q1, "fd_error": fd_error, "f_d_minus_norm": 1.0, "without_forces_q0": 1.0,
             "sigma_min_nonzero": 1e-3, "sigma_max": 1.0, "rank_deficiency": 0, "mu_norm": mu, "wellposed": wellposed,
-            "seconds": 4.0}
+            "seconds": 4.0, "dps_fd": 60}
 
 
 def _classification(cls, rank):
@@ -86,7 +86,9 @@ def test_check_unit_records_schema():
 def test_ledger_theorem1_records_rules_and_notes(monkeypatch):
     res = {}
     monkeypatch.setattr(ledger, "theorem1_residuals", lambda *a, **k: res["r"])
-    T, N = ledger.TOL_THEOREM1, ledger.TOL_NEGATIVE
+    # the derived bound of these results: 10 x 1e-40 + 1e3 x 1e3 x 1e-60 = 1e-39 (below the 1e-20 cap)
+    T, N = ledger.theorem1_threshold(_ledger_t1(0.0, 0.0)), ledger.TOL_NEGATIVE
+    assert T == pytest.approx(1e-39, rel=1e-12)
     exp = {"theorem1-q0": "pass", "theorem1-q1": "fail"}
     res["r"] = _ledger_t1(T, N)
     recs, r = ledger.theorem1_records(_scene(), _tab(), exp, "base", 0, [0], [0])
@@ -598,12 +600,14 @@ def test_ledger_jobs_floor_at_one_and_follow_the_environment(monkeypatch):
 
 
 def test_theorem1_threshold_follows_the_working_digits(monkeypatch):
-    """The pass threshold is half the working digits (``ledger.theorem1_tolerance``): 1e-20 at the
-    ledger's 40 digits, 1e-15 at 30; a residual of 1e-17 passes at 30 digits and fails at 40
-    (a fixed 1e-20 failed every correct claim checked at 30 digits)."""
+    """The cap of the pass threshold is half the working digits (``ledger.theorem1_tolerance``):
+    1e-20 at the ledger's 40 digits, 1e-15 at 30; where the derived bound is larger (an FD error
+    estimate of 1e-14: bound 1e-13) a residual of 1e-17 passes at 30 digits and fails at 40 (a
+    fixed 1e-20 failed every correct claim checked at 30 digits). Where the bound is smaller it
+    decides (``test_ledger_theorem1_records_rules_and_notes``)."""
     assert ledger.theorem1_tolerance(ledger.DPS) == ledger.TOL_THEOREM1 == 1e-20
     assert ledger.theorem1_tolerance(30) == 1e-15
-    monkeypatch.setattr(ledger, "theorem1_residuals", lambda *a, **k: _ledger_t1(1e-17, 1e-17))
+    monkeypatch.setattr(ledger, "theorem1_residuals", lambda *a, **k: _ledger_t1(1e-17, 1e-17, fd_error=1e-14))
     exp = {"theorem1-q0": "pass", "theorem1-q1": "pass"}
     at30, _ = ledger.theorem1_records(_scene(), _tab(), exp, "base", 0, [0], [0], dps=30)
     at40, _ = ledger.theorem1_records(_scene(), _tab(), exp, "base", 0, [0], [0])

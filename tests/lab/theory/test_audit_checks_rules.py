@@ -517,3 +517,26 @@ def test_the_audit_error_is_the_worst_component_of_q_and_v():
     sol = types.SimpleNamespace(q=[np.array([1.0, 2.5])], v=[np.array([0.0, 5.0])])
     assert _err(sol, [1.0, 2.0], [0.0, 0.0]) == 5.0                    # v's second component
     assert _err(sol, [1.0, -4.0], [0.0, 5.0]) == 6.5                   # q's second component
+
+
+def test_entry_radii_is_the_rank_probes_reading_of_the_balls(monkeypatch):
+    """``entry_radii`` read the entries' balls itself (``tab.ball_entries(ball_digits(tab, 30))``)
+    beside ``analysis.discrete._entry_balls``, the rank probe's reading: one reading now
+    (``discrete.entry_radii_of``). A stand-in for ``_entry_balls`` reaches the audit (it did not
+    before). Control: on a tableau of short decimals and floats the radii are those of the former
+    reading, entry by entry, and a tableau known exactly still has none."""
+    from ldaspark.analysis import discrete
+    tab = _lobatto2(c=[0, 1.0], b=["0.5", 0.5])              # a float and a 1-digit decimal
+    balls = tab.ball_entries(oc.ball_digits(tab, 30))
+    before = {k: [[float(x.rad()) for x in r] if isinstance(r, list) else float(r.rad()) for r in balls[k]]
+              for k in ac.PERTURBED}
+    assert ac.PERTURBED == discrete._PROBED
+    assert ac.entry_radii(tab) == before and max(before["b"]) > 0
+    assert ac.entry_radii(_lobatto2()) is None                 # exact entries: nothing to propagate
+    def ball(r):
+        return types.SimpleNamespace(rad=lambda: r)
+    stand_in = {k: [ball(1.0 if k == "c" else 0.0) for _ in range(2)] if k in ("c", "b", "b_hat", "b_tilde")
+                else [[ball(0.0)] * 2 for _ in range(2)] for k in discrete._PROBED}
+    monkeypatch.setattr(discrete, "_entry_balls", lambda t: stand_in)
+    got = ac.entry_radii(tab)
+    assert got["c"] == [1.0, 1.0] and max(got["A"][0] + got["A"][1] + got["b"]) == 0.0, got
