@@ -151,6 +151,30 @@ def test_the_source_carries_the_sizes_and_the_helpers_digest():
             SP.specialised_source(*bad)
 
 
+def test_every_function_on_the_steps_path_reads_the_sizes_as_constants():
+    """The step loop (``quasi_steps``), the residual, the matrices and the
+    increments of the generated text take s, n, m from S_, N_, M_: a function whose size line the
+    substitutions miss compiles with trip counts read from arrays (correct, only slower), so it is
+    checked here by name. Negative control: the generic text reads them from the arrays."""
+    import re
+    from ldaspark.compiled import specialised as sp
+    on_path = ("quasi_steps", "mech_residual", "stage_points", "multiplier_matrix",
+               "quasi_increment", "curvature_matrix", "curvature_increment", "freeze_constraint")
+
+    def size_lines(text, name):
+        body = re.search(r"\ndef " + name + r"\(.*?(?=\n\n\n|\Z)", text, re.S).group(0)
+        return [ln.strip() for ln in body.splitlines()
+                if re.match(r"\s+(s, n, m|s, m, n|s, n|s|n|m) = ", ln) and ("shape" in ln or "_" in ln)]
+
+    src = SP.specialised_source(5, 3, 2)
+    generic = sp._read("kernels_quasi.py") + sp._read("kernels_mech.py") + sp._read("newton.py")
+    for name in on_path:
+        lines = size_lines(src, name)
+        assert lines, name
+        assert all("shape" not in ln for ln in lines), (name, lines)
+        assert any("shape" in ln for ln in size_lines(generic, name)), name     # the control
+
+
 @settings(max_examples=1, database=None, derandomize=True, deadline=None)
 @given(case=mechanical_cases(n_range=(3, 3)))
 def test_the_same_bits_on_a_drawn_mechanical_system(case):
