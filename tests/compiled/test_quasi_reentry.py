@@ -151,3 +151,41 @@ def test_the_specialised_kernel_returns_the_same_bits_across_refreshes(which, h,
 
     assert same(gen, spec)
     assert not same(gen, ctl)
+
+
+def _particle_with_an_overflowing_hessian():
+    """The particle of 8.1 with the free coordinate q4 of stiffness g(t) = 1 + exp(800 - 10^6 (t - 9/8)^2):
+    Hess U has g = inf (exp overflows) at t = 9/8 and g = 1 at the stage times of a step of h = 0.25
+    whose midpoint is 9/8 (10^6 ((c_i - 1/2) h)^2 >= 5200 for gauss-2), so the step itself is that of
+    the particle (q4 = v4 = 0 stays so) while ``curvature_refresh`` sees a Hessian that is not finite."""
+    t = sympy.Symbol("t")
+    q, v = list(sympy.symbols("q1:5")), list(sympy.symbols("v1:5"))
+    g = 1 + sympy.exp(800 - 10 ** 6 * (t - sympy.Rational(9, 8)) ** 2)
+    L = sum(vi ** 2 for vi in v) / 2 - (q[0] ** 2 + q[1] ** 2 + g * q[3] ** 2 / 2)
+    return compile_system(LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, t=t, name="particle-q4-overflow"))
+
+
+@pytest.mark.parametrize("method", ["gauss-2", "gauss-4"])
+def test_a_failed_refresh_leaves_its_step_to_the_mass_block_and_the_next_step_refreshes(method):
+    """t0 = 1, h = 0.25: step 0's midpoint is t = 9/8, its Hessian not finite, so the first
+    decomposition fails (counted, no LU factored: nlu = multiplier_lu); the re-entered step runs
+    the M-only block (curvature_steps 0) and converges without the Newton chain; step 1 decomposes
+    again (2 refreshes, n = 4 LUs) and the remaining steps use it. Measured with the re-entered step
+    using the curvature block whatever the refresh returned: the zero block's S is singular and the
+    step falls back. Control: t0 = 0, the pole at step 4's midpoint, where a frozen block exists:
+    |H - H_frozen| = inf is not above CURV_STALE_REL |H| = inf, the block is kept (one refresh, every
+    step a curvature step). The trajectory is the Newton engine's within the bound."""
+    cs = _particle_with_an_overflowing_hessian()
+    q0, v0 = [1, 0, 0, 0], [0, 1, 0, 0]
+    one = run_quasi(cs, method, 1.0, q0, v0, 0.25, 1).stats
+    assert one["curvature_refreshes"] == 1 and one["curvature_steps"] == 0, one
+    assert one["quasi_steps"] == 1 and one["quasi_fallbacks"] == 0 and one["nlu"] == one["multiplier_lu"] == 1, one
+    n = 40
+    b = run_quasi(cs, method, 1.0, q0, v0, 0.25, n)
+    st = b.stats
+    assert st["curvature_refreshes"] == 2 and st["curvature_steps"] == n - 1, st
+    assert st["quasi_fallbacks"] == 0 and st["nlu"] == st["multiplier_lu"] + cs.n, st
+    a = run_compiled(cs, method, 1.0, q0, v0, 0.25, n, 1, kernel="spark")
+    assert _difference(a, b) <= 1.0
+    ctl = run_quasi(cs, method, 0.0, q0, v0, 0.25, n).stats
+    assert ctl["curvature_refreshes"] == 1 and ctl["curvature_steps"] == n, ctl
