@@ -227,6 +227,20 @@ def finish_step(model, M, ws, x, x_last, x_prev, q, v, cq, cv, dq, dv, bw, sb, h
 
 
 @numba.njit(cache=True)
+def loop_arrays(tab, q0, v0, NN):
+    """What every step loop keeps across its steps: the unknowns x of this step and of the last two
+    (the predictor's history), the increments dq, dv and Kahan compensations cq, cv of
+    ``accept_step``, the state q, v (copies of q0, v0) and sum_j b_j (``finish_step``)."""
+    n = q0.shape[0]
+    bw = tab[4]
+    sb = 0.0
+    for j in range(bw.shape[0]):
+        sb += bw[j]
+    return (np.zeros(NN), np.zeros(NN), np.zeros(NN), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n),
+            q0.copy(), v0.copy(), sb)
+
+
+@numba.njit(cache=True)
 def spark_loop(model, tab, M, ws, J, piv, t0, q0, v0, h, n_steps, every, compensated, tol,
                max_iter, predictor, out_t, out_q, out_v, out_E, out_k, stats, out_x):
     """The step loop of the SPARK method (21) shared by both forms: ``evaluate`` (residual and
@@ -249,13 +263,8 @@ def spark_loop(model, tab, M, ws, J, piv, t0, q0, v0, h, n_steps, every, compens
     sn, sm = s * n, s * m
     NN = sn + sm + n
     G = np.zeros(NN)
-    x, x_last, x_prev = np.zeros(NN), np.zeros(NN), np.zeros(NN)
-    dq, dv, cq, cv = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
-    q, v = q0.copy(), v0.copy()
+    x, x_last, x_prev, dq, dv, cq, cv, q, v, sb = loop_arrays(tab, q0, v0, NN)
     bw = tab[4]
-    sb = 0.0
-    for j in range(s):
-        sb += bw[j]
     stats[mt.FAILED_STEP] = -1
     if not store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
         fail(stats, 0, FAIL_NONFINITE)

@@ -46,7 +46,7 @@ import numpy as np
 from numba import types
 
 from . import modeltypes as mt
-from .kernels import finish_step, spark_newton, evaluate, store   # noqa: F401 (evaluate: the overload spark_newton uses)
+from .kernels import finish_step, loop_arrays, spark_newton, evaluate, store   # noqa: F401 (evaluate: the overload spark_newton uses)
 from .kernels_mech import mech_residual, mech_workspace
 from .newton import (FAIL_NONFINITE, RATE_KAPPA, end_newton, fail, lu_factor, lu_solve, newton_status,
                      norm_inf, predict)
@@ -56,7 +56,7 @@ from .newton import (FAIL_NONFINITE, RATE_KAPPA, end_newton, fail, lu_factor, lu
 # digest is written here so that editing one changes this file too (tests/test_kernels_quasi.py).
 HELPERS = ("kernels.py", "newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py",
            "modeltypes.py")
-HELPERS_SHA256 = "1712884590b8ce971c5a2cf68ab3f5c9a4b386d59c5dc2e3c1f60e5cf2b92f02"
+HELPERS_SHA256 = "427c00b586cdd0a92d1275618e37e8838e84779e0b70674ef9bc952483b6c27e"
 
 #: a quasi-Newton increment that contracts by less than this (|dx_k| > QUASI_THETA |dx_k-1|)
 #: sends the step to the Newton chain: at rate 1/2 the ~50 bits from a predictor error of 1e-2
@@ -762,13 +762,8 @@ def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compe
     J = np.zeros((NN, NN))
     piv = np.zeros(NN, dtype=np.int64)
     G = np.zeros(NN)
-    x, x_last, x_prev, x_pred = np.zeros(NN), np.zeros(NN), np.zeros(NN), np.zeros(NN)
-    dq, dv, cq, cv = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
-    q, v = q0.copy(), v0.copy()
-    bw = tab[4]
-    sb = 0.0
-    for j in range(s):
-        sb += bw[j]
+    x, x_last, x_prev, dq, dv, cq, cv, q, v, sb = loop_arrays(tab, q0, v0, NN)
+    x_pred = np.zeros(NN)
     quasi_max = min(max_iter, QUASI_MAX_ITER)
     cw = curvature_workspace(tab, n, m, M, Minv)
     cinfo = cw[3]

@@ -24,7 +24,7 @@ import numpy as np
 from numba import types
 
 from . import modeltypes as mt
-from .kernels import finish_step, spark_newton, evaluate, store   # noqa: F401 (evaluate: the overload spark_newton uses)
+from .kernels import finish_step, loop_arrays, spark_newton, evaluate, store   # noqa: F401 (evaluate: the overload spark_newton uses)
 from .kernels_general import general_begin, general_eval, workspace
 from .kernels_quasi import (EPS, FIRST_RATE_FACTOR, PREDICT_COLLOCATION, QS_FALLBACKS, QS_ITERATIONS, QS_LU,
                             QS_RATE_FIRST, QS_SKIPPED, QS_STEPS, QUASI_MAX_ITER, QUASI_THETA, QUASI_WAIT_MAX,
@@ -37,7 +37,7 @@ from .newton import (FAIL_NONFINITE, RATE_KAPPA, end_newton, fail, lu_factor, lu
 # compiles in (tests/compiled/test_quasi_general.py checks it)
 HELPERS = ("kernels.py", "newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py",
            "modeltypes.py", "kernels_quasi.py")
-HELPERS_SHA256 = "abbb80aebb00ea6e8d191b8b2f3dbfc0eb5c0db0253e20f4c4595a845f53df55"
+HELPERS_SHA256 = "6b8c25025542fe7e1c9805bed1bc12897482639bd45dea89795f2fa4e70739b1"
 
 
 @numba.njit(cache=True)
@@ -272,13 +272,8 @@ def general_quasi_loop(model, tab, M, Ev, El, t0, q0, v0, h, n_steps, every, com
     J = np.zeros((NN, NN))
     piv = np.zeros(NN, dtype=np.int64)
     G = np.zeros(NN)
-    x, x_last, x_prev, x_pred = np.zeros(NN), np.zeros(NN), np.zeros(NN), np.zeros(NN)
-    dq, dv, cq, cv = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
-    q, v = q0.copy(), v0.copy()
-    bw = tab[4]
-    sb = 0.0
-    for j in range(s):
-        sb += bw[j]
+    x, x_last, x_prev, dq, dv, cq, cv, q, v, sb = loop_arrays(tab, q0, v0, NN)
+    x_pred = np.zeros(NN)
     quasi_max = min(max_iter, QUASI_MAX_ITER)
     istate = np.zeros(7, dtype=np.int64)
     istate[IS_BACKOFF] = 1
