@@ -229,6 +229,50 @@ def test_a_rheonomic_scene_started_at_t0_not_zero_agrees_with_newton(scene):
         assert b.t[0] == t1 and _difference(a, b) <= 1.0, (scene, fam, _difference(a, b))
 
 
+def _every_term_system(dU=0):
+    """A mechanical system where every term of (1) is nonzero and depends on t: M non-diagonal,
+    U(t, q) with a Hessian that moves (the curvature block refreshes), K(t, q) and b(t, q); dU
+    adds dU q1^2 to U (the negative control)."""
+    t = sympy.Symbol("t")
+    q, v = list(sympy.symbols("q1:5")), list(sympy.symbols("v1:5"))
+    M = sympy.Matrix([[2, sympy.Rational(1, 5), 0, 0], [sympy.Rational(1, 5), 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 3]])
+    vv = sympy.Matrix(v)
+    U = (1 + sympy.sin(t) / 3) * (q[0] ** 2 + 2 * q[1] ** 2) / 2 + q[0] ** 3 / 5 + q[2] ** 2 * q[3] ** 2 / 4 \
+        + sympy.Float(dU) * q[0] ** 2
+    k = [v[2] - q[1] * v[0] + sympy.cos(t) * v[3] / 4 + sympy.sin(q[3]) / 10 + sympy.cos(t) / 20,
+         v[3] + (1 + t / 10) * q[0] * v[1] - sympy.sin(2 * t) / 10]
+    L = (vv.T * M * vv)[0, 0] / 2 - U
+    return compile_system(LagrangianSystem(L, k, q, v, t=t, name=f"every-term-mechanical-{dU}"))
+
+
+def _every_term_start(t0):
+    """q0 and a v0 on k(t0, q0, v) = 0 (k is linear in v: v3, v4 solved for)."""
+    q0 = np.array([0.3, -0.2, 0.1, 0.2])
+    v0 = np.array([0.5, 0.4, 0.0, 0.0])
+    K = np.array([[-q0[1], 0.0, 1.0, np.cos(t0) / 4], [0.0, (1 + t0 / 10) * q0[0], 0.0, 1.0]])
+    b = np.array([np.sin(q0[3]) / 10 + np.cos(t0) / 20, -np.sin(2 * t0) / 10])
+    v0[2:] = np.linalg.solve(K[:, 2:], -(b + K[:, :2] @ v0[:2]))
+    return q0, v0
+
+
+@pytest.mark.parametrize("family", ["gauss-2", "gauss-4", "lobatto-iiia-iiib-3"])
+def test_every_term_of_1_nonzero_quasi_agrees_with_newton(family):
+    """The quasi step (``quasi_steps``, its re-entry after curvature refreshes, the multiplier
+    matrix) against the kernels' Newton on a system where M, U, K, b are all nonzero and U, K, b
+    depend on t, from t0 = 0.3, 200 steps: within the bound of the module docstring (2 N 8 eps
+    scale). Control: Newton on U + 1e-9 q1^2 is far outside that bound."""
+    t0 = 0.3
+    q0, v0 = _every_term_start(t0)
+    cs = _every_term_system()
+    a = run_compiled(cs, family, t0, q0, v0, 0.05, 200, 1, kernel="spark")
+    qn = run_quasi(cs, family, t0, q0, v0, 0.05, 200, 1)
+    assert qn.stats["quasi_steps"] > 0 and qn.stats["curvature_steps"] > 0, qn.stats
+    assert np.abs(qn.constraint).max() < 1e-12
+    assert _difference(a, qn) <= 1.0, _difference(a, qn)
+    other = run_compiled(_every_term_system(1e-9), family, t0, q0, v0, 0.05, 200, 1, kernel="spark")
+    assert _difference(other, qn) > 10.0, _difference(other, qn)
+
+
 @pytest.mark.parametrize("scene", ["particle", "relativistic"])
 def test_the_quasi_root_finder_counts_its_factorisations(scene):
     """``nlu`` counts LU factorisations on every engine; a quasi-Newton run factors one multiplier
