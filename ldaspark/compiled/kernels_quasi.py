@@ -614,6 +614,21 @@ def collocation_predict(Ev, El, hist, x, s, n, m):
 IS_WAIT, IS_BACKOFF, IS_CURV_LAST, IS_HAVE_FROZEN, IS_USE_CURV, IS_J_OUT, IS_REFRESHED = 0, 1, 2, 3, 4, 5, 6
 #: its float state (``fstate``): the carried rate estimate eta and the first increment it was measured on
 FS_ETA, FS_DREF = 0, 1
+
+
+@numba.njit(cache=True)
+def steps_state(use_curv):
+    """(istate, fstate) of a run's start: no wait, back-off 1, the next sample 1, the curvature
+    block in use where ``use_curv``; no carried rate (eta = dref = -1: none, as after a fallback or
+    a change of the frozen block)."""
+    istate = np.zeros(IS_REFRESHED + 1, dtype=np.int64)
+    istate[IS_BACKOFF] = 1
+    istate[IS_J_OUT] = 1
+    istate[IS_USE_CURV] = 1 if use_curv else 0
+    fstate = np.zeros(FS_DREF + 1)
+    fstate[FS_ETA] = -1.0
+    fstate[FS_DREF] = -1.0
+    return istate, fstate
 #: ``quasi_steps`` returns this instead of a step index when the run has failed (recorded in stats)
 STEPS_FAILED = -1
 
@@ -768,15 +783,7 @@ def quasi_loop(model, tab, M, Minv, Ev, El, t0, q0, v0, h, n_steps, every, compe
     cw = curvature_workspace(tab, n, m, M, Minv)
     cinfo = cw[3]
     qmid = np.zeros(n)
-    istate = np.zeros(7, dtype=np.int64)
-    istate[IS_BACKOFF] = 1
-    istate[IS_USE_CURV] = 1 if (curvature and n <= CURV_N_MAX and cinfo[0] > 0.0) else 0
-    istate[IS_J_OUT] = 1
-    # the rate estimate theta / (1 - theta) of the last steps (-1: none, e.g. after a fallback or
-    # a change of the frozen block) and the first increment it was measured on
-    fstate = np.zeros(2)
-    fstate[FS_ETA] = -1.0
-    fstate[FS_DREF] = -1.0
+    istate, fstate = steps_state(curvature and n <= CURV_N_MAX and cinfo[0] > 0.0)
     stats[mt.FAILED_STEP] = -1
     if not store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
         fail(stats, 0, FAIL_NONFINITE)

@@ -29,7 +29,7 @@ from .kernels_general import general_begin, general_eval, workspace
 from .kernels_quasi import (EPS, FIRST_RATE_FACTOR, PREDICT_COLLOCATION, QS_FALLBACKS, QS_ITERATIONS, QS_LU,
                             QS_RATE_FIRST, QS_SKIPPED, QS_STEPS, QUASI_MAX_ITER, QUASI_THETA, QUASI_WAIT_MAX,
                             RATE_GROWTH, RATE_SPAN, collocation_predict, constraint_apply, FS_DREF, FS_ETA,
-                            IS_BACKOFF, IS_J_OUT, IS_WAIT, STEPS_FAILED)
+                            IS_BACKOFF, IS_J_OUT, IS_WAIT, STEPS_FAILED, steps_state)
 from .newton import (FAIL_NONFINITE, RATE_KAPPA, end_newton, fail, lu_factor, lu_solve, newton_status,
                      norm_inf, predict)
 
@@ -37,7 +37,7 @@ from .newton import (FAIL_NONFINITE, RATE_KAPPA, end_newton, fail, lu_factor, lu
 # compiles in (tests/compiled/test_quasi_general.py checks it)
 HELPERS = ("kernels.py", "newton.py", "kernels_mech.py", "kernels_general.py", "kernels_sparse.py",
            "modeltypes.py", "kernels_quasi.py")
-HELPERS_SHA256 = "6b8c25025542fe7e1c9805bed1bc12897482639bd45dea89795f2fa4e70739b1"
+HELPERS_SHA256 = "2564a8e3816ae0f0293b7493e4245f8809562f8cc8eba23cf2b923a1d3cb7ebb"
 
 
 @numba.njit(cache=True)
@@ -275,12 +275,7 @@ def general_quasi_loop(model, tab, M, Ev, El, t0, q0, v0, h, n_steps, every, com
     x, x_last, x_prev, dq, dv, cq, cv, q, v, sb = loop_arrays(tab, q0, v0, NN)
     x_pred = np.zeros(NN)
     quasi_max = min(max_iter, QUASI_MAX_ITER)
-    istate = np.zeros(7, dtype=np.int64)
-    istate[IS_BACKOFF] = 1
-    istate[IS_J_OUT] = 1
-    fstate = np.zeros(2)
-    fstate[FS_ETA] = -1.0                       # as in kernels_quasi.quasi_loop
-    fstate[FS_DREF] = -1.0
+    istate, fstate = steps_state(False)
     stats[mt.FAILED_STEP] = -1
     if not store(model, 0, t0, q, v, M, out_t, out_q, out_v, out_E, out_k, ws):
         fail(stats, 0, FAIL_NONFINITE)
