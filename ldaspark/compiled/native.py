@@ -67,11 +67,22 @@ _O0_FROM = 20000
 #: per coordinate) ran its steps 1.5x slower at -O0. Same results at every level (no fast-math:
 #: LLVM may not reorder floating-point operations), only the machine code's speed differs.
 _O2_PER_DOF = 100
+#: ... except where a function takes both the sine and the cosine of one argument: -O2 computes the
+#: pair by one call of libm's sincos (LLVM's SelectionDAG pairs llvm.sin / llvm.cos of one operand;
+#: -O0's fast instruction selection does not), the same bits as the two calls (glibc computes both
+#: with the same code). Measured on the skate (33 operations, K and k_q sin / cos q3): 7% of a
+#: gauss-6 quasi step (2.24-2.31 -> 2.04-2.14 us), codegen 6 -> 7 ms
+_O2_SIN_COS = True
 
 
-def _opt_level(size: int, n_dof) -> int:
-    """LLVM's optimisation level for a model of ``size`` emitted operations and n coordinates."""
-    if size > _O0_FROM or not isinstance(n_dof, int) or n_dof <= 0 or size < _O2_PER_DOF * n_dof:
+def _opt_level(size: int, n_dof, sin_cos: bool = False) -> int:
+    """LLVM's optimisation level for a model of ``size`` emitted operations and n coordinates;
+    ``sin_cos``: some function takes the sine and the cosine of one value."""
+    if size > _O0_FROM:
+        return 0
+    if sin_cos and _O2_SIN_COS:
+        return 2
+    if not isinstance(n_dof, int) or n_dof <= 0 or size < _O2_PER_DOF * n_dof:
         return 0
     return 2
 
@@ -113,6 +124,9 @@ class _Function:
             else:
                 raise NotNativeError(f"{fdef.name}: argument type {ty}")
         self.count = 0
+        # the IR values (held by the builder's instructions, so their ids stay unique) whose sine /
+        # cosine the function takes
+        self.trig = {"llvm.sin": set(), "llvm.cos": set()}
         for stmt in fdef.body:
             self.statement(stmt)
         if not self.builder.block.is_terminated:
@@ -269,7 +283,14 @@ class _Function:
 
     def _intrinsic(self, name, *args):
         fn = self.module.declare_intrinsic(name, [self.double])
+        if name in ("llvm.sin", "llvm.cos"):
+            self.trig[name].add(id(args[0]))
         return self.builder.call(fn, list(args))
+
+    @property
+    def sin_cos(self) -> bool:
+        """Whether the function takes the sine and the cosine of one IR value (``_opt_level``)."""
+        return bool(self.trig["llvm.sin"] & self.trig["llvm.cos"])
 
     def _libm(self, name, *args):
         ir = self.ir
@@ -434,12 +455,13 @@ def _compile_functions(source, consts, k):
     fns, model = _model_functions(tree)
     module = ir.Module(name="ldaspark_native_model")
     module.triple = llvm.get_process_triple()
-    built, size = [], 0
+    built, size, sin_cos = [], 0, False
     for name, (fdef, sig) in fns.items():
         fn = _Function(module, fdef, sig, k)
         built.append((name, fn.fn.name, sig))
         size += fn.count
-    engine = _jit(module, _opt_level(size, consts.get("N_DOF")))
+        sin_cos = sin_cos or fn.sin_cos
+    engine = _jit(module, _opt_level(size, consts.get("N_DOF"), sin_cos))
     funcs = {name: NativeFunction(name, engine.get_function_address(sym), sig, engine) for name, sym, sig in built}
     if any(f._addr == 0 for f in funcs.values()):
         raise NotNativeError("LLVM gave no address for a model function")

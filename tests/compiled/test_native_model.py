@@ -311,3 +311,30 @@ def test_a_division_by_zero_in_a_numba_model_is_seen_as_in_a_native_one(newton, 
         assert a[:2] == b[:2], (a[:2], b[:2])
         assert np.array_equal(a[2], b[2])
     assert results["native", 1.1][0] == 0 and np.all(np.isfinite(results["native", 1.1][2]))
+
+
+@pytest.mark.parametrize("name,form", [("skate", "auto"), ("chaplygin-sleigh", "auto"), ("rolling-disk", "auto"),
+                                       ("skate", "general")])
+def test_a_model_with_the_sine_and_cosine_of_one_value_is_built_at_O2_with_the_bits_of_O0(name, form, monkeypatch):
+    """A model that takes sin and cos of one value is compiled at -O2 (libm's sincos for the pair,
+    ``native._O2_SIN_COS``) however few its operations per coordinate; every output of every
+    function equal bit for bit to the -O0 build (no fast-math: LLVM keeps the order of the
+    operations, and glibc's sincos is its sin and cos). Control: with the rule off, -O0."""
+    sc = get_scene(name)
+    cs = compile_system(sc.system, form)
+    levels = []
+    jit = native._jit
+    monkeypatch.setattr(native, "_jit", lambda module, opt: (levels.append(opt), jit(module, opt))[1])
+    py = native.python_module(cs.source)
+    outs = {}
+    for rule in (True, False):
+        monkeypatch.setattr(native, "_O2_SIN_COS", rule)
+        monkeypatch.setattr(native, "_BASES", {})           # translate again, not from this process's memory
+        model = native.compile_model(cs.source)
+        outs[rule] = [_outputs(f, getattr(py, f.name), f.signature(), cs.n, cs.m, p)[0]
+                      for f in model[1:] if isinstance(f, native.NativeFunction) for p in _points(sc)]
+    assert levels == [2, 0]
+    assert len(outs[True]) == len(outs[False]) > 0
+    for a, b in zip(outs[True], outs[False]):
+        for x, y in zip(a, b):
+            assert np.array_equal(np.asarray(x), np.asarray(y))
