@@ -21,19 +21,12 @@ from ldaspark.compiled.quasi import extrapolation, run_quasi
 from ldaspark.core.errors import InputError
 from ldaspark.core.system import LagrangianSystem
 from ldaspark.models.scenes import get_scene
+from quasi_helpers import EPS, trajectory_difference as _difference
 
-EPS = float(np.finfo(float).eps)
 MECH_SCENES = ("particle", "skate", "robot", "mp-particles", "mp-particles-nh", "pendulum", "rolling-disk",
                "rheonomic-skate", "turntable", "contact-oscillator")
 FAMILIES = ("gauss-1", "gauss-2", "gauss-3", "gauss-4", "lobatto-iiia-iiib-2", "lobatto-iiia-iiib-3")
 N, H = 300, 0.05
-
-
-def _difference(a, b):
-    """max |dq|, |dv| over the run in units of 2 N * 8 eps * scale (the module docstring's bound)."""
-    scale = max(1.0, float(np.abs(a.q).max()), float(np.abs(a.v).max()))
-    d = max(float(np.abs(a.q - b.q).max()), float(np.abs(a.v - b.v).max()))
-    return d / (2 * len(a.t) * 8 * EPS * scale)
 
 
 def test_kernel_file_records_its_helpers():

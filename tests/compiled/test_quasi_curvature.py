@@ -17,17 +17,10 @@ from ldaspark.compiled.quasi import run_quasi
 from ldaspark.compiled.runner import kernel_spec
 from ldaspark.core.system import LagrangianSystem
 from ldaspark.models.scenes import get_scene
+from quasi_helpers import EPS, trajectory_difference as _difference
 
-EPS = float(np.finfo(float).eps)
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
-
-
-def _difference(a, b):
-    """max |dq|, |dv| over the run in units of 2 N * 8 eps * scale (the module docstring's bound)."""
-    scale = max(1.0, float(np.abs(a.q).max()), float(np.abs(a.v).max()))
-    d = max(float(np.abs(a.q - b.q).max()), float(np.abs(a.v - b.v).max()))
-    return d / (2 * len(a.t) * 8 * EPS * scale)
 
 
 def _particle(U, name):

@@ -21,18 +21,11 @@ from ldaspark.core.errors import InputError
 from ldaspark.models.scenes import get_scene
 from verification.harness import SEED, agreement_tol, saddle_cond
 from verification.strategies import general_systems
+from quasi_helpers import EPS, trajectory_difference as _difference
 
-EPS = float(np.finfo(float).eps)
 N, H = 200, 0.05
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
-
-
-def _difference(a, b):
-    """max |dq|, |dv| over the run in units of 2 N * 8 eps * scale (the module docstring's bound)."""
-    scale = max(1.0, float(np.abs(a.q).max()), float(np.abs(a.v).max()))
-    d = max(float(np.abs(a.q - b.q).max()), float(np.abs(a.v - b.v).max()))
-    return d / (2 * len(a.t) * 8 * EPS * scale)
 
 
 def test_kernel_file_records_its_helpers():
