@@ -71,8 +71,11 @@ _O2_PER_DOF = 100
 #: pair by one call of libm's sincos (LLVM's SelectionDAG pairs llvm.sin / llvm.cos of one operand;
 #: -O0's fast instruction selection does not), the same bits as the two calls (glibc computes both
 #: with the same code). Measured on the skate (33 operations, K and k_q sin / cos q3): 7% of a
-#: gauss-6 quasi step (2.24-2.31 -> 2.04-2.14 us), codegen 6 -> 7 ms
-_O2_SIN_COS = True
+#: gauss-6 quasi step (2.24-2.31 -> 2.04-2.14 us), codegen 6 -> 7 ms. Up to this many operations
+#: only: -O2's codegen grows faster than the model (a 240-coordinate model with 80 rolling
+#: constraints, 10111 operations: 0.16 s at -O0, 0.57 s at -O2, 7% of its first call), and in a
+#: model that large the step's linear algebra, not its sines, is what costs (0: the rule off)
+_O2_SIN_COS_UP_TO = 4000
 
 
 def _opt_level(size: int, n_dof, sin_cos: bool = False) -> int:
@@ -80,7 +83,7 @@ def _opt_level(size: int, n_dof, sin_cos: bool = False) -> int:
     ``sin_cos``: some function takes the sine and the cosine of one value."""
     if size > _O0_FROM:
         return 0
-    if sin_cos and _O2_SIN_COS:
+    if sin_cos and size <= _O2_SIN_COS_UP_TO:
         return 2
     if not isinstance(n_dof, int) or n_dof <= 0 or size < _O2_PER_DOF * n_dof:
         return 0

@@ -322,7 +322,7 @@ def test_a_division_by_zero_in_a_numba_model_is_seen_as_in_a_native_one(newton, 
                                        ("skate", "general")])
 def test_a_model_with_the_sine_and_cosine_of_one_value_is_built_at_O2_with_the_bits_of_O0(name, form, monkeypatch):
     """A model that takes sin and cos of one value is compiled at -O2 (libm's sincos for the pair,
-    ``native._O2_SIN_COS``) however few its operations per coordinate; every output of every
+    ``native._O2_SIN_COS_UP_TO``) however few its operations per coordinate; every output of every
     function equal bit for bit to the -O0 build (no fast-math: LLVM keeps the order of the
     operations, and glibc's sincos is its sin and cos). Control: with the rule off, -O0."""
     sc = get_scene(name)
@@ -333,7 +333,7 @@ def test_a_model_with_the_sine_and_cosine_of_one_value_is_built_at_O2_with_the_b
     py = native.python_module(cs.source)
     outs = {}
     for rule in (True, False):
-        monkeypatch.setattr(native, "_O2_SIN_COS", rule)
+        monkeypatch.setattr(native, "_O2_SIN_COS_UP_TO", 4000 if rule else 0)
         monkeypatch.setattr(native, "_BASES", {})           # translate again, not from this process's memory
         model = native.compile_model(cs.source)
         outs[rule] = [_outputs(f, getattr(py, f.name), f.signature(), cs.n, cs.m, p)[0]
