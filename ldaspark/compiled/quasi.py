@@ -5,7 +5,6 @@ engine="compiled", newton="quasi")`` reaches it through ``solve``.
 """
 from __future__ import annotations
 
-import math
 import threading
 import time
 
@@ -14,7 +13,7 @@ import numpy as np
 from ..core.errors import InputError
 
 from .codegen import NotCompilableError
-from .runner import (_TOL_DEFAULT, STAT_NAMES, FastSolution, _check_options, _failure, kernel_spec, n_samples)
+from .runner import STAT_NAMES, FastSolution, _check_options, _failure, kernel_spec, kernel_start, n_samples
 from . import runner, specialised
 
 #: the counters ``run_quasi`` adds to the stats of ``runner.run_compiled``: quasi-Newton
@@ -108,14 +107,7 @@ def run_quasi(cs, method, t0, q0, v0, h, n_steps, every=1, compensated=True, tol
     if cs.form == "mechanical" and not cs.mass_positive_definite:
         raise InputError(f"{cs.name}: newton='quasi' needs a symmetric positive definite mass matrix M (its frozen "
                          "velocity block is factored as M = L L^T); use the default root finder")
-    q0 = np.array(q0, dtype=float)
-    v0 = np.array(v0, dtype=float)
-    if q0.shape != (cs.n,) or v0.shape != (cs.n,):
-        raise InputError(f"initial data must have n = {cs.n} entries")
-    h = float(h)
-    if not (math.isfinite(h) and h != 0 and np.isfinite(q0).all() and np.isfinite(v0).all()):
-        raise InputError("initial data or step size contain NaN/inf, or h = 0")
-    tol = _TOL_DEFAULT if tol is None else float(tol)
+    q0, v0, h, tol = kernel_start(cs, q0, v0, h, tol)
     key = what[0].tobytes()
     ex = _EXTRAP.get(key)
     if ex is None:

@@ -602,6 +602,20 @@ def auto_runs_quasi(cs, spec, opts: KernelOptions) -> bool:
     return _sparse_structure(cs, spec[1][1].shape[0], "auto") is None
 
 
+def kernel_start(cs, q0, v0, h, tol) -> tuple:
+    """(q0, v0, h, tol) as a kernel takes them: fresh contiguous float64 copies of q0, v0 (the
+    kernel may not alias the caller's), h a nonzero finite float, tol the default where None;
+    InputError for a wrong size or a NaN / inf."""
+    q0 = np.array(q0, dtype=float)
+    v0 = np.array(v0, dtype=float)
+    if q0.shape != (cs.n,) or v0.shape != (cs.n,):
+        raise InputError(f"initial data must have n = {cs.n} entries")
+    h = float(h)
+    if not (math.isfinite(h) and h != 0 and np.isfinite(q0).all() and np.isfinite(v0).all()):
+        raise InputError("initial data or step size contain NaN/inf, or h = 0")
+    return q0, v0, h, (_TOL_DEFAULT if tol is None else float(tol))
+
+
 def _run_checked(cs, method, start, grid, opts: KernelOptions):
     """``run_compiled`` after ``_check_options`` passed (fast_integrate checks them once, before
     compiling; checking twice was ~3 us of a repeated short call's overhead): ``start`` =
@@ -623,14 +637,7 @@ def _run_checked(cs, method, start, grid, opts: KernelOptions):
     if kind == "lf2":   # no block LU, no matrix reuse in the semi-implicit kernel: refused, never ignored
         Newton(linear_solver=linear_solver,
                reuse="auto" if isinstance(reuse_matrix, str) else bool(reuse_matrix)).check_for("compiled-lf2")
-    q0 = np.array(q0, dtype=float)          # a fresh contiguous copy: the kernel may not alias the caller's
-    v0 = np.array(v0, dtype=float)
-    if q0.shape != (cs.n,) or v0.shape != (cs.n,):
-        raise InputError(f"initial data must have n = {cs.n} entries")
-    h = float(h)
-    if not (math.isfinite(h) and h != 0 and np.isfinite(q0).all() and np.isfinite(v0).all()):
-        raise InputError("initial data or step size contain NaN/inf, or h = 0")
-    tol = _TOL_DEFAULT if tol is None else float(tol)
+    q0, v0, h, tol = kernel_start(cs, q0, v0, h, tol)
     S = n_samples(int(n_steps), int(every))
     outs = (np.zeros(S), np.zeros((S, cs.n)), np.zeros((S, cs.n)), np.zeros(S), np.zeros((S, cs.m)))
     stats = np.zeros(len(STAT_NAMES), dtype=np.int64)
