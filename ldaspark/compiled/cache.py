@@ -81,7 +81,7 @@ def _trusted_owner(st) -> bool:
     return uid is None or st.st_uid in (uid, 0)
 
 
-def path_trust(path: str, final_private: bool = True, walked: list | None = None) -> str:
+def path_trust(path: str, final_private: bool = True, walked: list | None = None, final_mode: bool = True) -> str:
     """"" when every component of ``path`` is safe, else the reason it is not.
 
     Safe: each ancestor directory owned by this user or root and not writable by group or others
@@ -92,7 +92,8 @@ def path_trust(path: str, final_private: bool = True, walked: list | None = None
     by anyone else. Links are followed (at most MAX_LINK_HOPS),
     the components of their targets checked the same way. ``walked``: a list that receives
     (component, its lstat) of every component looked at, in order (what the verdict depends on:
-    ``check_kernel_cache`` compares them again at every call)."""
+    ``check_kernel_cache`` compares them again at every call). ``final_mode`` False: the final
+    directory's mode is not judged (``secure_dir`` tightens it, once the rest is found safe)."""
     uid = _uid()
     path = os.fspath(path)
     todo = path.split(os.sep) if os.path.isabs(path) else os.getcwd().split(os.sep) + path.split(os.sep)
@@ -145,7 +146,7 @@ def path_trust(path: str, final_private: bool = True, walked: list | None = None
         return ""
     if uid is not None and st.st_uid != uid:
         return f"{cur} belongs to another user (uid {st.st_uid})"
-    if st.st_mode & 0o077:
+    if final_mode and st.st_mode & 0o077:
         return f"{cur} is accessible to other users"
     return ""
 
@@ -161,7 +162,14 @@ def secure_dir(d: str) -> tuple[str | None, str]:
         if _uid() is not None and st.st_uid != _uid():
             return None, f"{d} belongs to another user (uid {st.st_uid})"
         if st.st_mode & 0o077:
-            os.chmod(d, 0o700)
+            # tightened only once every component on the way is safe, and by its resolved,
+            # link-free path: a directory behind another user's link, or below a directory others
+            # can write, was chmod-ed 0700 and then refused
+            walked: list = []
+            why = path_trust(d, walked=walked, final_mode=False)
+            if why:
+                return None, why
+            os.chmod(walked[-1][0], 0o700)
         why = path_trust(d)
         if why:
             return None, why

@@ -331,6 +331,58 @@ def test_directory_below_a_world_writable_parent_is_refused(tmp_path):
     assert ok == str(loose / "c") and why == ""
 
 
+def _mode(path) -> int:
+    return stat.S_IMODE(os.stat(path).st_mode)
+
+
+def test_a_refused_directory_is_not_tightened_first(tmp_path, monkeypatch):
+    """secure_dir tightened the directory to 0700 before judging its path: a 0755 directory of ours
+    below a directory others can write, given directly or behind a link, was chmod-ed (through the
+    link) and then refused. Now its mode is changed only once every component on the way is
+    safe; control: below a safe parent the same directory, through the same link, is tightened
+    and used."""
+    loose = tmp_path / "loose"
+    loose.mkdir()
+    os.chmod(loose, 0o777)
+    target = loose / "mine"
+    target.mkdir()
+    os.chmod(target, 0o755)
+    link = tmp_path / "link"
+    os.symlink(target, link)
+    for d in (target, link):
+        ok, why = cache.secure_dir(str(d))
+        assert ok is None and "writable by other users" in why
+        assert _mode(target) == 0o755
+    monkeypatch.setenv("LDASPARK_CACHE_DIR", str(link))
+    with pytest.raises(cache.CacheDirectoryError, match="writable by other users"):
+        cache.cache_dir()
+    assert _mode(target) == 0o755
+    os.chmod(loose, 0o755)
+    assert cache.cache_dir() == str(link) and _mode(target) == 0o700
+
+
+@pytest.mark.skipif(not ROOT, reason="a link of another user needs root (lchown)")
+def test_a_directory_behind_another_users_link_keeps_its_mode(tmp_path):
+    """The attack on the fallback <tempdir>/ldaspark-fast-<uid>: another user's link there, in a
+    sticky directory, to a directory of ours (0755). It was chmod-ed 0700 through that link
+    before the link was refused; now it is refused untouched. Control: the same link, ours, is
+    followed and its target tightened."""
+    sticky = tmp_path / "tmp"
+    sticky.mkdir()
+    os.chmod(sticky, 0o1777)
+    mine = tmp_path / "project"
+    mine.mkdir()
+    os.chmod(mine, 0o755)
+    link = sticky / "ldaspark-fast-0"
+    os.symlink(mine, link)
+    os.lchown(link, OTHER_UID, OTHER_UID)
+    ok, why = cache.secure_dir(str(link))
+    assert ok is None and "symbolic link owned by another user" in why
+    assert _mode(mine) == 0o755
+    os.lchown(link, os.getuid(), os.getgid())
+    assert cache.secure_dir(str(link)) == (str(link), "") and _mode(mine) == 0o700
+
+
 def test_link_to_a_private_directory_is_accepted_and_its_target_checked(tmp_path):
     real = tmp_path / "real"
     real.mkdir(mode=0o700)
