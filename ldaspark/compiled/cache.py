@@ -713,14 +713,19 @@ def load_source(source: str, prefix: str = "ldaspark_model_", digest: str | None
     d = cache_dir()
     path = os.path.join(d, modname + ".py")
     try:
-        raw = read_private(path)
-        if raw is None or hashlib.sha256(raw).hexdigest() != digest:
-            if os.path.lexists(path):
-                remove_entry(path)              # a link, FIFO, directory or stale file under our name
-            write_private(path, source.encode(), mode=0o600)
+        for attempt in range(4):
             raw = read_private(path)
-            if raw is None or hashlib.sha256(raw).hexdigest() != digest:
+            if raw is not None and hashlib.sha256(raw).hexdigest() == digest:
+                break
+            if attempt == 3:
                 raise CacheDirectoryError(f"{path} does not hold the source just written")
+            # os.replace replaces a link, FIFO or stale file atomically; only a directory is removed
+            # first. Never a file that merely was absent when read: another process writing the
+            # same source may have put it there since (its unlink failed the other's read-back)
+            with contextlib.suppress(FileNotFoundError):
+                if stat.S_ISDIR(os.lstat(path).st_mode):
+                    remove_entry(path)
+            write_private(path, source.encode(), mode=0o600)
         store = TrustedStore(d, modname, digest)
         store.sweep()
     except OSError as exc:

@@ -712,6 +712,79 @@ def test_numba_cache_dir_writable_by_others_falls_back_with_the_reason(tmp_path)
 
 
 
+def test_a_model_file_written_meanwhile_by_another_loader_is_not_unlinked(cdir, monkeypatch):
+    """Two loaders of one new source (threads here, processes alike): B finds no file, A writes it,
+    B unlinked it (as a stale entry) before rewriting, and A's read-back found nothing:
+    CacheDirectoryError "does not hold the source just written" (engine compiled: an error; auto:
+    the generic engine). The interleaving is forced by events on the cache's own file calls.
+    Now a regular file is replaced atomically, never unlinked first, and both load the module."""
+    import threading
+    src = model_source(7.125)
+    path = os.path.join(cdir, "ldaspark_model_" + cache.source_key(src)[:20] + ".py")
+    cache._MODULES.pop(cache.source_key(src), None)
+    ev = {k: threading.Event() for k in ("b_read", "a_wrote", "b_acted", "a_checked")}
+    W = 120                                  # a bound on each wait (never reached when the order holds)
+    reads = {"A": 0, "B": 0}
+    real_read, real_write, real_remove = cache.read_private, cache.write_private, cache.remove_entry
+
+    def who(p):
+        me = threading.current_thread().name
+        return me if p == path and me in reads else None
+
+    def read(p, *a, **k):
+        me = who(p)
+        out = real_read(p, *a, **k)
+        if me:
+            reads[me] += 1
+            if me == "B" and reads["B"] == 1:          # B looked: no file yet
+                ev["b_read"].set()
+                ev["a_wrote"].wait(W)
+            if me == "A" and reads["A"] == 2:          # A's read-back
+                ev["a_checked"].set()
+        return out
+
+    def write(p, *a, **k):
+        me = who(p)
+        if me == "A":
+            ev["b_read"].wait(W)
+            real_write(p, *a, **k)
+            ev["a_wrote"].set()
+            ev["b_acted"].wait(W)
+            return None
+        if me == "B":
+            ev["b_acted"].set()
+            ev["a_checked"].wait(W)
+        return real_write(p, *a, **k)
+
+    def remove(p):
+        me = who(p)
+        real_remove(p)
+        if me == "B":
+            ev["b_acted"].set()
+            ev["a_checked"].wait(W)
+
+    monkeypatch.setattr(cache, "read_private", read)
+    monkeypatch.setattr(cache, "write_private", write)
+    monkeypatch.setattr(cache, "remove_entry", remove)
+    out = {}
+
+    def run(name):
+        try:
+            out[name] = cache.load_source(src)
+        except Exception as exc:             # noqa: BLE001 - recorded and asserted below
+            out[name] = exc
+    threads = [threading.Thread(target=run, args=(n,), name=n) for n in ("A", "B")]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert all(e.is_set() for e in ev.values())            # the interleaving happened as described
+    assert not any(isinstance(m, Exception) for m in out.values()), out
+    assert out["A"].U_of(0.0, __import__("numpy").array([2.0])) == 14.25
+    with open(path, "rb") as f:
+        assert f.read() == src.encode()
+
+
 def test_two_processes_compiling_one_new_system_agree_bit_for_bit(tmp_path):
     """Two processes compile the same new system into one empty cache at once: both succeed with
     the same numbers, and every file left in the cache is recorded (the next load uses it)."""
