@@ -8,8 +8,10 @@ are files that a process of this user wrote into a directory that only this user
   ``<tempdir>/ldaspark-fast-<uid>``. Used only when every component of its path is safe
   (``path_trust``): each ancestor a directory owned by this user or root that nobody else can
   write (or sticky, as /tmp), each symbolic link on the way owned by this user or root, and the
-  directory itself owned by this user with mode 0700 (a looser mode is tightened). A directory
-  of another user, or below a directory another user can write, is skipped.
+  directory itself owned by this user with mode 0700 (a looser mode is tightened once the rest of
+  the path is found safe, and only when the directory holds nothing but the cache's own entries:
+  a shared one, sticky as /tmp or holding other files, is refused, never made private). A
+  directory of another user, or below a directory another user can write, is skipped.
 * The model module ``ldaspark_model_<digest>.py``: the file name carries the sha256 of the
   source the caller expects; the *expected* source text is what gets compiled and executed
   (never the file's content); the file is rewritten when its content differs.
@@ -169,6 +171,9 @@ def secure_dir(d: str) -> tuple[str | None, str]:
             why = path_trust(d, walked=walked, final_mode=False)
             if why:
                 return None, why
+            why = _not_the_caches_own(walked[-1][0], st)
+            if why:
+                return None, why
             os.chmod(walked[-1][0], 0o700)
         why = path_trust(d)
         if why:
@@ -178,6 +183,27 @@ def secure_dir(d: str) -> tuple[str | None, str]:
         return d, ""
     except OSError as exc:
         return None, f"{d}: {exc.strerror or exc}"
+
+
+#: names the cache writes into its directory (model, ODE and specialised modules, their records and
+#: locks, the stored sources, numba's __pycache__, temporary files, entries renamed aside)
+_OWN_ENTRY = re.compile(r"^(ldaspark_[A-Za-z0-9_.\-]*|__pycache__|\.tmp-[0-9a-f]{16}-.*|\.untrusted-[0-9a-f]{32})$")
+
+
+def _not_the_caches_own(d: str, st) -> str:
+    """"" when the loose directory ``d`` (its stat ``st``) may be made private: it holds nothing but
+    the cache's own entries. A sticky directory (/tmp) or one with other files is shared: making it
+    0700 would lock its other users out (LDASPARK_CACHE_DIR=/tmp as root took /tmp's sticky bit and
+    everyone's access), so it is refused instead."""
+    if st.st_mode & stat.S_ISVTX:
+        return (f"{d} is a shared directory (sticky, mode {stat.S_IMODE(st.st_mode):o}), not made private; "
+                "use a directory of its own below it")
+    other = sorted(n for n in os.listdir(d) if not _OWN_ENTRY.match(n))
+    if other:
+        shown = ", ".join(repr(n[:40]) for n in other[:3])
+        return (f"{d} is accessible to other users and holds files that are not the cache's ({shown}"
+                f"{', ...' if len(other) > 3 else ''}), not made private; use a directory of its own")
+    return ""
 
 
 def cache_dir() -> str:

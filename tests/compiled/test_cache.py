@@ -383,6 +383,40 @@ def test_a_directory_behind_another_users_link_keeps_its_mode(tmp_path):
     assert cache.secure_dir(str(link)) == (str(link), "") and _mode(mine) == 0o700
 
 
+def test_a_shared_directory_is_refused_not_made_private(tmp_path, monkeypatch):
+    """LDASPARK_CACHE_DIR naming a shared directory was made 0700: a sticky 1777 one (as root,
+    LDASPARK_CACHE_DIR=/tmp took /tmp's sticky bit and every other user's access) or a 0755 one
+    holding other files (a home directory). Refused now, its mode untouched; controls: a loose
+    directory holding only the cache's own entries (left 0777 by an earlier run), or empty, is
+    tightened and used."""
+    shared = tmp_path / "tmp"
+    shared.mkdir()
+    os.chmod(shared, 0o1777)
+    (shared / "someone-elses.txt").write_text("")
+    home = tmp_path / "home"
+    home.mkdir()
+    os.chmod(home, 0o755)
+    (home / ".profile").write_text("")
+    for d, mode, match in ((shared, 0o1777, "shared directory [(]sticky"),
+                           (home, 0o755, "holds files that are not the cache's [(]'.profile'[)]")):
+        monkeypatch.setenv("LDASPARK_CACHE_DIR", str(d))
+        with pytest.raises(cache.CacheDirectoryError, match=match):
+            cache.cache_dir()
+        assert _mode(d) == mode
+    own = tmp_path / "own"
+    (own / "__pycache__").mkdir(parents=True)
+    for name in ("ldaspark_model_0123456789abcdef0123.py", "ldaspark_sources.sha256", "ldaspark_quasi_2_3_1.lock",
+                 ".tmp-0123456789abcdef-ldaspark_sources.sha256"):
+        (own / name).write_text("")
+    os.chmod(own, 0o777)
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    os.chmod(empty, 0o755)
+    for d in (own, empty):
+        monkeypatch.setenv("LDASPARK_CACHE_DIR", str(d))
+        assert cache.cache_dir() == str(d) and _mode(d) == 0o700
+
+
 def test_link_to_a_private_directory_is_accepted_and_its_target_checked(tmp_path):
     real = tmp_path / "real"
     real.mkdir(mode=0o700)
