@@ -375,15 +375,29 @@ class TrustedStore:
 
     def sweep(self) -> list:
         """Delete every entry of ``__pycache__`` under this module's name whose content is not
-        the one recorded (planted, corrupt, unrecorded); returns the names deleted."""
+        the one recorded (planted, corrupt, unrecorded), and the temporary files of writers of
+        this store that died before their ``os.replace`` (killed mid-write: nothing else removes
+        them); returns the names deleted."""
         gone = []
+        # every write of a numba file or of the record holds this lock: a temporary file of
+        # either found while it is held belongs to no live writer
+        orphan = re.compile(r"^\.tmp-[0-9a-f]{16}-" + re.escape(self.modname) + r"\.")
         with self.lock:
             rec = self._read_manifest()
+            with contextlib.suppress(OSError):
+                for name in os.listdir(self.dir):          # the record's (the module file's: not locked)
+                    if orphan.match(name) and name.endswith(f"-{self.modname}.sha256"):
+                        remove_entry(os.path.join(self.dir, name))
+                        gone.append(name)
             try:
                 names = os.listdir(self.numba_dir)
             except OSError:
                 return gone
             for name in names:
+                if orphan.match(name):
+                    remove_entry(os.path.join(self.numba_dir, name))
+                    gone.append(name)
+                    continue
                 if not name.startswith(self.modname + "."):
                     continue
                 path = os.path.join(self.numba_dir, name)

@@ -746,6 +746,30 @@ def test_numba_cache_dir_writable_by_others_falls_back_with_the_reason(tmp_path)
 
 
 
+def test_temporary_files_of_a_killed_writer_are_removed_at_the_next_load(cdir):
+    """A process killed between creating its temporary file and os.replace left
+    ``.tmp-<hex>-<name>`` behind for good (two such files after eight kill -9 of numba-path runs).
+    The next load of the module removes those of its numba files and its record, written under
+    its lock (so no live writer owns them); controls: another module's and the module file's
+    (written without that lock) are kept, and the recorded cache is still loaded."""
+    import pathlib
+    src = model_source(5.5)
+    load(src)
+    modname = "ldaspark_model_" + cache.source_key(src)[:20]
+    d = pathlib.Path(cdir)
+    pyc = d / "__pycache__"
+    name = numba_files(cdir, src)[0]
+    orphans = [pyc / f".tmp-0123456789abcdef-{name}", d / f".tmp-fedcba9876543210-{modname}.sha256"]
+    kept = [pyc / f".tmp-0123456789abcdef-ldaspark_model_{'0' * 20}.U_of-5.py311.nbi",
+            d / f".tmp-0123456789abcdef-{modname}.py"]
+    for p in orphans + kept:
+        p.write_bytes(b"partial")
+    mod = load(src)
+    assert [p.name for p in orphans if p.exists()] == []
+    assert all(p.exists() for p in kept)
+    assert hits(mod) == (1, 0)
+
+
 def test_a_model_file_written_meanwhile_by_another_loader_is_not_unlinked(cdir, monkeypatch):
     """Two loaders of one new source (threads here, processes alike): B finds no file, A writes it,
     B unlinked it (as a stale entry) before rewriting, and A's read-back found nothing:
