@@ -325,16 +325,37 @@ class _FileLock:
     def __enter__(self):
         self._threads.acquire()
         try:
-            self.fd = os.open(self.path, os.O_RDWR | os.O_CREAT | _NOFOLLOW | _CLOEXEC, 0o600)
-        except OSError:
-            remove_entry(self.path)          # a link or FIFO planted under the lock's name
-            self.fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_EXCL | _NOFOLLOW | _CLOEXEC, 0o600)
+            self.fd = self._open()
+        except BaseException:                # no lock taken: the thread lock must not stay held
+            self._threads.release()
+            raise
         try:
             import fcntl
             fcntl.flock(self.fd, fcntl.LOCK_EX)
         except ImportError:                  # no flock (Windows): the thread lock only
             pass
+        except BaseException:
+            os.close(self.fd)
+            self._threads.release()
+            raise
         return self
+
+    def _open(self) -> int:
+        flags = os.O_RDWR | os.O_CREAT | _NOFOLLOW | _CLOEXEC
+        try:
+            return os.open(self.path, flags, 0o600)
+        except OSError as exc:
+            # only what is not a regular file (a link: ELOOP, a directory: EISDIR) is removed: an
+            # error of the open itself (EMFILE, ENOSPC, ...) removed the lock file another
+            # process may hold, and the next opener locked a new inode beside it
+            try:
+                st = os.lstat(self.path)
+            except OSError:
+                raise exc from None
+            if stat.S_ISREG(st.st_mode):
+                raise
+            remove_entry(self.path)
+            return os.open(self.path, flags | os.O_EXCL, 0o600)
 
     def __exit__(self, *exc):
         os.close(self.fd)

@@ -746,6 +746,62 @@ def test_numba_cache_dir_writable_by_others_falls_back_with_the_reason(tmp_path)
 
 
 
+def test_a_failed_lock_open_keeps_the_lock_file_and_releases_the_thread_lock(tmp_path, monkeypatch):
+    """_FileLock removed the lock file after any failed open (meant for a planted link) and
+    created a new one: an open failing for itself (EMFILE: out of descriptors; ENOSPC) unlinked the
+    file another process held locked, and the opener locked a new inode beside it (both in the
+    critical section). And an exception from the open left the process-wide thread lock held: every
+    other thread's cache access then waited for good. Now only what is not a regular file is
+    removed, the error is raised and the thread lock released; control: a link planted under the
+    lock's name is still replaced, never followed."""
+    import errno
+    path = str(tmp_path / "m.lock")
+    with cache._FileLock(path):
+        pass
+    ino = os.lstat(path).st_ino
+    real_open = os.open
+    failed = []
+
+    def open_out_of_descriptors(p, *a, **k):
+        if p == path and not failed:
+            failed.append(p)
+            raise OSError(errno.EMFILE, "Too many open files")
+        return real_open(p, *a, **k)
+    monkeypatch.setattr(os, "open", open_out_of_descriptors)
+    try:
+        with pytest.raises(OSError, match="Too many open files"):
+            with cache._FileLock(path):
+                pass
+    finally:
+        monkeypatch.setattr(os, "open", real_open)
+    assert failed and os.lstat(path).st_ino == ino              # the held file was not replaced
+    assert not cache._FileLock._threads._is_owned()
+
+    def open_disk_full(p, *a, **k):                             # every open of it fails
+        if p == path:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real_open(p, *a, **k)
+    monkeypatch.setattr(os, "open", open_disk_full)
+    try:
+        with pytest.raises(OSError, match="No space left"):
+            with cache._FileLock(path):
+                pass
+        owned = cache._FileLock._threads._is_owned()
+    finally:
+        monkeypatch.setattr(os, "open", real_open)
+        while cache._FileLock._threads._is_owned():            # (before the fix: left held)
+            cache._FileLock._threads.release()
+    assert not owned and os.lstat(path).st_ino == ino
+    target = tmp_path / "target"
+    target.write_text("keep")
+    os.unlink(path)
+    os.symlink(target, path)
+    with cache._FileLock(path):
+        pass
+    assert not os.path.islink(path) and target.read_text() == "keep"
+    assert not cache._FileLock._threads._is_owned()
+
+
 def test_temporary_files_of_a_killed_writer_are_removed_at_the_next_load(cdir):
     """A process killed between creating its temporary file and os.replace left
     ``.tmp-<hex>-<name>`` behind for good (two such files after eight kill -9 of numba-path runs).
