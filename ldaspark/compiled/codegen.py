@@ -536,8 +536,13 @@ def _source_by_content(key, generate) -> str:
     if src is None:
         src = cache.stored_source(key)
         if src is not None:
-            src = _checked_model(src)
-        else:
+            try:
+                src = _checked_model(src)
+            except NotCompilableError:
+                # recorded, but refused by this version's checks (``gensource.check_source`` is not
+                # in the key): generated again and replaced, not the compiled engine lost for good
+                src = None
+        if src is None:
             src = _checked_model(generate())
             cache.store_source(key, src)
         _SOURCES[key] = src
