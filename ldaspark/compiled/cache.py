@@ -342,20 +342,28 @@ class _FileLock:
 
     def _open(self) -> int:
         flags = os.O_RDWR | os.O_CREAT | _NOFOLLOW | _CLOEXEC
+        mine = lambda st: _uid() is None or st.st_uid == _uid()     # noqa: E731
         try:
-            return os.open(self.path, flags, 0o600)
+            fd = os.open(self.path, flags, 0o600)
         except OSError as exc:
-            # only what is not a regular file (a link: ELOOP, a directory: EISDIR) is removed: an
-            # error of the open itself (EMFILE, ENOSPC, ...) removed the lock file another
-            # process may hold, and the next opener locked a new inode beside it
+            # only what is not this user's regular file (a link: ELOOP, a directory: EISDIR,
+            # another user's file) is removed: an error of the open itself (EMFILE, ENOSPC, ...)
+            # removed the lock file another process may hold, and the next opener locked a new
+            # inode beside it
             try:
                 st = os.lstat(self.path)
             except OSError:
                 raise exc from None
-            if stat.S_ISREG(st.st_mode):
+            if stat.S_ISREG(st.st_mode) and mine(st):
                 raise
-            remove_entry(self.path)
-            return os.open(self.path, flags | os.O_EXCL, 0o600)
+        else:
+            if mine(os.fstat(fd)):
+                return fd
+            # another user's file (planted while the directory was open to others): its owner,
+            # holding it open, could keep its lock for good and every cache access would wait
+            os.close(fd)
+        remove_entry(self.path)
+        return os.open(self.path, flags | os.O_EXCL, 0o600)
 
     def __exit__(self, *exc):
         os.close(self.fd)

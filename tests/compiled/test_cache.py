@@ -802,6 +802,34 @@ def test_a_failed_lock_open_keeps_the_lock_file_and_releases_the_thread_lock(tmp
     assert not cache._FileLock._threads._is_owned()
 
 
+@pytest.mark.skipif(not ROOT, reason="a lock file of another user needs root (chown)")
+def test_a_lock_file_of_another_user_is_replaced_not_locked(tmp_path):
+    """A lock file another user left under the cache's lock name (while the directory was open to
+    others, before it was tightened) was opened and flock-ed as it was: its owner, holding it open
+    with its lock, would keep every cache access of this user waiting for good. It is replaced by
+    this user's own file; control: this user's lock file is kept (same inode)."""
+    import fcntl
+    path = tmp_path / "m.lock"
+    path.write_bytes(b"")
+    os.chmod(path, 0o666)
+    os.chown(path, OTHER_UID, OTHER_UID)
+    theirs = os.open(path, os.O_RDWR)                    # the other user's descriptor
+    try:
+        with cache._FileLock(str(path)):
+            st = os.lstat(path)
+            assert st.st_uid == os.getuid() and stat.S_ISREG(st.st_mode)
+            # their descriptor no longer shares this lock (before: it was refused here, and had
+            # they taken it first, this process would have waited for them)
+            fcntl.flock(theirs, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    finally:
+        os.close(theirs)
+    ino = os.lstat(path).st_ino
+    with cache._FileLock(str(path)):
+        pass
+    assert os.lstat(path).st_ino == ino
+    assert not cache._FileLock._threads._is_owned()
+
+
 def test_temporary_files_of_a_killed_writer_are_removed_at_the_next_load(cdir):
     """A process killed between creating its temporary file and os.replace left
     ``.tmp-<hex>-<name>`` behind for good (two such files after eight kill -9 of numba-path runs).
