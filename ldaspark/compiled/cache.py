@@ -408,25 +408,14 @@ class TrustedStore:
         this store that died before their ``os.replace`` (killed mid-write: nothing else removes
         them); returns the names deleted."""
         gone = []
-        # every write of a numba file or of the record holds this lock: a temporary file of
-        # either found while it is held belongs to no live writer
-        orphan = re.compile(r"^\.tmp-[0-9a-f]{16}-" + re.escape(self.modname) + r"\.")
         with self.lock:
             rec = self._read_manifest()
-            with contextlib.suppress(OSError):
-                for name in os.listdir(self.dir):          # the record's (the module file's: not locked)
-                    if orphan.match(name) and name.endswith(f"-{self.modname}.sha256"):
-                        remove_entry(os.path.join(self.dir, name))
-                        gone.append(name)
+            gone += self._remove_orphans()
             try:
                 names = os.listdir(self.numba_dir)
             except OSError:
                 return gone
             for name in names:
-                if orphan.match(name):
-                    remove_entry(os.path.join(self.numba_dir, name))
-                    gone.append(name)
-                    continue
                 if not name.startswith(self.modname + "."):
                     continue
                 path = os.path.join(self.numba_dir, name)
@@ -437,6 +426,25 @@ class TrustedStore:
             if len(rec) != len(set(rec) - set(gone)):
                 self._write_manifest({n: d for n, d in rec.items() if n not in gone})
         return gone
+
+    def _remove_orphans(self) -> list:
+        """Under the lock: delete the temporary files of this store's writers that died before
+        their ``os.replace`` (killed mid-write: nothing else removes them). Every write of a file
+        of the store or of its record holds the lock, so none found while it is held belongs to a
+        live writer; the module file's (written without it) are left alone."""
+        orphan = re.compile(r"^\.tmp-[0-9a-f]{16}-" + re.escape(self.modname) + r"\.")
+        gone = []
+        for d, keep in ((self.dir, lambda n: not n.endswith(f"-{self.modname}.sha256")), (self.numba_dir, None)):
+            with contextlib.suppress(OSError):
+                for name in os.listdir(d):
+                    if orphan.match(name) and not (keep and keep(name)):
+                        remove_entry(os.path.join(d, name))
+                        gone.append(name)
+        return gone
+
+    def remove_orphans(self) -> list:
+        with self.lock:
+            return self._remove_orphans()
 
     def read(self, name: str) -> bytes | None:
         """The bytes of ``__pycache__/name`` if they are the recorded ones, else None (and the
@@ -761,7 +769,9 @@ def store_source(key: str, source: str) -> None:
     if not _KEY.match(str(key)):
         return
     with contextlib.suppress(OSError, CacheDirectoryError):
-        _source_store().write(f"{_SOURCE_STORE}.{key}.py", source.encode("utf-8"))
+        store = _source_store()
+        store.remove_orphans()          # once per new model: what killed writers of sources left
+        store.write(f"{_SOURCE_STORE}.{key}.py", source.encode("utf-8"))
 
 
 # --- loading a generated module ---------------------------------------------------------------

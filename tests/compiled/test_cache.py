@@ -854,6 +854,24 @@ def test_temporary_files_of_a_killed_writer_are_removed_at_the_next_load(cdir):
     assert hits(mod) == (1, 0)
 
 
+def test_temporary_files_of_a_killed_source_writer_are_removed_at_the_next_store(cdir):
+    """The same for the store of generated sources (``store_source``, never swept): a writer killed
+    before os.replace left its temporary source or record for good; the next source stored removes
+    them; controls: a model store's temporary is kept, both stored sources are served."""
+    import pathlib
+    cache.store_source("a" * 64, "X = 1\n")
+    d = pathlib.Path(cdir)
+    pyc = d / "__pycache__"
+    orphans = [pyc / f".tmp-0123456789abcdef-ldaspark_sources.{'b' * 64}.py",
+               d / ".tmp-fedcba9876543210-ldaspark_sources.sha256"]
+    kept = pyc / f".tmp-0123456789abcdef-ldaspark_model_{'0' * 20}.U_of-5.py311.nbi"
+    for p in orphans + [kept]:
+        p.write_bytes(b"partial")
+    cache.store_source("c" * 64, "X = 2\n")
+    assert [p.name for p in orphans if p.exists()] == [] and kept.exists()
+    assert cache.stored_source("a" * 64) == "X = 1\n" and cache.stored_source("c" * 64) == "X = 2\n"
+
+
 def test_a_model_file_written_meanwhile_by_another_loader_is_not_unlinked(cdir, monkeypatch):
     """Two loaders of one new source (threads here, processes alike): B finds no file, A writes it,
     B unlinked it (as a stale entry) before rewriting, and A's read-back found nothing:
