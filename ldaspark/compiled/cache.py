@@ -186,8 +186,10 @@ def secure_dir(d: str) -> tuple[str | None, str]:
 
 
 #: names the cache writes into its directory (model, ODE and specialised modules, their records and
-#: locks, the stored sources, numba's __pycache__, temporary files, entries renamed aside)
-_OWN_ENTRY = re.compile(r"^(ldaspark_[A-Za-z0-9_.\-]*|__pycache__|\.tmp-[0-9a-f]{16}-.*|\.untrusted-[0-9a-f]{32})$")
+#: locks, the stored sources, numba's __pycache__, temporary files, entries renamed aside) and the
+#: checkpoints' key kept there (``lab.checkpoint.checkpoint_key``, and its temporary file)
+_OWN_ENTRY = re.compile(r"^(ldaspark_[A-Za-z0-9_.\-]*|__pycache__|\.tmp-[0-9a-f]{16}-.*|\.untrusted-[0-9a-f]{32}"
+                        r"|checkpoint-hmac\.key|\.checkpoint-hmac\.key\.[0-9a-f]+)$")
 
 
 def _not_the_caches_own(d: str, st) -> str:

@@ -406,7 +406,7 @@ def test_a_shared_directory_is_refused_not_made_private(tmp_path, monkeypatch):
     own = tmp_path / "own"
     (own / "__pycache__").mkdir(parents=True)
     for name in ("ldaspark_model_0123456789abcdef0123.py", "ldaspark_sources.sha256", "ldaspark_quasi_2_3_1.lock",
-                 ".tmp-0123456789abcdef-ldaspark_sources.sha256"):
+                 ".tmp-0123456789abcdef-ldaspark_sources.sha256", "checkpoint-hmac.key"):
         (own / name).write_text("")
     os.chmod(own, 0o777)
     empty = tmp_path / "empty"
