@@ -8,8 +8,10 @@ are files that a process of this user wrote into a directory that only this user
   ``<tempdir>/ldaspark-fast-<uid>``. Used only when every component of its path is safe
   (``path_trust``): each ancestor a directory owned by this user or root that nobody else can
   write (or sticky, as /tmp), each symbolic link on the way owned by this user or root, and the
-  directory itself owned by this user with mode 0700 (a looser mode is tightened). A directory
-  of another user, or below a directory another user can write, is skipped.
+  directory itself owned by this user with mode 0700 (a looser mode is tightened once the rest of
+  the path is found safe, and only when the directory holds nothing but the cache's own entries:
+  a shared one, sticky as /tmp or holding other files, is refused, never made private). A
+  directory of another user, or below a directory another user can write, is skipped.
 * The model module ``ldaspark_model_<digest>.py``: the file name carries the sha256 of the
   source the caller expects; the *expected* source text is what gets compiled and executed
   (never the file's content); the file is rewritten when its content differs.
@@ -81,7 +83,7 @@ def _trusted_owner(st) -> bool:
     return uid is None or st.st_uid in (uid, 0)
 
 
-def path_trust(path: str, final_private: bool = True, walked: list | None = None) -> str:
+def path_trust(path: str, final_private: bool = True, walked: list | None = None, final_mode: bool = True) -> str:
     """"" when every component of ``path`` is safe, else the reason it is not.
 
     Safe: each ancestor directory owned by this user or root and not writable by group or others
@@ -92,7 +94,8 @@ def path_trust(path: str, final_private: bool = True, walked: list | None = None
     by anyone else. Links are followed (at most MAX_LINK_HOPS),
     the components of their targets checked the same way. ``walked``: a list that receives
     (component, its lstat) of every component looked at, in order (what the verdict depends on:
-    ``check_kernel_cache`` compares them again at every call)."""
+    ``check_kernel_cache`` compares them again at every call). ``final_mode`` False: the final
+    directory's mode is not judged (``secure_dir`` tightens it, once the rest is found safe)."""
     uid = _uid()
     path = os.fspath(path)
     todo = path.split(os.sep) if os.path.isabs(path) else os.getcwd().split(os.sep) + path.split(os.sep)
@@ -145,7 +148,7 @@ def path_trust(path: str, final_private: bool = True, walked: list | None = None
         return ""
     if uid is not None and st.st_uid != uid:
         return f"{cur} belongs to another user (uid {st.st_uid})"
-    if st.st_mode & 0o077:
+    if final_mode and st.st_mode & 0o077:
         return f"{cur} is accessible to other users"
     return ""
 
@@ -161,7 +164,17 @@ def secure_dir(d: str) -> tuple[str | None, str]:
         if _uid() is not None and st.st_uid != _uid():
             return None, f"{d} belongs to another user (uid {st.st_uid})"
         if st.st_mode & 0o077:
-            os.chmod(d, 0o700)
+            # tightened only once every component on the way is safe, and by its resolved,
+            # link-free path: a directory behind another user's link, or below a directory others
+            # can write, was chmod-ed 0700 and then refused
+            walked: list = []
+            why = path_trust(d, walked=walked, final_mode=False)
+            if why:
+                return None, why
+            why = _not_the_caches_own(walked[-1][0], st)
+            if why:
+                return None, why
+            os.chmod(walked[-1][0], 0o700)
         why = path_trust(d)
         if why:
             return None, why
@@ -170,6 +183,29 @@ def secure_dir(d: str) -> tuple[str | None, str]:
         return d, ""
     except OSError as exc:
         return None, f"{d}: {exc.strerror or exc}"
+
+
+#: names the cache writes into its directory (model, ODE and specialised modules, their records and
+#: locks, the stored sources, numba's __pycache__, temporary files, entries renamed aside) and the
+#: checkpoints' key kept there (``lab.checkpoint.checkpoint_key``, and its temporary file)
+_OWN_ENTRY = re.compile(r"^(ldaspark_[A-Za-z0-9_.\-]*|__pycache__|\.tmp-[0-9a-f]{16}-.*|\.untrusted-[0-9a-f]{32}"
+                        r"|checkpoint-hmac\.key|\.checkpoint-hmac\.key\.[0-9a-f]+)$")
+
+
+def _not_the_caches_own(d: str, st) -> str:
+    """"" when the loose directory ``d`` (its stat ``st``) may be made private: it holds nothing but
+    the cache's own entries. A sticky directory (/tmp) or one with other files is shared: making it
+    0700 would lock its other users out (LDASPARK_CACHE_DIR=/tmp as root took /tmp's sticky bit and
+    everyone's access), so it is refused instead."""
+    if st.st_mode & stat.S_ISVTX:
+        return (f"{d} is a shared directory (sticky, mode {stat.S_IMODE(st.st_mode):o}), not made private; "
+                "use a directory of its own below it")
+    other = sorted(n for n in os.listdir(d) if not _OWN_ENTRY.match(n))
+    if other:
+        shown = ", ".join(repr(n[:40]) for n in other[:3])
+        return (f"{d} is accessible to other users and holds files that are not the cache's ({shown}"
+                f"{', ...' if len(other) > 3 else ''}), not made private; use a directory of its own")
+    return ""
 
 
 def cache_dir() -> str:
@@ -291,16 +327,45 @@ class _FileLock:
     def __enter__(self):
         self._threads.acquire()
         try:
-            self.fd = os.open(self.path, os.O_RDWR | os.O_CREAT | _NOFOLLOW | _CLOEXEC, 0o600)
-        except OSError:
-            remove_entry(self.path)          # a link or FIFO planted under the lock's name
-            self.fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_EXCL | _NOFOLLOW | _CLOEXEC, 0o600)
+            self.fd = self._open()
+        except BaseException:                # no lock taken: the thread lock must not stay held
+            self._threads.release()
+            raise
         try:
             import fcntl
             fcntl.flock(self.fd, fcntl.LOCK_EX)
         except ImportError:                  # no flock (Windows): the thread lock only
             pass
+        except BaseException:
+            os.close(self.fd)
+            self._threads.release()
+            raise
         return self
+
+    def _open(self) -> int:
+        flags = os.O_RDWR | os.O_CREAT | _NOFOLLOW | _CLOEXEC
+        mine = lambda st: _uid() is None or st.st_uid == _uid()     # noqa: E731
+        try:
+            fd = os.open(self.path, flags, 0o600)
+        except OSError as exc:
+            # only what is not this user's regular file (a link: ELOOP, a directory: EISDIR,
+            # another user's file) is removed: an error of the open itself (EMFILE, ENOSPC, ...)
+            # removed the lock file another process may hold, and the next opener locked a new
+            # inode beside it
+            try:
+                st = os.lstat(self.path)
+            except OSError:
+                raise exc from None
+            if stat.S_ISREG(st.st_mode) and mine(st):
+                raise
+        else:
+            if mine(os.fstat(fd)):
+                return fd
+            # another user's file (planted while the directory was open to others): its owner,
+            # holding it open, could keep its lock for good and every cache access would wait
+            os.close(fd)
+        remove_entry(self.path)
+        return os.open(self.path, flags | os.O_EXCL, 0o600)
 
     def __exit__(self, *exc):
         os.close(self.fd)
@@ -341,10 +406,13 @@ class TrustedStore:
 
     def sweep(self) -> list:
         """Delete every entry of ``__pycache__`` under this module's name whose content is not
-        the one recorded (planted, corrupt, unrecorded); returns the names deleted."""
+        the one recorded (planted, corrupt, unrecorded), and the temporary files of writers of
+        this store that died before their ``os.replace`` (killed mid-write: nothing else removes
+        them); returns the names deleted."""
         gone = []
         with self.lock:
             rec = self._read_manifest()
+            gone += self._remove_orphans()
             try:
                 names = os.listdir(self.numba_dir)
             except OSError:
@@ -360,6 +428,25 @@ class TrustedStore:
             if len(rec) != len(set(rec) - set(gone)):
                 self._write_manifest({n: d for n, d in rec.items() if n not in gone})
         return gone
+
+    def _remove_orphans(self) -> list:
+        """Under the lock: delete the temporary files of this store's writers that died before
+        their ``os.replace`` (killed mid-write: nothing else removes them). Every write of a file
+        of the store or of its record holds the lock, so none found while it is held belongs to a
+        live writer; the module file's (written without it) are left alone."""
+        orphan = re.compile(r"^\.tmp-[0-9a-f]{16}-" + re.escape(self.modname) + r"\.")
+        gone = []
+        for d, keep in ((self.dir, lambda n: not n.endswith(f"-{self.modname}.sha256")), (self.numba_dir, None)):
+            with contextlib.suppress(OSError):
+                for name in os.listdir(d):
+                    if orphan.match(name) and not (keep and keep(name)):
+                        remove_entry(os.path.join(d, name))
+                        gone.append(name)
+        return gone
+
+    def remove_orphans(self) -> list:
+        with self.lock:
+            return self._remove_orphans()
 
     def read(self, name: str) -> bytes | None:
         """The bytes of ``__pycache__/name`` if they are the recorded ones, else None (and the
@@ -684,7 +771,9 @@ def store_source(key: str, source: str) -> None:
     if not _KEY.match(str(key)):
         return
     with contextlib.suppress(OSError, CacheDirectoryError):
-        _source_store().write(f"{_SOURCE_STORE}.{key}.py", source.encode("utf-8"))
+        store = _source_store()
+        store.remove_orphans()          # once per new model: what killed writers of sources left
+        store.write(f"{_SOURCE_STORE}.{key}.py", source.encode("utf-8"))
 
 
 # --- loading a generated module ---------------------------------------------------------------
@@ -705,14 +794,19 @@ def load_source(source: str, prefix: str = "ldaspark_model_", digest: str | None
     d = cache_dir()
     path = os.path.join(d, modname + ".py")
     try:
-        raw = read_private(path)
-        if raw is None or hashlib.sha256(raw).hexdigest() != digest:
-            if os.path.lexists(path):
-                remove_entry(path)              # a link, FIFO, directory or stale file under our name
-            write_private(path, source.encode(), mode=0o600)
+        for attempt in range(4):
             raw = read_private(path)
-            if raw is None or hashlib.sha256(raw).hexdigest() != digest:
+            if raw is not None and hashlib.sha256(raw).hexdigest() == digest:
+                break
+            if attempt == 3:
                 raise CacheDirectoryError(f"{path} does not hold the source just written")
+            # os.replace replaces a link, FIFO or stale file atomically; only a directory is removed
+            # first. Never a file that merely was absent when read: another process writing the
+            # same source may have put it there since (its unlink failed the other's read-back)
+            with contextlib.suppress(FileNotFoundError):
+                if stat.S_ISDIR(os.lstat(path).st_mode):
+                    remove_entry(path)
+            write_private(path, source.encode(), mode=0o600)
         store = TrustedStore(d, modname, digest)
         store.sweep()
     except OSError as exc:

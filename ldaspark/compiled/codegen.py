@@ -101,6 +101,7 @@ def _emit(name, sig, args, unpack, outputs, printer, ret=None):
     exprs = [e for _, e in outputs if not isinstance(e, str)] + ([ret] if ret is not None else [])
     _only_generated_symbols(name, exprs)
     _known_nodes(name, exprs)
+    _real_only(name, exprs)
     reps, red = _cse(exprs) if exprs else ([], [])
     used = set().union(*(e.free_symbols for e in exprs)) if exprs else set()
     # _jit: numba.njit(sig, cache=True) with the trusted cache of ldaspark.compiled.cache;
@@ -152,6 +153,16 @@ def _only_generated_symbols(name, exprs):
     if bad:
         shown = ", ".join(sorted(repr(str(s))[:40] for s in bad)[:3])
         raise NotCompilableError(f"{name}: symbols other than t, q, v, lam, psi in the model ({shown})")
+
+
+def _real_only(name, exprs):
+    """The model functions compute in float64: an expression that still holds the imaginary unit
+    after the coordinates were made real symbols (re, im, Abs of it are evaluated away by sympy)
+    has complex values, which numba typed as complex and refused after a compile attempt
+    ("compilation failed (TypingError)", no reason given)."""
+    if any(e.has(sympy.I) for e in exprs):
+        raise NotCompilableError(f"{name}: the model has the imaginary unit I (complex values); the compiled "
+                                 "engine computes in real float64: write L and k in real form")
 
 
 def _known_nodes(name, exprs):
@@ -525,8 +536,13 @@ def _source_by_content(key, generate) -> str:
     if src is None:
         src = cache.stored_source(key)
         if src is not None:
-            src = _checked_model(src)
-        else:
+            try:
+                src = _checked_model(src)
+            except NotCompilableError:
+                # recorded, but refused by this version's checks (``gensource.check_source`` is not
+                # in the key): generated again and replaced, not the compiled engine lost for good
+                src = None
+        if src is None:
             src = _checked_model(generate())
             cache.store_source(key, src)
         _SOURCES[key] = src

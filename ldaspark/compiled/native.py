@@ -28,6 +28,7 @@ import ast
 import functools
 import math
 import os
+import threading
 
 from ..core.errors import LdasparkError
 from ..core.gensource import SOURCE_LOCK, BalancedSums
@@ -408,12 +409,17 @@ def compile_model(source: str, params=()) -> tuple:
         raise NotNativeError(f"the model takes {k} finite parameter values, got {len(vals)}")
     from .cache import source_key
     key = source_key(source)
-    base = _BASES.get(key)
-    if base is None:
-        base = _BASES[key] = _compile_functions(source, consts, k)
-    engine, funcs, model = base
-    if k:
-        funcs = _bind(funcs, vals, engine)
+    # one thread at a time: _bind names each wrapper module by the count of those made so far
+    # (two threads took the same name, and a run got the other's parameter values: 10 of 12
+    # threads of integrate(params=...) wrong by up to 0.4) and adds it to the one shared MCJIT
+    # engine, which is not thread-safe
+    with _NATIVE_LOCK:
+        base = _BASES.get(key)
+        if base is None:
+            base = _BASES[key] = _compile_functions(source, consts, k)
+        engine, funcs, model = base
+        if k:
+            funcs = _bind(funcs, vals, engine)
     out = []
     for e in model:
         if isinstance(e, ast.Name) and e.id in funcs:
@@ -427,6 +433,8 @@ def compile_model(source: str, params=()) -> tuple:
 
 #: source digest -> (engine, {name: NativeFunction}, MODEL names): a process compiles a model once
 _BASES: dict = {}
+#: held while a model is compiled or its parameter values bound (``compile_model``)
+_NATIVE_LOCK = threading.Lock()
 
 
 def _target_machine(triple, opt):

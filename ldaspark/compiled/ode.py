@@ -35,6 +35,8 @@ from .codegen import NotCompilableError, header, _emit, _mat_outputs, _named, _o
 #: than this (a larger straight-line code than the numeric solve it replaces is slower)
 CLOSED_MAX_OPS = 4000
 
+# every function through _jit (cache.model_jit: numba's files recorded and checked in the trusted
+# cache); numba.njit(cache=True) would cache in NUMBA_CACHE_DIR, unchecked
 _RHS = '''
 
 @_jit(nogil=True)
@@ -53,13 +55,13 @@ def rhs(t, y):
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@_jit(nogil=True)
 def rhs_into(t, y, yp):
     """rhs(t, y) written into yp (SUNDIALS CVODE's calling convention, scikit-sundae)."""
     yp[:] = rhs(t, y)
 
 
-@numba.njit(cache=True, nogil=True)
+@_jit(nogil=True)
 def psi_of(t, y):
     """The multipliers psi of (3a-b) at y = (q, v): the last m entries of the saddle solve (4)."""
     n, m = N_DOF, N_CON
@@ -69,7 +71,7 @@ def psi_of(t, y):
     return np.linalg.solve(S, r)[n:]
 
 
-@numba.njit(cache=True, nogil=True)
+@_jit(nogil=True)
 def dae_residual(t, y, yp, res):
     """The index-1 form of (1) for SUNDIALS IDA, y = (q, v, psi): res = (q' - v,
     L_vv v' + K^T psi - (L_q - L_vt - L_vq v), K v' + k_t + k_q v), the velocity constraint

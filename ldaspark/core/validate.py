@@ -520,11 +520,20 @@ def finite_initial_point(system, bk, t, q, v, member: str = "") -> None:
     import numpy as np
 
     from .errors import NonFiniteError
+    # numpy's cast of a complex k to float64 drops the imaginary part with only this warning (k =
+    # w + sqrt(-1)*x*v passed as k = w, then failed later as a raw TypeError): an error here
+    complex_cast = getattr(getattr(np, "exceptions", np), "ComplexWarning", None)
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore")
+        if complex_cast is not None:
+            warnings.simplefilter("error", complex_cast)
         try:
             E = system.energy(bk, t, q, v)
             k = list(system.constraint(bk, t, q, v))
+        except Warning as exc:
+            raise NonFiniteError(f"{member}L or k has complex values at the initial point t0 = {float(t):g} "
+                                 f"({type(exc).__name__}): L and k must be real (I, sqrt of a negative "
+                                 "constant)", step=0, time=float(t)) from None
         except (ArithmeticError, ValueError, TypeError) as exc:
             raise NonFiniteError(f"{member}L or k cannot be evaluated at the initial point t0 = {float(t):g} "
                                  f"({type(exc).__name__}: {str(exc)[:80]}): q0, v0 lie outside the domain of "

@@ -180,6 +180,23 @@ def test_complex_energy_at_mpmath_precision_is_one_error():
             run(system=skate_like(extra), q0=q0, v0=[0, 0, 0], dps=20)
 
 
+@pytest.mark.parametrize("engine", ["generic", "auto"])
+def test_a_complex_constraint_is_one_error_not_its_real_part(engine):
+    """k with the imaginary unit (sqrt(-1) in a string): numpy's cast to float64 dropped the
+    imaginary part with only a ComplexWarning, so k(q0, v0) passed as its real part and the run
+    then failed inside the saddle check with a raw TypeError (engine auto, the default, too). Now
+    one NonFiniteError at the initial point; control: the same constraint with a real coefficient
+    runs."""
+    for coef, ok in (("sqrt(-1)", False), ("2", True)):
+        s = ldaspark.LagrangianSystem("v**2/2 + w**2/2 - x**2/2", [f"w + {coef}*(x - 3/10)*v"], ["x", "y"],
+                                      ["v", "w"], name="ck")
+        if ok:
+            assert_finite_result(run(system=s, q0=[0.3, 0.0], v0=[0.2, 0.0], engine=engine))
+            continue
+        with pytest.raises(NonFiniteError, match="L or k has complex values at the initial point"):
+            run(system=s, q0=[0.3, 0.0], v0=[0.2, 0.0], engine=engine)
+
+
 def test_huge_consistent_v0_overflowing_the_energy_is_one_error():
     disk = ldaspark.get_scene("rolling-disk")
     _, q0, v0 = disk.initial()

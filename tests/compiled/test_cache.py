@@ -331,6 +331,92 @@ def test_directory_below_a_world_writable_parent_is_refused(tmp_path):
     assert ok == str(loose / "c") and why == ""
 
 
+def _mode(path) -> int:
+    return stat.S_IMODE(os.stat(path).st_mode)
+
+
+def test_a_refused_directory_is_not_tightened_first(tmp_path, monkeypatch):
+    """secure_dir tightened the directory to 0700 before judging its path: a 0755 directory of ours
+    below a directory others can write, given directly or behind a link, was chmod-ed (through the
+    link) and then refused. Now its mode is changed only once every component on the way is
+    safe; control: below a safe parent the same directory, through the same link, is tightened
+    and used."""
+    loose = tmp_path / "loose"
+    loose.mkdir()
+    os.chmod(loose, 0o777)
+    target = loose / "mine"
+    target.mkdir()
+    os.chmod(target, 0o755)
+    link = tmp_path / "link"
+    os.symlink(target, link)
+    for d in (target, link):
+        ok, why = cache.secure_dir(str(d))
+        assert ok is None and "writable by other users" in why
+        assert _mode(target) == 0o755
+    monkeypatch.setenv("LDASPARK_CACHE_DIR", str(link))
+    with pytest.raises(cache.CacheDirectoryError, match="writable by other users"):
+        cache.cache_dir()
+    assert _mode(target) == 0o755
+    os.chmod(loose, 0o755)
+    assert cache.cache_dir() == str(link) and _mode(target) == 0o700
+
+
+@pytest.mark.skipif(not ROOT, reason="a link of another user needs root (lchown)")
+def test_a_directory_behind_another_users_link_keeps_its_mode(tmp_path):
+    """The attack on the fallback <tempdir>/ldaspark-fast-<uid>: another user's link there, in a
+    sticky directory, to a directory of ours (0755). It was chmod-ed 0700 through that link
+    before the link was refused; now it is refused untouched. Control: the same link, ours, is
+    followed and its target tightened."""
+    sticky = tmp_path / "tmp"
+    sticky.mkdir()
+    os.chmod(sticky, 0o1777)
+    mine = tmp_path / "project"
+    mine.mkdir()
+    os.chmod(mine, 0o755)
+    link = sticky / "ldaspark-fast-0"
+    os.symlink(mine, link)
+    os.lchown(link, OTHER_UID, OTHER_UID)
+    ok, why = cache.secure_dir(str(link))
+    assert ok is None and "symbolic link owned by another user" in why
+    assert _mode(mine) == 0o755
+    os.lchown(link, os.getuid(), os.getgid())
+    assert cache.secure_dir(str(link)) == (str(link), "") and _mode(mine) == 0o700
+
+
+def test_a_shared_directory_is_refused_not_made_private(tmp_path, monkeypatch):
+    """LDASPARK_CACHE_DIR naming a shared directory was made 0700: a sticky 1777 one (as root,
+    LDASPARK_CACHE_DIR=/tmp took /tmp's sticky bit and every other user's access) or a 0755 one
+    holding other files (a home directory). Refused now, its mode untouched; controls: a loose
+    directory holding only the cache's own entries (left 0777 by an earlier run), or empty, is
+    tightened and used."""
+    shared = tmp_path / "tmp"
+    shared.mkdir()
+    os.chmod(shared, 0o1777)
+    (shared / "someone-elses.txt").write_text("")
+    home = tmp_path / "home"
+    home.mkdir()
+    os.chmod(home, 0o755)
+    (home / ".profile").write_text("")
+    for d, mode, match in ((shared, 0o1777, "shared directory [(]sticky"),
+                           (home, 0o755, "holds files that are not the cache's [(]'.profile'[)]")):
+        monkeypatch.setenv("LDASPARK_CACHE_DIR", str(d))
+        with pytest.raises(cache.CacheDirectoryError, match=match):
+            cache.cache_dir()
+        assert _mode(d) == mode
+    own = tmp_path / "own"
+    (own / "__pycache__").mkdir(parents=True)
+    for name in ("ldaspark_model_0123456789abcdef0123.py", "ldaspark_sources.sha256", "ldaspark_quasi_2_3_1.lock",
+                 ".tmp-0123456789abcdef-ldaspark_sources.sha256", "checkpoint-hmac.key"):
+        (own / name).write_text("")
+    os.chmod(own, 0o777)
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    os.chmod(empty, 0o755)
+    for d in (own, empty):
+        monkeypatch.setenv("LDASPARK_CACHE_DIR", str(d))
+        assert cache.cache_dir() == str(d) and _mode(d) == 0o700
+
+
 def test_link_to_a_private_directory_is_accepted_and_its_target_checked(tmp_path):
     real = tmp_path / "real"
     real.mkdir(mode=0o700)
@@ -658,6 +744,205 @@ def test_numba_cache_dir_writable_by_others_falls_back_with_the_reason(tmp_path)
     assert "numba would load the compiled kernels from" in err[0] and "using the generic engine" in err[0]
     assert err[1].startswith("ldaspark: error: engine 'compiled' cannot run this") and "NUMBA_CACHE_DIR" in err[1]
 
+
+
+def test_a_failed_lock_open_keeps_the_lock_file_and_releases_the_thread_lock(tmp_path, monkeypatch):
+    """_FileLock removed the lock file after any failed open (meant for a planted link) and
+    created a new one: an open failing for itself (EMFILE: out of descriptors; ENOSPC) unlinked the
+    file another process held locked, and the opener locked a new inode beside it (both in the
+    critical section). And an exception from the open left the process-wide thread lock held: every
+    other thread's cache access then waited for good. Now only what is not a regular file is
+    removed, the error is raised and the thread lock released; control: a link planted under the
+    lock's name is still replaced, never followed."""
+    import errno
+    path = str(tmp_path / "m.lock")
+    with cache._FileLock(path):
+        pass
+    ino = os.lstat(path).st_ino
+    real_open = os.open
+    failed = []
+
+    def open_out_of_descriptors(p, *a, **k):
+        if p == path and not failed:
+            failed.append(p)
+            raise OSError(errno.EMFILE, "Too many open files")
+        return real_open(p, *a, **k)
+    monkeypatch.setattr(os, "open", open_out_of_descriptors)
+    try:
+        with pytest.raises(OSError, match="Too many open files"):
+            with cache._FileLock(path):
+                pass
+    finally:
+        monkeypatch.setattr(os, "open", real_open)
+    assert failed and os.lstat(path).st_ino == ino              # the held file was not replaced
+    assert not cache._FileLock._threads._is_owned()
+
+    def open_disk_full(p, *a, **k):                             # every open of it fails
+        if p == path:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real_open(p, *a, **k)
+    monkeypatch.setattr(os, "open", open_disk_full)
+    try:
+        with pytest.raises(OSError, match="No space left"):
+            with cache._FileLock(path):
+                pass
+        owned = cache._FileLock._threads._is_owned()
+    finally:
+        monkeypatch.setattr(os, "open", real_open)
+        while cache._FileLock._threads._is_owned():            # (before the fix: left held)
+            cache._FileLock._threads.release()
+    assert not owned and os.lstat(path).st_ino == ino
+    target = tmp_path / "target"
+    target.write_text("keep")
+    os.unlink(path)
+    os.symlink(target, path)
+    with cache._FileLock(path):
+        pass
+    assert not os.path.islink(path) and target.read_text() == "keep"
+    assert not cache._FileLock._threads._is_owned()
+
+
+@pytest.mark.skipif(not ROOT, reason="a lock file of another user needs root (chown)")
+def test_a_lock_file_of_another_user_is_replaced_not_locked(tmp_path):
+    """A lock file another user left under the cache's lock name (while the directory was open to
+    others, before it was tightened) was opened and flock-ed as it was: its owner, holding it open
+    with its lock, would keep every cache access of this user waiting for good. It is replaced by
+    this user's own file; control: this user's lock file is kept (same inode)."""
+    import fcntl
+    path = tmp_path / "m.lock"
+    path.write_bytes(b"")
+    os.chmod(path, 0o666)
+    os.chown(path, OTHER_UID, OTHER_UID)
+    theirs = os.open(path, os.O_RDWR)                    # the other user's descriptor
+    try:
+        with cache._FileLock(str(path)):
+            st = os.lstat(path)
+            assert st.st_uid == os.getuid() and stat.S_ISREG(st.st_mode)
+            # their descriptor no longer shares this lock (before: it was refused here, and had
+            # they taken it first, this process would have waited for them)
+            fcntl.flock(theirs, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    finally:
+        os.close(theirs)
+    ino = os.lstat(path).st_ino
+    with cache._FileLock(str(path)):
+        pass
+    assert os.lstat(path).st_ino == ino
+    assert not cache._FileLock._threads._is_owned()
+
+
+def test_temporary_files_of_a_killed_writer_are_removed_at_the_next_load(cdir):
+    """A process killed between creating its temporary file and os.replace left
+    ``.tmp-<hex>-<name>`` behind for good (two such files after eight kill -9 of numba-path runs).
+    The next load of the module removes those of its numba files and its record, written under
+    its lock (so no live writer owns them); controls: another module's and the module file's
+    (written without that lock) are kept, and the recorded cache is still loaded."""
+    import pathlib
+    src = model_source(5.5)
+    load(src)
+    modname = "ldaspark_model_" + cache.source_key(src)[:20]
+    d = pathlib.Path(cdir)
+    pyc = d / "__pycache__"
+    name = numba_files(cdir, src)[0]
+    orphans = [pyc / f".tmp-0123456789abcdef-{name}", d / f".tmp-fedcba9876543210-{modname}.sha256"]
+    kept = [pyc / f".tmp-0123456789abcdef-ldaspark_model_{'0' * 20}.U_of-5.py311.nbi",
+            d / f".tmp-0123456789abcdef-{modname}.py"]
+    for p in orphans + kept:
+        p.write_bytes(b"partial")
+    mod = load(src)
+    assert [p.name for p in orphans if p.exists()] == []
+    assert all(p.exists() for p in kept)
+    assert hits(mod) == (1, 0)
+
+
+def test_temporary_files_of_a_killed_source_writer_are_removed_at_the_next_store(cdir):
+    """The same for the store of generated sources (``store_source``, never swept): a writer killed
+    before os.replace left its temporary source or record for good; the next source stored removes
+    them; controls: a model store's temporary is kept, both stored sources are served."""
+    import pathlib
+    cache.store_source("a" * 64, "X = 1\n")
+    d = pathlib.Path(cdir)
+    pyc = d / "__pycache__"
+    orphans = [pyc / f".tmp-0123456789abcdef-ldaspark_sources.{'b' * 64}.py",
+               d / ".tmp-fedcba9876543210-ldaspark_sources.sha256"]
+    kept = pyc / f".tmp-0123456789abcdef-ldaspark_model_{'0' * 20}.U_of-5.py311.nbi"
+    for p in orphans + [kept]:
+        p.write_bytes(b"partial")
+    cache.store_source("c" * 64, "X = 2\n")
+    assert [p.name for p in orphans if p.exists()] == [] and kept.exists()
+    assert cache.stored_source("a" * 64) == "X = 1\n" and cache.stored_source("c" * 64) == "X = 2\n"
+
+
+def test_a_model_file_written_meanwhile_by_another_loader_is_not_unlinked(cdir, monkeypatch):
+    """Two loaders of one new source (threads here, processes alike): B finds no file, A writes it,
+    B unlinked it (as a stale entry) before rewriting, and A's read-back found nothing:
+    CacheDirectoryError "does not hold the source just written" (engine compiled: an error; auto:
+    the generic engine). The interleaving is forced by events on the cache's own file calls.
+    Now a regular file is replaced atomically, never unlinked first, and both load the module."""
+    import threading
+    src = model_source(7.125)
+    path = os.path.join(cdir, "ldaspark_model_" + cache.source_key(src)[:20] + ".py")
+    cache._MODULES.pop(cache.source_key(src), None)
+    ev = {k: threading.Event() for k in ("b_read", "a_wrote", "b_acted", "a_checked")}
+    W = 120                                  # a bound on each wait (never reached when the order holds)
+    reads = {"A": 0, "B": 0}
+    real_read, real_write, real_remove = cache.read_private, cache.write_private, cache.remove_entry
+
+    def who(p):
+        me = threading.current_thread().name
+        return me if p == path and me in reads else None
+
+    def read(p, *a, **k):
+        me = who(p)
+        out = real_read(p, *a, **k)
+        if me:
+            reads[me] += 1
+            if me == "B" and reads["B"] == 1:          # B looked: no file yet
+                ev["b_read"].set()
+                ev["a_wrote"].wait(W)
+            if me == "A" and reads["A"] == 2:          # A's read-back
+                ev["a_checked"].set()
+        return out
+
+    def write(p, *a, **k):
+        me = who(p)
+        if me == "A":
+            ev["b_read"].wait(W)
+            real_write(p, *a, **k)
+            ev["a_wrote"].set()
+            ev["b_acted"].wait(W)
+            return None
+        if me == "B":
+            ev["b_acted"].set()
+            ev["a_checked"].wait(W)
+        return real_write(p, *a, **k)
+
+    def remove(p):
+        me = who(p)
+        real_remove(p)
+        if me == "B":
+            ev["b_acted"].set()
+            ev["a_checked"].wait(W)
+
+    monkeypatch.setattr(cache, "read_private", read)
+    monkeypatch.setattr(cache, "write_private", write)
+    monkeypatch.setattr(cache, "remove_entry", remove)
+    out = {}
+
+    def run(name):
+        try:
+            out[name] = cache.load_source(src)
+        except Exception as exc:             # noqa: BLE001 - recorded and asserted below
+            out[name] = exc
+    threads = [threading.Thread(target=run, args=(n,), name=n) for n in ("A", "B")]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert all(e.is_set() for e in ev.values())            # the interleaving happened as described
+    assert not any(isinstance(m, Exception) for m in out.values()), out
+    assert out["A"].U_of(0.0, __import__("numpy").array([2.0])) == 14.25
+    with open(path, "rb") as f:
+        assert f.read() == src.encode()
 
 
 def test_two_processes_compiling_one_new_system_agree_bit_for_bit(tmp_path):

@@ -303,6 +303,32 @@ def test_untranslatable_systems_fall_back(capsys, monkeypatch):
         LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name="bessel")
 
 
+@pytest.mark.parametrize("where", ["L", "k"])
+def test_the_imaginary_unit_is_refused_by_the_code_generator_with_its_reason(where, tmp_path, monkeypatch):
+    """A model expression with the imaginary unit left in it (sqrt(-1) in a string, sympy.I) was
+    printed as 1j, typed complex by numba and refused after a compile attempt as "compilation
+    failed (TypingError)", without a reason. The code generator now refuses it, one line naming
+    the imaginary unit; control: the same system with the real coefficient compiles and runs."""
+    import ldaspark
+    monkeypatch.setenv("LDASPARK_CACHE_DIR", str(tmp_path / "c"))
+    L, k = "v**2/2 + w**2/2 - x**2/2", "w - x*v"
+    for coef, ok in (("sqrt(-1)", False), ("2", True)):
+        if where == "L":
+            s = LagrangianSystem(f"{L} - {coef}*x**3", [k], ["x", "y"], ["v", "w"], name=f"c{coef}")
+        else:
+            s = LagrangianSystem(L, [f"{k} + {coef}*(x - 3/10)*v"], ["x", "y"], ["v", "w"], name=f"c{coef}")
+        if ok:
+            r = ldaspark.integrate(s, "gauss-2", q0=[0.3, 0.0], v0=[0.2, 0.06], h=0.1, n_steps=5, engine="compiled")
+            assert r.engine == "compiled" and r.status == 0
+            continue
+        with pytest.raises(NotCompilableError, match="the model has the imaginary unit I"):
+            compile_system(s)
+        with pytest.raises(InputError) as err:
+            ldaspark.integrate(s, "gauss-2", q0=[0.3, 0.0], v0=[0.2, 0.06], h=0.1, n_steps=5, engine="compiled")
+        msg = str(err.value)
+        assert "\n" not in msg and "imaginary unit I" in msg and "TypingError" not in msg
+
+
 def test_kernel_file_records_its_helpers():
     """numba keys a cached kernel on the content of kernels.py only; kernels.HELPERS_SHA256 must be
     the digest of the helper modules compiled into it, so that an edit of a helper changes

@@ -142,6 +142,25 @@ def test_a_stored_source_is_used_only_as_recorded(cdir, monkeypatch):
     assert cache.stored_source(key) == src                  # recorded again
 
 
+def test_a_recorded_source_the_checks_refuse_is_generated_again(cdir, monkeypatch):
+    """A stored source, recorded by this user, that this version's source check refuses (written by
+    a version whose ``gensource.check_source`` was laxer: the checker is not in the key) made every
+    later compilation of that model fail ("the model module: ...") until the cache was cleared.
+    Now it is generated again and the record replaced; control: a recorded source that passes is
+    served without generating."""
+    a = LagrangianSystem(L0, K0, [x, y, z], [vx, vy, vz])
+    key = codegen.model_key(a, "general")
+    src = codegen.general_source(a)
+    cache.store_source(key, src.replace("N_CON = 1\n", "N_CON = 1\nUNKNOWN_NAME = 0\n", 1))
+    assert "UNKNOWN_NAME" in cache.stored_source(key)              # recorded: the store serves it
+    calls = _count_generation(monkeypatch)
+    monkeypatch.setattr(codegen, "_SOURCES", {})
+    assert codegen.general_source(a) == src and calls == ["_general_source"]
+    assert cache.stored_source(key) == src
+    monkeypatch.setattr(codegen, "_SOURCES", {})
+    assert codegen.general_source(a) == src and calls == ["_general_source"]     # served, not generated
+
+
 def test_the_generated_module_carries_no_name():
     a = LagrangianSystem(L0, K0, [x, y, z], [vx, vy, vz], name="a very particular name")
     src = codegen.general_source(a)

@@ -236,6 +236,75 @@ def test_the_compiled_engine_runs_native_where_it_can_and_numba_elsewhere():
     assert np.max(np.abs(np.asarray(fast.q) - np.asarray(ref.q, dtype=float))) < 1e-12
 
 
+def test_threads_binding_parameter_values_each_get_their_own(monkeypatch):
+    """compile_model binds each set of parameter values to wrappers in one shared LLVM engine,
+    named by the count of wrapper modules made so far: two threads inside it at once took the
+    same name and one got the other's wrappers, i.e. its parameter values (integrate(params=...)
+    in 12 threads: 10-11 of 12 runs wrong by up to 0.4, status 0). Here two threads are held
+    together inside the bind whenever both can be there at once (after the name is chosen, and
+    before the addresses are looked up); each model's U must then be its own value's, bit for bit
+    as a bind made alone (the control: the two values give different U)."""
+    import threading
+    if not native.enabled():
+        pytest.skip("LDASPARK_NATIVE=0")
+    x, y, vx, vy, c = sympy.symbols("x y vx vy c")
+    system = LagrangianSystem((vx ** 2 + vy ** 2) / 2 - c * x ** 2 / 2 - sympy.cos(y) / 2, [vy - x * vx], [x, y],
+                              [vx, vy], params={c: 1.0}, name="bind-threads")
+    src = compile_system(system).source
+    U_AT = 7                                           # MODEL = (n, grad_U, ..., KTlam_q, U_of)
+    point = np.array([1.0, 0.0])
+    native.compile_model(src, (1.0,))                  # the base model and the wrappers' engine
+    # bounds for a serialised bind (the other thread is then not inside), not timings
+    named, added = threading.Barrier(2, timeout=1.5), threading.Barrier(2, timeout=1.5)
+    waited = threading.local()
+
+    def meet(barrier):
+        try:
+            barrier.wait()
+        except threading.BrokenBarrierError:
+            pass
+    real_init = native._init_llvm
+
+    def init():
+        meet(named)
+        real_init()
+
+    class Engine:                                      # the shared engine, the first lookup held
+        def __init__(self, engine):
+            self.engine = engine
+
+        def add_module(self, mod):
+            return self.engine.add_module(mod)
+
+        def finalize_object(self):
+            return self.engine.finalize_object()
+
+        def get_function_address(self, name):
+            if not getattr(waited, "done", False):
+                waited.done = True
+                meet(added)
+            return self.engine.get_function_address(name)
+    got = {}
+
+    def bind(value):
+        got[value] = native.compile_model(src, (value,))
+    monkeypatch.setattr(native, "_init_llvm", init)
+    engine = native._WRAPPERS[0]
+    native._WRAPPERS[0] = Engine(engine)
+    try:
+        threads = [threading.Thread(target=bind, args=(value,)) for value in (3.0, 5.0)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+    finally:
+        native._WRAPPERS[0] = engine
+        monkeypatch.undo()
+    alone = {value: _call_u(native.compile_model(src, (value,))[U_AT], 0.0, point) for value in (3.0, 5.0)}
+    assert alone[3.0] != alone[5.0]
+    assert {value: _call_u(got[value][U_AT], 0.0, point) for value in (3.0, 5.0)} == alone
+
+
 @pytest.mark.parametrize("text,why", [
     ("import os", "neither a function"),
     ("def f(t, q):\n    return os.system('x')", "not a generated model function"),

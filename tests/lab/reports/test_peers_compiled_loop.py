@@ -175,3 +175,76 @@ def test_cyrk_peer_follows_the_skate_closed_form(peer, form):
     # the long runs' output times: one row per output time, the last at T
     r = peers.run_peer(sk, peer, 1e-8, 10.0, n_out=5, repeats=1, form=form)
     assert float(np.max(np.abs(np.asarray(r["q_final"]) - q_ref))) <= 1e-5
+
+
+class _Payload:
+    """Unpickling this creates ``marker`` (what a hostile numba index would do with os.system)."""
+
+    def __init__(self, marker):
+        self.marker = str(marker)
+
+    def __reduce__(self):
+        return (open, (self.marker, "w"))
+
+
+def test_the_ode_modules_numba_cache_is_the_trusted_one_never_numba_cache_dir(tmp_path, monkeypatch):
+    """rhs_into, psi_of and dae_residual were ``numba.njit(cache=True)``: numba's own cache, which
+    under NUMBA_CACHE_DIR lives there, unrecorded, and was unpickled from a directory others can
+    write (a planted index in a 0777 NUMBA_CACHE_DIR ran its payload). Now every function of the
+    module goes through the trusted cache (``cache.model_jit``): nothing is written to
+    NUMBA_CACHE_DIR, a planted index is deleted and compiled again, the same bits come back, and
+    the recorded cache is loaded by the next load (control: caching still works)."""
+    import os
+    import pickle
+    from numba.core import config
+    from ldaspark import LagrangianSystem
+    from ldaspark.compiled import cache
+    shared = tmp_path / "numba-shared"
+    shared.mkdir()
+    os.chmod(shared, 0o777)
+    monkeypatch.setattr(config, "CACHE_DIR", str(shared))     # what NUMBA_CACHE_DIR sets at import
+    monkeypatch.setenv("LDASPARK_CACHE_DIR", str(tmp_path / "c"))
+    x, y, vx, vy = sympy.symbols("x y vx vy")
+    system = LagrangianSystem((vx**2 + vy**2) / 2 - x**2 / 3 - y / 7, [vy - x * vx], [x, y], [vx, vy],
+                              name="ode-trust")
+    src = ode.ode_source(system)
+
+    def fresh():                                  # as a new process loads it
+        cache._MODULES.pop(cache.source_key(src), None)
+        return ode.compiled_ode_module(system)
+
+    state = np.array([0.1, 0.2, 0.3, 0.03])
+
+    def evaluate(mod):
+        yp = np.zeros(4)
+        mod.rhs_into(0.5, state, yp)
+        psi = mod.psi_of(0.5, state)
+        res = np.zeros(5)
+        mod.dae_residual(0.5, np.concatenate([state, psi]), np.concatenate([yp, [0.0]]), res)
+        return yp.tobytes() + psi.tobytes() + res.tobytes()
+
+    first = evaluate(fresh())
+    marker = tmp_path / "executed"
+    planted = list(shared.rglob("*.nbi")) + list((tmp_path / "c" / "__pycache__").glob("ldaspark_ode_*.nbi"))
+    assert len(planted) >= 5                      # rhs, rhs_into, psi_of, dae_residual, ...: numba wrote them
+    for p in planted:
+        p.write_bytes(pickle.dumps(_Payload(marker)))
+    mod = fresh()
+    assert evaluate(mod) == first
+    assert not marker.exists()
+    assert not [p.name for p in shared.rglob("*.nb*")]       # nothing numba reads unrecorded
+    assert sum(mod.rhs_into.stats.cache_misses.values()) == 1      # the planted index: compiled again
+    again = fresh()                                           # control: the recorded cache is used
+    assert evaluate(again) == first
+    assert sum(again.rhs_into.stats.cache_hits.values()) == 1
+    # control: numba's own loader runs the same payload (the plant is live)
+    from numba.core.caching import IndexDataCacheFile
+    ctrl = tmp_path / "control"
+    p = planted[0]
+    p.write_bytes(pickle.dumps(_Payload(ctrl)))
+    try:
+        IndexDataCacheFile(cache_path=str(p.parent), filename_base=p.name[: -len(".nbi")],
+                           source_stamp=None)._load_index()
+    except Exception:
+        pass
+    assert ctrl.exists()
