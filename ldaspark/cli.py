@@ -53,7 +53,8 @@ def _add_integrate(sub):
     p.add_argument("scene", help="a built-in scene: the paper's particle, skate, robot, mp-particles, and the others "
                                  "of ldaspark.get_scene (an unknown name lists them all)")
     p.add_argument("method", help="gauss-S, lobatto-iiia-iiib-S, lobatto-iiia-iiib-iiid-S, euler-i, "
-                                  "euler-ii, or custom with --tableau FILE")
+                                  "euler-ii, a comparator of sections 7-8 (gauss-irk-S, ...; an unknown "
+                                  "name lists them), or custom with --tableau FILE")
     p.add_argument("--h", required=True, help="step size (a decimal string keeps full precision with --dps)")
     p.add_argument("--t-end", required=True, help="final time")
     p.add_argument("--dps", type=int, default=None, help="mpmath digits (default: float64)")
@@ -63,9 +64,11 @@ def _add_integrate(sub):
     # the kinds of ldaspark.Newton (core.rootfinder.KINDS, written out: the CLI does not import
     # numpy before parsing; tests/cli compares the two)
     p.add_argument("--newton", choices=("full", "simplified", "auto", "mixed", "quasi"), default="auto",
-                   help="the root finder's kind (ldaspark.Newton; default: auto = simplified, "
-                        "full on slow contraction; mixed: float64 matrix at --dps; quasi: the compiled "
-                        "engine's multiplier-only iteration, full Newton on slow contraction)")
+                   help="the root finder's kind (ldaspark.Newton; default: auto = simplified Newton, "
+                        "full on slow contraction, and on the compiled engine the quasi iteration where "
+                        "it applies (SPARK tableaus, mechanical form, n < 32); mixed: float64 matrix "
+                        "at --dps; quasi: the compiled engine's multiplier-only iteration, Newton on "
+                        "slow contraction)")
     p.add_argument("--project", action="store_true", help="project v0 onto k = 0 instead of failing")
     p.add_argument("--out", required=True, help="output file, format by extension: .npz, .h5 (h5py), else JSON "
                                                 "(psi on every engine, not from the semi-implicit kernel of "
@@ -323,7 +326,8 @@ def _main(argv=None) -> int:
             return 2
     if not getattr(args, "func", None):
         parser.print_help()
-        print("ldaspark: error: give a command (integrate, methods, report, verify, audit)", file=sys.stderr)
+        names = next(a.choices for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+        print(f"ldaspark: error: give a command ({', '.join(names)})", file=sys.stderr)
         return 2
     from .core import io as _io
     first_write = len(_io.COMPLETED)    # the files this command completes from here on

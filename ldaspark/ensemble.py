@@ -361,7 +361,8 @@ def run_many(specs, executor=None, max_workers=None, chunk=1, progress=None, whe
     Returns
     -------
     list of EnsembleResult
-        One per spec: t (S,), q and v (R, S, n), energy (R, S), constraint (R, S, m), stats.
+        One per spec: t (S,), q and v (R, S, n), energy (R, S), constraint (R, S, m), psi
+        (R, S - 1, s, m; None for the semi-implicit kernel of (25)), stats (one dict per row).
 
     Raises
     ------

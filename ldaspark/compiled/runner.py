@@ -589,7 +589,8 @@ def auto_runs_quasi(cs, spec, opts: KernelOptions) -> bool:
     """Whether the root finder "auto" runs the quasi-Newton iteration (``compiled.quasi``, issue
     48; the same method (21) to the same stopping rule, with a per-step fallback to the kernels'
     Newton where it contracts slowly). Chosen per run where it was measured faster than the
-    kernels' Newton (docs/performance.md, "The quasi-Newton step": 1.07-3.3x per step): SPARK
+    kernels' Newton (docs/performance.md, "The quasi-Newton step"; ``reports/quasi_step.json``,
+    ``per_step``): SPARK
     tableaus on the SPARK kernel (lobatto-iiia-iiib-2 keeps the semi-implicit kernel (25)), the
     mechanical form with M positive definite (the general form's quasi step was measured no faster), n below the size from
     which the Newton matrix is reused or factored by blocks (not measured there), and no linear

@@ -97,7 +97,8 @@ class Newton:
         the kernel's first root finder, simplified Newton from the predictor, full Newton from
         zero increments, then the generic engine's full Newton step (``compiled.rescue``); its
         step fails only where the last fails, so near the Newton limit a step the generic engine
-        gives up on can converge there (counted in ``stats["generic_steps"]``).
+        gives up on can converge there (counted in ``stats["rescued_steps"]``, on every compiled
+        run; ``stats["generic_steps"]`` only where the rescue ran).
     predictor : {"auto", "extrapolate", "previous", "zero"}
         Where a step's iteration starts (``PREDICTORS``); the compiled kernels also take the
         codes 2, 1, 0.

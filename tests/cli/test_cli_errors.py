@@ -357,3 +357,17 @@ def test_methods_json_refused_before_the_table_is_printed(capsys, tmp_path):
     assert out == "" and err.count("\n") == 1 and "it is a directory" in err, (out, err)
     assert main(["methods", "--max-s", "2", "--json", str(tmp_path / "m.json")]) == 0
     assert "gauss-2" in capsys.readouterr().out and (tmp_path / "m.json").is_file()
+
+
+def test_without_a_command_the_error_names_every_command(capsys):
+    """``ldaspark`` alone: the error line lists the commands the parser has, the lab's registered
+    ones too (it listed five of the six: ``mutants`` was missing). Control: the line starts as
+    before and names integrate."""
+    from ldaspark.cli import build_parser, plugin_commands
+    line = _one_error_line(capsys, [], match="give a command")
+    commands = ["integrate", "methods", *plugin_commands()]
+    assert "mutants" in commands and "integrate" in line
+    named = line.split("(", 1)[1].rstrip(")").split(", ")
+    assert sorted(named) == sorted(commands), line
+    sub = next(a for a in build_parser()._actions if isinstance(a, __import__("argparse")._SubParsersAction))
+    assert sorted(sub.choices) == sorted(commands)
