@@ -73,7 +73,9 @@ class LagrangianSystem:
         A name for reports and messages.
     mechanical : dict, optional
         Sympy M, U, K, b when L = 1/2 v^T M v - U(q) and k = K(q) v + b(q) (M symmetric); the
-        compiled engine's block solver uses it.
+        compiled engine's mechanical-form kernels use it (the quasi-Newton iteration, the block
+        solver). Without it that form is detected from L and k (M constant, no gyroscopic
+        terms, k affine in v; ``Result.stats["form"]`` says which form ran).
     params : list or dict, optional
         Free symbols of L and k kept symbolic (a list, or a dict symbol -> default value):
         derivation happens once; values are given later (`with_params` or
