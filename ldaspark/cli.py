@@ -58,7 +58,7 @@ def _add_integrate(sub):
     p.add_argument("--h", required=True, help="step size (a decimal string keeps full precision with --dps)")
     p.add_argument("--t-end", required=True, help="final time")
     p.add_argument("--dps", type=int, default=None, help="mpmath digits (default: float64)")
-    p.add_argument("--ic", type=int, default=None, help="initial condition j (mp-particles)")
+    p.add_argument("--ic", type=int, default=None, help="initial condition j (mp-particles, mp-particles-nh)")
     p.add_argument("--tableau", default=None, help="tableau JSON file for METHOD custom")
     p.add_argument("--max-stages", type=int, default=None, help="allow methods with more than 20 stages")
     # the kinds of ldaspark.Newton (core.rootfinder.KINDS, written out: the CLI does not import

@@ -336,7 +336,7 @@ def get_scene(name: str, ic: int | None = None) -> Scene:
         ic = count(ic, "ic (the initial condition index)", 0, 10 ** 6)    # no bool, float or text
     mp = name in ("mp-particles", "mp-particles-nh")
     if not mp and ic not in (None, 0):
-        raise InputError(f"--ic applies only to mp-particles, not {name}")
+        raise InputError(f"--ic applies only to mp-particles and mp-particles-nh, not {name}")
     build = (lambda: SCENES[name](j=ic or 0)) if mp else SCENES[name]
     key = (name, ic or 0, SCENES[name])      # a replaced builder (SCENES is public) builds anew
     with _BUILT_LOCK:
