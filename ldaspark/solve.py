@@ -290,7 +290,7 @@ def integrate(system: Union[LagrangianSystem, Any, str], method: Union[str, Spar
 
     See Also
     --------
-    fast_integrate : the compiled path with its own statistics.
+    fast_integrate : deprecated (a DeprecationWarning): the compiled path with its own statistics.
     run_many : several ensembles through one executor.
 
     Examples
