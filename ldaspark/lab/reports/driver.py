@@ -66,7 +66,9 @@ def add_arguments(p):
                    help="directory of the reports (main job; before a section: that section's --outdir)")
     p.add_argument("--full", nargs=0, const=True, default=False, action=_MainJobOption,
                    help="main job: the exhaustive sweeps of the sections that have them (stability)")
-    p.add_argument("--workers", type=int, default=None, action=_MainJobOption,
+    # --jobs as well: the name ``ldaspark mutants`` uses; without it "report --jobs 2" failed
+    # with argparse's "invalid choice: '2'" (the 2 read as a section's name)
+    p.add_argument("--workers", "--jobs", type=int, default=None, action=_MainJobOption,
                    help="main job: worker processes (default: the number of cores)")
     from ...executors import add_scheduler_argument
     add_scheduler_argument(p, action=_MainJobOption)
