@@ -692,3 +692,41 @@ def test_attempts_between_waits_agree_with_newton(scene, method, h, curvature, t
     assert _difference(a, b) <= units, _difference(a, b)
     other = run_compiled(cs, "gauss-3" if method == "gauss-2" else "gauss-2", t0, q0, v0, h, n, 1, kernel="spark")
     assert _difference(other, b) > 10.0 * units, _difference(other, b)
+
+
+@pytest.mark.parametrize("method", ["gauss-2", "gauss-4", "lobatto-iiia-iiib-3"])
+def test_the_multiplier_matrix_is_the_newton_rows_through_the_frozen_block(method):
+    """``multiplier_matrix``'s S (factored in place) is the Schur complement of the frozen matrix
+    of the module docstring: S = C M_blk^-1 B with C the constraint rows (21e, f) in Z, dv and B the
+    multiplier columns of rows (21b, d) of the kernels' exact Newton matrix (``spark_eval``) at the
+    same iterate, M_blk = I_(s+1) (x) M. The trajectory tests cannot see S: any S that lets the
+    iteration contract gives the same root (the sign of its h (A A~) k_q term flipped passed them
+    all). Checked through the solve: |S y - r|_inf <= 1e3 eps |S|_inf |y|_inf for y = S^-1 r from
+    S's LU (LU with partial pivoting is backward stable; measured <= 3.4e-14 at |S|_inf |y|_inf ~ 1).
+    The every-term system (M non-diagonal, K(t, q), b(t, q): every entry of the rows present),
+    t0 = 0.3, a random iterate x. Control: S built at 2 h misses the Newton rows at h by far more."""
+    from ldaspark.compiled import kernels_mech, newton
+    from ldaspark.compiled.runner import kernel_spec
+    cs = _every_term_system()
+    tab = kernel_spec(method, "spark")[1]
+    s, n, m = tab[1].shape[0], cs.n, cs.m
+    sn, sm, NN = s * n, s * m, s * (n + m) + n
+    t0, h = 0.3, 0.05
+    q0, v0 = _every_term_start(t0)
+    x = np.random.default_rng(3).normal(scale=1e-2, size=NN)
+    ws = kernels_mech.mech_workspace(s, n, m, cs.M)
+    G, J = np.zeros(NN), np.zeros((NN, NN))
+    kernels_mech.spark_eval(cs.model, tab, True, x, t0, q0, v0, h, cs.M, ws, G, J)
+    con, rows = list(range(sn + n, NN)), list(range(sn + n))
+    vel, lam = list(range(sn)) + list(range(sn + sm, NN)), list(range(sn, sn + sm))
+    S = J[np.ix_(con, vel)] @ np.kron(np.eye(s + 1), cs.Minv) @ J[np.ix_(rows, lam)]
+    r = np.random.default_rng(4).normal(size=sm)
+    for hq, ok in ((h, True), (2 * h, False)):
+        wq = kernels_mech.mech_workspace(s, n, m, cs.M)
+        kernels_mech.mech_residual(cs.model, tab, x, t0, q0, v0, hq, wq, np.zeros(NN))
+        qw = KQ.quasi_workspace(tab, n, m, np.ascontiguousarray(cs.Minv))
+        assert KQ.multiplier_matrix(cs.model, tab, hq, t0, wq, qw)
+        y = r.copy()
+        newton.lu_solve(qw[10], qw[11], y)
+        bound = 1e3 * EPS * np.abs(S).sum(axis=1).max() * np.abs(y).max()
+        assert (np.abs(S @ y - r).max() <= bound) == ok, (hq, np.abs(S @ y - r).max(), bound)
