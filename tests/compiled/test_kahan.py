@@ -57,22 +57,29 @@ def _kernel_paths():
     """(label, run(compensated) -> FastSolution) for every compiled step loop that sums q and v:
     the SPARK kernel with the dense and the block LU, the general-form kernel, the quasi-Newton
     kernels of both forms and the semi-implicit kernel (25)."""
+    q0, v0, h, n = [1.0, 0.0], [2.0 ** -60, 0.0], 2.0 ** -4, 2 ** 13
+    return q0, v0, h, n, _paths(_drift_system(), q0, v0, h, n)
+
+
+def _paths(system, q0, v0, h, n, general=True):
     from ldaspark.compiled.quasi import run_quasi
     from ldaspark.compiled.runner import compile_system, run_kernels
-    system = _drift_system()
-    mech, gen = compile_system(system), compile_system(system, form="general")
-    assert (mech.form, gen.form) == ("mechanical", "general")
-    q0, v0, h, n = [1.0, 0.0], [2.0 ** -60, 0.0], 2.0 ** -4, 2 ** 13
-    return q0, v0, h, n, {
+    mech = compile_system(system)
+    assert mech.form == "mechanical"
+    paths = {
         "spark dense": lambda c: run_kernels(mech, "gauss-2", 0.0, q0, v0, h, n, n, c, kernel="spark",
                                              linear_solver="dense", reuse_matrix=False),
         "spark sparse": lambda c: run_kernels(mech, "gauss-2", 0.0, q0, v0, h, n, n, c, kernel="spark",
                                               linear_solver="sparse", reuse_matrix=False),
-        "general": lambda c: run_kernels(gen, "gauss-2", 0.0, q0, v0, h, n, n, c, kernel="spark"),
         "quasi": lambda c: run_quasi(mech, "gauss-2", 0.0, q0, v0, h, n, n, c),
-        "quasi general": lambda c: run_quasi(gen, "gauss-2", 0.0, q0, v0, h, n, n, c),
         "semi-implicit (25)": lambda c: run_kernels(mech, "lobatto-iiia-iiib-2", 0.0, q0, v0, h, n, n, c),
     }
+    if general:
+        gen = compile_system(system, form="general")
+        assert gen.form == "general"
+        paths["general"] = lambda c: run_kernels(gen, "gauss-2", 0.0, q0, v0, h, n, n, c, kernel="spark")
+        paths["quasi general"] = lambda c: run_quasi(gen, "gauss-2", 0.0, q0, v0, h, n, n, c)
+    return paths
 
 
 def test_every_kernel_sums_as_asked():
@@ -93,3 +100,37 @@ def test_every_kernel_sums_as_asked():
         assert abs(float(comp.q[-1][0]) - exact) <= ulp, (label, float(comp.q[-1][0]) - exact)
         assert float(plain.q[-1][0]) == q0[0], (label, float(plain.q[-1][0]) - q0[0])
         assert float(comp.q[-1][1]) == float(plain.q[-1][1]) == 0.0, label
+
+
+def _fall_system():
+    """The particle of ``_drift_system`` under a constant force g = 2^-60 along x (U = g x): in
+    the mechanical form every stage of (21) has grad U = g, so each step adds exactly
+    dv = -h (b^_1 + b^_2) g = -h g to v_x (b^ = (1/2, 1/2), h a power of 2: no rounding)."""
+    import sympy
+
+    from ldaspark.core.system import LagrangianSystem
+    x, y, vx, vy = sympy.symbols("x y vx vy")
+    g = sympy.Integer(2) ** -60
+    return LagrangianSystem((vx ** 2 + vy ** 2) / 2 - g * x, [vy], [x, y], [vx, vy], name="kahan-fall")
+
+
+def test_every_mechanical_kernel_sums_the_velocity_as_asked():
+    """The velocity's sum v1 = v0 + dv is compensated too (``newton.advance``; the test above sees
+    only q, v being constant there): v0 = 1, dv = -h g = -2^-64 a step, below half an ulp of v
+    (2^-54 just below 1), so plain summation never moves v_x (exactly 1 after any number of
+    steps), while the compensated sum after N = 2^13 steps is within one ulp (2^-53) of the exact
+    1 - N h g = 1 - 2^-51 (Kahan's bound, as above). The mechanical kernels only: the general
+    form's residual holds p(v1) - p(v0), whose rounding, eps |p| ~ 1e-16 a step, swamps the 2^-64
+    (measured: its plain sum leaves 1 too). Planted: v summed plainly whatever ``compensated``
+    says, or the quasi loop passing q's compensation for v's: 2^-51 (4 ulps) off. Control: the
+    same runs without compensation stay at exactly 1, so the tolerance cannot pass a plain sum."""
+    q0, v0, h, n = [0.0, 0.0], [1.0, 0.0], 2.0 ** -4, 2 ** 13
+    exact = 1.0 - n * h * 2.0 ** -60
+    ulp = 2.0 ** -53                    # the spacing of the doubles in [1/2, 1)
+    assert 1.0 - exact == 4 * ulp
+    for label, run in _paths(_fall_system(), q0, v0, h, n, general=False).items():
+        comp, plain = run(True), run(False)
+        assert comp.stats["steps"] == plain.stats["steps"] == n, label
+        assert abs(float(comp.v[-1][0]) - exact) <= ulp, (label, float(comp.v[-1][0]) - exact)
+        assert float(plain.v[-1][0]) == 1.0, (label, float(plain.v[-1][0]) - 1.0)
+        assert float(comp.v[-1][1]) == float(plain.v[-1][1]) == 0.0, label

@@ -187,3 +187,38 @@ def test_nlu_counts_the_factorisations_of_a_curvature_refresh(method, s):
     assert st["nlu"] == st["multiplier_lu"] + cs.n * st["curvature_refreshes"], st
     off = run_quasi(cs, method, t0, q0, v0, 0.05, 10, 1, curvature=False).stats
     assert off["curvature_refreshes"] == 0 and off["quasi_fallbacks"] == 0 and off["nlu"] == off["multiplier_lu"] == 10
+
+
+def _flipping_stiffness(period, h):
+    """The particle of 8.1 with a free coordinate q4 (q4 = v4 = 0 stays so) of stiffness g(t) = 3 +
+    2 tanh(1000 sin(pi t / (period h))): at the step midpoints (k + 1/2) h, |sin| >= sin(pi / (2
+    period)), so g is exactly 5 or 1 there, flipping every `period` steps: the frozen Hessian is
+    stale at steps 0, period, 2 period, ... and exact in between."""
+    t = sympy.Symbol("t")
+    q, v = list(sympy.symbols("q1:5")), list(sympy.symbols("v1:5"))
+    g = 3 + 2 * sympy.tanh(1000 * sympy.sin(sympy.pi * t / (period * sympy.Rational(h))))
+    L = sum(vi ** 2 for vi in v) / 2 - (q[0] ** 2 + q[1] ** 2 + g * q[3] ** 2 / 2)
+    return compile_system(LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, t=t, name=f"particle-q4-flip-{period}-{h}"))
+
+
+@pytest.mark.parametrize("method", ["gauss-2", "gauss-4"])
+def test_one_refresh_per_refresh_every_steps_keeps_the_curvature(method):
+    """The switch to the M-only block at its boundary: it is taken once CURV_WARMUP steps have passed
+    with MORE than one refresh (the first not counted) per CURV_REFRESH_EVERY steps. A Hessian stale
+    exactly every CURV_REFRESH_EVERY = 8 steps (``_flipping_stiffness``, h = 0.1, 48 steps): refreshes
+    at steps 0, 8, ..., 40; at step 32 (CURV_WARMUP) 4 counted refreshes in 32 steps, one per 8, so
+    the curvature block stays (6 refreshes, 48 curvature steps; measured). With the test at ">="
+    instead of ">" the run would leave it at step 32 (32 curvature steps). Control: stale every 4
+    steps, two per 8: the run switches at step 32 exactly (9 refreshes, 32 curvature steps). Both
+    are the Newton engine's trajectory within the bound of the module docstring."""
+    assert (KQ.CURV_WARMUP, KQ.CURV_REFRESH_EVERY) == (32, 8)
+    h, n = 0.1, 48
+    q0, v0 = [1, 0, 0, 0], [0, 1, 0, 0]
+    for period, refreshes, steps in ((8, 6, n), (4, 9, KQ.CURV_WARMUP)):
+        cs = _flipping_stiffness(period, h)
+        b = run_quasi(cs, method, 0.0, q0, v0, h, n)
+        st = b.stats
+        assert st["quasi_fallbacks"] == 0, st
+        assert (st["curvature_refreshes"], st["curvature_steps"]) == (refreshes, steps), (period, st)
+        a = run_compiled(cs, method, 0.0, q0, v0, h, n, 1, kernel="spark")
+        assert _difference(a, b) <= 1.0

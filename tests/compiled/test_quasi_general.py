@@ -111,3 +111,198 @@ def test_nlu_counts_the_frozen_velocity_blocks(fam, s):
     m = ldaspark.integrate("skate", fam, h=0.05, n_steps=10, engine="compiled", newton="quasi")
     assert m.stats["quasi_fallbacks"] == 0 and m.stats["curvature_refreshes"] == 0, m.stats
     assert m.nlu == m.stats["multiplier_lu"] == 10, m.stats
+
+
+def _stiff(w2):
+    """The particle of 8.1 with the spring U = w2 (q1^2 + q2^2) / 2 (tests/compiled/test_kernels_quasi.py)."""
+    import sympy
+
+    from ldaspark.core.system import LagrangianSystem
+    q, v = list(sympy.symbols("q1:4")), list(sympy.symbols("v1:4"))
+    L = (v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 - sympy.Integer(w2) / 2 * (q[0] ** 2 + q[1] ** 2)
+    return LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name=f"stiff-particle-{w2}")
+
+
+def _waits(n_steps, wait_max=64):
+    """(attempts, skipped) of the wait rule when every attempt fails (``kernels_quasi.QS_SKIPPED``:
+    after a failure the next `wait` steps go to the Newton chain, wait = backoff, backoff doubling
+    up to QUASI_WAIT_MAX = 64), a Python model of IS_WAIT / IS_BACKOFF."""
+    wait, backoff, attempts, skipped = 0, 1, 0, 0
+    for _ in range(n_steps):
+        if wait > 0:
+            wait -= 1
+            skipped += 1
+        else:
+            attempts += 1
+            wait, backoff = backoff, min(2 * backoff, wait_max)
+    return attempts, skipped
+
+
+@pytest.mark.parametrize("w2, all_fall_back", [(10000, True), (4, False)])
+@pytest.mark.parametrize("fam, s", [("gauss-2", 2), ("gauss-3", 3)])
+def test_the_general_form_falls_back_and_waits_as_the_mechanical_one(w2, all_fall_back, fam, s):
+    """``general_quasi_steps``' fallback and wait rule, which no general scene reached (every one
+    converges at every step): the particle of 8.1 with a spring omega^2 = 10^4 in the general form,
+    h = 0.05 (h omega = 5): L_vv = I misses h^2 a a^ Hess U ~ 25, no attempt contracts, every step
+    is solved by the Newton chain (simplified Newton from the predictor: no full-Newton restart),
+    and the attempts follow the doubling wait exactly (300 steps: 10 attempts, 290 skipped, as the
+    Python model of the rule says; the mechanical form's test_stiff_spring_falls_back_and_agrees
+    counts only a range). nlu, exact: each attempt factors its s + 1 blocks L_vv and S, each Newton
+    iteration its matrix (njev). The trajectory is the Newton engine's within the bound of the
+    module docstring. Control: omega^2 = 4, no fallback, no wait, no Newton matrix."""
+    cs = compile_system(_stiff(w2), form="general")
+    assert cs.form == "general"
+    n = 300
+    a = run_compiled(cs, fam, 0.0, [1, 0, 0], [0, 1, 0], H, n, 1, kernel="spark")
+    b = run_quasi(cs, fam, 0.0, [1, 0, 0], [0, 1, 0], H, n, 1)
+    st = b.stats
+    assert st["quasi_steps"] + st["quasi_fallbacks"] == n and st["full_newton_steps"] == 0, st
+    if all_fall_back:
+        attempts, skipped = _waits(n)
+        assert (attempts, skipped) == (10, 290)
+        assert st["quasi_fallbacks"] == n and st["quasi_steps"] == 0, st
+        assert st["multiplier_lu"] == attempts and st["quasi_skipped"] == skipped, st
+        assert st["njev"] >= n and st["nlu"] == st["njev"] + (s + 2) * attempts, st
+    else:
+        assert st["quasi_fallbacks"] == st["quasi_skipped"] == st["njev"] == 0, st
+        assert st["multiplier_lu"] == n and st["nlu"] == (s + 2) * n, st
+    assert _difference(a, b) <= 1.0, _difference(a, b)
+
+
+@pytest.mark.parametrize("scene, method, h", [("particle", "gauss-2", 1.0), ("particle", "gauss-2", 0.8),
+                                              ("pendulum", "gauss-2", 0.5)])
+def test_attempts_between_waits_agree_with_newton(scene, method, h):
+    """``general_quasi_steps`` where converging attempts, fallbacks and waits alternate (the general
+    form of the particle and the pendulum; measured: h = 1, 13 converged attempts, 41 failed, 146
+    skipped; h = 0.8, 160 / 20 / 20; pendulum 176 / 12 / 12): every failed attempt sends at least
+    the next step straight to the Newton chain (the back-off is reset to 1, not 0, by a converged
+    attempt), the counters add up, and the trajectory is the Newton engine's within the bound of
+    the module docstring (measured at most 0.11 of it). Negative control: another method (gauss-3,
+    O(h^4) away) breaks the bound."""
+    sc = get_scene(scene)
+    t0, q0, v0 = sc.initial()
+    cs = compile_system(sc.system, form="general")
+    assert cs.form == "general"
+    n = 200
+    a = run_compiled(cs, method, t0, q0, v0, h, n, 1, kernel="spark")
+    b = run_quasi(cs, method, t0, q0, v0, h, n, 1)
+    st = b.stats
+    assert st["quasi_steps"] > 0 and st["quasi_skipped"] > 0, st
+    failed = st["multiplier_lu"] - st["quasi_steps"]
+    assert failed > 0 and st["quasi_fallbacks"] == failed + st["quasi_skipped"], st
+    assert st["quasi_skipped"] >= failed - 1, st
+    assert _difference(a, b) <= 1.0, _difference(a, b)
+    other = run_compiled(cs, "gauss-3", t0, q0, v0, h, n, 1, kernel="spark")
+    assert _difference(other, b) > 10.0, _difference(other, b)
+
+
+def test_the_carried_rate_grows_until_it_is_measured_again():
+    """The first-increment test's carried rate eta grows as max(eta, eps)^RATE_GROWTH (0.8) at every
+    step that does not measure it (``general_quasi_steps``, RADAU5's FACCON), so that a run of
+    one-increment steps soon takes a second increment and measures the rate again. relativistic,
+    gauss-3, h = 0.05, tol = 1e-6, 200 steps: 60 steps accepted on the carried rate (measured), so
+    at most half of them; an eta that shrank instead (eta * 0.8 per step) accepted 198, every step
+    after the first two. The trajectory is the Newton engine's (default tol) within 2 N tol scale
+    (the module docstring's bound with the run's tol for 8 eps). Control: the carried rate does
+    accept steps here (> 0), so the bound is not met by a run that never uses it."""
+    n, tol = 200, 1e-6
+    ref = ldaspark.integrate("relativistic", "gauss-3", h=0.05, n_steps=n, engine="compiled", newton="full")
+    r = ldaspark.integrate("relativistic", "gauss-3", h=0.05, n_steps=n, engine="compiled",
+                           newton=ldaspark.Newton(kind="quasi", tol=tol))
+    st = r.stats
+    assert st["root_finder"]["runs"] == "quasi" and st["quasi_fallbacks"] == 0, st
+    assert 0 < st["rate_first_steps"] <= n // 2, st
+    scale = max(1.0, float(np.abs(ref.q).max()), float(np.abs(ref.v).max()))
+    d = max(float(np.abs(r.q - ref.q).max()), float(np.abs(r.v - ref.v).max()))
+    assert d <= 2 * n * tol * scale, d
+
+
+@pytest.mark.parametrize("scene, method, h, lo, hi", [("relativistic", "gauss-4", 0.1, 1050, 1160),
+                                                      ("chaplygin-sleigh", "gauss-3", 0.1, 600, 670)])
+def test_the_velocity_block_is_frozen_at_each_stage(scene, method, h, lo, hi):
+    """The frozen block is L_vv at each stage's values (and at the end point for (21d)), which the
+    iteration's contraction rate, O(h |L_vq| / |L_vv| + h |Lambda| |K_v|), assumes: 200 steps at the
+    default tol take 1101 increments (relativistic, gauss-4, h = 0.1) and 638 (chaplygin-sleigh,
+    gauss-3, h = 0.1), measured; the band is about +-5%. L_vv taken at one point for all stages
+    (planted: the end point) converges to the same root but slower: 1317 and 698 increments, outside
+    it. Iteration counts are exact (no BLAS, no fast-math in the kernels). Control: the trajectory
+    is the Newton engine's within the bound of the module docstring (the count is not bought with
+    accuracy)."""
+    sc = get_scene(scene)
+    t0, q0, v0 = sc.initial()
+    cs = compile_system(sc.system)
+    assert cs.form == "general"
+    n = 200
+    a = run_compiled(cs, method, t0, q0, v0, h, n, 1, kernel="spark")
+    b = run_quasi(cs, method, t0, q0, v0, h, n, 1)
+    st = b.stats
+    assert st["quasi_fallbacks"] == 0 and lo <= st["quasi_iterations"] <= hi, st
+    assert _difference(a, b) <= 1.0, _difference(a, b)
+
+
+def _rheonomic_particle():
+    """A particle in a quadratic potential with the constraint v3 - (1 + t) q1 v1 = 0: k_q depends on t and
+    has a component along K = k_v (the h k_q(t1) term of the (21f) row of S is not zero)."""
+    import sympy
+
+    from ldaspark.core.system import LagrangianSystem
+    t = sympy.Symbol("t")
+    q, v = list(sympy.symbols("q1:4")), list(sympy.symbols("v1:4"))
+    L = (v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 - (q[0] ** 2 + q[1] ** 2) / 2
+    return LagrangianSystem(L, [v[2] - (1 + t) * q[0] * v[0]], q, v, t=t, name="rheonomic-particle")
+
+
+@pytest.mark.parametrize("method", ["gauss-2", "gauss-4", "lobatto-iiia-iiib-3"])
+def test_the_multiplier_matrix_is_the_newton_rows_through_the_frozen_blocks(method):
+    """``general_multiplier_matrix``'s S (factored in place) is the Schur complement of the frozen
+    matrix of the module docstring: S = C L^-1 B with C the constraint rows (21e, f) in Z, dv and B
+    the multiplier columns of rows (21b, d) of the kernels' exact Newton matrix (``general_eval``
+    with its Jacobian) at the same iterate, and L = diag(L_vv,1..s, L_vv,1) the Hessians that
+    evaluation took at the stage values and the end point. The trajectory tests cannot see S (any
+    S that lets the iteration contract gives the same root). Checked through the solve: |S y - r|_inf
+    <= 1e3 eps |S|_inf |y|_inf for y = S^-1 r from S's LU (backward stable; measured <= 4e-14).
+    relativistic (L_vv depends on v), ball-turntable and a particle with the constraint v3 = (1 + t)
+    q1 v1 in the general form (k_q depends on t, along K: frozen at t instead of t + h it misses the rows), a
+    random iterate x. Control: S built at 2 h misses the rows at h by far more (measured 8e-4 to
+    1.7e-2)."""
+    from ldaspark.compiled import kernels_general as KG
+    from ldaspark.compiled import kernels_quasi_general as KQG
+    from ldaspark.compiled import newton
+    from ldaspark.compiled.runner import kernel_spec
+    tab = kernel_spec(method, "spark")[1]
+    for scene in ("relativistic", "ball-turntable", "rheonomic particle"):
+        if scene == "rheonomic particle":
+            cs = compile_system(_rheonomic_particle(), form="general")
+            t0, q0 = 0.3, np.array([0.5, 0.2, 0.1])
+            v0 = np.array([0.4, -0.3, 1.3 * 0.5 * 0.4])        # v3 = (1 + t0) q1 v1
+        else:
+            sc = get_scene(scene)
+            cs = compile_system(sc.system)
+            t0, q0, v0 = sc.initial()
+            t0, q0, v0 = float(t0), np.array(q0, float), np.array(v0, float)
+        assert cs.form == "general"
+        s, n, m = tab[1].shape[0], cs.n, cs.m
+        sn, sm, NN = s * n, s * m, s * (n + m) + n
+        h = 0.05
+        x = np.random.default_rng(3).normal(scale=1e-2, size=NN)
+        ws = KG.workspace(s, n, m)
+        G, J = np.zeros(NN), np.zeros((NN, NN))
+        KG.general_eval(cs.model, tab, True, x, t0, q0, v0, h, cs.M, ws, G, J)
+        L = np.zeros((sn + n, sn + n))
+        for j in range(s):
+            L[j * n:(j + 1) * n, j * n:(j + 1) * n] = ws[8][j]
+        L[sn:, sn:] = ws[20]
+        con, rows = list(range(sn + n, NN)), list(range(sn + n))
+        vel, lam = list(range(sn)) + list(range(sn + sm, NN)), list(range(sn, sn + sm))
+        S = J[np.ix_(con, vel)] @ np.linalg.solve(L, J[np.ix_(rows, lam)])
+        r = np.random.default_rng(4).normal(size=sm)
+        for hq, ok in ((h, True), (2 * h, False)):
+            wq = KG.workspace(s, n, m)
+            KG.general_begin(cs.model, t0, q0, v0, wq)
+            KG.general_eval(cs.model, tab, False, x, t0, q0, v0, hq, cs.M, wq, np.zeros(NN), np.zeros((NN, NN)))
+            gw = KQG.general_quasi_workspace(s, n, m)
+            assert KQG.general_multiplier_matrix(cs.model, tab, hq, t0, x, wq, gw, np.zeros(8, dtype=np.int64))
+            y = r.copy()
+            newton.lu_solve(gw[7], gw[8], y)
+            bound = 1e3 * EPS * np.abs(S).sum(axis=1).max() * np.abs(y).max()
+            assert (np.abs(S @ y - r).max() <= bound) == ok, (scene, hq, np.abs(S @ y - r).max(), bound)
