@@ -34,6 +34,7 @@ from __future__ import annotations
 import ast
 import json
 import pathlib
+import re
 import subprocess
 import sys
 import tempfile
@@ -44,7 +45,7 @@ from ...core.errors import LdasparkError
 from ...core.io import atomic_write_json, atomic_write_text
 from ...executors import UnitsFailed
 from ..checkpoint import Checkpoint
-from .mutation import TIMEOUT, all_test_files, require_tests, run_catalogue, verdict_fingerprint
+from .mutation import TIMEOUT, all_test_files, refresh_helper_digests, require_tests, run_catalogue, verdict_fingerprint
 from .records import (MAX_SOURCE_BYTES, RecordError, read_bytes, names_existing_test, read_equivalent, read_id_list, read_json,
                       read_previous, read_text, sign_report)
 
@@ -89,6 +90,7 @@ class GenMutant:
         if text[self.start:self.end] != self.original:
             raise MutgenError(f"mutant {self.id}: source moved (expected {self.original!r} at line {self.line})")
         path.write_text(text[:self.start] + self.replacement + text[self.end:])
+        refresh_helper_digests(root)
         return path
 
     def mutated_source(self, text: str) -> str:
@@ -321,6 +323,24 @@ def definition_time_lines(rel: str) -> set:
     return out
 
 
+#: decorators under which numba compiles a function from its bytecode (the library's own
+#: ``cache.model_jit`` as ``_jit`` too): coverage.py never sees the body's lines run
+_JIT_NAME = re.compile(r"^(numba\.)?(njit|jit|cfunc|vectorize|guvectorize)$|^(_jit|model_jit)$")
+
+
+def compiled_body_lines(rel: str) -> set:
+    """Lines of the bodies of numba-compiled functions: they run as machine code, so coverage
+    records no test's context for them and the map alone would call every mutant there "not
+    covered" (every kernel mutant of ``compiled/kernels*.py``: probe t24, stop 65)."""
+    out = set()
+    for node in ast.walk(ast.parse(source_path(rel).read_text())):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and any(
+                _JIT_NAME.match(ast.unparse(d.func if isinstance(d, ast.Call) else d)) for d in node.decorator_list):
+            for st in node.body:
+                out.update(range(st.lineno, (st.end_lineno or st.lineno) + 1))
+    return out
+
+
 def statement_lines(rel: str) -> dict:
     """{line: the first line of the innermost statement containing it}: coverage.py records a
     statement that spans lines at its first line only, so a mutant on a continuation line is
@@ -464,6 +484,11 @@ def mapped_tests(relfile: str, project=PROJECT) -> list[str]:
         src = _source_text(pathlib.Path(project) / f)
         if any(p in src for p in pats[:2]) or (pats[2] in src and mod[0] in src):
             out.append(f)
+    if (pathlib.Path(project) / label(relfile)).is_file() and compiled_body_lines(relfile):
+        # numba-compiled code is exercised through the layer's public paths, which the files
+        # importing this module need not be: the tests of the layer (tests mirror the modules)
+        layer = "tests/" + relfile.split("/", 1)[0] + "/"
+        out += [f for f in all_test_files(project) if f.startswith(layer) and f not in out]
     for f in ALWAYS_MAPPED:
         if (pathlib.Path(project) / f).is_file() and f not in out:
             out.append(f)
@@ -660,7 +685,7 @@ def run_generated(args) -> int:
         print(f"[mutgen] coverage of {len(files)} modules -> {outdir}/coverage-checking.md")
     if getattr(args, "coverage_only", False):
         return 0
-    todo, recs_fixed, targets, deftime, stmts = [], {}, {}, {}, {}
+    todo, recs_fixed, targets, deftime, stmts, jitted, importers = [], {}, {}, {}, {}, {}, {}
     fcost = _file_costs(durations)
     for m in mutants:
         if m.id in equivalent:
@@ -669,15 +694,21 @@ def run_generated(args) -> int:
         if m.file not in deftime:
             deftime[m.file] = definition_time_lines(m.file)
             stmts[m.file] = statement_lines(m.file)
+            jitted[m.file] = compiled_body_lines(m.file)
         line = m.line if m.line in cmap.get(m.file, {}) else stmts[m.file].get(m.line, m.line)
         ids = [i for i in cmap.get(m.file, {}).get(line, []) if i not in failed]
         module_level = m.id.split("::")[1] == "<module>"
         at_import = line in cmap.get(m.file, {}) and (not ids or m.line in deftime[m.file])
+        if m.line in jitted[m.file]:
+            # compiled by numba: no context can name a test; the mapped files decide, run whole
+            at_import = True
         if at_import:
             # evaluated at import: a module constant, a default value, a decorator. The contexts
             # name only a test that happened to import the module first; the mapped test files
             # that import it decide it, run whole (after the tests of the contexts)
-            ids = ids + [f for f in mapped_tests(m.file) if f in tests and f not in ALWAYS_MAPPED]
+            if m.file not in importers:
+                importers[m.file] = mapped_tests(m.file)
+            ids = ids + [f for f in importers[m.file] if f in tests and f not in ALWAYS_MAPPED and f not in ids]
         if not ids:
             recs_fixed[m.id] = _rec(m, "not-covered", None, 0.0)
             continue

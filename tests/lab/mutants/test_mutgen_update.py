@@ -308,3 +308,72 @@ def test_a_continuation_line_is_looked_up_at_its_statements_first_line(monkeypat
                                  mutant_timeout=None, coverage_only=False, scheduler=None)
     mutgen.run_generated(args)
     assert ran[m.id][0] == "tests/test_x.py::test_us"
+
+
+def test_a_mutant_in_a_numba_compiled_body_is_run_against_the_layers_tests_not_called_not_covered(monkeypatch, tmp_path):
+    """numba compiles a kernel from its bytecode: coverage records no context for its lines, and
+    every mutant of compiled/kernels_quasi.py was reported "not covered" and never run (probe
+    t24). Such a mutant now runs the files that import the module and the compiled layer's tests
+    (tests/compiled/, e.g. test_kahan.py, which reaches the kernel through the public path only).
+    Control: with the compiled bodies unknown (the rule before) the same mutant is not run."""
+    rel = "compiled/kernels_quasi.py"
+    jitted = mutgen.compiled_body_lines(rel)
+    ms = mutgen.generate(rel, check=False)
+    inner = next(m for m in ms if m.id.split("::")[1] == "quasi_steps" and m.line in jitted)
+    mapped = [f for f in mutgen.mapped_tests(rel) if f not in mutgen.ALWAYS_MAPPED]
+    assert "tests/compiled/test_kahan.py" in mapped and "tests/compiled/test_kernels_quasi.py" in mapped
+    for rule in (True, False):
+        if not rule:
+            monkeypatch.setattr(mutgen, "compiled_body_lines", lambda rel: set())
+        ran = {}
+        _fake_run(monkeypatch, tmp_path, {rel: {}}, mapped, ran)
+        args = types.SimpleNamespace(generated=[rel], outdir=str(tmp_path / str(rule)), tests=",".join(mapped), jobs=1,
+                                     only=inner.id, keep_killed=None, sample=None, kinds=None, limit=None, fresh=True,
+                                     mutant_timeout=None, coverage_only=False, scheduler=None)
+        mutgen.run_generated(args)
+        if rule:
+            assert set(mapped) <= set(ran[inner.id])
+        else:
+            assert inner.id not in ran                               # "not covered", never run
+
+
+def test_compiled_body_lines_are_the_bodies_of_jitted_functions(monkeypatch, tmp_path):
+    src = ('import numba\n\n\n@numba.njit(cache=True, _nrt=False)\ndef k(x):\n    return x + 1\n\n\n'
+           '@_jit(nogil=True)\ndef g(x):\n    y = x\n    return y\n\n\ndef p(x):\n    return x - 1\n')
+    (tmp_path / "verification").mkdir()
+    (tmp_path / "verification" / "kmod.py").write_text(src)
+    monkeypatch.setattr(mutgen, "PROJECT", tmp_path)
+    assert mutgen.compiled_body_lines("verification/kmod.py") == {6, 11, 12}
+
+
+def test_a_helper_mutant_keeps_the_kernels_digest_record_true(tmp_path):
+    """A mutant of a kernel's helper (newton.py) changed the digest kernels.py records, and the
+    record's test killed it for that alone. ``refresh_helper_digests`` recomputes every kernel's
+    digest in the copy, kernels_quasi's (which hashes kernels.py, digest line included) after
+    kernels.py's. Control: without the refresh the record is stale."""
+    import hashlib
+    import re
+    import shutil
+    from ldaspark.lab.mutants.mutation import refresh_helper_digests
+    src = mutgen.PROJECT / "ldaspark" / "compiled"
+    dst = tmp_path / "ldaspark" / "compiled"
+    shutil.copytree(src, dst, ignore=shutil.ignore_patterns("__pycache__"))
+
+    def stale():
+        out = []
+        for p in sorted(dst.glob("kernels*.py")):
+            text = p.read_text()
+            m = re.search(r"^HELPERS = \((.*?)\)\n", text, re.S | re.M)
+            if m is None:
+                continue
+            h = hashlib.sha256()
+            for name in re.findall(r'"([^"]+)"', m.group(1)):
+                h.update((dst / name).read_bytes())
+            if f'HELPERS_SHA256 = "{h.hexdigest()}"' not in text:
+                out.append(p.name)
+        return out
+    assert stale() == [] and refresh_helper_digests(tmp_path) == []
+    (dst / "newton.py").write_text((dst / "newton.py").read_text().replace("theta", "theta_", 1))
+    assert {"kernels.py", "kernels_quasi.py", "kernels_quasi_general.py"} <= set(stale())
+    changed = refresh_helper_digests(tmp_path)
+    assert stale() == [] and "kernels.py" in changed and "kernels_quasi.py" in changed
