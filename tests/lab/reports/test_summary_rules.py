@@ -299,6 +299,10 @@ def test_test_run_values_quote_the_latest_record_of_each_kind():
     assert v["tests.newcomer.rc"] == "0 and 0" and v["tests.newcomer.first"] == "213 s"
     assert v["tests.newcomer.main_job"] == "179 s wall, 326 s CPU" and v["tests.newcomer.passed"] == "4545"
     assert summary.quote_kind("tests.ci.passed") == "exact"
+    # a failed CI run has no mutation record (.ci/run stops at the tests): README's mark says so,
+    # not an unknown key (3 README tests failed on such a record in stop 65)
+    failed = summary.test_run_values({"runs": d["runs"][:2]})
+    assert failed["tests.ci.rc"] == "1" and failed["tests.ci.mutants"].startswith("none run")
 
 
 def test_test_runs_parses_pytests_last_summary_line():
