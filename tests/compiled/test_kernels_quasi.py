@@ -21,7 +21,7 @@ from ldaspark.compiled.quasi import extrapolation, run_quasi
 from ldaspark.core.errors import InputError
 from ldaspark.core.system import LagrangianSystem
 from ldaspark.models.scenes import get_scene
-from quasi_helpers import EPS, trajectory_difference as _difference
+from quasi_helpers import EPS, trajectory_difference as _difference, waits as _waits
 
 MECH_SCENES = ("particle", "skate", "robot", "mp-particles", "mp-particles-nh", "pendulum", "rolling-disk",
                "rheonomic-skate", "turntable", "contact-oscillator")
@@ -470,21 +470,6 @@ def _quartic():
     return compile_system(LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name="quartic-particle-1/4"))
 
 
-def _waits(n_steps):
-    """(attempts, skipped) of ``quasi_steps``' wait rule when every attempt fails: after a failure
-    the next `wait` steps go to the Newton chain, wait = backoff, backoff doubling up to
-    QUASI_WAIT_MAX (a Python model of IS_WAIT / IS_BACKOFF)."""
-    wait, backoff, attempts, skipped = 0, 1, 0, 0
-    for _ in range(n_steps):
-        if wait > 0:
-            wait -= 1
-            skipped += 1
-        else:
-            attempts += 1
-            wait, backoff = backoff, min(2 * backoff, KQ.QUASI_WAIT_MAX)
-    return attempts, skipped
-
-
 @pytest.mark.filterwarnings("ignore::DeprecationWarning")
 def test_the_wait_after_failed_attempts_continues_across_refreshes():
     """A stiff varying spring, U = 5000 r^2 + 2000 r^4 (r^2 = q1^2 + q2^2), gauss-2, h = 0.2: no
@@ -575,7 +560,6 @@ def test_a_failed_refresh_leaves_its_step_to_the_mass_block_and_the_next_step_re
     assert _difference(a, b) <= 1.0
     ctl = run_quasi(cs, method, 0.0, q0, v0, 0.25, n).stats
     assert ctl["curvature_refreshes"] == 1 and ctl["curvature_steps"] == n, ctl
-
 
 
 def _particle_with_a_moving_stiffness(h, v4, alternating):

@@ -21,7 +21,7 @@ from ldaspark.core.errors import InputError
 from ldaspark.models.scenes import get_scene
 from verification.harness import SEED, agreement_tol, saddle_cond
 from verification.strategies import general_systems
-from quasi_helpers import EPS, trajectory_difference as _difference
+from quasi_helpers import EPS, trajectory_difference as _difference, waits as _waits
 
 N, H = 200, 0.05
 
@@ -121,21 +121,6 @@ def _stiff(w2):
     q, v = list(sympy.symbols("q1:4")), list(sympy.symbols("v1:4"))
     L = (v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 - sympy.Integer(w2) / 2 * (q[0] ** 2 + q[1] ** 2)
     return LagrangianSystem(L, [v[2] - q[1] * v[0]], q, v, name=f"stiff-particle-{w2}")
-
-
-def _waits(n_steps, wait_max=64):
-    """(attempts, skipped) of the wait rule when every attempt fails (``kernels_quasi.QS_SKIPPED``:
-    after a failure the next `wait` steps go to the Newton chain, wait = backoff, backoff doubling
-    up to QUASI_WAIT_MAX = 64), a Python model of IS_WAIT / IS_BACKOFF."""
-    wait, backoff, attempts, skipped = 0, 1, 0, 0
-    for _ in range(n_steps):
-        if wait > 0:
-            wait -= 1
-            skipped += 1
-        else:
-            attempts += 1
-            wait, backoff = backoff, min(2 * backoff, wait_max)
-    return attempts, skipped
 
 
 @pytest.mark.parametrize("w2, all_fall_back", [(10000, True), (4, False)])

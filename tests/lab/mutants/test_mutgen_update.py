@@ -141,6 +141,13 @@ def test_arcs_are_written_line_to_line_and_exits_named():
     assert mutgen._arc_text({}) == ""
 
 
+def _args(rel, outdir, tests, only=None, keep_killed=None, sample=None):
+    """The parsed command line of ``ldaspark mutants --generated REL`` as ``run_generated`` takes it."""
+    return types.SimpleNamespace(generated=[rel], outdir=outdir, tests=tests, jobs=1, only=only,
+                                 keep_killed=keep_killed, sample=sample, kinds=None, limit=None, fresh=True,
+                                 mutant_timeout=None, coverage_only=False, scheduler=None)
+
+
 def _fake_run(monkeypatch, tmp_path, cmap, tests, ran):
     """run_generated with the coverage run and the mutant runs replaced: ``ran`` gets the
     targets of each mutant run; every mutant run is reported killed by its first target."""
@@ -170,9 +177,7 @@ def test_a_module_constant_executed_at_import_is_run_against_the_files_importing
     cmap = {rel: {const.line: [], inner.line: ["tests/test_x.py::test_y"]}}
     ran = {}
     _fake_run(monkeypatch, tmp_path, cmap, mapped, ran)
-    args = types.SimpleNamespace(generated=[rel], outdir=str(tmp_path), tests=",".join(mapped), jobs=1,
-                                 only=f"{const.id},{inner.id}", keep_killed=None, sample=None, kinds=None,
-                                 limit=None, fresh=True, mutant_timeout=None, coverage_only=False, scheduler=None)
+    args = _args(rel, str(tmp_path), ",".join(mapped), only=f"{const.id},{inner.id}")
     assert mutgen.run_generated(args) == 0
     files_run = [t for t in ran[const.id] if not t.startswith("--deselect")]
     assert set(mapped) <= set(files_run)                       # the importing files, run whole
@@ -214,9 +219,7 @@ def test_kills_of_several_earlier_reports_are_kept_outside_the_sample(monkeypatc
                                          dict(mutgen._rec(ms[-3], "killed", "tests/no_such_file.py::t", 1.0))]})))
     ran = {}
     _fake_run(monkeypatch, tmp_path, cmap, ["tests/compiled/test_kahan.py"], ran)
-    args = types.SimpleNamespace(generated=[rel], outdir=str(tmp_path / "out"), tests="tests/compiled/test_kahan.py", jobs=1,
-                                 only=None, keep_killed=f"{a},{b}", sample=2, kinds=None, limit=None, fresh=True,
-                                 mutant_timeout=None, coverage_only=False, scheduler=None)
+    args = _args(rel, str(tmp_path / "out"), "tests/compiled/test_kahan.py", keep_killed=f"{a},{b}", sample=2)
     assert mutgen.run_generated(args) == 0
     doc = json.loads((tmp_path / "out" / "mutation-generated.json").read_text())
     rec = {r["mutant"]: r for r in doc["mutants"]}
@@ -246,9 +249,7 @@ def test_the_sample_is_drawn_from_every_mutant_whatever_the_coverage(monkeypatch
         cmap = {rel: {ln: ["tests/compiled/test_kahan.py::test_x"] for ln in covered_lines}}
         ran = {}
         _fake_run(monkeypatch, tmp_path, cmap, ["tests/compiled/test_kahan.py"], ran)
-        args = types.SimpleNamespace(generated=[rel], outdir=str(tmp_path / f"o{len(runs)}"), tests="tests/compiled/test_kahan.py",
-                                     jobs=1, only=None, keep_killed=None, sample=6, kinds=None, limit=None, fresh=True,
-                                     mutant_timeout=None, coverage_only=False, scheduler=None)
+        args = _args(rel, str(tmp_path / f"o{len(runs)}"), "tests/compiled/test_kahan.py", sample=6)
         mutgen.run_generated(args)
         doc = json.loads((tmp_path / f"o{len(runs)}" / "mutation-generated.json").read_text())
         runs.append((set(ran), {r["mutant"] for r in doc["mutants"] if r["status"] == "not-covered"}))
@@ -279,9 +280,7 @@ def test_a_default_value_is_decided_by_the_importing_files_even_when_a_test_impo
     cmap = {rel: {m.line: ["tests/test_x.py::test_imports_it"]}}
     ran = {}
     _fake_run(monkeypatch, tmp_path, cmap, mapped, ran)
-    args = types.SimpleNamespace(generated=[rel], outdir=str(tmp_path), tests=",".join(mapped), jobs=1, only=m.id,
-                                 keep_killed=None, sample=None, kinds=None, limit=None, fresh=True,
-                                 mutant_timeout=None, coverage_only=False, scheduler=None)
+    args = _args(rel, str(tmp_path), ",".join(mapped), only=m.id)
     mutgen.run_generated(args)
     assert "tests/test_x.py::test_imports_it" in ran[m.id] and set(mapped) <= set(ran[m.id])
 
@@ -303,9 +302,7 @@ def test_a_continuation_line_is_looked_up_at_its_statements_first_line(monkeypat
     cmap = {rel: {st[m.line]: ["tests/test_x.py::test_us"]}}
     ran = {}
     _fake_run(monkeypatch, tmp_path, cmap, ["tests/project/test_readme.py"], ran)
-    args = types.SimpleNamespace(generated=[rel], outdir=str(tmp_path), tests="tests/project/test_readme.py", jobs=1,
-                                 only=m.id, keep_killed=None, sample=None, kinds=None, limit=None, fresh=True,
-                                 mutant_timeout=None, coverage_only=False, scheduler=None)
+    args = _args(rel, str(tmp_path), "tests/project/test_readme.py", only=m.id)
     mutgen.run_generated(args)
     assert ran[m.id][0] == "tests/test_x.py::test_us"
 
@@ -330,9 +327,7 @@ def test_a_mutant_in_a_numba_compiled_body_is_run_against_the_layers_tests_not_c
             monkeypatch.setattr(mutgen, "compiled_body_lines", lambda rel: set())
         ran = {}
         _fake_run(monkeypatch, tmp_path, {rel: {}}, mapped, ran)
-        args = types.SimpleNamespace(generated=[rel], outdir=str(tmp_path / str(rule)), tests=",".join(mapped), jobs=1,
-                                     only=inner.id, keep_killed=None, sample=None, kinds=None, limit=None, fresh=True,
-                                     mutant_timeout=None, coverage_only=False, scheduler=None)
+        args = _args(rel, str(tmp_path / str(rule)), ",".join(mapped), only=inner.id)
         mutgen.run_generated(args)
         if rule:
             assert set(mapped) <= set(ran[inner.id])
